@@ -1,0 +1,173 @@
+//! Results of a simulation: the state at every output time, and the derived quantities users
+//! ask for (joint reactions, sensors, energies, constraint violation), stored as flat
+//! time-major arrays (`[output index][item]`).
+
+use crate::body::marker::marker_accelerations;
+use crate::body::{point_mass, rigid, BodyKind};
+use crate::force::gravity::gravity_potential;
+use crate::force::{force_potential, ForceEnv};
+use crate::joint::equation::equation_value;
+use crate::joint::reaction::joint_reaction;
+use crate::solver::assembly::{joint_pair, update_kinematics};
+use crate::system::sensor::SensorQuantity;
+use crate::system::{Model, State, Workspace};
+
+/// Counters of a run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Statistics {
+    /// Accepted steps.
+    pub steps: usize,
+    /// Rejected step attempts (Newton failure or error test).
+    pub rejected_steps: usize,
+    /// Newton iterations over all attempts.
+    pub newton_iterations: usize,
+    /// Numeric factorizations of the Newton matrix.
+    pub factorizations: usize,
+    /// Smallest step size used (s).
+    pub min_step_size_used: f64,
+    /// Largest step size used (s).
+    pub max_step_size_used: f64,
+}
+
+/// Recorded results.
+#[derive(Clone, Debug, Default)]
+pub struct Output {
+    /// Number of coordinates per record.
+    pub coordinate_count: usize,
+    /// Number of multipliers per record.
+    pub constraint_count: usize,
+    /// Number of joints.
+    pub joint_count: usize,
+    /// Output times (s).
+    pub time: Vec<f64>,
+    /// q, time-major (records x coordinates).
+    pub coordinates: Vec<f64>,
+    /// q_dot.
+    pub velocities: Vec<f64>,
+    /// q_dd.
+    pub accelerations: Vec<f64>,
+    /// lambda (records x constraints).
+    pub multipliers: Vec<f64>,
+    /// Per record and joint: force (3) and torque (3) on marker j's body at marker j, in
+    /// marker j's axes (records x joints x 6).
+    pub reactions: Vec<f64>,
+    /// Sensor values, per record the sensors' values concatenated.
+    pub sensors: Vec<f64>,
+    /// Offset of each sensor within a record's sensor values; last entry = record width.
+    pub sensor_offsets: Vec<usize>,
+    /// Kinetic and potential energy (records x 2), J.
+    pub energy: Vec<f64>,
+    /// Largest absolute position-level constraint violation per record.
+    pub constraint_violation: Vec<f64>,
+    /// Counters.
+    pub statistics: Statistics,
+}
+
+impl Output {
+    /// Empty output for `model`.
+    pub fn new(model: &Model) -> Self {
+        let mut offsets = vec![0];
+        for s in &model.sensors {
+            offsets.push(offsets.last().unwrap() + s.quantity.size());
+        }
+        Output {
+            coordinate_count: model.coordinate_count,
+            constraint_count: model.constraint_count,
+            joint_count: model.joints.len(),
+            sensor_offsets: offsets,
+            ..Default::default()
+        }
+    }
+
+    /// Number of records.
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+
+    /// True if nothing was recorded.
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+
+    /// Appends a record of `state`. Updates the workspace's marker kinematics.
+    pub fn record(&mut self, model: &Model, state: &State, ws: &mut Workspace) {
+        let (q, qd, qdd) = (&state.coordinates, &state.velocities, &state.accelerations);
+        update_kinematics(model, q, qd, ws);
+        self.time.push(state.time);
+        self.coordinates.extend_from_slice(q);
+        self.velocities.extend_from_slice(qd);
+        self.accelerations.extend_from_slice(qdd);
+        self.multipliers.extend_from_slice(&state.multipliers);
+
+        // Reactions and constraint violation.
+        let mut violation = 0.0f64;
+        for nz in &model.normalizations {
+            let pp: f64 = nz.dofs.iter().map(|&d| q[d] * q[d]).sum();
+            violation = violation.max((pp - 1.0).abs());
+        }
+        for j in 0..model.joints.len() {
+            let joint = &model.joints[j];
+            let driver = joint.driver_values(state.time).unwrap_or([f64::NAN; 3]);
+            let mut scratch = std::mem::take(&mut ws.joints[j].scratch);
+            let pair = joint_pair(model, &ws.markers, j);
+            for eq in &joint.equations {
+                violation = violation.max(equation_value(eq, &pair, &driver)[0].abs());
+            }
+            let lambda = &state.multipliers[joint.row..joint.row + joint.equations.len()];
+            let (force, torque) = joint_reaction(joint, &pair, &driver, lambda, q, &mut scratch);
+            ws.joints[j].scratch = scratch;
+            self.reactions.extend_from_slice(&force.0);
+            self.reactions.extend_from_slice(&torque.0);
+        }
+        self.constraint_violation.push(violation);
+
+        // Sensors.
+        for s in &model.sensors {
+            let m = &model.markers[s.marker.0];
+            let body = &model.bodies[m.body.0];
+            let kin = &ws.markers[s.marker.0];
+            match s.quantity {
+                SensorQuantity::Position => self.sensors.extend_from_slice(&kin.position.0),
+                SensorQuantity::Velocity => self.sensors.extend_from_slice(&kin.velocity.0),
+                SensorQuantity::Orientation => {
+                    for row in kin.rotation.0 {
+                        self.sensors.extend_from_slice(&row);
+                    }
+                }
+                SensorQuantity::AngularVelocity => self.sensors.extend_from_slice(&kin.angular_velocity.0),
+                SensorQuantity::Acceleration | SensorQuantity::AngularAcceleration => {
+                    let (acc, ang) = marker_accelerations(body, m, q, qd, qdd);
+                    let v = if s.quantity == SensorQuantity::Acceleration { acc } else { ang };
+                    self.sensors.extend_from_slice(&v.0);
+                }
+            }
+        }
+
+        // Energies.
+        let mut kinetic = 0.0;
+        let mut potential = 0.0;
+        for body in &model.bodies {
+            let o = body.offset;
+            kinetic += match &body.kind {
+                BodyKind::Ground => 0.0,
+                BodyKind::Rigid(rb) => rigid::kinetic_energy(rb, &q[o..], &qd[o..]),
+                BodyKind::PointMass { mass } => point_mass::kinetic_energy(*mass, &qd[o..]),
+            };
+            potential += gravity_potential(body, q, &model.gravity);
+        }
+        let env = ForceEnv {
+            bodies: &model.bodies,
+            markers: &model.markers,
+            kinematics: &ws.markers,
+            q,
+            qd,
+            time: state.time,
+            discrete: &state.discrete,
+        };
+        for f in &model.forces {
+            potential += force_potential(f, &env);
+        }
+        self.energy.push(kinetic);
+        self.energy.push(potential);
+    }
+}

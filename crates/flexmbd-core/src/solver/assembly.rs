@@ -1,0 +1,324 @@
+//! Assembly of the residual and of the Newton matrix of the augmented formulation
+//! (seed eqs. 20 and 26):
+//!
+//!   r(q, q_dot, q_dd, lambda, t) = M(q) q_dd - F(q, q_dot) - Q_e(q, q_dot, t) + C_q^T lambda
+//!   Phi(q, t) = C(q, t)
+//!
+//! and of the matrix [[s (m M + v D + p K + i I), C_q^T], [C_q, 0]] where D = dr/dq_dot,
+//! K = dr/dq (including the constraint Hessian term sum lambda_e C_e,qq and the force
+//! Jacobians), and the coefficients (m, v, p, i, s) select the use: the generalized-alpha
+//! Newton matrix, the acceleration system of seed eq. 26, or the projections onto the
+//! constraint manifold.
+
+use crate::body::marker::{marker_kinematics, MarkerKinematics};
+use crate::body::{point_mass, rigid, BodyKind};
+use crate::error::{FlexmbdError, Result};
+use crate::force::gravity::{add_gravity_force, gravity_jacobian};
+use crate::force::{evaluate_force, ForceEnv};
+use crate::joint::equation::{equation_gradient, equation_hessian, equation_value, MarkerPair};
+use crate::system::{Model, Workspace};
+
+/// Coefficients of the blocks of the assembled matrix.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MatrixCoefficients {
+    /// Factor of the mass matrix M = dr/dq_dd.
+    pub mass: f64,
+    /// Factor of D = dr/dq_dot.
+    pub velocity: f64,
+    /// Factor of K = dr/dq.
+    pub position: f64,
+    /// Factor of the identity.
+    pub identity: f64,
+    /// Scale of the whole coordinate block (constraint scaling).
+    pub scale: f64,
+}
+
+impl MatrixCoefficients {
+    /// [[M, C_q^T], [C_q, 0]] of seed eq. 26.
+    pub const ACCELERATION: MatrixCoefficients =
+        MatrixCoefficients { mass: 1.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 };
+    /// [[I, C_q^T], [C_q, 0]] of the minimum-norm projections.
+    pub const PROJECTION: MatrixCoefficients =
+        MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 0.0, identity: 1.0, scale: 1.0 };
+}
+
+/// The marker pair of joint `j`.
+pub fn joint_pair<'a>(model: &'a Model, kinematics: &'a [MarkerKinematics], j: usize) -> MarkerPair<'a> {
+    let joint = &model.joints[j];
+    let (a, b) = (joint.markers[0].0, joint.markers[1].0);
+    MarkerPair {
+        body_i: &model.bodies[model.markers[a].body.0],
+        marker_i: &model.markers[a],
+        kin_i: &kinematics[a],
+        body_j: &model.bodies[model.markers[b].body.0],
+        marker_j: &model.markers[b],
+        kin_j: &kinematics[b],
+    }
+}
+
+/// Fills the kinematics of every marker.
+pub fn update_kinematics(model: &Model, q: &[f64], qd: &[f64], ws: &mut Workspace) {
+    for (k, m) in model.markers.iter().enumerate() {
+        marker_kinematics(&model.bodies[m.body.0], m, q, qd, &mut ws.markers[k]);
+    }
+}
+
+/// The state vectors an assembly reads.
+#[derive(Clone, Copy)]
+pub struct StateView<'a> {
+    /// Time.
+    pub time: f64,
+    /// Coordinates.
+    pub q: &'a [f64],
+    /// Velocities.
+    pub qd: &'a [f64],
+    /// Accelerations.
+    pub qdd: &'a [f64],
+    /// Multipliers.
+    pub lambda: &'a [f64],
+    /// Discrete variables.
+    pub discrete: &'a [f64],
+}
+
+/// Assembles the residual into `ws.residual` and, if `matrix` is given, the Newton matrix into
+/// `ws.values`. Updates the marker kinematics first.
+pub fn assemble(
+    model: &Model,
+    s: StateView,
+    ws: &mut Workspace,
+    matrix: Option<MatrixCoefficients>,
+) -> Result<()> {
+    let nq = model.coordinate_count;
+    update_kinematics(model, s.q, s.qd, ws);
+    ws.residual.iter_mut().for_each(|x| *x = 0.0);
+    if matrix.is_some() {
+        ws.values.iter_mut().for_each(|x| *x = 0.0);
+    }
+    let c = matrix.unwrap_or(MatrixCoefficients {
+        mass: 0.0,
+        velocity: 0.0,
+        position: 0.0,
+        identity: 0.0,
+        scale: 0.0,
+    });
+    let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
+
+    // Bodies: inertia forces minus gravity, and their Jacobians.
+    for (bi, body) in model.bodies.iter().enumerate() {
+        let nb = body.dofs.len();
+        if nb == 0 {
+            continue;
+        }
+        let o = body.offset;
+        let f = &mut ws.body_force[..nb];
+        match &body.kind {
+            BodyKind::Rigid(rb) => rigid::inertia_force(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], f),
+            BodyKind::PointMass { mass } => point_mass::inertia_force(*mass, &s.qdd[o..], f),
+            BodyKind::Ground => {}
+        }
+        for v in f.iter_mut() {
+            *v = -*v;
+        }
+        add_gravity_force(body, s.q, &model.gravity, f);
+        for k in 0..nb {
+            ws.residual[o + k] -= f[k];
+        }
+        if matrix.is_some() {
+            let idx = &model.layout.bodies[bi];
+            if needs_tangent {
+                match &body.kind {
+                    BodyKind::Rigid(rb) => {
+                        rigid::inertia_tangent(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], &mut ws.rigid);
+                        let g = gravity_jacobian(body, &model.gravity).expect("rigid body");
+                        for a in 0..7 {
+                            for b in 0..7 {
+                                let mut k = ws.rigid.position[a][b];
+                                if a >= 3 && b >= 3 {
+                                    k -= g[a - 3][b - 3];
+                                }
+                                ws.values[idx[a * 7 + b]] += c.scale
+                                    * (c.mass * ws.rigid.mass[a][b]
+                                        + c.velocity * ws.rigid.velocity[a][b]
+                                        + c.position * k);
+                            }
+                        }
+                    }
+                    BodyKind::PointMass { mass } => {
+                        for a in 0..3 {
+                            ws.values[idx[a * 3 + a]] += c.scale * c.mass * mass;
+                        }
+                    }
+                    BodyKind::Ground => {}
+                }
+            }
+            if c.identity != 0.0 {
+                for a in 0..nb {
+                    ws.values[idx[a * nb + a]] += c.scale * c.identity;
+                }
+            }
+        }
+    }
+
+    // Euler-parameter normalization p.p - 1 = 0.
+    for (k, nz) in model.normalizations.iter().enumerate() {
+        let lambda = s.lambda[nz.row];
+        let mut pp = 0.0;
+        for (a, &d) in nz.dofs.iter().enumerate() {
+            let p = s.q[d];
+            pp += p * p;
+            ws.residual[d] += 2.0 * p * lambda;
+            if matrix.is_some() {
+                let e = &model.layout.normalizations[k];
+                ws.values[e[a]] += 2.0 * p;
+                ws.values[e[4 + a]] += 2.0 * p;
+                let diag = model.layout.bodies[nz.body.0][(3 + a) * 7 + 3 + a];
+                ws.values[diag] += c.scale * c.position * 2.0 * lambda;
+            }
+        }
+        ws.residual[nq + nz.row] = pp - 1.0;
+    }
+
+    // Joints: C, C_q^T lambda, C_q and the Hessian term.
+    for j in 0..model.joints.len() {
+        let joint = &model.joints[j];
+        let driver = joint.driver_values(s.time)?;
+        let pair = joint_pair(model, &ws.markers, j);
+        let local = &mut ws.joints[j];
+        local.driver = driver;
+        local.jacobian.fill_zero();
+        let ne = joint.equations.len();
+        let nd = joint.dofs.len();
+        for (e, eq) in joint.equations.iter().enumerate() {
+            local.values[e] = equation_value(eq, &pair, &driver)[0];
+            let row = &mut local.jacobian.data[e * nd..(e + 1) * nd];
+            equation_gradient(eq, &pair, &driver, 1.0, row, None);
+        }
+        if matrix.is_some() && c.position != 0.0 {
+            local.hessian.fill_zero();
+            for (e, eq) in joint.equations.iter().enumerate() {
+                let lambda = s.lambda[joint.row + e];
+                if lambda != 0.0 {
+                    equation_hessian(eq, &pair, &driver, lambda, &mut local.hessian);
+                }
+            }
+        }
+        for e in 0..ne {
+            ws.residual[nq + joint.row + e] = local.values[e];
+            let lambda = s.lambda[joint.row + e];
+            for (a, &d) in joint.dofs.iter().enumerate() {
+                ws.residual[d] += local.jacobian.data[e * nd + a] * lambda;
+            }
+        }
+        if matrix.is_some() {
+            let entries = &model.layout.joints[j];
+            for (k, &v) in local.jacobian.data.iter().enumerate() {
+                ws.values[entries.jacobian[k]] += v;
+                ws.values[entries.jacobian_transpose[k]] += v;
+            }
+            if c.position != 0.0 {
+                for (k, &v) in local.hessian.data.iter().enumerate() {
+                    ws.values[entries.hessian[k]] += c.scale * c.position * v;
+                }
+            }
+        }
+    }
+
+    // Applied force elements.
+    if !model.forces.is_empty() {
+        let env = ForceEnv {
+            bodies: &model.bodies,
+            markers: &model.markers,
+            kinematics: &ws.markers,
+            q: s.q,
+            qd: s.qd,
+            time: s.time,
+            discrete: s.discrete,
+        };
+        for (k, force) in model.forces.iter().enumerate() {
+            let local = &mut ws.forces[k];
+            evaluate_force(force, &env, local, needs_tangent && matrix.is_some())?;
+            for (a, &d) in force.dofs.iter().enumerate() {
+                ws.residual[d] -= local.generalized[a];
+            }
+            if matrix.is_some() && needs_tangent {
+                let idx = &model.layout.forces[k];
+                for (m, (&kv, &dv)) in local.stiffness.data.iter().zip(&local.damping.data).enumerate() {
+                    ws.values[idx[m]] += c.scale * (c.position * kv + c.velocity * dv);
+                }
+            }
+        }
+    }
+
+    if let Some(k) = ws.residual.iter().position(|x| !x.is_finite()) {
+        let item = if k < nq { model.coordinate_name(k) } else { model.constraint_name(k - nq) };
+        return Err(FlexmbdError::NonFinite { item: format!("the equation of {item}"), time: s.time });
+    }
+    Ok(())
+}
+
+/// Time derivatives of the constraints: C_t into `ct` and, if `gamma` is given, the
+/// acceleration right-hand side gamma = -(q_dot^T C_qq q_dot + 2 C_qt q_dot + C_tt) of seed
+/// eq. 25, C_q q_dd = gamma. Uses the kinematics and driver values of the last `assemble`.
+pub fn constraint_time_terms(
+    model: &Model,
+    s: StateView,
+    ws: &mut Workspace,
+    ct: &mut [f64],
+    mut gamma: Option<&mut [f64]>,
+) -> Result<()> {
+    ct.iter_mut().for_each(|x| *x = 0.0);
+    for nz in &model.normalizations {
+        if let Some(g) = gamma.as_deref_mut() {
+            g[nz.row] = -2.0 * nz.dofs.iter().map(|&d| s.qd[d] * s.qd[d]).sum::<f64>();
+        }
+    }
+    for j in 0..model.joints.len() {
+        let joint = &model.joints[j];
+        let driver = joint.driver_values(s.time)?;
+        let nd = joint.dofs.len();
+        // Local velocities of the joint's coordinates.
+        let mut qd_local = std::mem::take(&mut ws.joints[j].scratch);
+        for (a, &d) in joint.dofs.iter().enumerate() {
+            qd_local[a] = s.qd[d];
+        }
+        let pair = joint_pair(model, &ws.markers, j);
+        for (e, eq) in joint.equations.iter().enumerate() {
+            let v = equation_value(eq, &pair, &driver);
+            ct[joint.row + e] = v[1];
+            if let Some(g) = gamma.as_deref_mut() {
+                let mut h = crate::math::dense::DenseMatrix::zeros(nd, nd);
+                equation_hessian(eq, &pair, &driver, 1.0, &mut h);
+                let mut grad = vec![0.0; nd];
+                let mut grad_t = vec![0.0; nd];
+                equation_gradient(eq, &pair, &driver, 1.0, &mut grad, Some(&mut grad_t));
+                let cqt_qd: f64 = grad_t.iter().zip(qd_local.iter()).map(|(a, b)| a * b).sum();
+                g[joint.row + e] = -(h.quadratic_form(&qd_local) + 2.0 * cqt_qd + v[2]);
+            }
+        }
+        ws.joints[j].scratch = qd_local;
+    }
+    Ok(())
+}
+
+/// Velocity constraint violation C_q q_dot + C_t into `out` (constraints), using the
+/// Jacobians, kinematics and driver values of the last `assemble`.
+pub fn velocity_violation(model: &Model, qd: &[f64], ws: &Workspace, out: &mut [f64]) {
+    for nz in &model.normalizations {
+        // d/dt (p.p - 1) = 2 p . p_dot; the assembled Jacobian row is 2p.
+        out[nz.row] = 0.0;
+    }
+    for (j, joint) in model.joints.iter().enumerate() {
+        let local = &ws.joints[j];
+        let nd = joint.dofs.len();
+        let has_driver = joint.kind.function().is_some();
+        let pair = if has_driver { Some(joint_pair(model, &ws.markers, j)) } else { None };
+        for (e, eq) in joint.equations.iter().enumerate() {
+            let row = &local.jacobian.data[e * nd..(e + 1) * nd];
+            let mut v: f64 = row.iter().zip(&joint.dofs).map(|(c, &d)| c * qd[d]).sum();
+            if let Some(p) = &pair {
+                v += equation_value(eq, p, &local.driver)[1];
+            }
+            out[joint.row + e] = v;
+        }
+    }
+}

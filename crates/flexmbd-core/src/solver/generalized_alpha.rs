@@ -1,0 +1,315 @@
+//! Implicit index-3 generalized-alpha method for constrained mechanical systems
+//! (Arnold and Bruls, Multibody System Dynamics 18, 2007, Algorithm 1; Chung and Hulbert 1993
+//! for the parameters), with Bottasso's scaling of the constraint equations.
+//!
+//! Per step of size h the unknowns are q_dd(n+1) and lambda(n+1); with the auxiliary
+//! accelerations a:
+//!   (1 - alpha_m) a(n+1) + alpha_m a(n) = (1 - alpha_f) q_dd(n+1) + alpha_f q_dd(n)
+//!   q(n+1)     = q(n) + h q_dot(n) + h^2 (1/2 - beta) a(n) + h^2 beta a(n+1)
+//!   q_dot(n+1) = q_dot(n) + h (1 - gamma) a(n) + h gamma a(n+1)
+//! and the equations r = M q_dd - F - Q_e + C_q^T lambda = 0, C(q, t(n+1)) = 0 are solved by
+//! Newton's method in the increment dq, with dq_dot = gamma' dq, dq_dd = beta' dq,
+//! gamma' = gamma/(beta h), beta' = (1 - alpha_m)/((1 - alpha_f) beta h^2). The coordinate
+//! rows are multiplied by s = beta h^2 and the multiplier increment is s dlambda, which keeps
+//! the Newton matrix well conditioned for small h:
+//!   [[s (beta' M + gamma' D + K), C_q^T], [C_q, 0]] [dq; s dlambda] = -[s r; C].
+
+use super::assembly::{assemble, MatrixCoefficients, StateView};
+use super::settings::{JacobianUpdate, NewtonSettings};
+use crate::error::{FlexmbdError, Result};
+use crate::system::{Model, State, Workspace};
+
+/// The four parameters of the method.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeneralizedAlpha {
+    /// alpha_m.
+    pub alpha_m: f64,
+    /// alpha_f.
+    pub alpha_f: f64,
+    /// beta (Newmark).
+    pub beta: f64,
+    /// gamma (Newmark).
+    pub gamma: f64,
+}
+
+impl GeneralizedAlpha {
+    /// Parameters of second order and optimal dissipation for the spectral radius at infinite
+    /// frequency `rho` in [0, 1] (1: no numerical dissipation).
+    pub fn from_spectral_radius(rho: f64) -> Result<Self> {
+        if !(0.0..=1.0).contains(&rho) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "generalized-alpha".to_string(),
+                message: format!("spectral radius must be in [0, 1], got {rho}"),
+            });
+        }
+        let alpha_m = (2.0 * rho - 1.0) / (rho + 1.0);
+        let alpha_f = rho / (rho + 1.0);
+        let gamma = 0.5 + alpha_f - alpha_m;
+        let beta = 0.25 * (gamma + 0.5) * (gamma + 0.5);
+        Ok(GeneralizedAlpha { alpha_m, alpha_f, beta, gamma })
+    }
+
+    /// Iteration-matrix coefficients for step size h: (beta', gamma', s).
+    pub fn coefficients(&self, h: f64) -> MatrixCoefficients {
+        let s = self.beta * h * h;
+        MatrixCoefficients {
+            mass: (1.0 - self.alpha_m) / ((1.0 - self.alpha_f) * s),
+            velocity: self.gamma / (self.beta * h),
+            position: 1.0,
+            identity: 0.0,
+            scale: s,
+        }
+    }
+}
+
+/// What happened in one attempted step.
+#[derive(Clone, Debug, Default)]
+pub struct StepReport {
+    /// True if Newton's method converged.
+    pub converged: bool,
+    /// Newton iterations made.
+    pub iterations: usize,
+    /// Numeric factorizations made.
+    pub factorizations: usize,
+    /// Last weighted increment norm (converged at <= 1).
+    pub increment_norm: f64,
+    /// Coordinate index of the largest last increment.
+    pub worst: usize,
+    /// Why it failed, if it did (for messages).
+    pub failure: Option<String>,
+}
+
+/// Cache of the factorized Newton matrix between steps (modified Newton).
+#[derive(Clone, Debug, Default)]
+pub struct JacobianCache {
+    /// Step size the current factorization was made for (None: no valid factorization).
+    pub step_size: Option<f64>,
+}
+
+/// Weighted norm of the Newton increment (converged at <= 1) and the index of its largest
+/// entry. Each position increment is measured against
+///   w_k = tol max(1, |q_dd|_inf) / beta' + 1e-14 max(1, |q_k|):
+/// the first term is the tolerance on the accelerations (dq_dd = beta' dq; a tolerance on
+/// positions alone would let an equation-of-motion residual of order tol/(beta h^2) pass,
+/// whose velocity error accumulates), the second the round-off floor of the positions, which
+/// dominates for very small steps. The multipliers enter through their effect on the motion
+/// only: at singular configurations their component in the null space of C_q^T is
+/// indeterminate.
+fn increment_norm(coef: &MatrixCoefficients, tol: f64, state: &State, increment: &[f64]) -> (f64, usize) {
+    let a_scale = state.accelerations.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+    let acceleration_weight = tol * a_scale / coef.mass;
+    let mut worst = (0, 0.0f64);
+    for (k, (dq, q)) in increment.iter().zip(&state.coordinates).enumerate() {
+        let v = dq.abs() / (acceleration_weight + 1e-14 * q.abs().max(1.0));
+        if v > worst.1 {
+            worst = (k, v);
+        }
+    }
+    (worst.1, worst.0)
+}
+
+/// Sets `next` to the predictor of a step of size h from `current`: q_dd(n+1) = q_dd(n),
+/// lambda(n+1) = lambda(n).
+fn predict(method: &GeneralizedAlpha, h: f64, current: &State, next: &mut State) {
+    let GeneralizedAlpha { alpha_m, alpha_f, beta, gamma } = *method;
+    next.time = current.time + h;
+    next.discrete.copy_from_slice(&current.discrete);
+    next.multipliers.copy_from_slice(&current.multipliers);
+    for k in 0..current.coordinates.len() {
+        let qdd = current.accelerations[k];
+        let a_n = current.algorithmic_accelerations[k];
+        let a = (alpha_f * qdd + (1.0 - alpha_f) * qdd - alpha_m * a_n) / (1.0 - alpha_m);
+        next.accelerations[k] = qdd;
+        next.algorithmic_accelerations[k] = a;
+        next.coordinates[k] =
+            current.coordinates[k] + h * current.velocities[k] + h * h * ((0.5 - beta) * a_n + beta * a);
+        next.velocities[k] = current.velocities[k] + h * ((1.0 - gamma) * a_n + gamma * a);
+    }
+}
+
+/// Newton iterations from the state in `next`. With `reuse`, a factorization cached for this
+/// step size is used as long as it contracts well (and refreshed when it does not); without,
+/// the matrix is refactorized every iteration. Returns the report and whether the last
+/// factorization was made during these iterations.
+#[allow(clippy::too_many_arguments)]
+fn iterate(
+    model: &Model,
+    coef: MatrixCoefficients,
+    newton: &NewtonSettings,
+    reuse: bool,
+    h: f64,
+    next: &mut State,
+    ws: &mut Workspace,
+    cache: &mut JacobianCache,
+) -> Result<(StepReport, bool)> {
+    let nq = model.coordinate_count;
+    let nc = model.constraint_count;
+    let s = coef.scale;
+    let mut report = StepReport::default();
+    let mut fresh = false;
+    let mut previous_norm = f64::INFINITY;
+    for iteration in 0..newton.max_iterations {
+        let need_matrix = !reuse || cache.step_size != Some(h) || !ws.lu.is_factorized();
+        let view = StateView {
+            time: next.time,
+            q: &next.coordinates,
+            qd: &next.velocities,
+            qdd: &next.accelerations,
+            lambda: &next.multipliers,
+            discrete: &next.discrete,
+        };
+        assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
+        if need_matrix {
+            if let Err(detail) = ws.lu.factorize(&ws.values) {
+                cache.step_size = None;
+                report.failure = Some(format!("singular Newton matrix: {detail}"));
+                return Ok((report, fresh));
+            }
+            cache.step_size = Some(h);
+            fresh = true;
+            report.factorizations += 1;
+        }
+        for k in 0..nq {
+            ws.solution[k] = -s * ws.residual[k];
+        }
+        for k in 0..nc {
+            ws.solution[nq + k] = -ws.residual[nq + k];
+        }
+        if let Err(detail) = ws.lu.solve_in_place(&mut ws.solution) {
+            cache.step_size = None;
+            report.failure = Some(format!("singular Newton matrix: {detail}"));
+            return Ok((report, fresh));
+        }
+        for k in 0..nq {
+            let dq = ws.solution[k];
+            next.coordinates[k] += dq;
+            next.velocities[k] += coef.velocity * dq;
+            next.accelerations[k] += coef.mass * dq;
+        }
+        for k in 0..nc {
+            next.multipliers[k] += ws.solution[nq + k] / s;
+        }
+        report.iterations = iteration + 1;
+        let (norm, worst) = increment_norm(&coef, newton.tolerance, next, &ws.solution);
+        report.increment_norm = norm;
+        report.worst = worst;
+        if !norm.is_finite() {
+            report.failure = Some("non-finite increment".to_string());
+            cache.step_size = None;
+            return Ok((report, fresh));
+        }
+        let rate = norm / previous_norm;
+        let estimated_error_small = iteration > 0 && rate < 1.0 && rate / (1.0 - rate) * norm <= 1.0;
+        // Near singular configurations the Newton matrix is ill-conditioned and the
+        // increments stall above round-off: stagnation within 100 times the tolerance, with a
+        // current matrix, is accepted as converged.
+        let stalled_at_roundoff = need_matrix && iteration >= 2 && rate >= 0.5 && norm <= 100.0;
+        if norm <= 1.0 || estimated_error_small || stalled_at_roundoff {
+            report.converged = true;
+            return Ok((report, fresh));
+        }
+        if iteration >= 2 && rate > 1.0 && norm > 100.0 {
+            report.failure = Some(format!("increments grow (contraction rate {rate:.2})"));
+            return Ok((report, fresh));
+        }
+        if reuse && rate > newton.contraction_limit && iteration > 0 {
+            // Slow contraction: refresh the matrix at the current iterate.
+            cache.step_size = None;
+        }
+        previous_norm = norm;
+    }
+    report.failure = Some(format!("no convergence in {} iterations", newton.max_iterations));
+    Ok((report, fresh))
+}
+
+/// Attempts one step of size `h` from `current` into `next`. Non-convergence is reported in
+/// the returned report (the caller may retry with a smaller step); errors that a smaller step
+/// cannot cure (callbacks, NaN in the model data) are returned as `Err`.
+#[allow(clippy::too_many_arguments)]
+pub fn step(
+    model: &Model,
+    method: &GeneralizedAlpha,
+    newton: &NewtonSettings,
+    project_velocities: bool,
+    h: f64,
+    current: &State,
+    next: &mut State,
+    ws: &mut Workspace,
+    cache: &mut JacobianCache,
+) -> Result<StepReport> {
+    let nq = model.coordinate_count;
+    let nc = model.constraint_count;
+    let GeneralizedAlpha { alpha_m, alpha_f, .. } = *method;
+    let coef = method.coefficients(h);
+
+    // Modified Newton first tries the factorization kept from earlier steps; if that does
+    // not converge, the step restarts from the predictor with full Newton.
+    predict(method, h, current, next);
+    let reuse_first = newton.jacobian == JacobianUpdate::Modified && cache.step_size == Some(h);
+    let (mut report, mut fresh) = iterate(model, coef, newton, reuse_first, h, next, ws, cache)?;
+    if !report.converged && reuse_first {
+        let first = report.clone();
+        predict(method, h, current, next);
+        cache.step_size = None;
+        let (second, second_fresh) = iterate(model, coef, newton, false, h, next, ws, cache)?;
+        report = second;
+        report.iterations += first.iterations;
+        report.factorizations += first.factorizations;
+        fresh = second_fresh;
+    }
+    if !report.converged {
+        return Ok(report);
+    }
+
+    // Velocity projection: with the Newton matrix of this step as metric, the correction dv
+    // solves [[s S, C_q^T], [C_q, 0]] [dv; mu] = [0; -(C_q q_dot + C_t)]. It removes the
+    // undamped error mode along the constraint normals that the index-3 method has at
+    // spectral radius 1 (the trapezoidal rule). A matrix reused from an earlier step would
+    // leak the correction into the tangential velocities, so it is refreshed here (and the
+    // next step reuses the refreshed one).
+    if project_velocities && nc > 0 {
+        let view = StateView {
+            time: next.time,
+            q: &next.coordinates,
+            qd: &next.velocities,
+            qdd: &next.accelerations,
+            lambda: &next.multipliers,
+            discrete: &next.discrete,
+        };
+        assemble(model, view, ws, if fresh { None } else { Some(coef) })?;
+        if !fresh {
+            if let Err(detail) = ws.lu.factorize(&ws.values) {
+                cache.step_size = None;
+                report.converged = false;
+                report.failure = Some(format!("singular Newton matrix in the velocity projection: {detail}"));
+                return Ok(report);
+            }
+            cache.step_size = Some(h);
+            report.factorizations += 1;
+        }
+        let mut violation = std::mem::take(&mut ws.scratch[1]);
+        super::assembly::velocity_violation(model, &next.velocities, ws, &mut violation[..nc]);
+        ws.solution[..nq].iter_mut().for_each(|x| *x = 0.0);
+        for k in 0..nc {
+            ws.solution[nq + k] = -violation[k];
+        }
+        ws.scratch[1] = violation;
+        if let Err(detail) = ws.lu.solve_in_place(&mut ws.solution) {
+            cache.step_size = None;
+            report.converged = false;
+            report.failure = Some(format!("velocity projection: {detail}"));
+            return Ok(report);
+        }
+        for k in 0..nq {
+            next.velocities[k] += ws.solution[k];
+        }
+    }
+    // Auxiliary accelerations from the converged q_dd.
+    for k in 0..nq {
+        next.algorithmic_accelerations[k] = (alpha_f * current.accelerations[k]
+            + (1.0 - alpha_f) * next.accelerations[k]
+            - alpha_m * current.algorithmic_accelerations[k])
+            / (1.0 - alpha_m);
+    }
+    Ok(report)
+}

@@ -1,0 +1,13 @@
+//! Solvers: assembly of the augmented equations, sparse linear algebra, consistent initial
+//! conditions and the acceleration system (seed eq. 26), the generalized-alpha integrator and
+//! the time loop.
+
+pub mod assembly;
+pub mod generalized_alpha;
+pub mod initial;
+pub mod settings;
+pub mod simulate;
+pub mod sparse;
+
+pub use settings::{JacobianUpdate, NewtonSettings, SimulationSettings, StepControl, VelocityProjection};
+pub use simulate::{simulate, Progress, SimulationOutcome};

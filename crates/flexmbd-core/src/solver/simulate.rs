@@ -1,0 +1,252 @@
+//! The time loop: consistent initial conditions, generalized-alpha steps with step-size
+//! control, landing exactly on output times, recording. A failure returns everything recorded
+//! up to it together with the error.
+
+use super::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
+use super::initial::{solve_accelerations, solve_initial_positions_and_velocities};
+use super::settings::{SimulationSettings, StepControl};
+use crate::error::{FlexmbdError, Result};
+use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
+use crate::force::{ForceEnv, ForceKind};
+use crate::output::Output;
+use crate::solver::assembly::update_kinematics;
+use crate::system::{Model, State, Workspace};
+
+/// Progress reported to the observer after every accepted step.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Time reached (s).
+    pub time: f64,
+    /// Last step size (s).
+    pub step_size: f64,
+    /// Newton iterations of the last step.
+    pub newton_iterations: usize,
+    /// Accepted steps so far.
+    pub steps: usize,
+}
+
+/// The result of `simulate`: what was recorded, and the error that stopped the run, if any.
+#[derive(Debug)]
+pub struct SimulationOutcome {
+    /// Records up to the end or to the failure.
+    pub output: Output,
+    /// The state at the end (or at the last accepted step before a failure).
+    pub final_state: Option<State>,
+    /// The error that stopped the run.
+    pub error: Option<FlexmbdError>,
+}
+
+/// Sets or advances the discrete variables (unwrapped spring angles) from the state.
+fn update_discrete(model: &Model, state: &mut State, ws: &mut Workspace, initialize: bool) {
+    if model.discrete_count == 0 {
+        return;
+    }
+    update_kinematics(model, &state.coordinates, &state.velocities, ws);
+    let env = ForceEnv {
+        bodies: &model.bodies,
+        markers: &model.markers,
+        kinematics: &ws.markers,
+        q: &state.coordinates,
+        qd: &state.velocities,
+        time: state.time,
+        discrete: &state.discrete,
+    };
+    let mut updates = Vec::new();
+    for f in &model.forces {
+        if let (ForceKind::RotationalSpringDamper { markers, .. }, Some(k)) = (&f.kind, f.discrete) {
+            let pair = env.pair(markers);
+            let angle =
+                if initialize { wrapped_angle(&pair) } else { unwrapped_angle(&pair, state.discrete[k]) };
+            updates.push((k, angle));
+        }
+    }
+    for (k, angle) in updates {
+        state.discrete[k] = angle;
+    }
+}
+
+/// Weighted RMS norm of the generalized-alpha local error estimate.
+fn error_norm(
+    model: &Model,
+    method: &GeneralizedAlpha,
+    h: f64,
+    current: &State,
+    next: &State,
+    rtol: f64,
+    atol: f64,
+) -> f64 {
+    let c = h * h * (method.beta - 1.0 / 6.0).abs().max(1.0 / 12.0);
+    let n = model.coordinate_count;
+    let sum: f64 = (0..n)
+        .map(|k| {
+            let e = c * (next.accelerations[k] - current.accelerations[k]);
+            let w = atol + rtol * current.coordinates[k].abs().max(next.coordinates[k].abs());
+            (e / w).powi(2)
+        })
+        .sum();
+    (sum / n as f64).sqrt()
+}
+
+/// Runs a simulation of `model`. `observer` is called after every accepted step; returning
+/// false stops the run with an `Interrupted` error (results so far are kept).
+pub fn simulate(
+    model: &Model,
+    settings: &SimulationSettings,
+    observer: &mut dyn FnMut(&Progress) -> bool,
+) -> SimulationOutcome {
+    let mut output = Output::new(model);
+    let mut last_state = None;
+    let error = run(model, settings, observer, &mut output, &mut last_state).err();
+    SimulationOutcome { output, final_state: last_state, error }
+}
+
+/// The time loop; keeps the last accepted state in `last_state` (also on failure).
+fn run(
+    model: &Model,
+    settings: &SimulationSettings,
+    observer: &mut dyn FnMut(&Progress) -> bool,
+    output: &mut Output,
+    last_state: &mut Option<State>,
+) -> Result<()> {
+    settings.validate()?;
+    let method = GeneralizedAlpha::from_spectral_radius(settings.spectral_radius)?;
+    let project_velocities = settings.newton.velocity_projection.enabled(settings.spectral_radius);
+    let mut ws = Workspace::new(model)?;
+    let mut state = State::initial(model, settings.start_time);
+    solve_initial_positions_and_velocities(model, &mut state, &mut ws, &settings.initial)?;
+    update_discrete(model, &mut state, &mut ws, true);
+    solve_accelerations(model, &mut state, &mut ws)?;
+    state.algorithmic_accelerations.copy_from_slice(&state.accelerations);
+    output.record(model, &state, &mut ws);
+    *last_state = Some(state.clone());
+
+    let t_end = settings.end_time;
+    let time_eps = 1e-12 * (1.0 + t_end.abs());
+    let mut next_output = settings.output_interval.map(|dt| settings.start_time + dt);
+    let mut output_index = 1usize;
+    let mut h = settings.step_size;
+    let mut next = state.clone();
+    let mut cache = JacobianCache::default();
+    output.statistics.min_step_size_used = f64::INFINITY;
+
+    while state.time < t_end - time_eps {
+        // Land exactly on the end and on output times.
+        let mut h_try = h.min(t_end - state.time);
+        if let Some(t_out) = next_output {
+            if t_out - state.time < h_try + time_eps {
+                h_try = t_out - state.time;
+            }
+        }
+        let report = step(
+            model,
+            &method,
+            &settings.newton,
+            project_velocities,
+            h_try,
+            &state,
+            &mut next,
+            &mut ws,
+            &mut cache,
+        )?;
+        let stats = &mut output.statistics;
+        stats.newton_iterations += report.iterations;
+        stats.factorizations += report.factorizations;
+        let mut accepted = report.converged;
+        let mut factor = 1.0;
+        if let (true, StepControl::Error { relative_tolerance, absolute_tolerance }) =
+            (accepted, settings.step_control)
+        {
+            let err =
+                error_norm(model, &method, h_try, &state, &next, relative_tolerance, absolute_tolerance);
+            factor = (0.9 * err.max(1e-10).powf(-1.0 / 3.0)).clamp(0.2, 2.0);
+            accepted = err <= 1.0;
+        }
+        if !accepted {
+            stats.rejected_steps += 1;
+            let diverged = || {
+                let nq = model.coordinate_count;
+                let item = if report.worst < nq {
+                    model.coordinate_name(report.worst)
+                } else {
+                    model.constraint_name(report.worst - nq)
+                };
+                FlexmbdError::NewtonDiverged {
+                    time: state.time,
+                    step_size: h_try,
+                    iterations: report.iterations,
+                    residual: report.increment_norm,
+                    item: format!(
+                        "{item}; {}",
+                        report.failure.clone().unwrap_or_else(|| "error test".into())
+                    ),
+                }
+            };
+            h = match settings.step_control {
+                StepControl::Fixed => return Err(diverged()),
+                StepControl::Error { .. } if report.converged => h_try * factor,
+                _ => h_try * 0.25,
+            };
+            if h < settings.min_step_size {
+                return Err(if report.converged {
+                    FlexmbdError::StepSizeTooSmall {
+                        time: state.time,
+                        step_size: h,
+                        min_step_size: settings.min_step_size,
+                    }
+                } else {
+                    diverged()
+                });
+            }
+            continue;
+        }
+
+        // Accept the step.
+        std::mem::swap(&mut state, &mut next);
+        update_discrete(model, &mut state, &mut ws, false);
+        stats.steps += 1;
+        stats.min_step_size_used = stats.min_step_size_used.min(h_try);
+        stats.max_step_size_used = stats.max_step_size_used.max(h_try);
+        if let Some(k) = state.first_non_finite() {
+            return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
+        }
+        *last_state = Some(state.clone());
+        let at_end = state.time >= t_end - time_eps;
+        let at_output = match next_output {
+            None => true,
+            Some(t_out) => (state.time - t_out).abs() <= time_eps || at_end,
+        };
+        if at_output {
+            if let Some(dt) = settings.output_interval {
+                output_index += 1;
+                next_output =
+                    if at_end { None } else { Some(settings.start_time + dt * output_index as f64) };
+            }
+            output.record(model, &state, &mut ws);
+        }
+        // Next step size.
+        match settings.step_control {
+            StepControl::Fixed => {}
+            StepControl::Newton => {
+                if report.iterations <= 4 && h < settings.step_size {
+                    h = (2.0 * h).min(settings.step_size);
+                }
+            }
+            StepControl::Error { .. } => {
+                // Steps shortened to land on an output time do not shrink the step size.
+                if h_try >= h * (1.0 - 1e-12) {
+                    h = (h_try * factor).min(settings.max_step_size);
+                }
+            }
+        }
+        let progress = Progress {
+            time: state.time,
+            step_size: h_try,
+            newton_iterations: report.iterations,
+            steps: output.statistics.steps,
+        };
+        if !observer(&progress) {
+            return Err(FlexmbdError::Interrupted { time: state.time });
+        }
+    }
+    Ok(())
+}

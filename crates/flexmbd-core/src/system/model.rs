@@ -1,0 +1,315 @@
+//! The compiled, immutable model (house style 1): bodies with their coordinate ranges,
+//! markers, joints with their constraint rows, force elements, sensors, the initial state as
+//! given, and the layout of the sparse Newton matrix.
+//!
+//! Global vectors: q has `coordinate_count` entries (bodies in order); lambda has
+//! `constraint_count` entries: one Euler-parameter normalization row per rigid body first,
+//! then the joints' equations in order. The Newton matrix is square of size
+//! coordinate_count + constraint_count: [[S, C_q^T], [C_q, 0]].
+
+use crate::body::marker::Marker;
+use crate::body::{Body, BodyKind};
+use crate::error::{FlexmbdError, Result};
+use crate::force::{ForceElement, ForceKind};
+use crate::ids::{BodyId, MarkerId};
+use crate::joint::Joint;
+use crate::math::Vec3;
+use crate::solver::sparse::{PatternBuilder, SparsePattern};
+use crate::system::builder::SystemBuilder;
+use crate::system::sensor::Sensor;
+
+/// The normalization constraint p.p - 1 = 0 of one rigid body.
+#[derive(Clone, Debug)]
+pub struct Normalization {
+    /// The body.
+    pub body: BodyId,
+    /// Constraint row (index into lambda).
+    pub row: usize,
+    /// Global indices of its Euler parameters.
+    pub dofs: [usize; 4],
+}
+
+/// Value indices of a joint's entries in the Newton matrix.
+#[derive(Clone, Debug)]
+pub struct JointEntries {
+    /// C_q block (equations x local coordinates), row-major.
+    pub jacobian: Vec<usize>,
+    /// C_q^T block, stored in the same (equation, coordinate) order.
+    pub jacobian_transpose: Vec<usize>,
+    /// Hessian block (local x local), row-major.
+    pub hessian: Vec<usize>,
+}
+
+/// Where each element writes in the Newton matrix.
+#[derive(Clone, Debug)]
+pub struct MatrixLayout {
+    /// The pattern.
+    pub pattern: SparsePattern,
+    /// Per body: its square block, row-major (empty for the ground).
+    pub bodies: Vec<Vec<usize>>,
+    /// Per normalization: its 4 C_q entries, then its 4 C_q^T entries.
+    pub normalizations: Vec<[usize; 8]>,
+    /// Per joint.
+    pub joints: Vec<JointEntries>,
+    /// Per force element: its square block, row-major.
+    pub forces: Vec<Vec<usize>>,
+}
+
+/// A compiled multibody model. Never changes during a simulation.
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// Gravitational acceleration (m/s^2).
+    pub gravity: Vec3,
+    /// Bodies; index 0 is the ground.
+    pub bodies: Vec<Body>,
+    /// Markers.
+    pub markers: Vec<Marker>,
+    /// Joints and drivers.
+    pub joints: Vec<Joint>,
+    /// Force elements.
+    pub forces: Vec<ForceElement>,
+    /// Sensors.
+    pub sensors: Vec<Sensor>,
+    /// Number of generalized coordinates.
+    pub coordinate_count: usize,
+    /// Number of constraint equations (normalizations and joints).
+    pub constraint_count: usize,
+    /// Normalization constraints of the rigid bodies.
+    pub normalizations: Vec<Normalization>,
+    /// Number of discrete state variables.
+    pub discrete_count: usize,
+    /// Initial coordinates as given by the user (before the constraints are enforced).
+    pub initial_coordinates: Vec<f64>,
+    /// Initial velocities as given by the user.
+    pub initial_velocities: Vec<f64>,
+    /// Sparse matrix layout.
+    pub layout: MatrixLayout,
+}
+
+impl Model {
+    /// Dimension of the Newton matrix.
+    pub fn system_size(&self) -> usize {
+        self.coordinate_count + self.constraint_count
+    }
+
+    /// Describes a constraint row for messages: `joint 'pivot' (revolute) equation 'axis x'`.
+    pub fn constraint_name(&self, row: usize) -> String {
+        if let Some(n) = self.normalizations.iter().find(|n| n.row == row) {
+            return format!("Euler-parameter normalization of body '{}'", self.bodies[n.body.0].name);
+        }
+        for j in &self.joints {
+            if row >= j.row && row < j.row + j.equations.len() {
+                return format!(
+                    "joint '{}' ({}) equation '{}'",
+                    j.name,
+                    j.kind.type_name(),
+                    j.equations[row - j.row].label
+                );
+            }
+        }
+        format!("constraint row {row}")
+    }
+
+    /// Describes a coordinate for messages: `body 'crank' coordinate 4 (e1)`.
+    pub fn coordinate_name(&self, index: usize) -> String {
+        for b in &self.bodies {
+            if let Some(k) = b.dofs.iter().position(|&d| d == index) {
+                let names = ["x", "y", "z", "e0", "e1", "e2", "e3"];
+                return format!("body '{}' coordinate {}", b.name, names.get(k).copied().unwrap_or("?"));
+            }
+        }
+        format!("coordinate {index}")
+    }
+
+    /// Body of a marker.
+    pub fn marker_body(&self, marker: MarkerId) -> &Body {
+        &self.bodies[self.markers[marker.0].body.0]
+    }
+}
+
+impl SystemBuilder {
+    /// Checks the whole system and compiles the immutable [`Model`].
+    pub fn compile(&self) -> Result<Model> {
+        // Coordinates: bodies in order.
+        let mut bodies = Vec::with_capacity(self.bodies.len());
+        let mut initial_coordinates = Vec::new();
+        let mut initial_velocities = Vec::new();
+        for def in &self.bodies {
+            let offset = initial_coordinates.len();
+            let (q, qd) = SystemBuilder::initial_body_state(def);
+            let dofs: Vec<usize> = (offset..offset + q.len()).collect();
+            initial_coordinates.extend(q);
+            initial_velocities.extend(qd);
+            bodies.push(Body { name: def.name.clone(), kind: def.kind.clone(), offset, dofs });
+        }
+        let coordinate_count = initial_coordinates.len();
+        if coordinate_count == 0 {
+            return Err(FlexmbdError::InvalidModel {
+                item: "system".to_string(),
+                message: "the system has no moving bodies".to_string(),
+            });
+        }
+        let markers: Vec<Marker> = self
+            .markers
+            .iter()
+            .map(|m| Marker {
+                name: m.name.clone(),
+                body: m.body,
+                position: m.position,
+                rotation: m.orientation,
+            })
+            .collect();
+
+        // Constraint rows: normalizations, then joints.
+        let mut normalizations = Vec::new();
+        for (k, b) in bodies.iter().enumerate() {
+            if b.kind.has_euler_parameters() {
+                let o = b.offset;
+                normalizations.push(Normalization {
+                    body: BodyId(k),
+                    row: normalizations.len(),
+                    dofs: [o + 3, o + 4, o + 5, o + 6],
+                });
+            }
+        }
+        let mut row = normalizations.len();
+        let mut joints = Vec::with_capacity(self.joints.len());
+        for def in &self.joints {
+            let bi = &bodies[markers[def.markers[0].0].body.0];
+            let bj = &bodies[markers[def.markers[1].0].body.0];
+            let mut dofs = bi.dofs.clone();
+            dofs.extend_from_slice(&bj.dofs);
+            let equations = def.kind.equations();
+            let count = equations.len();
+            joints.push(Joint {
+                name: def.name.clone(),
+                kind: def.kind.clone(),
+                markers: def.markers,
+                equations,
+                row,
+                dofs,
+                n_i: bi.dofs.len(),
+            });
+            row += count;
+        }
+        let constraint_count = row;
+
+        // Force elements.
+        let mut discrete_count = 0;
+        let mut forces = Vec::with_capacity(self.forces.len());
+        for def in &self.forces {
+            let (dofs, n_i) = match &def.kind {
+                ForceKind::Callback { bodies: list, .. } => {
+                    (list.iter().flat_map(|b| bodies[b.0].dofs.clone()).collect::<Vec<_>>(), 0)
+                }
+                kind => {
+                    let ms = kind.markers();
+                    let first = bodies[markers[ms[0].0].body.0].dofs.clone();
+                    let n_i = first.len();
+                    let mut dofs = first;
+                    for m in &ms[1..] {
+                        dofs.extend_from_slice(&bodies[markers[m.0].body.0].dofs);
+                    }
+                    (dofs, n_i)
+                }
+            };
+            let discrete = if matches!(def.kind, ForceKind::RotationalSpringDamper { .. }) {
+                discrete_count += 1;
+                Some(discrete_count - 1)
+            } else {
+                None
+            };
+            forces.push(ForceElement { name: def.name.clone(), kind: def.kind.clone(), dofs, n_i, discrete });
+        }
+
+        let sensors = self
+            .sensors
+            .iter()
+            .map(|s| Sensor { name: s.name.clone(), marker: s.marker, quantity: s.quantity })
+            .collect();
+
+        // Sparse pattern of the Newton matrix.
+        let n = coordinate_count + constraint_count;
+        let mut pb = PatternBuilder::new(n);
+        let all: Vec<usize> = (0..n).collect();
+        for b in &bodies {
+            pb.add_block(&b.dofs, &b.dofs);
+        }
+        for nz in &normalizations {
+            pb.add_block(&[coordinate_count + nz.row], &nz.dofs);
+            pb.add_block(&nz.dofs, &[coordinate_count + nz.row]);
+        }
+        for j in &joints {
+            let rows: Vec<usize> = (0..j.equations.len()).map(|e| coordinate_count + j.row + e).collect();
+            pb.add_block(&rows, &j.dofs);
+            pb.add_block(&j.dofs, &rows);
+            pb.add_block(&j.dofs, &j.dofs);
+        }
+        for f in &forces {
+            pb.add_block(&f.dofs, &f.dofs);
+        }
+        // Every coordinate has a diagonal entry (the projection matrices use it).
+        pb.add_diagonal(&all[..coordinate_count]);
+        let pattern = pb.build();
+        let layout = MatrixLayout {
+            bodies: bodies.iter().map(|b| pattern.block_indices(&b.dofs, &b.dofs)).collect(),
+            normalizations: normalizations
+                .iter()
+                .map(|nz| {
+                    let r = coordinate_count + nz.row;
+                    let mut e = [0usize; 8];
+                    for k in 0..4 {
+                        e[k] = pattern.index(r, nz.dofs[k]);
+                        e[4 + k] = pattern.index(nz.dofs[k], r);
+                    }
+                    e
+                })
+                .collect(),
+            joints: joints
+                .iter()
+                .map(|j| {
+                    let rows: Vec<usize> =
+                        (0..j.equations.len()).map(|e| coordinate_count + j.row + e).collect();
+                    let mut transpose = Vec::with_capacity(rows.len() * j.dofs.len());
+                    for &r in &rows {
+                        for &d in &j.dofs {
+                            transpose.push(pattern.index(d, r));
+                        }
+                    }
+                    JointEntries {
+                        jacobian: pattern.block_indices(&rows, &j.dofs),
+                        jacobian_transpose: transpose,
+                        hessian: pattern.block_indices(&j.dofs, &j.dofs),
+                    }
+                })
+                .collect(),
+            forces: forces.iter().map(|f| pattern.block_indices(&f.dofs, &f.dofs)).collect(),
+            pattern,
+        };
+
+        Ok(Model {
+            gravity: self.gravity,
+            bodies,
+            markers,
+            joints,
+            forces,
+            sensors,
+            coordinate_count,
+            constraint_count,
+            normalizations,
+            discrete_count,
+            initial_coordinates,
+            initial_velocities,
+            layout,
+        })
+    }
+}
+
+/// Mass of a body, for summaries.
+pub fn body_mass(body: &Body) -> f64 {
+    match &body.kind {
+        BodyKind::Ground => 0.0,
+        BodyKind::Rigid(r) => r.mass,
+        BodyKind::PointMass { mass } => *mass,
+    }
+}

@@ -1,0 +1,45 @@
+//! The state advanced by the integrators (house style 1): time, coordinates, velocities,
+//! accelerations, multipliers, the generalized-alpha auxiliary accelerations, and discrete
+//! variables (the unwrapped angles of rotational springs).
+
+use crate::system::model::Model;
+
+/// State of a simulation.
+#[derive(Clone, Debug)]
+pub struct State {
+    /// Time (s).
+    pub time: f64,
+    /// Generalized coordinates q (coordinate_count).
+    pub coordinates: Vec<f64>,
+    /// Velocities q_dot (coordinate_count).
+    pub velocities: Vec<f64>,
+    /// Accelerations q_dd (coordinate_count).
+    pub accelerations: Vec<f64>,
+    /// Lagrange multipliers lambda (constraint_count).
+    pub multipliers: Vec<f64>,
+    /// Generalized-alpha auxiliary accelerations a (coordinate_count).
+    pub algorithmic_accelerations: Vec<f64>,
+    /// Discrete variables (discrete_count).
+    pub discrete: Vec<f64>,
+}
+
+impl State {
+    /// The initial state as given by the user (constraints not yet enforced).
+    pub fn initial(model: &Model, time: f64) -> Self {
+        let n = model.coordinate_count;
+        State {
+            time,
+            coordinates: model.initial_coordinates.clone(),
+            velocities: model.initial_velocities.clone(),
+            accelerations: vec![0.0; n],
+            multipliers: vec![0.0; model.constraint_count],
+            algorithmic_accelerations: vec![0.0; n],
+            discrete: vec![0.0; model.discrete_count],
+        }
+    }
+
+    /// Checks that every number is finite; returns the first offending coordinate index.
+    pub fn first_non_finite(&self) -> Option<usize> {
+        self.coordinates.iter().zip(&self.velocities).position(|(q, v)| !q.is_finite() || !v.is_finite())
+    }
+}

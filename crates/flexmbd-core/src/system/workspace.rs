@@ -1,0 +1,91 @@
+//! Preallocated buffers and derived quantities (house style 1 and 3): everything the
+//! assembly and the solvers write during a step, sized once when a simulation starts, so that
+//! the hot path does not allocate.
+
+use crate::body::marker::MarkerKinematics;
+use crate::body::rigid::RigidTangent;
+use crate::error::{FlexmbdError, Result};
+use crate::force::ForceLocal;
+use crate::math::dense::DenseMatrix;
+use crate::solver::sparse::SparseLu;
+use crate::system::model::Model;
+
+/// Buffers of one joint (local coordinates = body i's, then body j's).
+#[derive(Clone, Debug)]
+pub struct JointLocal {
+    /// C (equations); filled by the assembly.
+    pub values: Vec<f64>,
+    /// C_q (equations x local); filled by the assembly.
+    pub jacobian: DenseMatrix,
+    /// sum_e lambda_e d2C_e/dq2 (local x local); filled by the assembly.
+    pub hessian: DenseMatrix,
+    /// Scratch vector (local).
+    pub scratch: Vec<f64>,
+    /// Driver values (f, f', f'') at the assembly time.
+    pub driver: [f64; 3],
+}
+
+/// Workspace of a simulation of one model.
+pub struct Workspace {
+    /// Kinematics of every marker (filled by `update_kinematics`).
+    pub markers: Vec<MarkerKinematics>,
+    /// Residual [r (coordinates); C (constraints)] (system size); filled by `assemble`.
+    pub residual: Vec<f64>,
+    /// Values of the Newton matrix on the model's pattern (nnz); filled by `assemble`.
+    pub values: Vec<f64>,
+    /// Sparse LU of the last factorized matrix.
+    pub lu: SparseLu,
+    /// Rigid-body tangent scratch (7 x 7 blocks).
+    pub rigid: RigidTangent,
+    /// Body-level force scratch (up to 7 entries).
+    pub body_force: Vec<f64>,
+    /// Per joint.
+    pub joints: Vec<JointLocal>,
+    /// Per force element.
+    pub forces: Vec<ForceLocal>,
+    /// Right-hand side and solution of linear solves (system size).
+    pub solution: Vec<f64>,
+    /// Scratch vectors (system size).
+    pub scratch: [Vec<f64>; 3],
+}
+
+impl Workspace {
+    /// Allocates every buffer for `model` and performs the symbolic factorization.
+    pub fn new(model: &Model) -> Result<Self> {
+        let n = model.system_size();
+        let lu = SparseLu::new(&model.layout.pattern).map_err(|detail| FlexmbdError::SingularMatrix {
+            time: 0.0,
+            context: "symbolic analysis of the Newton matrix".to_string(),
+            detail,
+        })?;
+        Ok(Workspace {
+            markers: model
+                .markers
+                .iter()
+                .map(|m| MarkerKinematics::with_size(model.bodies[m.body.0].dofs.len()))
+                .collect(),
+            residual: vec![0.0; n],
+            values: vec![0.0; model.layout.pattern.nnz()],
+            lu,
+            rigid: RigidTangent::default(),
+            body_force: vec![0.0; 7],
+            joints: model
+                .joints
+                .iter()
+                .map(|j| {
+                    let (ne, nd) = (j.equations.len(), j.dofs.len());
+                    JointLocal {
+                        values: vec![0.0; ne],
+                        jacobian: DenseMatrix::zeros(ne, nd),
+                        hessian: DenseMatrix::zeros(nd, nd),
+                        scratch: vec![0.0; nd],
+                        driver: [0.0; 3],
+                    }
+                })
+                .collect(),
+            forces: model.forces.iter().map(|f| ForceLocal::with_size(f.dofs.len())).collect(),
+            solution: vec![0.0; n],
+            scratch: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+        })
+    }
+}

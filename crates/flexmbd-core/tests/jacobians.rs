@@ -1,0 +1,283 @@
+//! Analytic Jacobians against central finite differences, in random (inconsistent)
+//! configurations: the constraint Jacobian C_q of every joint type and driver, the blocks
+//! dr/dq, dr/dq_dot, dr/dq_dd of the assembled Newton matrix (bodies, constraint Hessians,
+//! every force element), and gamma of seed eq. 25 against the second time derivative of C.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::{close, Rng};
+use flexmbd_core::force::{ForceCallback, ForceKind, Frame};
+use flexmbd_core::joint::JointKind;
+use flexmbd_core::math::time_function::TimeFunction;
+use flexmbd_core::math::{Mat3, Vec3};
+use flexmbd_core::solver::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use flexmbd_core::{Model, State, SystemBuilder, Workspace};
+
+struct Drag;
+impl ForceCallback for Drag {
+    fn evaluate(&self, time: f64, q: &[f64], qd: &[f64], out: &mut [f64]) -> Result<(), String> {
+        for k in 0..q.len() {
+            out[k] = -0.3 * qd[k] * qd[k].abs() + (time + q[k]).sin();
+        }
+        Ok(())
+    }
+}
+
+fn harmonic(a: f64, w: f64) -> TimeFunction {
+    TimeFunction::Harmonic { amplitude: a, frequency: w, phase: 0.3, offset: 0.1 }
+}
+
+/// A system with every joint type, driver and force element between random bodies.
+fn random_model(seed: u64) -> (Model, State) {
+    let mut rng = Rng(seed);
+    let mut sys = SystemBuilder::new();
+    sys.set_gravity(Vec3([0.3, -9.81, 1.2])).unwrap();
+    let mut bodies = vec![sys.ground()];
+    for k in 0..6 {
+        let inertia = Mat3::diagonal(Vec3([0.2 + 0.1 * k as f64, 0.3, 0.25]));
+        let b = sys
+            .add_rigid_body(
+                "",
+                1.0 + k as f64,
+                inertia,
+                rng.vec3(0.3),
+                rng.vec3(1.0),
+                rng.rotation(),
+                rng.vec3(1.0),
+                rng.vec3(2.0),
+            )
+            .unwrap();
+        bodies.push(b);
+    }
+    bodies.push(sys.add_point_mass("particle", 0.7, rng.vec3(1.0), rng.vec3(1.0)).unwrap());
+    let marker = |sys: &mut SystemBuilder, rng: &mut Rng, body| {
+        let pos = if body == bodies[7] { Vec3::ZERO } else { rng.vec3(0.5) };
+        sys.add_marker("", body, pos, rng.rotation()).unwrap()
+    };
+    let kinds = vec![
+        JointKind::Spherical,
+        JointKind::Revolute,
+        JointKind::Cylindrical,
+        JointKind::Prismatic,
+        JointKind::Fixed,
+        JointKind::Universal,
+        JointKind::Planar,
+        JointKind::Inline,
+        JointKind::Distance { distance: 0.8 },
+        JointKind::AngleDriver(harmonic(0.7, 2.0)),
+        JointKind::TranslationDriver(harmonic(0.2, 3.0)),
+        JointKind::Revolute,
+        JointKind::Spherical,
+    ];
+    let pairs = [
+        (0, 1),
+        (1, 2),
+        (2, 3),
+        (3, 4),
+        (4, 5),
+        (5, 6),
+        (6, 1),
+        (0, 3),
+        (2, 7),
+        (1, 4),
+        (5, 2),
+        (7, 6),
+        (0, 7),
+    ];
+    for (kind, (a, b)) in kinds.into_iter().zip(pairs) {
+        let mi = marker(&mut sys, &mut rng, bodies[a]);
+        let mj = marker(&mut sys, &mut rng, bodies[b]);
+        sys.add_joint("", kind, [mi, mj]).unwrap();
+    }
+    let m1 = marker(&mut sys, &mut rng, bodies[2]);
+    let m2 = marker(&mut sys, &mut rng, bodies[5]);
+    let m3 = marker(&mut sys, &mut rng, bodies[3]);
+    let m4 = marker(&mut sys, &mut rng, bodies[7]);
+    let m5 = marker(&mut sys, &mut rng, bodies[0]);
+    let comps =
+        || [harmonic(1.0, 1.0), TimeFunction::Constant(-2.0), TimeFunction::Polynomial(vec![0.5, 1.0])];
+    sys.add_force("", ForceKind::PointForce { marker: m1, components: comps(), frame: Frame::Global })
+        .unwrap();
+    sys.add_force("", ForceKind::PointForce { marker: m2, components: comps(), frame: Frame::Marker })
+        .unwrap();
+    sys.add_force("", ForceKind::Torque { marker: m1, components: comps(), frame: Frame::Global }).unwrap();
+    sys.add_force("", ForceKind::Torque { marker: m3, components: comps(), frame: Frame::Marker }).unwrap();
+    sys.add_force(
+        "",
+        ForceKind::SpringDamper {
+            markers: [m1, m2],
+            stiffness: 50.0,
+            damping: 3.0,
+            rest_length: 0.4,
+            preload: 2.0,
+        },
+    )
+    .unwrap();
+    sys.add_force(
+        "",
+        ForceKind::SpringDamper {
+            markers: [m5, m4],
+            stiffness: 20.0,
+            damping: 1.0,
+            rest_length: 0.1,
+            preload: 0.0,
+        },
+    )
+    .unwrap();
+    sys.add_force(
+        "",
+        ForceKind::RotationalSpringDamper {
+            markers: [m3, m2],
+            stiffness: 7.0,
+            damping: 0.5,
+            rest_angle: 0.2,
+            preload: 0.3,
+        },
+    )
+    .unwrap();
+    sys.add_force("", ForceKind::Callback { bodies: vec![bodies[4], bodies[7]], callback: Arc::new(Drag) })
+        .unwrap();
+    let model = sys.compile().unwrap();
+    let mut state = State::initial(&model, 0.37);
+    for v in state.accelerations.iter_mut() {
+        *v = rng.uniform() * 3.0;
+    }
+    for v in state.multipliers.iter_mut() {
+        *v = rng.uniform() * 5.0;
+    }
+    // Reference angle of the rotational spring near its current angle.
+    state.discrete[0] = 0.0;
+    (model, state)
+}
+
+fn view(s: &State) -> StateView<'_> {
+    StateView {
+        time: s.time,
+        q: &s.coordinates,
+        qd: &s.velocities,
+        qdd: &s.accelerations,
+        lambda: &s.multipliers,
+        discrete: &s.discrete,
+    }
+}
+
+fn dense(model: &Model, values: &[f64]) -> Vec<Vec<f64>> {
+    let n = model.system_size();
+    let p = &model.layout.pattern;
+    let mut m = vec![vec![0.0; n]; n];
+    for c in 0..n {
+        for k in p.col_ptr[c]..p.col_ptr[c + 1] {
+            m[p.row_idx[k]][c] = values[k];
+        }
+    }
+    m
+}
+
+#[test]
+fn newton_matrix_blocks_match_finite_differences() {
+    for seed in [3u64, 11, 29] {
+        let (model, state) = random_model(seed);
+        let nq = model.coordinate_count;
+        let n = model.system_size();
+        let mut ws = Workspace::new(&model).unwrap();
+        let h = 1e-6;
+        // which = 0: dr/dq (and C_q), 1: dr/dq_dot, 2: dr/dq_dd.
+        for which in 0..3 {
+            let coef = match which {
+                0 => {
+                    MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 1.0, identity: 0.0, scale: 1.0 }
+                }
+                1 => {
+                    MatrixCoefficients { mass: 0.0, velocity: 1.0, position: 0.0, identity: 0.0, scale: 1.0 }
+                }
+                _ => {
+                    MatrixCoefficients { mass: 1.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
+                }
+            };
+            assemble(&model, view(&state), &mut ws, Some(coef)).unwrap();
+            let analytic = dense(&model, &ws.values);
+            for col in 0..nq {
+                let mut plus = state.clone();
+                let mut minus = state.clone();
+                let (p, m) = match which {
+                    0 => (&mut plus.coordinates[col], &mut minus.coordinates[col]),
+                    1 => (&mut plus.velocities[col], &mut minus.velocities[col]),
+                    _ => (&mut plus.accelerations[col], &mut minus.accelerations[col]),
+                };
+                *p += h;
+                *m -= h;
+                assemble(&model, view(&plus), &mut ws, None).unwrap();
+                let rp = ws.residual.clone();
+                assemble(&model, view(&minus), &mut ws, None).unwrap();
+                let rm = ws.residual.clone();
+                let rows = if which == 0 { n } else { nq };
+                for row in 0..rows {
+                    let fd = (rp[row] - rm[row]) / (2.0 * h);
+                    let an = analytic[row][col];
+                    assert!(
+                        close(fd, an, 1e-5, 1e-6),
+                        "seed {seed}, block {which}: d residual[{row}] ({}) / d {} : fd {fd} analytic {an}",
+                        if row < nq { model.coordinate_name(row) } else { model.constraint_name(row - nq) },
+                        model.coordinate_name(col)
+                    );
+                }
+            }
+            // The C_q^T block is the transpose of C_q.
+            for r in nq..n {
+                for c in 0..nq {
+                    assert_eq!(analytic[r][c], analytic[c][r]);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn gamma_matches_second_time_derivative_of_constraints() {
+    for seed in [5u64, 17] {
+        let (model, state) = random_model(seed);
+        let nq = model.coordinate_count;
+        let nc = model.constraint_count;
+        let mut ws = Workspace::new(&model).unwrap();
+        let eval = |tau: f64, ws: &mut Workspace| {
+            let mut s = state.clone();
+            s.time += tau;
+            for k in 0..nq {
+                s.coordinates[k] += tau * state.velocities[k] + 0.5 * tau * tau * state.accelerations[k];
+                s.velocities[k] += tau * state.accelerations[k];
+            }
+            assemble(&model, view(&s), ws, None).unwrap();
+            ws.residual[nq..].to_vec()
+        };
+        let h = 1e-4;
+        let cp = eval(h, &mut ws);
+        let cm = eval(-h, &mut ws);
+        let c0 = eval(0.0, &mut ws);
+        assemble(&model, view(&state), &mut ws, Some(MatrixCoefficients::ACCELERATION)).unwrap();
+        let values = ws.values.clone();
+        let mut ct = vec![0.0; nc];
+        let mut gamma = vec![0.0; nc];
+        constraint_time_terms(&model, view(&state), &mut ws, &mut ct, Some(&mut gamma)).unwrap();
+        let jac = dense(&model, &values);
+        for r in 0..nc {
+            let c_dd = (cp[r] - 2.0 * c0[r] + cm[r]) / (h * h);
+            let cq_qdd: f64 = (0..nq).map(|k| jac[nq + r][k] * state.accelerations[k]).sum();
+            let c_d = (cp[r] - cm[r]) / (2.0 * h);
+            let cq_qd: f64 = (0..nq).map(|k| jac[nq + r][k] * state.velocities[k]).sum();
+            assert!(
+                close(c_dd, cq_qdd - gamma[r], 1e-5, 1e-5),
+                "gamma of {}: {c_dd} vs {}",
+                model.constraint_name(r),
+                cq_qdd - gamma[r]
+            );
+            assert!(
+                close(c_d, cq_qd + ct[r], 1e-6, 1e-6),
+                "C_t of {}: {c_d} vs {}",
+                model.constraint_name(r),
+                cq_qd + ct[r]
+            );
+        }
+    }
+}
