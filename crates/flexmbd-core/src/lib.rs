@@ -23,7 +23,6 @@
 //!
 //! Units are SI by convention; the core itself is unit-agnostic.
 
-
 pub mod body;
 pub mod error;
 pub mod force;

@@ -1,5 +1,32 @@
+//! Python bindings of flexmbd-core, built by maturin as `flexmbd._core`. Only bindings live
+//! here; the public API is the `flexmbd` package, which re-exports these classes.
+
+mod errors;
+mod ids;
+mod model;
+mod solver;
+mod system;
+mod time_function;
+
 use pyo3::prelude::*;
+
+/// Rust core of flexmbd (private; use the `flexmbd` package).
 #[pymodule]
-fn _core(_m: &Bound<PyModule>) -> PyResult<()> {
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<system::System>()?;
+    m.add_class::<model::Model>()?;
+    m.add_class::<ids::BodyId>()?;
+    m.add_class::<ids::MarkerId>()?;
+    m.add_class::<ids::JointId>()?;
+    m.add_class::<ids::ForceId>()?;
+    m.add_class::<ids::SensorId>()?;
+    m.add_class::<time_function::Constant>()?;
+    m.add_class::<time_function::Polynomial>()?;
+    m.add_class::<time_function::Harmonic>()?;
+    m.add_class::<time_function::Spline>()?;
+    m.add_class::<time_function::UserFunction>()?;
+    m.add_class::<solver::GeneralizedAlpha>()?;
+    m.add_function(wrap_pyfunction!(solver::simulate, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -16,6 +16,7 @@ use crate::error::{FlexmbdError, Result};
 use crate::force::gravity::{add_gravity_force, gravity_jacobian};
 use crate::force::{evaluate_force, ForceEnv};
 use crate::joint::equation::{equation_gradient, equation_hessian, equation_value, MarkerPair};
+use crate::system::workspace::JointLocal;
 use crate::system::{Model, Workspace};
 
 /// Coefficients of the blocks of the assembled matrix.
@@ -319,6 +320,28 @@ pub fn velocity_violation(model: &Model, qd: &[f64], ws: &Workspace, out: &mut [
                 v += equation_value(eq, p, &local.driver)[1];
             }
             out[joint.row + e] = v;
+        }
+    }
+}
+
+/// `out += C_q^T w` for a vector `w` over the constraint rows, with the joint Jacobians of the
+/// last `assemble` (`joints`, at coordinates `q`).
+pub fn add_constraint_forces(model: &Model, q: &[f64], joints: &[JointLocal], w: &[f64], out: &mut [f64]) {
+    for nz in &model.normalizations {
+        for &d in &nz.dofs {
+            out[d] += 2.0 * q[d] * w[nz.row];
+        }
+    }
+    for (j, joint) in model.joints.iter().enumerate() {
+        let jac = &joints[j].jacobian;
+        let nd = joint.dofs.len();
+        for e in 0..joint.equations.len() {
+            let we = w[joint.row + e];
+            if we != 0.0 {
+                for (a, &d) in joint.dofs.iter().enumerate() {
+                    out[d] += jac.data[e * nd + a] * we;
+                }
+            }
         }
     }
 }

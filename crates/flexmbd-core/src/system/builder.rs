@@ -241,7 +241,7 @@ impl SystemBuilder {
     ) -> Result<MarkerId> {
         let index = self.markers.len();
         let label = if name.is_empty() { format!("marker {index}") } else { format!("marker '{name}'") };
-        self.check_body(body, &format!("for {label}"))?;
+        self.check_body(body, &format!(" (used by {label})"))?;
         check_finite(&label, "position", &position.0)?;
         check_rotation(&label, "orientation", &orientation)?;
         if matches!(self.bodies[body.0].kind, BodyKind::PointMass { .. }) && position.norm() > 0.0 {
@@ -269,7 +269,7 @@ impl SystemBuilder {
         let index = self.joints.len();
         let label = if name.is_empty() { format!("joint {index}") } else { format!("joint '{name}'") };
         for m in markers {
-            self.check_marker(m, &format!("for {label}"))?;
+            self.check_marker(m, &format!(" (used by {label})"))?;
         }
         let (bi, bj) = (self.markers[markers[0].0].body, self.markers[markers[1].0].body);
         if bi == bj {
@@ -310,7 +310,7 @@ impl SystemBuilder {
         let index = self.forces.len();
         let label = if name.is_empty() { format!("force {index}") } else { format!("force '{name}'") };
         for m in kind.markers() {
-            self.check_marker(m, &format!("for {label}"))?;
+            self.check_marker(m, &format!(" (used by {label})"))?;
         }
         let bad = |message: String| FlexmbdError::InvalidParameter { item: label.clone(), message };
         match &kind {
@@ -360,7 +360,7 @@ impl SystemBuilder {
                 }
                 let mut seen = HashSet::new();
                 for b in bodies {
-                    self.check_body(*b, &format!("for {label}"))?;
+                    self.check_body(*b, &format!(" (used by {label})"))?;
                     if b.0 == 0 {
                         return Err(bad("the ground has no coordinates to load".to_string()));
                     }
@@ -379,7 +379,7 @@ impl SystemBuilder {
     pub fn add_sensor(&mut self, name: &str, marker: MarkerId, quantity: SensorQuantity) -> Result<SensorId> {
         let index = self.sensors.len();
         let label = if name.is_empty() { format!("sensor {index}") } else { format!("sensor '{name}'") };
-        self.check_marker(marker, &format!("for {label}"))?;
+        self.check_marker(marker, &format!(" (used by {label})"))?;
         let name = self.unique_name("sensor", name, index)?;
         self.sensors.push(SensorDefinition { name, marker, quantity });
         Ok(SensorId(index))
@@ -388,6 +388,11 @@ impl SystemBuilder {
     /// Number of bodies including the ground.
     pub fn body_count(&self) -> usize {
         self.bodies.len()
+    }
+
+    /// Numbers of markers, joints, force elements and sensors added so far.
+    pub fn item_counts(&self) -> [usize; 4] {
+        [self.markers.len(), self.joints.len(), self.forces.len(), self.sensors.len()]
     }
 
     /// Name of a body.

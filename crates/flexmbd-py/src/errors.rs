@@ -1,0 +1,76 @@
+//! Maps core errors to the Python exception classes of `flexmbd.errors`, with the item and
+//! time attached. A Python exception raised inside a user callback is kept and chained as the
+//! `__cause__` of the `CallbackError`.
+
+use std::cell::RefCell;
+
+use flexmbd_core::FlexmbdError;
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+thread_local! {
+    /// The last exception raised by a Python callback on this thread.
+    static CALLBACK_ERROR: RefCell<Option<PyErr>> = const { RefCell::new(None) };
+}
+
+/// Remembers a Python exception raised inside a callback and returns its message.
+pub fn stash_callback_error(py: Python<'_>, err: PyErr) -> String {
+    let message = err.value(py).to_string();
+    let kind = err.get_type(py).name().map(|n| n.to_string()).unwrap_or_default();
+    CALLBACK_ERROR.with(|slot| *slot.borrow_mut() = Some(err));
+    format!("{kind}: {message}")
+}
+
+fn take_callback_error() -> Option<PyErr> {
+    CALLBACK_ERROR.with(|slot| slot.borrow_mut().take())
+}
+
+fn class_and_data(err: &FlexmbdError) -> (&'static str, Option<String>, Option<f64>) {
+    use FlexmbdError::*;
+    match err {
+        InvalidParameter { item, .. } => ("InvalidParameterError", Some(item.clone()), None),
+        UnknownItem { kind, id, .. } => ("UnknownItemError", Some(format!("{kind} {id}")), None),
+        InvalidModel { item, .. } => ("InvalidModelError", Some(item.clone()), None),
+        InconsistentInitialConditions { time, item, .. } => {
+            ("InitialConditionsError", Some(item.clone()), Some(*time))
+        }
+        NewtonDiverged { time, item, .. } => ("NewtonDivergedError", Some(item.clone()), Some(*time)),
+        StepSizeTooSmall { time, .. } => ("StepSizeTooSmallError", None, Some(*time)),
+        SingularMatrix { time, context, .. } => ("SingularMatrixError", Some(context.clone()), Some(*time)),
+        NonFinite { item, time } => ("NonFiniteError", Some(item.clone()), Some(*time)),
+        Callback { item, time, .. } => ("CallbackError", Some(item.clone()), Some(*time)),
+        Interrupted { time } => ("SimulationInterrupted", None, Some(*time)),
+    }
+}
+
+/// The Python exception object for a core error.
+pub fn to_exception(py: Python<'_>, err: &FlexmbdError) -> PyErr {
+    let (class, item, time) = class_and_data(err);
+    let build = || -> PyResult<PyErr> {
+        let module = py.import("flexmbd.errors")?;
+        let cls = module.getattr(class)?;
+        let args = PyTuple::new(py, [err.to_string().into_pyobject(py)?.into_any()])?;
+        let obj = cls.call(args, None)?;
+        obj.setattr("item", item.clone())?;
+        obj.setattr("time", time)?;
+        if let FlexmbdError::Callback { .. } = err {
+            if let Some(cause) = take_callback_error() {
+                obj.setattr("__cause__", cause.value(py))?;
+            }
+        }
+        Ok(PyErr::from_value(obj))
+    };
+    build().unwrap_or_else(|e| e)
+}
+
+/// Converts a core result into a Python result.
+pub fn check<T>(result: flexmbd_core::Result<T>) -> PyResult<T> {
+    result.map_err(|e| Python::attach(|py| to_exception(py, &e)))
+}
+
+/// An `InvalidParameterError` for bad arguments found in the binding itself.
+pub fn invalid(item: &str, message: impl Into<String>) -> PyErr {
+    Python::attach(|py| {
+        to_exception(py, &FlexmbdError::InvalidParameter { item: item.to_string(), message: message.into() })
+    })
+}

@@ -1,0 +1,89 @@
+"""flexmbd: flexible multibody dynamics.
+
+Build a :class:`System` of bodies, markers, joints and forces, then :func:`simulate` it::
+
+    import flexmbd as fm
+    system = fm.System(gravity=(0, -9.81, 0))
+    mass = system.add_point_mass(1.0, position=(1, 0, 0))
+    pivot = system.add_marker(system.ground)
+    bob = system.add_marker(mass)
+    system.add_distance_joint(pivot, bob, 1.0)
+    result = fm.simulate(system, end_time=2.0, step_size=1e-3)
+    result.position(mass)       # (n, 3) array, time first
+
+Units are SI by convention. See ``docs/`` for the theory and the solver choices.
+"""
+
+from __future__ import annotations
+
+from . import errors, examples
+from ._core import (
+    BodyId,
+    Constant,
+    ForceId,
+    GeneralizedAlpha,
+    Harmonic,
+    JointId,
+    MarkerId,
+    Model,
+    Polynomial,
+    SensorId,
+    Spline,
+    System,
+    UserFunction,
+    __version__,
+)
+from .errors import (
+    CallbackError,
+    FlexmbdError,
+    InitialConditionsError,
+    InvalidModelError,
+    InvalidParameterError,
+    ModelError,
+    NewtonDivergedError,
+    NonFiniteError,
+    SimulationError,
+    SimulationInterrupted,
+    SingularMatrixError,
+    StepSizeTooSmallError,
+    UnknownItemError,
+)
+from .result import Result
+from .rotation import euler_parameters_to_matrix, rotation
+from .simulation import simulate
+
+__all__ = [
+    "BodyId",
+    "CallbackError",
+    "Constant",
+    "FlexmbdError",
+    "ForceId",
+    "GeneralizedAlpha",
+    "Harmonic",
+    "InitialConditionsError",
+    "InvalidModelError",
+    "InvalidParameterError",
+    "JointId",
+    "MarkerId",
+    "Model",
+    "ModelError",
+    "NewtonDivergedError",
+    "NonFiniteError",
+    "Polynomial",
+    "Result",
+    "SensorId",
+    "SimulationError",
+    "SimulationInterrupted",
+    "SingularMatrixError",
+    "Spline",
+    "StepSizeTooSmallError",
+    "System",
+    "UnknownItemError",
+    "UserFunction",
+    "__version__",
+    "errors",
+    "euler_parameters_to_matrix",
+    "examples",
+    "rotation",
+    "simulate",
+]

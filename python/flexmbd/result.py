@@ -1,0 +1,174 @@
+"""Simulation results: time series as NumPy arrays, time first."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _core
+from .errors import UnknownItemError
+from .rotation import euler_parameters_to_matrix
+
+Array = NDArray[np.float64]
+
+
+class Result:
+    """Results of :func:`flexmbd.simulate`.
+
+    Arrays are time-major: ``result.time`` has shape (n,), body positions (n, 3), rotation
+    matrices (n, 3, 3). Items can be given by their id (``BodyId``, ``JointId``,
+    ``SensorId``), their index or their name.
+
+    Attributes:
+        time: output times (s), (n,).
+        coordinates, velocities, accelerations: generalized coordinates q and their
+            derivatives, (n, coordinate_count).
+        multipliers: Lagrange multipliers, (n, constraint_count).
+        constraint_violation: largest |C(q, t)| at each output, (n,).
+        statistics: steps, rejected steps, Newton iterations, factorizations, step sizes.
+        success: False if the run stopped on an error (then ``error`` is that error).
+        layout: the model description (``Model.describe()``).
+    """
+
+    def __init__(
+        self, raw: dict[str, Any], layout: dict[str, Any], error: BaseException | None = None
+    ):
+        self.time: Array = raw["time"]
+        self.coordinates: Array = raw["coordinates"]
+        self.velocities: Array = raw["velocities"]
+        self.accelerations: Array = raw["accelerations"]
+        self.multipliers: Array = raw["multipliers"]
+        self.constraint_violation: Array = raw["constraint_violation"]
+        self.statistics: dict[str, float] = dict(raw["statistics"])
+        self.layout = layout
+        self.error = error
+        self.success = error is None
+        self._reactions: Array = raw["reactions"]
+        self._sensors: Array = raw["sensors"]
+        self._energy: Array = raw["energy"]
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def __repr__(self) -> str:
+        status = "complete" if self.success else f"stopped: {type(self.error).__name__}"
+        if len(self.time) == 0:
+            return f"Result(no records, {status})"
+        return (
+            f"Result({len(self.time)} records, t = {self.time[0]:g} .. {self.time[-1]:g} s, "
+            f"{self.statistics.get('steps', 0)} steps, {status})"
+        )
+
+    # Energies -------------------------------------------------------------------------
+    @property
+    def kinetic_energy(self) -> Array:
+        """Kinetic energy (J), (n,)."""
+        return self._energy[:, 0]
+
+    @property
+    def potential_energy(self) -> Array:
+        """Potential energy of gravity and springs (J), (n,)."""
+        return self._energy[:, 1]
+
+    @property
+    def total_energy(self) -> Array:
+        """Kinetic plus potential energy (J), (n,)."""
+        return self._energy[:, 0] + self._energy[:, 1]
+
+    # Lookups ---------------------------------------------------------------------------
+    def _lookup(self, kind: str, item: object, id_type: type) -> tuple[int, dict[str, Any]]:
+        entries = self.layout[kind]
+        if isinstance(item, id_type):
+            index = item.index  # type: ignore[attr-defined]
+        elif isinstance(item, int | np.integer):
+            index = int(item)
+        elif isinstance(item, str):
+            names = [e["name"] for e in entries]
+            if item not in names:
+                raise UnknownItemError(f"no {kind[:-1]} named {item!r}; known: {names}", item=item)
+            index = names.index(item)
+        else:
+            raise UnknownItemError(
+                f"expected a {id_type.__name__}, an index or a name, got {item!r}"
+            )
+        if not 0 <= index < len(entries):
+            raise UnknownItemError(f"{kind[:-1]} {index} does not exist", item=str(item))
+        return index, entries[index]
+
+    def _body(self, body: object) -> dict[str, Any]:
+        _, entry = self._lookup("bodies", body, _core.BodyId)
+        return entry
+
+    # Bodies ----------------------------------------------------------------------------
+    def position(self, body: object) -> Array:
+        """Position of the body frame origin (m, global), (n, 3)."""
+        b = self._body(body)
+        if b["kind"] == "ground":
+            return np.zeros((len(self.time), 3))
+        return self.coordinates[:, b["offset"] : b["offset"] + 3]
+
+    def velocity(self, body: object) -> Array:
+        """Velocity of the body frame origin (m/s, global), (n, 3)."""
+        b = self._body(body)
+        if b["kind"] == "ground":
+            return np.zeros((len(self.time), 3))
+        return self.velocities[:, b["offset"] : b["offset"] + 3]
+
+    def euler_parameters(self, body: object) -> Array:
+        """Euler parameters [e0, e1, e2, e3] of a rigid body, (n, 4)."""
+        b = self._body(body)
+        if b["kind"] != "rigid":
+            p = np.zeros((len(self.time), 4))
+            p[:, 0] = 1.0
+            return p
+        return self.coordinates[:, b["offset"] + 3 : b["offset"] + 7]
+
+    def orientation(self, body: object) -> Array:
+        """Rotation matrix of the body frame (columns: body axes in global axes), (n, 3, 3)."""
+        return euler_parameters_to_matrix(self.euler_parameters(body))
+
+    def angular_velocity(self, body: object) -> Array:
+        """Angular velocity (rad/s, global axes), (n, 3): w = 2 G(p) p_dot."""
+        b = self._body(body)
+        if b["kind"] != "rigid":
+            return np.zeros((len(self.time), 3))
+        o = b["offset"]
+        p = self.coordinates[:, o + 3 : o + 7]
+        pd = self.velocities[:, o + 3 : o + 7]
+        e0, e = p[:, :1], p[:, 1:]
+        e0d, ed = pd[:, :1], pd[:, 1:]
+        # G(p) p_dot = -e e0_dot + (e~ + e0 I) e_dot
+        return 2.0 * (-e * e0d + e0 * ed + np.cross(e, ed))
+
+    # Joints ----------------------------------------------------------------------------
+    def reaction(self, joint: object) -> tuple[Array, Array]:
+        """Force (N) and torque (N m) that the joint exerts on the body of its second marker,
+        about that marker's origin, in that marker's axes: two (n, 3) arrays. For a driver,
+        the torque (angle driver) or force (translation driver) component along the z axis
+        is the driving effort."""
+        index, _ = self._lookup("joints", joint, _core.JointId)
+        return self._reactions[:, index, :3], self._reactions[:, index, 3:]
+
+    def reaction_force(self, joint: object) -> Array:
+        """Reaction force of :meth:`reaction`, (n, 3)."""
+        return self.reaction(joint)[0]
+
+    def reaction_torque(self, joint: object) -> Array:
+        """Reaction torque of :meth:`reaction`, (n, 3)."""
+        return self.reaction(joint)[1]
+
+    def joint_multipliers(self, joint: object) -> Array:
+        """Lagrange multipliers of a joint's equations, (n, equations)."""
+        _, j = self._lookup("joints", joint, _core.JointId)
+        return self.multipliers[:, j["row"] : j["row"] + len(j["equations"])]
+
+    # Sensors ---------------------------------------------------------------------------
+    def sensor(self, sensor: object) -> Array:
+        """Values of a sensor: (n, 3), or (n, 3, 3) for an orientation."""
+        _, s = self._lookup("sensors", sensor, _core.SensorId)
+        values = self._sensors[:, s["offset"] : s["offset"] + s["size"]]
+        if s["size"] == 9:
+            return values.reshape(-1, 3, 3)
+        return values

@@ -1,0 +1,42 @@
+"""Rotation helpers: rotation matrices from an axis and angle, and from Euler parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def rotation(axis: ArrayLike | str, angle: float) -> NDArray[np.float64]:
+    """Rotation matrix for a rotation by ``angle`` (rad) about ``axis`` (a 3-vector, or
+    ``"x"``, ``"y"``, ``"z"``), by Rodrigues' formula."""
+    if isinstance(axis, str):
+        index = {"x": 0, "y": 1, "z": 2}.get(axis.lower())
+        if index is None:
+            raise ValueError(f"axis must be 'x', 'y', 'z' or a 3-vector, got {axis!r}")
+        a = np.zeros(3)
+        a[index] = 1.0
+    else:
+        a = np.asarray(axis, dtype=float).reshape(3)
+        norm = np.linalg.norm(a)
+        if not np.isfinite(norm) or norm == 0.0:
+            raise ValueError(f"axis must be a non-zero finite 3-vector, got {axis!r}")
+        a = a / norm
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def euler_parameters_to_matrix(p: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrices from Euler parameters [e0, e1, e2, e3] (shape (..., 4) -> (..., 3, 3))."""
+    p = np.asarray(p, dtype=float)
+    e0, e1, e2, e3 = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    a = np.empty(p.shape[:-1] + (3, 3))
+    a[..., 0, 0] = e0 * e0 + e1 * e1 - e2 * e2 - e3 * e3
+    a[..., 0, 1] = 2.0 * (e1 * e2 - e0 * e3)
+    a[..., 0, 2] = 2.0 * (e1 * e3 + e0 * e2)
+    a[..., 1, 0] = 2.0 * (e1 * e2 + e0 * e3)
+    a[..., 1, 1] = e0 * e0 - e1 * e1 + e2 * e2 - e3 * e3
+    a[..., 1, 2] = 2.0 * (e2 * e3 - e0 * e1)
+    a[..., 2, 0] = 2.0 * (e1 * e3 - e0 * e2)
+    a[..., 2, 1] = 2.0 * (e2 * e3 + e0 * e1)
+    a[..., 2, 2] = e0 * e0 - e1 * e1 - e2 * e2 + e3 * e3
+    return a
