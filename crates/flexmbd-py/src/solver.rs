@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use flexmbd_core::output::Output;
 use flexmbd_core::solver::initial::InitialSettings;
 use flexmbd_core::solver::{
-    simulate as core_simulate, JacobianUpdate, NewtonSettings, SimulationSettings, StepControl,
+    simulate as core_simulate, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
     VelocityProjection,
 };
 use numpy::{PyArray1, PyArrayMethods};
@@ -26,12 +26,15 @@ use crate::model::Model;
 /// - `newton_tolerance`: tolerance on the Newton increment of the accelerations, relative to
 ///   max(1, |q_dd|).
 /// - `jacobian`: "modified" (keep the factorized Newton matrix across iterations and steps
-///   while it contracts well) or "full" (refactorize every iteration).
+///   while it contracts well), "step" (refactorize once per step, at the predictor) or
+///   "full" (refactorize every iteration).
 /// - `step_control`: "newton" (retry failed steps with a quarter of the step, grow back to
 ///   the nominal step), "fixed" (a failed step is an error), or "error" (local error
 ///   estimate with `relative_tolerance` and `absolute_tolerance`, steps up to
 ///   `max_step_size`).
 /// - `velocity_projection`: "auto" (at spectral radius 1 only), "always" or "never".
+/// - `linear_solver`: "auto" (LDL^T of the symmetrized matrix for modified Newton, LU of the
+///   exact matrix for full Newton and for retrying a failed step), "lu" or "ldlt".
 /// - `initial_tolerance`, `correct_initial_positions`, `correct_initial_velocities`: the
 ///   consistent initial conditions (minimum-norm corrections onto the constraints).
 #[pyclass(module = "flexmbd._core", get_all, set_all, from_py_object)]
@@ -43,7 +46,7 @@ pub struct GeneralizedAlpha {
     pub newton_tolerance: f64,
     /// Newton iterations per attempt.
     pub max_iterations: usize,
-    /// "modified" or "full".
+    /// "modified", "step" or "full".
     pub jacobian: String,
     /// "newton", "fixed" or "error".
     pub step_control: String,
@@ -57,6 +60,8 @@ pub struct GeneralizedAlpha {
     pub max_step_size: Option<f64>,
     /// "auto", "always" or "never".
     pub velocity_projection: String,
+    /// "auto", "lu" or "ldlt".
+    pub linear_solver: String,
     /// Largest constraint violation accepted at the start.
     pub initial_tolerance: f64,
     /// Correct inconsistent initial positions.
@@ -68,9 +73,9 @@ pub struct GeneralizedAlpha {
 #[pymethods]
 impl GeneralizedAlpha {
     #[new]
-    #[pyo3(signature = (spectral_radius = 0.9, *, newton_tolerance = 1e-8, max_iterations = 12, jacobian = "modified",
+    #[pyo3(signature = (spectral_radius = 0.9, *, newton_tolerance = 1e-6, max_iterations = 12, jacobian = "modified",
                         step_control = "newton", relative_tolerance = 1e-6, absolute_tolerance = 1e-8,
-                        min_step_size = None, max_step_size = None, velocity_projection = "auto",
+                        min_step_size = None, max_step_size = None, velocity_projection = "auto", linear_solver = "auto",
                         initial_tolerance = 1e-11, correct_initial_positions = true, correct_initial_velocities = true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -84,6 +89,7 @@ impl GeneralizedAlpha {
         min_step_size: Option<f64>,
         max_step_size: Option<f64>,
         velocity_projection: &str,
+        linear_solver: &str,
         initial_tolerance: f64,
         correct_initial_positions: bool,
         correct_initial_velocities: bool,
@@ -99,6 +105,7 @@ impl GeneralizedAlpha {
             min_step_size,
             max_step_size,
             velocity_projection: velocity_projection.to_string(),
+            linear_solver: linear_solver.to_string(),
             initial_tolerance,
             correct_initial_positions,
             correct_initial_velocities,
@@ -126,8 +133,14 @@ impl GeneralizedAlpha {
         }
         let jacobian = match self.jacobian.as_str() {
             "modified" => JacobianUpdate::Modified,
+            "step" => JacobianUpdate::EveryStep,
             "full" => JacobianUpdate::EveryIteration,
-            o => return Err(invalid(item, format!("jacobian must be 'modified' or 'full', got '{o}'"))),
+            o => {
+                return Err(invalid(
+                    item,
+                    format!("jacobian must be 'modified', 'step' or 'full', got '{o}'"),
+                ))
+            }
         };
         let velocity_projection = match self.velocity_projection.as_str() {
             "auto" => VelocityProjection::Auto,
@@ -138,6 +151,14 @@ impl GeneralizedAlpha {
                     item,
                     format!("velocity_projection must be 'auto', 'always' or 'never', got '{o}'"),
                 ))
+            }
+        };
+        let linear_solver = match self.linear_solver.as_str() {
+            "auto" => LinearSolver::Auto,
+            "lu" => LinearSolver::Lu,
+            "ldlt" => LinearSolver::Ldlt,
+            o => {
+                return Err(invalid(item, format!("linear_solver must be 'auto', 'lu' or 'ldlt', got '{o}'")))
             }
         };
         let step_control = match self.step_control.as_str() {
@@ -161,6 +182,7 @@ impl GeneralizedAlpha {
             tolerance: self.newton_tolerance,
             jacobian,
             velocity_projection,
+            linear_solver,
             ..NewtonSettings::default()
         };
         s.step_control = step_control;
@@ -228,7 +250,7 @@ pub fn simulate<'py>(
     let solver = match solver {
         Some(s) => s,
         None => GeneralizedAlpha::new(
-            0.9, 1e-8, 12, "modified", "newton", 1e-6, 1e-8, None, None, "auto", 1e-11, true, true,
+            0.9, 1e-6, 12, "modified", "newton", 1e-6, 1e-8, None, None, "auto", "auto", 1e-11, true, true,
         )?,
     };
     let mut settings = solver.settings(end_time, step_size)?;

@@ -23,6 +23,9 @@ pub struct Marker {
     pub position: Vec3,
     /// Orientation in the body frame (columns: marker axes in body coordinates).
     pub rotation: Mat3,
+    /// Whether some joint or force differentiates the marker's axes (else their Jacobians are
+    /// not computed).
+    pub axis_jacobians: bool,
 }
 
 /// Position, orientation, velocities and Jacobians of a marker at the current state.
@@ -109,6 +112,9 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                 }
             }
             for k in 0..3 {
+                if !marker.axis_jacobians {
+                    break;
+                }
                 let jk = rotate_jacobian(&p, &marker.rotation.column(k));
                 for i in 0..3 {
                     for j in 0..4 {

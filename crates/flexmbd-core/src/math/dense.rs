@@ -138,17 +138,20 @@ impl Jacobian3 {
 
     /// `out[offset + j] += w * (v^T J)_j`.
     pub fn add_transpose_times(&self, w: f64, v: &Vec3, out: &mut [f64], offset: usize) {
-        for j in 0..self.n {
-            out[offset + j] += w * (v[0] * self.get(0, j) + v[1] * self.get(1, j) + v[2] * self.get(2, j));
+        let n = self.n;
+        let (r0, rest) = self.data.split_at(n);
+        let (r1, r2) = rest.split_at(n);
+        let (v0, v1, v2) = (w * v[0], w * v[1], w * v[2]);
+        for (o, ((a, b), c)) in out[offset..offset + n].iter_mut().zip(r0.iter().zip(r1).zip(r2)) {
+            *o += v0 * a + v1 * b + v2 * c;
         }
     }
 
     /// `J x` for a vector of n coordinates.
     pub fn times(&self, x: &[f64]) -> Vec3 {
-        let mut r = Vec3::ZERO;
-        for i in 0..3 {
-            r[i] = (0..self.n).map(|j| self.get(i, j) * x[j]).sum();
-        }
-        r
+        let n = self.n;
+        let row =
+            |i: usize| self.data[i * n..(i + 1) * n].iter().zip(&x[..n]).map(|(a, b)| a * b).sum::<f64>();
+        Vec3([row(0), row(1), row(2)])
     }
 }

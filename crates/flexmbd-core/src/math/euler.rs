@@ -143,20 +143,35 @@ pub fn bilinear_hessian(v: &Vec3, a: &Vec3) -> Mat44 {
     h
 }
 
-/// Jacobian d(A(p) a)/dp (3 x 4) for a constant body vector `a`.
+/// Jacobian d(A(p) a)/dp (3 x 4) for a constant body vector `a`, in closed form:
+/// 2 [e0 a + e x a, (a.e) I + e a^T - a e^T - e0 a~] (row k is 2 H(e_k, a) p).
 pub fn rotate_jacobian(p: &Quaternion, a: &Vec3) -> Mat34 {
-    let mut j = [[0.0; 4]; 3];
-    for k in 0..3 {
-        j[k] = matvec(&bilinear_hessian(&Vec3::unit(k), a), p);
-    }
-    j
+    let [e0, e1, e2, e3] = *p;
+    let [a0, a1, a2] = a.0;
+    let ae = a0 * e1 + a1 * e2 + a2 * e3;
+    // Column 0: e0 a + e x a. Columns 1..3: (a.e) I + e a^T - a e^T - e0 a~.
+    let (c0, c1, c2) =
+        (e0 * a0 + e2 * a2 - e3 * a1, e0 * a1 + e3 * a0 - e1 * a2, e0 * a2 + e1 * a1 - e2 * a0);
+    let m = [
+        [ae + e1 * a0 - a0 * e1, e1 * a1 - a0 * e2 + e0 * a2, e1 * a2 - a0 * e3 - e0 * a1],
+        [e2 * a0 - a1 * e1 - e0 * a2, ae + e2 * a1 - a1 * e2, e2 * a2 - a1 * e3 + e0 * a0],
+        [e3 * a0 - a2 * e1 + e0 * a1, e3 * a1 - a2 * e2 - e0 * a0, ae + e3 * a2 - a2 * e3],
+    ];
+    [
+        [2.0 * c0, 2.0 * m[0][0], 2.0 * m[0][1], 2.0 * m[0][2]],
+        [2.0 * c1, 2.0 * m[1][0], 2.0 * m[1][1], 2.0 * m[1][2]],
+        [2.0 * c2, 2.0 * m[2][0], 2.0 * m[2][1], 2.0 * m[2][2]],
+    ]
 }
 
-/// Jacobian d(A(p)^T x)/dp (3 x 4) for a constant global vector `x`.
+/// Jacobian d(A(p)^T x)/dp (3 x 4) for a constant global vector `x`: A(p)^T = A(p*) with the
+/// conjugate p* = [e0, -e], so it is `rotate_jacobian(p*, x)` with columns 1..3 negated.
 pub fn rotate_transpose_jacobian(p: &Quaternion, x: &Vec3) -> Mat34 {
-    let mut j = [[0.0; 4]; 3];
-    for k in 0..3 {
-        j[k] = matvec(&bilinear_hessian(x, &Vec3::unit(k)), p);
+    let mut j = rotate_jacobian(&[p[0], -p[1], -p[2], -p[3]], x);
+    for row in j.iter_mut() {
+        for v in row[1..].iter_mut() {
+            *v = -*v;
+        }
     }
     j
 }
@@ -274,6 +289,22 @@ mod tests {
         }
         assert!(matvec(&l, &p).iter().all(|x| x.abs() < 1e-15));
         let _ = tr_matmul(&l, &l);
+    }
+
+    #[test]
+    fn closed_form_jacobians_equal_the_hessian_construction() {
+        let p = [0.3, -0.5, 0.7, 0.2];
+        let a = Vec3([0.4, -1.1, 0.9]);
+        let j = rotate_jacobian(&p, &a);
+        let jt = rotate_transpose_jacobian(&p, &a);
+        for k in 0..3 {
+            let row = matvec(&bilinear_hessian(&Vec3::unit(k), &a), &p);
+            let row_t = matvec(&bilinear_hessian(&a, &Vec3::unit(k)), &p);
+            for m in 0..4 {
+                assert!((row[m] - j[k][m]).abs() < 1e-14);
+                assert!((row_t[m] - jt[k][m]).abs() < 1e-14);
+            }
+        }
     }
 
     #[test]

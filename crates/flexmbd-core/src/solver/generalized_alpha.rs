@@ -15,7 +15,7 @@
 //!   [[s (beta' M + gamma' D + K), C_q^T], [C_q, 0]] [dq; s dlambda] = -[s r; C].
 
 use super::assembly::{assemble, MatrixCoefficients, StateView};
-use super::settings::{JacobianUpdate, NewtonSettings};
+use super::settings::{JacobianUpdate, LinearSolver, NewtonSettings};
 use crate::error::{FlexmbdError, Result};
 use crate::system::{Model, State, Workspace};
 
@@ -79,11 +79,72 @@ pub struct StepReport {
     pub failure: Option<String>,
 }
 
+/// Which factorization holds the current Newton matrix.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Factorization {
+    /// Sparse LU of the exact matrix.
+    #[default]
+    Lu,
+    /// LDL^T of the symmetrized, quasi-definite matrix.
+    Ldlt,
+}
+
 /// Cache of the factorized Newton matrix between steps (modified Newton).
 #[derive(Clone, Debug, Default)]
 pub struct JacobianCache {
     /// Step size the current factorization was made for (None: no valid factorization).
     pub step_size: Option<f64>,
+    /// The factorization it is held in.
+    pub kind: Factorization,
+}
+
+/// Factorizes the assembled Newton matrix in `ws.values` with `kind`. For LDL^T the
+/// normalization constraints get the penalty s kappa (2p)(2p)^T: adding s kappa C_n^T C_n to
+/// the coordinate block leaves dq unchanged (C_n dq is fixed by the constraint rows) and only
+/// shifts dmu_n by s kappa C_n dq, which `solve` takes back.
+fn factorize(
+    model: &Model,
+    ws: &mut Workspace,
+    kind: Factorization,
+    scale: f64,
+    q: &[f64],
+) -> std::result::Result<(), String> {
+    match kind {
+        Factorization::Lu => ws.lu.factorize(&ws.values),
+        Factorization::Ldlt => {
+            for (k, nz) in model.normalizations.iter().enumerate() {
+                ws.penalties[k] = (
+                    scale * ws.normalization_weights[k],
+                    [q[nz.dofs[0]], q[nz.dofs[1]], q[nz.dofs[2]], q[nz.dofs[3]]],
+                );
+            }
+            ws.ldlt.factorize(&ws.values, &ws.penalties)
+        }
+    }
+}
+
+/// Solves with the factorization `kind` in place in `ws.solution`.
+fn solve(
+    model: &Model,
+    ws: &mut Workspace,
+    kind: Factorization,
+    scale: f64,
+) -> std::result::Result<(), String> {
+    match kind {
+        Factorization::Lu => ws.lu.solve_in_place(&mut ws.solution),
+        Factorization::Ldlt => {
+            let nq = model.coordinate_count;
+            // C_n dq equals the right-hand side of the normalization rows.
+            for (k, nz) in model.normalizations.iter().enumerate() {
+                ws.scratch[2][k] = ws.solution[nq + nz.row];
+            }
+            ws.ldlt.solve_in_place(&mut ws.solution)?;
+            for (k, nz) in model.normalizations.iter().enumerate() {
+                ws.solution[nq + nz.row] += scale * ws.normalization_weights[k] * ws.scratch[2][k];
+            }
+            Ok(())
+        }
+    }
 }
 
 /// Weighted norm of the Newton increment (converged at <= 1) and the index of its largest
@@ -131,18 +192,27 @@ fn increment_norm(
     (worst.1, worst.0)
 }
 
-/// Sets `next` to the predictor of a step of size h from `current`: q_dd(n+1) = q_dd(n),
-/// lambda(n+1) = lambda(n).
+/// Sets `next` to the predictor of a step of size h from `current`: q_dd(n+1) and
+/// lambda(n+1) extrapolated linearly from the last two steps (constant at the first step);
+/// q(n+1), q_dot(n+1) follow from the generalized-alpha update.
 fn predict(method: &GeneralizedAlpha, h: f64, current: &State, next: &mut State) {
     let GeneralizedAlpha { alpha_m, alpha_f, beta, gamma } = *method;
+    let ratio = if current.previous_step_size > 0.0 { h / current.previous_step_size } else { 0.0 };
     next.time = current.time + h;
+    next.previous_step_size = h;
     next.discrete.copy_from_slice(&current.discrete);
-    next.multipliers.copy_from_slice(&current.multipliers);
+    next.previous_accelerations.copy_from_slice(&current.accelerations);
+    next.previous_multipliers.copy_from_slice(&current.multipliers);
+    for (k, l) in next.multipliers.iter_mut().enumerate() {
+        let now = current.multipliers[k];
+        *l = now + ratio * (now - current.previous_multipliers[k]);
+    }
     for k in 0..current.coordinates.len() {
         let qdd = current.accelerations[k];
+        let guess = qdd + ratio * (qdd - current.previous_accelerations[k]);
         let a_n = current.algorithmic_accelerations[k];
-        let a = (alpha_f * qdd + (1.0 - alpha_f) * qdd - alpha_m * a_n) / (1.0 - alpha_m);
-        next.accelerations[k] = qdd;
+        let a = (alpha_f * qdd + (1.0 - alpha_f) * guess - alpha_m * a_n) / (1.0 - alpha_m);
+        next.accelerations[k] = guess;
         next.algorithmic_accelerations[k] = a;
         next.coordinates[k] =
             current.coordinates[k] + h * current.velocities[k] + h * h * ((0.5 - beta) * a_n + beta * a);
@@ -160,6 +230,7 @@ fn iterate(
     coef: MatrixCoefficients,
     newton: &NewtonSettings,
     reuse: bool,
+    kind: Factorization,
     h: f64,
     next: &mut State,
     ws: &mut Workspace,
@@ -172,7 +243,7 @@ fn iterate(
     let mut fresh = false;
     let mut previous_norm = f64::INFINITY;
     for iteration in 0..newton.max_iterations {
-        let need_matrix = !reuse || cache.step_size != Some(h) || !ws.lu.is_factorized();
+        let need_matrix = !reuse || cache.step_size != Some(h) || cache.kind != kind;
         let view = StateView {
             time: next.time,
             q: &next.coordinates,
@@ -183,12 +254,13 @@ fn iterate(
         };
         assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
         if need_matrix {
-            if let Err(detail) = ws.lu.factorize(&ws.values) {
+            if let Err(detail) = factorize(model, ws, kind, s, &next.coordinates) {
                 cache.step_size = None;
                 report.failure = Some(format!("singular Newton matrix: {detail}"));
                 return Ok((report, fresh));
             }
             cache.step_size = Some(h);
+            cache.kind = kind;
             fresh = true;
             report.factorizations += 1;
         }
@@ -198,32 +270,25 @@ fn iterate(
         for k in 0..nc {
             ws.solution[nq + k] = -ws.residual[nq + k];
         }
-        if let Err(detail) = ws.lu.solve_in_place(&mut ws.solution) {
+        if let Err(detail) = solve(model, ws, kind, s) {
             cache.step_size = None;
             report.failure = Some(format!("singular Newton matrix: {detail}"));
             return Ok((report, fresh));
         }
-        // Constraint forces C_q^T dlambda of the increment and C_q^T lambda before it, with
+        // With a matrix reused from an earlier iterate, the multipliers are tested through the
+        // constraint forces C_q^T dlambda of the increment (and C_q^T lambda before it), with
         // the Jacobians of this iterate.
+        let check_multipliers = !need_matrix;
         let [force_increment, force, _] = &mut ws.scratch;
-        force_increment[..nq].iter_mut().for_each(|x| *x = 0.0);
-        force[..nq].iter_mut().for_each(|x| *x = 0.0);
-        super::assembly::add_constraint_forces(
-            model,
-            &next.coordinates,
-            &ws.joints,
-            &ws.solution[nq..],
-            force_increment,
-        );
-        super::assembly::add_constraint_forces(
-            model,
-            &next.coordinates,
-            &ws.joints,
-            &next.multipliers,
-            force,
-        );
+        if check_multipliers {
+            force_increment[..nq].iter_mut().for_each(|x| *x = 0.0);
+            force[..nq].iter_mut().for_each(|x| *x = 0.0);
+            let (q, lambda) = (&next.coordinates, &next.multipliers);
+            super::assembly::add_constraint_forces(model, q, &ws.joints, &ws.solution[nq..], force_increment);
+            super::assembly::add_constraint_forces(model, q, &ws.joints, lambda, force);
+            force_increment[..nq].iter_mut().for_each(|x| *x /= s);
+        }
         for k in 0..nq {
-            force_increment[k] /= s;
             let dq = ws.solution[k];
             next.coordinates[k] += dq;
             next.velocities[k] += coef.velocity * dq;
@@ -240,7 +305,7 @@ fn iterate(
             &ws.solution[..nq],
             &ws.scratch[0][..nq],
             &ws.scratch[1][..nq],
-            !need_matrix,
+            check_multipliers,
         );
         report.increment_norm = norm;
         report.worst = worst;
@@ -257,13 +322,13 @@ fn iterate(
         let estimated_error_small = rate_trusted && rate < 1.0 && rate / (1.0 - rate) * norm <= 1.0;
         // Near singular configurations the Newton matrix is ill-conditioned and the increments
         // stall at a round-off level amplified by its condition: once the relative position
-        // increment is below 1e-11 and no longer decreases, with a current matrix, the
+        // increment is below 1e-10 and no longer decreases, with a current matrix, the
         // iteration has converged as far as it can.
         let position_increment = ws.solution[..nq]
             .iter()
             .zip(&next.coordinates)
             .fold(0.0f64, |m, (dq, q)| m.max(dq.abs() / q.abs().max(1.0)));
-        let at_roundoff = position_increment <= 1e-11;
+        let at_roundoff = position_increment <= 1e-10;
         let stalled_at_roundoff = need_matrix && iteration >= 1 && rate >= 0.5 && at_roundoff;
         if norm <= 1.0 || estimated_error_small || stalled_at_roundoff {
             report.converged = true;
@@ -303,16 +368,26 @@ pub fn step(
     let GeneralizedAlpha { alpha_m, alpha_f, .. } = *method;
     let coef = method.coefficients(h);
 
-    // Modified Newton first tries the factorization kept from earlier steps; if that does
-    // not converge, the step restarts from the predictor with full Newton.
+    // With one factorization per step, the matrix is refreshed at the predictor and kept for
+    // the step's iterations. If an attempt that reused a matrix fails, the step restarts
+    // from the predictor with full Newton.
+    if newton.jacobian == JacobianUpdate::EveryStep {
+        cache.step_size = None;
+    }
+    let reuse = newton.jacobian != JacobianUpdate::EveryIteration;
+    let (first_kind, exact_kind) = match newton.linear_solver {
+        LinearSolver::Lu => (Factorization::Lu, Factorization::Lu),
+        LinearSolver::Ldlt => (Factorization::Ldlt, Factorization::Ldlt),
+        LinearSolver::Auto if reuse => (Factorization::Ldlt, Factorization::Lu),
+        LinearSolver::Auto => (Factorization::Lu, Factorization::Lu),
+    };
     predict(method, h, current, next);
-    let reuse_first = newton.jacobian == JacobianUpdate::Modified && cache.step_size == Some(h);
-    let (mut report, mut fresh) = iterate(model, coef, newton, reuse_first, h, next, ws, cache)?;
-    if !report.converged && reuse_first {
+    let (mut report, mut fresh) = iterate(model, coef, newton, reuse, first_kind, h, next, ws, cache)?;
+    if !report.converged && reuse && (report.factorizations < report.iterations || first_kind != exact_kind) {
         let first = report.clone();
         predict(method, h, current, next);
         cache.step_size = None;
-        let (second, second_fresh) = iterate(model, coef, newton, false, h, next, ws, cache)?;
+        let (second, second_fresh) = iterate(model, coef, newton, false, exact_kind, h, next, ws, cache)?;
         report = second;
         report.iterations += first.iterations;
         report.factorizations += first.factorizations;
@@ -339,7 +414,7 @@ pub fn step(
         };
         assemble(model, view, ws, if fresh { None } else { Some(coef) })?;
         if !fresh {
-            if let Err(detail) = ws.lu.factorize(&ws.values) {
+            if let Err(detail) = factorize(model, ws, cache.kind, coef.scale, &next.coordinates) {
                 cache.step_size = None;
                 report.converged = false;
                 report.failure = Some(format!("singular Newton matrix in the velocity projection: {detail}"));
@@ -355,7 +430,7 @@ pub fn step(
             ws.solution[nq + k] = -violation[k];
         }
         ws.scratch[1] = violation;
-        if let Err(detail) = ws.lu.solve_in_place(&mut ws.solution) {
+        if let Err(detail) = solve(model, ws, cache.kind, coef.scale) {
             cache.step_size = None;
             report.converged = false;
             report.failure = Some(format!("velocity projection: {detail}"));

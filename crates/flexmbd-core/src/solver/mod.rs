@@ -9,5 +9,7 @@ pub mod settings;
 pub mod simulate;
 pub mod sparse;
 
-pub use settings::{JacobianUpdate, NewtonSettings, SimulationSettings, StepControl, VelocityProjection};
+pub use settings::{
+    JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl, VelocityProjection,
+};
 pub use simulate::{simulate, Progress, SimulationOutcome};

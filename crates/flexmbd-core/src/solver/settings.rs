@@ -11,6 +11,9 @@ pub enum JacobianUpdate {
     /// Kept across iterations and steps while the iteration contracts fast enough and the
     /// step size is unchanged (modified Newton).
     Modified,
+    /// Refactorized once at the start of every step (at the predictor) and kept for the
+    /// step's iterations while they contract fast enough.
+    EveryStep,
 }
 
 /// Newton's method of the implicit integrator.
@@ -27,6 +30,20 @@ pub struct NewtonSettings {
     pub contraction_limit: f64,
     /// Projection of the velocities onto C_q q_dot + C_t = 0 after every step.
     pub velocity_projection: VelocityProjection,
+    /// Factorization of the Newton matrix.
+    pub linear_solver: LinearSolver,
+}
+
+/// Factorization of the Newton matrix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinearSolver {
+    /// LDL^T of the symmetrized matrix for reused (modified Newton) matrices, LU for exact
+    /// Newton steps (full Newton, and the retry of a failed modified step).
+    Auto,
+    /// Sparse LU with partial pivoting of the exact Newton matrix, always.
+    Lu,
+    /// LDL^T of the symmetrized, regularized matrix (quasi-definite), also for full Newton.
+    Ldlt,
 }
 
 /// Whether velocities are projected onto the velocity constraints after each step (one extra
@@ -60,10 +77,11 @@ impl Default for NewtonSettings {
     fn default() -> Self {
         NewtonSettings {
             max_iterations: 12,
-            tolerance: 1e-8,
+            tolerance: 1e-6,
             jacobian: JacobianUpdate::Modified,
             contraction_limit: 0.25,
             velocity_projection: VelocityProjection::Auto,
+            linear_solver: LinearSolver::Auto,
         }
     }
 }

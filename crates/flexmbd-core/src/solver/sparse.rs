@@ -8,7 +8,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::lu::partial_pivoting::factor::PartialPivLuParams;
-use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, LuSymbolicParams, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Spec};
 
@@ -132,8 +132,8 @@ impl SparseLu {
             None,
             &pattern.row_idx,
         );
-        let symbolic =
-            factorize_symbolic_lu(symbolic_view, Default::default()).map_err(|e| format!("{e:?}"))?;
+        let symbolic = factorize_symbolic_lu(symbolic_view, LuSymbolicParams::default())
+            .map_err(|e| format!("{e:?}"))?;
         let par = Par::Seq;
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_lu_scratch::<f64>(par, Default::default()),
@@ -220,5 +220,213 @@ mod tests {
         for k in 0..3 {
             assert!((rhs[k] - x_true[k]).abs() < 1e-14);
         }
+    }
+}
+
+/// LDL^T factorization of the symmetric part of a saddle-point matrix
+/// [[A, B^T], [B, 0]] given on a structurally symmetric pattern, regularized to the
+/// quasi-definite [[A_sym + P, B^T], [B, -delta I]] (Vanderbei 1995), with a fill-reducing AMD
+/// ordering computed once. Quasi-definite matrices have an LDL^T factorization in every
+/// symmetric ordering, so no pivoting is needed when A_sym + P is positive definite. `P` adds
+/// penalty blocks w (2p)(2p)^T for the Euler-parameter normalizations (which make a rigid
+/// body's mass matrix definite along p without changing the solution dq; see
+/// `generalized_alpha`). Used as the iteration matrix of modified Newton, where an
+/// approximate Jacobian is enough; exact Newton steps use [`SparseLu`].
+pub struct SparseLdlt {
+    positive: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Per lower entry: the indices of (r, c) and (c, r) in the full value array
+    /// (`usize::MAX` for diagonal entries absent from the full pattern).
+    sources: Vec<[usize; 2]>,
+    /// Per penalty block: the lower entry of (a, b) for a >= b over its four coordinates.
+    penalty_entries: Vec<[usize; 10]>,
+    symbolic: faer::sparse::linalg::cholesky::SymbolicCholesky<usize>,
+    lower_values: Vec<f64>,
+    factor: Vec<f64>,
+    signs: Vec<i8>,
+    memory: MemBuffer,
+    factorized: bool,
+}
+
+impl std::fmt::Debug for SparseLdlt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "SparseLdlt(n = {}, nnz(L) = {})", self.signs.len(), self.factor.len())
+    }
+}
+
+impl SparseLdlt {
+    /// Symbolic analysis. The first `positive` unknowns form the definite block; the others
+    /// are constraint rows. `penalty_blocks` lists the Euler parameters of each normalization.
+    pub fn new(
+        pattern: &SparsePattern,
+        positive: usize,
+        penalty_blocks: &[[usize; 4]],
+    ) -> std::result::Result<Self, String> {
+        use faer::sparse::linalg::cholesky::{
+            factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering,
+        };
+        let n = pattern.n;
+        // Lower triangle of the pattern, plus every diagonal entry.
+        let mut entries: Vec<(usize, usize)> = Vec::new();
+        for c in 0..n {
+            for &r in &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]] {
+                if r >= c {
+                    entries.push((c, r));
+                }
+            }
+            entries.push((c, c));
+        }
+        entries.sort_unstable();
+        entries.dedup();
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut row_idx = Vec::with_capacity(entries.len());
+        let mut sources = Vec::with_capacity(entries.len());
+        let find = |r: usize, c: usize| -> usize {
+            let start = pattern.col_ptr[c];
+            match pattern.row_idx[start..pattern.col_ptr[c + 1]].binary_search(&r) {
+                Ok(k) => start + k,
+                Err(_) => usize::MAX,
+            }
+        };
+        for &(c, r) in &entries {
+            col_ptr[c + 1] += 1;
+            row_idx.push(r);
+            sources.push([find(r, c), find(c, r)]);
+        }
+        for c in 0..n {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let lower_index = |r: usize, c: usize| -> usize {
+            let (r, c) = if r >= c { (r, c) } else { (c, r) };
+            col_ptr[c]
+                + row_idx[col_ptr[c]..col_ptr[c + 1]].binary_search(&r).expect("entry in the lower pattern")
+        };
+        let penalty_entries = penalty_blocks
+            .iter()
+            .map(|dofs| {
+                let mut e = [0usize; 10];
+                let mut k = 0;
+                for a in 0..4 {
+                    for b in 0..=a {
+                        e[k] = lower_index(dofs[a], dofs[b]);
+                        k += 1;
+                    }
+                }
+                e
+            })
+            .collect();
+        let view = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: faer::sparse::linalg::SupernodalThreshold::AUTO,
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(view, faer::Side::Lower, SymmetricOrdering::Amd, params)
+            .map_err(|e| format!("{e:?}"))?;
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+        ]);
+        let memory = MemBuffer::try_new(req).map_err(|_| "out of memory".to_string())?;
+        let signs = (0..n).map(|i| if i < positive { 1 } else { -1 }).collect();
+        Ok(SparseLdlt {
+            positive,
+            lower_values: vec![0.0; row_idx.len()],
+            factor: vec![0.0; symbolic.len_val()],
+            col_ptr,
+            row_idx,
+            sources,
+            penalty_entries,
+            symbolic,
+            signs,
+            memory,
+            factorized: false,
+        })
+    }
+
+    /// Factorizes the symmetric part of the matrix with `values` (on the full pattern) plus
+    /// the penalty blocks `weight (2p)(2p)^T` (one (weight, p) per block, in order).
+    pub fn factorize(
+        &mut self,
+        values: &[f64],
+        penalties: &[(f64, [f64; 4])],
+    ) -> std::result::Result<(), String> {
+        use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
+        self.factorized = false;
+        let mut scale = 0.0f64;
+        for (k, [a, b]) in self.sources.iter().enumerate() {
+            let va = if *a == usize::MAX { 0.0 } else { values[*a] };
+            let vb = if *b == usize::MAX { 0.0 } else { values[*b] };
+            self.lower_values[k] = 0.5 * (va + vb);
+        }
+        for (entries, (w, p)) in self.penalty_entries.iter().zip(penalties) {
+            let mut k = 0;
+            for a in 0..4 {
+                for b in 0..=a {
+                    self.lower_values[entries[k]] += 4.0 * w * p[a] * p[b];
+                    k += 1;
+                }
+            }
+        }
+        // Scale of the definite block's diagonal, for the regularization of the other.
+        for c in 0..self.positive {
+            scale = scale.max(self.lower_values[self.col_ptr[c]].abs());
+        }
+        if !scale.is_finite() || self.lower_values.iter().any(|v| !v.is_finite()) {
+            return Err("non-finite matrix entry".to_string());
+        }
+        let scale = scale.max(f64::MIN_POSITIVE);
+        let delta = 1e-10 / scale;
+        for c in self.positive..self.signs.len() {
+            self.lower_values[self.col_ptr[c]] -= delta;
+        }
+        let n = self.signs.len();
+        let view = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let matrix = SparseColMatRef::new(view, &self.lower_values);
+        let regularization = LdltRegularization {
+            dynamic_regularization_signs: Some(&self.signs),
+            dynamic_regularization_delta: 1e-8 * scale,
+            dynamic_regularization_epsilon: 1e-13 * scale,
+        };
+        let params: Spec<LdltParams, f64> = Default::default();
+        self.symbolic
+            .factorize_numeric_ldlt(
+                &mut self.factor,
+                matrix,
+                faer::Side::Lower,
+                regularization,
+                Par::Seq,
+                MemStack::new(&mut self.memory),
+                params,
+            )
+            .map_err(|e| format!("{e:?}"))?;
+        self.factorized = true;
+        Ok(())
+    }
+
+    /// Solves with the last factorization.
+    pub fn solve_in_place(&mut self, rhs: &mut [f64]) -> std::result::Result<(), String> {
+        use faer::sparse::linalg::cholesky::LdltRef;
+        if !self.factorized {
+            return Err("no valid factorization".to_string());
+        }
+        let n = self.signs.len();
+        let rhs_mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        LdltRef::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+            Conj::No,
+            rhs_mat,
+            Par::Seq,
+            MemStack::new(&mut self.memory),
+        );
+        if rhs.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err("the matrix is singular (the solution is not finite)".to_string())
+        }
+    }
+
+    /// Number of stored entries of the factor L.
+    pub fn factor_nonzeros(&self) -> usize {
+        self.factor.len()
     }
 }

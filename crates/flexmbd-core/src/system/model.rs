@@ -10,8 +10,9 @@
 use crate::body::marker::Marker;
 use crate::body::{Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
-use crate::force::{ForceElement, ForceKind};
+use crate::force::{ForceElement, ForceKind, Frame};
 use crate::ids::{BodyId, MarkerId};
+use crate::joint::equation::Primitive;
 use crate::joint::Joint;
 use crate::math::Vec3;
 use crate::solver::sparse::{PatternBuilder, SparsePattern};
@@ -149,7 +150,7 @@ impl SystemBuilder {
                 message: "the system has no moving bodies".to_string(),
             });
         }
-        let markers: Vec<Marker> = self
+        let mut markers: Vec<Marker> = self
             .markers
             .iter()
             .map(|m| Marker {
@@ -157,8 +158,38 @@ impl SystemBuilder {
                 body: m.body,
                 position: m.position,
                 rotation: m.orientation,
+                axis_jacobians: false,
             })
             .collect();
+        // Axis Jacobians only where an equation or force differentiates the axes.
+        for def in &self.joints {
+            for eq in def.kind.equations() {
+                for (_, primitive) in &eq.terms {
+                    match primitive {
+                        Primitive::AxisDotAxis(..) => {
+                            markers[def.markers[0].0].axis_jacobians = true;
+                            markers[def.markers[1].0].axis_jacobians = true;
+                        }
+                        Primitive::AxisDotOffset(_) => markers[def.markers[0].0].axis_jacobians = true,
+                        _ => {}
+                    }
+                }
+            }
+        }
+        for def in &self.forces {
+            let uses_axes = match &def.kind {
+                ForceKind::PointForce { frame, .. } | ForceKind::Torque { frame, .. } => {
+                    *frame == Frame::Marker
+                }
+                ForceKind::RotationalSpringDamper { .. } => true,
+                _ => false,
+            };
+            if uses_axes {
+                for m in def.kind.markers() {
+                    markers[m.0].axis_jacobians = true;
+                }
+            }
+        }
 
         // Constraint rows: normalizations, then joints.
         let mut normalizations = Vec::new();

@@ -21,6 +21,12 @@ pub struct State {
     pub algorithmic_accelerations: Vec<f64>,
     /// Discrete variables (discrete_count).
     pub discrete: Vec<f64>,
+    /// Accelerations of the previous step (for the predictor).
+    pub previous_accelerations: Vec<f64>,
+    /// Multipliers of the previous step (for the predictor).
+    pub previous_multipliers: Vec<f64>,
+    /// Size of the step that led to this state (0 at the start).
+    pub previous_step_size: f64,
 }
 
 impl State {
@@ -35,6 +41,9 @@ impl State {
             multipliers: vec![0.0; model.constraint_count],
             algorithmic_accelerations: vec![0.0; n],
             discrete: vec![0.0; model.discrete_count],
+            previous_accelerations: vec![0.0; n],
+            previous_multipliers: vec![0.0; model.constraint_count],
+            previous_step_size: 0.0,
         }
     }
 

@@ -4,10 +4,11 @@
 
 use crate::body::marker::MarkerKinematics;
 use crate::body::rigid::RigidTangent;
+use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::force::ForceLocal;
 use crate::math::dense::DenseMatrix;
-use crate::solver::sparse::SparseLu;
+use crate::solver::sparse::{SparseLdlt, SparseLu};
 use crate::system::model::Model;
 
 /// Buffers of one joint (local coordinates = body i's, then body j's).
@@ -33,8 +34,17 @@ pub struct Workspace {
     pub residual: Vec<f64>,
     /// Values of the Newton matrix on the model's pattern (nnz); filled by `assemble`.
     pub values: Vec<f64>,
-    /// Sparse LU of the last factorized matrix.
+    /// Sparse LU of the last factorized matrix (exact Newton steps, initial conditions).
     pub lu: SparseLu,
+    /// Symmetric quasi-definite LDL^T of the last factorized iteration matrix (modified
+    /// Newton).
+    pub ldlt: SparseLdlt,
+    /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
+    /// trace of its inertia about the body origin.
+    pub normalization_weights: Vec<f64>,
+    /// Penalty blocks (weight, p) of the LDL^T factorization (normalizations); filled by the
+    /// integrator.
+    pub penalties: Vec<(f64, [f64; 4])>,
     /// Rigid-body tangent scratch (7 x 7 blocks).
     pub rigid: RigidTangent,
     /// Body-level force scratch (up to 7 entries).
@@ -58,6 +68,23 @@ impl Workspace {
             context: "symbolic analysis of the Newton matrix".to_string(),
             detail,
         })?;
+        let blocks: Vec<[usize; 4]> = model.normalizations.iter().map(|nz| nz.dofs).collect();
+        let ldlt =
+            SparseLdlt::new(&model.layout.pattern, model.coordinate_count, &blocks).map_err(|detail| {
+                FlexmbdError::SingularMatrix {
+                    time: 0.0,
+                    context: "symbolic analysis of the iteration matrix".to_string(),
+                    detail,
+                }
+            })?;
+        let normalization_weights = model
+            .normalizations
+            .iter()
+            .map(|nz| match &model.bodies[nz.body.0].kind {
+                BodyKind::Rigid(rb) => rb.inertia.trace() / 3.0,
+                _ => 1.0,
+            })
+            .collect();
         Ok(Workspace {
             markers: model
                 .markers
@@ -67,6 +94,9 @@ impl Workspace {
             residual: vec![0.0; n],
             values: vec![0.0; model.layout.pattern.nnz()],
             lu,
+            ldlt,
+            penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
+            normalization_weights,
             rigid: RigidTangent::default(),
             body_force: vec![0.0; 7],
             joints: model
