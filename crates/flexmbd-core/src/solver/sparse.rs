@@ -195,34 +195,6 @@ impl SparseLu {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn factorizes_and_solves_an_indefinite_saddle_point_system() {
-        // [[2, 0, 1], [0, 0, 1], [1, 1, 0]]: zero diagonal needs pivoting.
-        let mut b = PatternBuilder::new(3);
-        b.add_block(&[0, 1], &[2]);
-        b.add_block(&[2], &[0, 1]);
-        b.add_diagonal(&[0]);
-        let p = b.build();
-        let mut values = vec![0.0; p.nnz()];
-        for (r, c, v) in [(0, 0, 2.0), (0, 2, 1.0), (1, 2, 1.0), (2, 0, 1.0), (2, 1, 1.0)] {
-            values[p.index(r, c)] = v;
-        }
-        let mut lu = SparseLu::new(&p).unwrap();
-        lu.factorize(&values).unwrap();
-        let x_true = [1.0, -2.0, 3.0];
-        let mut rhs = vec![0.0; 3];
-        p.mul_vec(&values, &x_true, &mut rhs);
-        lu.solve_in_place(&mut rhs).unwrap();
-        for k in 0..3 {
-            assert!((rhs[k] - x_true[k]).abs() < 1e-14);
-        }
-    }
-}
-
 /// LDL^T factorization of the symmetric part of a saddle-point matrix
 /// [[A, B^T], [B, 0]] given on a structurally symmetric pattern, regularized to the
 /// quasi-definite [[A_sym + P, B^T], [B, -delta I]] (Vanderbei 1995), with a fill-reducing AMD
@@ -375,8 +347,10 @@ impl SparseLdlt {
         if !scale.is_finite() || self.lower_values.iter().any(|v| !v.is_finite()) {
             return Err("non-finite matrix entry".to_string());
         }
+        // delta balances the perturbation of the matrix (relative delta) against the growth of
+        // round-off when a constraint row is eliminated early (relative eps / delta).
         let scale = scale.max(f64::MIN_POSITIVE);
-        let delta = 1e-10 / scale;
+        let delta = 1e-8 / scale;
         for c in self.positive..self.signs.len() {
             self.lower_values[self.col_ptr[c]] -= delta;
         }
@@ -428,5 +402,80 @@ impl SparseLdlt {
     /// Number of stored entries of the factor L.
     pub fn factor_nonzeros(&self) -> usize {
         self.factor.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn factorizes_and_solves_an_indefinite_saddle_point_system() {
+        // [[2, 0, 1], [0, 0, 1], [1, 1, 0]]: zero diagonal needs pivoting.
+        let mut b = PatternBuilder::new(3);
+        b.add_block(&[0, 1], &[2]);
+        b.add_block(&[2], &[0, 1]);
+        b.add_diagonal(&[0]);
+        let p = b.build();
+        let mut values = vec![0.0; p.nnz()];
+        for (r, c, v) in [(0, 0, 2.0), (0, 2, 1.0), (1, 2, 1.0), (2, 0, 1.0), (2, 1, 1.0)] {
+            values[p.index(r, c)] = v;
+        }
+        let mut lu = SparseLu::new(&p).unwrap();
+        lu.factorize(&values).unwrap();
+        let x_true = [1.0, -2.0, 3.0];
+        let mut rhs = vec![0.0; 3];
+        p.mul_vec(&values, &x_true, &mut rhs);
+        lu.solve_in_place(&mut rhs).unwrap();
+        for k in 0..3 {
+            assert!((rhs[k] - x_true[k]).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn ldlt_of_a_saddle_point_with_a_singular_block_and_penalty() {
+        // Coordinates 0..4 with A = diag(0, 2, 3, 4) + a coupling, singular along e0; one
+        // constraint row 2 p^T with p = e0 (a normalization), one general row. The penalty
+        // w (2p)(2p)^T makes the block definite; the solution for x is unchanged and the
+        // multiplier of the penalized row shifts by w * rhs, which is added back here.
+        let n = 6;
+        let mut b = PatternBuilder::new(n);
+        let q: Vec<usize> = (0..4).collect();
+        b.add_block(&q, &q);
+        b.add_block(&[4, 5], &q);
+        b.add_block(&q, &[4, 5]);
+        let p = b.build();
+        let mut values = vec![0.0; p.nnz()];
+        let mut set = |r: usize, c: usize, v: f64| values[p.index(r, c)] = v;
+        for (k, d) in [(1, 2.0), (2, 3.0), (3, 4.0)] {
+            set(k, k, d);
+        }
+        set(1, 2, 0.5);
+        set(2, 1, 0.5);
+        for (c, v) in [(0, 2.0)] {
+            set(4, c, v);
+            set(c, 4, v);
+        }
+        for (c, v) in [(1, 1.0), (2, -1.0), (3, 0.5)] {
+            set(5, c, v);
+            set(c, 5, v);
+        }
+        let rhs = [0.3, -1.0, 2.0, 0.7, 0.4, -0.2];
+        let mut exact = rhs.to_vec();
+        let mut lu = SparseLu::new(&p).unwrap();
+        lu.factorize(&values).unwrap();
+        lu.solve_in_place(&mut exact).unwrap();
+        let weight = 1.5;
+        let mut ldlt = SparseLdlt::new(&p, 4, &[[0, 1, 2, 3]]).unwrap();
+        // Penalty block over coordinates 0..4 with "p" = (1, 0, 0, 0).
+        ldlt.factorize(&values, &[(weight, [1.0, 0.0, 0.0, 0.0])]).unwrap();
+        let mut x = rhs.to_vec();
+        ldlt.solve_in_place(&mut x).unwrap();
+        x[4] += weight * rhs[4];
+        // Accurate to the regularization (1e-8 relative); a wrong penalty correction would be
+        // off by order one.
+        for k in 0..n {
+            assert!((x[k] - exact[k]).abs() < 1e-6, "{k}: {} vs {}", x[k], exact[k]);
+        }
     }
 }
