@@ -1,0 +1,264 @@
+"""Type stubs of the Rust extension module ``flexmbd._core`` (docstrings live in the Rust
+sources and are shown by ``help()`` at run time)."""
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__version__: str
+
+class BodyId:
+    index: int
+    def __init__(self, index: int) -> None: ...
+    def __int__(self) -> int: ...
+
+class MarkerId:
+    index: int
+    def __init__(self, index: int) -> None: ...
+    def __int__(self) -> int: ...
+
+class JointId:
+    index: int
+    def __init__(self, index: int) -> None: ...
+    def __int__(self) -> int: ...
+
+class ForceId:
+    index: int
+    def __init__(self, index: int) -> None: ...
+    def __int__(self) -> int: ...
+
+class SensorId:
+    index: int
+    def __init__(self, index: int) -> None: ...
+    def __int__(self) -> int: ...
+
+class Constant:
+    value: float
+    def __init__(self, value: float) -> None: ...
+    def __call__(self, t: float) -> float: ...
+    def derivatives(self, t: float) -> tuple[float, float, float]: ...
+
+class Polynomial:
+    coefficients: list[float]
+    def __init__(self, coefficients: Sequence[float]) -> None: ...
+    def __call__(self, t: float) -> float: ...
+    def derivatives(self, t: float) -> tuple[float, float, float]: ...
+
+class Harmonic:
+    amplitude: float
+    frequency: float
+    phase: float
+    offset: float
+    def __init__(
+        self, amplitude: float, frequency: float, phase: float = 0.0, offset: float = 0.0
+    ) -> None: ...
+    def __call__(self, t: float) -> float: ...
+    def derivatives(self, t: float) -> tuple[float, float, float]: ...
+
+class Spline:
+    times: list[float]
+    values: list[float]
+    def __init__(self, times: Sequence[float], values: Sequence[float]) -> None: ...
+    def __call__(self, t: float) -> float: ...
+    def derivatives(self, t: float) -> tuple[float, float, float]: ...
+
+class UserFunction:
+    function: Callable[[float], Any]
+    derivatives: bool
+    def __init__(self, function: Callable[[float], Any], derivatives: bool = False) -> None: ...
+    def __call__(self, t: float) -> float: ...
+
+Number = float | int
+TimeFunctionLike = (
+    Number | Constant | Polynomial | Harmonic | Spline | UserFunction | Callable[[float], float]
+)
+
+class Model:
+    @property
+    def coordinate_count(self) -> int: ...
+    @property
+    def constraint_count(self) -> int: ...
+    @property
+    def matrix_nonzeros(self) -> int: ...
+    def describe(self) -> dict[str, Any]: ...
+
+class System:
+    def __init__(self, gravity: ArrayLike | None = None) -> None: ...
+    @property
+    def ground(self) -> BodyId: ...
+    @property
+    def gravity(self) -> tuple[float, float, float]: ...
+    @gravity.setter
+    def gravity(self, value: ArrayLike) -> None: ...
+    def add_rigid_body(
+        self,
+        mass: float,
+        inertia: ArrayLike,
+        *,
+        center_of_mass: ArrayLike | None = None,
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        velocity: ArrayLike | None = None,
+        angular_velocity: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> BodyId: ...
+    def add_point_mass(
+        self,
+        mass: float,
+        *,
+        position: ArrayLike | None = None,
+        velocity: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> BodyId: ...
+    def add_marker(
+        self,
+        body: BodyId,
+        *,
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> MarkerId: ...
+    def add_spherical_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_revolute_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_cylindrical_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_prismatic_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_fixed_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_universal_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_planar_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_inline_joint(
+        self, marker1: MarkerId, marker2: MarkerId, *, name: str | None = None
+    ) -> JointId: ...
+    def add_distance_joint(
+        self,
+        marker1: MarkerId,
+        marker2: MarkerId,
+        distance: float | None = None,
+        *,
+        name: str | None = None,
+    ) -> JointId: ...
+    def add_angle_driver(
+        self,
+        marker1: MarkerId,
+        marker2: MarkerId,
+        angle: TimeFunctionLike,
+        *,
+        name: str | None = None,
+    ) -> JointId: ...
+    def add_translation_driver(
+        self,
+        marker1: MarkerId,
+        marker2: MarkerId,
+        displacement: TimeFunctionLike,
+        *,
+        name: str | None = None,
+    ) -> JointId: ...
+    def add_point_force(
+        self,
+        marker: MarkerId,
+        force: Sequence[TimeFunctionLike],
+        *,
+        frame: str = "global",
+        name: str | None = None,
+    ) -> ForceId: ...
+    def add_torque(
+        self,
+        marker: MarkerId,
+        torque: Sequence[TimeFunctionLike],
+        *,
+        frame: str = "global",
+        name: str | None = None,
+    ) -> ForceId: ...
+    def add_spring_damper(
+        self,
+        marker1: MarkerId,
+        marker2: MarkerId,
+        *,
+        stiffness: float,
+        damping: float = 0.0,
+        rest_length: float | None = None,
+        preload: float = 0.0,
+        name: str | None = None,
+    ) -> ForceId: ...
+    def add_rotational_spring_damper(
+        self,
+        marker1: MarkerId,
+        marker2: MarkerId,
+        *,
+        stiffness: float,
+        damping: float = 0.0,
+        rest_angle: float = 0.0,
+        preload: float = 0.0,
+        name: str | None = None,
+    ) -> ForceId: ...
+    def add_callback_force(
+        self,
+        bodies: Sequence[BodyId],
+        function: Callable[[float, NDArray[np.float64], NDArray[np.float64]], ArrayLike],
+        *,
+        name: str | None = None,
+    ) -> ForceId: ...
+    def add_sensor(
+        self, marker: MarkerId, quantity: str, *, name: str | None = None
+    ) -> SensorId: ...
+    def compile(self) -> Model: ...
+
+class GeneralizedAlpha:
+    spectral_radius: float
+    newton_tolerance: float
+    max_iterations: int
+    jacobian: str
+    step_control: str
+    relative_tolerance: float
+    absolute_tolerance: float
+    min_step_size: float | None
+    max_step_size: float | None
+    velocity_projection: str
+    linear_solver: str
+    initial_tolerance: float
+    correct_initial_positions: bool
+    correct_initial_velocities: bool
+    def __init__(
+        self,
+        spectral_radius: float = 0.9,
+        *,
+        newton_tolerance: float = 1e-6,
+        max_iterations: int = 12,
+        jacobian: str = "modified",
+        step_control: str = "newton",
+        relative_tolerance: float = 1e-6,
+        absolute_tolerance: float = 1e-8,
+        min_step_size: float | None = None,
+        max_step_size: float | None = None,
+        velocity_projection: str = "auto",
+        linear_solver: str = "auto",
+        initial_tolerance: float = 1e-11,
+        correct_initial_positions: bool = True,
+        correct_initial_velocities: bool = True,
+    ) -> None: ...
+
+def simulate(
+    model: Model,
+    end_time: float,
+    step_size: float,
+    *,
+    start_time: float = 0.0,
+    output_interval: float | None = None,
+    solver: GeneralizedAlpha | None = None,
+    progress: Callable[[float, float, int], object] | None = None,
+) -> tuple[dict[str, Any], BaseException | None]: ...

@@ -1,0 +1,231 @@
+"""Bad input raises a typed error naming the item; failed runs keep their results."""
+
+import os
+import signal
+import threading
+
+import flexmbd as fm
+import numpy as np
+import pytest
+
+
+@pytest.fixture
+def system():
+    s = fm.System(gravity=(0.0, -9.81, 0.0))
+    body = s.add_rigid_body(1.0, (0.1, 0.1, 0.1), name="link")
+    return s, body
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"mass": 0.0}, "mass must be positive"),
+        ({"mass": -2.0}, "mass must be positive"),
+        ({"mass": float("nan")}, "mass must be positive"),
+        ({"inertia": (1.0, 1.0, 0.0)}, "positive definite"),
+        ({"inertia": (1.0, -1.0, 1.0)}, "positive definite"),
+        ({"inertia": [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]}, "not symmetric"),
+        ({"inertia": (1.0, float("nan"), 1.0)}, "finite"),
+        ({"inertia": (1.0, 1.0)}, "3 principal moments"),
+        ({"position": (0.0, float("inf"), 0.0)}, "position must be finite"),
+        ({"orientation": np.diag([1.0, 1.0, -1.0])}, "proper rotation"),
+        ({"orientation": 2 * np.eye(3)}, "proper rotation"),
+        ({"angular_velocity": (0.0, float("nan"), 0.0)}, "angular velocity must be finite"),
+    ],
+)
+def test_bad_rigid_body_data(kwargs, match):
+    args = {"mass": 1.0, "inertia": (1.0, 1.0, 1.0), **kwargs}
+    with pytest.raises(fm.InvalidParameterError, match=match) as info:
+        fm.System().add_rigid_body(args.pop("mass"), args.pop("inertia"), name="arm", **args)
+    assert info.value.item == "body 'arm'"
+    assert isinstance(info.value, ValueError) and isinstance(info.value, fm.FlexmbdError)
+
+
+def test_unknown_body_and_marker(system):
+    s, body = system
+    with pytest.raises(fm.UnknownItemError, match="unknown body 7"):
+        s.add_marker(fm.BodyId(7))
+    marker = s.add_marker(body)
+    with pytest.raises(fm.UnknownItemError, match="unknown marker 9 .used by joint 'hinge'"):
+        s.add_revolute_joint(marker, fm.MarkerId(9), name="hinge")
+    with pytest.raises(fm.UnknownItemError, match="unknown marker 9"):
+        s.add_sensor(fm.MarkerId(9), "position")
+
+
+def test_joint_between_a_body_and_itself(system):
+    s, body = system
+    a, b = s.add_marker(body), s.add_marker(body, position=(1, 0, 0))
+    with pytest.raises(fm.InvalidModelError, match="joint 'twin'.*both markers are on 'link'"):
+        s.add_revolute_joint(a, b, name="twin")
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda s, g, m: s.add_distance_joint(g, m, -1.0), "distance must be positive"),
+        (lambda s, g, m: s.add_spring_damper(g, m, stiffness=-1.0), "stiffness and damping"),
+        (lambda s, g, m: s.add_spring_damper(g, m, stiffness=1.0, damping=float("nan")), "finite"),
+        (lambda s, g, m: s.add_point_force(m, (1.0, 2.0)), "three components"),
+        (lambda s, g, m: s.add_point_force(m, (1.0, 2.0, 3.0), frame="body"), "frame must be"),
+        (lambda s, g, m: s.add_point_force(m, (1.0, "x", 3.0)), "expected a number"),
+        (lambda s, g, m: s.add_sensor(m, "speed"), "unknown quantity 'speed'"),
+        (lambda s, g, m: s.add_angle_driver(g, m, float("nan")), "finite"),
+        (lambda s, g, m: s.add_callback_force([s.ground], lambda t, q, qd: q), "ground"),
+        (lambda s, g, m: s.add_callback_force([fm.BodyId(1)], 3.0), "callable"),
+        (lambda s, g, m: fm.Spline([0.0, 1.0, 1.0], [0.0, 1.0, 2.0]), "increase strictly"),
+        (lambda s, g, m: fm.GeneralizedAlpha(1.2), "spectral_radius"),
+        (lambda s, g, m: fm.GeneralizedAlpha(0.9, jacobian="sometimes"), "jacobian must be"),
+    ],
+)
+def test_bad_parameters(system, call, match):
+    s, body = system
+    ground, marker = s.add_marker(s.ground), s.add_marker(body, position=(1, 0, 0))
+    with pytest.raises(fm.ModelError, match=match):
+        call(s, ground, marker)
+
+
+def test_duplicate_names_are_rejected(system):
+    s, _ = system
+    with pytest.raises(fm.InvalidModelError, match="another body already has this name"):
+        s.add_rigid_body(1.0, (1, 1, 1), name="link")
+
+
+def test_bad_simulation_settings(system):
+    s, _ = system
+    with pytest.raises(fm.InvalidParameterError, match="end time"):
+        fm.simulate(s, -1.0, 1e-3)
+    with pytest.raises(fm.InvalidParameterError, match="step size must be positive"):
+        fm.simulate(s, 1.0, 0.0)
+    with pytest.raises(fm.InvalidParameterError, match="output interval"):
+        fm.simulate(s, 1.0, 1e-3, output_interval=-0.1)
+
+
+def test_inconsistent_initial_positions_name_the_joint():
+    # A body pinned at the origin cannot also reach a ground point 5 m away with a marker 1 m
+    # from its pin.
+    s = fm.System()
+    body = s.add_rigid_body(1.0, (1, 1, 1))
+    s.add_revolute_joint(s.add_marker(s.ground), s.add_marker(body), name="pin")
+    s.add_spherical_joint(
+        s.add_marker(s.ground, position=(5, 0, 0)),
+        s.add_marker(body, position=(1, 0, 0)),
+        name="unreachable",
+    )
+    with pytest.raises((fm.InitialConditionsError, fm.SingularMatrixError)) as info:
+        fm.simulate(s, 1.0, 1e-3)
+    assert "unreachable" in str(info.value) or "singular" in str(info.value)
+    assert info.value.time == 0.0
+    assert info.value.result is not None and len(info.value.result) == 0
+
+
+def test_slightly_inconsistent_initial_positions_are_corrected():
+    s = fm.System(gravity=(0.0, -9.81, 0.0))
+    mass = s.add_point_mass(1.0, position=(1.02, 0.01, 0.0))
+    s.add_distance_joint(s.add_marker(s.ground), s.add_marker(mass), 1.0)
+    result = fm.simulate(s, 0.1, 1e-3, output_interval=0.05)
+    assert abs(np.linalg.norm(result.position(mass)[0]) - 1.0) < 1e-11
+
+
+def test_redundant_constraints_are_reported_as_singular():
+    # Two revolute joints on the same axis: five of their ten equations are redundant.
+    s = fm.System()
+    body = s.add_rigid_body(1.0, (1, 1, 1))
+    for name in ("first", "second"):
+        s.add_revolute_joint(s.add_marker(s.ground), s.add_marker(body), name=name)
+    with pytest.raises(fm.SingularMatrixError, match="redundant or conflicting constraints"):
+        fm.simulate(s, 0.1, 1e-3)
+
+
+def stiffening(threshold):
+    def force(t, q, qd):
+        k = 1.0 if t < threshold else 1e4
+        return -k * q**5
+
+    return force
+
+
+def test_diverging_newton_names_time_and_item_and_keeps_results():
+    s = fm.System()
+    body = s.add_point_mass(1.0, position=(1.0, 0, 0), name="bob")
+    s.add_callback_force([body], stiffening(0.52), name="hardening")
+    solver = fm.GeneralizedAlpha(0.9, step_control="fixed")
+    with pytest.raises(fm.NewtonDivergedError, match="body 'bob' coordinate x") as info:
+        fm.simulate(s, 2.0, 0.05, solver=solver)
+    error = info.value
+    assert 0.5 <= error.time < 1.0  # the spring stiffens at 0.52 s
+    result = error.result
+    assert not result.success and result.error is error
+    # Every step before the failing one is kept.
+    assert result.time[-1] == pytest.approx(error.time)
+    assert len(result) == round(error.time / 0.05) + 1
+    assert np.all(np.isfinite(result.coordinates))
+
+
+def test_callback_errors_are_chained_and_keep_results():
+    s = fm.System()
+    body = s.add_point_mass(1.0)
+
+    def force(t, q, qd):
+        if t > 0.05:
+            raise ZeroDivisionError("user bug")
+        return np.zeros(3)
+
+    s.add_callback_force([body], force, name="user")
+    with pytest.raises(fm.CallbackError, match="force 'user'.*ZeroDivisionError: user bug") as info:
+        fm.simulate(s, 1.0, 0.01)
+    assert isinstance(info.value.__cause__, ZeroDivisionError)
+    assert info.value.result.time[-1] == pytest.approx(0.05)
+
+
+def test_callback_of_wrong_shape_and_nan():
+    s = fm.System()
+    body = s.add_point_mass(1.0)
+    s.add_callback_force([body], lambda t, q, qd: np.zeros(2), name="short")
+    with pytest.raises(fm.CallbackError, match="returned 2 values, expected 3"):
+        fm.simulate(s, 0.1, 0.01)
+    s = fm.System()
+    body = s.add_point_mass(1.0)
+    s.add_callback_force([body], lambda t, q, qd: np.full(3, np.nan), name="nan")
+    with pytest.raises(fm.NonFiniteError, match="force 'nan'"):
+        fm.simulate(s, 0.1, 0.01)
+
+
+def test_driver_function_errors_name_the_joint():
+    s = fm.System()
+    body = s.add_rigid_body(1.0, (1, 1, 1))
+    g, m = s.add_marker(s.ground), s.add_marker(body)
+    s.add_revolute_joint(g, m)
+    s.add_angle_driver(g, m, lambda t: 1.0 / (0.05 - t) if t < 0.05 else float("nan"), name="drive")
+    with pytest.raises((fm.NonFiniteError, fm.NewtonDivergedError)) as info:
+        fm.simulate(s, 1.0, 0.01, solver=fm.GeneralizedAlpha(step_control="fixed"))
+    assert info.value.result is not None
+
+
+def test_ctrl_c_stops_cleanly_and_keeps_results():
+    example = fm.examples.four_bar(20)
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(fm.SimulationInterrupted) as info:
+            fm.simulate(example.system, 100.0, 1e-3, output_interval=0.01)
+    finally:
+        timer.cancel()
+    result = info.value.result
+    assert 0 < result.time[-1] < 100.0
+    assert isinstance(info.value.__cause__, KeyboardInterrupt)
+    assert result.constraint_violation.max() < 1e-8
+
+
+def test_progress_callback_is_called_and_can_stop_the_run():
+    seen = []
+
+    def progress(time, step, iterations):
+        seen.append(time)
+        if len(seen) == 2:
+            raise RuntimeError("enough")
+
+    example = fm.examples.four_bar(20)
+    with pytest.raises(fm.SimulationInterrupted) as info:
+        fm.simulate(example.system, 100.0, 1e-3, output_interval=0.01, progress=progress)
+    assert len(seen) == 2 and seen[0] < seen[1]
+    assert isinstance(info.value.__cause__, RuntimeError)

@@ -1,0 +1,116 @@
+"""Applied forces against closed-form solutions."""
+
+import flexmbd as fm
+import numpy as np
+
+
+def test_spring_damper_oscillator_matches_the_damped_solution():
+    # Point mass on a spring-damper to the ground along x: x'' + 2 zeta w x' + w^2 x = 0.
+    mass, k, c, x0 = 2.0, 50.0, 1.2, 0.1
+    w = np.sqrt(k / mass)
+    zeta = c / (2 * np.sqrt(k * mass))
+    wd = w * np.sqrt(1 - zeta**2)
+    system = fm.System()
+    body = system.add_point_mass(mass, position=(1.0 + x0, 0, 0))
+    system.add_spring_damper(
+        system.add_marker(system.ground),
+        system.add_marker(body),
+        stiffness=k,
+        damping=c,
+        rest_length=1.0,
+    )
+    result = fm.simulate(system, 3.0, 1e-4, output_interval=0.01)
+    t = result.time
+    exact = x0 * np.exp(-zeta * w * t) * (np.cos(wd * t) + zeta * w / wd * np.sin(wd * t))
+    np.testing.assert_allclose(result.position(body)[:, 0] - 1.0, exact, atol=1e-6)
+
+
+def test_spring_energy_is_conserved_without_damping():
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    body = system.add_rigid_body(1.0, (0.1, 0.2, 0.3), position=(0.3, -1.0, 0.2))
+    system.add_spring_damper(
+        system.add_marker(system.ground),
+        system.add_marker(body, position=(0.1, 0.1, 0)),
+        stiffness=80.0,
+        rest_length=0.5,
+        preload=2.0,
+    )
+    result = fm.simulate(system, 2.0, 1e-4, output_interval=0.01, solver=fm.GeneralizedAlpha(1.0))
+    energy = result.total_energy
+    assert np.max(np.abs(energy - energy[0])) < 1e-6 * np.max(np.abs(result.kinetic_energy))
+
+
+def test_rotational_spring_oscillates_at_sqrt_k_over_j():
+    j, k, theta0 = 0.5, 8.0, 0.3
+    system = fm.System()
+    body = system.add_rigid_body(1.0, (0.2, 0.2, j), orientation=fm.rotation("z", theta0))
+    base = system.add_marker(system.ground)
+    hub = system.add_marker(body)
+    system.add_revolute_joint(base, hub)
+    system.add_rotational_spring_damper(base, hub, stiffness=k)
+    result = fm.simulate(system, 2.0, 1e-4, output_interval=0.01, solver=fm.GeneralizedAlpha(1.0))
+    x = result.orientation(body)[:, :, 0]
+    angle = np.arctan2(x[:, 1], x[:, 0])
+    np.testing.assert_allclose(angle, theta0 * np.cos(np.sqrt(k / j) * result.time), atol=2e-6)
+
+
+def test_rotational_spring_counts_full_turns():
+    # Driven three turns against a torsional spring: the torque grows with the total angle.
+    k = 2.0
+    system = fm.System()
+    body = system.add_rigid_body(1.0, (0.2, 0.2, 0.3))
+    base = system.add_marker(system.ground)
+    hub = system.add_marker(body)
+    system.add_revolute_joint(base, hub)
+    drive = system.add_angle_driver(base, hub, fm.Polynomial([0.0, 6 * np.pi]))
+    system.add_rotational_spring_damper(base, hub, stiffness=k)
+    result = fm.simulate(system, 1.0, 1e-3, output_interval=0.01)
+    # Constant speed: the drive balances the spring, k * angle (after the start-up layer of the
+    # index-3 multipliers, see test_drivers.py).
+    # A lost turn would be off by 2 pi k = 12.6 N m.
+    torque = result.reaction_torque(drive)[20:, 2]
+    np.testing.assert_allclose(torque, k * 6 * np.pi * result.time[20:], rtol=2e-5)
+
+
+def test_force_in_marker_axes_turns_with_the_body():
+    # A tangential force F at radius r on a hinged disc (marker axes turn with it): constant
+    # torque F r, theta = F r t^2 / (2 J). The same force in global axes would stop
+    # accelerating the disc as it turns.
+    f, r, j = 2.0, 0.5, 0.4
+    system = fm.System()
+    disc = system.add_rigid_body(1.0, (0.2, 0.2, j))
+    hinge = system.add_revolute_joint(system.add_marker(system.ground), system.add_marker(disc))
+    rim = system.add_marker(disc, position=(r, 0, 0))
+    system.add_point_force(rim, (0.0, f, 0.0), frame="marker")
+    result = fm.simulate(system, 1.0, 1e-3, output_interval=0.01)
+    x = result.orientation(disc)[:, :, 0]
+    angle = np.unwrap(np.arctan2(x[:, 1], x[:, 0]))
+    np.testing.assert_allclose(angle, f * r * result.time**2 / (2 * j), atol=1e-6)
+    assert abs(result.reaction_torque(hinge)[:, 2]).max() < 1e-9
+
+
+def test_torque_spins_up_a_free_body():
+    j, tau = 0.3, 1.2
+    system = fm.System()
+    body = system.add_rigid_body(1.0, (0.5, 0.4, j))
+    system.add_torque(system.add_marker(body), (0.0, 0.0, tau))
+    result = fm.simulate(system, 1.0, 1e-3, output_interval=0.1)
+    np.testing.assert_allclose(
+        result.angular_velocity(body)[:, 2], tau / j * result.time, rtol=1e-5
+    )
+
+
+def test_callback_force_acts_on_the_listed_coordinates():
+    # A linear spring written as a callback: same motion as the built-in spring.
+    mass, k = 1.0, 40.0
+
+    def spring(t, q, qd):
+        return -k * (q - np.array([1.0, 0.0, 0.0]))
+
+    system = fm.System()
+    body = system.add_point_mass(mass, position=(1.05, 0, 0))
+    system.add_callback_force([body], spring)
+    result = fm.simulate(system, 1.0, 1e-4, output_interval=0.01)
+    np.testing.assert_allclose(
+        result.position(body)[:, 0] - 1.0, 0.05 * np.cos(np.sqrt(k / mass) * result.time), atol=1e-6
+    )
