@@ -65,6 +65,17 @@ def test_driving_torque_at_constant_speed_balances_gravity():
     np.testing.assert_allclose(torque[LAYER], expected[LAYER], atol=1e-5)
 
 
+def test_velocity_projection_removes_the_start_up_layer():
+    # With velocities projected and accelerations made consistent after each step, the
+    # multipliers are accurate from the first step.
+    mass, length, w = 2.0, 0.8, 2.5
+    system, rod, drive = crank(fm.Polynomial([0.0, w]), mass=mass, length=length)
+    solver = fm.GeneralizedAlpha(0.9, newton_tolerance=1e-9, velocity_projection="always")
+    result = fm.simulate(system, 0.5, 1e-3, output_interval=0.01, solver=solver)
+    expected = mass * G * length / 2 * np.cos(w * result.time)
+    np.testing.assert_allclose(result.reaction_torque(drive)[:, 2], expected, atol=1e-5)
+
+
 def test_driving_torque_accelerates_the_inertia():
     # No gravity, theta = a t^2 / 2: torque J a with J = m L^2 / 3 about the pivot.
     mass, length, a = 2.0, 0.8, 4.0

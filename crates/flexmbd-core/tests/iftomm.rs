@@ -134,9 +134,7 @@ fn energy_drift(out: &flexmbd_core::output::Output) -> f64 {
 
 #[test]
 fn a02_four_bar_passes_its_singular_configurations() {
-    // Spectral radius 0.9 (default modified Newton). At spectral radius exactly 1 (the
-    // trapezoidal rule) the index-3 method does not pass these singular configurations; see
-    // docs/solvers.md.
+    // Spectral radius 0.9, modified Newton (the defaults).
     let (model, _) = four_bar(2);
     let mut settings = SimulationSettings::new(10.0, 2e-4);
     settings.output_interval = Some(0.01);
@@ -151,12 +149,12 @@ fn a02_four_bar_passes_its_singular_configurations() {
 
 #[test]
 fn a02_four_bar_energy_is_conserved_without_numerical_dissipation() {
-    // Spectral radius 0.999: no measurable numerical dissipation (the drift below is the
-    // O(h^2) energy error of the method); exactly 1 fails at the singular configurations.
+    // Spectral radius 1, with the velocity projection it implies.
     let (model, _) = four_bar(2);
     let mut settings = SimulationSettings::new(10.0, 1e-4);
     settings.output_interval = Some(0.01);
-    settings.spectral_radius = 0.999;
+    settings.spectral_radius = 1.0;
+    settings.newton.tolerance = 1e-8;
     let out = simulate(&model, &settings, &mut |_| true);
     assert!(out.error.is_none(), "{:?}", out.error);
     let drift = energy_drift(&out.output);

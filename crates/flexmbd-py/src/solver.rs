@@ -21,8 +21,9 @@ use crate::model::Model;
 /// equations (seed eqs. 19-26), with sparse Newton matrix and analytic Jacobians.
 ///
 /// - `spectral_radius` in [0, 1]: numerical dissipation at high frequencies (1: none). At
-///   exactly 1 the method is the trapezoidal rule; it conserves energy well but does not pass
-///   singular configurations of mechanisms (use 0.999 or below there).
+///   exactly 1 (the trapezoidal rule, whose index-3 form has an undamped error mode) the
+///   velocities are projected onto the velocity constraints and the accelerations made
+///   consistent after every step (see `velocity_projection`).
 /// - `newton_tolerance`: tolerance on the Newton increment of the accelerations, relative to
 ///   max(1, |q_dd|).
 /// - `jacobian`: "modified" (keep the factorized Newton matrix across iterations and steps
@@ -32,7 +33,9 @@ use crate::model::Model;
 ///   the nominal step), "fixed" (a failed step is an error), or "error" (local error
 ///   estimate with `relative_tolerance` and `absolute_tolerance`, steps up to
 ///   `max_step_size`).
-/// - `velocity_projection`: "auto" (at spectral radius 1 only), "always" or "never".
+/// - `velocity_projection`: "auto" (at spectral radius 1 only), "always" or "never". Projecting
+///   costs one more factorization per step and removes the start-up layer of the multipliers
+///   (reaction forces accurate from the first step).
 /// - `linear_solver`: "auto" (LDL^T of the symmetrized matrix for modified Newton, LU of the
 ///   exact matrix for full Newton and for retrying a failed step), "lu" or "ldlt".
 /// - `initial_tolerance`, `correct_initial_positions`, `correct_initial_velocities`: the

@@ -259,7 +259,8 @@ pub fn assemble(
 
 /// Time derivatives of the constraints: C_t into `ct` and, if `gamma` is given, the
 /// acceleration right-hand side gamma = -(q_dot^T C_qq q_dot + 2 C_qt q_dot + C_tt) of seed
-/// eq. 25, C_q q_dd = gamma. Uses the kinematics and driver values of the last `assemble`.
+/// eq. 25, C_q q_dd = gamma. Uses the kinematics of the last `assemble`; overwrites the joints'
+/// Hessian buffers.
 pub fn constraint_time_terms(
     model: &Model,
     s: StateView,
@@ -276,27 +277,31 @@ pub fn constraint_time_terms(
     for j in 0..model.joints.len() {
         let joint = &model.joints[j];
         let driver = joint.driver_values(s.time)?;
-        let nd = joint.dofs.len();
-        // Local velocities of the joint's coordinates.
-        let mut qd_local = std::mem::take(&mut ws.joints[j].scratch);
-        for (a, &d) in joint.dofs.iter().enumerate() {
-            qd_local[a] = s.qd[d];
-        }
         let pair = joint_pair(model, &ws.markers, j);
+        let local = &mut ws.joints[j];
+        for (a, &d) in joint.dofs.iter().enumerate() {
+            local.scratch[a] = s.qd[d];
+        }
         for (e, eq) in joint.equations.iter().enumerate() {
             let v = equation_value(eq, &pair, &driver);
             ct[joint.row + e] = v[1];
             if let Some(g) = gamma.as_deref_mut() {
-                let mut h = crate::math::dense::DenseMatrix::zeros(nd, nd);
-                equation_hessian(eq, &pair, &driver, 1.0, &mut h);
-                let mut grad = vec![0.0; nd];
-                let mut grad_t = vec![0.0; nd];
-                equation_gradient(eq, &pair, &driver, 1.0, &mut grad, Some(&mut grad_t));
-                let cqt_qd: f64 = grad_t.iter().zip(qd_local.iter()).map(|(a, b)| a * b).sum();
-                g[joint.row + e] = -(h.quadratic_form(&qd_local) + 2.0 * cqt_qd + v[2]);
+                local.hessian.fill_zero();
+                equation_hessian(eq, &pair, &driver, 1.0, &mut local.hessian);
+                local.gradient.iter_mut().for_each(|x| *x = 0.0);
+                local.gradient_time.iter_mut().for_each(|x| *x = 0.0);
+                equation_gradient(
+                    eq,
+                    &pair,
+                    &driver,
+                    1.0,
+                    &mut local.gradient,
+                    Some(&mut local.gradient_time),
+                );
+                let cqt_qd: f64 = local.gradient_time.iter().zip(&local.scratch).map(|(a, b)| a * b).sum();
+                g[joint.row + e] = -(local.hessian.quadratic_form(&local.scratch) + 2.0 * cqt_qd + v[2]);
             }
         }
-        ws.joints[j].scratch = qd_local;
     }
     Ok(())
 }

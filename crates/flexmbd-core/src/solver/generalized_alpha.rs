@@ -79,14 +79,16 @@ pub struct StepReport {
     pub failure: Option<String>,
 }
 
-/// Which factorization holds the current Newton matrix.
+/// Which factorization holds a matrix.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Factorization {
-    /// Sparse LU of the exact matrix.
+    /// Sparse LU of the exact Newton matrix.
     #[default]
     Lu,
-    /// LDL^T of the symmetrized, quasi-definite matrix.
+    /// LDL^T of the symmetrized, quasi-definite Newton matrix.
     Ldlt,
+    /// LDL^T of the mass-matrix saddle point of the velocity projection.
+    Projection,
 }
 
 /// Cache of the factorized Newton matrix between steps (modified Newton).
@@ -111,14 +113,15 @@ fn factorize(
 ) -> std::result::Result<(), String> {
     match kind {
         Factorization::Lu => ws.lu.factorize(&ws.values),
-        Factorization::Ldlt => {
+        Factorization::Ldlt | Factorization::Projection => {
             for (k, nz) in model.normalizations.iter().enumerate() {
                 ws.penalties[k] = (
                     scale * ws.normalization_weights[k],
                     [q[nz.dofs[0]], q[nz.dofs[1]], q[nz.dofs[2]], q[nz.dofs[3]]],
                 );
             }
-            ws.ldlt.factorize(&ws.values, &ws.penalties)
+            let target = if kind == Factorization::Ldlt { &mut ws.ldlt } else { &mut ws.projection };
+            target.factorize(&ws.values, &ws.penalties)
         }
     }
 }
@@ -132,13 +135,14 @@ fn solve(
 ) -> std::result::Result<(), String> {
     match kind {
         Factorization::Lu => ws.lu.solve_in_place(&mut ws.solution),
-        Factorization::Ldlt => {
+        Factorization::Ldlt | Factorization::Projection => {
             let nq = model.coordinate_count;
             // C_n dq equals the right-hand side of the normalization rows.
             for (k, nz) in model.normalizations.iter().enumerate() {
                 ws.scratch[2][k] = ws.solution[nq + nz.row];
             }
-            ws.ldlt.solve_in_place(&mut ws.solution)?;
+            let target = if kind == Factorization::Ldlt { &mut ws.ldlt } else { &mut ws.projection };
+            target.solve_in_place(&mut ws.solution)?;
             for (k, nz) in model.normalizations.iter().enumerate() {
                 ws.solution[nq + nz.row] += scale * ws.normalization_weights[k] * ws.scratch[2][k];
             }
@@ -222,8 +226,7 @@ fn predict(method: &GeneralizedAlpha, h: f64, current: &State, next: &mut State)
 
 /// Newton iterations from the state in `next`. With `reuse`, a factorization cached for this
 /// step size is used as long as it contracts well (and refreshed when it does not); without,
-/// the matrix is refactorized every iteration. Returns the report and whether the last
-/// factorization was made during these iterations.
+/// the matrix is refactorized every iteration.
 #[allow(clippy::too_many_arguments)]
 fn iterate(
     model: &Model,
@@ -235,12 +238,11 @@ fn iterate(
     next: &mut State,
     ws: &mut Workspace,
     cache: &mut JacobianCache,
-) -> Result<(StepReport, bool)> {
+) -> Result<StepReport> {
     let nq = model.coordinate_count;
     let nc = model.constraint_count;
     let s = coef.scale;
     let mut report = StepReport::default();
-    let mut fresh = false;
     let mut previous_norm = f64::INFINITY;
     for iteration in 0..newton.max_iterations {
         let need_matrix = !reuse || cache.step_size != Some(h) || cache.kind != kind;
@@ -257,11 +259,10 @@ fn iterate(
             if let Err(detail) = factorize(model, ws, kind, s, &next.coordinates) {
                 cache.step_size = None;
                 report.failure = Some(format!("singular Newton matrix: {detail}"));
-                return Ok((report, fresh));
+                return Ok(report);
             }
             cache.step_size = Some(h);
             cache.kind = kind;
-            fresh = true;
             report.factorizations += 1;
         }
         for k in 0..nq {
@@ -273,7 +274,7 @@ fn iterate(
         if let Err(detail) = solve(model, ws, kind, s) {
             cache.step_size = None;
             report.failure = Some(format!("singular Newton matrix: {detail}"));
-            return Ok((report, fresh));
+            return Ok(report);
         }
         // With a matrix reused from an earlier iterate, the multipliers are tested through the
         // constraint forces C_q^T dlambda of the increment (and C_q^T lambda before it), with
@@ -312,7 +313,7 @@ fn iterate(
         if !norm.is_finite() {
             report.failure = Some("non-finite increment".to_string());
             cache.step_size = None;
-            return Ok((report, fresh));
+            return Ok(report);
         }
         let rate = norm / previous_norm;
         // Remaining error estimated from the contraction rate (Hairer and Wanner). With a
@@ -332,11 +333,11 @@ fn iterate(
         let stalled_at_roundoff = need_matrix && iteration >= 1 && rate >= 0.5 && at_roundoff;
         if norm <= 1.0 || estimated_error_small || stalled_at_roundoff {
             report.converged = true;
-            return Ok((report, fresh));
+            return Ok(report);
         }
         if iteration >= 2 && rate > 1.0 && !at_roundoff {
             report.failure = Some(format!("increments grow (contraction rate {rate:.2})"));
-            return Ok((report, fresh));
+            return Ok(report);
         }
         if reuse && rate > newton.contraction_limit && iteration > 0 {
             // Slow contraction: refresh the matrix at the current iterate.
@@ -345,7 +346,7 @@ fn iterate(
         previous_norm = norm;
     }
     report.failure = Some(format!("no convergence in {} iterations", newton.max_iterations));
-    Ok((report, fresh))
+    Ok(report)
 }
 
 /// Attempts one step of size `h` from `current` into `next`. Non-convergence is reported in
@@ -382,27 +383,28 @@ pub fn step(
         LinearSolver::Auto => (Factorization::Lu, Factorization::Lu),
     };
     predict(method, h, current, next);
-    let (mut report, mut fresh) = iterate(model, coef, newton, reuse, first_kind, h, next, ws, cache)?;
+    let mut report = iterate(model, coef, newton, reuse, first_kind, h, next, ws, cache)?;
     if !report.converged && reuse && (report.factorizations < report.iterations || first_kind != exact_kind) {
         let first = report.clone();
         predict(method, h, current, next);
         cache.step_size = None;
-        let (second, second_fresh) = iterate(model, coef, newton, false, exact_kind, h, next, ws, cache)?;
+        let second = iterate(model, coef, newton, false, exact_kind, h, next, ws, cache)?;
         report = second;
         report.iterations += first.iterations;
         report.factorizations += first.factorizations;
-        fresh = second_fresh;
     }
     if !report.converged {
         return Ok(report);
     }
 
-    // Velocity projection: with the Newton matrix of this step as metric, the correction dv
-    // solves [[s S, C_q^T], [C_q, 0]] [dv; mu] = [0; -(C_q q_dot + C_t)]. It removes the
-    // undamped error mode along the constraint normals that the index-3 method has at
-    // spectral radius 1 (the trapezoidal rule). A matrix reused from an earlier step would
-    // leak the correction into the tangential velocities, so it is refreshed here (and the
-    // next step reuses the refreshed one).
+    // Velocity projection in the metric of the mass matrix: the correction dv solves
+    // [[M, C_q^T], [C_q, 0]] [dv; mu] = [0; -(C_q q_dot + C_t)], the smallest change of kinetic
+    // energy that satisfies the velocity constraints. It removes the undamped error mode along
+    // the constraint normals that the index-3 method has at spectral radius 1 (the
+    // trapezoidal rule). The Newton matrix is no metric for it: with gyroscopic and stiffness
+    // terms it need not be definite, and projecting with it destabilizes fast-spinning bodies.
+    // The matrix is factorized by its own LDL^T (quasi-definite with the normalization
+    // penalties), so that the next step may reuse the Newton matrix.
     if project_velocities && nc > 0 {
         let view = StateView {
             time: next.time,
@@ -412,17 +414,13 @@ pub fn step(
             lambda: &next.multipliers,
             discrete: &next.discrete,
         };
-        assemble(model, view, ws, if fresh { None } else { Some(coef) })?;
-        if !fresh {
-            if let Err(detail) = factorize(model, ws, cache.kind, coef.scale, &next.coordinates) {
-                cache.step_size = None;
-                report.converged = false;
-                report.failure = Some(format!("singular Newton matrix in the velocity projection: {detail}"));
-                return Ok(report);
-            }
-            cache.step_size = Some(h);
-            report.factorizations += 1;
+        assemble(model, view, ws, Some(MatrixCoefficients::ACCELERATION))?;
+        if let Err(detail) = factorize(model, ws, Factorization::Projection, 1.0, &next.coordinates) {
+            report.converged = false;
+            report.failure = Some(format!("singular mass matrix in the velocity projection: {detail}"));
+            return Ok(report);
         }
+        report.factorizations += 1;
         let mut violation = std::mem::take(&mut ws.scratch[1]);
         super::assembly::velocity_violation(model, &next.velocities, ws, &mut violation[..nc]);
         ws.solution[..nq].iter_mut().for_each(|x| *x = 0.0);
@@ -430,8 +428,7 @@ pub fn step(
             ws.solution[nq + k] = -violation[k];
         }
         ws.scratch[1] = violation;
-        if let Err(detail) = solve(model, ws, cache.kind, coef.scale) {
-            cache.step_size = None;
+        if let Err(detail) = solve(model, ws, Factorization::Projection, 1.0) {
             report.converged = false;
             report.failure = Some(format!("velocity projection: {detail}"));
             return Ok(report);
@@ -439,6 +436,39 @@ pub fn step(
         for k in 0..nq {
             next.velocities[k] += ws.solution[k];
         }
+        // Accelerations and multipliers consistent with the projected velocities (seed eq. 26,
+        // with the matrix just factorized): otherwise q_dd, lambda and the auxiliary
+        // accelerations carry the removed velocity error into the next step, which fast
+        // gyroscopic bodies amplify.
+        next.accelerations.iter_mut().for_each(|x| *x = 0.0);
+        next.multipliers.iter_mut().for_each(|x| *x = 0.0);
+        let view = StateView {
+            time: next.time,
+            q: &next.coordinates,
+            qd: &next.velocities,
+            qdd: &next.accelerations,
+            lambda: &next.multipliers,
+            discrete: &next.discrete,
+        };
+        assemble(model, view, ws, None)?;
+        let mut gamma = std::mem::take(&mut ws.scratch[1]);
+        let mut ct = std::mem::take(&mut ws.scratch[0]);
+        let terms =
+            super::assembly::constraint_time_terms(model, view, ws, &mut ct[..nc], Some(&mut gamma[..nc]));
+        for k in 0..nq {
+            ws.solution[k] = -ws.residual[k];
+        }
+        ws.solution[nq..].copy_from_slice(&gamma[..nc]);
+        ws.scratch[0] = ct;
+        ws.scratch[1] = gamma;
+        terms?;
+        if let Err(detail) = solve(model, ws, Factorization::Projection, 1.0) {
+            report.converged = false;
+            report.failure = Some(format!("consistent accelerations after the projection: {detail}"));
+            return Ok(report);
+        }
+        next.accelerations.copy_from_slice(&ws.solution[..nq]);
+        next.multipliers.copy_from_slice(&ws.solution[nq..]);
     }
     // Auxiliary accelerations from the converged q_dd.
     for k in 0..nq {

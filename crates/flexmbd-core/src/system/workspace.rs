@@ -20,8 +20,12 @@ pub struct JointLocal {
     pub jacobian: DenseMatrix,
     /// sum_e lambda_e d2C_e/dq2 (local x local); filled by the assembly.
     pub hessian: DenseMatrix,
-    /// Scratch vector (local).
+    /// Scratch vectors (local).
     pub scratch: Vec<f64>,
+    /// Scratch for a gradient (local).
+    pub gradient: Vec<f64>,
+    /// Scratch for a time derivative of a gradient (local).
+    pub gradient_time: Vec<f64>,
     /// Driver values (f, f', f'') at the assembly time.
     pub driver: [f64; 3],
 }
@@ -39,6 +43,9 @@ pub struct Workspace {
     /// Symmetric quasi-definite LDL^T of the last factorized iteration matrix (modified
     /// Newton).
     pub ldlt: SparseLdlt,
+    /// LDL^T of [[M, C_q^T], [C_q, 0]] for the velocity projection (kept apart so that the
+    /// Newton matrix can be reused by the next step).
+    pub projection: SparseLdlt,
     /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
     /// trace of its inertia about the body origin.
     pub normalization_weights: Vec<f64>,
@@ -77,6 +84,14 @@ impl Workspace {
                     detail,
                 }
             })?;
+        let projection =
+            SparseLdlt::new(&model.layout.pattern, model.coordinate_count, &blocks).map_err(|detail| {
+                FlexmbdError::SingularMatrix {
+                    time: 0.0,
+                    context: "symbolic analysis of the projection matrix".to_string(),
+                    detail,
+                }
+            })?;
         let normalization_weights = model
             .normalizations
             .iter()
@@ -95,6 +110,7 @@ impl Workspace {
             values: vec![0.0; model.layout.pattern.nnz()],
             lu,
             ldlt,
+            projection,
             penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
             normalization_weights,
             rigid: RigidTangent::default(),
@@ -109,6 +125,8 @@ impl Workspace {
                         jacobian: DenseMatrix::zeros(ne, nd),
                         hessian: DenseMatrix::zeros(nd, nd),
                         scratch: vec![0.0; nd],
+                        gradient: vec![0.0; nd],
+                        gradient_time: vec![0.0; nd],
                         driver: [0.0; 3],
                     }
                 })
