@@ -123,10 +123,9 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['steps_per_second']:>8.0f} {r['newton_iterations_per_step']:>8.2f} "
             f"{r['factorizations']:>7} {ep:>10.2e} {ev:>10.2e}"
         )
-    if exudyn_row is None and not args.no_exudyn:
-        print("(exudyn not installed: `pip install exudyn` for the side-by-side run)")
-    elif exudyn_row is None:
-        pass
+    if exudyn_row is None:
+        if not args.no_exudyn:
+            print("(exudyn not installed: `pip install exudyn` for the side-by-side run)")
     else:
         ours = rows[:-1]
         exudyn_rate = exudyn_row["steps_per_second"]

@@ -229,3 +229,13 @@ def test_progress_callback_is_called_and_can_stop_the_run():
         fm.simulate(example.system, 100.0, 1e-3, output_interval=0.01, progress=progress)
     assert len(seen) == 2 and seen[0] < seen[1]
     assert isinstance(info.value.__cause__, RuntimeError)
+
+
+def test_newton_step_control_recovers_where_a_fixed_step_fails():
+    s = fm.System()
+    body = s.add_point_mass(1.0, position=(1.0, 0, 0), name="bob")
+    s.add_callback_force([body], stiffening(0.52), name="hardening")
+    result = fm.simulate(s, 2.0, 0.05, output_interval=0.05)
+    stats = result.statistics
+    assert result.success and stats["rejected_steps"] > 0
+    assert stats["min_step_size"] < 0.05 and result.time[-1] == pytest.approx(2.0)

@@ -62,3 +62,22 @@ def test_period_matches_the_elliptic_integral_value(a01):
     dt = t[1] - t[0]
     t_max = t[k] + 0.5 * dt * (a - c) / (a - 2 * b + c)
     assert abs(t_max - 2.367841947576) < 1e-5
+
+
+def test_error_based_step_control_adapts_the_step_and_converges_with_the_tolerance():
+    errors = []
+    for tolerance in (1e-4, 1e-6):
+        example = fm.examples.pendulum()
+        solver = fm.GeneralizedAlpha(
+            0.9,
+            step_control="error",
+            relative_tolerance=tolerance,
+            absolute_tolerance=tolerance,
+            max_step_size=0.05,
+        )
+        result = fm.simulate(example.system, 10.0, 1e-3, output_interval=0.5, solver=solver)
+        stats = result.statistics
+        assert stats["min_step_size"] < 0.5 * stats["max_step_size"]
+        errors.append(max(example.check(result).values()))
+    # Smaller tolerance, smaller error (global error of a local-error control).
+    assert errors[1] < 0.2 * errors[0] and errors[1] < 1e-2
