@@ -152,17 +152,6 @@ fn random_model(seed: u64) -> (Model, State) {
     (model, state)
 }
 
-fn view(s: &State) -> StateView<'_> {
-    StateView {
-        time: s.time,
-        q: &s.coordinates,
-        qd: &s.velocities,
-        qdd: &s.accelerations,
-        lambda: &s.multipliers,
-        discrete: &s.discrete,
-    }
-}
-
 fn dense(model: &Model, values: &[f64]) -> Vec<Vec<f64>> {
     let n = model.system_size();
     let p = &model.layout.pattern;
@@ -196,7 +185,7 @@ fn newton_matrix_blocks_match_finite_differences() {
                     MatrixCoefficients { mass: 1.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
                 }
             };
-            assemble(&model, view(&state), &mut ws, Some(coef)).unwrap();
+            assemble(&model, StateView::of(&state), &mut ws, Some(coef)).unwrap();
             let analytic = dense(&model, &ws.values);
             for col in 0..nq {
                 let mut plus = state.clone();
@@ -208,9 +197,9 @@ fn newton_matrix_blocks_match_finite_differences() {
                 };
                 *p += h;
                 *m -= h;
-                assemble(&model, view(&plus), &mut ws, None).unwrap();
+                assemble(&model, StateView::of(&plus), &mut ws, None).unwrap();
                 let rp = ws.residual.clone();
-                assemble(&model, view(&minus), &mut ws, None).unwrap();
+                assemble(&model, StateView::of(&minus), &mut ws, None).unwrap();
                 let rm = ws.residual.clone();
                 let rows = if which == 0 { n } else { nq };
                 for row in 0..rows {
@@ -248,18 +237,18 @@ fn gamma_matches_second_time_derivative_of_constraints() {
                 s.coordinates[k] += tau * state.velocities[k] + 0.5 * tau * tau * state.accelerations[k];
                 s.velocities[k] += tau * state.accelerations[k];
             }
-            assemble(&model, view(&s), ws, None).unwrap();
+            assemble(&model, StateView::of(&s), ws, None).unwrap();
             ws.residual[nq..].to_vec()
         };
         let h = 1e-4;
         let cp = eval(h, &mut ws);
         let cm = eval(-h, &mut ws);
         let c0 = eval(0.0, &mut ws);
-        assemble(&model, view(&state), &mut ws, Some(MatrixCoefficients::ACCELERATION)).unwrap();
+        assemble(&model, StateView::of(&state), &mut ws, Some(MatrixCoefficients::ACCELERATION)).unwrap();
         let values = ws.values.clone();
         let mut ct = vec![0.0; nc];
         let mut gamma = vec![0.0; nc];
-        constraint_time_terms(&model, view(&state), &mut ws, &mut ct, Some(&mut gamma)).unwrap();
+        constraint_time_terms(&model, StateView::of(&state), &mut ws, &mut ct, Some(&mut gamma)).unwrap();
         let jac = dense(&model, &values);
         for r in 0..nc {
             let c_dd = (cp[r] - 2.0 * c0[r] + cm[r]) / (h * h);

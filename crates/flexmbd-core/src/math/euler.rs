@@ -211,18 +211,6 @@ pub fn l_jacobian(w: &Quaternion) -> Mat34 {
     m
 }
 
-/// Jacobian d(G(p) w)/dp = -G(w) (3 x 4) for a constant 4-vector `w`.
-pub fn g_jacobian(w: &Quaternion) -> Mat34 {
-    let mut m = g_matrix(w);
-    m.iter_mut().flatten().for_each(|x| *x = -*x);
-    m
-}
-
-/// Converts a 3 x 3 `Mat3` into a plain array for the fixed-size helpers.
-pub fn mat3_array(m: &Mat3) -> [[f64; 3]; 3] {
-    m.0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -81,6 +81,20 @@ pub struct StateView<'a> {
     pub discrete: &'a [f64],
 }
 
+impl<'a> StateView<'a> {
+    /// The view of a whole state.
+    pub fn of(state: &'a crate::system::State) -> Self {
+        StateView {
+            time: state.time,
+            q: &state.coordinates,
+            qd: &state.velocities,
+            qdd: &state.accelerations,
+            lambda: &state.multipliers,
+            discrete: &state.discrete,
+        }
+    }
+}
+
 /// Assembles the residual into `ws.residual` and, if `matrix` is given, the Newton matrix into
 /// `ws.values`. Updates the marker kinematics first.
 pub fn assemble(

@@ -246,14 +246,7 @@ fn iterate(
     let mut previous_norm = f64::INFINITY;
     for iteration in 0..newton.max_iterations {
         let need_matrix = !reuse || cache.step_size != Some(h) || cache.kind != kind;
-        let view = StateView {
-            time: next.time,
-            q: &next.coordinates,
-            qd: &next.velocities,
-            qdd: &next.accelerations,
-            lambda: &next.multipliers,
-            discrete: &next.discrete,
-        };
+        let view = StateView::of(next);
         assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
         if need_matrix {
             if let Err(detail) = factorize(model, ws, kind, s, &next.coordinates) {
@@ -406,14 +399,7 @@ pub fn step(
     // The matrix is factorized by its own LDL^T (quasi-definite with the normalization
     // penalties), so that the next step may reuse the Newton matrix.
     if project_velocities && nc > 0 {
-        let view = StateView {
-            time: next.time,
-            q: &next.coordinates,
-            qd: &next.velocities,
-            qdd: &next.accelerations,
-            lambda: &next.multipliers,
-            discrete: &next.discrete,
-        };
+        let view = StateView::of(next);
         assemble(model, view, ws, Some(MatrixCoefficients::ACCELERATION))?;
         if let Err(detail) = factorize(model, ws, Factorization::Projection, 1.0, &next.coordinates) {
             report.converged = false;
@@ -442,14 +428,7 @@ pub fn step(
         // gyroscopic bodies amplify.
         next.accelerations.iter_mut().for_each(|x| *x = 0.0);
         next.multipliers.iter_mut().for_each(|x| *x = 0.0);
-        let view = StateView {
-            time: next.time,
-            q: &next.coordinates,
-            qd: &next.velocities,
-            qdd: &next.accelerations,
-            lambda: &next.multipliers,
-            discrete: &next.discrete,
-        };
+        let view = StateView::of(next);
         assemble(model, view, ws, None)?;
         let mut gamma = std::mem::take(&mut ws.scratch[1]);
         let mut ct = std::mem::take(&mut ws.scratch[0]);

@@ -34,17 +34,6 @@ impl Default for InitialSettings {
     }
 }
 
-fn view(state: &State) -> StateView<'_> {
-    StateView {
-        time: state.time,
-        q: &state.coordinates,
-        qd: &state.velocities,
-        qdd: &state.accelerations,
-        lambda: &state.multipliers,
-        discrete: &state.discrete,
-    }
-}
-
 fn factorize(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
     ws.lu.factorize(&ws.values).map_err(|detail| FlexmbdError::SingularMatrix {
         time,
@@ -86,7 +75,7 @@ pub fn solve_initial_positions_and_velocities(
     // Positions.
     let mut iterations = 0;
     loop {
-        assemble(model, view(state), ws, Some(MatrixCoefficients::PROJECTION))?;
+        assemble(model, StateView::of(state), ws, Some(MatrixCoefficients::PROJECTION))?;
         let (row, violation) = worst_constraint(model, ws);
         if violation <= settings.tolerance {
             break;
@@ -113,7 +102,7 @@ pub fn solve_initial_positions_and_velocities(
     // Velocities.
     if model.constraint_count > 0 {
         let mut ct = vec![0.0; model.constraint_count];
-        constraint_time_terms(model, view(state), ws, &mut ct, None)?;
+        constraint_time_terms(model, StateView::of(state), ws, &mut ct, None)?;
         if settings.correct_velocities {
             factorize(ws, t, "initial velocity correction")?;
             ws.solution[..nq].copy_from_slice(&state.velocities);
@@ -133,10 +122,10 @@ pub fn solve_accelerations(model: &Model, state: &mut State, ws: &mut Workspace)
     let t = state.time;
     state.accelerations.iter_mut().for_each(|x| *x = 0.0);
     state.multipliers.iter_mut().for_each(|x| *x = 0.0);
-    assemble(model, view(state), ws, Some(MatrixCoefficients::ACCELERATION))?;
+    assemble(model, StateView::of(state), ws, Some(MatrixCoefficients::ACCELERATION))?;
     let mut gamma = vec![0.0; model.constraint_count];
     let mut ct = vec![0.0; model.constraint_count];
-    constraint_time_terms(model, view(state), ws, &mut ct, Some(&mut gamma))?;
+    constraint_time_terms(model, StateView::of(state), ws, &mut ct, Some(&mut gamma))?;
     factorize(ws, t, "acceleration system (seed eq. 26)")?;
     for k in 0..nq {
         ws.solution[k] = -ws.residual[k];

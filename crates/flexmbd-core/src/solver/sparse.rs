@@ -12,6 +12,15 @@ use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, LuSymbolicParams, N
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Spec};
 
+/// Error unless every entry of a solution is finite (a singular matrix otherwise).
+fn finite_solution(x: &[f64]) -> std::result::Result<(), String> {
+    if x.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err("the matrix is singular (the solution is not finite)".to_string())
+    }
+}
+
 /// Collects the dense blocks of a square sparse matrix before its pattern is frozen.
 #[derive(Debug, Default)]
 pub struct PatternBuilder {
@@ -182,16 +191,7 @@ impl SparseLu {
         let lu = LuRef::new_unchecked(&self.symbolic, &self.numeric);
         let rhs_mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
         lu.solve_in_place_with_conj(Conj::No, rhs_mat, Par::Seq, MemStack::new(&mut self.memory));
-        if rhs.iter().all(|x| x.is_finite()) {
-            Ok(())
-        } else {
-            Err("the matrix is singular (the solution is not finite)".to_string())
-        }
-    }
-
-    /// True after a successful numeric factorization.
-    pub fn is_factorized(&self) -> bool {
-        self.factorized
+        finite_solution(rhs)
     }
 }
 
@@ -392,16 +392,7 @@ impl SparseLdlt {
             Par::Seq,
             MemStack::new(&mut self.memory),
         );
-        if rhs.iter().all(|x| x.is_finite()) {
-            Ok(())
-        } else {
-            Err("the matrix is singular (the solution is not finite)".to_string())
-        }
-    }
-
-    /// Number of stored entries of the factor L.
-    pub fn factor_nonzeros(&self) -> usize {
-        self.factor.len()
+        finite_solution(rhs)
     }
 }
 

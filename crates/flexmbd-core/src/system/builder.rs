@@ -395,12 +395,6 @@ impl SystemBuilder {
         [self.markers.len(), self.joints.len(), self.forces.len(), self.sensors.len()]
     }
 
-    /// Name of a body.
-    pub fn body_name(&self, body: BodyId) -> Result<&str> {
-        self.check_body(body, "")?;
-        Ok(&self.bodies[body.0].name)
-    }
-
     /// Initial coordinates and velocities of a body as given.
     pub(crate) fn initial_body_state(def: &BodyDefinition) -> (Vec<f64>, Vec<f64>) {
         match &def.kind {
