@@ -21,10 +21,14 @@
 //!    conditions, index-3 generalized-alpha with step-size control, the time loop.
 //! 7. [`output`]: recorded results, reactions, sensors, energies.
 //!
+//! The preprocessor (seed section 3, "computational strategy"), run once per deformable body:
+//! [`fem`]: materials, beam sections, element kernels, assembly, invariants of motion.
+//!
 //! Units are SI by convention; the core itself is unit-agnostic.
 
 pub mod body;
 pub mod error;
+pub mod fem;
 pub mod force;
 pub mod ids;
 pub mod joint;

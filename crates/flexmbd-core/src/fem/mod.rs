@@ -1,0 +1,12 @@
+//! Finite elements for the preprocessor (seed sections 2-3): materials, beam sections, element
+//! kernels (stiffness, mass points, lumped masses), assembly of K_ff and M_ff through the
+//! connectivity (the Boolean matrices of seed eq. 9), and the invariants of motion
+//! (seed eqs. 16-17).
+
+pub mod element;
+pub mod material;
+pub mod quadrature;
+pub mod solid;
+
+pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
+pub use material::Material;

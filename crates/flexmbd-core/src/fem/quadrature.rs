@@ -1,0 +1,1 @@
+//! Quadrature rules on the reference tetrahedron and hexahedron (to be written).
