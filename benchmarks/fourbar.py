@@ -27,6 +27,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import exudyn_fourbar  # noqa: E402
+
 import flexmbd as fm  # noqa: E402
 
 CONFIGS = {

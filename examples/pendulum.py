@@ -4,8 +4,9 @@ Positions are compared with the exact solution (reference R5) and the energy dri
 for generalized-alpha without numerical dissipation (spectral radius 1).
 """
 
-import flexmbd as fm
 import numpy as np
+
+import flexmbd as fm
 
 
 def main() -> int:

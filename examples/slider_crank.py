@@ -6,8 +6,9 @@ friction the driving power must equal the rate of change of kinetic energy:
 tau * omega = dT/dt, which this example checks, and it prints the largest joint forces.
 """
 
-import flexmbd as fm
 import numpy as np
+
+import flexmbd as fm
 
 R, L, OMEGA = 0.15, 0.30, 20.0
 

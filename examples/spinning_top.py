@@ -6,8 +6,9 @@ momentum about the vertical through the fixed point, and the spin about the symm
 generalized-alpha at spectral radius 1 all three are kept to better than 1e-6.
 """
 
-import flexmbd as fm
 import numpy as np
+
+import flexmbd as fm
 
 MASS, ARM, G = 1.0, 0.1, 9.81
 I1, I3 = 0.02, 0.01  # about the centre of mass

@@ -1,9 +1,10 @@
 """Driving constraints (specified motion) and inverse dynamics: the driving effort from the
 multiplier against closed-form values."""
 
-import flexmbd as fm
 import numpy as np
 import pytest
+
+import flexmbd as fm
 
 G = 9.81
 

@@ -4,9 +4,10 @@ import os
 import signal
 import threading
 
-import flexmbd as fm
 import numpy as np
 import pytest
+
+import flexmbd as fm
 
 
 @pytest.fixture

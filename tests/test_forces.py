@@ -1,7 +1,8 @@
 """Applied forces against closed-form solutions."""
 
-import flexmbd as fm
 import numpy as np
+
+import flexmbd as fm
 
 
 def test_spring_damper_oscillator_matches_the_damped_solution():

@@ -1,9 +1,10 @@
 """IFToMM A02 N-four-bar (reference R5), built in 3D from rigid bodies and joints."""
 
-import flexmbd as fm
 import numpy as np
 import pytest
 from conftest import relative_drift
+
+import flexmbd as fm
 
 
 def run(n=2, spectral_radius=0.9, step=2e-4, jacobian="modified", end=10.0, tolerance=1e-6):

@@ -1,10 +1,11 @@
 """Every joint type in a mechanism with a closed-form solution. (Their Jacobians, Hessians and
 gamma are checked against finite differences in crates/flexmbd-core/tests/jacobians.rs.)"""
 
-import flexmbd as fm
 import numpy as np
 import pytest
 from conftest import relative_drift
+
+import flexmbd as fm
 
 G = 9.81
 

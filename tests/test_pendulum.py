@@ -1,8 +1,9 @@
 """IFToMM A01 simple pendulum (reference R5): a point mass on a distance constraint."""
 
-import flexmbd as fm
 import numpy as np
 import pytest
+
+import flexmbd as fm
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,8 @@
 """Joint reaction forces from the multipliers against hand-computed statics."""
 
-import flexmbd as fm
 import numpy as np
+
+import flexmbd as fm
 
 G = 9.81
 

@@ -1,9 +1,10 @@
 """Rigid bodies: the generalized Newton-Euler equations (seed eq. 15 without elastic
 coordinates) against closed-form solutions of rigid-body dynamics."""
 
-import flexmbd as fm
 import numpy as np
 from conftest import relative_drift
+
+import flexmbd as fm
 
 
 def test_torque_free_symmetric_top_precesses_at_the_analytic_rate():

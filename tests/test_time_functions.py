@@ -2,8 +2,9 @@
 
 import math
 
-import flexmbd as fm
 import pytest
+
+import flexmbd as fm
 
 
 @pytest.mark.parametrize(

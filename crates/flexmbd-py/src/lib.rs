@@ -2,6 +2,7 @@
 //! here; the public API is the `flexmbd` package, which re-exports these classes.
 
 mod errors;
+mod fem;
 mod ids;
 mod model;
 mod solver;
@@ -27,6 +28,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<time_function::UserFunction>()?;
     m.add_class::<solver::GeneralizedAlpha>()?;
     m.add_function(wrap_pyfunction!(solver::simulate, m)?)?;
+    m.add_class::<fem::Material>()?;
+    m.add_class::<fem::Section>()?;
+    m.add_function(wrap_pyfunction!(fem::assemble_body, m)?)?;
+    m.add_function(wrap_pyfunction!(fem::body_mass_points, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -70,7 +70,9 @@ class FlexibleBodyData:
     frequencies: NDArray[np.float64] | None = None
     mode_kind: str | None = None
     invariants: dict[str, Any] = field(default_factory=dict)
-    units: dict[str, str] = field(default_factory=lambda: {"length": "m", "mass": "kg", "time": "s"})
+    units: dict[str, str] = field(
+        default_factory=lambda: {"length": "m", "mass": "kg", "time": "s"}
+    )
     metadata: dict[str, str] = field(default_factory=dict)
     version: int = BODY_DATA_VERSION
 

@@ -69,7 +69,12 @@ pub trait ElementKernel {
     fn mass_points(&self, material: &Material, x: &[Vec3], out: &mut Vec<MassPoint>) -> ElementResult<()>;
     /// Lumped mass distribution as mass points at (or, for rotational inertia, around) the
     /// nodes (appended to `out`); their total mass is the element mass.
-    fn lumped_mass_points(&self, material: &Material, x: &[Vec3], out: &mut Vec<MassPoint>) -> ElementResult<()>;
+    fn lumped_mass_points(
+        &self,
+        material: &Material,
+        x: &[Vec3],
+        out: &mut Vec<MassPoint>,
+    ) -> ElementResult<()>;
     /// Volume (m^3).
     fn volume(&self, x: &[Vec3]) -> ElementResult<f64>;
 }

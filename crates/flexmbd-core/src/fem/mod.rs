@@ -3,10 +3,16 @@
 //! connectivity (the Boolean matrices of seed eq. 9), and the invariants of motion
 //! (seed eqs. 16-17).
 
+pub mod assembly;
+pub mod beam;
 pub mod element;
 pub mod material;
 pub mod quadrature;
+pub mod section;
 pub mod solid;
 
+pub use assembly::{AssembledBody, Csc, Element, ElementType, Ikl, Mesh, NodalInvariants};
+pub use beam::Beam;
 pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
 pub use material::Material;
+pub use section::Section;

@@ -1,0 +1,70 @@
+//! Beam cross-sections: area, second moments, torsion constant.
+//!
+//! Local beam axes: x along the beam, y and z the principal axes of the section through its
+//! centroid. Iy = int z^2 dA (bending about y: deflection w along z), Iz = int y^2 dA (bending
+//! about z: deflection v along y). The polar moment of the mass distribution is Iy + Iz; the
+//! torsion constant J (Saint-Venant) equals it only for circular sections.
+
+use crate::error::{FlexmbdError, Result};
+
+/// Cross-section properties of a beam.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Section {
+    /// Area A (m^2).
+    pub area: f64,
+    /// Iy = int z^2 dA (m^4).
+    pub iy: f64,
+    /// Iz = int y^2 dA (m^4).
+    pub iz: f64,
+    /// Saint-Venant torsion constant J (m^4).
+    pub torsion_constant: f64,
+}
+
+impl Section {
+    /// Section from given properties; all must be positive and finite.
+    pub fn new(item: &str, area: f64, iy: f64, iz: f64, torsion_constant: f64) -> Result<Self> {
+        for (name, v) in [("area", area), ("iy", iy), ("iz", iz), ("torsion constant", torsion_constant)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: item.to_string(),
+                    message: format!("section {name} must be positive and finite, got {v}"),
+                });
+            }
+        }
+        Ok(Section { area, iy, iz, torsion_constant })
+    }
+
+    /// Solid rectangle of width b (along y) and height h (along z). Torsion constant by the
+    /// series solution of Saint-Venant's problem (Timoshenko and Goodier), to 1e-10.
+    pub fn rectangle(item: &str, b: f64, h: f64) -> Result<Self> {
+        let (long, short) = if b >= h { (b, h) } else { (h, b) };
+        // J = (a b^3 / 3) (1 - 192 b / (pi^5 a) sum_{n odd} tanh(n pi a / 2b) / n^5).
+        let mut sum = 0.0;
+        let mut n = 1.0;
+        while n < 200.0 {
+            sum += (n * std::f64::consts::PI * long / (2.0 * short)).tanh() / n.powi(5);
+            n += 2.0;
+        }
+        let j =
+            long * short.powi(3) / 3.0 * (1.0 - 192.0 * short / (std::f64::consts::PI.powi(5) * long) * sum);
+        Section::new(item, b * h, b * h.powi(3) / 12.0, h * b.powi(3) / 12.0, j)
+    }
+
+    /// Solid circle of radius r.
+    pub fn circle(item: &str, r: f64) -> Result<Self> {
+        let i = std::f64::consts::PI * r.powi(4) / 4.0;
+        Section::new(item, std::f64::consts::PI * r * r, i, i, 2.0 * i)
+    }
+
+    /// Circular tube with outer radius `outer` and inner radius `inner` < `outer`.
+    pub fn tube(item: &str, outer: f64, inner: f64) -> Result<Self> {
+        if !(inner >= 0.0 && inner < outer) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: item.to_string(),
+                message: format!("tube radii must satisfy 0 <= inner < outer, got {inner} and {outer}"),
+            });
+        }
+        let i = std::f64::consts::PI * (outer.powi(4) - inner.powi(4)) / 4.0;
+        Section::new(item, std::f64::consts::PI * (outer * outer - inner * inner), i, i, 2.0 * i)
+    }
+}

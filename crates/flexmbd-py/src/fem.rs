@@ -1,0 +1,324 @@
+//! Preprocessor bindings: materials, beam sections and the assembly of a deformable body
+//! (stiffness, mass and invariants of motion), returned as arrays for NumPy and SciPy.
+
+use flexmbd_core::fem::{self, Element, ElementType, Ikl, Mesh};
+use flexmbd_core::math::Vec3;
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+use crate::errors::{check, invalid};
+
+/// Isotropic linear elastic material: Young's modulus (Pa), Poisson's ratio, density (kg/m^3).
+#[pyclass(module = "flexmbd._core", frozen, from_py_object)]
+#[derive(Clone)]
+pub struct Material {
+    pub(crate) inner: fem::Material,
+}
+
+#[pymethods]
+impl Material {
+    #[new]
+    #[pyo3(signature = (young_modulus, poisson_ratio, density, *, name = None))]
+    fn new(young_modulus: f64, poisson_ratio: f64, density: f64, name: Option<String>) -> PyResult<Self> {
+        let item = name.map(|n| format!("material '{n}'")).unwrap_or_else(|| "material".to_string());
+        Ok(Material { inner: check(fem::Material::new(&item, young_modulus, poisson_ratio, density))? })
+    }
+
+    /// Young's modulus (Pa).
+    #[getter]
+    fn young_modulus(&self) -> f64 {
+        self.inner.young_modulus
+    }
+
+    /// Poisson's ratio.
+    #[getter]
+    fn poisson_ratio(&self) -> f64 {
+        self.inner.poisson_ratio
+    }
+
+    /// Density (kg/m^3).
+    #[getter]
+    fn density(&self) -> f64 {
+        self.inner.density
+    }
+
+    /// Shear modulus E / (2 (1 + nu)) (Pa).
+    #[getter]
+    fn shear_modulus(&self) -> f64 {
+        self.inner.shear_modulus()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Material(young_modulus={:e}, poisson_ratio={}, density={})",
+            self.inner.young_modulus, self.inner.poisson_ratio, self.inner.density
+        )
+    }
+}
+
+/// Beam cross-section in its principal axes: area A, iy = int z^2 dA, iz = int y^2 dA and the
+/// torsion constant J (m^2, m^4). Use `Section.rectangle`, `Section.circle`, `Section.tube` or
+/// give the values.
+#[pyclass(module = "flexmbd._core", frozen, from_py_object)]
+#[derive(Clone)]
+pub struct Section {
+    pub(crate) inner: fem::Section,
+}
+
+#[pymethods]
+impl Section {
+    #[new]
+    fn new(area: f64, iy: f64, iz: f64, torsion_constant: f64) -> PyResult<Self> {
+        Ok(Section { inner: check(fem::Section::new("section", area, iy, iz, torsion_constant))? })
+    }
+
+    /// Solid rectangle of width b (along the section's y axis) and height h (along z).
+    #[staticmethod]
+    fn rectangle(b: f64, h: f64) -> PyResult<Self> {
+        Ok(Section { inner: check(fem::Section::rectangle("rectangular section", b, h))? })
+    }
+
+    /// Solid circle of radius r.
+    #[staticmethod]
+    fn circle(r: f64) -> PyResult<Self> {
+        Ok(Section { inner: check(fem::Section::circle("circular section", r))? })
+    }
+
+    /// Circular tube with radii outer > inner >= 0.
+    #[staticmethod]
+    fn tube(outer: f64, inner: f64) -> PyResult<Self> {
+        Ok(Section { inner: check(fem::Section::tube("tube section", outer, inner))? })
+    }
+
+    /// Area (m^2).
+    #[getter]
+    fn area(&self) -> f64 {
+        self.inner.area
+    }
+
+    /// int z^2 dA (m^4).
+    #[getter]
+    fn iy(&self) -> f64 {
+        self.inner.iy
+    }
+
+    /// int y^2 dA (m^4).
+    #[getter]
+    fn iz(&self) -> f64 {
+        self.inner.iz
+    }
+
+    /// Saint-Venant torsion constant (m^4).
+    #[getter]
+    fn torsion_constant(&self) -> f64 {
+        self.inner.torsion_constant
+    }
+
+    fn __repr__(&self) -> String {
+        let s = &self.inner;
+        format!(
+            "Section(area={:e}, iy={:e}, iz={:e}, torsion_constant={:e})",
+            s.area, s.iy, s.iz, s.torsion_constant
+        )
+    }
+}
+
+fn csc_tuple<'py>(py: Python<'py>, m: fem::Csc) -> PyResult<Bound<'py, PyTuple>> {
+    let to_i64 = |v: Vec<usize>| v.into_iter().map(|x| x as i64).collect::<Vec<i64>>();
+    PyTuple::new(
+        py,
+        [
+            PyArray1::from_vec(py, m.values).into_any(),
+            PyArray1::from_vec(py, to_i64(m.row_idx)).into_any(),
+            PyArray1::from_vec(py, to_i64(m.col_ptr)).into_any(),
+            (m.nrows, m.ncols).into_pyobject(py)?.into_any(),
+        ],
+    )
+}
+
+/// Default section y axis of a beam along `axis`: global y, or global z for beams nearly
+/// along y.
+fn default_orientation(axis: Vec3) -> Vec3 {
+    let a = axis * (1.0 / axis.norm());
+    if a[1].abs() < 0.9 {
+        Vec3([0.0, 1.0, 0.0])
+    } else {
+        Vec3([0.0, 0.0, 1.0])
+    }
+}
+
+/// Builds the core mesh from the arrays of `assemble_body`.
+fn build_mesh<'py>(
+    nodes: PyReadonlyArray2<'py, f64>,
+    node_ids: PyReadonlyArray1<'py, i64>,
+    elements: &Bound<'py, PyDict>,
+    material: &Material,
+    section: Option<&Section>,
+    orientation: Option<&[f64]>,
+) -> PyResult<Mesh> {
+    let nodes = nodes.as_array();
+    if nodes.ncols() != 3 {
+        return Err(invalid("mesh", format!("nodes must be an (n, 3) array, got {} columns", nodes.ncols())));
+    }
+    let positions: Vec<Vec3> = nodes.rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect();
+    let mut list = Vec::new();
+    for (key, value) in elements.iter() {
+        let kind: String = key.extract()?;
+        let (connectivity, ids): (PyReadonlyArray2<'py, i64>, PyReadonlyArray1<'py, i64>) =
+            value.extract()?;
+        let connectivity = connectivity.as_array();
+        let ids = ids.as_array();
+        if ids.len() != connectivity.nrows() {
+            return Err(invalid(
+                "mesh",
+                format!("{} ids for {} {kind} elements", ids.len(), connectivity.nrows()),
+            ));
+        }
+        for (row, &id) in connectivity.rows().into_iter().zip(ids.iter()) {
+            let element_nodes: Vec<usize> = row
+                .iter()
+                .map(|&v| {
+                    usize::try_from(v)
+                        .map_err(|_| invalid(&format!("element {id}"), format!("negative node index {v}")))
+                })
+                .collect::<PyResult<_>>()?;
+            let kind = match kind.as_str() {
+                "beam2" => {
+                    let section = section
+                        .ok_or_else(|| invalid(&format!("element {id}"), "beam elements need a section"))?;
+                    let axis = match (element_nodes.first(), element_nodes.get(1)) {
+                        (Some(&a), Some(&b)) if a < positions.len() && b < positions.len() => {
+                            positions[b] - positions[a]
+                        }
+                        _ => Vec3([1.0, 0.0, 0.0]),
+                    };
+                    let o = match orientation {
+                        Some(v) if v.len() == 3 => Vec3([v[0], v[1], v[2]]),
+                        Some(v) => {
+                            return Err(invalid(
+                                "beam orientation",
+                                format!("expected 3 components, got {}", v.len()),
+                            ))
+                        }
+                        None => default_orientation(axis),
+                    };
+                    ElementType::Beam(fem::Beam { section: section.inner, orientation: o })
+                }
+                other => return Err(invalid("mesh", format!("unsupported element type '{other}'"))),
+            };
+            list.push(Element { id, kind, nodes: element_nodes });
+        }
+    }
+    Ok(Mesh {
+        nodes: positions,
+        node_ids: node_ids.as_array().to_vec(),
+        elements: list,
+        material: material.inner,
+    })
+}
+
+/// Assembles a deformable body: nodes (n, 3) in the body frame, node ids (n,), elements as a
+/// dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2" (and, once
+/// available, solids), the material, the beam section and the beam orientation (a vector in
+/// the sections' x-y plane; default: global y, or global z for beams nearly along y), and
+/// whether the mass is lumped. Returns a dict of arrays: "dofs_per_node", "stiffness" and
+/// "mass" as (data, indices, indptr, shape) of CSC matrices, "mass_total", "first_moment",
+/// "second_moment", "i1" (3, n), "ibar" (3, 3, n), and either "i_kl_scalar" (the scalar nodal
+/// mass matrix M_s of solid bodies: I_kl = M_s (x) e_k e_l^T) or "i_kl" (nine CSC tuples).
+#[pyfunction]
+#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false))]
+#[allow(clippy::too_many_arguments)]
+pub fn assemble_body<'py>(
+    py: Python<'py>,
+    nodes: PyReadonlyArray2<'py, f64>,
+    node_ids: PyReadonlyArray1<'py, i64>,
+    elements: &Bound<'py, PyDict>,
+    material: &Material,
+    section: Option<Section>,
+    orientation: Option<Vec<f64>>,
+    lumped: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mesh = build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref())?;
+    let body = py.detach(|| mesh.assemble(lumped));
+    let body = check(body)?;
+    let n = body.stiffness.nrows;
+    let d = PyDict::new(py);
+    d.set_item("dofs_per_node", body.dofs_per_node)?;
+    d.set_item("stiffness", csc_tuple(py, body.stiffness)?)?;
+    d.set_item("mass", csc_tuple(py, body.mass)?)?;
+    let inv = body.invariants;
+    d.set_item("mass_total", inv.mass)?;
+    d.set_item("first_moment", PyArray1::from_vec(py, inv.first_moment.0.to_vec()))?;
+    d.set_item("second_moment", PyArray1::from_vec(py, inv.second_moment.0.concat()).reshape([3, 3])?)?;
+    d.set_item("i1", PyArray1::from_vec(py, inv.i1).reshape([3, n])?)?;
+    d.set_item("ibar", PyArray1::from_vec(py, inv.ibar).reshape([3, 3, n])?)?;
+    match inv.i_kl {
+        Ikl::Scalar(ms) => d.set_item("i_kl_scalar", csc_tuple(py, ms)?)?,
+        Ikl::Blocks(blocks) => {
+            let list = PyList::empty(py);
+            for m in blocks {
+                list.append(csc_tuple(py, m)?)?;
+            }
+            d.set_item("i_kl", list)?;
+        }
+    }
+    Ok(d)
+}
+
+/// The mass points of a body (same arguments as `assemble_body`): weights (P,) = rho dV,
+/// positions (P, 3) and the shape matrices as the (data, indices, indptr, shape) of a CSR
+/// matrix (3 P, n_dofs) whose rows 3 p .. 3 p + 3 are S of point p. For brute-force checks of
+/// the invariants.
+#[pyfunction]
+#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false))]
+#[allow(clippy::too_many_arguments)]
+pub fn body_mass_points<'py>(
+    py: Python<'py>,
+    nodes: PyReadonlyArray2<'py, f64>,
+    node_ids: PyReadonlyArray1<'py, i64>,
+    elements: &Bound<'py, PyDict>,
+    material: &Material,
+    section: Option<Section>,
+    orientation: Option<Vec<f64>>,
+    lumped: bool,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let mesh = build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref())?;
+    let n = mesh.nodes.len() * mesh.dofs_per_node();
+    let mut weights = Vec::new();
+    let mut positions = Vec::new();
+    let (mut data, mut indices, mut indptr) = (Vec::new(), Vec::new(), vec![0i64]);
+    check(mesh.for_each_mass_point(lumped, |p, dofs| {
+        weights.push(p.weight);
+        positions.extend_from_slice(&p.position.0);
+        let ne = dofs.len();
+        for row in 0..3 {
+            for (a, &g) in dofs.iter().enumerate() {
+                let v = p.shape[row * ne + a];
+                if v != 0.0 {
+                    data.push(v);
+                    indices.push(g as i64);
+                }
+            }
+            indptr.push(data.len() as i64);
+        }
+    }))?;
+    let count = weights.len();
+    PyTuple::new(
+        py,
+        [
+            PyArray1::from_vec(py, weights).into_any(),
+            PyArray1::from_vec(py, positions).reshape([count, 3])?.into_any(),
+            PyTuple::new(
+                py,
+                [
+                    PyArray1::from_vec(py, data).into_any(),
+                    PyArray1::from_vec(py, indices).into_any(),
+                    PyArray1::from_vec(py, indptr).into_any(),
+                    (3 * count, n).into_pyobject(py)?.into_any(),
+                ],
+            )?
+            .into_any(),
+        ],
+    )
+}
