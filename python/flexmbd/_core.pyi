@@ -292,6 +292,9 @@ class Section:
     def iz(self) -> float: ...
     @property
     def torsion_constant(self) -> float: ...
+    @property
+    def shear_factor(self) -> float: ...
+    def with_shear_factor(self, kappa: float) -> Section: ...
 
 def assemble_body(
     nodes: NDArray[np.float64],
@@ -301,6 +304,7 @@ def assemble_body(
     section: Section | None = None,
     orientation: list[float] | None = None,
     lumped: bool = False,
+    shear: bool = False,
 ) -> dict[str, Any]: ...
 def body_mass_points(
     nodes: NDArray[np.float64],
@@ -310,4 +314,5 @@ def body_mass_points(
     section: Section | None = None,
     orientation: list[float] | None = None,
     lumped: bool = False,
+    shear: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[Any, Any, Any, tuple[int, int]]]: ...

@@ -115,6 +115,17 @@ impl Section {
         self.inner.torsion_constant
     }
 
+    /// Shear correction factor kappa of Timoshenko beams (shear area kappa A).
+    #[getter]
+    fn shear_factor(&self) -> f64 {
+        self.inner.shear_factor
+    }
+
+    /// The same section with another shear correction factor, in (0, 1].
+    fn with_shear_factor(&self, kappa: f64) -> PyResult<Self> {
+        Ok(Section { inner: check(self.inner.with_shear_factor("section", kappa))? })
+    }
+
     fn __repr__(&self) -> String {
         let s = &self.inner;
         format!(
@@ -156,6 +167,7 @@ fn build_mesh<'py>(
     material: &Material,
     section: Option<&Section>,
     orientation: Option<&[f64]>,
+    shear: bool,
 ) -> PyResult<Mesh> {
     let nodes = nodes.as_array();
     if nodes.ncols() != 3 {
@@ -203,9 +215,17 @@ fn build_mesh<'py>(
                         }
                         None => default_orientation(axis),
                     };
-                    ElementType::Beam(fem::Beam { section: section.inner, orientation: o })
+                    ElementType::Beam(fem::Beam { section: section.inner, orientation: o, shear })
                 }
-                other => return Err(invalid("mesh", format!("unsupported element type '{other}'"))),
+                "tet4" => ElementType::Tet4,
+                "tet10" => ElementType::Tet10,
+                "hex8" => ElementType::Hex8,
+                other => {
+                    return Err(invalid(
+                        "mesh",
+                        format!("unsupported element type '{other}' (use beam2, tet4, tet10, hex8)"),
+                    ))
+                }
             };
             list.push(Element { id, kind, nodes: element_nodes });
         }
@@ -219,15 +239,16 @@ fn build_mesh<'py>(
 }
 
 /// Assembles a deformable body: nodes (n, 3) in the body frame, node ids (n,), elements as a
-/// dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2" (and, once
-/// available, solids), the material, the beam section and the beam orientation (a vector in
-/// the sections' x-y plane; default: global y, or global z for beams nearly along y), and
-/// whether the mass is lumped. Returns a dict of arrays: "dofs_per_node", "stiffness" and
+/// dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2", "tet4",
+/// "tet10" (Gmsh node order) and "hex8", the material, the beam section and the beam
+/// orientation (a vector in the sections' x-y plane; default: global y, or global z for beams
+/// nearly along y), whether the mass is lumped, and whether beams are shear-deformable
+/// (Timoshenko). Returns a dict of arrays: "dofs_per_node", "stiffness" and
 /// "mass" as (data, indices, indptr, shape) of CSC matrices, "mass_total", "first_moment",
 /// "second_moment", "i1" (3, n), "ibar" (3, 3, n), and either "i_kl_scalar" (the scalar nodal
 /// mass matrix M_s of solid bodies: I_kl = M_s (x) e_k e_l^T) or "i_kl" (nine CSC tuples).
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false))]
+#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn assemble_body<'py>(
     py: Python<'py>,
@@ -238,8 +259,10 @@ pub fn assemble_body<'py>(
     section: Option<Section>,
     orientation: Option<Vec<f64>>,
     lumped: bool,
+    shear: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let mesh = build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref())?;
+    let mesh =
+        build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref(), shear)?;
     let body = py.detach(|| mesh.assemble(lumped));
     let body = check(body)?;
     let n = body.stiffness.nrows;
@@ -271,7 +294,7 @@ pub fn assemble_body<'py>(
 /// matrix (3 P, n_dofs) whose rows 3 p .. 3 p + 3 are S of point p. For brute-force checks of
 /// the invariants.
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false))]
+#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn body_mass_points<'py>(
     py: Python<'py>,
@@ -282,8 +305,10 @@ pub fn body_mass_points<'py>(
     section: Option<Section>,
     orientation: Option<Vec<f64>>,
     lumped: bool,
+    shear: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let mesh = build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref())?;
+    let mesh =
+        build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref(), shear)?;
     let n = mesh.nodes.len() * mesh.dofs_per_node();
     let mut weights = Vec::new();
     let mut positions = Vec::new();

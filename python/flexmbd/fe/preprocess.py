@@ -23,6 +23,14 @@ Material = _core.Material
 Section = _core.Section
 
 
+def _beam_theory(name: str) -> bool:
+    if name not in ("euler-bernoulli", "timoshenko"):
+        raise InvalidParameterError(
+            f"beam_theory must be 'euler-bernoulli' or 'timoshenko', got {name!r}"
+        )
+    return name == "timoshenko"
+
+
 def _csc(parts: tuple) -> sp.csc_matrix:
     data, indices, indptr, shape = parts
     return sp.csc_matrix((data, indices, indptr), shape=shape)
@@ -70,15 +78,18 @@ def assemble(
     section: Section | None = None,
     orientation: ArrayLike | None = None,
     mass: str = "consistent",
+    beam_theory: str = "euler-bernoulli",
     node_ids: ArrayLike | None = None,
     element_ids: Mapping[str, ArrayLike] | None = None,
 ) -> NodalBody:
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
-    `elements` maps an element type ("beam2", "tet4", "tet10", "hex8") to its connectivity
-    (n_e, nodes) of 0-based node indices. `mass` is "consistent" or "lumped"."""
+    `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8") to
+    its connectivity (n_e, nodes) of 0-based node indices. `mass` is "consistent" or "lumped";
+    `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams)."""
     if mass not in ("consistent", "lumped"):
         raise InvalidParameterError(f"mass must be 'consistent' or 'lumped', got {mass!r}")
+    shear = _beam_theory(beam_theory)
     nodes = np.ascontiguousarray(nodes, dtype=float)
     ids = np.arange(1, len(nodes) + 1) if node_ids is None else np.asarray(node_ids)
     blocks = {}
@@ -101,6 +112,7 @@ def assemble(
         section,
         None if orientation is None else list(np.asarray(orientation, dtype=float)),
         mass == "lumped",
+        shear,
     )
     n = raw["i1"].shape[1]
     if "i_kl_scalar" in raw:
@@ -137,6 +149,7 @@ def mass_points(
     section: Section | None = None,
     orientation: ArrayLike | None = None,
     mass: str = "consistent",
+    beam_theory: str = "euler-bernoulli",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], sp.csr_matrix]:
     """The body's mass points: weights rho dV (P,), undeformed positions (P, 3), and the shape
     matrices stacked as a sparse (3 P, n_dofs) matrix (rows 3p..3p+3: S of point p). The
@@ -157,6 +170,7 @@ def mass_points(
         section,
         None if orientation is None else list(np.asarray(orientation, dtype=float)),
         mass == "lumped",
+        _beam_theory(beam_theory),
     )
     data, indices, indptr, dims = shape
     return weights, positions, sp.csr_matrix((data, indices, indptr), shape=dims)
@@ -367,6 +381,7 @@ def build_body(
     section: Section | None = None,
     orientation: ArrayLike | None = None,
     mass: str = "consistent",
+    beam_theory: str = "euler-bernoulli",
     reference: str = "none",
     reference_nodes: Sequence[int] = (),
     modes: str | None = None,
@@ -394,6 +409,7 @@ def build_body(
         section=section,
         orientation=orientation,
         mass=mass,
+        beam_theory=beam_theory,
         node_ids=node_ids,
         element_ids=element_ids,
     )

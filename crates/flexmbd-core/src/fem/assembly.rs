@@ -15,18 +15,28 @@ use crate::math::{Mat3, Vec3};
 use super::beam::Beam;
 use super::element::{ElementKernel, MassPoint};
 use super::material::Material;
+use super::solid::{Hex8, Tet10, Tet4};
 
 /// The element types a body can be made of.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ElementType {
-    /// Two-node Euler-Bernoulli beam.
+    /// Two-node beam (Euler-Bernoulli or Timoshenko).
     Beam(Beam),
+    /// Four-node tetrahedron.
+    Tet4,
+    /// Ten-node tetrahedron (Gmsh node order).
+    Tet10,
+    /// Eight-node hexahedron.
+    Hex8,
 }
 
 impl ElementType {
     fn kernel(&self) -> &dyn ElementKernel {
         match self {
             ElementType::Beam(b) => b,
+            ElementType::Tet4 => &Tet4,
+            ElementType::Tet10 => &Tet10,
+            ElementType::Hex8 => &Hex8,
         }
     }
 

@@ -13,6 +13,12 @@
 //! [u, v, w] + theta x (0, y, z): the section turns with the slopes, which gives the rotary
 //! inertia of the Rayleigh beam (kinematic coupling, seed section 6).
 //!
+//! With `shear` (Timoshenko beam), the section rotations are interpolated with the
+//! interdependent shape functions of Friedman and Kosmatka (Computers & Structures 47, 1993),
+//! exact for a static Timoshenko beam, with phi = 12 E I / (kappa G A L^2): the section no
+//! longer turns with the slope, the shear strain is dv/dx - thz, and the rotary inertia follows
+//! the section rotation. phi = 0 gives the Euler-Bernoulli element back.
+//!
 //! Mass points: 4-point Gauss along the axis times 4 section points at (+-a, 0), (0, +-b)
 //! with a = sqrt(2 Iz / A), b = sqrt(2 Iy / A), weight A / 4 each. They integrate exactly every
 //! integrand of the mass matrix and the invariants (degree <= 6 in x, <= 2 in y, z).
@@ -32,6 +38,8 @@ pub struct Beam {
     /// A vector in the local x-y plane (not parallel to the beam) that fixes the section's y
     /// axis: y = normalize(v - (v . x) x), z = x cross y.
     pub orientation: Vec3,
+    /// Shear-deformable (Timoshenko) instead of Euler-Bernoulli.
+    pub shear: bool,
 }
 
 const GAUSS4: [(f64, f64); 4] = [
@@ -65,18 +73,43 @@ impl Beam {
         Ok((length, Mat3([ex.0, ey.0, ez.0])))
     }
 
-    /// Shape matrix in local axes (3 x 12, local coordinates) of the point (xi, y, z).
-    fn local_shape(length: f64, xi: f64, y: f64, z: f64) -> [[f64; 12]; 3] {
+    /// Shear parameters phi = 12 E I / (kappa G A L^2) for bending in the x-y plane (with Iz)
+    /// and in the x-z plane (with Iy); zeros for Euler-Bernoulli beams.
+    fn shear_parameters(&self, material: &Material, length: f64) -> (f64, f64) {
+        if !self.shear {
+            return (0.0, 0.0);
+        }
+        let s = &self.section;
+        let ga = s.shear_factor * material.shear_modulus() * s.area * length * length;
+        (12.0 * material.young_modulus * s.iz / ga, 12.0 * material.young_modulus * s.iy / ga)
+    }
+
+    /// Bending interpolation of one plane (Friedman and Kosmatka 1993): deflection and section
+    /// rotation rows over (v1, th1, v2, th2) at xi, for the shear parameter phi.
+    fn bending_rows(length: f64, xi: f64, phi: f64) -> ([f64; 4], [f64; 4]) {
         let l = length;
         let (xi2, xi3) = (xi * xi, xi * xi * xi);
-        let h = [1.0 - 3.0 * xi2 + 2.0 * xi3, xi - 2.0 * xi2 + xi3, 3.0 * xi2 - 2.0 * xi3, xi3 - xi2];
-        // dH/dx.
-        let dh = [
-            (-6.0 * xi + 6.0 * xi2) / l,
-            1.0 - 4.0 * xi + 3.0 * xi2,
-            (6.0 * xi - 6.0 * xi2) / l,
-            3.0 * xi2 - 2.0 * xi,
+        let c = 1.0 / (1.0 + phi);
+        let v = [
+            c * (2.0 * xi3 - 3.0 * xi2 - phi * xi + 1.0 + phi),
+            c * l * (xi3 - (2.0 + phi / 2.0) * xi2 + (1.0 + phi / 2.0) * xi),
+            c * (-2.0 * xi3 + 3.0 * xi2 + phi * xi),
+            c * l * (xi3 - (1.0 - phi / 2.0) * xi2 - phi / 2.0 * xi),
         ];
+        let theta = [
+            c * 6.0 / l * (xi2 - xi),
+            c * (3.0 * xi2 - (4.0 + phi) * xi + 1.0 + phi),
+            -c * 6.0 / l * (xi2 - xi),
+            c * (3.0 * xi2 - (2.0 - phi) * xi),
+        ];
+        (v, theta)
+    }
+
+    /// Shape matrix in local axes (3 x 12, local coordinates) of the point (xi, y, z), for
+    /// the shear parameters (phi_y, phi_z) of the two bending planes.
+    fn local_shape(length: f64, xi: f64, y: f64, z: f64, phi: (f64, f64)) -> [[f64; 12]; 3] {
+        let (bv, bt) = Beam::bending_rows(length, xi, phi.0);
+        let (cv, ct) = Beam::bending_rows(length, xi, phi.1);
         let (n1, n2) = (1.0 - xi, xi);
         // Interpolation rows over [u1, v1, w1, thx1, thy1, thz1, u2, v2, w2, thx2, thy2, thz2].
         let mut u = [0.0; 12];
@@ -89,22 +122,17 @@ impl Beam {
         u[6] = n2;
         thx[3] = n1;
         thx[9] = n2;
-        v[1] = h[0];
-        v[5] = h[1] * l;
-        v[7] = h[2];
-        v[11] = h[3] * l;
-        thz[1] = dh[0];
-        thz[5] = dh[1];
-        thz[7] = dh[2];
-        thz[11] = dh[3];
-        w[2] = h[0];
-        w[4] = -h[1] * l;
-        w[8] = h[2];
-        w[10] = -h[3] * l;
-        thy[2] = -dh[0];
-        thy[4] = dh[1];
-        thy[8] = -dh[2];
-        thy[10] = dh[3];
+        // x-y plane: (v, thz) with (v1, thz1, v2, thz2) at (1, 5, 7, 11).
+        for (k, &dof) in [1usize, 5, 7, 11].iter().enumerate() {
+            v[dof] = bv[k];
+            thz[dof] = bt[k];
+        }
+        // x-z plane: (w, psi = -thy) with (w1, psi1, w2, psi2) at (2, 4, 8, 10), psi = -thy.
+        for (k, &dof) in [2usize, 4, 8, 10].iter().enumerate() {
+            let sign = if k % 2 == 1 { -1.0 } else { 1.0 };
+            w[dof] = sign * cv[k];
+            thy[dof] = -sign * ct[k];
+        }
         // Displacement of the section point: [u, v, w] + theta x (0, y, z).
         let mut s = [[0.0; 12]; 3];
         for k in 0..12 {
@@ -121,44 +149,41 @@ impl Beam {
         let sec = &self.section;
         let l = length;
         let mut k = [[0.0; 12]; 12];
-        let mut put = |i: usize, j: usize, v: f64| {
-            k[i][j] += v;
-            if i != j {
-                k[j][i] += v;
-            }
-        };
         // Axial and torsion.
         let (ka, kt) = (e * sec.area / l, g * sec.torsion_constant / l);
-        put(0, 0, ka);
-        put(6, 6, ka);
-        put(0, 6, -ka);
-        put(3, 3, kt);
-        put(9, 9, kt);
-        put(3, 9, -kt);
-        // Bending in the x-y plane (v, thz) with E Iz.
-        let b = e * sec.iz / l.powi(3);
-        put(1, 1, 12.0 * b);
-        put(7, 7, 12.0 * b);
-        put(1, 7, -12.0 * b);
-        put(1, 5, 6.0 * l * b);
-        put(1, 11, 6.0 * l * b);
-        put(7, 5, -6.0 * l * b);
-        put(7, 11, -6.0 * l * b);
-        put(5, 5, 4.0 * l * l * b);
-        put(11, 11, 4.0 * l * l * b);
-        put(5, 11, 2.0 * l * l * b);
-        // Bending in the x-z plane (w, thy = -dw/dx) with E Iy.
-        let c = e * sec.iy / l.powi(3);
-        put(2, 2, 12.0 * c);
-        put(8, 8, 12.0 * c);
-        put(2, 8, -12.0 * c);
-        put(2, 4, -6.0 * l * c);
-        put(2, 10, -6.0 * l * c);
-        put(8, 4, 6.0 * l * c);
-        put(8, 10, 6.0 * l * c);
-        put(4, 4, 4.0 * l * l * c);
-        put(10, 10, 4.0 * l * l * c);
-        put(4, 10, 2.0 * l * l * c);
+        for (i, j, v) in [
+            (0, 0, ka),
+            (6, 6, ka),
+            (0, 6, -ka),
+            (6, 0, -ka),
+            (3, 3, kt),
+            (9, 9, kt),
+            (3, 9, -kt),
+            (9, 3, -kt),
+        ] {
+            k[i][j] += v;
+        }
+        // Bending in the x-y plane (v, thz) with E Iz and in the x-z plane (w, psi = -thy)
+        // with E Iy: E I / ((1 + phi) L^3) [[12, 6L, -12, 6L], [6L, (4 + phi) L^2, -6L,
+        // (2 - phi) L^2], ...] (Przemieniecki; phi = 0: Euler-Bernoulli).
+        let (phi_y, phi_z) = self.shear_parameters(material, l);
+        for (inertia, phi, dofs, signs) in [
+            (sec.iz, phi_y, [1usize, 5, 7, 11], [1.0, 1.0, 1.0, 1.0]),
+            (sec.iy, phi_z, [2usize, 4, 8, 10], [1.0, -1.0, 1.0, -1.0]),
+        ] {
+            let c = e * inertia / ((1.0 + phi) * l.powi(3));
+            let m = [
+                [12.0, 6.0 * l, -12.0, 6.0 * l],
+                [6.0 * l, (4.0 + phi) * l * l, -6.0 * l, (2.0 - phi) * l * l],
+                [-12.0, -6.0 * l, 12.0, -6.0 * l],
+                [6.0 * l, (2.0 - phi) * l * l, -6.0 * l, (4.0 + phi) * l * l],
+            ];
+            for a in 0..4 {
+                for b in 0..4 {
+                    k[dofs[a]][dofs[b]] += c * signs[a] * signs[b] * m[a][b];
+                }
+            }
+        }
         k
     }
 
@@ -218,6 +243,7 @@ impl ElementKernel for Beam {
 
     fn mass_points(&self, material: &Material, x: &[Vec3], out: &mut Vec<MassPoint>) -> ElementResult<()> {
         let (length, r) = self.frame(x)?;
+        let phi = self.shear_parameters(material, length);
         let sec = &self.section;
         let a = (2.0 * sec.iz / sec.area).sqrt();
         let b = (2.0 * sec.iy / sec.area).sqrt();
@@ -226,7 +252,7 @@ impl ElementKernel for Beam {
         let ex = Vec3(r.0[0]);
         for &(xi, wx) in &GAUSS4 {
             for &(y, z) in &section_points {
-                let local = Beam::local_shape(length, xi, y, z);
+                let local = Beam::local_shape(length, xi, y, z, phi);
                 out.push(MassPoint {
                     weight: material.density * sec.area / 4.0 * length * wx,
                     position: x[0] + ex * (xi * length) + ey * y + ez * z,
@@ -248,17 +274,16 @@ impl ElementKernel for Beam {
         // rotational inertia of a node is carried by six points at +-d_k along the local axes
         // around it (S = [I, -r~] on the node's coordinates), each of a sixth of the node mass.
         let (length, r) = self.frame(x)?;
-        let mut consistent = Vec::new();
-        self.mass_points(material, x, &mut consistent)?;
-        // Local consistent mass from local shape matrices (same points, local axes).
+        let phi = self.shear_parameters(material, length);
+        // Local consistent mass from local shape matrices (local axes).
         let rot = Mat3::IDENTITY;
-        let mut local_points = Vec::with_capacity(consistent.len());
+        let mut local_points = Vec::with_capacity(16);
         let sec = &self.section;
         let a = (2.0 * sec.iz / sec.area).sqrt();
         let b = (2.0 * sec.iy / sec.area).sqrt();
         for &(xi, wx) in &GAUSS4 {
             for &(y, z) in &[(a, 0.0), (-a, 0.0), (0.0, b), (0.0, -b)] {
-                let local = Beam::local_shape(length, xi, y, z);
+                let local = Beam::local_shape(length, xi, y, z, phi);
                 local_points.push(MassPoint {
                     weight: material.density * sec.area / 4.0 * length * wx,
                     position: Vec3::ZERO,
@@ -314,7 +339,7 @@ mod tests {
 
     fn beam() -> (Beam, Material, [Vec3; 2]) {
         let section = Section::rectangle("test", 0.02, 0.05).unwrap();
-        let beam = Beam { section, orientation: Vec3([0.3, 1.0, -0.2]) };
+        let beam = Beam { section, orientation: Vec3([0.3, 1.0, -0.2]), shear: false };
         let material = Material::new("steel", 2.1e11, 0.3, 7850.0).unwrap();
         (beam, material, [Vec3([0.1, -0.2, 0.3]), Vec3([0.9, 0.4, 0.1])])
     }
@@ -371,7 +396,7 @@ mod tests {
             let mut max_error: f64 = 0.0;
             for i in 0..=10 {
                 let xi = i as f64 / 10.0;
-                let sh = Beam::local_shape(l, xi, 0.0, 0.0);
+                let sh = Beam::local_shape(l, xi, 0.0, 0.0, (0.0, 0.0));
                 let u: f64 = (0..12).map(|k| sh[0][k] * q[k]).sum();
                 let v: f64 = (0..12).map(|k| sh[1][k] * q[k]).sum();
                 let x = xi * l;
@@ -390,7 +415,7 @@ mod tests {
         // A beam along the body x axis with y up: the body matrix equals the local one, and
         // a tip force P at a clamped end gives P L^3 / (3 E Iz) and slope P L^2 / (2 E Iz).
         let section = Section::new("s", 1e-3, 2e-7, 3e-7, 4e-7).unwrap();
-        let b = Beam { section, orientation: Vec3([0.0, 1.0, 0.0]) };
+        let b = Beam { section, orientation: Vec3([0.0, 1.0, 0.0]), shear: false };
         let m = Material::new("m", 7e10, 0.3, 2700.0).unwrap();
         let l = 1.5;
         let x = [Vec3::ZERO, Vec3([l, 0.0, 0.0])];
@@ -405,6 +430,61 @@ mod tests {
         let ei = 7e10 * 3e-7;
         assert!((v - p * l.powi(3) / (3.0 * ei)).abs() < 1e-12 * v.abs());
         assert!((th - p * l * l / (2.0 * ei)).abs() < 1e-12 * th.abs());
+    }
+
+    #[test]
+    fn timoshenko_cantilever_tip_deflection_includes_shear() {
+        // Exact for the interdependent interpolation: P L^3 / (3 E I) + P L / (kappa G A).
+        let section = Section::rectangle("s", 0.05, 0.1).unwrap();
+        let m = Material::new("m", 2e11, 0.3, 7850.0).unwrap();
+        let l = 0.4;
+        let x = [Vec3::ZERO, Vec3([l, 0.0, 0.0])];
+        for (shear, inertia, plane) in [(true, section.iz, 7usize), (true, section.iy, 8)] {
+            let b = Beam { section, orientation: Vec3([0.0, 1.0, 0.0]), shear };
+            let mut k = DenseMatrix::zeros(12, 12);
+            b.stiffness(&m, &x, &mut k).unwrap();
+            // Condense the free node 2 and solve for a unit force along y or z.
+            let free: Vec<usize> = (6..12).collect();
+            let mut a = [[0.0; 6]; 6];
+            for (i, &fi) in free.iter().enumerate() {
+                for (j, &fj) in free.iter().enumerate() {
+                    a[i][j] = k.get(fi, fj);
+                }
+            }
+            let mut rhs = [0.0; 6];
+            rhs[plane - 6] = 1.0;
+            // Gaussian elimination (the matrix is small and definite).
+            for c in 0..6 {
+                for r in c + 1..6 {
+                    let f = a[r][c] / a[c][c];
+                    for cc in c..6 {
+                        a[r][cc] -= f * a[c][cc];
+                    }
+                    rhs[r] -= f * rhs[c];
+                }
+            }
+            let mut u = [0.0; 6];
+            for r in (0..6).rev() {
+                u[r] = (rhs[r] - (r + 1..6).map(|c| a[r][c] * u[c]).sum::<f64>()) / a[r][r];
+            }
+            let expected = l.powi(3) / (3.0 * m.young_modulus * inertia)
+                + l / (section.shear_factor * m.shear_modulus() * section.area);
+            assert!((u[plane - 6] - expected).abs() < 1e-12 * expected, "{} vs {expected}", u[plane - 6]);
+        }
+    }
+
+    #[test]
+    fn timoshenko_rotation_interpolation_reduces_to_the_slope_without_shear() {
+        for xi in [0.0, 0.3, 0.8, 1.0] {
+            let (v, t) = Beam::bending_rows(1.7, xi, 0.0);
+            let h = 1e-6;
+            let (vp, _) = Beam::bending_rows(1.7, xi + h, 0.0);
+            let (vm, _) = Beam::bending_rows(1.7, xi - h, 0.0);
+            for k in 0..4 {
+                assert!(((vp[k] - vm[k]) / (2.0 * h * 1.7) - t[k]).abs() < 1e-8);
+            }
+            let _ = v;
+        }
     }
 
     #[test]

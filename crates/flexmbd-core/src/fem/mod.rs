@@ -16,3 +16,4 @@ pub use beam::Beam;
 pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
 pub use material::Material;
 pub use section::Section;
+pub use solid::{Hex8, Tet10, Tet4};

@@ -1,1 +1,460 @@
-//! Quadrature rules on the reference tetrahedron and hexahedron (to be written).
+//! Quadrature rules on the reference tetrahedron and the reference cube.
+//!
+//! The reference tetrahedron has the vertices (0,0,0), (1,0,0), (0,1,0), (0,0,1) and volume 1/6;
+//! its rules are fully symmetric (invariant under the permutations of the barycentric
+//! coordinates), have positive weights and points in the closed tetrahedron, and integrate
+//! every polynomial up to their degree exactly (the exact integral of x^a y^b z^c is
+//! a! b! c! / (a + b + c + 3)!). The reference cube is [-1, 1]^3 (volume 8); its rules are
+//! tensor products of Gauss-Legendre rules, exact for x^a y^b z^c with a, b, c <= 2n - 1 for n
+//! points per direction. Weights sum to the reference volume.
+
+/// A point of a quadrature rule on a reference cell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QuadraturePoint {
+    /// Reference coordinates (xi, eta, zeta).
+    pub coordinates: [f64; 3],
+    /// Weight (reference volume units); the weights of a rule sum to the reference volume.
+    pub weight: f64,
+}
+
+/// Tetrahedron, degree 1: the centroid (1 point).
+pub const TETRAHEDRON_DEGREE_1: [QuadraturePoint; 1] =
+    [QuadraturePoint { coordinates: [0.25, 0.25, 0.25], weight: 1.0 / 6.0 }];
+
+// Barycentric coordinates (a, a, a, 1 - 3a) of the degree-2 rule: a = (5 - sqrt 5) / 20.
+const TETRAHEDRON_2_SMALL: f64 = 0.1381966011250105;
+const TETRAHEDRON_2_LARGE: f64 = 0.5854101966249684;
+
+/// Tetrahedron, degree 2: 4 points at barycentric coordinates (a, a, a, 1 - 3a) and
+/// permutations, a = (5 - sqrt 5) / 20, weights 1/24 (Keast 1986, rule 1; Zienkiewicz and
+/// Taylor, The Finite Element Method, vol. 1, table 5.4).
+pub const TETRAHEDRON_DEGREE_2: [QuadraturePoint; 4] = [
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_2_SMALL, TETRAHEDRON_2_SMALL, TETRAHEDRON_2_SMALL],
+        weight: 1.0 / 24.0,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_2_LARGE, TETRAHEDRON_2_SMALL, TETRAHEDRON_2_SMALL],
+        weight: 1.0 / 24.0,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_2_SMALL, TETRAHEDRON_2_LARGE, TETRAHEDRON_2_SMALL],
+        weight: 1.0 / 24.0,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_2_SMALL, TETRAHEDRON_2_SMALL, TETRAHEDRON_2_LARGE],
+        weight: 1.0 / 24.0,
+    },
+];
+
+// Degree-3 rule: 4 points (a, a, a, 1 - 3a) of weight W1 / 6 and the 6 edge midpoints of weight
+// W2 / 6, with (a, W1, W2) the real root of the symmetric moment equations
+// 4 W1 + 6 W2 = 1, 4 W1 (3a^2 + (1-3a)^2) + 6 W2 / 2 = 2/5, 4 W1 (3a^3 + (1-3a)^3) + 6 W2 / 4 = 1/5;
+// in closed form W1 = 1/10 + (t + 1/t) / 20 with t = (3 + 2 sqrt 2)^(1/3).
+const TETRAHEDRON_3_SMALL: f64 = 0.1438564719343849;
+const TETRAHEDRON_3_LARGE: f64 = 0.5684305841968453;
+const TETRAHEDRON_3_INTERIOR_WEIGHT: f64 = 0.036294178313400996;
+const TETRAHEDRON_3_EDGE_WEIGHT: f64 = 0.003581658902177112;
+
+/// Tetrahedron, degree 3: 10 points with positive weights, 4 interior points and the 6 edge
+/// midpoints (the rule listed as Keast #3 in J. Burkardt's `quadrature_rules_tet` tables and in
+/// quadpy; the values here are the real root of its moment equations to full precision).
+pub const TETRAHEDRON_DEGREE_3: [QuadraturePoint; 10] = [
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_3_SMALL, TETRAHEDRON_3_SMALL, TETRAHEDRON_3_SMALL],
+        weight: TETRAHEDRON_3_INTERIOR_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_3_LARGE, TETRAHEDRON_3_SMALL, TETRAHEDRON_3_SMALL],
+        weight: TETRAHEDRON_3_INTERIOR_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_3_SMALL, TETRAHEDRON_3_LARGE, TETRAHEDRON_3_SMALL],
+        weight: TETRAHEDRON_3_INTERIOR_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_3_SMALL, TETRAHEDRON_3_SMALL, TETRAHEDRON_3_LARGE],
+        weight: TETRAHEDRON_3_INTERIOR_WEIGHT,
+    },
+    QuadraturePoint { coordinates: [0.0, 0.5, 0.5], weight: TETRAHEDRON_3_EDGE_WEIGHT },
+    QuadraturePoint { coordinates: [0.5, 0.0, 0.5], weight: TETRAHEDRON_3_EDGE_WEIGHT },
+    QuadraturePoint { coordinates: [0.5, 0.5, 0.0], weight: TETRAHEDRON_3_EDGE_WEIGHT },
+    QuadraturePoint { coordinates: [0.0, 0.0, 0.5], weight: TETRAHEDRON_3_EDGE_WEIGHT },
+    QuadraturePoint { coordinates: [0.0, 0.5, 0.0], weight: TETRAHEDRON_3_EDGE_WEIGHT },
+    QuadraturePoint { coordinates: [0.5, 0.0, 0.0], weight: TETRAHEDRON_3_EDGE_WEIGHT },
+];
+
+// Degree-5 rule (Keast 1986, rule 6), weights for the unit volume before the factor 1/6:
+// centroid 6544/36015; face centroids (1/3, 1/3, 1/3, 0) 81/2240; (1/11, 1/11, 1/11, 8/11)
+// 161051/2304960; (a, a, b, b) with a = 1/4 - sqrt(91)/52, b = 1/2 - a, 338/5145.
+const TETRAHEDRON_5_CENTROID_WEIGHT: f64 = 6544.0 / 36015.0 / 6.0;
+const TETRAHEDRON_5_FACE_WEIGHT: f64 = 81.0 / 2240.0 / 6.0;
+const TETRAHEDRON_5_ELEVENTH_WEIGHT: f64 = 161051.0 / 2304960.0 / 6.0;
+const TETRAHEDRON_5_EDGE_WEIGHT: f64 = 338.0 / 5145.0 / 6.0;
+const THIRD: f64 = 1.0 / 3.0;
+const ELEVENTH: f64 = 1.0 / 11.0;
+const EIGHT_ELEVENTHS: f64 = 8.0 / 11.0;
+const TETRAHEDRON_5_SMALL: f64 = 0.0665501535736643;
+const TETRAHEDRON_5_LARGE: f64 = 0.4334498464263357;
+
+/// Tetrahedron, degree 5: 15 points with positive weights (P. Keast, "Moderate-degree
+/// tetrahedral quadrature formulas", Comput. Methods Appl. Mech. Engrg. 55 (1986) 339-348,
+/// rule 6). Four of its points are face centroids.
+pub const TETRAHEDRON_DEGREE_5: [QuadraturePoint; 15] = [
+    QuadraturePoint { coordinates: [0.25, 0.25, 0.25], weight: TETRAHEDRON_5_CENTROID_WEIGHT },
+    QuadraturePoint { coordinates: [THIRD, THIRD, THIRD], weight: TETRAHEDRON_5_FACE_WEIGHT },
+    QuadraturePoint { coordinates: [0.0, THIRD, THIRD], weight: TETRAHEDRON_5_FACE_WEIGHT },
+    QuadraturePoint { coordinates: [THIRD, 0.0, THIRD], weight: TETRAHEDRON_5_FACE_WEIGHT },
+    QuadraturePoint { coordinates: [THIRD, THIRD, 0.0], weight: TETRAHEDRON_5_FACE_WEIGHT },
+    QuadraturePoint { coordinates: [ELEVENTH, ELEVENTH, ELEVENTH], weight: TETRAHEDRON_5_ELEVENTH_WEIGHT },
+    QuadraturePoint {
+        coordinates: [EIGHT_ELEVENTHS, ELEVENTH, ELEVENTH],
+        weight: TETRAHEDRON_5_ELEVENTH_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [ELEVENTH, EIGHT_ELEVENTHS, ELEVENTH],
+        weight: TETRAHEDRON_5_ELEVENTH_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [ELEVENTH, ELEVENTH, EIGHT_ELEVENTHS],
+        weight: TETRAHEDRON_5_ELEVENTH_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_5_SMALL, TETRAHEDRON_5_LARGE, TETRAHEDRON_5_LARGE],
+        weight: TETRAHEDRON_5_EDGE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_5_LARGE, TETRAHEDRON_5_SMALL, TETRAHEDRON_5_LARGE],
+        weight: TETRAHEDRON_5_EDGE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_5_LARGE, TETRAHEDRON_5_LARGE, TETRAHEDRON_5_SMALL],
+        weight: TETRAHEDRON_5_EDGE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_5_SMALL, TETRAHEDRON_5_SMALL, TETRAHEDRON_5_LARGE],
+        weight: TETRAHEDRON_5_EDGE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_5_SMALL, TETRAHEDRON_5_LARGE, TETRAHEDRON_5_SMALL],
+        weight: TETRAHEDRON_5_EDGE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [TETRAHEDRON_5_LARGE, TETRAHEDRON_5_SMALL, TETRAHEDRON_5_SMALL],
+        weight: TETRAHEDRON_5_EDGE_WEIGHT,
+    },
+];
+
+/// The tetrahedron rule with the fewest points that integrates every polynomial of total
+/// degree `degree` exactly; `None` above degree 5.
+pub fn tetrahedron_rule(degree: usize) -> Option<&'static [QuadraturePoint]> {
+    match degree {
+        0 | 1 => Some(&TETRAHEDRON_DEGREE_1),
+        2 => Some(&TETRAHEDRON_DEGREE_2),
+        3 => Some(&TETRAHEDRON_DEGREE_3),
+        4 | 5 => Some(&TETRAHEDRON_DEGREE_5),
+        _ => None,
+    }
+}
+
+// Gauss-Legendre abscissae on [-1, 1]: 1/sqrt 3 (2 points), sqrt(3/5) (3 points).
+const GAUSS_2_ABSCISSA: f64 = 0.5773502691896257;
+const GAUSS_3_ABSCISSA: f64 = 0.7745966692414834;
+const GAUSS_3_END_WEIGHT: f64 = 5.0 / 9.0;
+const GAUSS_3_MIDDLE_WEIGHT: f64 = 8.0 / 9.0;
+
+/// Gauss-Legendre rule on [-1, 1] with 1 point, as (abscissa, weight); exact to degree 1.
+pub const GAUSS_LEGENDRE_1: [(f64, f64); 1] = [(0.0, 2.0)];
+/// Gauss-Legendre rule on [-1, 1] with 2 points, as (abscissa, weight); exact to degree 3.
+pub const GAUSS_LEGENDRE_2: [(f64, f64); 2] = [(-GAUSS_2_ABSCISSA, 1.0), (GAUSS_2_ABSCISSA, 1.0)];
+/// Gauss-Legendre rule on [-1, 1] with 3 points, as (abscissa, weight); exact to degree 5.
+pub const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
+    (-GAUSS_3_ABSCISSA, GAUSS_3_END_WEIGHT),
+    (0.0, GAUSS_3_MIDDLE_WEIGHT),
+    (GAUSS_3_ABSCISSA, GAUSS_3_END_WEIGHT),
+];
+
+/// The Gauss-Legendre rule on [-1, 1] with `points` points (1 to 3), as (abscissa, weight).
+pub fn gauss_legendre_rule(points: usize) -> Option<&'static [(f64, f64)]> {
+    match points {
+        1 => Some(&GAUSS_LEGENDRE_1),
+        2 => Some(&GAUSS_LEGENDRE_2),
+        3 => Some(&GAUSS_LEGENDRE_3),
+        _ => None,
+    }
+}
+
+/// Cube [-1, 1]^3, 1 x 1 x 1 Gauss-Legendre point.
+pub const HEXAHEDRON_GAUSS_1: [QuadraturePoint; 1] =
+    [QuadraturePoint { coordinates: [0.0, 0.0, 0.0], weight: 8.0 }];
+
+/// Cube [-1, 1]^3, 2 x 2 x 2 Gauss-Legendre points (xi fastest, then eta, then zeta).
+pub const HEXAHEDRON_GAUSS_2: [QuadraturePoint; 8] = [
+    QuadraturePoint { coordinates: [-GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [-GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [-GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [GAUSS_2_ABSCISSA, -GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [-GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA], weight: 1.0 },
+    QuadraturePoint { coordinates: [GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA, GAUSS_2_ABSCISSA], weight: 1.0 },
+];
+
+/// Cube [-1, 1]^3, 3 x 3 x 3 Gauss-Legendre points (xi fastest, then eta, then zeta).
+pub const HEXAHEDRON_GAUSS_3: [QuadraturePoint; 27] = [
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, -GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, 0.0, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, 0.0, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, 0.0, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA, 0.0],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, -GAUSS_3_ABSCISSA, 0.0],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA, 0.0],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, 0.0, 0.0],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, 0.0, 0.0],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, 0.0, 0.0],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA, 0.0],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, GAUSS_3_ABSCISSA, 0.0],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA, 0.0],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, -GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, -GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, 0.0, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, 0.0, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, 0.0, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [-GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [0.0, GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_MIDDLE_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+    QuadraturePoint {
+        coordinates: [GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA, GAUSS_3_ABSCISSA],
+        weight: GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT * GAUSS_3_END_WEIGHT,
+    },
+];
+
+/// The tensor-product Gauss-Legendre rule on [-1, 1]^3 with `points_per_direction` points per
+/// direction (1 to 3); exact for x^a y^b z^c with a, b, c <= 2 points_per_direction - 1.
+pub fn hexahedron_rule(points_per_direction: usize) -> Option<&'static [QuadraturePoint]> {
+    match points_per_direction {
+        1 => Some(&HEXAHEDRON_GAUSS_1),
+        2 => Some(&HEXAHEDRON_GAUSS_2),
+        3 => Some(&HEXAHEDRON_GAUSS_3),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn factorial(n: u32) -> f64 {
+        (1..=n).map(f64::from).product()
+    }
+
+    /// Integral of x^a y^b z^c over the reference tetrahedron: a! b! c! / (a + b + c + 3)!.
+    fn tetrahedron_monomial(a: u32, b: u32, c: u32) -> f64 {
+        factorial(a) * factorial(b) * factorial(c) / factorial(a + b + c + 3)
+    }
+
+    /// Integral of x^a over [-1, 1].
+    fn interval_monomial(a: u32) -> f64 {
+        if a % 2 == 1 {
+            0.0
+        } else {
+            2.0 / f64::from(a + 1)
+        }
+    }
+
+    fn apply(rule: &[QuadraturePoint], a: u32, b: u32, c: u32) -> f64 {
+        rule.iter()
+            .map(|p| {
+                let [x, y, z] = p.coordinates;
+                p.weight * x.powi(a as i32) * y.powi(b as i32) * z.powi(c as i32)
+            })
+            .sum()
+    }
+
+    /// Largest relative error over the monomials of total degree `degree`.
+    fn worst_error_at_degree(rule: &[QuadraturePoint], degree: u32) -> f64 {
+        let mut worst: f64 = 0.0;
+        for a in 0..=degree {
+            for b in 0..=degree - a {
+                let c = degree - a - b;
+                let exact = tetrahedron_monomial(a, b, c);
+                worst = worst.max((apply(rule, a, b, c) - exact).abs() / exact);
+            }
+        }
+        worst
+    }
+
+    const TETRAHEDRON_RULES: [(&[QuadraturePoint], u32); 4] = [
+        (&TETRAHEDRON_DEGREE_1, 1),
+        (&TETRAHEDRON_DEGREE_2, 2),
+        (&TETRAHEDRON_DEGREE_3, 3),
+        (&TETRAHEDRON_DEGREE_5, 5),
+    ];
+
+    #[test]
+    fn tetrahedron_rules_are_exact_up_to_their_degree() {
+        for (rule, degree) in TETRAHEDRON_RULES {
+            let total: f64 = rule.iter().map(|p| p.weight).sum();
+            assert!((total - 1.0 / 6.0).abs() < 1e-15, "degree {degree}: weights sum to {total}");
+            for d in 0..=degree {
+                let error = worst_error_at_degree(rule, d);
+                assert!(error < 1e-12, "degree {degree} rule at degree {d}: relative error {error}");
+            }
+            // The claimed degree is the true degree: the next one is not integrated exactly.
+            let error = worst_error_at_degree(rule, degree + 1);
+            assert!(error > 1e-3, "degree {degree} rule is exact at degree {}", degree + 1);
+        }
+    }
+
+    #[test]
+    fn tetrahedron_rules_have_positive_weights_and_points_in_the_cell() {
+        for (rule, degree) in TETRAHEDRON_RULES {
+            for (i, p) in rule.iter().enumerate() {
+                let [x, y, z] = p.coordinates;
+                let smallest = x.min(y).min(z).min(1.0 - x - y - z);
+                assert!(p.weight > 0.0, "degree {degree}, point {i}: weight {}", p.weight);
+                assert!(smallest > -1e-15, "degree {degree}, point {i} outside: {:?}", p.coordinates);
+            }
+        }
+    }
+
+    #[test]
+    fn tetrahedron_rule_selection_meets_the_degree() {
+        for degree in 0..=5 {
+            let rule = tetrahedron_rule(degree).unwrap();
+            for d in 0..=degree as u32 {
+                assert!(worst_error_at_degree(rule, d) < 1e-12);
+            }
+        }
+        assert!(tetrahedron_rule(6).is_none());
+        assert_eq!(tetrahedron_rule(2).unwrap().len(), 4);
+    }
+
+    #[test]
+    fn gauss_legendre_rules_are_exact_to_degree_2n_minus_1() {
+        for n in 1..=3usize {
+            let rule = gauss_legendre_rule(n).unwrap();
+            assert_eq!(rule.len(), n);
+            for a in 0..=(2 * n as u32 - 1) {
+                let q: f64 = rule.iter().map(|&(x, w)| w * x.powi(a as i32)).sum();
+                assert!((q - interval_monomial(a)).abs() < 1e-14, "{n} points, x^{a}: {q}");
+            }
+            let a = 2 * n as u32;
+            let q: f64 = rule.iter().map(|&(x, w)| w * x.powi(a as i32)).sum();
+            assert!((q - interval_monomial(a)).abs() > 1e-3, "{n} points exact at degree {a}");
+        }
+        assert!(gauss_legendre_rule(4).is_none());
+    }
+
+    #[test]
+    fn hexahedron_rules_are_exact_per_direction() {
+        for n in 1..=3usize {
+            let rule = hexahedron_rule(n).unwrap();
+            assert_eq!(rule.len(), n * n * n);
+            let total: f64 = rule.iter().map(|p| p.weight).sum();
+            assert!((total - 8.0).abs() < 1e-14, "{n} points per direction: weights sum to {total}");
+            let top = 2 * n as u32 - 1;
+            for a in 0..=top {
+                for b in 0..=top {
+                    for c in 0..=top {
+                        let exact = interval_monomial(a) * interval_monomial(b) * interval_monomial(c);
+                        let q = apply(rule, a, b, c);
+                        let scale = exact.abs().max(1.0);
+                        assert!((q - exact).abs() < 1e-12 * scale, "{n} points: x^{a} y^{b} z^{c}: {q}");
+                    }
+                }
+            }
+            // The tensor rule matches the 1-D rule it is built from.
+            let line = gauss_legendre_rule(n).unwrap();
+            for (index, p) in rule.iter().enumerate() {
+                let (i, j, k) = (index % n, (index / n) % n, index / (n * n));
+                assert_eq!(p.coordinates, [line[i].0, line[j].0, line[k].0]);
+                assert!((p.weight - line[i].1 * line[j].1 * line[k].1).abs() < 1e-15);
+            }
+        }
+        assert!(hexahedron_rule(0).is_none());
+    }
+}

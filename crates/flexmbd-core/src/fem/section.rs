@@ -18,6 +18,10 @@ pub struct Section {
     pub iz: f64,
     /// Saint-Venant torsion constant J (m^4).
     pub torsion_constant: f64,
+    /// Shear correction factor kappa of shear-deformable (Timoshenko) beams: the shear area
+    /// is kappa A (5/6 for rectangles, 0.9 for solid circles, 0.5 for thin tubes; given
+    /// sections default to 5/6).
+    pub shear_factor: f64,
 }
 
 impl Section {
@@ -31,7 +35,18 @@ impl Section {
                 });
             }
         }
-        Ok(Section { area, iy, iz, torsion_constant })
+        Ok(Section { area, iy, iz, torsion_constant, shear_factor: 5.0 / 6.0 })
+    }
+
+    /// The same section with another shear correction factor (0 < kappa <= 1).
+    pub fn with_shear_factor(self, item: &str, kappa: f64) -> Result<Self> {
+        if !(kappa > 0.0 && kappa <= 1.0) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: item.to_string(),
+                message: format!("shear correction factor must be in (0, 1], got {kappa}"),
+            });
+        }
+        Ok(Section { shear_factor: kappa, ..self })
     }
 
     /// Solid rectangle of width b (along y) and height h (along z). Torsion constant by the
@@ -53,7 +68,7 @@ impl Section {
     /// Solid circle of radius r.
     pub fn circle(item: &str, r: f64) -> Result<Self> {
         let i = std::f64::consts::PI * r.powi(4) / 4.0;
-        Section::new(item, std::f64::consts::PI * r * r, i, i, 2.0 * i)
+        Section::new(item, std::f64::consts::PI * r * r, i, i, 2.0 * i)?.with_shear_factor(item, 0.9)
     }
 
     /// Circular tube with outer radius `outer` and inner radius `inner` < `outer`.
@@ -65,6 +80,9 @@ impl Section {
             });
         }
         let i = std::f64::consts::PI * (outer.powi(4) - inner.powi(4)) / 4.0;
-        Section::new(item, std::f64::consts::PI * (outer * outer - inner * inner), i, i, 2.0 * i)
+        let area = std::f64::consts::PI * (outer * outer - inner * inner);
+        // Shear factor from 0.9 (solid) to 0.5 (thin-walled) with the wall ratio.
+        let kappa = 0.5 + 0.4 * (inner / outer - 1.0).powi(2);
+        Section::new(item, area, i, i, 2.0 * i)?.with_shear_factor(item, kappa)
     }
 }

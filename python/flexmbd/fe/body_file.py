@@ -1,0 +1,410 @@
+"""Versioned HDF5 files of :class:`FlexibleBodyData`: one file per deformable body, written once
+by the preprocessor and read at every model build.
+
+Layout (``version`` 1)
+----------------------
+Root attributes:
+
+* ``format = "flexmbd-body"``: marks the file as a flexmbd body file;
+* ``version``: the data layout version (:data:`~flexmbd.fe.body.BODY_DATA_VERSION` of the
+  writer); a reader refuses files with a newer version;
+* ``units``: the ``units`` field as a JSON object, e.g. ``{"length": "m", "mass": "kg",
+  "time": "s"}``;
+* ``writer``: ``"flexmbd <version>"``, for information only.
+
+Every other field of :class:`FlexibleBodyData` is a member of the root group with the field's
+name. Each member carries an attribute ``type`` that says how it reads back:
+
+* ``ndarray``: a dataset with the array's dtype and shape (float64 and int64 for the body
+  fields); arrays of at least :data:`COMPRESSION_THRESHOLD_BYTES` are chunked and compressed
+  (gzip + shuffle by default).
+* ``sparse``: a group with the datasets ``data``, ``indices``, ``indptr`` (``row``, ``col``,
+  ``data`` for COO) and ``shape`` (int64, (2,)), and the attributes ``format`` (``"csc"``,
+  ``"csr"``, ``"coo"``, ...) and ``container`` (``"matrix"`` for ``scipy.sparse.*_matrix``,
+  ``"array"`` for ``*_array``). Other formats than CSC, CSR and COO are stored as CSC and
+  converted back on reading.
+* ``none``: an empty dataset (null dataspace): the value is ``None``.
+* ``dict``: a group, one member per key, in key order (HDF5 link creation order).
+* ``list``, ``tuple``: a group with the members ``"0"``, ``"1"``, ... (``invariants["i_kl"]``
+  is a list of 3 lists of 3 matrices, each an ``ndarray`` or ``sparse`` member).
+* ``float``, ``int``, ``bool``, ``str``: a scalar dataset (float64, int64, bool, UTF-8
+  string) that reads back as the Python type.
+* ``scalar``: a 0-d dataset that reads back as a NumPy scalar of the same dtype.
+
+Dictionary keys become HDF5 names with ``%`` and ``/`` percent-encoded (``%25``, ``%2F``) and
+the key ``"."`` written ``%2E``. Nothing in the file is executed or unpickled on reading.
+
+A round trip is exact: arrays bit-identical with their dtype and shape (C order), sparse
+matrices with the same format, index arrays, values and shape, dictionary keys in order, and
+``None`` kept.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import scipy.sparse as sp
+
+from .._core import __version__
+from ..errors import InvalidModelError, InvalidParameterError
+from .body import BODY_DATA_VERSION, FlexibleBodyData
+
+#: Value of the root attribute ``format`` of a body file.
+BODY_FILE_FORMAT = "flexmbd-body"
+
+#: Arrays of at least this many bytes are chunked and compressed.
+COMPRESSION_THRESHOLD_BYTES = 64 * 1024
+
+# Fields kept as root attributes rather than members.
+_ATTRIBUTE_FIELDS = ("units", "version")
+_TYPE = "type"
+_NUMERIC_KINDS = "biufc"
+
+
+def save_body(
+    data: FlexibleBodyData, path: str | os.PathLike[str], *, compression: str | None = "gzip"
+) -> None:
+    """Write ``data`` to the HDF5 body file ``path`` (layout in the module docstring).
+
+    The file is written next to ``path`` under a temporary name and then renamed, so an
+    existing file is replaced only by a complete one.
+
+    Args:
+        data: the body; ``data.version`` must be :data:`BODY_DATA_VERSION`.
+        path: destination file (conventionally ``*.h5``).
+        compression: ``"gzip"`` (default, readable by every HDF5 tool), ``"lzf"`` (faster,
+            h5py only) or ``None``, applied to arrays of at least
+            :data:`COMPRESSION_THRESHOLD_BYTES`.
+
+    Raises:
+        InvalidParameterError: ``data`` is not a :class:`FlexibleBodyData`, has another
+            layout version, or holds a value that cannot be stored (an object array, a
+            non-string dictionary key, ...); the message names the field.
+    """
+    if not isinstance(data, FlexibleBodyData):
+        raise InvalidParameterError(
+            f"save_body expects a FlexibleBodyData, got {type(data).__name__}", item="body data"
+        )
+    if data.version != BODY_DATA_VERSION:
+        raise InvalidParameterError(
+            f"body data has layout version {data.version}, this flexmbd writes version "
+            f"{BODY_DATA_VERSION}",
+            item="field 'version'",
+        )
+    if compression not in ("gzip", "lzf", None):
+        raise InvalidParameterError(
+            f"compression must be 'gzip', 'lzf' or None, got {compression!r}",
+            item="compression",
+        )
+    units = _check_units(data.units)
+
+    path = Path(path)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        with h5py.File(temporary, "w", track_order=True) as file:
+            file.attrs["format"] = BODY_FILE_FORMAT
+            file.attrs["version"] = np.int64(BODY_DATA_VERSION)
+            file.attrs["units"] = json.dumps(units)
+            file.attrs["writer"] = f"flexmbd {__version__}"
+            writer = _Writer(compression)
+            for field in dataclasses.fields(FlexibleBodyData):
+                if field.name in _ATTRIBUTE_FIELDS:
+                    continue
+                writer.write(file, field.name, getattr(data, field.name), field.name)
+        os.replace(temporary, path)
+    finally:
+        if temporary.exists():
+            temporary.unlink()
+
+
+def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
+    """Read a body file written by :func:`save_body`.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        InvalidModelError: ``path`` is not a flexmbd body file (not HDF5, or the ``format``
+            attribute is missing or different), was written by a newer flexmbd (version
+            greater than :data:`BODY_DATA_VERSION`), or is damaged (a field is missing or has
+            an unknown ``type``); the message names the file and the field.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(2, "No such body file", str(path))
+    item = f"file '{path}'"
+    if not h5py.is_hdf5(path):
+        raise InvalidModelError(f"{path} is not a flexmbd body file (not an HDF5 file)", item=item)
+    with h5py.File(path, "r") as file:
+        version = _check_header(file, path)
+        reader = _Reader(path)
+        values: dict[str, Any] = {"version": version}
+        try:
+            values["units"] = json.loads(_read_string_attribute(file, "units", path))
+        except json.JSONDecodeError as error:
+            raise InvalidModelError(
+                f"{path}: the 'units' attribute is not valid JSON ({error})", item=item
+            ) from None
+        if not isinstance(values["units"], dict):
+            raise InvalidModelError(
+                f"{path}: the 'units' attribute is not a JSON object", item=item
+            )
+        for field in dataclasses.fields(FlexibleBodyData):
+            if field.name in _ATTRIBUTE_FIELDS:
+                continue
+            if field.name not in file:
+                raise InvalidModelError(
+                    f"{path}: the body file has no field '{field.name}'", item=item
+                )
+            values[field.name] = reader.read(file[field.name], field.name)
+    return FlexibleBodyData(**values)
+
+
+def _check_units(units: Any) -> dict[str, str]:
+    if not isinstance(units, dict) or not all(
+        isinstance(key, str) and isinstance(value, str) for key, value in units.items()
+    ):
+        raise InvalidParameterError(
+            f"units must be a dict of str to str, got {units!r}", item="field 'units'"
+        )
+    return units
+
+
+def _check_header(file: h5py.File, path: Path) -> int:
+    """Check the ``format`` and ``version`` root attributes; return the version."""
+    item = f"file '{path}'"
+    if "format" not in file.attrs:
+        raise InvalidModelError(
+            f"{path} is not a flexmbd body file (no 'format' attribute)", item=item
+        )
+    found = file.attrs["format"]
+    if isinstance(found, bytes):
+        found = found.decode("utf-8", "replace")
+    if found != BODY_FILE_FORMAT:
+        raise InvalidModelError(
+            f"{path} is not a flexmbd body file (format {found!r}, expected {BODY_FILE_FORMAT!r})",
+            item=item,
+        )
+    version = file.attrs.get("version")
+    if (
+        version is None
+        or np.ndim(version) != 0
+        or not np.issubdtype(np.asarray(version).dtype, np.integer)
+    ):
+        raise InvalidModelError(f"{path}: missing or non-integer 'version' attribute", item=item)
+    version = int(version)
+    if version > BODY_DATA_VERSION:
+        raise InvalidModelError(
+            f"{path} was written by a newer flexmbd: version {version} > {BODY_DATA_VERSION}; "
+            "update flexmbd to read it",
+            item=item,
+        )
+    if version < 1:
+        raise InvalidModelError(f"{path}: invalid body file version {version}", item=item)
+    return version
+
+
+def _read_string_attribute(file: h5py.File, name: str, path: Path) -> str:
+    value = file.attrs.get(name)
+    if isinstance(value, bytes):
+        value = value.decode("utf-8")
+    if not isinstance(value, str):
+        raise InvalidModelError(
+            f"{path}: missing or non-string '{name}' attribute", item=f"file '{path}'"
+        )
+    return value
+
+
+def _encode_name(key: Any, where: str) -> str:
+    """HDF5 member name of a dictionary key (reversible, see the module docstring)."""
+    if not isinstance(key, str):
+        raise InvalidParameterError(
+            f"{where}: dictionary keys must be strings, got {key!r}", item=f"field '{where}'"
+        )
+    if key == "":
+        raise InvalidParameterError(f"{where}: empty dictionary key", item=f"field '{where}'")
+    if key == ".":
+        return "%2E"
+    return key.replace("%", "%25").replace("/", "%2F")
+
+
+def _decode_name(name: str) -> str:
+    if name == "%2E":
+        return "."
+    return name.replace("%2F", "/").replace("%25", "%")
+
+
+class _Writer:
+    """Writes one value as a member of a group, tagged with its ``type``."""
+
+    def __init__(self, compression: str | None):
+        self.compression = compression
+
+    def write(self, group: h5py.Group, name: str, value: Any, where: str) -> None:
+        # Order matters: NumPy scalars before Python numbers (np.float64 is a float), bool
+        # before int (bool is an int).
+        if value is None:
+            group.create_dataset(name, data=h5py.Empty("f8")).attrs[_TYPE] = "none"
+        elif sp.issparse(value):
+            self._write_sparse(group, name, value, where)
+        elif isinstance(value, np.ndarray):
+            self._write_array(group, name, value, where).attrs[_TYPE] = "ndarray"
+        elif isinstance(value, np.generic) and value.dtype.kind in _NUMERIC_KINDS:
+            group.create_dataset(name, data=value).attrs[_TYPE] = "scalar"
+        elif isinstance(value, bool):
+            group.create_dataset(name, data=np.bool_(value)).attrs[_TYPE] = "bool"
+        elif isinstance(value, int):
+            try:
+                stored = np.int64(value)
+            except OverflowError:
+                raise InvalidParameterError(
+                    f"{where}: integer {value} does not fit in 64 bits", item=f"field '{where}'"
+                ) from None
+            group.create_dataset(name, data=stored).attrs[_TYPE] = "int"
+        elif isinstance(value, float):
+            group.create_dataset(name, data=np.float64(value)).attrs[_TYPE] = "float"
+        elif isinstance(value, str):
+            dataset = group.create_dataset(name, data=value, dtype=h5py.string_dtype("utf-8"))
+            dataset.attrs[_TYPE] = "str"
+        elif isinstance(value, dict):
+            subgroup = group.create_group(name, track_order=True)
+            subgroup.attrs[_TYPE] = "dict"
+            for key, item in value.items():
+                self.write(subgroup, _encode_name(key, where), item, f"{where}/{key}")
+        elif isinstance(value, list | tuple):
+            subgroup = group.create_group(name, track_order=True)
+            subgroup.attrs[_TYPE] = "list" if isinstance(value, list) else "tuple"
+            for index, item in enumerate(value):
+                self.write(subgroup, str(index), item, f"{where}/{index}")
+        else:
+            raise InvalidParameterError(
+                f"{where}: cannot store a value of type {type(value).__name__} in a body file",
+                item=f"field '{where}'",
+            )
+
+    def _write_array(
+        self, group: h5py.Group, name: str, array: np.ndarray, where: str
+    ) -> h5py.Dataset:
+        if array.dtype.kind not in _NUMERIC_KINDS:
+            raise InvalidParameterError(
+                f"{where}: cannot store an array of dtype {array.dtype} in a body file "
+                "(numeric and bool arrays only)",
+                item=f"field '{where}'",
+            )
+        if (
+            self.compression is not None
+            and array.ndim >= 1
+            and array.nbytes >= COMPRESSION_THRESHOLD_BYTES
+        ):
+            options: dict[str, Any] = {"compression": self.compression, "shuffle": True}
+            if self.compression == "gzip":
+                options["compression_opts"] = 4
+            return group.create_dataset(name, data=array, chunks=True, **options)
+        return group.create_dataset(name, data=array)
+
+    def _write_sparse(self, group: h5py.Group, name: str, matrix: Any, where: str) -> None:
+        if matrix.ndim != 2:
+            raise InvalidParameterError(
+                f"{where}: only 2-D sparse matrices can be stored", item=f"field '{where}'"
+            )
+        subgroup = group.create_group(name, track_order=True)
+        subgroup.attrs[_TYPE] = "sparse"
+        subgroup.attrs["format"] = matrix.format
+        subgroup.attrs["container"] = "matrix" if sp.isspmatrix(matrix) else "array"
+        if matrix.format == "coo":
+            arrays = {"row": matrix.row, "col": matrix.col, "data": matrix.data}
+        else:
+            compressed = matrix if matrix.format in ("csc", "csr") else matrix.tocsc()
+            arrays = {
+                "data": compressed.data,
+                "indices": compressed.indices,
+                "indptr": compressed.indptr,
+            }
+        for key, array in arrays.items():
+            self._write_array(subgroup, key, np.asarray(array), f"{where}/{key}")
+        subgroup.create_dataset("shape", data=np.asarray(matrix.shape, dtype=np.int64))
+
+
+class _Reader:
+    """Reads a member written by :class:`_Writer`."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def _damaged(self, where: str, detail: str) -> InvalidModelError:
+        return InvalidModelError(
+            f"{self.path}: field '{where}' {detail}", item=f"file '{self.path}'"
+        )
+
+    def read(self, node: h5py.Group | h5py.Dataset, where: str) -> Any:
+        kind = node.attrs.get(_TYPE)
+        if isinstance(kind, bytes):
+            kind = kind.decode("utf-8")
+        if kind in ("dict", "list", "tuple", "sparse") and not isinstance(node, h5py.Group):
+            raise self._damaged(where, f"has type {kind!r} but is not a group")
+        if kind == "dict":
+            return {
+                _decode_name(name): self.read(node[name], f"{where}/{_decode_name(name)}")
+                for name in node
+            }
+        if kind in ("list", "tuple"):
+            items = [self.read(node[str(index)], f"{where}/{index}") for index in range(len(node))]
+            return items if kind == "list" else tuple(items)
+        if kind == "sparse":
+            return self._read_sparse(node, where)
+        if not isinstance(node, h5py.Dataset):
+            raise self._damaged(where, f"has an unknown type {kind!r}")
+        if kind == "none":
+            return None
+        if node.shape is None:
+            raise self._damaged(where, "is empty but not marked as None")
+        if kind == "ndarray":
+            return node[...]
+        if kind == "scalar":
+            return node[()]
+        if kind == "float":
+            return float(node[()])
+        if kind == "int":
+            return int(node[()])
+        if kind == "bool":
+            return bool(node[()])
+        if kind == "str":
+            return node.asstr()[()]
+        raise self._damaged(where, f"has an unknown type {kind!r}")
+
+    def _read_sparse(self, group: h5py.Group, where: str) -> Any:
+        fmt = group.attrs.get("format")
+        container = group.attrs.get("container")
+        names = ("row", "col", "data") if fmt == "coo" else ("data", "indices", "indptr")
+        for name in (*names, "shape"):
+            if name not in group:
+                raise self._damaged(where, f"is a sparse matrix without '{name}'")
+        shape = tuple(int(size) for size in group["shape"][...])
+        arrays = [group[name][...] for name in names]
+        matrix_class = {
+            "matrix": {"csr": sp.csr_matrix, "coo": sp.coo_matrix, "csc": sp.csc_matrix},
+            "array": {"csr": sp.csr_array, "coo": sp.coo_array, "csc": sp.csc_array},
+        }.get(container)
+        if matrix_class is None or not isinstance(fmt, str):
+            raise self._damaged(where, f"has an unknown sparse container {container!r}")
+        if fmt == "coo":
+            row, col, data = arrays
+            matrix = matrix_class["coo"]((data, (row, col)), shape=shape)
+            # The constructors may change the index dtype: put back the stored arrays.
+            matrix.coords, matrix.data = (row, col), data
+            return matrix
+        data, indices, indptr = arrays
+        stored = fmt if fmt in ("csr", "csc") else "csc"
+        matrix = matrix_class[stored]((data, indices, indptr), shape=shape)
+        matrix.data, matrix.indices, matrix.indptr = data, indices, indptr
+        if stored != fmt:
+            try:
+                matrix = matrix.asformat(fmt)
+            except ValueError:
+                raise self._damaged(where, f"has an unknown sparse format {fmt!r}") from None
+        return matrix

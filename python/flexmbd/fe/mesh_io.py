@@ -1,0 +1,1009 @@
+"""Meshes and matrices from other codes.
+
+* :func:`read_mesh` reads Gmsh ``.msh``, Abaqus ``.inp`` and VTK ``.vtu`` / ``.vtk`` meshes
+  through meshio into a :class:`Mesh`, and :func:`validate_mesh` checks one.
+* :func:`read_abaqus_matrix` reads a stiffness or mass matrix written by Abaqus
+  ``*MATRIX GENERATE`` / ``*MATRIX OUTPUT``.
+* :func:`matrices_from_arrays` checks stiffness and mass matrices given as arrays.
+
+Node order inside an element (0-based; that of the element kernels, `crates/flexmbd-core/src/fem`)
+-----------------------------------------------------------------------------------------------
+* ``beam2``: the two end nodes.
+* ``tet4``: vertices 0, 1, 2, 3; the volume is positive when vertex 3 is on the side of
+  (x1 - x0) x (x2 - x0) (VTK, Gmsh and Abaqus C3D4 alike). Nodes are never reordered: an
+  inverted element stays inverted, for the element kernels to report.
+* ``tet10``: vertices 0..3, then the mid-edge nodes of edges (0,1), (1,2), (0,2), (0,3),
+  (2,3), (1,3): the order of Gmsh's ``.msh`` format. VTK (``vtkQuadraticTetra``), Abaqus C3D10
+  and meshio list the last two the other way round ((1,3), then (2,3)); meshio converts Gmsh
+  cells to its order on reading (``_gmsh_to_meshio_order`` in ``meshio/gmsh/common.py``), and
+  :func:`read_mesh` swaps nodes 8 and 9 of every meshio "tetra10" cell back
+  (``TET10_FROM_MESHIO``).
+* ``hex8``: bottom face 0, 1, 2, 3, then top face 4, 5, 6, 7 with node 4 above node 0, both
+  faces counter-clockwise seen from the top (the same in VTK, Gmsh and Abaqus C3D8).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import meshio
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from .body import ELEMENT_NODES
+
+#: meshio cell types read as flexmbd elements.
+MESHIO_ELEMENT_TYPES = {
+    "line": "beam2",
+    "tetra": "tet4",
+    "tetra4": "tet4",
+    "tetra10": "tet10",
+    "hexahedron": "hex8",
+}
+
+#: Permutation of a meshio/VTK "tetra10" cell into the flexmbd (Gmsh) node order.
+TET10_FROM_MESHIO = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
+
+#: File suffix -> meshio file format.
+MESH_FORMATS = {".msh": "gmsh", ".inp": "abaqus", ".vtu": "vtu", ".vtk": "vtk"}
+
+#: Relative distance under which two nodes count as duplicates (times the mesh size).
+DUPLICATE_NODE_TOLERANCE = 1e-12
+
+#: Relative asymmetry allowed in :func:`matrices_from_arrays`.
+SYMMETRY_TOLERANCE = 1e-10
+
+
+@dataclass
+class Mesh:
+    """A finite element mesh in the terms of :class:`~flexmbd.fe.body.FlexibleBodyData`.
+
+    Attributes:
+        nodes: node positions, (n_nodes, 3) float64, in the length unit of the source file.
+        node_ids: ids of the nodes in the source file, (n_nodes,) int64 (see
+            :func:`read_mesh` for where they come from).
+        elements: element type ("beam2", "tet4", "tet10", "hex8") -> (n_elements, nodes)
+            int64 indices into ``nodes``, node order as in the module docstring.
+        element_ids: element type -> (n_elements,) int64 ids in the source file.
+        node_sets: name -> sorted, unique int64 indices into ``nodes``.
+    """
+
+    nodes: NDArray[np.float64]
+    node_ids: NDArray[np.int64]
+    elements: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+    element_ids: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+    node_sets: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+
+    @property
+    def node_count(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def element_count(self) -> int:
+        return sum(len(connectivity) for connectivity in self.elements.values())
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading meshes
+
+
+def read_mesh(path: str | os.PathLike[str]) -> Mesh:
+    """Read a Gmsh (``.msh``, formats 2.2 and 4.1), Abaqus (``.inp``) or VTK (``.vtu``,
+    ``.vtk``) mesh through meshio. The suffix selects the format.
+
+    Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron" and "line"
+    become "tet4", "tet10", "hex8" and "beam2", in the node order of the module docstring.
+    Other cells (vertices, triangles, quads, higher-order cells) are not elements, but their
+    nodes go into the node sets of the named groups they belong to: a Gmsh physical surface of
+    triangles named "clamp" gives the node set "clamp". In a Gmsh file that also has volume
+    elements, "line" cells are edges of the geometry, not beams, and are treated like
+    triangles.
+
+    Node and element ids:
+
+    * Abaqus: the node and element labels of the file (read from its ``*NODE`` and
+      ``*ELEMENT`` lines, which meshio drops).
+    * Gmsh, ASCII files (2.2 and 4.1): the node and element tags of the file. Binary files and
+      format 4.0: 1-based positions in the file (the tags Gmsh writes unless told otherwise).
+    * VTK: 1-based positions (VTK has no ids).
+
+    Element ids count every element of the file, also the ones that are not read as
+    elements.
+
+    Node sets:
+
+    * Gmsh: one per named physical group (of any dimension), with the nodes of its
+      elements. Unnamed physical groups are ignored.
+    * Abaqus: every ``*NSET`` (also ``*NODE, NSET=``, ``GENERATE``, names of other node sets
+      and ``ELSET=``) and every element set (``*ELSET``, ``*ELEMENT, ELSET=``) as the nodes of
+      its elements. A node set and an element set with the same name (as Abaqus/CAE writes
+      them) give one node set, the union. Abaqus names are case-insensitive: the spelling of
+      the first definition is kept. Only flat input files are understood: meshio reads one
+      ``*NODE`` block and ignores ``*PART``/``*INSTANCE`` structure.
+    * VTK: none (VTK files carry no sets).
+
+    The mesh is not checked: call :func:`validate_mesh`.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        InvalidParameterError: the suffix is not one of the formats above.
+        InvalidModelError: meshio cannot read the file, or the file is not consistent
+            (several ``*NODE`` blocks in one Abaqus file, ...).
+        UnknownItemError: a set or element of an Abaqus file refers to a node, element or
+            set that is not defined.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(2, "No such mesh file", str(path))
+    item = f"file '{path}'"
+    file_format = MESH_FORMATS.get(path.suffix.lower())
+    if file_format is None:
+        raise InvalidParameterError(
+            f"{path}: unsupported mesh file suffix {path.suffix!r}; expected one of "
+            f"{', '.join(MESH_FORMATS)}",
+            item=item,
+        )
+
+    # The Abaqus scan comes first: it explains the files meshio misreads.
+    abaqus = _scan_abaqus(path) if file_format == "abaqus" else None
+    # The format's own reader: meshio.read() prints and exits the interpreter on a ReadError.
+    reader = {"gmsh": meshio.gmsh, "abaqus": meshio.abaqus, "vtu": meshio.vtu, "vtk": meshio.vtk}
+    try:
+        raw = reader[file_format].read(str(path))
+    except KeyError as error:
+        node = error.args[0] if error.args else None
+        if abaqus is None or not isinstance(node, int | np.integer):
+            raise InvalidModelError(
+                f"{path}: cannot read the mesh ({error!r})", item=item
+            ) from None
+        raise abaqus.unknown_node(path, int(node)) from None
+    except Exception as error:
+        raise InvalidModelError(
+            f"{path}: cannot read the mesh ({type(error).__name__}: {error})", item=item
+        ) from error
+
+    nodes = np.asarray(raw.points, dtype=np.float64)
+    if nodes.ndim != 2 or nodes.shape[1] > 3:
+        raise InvalidModelError(f"{path}: node coordinates of shape {nodes.shape}", item=item)
+    if nodes.shape[1] < 3:
+        nodes = np.hstack([nodes, np.zeros((len(nodes), 3 - nodes.shape[1]))])
+    blocks = [(block.type, np.asarray(block.data, dtype=np.int64)) for block in raw.cells]
+    positional = np.arange(1, sum(len(data) for _, data in blocks) + 1, dtype=np.int64)
+
+    if abaqus is not None:
+        node_ids, block_ids = abaqus.ids(path, len(nodes), blocks)
+        node_sets = abaqus.resolve_node_sets(path, node_ids, blocks, block_ids)
+    elif file_format == "gmsh":
+        node_ids, flat_ids = _gmsh_tags(path, len(nodes), len(positional))
+        block_ids = _split(flat_ids if flat_ids is not None else positional, blocks)
+        node_sets = _gmsh_node_sets(raw, blocks)
+    else:
+        node_ids = np.arange(1, len(nodes) + 1, dtype=np.int64)
+        block_ids = _split(positional, blocks)
+        node_sets = {}
+
+    # Gmsh writes the edges of the geometry as line cells next to the volume cells.
+    has_volume = any(_cell_dimension(cell_type) == 3 for cell_type, _ in blocks)
+    skip_lines = file_format == "gmsh" and has_volume
+    elements: dict[str, list[NDArray[np.int64]]] = {}
+    element_ids: dict[str, list[NDArray[np.int64]]] = {}
+    for (cell_type, data), ids in zip(blocks, block_ids, strict=True):
+        kind = MESHIO_ELEMENT_TYPES.get(cell_type)
+        if kind is None or (kind == "beam2" and skip_lines):
+            continue
+        if kind == "tet10":
+            data = data[:, TET10_FROM_MESHIO]
+        elements.setdefault(kind, []).append(data)
+        element_ids.setdefault(kind, []).append(ids)
+    return Mesh(
+        nodes=nodes,
+        node_ids=np.asarray(node_ids, dtype=np.int64),
+        elements={kind: np.concatenate(parts) for kind, parts in elements.items()},
+        element_ids={kind: np.concatenate(parts) for kind, parts in element_ids.items()},
+        node_sets=node_sets,
+    )
+
+
+def _split(flat: NDArray[np.int64], blocks: list[tuple[str, NDArray[np.int64]]]) -> list:
+    """Cut per-file element ids into one array per cell block."""
+    offsets = np.cumsum([0] + [len(data) for _, data in blocks])
+    return [flat[start:end] for start, end in zip(offsets[:-1], offsets[1:], strict=True)]
+
+
+def _cell_dimension(cell_type: str) -> int:
+    """Topological dimension of a meshio cell type."""
+    if cell_type == "vertex":
+        return 0
+    if cell_type.startswith("line"):
+        return 1
+    if cell_type.startswith(("triangle", "quad", "polygon")):
+        return 2
+    return 3
+
+
+def _nodes_of(blocks: list[tuple[str, NDArray[np.int64]]], selection: dict[int, Any]) -> Any:
+    """Sorted unique node indices of the cells ``selection[block] = cell indices``."""
+    parts = [
+        blocks[b][1][np.asarray(cells, dtype=np.int64)].ravel() for b, cells in selection.items()
+    ]
+    if not parts:
+        return np.zeros(0, dtype=np.int64)
+    return np.unique(np.concatenate(parts)).astype(np.int64)
+
+
+def _gmsh_node_sets(raw: meshio.Mesh, blocks: list[tuple[str, NDArray[np.int64]]]) -> dict:
+    """Node sets of the named physical groups of a Gmsh file."""
+    physical = raw.cell_data.get("gmsh:physical")
+    # meshio leaves out the blocks of 4.1 entities without a physical group.
+    aligned = physical is not None and len(physical) == len(blocks)
+    node_sets: dict[str, NDArray[np.int64]] = {}
+    for name, value in raw.field_data.items():
+        value = np.asarray(value).ravel()
+        if len(value) != 2:
+            continue
+        tag, dimension = int(value[0]), int(value[1])
+        selection: dict[int, Any] = {}
+        # Format 2.2: the first tag of each element; format 4.1: cell sets of the entities.
+        for b, (cell_type, _) in enumerate(blocks):
+            cells: list[Any] = []
+            if aligned and _cell_dimension(cell_type) == dimension:
+                cells.append(np.flatnonzero(np.asarray(physical[b]) == tag))
+            per_block = raw.cell_sets.get(name)
+            if per_block is not None and b < len(per_block) and per_block[b] is not None:
+                cells.append(np.asarray(per_block[b], dtype=np.int64))
+            if cells:
+                selection[b] = np.unique(np.concatenate(cells))
+        node_sets[name] = _nodes_of(blocks, selection)
+    return node_sets
+
+
+def _gmsh_tags(
+    path: Path, node_count: int, element_count: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64] | None]:
+    """Node and element tags of an ASCII Gmsh file (formats 2.x and 4.1), in file order, which
+    is meshio's order. Other files, or a disagreement with meshio: 1-based positions."""
+    positions = np.arange(1, node_count + 1, dtype=np.int64)
+    try:
+        scanned = _scan_gmsh_tags(path)
+    except (ValueError, IndexError, StopIteration, UnicodeDecodeError):
+        scanned = None
+    if scanned is None:
+        return positions, None
+    node_tags, element_tags = scanned
+    if len(node_tags) != node_count or len(element_tags) != element_count:
+        return positions, None
+    return np.asarray(node_tags, dtype=np.int64), np.asarray(element_tags, dtype=np.int64)
+
+
+def _scan_gmsh_tags(path: Path) -> tuple[list[int], list[int]] | None:
+    with open(path, "rb") as file:
+        data = file.read()
+    lines = data.split(b"\n")
+    start = next(i for i, line in enumerate(lines) if line.strip() == b"$MeshFormat")
+    version, file_type, *_ = lines[start + 1].decode("ascii").split()
+    if file_type != "0":
+        return None
+    if version.startswith("2"):
+        modern = False
+    elif version in ("4", "4.1"):
+        modern = True
+    else:
+        return None
+    stripped = [line.strip() for line in lines]
+    nodes_at = stripped.index(b"$Nodes") + 1
+    elements_at = stripped.index(b"$Elements") + 1
+
+    def first_tokens(first: int, count: int) -> list[int]:
+        return [int(lines[i].split(None, 1)[0]) for i in range(first, first + count)]
+
+    if not modern:
+        node_tags = first_tokens(nodes_at + 1, int(lines[nodes_at]))
+        element_tags = first_tokens(elements_at + 1, int(lines[elements_at]))
+        return node_tags, element_tags
+
+    # 4.1: blocks of "dim tag parametric count", then count tag lines and count coordinate lines.
+    node_tags = []
+    block_count = int(lines[nodes_at].split()[0])
+    line = nodes_at + 1
+    for _ in range(block_count):
+        count = int(lines[line].split()[3])
+        node_tags += [int(tag) for tag in lines[line + 1 : line + 1 + count]]
+        line += 1 + 2 * count
+    # 4.1: blocks of "dim tag type count", then count lines "tag node ...".
+    element_tags = []
+    block_count = int(lines[elements_at].split()[0])
+    line = elements_at + 1
+    for _ in range(block_count):
+        count = int(lines[line].split()[3])
+        element_tags += first_tokens(line + 1, count)
+        line += 1 + count
+    return node_tags, element_tags
+
+
+# ---------------------------------------------------------------------------------------------
+# Abaqus input files: the labels and sets that meshio drops
+
+
+@dataclass
+class _AbaqusSet:
+    name: str
+    ids: list[int] = field(default_factory=list)
+    set_names: list[str] = field(default_factory=list)
+    element_set_names: list[str] = field(default_factory=list)
+
+
+@dataclass
+class _AbaqusScan:
+    """What a pass over an Abaqus input file (and its ``*INCLUDE`` files) finds, in file
+    order, which is the order of meshio's points and cell blocks."""
+
+    node_ids: list[int] = field(default_factory=list)
+    # One (flat integers of the data lines, ELSET parameter) per *ELEMENT block.
+    element_blocks: list[tuple[list[int], str | None]] = field(default_factory=list)
+    # Upper-case name -> set.
+    node_sets: dict[str, _AbaqusSet] = field(default_factory=dict)
+    element_sets: dict[str, _AbaqusSet] = field(default_factory=dict)
+
+    def ids(
+        self, path: Path, node_count: int, blocks: list[tuple[str, NDArray[np.int64]]]
+    ) -> tuple[NDArray[np.int64], list[NDArray[np.int64]]]:
+        """Node labels and element labels per cell block, checked against meshio's reading."""
+        item = f"file '{path}'"
+        if len(self.node_ids) != node_count:
+            raise InvalidModelError(
+                f"{path}: meshio read {node_count} nodes but the *NODE lines define "
+                f"{len(self.node_ids)}",
+                item=item,
+            )
+        if len(self.element_blocks) != len(blocks):
+            raise InvalidModelError(
+                f"{path}: meshio read {len(blocks)} element blocks but the file has "
+                f"{len(self.element_blocks)} *ELEMENT blocks",
+                item=item,
+            )
+        block_ids = []
+        for (values, _), (cell_type, data) in zip(self.element_blocks, blocks, strict=True):
+            width = data.shape[1] + 1
+            if len(values) != len(data) * width:
+                raise InvalidModelError(
+                    f"{path}: an *ELEMENT block of {cell_type} cells has {len(values)} numbers, "
+                    f"expected {len(data)} x {width}",
+                    item=item,
+                )
+            block_ids.append(np.asarray(values, dtype=np.int64).reshape(-1, width)[:, 0])
+        return np.asarray(self.node_ids, dtype=np.int64), block_ids
+
+    def resolve_node_sets(
+        self,
+        path: Path,
+        node_ids: NDArray[np.int64],
+        blocks: list[tuple[str, NDArray[np.int64]]],
+        block_ids: list[NDArray[np.int64]],
+    ) -> dict[str, NDArray[np.int64]]:
+        """Resolve the node and element sets into node sets (indices into the nodes)."""
+        node_index = {int(node_id): index for index, node_id in enumerate(node_ids)}
+        element_index = {
+            int(element_id): (b, row)
+            for b, ids in enumerate(block_ids)
+            for row, element_id in enumerate(ids)
+        }
+        for b, (_, name) in enumerate(self.element_blocks):
+            if name is not None:
+                self._element_set(name).ids.extend(int(i) for i in block_ids[b])
+
+        def element_nodes(key: str, seen: set[str]) -> set[int]:
+            entry = self.element_sets.get(key)
+            if entry is None:
+                raise UnknownItemError(
+                    f"{path}: unknown element set {key!r}", item=f"element set '{key}'"
+                )
+            if key in seen:
+                return set()
+            seen.add(key)
+            result: set[int] = set()
+            for element_id in entry.ids:
+                if element_id not in element_index:
+                    raise UnknownItemError(
+                        f"{path}: element set {entry.name!r} refers to element {element_id}, "
+                        "which no *ELEMENT line defines",
+                        item=f"element {element_id}",
+                    )
+                b, row = element_index[element_id]
+                result.update(int(i) for i in blocks[b][1][row])
+            for other in entry.set_names:
+                result |= element_nodes(other.upper(), seen)
+            return result
+
+        def set_nodes(key: str, seen: set[str]) -> set[int]:
+            entry = self.node_sets.get(key)
+            if entry is None:
+                raise UnknownItemError(
+                    f"{path}: unknown node set {key!r}", item=f"node set '{key}'"
+                )
+            if key in seen:
+                return set()
+            seen.add(key)
+            result: set[int] = set()
+            for node_id in entry.ids:
+                if node_id not in node_index:
+                    raise UnknownItemError(
+                        f"{path}: node set {entry.name!r} refers to node {node_id}, which no "
+                        "*NODE line defines",
+                        item=f"node {node_id}",
+                    )
+                result.add(node_index[node_id])
+            for other in entry.set_names:
+                result |= set_nodes(other.upper(), seen)
+            for other in entry.element_set_names:
+                result |= element_nodes(other.upper(), set())
+            return result
+
+        node_sets: dict[str, NDArray[np.int64]] = {}
+        for key, entry in self.node_sets.items():
+            node_sets[entry.name] = _sorted_indices(set_nodes(key, set()))
+        for key, entry in self.element_sets.items():
+            nodes = element_nodes(key, set())
+            # Same name as a node set: Abaqus/CAE writes both for one region; take the union.
+            name = self.node_sets[key].name if key in self.node_sets else entry.name
+            if name in node_sets:
+                nodes |= set(node_sets[name].tolist())
+            node_sets[name] = _sorted_indices(nodes)
+        return node_sets
+
+    def unknown_node(self, path: Path, node: int) -> UnknownItemError:
+        """The error for a reference to a node that no *NODE line defines."""
+        for entry in self.node_sets.values():
+            if node in entry.ids:
+                return UnknownItemError(
+                    f"{path}: node set {entry.name!r} refers to node {node}, which no *NODE "
+                    "line defines",
+                    item=f"node {node}",
+                )
+        return UnknownItemError(
+            f"{path}: an element refers to node {node}, which no *NODE line defines",
+            item=f"node {node}",
+        )
+
+    def _node_set(self, name: str) -> _AbaqusSet:
+        return self.node_sets.setdefault(name.upper(), _AbaqusSet(name))
+
+    def _element_set(self, name: str) -> _AbaqusSet:
+        return self.element_sets.setdefault(name.upper(), _AbaqusSet(name))
+
+
+def _sorted_indices(indices: set[int]) -> NDArray[np.int64]:
+    return np.asarray(sorted(indices), dtype=np.int64)
+
+
+def _abaqus_parameters(line: str) -> tuple[str, dict[str, str | None]]:
+    """Keyword (upper case, as meshio reads it) and parameters of a keyword line."""
+    words = line.split(",")
+    keyword = words[0].strip().replace("*", "").upper()
+    parameters: dict[str, str | None] = {}
+    for word in words[1:]:
+        key, equals, value = word.partition("=")
+        parameters[key.strip().upper()] = value.strip().strip('"') if equals else None
+    return keyword, parameters
+
+
+def _abaqus_integers(path: Path, rows: list[tuple[int, str]]) -> list[int]:
+    """The comma-separated integers of data lines given as (line number, text)."""
+    values = []
+    for line_number, text in rows:
+        for token in text.split(","):
+            if token.strip():
+                try:
+                    values.append(int(token))
+                except ValueError:
+                    raise InvalidModelError(
+                        f"{path}, line {line_number}: expected integers, got {text!r}",
+                        item=f"line {line_number} of '{path}'",
+                    ) from None
+    return values
+
+
+def _scan_abaqus(path: Path) -> _AbaqusScan:
+    scan = _AbaqusScan()
+    _scan_abaqus_file(path, scan, depth=0)
+    return scan
+
+
+def _scan_abaqus_file(path: Path, scan: _AbaqusScan, depth: int) -> None:
+    item = f"file '{path}'"
+    if depth > 16:
+        raise InvalidModelError(f"{path}: *INCLUDE nested more than 16 deep", item=item)
+    with open(path, encoding="utf-8", errors="replace") as file:
+        lines = file.read().splitlines()
+    node_blocks = 0
+    number = 0
+    while number < len(lines):
+        line = lines[number]
+        number += 1
+        if not line.startswith("*") or line.startswith("**"):
+            continue
+        keyword, parameters = _abaqus_parameters(line)
+        # Data lines end at the next line starting with "*" (also a comment), as in meshio.
+        first = number
+        while number < len(lines) and not lines[number].startswith("*"):
+            number += 1
+        data = [(first + k + 1, text) for k, text in enumerate(lines[first:number]) if text.strip()]
+
+        if keyword == "NODE":
+            node_blocks += 1
+            if node_blocks > 1:
+                raise InvalidModelError(
+                    f"{path}, line {first}: a second *NODE block; meshio's Abaqus reader keeps "
+                    "only the last one, so merge the *NODE blocks into one",
+                    item=item,
+                )
+            ids = _abaqus_integers(path, [(n, text.split(",", 1)[0]) for n, text in data])
+            scan.node_ids.extend(ids)
+            if parameters.get("NSET"):
+                scan._node_set(parameters["NSET"]).ids.extend(ids)
+        elif keyword == "ELEMENT":
+            scan.element_blocks.append(
+                (_abaqus_integers(path, data), parameters.get("ELSET") or None)
+            )
+        elif keyword in ("NSET", "ELSET"):
+            name = parameters.get(keyword)
+            if not name:
+                raise InvalidModelError(
+                    f"{path}, line {first}: *{keyword} without {keyword}=", item=item
+                )
+            entry = scan._node_set(name) if keyword == "NSET" else scan._element_set(name)
+            if keyword == "NSET" and parameters.get("ELSET"):
+                entry.element_set_names.append(parameters["ELSET"])
+            if "GENERATE" in parameters:
+                for line_number, text in data:
+                    triple = _abaqus_integers(path, [(line_number, text)])
+                    if len(triple) not in (2, 3):
+                        raise InvalidModelError(
+                            f"{path}, line {line_number}: GENERATE expects first, last[, step]",
+                            item=f"line {line_number} of '{path}'",
+                        )
+                    start, stop, step = (*triple, 1)[:3]
+                    entry.ids.extend(range(start, stop + 1, step))
+            else:
+                for _, text in data:
+                    for token in (t.strip() for t in text.split(",")):
+                        if not token:
+                            continue
+                        if token.lstrip("-").isdigit():
+                            entry.ids.append(int(token))
+                        else:
+                            entry.set_names.append(token.strip('"'))
+        elif keyword == "INCLUDE":
+            target = Path(line.split("=")[-1].strip().strip('"'))
+            if not target.exists():
+                target = path.parent / target
+            if not target.exists():
+                raise InvalidModelError(f"{path}: *INCLUDE file {target} not found", item=item)
+            _scan_abaqus_file(target, scan, depth + 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Checks
+
+
+def validate_mesh(mesh: Mesh) -> None:
+    """Check a mesh before it becomes a body.
+
+    Checks, in this order: array shapes, unique node ids, finite coordinates, known element
+    types, element node indices in range, elements with a repeated node, unique element ids,
+    node set indices in range, duplicate nodes (two nodes closer than
+    :data:`DUPLICATE_NODE_TOLERANCE` times the mesh size, the diagonal of its bounding box)
+    and nodes used by no element. Element volumes and orientation are checked by the element
+    kernels.
+
+    Raises:
+        InvalidModelError: a structural error; the message names the node or element by its
+            id ("unconnected node 17", "nodes 4 and 9 are at the same position", "element 3
+            (tet4) uses node 12 more than once").
+        InvalidParameterError: non-finite node coordinates (naming the node).
+        UnknownItemError: an element or node set refers to a node index that does not exist,
+            or an element type is unknown.
+    """
+    nodes = np.asarray(mesh.nodes)
+    if nodes.ndim != 2 or nodes.shape[1] != 3:
+        raise InvalidModelError(
+            f"mesh nodes must be an (n, 3) array, got shape {nodes.shape}", item="mesh nodes"
+        )
+    count = len(nodes)
+    node_ids = np.asarray(mesh.node_ids)
+    if node_ids.shape != (count,):
+        raise InvalidModelError(
+            f"mesh has {count} nodes but node_ids has shape {node_ids.shape}", item="mesh nodes"
+        )
+    _check_unique(node_ids, "node")
+    bad = np.flatnonzero(~np.isfinite(nodes).all(axis=1))
+    if len(bad):
+        node = node_ids[bad[0]]
+        raise InvalidParameterError(
+            f"node {node} has non-finite coordinates {nodes[bad[0]].tolist()}", item=f"node {node}"
+        )
+
+    if sum(len(connectivity) for connectivity in mesh.elements.values()) == 0:
+        raise InvalidModelError(
+            f"the mesh has no elements ({', '.join(ELEMENT_NODES)})", item="mesh elements"
+        )
+    if set(mesh.element_ids) != set(mesh.elements):
+        raise InvalidModelError(
+            f"element_ids has types {sorted(mesh.element_ids)} but elements has types "
+            f"{sorted(mesh.elements)}",
+            item="mesh elements",
+        )
+    used = np.zeros(count, dtype=bool)
+    for kind, connectivity in mesh.elements.items():
+        connectivity = np.asarray(connectivity)
+        ids = np.asarray(mesh.element_ids[kind])
+        _check_connectivity(kind, connectivity, ids, node_ids)
+        if connectivity.size:
+            used[connectivity.ravel()] = True
+    _check_unique(np.concatenate([np.asarray(ids) for ids in mesh.element_ids.values()]), "element")
+
+    for name, indices in mesh.node_sets.items():
+        indices = np.asarray(indices)
+        if indices.size == 0:
+            continue
+        if indices.dtype.kind not in "iu":
+            raise InvalidModelError(
+                f"node set {name!r} must hold integer node indices, got dtype {indices.dtype}",
+                item=f"node set '{name}'",
+            )
+        wrong = indices[(indices < 0) | (indices >= count)]
+        if wrong.size:
+            raise UnknownItemError(
+                f"node set {name!r} refers to node index {wrong[0]}, but the mesh has {count} "
+                "nodes",
+                item=f"node set '{name}'",
+            )
+
+    _check_duplicate_nodes(nodes, node_ids)
+    unconnected = np.flatnonzero(~used)
+    if len(unconnected):
+        node = node_ids[unconnected[0]]
+        more = len(unconnected) - 1
+        listed = ", ".join(str(i) for i in node_ids[unconnected[1:6]])
+        suffix = f" (and {more} more: {listed}{', ...' if more > 5 else ''})" if more else ""
+        raise InvalidModelError(
+            f"unconnected node {node}: no element uses it{suffix}", item=f"node {node}"
+        )
+
+
+def _check_unique(ids: NDArray[Any], what: str) -> None:
+    values, counts = np.unique(ids, return_counts=True)
+    if np.any(counts > 1):
+        repeated = values[counts > 1][0]
+        raise InvalidModelError(
+            f"{what} id {repeated} is used {counts[counts > 1][0]} times", item=f"{what} {repeated}"
+        )
+
+
+def _check_connectivity(
+    kind: str, connectivity: NDArray[Any], ids: NDArray[Any], node_ids: NDArray[Any]
+) -> None:
+    if kind not in ELEMENT_NODES:
+        raise UnknownItemError(
+            f"unknown element type {kind!r}; expected one of {', '.join(ELEMENT_NODES)}",
+            item=f"element type '{kind}'",
+        )
+    width = ELEMENT_NODES[kind]
+    if connectivity.ndim != 2 or connectivity.shape[1] != width:
+        raise InvalidModelError(
+            f"{kind} connectivity must have shape (n, {width}), got {connectivity.shape}",
+            item=f"{kind} elements",
+        )
+    if connectivity.size and connectivity.dtype.kind not in "iu":
+        raise InvalidModelError(
+            f"{kind} connectivity must hold integer node indices, got dtype {connectivity.dtype}",
+            item=f"{kind} elements",
+        )
+    if ids.shape != (len(connectivity),):
+        raise InvalidModelError(
+            f"{len(connectivity)} {kind} elements but element ids of shape {ids.shape}",
+            item=f"{kind} elements",
+        )
+    count = len(node_ids)
+    outside = (connectivity < 0) | (connectivity >= count)
+    if outside.any():
+        row, column = np.argwhere(outside)[0]
+        element = ids[row]
+        raise UnknownItemError(
+            f"element {element} ({kind}) refers to node index {connectivity[row, column]}, but "
+            f"the mesh has {count} nodes (indices 0 to {count - 1})",
+            item=f"element {element}",
+        )
+    ordered = np.sort(connectivity, axis=1)
+    repeated = ordered[:, 1:] == ordered[:, :-1]
+    if repeated.any():
+        row, column = np.argwhere(repeated)[0]
+        element = ids[row]
+        raise InvalidModelError(
+            f"element {element} ({kind}) uses node {node_ids[ordered[row, column]]} more than once",
+            item=f"element {element}",
+        )
+
+
+def _check_duplicate_nodes(nodes: NDArray[np.float64], node_ids: NDArray[Any]) -> None:
+    if len(nodes) < 2:
+        return
+    size = float(np.linalg.norm(nodes.max(axis=0) - nodes.min(axis=0)))
+    tolerance = DUPLICATE_NODE_TOLERANCE * size
+    pairs = cKDTree(nodes).query_pairs(r=tolerance, output_type="ndarray")
+    if len(pairs):
+        first, second = sorted(pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))][0])
+        distance = float(np.linalg.norm(nodes[first] - nodes[second]))
+        raise InvalidModelError(
+            f"nodes {node_ids[first]} and {node_ids[second]} are at the same position "
+            f"{nodes[first].tolist()} (distance {distance:.3g}, at most "
+            f"{DUPLICATE_NODE_TOLERANCE:g} x mesh size {size:.3g})",
+            item=f"node {node_ids[first]}",
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# Matrices
+
+
+def read_abaqus_matrix(
+    path: str | os.PathLike[str], dofs_per_node: int | None = None
+) -> tuple[sp.csc_matrix, NDArray[np.int64], int]:
+    """Read a matrix written by Abaqus ``*MATRIX GENERATE`` / ``*MATRIX OUTPUT``.
+
+    Each data line is ``row node, row dof, column node, column dof, value``, separated by
+    commas or blanks: the default ``FORMAT=MATRIX INPUT`` of ``*MATRIX OUTPUT``, the data lines
+    of ``*MATRIX INPUT``. Blank lines and lines starting with ``*`` (keywords and ``**``
+    comments) are skipped. Lines of three numbers (``row, column, value``: Abaqus'
+    ``FORMAT=COORDINATE``, which numbers equations, not nodes) are refused because they cannot
+    be mapped to mesh nodes.
+
+    Global index of (node, dof): ``position of node * dofs_per_node + dof - 1``, the nodes in
+    increasing id order (node-major, as in :class:`~flexmbd.fe.body.FlexibleBodyData`).
+
+    Symmetrization: each off-diagonal entry whose mirror (i, j) -> (j, i) is not in the file is
+    mirrored, so a file with only the lower or only the upper triangle gives the full
+    symmetric matrix; when both (i, j) and (j, i) are given they must agree within
+    :data:`SYMMETRY_TOLERANCE` times the largest entry, and both get their mean.
+
+    Args:
+        path: the ``.mtx`` file.
+        dofs_per_node: coordinates per node; default: the largest dof number in the file.
+
+    Returns:
+        (matrix, node_ids, dofs_per_node): the symmetric matrix, csc (n_nodes *
+        dofs_per_node, n_nodes * dofs_per_node) float64 in the units of the Abaqus model; the
+        node ids in increasing order, (n_nodes,) int64; the number of coordinates per node.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        InvalidParameterError: a bad line (wrong number of fields, a node or dof that is not a
+            positive integer (negative labels are Abaqus internal nodes, which a mesh does
+            not have), a dof above ``dofs_per_node``, a non-finite value), an entry given twice,
+            (i, j) and (j, i) that disagree, or no entry at all; the message gives the line
+            number.
+    """
+    path = Path(path)
+    if dofs_per_node is not None and (
+        isinstance(dofs_per_node, bool)
+        or not isinstance(dofs_per_node, int | np.integer)
+        or dofs_per_node < 1
+    ):
+        raise InvalidParameterError(
+            f"dofs_per_node must be a positive integer, got {dofs_per_node!r}",
+            item="dofs_per_node",
+        )
+    with open(path, encoding="utf-8", errors="replace") as file:
+        text = file.read()
+
+    numbers: list[int] = []
+    entries: list[tuple[int, int, int, int, float]] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("*"):
+            continue
+        entries.append(_matrix_line(path, number, stripped, dofs_per_node))
+        numbers.append(number)
+    if not entries:
+        raise InvalidParameterError(f"{path}: no matrix entries", item=f"file '{path}'")
+
+    table = np.array([entry[:4] for entry in entries], dtype=np.int64)
+    values = np.array([entry[4] for entry in entries], dtype=np.float64)
+    line_numbers = np.asarray(numbers, dtype=np.int64)
+    if dofs_per_node is None:
+        dofs_per_node = int(max(table[:, 1].max(), table[:, 3].max()))
+    node_ids = np.unique(np.concatenate([table[:, 0], table[:, 2]]))
+    rows = np.searchsorted(node_ids, table[:, 0]) * dofs_per_node + table[:, 1] - 1
+    columns = np.searchsorted(node_ids, table[:, 2]) * dofs_per_node + table[:, 3] - 1
+    size = len(node_ids) * dofs_per_node
+    matrix = _symmetrize(path, rows, columns, values, line_numbers, size)
+    return matrix, node_ids.astype(np.int64), int(dofs_per_node)
+
+
+def _matrix_line(
+    path: Path, number: int, line: str, dofs_per_node: int | None
+) -> tuple[int, int, int, int, float]:
+    item = f"line {number} of '{path}'"
+    fields = line.replace(",", " ").split()
+    if len(fields) == 3:
+        raise InvalidParameterError(
+            f"{path}, line {number}: 3 fields (row, column, value) is Abaqus' FORMAT=COORDINATE, "
+            "which numbers equations, not nodes; write the matrix with *MATRIX OUTPUT, "
+            f"FORMAT=MATRIX INPUT (node, dof, node, dof, value): {line!r}",
+            item=item,
+        )
+    if len(fields) != 5:
+        raise InvalidParameterError(
+            f"{path}, line {number}: expected 5 fields (row node, row dof, column node, column "
+            f"dof, value), got {len(fields)}: {line!r}",
+            item=item,
+        )
+    integers = []
+    for token, what in zip(
+        fields[:4], ("row node", "row dof", "column node", "column dof"), strict=True
+    ):
+        try:
+            value = int(token)
+        except ValueError:
+            try:
+                real = float(token)
+            except ValueError:
+                real = math.nan
+            if not real.is_integer():
+                raise InvalidParameterError(
+                    f"{path}, line {number}: {what} {token!r} is not an integer: {line!r}",
+                    item=item,
+                ) from None
+            value = int(real)
+        if value < 1:
+            detail = " (negative labels are Abaqus internal nodes)" if "node" in what else ""
+            raise InvalidParameterError(
+                f"{path}, line {number}: {what} {value} must be positive{detail}: {line!r}",
+                item=item,
+            )
+        integers.append(value)
+    if dofs_per_node is not None and max(integers[1], integers[3]) > dofs_per_node:
+        raise InvalidParameterError(
+            f"{path}, line {number}: dof {max(integers[1], integers[3])} > dofs_per_node "
+            f"{dofs_per_node}: {line!r}",
+            item=item,
+        )
+    try:
+        entry = float(fields[4].replace("D", "E").replace("d", "e"))
+    except ValueError:
+        entry = math.nan
+    if not math.isfinite(entry):
+        raise InvalidParameterError(
+            f"{path}, line {number}: value {fields[4]!r} is not a finite number: {line!r}",
+            item=item,
+        )
+    return integers[0], integers[1], integers[2], integers[3], entry
+
+
+def _symmetrize(
+    path: Path,
+    rows: NDArray[np.int64],
+    columns: NDArray[np.int64],
+    values: NDArray[np.float64],
+    line_numbers: NDArray[np.int64],
+    size: int,
+) -> sp.csc_matrix:
+    """Full symmetric matrix from entries given in one or both triangles (rule in
+    :func:`read_abaqus_matrix`)."""
+    keys = rows * size + columns
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    twice = np.flatnonzero(sorted_keys[1:] == sorted_keys[:-1])
+    if len(twice):
+        first, second = line_numbers[order[twice[0]]], line_numbers[order[twice[0] + 1]]
+        raise InvalidParameterError(
+            f"{path}, line {second}: entry ({rows[order[twice[0]]]}, "
+            f"{columns[order[twice[0]]]}) given again (first on line {first})",
+            item=f"line {second} of '{path}'",
+        )
+    mirror_keys = columns * size + rows
+    position = np.searchsorted(sorted_keys, mirror_keys)
+    position = np.minimum(position, len(sorted_keys) - 1)
+    has_mirror = sorted_keys[position] == mirror_keys
+    partner = order[position]
+    off_diagonal = rows != columns
+
+    paired = np.flatnonzero(has_mirror & off_diagonal)
+    scale = float(np.abs(values).max())
+    mismatch = np.abs(values[paired] - values[partner[paired]]) > SYMMETRY_TOLERANCE * scale
+    if mismatch.any():
+        k = paired[np.flatnonzero(mismatch)[0]]
+        raise InvalidParameterError(
+            f"{path}, line {line_numbers[k]}: entry ({rows[k]}, {columns[k]}) = {values[k]!r} "
+            f"but its mirror on line {line_numbers[partner[k]]} is {values[partner[k]]!r}",
+            item=f"line {line_numbers[k]} of '{path}'",
+        )
+    values = values.copy()
+    values[paired] = 0.5 * (values[paired] + values[partner[paired]])
+
+    lonely = np.flatnonzero(~has_mirror & off_diagonal)
+    all_rows = np.concatenate([rows, columns[lonely]])
+    all_columns = np.concatenate([columns, rows[lonely]])
+    all_values = np.concatenate([values, values[lonely]])
+    matrix = sp.coo_matrix((all_values, (all_rows, all_columns)), shape=(size, size))
+    return sp.csc_matrix(matrix)
+
+
+def matrices_from_arrays(stiffness: Any, mass: Any) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """Check a stiffness and a mass matrix given directly (NumPy arrays or SciPy sparse
+    matrices) and return them as new float64 csc matrices (values unchanged).
+
+    Each must be real, 2-D, square, finite and symmetric within :data:`SYMMETRY_TOLERANCE`
+    times its largest entry, and both must have the same shape (n_dofs, n_dofs).
+
+    Raises:
+        InvalidParameterError: naming the matrix ("stiffness matrix", "mass matrix") and, for
+            asymmetry or a non-finite value, the entry.
+    """
+    stiffness = _checked_matrix(stiffness, "stiffness matrix")
+    mass = _checked_matrix(mass, "mass matrix")
+    if stiffness.shape != mass.shape:
+        raise InvalidParameterError(
+            f"stiffness matrix has shape {stiffness.shape} but mass matrix has shape {mass.shape}",
+            item="mass matrix",
+        )
+    return stiffness, mass
+
+
+def _checked_matrix(matrix: Any, what: str) -> sp.csc_matrix:
+    if sp.issparse(matrix):
+        dtype = matrix.dtype
+    else:
+        try:
+            matrix = np.asarray(matrix)
+        except (ValueError, TypeError) as error:
+            raise InvalidParameterError(f"{what} is not a matrix: {error}", item=what) from None
+        dtype = matrix.dtype
+    if dtype.kind not in "biuf":
+        raise InvalidParameterError(f"{what} must be real, got dtype {dtype}", item=what)
+    if matrix.ndim != 2 or matrix.shape[0] != matrix.shape[1] or matrix.shape[0] == 0:
+        raise InvalidParameterError(
+            f"{what} must be square and not empty, got shape {matrix.shape}", item=what
+        )
+    result = sp.csc_matrix(matrix, dtype=np.float64, copy=True)
+    result.sum_duplicates()
+    if not np.isfinite(result.data).all():
+        row, column = _entry_where(result, ~np.isfinite(result.data))
+        raise InvalidParameterError(
+            f"{what} has a non-finite entry at ({row}, {column})", item=what
+        )
+    scale = float(np.abs(result.data).max()) if result.nnz else 0.0
+    difference = (result - result.T).tocsc()
+    difference.eliminate_zeros()
+    if difference.nnz:
+        worst = np.abs(difference.data)
+        if worst.max() > SYMMETRY_TOLERANCE * scale:
+            row, column = _entry_where(difference, worst == worst.max())
+            raise InvalidParameterError(
+                f"{what} is not symmetric: |A[{row}, {column}] - A[{column}, {row}]| = "
+                f"{worst.max():.3g} > {SYMMETRY_TOLERANCE:g} x max|A| = {scale:.3g}",
+                item=what,
+            )
+    return result
+
+
+def _entry_where(matrix: sp.csc_matrix, mask: NDArray[np.bool_]) -> tuple[int, int]:
+    """(row, column) of the first stored entry of a csc matrix selected by ``mask``."""
+    k = int(np.flatnonzero(mask)[0])
+    column = int(np.searchsorted(matrix.indptr, k, side="right") - 1)
+    return int(matrix.indices[k]), column
+
+
+__all__ = [
+    "Mesh",
+    "matrices_from_arrays",
+    "read_abaqus_matrix",
+    "read_mesh",
+    "validate_mesh",
+]

@@ -1,0 +1,270 @@
+"""HDF5 body files: exact round trips, the file layout, version and format checks."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import h5py
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from flexmbd.errors import InvalidModelError, InvalidParameterError
+from flexmbd.fe.body import BODY_DATA_VERSION, FlexibleBodyData
+from flexmbd.fe.body_file import BODY_FILE_FORMAT, load_body, save_body
+
+
+def spd_sparse(n: int, seed: int, fmt: str = "csc") -> sp.spmatrix:
+    """A sparse symmetric positive definite matrix (n x n)."""
+    a = sp.random(n, n, density=0.3, random_state=seed)
+    return (a @ a.T + n * sp.identity(n)).asformat(fmt)
+
+
+def make_body(modal: bool = True) -> FlexibleBodyData:
+    """Two tetrahedra clamped at three nodes; with ``modal`` three modes and dense invariants
+    (some of them sparse), else nodal coordinates and None for the modal fields."""
+    rng = np.random.default_rng(3)
+    nodes = np.array(
+        [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]]
+    )
+    free_dofs = np.arange(9, 15, dtype=np.int64)
+    n_free = len(free_dofs)
+    n_f = 3 if modal else n_free
+    # Dense and sparse blocks mixed: each must come back as it was.
+    i_kl = [
+        [
+            rng.normal(size=(n_f, n_f)) if (row + column) % 2 else spd_sparse(n_f, 3 * row + column)
+            for column in range(3)
+        ]
+        for row in range(3)
+    ]
+    return FlexibleBodyData(
+        nodes=nodes,
+        node_ids=np.array([101, 102, 103, 104, 105], dtype=np.int64),
+        elements={"tet4": np.array([[0, 1, 2, 3], [1, 2, 3, 4]], dtype=np.int64)},
+        element_ids={"tet4": np.array([11, 12], dtype=np.int64)},
+        # Not in alphabetical order: the order must survive.
+        node_sets={
+            "tip": np.array([4], dtype=np.int64),
+            "clamp": np.array([0, 1, 2], dtype=np.int64),
+            "a/b %2F": np.array([3], dtype=np.int64),
+            ".": np.array([], dtype=np.int64),
+        },
+        material={"young_modulus": 2.1e11, "poisson_ratio": 0.3, "density": 7850.0},
+        section=None,
+        dofs_per_node=3,
+        stiffness=spd_sparse(15, 1),
+        mass=spd_sparse(15, 2),
+        mass_kind="consistent",
+        reference={"kind": "clamped", "nodes": np.array([0, 1, 2]), "free_dofs": free_dofs},
+        modes=rng.normal(size=(n_free, n_f)) if modal else None,
+        frequencies=np.array([12.5, 40.25, 77.0]) if modal else None,
+        mode_kind="free-free" if modal else None,
+        invariants={
+            "mass": 1.2345678901234567,
+            "first_moment": rng.normal(size=3),
+            "second_moment": rng.normal(size=(3, 3)),
+            "i1": rng.normal(size=(3, n_f)),
+            "i_kl": i_kl,
+            "ibar": rng.normal(size=(3, 3, n_f)),
+        },
+        units={"length": "mm", "mass": "t", "time": "s"},
+        metadata={"source": "two_tets.inp", "created": "2024-05-01T12:00:00", "note": "héllo"},
+    )
+
+
+def assert_identical(a, b, where: str = "body") -> None:
+    """Exact equality: same types, dtypes, shapes, bit-identical values, same key order."""
+    assert type(a) is type(b), f"{where}: {type(a)} != {type(b)}"
+    if isinstance(a, FlexibleBodyData):
+        for name in a.__dataclass_fields__:
+            assert_identical(getattr(a, name), getattr(b, name), f"{where}.{name}")
+    elif sp.issparse(a):
+        assert a.format == b.format and a.shape == b.shape and a.dtype == b.dtype, where
+        assert (a != b).nnz == 0, where
+        if a.format in ("csc", "csr"):
+            for name in ("data", "indices", "indptr"):
+                assert_identical(getattr(a, name), getattr(b, name), f"{where}.{name}")
+    elif isinstance(a, np.ndarray):
+        assert a.dtype == b.dtype and a.shape == b.shape, where
+        assert np.array_equal(a, b) and a.tobytes() == b.tobytes(), where
+    elif isinstance(a, dict):
+        assert list(a) == list(b), f"{where}: keys {list(a)} != {list(b)}"
+        for key in a:
+            assert_identical(a[key], b[key], f"{where}[{key!r}]")
+    elif isinstance(a, list | tuple):
+        assert len(a) == len(b), where
+        for index, (x, y) in enumerate(zip(a, b, strict=True)):
+            assert_identical(x, y, f"{where}[{index}]")
+    elif isinstance(a, float):
+        assert a == b or (math.isnan(a) and math.isnan(b)), where
+    else:
+        assert a == b, f"{where}: {a!r} != {b!r}"
+
+
+@pytest.mark.parametrize("modal", [True, False], ids=["modal", "nodal"])
+def test_round_trip_is_exact(tmp_path, modal):
+    body = make_body(modal)
+    original = copy.deepcopy(body)
+    path = tmp_path / "body.h5"
+    save_body(body, path)
+    loaded = load_body(path)
+    assert_identical(original, loaded)
+    assert_identical(body, original)  # saving does not touch the data
+    assert loaded.version == BODY_DATA_VERSION
+    assert loaded.elastic_coordinate_count == (3 if modal else 6)
+    i_kl = loaded.invariants["i_kl"]
+    assert sp.issparse(i_kl[0][0]) and isinstance(i_kl[0][1], np.ndarray)
+    assert not list(tmp_path.glob(".*tmp"))  # the temporary file is gone
+
+
+def test_file_layout(tmp_path):
+    path = tmp_path / "body.h5"
+    save_body(make_body(modal=False), path)
+    with h5py.File(path, "r") as file:
+        assert file.attrs["format"] == BODY_FILE_FORMAT
+        assert file.attrs["version"] == BODY_DATA_VERSION
+        assert file.attrs["units"] == '{"length": "mm", "mass": "t", "time": "s"}'
+        assert file["nodes"].dtype == np.float64 and file["nodes"].shape == (5, 3)
+        assert file["node_ids"].dtype == np.int64
+        assert file["elements/tet4"].dtype == np.int64
+        stiffness = file["stiffness"]
+        assert stiffness.attrs["type"] == "sparse" and stiffness.attrs["format"] == "csc"
+        assert sorted(stiffness) == ["data", "indices", "indptr", "shape"]
+        assert list(stiffness["shape"][...]) == [15, 15]
+        for name in ("section", "modes", "frequencies", "mode_kind"):
+            assert file[name].attrs["type"] == "none" and file[name].shape is None
+        assert list(file["node_sets"]) == ["tip", "clamp", "a%2Fb %252F", "%2E"]
+        assert file["invariants/i_kl"].attrs["type"] == "list"
+        assert file["invariants/i_kl/0/0"].attrs["type"] == "sparse"
+        assert file["invariants/i_kl/0/1"].attrs["type"] == "ndarray"
+
+
+def test_sparse_formats_and_scalars_round_trip(tmp_path):
+    body = make_body()
+    dense = np.arange(12.0).reshape(3, 4)
+    body.invariants = {
+        "csr": sp.csr_matrix(dense),
+        "coo": sp.coo_matrix(dense),
+        "csc_array": sp.csc_array(dense),
+        "lil": sp.lil_matrix(dense),
+        "int64 indices": sp.csc_matrix(
+            (np.ones(2), np.array([0, 1], dtype=np.int64), np.array([0, 1, 2], dtype=np.int64)),
+            shape=(2, 2),
+        ),
+        "float32": np.ones((2, 2), dtype=np.float32),
+        "bool": np.array([True, False]),
+        "empty": np.zeros((0, 3)),
+        "big endian": np.arange(3, dtype=">f8"),
+        "numpy scalar": np.float32(1.5),
+        "numpy int": np.int64(-4),
+        "0-d array": np.array(2.5),
+        "nan": float("nan"),
+        "int": 7,
+        "flag": True,
+        "tuple": (1, "two", None),
+        "nested": {"deeper": {"x": -0.0}},
+    }
+    body.invariants["int64 indices"].indices = np.array([0, 1], dtype=np.int64)
+    body.invariants["int64 indices"].indptr = np.array([0, 1, 2], dtype=np.int64)
+    path = tmp_path / "body.h5"
+    save_body(body, path)
+    loaded = load_body(path)
+    assert_identical(body.invariants, loaded.invariants)
+    assert loaded.invariants["int64 indices"].indices.dtype == np.int64
+    assert math.copysign(1.0, loaded.invariants["nested"]["deeper"]["x"]) == -1.0
+
+
+@pytest.mark.parametrize("compression", ["gzip", "lzf"])
+def test_large_arrays_are_compressed(tmp_path, compression):
+    body = make_body()
+    n_free, n_modes = 60_000, 8
+    # Smooth mode shapes compress well.
+    body.modes = np.sin(np.outer(np.linspace(0.0, 10.0, n_free), np.arange(1, n_modes + 1)))
+    body.reference["free_dofs"] = np.arange(n_free, dtype=np.int64)
+    path = tmp_path / "big.h5"
+    save_body(body, path, compression=compression)
+    with h5py.File(path, "r") as file:
+        assert file["modes"].compression == compression
+        assert file["reference/free_dofs"].compression == compression
+        assert file["nodes"].compression is None  # small arrays stay contiguous
+    assert path.stat().st_size < 0.8 * (body.modes.nbytes + n_free * 8)
+    assert_identical(body, load_body(path))
+
+
+def test_newer_version_is_refused(tmp_path):
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    with h5py.File(path, "r+") as file:
+        file.attrs["version"] = np.int64(BODY_DATA_VERSION + 1)
+    message = f"written by a newer flexmbd: version {BODY_DATA_VERSION + 1} > {BODY_DATA_VERSION}"
+    with pytest.raises(InvalidModelError, match=message) as info:
+        load_body(path)
+    assert info.value.item == f"file '{path}'"
+
+
+def test_not_a_body_file(tmp_path):
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as file:
+        file.create_dataset("x", data=np.zeros(3))
+    with pytest.raises(InvalidModelError, match="is not a flexmbd body file") as info:
+        load_body(other)
+    assert str(other) in str(info.value)
+
+    with h5py.File(other, "a") as file:
+        file.attrs["format"] = "something-else"
+    with pytest.raises(InvalidModelError, match="format 'something-else'"):
+        load_body(other)
+
+    text = tmp_path / "notes.h5"
+    text.write_text("not HDF5\n")
+    with pytest.raises(InvalidModelError, match="not an HDF5 file"):
+        load_body(text)
+
+    with pytest.raises(FileNotFoundError):
+        load_body(tmp_path / "missing.h5")
+
+
+def test_damaged_file_names_the_field(tmp_path):
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    with h5py.File(path, "r+") as file:
+        del file["mass"]
+    with pytest.raises(InvalidModelError, match="no field 'mass'"):
+        load_body(path)
+
+
+def test_overwrite_existing_file(tmp_path):
+    path = tmp_path / "body.h5"
+    save_body(make_body(modal=True), path)
+    save_body(make_body(modal=False), path)
+    assert load_body(path).modes is None
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (lambda b: b.metadata.update({3: "x"}), "dictionary keys must be strings"),
+        (lambda b: b.metadata.update({"": "x"}), "empty dictionary key"),
+        (lambda b: b.invariants.update({"obj": np.array([{}])}), "invariants/obj.*dtype object"),
+        (lambda b: b.invariants.update({"set": {1, 2}}), "invariants/set.*type set"),
+        (lambda b: setattr(b, "version", BODY_DATA_VERSION + 1), "layout version"),
+        (lambda b: setattr(b, "units", {"length": 1}), "units must be a dict of str"),
+    ],
+)
+def test_values_that_cannot_be_stored(tmp_path, change, match):
+    body = make_body()
+    change(body)
+    path = tmp_path / "body.h5"
+    with pytest.raises(InvalidParameterError, match=match):
+        save_body(body, path)
+    assert not path.exists()
+    assert not list(tmp_path.iterdir())  # no temporary file left behind
+
+
+def test_bad_arguments(tmp_path):
+    with pytest.raises(InvalidParameterError, match="expects a FlexibleBodyData"):
+        save_body({"nodes": []}, tmp_path / "x.h5")
+    with pytest.raises(InvalidParameterError, match="compression"):
+        save_body(make_body(), tmp_path / "x.h5", compression="zstd")
