@@ -316,3 +316,23 @@ def body_mass_points(
     lumped: bool = False,
     shear: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[Any, Any, Any, tuple[int, int]]]: ...
+
+class SymmetricFactor:
+    def __init__(
+        self,
+        n: int,
+        indptr: NDArray[np.int64],
+        indices: NDArray[np.int64],
+        data: NDArray[np.float64],
+        *,
+        dof_nodes: NDArray[np.int64] | None = None,
+        positions: NDArray[np.float64] | None = None,
+        positive: int | None = None,
+        threads: int = 1,
+        name: str = "matrix",
+    ) -> None: ...
+    @property
+    def dim(self) -> int: ...
+    @property
+    def factor_nnz(self) -> int: ...
+    def solve(self, b: NDArray[np.float64], refine: int = 0) -> NDArray[np.float64]: ...

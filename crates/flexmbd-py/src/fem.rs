@@ -3,7 +3,9 @@
 
 use flexmbd_core::fem::{self, Element, ElementType, Ikl, Mesh};
 use flexmbd_core::math::Vec3;
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{
+    IntoPyArray, PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
@@ -346,4 +348,117 @@ pub fn body_mass_points<'py>(
             .into_any(),
         ],
     )
+}
+
+/// Sparse symmetric factorization (Rust, faer): Cholesky of a positive definite matrix, or
+/// regularized LDL^T of a quasi-definite saddle-point matrix whose first `positive` unknowns
+/// form the definite block. The matrix is given as CSC arrays (only the lower triangle is
+/// read). With `dof_nodes` (node index of each unknown, -1 for none) and `positions` (node
+/// coordinates) the ordering is a geometric nested dissection of the mesh, else approximate
+/// minimum degree. `threads` > 1 factorizes in parallel.
+#[pyclass(module = "flexmbd._core", frozen)]
+pub struct SymmetricFactor {
+    inner: fem::SymmetricFactor,
+}
+
+#[pymethods]
+impl SymmetricFactor {
+    #[new]
+    #[pyo3(signature = (n, indptr, indices, data, *, dof_nodes = None, positions = None, positive = None, threads = 1, name = "matrix".to_string()))]
+    #[allow(clippy::too_many_arguments)]
+    fn new<'py>(
+        py: Python<'py>,
+        n: usize,
+        indptr: PyReadonlyArray1<'py, i64>,
+        indices: PyReadonlyArray1<'py, i64>,
+        data: PyReadonlyArray1<'py, f64>,
+        dof_nodes: Option<PyReadonlyArray1<'py, i64>>,
+        positions: Option<PyReadonlyArray2<'py, f64>>,
+        positive: Option<usize>,
+        threads: usize,
+        name: String,
+    ) -> PyResult<Self> {
+        let to_usize = |v: &[i64], what: &str| -> PyResult<Vec<usize>> {
+            v.iter()
+                .map(|&x| usize::try_from(x).map_err(|_| invalid(&name, format!("negative {what} {x}"))))
+                .collect()
+        };
+        let col_ptr = to_usize(indptr.as_slice()?, "column pointer")?;
+        let row_idx = to_usize(indices.as_slice()?, "row index")?;
+        let values = data.as_slice()?.to_vec();
+        let nodes: Option<Vec<usize>> = dof_nodes
+            .map(|d| d.as_array().iter().map(|&k| usize::try_from(k).unwrap_or(usize::MAX)).collect());
+        let coordinates: Option<Vec<Vec3>> =
+            positions.map(|p| p.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect());
+        let kind = match positive {
+            Some(p) => fem::FactorKind::QuasiDefinite { positive: p },
+            None => fem::FactorKind::Cholesky,
+        };
+        let result = py.detach(|| {
+            let ordering = match (&nodes, &coordinates) {
+                (Some(d), Some(x)) => fem::Ordering::NestedDissection { dof_nodes: d, positions: x },
+                _ => fem::Ordering::Amd,
+            };
+            let matrix = fem::CscRef { n, col_ptr: &col_ptr, row_idx: &row_idx, values: &values };
+            fem::SymmetricFactor::new(&name, matrix, ordering, kind, threads.max(1))
+        });
+        Ok(SymmetricFactor { inner: check(result)? })
+    }
+
+    /// Order of the matrix.
+    #[getter]
+    fn dim(&self) -> usize {
+        self.inner.dim()
+    }
+
+    /// Number of stored entries of the factor (memory: 8 bytes each).
+    #[getter]
+    fn factor_nnz(&self) -> usize {
+        self.inner.factor_len()
+    }
+
+    /// Solves A x = b for b of shape (n,) or (n, k); with `refine` > 0, iterative refinement
+    /// steps against the unregularized matrix.
+    #[pyo3(signature = (b, refine = 0))]
+    fn solve<'py>(
+        &self,
+        py: Python<'py>,
+        b: PyReadonlyArrayDyn<'py, f64>,
+        refine: usize,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let b = b.as_array();
+        let n = self.inner.dim();
+        let shape = b.shape().to_vec();
+        if shape.is_empty() || shape[0] != n || shape.len() > 2 {
+            return Err(invalid(
+                "right-hand side",
+                format!("expected shape ({n},) or ({n}, k), got {shape:?}"),
+            ));
+        }
+        let k = if shape.len() == 2 { shape[1] } else { 1 };
+        // Column-major copy.
+        let mut x = vec![0.0; n * k];
+        for (idx, v) in b.indexed_iter() {
+            let (r, c) = if shape.len() == 2 { (idx[0], idx[1]) } else { (idx[0], 0) };
+            x[c * n + r] = *v;
+        }
+        let result = py.detach(|| {
+            if refine > 0 {
+                self.inner.solve_refined(&mut x, refine)
+            } else {
+                self.inner.solve_in_place(&mut x)
+            }
+        });
+        check(result)?;
+        let out = if shape.len() == 2 {
+            numpy::ndarray::Array2::from_shape_fn((n, k), |(r, c)| x[c * n + r]).into_dyn()
+        } else {
+            numpy::ndarray::Array1::from_vec(x).into_dyn()
+        };
+        Ok(out.into_pyarray(py))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("SymmetricFactor(dim={}, factor_nnz={})", self.inner.dim(), self.inner.factor_len())
+    }
 }

@@ -6,18 +6,25 @@ the connectivity, seed eq. 9), invariants of motion (seed eqs. 16-17), reference
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
-from ..errors import InvalidModelError, InvalidParameterError
+from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import FlexibleBodyData
+from .mesh_io import Mesh, read_mesh, validate_mesh
+from .modal import (
+    craig_bampton,
+    fixed_interface_modes,
+    free_free_modes,
+    modal_invariants,
+)
 
 Material = _core.Material
 Section = _core.Section
@@ -217,144 +224,7 @@ def reference_dofs(
         removed = {d * a, d * a + 1, d * a + 2, d * b + 1, d * b + 2, d * c + 2}
     else:
         raise InvalidParameterError(f"unknown reference conditions {kind!r}")
-    return np.array([k for k in all_dofs if k not in removed], dtype=np.int64)
-
-
-def rigid_modes(nodes: NDArray[np.float64], dofs_per_node: int) -> NDArray[np.float64]:
-    """The six rigid-body motions in nodal coordinates (n_dofs, 6): translations, then
-    infinitesimal rotations u = w x X (rotations also set the rotational coordinates)."""
-    d = dofs_per_node
-    n = len(nodes)
-    r = np.zeros((n * d, 6))
-    for k in range(3):
-        r[k::d, k] = 1.0
-        w = np.zeros(3)
-        w[k] = 1.0
-        u = np.cross(w, nodes)
-        for c in range(3):
-            r[c::d, 3 + k] = u[:, c]
-        if d == 6:
-            r[3 + k :: d, 3 + k] = 1.0
-    return r
-
-
-# Modal reduction ------------------------------------------------------------------------------
-
-
-def _eigen(k: sp.spmatrix, m: sp.spmatrix, count: int, shift: float) -> tuple[NDArray, NDArray]:
-    """The `count` eigenpairs of K x = w^2 M x nearest to the shift (shift-invert Lanczos),
-    mass-normalized and sorted."""
-    n = k.shape[0]
-    if count >= n - 1:
-        values, vectors = np.linalg.eigh(k.toarray(), m.toarray()) if n < 4000 else (None, None)
-        if values is None:
-            raise InvalidParameterError(f"{count} modes requested of a {n}-coordinate body")
-        values, vectors = values[:count], vectors[:, :count]
-    else:
-        values, vectors = spla.eigsh(k.tocsc(), k=count, M=m.tocsc(), sigma=shift, which="LM")
-    order = np.argsort(values)
-    values, vectors = values[order], vectors[:, order]
-    norms = np.sqrt(np.einsum("ij,ij->j", vectors, m @ vectors))
-    return values, vectors / norms
-
-
-def _frequencies(values: NDArray) -> NDArray:
-    return np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi)
-
-
-def fixed_interface_modes(
-    stiffness: sp.spmatrix, mass: sp.spmatrix, free_dofs: NDArray[np.int64], count: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The first `count` eigenmodes with the removed dofs held (modes over `free_dofs`,
-    mass-normalized) and their frequencies (Hz)."""
-    kf = stiffness[free_dofs][:, free_dofs]
-    mf = mass[free_dofs][:, free_dofs]
-    # A small negative shift keeps K - sigma M definite even for a body that is still free.
-    scale = abs(kf.diagonal()).max() / max(abs(mf.diagonal()).max(), 1e-300)
-    values, vectors = _eigen(kf, mf, count, -1e-6 * scale)
-    return vectors, _frequencies(values)
-
-
-def free_free_modes(
-    stiffness: sp.spmatrix, mass: sp.spmatrix, count: int, rigid: int = 6
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The first `count` elastic free-free modes (the `rigid` rigid-body modes removed) and
-    their frequencies (Hz). Being mass-orthogonal to the rigid motions, they satisfy the mean
-    axis (Tisserand) conditions. Raises if the body is not free (fewer than `rigid` near-zero
-    frequencies)."""
-    n = stiffness.shape[0]
-    scale = abs(stiffness.diagonal()).max() / max(abs(mass.diagonal()).max(), 1e-300)
-    values, vectors = _eigen(stiffness, mass, count + rigid, -1e-6 * scale)
-    elastic = values[rigid:]
-    if rigid and values[rigid - 1] > 1e-6 * max(elastic[0], 1e-300):
-        raise InvalidModelError(
-            f"the body is not free: its {rigid} lowest eigenvalues should vanish, "
-            f"got {values[:rigid]} (n = {n})"
-        )
-    return vectors[:, rigid:], _frequencies(elastic)
-
-
-def craig_bampton(
-    stiffness: sp.spmatrix,
-    mass: sp.spmatrix,
-    interface_dofs: ArrayLike,
-    count: int,
-    *,
-    nodes: NDArray[np.float64] | None = None,
-    dofs_per_node: int = 3,
-    remove_rigid: bool = True,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Craig-Bampton basis: `count` fixed-interface normal modes and one static constraint
-    mode per interface dof (-K_ii^-1 K_ib), over all nodal dofs. With `remove_rigid` (needs
-    `nodes`) the rigid-body motions are removed by mass-orthogonalization, so that the basis
-    defines a mean-axis frame; the basis is then orthonormalized with respect to M and
-    diagonalized (reduced eigenproblem). Returns the modes and their frequencies (Hz)."""
-    n = stiffness.shape[0]
-    boundary = np.unique(np.asarray(interface_dofs, dtype=np.int64))
-    if boundary.size == 0 or boundary.min() < 0 or boundary.max() >= n:
-        raise InvalidModelError("Craig-Bampton needs interface coordinates within the body")
-    interior = np.setdiff1d(np.arange(n), boundary)
-    k = stiffness.tocsc()
-    kii = k[interior][:, interior].tocsc()
-    kib = k[interior][:, boundary].toarray()
-    solve = spla.factorized(kii)
-    psi = np.zeros((n, boundary.size))
-    psi[boundary, np.arange(boundary.size)] = 1.0
-    psi[interior, :] = -np.column_stack([solve(kib[:, j]) for j in range(boundary.size)])
-    phi_i, _ = fixed_interface_modes(stiffness, mass, interior, count)
-    phi = np.zeros((n, count))
-    phi[interior] = phi_i
-    basis = np.hstack([phi, psi])
-    if remove_rigid:
-        if nodes is None:
-            raise InvalidParameterError("removing the rigid motions needs the node positions")
-        r = rigid_modes(nodes, dofs_per_node)
-        mr = mass @ r
-        basis = basis - r @ np.linalg.solve(r.T @ mr, mr.T @ basis)
-    # M-orthonormalize (dropping the directions the rigid projection made dependent) and
-    # diagonalize the reduced problem.
-    mb = basis.T @ (mass @ basis)
-    w, v = np.linalg.eigh(0.5 * (mb + mb.T))
-    keep = w > 1e-10 * w.max()
-    basis = basis @ (v[:, keep] / np.sqrt(w[keep]))
-    kr = basis.T @ (k @ basis)
-    values, vectors = np.linalg.eigh(0.5 * (kr + kr.T))
-    return basis @ vectors, _frequencies(values)
-
-
-def modal_invariants(nodal: dict[str, Any], modes: NDArray[np.float64]) -> dict[str, Any]:
-    """Invariants in modal coordinates (seed eq. 18): I1 B, B^T I_kl B, Ibar_kl B; the mass and
-    the moments of the undeformed body are unchanged."""
-    b = modes
-    out = {
-        "mass": nodal["mass"],
-        "first_moment": nodal["first_moment"],
-        "second_moment": nodal["second_moment"],
-        "i1": nodal["i1"] @ b,
-        "ibar": np.einsum("kln,nm->klm", nodal["ibar"], b),
-        "i_kl": [[np.asarray(b.T @ (nodal["i_kl"][k][j] @ b)) for j in range(3)] for k in range(3)],
-    }
-    return out
+    return np.setdiff1d(all_dofs, np.fromiter(removed, dtype=np.int64))
 
 
 def restrict_invariants(nodal: dict[str, Any], free_dofs: NDArray[np.int64]) -> dict[str, Any]:
@@ -373,6 +243,20 @@ def restrict_invariants(nodal: dict[str, Any], free_dofs: NDArray[np.int64]) -> 
     }
 
 
+def _node_indices(
+    selection: str | ArrayLike, node_sets: Mapping[str, ArrayLike], what: str
+) -> NDArray[np.int64]:
+    """Node indices of a selection given as a node set name or as indices."""
+    if isinstance(selection, str):
+        if selection not in node_sets:
+            raise UnknownItemError(
+                f"{what}: unknown node set {selection!r} (known: {sorted(node_sets)})",
+                item=f"node set '{selection}'",
+            )
+        return np.asarray(node_sets[selection], dtype=np.int64)
+    return np.asarray(selection, dtype=np.int64).ravel()
+
+
 def build_body(
     nodes: ArrayLike,
     elements: Mapping[str, ArrayLike],
@@ -383,25 +267,58 @@ def build_body(
     mass: str = "consistent",
     beam_theory: str = "euler-bernoulli",
     reference: str = "none",
-    reference_nodes: Sequence[int] = (),
+    reference_nodes: str | Sequence[int] = (),
     modes: str | None = None,
     mode_count: int = 0,
-    interface_nodes: Sequence[int] = (),
+    interfaces: Sequence[str | Sequence[int]] = (),
+    interface_kind: str = "rbe2",
     external_modes: ArrayLike | None = None,
     node_ids: ArrayLike | None = None,
     element_ids: Mapping[str, ArrayLike] | None = None,
     node_sets: Mapping[str, ArrayLike] | None = None,
+    check_mesh: bool = True,
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
-    - `reference`: "none", "clamped", "3-2-1" or "mean-axis" (see `reference_dofs`).
+    - `nodes` (n, 3) in the body frame, `elements` type -> connectivity (0-based indices), see
+      `assemble`; `node_ids`, `element_ids` (ids of the source mesh, for messages) and
+      `node_sets` (name -> indices) are optional. With `check_mesh` the mesh is first checked
+      by `mesh_io.validate_mesh` (duplicate and unconnected nodes, bad indices, ...).
+    - `reference` (the body frame, `docs/preprocessor.md`): "none", "clamped" or "3-2-1" at
+      `reference_nodes` (indices or a node set name), "mean-axis" (with free-free or
+      Craig-Bampton modes), or "interface" (Craig-Bampton only: the frame follows the first
+      interface).
     - `modes`: None (nodal elastic coordinates), "fixed-interface" (eigenmodes with the
       reference conditions), "free-free" (elastic free-free modes; mean-axis frame),
-      "craig-bampton" (with `interface_nodes`; rigid motions removed: mean-axis frame) or
-      "external" (`external_modes` over the kept coordinates, e.g. from experimental modal
-      analysis or another FE code). `mode_count` modes are kept.
+      "craig-bampton" (`interfaces`: node sets given by name or indices, `interface_kind`
+      "rbe2", "rbe3" or "nodal", see `modal.craig_bampton`) or "external" (`external_modes`
+      over the kept coordinates, e.g. from experimental modal analysis or another FE code).
+      `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes).
     """
     nodes = np.asarray(nodes, dtype=float)
+    sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    elements = {k: np.asarray(v, dtype=np.int64) for k, v in elements.items()}
+    ids = (
+        np.arange(1, len(nodes) + 1, dtype=np.int64)
+        if node_ids is None
+        else np.asarray(node_ids, dtype=np.int64)
+    )
+    eids: dict[str, NDArray[np.int64]] = {}
+    first = 1
+    for kind, conn in elements.items():
+        given = None if element_ids is None else element_ids.get(kind)
+        eids[kind] = (
+            np.arange(first, first + len(conn), dtype=np.int64)
+            if given is None
+            else np.asarray(given, dtype=np.int64)
+        )
+        first += len(conn)
+    if check_mesh:
+        validate_mesh(
+            Mesh(nodes=nodes, node_ids=ids, elements=elements, element_ids=eids, node_sets=sets)
+        )
+    if mode_count < 0:
+        raise InvalidParameterError(f"mode_count must be >= 0, got {mode_count}")
     nodal = assemble(
         nodes,
         elements,
@@ -410,37 +327,64 @@ def build_body(
         orientation=orientation,
         mass=mass,
         beam_theory=beam_theory,
-        node_ids=node_ids,
-        element_ids=element_ids,
+        node_ids=ids,
+        element_ids=eids,
     )
     d = nodal.dofs_per_node
-    if modes in ("free-free", "craig-bampton") and reference not in ("none", "mean-axis"):
-        raise InvalidModelError(
-            f"{modes} modes define a mean-axis frame; use reference='mean-axis'"
-        )
-    if reference == "mean-axis" and modes not in ("free-free", "craig-bampton"):
+    mean_axis_modes = ("free-free", "craig-bampton")
+    if reference == "mean-axis" and modes not in mean_axis_modes:
         raise InvalidModelError(
             "mean-axis reference conditions need free-free or Craig-Bampton modes"
         )
-    free = reference_dofs(reference, len(nodes), d, reference_nodes)
+    if modes == "free-free" and reference not in ("none", "mean-axis"):
+        raise InvalidModelError(
+            "free-free modes define a mean-axis frame; use reference='mean-axis'"
+        )
+    if modes == "craig-bampton" and reference not in ("mean-axis", "interface"):
+        raise InvalidModelError(
+            "Craig-Bampton modes need reference='mean-axis' or reference='interface'"
+        )
+    if reference == "interface" and modes != "craig-bampton":
+        raise InvalidModelError("reference='interface' is for Craig-Bampton modes")
+    members = [_node_indices(s, sets, f"interface {i}") for i, s in enumerate(interfaces)]
+    ref_nodes = _node_indices(reference_nodes, sets, "reference nodes")
+    if reference == "interface":
+        ref_nodes = members[0] if members else ref_nodes
+        kind = "clamped" if interface_kind in ("rbe2", "nodal") else "none"
+        free = reference_dofs(kind, len(nodes), d, ref_nodes)
+    else:
+        free = reference_dofs(
+            "none" if reference == "mean-axis" else reference, len(nodes), d, ref_nodes
+        )
     basis = None
-    frequencies = None
+    freqs = None
     if modes is None:
         invariants = restrict_invariants(nodal.invariants, free)
         k_ff = nodal.stiffness[free][:, free].tocsc()
         m_ff = nodal.mass[free][:, free].tocsc()
     else:
+        if mode_count < 1 and modes != "craig-bampton" and modes != "external":
+            raise InvalidParameterError(f"{modes} modes need mode_count >= 1")
         if modes == "fixed-interface":
-            basis, frequencies = fixed_interface_modes(
-                nodal.stiffness, nodal.mass, free, mode_count
+            basis, freqs = fixed_interface_modes(
+                nodal.stiffness, nodal.mass, free, mode_count, nodes=nodes, dofs_per_node=d
             )
         elif modes == "free-free":
-            basis, frequencies = free_free_modes(nodal.stiffness, nodal.mass, mode_count)
-        elif modes == "craig-bampton":
-            dofs = [d * n + c for n in interface_nodes for c in range(d)]
-            basis, frequencies = craig_bampton(
-                nodal.stiffness, nodal.mass, dofs, mode_count, nodes=nodes, dofs_per_node=d
+            basis, freqs = free_free_modes(
+                nodal.stiffness, nodal.mass, mode_count, nodes=nodes, dofs_per_node=d
             )
+        elif modes == "craig-bampton":
+            full, freqs = craig_bampton(
+                nodal.stiffness,
+                nodal.mass,
+                members,
+                mode_count,
+                nodes=nodes,
+                dofs_per_node=d,
+                kind=interface_kind,
+                reference="interface" if reference == "interface" else "mean-axis",
+            )
+            basis = full[free]
         elif modes == "external":
             if external_modes is None:
                 raise InvalidParameterError("external modes need the `external_modes` matrix")
@@ -450,23 +394,30 @@ def build_body(
                     f"external modes must be ({len(free)}, m) over the kept coordinates, "
                     f"got {basis.shape}"
                 )
+            if not np.all(np.isfinite(basis)):
+                raise InvalidParameterError("external modes contain non-finite values")
         else:
             raise InvalidParameterError(f"unknown modes {modes!r}")
         full = np.zeros((len(nodes) * d, basis.shape[1]))
         full[free] = basis
-        invariants = modal_invariants(nodal.invariants, full)
+        invariants = modal_invariants(nodal.invariants, full, nodal.scalar_mass)
         k_ff = basis.T @ (nodal.stiffness[free][:, free] @ basis)
         m_ff = basis.T @ (nodal.mass[free][:, free] @ basis)
     invariants["k_ff"] = k_ff
     invariants["m_ff"] = m_ff
-    sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    reference_data: dict[str, Any] = {
+        "kind": reference,
+        "nodes": np.asarray(ref_nodes, dtype=np.int64),
+        "free_dofs": free,
+    }
+    if modes == "craig-bampton":
+        reference_data["interfaces"] = members
+        reference_data["interface_kind"] = interface_kind
     return FlexibleBodyData(
         nodes=nodes,
-        node_ids=np.arange(1, len(nodes) + 1)
-        if node_ids is None
-        else np.asarray(node_ids, dtype=np.int64),
-        elements={k: np.asarray(v, dtype=np.int64) for k, v in elements.items()},
-        element_ids={k: np.asarray(v, dtype=np.int64) for k, v in (element_ids or {}).items()},
+        node_ids=ids,
+        elements=elements,
+        element_ids=eids,
         node_sets=sets,
         material={
             "young_modulus": material.young_modulus,
@@ -480,18 +431,40 @@ def build_body(
             "iy": section.iy,
             "iz": section.iz,
             "torsion_constant": section.torsion_constant,
+            "shear_factor": section.shear_factor,
+            "beam_theory": beam_theory,
         },
         dofs_per_node=d,
         stiffness=nodal.stiffness,
         mass=nodal.mass,
         mass_kind=mass,
-        reference={
-            "kind": reference,
-            "nodes": np.asarray(reference_nodes, dtype=np.int64),
-            "free_dofs": free,
-        },
+        reference=reference_data,
         modes=basis,
-        frequencies=frequencies,
+        frequencies=freqs,
         mode_kind=modes,
         invariants=invariants,
     )
+
+
+def body_from_mesh(
+    mesh: Mesh | str | os.PathLike[str], material: Material, **options: Any
+) -> FlexibleBodyData:
+    """`build_body` for a `Mesh` or a mesh file (Gmsh .msh, Abaqus .inp, VTK; see
+    `mesh_io.read_mesh`). Node sets of the mesh can be named in `reference_nodes` and
+    `interfaces`; the source file is recorded in the body's metadata."""
+    source = None
+    if not isinstance(mesh, Mesh):
+        source = str(mesh)
+        mesh = read_mesh(mesh)
+    body = build_body(
+        mesh.nodes,
+        mesh.elements,
+        material,
+        node_ids=mesh.node_ids,
+        element_ids=mesh.element_ids,
+        node_sets=mesh.node_sets,
+        **options,
+    )
+    if source is not None:
+        body.metadata["source"] = source
+    return body

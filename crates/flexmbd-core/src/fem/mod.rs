@@ -6,6 +6,7 @@
 pub mod assembly;
 pub mod beam;
 pub mod element;
+pub mod factor;
 pub mod material;
 pub mod quadrature;
 pub mod section;
@@ -14,6 +15,7 @@ pub mod solid;
 pub use assembly::{AssembledBody, Csc, Element, ElementType, Ikl, Mesh, NodalInvariants};
 pub use beam::Beam;
 pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
+pub use factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
 pub use material::Material;
 pub use section::Section;
 pub use solid::{Hex8, Tet10, Tet4};

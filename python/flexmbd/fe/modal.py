@@ -1,0 +1,561 @@
+"""Modal reduction of deformable bodies (seed section 3, eq. 18): free-free modes, fixed-interface
+modes, Craig-Bampton bases with nodal, rigid (RBE2-like) or averaged (RBE3-like) interfaces, and
+the invariants of motion in modal coordinates.
+
+Large eigenproblems K x = w^2 M x are solved by shift-invert Lanczos (ARPACK through
+``scipy.sparse.linalg.eigsh``) whose inverse operator is a sparse Cholesky factorization in Rust
+(`flexmbd._core.SymmetricFactor`, nested dissection of the mesh). Every basis returned is
+mass-normalized; Craig-Bampton bases are orthonormalized and diagonalized (their reduced
+eigenproblem is solved), so that the modal mass matrix is the identity and the modal stiffness
+matrix is diagonal.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike, NDArray
+
+from .. import _core
+from ..errors import InvalidModelError, InvalidParameterError
+
+#: Below this many coordinates eigenproblems are solved densely.
+DENSE_LIMIT = 300
+
+#: Interface kinds of Craig-Bampton bases.
+INTERFACE_KINDS = ("nodal", "rbe2", "rbe3")
+
+
+# Factorizations ---------------------------------------------------------------------------------
+
+
+def factorize(
+    matrix: sp.spmatrix,
+    *,
+    dofs: NDArray[np.int64] | None = None,
+    nodes: NDArray[np.float64] | None = None,
+    dofs_per_node: int = 3,
+    positive: int | None = None,
+    name: str = "matrix",
+) -> Any:
+    """Sparse symmetric factorization of `matrix` (Cholesky, or quasi-definite LDL^T when
+    `positive` gives the size of the definite block). With `nodes`, the unknowns are the nodal
+    coordinates `dofs` (all when None) of a body with `dofs_per_node`, and the ordering is a
+    nested dissection of the mesh; unknowns beyond len(dofs) (multipliers) are ordered last."""
+    a = sp.csc_matrix(matrix)
+    n = a.shape[0]
+    kwargs: dict[str, Any] = {}
+    if nodes is not None:
+        dofs = np.arange(len(nodes) * dofs_per_node) if dofs is None else np.asarray(dofs)
+        dof_nodes = np.full(n, -1, dtype=np.int64)
+        dof_nodes[: len(dofs)] = dofs // dofs_per_node
+        kwargs = {"dof_nodes": dof_nodes, "positions": np.ascontiguousarray(nodes, dtype=float)}
+    lower = sp.tril(a, format="csc")
+    lower.sort_indices()
+    return _core.SymmetricFactor(
+        n,
+        lower.indptr.astype(np.int64),
+        lower.indices.astype(np.int64),
+        np.ascontiguousarray(lower.data, dtype=float),
+        positive=positive,
+        threads=os.cpu_count() or 1,
+        name=name,
+        **kwargs,
+    )
+
+
+def _operator(n: int, solve: Any) -> spla.LinearOperator:
+    return spla.LinearOperator((n, n), matvec=solve, matmat=solve, dtype=float)
+
+
+# Eigenproblems ----------------------------------------------------------------------------------
+
+
+def _mass_normalize(vectors: NDArray, m: Any) -> NDArray:
+    norms = np.sqrt(np.einsum("ij,ij->j", vectors, m @ vectors))
+    return vectors / norms
+
+
+def eigenpairs(
+    k: sp.spmatrix,
+    m: sp.spmatrix,
+    count: int,
+    *,
+    shift: float = 0.0,
+    solve: Any = None,
+    dense_projection: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The `count` eigenpairs of K x = lambda M x nearest to `shift` from above, sorted and
+    mass-normalized. `solve(y)` applies (K - shift M)^-1 (a factorization); small problems are
+    solved densely (within the columns of `dense_projection` when given: a basis of the
+    admissible motions)."""
+    n = k.shape[0]
+    if count < 1:
+        raise InvalidParameterError(f"at least one mode is needed, got {count}")
+    if dense_projection is not None or n <= DENSE_LIMIT:
+        z = np.eye(n) if dense_projection is None else dense_projection
+        kz = z.T @ (k @ z)
+        mz = z.T @ (m @ z)
+        if count > kz.shape[0]:
+            raise InvalidParameterError(f"{count} modes requested of {kz.shape[0]} coordinates")
+        values, vectors = sla.eigh(
+            0.5 * (kz + kz.T), 0.5 * (mz + mz.T), subset_by_index=[0, count - 1]
+        )
+        return values, _mass_normalize(z @ vectors, m)
+    if count >= n - 1:
+        raise InvalidParameterError(f"{count} modes requested of a {n}-coordinate body")
+    if solve is None:
+        raise InvalidParameterError("a large eigenproblem needs the factorization of K - shift M")
+    values, vectors = spla.eigsh(
+        k, k=count, M=m, sigma=shift, which="LM", OPinv=_operator(n, solve)
+    )
+    order = np.argsort(values)
+    return values[order], _mass_normalize(vectors[:, order], m)
+
+
+def frequencies(values: NDArray) -> NDArray:
+    """Natural frequencies (Hz) of the eigenvalues w^2 (negative round-off clipped to 0)."""
+    return np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi)
+
+
+def _scale(k: sp.spmatrix, m: sp.spmatrix) -> float:
+    """A typical eigenvalue magnitude max(diag K) / max(diag M)."""
+    return float(abs(k.diagonal()).max() / max(abs(m.diagonal()).max(), 1e-300))
+
+
+def _check_fixed(values: NDArray, scale: float, what: str) -> None:
+    if values[0] < 1e-10 * scale:
+        raise InvalidModelError(
+            f"{what} leave the body free to move rigidly (lowest eigenvalue {values[0]:.3e}); "
+            "fix more coordinates or use free-free modes"
+        )
+
+
+def fixed_interface_modes(
+    stiffness: sp.spmatrix,
+    mass: sp.spmatrix,
+    free_dofs: NDArray[np.int64],
+    count: int,
+    *,
+    nodes: NDArray[np.float64] | None = None,
+    dofs_per_node: int = 3,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The first `count` eigenmodes with the coordinates not in `free_dofs` held (modes over
+    `free_dofs`, mass-normalized) and their frequencies (Hz). `nodes` enables the nested
+    dissection ordering of the factorization."""
+    free_dofs = np.asarray(free_dofs, dtype=np.int64)
+    kf = stiffness[free_dofs][:, free_dofs].tocsc()
+    mf = mass[free_dofs][:, free_dofs].tocsc()
+    solve = None
+    if kf.shape[0] > DENSE_LIMIT:
+        try:
+            factor = factorize(
+                kf,
+                dofs=free_dofs,
+                nodes=nodes,
+                dofs_per_node=dofs_per_node,
+                name="stiffness with the reference conditions",
+            )
+        except InvalidModelError as error:
+            raise InvalidModelError(
+                f"the reference conditions leave the body free to move rigidly ({error})",
+                item="reference conditions",
+            ) from error
+        solve = factor.solve
+    values, vectors = eigenpairs(kf, mf, count, solve=solve)
+    _check_fixed(values, _scale(kf, mf), "the reference conditions")
+    return vectors, frequencies(values)
+
+
+def free_free_modes(
+    stiffness: sp.spmatrix,
+    mass: sp.spmatrix,
+    count: int,
+    rigid: int = 6,
+    *,
+    nodes: NDArray[np.float64] | None = None,
+    dofs_per_node: int = 3,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The first `count` elastic free-free modes (the `rigid` rigid-body modes removed) and
+    their frequencies (Hz). Being mass-orthogonal to the rigid motions, they satisfy the mean
+    axis (Tisserand) conditions. Raises if the body is not free (fewer than `rigid` near-zero
+    frequencies). The shift of the shift-invert iteration is slightly negative, so that
+    K - shift M is positive definite although K is singular."""
+    n = stiffness.shape[0]
+    scale = _scale(stiffness, mass)
+    shift = -1e-6 * scale
+    solve = None
+    if n > DENSE_LIMIT:
+        factor = factorize(
+            stiffness - shift * mass,
+            nodes=nodes,
+            dofs_per_node=dofs_per_node,
+            name="shifted stiffness K - sigma M",
+        )
+        solve = factor.solve
+    values, vectors = eigenpairs(stiffness, mass, count + rigid, shift=shift, solve=solve)
+    elastic = values[rigid:]
+    if rigid and values[rigid - 1] > 1e-6 * max(elastic[0], 1e-300):
+        raise InvalidModelError(
+            f"the body is not free: its {rigid} lowest eigenvalues should vanish, "
+            f"got {values[:rigid]} (n = {n})"
+        )
+    return vectors[:, rigid:], frequencies(elastic)
+
+
+# Rigid motions and interfaces --------------------------------------------------------------------
+
+
+def rigid_modes(nodes: NDArray[np.float64], dofs_per_node: int) -> NDArray[np.float64]:
+    """The six rigid-body motions in nodal coordinates (n_dofs, 6): translations, then
+    infinitesimal rotations u = w x X (rotations also set the rotational coordinates)."""
+    nodes = np.asarray(nodes, dtype=float)
+    d = dofs_per_node
+    n = len(nodes)
+    r = np.zeros((n * d, 6))
+    for k in range(3):
+        r[k::d, k] = 1.0
+        w = np.zeros(3)
+        w[k] = 1.0
+        u = np.cross(w, nodes)
+        for c in range(3):
+            r[c::d, 3 + k] = u[:, c]
+        if d == 6:
+            r[3 + k :: d, 3 + k] = 1.0
+    return r
+
+
+def _interface_frame(
+    nodes: NDArray[np.float64], members: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centroid of an interface and the arms d_p = x_p - centroid of its nodes."""
+    x = nodes[members]
+    center = x.mean(axis=0)
+    return center, x - center
+
+
+def rigid_interface_map(
+    nodes: NDArray[np.float64], members: NDArray[np.int64], dofs_per_node: int
+) -> NDArray[np.float64]:
+    """The motion of the interface nodes (len(members) * dofs_per_node, 6) when they move as a
+    rigid body with the translation and small rotation of their centroid (RBE2): u_p = u_c +
+    theta x d_p, and theta_p = theta for nodes with rotational coordinates."""
+    _, arms = _interface_frame(nodes, members)
+    d = dofs_per_node
+    t = np.zeros((len(members) * d, 6))
+    for c in range(3):
+        t[c::d, c] = 1.0
+    for k in range(3):
+        w = np.zeros(3)
+        w[k] = 1.0
+        u = np.cross(w, arms)
+        for c in range(3):
+            t[c::d, 3 + k] = u[:, c]
+        if d == 6:
+            t[3 + k :: d, 3 + k] = 1.0
+    return t
+
+
+def averaged_interface_rows(
+    nodes: NDArray[np.float64],
+    members: NDArray[np.int64],
+    dofs_per_node: int,
+    dof_count: int,
+    name: str,
+) -> sp.csr_matrix:
+    """The six rows G (6, dof_count) of an averaged (RBE3) interface: G u = (translation, small
+    rotation) of the rigid motion that best fits the displacements of its nodes in the least
+    squares sense, with equal weights: u_c = mean(u_p), theta = J^-1 sum d_p x u_p with
+    J = sum (|d_p|^2 I - d_p d_p^T). The nodes need not be coplanar but must not be collinear."""
+    _, arms = _interface_frame(nodes, members)
+    count = len(members)
+    j = np.einsum("pi,pi->", arms, arms) * np.eye(3) - arms.T @ arms
+    size = np.sqrt(np.trace(j) / max(count, 1))
+    if count < 3 or np.linalg.eigvalsh(j)[0] < 1e-9 * max(size**2, 1e-300) * count:
+        raise InvalidModelError(
+            f"averaged interface {name} needs at least three non-collinear nodes (got {count})",
+            item=f"interface {name}",
+        )
+    j_inv = np.linalg.inv(j)
+    d = dofs_per_node
+    rows, cols, vals = [], [], []
+    for c in range(3):
+        rows.append(np.full(count, c))
+        cols.append(members * d + c)
+        vals.append(np.full(count, 1.0 / count))
+    # theta_i = sum_p (J^-1)_ij (d_p x u_p)_j = sum_p (J^-1 [d_p x])_ic u_pc
+    for p_index, arm in enumerate(arms):
+        cross = np.array([[0.0, -arm[2], arm[1]], [arm[2], 0.0, -arm[0]], [-arm[1], arm[0], 0.0]])
+        block = j_inv @ cross
+        for i in range(3):
+            rows.append(np.full(3, 3 + i))
+            cols.append(members[p_index] * d + np.arange(3))
+            vals.append(block[i])
+    return sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(6, dof_count),
+    )
+
+
+def _support_dofs(rigid: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Six coordinates whose values fix a rigid motion (R restricted to them is invertible and
+    well conditioned): a statically determinate support chosen by pivoted QR."""
+    _, _, pivots = sla.qr(rigid.T, mode="economic", pivoting=True)
+    return np.sort(pivots[:6])
+
+
+# Craig-Bampton ---------------------------------------------------------------------------------
+
+
+def _interface_members(interfaces: Sequence[ArrayLike], node_count: int) -> list[NDArray]:
+    members = [np.unique(np.asarray(s, dtype=np.int64)) for s in interfaces]
+    if not members or any(m.size == 0 for m in members):
+        raise InvalidModelError("Craig-Bampton needs at least one non-empty interface node set")
+    seen = np.full(node_count, -1)
+    for k, m in enumerate(members):
+        if m.min() < 0 or m.max() >= node_count:
+            bad = m.max() if m.max() >= node_count else m.min()
+            raise InvalidModelError(
+                f"interface {k} refers to node index {bad} of a body with {node_count} nodes",
+                item=f"interface {k}",
+            )
+        shared = m[seen[m] >= 0]
+        if shared.size:
+            raise InvalidModelError(
+                f"interfaces {seen[shared[0]]} and {k} share node index {shared[0]}",
+                item=f"interface {k}",
+            )
+        seen[m] = k
+    return members
+
+
+def _orthonormal_diagonal(
+    basis: NDArray[np.float64], k: sp.spmatrix, m: sp.spmatrix
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """M-orthonormalizes a basis (dropping dependent directions) and diagonalizes the reduced
+    stiffness: returns the modes and their eigenvalues."""
+    mb = basis.T @ (m @ basis)
+    w, v = np.linalg.eigh(0.5 * (mb + mb.T))
+    keep = w > 1e-10 * w.max()
+    basis = basis @ (v[:, keep] / np.sqrt(w[keep]))
+    kr = basis.T @ (k @ basis)
+    values, vectors = np.linalg.eigh(0.5 * (kr + kr.T))
+    return basis @ vectors, values
+
+
+def craig_bampton(
+    stiffness: sp.spmatrix,
+    mass: sp.spmatrix,
+    interfaces: Sequence[ArrayLike],
+    count: int,
+    *,
+    nodes: NDArray[np.float64],
+    dofs_per_node: int = 3,
+    kind: str = "rbe2",
+    reference: str = "mean-axis",
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Craig-Bampton basis over all nodal coordinates: `count` fixed-interface normal modes
+    and the static constraint modes of the interfaces (lists of node indices, disjoint).
+
+    `kind`:
+      - "nodal": one static mode per coordinate of every interface node (classic
+        Craig-Bampton);
+      - "rbe2": each interface moves rigidly with its centroid; six static modes per
+        interface (u_c, theta_c); the normal modes hold the interface nodes;
+      - "rbe3": six static modes per interface that prescribe its averaged motion (see
+        `averaged_interface_rows`) with least strain energy; the interface nodes deform
+        freely; the normal modes hold the averaged motions at zero.
+
+    `reference`:
+      - "mean-axis": the rigid motions are removed by mass-orthogonalization, so that the
+        body frame is a (linearized) mean-axis frame (Tisserand conditions);
+      - "interface": the static modes of the first interface are dropped, so that the body
+        frame follows the first interface (rigidly attached to its nodes for "nodal" and
+        "rbe2", to their averaged motion for "rbe3").
+
+    Returns the modes, M-orthonormalized with diagonal modal stiffness, and their
+    frequencies (Hz)."""
+    if kind not in INTERFACE_KINDS:
+        raise InvalidParameterError(
+            f"interface kind must be one of {INTERFACE_KINDS}, got {kind!r}"
+        )
+    if reference not in ("mean-axis", "interface"):
+        raise InvalidParameterError(
+            f"Craig-Bampton reference must be 'mean-axis' or 'interface', got {reference!r}"
+        )
+    nodes = np.asarray(nodes, dtype=float)
+    d = dofs_per_node
+    n = stiffness.shape[0]
+    members = _interface_members(interfaces, len(nodes))
+    k = sp.csc_matrix(stiffness)
+    m = sp.csc_matrix(mass)
+    if kind == "rbe3":
+        phi, psi = _craig_bampton_averaged(k, m, members, count, nodes, d, reference)
+    else:
+        phi, psi = _craig_bampton_fixed(k, m, members, count, nodes, d, kind, reference)
+    basis = np.hstack([phi, psi])
+    if reference == "mean-axis":
+        r = rigid_modes(nodes, d)
+        mr = m @ r
+        basis = basis - r @ np.linalg.solve(r.T @ mr, mr.T @ basis)
+    if basis.shape[1] == 0:
+        raise InvalidModelError("the Craig-Bampton basis is empty: ask for modes")
+    modes, values = _orthonormal_diagonal(basis, k, m)
+    if n != modes.shape[0]:  # pragma: no cover - internal consistency
+        raise AssertionError("basis of the wrong size")
+    return modes, frequencies(values)
+
+
+def _craig_bampton_fixed(
+    k: sp.csc_matrix,
+    m: sp.csc_matrix,
+    members: list[NDArray],
+    count: int,
+    nodes: NDArray[np.float64],
+    d: int,
+    kind: str,
+    reference: str,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Nodal and rigid (RBE2) interfaces: the interface nodes are the boundary coordinates."""
+    n = k.shape[0]
+    boundary_nodes = np.concatenate(members)
+    boundary = (boundary_nodes[:, None] * d + np.arange(d)).ravel()
+    interior = np.setdiff1d(np.arange(n), boundary)
+    # Columns of the prescribed boundary motions T (n_b, modes), per interface.
+    blocks = []
+    for index, nodes_of in enumerate(members):
+        if reference == "interface" and index == 0:
+            continue
+        t = (
+            np.eye(len(nodes_of) * d)
+            if kind == "nodal"
+            else rigid_interface_map(nodes, nodes_of, d)
+        )
+        block = np.zeros((len(boundary), t.shape[1]))
+        start = sum(len(members[j]) for j in range(index)) * d
+        block[start : start + t.shape[0]] = t
+        blocks.append(block)
+    t_all = np.hstack(blocks) if blocks else np.zeros((len(boundary), 0))
+    kii = k[interior][:, interior].tocsc()
+    mii = m[interior][:, interior].tocsc()
+    factor = None
+    if len(interior) > DENSE_LIMIT or t_all.shape[1]:
+        factor = factorize(
+            kii,
+            dofs=interior,
+            nodes=nodes,
+            dofs_per_node=d,
+            name="interior stiffness K_ii (interfaces held)",
+        )
+    psi = np.zeros((n, t_all.shape[1]))
+    if t_all.shape[1]:
+        psi[boundary] = t_all
+        psi[interior] = -factor.solve(np.asarray(k[interior][:, boundary] @ t_all))
+    phi = np.zeros((n, count))
+    if count:
+        solve = None if factor is None else factor.solve
+        values, vectors = eigenpairs(kii, mii, count, solve=solve)
+        _check_fixed(values, _scale(kii, mii), "the interfaces")
+        phi[interior] = vectors
+    return phi, psi
+
+
+def _craig_bampton_averaged(
+    k: sp.csc_matrix,
+    m: sp.csc_matrix,
+    members: list[NDArray],
+    count: int,
+    nodes: NDArray[np.float64],
+    d: int,
+    reference: str,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Averaged (RBE3) interfaces: constraints G u = g with six rows per interface.
+
+    Problems min 1/2 u.K u - f.u subject to G u = g are solved exactly although K is
+    singular: with R the rigid motions and S six coordinates that fix a rigid motion, u =
+    R a + w with w_S = 0, K_rr w_r = f_r - G_r^T lambda, and a small dense system for
+    (lambda, a) from G u = g and R^T (f - G^T lambda) = 0."""
+    if d != 3:
+        raise InvalidModelError("averaged (RBE3) interfaces are for solid meshes; use rbe2")
+    n = k.shape[0]
+    g = sp.vstack(
+        [averaged_interface_rows(nodes, s, d, n, str(i)) for i, s in enumerate(members)]
+    ).tocsr()
+    r = rigid_modes(nodes, d)
+    support = _support_dofs(r)
+    rest = np.setdiff1d(np.arange(n), support)
+    krr = k[rest][:, rest].tocsc()
+    factor = factorize(
+        krr, dofs=rest, nodes=nodes, dofs_per_node=d, name="stiffness with a 3-2-1 support"
+    )
+    g_r = g[:, rest]
+    z = factor.solve(np.asarray(g_r.T.todense()))  # K_rr^-1 G_r^T
+    c = np.asarray(g_r @ z)
+    gr = np.asarray(g @ r)
+    q = g.shape[0]
+    small = np.block([[-c, gr], [gr.T, np.zeros((6, 6))]])
+    small_lu = sla.lu_factor(small)
+
+    def constrained_solve(f: NDArray, rhs_g: NDArray) -> NDArray:
+        """u minimizing 1/2 u.K u - f.u subject to G u = rhs_g (columns)."""
+        w_f = factor.solve(f[rest])
+        top = rhs_g - g_r @ w_f
+        bottom = r.T @ f
+        sol = sla.lu_solve(small_lu, np.vstack([top, bottom]))
+        lam, a = sol[:q], sol[q:]
+        u = r @ a
+        u[rest] += w_f - z @ lam
+        return u
+
+    first = 6 if reference == "interface" else 0
+    prescribed = np.eye(q)[:, first:]
+    psi = constrained_solve(np.zeros((n, prescribed.shape[1])), prescribed)
+    phi = np.zeros((n, 0))
+    if count:
+
+        def solve(y: NDArray) -> NDArray:
+            y2 = y.reshape(n, -1)
+            return constrained_solve(y2, np.zeros((q, y2.shape[1]))).reshape(y.shape)
+
+        dense = None
+        if n <= DENSE_LIMIT:
+            dense = sla.null_space(g.toarray())
+        values, phi = eigenpairs(k, m, count, solve=solve, dense_projection=dense)
+        _check_fixed(values, _scale(k, m), "the averaged interfaces")
+    return phi, psi
+
+
+# Modal invariants --------------------------------------------------------------------------------
+
+
+def modal_invariants(
+    nodal: dict[str, Any],
+    modes: NDArray[np.float64],
+    scalar_mass: sp.spmatrix | None = None,
+) -> dict[str, Any]:
+    """Invariants in modal coordinates (seed eq. 18): I1 B, B^T I_kl B, Ibar_kl B; the mass
+    and the moments of the undeformed body are unchanged. For solids, `scalar_mass` (M_s with
+    I_kl = M_s (x) e_k e_l^T) gives B^T I_kl B = B_k^T M_s B_l from three products."""
+    b = modes
+    if scalar_mass is not None:
+        parts = [b[c::3] for c in range(3)]
+        ms_parts = [scalar_mass @ p for p in parts]
+        i_kl = [[np.asarray(parts[kk].T @ ms_parts[ll]) for ll in range(3)] for kk in range(3)]
+    else:
+        i_kl = [
+            [np.asarray(b.T @ (nodal["i_kl"][kk][ll] @ b)) for ll in range(3)] for kk in range(3)
+        ]
+    return {
+        "mass": nodal["mass"],
+        "first_moment": nodal["first_moment"],
+        "second_moment": nodal["second_moment"],
+        "i1": nodal["i1"] @ b,
+        "ibar": np.einsum("kln,nm->klm", nodal["ibar"], b),
+        "i_kl": i_kl,
+    }

@@ -1,0 +1,237 @@
+"""Meshes of simple solids, for tests, examples and benchmarks, and meshes from Gmsh's Python API.
+
+The structured generators need nothing beyond NumPy; :func:`gmsh_mesh` and :func:`cylinder`
+need the ``gmsh`` package (``pip install gmsh``, part of the ``mesh`` extra). Every element is
+positively oriented and in the node order of the element kernels (Gmsh's, see
+:mod:`flexmbd.fe.mesh_io`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import InvalidParameterError
+from .mesh_io import Mesh
+
+#: Corners of a hexahedron cell (i, j, k) of a structured grid, in hex8 node order.
+_HEX_CORNERS = [
+    (0, 0, 0),
+    (1, 0, 0),
+    (1, 1, 0),
+    (0, 1, 0),
+    (0, 0, 1),
+    (1, 0, 1),
+    (1, 1, 1),
+    (0, 1, 1),
+]
+#: The six tetrahedra around the diagonal 0-6 of a hexahedron (Kuhn's subdivision). Every
+#: cell of a structured grid is split the same way, so the faces of neighbours match.
+_KUHN = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
+#: Vertices joined by the mid-edge nodes 4..9 of a tet10 (Gmsh order).
+TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
+
+
+def _signed_volumes(nodes: NDArray[np.float64], tets: NDArray[np.int64]) -> NDArray[np.float64]:
+    x0 = nodes[tets[:, 0]]
+    a, b, c = (nodes[tets[:, k]] - x0 for k in (1, 2, 3))
+    return np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
+
+
+def _orient(nodes: NDArray[np.float64], tets: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Swaps vertices 1 and 2 of the negatively oriented tetrahedra."""
+    tets = tets.copy()
+    flip = _signed_volumes(nodes, tets) < 0
+    tets[flip, 1], tets[flip, 2] = tets[flip, 2], tets[flip, 1].copy()
+    return tets
+
+
+def quadratic_tetrahedra(
+    nodes: NDArray[np.float64], tets: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Tet10 elements from tet4 elements: one node at the midpoint of every edge, shared by
+    the elements around it. Returns the extended nodes and the tet10 connectivity."""
+    pairs = np.concatenate([np.sort(tets[:, [p, q]], axis=1) for p, q in TET10_EDGES])
+    edges, inverse = np.unique(pairs, axis=0, return_inverse=True)
+    mid = 0.5 * (nodes[edges[:, 0]] + nodes[edges[:, 1]])
+    edge_nodes = len(nodes) + inverse.reshape(len(TET10_EDGES), len(tets)).T
+    return np.vstack([nodes, mid]), np.hstack([tets, edge_nodes]).astype(np.int64)
+
+
+def box(
+    lengths: ArrayLike,
+    divisions: Sequence[int],
+    element: str = "hex8",
+    *,
+    origin: ArrayLike = (0.0, 0.0, 0.0),
+) -> Mesh:
+    """A structured mesh of the box origin + [0, a] x [0, b] x [0, c].
+
+    `divisions` = (n_x, n_y, n_z) cells; `element` "hex8", "tet4" (six tetrahedra per cell)
+    or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all"."""
+    lengths = np.asarray(lengths, dtype=float)
+    nx, ny, nz = (int(n) for n in divisions)
+    if lengths.shape != (3,) or not np.all(lengths > 0) or min(nx, ny, nz) < 1:
+        raise InvalidParameterError(
+            f"a box needs three positive lengths and divisions, got {lengths}, {divisions}"
+        )
+    if element not in ("hex8", "tet4", "tet10"):
+        raise InvalidParameterError(f"box elements are hex8, tet4 or tet10, got {element!r}")
+    counts = (nx, ny, nz)
+    axes = [np.linspace(0.0, lengths[a], counts[a] + 1) for a in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    nodes = grid + np.asarray(origin, dtype=float)
+
+    def index(i, j, k):
+        return (i * (ny + 1) + j) * (nz + 1) + k
+
+    cells = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+    i, j, k = (a.ravel() for a in cells)
+    hexes = np.column_stack([index(i + a, j + b, k + c) for a, b, c in _HEX_CORNERS])
+    hexes = hexes.astype(np.int64)
+    if element == "hex8":
+        elements = {"hex8": hexes}
+    else:
+        tets = np.vstack([hexes[:, list(t)] for t in _KUHN])
+        tets = _orient(nodes, tets)
+        if element == "tet10":
+            nodes, tets = quadratic_tetrahedra(nodes, tets)
+            elements = {"tet10": tets}
+        else:
+            elements = {"tet4": tets}
+    return _with_face_sets(nodes, elements, np.asarray(origin, dtype=float), lengths)
+
+
+def _with_face_sets(
+    nodes: NDArray[np.float64],
+    elements: dict[str, NDArray[np.int64]],
+    origin: NDArray[np.float64],
+    lengths: NDArray[np.float64],
+) -> Mesh:
+    tolerance = 1e-9 * lengths.max()
+    sets = {}
+    for axis, name in enumerate("xyz"):
+        sets[f"{name}0"] = np.flatnonzero(np.abs(nodes[:, axis] - origin[axis]) < tolerance)
+        far = origin[axis] + lengths[axis]
+        sets[f"{name}1"] = np.flatnonzero(np.abs(nodes[:, axis] - far) < tolerance)
+    sets["all"] = np.arange(len(nodes))
+    element_ids = {}
+    first = 1
+    for kind, conn in elements.items():
+        element_ids[kind] = np.arange(first, first + len(conn), dtype=np.int64)
+        first += len(conn)
+    return Mesh(
+        nodes=nodes,
+        node_ids=np.arange(1, len(nodes) + 1, dtype=np.int64),
+        elements=elements,
+        element_ids=element_ids,
+        node_sets={name: indices.astype(np.int64) for name, indices in sets.items()},
+    )
+
+
+def gmsh_mesh(
+    build: Callable[[Any], None],
+    *,
+    size: float,
+    order: int = 1,
+    element: str = "tet",
+) -> Mesh:
+    """Meshes a geometry with Gmsh's Python API (``pip install gmsh``).
+
+    `build(gmsh)` creates the geometry in the current model (e.g. with ``gmsh.model.occ``) and
+    may add named physical groups, which become node sets; `size` is the target element size;
+    `order` 1 gives tet4, 2 gives tet10 (mid-edge nodes on the curved geometry). `element` "tet"
+    meshes volumes with tetrahedra (the only choice for now)."""
+    try:
+        import gmsh
+    except ImportError as error:  # pragma: no cover - depends on the installation
+        raise InvalidParameterError(
+            "meshing a geometry needs the gmsh package: pip install gmsh"
+        ) from error
+    if element != "tet" or order not in (1, 2) or not size > 0:
+        raise InvalidParameterError(
+            f"gmsh meshes need element 'tet', order 1 or 2 and size > 0, got {element!r}, "
+            f"{order}, {size}"
+        )
+    initialized_here = not gmsh.isInitialized()
+    if initialized_here:
+        gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("flexmbd")
+        build(gmsh)
+        if gmsh.model.occ.getEntities():
+            gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.model.mesh.generate(3)
+        if order == 2:
+            gmsh.model.mesh.setOrder(2)
+        return _mesh_from_gmsh(gmsh, order)
+    finally:
+        gmsh.model.remove()
+        if initialized_here:
+            gmsh.finalize()
+
+
+def _mesh_from_gmsh(gmsh: Any, order: int) -> Mesh:
+    tags, coordinates, _ = gmsh.model.mesh.getNodes()
+    tags = np.asarray(tags, dtype=np.int64)
+    nodes = np.asarray(coordinates, dtype=float).reshape(-1, 3)
+    position = np.full(tags.max() + 1, -1, dtype=np.int64)
+    position[tags] = np.arange(len(tags))
+    gmsh_type = 4 if order == 1 else 11  # 4-node and 10-node tetrahedra
+    element_tags, node_tags = gmsh.model.mesh.getElementsByType(gmsh_type)
+    width = 4 if order == 1 else 10
+    conn = position[np.asarray(node_tags, dtype=np.int64).reshape(-1, width)]
+    # Keep only the nodes of the volume elements (Gmsh also returns those of geometry points).
+    used = np.unique(conn)
+    renumber = np.full(len(nodes), -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    kind = "tet4" if order == 1 else "tet10"
+    sets = {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, tag)
+        if not name:
+            continue
+        group_nodes, _ = gmsh.model.mesh.getNodesForPhysicalGroup(dim, tag)
+        indices = renumber[position[np.asarray(group_nodes, dtype=np.int64)]]
+        sets[name] = np.unique(indices[indices >= 0])
+    return Mesh(
+        nodes=nodes[used],
+        node_ids=tags[used],
+        elements={kind: renumber[conn]},
+        element_ids={kind: np.asarray(element_tags, dtype=np.int64)},
+        node_sets=sets,
+    )
+
+
+def cylinder(
+    radius: float,
+    length: float,
+    *,
+    size: float,
+    order: int = 2,
+    axis: ArrayLike = (1.0, 0.0, 0.0),
+) -> Mesh:
+    """A tetrahedral mesh of a solid circular cylinder from the origin along `axis` (Gmsh).
+    Node sets "base" (the end face at the origin), "end" (the other one) and "mantle"."""
+    if not (radius > 0 and length > 0):
+        raise InvalidParameterError(f"a cylinder needs radius, length > 0, got {radius}, {length}")
+    direction = np.asarray(axis, dtype=float)
+    direction = length * direction / np.linalg.norm(direction)
+
+    def build(gmsh: Any) -> None:
+        volume = gmsh.model.occ.addCylinder(0, 0, 0, *direction, radius)
+        gmsh.model.occ.synchronize()
+        gmsh.model.addPhysicalGroup(3, [volume], name="body")
+        for dim, tag in gmsh.model.getBoundary([(3, volume)], oriented=False):
+            center = np.asarray(gmsh.model.occ.getCenterOfMass(dim, tag))
+            s = center @ direction / length**2
+            name = "base" if abs(s) < 1e-9 else "end" if abs(s - 1) < 1e-9 else "mantle"
+            gmsh.model.addPhysicalGroup(dim, [tag], name=name)
+
+    return gmsh_mesh(build, size=size, order=order)

@@ -1,0 +1,316 @@
+"""Modal reduction (seed section 3, eq. 18): Craig-Bampton bases with nodal, rigid (RBE2) and
+averaged (RBE3) interfaces, their frames of reference, free-free and fixed-interface modes,
+external modes, bodies from mesh files, and body files of real bodies."""
+
+import meshio
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import flexmbd.fe.modal as md
+import flexmbd.fe.preprocess as pp
+from flexmbd._core import Material
+from flexmbd.errors import InvalidModelError, InvalidParameterError
+from flexmbd.fe import shapes
+from flexmbd.fe.body_file import load_body, save_body
+
+STEEL = Material(2.1e11, 0.3, 7800.0)
+
+
+@pytest.fixture(scope="module")
+def bar():
+    """A 1 x 0.1 x 0.1 m steel bar of tet4 (208 nodes, 624 coordinates: the sparse
+    eigensolver path)."""
+    return shapes.box((1.0, 0.1, 0.1), (12, 3, 3), "tet4")
+
+
+@pytest.fixture(scope="module")
+def exact_free_free(bar):
+    nodal = pp.assemble(bar.nodes, bar.elements, STEEL)
+    values = sla.eigh(nodal.stiffness.toarray(), nodal.mass.toarray(), eigvals_only=True)
+    return md.frequencies(values[6:30])
+
+
+@pytest.fixture(scope="module")
+def exact_clamped(bar):
+    nodal = pp.assemble(bar.nodes, bar.elements, STEEL)
+    free = pp.reference_dofs("clamped", len(bar.nodes), 3, bar.node_sets["x0"])
+    k = nodal.stiffness[free][:, free].toarray()
+    m = nodal.mass[free][:, free].toarray()
+    return md.frequencies(sla.eigh(k, m, eigvals_only=True)[:24])
+
+
+def cb_body(bar, kind, reference, count=12, interfaces=("x0", "x1")):
+    return pp.build_body(
+        bar.nodes,
+        bar.elements,
+        STEEL,
+        node_sets=bar.node_sets,
+        reference=reference,
+        modes="craig-bampton",
+        mode_count=count,
+        interfaces=list(interfaces),
+        interface_kind=kind,
+    )
+
+
+def full_modes(body):
+    full = np.zeros((body.dof_count, body.modes.shape[1]))
+    full[body.reference["free_dofs"]] = body.modes
+    return full
+
+
+@pytest.mark.parametrize("modes", ["free-free", "fixed-interface", "craig-bampton"])
+def test_modal_matrices_are_orthonormal_and_diagonal(bar, modes):
+    options = {
+        "free-free": dict(reference="mean-axis"),
+        "fixed-interface": dict(reference="clamped", reference_nodes="x0"),
+        "craig-bampton": dict(reference="mean-axis", interfaces=["x0", "x1"]),
+    }[modes]
+    body = pp.build_body(
+        bar.nodes,
+        bar.elements,
+        STEEL,
+        node_sets=bar.node_sets,
+        modes=modes,
+        mode_count=8,
+        **options,
+    )
+    m_ff, k_ff = body.invariants["m_ff"], body.invariants["k_ff"]
+    count = body.modes.shape[1]
+    np.testing.assert_allclose(m_ff, np.eye(count), atol=1e-10)
+    omega2 = (2 * np.pi * body.frequencies) ** 2
+    np.testing.assert_allclose(k_ff, np.diag(omega2), atol=1e-9 * omega2.max())
+
+
+def test_free_free_modes_are_the_exact_elastic_modes(bar, exact_free_free):
+    body = pp.build_body(
+        bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free", mode_count=10
+    )
+    np.testing.assert_allclose(body.frequencies, exact_free_free[:10], rtol=1e-9)
+    # Tisserand (mean-axis) conditions: mass-orthogonal to the rigid motions.
+    r = md.rigid_modes(bar.nodes, 3)
+    assert np.abs(r.T @ (body.mass @ full_modes(body))).max() < 1e-9
+
+
+def test_fixed_interface_modes_are_the_exact_clamped_modes(bar, exact_clamped):
+    body = pp.build_body(
+        bar.nodes,
+        bar.elements,
+        STEEL,
+        node_sets=bar.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+        modes="fixed-interface",
+        mode_count=10,
+    )
+    np.testing.assert_allclose(body.frequencies, exact_clamped[:10], rtol=1e-9)
+    assert np.all(full_modes(body)[3 * bar.node_sets["x0"]] == 0.0)
+
+
+def test_craig_bampton_with_one_rigid_interface_as_reference_is_the_clamped_body(
+    bar, exact_clamped
+):
+    body = cb_body(bar, "rbe2", "interface", count=10, interfaces=["x0"])
+    np.testing.assert_allclose(body.frequencies, exact_clamped[:10], rtol=1e-9)
+
+
+@pytest.mark.parametrize("kind", ["rbe2", "nodal"])
+def test_rigid_interfaces_move_rigidly_and_the_first_one_carries_the_frame(bar, kind):
+    body = cb_body(bar, kind, "interface", count=6)
+    full = full_modes(body)
+    x0, x1 = bar.node_sets["x0"], bar.node_sets["x1"]
+    dofs = (x1[:, None] * 3 + np.arange(3)).ravel()
+    # The body frame is attached to interface 0: every mode vanishes there.
+    assert np.all(full[(x0[:, None] * 3 + np.arange(3)).ravel()] == 0.0)
+    t = md.rigid_interface_map(bar.nodes, x1, 3)
+    fit, *_ = np.linalg.lstsq(t, full[dofs], rcond=None)
+    misfit = np.abs(t @ fit - full[dofs]).max() / np.abs(full[dofs]).max()
+    if kind == "rbe2":
+        # 6 static modes of interface 1 + 6 normal modes.
+        assert body.modes.shape[1] == 12
+        assert misfit < 1e-10
+    else:
+        assert body.modes.shape[1] == 6 + 3 * len(x1)
+        assert misfit > 1e-3
+
+
+def test_averaged_interfaces_keep_their_mean_motion_and_deform(bar):
+    body = cb_body(bar, "rbe3", "interface", count=6)
+    assert body.modes.shape[1] == 12
+    full = full_modes(body)
+    n = body.dof_count
+    g0 = md.averaged_interface_rows(bar.nodes, bar.node_sets["x0"], 3, n, "x0")
+    g1 = md.averaged_interface_rows(bar.nodes, bar.node_sets["x1"], 3, n, "x1")
+    scale = np.abs(full).max()
+    # The frame follows the averaged motion of interface 0.
+    assert np.abs(g0 @ full).max() < 1e-10 * scale
+    # The six averaged motions of interface 1 are spanned.
+    assert np.linalg.matrix_rank(g1 @ full, tol=1e-8 * scale) == 6
+    # The interface nodes are not rigidly tied: the modes deform the end face.
+    x0 = bar.node_sets["x0"]
+    dofs = (x0[:, None] * 3 + np.arange(3)).ravel()
+    t = md.rigid_interface_map(bar.nodes, x0, 3)
+    fit, *_ = np.linalg.lstsq(t, full[dofs], rcond=None)
+    assert np.abs(t @ fit - full[dofs]).max() > 1e-3 * np.abs(full[dofs]).max()
+
+
+def test_averaged_interface_rows_recover_a_rigid_motion(bar):
+    members = bar.node_sets["x1"]
+    n = 3 * len(bar.nodes)
+    g = md.averaged_interface_rows(bar.nodes, members, 3, n, "x1")
+    r = md.rigid_modes(bar.nodes, 3)
+    center = bar.nodes[members].mean(axis=0)
+    # Rigid motion (translation v, rotation w about the origin): mean translation at the
+    # interface centre is v + w x c, rotation w.
+    motion = np.array([0.1, -0.2, 0.3, 0.01, -0.02, 0.015])
+    expected = np.concatenate([motion[:3] + np.cross(motion[3:], center), motion[3:]])
+    np.testing.assert_allclose(g @ (r @ motion), expected, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("kind", ["rbe2", "rbe3", "nodal"])
+def test_mean_axis_craig_bampton_bounds_and_approaches_the_free_free_frequencies(
+    bar, kind, exact_free_free
+):
+    errors = []
+    for count in (4, 40):
+        body = cb_body(bar, kind, "mean-axis", count=count)
+        full = full_modes(body)
+        r = md.rigid_modes(bar.nodes, 3)
+        assert np.abs(r.T @ (body.mass @ full)).max() < 1e-9
+        f = body.frequencies[:6]
+        # Rayleigh-Ritz: upper bounds.
+        assert np.all(f >= exact_free_free[:6] * (1 - 1e-10))
+        errors.append(np.abs(f / exact_free_free[:6] - 1).max())
+    assert errors[1] < 0.1 * errors[0]
+    # Rigid (RBE2) end faces stiffen the bar: those bases converge to a stiffer body.
+    assert errors[1] < {"nodal": 3e-4, "rbe3": 3e-4, "rbe2": 1e-3}[kind]
+
+
+def test_interface_craig_bampton_approaches_the_clamped_frequencies(bar, exact_clamped):
+    # Interface 1 free to move (its static modes), interface 0 carrying the frame: the CB
+    # body is the cantilever, whose frequencies the basis bounds from above.
+    for kind in ("rbe2", "nodal"):
+        body = cb_body(bar, kind, "interface", count=40)
+        f = body.frequencies[:5]
+        assert np.all(f >= exact_clamped[:5] * (1 - 1e-10))
+        limit = 1e-4 if kind == "nodal" else 1e-3
+        assert np.abs(f / exact_clamped[:5] - 1).max() < limit
+
+
+def test_external_modes_give_the_same_body_as_computed_modes(bar):
+    computed = pp.build_body(
+        bar.nodes,
+        bar.elements,
+        STEEL,
+        node_sets=bar.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+        modes="fixed-interface",
+        mode_count=5,
+    )
+    external = pp.build_body(
+        bar.nodes,
+        bar.elements,
+        STEEL,
+        node_sets=bar.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+        modes="external",
+        external_modes=computed.modes,
+    )
+    for key in ("i1", "ibar", "k_ff", "m_ff"):
+        np.testing.assert_allclose(external.invariants[key], computed.invariants[key], atol=1e-12)
+    with pytest.raises(InvalidParameterError, match="over the kept coordinates"):
+        pp.build_body(
+            bar.nodes,
+            bar.elements,
+            STEEL,
+            modes="external",
+            external_modes=computed.modes,
+        )
+
+
+def test_bodies_from_mesh_files_and_body_files_round_trip(tmp_path, bar):
+    path = tmp_path / "bar.vtu"
+    meshio.write(path, meshio.Mesh(bar.nodes, [("tetra", bar.elements["tet4"])]))
+    x1 = bar.node_sets["x1"]
+    body = pp.body_from_mesh(
+        path,
+        STEEL,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=4,
+        interfaces=[bar.node_sets["x0"], x1],
+    )
+    assert body.metadata["source"] == str(path)
+    same = cb_body(bar, "rbe2", "interface", count=4)
+    np.testing.assert_allclose(body.frequencies, same.frequencies, rtol=1e-10)
+    save_body(body, tmp_path / "bar.h5")
+    loaded = load_body(tmp_path / "bar.h5")
+    np.testing.assert_array_equal(loaded.modes, body.modes)
+    np.testing.assert_array_equal(loaded.frequencies, body.frequencies)
+    assert (loaded.stiffness != body.stiffness).nnz == 0
+    for k in range(3):
+        for j in range(3):
+            np.testing.assert_array_equal(
+                loaded.invariants["i_kl"][k][j], body.invariants["i_kl"][k][j]
+            )
+    np.testing.assert_array_equal(loaded.reference["interfaces"][1], x1)
+    assert loaded.reference["interface_kind"] == "rbe2"
+
+
+def test_bad_modal_requests_are_explained(bar):
+    build = dict(node_sets=bar.node_sets)
+    with pytest.raises(InvalidModelError, match="leave the body free"):
+        pp.build_body(
+            bar.nodes,
+            bar.elements,
+            STEEL,
+            reference="3-2-1",
+            reference_nodes=[0, 1, 2],
+            modes="fixed-interface",
+            mode_count=3,
+            **build,
+        )
+    with pytest.raises(InvalidModelError, match="not free"):
+        md.free_free_modes(
+            *(lambda b: (b.stiffness + 1e3 * b.mass, b.mass))(
+                pp.assemble(bar.nodes, bar.elements, STEEL)
+            ),
+            3,
+            nodes=bar.nodes,
+        )
+    with pytest.raises(InvalidModelError, match="share node index"):
+        pp.build_body(
+            bar.nodes,
+            bar.elements,
+            STEEL,
+            reference="mean-axis",
+            modes="craig-bampton",
+            mode_count=2,
+            interfaces=["x0", "y0"],
+            **build,
+        )
+    line = np.flatnonzero((np.abs(bar.nodes[:, 1]) < 1e-12) & (np.abs(bar.nodes[:, 2]) < 1e-12))[:5]
+    with pytest.raises(InvalidModelError, match="non-collinear") as info:
+        pp.build_body(
+            bar.nodes,
+            bar.elements,
+            STEEL,
+            reference="mean-axis",
+            modes="craig-bampton",
+            mode_count=2,
+            interfaces=["x1", line],
+            interface_kind="rbe3",
+            **build,
+        )
+    assert info.value.item == "interface 1"
+    with pytest.raises(InvalidModelError, match="reference='mean-axis' or reference='interface'"):
+        cb_body(bar, "rbe2", "clamped")
+    with pytest.raises(InvalidModelError, match="need free-free or Craig-Bampton"):
+        pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis")
+    with pytest.raises(InvalidParameterError, match="interface kind"):
+        cb_body(bar, "rbe4", "mean-axis")
+    with pytest.raises(InvalidParameterError, match="mode_count"):
+        pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free")

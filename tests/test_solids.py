@@ -1,0 +1,279 @@
+"""Solid elements (tet4, tet10, hex8) in bodies: meshes of blocks and cylinders, invariants of
+motion against the analytic rigid-body inertia and a brute-force sum over mass points, rigid
+motions, the sparse factorization, a solid cantilever against beam theory, and bad meshes."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from test_invariants import kinetic_energy_brute_force, kinetic_energy_from_invariants
+
+import flexmbd.fe.modal as md
+import flexmbd.fe.preprocess as pp
+from flexmbd._core import Material, SymmetricFactor
+from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from flexmbd.fe import shapes
+from flexmbd.rotation import rotation
+
+STEEL = Material(2.1e11, 0.3, 7800.0)
+SOLIDS = ["tet4", "tet10", "hex8"]
+
+
+def rotated_box(element, divisions=(4, 2, 3), lengths=(0.8, 0.3, 0.5)):
+    """A box mesh turned by a rotation A and shifted by c: its analytic inertia is known."""
+    mesh = shapes.box(lengths, divisions, element, origin=-0.5 * np.asarray(lengths))
+    a = rotation(np.array([0.3, -0.5, 0.8]), 0.7)
+    c = np.array([0.4, -0.2, 1.1])
+    return mesh, mesh.nodes @ a.T + c, a, c, np.asarray(lengths)
+
+
+@pytest.mark.parametrize("element", SOLIDS)
+def test_box_mesh_elements_are_positively_oriented_and_fill_the_box(element):
+    mesh = shapes.box((2.0, 1.0, 0.5), (3, 2, 2), element)
+    body = pp.assemble(mesh.nodes, mesh.elements, Material(1.0e9, 0.25, 1.0))
+    # Unit density: the mass is the volume.
+    assert body.invariants["mass"] == pytest.approx(1.0, rel=1e-13)
+    if element != "hex8":
+        tets = mesh.elements[element][:, :4]
+        volumes = shapes._signed_volumes(mesh.nodes, tets)
+        assert volumes.min() > 0
+    assert sorted(mesh.node_sets) == ["all", "x0", "x1", "y0", "y1", "z0", "z1"]
+    assert np.allclose(mesh.nodes[mesh.node_sets["x1"], 0], 2.0)
+
+
+@pytest.mark.parametrize("element", SOLIDS)
+def test_consistent_invariants_are_the_rigid_inertia_of_a_turned_box(element):
+    mesh, nodes, a, c, lengths = rotated_box(element)
+    inv = pp.assemble(nodes, mesh.elements, STEEL).invariants
+    mass = STEEL.density * np.prod(lengths)
+    assert inv["mass"] == pytest.approx(mass, rel=1e-13)
+    np.testing.assert_allclose(inv["first_moment"], mass * c, rtol=1e-12)
+    # J0 = int rho x x^T dV = m (A diag(l^2 / 12) A^T + c c^T).
+    second = mass * (a @ np.diag(lengths**2 / 12) @ a.T + np.outer(c, c))
+    np.testing.assert_allclose(inv["second_moment"], second, rtol=1e-12, atol=1e-12 * mass)
+
+
+@pytest.mark.parametrize("element", SOLIDS)
+def test_lumped_invariants_keep_mass_and_centre_and_converge_in_inertia(element):
+    errors = []
+    for n in (1, 2, 4):
+        mesh, nodes, a, c, lengths = rotated_box(element, divisions=(2 * n, n, n))
+        inv = pp.assemble(nodes, mesh.elements, STEEL, mass="lumped").invariants
+        mass = STEEL.density * np.prod(lengths)
+        assert inv["mass"] == pytest.approx(mass, rel=1e-13)
+        np.testing.assert_allclose(inv["first_moment"], mass * c, rtol=1e-12)
+        second = mass * (a @ np.diag(lengths**2 / 12) @ a.T + np.outer(c, c))
+        errors.append(np.abs(inv["second_moment"] - second).max() / np.abs(second).max())
+    # Point masses at the nodes overestimate the moments by O(h^2).
+    assert errors[2] < errors[1] < errors[0]
+    assert errors[2] < 0.3 * errors[1]
+
+
+def test_cylinder_invariants_converge_to_the_analytic_inertia():
+    pytest.importorskip("gmsh")
+    radius, length = 0.1, 0.6
+    errors = []
+    for size in (0.08, 0.04):
+        mesh = shapes.cylinder(radius, length, size=size, order=2)
+        inv = pp.assemble(mesh.nodes, mesh.elements, STEEL).invariants
+        mass = STEEL.density * np.pi * radius**2 * length
+        centre = np.array([length / 2, 0.0, 0.0])
+        # Inertia about the centre of mass, axis along x.
+        jc = inv["second_moment"] / mass - np.outer(centre, centre)
+        inertia = np.trace(jc) * np.eye(3) - jc
+        transverse = (3 * radius**2 + length**2) / 12
+        exact = np.diag([radius**2 / 2, transverse, transverse])
+        errors.append(
+            max(
+                abs(inv["mass"] / mass - 1),
+                np.abs(inv["first_moment"] / mass - centre).max() / length,
+                np.abs(inertia - exact).max() / exact.max(),
+            )
+        )
+        assert set(mesh.node_sets) >= {"base", "end", "mantle"}
+        assert np.allclose(mesh.nodes[mesh.node_sets["end"], 0], length)
+    assert errors[1] < errors[0]
+    assert errors[1] < 2e-4
+
+
+@pytest.mark.parametrize("mass", ["consistent", "lumped"])
+@pytest.mark.parametrize("element", SOLIDS)
+def test_solid_kinetic_energy_from_invariants_equals_the_sum_over_mass_points(element, mass):
+    mesh, nodes, *_ = rotated_box(element, divisions=(2, 1, 2))
+    nodal = pp.assemble(nodes, mesh.elements, STEEL, mass=mass)
+    weights, positions, shape = pp.mass_points(nodes, mesh.elements, STEEL, mass=mass)
+    assert weights.sum() == pytest.approx(nodal.invariants["mass"], rel=1e-13)
+    rng = np.random.default_rng(3)
+    n = nodal.stiffness.shape[0]
+    for _ in range(4):
+        a = rotation(rng.normal(size=3), rng.uniform(0, np.pi))
+        state = (rng.normal(size=3), a, 3 * rng.normal(size=3))
+        q, q_dot = 0.05 * rng.normal(size=n), rng.normal(size=n)
+        t_inv = kinetic_energy_from_invariants(nodal.invariants, *state, q, q_dot)
+        t_sum = kinetic_energy_brute_force(weights, positions, shape, *state, q, q_dot)
+        assert t_inv == pytest.approx(t_sum, rel=1e-12)
+
+
+@pytest.mark.parametrize("element", SOLIDS)
+def test_rigid_motions_are_exactly_the_null_space_of_the_stiffness(element):
+    mesh = shapes.box((0.6, 0.2, 0.3), (3, 1, 2), element)
+    body = pp.assemble(mesh.nodes, mesh.elements, STEEL)
+    r = md.rigid_modes(mesh.nodes, 3)
+    k = body.stiffness
+    scale = abs(k).max()
+    assert abs(k @ r).max() < 1e-9 * scale
+    values = np.linalg.eigvalsh(k.toarray())
+    assert np.sum(values < 1e-9 * values[-1]) == 6
+    # Mass: sum of all entries in one direction is the total mass (translations, eq. 4).
+    ones = np.zeros(k.shape[0])
+    ones[0::3] = 1.0
+    assert ones @ (body.mass @ ones) == pytest.approx(body.invariants["mass"], rel=1e-13)
+
+
+def test_modal_invariants_of_solids_from_the_scalar_mass_equal_the_general_formula():
+    mesh = shapes.box((0.6, 0.2, 0.3), (3, 1, 2), "tet10")
+    body = pp.assemble(mesh.nodes, mesh.elements, STEEL)
+    rng = np.random.default_rng(5)
+    modes = rng.normal(size=(body.stiffness.shape[0], 7))
+    fast = md.modal_invariants(body.invariants, modes, body.scalar_mass)
+    general = md.modal_invariants(body.invariants, modes)
+    for k in range(3):
+        for j in range(3):
+            np.testing.assert_allclose(fast["i_kl"][k][j], general["i_kl"][k][j], rtol=1e-12)
+
+
+def test_complete_modal_basis_keeps_the_kinetic_energy_of_a_solid():
+    mesh = shapes.box((0.6, 0.2, 0.3), (3, 1, 1), "hex8")
+    nodal = pp.assemble(mesh.nodes, mesh.elements, STEEL)
+    weights, positions, shape = pp.mass_points(mesh.nodes, mesh.elements, STEEL)
+    free = pp.reference_dofs("clamped", len(mesh.nodes), 3, mesh.node_sets["x0"])
+    modes, _ = md.fixed_interface_modes(
+        nodal.stiffness, nodal.mass, free, len(free), nodes=mesh.nodes
+    )
+    full = np.zeros((nodal.stiffness.shape[0], len(free)))
+    full[free] = modes
+    modal = md.modal_invariants(nodal.invariants, full, nodal.scalar_mass)
+    rng = np.random.default_rng(8)
+    for _ in range(3):
+        a = rotation(rng.normal(size=3), 1.0)
+        state = (rng.normal(size=3), a, rng.normal(size=3))
+        p, p_dot = 1e-4 * rng.normal(size=len(free)), rng.normal(size=len(free))
+        t_modal = kinetic_energy_from_invariants(modal, *state, p, p_dot)
+        t_sum = kinetic_energy_brute_force(
+            weights, positions, shape, *state, full @ p, full @ p_dot
+        )
+        assert t_modal == pytest.approx(t_sum, rel=1e-10)
+
+
+def test_sparse_factorization_solves_with_both_orderings():
+    mesh = shapes.box((1.0, 0.2, 0.2), (12, 3, 3), "tet4")
+    body = pp.assemble(mesh.nodes, mesh.elements, STEEL)
+    free = pp.reference_dofs("clamped", len(mesh.nodes), 3, mesh.node_sets["x0"])
+    k = body.stiffness[free][:, free].tocsc()
+    rhs = np.random.default_rng(0).normal(size=(len(free), 3))
+    nested = md.factorize(k, dofs=free, nodes=mesh.nodes)
+    amd = md.factorize(k)
+    for factor in (nested, amd):
+        x = factor.solve(rhs)
+        assert np.abs(k @ x - rhs).max() < 1e-9 * np.abs(rhs).max()
+        assert factor.solve(rhs[:, 0]).shape == (len(free),)
+    with pytest.raises(InvalidModelError, match="not positive definite"):
+        md.factorize(body.stiffness, name="free stiffness")
+    with pytest.raises(InvalidParameterError, match="expected shape"):
+        nested.solve(np.ones(3))
+    lower = sp.tril(k, format="csc")
+    with pytest.raises(InvalidParameterError):
+        SymmetricFactor(
+            k.shape[0] + 1,
+            lower.indptr.astype(np.int64),
+            lower.indices.astype(np.int64),
+            lower.data,
+        )
+
+
+def cantilever_tip_deflection(element, n):
+    """Tip deflection of a clamped steel bar 1 x 0.1 x 0.1 m, tip load 1 kN along z spread
+    evenly over the end face, averaged over the end face."""
+    mesh = shapes.box((1.0, 0.1, 0.1), (10 * n, n, n), element)
+    body = pp.assemble(mesh.nodes, mesh.elements, STEEL)
+    free = pp.reference_dofs("clamped", len(mesh.nodes), 3, mesh.node_sets["x0"])
+    tip = mesh.node_sets["x1"]
+    f = np.zeros(3 * len(mesh.nodes))
+    f[3 * tip + 2] = 1000.0 / len(tip)
+    u = np.zeros_like(f)
+    k = body.stiffness[free][:, free].tocsc()
+    u[free] = md.factorize(k, dofs=free, nodes=mesh.nodes).solve(f[free])
+    return u[3 * tip + 2].mean()
+
+
+def timoshenko_tip_deflection():
+    e, nu, length, b, p = 2.1e11, 0.3, 1.0, 0.1, 1000.0
+    inertia, area = b**4 / 12, b * b
+    shear = e / (2 * (1 + nu))
+    return p * length**3 / (3 * e * inertia) + p * length / (5 / 6 * shear * area)
+
+
+@pytest.mark.parametrize(
+    "element, sizes, tolerance", [("tet10", (1, 2, 3), 0.012), ("hex8", (1, 2, 4), 0.05)]
+)
+def test_solid_cantilever_converges_to_the_beam_solution(element, sizes, tolerance):
+    exact = timoshenko_tip_deflection()
+    errors = [abs(cantilever_tip_deflection(element, n) / exact - 1) for n in sizes]
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < tolerance
+
+
+# Bad meshes -------------------------------------------------------------------------------------
+
+
+def test_inverted_and_flat_elements_are_named():
+    mesh = shapes.box((1.0, 0.2, 0.1), (2, 1, 1), "tet4")
+    tets = mesh.elements["tet4"].copy()
+    tets[3, [1, 2]] = tets[3, [2, 1]]
+    ids = {"tet4": mesh.element_ids["tet4"] + 100}
+    with pytest.raises(InvalidModelError, match="element 104.*inverted") as info:
+        pp.build_body(mesh.nodes, {"tet4": tets}, STEEL, element_ids=ids)
+    assert info.value.item == "element 104"
+    hexes = shapes.box((1.0, 0.2, 0.1), (2, 1, 1), "hex8")
+    nodes = hexes.nodes.copy()
+    # Collapse the far face (x = 1) of the second hexahedron onto its near face (x = 0.5).
+    second = hexes.elements["hex8"][1]
+    nodes[second[[1, 2, 5, 6]]] = nodes[second[[0, 3, 4, 7]]] + 1e-15
+    with pytest.raises(InvalidModelError, match="element 2"):
+        pp.assemble(nodes, hexes.elements, STEEL)
+
+
+def test_unknown_duplicate_and_unconnected_nodes_are_named():
+    mesh = shapes.box((1.0, 0.2, 0.1), (2, 1, 1), "hex8")
+    bad = mesh.elements["hex8"].copy()
+    bad[1, 3] = 99
+    with pytest.raises(UnknownItemError, match="99"):
+        pp.build_body(mesh.nodes, {"hex8": bad}, STEEL)
+    with pytest.raises(UnknownItemError, match="99"):
+        pp.assemble(mesh.nodes, {"hex8": bad}, STEEL)
+    nodes = np.vstack([mesh.nodes, mesh.nodes[5]])
+    with pytest.raises(InvalidModelError, match="nodes 6 and 13 are at the same position"):
+        pp.build_body(nodes, mesh.elements, STEEL)
+    nodes = np.vstack([mesh.nodes, [[5.0, 5.0, 5.0]]])
+    with pytest.raises(InvalidModelError, match="unconnected node 13"):
+        pp.build_body(nodes, mesh.elements, STEEL)
+    with pytest.raises(UnknownItemError, match="clamp"):
+        pp.build_body(
+            mesh.nodes, mesh.elements, STEEL, reference="clamped", reference_nodes="clamp"
+        )
+
+
+@pytest.mark.parametrize(
+    "young, poisson, density, match",
+    [
+        (0.0, 0.3, 7800.0, "Young"),
+        (-2e11, 0.3, 7800.0, "Young"),
+        (float("nan"), 0.3, 7800.0, "Young"),
+        (2e11, 0.5, 7800.0, "Poisson"),
+        (2e11, -1.0, 7800.0, "Poisson"),
+        (2e11, 0.3, 0.0, "density"),
+        (2e11, 0.3, -1.0, "density"),
+    ],
+)
+def test_bad_material_data_is_rejected(young, poisson, density, match):
+    with pytest.raises(InvalidParameterError, match=match):
+        Material(young, poisson, density, name="steel")
