@@ -314,3 +314,51 @@ def test_bad_modal_requests_are_explained(bar):
         cb_body(bar, "rbe4", "mean-axis")
     with pytest.raises(InvalidParameterError, match="mode_count"):
         pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free")
+
+
+@pytest.mark.parametrize("kind", ["rbe2", "rbe3"])
+def test_single_precision_factors_give_the_same_modes(bar, kind):
+    double = cb_body(bar, kind, "interface", count=8)
+    single = pp.build_body(
+        bar.nodes,
+        bar.elements,
+        STEEL,
+        node_sets=bar.node_sets,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=8,
+        interfaces=["x0", "x1"],
+        interface_kind=kind,
+        precision="single",
+    )
+    np.testing.assert_allclose(single.frequencies, double.frequencies, rtol=1e-9)
+    # The same subspace: the single-precision modes are combinations of the double ones.
+    m = single.invariants["m_ff"]
+    overlap = single.modes.T @ (
+        double.mass[single.reference["free_dofs"]][:, single.reference["free_dofs"]] @ double.modes
+    )
+    np.testing.assert_allclose(np.abs(np.linalg.det(overlap)), 1.0, rtol=1e-8)
+    np.testing.assert_allclose(m, np.eye(len(m)), atol=1e-10)
+    with pytest.raises(InvalidParameterError, match="precision"):
+        pp.build_body(
+            bar.nodes,
+            bar.elements,
+            STEEL,
+            reference="mean-axis",
+            modes="free-free",
+            mode_count=2,
+            precision="half",
+        )
+
+
+def test_single_precision_solves_reach_double_precision_residuals(bar):
+    nodal = pp.assemble(bar.nodes, bar.elements, STEEL)
+    free = pp.reference_dofs("clamped", len(bar.nodes), 3, bar.node_sets["x0"])
+    k = nodal.stiffness[free][:, free]
+    inverse = md.Inverse(k, single=True, dofs=free, nodes=bar.nodes)
+    exact = md.Inverse(k, dofs=free, nodes=bar.nodes)
+    assert 2 * inverse.factor_bytes == exact.factor_bytes
+    b = np.random.default_rng(2).normal(size=(len(free), 3))
+    x = inverse.solve(b)
+    assert np.linalg.norm(k @ x - b, axis=0).max() < 1e-10 * np.linalg.norm(b, axis=0).min()
+    assert inverse.iterations > 0

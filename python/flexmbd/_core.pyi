@@ -327,7 +327,9 @@ class SymmetricFactor:
         *,
         dof_nodes: NDArray[np.int64] | None = None,
         positions: NDArray[np.float64] | None = None,
+        ordering: NDArray[np.int64] | None = None,
         positive: int | None = None,
+        single: bool = False,
         threads: int = 1,
         name: str = "matrix",
     ) -> None: ...
@@ -335,4 +337,6 @@ class SymmetricFactor:
     def dim(self) -> int: ...
     @property
     def factor_nnz(self) -> int: ...
+    @property
+    def factor_bytes(self) -> int: ...
     def solve(self, b: NDArray[np.float64], refine: int = 0) -> NDArray[np.float64]: ...

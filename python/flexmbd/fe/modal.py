@@ -2,9 +2,11 @@
 modes, Craig-Bampton bases with nodal, rigid (RBE2-like) or averaged (RBE3-like) interfaces, and
 the invariants of motion in modal coordinates.
 
-Large eigenproblems K x = w^2 M x are solved by shift-invert Lanczos (ARPACK through
-``scipy.sparse.linalg.eigsh``) whose inverse operator is a sparse Cholesky factorization in Rust
-(`flexmbd._core.SymmetricFactor`, nested dissection of the mesh). Every basis returned is
+Large eigenproblems K x = w^2 M x are solved by a restarted block shift-invert Krylov method
+(`block_krylov_eigenpairs`) whose inverse operator is a sparse Cholesky factorization in Rust
+(`flexmbd._core.SymmetricFactor`, nested dissection of the mesh), in double precision or, to
+halve the memory of large bodies, in single precision as the preconditioner of conjugate
+gradients (`Inverse`). Every basis returned is
 mass-normalized; Craig-Bampton bases are orthonormalized and diagonalized (their reduced
 eigenproblem is solved), so that the modal mass matrix is the identity and the modal stiffness
 matrix is diagonal.
@@ -19,7 +21,6 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
@@ -42,12 +43,14 @@ def factorize(
     nodes: NDArray[np.float64] | None = None,
     dofs_per_node: int = 3,
     positive: int | None = None,
+    single: bool = False,
     name: str = "matrix",
 ) -> Any:
     """Sparse symmetric factorization of `matrix` (Cholesky, or quasi-definite LDL^T when
-    `positive` gives the size of the definite block). With `nodes`, the unknowns are the nodal
-    coordinates `dofs` (all when None) of a body with `dofs_per_node`, and the ordering is a
-    nested dissection of the mesh; unknowns beyond len(dofs) (multipliers) are ordered last."""
+    `positive` gives the size of the definite block; `single`: Cholesky in single precision).
+    With `nodes`, the unknowns are the nodal coordinates `dofs` (all when None) of a body with
+    `dofs_per_node`, and the ordering is a nested dissection of the mesh; unknowns beyond
+    len(dofs) (multipliers) are ordered last."""
     a = sp.csc_matrix(matrix)
     n = a.shape[0]
     kwargs: dict[str, Any] = {}
@@ -64,14 +67,87 @@ def factorize(
         lower.indices.astype(np.int64),
         np.ascontiguousarray(lower.data, dtype=float),
         positive=positive,
+        single=single,
         threads=os.cpu_count() or 1,
         name=name,
         **kwargs,
     )
 
 
-def _operator(n: int, solve: Any) -> spla.LinearOperator:
-    return spla.LinearOperator((n, n), matvec=solve, matmat=solve, dtype=float)
+#: Bodies with more coordinates than this use single-precision factors with precision="auto".
+SINGLE_PRECISION_ABOVE = 250_000
+
+
+def _use_single(precision: str, n: int) -> bool:
+    if precision not in ("double", "single", "auto"):
+        raise InvalidParameterError(
+            f"precision must be 'double', 'single' or 'auto', got {precision!r}"
+        )
+    return precision == "single" or (precision == "auto" and n > SINGLE_PRECISION_ABOVE)
+
+
+class Inverse:
+    """Applies A^-1 for a symmetric positive definite sparse A: with a double-precision
+    Cholesky factor, or, with `single`, by conjugate gradients preconditioned with a
+    single-precision factor (half the memory; a few iterations per solve), to a relative
+    residual of `tolerance` per column."""
+
+    def __init__(
+        self,
+        matrix: sp.spmatrix,
+        *,
+        single: bool = False,
+        tolerance: float = 1e-11,
+        name: str = "matrix",
+        **ordering: Any,
+    ):
+        self.matrix = sp.csr_matrix(matrix)
+        self.single = single
+        self.tolerance = tolerance
+        self.name = name
+        self.factor = factorize(matrix, single=single, name=name, **ordering)
+        self.iterations = 0
+
+    @property
+    def factor_bytes(self) -> int:
+        return int(self.factor.factor_bytes)
+
+    def solve(self, b: NDArray[np.float64]) -> NDArray[np.float64]:
+        if not self.single:
+            return self.factor.solve(b)
+        return self._conjugate_gradients(b)
+
+    def _conjugate_gradients(self, b: NDArray[np.float64]) -> NDArray[np.float64]:
+        shape = b.shape
+        rhs = b.reshape(shape[0], -1)
+        norms = np.linalg.norm(rhs, axis=0)
+        norms[norms == 0.0] = 1.0
+        x = self.factor.solve(rhs)
+        r = rhs - self.matrix @ x
+        z = self.factor.solve(r)
+        p = z.copy()
+        rz = np.einsum("ij,ij->j", r, z)
+        for _ in range(200):
+            residual = np.linalg.norm(r, axis=0) / norms
+            if residual.max() <= self.tolerance:
+                return x.reshape(shape)
+            self.iterations += 1
+            q = self.matrix @ p
+            pq = np.einsum("ij,ij->j", p, q)
+            alpha = np.divide(rz, pq, out=np.zeros_like(rz), where=pq != 0.0)
+            x += p * alpha
+            r -= q * alpha
+            z = self.factor.solve(r)
+            rz_new = np.einsum("ij,ij->j", r, z)
+            beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz != 0.0)
+            p = z + p * beta
+            rz = rz_new
+        raise InvalidModelError(
+            f"conjugate gradients with the single-precision factor of the {self.name} did not "
+            f"reach a relative residual of {self.tolerance:.0e} (reached {residual.max():.1e}); "
+            "the matrix is too ill-conditioned for single precision: use precision='double'",
+            item=self.name,
+        )
 
 
 # Eigenproblems ----------------------------------------------------------------------------------
@@ -82,6 +158,99 @@ def _mass_normalize(vectors: NDArray, m: Any) -> NDArray:
     return vectors / norms
 
 
+def _m_orthonormalize(
+    w: NDArray[np.float64],
+    m: Any,
+    previous: list[tuple[NDArray, NDArray]],
+    keep: Any = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Columns of w made M-orthogonal to the blocks `previous` (pairs V, M V) and
+    M-orthonormal among themselves (directions lost to round-off dropped). Returns W, M W and,
+    when there are no previous blocks, the transform T with W = w T. The second round
+    restores the orthogonality that normalizing small remainders (a nearly dependent block)
+    loses; `keep` (a projector onto constraints) is applied before each normalization, so that
+    round-off amplified by it stays in the constraint space."""
+    transform = np.eye(w.shape[1])
+    for round_ in range(2):
+        for _ in range(2):
+            for v, mv in previous:
+                w = w - v @ (mv.T @ w)
+        if keep is not None:
+            w = keep(w)
+        mw = m @ w
+        gram = w.T @ mw
+        values, vectors = np.linalg.eigh(0.5 * (gram + gram.T))
+        threshold = 1e-12 * max(values.max(), 1e-300) if round_ == 0 else 0.5
+        kept = values > threshold
+        step = vectors[:, kept] / np.sqrt(values[kept])
+        w = w @ step
+        transform = transform @ step
+    return w, m @ w, transform
+
+
+def block_krylov_eigenpairs(
+    k: sp.spmatrix,
+    m: sp.spmatrix,
+    count: int,
+    solve: Any,
+    *,
+    shift: float = 0.0,
+    block: int | None = None,
+    steps: int = 3,
+    tolerance: float = 1e-8,
+    restarts: int = 30,
+    project: Any = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The `count` lowest eigenpairs of K x = lambda M x by restarted block shift-invert Krylov
+    iteration: from a block X of `block` vectors, the basis [X, S X, ..., S^steps X] with
+    S = (K - shift M)^-1 M (`solve` applies (K - shift M)^-1 to a block of columns), fully
+    M-orthonormalized, and the Rayleigh-Ritz pairs of (K, M) in it; the Ritz vectors restart
+    the iteration until every wanted pair (lambda, x) satisfies
+    |(lambda - shift) S x - x|_M < `tolerance` |x|_M (the residual of the shift-invert
+    operator, as in ARPACK: insensitive to high-frequency round-off that K would amplify). A
+    block solve of many columns costs little more than one, so this needs far less time than
+    one-vector Lanczos. For eigenproblems with constraints G x = 0 (`solve` then applies the
+    constrained inverse), `project` is the projector onto G x = 0: it keeps the basis in the
+    constraint space against round-off (where rigid motions of zero energy would creep in).
+    Returns ascending eigenvalues and M-orthonormal vectors."""
+    n = k.shape[0]
+    block = block or max(count + 4, 8)
+    keep = project or (lambda y: y)
+    rng = np.random.default_rng(20261122)
+    x = keep(solve(m @ rng.standard_normal((n, block))))
+    image = keep(solve(m @ x))
+    residual = np.inf
+    for _ in range(restarts):
+        v, mv, transform = _m_orthonormalize(x, m, [], project)
+        basis = [(v, mv)]
+        images = [image @ transform]
+        for _ in range(steps):
+            w, mw, _ = _m_orthonormalize(images[-1], m, basis, project)
+            if w.shape[1] == 0:
+                break
+            basis.append((w, mw))
+            images.append(keep(solve(mw)))
+        q = np.hstack([b for b, _ in basis])
+        mq = np.hstack([b for _, b in basis])
+        sq = np.hstack(images)
+        kq = np.asarray(q.T @ (k @ q))
+        gram = q.T @ mq
+        values, vectors = sla.eigh(0.5 * (kq + kq.T), 0.5 * (gram + gram.T))
+        x = q @ vectors[:, :block]
+        image = sq @ vectors[:, :block]
+        z = image[:, :count] * (values[:count] - shift) - x[:, :count]
+        previous, residual = residual, float(np.sqrt(np.abs(np.einsum("ij,ij->j", z, m @ z))).max())
+        # Converged, or stagnating at the round-off floor of the solves (which grows with the
+        # condition number of K - shift M).
+        if residual < tolerance or (residual < 1e-5 and residual > 0.5 * previous):
+            return values[:count], x[:, :count]
+    raise InvalidModelError(
+        f"the eigensolver did not converge: relative residual {residual:.1e} after {restarts} "
+        f"restarts for {count} modes",
+        item="eigenproblem",
+    )
+
+
 def eigenpairs(
     k: sp.spmatrix,
     m: sp.spmatrix,
@@ -90,11 +259,12 @@ def eigenpairs(
     shift: float = 0.0,
     solve: Any = None,
     dense_projection: NDArray[np.float64] | None = None,
+    project: Any = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The `count` eigenpairs of K x = lambda M x nearest to `shift` from above, sorted and
-    mass-normalized. `solve(y)` applies (K - shift M)^-1 (a factorization); small problems are
-    solved densely (within the columns of `dense_projection` when given: a basis of the
-    admissible motions)."""
+    mass-normalized. `solve(y)` applies (K - shift M)^-1 to blocks of columns (see
+    `block_krylov_eigenpairs`, also for `project`); small problems are solved densely (within
+    the columns of `dense_projection` when given: a basis of the admissible motions)."""
     n = k.shape[0]
     if count < 1:
         raise InvalidParameterError(f"at least one mode is needed, got {count}")
@@ -108,15 +278,14 @@ def eigenpairs(
             0.5 * (kz + kz.T), 0.5 * (mz + mz.T), subset_by_index=[0, count - 1]
         )
         return values, _mass_normalize(z @ vectors, m)
-    if count >= n - 1:
-        raise InvalidParameterError(f"{count} modes requested of a {n}-coordinate body")
+    if count > n // 4:
+        raise InvalidParameterError(
+            f"{count} modes requested of a {n}-coordinate body: at most {n // 4}"
+        )
     if solve is None:
         raise InvalidParameterError("a large eigenproblem needs the factorization of K - shift M")
-    values, vectors = spla.eigsh(
-        k, k=count, M=m, sigma=shift, which="LM", OPinv=_operator(n, solve)
-    )
-    order = np.argsort(values)
-    return values[order], _mass_normalize(vectors[:, order], m)
+    values, vectors = block_krylov_eigenpairs(k, m, count, solve, shift=shift, project=project)
+    return values, _mass_normalize(vectors, m)
 
 
 def frequencies(values: NDArray) -> NDArray:
@@ -145,18 +314,21 @@ def fixed_interface_modes(
     *,
     nodes: NDArray[np.float64] | None = None,
     dofs_per_node: int = 3,
+    precision: str = "auto",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The first `count` eigenmodes with the coordinates not in `free_dofs` held (modes over
     `free_dofs`, mass-normalized) and their frequencies (Hz). `nodes` enables the nested
-    dissection ordering of the factorization."""
+    dissection ordering of the factorization; `precision` ("double", "single", "auto") that
+    of the factorization (see `Inverse`)."""
     free_dofs = np.asarray(free_dofs, dtype=np.int64)
     kf = stiffness[free_dofs][:, free_dofs].tocsc()
     mf = mass[free_dofs][:, free_dofs].tocsc()
     solve = None
     if kf.shape[0] > DENSE_LIMIT:
         try:
-            factor = factorize(
+            inverse = Inverse(
                 kf,
+                single=_use_single(precision, kf.shape[0]),
                 dofs=free_dofs,
                 nodes=nodes,
                 dofs_per_node=dofs_per_node,
@@ -167,7 +339,7 @@ def fixed_interface_modes(
                 f"the reference conditions leave the body free to move rigidly ({error})",
                 item="reference conditions",
             ) from error
-        solve = factor.solve
+        solve = inverse.solve
     values, vectors = eigenpairs(kf, mf, count, solve=solve)
     _check_fixed(values, _scale(kf, mf), "the reference conditions")
     return vectors, frequencies(values)
@@ -181,6 +353,7 @@ def free_free_modes(
     *,
     nodes: NDArray[np.float64] | None = None,
     dofs_per_node: int = 3,
+    precision: str = "auto",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The first `count` elastic free-free modes (the `rigid` rigid-body modes removed) and
     their frequencies (Hz). Being mass-orthogonal to the rigid motions, they satisfy the mean
@@ -192,13 +365,14 @@ def free_free_modes(
     shift = -1e-6 * scale
     solve = None
     if n > DENSE_LIMIT:
-        factor = factorize(
+        inverse = Inverse(
             stiffness - shift * mass,
+            single=_use_single(precision, n),
             nodes=nodes,
             dofs_per_node=dofs_per_node,
             name="shifted stiffness K - sigma M",
         )
-        solve = factor.solve
+        solve = inverse.solve
     values, vectors = eigenpairs(stiffness, mass, count + rigid, shift=shift, solve=solve)
     elastic = values[rigid:]
     if rigid and values[rigid - 1] > 1e-6 * max(elastic[0], 1e-300):
@@ -359,6 +533,7 @@ def craig_bampton(
     dofs_per_node: int = 3,
     kind: str = "rbe2",
     reference: str = "mean-axis",
+    precision: str = "auto",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Craig-Bampton basis over all nodal coordinates: `count` fixed-interface normal modes
     and the static constraint modes of the interfaces (lists of node indices, disjoint).
@@ -379,6 +554,8 @@ def craig_bampton(
         frame follows the first interface (rigidly attached to its nodes for "nodal" and
         "rbe2", to their averaged motion for "rbe3").
 
+    `precision`: of the factorization ("double", "single", "auto"; see `Inverse`).
+
     Returns the modes, M-orthonormalized with diagonal modal stiffness, and their
     frequencies (Hz)."""
     if kind not in INTERFACE_KINDS:
@@ -396,9 +573,9 @@ def craig_bampton(
     k = sp.csc_matrix(stiffness)
     m = sp.csc_matrix(mass)
     if kind == "rbe3":
-        phi, psi = _craig_bampton_averaged(k, m, members, count, nodes, d, reference)
+        phi, psi = _craig_bampton_averaged(k, m, members, count, nodes, d, reference, precision)
     else:
-        phi, psi = _craig_bampton_fixed(k, m, members, count, nodes, d, kind, reference)
+        phi, psi = _craig_bampton_fixed(k, m, members, count, nodes, d, kind, reference, precision)
     basis = np.hstack([phi, psi])
     if reference == "mean-axis":
         r = rigid_modes(nodes, d)
@@ -421,6 +598,7 @@ def _craig_bampton_fixed(
     d: int,
     kind: str,
     reference: str,
+    precision: str,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Nodal and rigid (RBE2) interfaces: the interface nodes are the boundary coordinates."""
     n = k.shape[0]
@@ -444,10 +622,11 @@ def _craig_bampton_fixed(
     t_all = np.hstack(blocks) if blocks else np.zeros((len(boundary), 0))
     kii = k[interior][:, interior].tocsc()
     mii = m[interior][:, interior].tocsc()
-    factor = None
+    inverse = None
     if len(interior) > DENSE_LIMIT or t_all.shape[1]:
-        factor = factorize(
+        inverse = Inverse(
             kii,
+            single=_use_single(precision, len(interior)),
             dofs=interior,
             nodes=nodes,
             dofs_per_node=d,
@@ -456,10 +635,10 @@ def _craig_bampton_fixed(
     psi = np.zeros((n, t_all.shape[1]))
     if t_all.shape[1]:
         psi[boundary] = t_all
-        psi[interior] = -factor.solve(np.asarray(k[interior][:, boundary] @ t_all))
+        psi[interior] = -inverse.solve(np.asarray(k[interior][:, boundary] @ t_all))
     phi = np.zeros((n, count))
     if count:
-        solve = None if factor is None else factor.solve
+        solve = None if inverse is None else inverse.solve
         values, vectors = eigenpairs(kii, mii, count, solve=solve)
         _check_fixed(values, _scale(kii, mii), "the interfaces")
         phi[interior] = vectors
@@ -474,6 +653,7 @@ def _craig_bampton_averaged(
     nodes: NDArray[np.float64],
     d: int,
     reference: str,
+    precision: str,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Averaged (RBE3) interfaces: constraints G u = g with six rows per interface.
 
@@ -491,24 +671,31 @@ def _craig_bampton_averaged(
     support = _support_dofs(r)
     rest = np.setdiff1d(np.arange(n), support)
     krr = k[rest][:, rest].tocsc()
-    factor = factorize(
-        krr, dofs=rest, nodes=nodes, dofs_per_node=d, name="stiffness with a 3-2-1 support"
+    inverse = Inverse(
+        krr,
+        single=_use_single(precision, len(rest)),
+        dofs=rest,
+        nodes=nodes,
+        dofs_per_node=d,
+        name="stiffness with a 3-2-1 support",
     )
     g_r = g[:, rest]
-    z = factor.solve(np.asarray(g_r.T.todense()))  # K_rr^-1 G_r^T
+    z = inverse.solve(np.asarray(g_r.T.todense()))  # K_rr^-1 G_r^T
     c = np.asarray(g_r @ z)
     gr = np.asarray(g @ r)
     q = g.shape[0]
-    small = np.block([[-c, gr], [gr.T, np.zeros((6, 6))]])
+    # Equilibrated: C ~ 1/stiffness while G R ~ 1; the multipliers are solved as s lambda.
+    s = max(np.abs(c).max(), 1e-300)
+    small = np.block([[-c / s, gr], [gr.T, np.zeros((6, 6))]])
     small_lu = sla.lu_factor(small)
 
     def constrained_solve(f: NDArray, rhs_g: NDArray) -> NDArray:
         """u minimizing 1/2 u.K u - f.u subject to G u = rhs_g (columns)."""
-        w_f = factor.solve(f[rest])
+        w_f = inverse.solve(f[rest])
         top = rhs_g - g_r @ w_f
         bottom = r.T @ f
-        sol = sla.lu_solve(small_lu, np.vstack([top, bottom]))
-        lam, a = sol[:q], sol[q:]
+        sol = sla.lu_solve(small_lu, np.vstack([top, s * bottom]))
+        lam, a = sol[:q] / s, sol[q:]
         u = r @ a
         u[rest] += w_f - z @ lam
         return u
@@ -526,7 +713,13 @@ def _craig_bampton_averaged(
         dense = None
         if n <= DENSE_LIMIT:
             dense = sla.null_space(g.toarray())
-        values, phi = eigenpairs(k, m, count, solve=solve, dense_projection=dense)
+        ggt = np.asarray((g @ g.T).todense())
+
+        def project(r: NDArray) -> NDArray:
+            """The Euclidean projection onto G x = 0 (removes G^T mu)."""
+            return r - g.T @ np.linalg.solve(ggt, g @ r)
+
+        values, phi = eigenpairs(k, m, count, solve=solve, dense_projection=dense, project=project)
         _check_fixed(values, _scale(k, m), "the averaged interfaces")
     return phi, psi
 

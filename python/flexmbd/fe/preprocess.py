@@ -277,6 +277,7 @@ def build_body(
     element_ids: Mapping[str, ArrayLike] | None = None,
     node_sets: Mapping[str, ArrayLike] | None = None,
     check_mesh: bool = True,
+    precision: str = "auto",
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
@@ -294,6 +295,9 @@ def build_body(
       "rbe2", "rbe3" or "nodal", see `modal.craig_bampton`) or "external" (`external_modes`
       over the kept coordinates, e.g. from experimental modal analysis or another FE code).
       `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes).
+    - `precision`: of the sparse factorizations of the eigensolvers: "double", "single" (half
+      the memory: a single-precision Cholesky factor preconditions conjugate gradients), or
+      "auto" (single above `modal.SINGLE_PRECISION_ABOVE` coordinates).
     """
     nodes = np.asarray(nodes, dtype=float)
     sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
@@ -367,11 +371,22 @@ def build_body(
             raise InvalidParameterError(f"{modes} modes need mode_count >= 1")
         if modes == "fixed-interface":
             basis, freqs = fixed_interface_modes(
-                nodal.stiffness, nodal.mass, free, mode_count, nodes=nodes, dofs_per_node=d
+                nodal.stiffness,
+                nodal.mass,
+                free,
+                mode_count,
+                nodes=nodes,
+                dofs_per_node=d,
+                precision=precision,
             )
         elif modes == "free-free":
             basis, freqs = free_free_modes(
-                nodal.stiffness, nodal.mass, mode_count, nodes=nodes, dofs_per_node=d
+                nodal.stiffness,
+                nodal.mass,
+                mode_count,
+                nodes=nodes,
+                dofs_per_node=d,
+                precision=precision,
             )
         elif modes == "craig-bampton":
             full, freqs = craig_bampton(
@@ -383,6 +398,7 @@ def build_body(
                 dofs_per_node=d,
                 kind=interface_kind,
                 reference="interface" if reference == "interface" else "mean-axis",
+                precision=precision,
             )
             basis = full[free]
         elif modes == "external":
