@@ -456,25 +456,51 @@ impl SymmetricFactor {
             ));
         }
         let k = if shape.len() == 2 { shape[1] } else { 1 };
+        if refine == 0 {
+            let rows = b.as_standard_layout();
+            let rows = rows.as_slice().expect("standard layout is contiguous");
+            let x = check(py.detach(|| self.inner.solve_rows(rows, k)))?;
+            let out = numpy::ndarray::ArrayD::from_shape_vec(shape, x)
+                .map_err(|e| invalid("right-hand side", e.to_string()))?;
+            return Ok(out.into_pyarray(py));
+        }
         // Column-major copy.
         let mut x = vec![0.0; n * k];
         for (idx, v) in b.indexed_iter() {
             let (r, c) = if shape.len() == 2 { (idx[0], idx[1]) } else { (idx[0], 0) };
             x[c * n + r] = *v;
         }
-        let result = py.detach(|| {
-            if refine > 0 {
-                self.inner.solve_refined(&mut x, refine)
-            } else {
-                self.inner.solve_in_place(&mut x)
-            }
-        });
-        check(result)?;
+        check(py.detach(|| self.inner.solve_refined(&mut x, refine)))?;
         let out = if shape.len() == 2 {
             numpy::ndarray::Array2::from_shape_fn((n, k), |(r, c)| x[c * n + r]).into_dyn()
         } else {
             numpy::ndarray::Array1::from_vec(x).into_dyn()
         };
+        Ok(out.into_pyarray(py))
+    }
+
+    /// A x for the factorized symmetric matrix (without regularization), x of shape (n,) or
+    /// (n, k).
+    fn multiply<'py>(
+        &self,
+        py: Python<'py>,
+        x: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let x = x.as_array();
+        let n = self.inner.dim();
+        let shape = x.shape().to_vec();
+        if shape.is_empty() || shape[0] != n || shape.len() > 2 {
+            return Err(invalid(
+                "multiplied vector",
+                format!("expected shape ({n},) or ({n}, k), got {shape:?}"),
+            ));
+        }
+        let k = if shape.len() == 2 { shape[1] } else { 1 };
+        let rows = x.as_standard_layout();
+        let rows = rows.as_slice().expect("standard layout is contiguous");
+        let y = check(py.detach(|| self.inner.multiply(rows, k)))?;
+        let out = numpy::ndarray::ArrayD::from_shape_vec(shape, y)
+            .map_err(|e| invalid("multiplied vector", e.to_string()))?;
         Ok(out.into_pyarray(py))
     }
 

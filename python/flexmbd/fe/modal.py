@@ -2,11 +2,12 @@
 modes, Craig-Bampton bases with nodal, rigid (RBE2-like) or averaged (RBE3-like) interfaces, and
 the invariants of motion in modal coordinates.
 
-Large eigenproblems K x = w^2 M x are solved by a restarted block shift-invert Krylov method
-(`block_krylov_eigenpairs`) whose inverse operator is a sparse Cholesky factorization in Rust
-(`flexmbd._core.SymmetricFactor`, nested dissection of the mesh), in double precision or, to
-halve the memory of large bodies, in single precision as the preconditioner of conjugate
-gradients (`Inverse`). Every basis returned is
+Large eigenproblems K x = w^2 M x are solved by a block Davidson method with thick restarts
+(`block_davidson_eigenpairs`) preconditioned by a sparse Cholesky factorization in Rust
+(`flexmbd._core.SymmetricFactor`, nested dissection of the mesh): in double precision it is the
+block shift-invert Krylov method; in single precision (half the memory, for large bodies) it
+needs no inner iterations. Static solves with a single-precision factor use it as the
+preconditioner of conjugate gradients (`Inverse`). Every basis returned is
 mass-normalized; Craig-Bampton bases are orthonormalized and diagonalized (their reduced
 eigenproblem is solved), so that the modal mass matrix is the identity and the modal stiffness
 matrix is diagonal.
@@ -90,7 +91,11 @@ class Inverse:
     """Applies A^-1 for a symmetric positive definite sparse A: with a double-precision
     Cholesky factor, or, with `single`, by conjugate gradients preconditioned with a
     single-precision factor (half the memory; a few iterations per solve), to a relative
-    residual of `tolerance` per column."""
+    residual of `tolerance` per column. The factor keeps A itself (`multiply`), so that the
+    caller may drop its copy."""
+
+    #: Columns solved together by conjugate gradients (bounds the memory of the iteration).
+    CHUNK = 8
 
     def __init__(
         self,
@@ -101,7 +106,7 @@ class Inverse:
         name: str = "matrix",
         **ordering: Any,
     ):
-        self.matrix = sp.csr_matrix(matrix)
+        self.shape = matrix.shape
         self.single = single
         self.tolerance = tolerance
         self.name = name
@@ -112,35 +117,53 @@ class Inverse:
     def factor_bytes(self) -> int:
         return int(self.factor.factor_bytes)
 
+    def multiply(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A x (columns)."""
+        return self.factor.multiply(x)
+
+    def __matmul__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.multiply(x)
+
+    def precondition(self, b: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A^-1 b approximately: one solve with the factor (exact in double precision, to
+        about 1e-7 times the condition number in single precision)."""
+        return self.factor.solve(b)
+
     def solve(self, b: NDArray[np.float64]) -> NDArray[np.float64]:
         if not self.single:
             return self.factor.solve(b)
-        return self._conjugate_gradients(b)
+        rhs = b.reshape(b.shape[0], -1)
+        x = np.empty_like(rhs)
+        for first in range(0, rhs.shape[1], self.CHUNK):
+            columns = slice(first, first + self.CHUNK)
+            x[:, columns] = self._conjugate_gradients(np.ascontiguousarray(rhs[:, columns]))
+        return x.reshape(b.shape)
 
     def _conjugate_gradients(self, b: NDArray[np.float64]) -> NDArray[np.float64]:
-        shape = b.shape
-        rhs = b.reshape(shape[0], -1)
-        norms = np.linalg.norm(rhs, axis=0)
+        norms = np.linalg.norm(b, axis=0)
         norms[norms == 0.0] = 1.0
-        x = self.factor.solve(rhs)
-        r = rhs - self.matrix @ x
+        x = self.factor.solve(b)
+        r = b - self.factor.multiply(x)
         z = self.factor.solve(r)
-        p = z.copy()
+        p = z
         rz = np.einsum("ij,ij->j", r, z)
         for _ in range(200):
             residual = np.linalg.norm(r, axis=0) / norms
             if residual.max() <= self.tolerance:
-                return x.reshape(shape)
+                return x
             self.iterations += 1
-            q = self.matrix @ p
+            q = self.factor.multiply(p)
             pq = np.einsum("ij,ij->j", p, q)
             alpha = np.divide(rz, pq, out=np.zeros_like(rz), where=pq != 0.0)
             x += p * alpha
-            r -= q * alpha
+            q *= alpha
+            r -= q
+            del q
             z = self.factor.solve(r)
             rz_new = np.einsum("ij,ij->j", r, z)
             beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz != 0.0)
-            p = z + p * beta
+            p *= beta
+            p += z
             rz = rz_new
         raise InvalidModelError(
             f"conjugate gradients with the single-precision factor of the {self.name} did not "
@@ -148,6 +171,36 @@ class Inverse:
             "the matrix is too ill-conditioned for single precision: use precision='double'",
             item=self.name,
         )
+
+
+class _Restricted:
+    """Products with the block A[keep][:, keep] of a sparse matrix without forming it (a copy
+    of the size of A for large bodies), a few columns at a time."""
+
+    CHUNK = 8
+
+    def __init__(self, matrix: sp.spmatrix, keep: NDArray[np.int64]):
+        self.matrix = matrix
+        self.shape = (len(keep), len(keep))
+        # Runs of consecutive kept indices: copies by slices (interfaces leave few gaps).
+        breaks = np.flatnonzero(np.diff(keep) != 1) + 1
+        starts = np.concatenate([[0], breaks])
+        ends = np.concatenate([breaks, [len(keep)]])
+        self.runs = [(int(a), int(b), int(keep[a])) for a, b in zip(starts, ends, strict=True)]
+
+    def __matmul__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        columns = x.reshape(self.shape[0], -1)
+        out = np.empty(columns.shape)
+        full = np.zeros((self.matrix.shape[0], min(self.CHUNK, columns.shape[1])))
+        for first in range(0, columns.shape[1], self.CHUNK):
+            part = slice(first, first + self.CHUNK)
+            width = columns[:, part].shape[1]
+            for a, b, at in self.runs:
+                full[at : at + b - a, :width] = columns[a:b, part]
+            product = self.matrix @ full[:, :width]
+            for a, b, at in self.runs:
+                out[a:b, part] = product[at : at + b - a]
+        return out.reshape(x.shape)
 
 
 # Eigenproblems ----------------------------------------------------------------------------------
@@ -161,99 +214,128 @@ def _mass_normalize(vectors: NDArray, m: Any) -> NDArray:
 def _m_orthonormalize(
     w: NDArray[np.float64],
     m: Any,
-    previous: list[tuple[NDArray, NDArray]],
+    previous: NDArray[np.float64],
     keep: Any = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Columns of w made M-orthogonal to the blocks `previous` (pairs V, M V) and
-    M-orthonormal among themselves (directions lost to round-off dropped). Returns W, M W and,
-    when there are no previous blocks, the transform T with W = w T. The second round
-    restores the orthogonality that normalizing small remainders (a nearly dependent block)
-    loses; `keep` (a projector onto constraints) is applied before each normalization, so that
-    round-off amplified by it stays in the constraint space."""
-    transform = np.eye(w.shape[1])
+) -> NDArray[np.float64]:
+    """Columns of w (overwritten) made M-orthogonal to the M-orthonormal columns `previous` and
+    M-orthonormal among themselves (directions lost to round-off dropped): classical
+    Gram-Schmidt twice, then the eigen-decomposition of the Gram matrix. A second round restores
+    the orthogonality that normalizing small remainders loses (when much of w cancelled or the
+    block is nearly dependent); `keep` (a projector onto constraints) is applied before each
+    normalization, so that round-off amplified by it stays in the constraint space. M V is not
+    stored: it is recomputed, which costs little beside the solves and saves a copy of the
+    basis."""
     for round_ in range(2):
-        for _ in range(2):
-            for v, mv in previous:
-                w = w - v @ (mv.T @ w)
+        before = 0.0
+        for pass_ in range(2 if previous.shape[1] else 0):
+            mw = m @ w
+            if pass_ == 0:
+                before = float(np.einsum("ij,ij->j", w, mw).max())
+            w -= previous @ (previous.T @ mw)
+            del mw
         if keep is not None:
             w = keep(w)
-        mw = m @ w
-        gram = w.T @ mw
+        gram = w.T @ (m @ w)
         values, vectors = np.linalg.eigh(0.5 * (gram + gram.T))
-        threshold = 1e-12 * max(values.max(), 1e-300) if round_ == 0 else 0.5
+        largest = max(values.max(), 1e-300)
+        threshold = 1e-12 * largest if round_ == 0 else 0.5
         kept = values > threshold
         step = vectors[:, kept] / np.sqrt(values[kept])
         w = w @ step
-        transform = transform @ step
-    return w, m @ w, transform
+        # Orthogonality lost in normalizing is about 1e-16 / sqrt(smallest / largest norm^2).
+        if round_ == 0 and (not kept.any() or values[kept].min() > 1e-6 * max(largest, before)):
+            break
+    return w
 
 
-def block_krylov_eigenpairs(
-    k: sp.spmatrix,
-    m: sp.spmatrix,
+def block_davidson_eigenpairs(
+    k: Any,
+    m: Any,
     count: int,
-    solve: Any,
+    precondition: Any,
     *,
     shift: float = 0.0,
     block: int | None = None,
     steps: int = 3,
     tolerance: float = 1e-8,
-    restarts: int = 30,
+    iterations: int = 200,
     project: Any = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The `count` lowest eigenpairs of K x = lambda M x by restarted block shift-invert Krylov
-    iteration: from a block X of `block` vectors, the basis [X, S X, ..., S^steps X] with
-    S = (K - shift M)^-1 M (`solve` applies (K - shift M)^-1 to a block of columns), fully
-    M-orthonormalized, and the Rayleigh-Ritz pairs of (K, M) in it; the Ritz vectors restart
-    the iteration until every wanted pair (lambda, x) satisfies
-    |(lambda - shift) S x - x|_M < `tolerance` |x|_M (the residual of the shift-invert
-    operator, as in ARPACK: insensitive to high-frequency round-off that K would amplify). A
-    block solve of many columns costs little more than one, so this needs far less time than
-    one-vector Lanczos. For eigenproblems with constraints G x = 0 (`solve` then applies the
-    constrained inverse), `project` is the projector onto G x = 0: it keeps the basis in the
-    constraint space against round-off (where rigid motions of zero energy would creep in).
-    Returns ascending eigenvalues and M-orthonormal vectors."""
+    """The `count` lowest eigenpairs of K x = lambda M x by a block Davidson iteration with
+    thick restarts. The basis V (M-orthonormal) starts from `block` vectors and grows by the
+    preconditioned residuals T (K X - M X Lambda) of the `block` lowest Ritz pairs (X, Lambda)
+    of (K, M) in V; after `steps` expansions it restarts from X. `precondition` applies
+    T ~ (K - shift M)^-1 to a block of columns: with an exact inverse the basis is the block
+    shift-invert Krylov space (T r = (lambda - shift) S x - x with S = (K - shift M)^-1 M), and
+    an approximate one (a single-precision factor) needs no inner iteration: the residuals are
+    exact, so the Ritz pairs converge to the exact ones, only a little more slowly. Converged
+    when every wanted pair has |T r|_M < `tolerance` (|x|_M = 1): the residual of the
+    shift-invert operator, as in ARPACK, insensitive to high-frequency round-off that K would
+    amplify. `k` and `m` need only products with blocks of columns (`@`). For eigenproblems
+    with constraints G x = 0 (`precondition` then maps into G x = 0), `project` is the
+    projector onto G x = 0: it keeps the basis in the constraint space against round-off (where
+    rigid motions of zero energy would creep in). Memory: the basis, (steps + 1) blocks of
+    vectors. Returns ascending eigenvalues and M-orthonormal vectors."""
     n = k.shape[0]
     block = block or max(count + 4, 8)
     keep = project or (lambda y: y)
     rng = np.random.default_rng(20261122)
-    x = keep(solve(m @ rng.standard_normal((n, block))))
-    image = keep(solve(m @ x))
+    start = keep(precondition(m @ rng.standard_normal((n, block))))
+    v = np.empty((n, block * (steps + 1)))
+    w = _m_orthonormalize(start, m, v[:, :0], project)
+    used = w.shape[1]
+    v[:, :used] = w
+    h = w.T @ (k @ w)
+    del start, w
+    history: list[float] = []
     residual = np.inf
-    for _ in range(restarts):
-        v, mv, transform = _m_orthonormalize(x, m, [], project)
-        basis = [(v, mv)]
-        images = [image @ transform]
-        for _ in range(steps):
-            w, mw, _ = _m_orthonormalize(images[-1], m, basis, project)
-            if w.shape[1] == 0:
-                break
-            basis.append((w, mw))
-            images.append(keep(solve(mw)))
-        q = np.hstack([b for b, _ in basis])
-        mq = np.hstack([b for _, b in basis])
-        sq = np.hstack(images)
-        kq = np.asarray(q.T @ (k @ q))
-        gram = q.T @ mq
-        values, vectors = sla.eigh(0.5 * (kq + kq.T), 0.5 * (gram + gram.T))
-        x = q @ vectors[:, :block]
-        image = sq @ vectors[:, :block]
-        z = image[:, :count] * (values[:count] - shift) - x[:, :count]
-        previous, residual = residual, float(np.sqrt(np.abs(np.einsum("ij,ij->j", z, m @ z))).max())
-        # Converged, or stagnating at the round-off floor of the solves (which grows with the
-        # condition number of K - shift M).
-        if residual < tolerance or (residual < 1e-5 and residual > 0.5 * previous):
+    for _ in range(iterations):
+        values, y = sla.eigh(0.5 * (h + h.T))
+        x = v[:, :used] @ y[:, :block]
+        values = values[:block]
+        kx = k @ x
+        mx = m @ x
+        mx *= values
+        kx -= mx
+        del mx
+        t = keep(precondition(kx))
+        del kx
+        norms = np.sqrt(np.abs(np.einsum("ij,ij->j", t, m @ t)))
+        residual = float(norms[:count].max())
+        history.append(residual)
+        # Converged, or stagnating at the round-off floor (which grows with the condition
+        # number of K - shift M): no progress in the last four iterations.
+        stalled = len(history) > 4 and residual > 0.5 * min(history[-5:-1])
+        if residual < tolerance or (residual < 1e3 * tolerance and stalled):
             return values[:count], x[:, :count]
+        if used + block > v.shape[1]:
+            v[:, : x.shape[1]] = x
+            used = x.shape[1]
+            h = x.T @ (k @ x)
+        del x
+        # Directions of unit length; those of converged pairs add nothing.
+        active = norms > 0.1 * tolerance
+        t = t[:, active] / norms[active]
+        w = _m_orthonormalize(t, m, v[:, :used], project)
+        del t
+        if w.shape[1] == 0:  # the residuals lie in the basis: exact to round-off
+            return values[:count], v[:, :used] @ y[:, :count]
+        kw = k @ w
+        coupling = v[:, :used].T @ kw
+        h = np.block([[h, coupling], [coupling.T, w.T @ kw]])
+        v[:, used : used + w.shape[1]] = w
+        used += w.shape[1]
+        del w, kw
     raise InvalidModelError(
-        f"the eigensolver did not converge: relative residual {residual:.1e} after {restarts} "
-        f"restarts for {count} modes",
+        f"the eigensolver did not converge: relative residual {residual:.1e} after "
+        f"{iterations} iterations for {count} modes",
         item="eigenproblem",
     )
 
 
 def eigenpairs(
-    k: sp.spmatrix,
-    m: sp.spmatrix,
+    k: Any,
+    m: Any,
     count: int,
     *,
     shift: float = 0.0,
@@ -262,8 +344,9 @@ def eigenpairs(
     project: Any = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The `count` eigenpairs of K x = lambda M x nearest to `shift` from above, sorted and
-    mass-normalized. `solve(y)` applies (K - shift M)^-1 to blocks of columns (see
-    `block_krylov_eigenpairs`, also for `project`); small problems are solved densely (within
+    mass-normalized. `solve(y)` applies (K - shift M)^-1, or an approximation of it, to blocks
+    of columns (see
+    `block_davidson_eigenpairs`, also for `project`); small problems are solved densely (within
     the columns of `dense_projection` when given: a basis of the admissible motions)."""
     n = k.shape[0]
     if count < 1:
@@ -284,7 +367,7 @@ def eigenpairs(
         )
     if solve is None:
         raise InvalidParameterError("a large eigenproblem needs the factorization of K - shift M")
-    values, vectors = block_krylov_eigenpairs(k, m, count, solve, shift=shift, project=project)
+    values, vectors = block_davidson_eigenpairs(k, m, count, solve, shift=shift, project=project)
     return values, _mass_normalize(vectors, m)
 
 
@@ -339,7 +422,7 @@ def fixed_interface_modes(
                 f"the reference conditions leave the body free to move rigidly ({error})",
                 item="reference conditions",
             ) from error
-        solve = inverse.solve
+        solve = inverse.precondition
     values, vectors = eigenpairs(kf, mf, count, solve=solve)
     _check_fixed(values, _scale(kf, mf), "the reference conditions")
     return vectors, frequencies(values)
@@ -372,7 +455,7 @@ def free_free_modes(
             dofs_per_node=dofs_per_node,
             name="shifted stiffness K - sigma M",
         )
-        solve = inverse.solve
+        solve = inverse.precondition
     values, vectors = eigenpairs(stiffness, mass, count + rigid, shift=shift, solve=solve)
     elastic = values[rigid:]
     if rigid and values[rigid - 1] > 1e-6 * max(elastic[0], 1e-300):
@@ -621,7 +704,8 @@ def _craig_bampton_fixed(
         blocks.append(block)
     t_all = np.hstack(blocks) if blocks else np.zeros((len(boundary), 0))
     kii = k[interior][:, interior].tocsc()
-    mii = m[interior][:, interior].tocsc()
+    scale = _scale(kii, m)
+    mii = _Restricted(m, interior) if len(interior) > DENSE_LIMIT else m[interior][:, interior]
     inverse = None
     if len(interior) > DENSE_LIMIT or t_all.shape[1]:
         inverse = Inverse(
@@ -636,12 +720,17 @@ def _craig_bampton_fixed(
     if t_all.shape[1]:
         psi[boundary] = t_all
         psi[interior] = -inverse.solve(np.asarray(k[interior][:, boundary] @ t_all))
-    phi = np.zeros((n, count))
+    vectors = np.zeros((len(interior), 0))
     if count:
-        solve = None if inverse is None else inverse.solve
+        solve = None
+        if inverse is not None:
+            # The factor holds K_ii: the copy here is dropped (memory of large bodies).
+            solve, kii = inverse.precondition, inverse
         values, vectors = eigenpairs(kii, mii, count, solve=solve)
-        _check_fixed(values, _scale(kii, mii), "the interfaces")
-        phi[interior] = vectors
+        _check_fixed(values, scale, "the interfaces")
+    del kii, mii, inverse
+    phi = np.zeros((n, count))
+    phi[interior] = vectors
     return phi, psi
 
 

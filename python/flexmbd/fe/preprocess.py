@@ -48,7 +48,8 @@ class NodalBody:
     """Nodal matrices and invariants of a body before reference conditions.
 
     ``i_kl`` is a 3 x 3 nested list of sparse (n, n) matrices; for bodies of solid elements
-    they are M_s (x) e_k e_l^T of the scalar mass matrix M_s (``scalar_mass``)."""
+    they are M_s (x) e_k e_l^T of the scalar mass matrix M_s (``scalar_mass``), or None when
+    not formed (see `assemble`)."""
 
     dofs_per_node: int
     stiffness: sp.csc_matrix
@@ -88,12 +89,16 @@ def assemble(
     beam_theory: str = "euler-bernoulli",
     node_ids: ArrayLike | None = None,
     element_ids: Mapping[str, ArrayLike] | None = None,
+    solid_i_kl: bool = True,
 ) -> NodalBody:
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
     `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8") to
     its connectivity (n_e, nodes) of 0-based node indices. `mass` is "consistent" or "lumped";
-    `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams)."""
+    `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams). For bodies of
+    solid elements the nine I_kl are the scalar mass matrix M_s spread over the coordinates;
+    with `solid_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants
+    need only M_s), which saves memory of the size of M."""
     if mass not in ("consistent", "lumped"):
         raise InvalidParameterError(f"mass must be 'consistent' or 'lumped', got {mass!r}")
     shear = _beam_theory(beam_theory)
@@ -127,7 +132,11 @@ def assemble(
         unit = [
             [sp.csc_matrix(([1.0], ([k], [j])), shape=(3, 3)) for j in range(3)] for k in range(3)
         ]
-        i_kl = [[sp.kron(ms, unit[k][j], format="csc") for j in range(3)] for k in range(3)]
+        i_kl = (
+            [[sp.kron(ms, unit[k][j], format="csc") for j in range(3)] for k in range(3)]
+            if solid_i_kl
+            else None
+        )
     else:
         ms = None
         i_kl = [[_csc(raw["i_kl"][3 * k + j]) for j in range(3)] for k in range(3)]
@@ -333,6 +342,7 @@ def build_body(
         beam_theory=beam_theory,
         node_ids=ids,
         element_ids=eids,
+        solid_i_kl=modes is None,
     )
     d = nodal.dofs_per_node
     mean_axis_modes = ("free-free", "craig-bampton")

@@ -418,6 +418,98 @@ impl SymmetricFactor {
         }
     }
 
+    /// Solves A X = B for B given by its rows (row-major, n x k, as NumPy's C order) and
+    /// returns the rows of X. Needs less memory than [`Self::solve_in_place`] on a
+    /// column-major copy: in single precision only the f32 work block and the result.
+    pub fn solve_rows(&self, rows: &[f64], k: usize) -> Result<Vec<f64>> {
+        let n = self.n;
+        if rows.len() != n * k {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "right-hand side".to_string(),
+                message: format!("length {} is not n * k = {n} * {k}", rows.len()),
+            });
+        }
+        let mut out = vec![0.0; n * k];
+        if self.kind == FactorKind::CholeskySingle {
+            let mut single = vec![0.0f32; n * k];
+            for r in 0..n {
+                for j in 0..k {
+                    single[j * n + r] = (rows[r * k + j] * self.scaling[r]) as f32;
+                }
+            }
+            let req = self.symbolic.solve_in_place_scratch::<f32>(k, self.par);
+            let mut memory = MemBuffer::try_new(req).map_err(|_| out_of_memory("solve"))?;
+            let mat = MatMut::from_column_major_slice_mut(&mut single, n, k);
+            LltRef::new(&self.symbolic, &self.factor32).solve_in_place_with_conj(
+                Conj::No,
+                mat,
+                self.par,
+                MemStack::new(&mut memory),
+            );
+            for r in 0..n {
+                for j in 0..k {
+                    out[r * k + j] = f64::from(single[j * n + r]) * self.scaling[r];
+                }
+            }
+        } else {
+            let mut columns = vec![0.0; n * k];
+            for r in 0..n {
+                for j in 0..k {
+                    columns[j * n + r] = rows[r * k + j];
+                }
+            }
+            self.solve_in_place(&mut columns)?;
+            for r in 0..n {
+                for j in 0..k {
+                    out[r * k + j] = columns[j * n + r];
+                }
+            }
+        }
+        if out.iter().any(|v| !v.is_finite()) {
+            return Err(FlexmbdError::NonFinite {
+                item: "solution of a factorized system".to_string(),
+                time: 0.0,
+            });
+        }
+        Ok(out)
+    }
+
+    /// A X for the symmetric matrix that was factorized (not the regularized one); `x` holds
+    /// the rows of X (row-major, n x k) and the rows of A X are returned.
+    pub fn multiply(&self, x: &[f64], k: usize) -> Result<Vec<f64>> {
+        let n = self.n;
+        if x.len() != n * k {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "multiplied block".to_string(),
+                message: format!("length {} is not n * k = {n} * {k}", x.len()),
+            });
+        }
+        let mut y = vec![0.0; n * k];
+        let mut acc = vec![0.0; k];
+        for c in 0..n {
+            let xc = &x[c * k..(c + 1) * k];
+            acc.fill(0.0);
+            for e in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let r = self.row_idx[e];
+                let v = self.values[e];
+                let xr = &x[r * k..(r + 1) * k];
+                for j in 0..k {
+                    acc[j] += v * xr[j];
+                }
+                if r != c {
+                    let yr = &mut y[r * k..(r + 1) * k];
+                    for j in 0..k {
+                        yr[j] += v * xc[j];
+                    }
+                }
+            }
+            for (yj, aj) in y[c * k..(c + 1) * k].iter_mut().zip(&acc) {
+                *yj += aj;
+            }
+        }
+        Ok(y)
+    }
+
     /// Solves with iterative refinement against the exact matrix: removes the effect of the
     /// regularization of quasi-definite factors (and round-off) in `steps` corrections.
     pub fn solve_refined(&self, rhs: &mut [f64], steps: usize) -> Result<()> {
@@ -718,6 +810,68 @@ mod tests {
         let mut exact = b.clone();
         double.solve_in_place(&mut exact).unwrap();
         assert!(residual(&double, &exact, &b) / scale < 1e-12);
+    }
+
+    #[test]
+    fn multiply_applies_the_whole_symmetric_matrix() {
+        let (n, col_ptr, row_idx, values, _) = laplacian(5, 0.3);
+        let f = SymmetricFactor::new(
+            "A",
+            csc(n, &col_ptr, &row_idx, &values),
+            Ordering::Amd,
+            FactorKind::Cholesky,
+            1,
+        )
+        .expect("factorizes");
+        let k = 3;
+        let x: Vec<f64> = (0..n * k).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
+        let y = f.multiply(&x, k).expect("multiplies");
+        // Reference: the full matrix from both triangles of the stored lower part.
+        let mut dense = vec![0.0; n * n];
+        for c in 0..n {
+            for e in col_ptr[c]..col_ptr[c + 1] {
+                dense[row_idx[e] * n + c] = values[e];
+                dense[c * n + row_idx[e]] = values[e];
+            }
+        }
+        for r in 0..n {
+            for j in 0..k {
+                let expected: f64 = (0..n).map(|c| dense[r * n + c] * x[c * k + j]).sum();
+                assert!((y[r * k + j] - expected).abs() < 1e-12 * (1.0 + expected.abs()));
+            }
+        }
+        assert!(f.multiply(&x[1..], k).is_err());
+    }
+
+    #[test]
+    fn row_major_solves_match_column_major_ones() {
+        let (n, col_ptr, row_idx, values, positions) = laplacian(6, 0.2);
+        let k = 3;
+        let rows: Vec<f64> = (0..n * k).map(|i| ((i * 104_729) % 17) as f64 - 8.0).collect();
+        let mut columns = vec![0.0; n * k];
+        for r in 0..n {
+            for j in 0..k {
+                columns[j * n + r] = rows[r * k + j];
+            }
+        }
+        for kind in [FactorKind::Cholesky, FactorKind::CholeskySingle] {
+            let ordering =
+                Ordering::NestedDissection { dof_nodes: &(0..n).collect::<Vec<_>>(), positions: &positions };
+            let f = SymmetricFactor::new("A", csc(n, &col_ptr, &row_idx, &values), ordering, kind, 1)
+                .expect("factorizes");
+            let x = f.solve_rows(&rows, k).expect("solves");
+            let mut expected = columns.clone();
+            f.solve_in_place(&mut expected).expect("solves");
+            for r in 0..n {
+                for j in 0..k {
+                    assert!(
+                        (x[r * k + j] - expected[j * n + r]).abs()
+                            <= 1e-14 * (1.0 + expected[j * n + r].abs())
+                    );
+                }
+            }
+            assert!(f.solve_rows(&rows[1..], k).is_err());
+        }
     }
 
     #[test]
