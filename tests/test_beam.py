@@ -3,10 +3,10 @@ the Rayleigh beam (rotary inertia, closed form)."""
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 
 import flexmbd.fe.preprocess as pp
 from flexmbd._core import Material, Section
+from flexmbd.errors import InvalidModelError
 
 E, RHO, L = 2.0e11, 7850.0, 1.0
 MATERIAL = Material(E, 0.3, RHO)
@@ -64,16 +64,57 @@ def test_rayleigh_beam_rotary_inertia_pinned_pinned():
             assert np.min(np.abs(frequencies - value)) / value < 1e-3
 
 
-def cantilever_solution(load):
+def test_timoshenko_beam_pinned_pinned_frequencies_converge_to_the_closed_form():
+    # Simply supported Timoshenko beam, w = W sin kx, phi = P cos kx, k = n pi / L:
+    # rho A rho I w^4 - (rho A (E I k^2 + kGA) + rho I kGA k^2) w^2 + kGA E I k^4 = 0. A thick
+    # section (L / h = 10), where shear lowers the fourth frequency by 6 to 13 % below the
+    # Rayleigh beam (rotary inertia only, previous test). The elements converge to it at second
+    # order (a wrong term would converge elsewhere).
+    section = Section.rectangle(0.06, 0.1)
+    k = np.arange(1, 5) * np.pi / L
+    kga = section.shear_factor * E / (2 * 1.3) * section.area
+    exact = []
+    for inertia in (section.iz, section.iy):
+        ra, ri = RHO * section.area, RHO * inertia
+        a, b, c = (
+            ra * ri,
+            ra * (E * inertia * k**2 + kga) + ri * kga * k**2,
+            kga * E * inertia * k**4,
+        )
+        exact.append(np.sqrt((b - np.sqrt(b**2 - 4 * a * c)) / (2 * a)) / (2 * np.pi))
+        rayleigh = np.sqrt(E * inertia / ra * k**4 / (1 + inertia / section.area * k**2))
+        assert exact[-1][3] < 0.94 * rayleigh[3] / (2 * np.pi)  # the effect tested is large
+    exact = np.concatenate(exact)
+    errors = []
+    for elements in (40, 80):
+        nodes, connectivity = pp.straight_beam(L, elements)
+        nodal = pp.assemble(
+            nodes, connectivity, MATERIAL, section=section, beam_theory="timoshenko"
+        )
+        n = len(nodes)
+        held = [0, 1, 2, 3, 6 * (n - 1) + 1, 6 * (n - 1) + 2]
+        free = np.setdiff1d(np.arange(6 * n), held)
+        _, frequencies = pp.fixed_interface_modes(nodal.stiffness, nodal.mass, free, 14)
+        nearest = frequencies[np.abs(frequencies[:, None] - exact[None, :]).argmin(axis=0)]
+        errors.append(nearest / exact - 1.0)
+    assert np.all(errors[1] > 0) and errors[1].max() < 3e-4
+    assert np.allclose(errors[0] / errors[1], 4.0, rtol=0.08)
+
+
+def cantilever_solution(load, **modal):
     section = Section.rectangle(0.01, 0.02)
     nodes, elements = pp.straight_beam(L, 20)
-    nodal = pp.assemble(nodes, elements, MATERIAL, section=section)
+    body = pp.build_body(
+        nodes,
+        elements,
+        MATERIAL,
+        section=section,
+        reference="clamped",
+        reference_nodes=[0],
+        **modal,
+    )
     n = len(nodes)
-    free = pp.reference_dofs("clamped", n, 6, [0])
-    k = nodal.stiffness[free][:, free].tocsc()
-    u = np.zeros(6 * n)
-    u[free] = spla.spsolve(k, load(n)[free])
-    return section, u, n
+    return section, pp.static_displacements(body, load(n)), n
 
 
 def test_r1_static_tip_load():
@@ -88,6 +129,13 @@ def test_r1_static_tip_load():
     ei = E * section.iz
     assert u[6 * (n - 1) + 1] == pytest.approx(p * L**3 / (3 * ei), rel=1e-6)
     assert u[6 * (n - 1) + 5] == pytest.approx(p * L**2 / (2 * ei), rel=1e-6)
+    # A modal body with every fixed-interface mode gives the same static solution; a body
+    # without reference conditions has none.
+    _, modal, _ = cantilever_solution(load, modes="fixed-interface", mode_count=120)
+    assert np.abs(modal - u).max() < 1e-9 * np.abs(u).max()
+    free_body = pp.build_body(*pp.straight_beam(L, 4), MATERIAL, section=section)
+    with pytest.raises(InvalidModelError, match="free to move rigidly"):
+        pp.static_displacements(free_body, np.ones(free_body.dof_count))
 
 
 def test_r1_static_uniform_load():

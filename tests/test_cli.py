@@ -27,3 +27,55 @@ def test_python_dash_m_runs_the_default_example():
     )
     assert run.returncode == 0, run.stderr
     assert "IFToMM A02" in run.stdout
+
+
+def _write_abaqus_box(path):
+    """A tet4 box as a flat Abaqus input file with the node sets x0 and x1 (1-based labels)."""
+    import numpy as np
+
+    from flexmbd.fe import shapes
+
+    mesh = shapes.box((1.0, 0.1, 0.1), (8, 2, 2), "tet4")
+    lines = ["*NODE"]
+    lines += [f"{i + 1}, {x:.17g}, {y:.17g}, {z:.17g}" for i, (x, y, z) in enumerate(mesh.nodes)]
+    lines.append("*ELEMENT, TYPE=C3D4, ELSET=BODY")
+    tets = mesh.elements["tet4"]
+    lines += [f"{e + 1}, " + ", ".join(str(n + 1) for n in t) for e, t in enumerate(tets)]
+    for name in ("x0", "x1"):
+        lines.append(f"*NSET, NSET={name}")
+        chunks = np.array_split(mesh.node_sets[name], 3)
+        lines += [", ".join(str(n + 1) for n in chunk) for chunk in chunks]
+    path.write_text("\n".join(lines) + "\n")
+    return mesh
+
+
+def test_preprocess_writes_a_body_file_equal_to_the_python_api(tmp_path, capsys):
+    import numpy as np
+
+    from flexmbd.fe.body_file import load_body
+    from flexmbd.fe.preprocess import Material, build_body
+
+    mesh = _write_abaqus_box(tmp_path / "bar.inp")
+    out = tmp_path / "bar.h5"
+    material = ["-E", "2.1e11", "--poisson-ratio", "0.3", "--density", "7800"]
+    modal = ["--reference", "interface", "--modes", "craig-bampton", "-n", "4"]
+    command = ["preprocess", str(tmp_path / "bar.inp"), "-o", str(out), *material, *modal]
+    assert main([*command, "--interfaces", "x0", "x1"]) == 0
+    printed = capsys.readouterr().out
+    assert "81 nodes, 192 tet4" in printed and "frequencies (Hz)" in printed
+    body = load_body(out)
+    same = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(2.1e11, 0.3, 7800.0),
+        node_sets=mesh.node_sets,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=4,
+        interfaces=["x0", "x1"],
+    )
+    np.testing.assert_allclose(body.frequencies, same.frequencies, rtol=1e-10)
+    assert body.metadata["source"] == str(tmp_path / "bar.inp")
+    # A node set the mesh does not have: a clear message and exit status 1.
+    assert main([*command, "--interfaces", "x0", "tip"]) == 1
+    assert "tip" in capsys.readouterr().err

@@ -194,15 +194,18 @@ def cantilever_tip_deflection(element, n):
     """Tip deflection of a clamped steel bar 1 x 0.1 x 0.1 m, tip load 1 kN along z spread
     evenly over the end face, averaged over the end face."""
     mesh = shapes.box((1.0, 0.1, 0.1), (10 * n, n, n), element)
-    body = pp.assemble(mesh.nodes, mesh.elements, STEEL)
-    free = pp.reference_dofs("clamped", len(mesh.nodes), 3, mesh.node_sets["x0"])
+    body = pp.build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+    )
     tip = mesh.node_sets["x1"]
-    f = np.zeros(3 * len(mesh.nodes))
+    f = np.zeros(body.dof_count)
     f[3 * tip + 2] = 1000.0 / len(tip)
-    u = np.zeros_like(f)
-    k = body.stiffness[free][:, free].tocsc()
-    u[free] = md.factorize(k, dofs=free, nodes=mesh.nodes).solve(f[free])
-    return u[3 * tip + 2].mean()
+    return pp.static_displacements(body, f)[3 * tip + 2].mean()
 
 
 def timoshenko_tip_deflection():
@@ -277,3 +280,61 @@ def test_unknown_duplicate_and_unconnected_nodes_are_named():
 def test_bad_material_data_is_rejected(young, poisson, density, match):
     with pytest.raises(InvalidParameterError, match=match):
         Material(young, poisson, density, name="steel")
+
+
+def _same_invariants(a, b, rtol=1e-12):
+    for key in ("mass", "first_moment", "second_moment", "i1", "ibar", "k_ff", "m_ff"):
+        x, y = (np.asarray(v.toarray() if sp.issparse(v) else v) for v in (a[key], b[key]))
+        assert np.allclose(x, y, rtol=rtol, atol=rtol * np.abs(y).max()), key
+    for k in range(3):
+        for j in range(3):
+            x, y = (
+                np.asarray(v[k][j].toarray() if sp.issparse(v[k][j]) else v[k][j])
+                for v in (a["i_kl"], b["i_kl"])
+            )
+            assert np.allclose(x, y, rtol=rtol, atol=rtol * np.abs(y).max()), (k, j)
+
+
+@pytest.mark.parametrize("element, mass", [("tet4", "consistent"), ("hex8", "lumped")])
+def test_bodies_from_matrices_equal_bodies_from_elements(element, mass):
+    # Invariants derived from M = M_s (x) I_3 against those summed over the elements' mass
+    # points (Rust), for nodal and Craig-Bampton bodies of a turned, shifted box.
+    mesh, nodes, _, _, _ = rotated_box(element, divisions=(6, 2, 2))
+    options = {"node_sets": mesh.node_sets}
+    nodal = pp.assemble(nodes, mesh.elements, STEEL, mass=mass)
+    cases = [
+        {"reference": "3-2-1", "reference_nodes": [0, 1, 3]},
+        {
+            "reference": "interface",
+            "modes": "craig-bampton",
+            "mode_count": 4,
+            "interfaces": ["x0", "x1"],
+        },
+    ]
+    for case in cases:
+        expected = pp.build_body(nodes, mesh.elements, STEEL, mass=mass, **options, **case)
+        body = pp.body_from_matrices(
+            nodes, nodal.stiffness, nodal.mass.toarray(), mass_kind=mass, **options, **case
+        )
+        _same_invariants(body.invariants, expected.invariants)
+        assert body.mass_kind == mass and body.material == {} and body.elements == {}
+        if body.frequencies is not None:
+            assert np.allclose(body.frequencies, expected.frequencies, rtol=1e-10)
+
+
+def test_bodies_from_matrices_reject_mass_matrices_not_of_a_solid():
+    mesh = shapes.box((1.0, 0.2, 0.2), (3, 1, 1), "hex8")
+    nodal = pp.assemble(mesh.nodes, mesh.elements, STEEL)
+    m = nodal.mass.tolil()
+    m[0, 4] = m[4, 0] = 1.0  # couples x of node 0 with y of node 1
+    with pytest.raises(InvalidModelError, match=r"entry \((0, 4|4, 0)\).*couples"):
+        pp.body_from_matrices(mesh.nodes, nodal.stiffness, m)
+    m = nodal.mass.tolil()
+    m[1, 1] *= 1.5  # y of node 0 heavier than x
+    with pytest.raises(InvalidModelError, match=r"\(1, 1\) and \(0, 0\) differ"):
+        pp.body_from_matrices(mesh.nodes, nodal.stiffness, m)
+    with pytest.raises(InvalidParameterError, match="3 coordinates per node"):
+        pp.body_from_matrices(mesh.nodes[:-1], nodal.stiffness, nodal.mass)
+    with pytest.raises(InvalidParameterError, match="symmetric"):
+        skew = 1e-3 * abs(nodal.stiffness).max() * sp.eye(48, k=1)
+        pp.body_from_matrices(mesh.nodes, nodal.stiffness + skew, nodal.mass)

@@ -1,5 +1,6 @@
 """Command line: ``flexmbd run [EXAMPLE]`` runs a built-in example and compares it with its
-published reference; ``flexmbd examples`` lists them."""
+published reference; ``flexmbd examples`` lists them; ``flexmbd preprocess MESH -o BODY.h5``
+turns a mesh file into a deformable-body file (see ``docs/preprocessor.md``)."""
 
 from __future__ import annotations
 
@@ -45,6 +46,47 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _preprocess(args: argparse.Namespace) -> int:
+    from .fe.body_file import save_body
+    from .fe.preprocess import Material, body_from_mesh
+
+    options = {
+        "mass": args.mass,
+        "reference": args.reference,
+        "modes": None if args.modes == "none" else args.modes,
+        "mode_count": args.count,
+        "interfaces": args.interfaces,
+        "interface_kind": args.interface_kind,
+        "precision": args.precision,
+    }
+    if args.reference_nodes:
+        nodes = args.reference_nodes
+        options["reference_nodes"] = nodes[0] if len(nodes) == 1 else [int(n) for n in nodes]
+    timings: dict[str, float] = {}
+    start = time.perf_counter()
+    try:
+        material = Material(args.young_modulus, args.poisson_ratio, args.density)
+        body = body_from_mesh(args.mesh, material, timings=timings, **options)
+    except (FlexmbdError, ValueError, OSError) as error:
+        print(f"flexmbd preprocess: {error}", file=sys.stderr)
+        return 1
+    elapsed = time.perf_counter() - start
+    elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
+    print(f"flexmbd {__version__}: {args.mesh}: {body.node_count} nodes, {elements}")
+    print(
+        f"  mass {body.invariants['mass']:.6g} kg, {body.elastic_coordinate_count} elastic "
+        f"coordinates ({body.mode_kind or 'nodal'}), reference {args.reference}"
+    )
+    if body.frequencies is not None:
+        shown = ", ".join(f"{f:.4g}" for f in body.frequencies[:8])
+        more = " ..." if len(body.frequencies) > 8 else ""
+        print(f"  frequencies (Hz): {shown}{more}")
+    print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in timings.items()) + f"; {elapsed:.2f} s")
+    save_body(body, args.output)
+    print(f"  written to {args.output}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``flexmbd`` command."""
     parser = argparse.ArgumentParser(prog="flexmbd", description="Flexible multibody dynamics.")
@@ -55,7 +97,40 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--end", type=float, help="end time (s)")
     run.add_argument("--step", type=float, help="step size (s)")
     sub.add_parser("examples", help="list the built-in examples")
+    pre = sub.add_parser(
+        "preprocess",
+        help="build a deformable body file from a mesh (Gmsh .msh, Abaqus .inp, VTK)",
+        description="Element matrices, invariants of motion, reference conditions and modes "
+        "of a body meshed with solid or beam elements, saved as an HDF5 body file.",
+    )
+    pre.add_argument("mesh", help="mesh file")
+    pre.add_argument("-o", "--output", required=True, help="body file to write (.h5)")
+    pre.add_argument("-E", "--young-modulus", type=float, required=True, help="Pa")
+    pre.add_argument("--poisson-ratio", type=float, required=True)
+    pre.add_argument("--density", type=float, required=True, help="kg/m^3")
+    pre.add_argument("--mass", choices=("consistent", "lumped"), default="consistent")
+    pre.add_argument(
+        "--reference",
+        choices=("none", "clamped", "3-2-1", "mean-axis", "interface"),
+        default="none",
+        help="reference conditions: the body frame (default none)",
+    )
+    pre.add_argument(
+        "--reference-nodes", nargs="+", help="a node set name, or node indices (0-based)"
+    )
+    pre.add_argument(
+        "--modes",
+        choices=("none", "fixed-interface", "free-free", "craig-bampton"),
+        default="none",
+        help="modal reduction (default none: nodal elastic coordinates)",
+    )
+    pre.add_argument("-n", "--count", type=int, default=0, help="number of eigenmodes")
+    pre.add_argument("--interfaces", nargs="+", default=[], help="Craig-Bampton node sets")
+    pre.add_argument("--interface-kind", choices=("rbe2", "rbe3", "nodal"), default="rbe2")
+    pre.add_argument("--precision", choices=("auto", "double", "single"), default="auto")
     args = parser.parse_args(argv)
+    if args.command == "preprocess":
+        return _preprocess(args)
     if args.command == "examples":
         for name, builder in sorted(EXAMPLES.items()):
             print(f"{name}: {builder().description}")

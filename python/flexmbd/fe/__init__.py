@@ -1,6 +1,38 @@
 """The preprocessor of deformable bodies (seed section 3): meshes, materials, element matrices,
-invariants of motion, reference conditions, modal reduction, and body files."""
+invariants of motion, reference conditions, modal reduction, and body files.
 
+    from flexmbd.fe import Material, body_from_mesh, save_body, shapes
+
+See ``docs/preprocessor.md``."""
+
+from . import shapes
 from .body import FlexibleBodyData
+from .body_file import load_body, save_body
+from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
+from .preprocess import (
+    Material,
+    Section,
+    assemble,
+    body_from_matrices,
+    body_from_mesh,
+    build_body,
+    straight_beam,
+)
 
-__all__ = ["FlexibleBodyData"]
+__all__ = [
+    "FlexibleBodyData",
+    "Material",
+    "Mesh",
+    "Section",
+    "assemble",
+    "body_from_matrices",
+    "body_from_mesh",
+    "build_body",
+    "load_body",
+    "read_abaqus_matrix",
+    "read_mesh",
+    "save_body",
+    "shapes",
+    "straight_beam",
+    "validate_mesh",
+]

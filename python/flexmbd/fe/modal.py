@@ -37,6 +37,19 @@ INTERFACE_KINDS = ("nodal", "rbe2", "rbe3")
 # Factorizations ---------------------------------------------------------------------------------
 
 
+def lower_triangle(matrix: sp.spmatrix) -> sp.csc_matrix:
+    """The lower triangle (diagonal included) of a sparse matrix, CSC with sorted indices; a
+    matrix that is already lower triangular CSC is returned as it is (no copy)."""
+    if sp.isspmatrix_csc(matrix) or isinstance(matrix, sp.csc_array):
+        columns = np.repeat(np.arange(matrix.shape[1]), np.diff(matrix.indptr))
+        if np.all(matrix.indices >= columns):
+            matrix.sort_indices()
+            return matrix
+    lower = sp.tril(matrix, format="csc")
+    lower.sort_indices()
+    return lower
+
+
 def factorize(
     matrix: sp.spmatrix,
     *,
@@ -49,19 +62,18 @@ def factorize(
 ) -> Any:
     """Sparse symmetric factorization of `matrix` (Cholesky, or quasi-definite LDL^T when
     `positive` gives the size of the definite block; `single`: Cholesky in single precision).
+    Only the lower triangle of `matrix` is read (it may be given alone, see `lower_triangle`).
     With `nodes`, the unknowns are the nodal coordinates `dofs` (all when None) of a body with
     `dofs_per_node`, and the ordering is a nested dissection of the mesh; unknowns beyond
     len(dofs) (multipliers) are ordered last."""
-    a = sp.csc_matrix(matrix)
-    n = a.shape[0]
+    n = matrix.shape[0]
     kwargs: dict[str, Any] = {}
     if nodes is not None:
         dofs = np.arange(len(nodes) * dofs_per_node) if dofs is None else np.asarray(dofs)
         dof_nodes = np.full(n, -1, dtype=np.int64)
         dof_nodes[: len(dofs)] = dofs // dofs_per_node
         kwargs = {"dof_nodes": dof_nodes, "positions": np.ascontiguousarray(nodes, dtype=float)}
-    lower = sp.tril(a, format="csc")
-    lower.sort_indices()
+    lower = lower_triangle(matrix)
     return _core.SymmetricFactor(
         n,
         lower.indptr.astype(np.int64),
@@ -231,8 +243,9 @@ def _m_orthonormalize(
             mw = m @ w
             if pass_ == 0:
                 before = float(np.einsum("ij,ij->j", w, mw).max())
-            w -= previous @ (previous.T @ mw)
+            coefficients = previous.T @ mw
             del mw
+            w -= previous @ coefficients
         if keep is not None:
             w = keep(w)
         gram = w.T @ (m @ w)
@@ -291,31 +304,36 @@ def block_davidson_eigenpairs(
     residual = np.inf
     for _ in range(iterations):
         values, y = sla.eigh(0.5 * (h + h.T))
-        x = v[:, :used] @ y[:, :block]
         values = values[:block]
-        kx = k @ x
-        mx = m @ x
+        # The Ritz vectors X = V Y are formed when needed and not kept (memory).
+        kx = k @ (v[:, :used] @ y[:, :block])
+        mx = m @ (v[:, :used] @ y[:, :block])
         mx *= values
         kx -= mx
         del mx
         t = keep(precondition(kx))
         del kx
-        norms = np.sqrt(np.abs(np.einsum("ij,ij->j", t, m @ t)))
+        mt = m @ t
+        norms = np.sqrt(np.abs(np.einsum("ij,ij->j", t, mt)))
+        del mt
         residual = float(norms[:count].max())
         history.append(residual)
         # Converged, or stagnating at the round-off floor (which grows with the condition
         # number of K - shift M): no progress in the last four iterations.
         stalled = len(history) > 4 and residual > 0.5 * min(history[-5:-1])
         if residual < tolerance or (residual < 1e3 * tolerance and stalled):
-            return values[:count], x[:, :count]
+            return values[:count], v[:, :used] @ y[:, :count]
         if used + block > v.shape[1]:
+            x = v[:, :used] @ y[:, :block]
             v[:, : x.shape[1]] = x
             used = x.shape[1]
             h = x.T @ (k @ x)
-        del x
+            del x
         # Directions of unit length; those of converged pairs add nothing.
         active = norms > 0.1 * tolerance
-        t = t[:, active] / norms[active]
+        if not active.all():
+            t = t[:, active]
+        t /= norms[active]
         w = _m_orthonormalize(t, m, v[:, :used], project)
         del t
         if w.shape[1] == 0:  # the residuals lie in the basis: exact to round-off
@@ -703,7 +721,8 @@ def _craig_bampton_fixed(
         block[start : start + t.shape[0]] = t
         blocks.append(block)
     t_all = np.hstack(blocks) if blocks else np.zeros((len(boundary), 0))
-    kii = k[interior][:, interior].tocsc()
+    # Only the lower triangle of K_ii is formed (the factor keeps it and multiplies by K_ii).
+    kii = lower_triangle(k[interior][:, interior])
     scale = _scale(kii, m)
     mii = _Restricted(m, interior) if len(interior) > DENSE_LIMIT else m[interior][:, interior]
     inverse = None
@@ -723,7 +742,9 @@ def _craig_bampton_fixed(
     vectors = np.zeros((len(interior), 0))
     if count:
         solve = None
-        if inverse is not None:
+        if inverse is None:
+            kii = kii + sp.tril(kii, -1).T
+        else:
             # The factor holds K_ii: the copy here is dropped (memory of large bodies).
             solve, kii = inverse.precondition, inverse
         values, vectors = eigenpairs(kii, mii, count, solve=solve)

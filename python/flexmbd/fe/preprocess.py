@@ -7,6 +7,7 @@ the connectivity, seed eq. 9), invariants of motion (seed eqs. 16-17), reference
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -18,9 +19,10 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _core
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import FlexibleBodyData
-from .mesh_io import Mesh, read_mesh, validate_mesh
+from .mesh_io import Mesh, matrices_from_arrays, read_mesh, validate_mesh
 from .modal import (
     craig_bampton,
+    factorize,
     fixed_interface_modes,
     free_free_modes,
     modal_invariants,
@@ -78,6 +80,13 @@ def straight_beam(
     return nodes, {"beam2": conn}
 
 
+def solid_i_kl(scalar_mass: sp.spmatrix) -> list[list[sp.csc_matrix]]:
+    """The nine I_kl = M_s (x) e_k e_l^T of a body of solid elements from its scalar mass
+    matrix M_s (3 x 3 nested list of sparse matrices)."""
+    unit = [[sp.csc_matrix(([1.0], ([k], [j])), shape=(3, 3)) for j in range(3)] for k in range(3)]
+    return [[sp.kron(scalar_mass, unit[k][j], format="csc") for j in range(3)] for k in range(3)]
+
+
 def assemble(
     nodes: ArrayLike,
     elements: Mapping[str, ArrayLike],
@@ -89,7 +98,7 @@ def assemble(
     beam_theory: str = "euler-bernoulli",
     node_ids: ArrayLike | None = None,
     element_ids: Mapping[str, ArrayLike] | None = None,
-    solid_i_kl: bool = True,
+    form_i_kl: bool = True,
 ) -> NodalBody:
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
@@ -97,7 +106,7 @@ def assemble(
     its connectivity (n_e, nodes) of 0-based node indices. `mass` is "consistent" or "lumped";
     `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams). For bodies of
     solid elements the nine I_kl are the scalar mass matrix M_s spread over the coordinates;
-    with `solid_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants
+    with `form_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants
     need only M_s), which saves memory of the size of M."""
     if mass not in ("consistent", "lumped"):
         raise InvalidParameterError(f"mass must be 'consistent' or 'lumped', got {mass!r}")
@@ -129,14 +138,7 @@ def assemble(
     n = raw["i1"].shape[1]
     if "i_kl_scalar" in raw:
         ms = _csc(raw["i_kl_scalar"])
-        unit = [
-            [sp.csc_matrix(([1.0], ([k], [j])), shape=(3, 3)) for j in range(3)] for k in range(3)
-        ]
-        i_kl = (
-            [[sp.kron(ms, unit[k][j], format="csc") for j in range(3)] for k in range(3)]
-            if solid_i_kl
-            else None
-        )
+        i_kl = solid_i_kl(ms) if form_i_kl else None
     else:
         ms = None
         i_kl = [[_csc(raw["i_kl"][3 * k + j]) for j in range(3)] for k in range(3)]
@@ -266,6 +268,20 @@ def _node_indices(
     return np.asarray(selection, dtype=np.int64).ravel()
 
 
+class _Stages:
+    """Seconds per stage into an optional dict (`build_body(timings=...)`)."""
+
+    def __init__(self, sink: dict[str, float] | None):
+        self.sink = sink
+        self.last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        if self.sink is not None:
+            self.sink[name] = self.sink.get(name, 0.0) + now - self.last
+        self.last = now
+
+
 def build_body(
     nodes: ArrayLike,
     elements: Mapping[str, ArrayLike],
@@ -287,6 +303,7 @@ def build_body(
     node_sets: Mapping[str, ArrayLike] | None = None,
     check_mesh: bool = True,
     precision: str = "auto",
+    timings: dict[str, float] | None = None,
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
@@ -307,7 +324,10 @@ def build_body(
     - `precision`: of the sparse factorizations of the eigensolvers: "double", "single" (half
       the memory: a single-precision Cholesky factor preconditions conjugate gradients), or
       "auto" (single above `modal.SINGLE_PRECISION_ABOVE` coordinates).
+    - `timings`: a dict that receives the seconds spent in each stage ("check", "assemble",
+      "modes", "invariants").
     """
+    clock = _Stages(timings)
     nodes = np.asarray(nodes, dtype=float)
     sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
     elements = {k: np.asarray(v, dtype=np.int64) for k, v in elements.items()}
@@ -330,6 +350,7 @@ def build_body(
         validate_mesh(
             Mesh(nodes=nodes, node_ids=ids, elements=elements, element_ids=eids, node_sets=sets)
         )
+    clock.lap("check")
     if mode_count < 0:
         raise InvalidParameterError(f"mode_count must be >= 0, got {mode_count}")
     nodal = assemble(
@@ -342,8 +363,60 @@ def build_body(
         beam_theory=beam_theory,
         node_ids=ids,
         element_ids=eids,
-        solid_i_kl=modes is None,
+        form_i_kl=modes is None,
     )
+    clock.lap("assemble")
+    return _body_from_nodal(
+        nodal,
+        nodes,
+        ids,
+        elements,
+        eids,
+        sets,
+        {
+            "young_modulus": material.young_modulus,
+            "poisson_ratio": material.poisson_ratio,
+            "density": material.density,
+        },
+        section=section,
+        beam_theory=beam_theory,
+        mass=mass,
+        reference=reference,
+        reference_nodes=reference_nodes,
+        modes=modes,
+        mode_count=mode_count,
+        interfaces=interfaces,
+        interface_kind=interface_kind,
+        external_modes=external_modes,
+        precision=precision,
+        clock=clock,
+    )
+
+
+def _body_from_nodal(
+    nodal: NodalBody,
+    nodes: NDArray[np.float64],
+    ids: NDArray[np.int64],
+    elements: dict[str, NDArray[np.int64]],
+    eids: dict[str, NDArray[np.int64]],
+    sets: dict[str, NDArray[np.int64]],
+    material_data: dict[str, float],
+    *,
+    section: Section | None,
+    beam_theory: str,
+    mass: str,
+    reference: str,
+    reference_nodes: str | Sequence[int],
+    modes: str | None,
+    mode_count: int,
+    interfaces: Sequence[str | Sequence[int]],
+    interface_kind: str,
+    external_modes: ArrayLike | None,
+    precision: str,
+    clock: _Stages,
+) -> FlexibleBodyData:
+    """Reference conditions, modes and invariants of a body from its nodal matrices and
+    invariants (the part of `build_body` after the assembly)."""
     d = nodal.dofs_per_node
     mean_axis_modes = ("free-free", "craig-bampton")
     if reference == "mean-axis" and modes not in mean_axis_modes:
@@ -424,6 +497,7 @@ def build_body(
                 raise InvalidParameterError("external modes contain non-finite values")
         else:
             raise InvalidParameterError(f"unknown modes {modes!r}")
+        clock.lap("modes")
         full = np.zeros((len(nodes) * d, basis.shape[1]))
         full[free] = basis
         invariants = modal_invariants(nodal.invariants, full, nodal.scalar_mass)
@@ -431,6 +505,7 @@ def build_body(
         m_ff = basis.T @ (nodal.mass[free][:, free] @ basis)
     invariants["k_ff"] = k_ff
     invariants["m_ff"] = m_ff
+    clock.lap("invariants")
     reference_data: dict[str, Any] = {
         "kind": reference,
         "nodes": np.asarray(ref_nodes, dtype=np.int64),
@@ -445,11 +520,7 @@ def build_body(
         elements=elements,
         element_ids=eids,
         node_sets=sets,
-        material={
-            "young_modulus": material.young_modulus,
-            "poisson_ratio": material.poisson_ratio,
-            "density": material.density,
-        },
+        material=material_data,
         section=None
         if section is None
         else {
@@ -470,6 +541,46 @@ def build_body(
         mode_kind=modes,
         invariants=invariants,
     )
+
+
+def static_displacements(body: FlexibleBodyData, forces: ArrayLike) -> NDArray[np.float64]:
+    """Nodal displacements (n_dofs,) or (n_dofs, k) of a body held by its reference conditions
+    under static nodal forces of the same shape (node-major, body axes): K_ff u = f over the
+    free coordinates, or, for modal bodies, the same within the modes (B K_m^-1 B^T f).
+
+    Raises `InvalidParameterError` for forces of the wrong shape and `InvalidModelError` when
+    the reference conditions leave the body free to move rigidly."""
+    f = np.asarray(forces, dtype=float)
+    if f.ndim not in (1, 2) or f.shape[0] != body.dof_count or not np.all(np.isfinite(f)):
+        raise InvalidParameterError(
+            f"forces must be finite, of shape ({body.dof_count},) or ({body.dof_count}, k), "
+            f"got {f.shape}",
+            item="forces",
+        )
+    free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+    u = np.zeros_like(f)
+    try:
+        if body.modes is None:
+            k = body.stiffness[free][:, free]
+            factor = factorize(
+                k,
+                dofs=free,
+                nodes=body.nodes,
+                dofs_per_node=body.dofs_per_node,
+                name="stiffness with the reference conditions",
+            )
+            u[free] = factor.solve(f[free])
+        else:
+            modal = np.linalg.cholesky(np.asarray(body.invariants["k_ff"]))
+            q = np.linalg.solve(modal.T, np.linalg.solve(modal, body.modes.T @ f[free]))
+            u[free] = body.modes @ q
+    except (InvalidModelError, np.linalg.LinAlgError) as error:
+        raise InvalidModelError(
+            f"no static solution: the reference conditions ({body.reference['kind']!r}) leave "
+            f"the body free to move rigidly ({error})",
+            item="reference conditions",
+        ) from error
+    return u
 
 
 def body_from_mesh(
@@ -494,3 +605,131 @@ def body_from_mesh(
     if source is not None:
         body.metadata["source"] = source
     return body
+
+
+def body_from_matrices(
+    nodes: ArrayLike,
+    stiffness: Any,
+    mass: Any,
+    *,
+    mass_kind: str = "consistent",
+    node_ids: ArrayLike | None = None,
+    node_sets: Mapping[str, ArrayLike] | None = None,
+    reference: str = "none",
+    reference_nodes: str | Sequence[int] = (),
+    modes: str | None = None,
+    mode_count: int = 0,
+    interfaces: Sequence[str | Sequence[int]] = (),
+    interface_kind: str = "rbe2",
+    external_modes: ArrayLike | None = None,
+    precision: str = "auto",
+    timings: dict[str, float] | None = None,
+) -> FlexibleBodyData:
+    """A body from stiffness and mass matrices computed elsewhere (another FE code, e.g.
+    `mesh_io.read_abaqus_matrix`, or NumPy/SciPy arrays), over the three displacements of each
+    of the `nodes` (n, 3) (node-major: row 3 i + k is displacement k of node i).
+
+    The invariants of motion are derived from the mass matrix, which must have the structure
+    of a solid's, M = M_s (x) I_3 (each displacement direction carries the same scalar mass
+    matrix M_s, no coupling between directions: consistent mass of isoparametric solid
+    elements, or lumped masses). With u0 = sum N_i x_i (isoparametric elements reproduce their
+    geometry): m = sum M_s, s0 = 1^T M_s X, J0 = X^T M_s X, I1 and Ibar from the column sums
+    of M_s and X^T M_s, and I_kl = M_s (x) e_k e_l^T, exactly the sums over the elements.
+    `mass_kind` ("consistent" or "lumped") is recorded. The other options are those of
+    `build_body`; the material is unknown (the body's `material` is empty).
+
+    Raises `InvalidParameterError` for matrices that are not square, symmetric and finite or
+    not 3 per node, and `InvalidModelError` for a mass matrix without the structure above
+    (naming an offending entry) or a non-positive total mass."""
+    clock = _Stages(timings)
+    nodes = np.asarray(nodes, dtype=float)
+    if nodes.ndim != 2 or nodes.shape[1] != 3 or not np.all(np.isfinite(nodes)):
+        raise InvalidParameterError(
+            f"nodes must be a finite (n, 3) array, got shape {nodes.shape}", item="nodes"
+        )
+    k, m = matrices_from_arrays(stiffness, mass)
+    n = len(nodes)
+    if k.shape[0] != 3 * n:
+        raise InvalidParameterError(
+            f"matrices of shape {k.shape} for {n} nodes: expected 3 coordinates per node ({3 * n})",
+            item="stiffness matrix",
+        )
+    if mass_kind not in ("consistent", "lumped"):
+        raise InvalidParameterError(
+            f"mass_kind must be 'consistent' or 'lumped', got {mass_kind!r}", item="mass_kind"
+        )
+    scalar = _scalar_mass(m)
+    ids = (
+        np.arange(1, n + 1, dtype=np.int64)
+        if node_ids is None
+        else np.asarray(node_ids, dtype=np.int64)
+    )
+    if ids.shape != (n,) or len(np.unique(ids)) != n:
+        raise InvalidParameterError(f"node_ids must be {n} distinct ids", item="node_ids")
+    sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    column_sums = np.asarray(scalar.sum(axis=0)).ravel()
+    weighted = np.asarray((scalar @ nodes).T)  # X^T M_s (3, n)
+    eye = np.eye(3)
+    invariants = {
+        "mass": float(column_sums.sum()),
+        "first_moment": column_sums @ nodes,
+        "second_moment": nodes.T @ (scalar @ nodes),
+        "i1": np.einsum("ka,j->kja", eye, column_sums).reshape(3, 3 * n),
+        "ibar": np.einsum("kj,la->klja", weighted, eye).reshape(3, 3, 3 * n),
+        "i_kl": None if modes is not None else solid_i_kl(scalar),
+    }
+    if not invariants["mass"] > 0:
+        raise InvalidModelError(
+            f"the mass matrix gives a total mass of {invariants['mass']:g}", item="mass matrix"
+        )
+    nodal = NodalBody(
+        dofs_per_node=3, stiffness=k, mass=m, invariants=invariants, scalar_mass=scalar
+    )
+    clock.lap("assemble")
+    return _body_from_nodal(
+        nodal,
+        nodes,
+        ids,
+        {},
+        {},
+        sets,
+        {},
+        section=None,
+        beam_theory="euler-bernoulli",
+        mass=mass_kind,
+        reference=reference,
+        reference_nodes=reference_nodes,
+        modes=modes,
+        mode_count=mode_count,
+        interfaces=interfaces,
+        interface_kind=interface_kind,
+        external_modes=external_modes,
+        precision=precision,
+        clock=clock,
+    )
+
+
+def _scalar_mass(m: sp.csc_matrix) -> sp.csc_matrix:
+    """M_s of a mass matrix M = M_s (x) I_3, checked."""
+    coo = m.tocoo()
+    scale = max(float(np.abs(coo.data).max(initial=0.0)), 1e-300)
+    coupling = (coo.row % 3 != coo.col % 3) & (np.abs(coo.data) > 1e-12 * scale)
+    if coupling.any():
+        i = int(np.flatnonzero(coupling)[0])
+        raise InvalidModelError(
+            f"entry ({coo.row[i]}, {coo.col[i]}) = {coo.data[i]:g} couples two displacement "
+            "directions: the mass matrix must be M_s (x) I_3 (a solid's consistent or lumped "
+            "mass) to give the invariants of motion",
+            item="mass matrix",
+        )
+    parts = [m[a::3, :][:, a::3].tocsc() for a in range(3)]
+    for a in (1, 2):
+        difference = abs(parts[a] - parts[0])
+        if difference.nnz and difference.max() > 1e-12 * scale:
+            row, col = (int(v[0]) for v in np.nonzero(difference > 1e-12 * scale))
+            raise InvalidModelError(
+                f"entries ({3 * row + a}, {3 * col + a}) and ({3 * row}, {3 * col}) differ: "
+                "every displacement direction must carry the same mass (M = M_s (x) I_3)",
+                item="mass matrix",
+            )
+    return parts[0]
