@@ -261,6 +261,10 @@ def _m_orthonormalize(
     return w
 
 
+#: Ritz vectors formed at a time for the residuals of `block_davidson_eigenpairs`.
+_RESIDUAL_CHUNK = 8
+
+
 def block_davidson_eigenpairs(
     k: Any,
     m: Any,
@@ -305,14 +309,19 @@ def block_davidson_eigenpairs(
     for _ in range(iterations):
         values, y = sla.eigh(0.5 * (h + h.T))
         values = values[:block]
-        # The Ritz vectors X = V Y are formed when needed and not kept (memory).
-        kx = k @ (v[:, :used] @ y[:, :block])
-        mx = m @ (v[:, :used] @ y[:, :block])
-        mx *= values
-        kx -= mx
-        del mx
-        t = keep(precondition(kx))
-        del kx
+        # The residuals K X - M X Lambda of the Ritz vectors X = V Y, a few columns at a time
+        # (X is not kept: memory of large bodies).
+        r = np.empty((n, block))
+        for first in range(0, block, _RESIDUAL_CHUNK):
+            columns = slice(first, min(first + _RESIDUAL_CHUNK, block))
+            x = v[:, :used] @ y[:, columns]
+            r[:, columns] = k @ x
+            x = m @ x
+            x *= values[columns]
+            r[:, columns] -= x
+            del x
+        t = keep(precondition(r))
+        del r
         mt = m @ t
         norms = np.sqrt(np.abs(np.einsum("ij,ij->j", t, mt)))
         del mt
