@@ -29,10 +29,10 @@ from ._core import (
     Polynomial,
     SensorId,
     Spline,
-    System,
     UserFunction,
     __version__,
 )
+from .analysis import EquilibriumState, LinearizedSystem, equilibrium, linearize
 from .errors import (
     CallbackError,
     FlexmbdError,
@@ -51,9 +51,12 @@ from .errors import (
 from .result import Result
 from .rotation import euler_parameters_to_matrix, rotation
 from .simulation import simulate
+from .system import System
 
 __all__ = [
     "BodyId",
+    "EquilibriumState",
+    "LinearizedSystem",
     "CallbackError",
     "Constant",
     "FlexmbdError",
@@ -81,9 +84,11 @@ __all__ = [
     "UnknownItemError",
     "UserFunction",
     "__version__",
+    "equilibrium",
     "errors",
     "euler_parameters_to_matrix",
     "examples",
+    "linearize",
     "rotation",
     "simulate",
 ]

@@ -81,8 +81,24 @@ class Model:
     @property
     def constraint_count(self) -> int: ...
     @property
+    def initial_coordinates(self) -> NDArray[np.float64]: ...
+    @property
+    def initial_velocities(self) -> NDArray[np.float64]: ...
+    @property
     def matrix_nonzeros(self) -> int: ...
     def describe(self) -> dict[str, Any]: ...
+    def evaluate(
+        self,
+        time: float,
+        coordinates: NDArray[np.float64],
+        velocities: NDArray[np.float64],
+        accelerations: NDArray[np.float64],
+        multipliers: NDArray[np.float64],
+        *,
+        mass: float = 0.0,
+        velocity: float = 0.0,
+        position: float = 0.0,
+    ) -> dict[str, Any]: ...
 
 class System:
     def __init__(self, gravity: ArrayLike | None = None) -> None: ...
@@ -117,6 +133,37 @@ class System:
         body: BodyId,
         *,
         position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> MarkerId: ...
+    def _add_flexible_body(
+        self,
+        *,
+        mass: float,
+        first_moment: ArrayLike,
+        second_moment: ArrayLike,
+        i1: NDArray[np.float64],
+        ibar: NDArray[np.float64],
+        i_kl: Sequence[tuple[Any, Any, Any, int]],
+        stiffness: tuple[Any, Any, Any, int],
+        damping: tuple[Any, Any, Any, int],
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        velocity: ArrayLike | None = None,
+        angular_velocity: ArrayLike | None = None,
+        elastic_coordinates: NDArray[np.float64] | None = None,
+        elastic_velocities: NDArray[np.float64] | None = None,
+        stiffening: Sequence[tuple[Any, Any, float, float]] | None = None,
+        name: str | None = None,
+    ) -> BodyId: ...
+    def _add_flexible_marker(
+        self,
+        body: BodyId,
+        *,
+        position: ArrayLike,
+        indices: NDArray[np.int64],
+        translation: NDArray[np.float64],
+        rotation: NDArray[np.float64],
         orientation: ArrayLike | None = None,
         name: str | None = None,
     ) -> MarkerId: ...

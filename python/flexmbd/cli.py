@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     pre.add_argument("--mass", choices=("consistent", "lumped"), default="consistent")
     pre.add_argument(
         "--reference",
-        choices=("none", "clamped", "3-2-1", "mean-axis", "interface"),
+        choices=("none", "clamped", "3-2-1", "simply-supported", "mean-axis", "interface"),
         default="none",
         help="reference conditions: the body frame (default none)",
     )

@@ -33,7 +33,11 @@ class Result:
     """
 
     def __init__(
-        self, raw: dict[str, Any], layout: dict[str, Any], error: BaseException | None = None
+        self,
+        raw: dict[str, Any],
+        layout: dict[str, Any],
+        error: BaseException | None = None,
+        flexible: dict[int, Any] | None = None,
     ):
         self.time: Array = raw["time"]
         self.coordinates: Array = raw["coordinates"]
@@ -48,6 +52,8 @@ class Result:
         self._reactions: Array = raw["reactions"]
         self._sensors: Array = raw["sensors"]
         self._energy: Array = raw["energy"]
+        #: Deformable bodies: body index -> their FlexibleBodyData (for node outputs).
+        self.flexible: dict[int, Any] = dict(flexible or {})
 
     def __len__(self) -> int:
         return len(self.time)
@@ -69,7 +75,7 @@ class Result:
 
     @property
     def potential_energy(self) -> Array:
-        """Potential energy of gravity and springs (J), (n,)."""
+        """Potential energy of gravity, springs and elastic deformation (J), (n,)."""
         return self._energy[:, 1]
 
     @property
@@ -117,9 +123,9 @@ class Result:
         return self.velocities[:, b["offset"] : b["offset"] + 3]
 
     def euler_parameters(self, body: object) -> Array:
-        """Euler parameters [e0, e1, e2, e3] of a rigid body, (n, 4)."""
+        """Euler parameters [e0, e1, e2, e3] of a rigid or deformable body, (n, 4)."""
         b = self._body(body)
-        if b["kind"] != "rigid":
+        if b["kind"] not in ("rigid", "flexible"):
             p = np.zeros((len(self.time), 4))
             p[:, 0] = 1.0
             return p
@@ -132,7 +138,7 @@ class Result:
     def angular_velocity(self, body: object) -> Array:
         """Angular velocity (rad/s, global axes), (n, 3): w = 2 G(p) p_dot."""
         b = self._body(body)
-        if b["kind"] != "rigid":
+        if b["kind"] not in ("rigid", "flexible"):
             return np.zeros((len(self.time), 3))
         o = b["offset"]
         p = self.coordinates[:, o + 3 : o + 7]
@@ -141,6 +147,56 @@ class Result:
         e0d, ed = pd[:, :1], pd[:, 1:]
         # G(p) p_dot = -e e0_dot + (e~ + e0 I) e_dot
         return 2.0 * (-e * e0d + e0 * ed + np.cross(e, ed))
+
+    # Deformable bodies -----------------------------------------------------------------
+    def _flexible(self, body: object) -> tuple[dict[str, Any], Any]:
+        index, b = self._lookup("bodies", body, _core.BodyId)
+        if b["kind"] != "flexible" or index not in self.flexible:
+            raise UnknownItemError(f"body {b['name']!r} is not a deformable body", item=b["name"])
+        return b, self.flexible[index]
+
+    def elastic_coordinates(self, body: object) -> Array:
+        """Elastic coordinates q_f of a deformable body (nodal or modal), (n, n_f)."""
+        b, _ = self._flexible(body)
+        return self.coordinates[:, b["offset"] + 7 : b["offset"] + b["count"]]
+
+    def elastic_velocities(self, body: object) -> Array:
+        """Elastic velocities of a deformable body, (n, n_f)."""
+        b, _ = self._flexible(body)
+        return self.velocities[:, b["offset"] + 7 : b["offset"] + b["count"]]
+
+    def node_displacements(self, body: object, nodes: Any = None) -> Array:
+        """Elastic displacements of nodes relative to the body frame, in body axes (m):
+        (n, nodes, 3). `nodes`: node ids of the mesh (default: all nodes)."""
+        from .system import elastic_basis
+
+        _, data = self._flexible(body)
+        index = self._node_indices(data, nodes)
+        d = data.dofs_per_node
+        rows = (index[:, None] * d + np.arange(3)[None, :]).ravel()
+        basis = elastic_basis(data)[rows]
+        q_f = self.elastic_coordinates(body)
+        return np.asarray(basis @ q_f.T).T.reshape(len(self.time), len(index), 3)
+
+    def node_positions(self, body: object, nodes: Any = None) -> Array:
+        """Global positions of the deformed nodes r = R + A (u0 + u_f) (m): (n, nodes, 3)."""
+        _, data = self._flexible(body)
+        index = self._node_indices(data, nodes)
+        local = data.nodes[index][None, :, :] + self.node_displacements(body, nodes)
+        rot = self.orientation(body)
+        return self.position(body)[:, None, :] + np.einsum("tij,tnj->tni", rot, local)
+
+    @staticmethod
+    def _node_indices(data: Any, nodes: Any) -> NDArray[np.int64]:
+        if nodes is None:
+            return np.arange(len(data.nodes))
+        ids = np.asarray(data.node_ids)
+        wanted = np.atleast_1d(np.asarray(nodes, dtype=np.int64))
+        lookup = {int(k): i for i, k in enumerate(ids)}
+        missing = [int(k) for k in wanted if int(k) not in lookup]
+        if missing:
+            raise UnknownItemError(f"no nodes with ids {missing} in the body", item=str(missing))
+        return np.array([lookup[int(k)] for k in wanted], dtype=np.int64)
 
     # Joints ----------------------------------------------------------------------------
     def reaction(self, joint: object) -> tuple[Array, Array]:

@@ -44,7 +44,7 @@ def simulate(
         solver=solver,
         progress=progress,
     )
-    result = Result(raw, model.describe(), error=error)
+    result = Result(raw, model.describe(), error=error, flexible=getattr(model, "_flexible", None))
     if error is not None:
         error.result = result
         raise error

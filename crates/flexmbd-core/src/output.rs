@@ -3,7 +3,7 @@
 //! time-major arrays (`[output index][item]`).
 
 use crate::body::marker::marker_accelerations;
-use crate::body::{point_mass, rigid, BodyKind};
+use crate::body::{flexible, point_mass, rigid, BodyKind};
 use crate::force::gravity::gravity_potential;
 use crate::force::{force_potential, ForceEnv};
 use crate::joint::equation::equation_value;
@@ -146,12 +146,18 @@ impl Output {
         // Energies.
         let mut kinetic = 0.0;
         let mut potential = 0.0;
-        for body in &model.bodies {
+        for (bi, body) in model.bodies.iter().enumerate() {
             let o = body.offset;
+            let n = body.dofs.len();
             kinetic += match &body.kind {
                 BodyKind::Ground => 0.0,
                 BodyKind::Rigid(rb) => rigid::kinetic_energy(rb, &q[o..], &qd[o..]),
                 BodyKind::PointMass { mass } => point_mass::kinetic_energy(*mass, &qd[o..]),
+                BodyKind::Flexible(fb) => {
+                    let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
+                    potential += flexible::strain_energy(fb, &q[o..o + n]);
+                    flexible::kinetic_energy(fb, &q[o..o + n], &qd[o..o + n], &mut work.scratch)
+                }
             };
             potential += gravity_potential(body, q, &model.gravity);
         }

@@ -3,6 +3,7 @@
 
 mod errors;
 mod fem;
+mod flexible;
 mod ids;
 mod model;
 mod solver;

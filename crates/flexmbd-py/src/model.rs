@@ -1,29 +1,127 @@
 //! `Model`: the compiled, immutable model, with a description of its layout.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use flexmbd_core::body::BodyKind;
+use flexmbd_core::solver::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use flexmbd_core::Workspace;
+use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+use crate::errors::{check, invalid};
+
 /// A compiled model (from `System.compile()`); immutable, shareable between simulations.
-#[pyclass(module = "flexmbd._core", frozen)]
+#[pyclass(module = "flexmbd._core", frozen, dict)]
 pub struct Model {
     pub(crate) inner: Arc<flexmbd_core::Model>,
+    /// Workspace of `evaluate`, made at its first call.
+    workspace: Mutex<Option<Workspace>>,
+}
+
+impl Model {
+    /// Wraps a compiled model.
+    pub fn new(model: flexmbd_core::Model) -> Self {
+        Model { inner: Arc::new(model), workspace: Mutex::new(None) }
+    }
+}
+
+fn vector(a: &PyReadonlyArray1<f64>, n: usize, what: &str) -> PyResult<Vec<f64>> {
+    let v = a.as_slice()?.to_vec();
+    if v.len() != n {
+        return Err(invalid("model", format!("{what} must have {n} entries, got {}", v.len())));
+    }
+    Ok(v)
 }
 
 #[pymethods]
 impl Model {
-    /// Number of generalized coordinates (7 per rigid body, 3 per point mass).
+    /// Evaluates the augmented equations (seed eqs. 20, 25, 26) at a state, for analyses
+    /// (statics, steady states, linearization). Returns a dict with
+    ///
+    /// - `residual`: [M q_dd - F - Q_e + C_q^T lambda; C(q, t)] (coordinates + constraints);
+    /// - `constraint_rate`: C_t; `gamma`: the right-hand side of C_q q_dd = gamma (seed eq. 25);
+    /// - `matrix` (if any coefficient is non-zero): the CSC tuple (data, indices, indptr, n) of
+    ///   [[mass M + velocity D + position K, C_q^T], [C_q, 0]] with D = dr/dq_dot and
+    ///   K = dr/dq (including the constraint Hessian term of the multipliers).
+    #[pyo3(signature = (time, coordinates, velocities, accelerations, multipliers, *, mass = 0.0, velocity = 0.0, position = 0.0))]
+    #[allow(clippy::too_many_arguments)]
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        time: f64,
+        coordinates: PyReadonlyArray1<f64>,
+        velocities: PyReadonlyArray1<f64>,
+        accelerations: PyReadonlyArray1<f64>,
+        multipliers: PyReadonlyArray1<f64>,
+        mass: f64,
+        velocity: f64,
+        position: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let m = &self.inner;
+        let (nq, nc) = (m.coordinate_count, m.constraint_count);
+        let q = vector(&coordinates, nq, "coordinates")?;
+        let qd = vector(&velocities, nq, "velocities")?;
+        let qdd = vector(&accelerations, nq, "accelerations")?;
+        let lambda = vector(&multipliers, nc, "multipliers")?;
+        let discrete = vec![0.0; m.discrete_count];
+        let mut guard = self.workspace.lock().map_err(|_| invalid("model", "workspace poisoned"))?;
+        if guard.is_none() {
+            *guard = Some(check(Workspace::new(m))?);
+        }
+        let ws = guard.as_mut().expect("workspace");
+        let view = StateView { time, q: &q, qd: &qd, qdd: &qdd, lambda: &lambda, discrete: &discrete };
+        let with_matrix = mass != 0.0 || velocity != 0.0 || position != 0.0;
+        let coefficients = MatrixCoefficients { mass, velocity, position, identity: 0.0, scale: 1.0 };
+        check(assemble(m, view, ws, if with_matrix { Some(coefficients) } else { None }))?;
+        let d = PyDict::new(py);
+        d.set_item("residual", PyArray1::from_slice(py, &ws.residual))?;
+        if with_matrix {
+            let p = &m.layout.pattern;
+            let indices: Vec<i64> = p.row_idx.iter().map(|&r| r as i64).collect();
+            let indptr: Vec<i64> = p.col_ptr.iter().map(|&c| c as i64).collect();
+            d.set_item(
+                "matrix",
+                (
+                    PyArray1::from_slice(py, &ws.values),
+                    PyArray1::from_vec(py, indices),
+                    PyArray1::from_vec(py, indptr),
+                    p.n,
+                ),
+            )?;
+        }
+        let mut ct = vec![0.0; nc];
+        let mut gamma = vec![0.0; nc];
+        check(constraint_time_terms(m, view, ws, &mut ct, Some(&mut gamma)))?;
+        d.set_item("constraint_rate", PyArray1::from_vec(py, ct))?;
+        d.set_item("gamma", PyArray1::from_vec(py, gamma))?;
+        Ok(d)
+    }
+
+    /// Number of generalized coordinates (7 per rigid body, 3 per point mass, 7 + n_f per
+    /// deformable body).
     #[getter]
     fn coordinate_count(&self) -> usize {
         self.inner.coordinate_count
     }
 
-    /// Number of constraint equations (one normalization per rigid body, plus the joints').
+    /// Number of constraint equations (one normalization per rigid or deformable body, plus the
+    /// joints').
     #[getter]
     fn constraint_count(&self) -> usize {
         self.inner.constraint_count
+    }
+
+    /// Initial coordinates q as given by the user (before the constraints are enforced).
+    #[getter]
+    fn initial_coordinates<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.initial_coordinates)
+    }
+
+    /// Initial velocities as given by the user.
+    #[getter]
+    fn initial_velocities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.initial_velocities)
     }
 
     /// Non-zeros of the sparse Newton matrix.
@@ -51,6 +149,7 @@ impl Model {
                     BodyKind::Ground => "ground",
                     BodyKind::Rigid(_) => "rigid",
                     BodyKind::PointMass { .. } => "point_mass",
+                    BodyKind::Flexible(_) => "flexible",
                 },
             )?;
             e.set_item("offset", b.offset)?;

@@ -91,7 +91,7 @@ impl ForceCallback for PyForceCallback {
 ///
 /// Units are SI by convention (m, kg, s, N, rad). Orientations are 3 x 3 rotation matrices
 /// whose columns are the local axes in the parent frame. Marker z axes are joint axes.
-#[pyclass(module = "flexmbd._core")]
+#[pyclass(module = "flexmbd._core", subclass)]
 pub struct System {
     pub(crate) inner: SystemBuilder,
 }
@@ -482,7 +482,7 @@ impl System {
 
     /// Checks the whole system and returns the compiled, immutable model.
     fn compile(&self) -> PyResult<Model> {
-        Ok(Model { inner: Arc::new(check(self.inner.compile())?) })
+        Ok(Model::new(check(self.inner.compile())?))
     }
 
     fn __repr__(&self) -> String {

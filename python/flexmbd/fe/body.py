@@ -40,8 +40,8 @@ class FlexibleBodyData:
         stiffness: K_ff, sparse (n_dofs, n_dofs), nodal.
         mass: M_ff, sparse (n_dofs, n_dofs), nodal.
         mass_kind: "consistent" or "lumped".
-        reference: {"kind": "none" | "clamped" | "3-2-1" | "mean-axis", "nodes": indices,
-            "free_dofs": indices of the kept nodal dofs}.
+        reference: {"kind": "none" | "clamped" | "3-2-1" | "simply-supported" | "mean-axis",
+            "nodes": indices, "free_dofs": indices of the kept nodal dofs}.
         modes: modal matrix (n_free_dofs, n_modes) or None (nodal coordinates).
         frequencies: natural frequencies of the modes (Hz) or None.
         mode_kind: "free-free", "fixed-interface", "craig-bampton", "external" or None.

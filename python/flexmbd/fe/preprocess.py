@@ -212,7 +212,10 @@ def reference_dofs(
       beams: their position and slopes);
     - "3-2-1": `nodes` = (a, b, c) keep a fixed (3), b without y and z displacement (2), c
       without z displacement (1): the body frame has its origin at a, its x axis through b and
-      its x-y plane through c, if b lies on the x axis of a and c in its x-y plane.
+      its x-y plane through c, if b lies on the x axis of a and c in its x-y plane;
+    - "simply-supported" (beams): `nodes` = (a, b) keep a fixed with its twist theta_x (4) and b
+      without y and z displacement (2): the body frame has its origin at a and its x axis
+      through b (the chord of a pinned-pinned beam), if b lies on the x axis of a.
     """
     d = dofs_per_node
     all_dofs = np.arange(node_count * d, dtype=np.int64)
@@ -233,6 +236,14 @@ def reference_dofs(
             )
         a, b, c = nodes
         removed = {d * a, d * a + 1, d * a + 2, d * b + 1, d * b + 2, d * c + 2}
+    elif kind == "simply-supported":
+        if d != 6 or len(nodes) != 2 or len(set(nodes)) != 2:
+            raise InvalidModelError(
+                "simply-supported reference conditions are for beams and need two distinct "
+                f"nodes, got {nodes}"
+            )
+        a, b = nodes
+        removed = {d * a, d * a + 1, d * a + 2, d * a + 3, d * b + 1, d * b + 2}
     else:
         raise InvalidParameterError(f"unknown reference conditions {kind!r}")
     return np.setdiff1d(all_dofs, np.fromiter(removed, dtype=np.int64))
@@ -311,7 +322,8 @@ def build_body(
       `assemble`; `node_ids`, `element_ids` (ids of the source mesh, for messages) and
       `node_sets` (name -> indices) are optional. With `check_mesh` the mesh is first checked
       by `mesh_io.validate_mesh` (duplicate and unconnected nodes, bad indices, ...).
-    - `reference` (the body frame, `docs/preprocessor.md`): "none", "clamped" or "3-2-1" at
+    - `reference` (the body frame, `docs/preprocessor.md`): "none", "clamped", "3-2-1" or
+      "simply-supported" (beams) at
       `reference_nodes` (indices or a node set name), "mean-axis" (with free-free or
       Craig-Bampton modes), or "interface" (Craig-Bampton only: the frame follows the first
       interface).

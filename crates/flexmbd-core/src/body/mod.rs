@@ -1,13 +1,18 @@
-//! Bodies: ground, rigid bodies (seed eq. 15 with no elastic coordinates) and point masses,
-//! and the kinematics of markers (frames fixed on bodies).
+//! Bodies: ground, rigid bodies (seed eq. 15 with no elastic coordinates), point masses and
+//! deformable bodies in the floating frame of reference (seed eq. 15), and the kinematics of
+//! markers (frames on bodies).
 //!
 //! Each body owns a contiguous range of the system coordinates: a rigid body has
-//! [R (3), p (4 Euler parameters)], a point mass [R (3)], the ground none.
+//! [R (3), p (4 Euler parameters)], a deformable body [R, p, q_f (n_f elastic coordinates)], a
+//! point mass [R (3)], the ground none.
 
+pub mod flexible;
 pub mod marker;
 pub mod point_mass;
 pub mod rigid;
+pub mod stiffening;
 
+pub use flexible::FlexibleBody;
 pub use rigid::RigidBody;
 
 /// The kind of a body and its constant data.
@@ -22,6 +27,8 @@ pub enum BodyKind {
         /// Mass (kg).
         mass: f64,
     },
+    /// Deformable body in the floating frame of reference.
+    Flexible(Box<FlexibleBody>),
 }
 
 impl BodyKind {
@@ -31,12 +38,13 @@ impl BodyKind {
             BodyKind::Ground => 0,
             BodyKind::Rigid(_) => rigid::RIGID_COORDINATES,
             BodyKind::PointMass { .. } => 3,
+            BodyKind::Flexible(f) => f.coordinate_count(),
         }
     }
 
     /// True if the body has Euler parameters (and hence a normalization constraint).
     pub fn has_euler_parameters(&self) -> bool {
-        matches!(self, BodyKind::Rigid(_))
+        matches!(self, BodyKind::Rigid(_) | BodyKind::Flexible(_))
     }
 
     /// Mass and centre of mass (body frame) for gravity and energy.
@@ -45,6 +53,7 @@ impl BodyKind {
             BodyKind::Ground => None,
             BodyKind::Rigid(b) => Some((b.mass, b.center_of_mass)),
             BodyKind::PointMass { mass } => Some((*mass, crate::math::Vec3::ZERO)),
+            BodyKind::Flexible(f) => Some((f.mass, f.first_moment * (1.0 / f.mass))),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Gravity: the weight m g applied at the centre of mass c of each body, by virtual work
 //! Q = (dr_c/dq)^T m g with r_c = R + A(p) c. Its derivative with respect to p is the constant
-//! Hessian of p -> (m g) . A(p) c.
+//! Hessian of p -> (m g) . A(p) c. On a deformable body gravity is distributed: its virtual
+//! work also loads the elastic coordinates (`body::flexible::add_gravity_force`).
 
 use crate::body::{Body, BodyKind};
 use crate::math::euler::{self, bilinear_hessian, rotate_jacobian, Mat44};
@@ -27,6 +28,10 @@ pub fn add_gravity_force(body: &Body, q: &[f64], gravity: &Vec3, out: &mut [f64]
                 out[3 + k] += (0..3).map(|i| j[i][k] * weight[i]).sum::<f64>();
             }
         }
+        BodyKind::Flexible(f) => {
+            let o = body.offset;
+            crate::body::flexible::add_gravity_force(f, &q[o..o + body.dofs.len()], gravity, out);
+        }
     }
 }
 
@@ -48,6 +53,9 @@ pub fn gravity_potential(body: &Body, q: &[f64], gravity: &Vec3) -> f64 {
             let p = [q[o + 3], q[o + 4], q[o + 5], q[o + 6]];
             let rc = Vec3::from_slice(&q[o..]) + euler::rotation_matrix(&p).mul_vec(&b.center_of_mass);
             -b.mass * gravity.dot(&rc)
+        }
+        BodyKind::Flexible(f) => {
+            crate::body::flexible::gravity_potential(f, &q[o..o + body.dofs.len()], gravity)
         }
     }
 }

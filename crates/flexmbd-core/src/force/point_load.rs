@@ -31,7 +31,7 @@ pub fn point_force(
     };
     kin.jac_position.add_transpose_times(1.0, &force, &mut local.generalized, 0);
     if tangent {
-        add_position_hessian(body, m, &force, -1.0, &mut local.stiffness, 0);
+        add_position_hessian(body, m, kin, &force, -1.0, &mut local.stiffness, 0);
         if frame == Frame::Marker {
             for k in 0..3 {
                 local.stiffness.add_jt_j(0, 0, -c[k], &kin.jac_position, &kin.jac_axes[k]);
@@ -61,7 +61,7 @@ pub fn torque(
     };
     kin.jac_angular.add_transpose_times(1.0, &torque, &mut local.generalized, 0);
     if tangent {
-        add_angular_jacobian_derivative(body, &torque, -1.0, &mut local.stiffness, 0);
+        add_angular_jacobian_derivative(body, m, kin, &torque, -1.0, &mut local.stiffness, 0);
         if frame == Frame::Marker {
             for k in 0..3 {
                 local.stiffness.add_jt_j(0, 0, -c[k], &kin.jac_angular, &kin.jac_axes[k]);

@@ -9,7 +9,8 @@
 //! joints and cos f(t), -sin f(t), -f(t) for drivers. This covers the joints of seed eqs. 21-24
 //! in their dot-product form (no cross products, hence no singular configurations) and gives
 //! C, the Jacobian C_q, the Hessian (for the Newton matrix and for gamma of seed eq. 25), C_t,
-//! C_qt and C_tt from one definition. Local coordinates: those of marker i's body, then j's.
+//! C_qt and C_tt from one definition. Local coordinates: those of marker i, then of marker j
+//! (see [`crate::body::marker`]).
 
 use crate::body::marker::{add_axis_hessian, add_position_hessian, Marker, MarkerKinematics};
 use crate::body::Body;
@@ -162,25 +163,25 @@ pub fn primitive_hessian(p: &Primitive, ctx: &MarkerPair, w: f64, out: &mut Dens
     let d = ctx.offset();
     match *p {
         Primitive::PositionComponent(u) => {
-            add_position_hessian(bi, mi, &u, -w, out, 0);
-            add_position_hessian(bj, mj, &u, w, out, ni);
+            add_position_hessian(bi, mi, ki, &u, -w, out, 0);
+            add_position_hessian(bj, mj, kj, &u, w, out, ni);
         }
         Primitive::AxisDotAxis(k, l) => {
             let (a, b) = (ki.axis(k), kj.axis(l));
-            add_axis_hessian(bi, mi, k, &b, w, out, 0);
-            add_axis_hessian(bj, mj, l, &a, w, out, ni);
+            add_axis_hessian(bi, mi, ki, k, &b, w, out, 0);
+            add_axis_hessian(bj, mj, kj, l, &a, w, out, ni);
             out.add_jt_j(0, ni, w, &ki.jac_axes[k], &kj.jac_axes[l]);
             out.add_jt_j(ni, 0, w, &kj.jac_axes[l], &ki.jac_axes[k]);
         }
         Primitive::AxisDotOffset(k) => {
             let a = ki.axis(k);
-            add_axis_hessian(bi, mi, k, &d, w, out, 0);
-            add_position_hessian(bi, mi, &a, -w, out, 0);
+            add_axis_hessian(bi, mi, ki, k, &d, w, out, 0);
+            add_position_hessian(bi, mi, ki, &a, -w, out, 0);
             out.add_jt_j(0, 0, -w, &ki.jac_axes[k], &ki.jac_position);
             out.add_jt_j(0, 0, -w, &ki.jac_position, &ki.jac_axes[k]);
             out.add_jt_j(0, ni, w, &ki.jac_axes[k], &kj.jac_position);
             out.add_jt_j(ni, 0, w, &kj.jac_position, &ki.jac_axes[k]);
-            add_position_hessian(bj, mj, &a, w, out, ni);
+            add_position_hessian(bj, mj, kj, &a, w, out, ni);
         }
         Primitive::Distance => {
             let rho = d.norm();
@@ -191,8 +192,8 @@ pub fn primitive_hessian(p: &Primitive, ctx: &MarkerPair, w: f64, out: &mut Dens
                 proj.0[k][k] += 1.0 / rho;
             }
             distance_projector_hessian(ctx, &proj, w, out);
-            add_position_hessian(bi, mi, &n, -w, out, 0);
-            add_position_hessian(bj, mj, &n, w, out, ni);
+            add_position_hessian(bi, mi, ki, &n, -w, out, 0);
+            add_position_hessian(bj, mj, kj, &n, w, out, ni);
         }
     }
 }

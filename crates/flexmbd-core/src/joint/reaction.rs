@@ -25,7 +25,8 @@ pub fn generalized_to_wrench(body: &Body, q: &[f64], gen: &[f64], point: Vec3) -
             let origin = Vec3::from_slice(&q[o..]);
             Some((f, -(point - origin).cross(&f)))
         }
-        BodyKind::Rigid(_) => {
+        BodyKind::Rigid(_) | BodyKind::Flexible(_) => {
+            // For a deformable body: the marker's first 7 local coordinates are R and p.
             let f = Vec3::from_slice(gen);
             let p = [q[o + 3], q[o + 4], q[o + 5], q[o + 6]];
             let l = euler::l_matrix(&p);

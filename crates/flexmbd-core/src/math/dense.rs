@@ -105,7 +105,7 @@ impl DenseMatrix {
 }
 
 /// A 3 x n Jacobian (row-major): the derivative of a 3-vector with respect to n coordinates.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Jacobian3 {
     /// Column count.
     pub n: usize,

@@ -138,6 +138,8 @@ impl Mul<Vec3> for f64 {
 impl Mat3 {
     /// The identity matrix.
     pub const IDENTITY: Mat3 = Mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+    /// Zero matrix.
+    pub const ZERO: Mat3 = Mat3([[0.0; 3]; 3]);
 
     /// Diagonal matrix.
     pub fn diagonal(d: Vec3) -> Mat3 {

@@ -10,12 +10,15 @@
 //! Newton matrix, the acceleration system of seed eq. 26, or the projections onto the
 //! constraint manifold.
 
+use crate::body::flexible::{self, FlexibleBody, REFERENCE_COORDINATES};
 use crate::body::marker::{marker_kinematics, MarkerKinematics};
-use crate::body::{point_mass, rigid, BodyKind};
+use crate::body::{point_mass, rigid, Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
 use crate::force::gravity::{add_gravity_force, gravity_jacobian};
 use crate::force::{evaluate_force, ForceEnv};
 use crate::joint::equation::{equation_gradient, equation_hessian, equation_value, MarkerPair};
+use crate::math::Mat3;
+use crate::system::workspace::FlexibleWork;
 use crate::system::workspace::JointLocal;
 use crate::system::{Model, Workspace};
 
@@ -118,18 +121,24 @@ pub fn assemble(
     });
     let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
 
-    // Bodies: inertia forces minus gravity, and their Jacobians.
+    // Bodies: inertia forces minus gravity (plus the elastic forces of deformable bodies), and
+    // their Jacobians.
     for (bi, body) in model.bodies.iter().enumerate() {
         let nb = body.dofs.len();
         if nb == 0 {
             continue;
         }
         let o = body.offset;
+        if let BodyKind::Flexible(fb) = &body.kind {
+            let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
+            assemble_flexible(fb, body, model, &s, work, &mut ws.residual, &mut ws.values, matrix, &c, bi);
+            continue;
+        }
         let f = &mut ws.body_force[..nb];
         match &body.kind {
             BodyKind::Rigid(rb) => rigid::inertia_force(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], f),
             BodyKind::PointMass { mass } => point_mass::inertia_force(*mass, &s.qdd[o..], f),
-            BodyKind::Ground => {}
+            BodyKind::Ground | BodyKind::Flexible(_) => {}
         }
         for v in f.iter_mut() {
             *v = -*v;
@@ -139,7 +148,8 @@ pub fn assemble(
             ws.residual[o + k] -= f[k];
         }
         if matrix.is_some() {
-            let idx = &model.layout.bodies[bi];
+            let entries = &model.layout.bodies[bi];
+            let idx = &entries.block;
             if needs_tangent {
                 match &body.kind {
                     BodyKind::Rigid(rb) => {
@@ -163,12 +173,12 @@ pub fn assemble(
                             ws.values[idx[a * 3 + a]] += c.scale * c.mass * mass;
                         }
                     }
-                    BodyKind::Ground => {}
+                    BodyKind::Ground | BodyKind::Flexible(_) => {}
                 }
             }
             if c.identity != 0.0 {
-                for a in 0..nb {
-                    ws.values[idx[a * nb + a]] += c.scale * c.identity;
+                for &d in &entries.diagonal {
+                    ws.values[d] += c.scale * c.identity;
                 }
             }
         }
@@ -186,7 +196,7 @@ pub fn assemble(
                 let e = &model.layout.normalizations[k];
                 ws.values[e[a]] += 2.0 * p;
                 ws.values[e[4 + a]] += 2.0 * p;
-                let diag = model.layout.bodies[nz.body.0][(3 + a) * 7 + 3 + a];
+                let diag = model.layout.bodies[nz.body.0].block[(3 + a) * 7 + 3 + a];
                 ws.values[diag] += c.scale * c.position * 2.0 * lambda;
             }
         }
@@ -269,6 +279,96 @@ pub fn assemble(
         return Err(FlexmbdError::NonFinite { item: format!("the equation of {item}"), time: s.time });
     }
     Ok(())
+}
+
+/// Residual and Newton-matrix entries of a deformable body: the inertia force of seed eq. 15
+/// minus gravity plus the elastic forces K_ff q_f + D_ff qf_dot.
+#[allow(clippy::too_many_arguments)]
+fn assemble_flexible(
+    fb: &FlexibleBody,
+    body: &Body,
+    model: &Model,
+    s: &StateView,
+    work: &mut FlexibleWork,
+    residual: &mut [f64],
+    values: &mut [f64],
+    matrix: Option<MatrixCoefficients>,
+    c: &MatrixCoefficients,
+    bi: usize,
+) {
+    let o = body.offset;
+    let nb = body.dofs.len();
+    let nf = fb.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let (q, qd, qdd) = (&s.q[o..o + nb], &s.qd[o..o + nb], &s.qdd[o..o + nb]);
+    flexible::inertia_force(fb, q, qd, qdd, &mut work.scratch, &mut work.force);
+    let f = &mut work.force;
+    for v in f.iter_mut() {
+        *v = -*v;
+    }
+    flexible::add_gravity_force(fb, q, &model.gravity, f);
+    for k in 0..nb {
+        residual[o + k] -= f[k];
+    }
+    let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
+    let ev = &mut work.elastic_values;
+    if matrix.is_some() && needs_tangent {
+        ev.iter_mut().for_each(|x| *x = 0.0);
+        let tangent = Some((c.position, c.velocity, &mut ev[..]));
+        flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], &mut residual[o + r7..o + nb], tangent);
+    } else {
+        flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], &mut residual[o + r7..o + nb], None);
+    }
+    let Some(_) = matrix else { return };
+    let entries = &model.layout.bodies[bi];
+    if needs_tangent {
+        let t = &mut work.tangent;
+        flexible::inertia_tangent(fb, q, qd, qdd, &mut work.scratch, t);
+        let gpp =
+            flexible::gravity_jacobian(fb, q, &model.gravity, &mut work.gravity_pf, &mut work.gravity_fp);
+        let [tm, tv, tx] = &t.reference;
+        for a in 0..7 {
+            for b in 0..7 {
+                let mut k = tx[a][b];
+                if a >= 3 && b >= 3 {
+                    k -= gpp[a - 3][b - 3];
+                }
+                values[entries.block[a * 7 + b]] +=
+                    c.scale * (c.mass * tm[a][b] + c.velocity * tv[a][b] + c.position * k);
+            }
+        }
+        let [rm, rv, rx] = &t.reference_elastic;
+        let [fm, fv, fx] = &t.elastic_reference;
+        for a in 0..7 {
+            for j in 0..nf {
+                let (re, er) = (a * nf + j, j * 7 + a);
+                let (mut k_re, mut k_er) = (rx[re], fx[er]);
+                if a >= 3 {
+                    k_re -= work.gravity_pf[(a - 3) * nf + j];
+                    k_er -= work.gravity_fp[j * 4 + a - 3];
+                }
+                values[entries.reference_elastic[re]] +=
+                    c.scale * (c.mass * rm[re] + c.velocity * rv[re] + c.position * k_re);
+                values[entries.elastic_reference[er]] +=
+                    c.scale * (c.mass * fm[er] + c.velocity * fv[er] + c.position * k_er);
+            }
+        }
+        // (f, f): sum_kl (m I + v 2 w~ + p (alpha~ + w~ w~))_kl I_kl, added to the elastic
+        // force Jacobians v D_ff + p (K_ff + geometric stiffness) already in the values.
+        let ev = &mut work.elastic_values;
+        let coefficients = Mat3::IDENTITY.scale(c.mass)
+            + t.velocity_coefficients.scale(c.velocity)
+            + t.position_coefficients.scale(c.position);
+        fb.add_i_kl_to_pattern(&coefficients, ev);
+        for (&e, &v) in entries.elastic.iter().zip(ev.iter()) {
+            values[e] += c.scale * v;
+        }
+    }
+    if c.identity != 0.0 {
+        for &d in &entries.diagonal {
+            values[d] += c.scale * c.identity;
+        }
+    }
 }
 
 /// Time derivatives of the constraints: C_t into `ct` and, if `gamma` is given, the

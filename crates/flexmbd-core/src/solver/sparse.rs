@@ -43,6 +43,11 @@ impl PatternBuilder {
         }
     }
 
+    /// Registers the entry (row, col).
+    pub fn add_entry(&mut self, row: usize, col: usize) {
+        self.entries.push((col, row));
+    }
+
     /// Registers the diagonal entries `indices`.
     pub fn add_diagonal(&mut self, indices: &[usize]) {
         for &i in indices {

@@ -4,7 +4,8 @@
 
 use std::collections::HashSet;
 
-use crate::body::{rigid::RigidBody, BodyKind};
+use crate::body::marker::MarkerElastic;
+use crate::body::{rigid::RigidBody, BodyKind, FlexibleBody};
 use crate::error::{check_finite, FlexmbdError, Result};
 use crate::force::ForceKind;
 use crate::ids::{BodyId, ForceId, JointId, MarkerId, SensorId};
@@ -28,6 +29,10 @@ pub struct BodyDefinition {
     pub velocity: Vec3,
     /// Initial angular velocity (rad/s, global).
     pub angular_velocity: Vec3,
+    /// Initial elastic coordinates q_f of a deformable body (empty otherwise).
+    pub elastic_coordinates: Vec<f64>,
+    /// Initial elastic velocities of a deformable body (empty otherwise).
+    pub elastic_velocities: Vec<f64>,
 }
 
 /// A marker as given by the user.
@@ -41,6 +46,8 @@ pub struct MarkerDefinition {
     pub position: Vec3,
     /// Orientation in the body frame.
     pub orientation: Mat3,
+    /// Elastic motion of a marker on a deformable body.
+    pub elastic: Option<MarkerElastic>,
 }
 
 /// A joint as given by the user.
@@ -120,6 +127,8 @@ impl SystemBuilder {
                 orientation: Mat3::IDENTITY,
                 velocity: Vec3::ZERO,
                 angular_velocity: Vec3::ZERO,
+                elastic_coordinates: vec![],
+                elastic_velocities: vec![],
             }],
             markers: Vec::new(),
             joints: Vec::new(),
@@ -227,8 +236,66 @@ impl SystemBuilder {
         check_finite(&label, "angular velocity", &angular_velocity.0)?;
         check_rotation(&label, "orientation", &orientation)?;
         let name = self.unique_name("body", name, index)?;
-        self.bodies.push(BodyDefinition { name, kind, position, orientation, velocity, angular_velocity });
+        self.bodies.push(BodyDefinition {
+            name,
+            kind,
+            position,
+            orientation,
+            velocity,
+            angular_velocity,
+            elastic_coordinates: vec![],
+            elastic_velocities: vec![],
+        });
         Ok(BodyId(index))
+    }
+
+    /// Adds a deformable body (floating frame of reference) with initial elastic coordinates
+    /// and velocities (zeros if empty). Velocities are global; the angular velocity is global.
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_flexible_body(
+        &mut self,
+        name: &str,
+        body: FlexibleBody,
+        position: Vec3,
+        orientation: Mat3,
+        velocity: Vec3,
+        angular_velocity: Vec3,
+        elastic_coordinates: Vec<f64>,
+        elastic_velocities: Vec<f64>,
+    ) -> Result<BodyId> {
+        let index = self.bodies.len();
+        let label = if name.is_empty() { format!("body {index}") } else { format!("body '{name}'") };
+        let n = body.elastic_count;
+        let fill = |v: Vec<f64>, what: &str| -> Result<Vec<f64>> {
+            if v.is_empty() {
+                return Ok(vec![0.0; n]);
+            }
+            if v.len() != n {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: label.clone(),
+                    message: format!(
+                        "{what} must have {n} entries (one per elastic coordinate), got {}",
+                        v.len()
+                    ),
+                });
+            }
+            check_finite(&label, what, &v)?;
+            Ok(v)
+        };
+        let qf = fill(elastic_coordinates, "initial elastic coordinates")?;
+        let qfd = fill(elastic_velocities, "initial elastic velocities")?;
+        let id = self.add_body(
+            name,
+            BodyKind::Flexible(Box::new(body)),
+            position,
+            orientation,
+            velocity,
+            angular_velocity,
+        )?;
+        let def = self.bodies.last_mut().expect("just added");
+        def.elastic_coordinates = qf;
+        def.elastic_velocities = qfd;
+        Ok(id)
     }
 
     /// Adds a marker on `body` at `position` with `orientation` (both in the body frame).
@@ -251,7 +318,67 @@ impl SystemBuilder {
             });
         }
         let name = self.unique_name("marker", name, index)?;
-        self.markers.push(MarkerDefinition { name, body, position, orientation });
+        self.markers.push(MarkerDefinition { name, body, position, orientation, elastic: None });
+        Ok(MarkerId(index))
+    }
+
+    /// Adds a marker on a deformable body that moves with its deformation (an intermediate
+    /// joint frame, seed Figure 4): undeformed `position` and `orientation` in the body frame,
+    /// and `elastic` (displacement S_u and small rotation S_t per elastic coordinate).
+    pub fn add_flexible_marker(
+        &mut self,
+        name: &str,
+        body: BodyId,
+        position: Vec3,
+        orientation: Mat3,
+        elastic: MarkerElastic,
+    ) -> Result<MarkerId> {
+        let index = self.markers.len();
+        let label = if name.is_empty() { format!("marker {index}") } else { format!("marker '{name}'") };
+        self.check_body(body, &format!(" (used by {label})"))?;
+        let n = match &self.bodies[body.0].kind {
+            BodyKind::Flexible(f) => f.elastic_count,
+            _ => {
+                return Err(FlexmbdError::InvalidModel {
+                    item: label,
+                    message: format!(
+                        "body '{}' is not deformable: elastic markers need a flexible body",
+                        self.bodies[body.0].name
+                    ),
+                })
+            }
+        };
+        let nl = elastic.indices.len();
+        if elastic.translation.n != nl || elastic.rotation.n != nl {
+            return Err(FlexmbdError::InvalidParameter {
+                item: label,
+                message: format!(
+                    "shape matrices must be 3 x {nl} (one column per listed coordinate), got 3 x {} and 3 x {}",
+                    elastic.translation.n, elastic.rotation.n
+                ),
+            });
+        }
+        if let Some(&bad) = elastic.indices.iter().find(|&&i| i >= n) {
+            return Err(FlexmbdError::UnknownItem {
+                kind: "elastic coordinate",
+                id: bad,
+                context: format!(" of body '{}' (it has {n}; used by {label})", self.bodies[body.0].name),
+            });
+        }
+        let mut sorted = elastic.indices.clone();
+        sorted.sort_unstable();
+        if sorted.windows(2).any(|w| w[0] == w[1]) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: label,
+                message: "an elastic coordinate is listed twice".to_string(),
+            });
+        }
+        check_finite(&label, "displacement shape", &elastic.translation.data)?;
+        check_finite(&label, "rotation shape", &elastic.rotation.data)?;
+        check_finite(&label, "position", &position.0)?;
+        check_rotation(&label, "orientation", &orientation)?;
+        let name = self.unique_name("marker", name, index)?;
+        self.markers.push(MarkerDefinition { name, body, position, orientation, elastic: Some(elastic) });
         Ok(MarkerId(index))
     }
 
@@ -260,7 +387,15 @@ impl SystemBuilder {
         self.check_marker(marker, "")?;
         let m = &self.markers[marker.0];
         let b = &self.bodies[m.body.0];
-        Ok(b.position + b.orientation.mul_vec(&m.position))
+        let mut u = m.position;
+        if let Some(e) = &m.elastic {
+            for (j, &i) in e.indices.iter().enumerate() {
+                for k in 0..3 {
+                    u[k] += e.translation.get(k, j) * b.elastic_coordinates[i];
+                }
+            }
+        }
+        Ok(b.position + b.orientation.mul_vec(&u))
     }
 
     /// Adds a joint or driving constraint between markers i and j. For a distance joint with
@@ -400,14 +535,16 @@ impl SystemBuilder {
         match &def.kind {
             BodyKind::Ground => (vec![], vec![]),
             BodyKind::PointMass { .. } => (def.position.0.to_vec(), def.velocity.0.to_vec()),
-            BodyKind::Rigid(_) => {
+            BodyKind::Rigid(_) | BodyKind::Flexible(_) => {
                 let p = euler::from_rotation_matrix(&def.orientation);
                 let w_bar = def.orientation.tr_mul_vec(&def.angular_velocity);
                 let pd = euler::rates_from_body_angular_velocity(&p, &w_bar);
                 let mut q = def.position.0.to_vec();
                 q.extend_from_slice(&p);
+                q.extend_from_slice(&def.elastic_coordinates);
                 let mut qd = def.velocity.0.to_vec();
                 qd.extend_from_slice(&pd);
+                qd.extend_from_slice(&def.elastic_velocities);
                 (q, qd)
             }
         }

@@ -7,6 +7,7 @@
 //! then the joints' equations in order. The Newton matrix is square of size
 //! coordinate_count + constraint_count: [[S, C_q^T], [C_q, 0]].
 
+use crate::body::flexible::REFERENCE_COORDINATES;
 use crate::body::marker::Marker;
 use crate::body::{Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
@@ -41,13 +42,29 @@ pub struct JointEntries {
     pub hessian: Vec<usize>,
 }
 
+/// Value indices of a body's entries in the Newton matrix.
+#[derive(Clone, Debug, Default)]
+pub struct BodyEntries {
+    /// Dense block over the body's reference coordinates (all of a rigid body or point mass,
+    /// [R, p] of a deformable body), row-major.
+    pub block: Vec<usize>,
+    /// Diagonal entries of all its coordinates.
+    pub diagonal: Vec<usize>,
+    /// Deformable body: the (reference, elastic) block, 7 x n_f row-major.
+    pub reference_elastic: Vec<usize>,
+    /// Deformable body: the (elastic, reference) block, n_f x 7 row-major.
+    pub elastic_reference: Vec<usize>,
+    /// Deformable body: each entry of its elastic pattern.
+    pub elastic: Vec<usize>,
+}
+
 /// Where each element writes in the Newton matrix.
 #[derive(Clone, Debug)]
 pub struct MatrixLayout {
     /// The pattern.
     pub pattern: SparsePattern,
-    /// Per body: its square block, row-major (empty for the ground).
-    pub bodies: Vec<Vec<usize>>,
+    /// Per body (empty for the ground).
+    pub bodies: Vec<BodyEntries>,
     /// Per normalization: its 4 C_q entries, then its 4 C_q^T entries.
     pub normalizations: Vec<[usize; 8]>,
     /// Per joint.
@@ -116,7 +133,10 @@ impl Model {
         for b in &self.bodies {
             if let Some(k) = b.dofs.iter().position(|&d| d == index) {
                 let names = ["x", "y", "z", "e0", "e1", "e2", "e3"];
-                return format!("body '{}' coordinate {}", b.name, names.get(k).copied().unwrap_or("?"));
+                return match names.get(k) {
+                    Some(name) => format!("body '{}' coordinate {name}", b.name),
+                    None => format!("body '{}' elastic coordinate {}", b.name, k - 7),
+                };
             }
         }
         format!("coordinate {index}")
@@ -153,12 +173,27 @@ impl SystemBuilder {
         let mut markers: Vec<Marker> = self
             .markers
             .iter()
-            .map(|m| Marker {
-                name: m.name.clone(),
-                body: m.body,
-                position: m.position,
-                rotation: m.orientation,
-                axis_jacobians: false,
+            .map(|m| {
+                let body = &bodies[m.body.0];
+                let dofs = match (&body.kind, &m.elastic) {
+                    (BodyKind::Flexible(_), elastic) => {
+                        let mut d = body.dofs[..REFERENCE_COORDINATES].to_vec();
+                        if let Some(e) = elastic {
+                            d.extend(e.indices.iter().map(|&i| body.offset + REFERENCE_COORDINATES + i));
+                        }
+                        d
+                    }
+                    _ => body.dofs.clone(),
+                };
+                Marker {
+                    name: m.name.clone(),
+                    body: m.body,
+                    position: m.position,
+                    rotation: m.orientation,
+                    elastic: m.elastic.clone(),
+                    dofs,
+                    axis_jacobians: false,
+                }
             })
             .collect();
         // Axis Jacobians only where an equation or force differentiates the axes.
@@ -206,10 +241,10 @@ impl SystemBuilder {
         let mut row = normalizations.len();
         let mut joints = Vec::with_capacity(self.joints.len());
         for def in &self.joints {
-            let bi = &bodies[markers[def.markers[0].0].body.0];
-            let bj = &bodies[markers[def.markers[1].0].body.0];
-            let mut dofs = bi.dofs.clone();
-            dofs.extend_from_slice(&bj.dofs);
+            let mi = &markers[def.markers[0].0];
+            let mj = &markers[def.markers[1].0];
+            let mut dofs = mi.dofs.clone();
+            dofs.extend_from_slice(&mj.dofs);
             let equations = def.kind.equations();
             let count = equations.len();
             joints.push(Joint {
@@ -219,7 +254,7 @@ impl SystemBuilder {
                 equations,
                 row,
                 dofs,
-                n_i: bi.dofs.len(),
+                n_i: mi.dofs.len(),
             });
             row += count;
         }
@@ -235,11 +270,11 @@ impl SystemBuilder {
                 }
                 kind => {
                     let ms = kind.markers();
-                    let first = bodies[markers[ms[0].0].body.0].dofs.clone();
+                    let first = markers[ms[0].0].dofs.clone();
                     let n_i = first.len();
                     let mut dofs = first;
                     for m in &ms[1..] {
-                        dofs.extend_from_slice(&bodies[markers[m.0].body.0].dofs);
+                        dofs.extend_from_slice(&markers[m.0].dofs);
                     }
                     (dofs, n_i)
                 }
@@ -264,7 +299,21 @@ impl SystemBuilder {
         let mut pb = PatternBuilder::new(n);
         let all: Vec<usize> = (0..n).collect();
         for b in &bodies {
-            pb.add_block(&b.dofs, &b.dofs);
+            match &b.kind {
+                BodyKind::Flexible(fb) => {
+                    let (reference, elastic) = b.dofs.split_at(REFERENCE_COORDINATES);
+                    pb.add_block(reference, reference);
+                    pb.add_block(reference, elastic);
+                    pb.add_block(elastic, reference);
+                    let ep = &fb.pattern;
+                    for c in 0..ep.n {
+                        for &r in &ep.row_idx[ep.col_ptr[c]..ep.col_ptr[c + 1]] {
+                            pb.add_entry(elastic[r], elastic[c]);
+                        }
+                    }
+                }
+                _ => pb.add_block(&b.dofs, &b.dofs),
+            }
         }
         for nz in &normalizations {
             pb.add_block(&[coordinate_count + nz.row], &nz.dofs);
@@ -283,7 +332,7 @@ impl SystemBuilder {
         pb.add_diagonal(&all[..coordinate_count]);
         let pattern = pb.build();
         let layout = MatrixLayout {
-            bodies: bodies.iter().map(|b| pattern.block_indices(&b.dofs, &b.dofs)).collect(),
+            bodies: bodies.iter().map(|b| body_entries(&pattern, b)).collect(),
             normalizations: normalizations
                 .iter()
                 .map(|nz| {
@@ -336,11 +385,37 @@ impl SystemBuilder {
     }
 }
 
+/// The entries of a body in the Newton matrix.
+fn body_entries(pattern: &SparsePattern, b: &Body) -> BodyEntries {
+    let diagonal = b.dofs.iter().map(|&d| pattern.index(d, d)).collect();
+    match &b.kind {
+        BodyKind::Flexible(fb) => {
+            let (reference, elastic) = b.dofs.split_at(REFERENCE_COORDINATES);
+            let ep = &fb.pattern;
+            let mut entries = Vec::with_capacity(ep.nnz());
+            for c in 0..ep.n {
+                for &r in &ep.row_idx[ep.col_ptr[c]..ep.col_ptr[c + 1]] {
+                    entries.push(pattern.index(elastic[r], elastic[c]));
+                }
+            }
+            BodyEntries {
+                block: pattern.block_indices(reference, reference),
+                diagonal,
+                reference_elastic: pattern.block_indices(reference, elastic),
+                elastic_reference: pattern.block_indices(elastic, reference),
+                elastic: entries,
+            }
+        }
+        _ => BodyEntries { block: pattern.block_indices(&b.dofs, &b.dofs), diagonal, ..Default::default() },
+    }
+}
+
 /// Mass of a body, for summaries.
 pub fn body_mass(body: &Body) -> f64 {
     match &body.kind {
         BodyKind::Ground => 0.0,
         BodyKind::Rigid(r) => r.mass,
         BodyKind::PointMass { mass } => *mass,
+        BodyKind::Flexible(f) => f.mass,
     }
 }

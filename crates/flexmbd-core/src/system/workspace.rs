@@ -2,6 +2,7 @@
 //! assembly and the solvers write during a step, sized once when a simulation starts, so that
 //! the hot path does not allocate.
 
+use crate::body::flexible::{FlexibleBody, FlexibleScratch, FlexibleTangent, REFERENCE_COORDINATES};
 use crate::body::marker::MarkerKinematics;
 use crate::body::rigid::RigidTangent;
 use crate::body::BodyKind;
@@ -30,6 +31,38 @@ pub struct JointLocal {
     pub driver: [f64; 3],
 }
 
+/// Buffers of one deformable body.
+#[derive(Clone, Debug)]
+pub struct FlexibleWork {
+    /// Kernel scratch (products with the invariants).
+    pub scratch: FlexibleScratch,
+    /// Tangent of the inertia force; filled by the assembly.
+    pub tangent: FlexibleTangent,
+    /// Body force (7 + n_f); filled by the assembly.
+    pub force: Vec<f64>,
+    /// Values on the body's elastic pattern (nnz of the pattern); filled by the assembly.
+    pub elastic_values: Vec<f64>,
+    /// Gravity Jacobian blocks (p, f) 4 x n_f and (f, p) n_f x 4; filled by the assembly.
+    pub gravity_pf: Vec<f64>,
+    /// See `gravity_pf`.
+    pub gravity_fp: Vec<f64>,
+}
+
+impl FlexibleWork {
+    /// Buffers for `body`.
+    pub fn new(body: &FlexibleBody) -> Self {
+        let n = body.elastic_count;
+        FlexibleWork {
+            scratch: FlexibleScratch::with_size(n),
+            tangent: FlexibleTangent::with_size(n),
+            force: vec![0.0; REFERENCE_COORDINATES + n],
+            elastic_values: vec![0.0; body.pattern.nnz()],
+            gravity_pf: vec![0.0; 4 * n],
+            gravity_fp: vec![0.0; 4 * n],
+        }
+    }
+}
+
 /// Workspace of a simulation of one model.
 pub struct Workspace {
     /// Kinematics of every marker (filled by `update_kinematics`).
@@ -56,6 +89,8 @@ pub struct Workspace {
     pub rigid: RigidTangent,
     /// Body-level force scratch (up to 7 entries).
     pub body_force: Vec<f64>,
+    /// Per body: the buffers of a deformable body (None for the others).
+    pub flexible: Vec<Option<FlexibleWork>>,
     /// Per joint.
     pub joints: Vec<JointLocal>,
     /// Per force element.
@@ -97,15 +132,12 @@ impl Workspace {
             .iter()
             .map(|nz| match &model.bodies[nz.body.0].kind {
                 BodyKind::Rigid(rb) => rb.inertia.trace() / 3.0,
+                BodyKind::Flexible(fb) => fb.undeformed_inertia().trace() / 3.0,
                 _ => 1.0,
             })
             .collect();
         Ok(Workspace {
-            markers: model
-                .markers
-                .iter()
-                .map(|m| MarkerKinematics::with_size(model.bodies[m.body.0].dofs.len()))
-                .collect(),
+            markers: model.markers.iter().map(|m| MarkerKinematics::with_size(m.dofs.len())).collect(),
             residual: vec![0.0; n],
             values: vec![0.0; model.layout.pattern.nnz()],
             lu,
@@ -115,6 +147,14 @@ impl Workspace {
             normalization_weights,
             rigid: RigidTangent::default(),
             body_force: vec![0.0; 7],
+            flexible: model
+                .bodies
+                .iter()
+                .map(|b| match &b.kind {
+                    BodyKind::Flexible(fb) => Some(FlexibleWork::new(fb)),
+                    _ => None,
+                })
+                .collect(),
             joints: model
                 .joints
                 .iter()

@@ -1,0 +1,1300 @@
+//! Deformable body in the floating frame of reference (seed sections 2-3, eqs. 7-9 and 15-18).
+//!
+//! Coordinates q = [R (3), p (4 Euler parameters), q_f (n_f elastic coordinates)]. A point with
+//! undeformed body-frame position u0 is at u = u0 + S q_f in the body frame and at
+//! r = R + A(p) u globally (seed eqs. 8-9). Everything the equations need of the mass
+//! distribution is in the invariants of motion (`DESIGN.md`, seed eqs. 16-18), computed once
+//! by the preprocessor: m, s0 = int rho u0, J0_kl = int rho u0_k u0_l, I1 = int rho S,
+//! Ibar_kl = int rho u0_k S_l and I_kl = int rho S_k^T S_l; M_ff = sum_k I_kk. They hold in
+//! nodal and in modal coordinates alike (seed eq. 18 only changes the basis).
+//!
+//! The generalized inertia force f = M(q) q_dd - F(q, q_dot) of seed eq. 15, from the virtual
+//! work of the inertia forces (seed eqs. 11-13), with a = A^T R_dd, the body angular velocity
+//! w = 2 L p_dot and acceleration alpha = 2 L p_dd (the rotation rows mapped by 2 L^T):
+//!
+//! ```text
+//! f_R = m R_dd + A (alpha x s + w x (w x s) + 2 w x I1 qf_dot + I1 qf_dd)
+//! f_p = 2 L^T (s x a + J alpha + w x J w + 2 (tr(P) w - P^T w) + J_f qf_dd)
+//! f_f = I1^T a + int rho S^T (alpha~ + w~ w~) u + 2 sum_kl w~_kl I_kl qf_dot + M_ff qf_dd
+//! ```
+//!
+//! with s = int rho u = s0 + I1 q_f, J = int rho u~^T u~ = tr(U) I - U, U_kl = int rho u_k u_l,
+//! P = int rho u u_dot^T and J_f = int rho u~ S. With N_kl = int rho u_k S_l
+//! = Ibar_kl + (I_lk q_f)^T (a row of n_f) all of them are sums of invariants:
+//!
+//! ```text
+//! U_kl = J0_kl + (Ibar_kl + Ibar_lk) q_f + q_f^T I_kl q_f,   P_kl = N_kl qf_dot,
+//! (J_f)_i = sum_kl eps_ikl N_kl,   int rho S_k^T u_l = N_lk^T.
+//! ```
+//!
+//! The mass matrix blocks are those of `DESIGN.md` (m_RR = m I, m_Rth = -A s~ 2L, m_Rf = A I1,
+//! m_thth = 4 L^T J L, m_thf = 2 L^T J_f, m_ff = M_ff). The tangent (mass, velocity and
+//! position Jacobians) is analytic; its (f, f) blocks are sums c_kl I_kl with 3 x 3
+//! coefficient matrices, so that large nodal bodies keep the sparsity of their mass matrix.
+//! Elastic forces -K_ff q_f - D_ff qf_dot and gravity (by virtual work) complete the body.
+
+use super::stiffening::{add_stiffening, StiffeningElement};
+use crate::error::{FlexmbdError, Result};
+use crate::fem::assembly::Csc;
+use crate::math::euler::{
+    self, bilinear_hessian, l_jacobian, l_matrix, lt_jacobian, rotate_jacobian, rotate_transpose_jacobian,
+    Mat34, Quaternion,
+};
+use crate::math::{Mat3, Vec3};
+
+/// Number of reference coordinates [R, p] of a flexible body.
+pub const REFERENCE_COORDINATES: usize = 7;
+
+/// Compressed sparse column pattern over the elastic coordinates of a body: the union of the
+/// patterns of its I_kl, K_ff and D_ff.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElasticPattern {
+    /// Dimension n_f.
+    pub n: usize,
+    /// Column pointers (n + 1).
+    pub col_ptr: Vec<usize>,
+    /// Row indices, sorted in each column.
+    pub row_idx: Vec<usize>,
+}
+
+impl ElasticPattern {
+    /// Number of entries.
+    pub fn nnz(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    fn union(n: usize, matrices: &[&Csc], blocks: &[&[usize]]) -> Self {
+        let mut extra: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for b in blocks {
+            for &c in b.iter() {
+                extra[c].extend_from_slice(b);
+            }
+        }
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut row_idx = Vec::new();
+        let mut rows: Vec<usize> = Vec::new();
+        for c in 0..n {
+            rows.clear();
+            rows.extend_from_slice(&extra[c]);
+            for m in matrices {
+                rows.extend_from_slice(&m.row_idx[m.col_ptr[c]..m.col_ptr[c + 1]]);
+            }
+            rows.sort_unstable();
+            rows.dedup();
+            row_idx.extend_from_slice(&rows);
+            col_ptr[c + 1] = row_idx.len();
+        }
+        ElasticPattern { n, col_ptr, row_idx }
+    }
+
+    fn position(&self, r: usize, c: usize) -> usize {
+        let rows = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
+        self.col_ptr[c] + rows.binary_search(&r).expect("entry in the elastic pattern")
+    }
+}
+
+/// A constant sparse n_f x n_f matrix of a body, with the position of each of its entries in
+/// the body's [`ElasticPattern`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElasticMatrix {
+    /// The matrix.
+    pub matrix: Csc,
+    /// Pattern position of each stored entry (same order as `matrix.values`).
+    pub positions: Vec<usize>,
+}
+
+impl ElasticMatrix {
+    fn new(matrix: Csc, pattern: &ElasticPattern) -> Self {
+        let mut positions = Vec::with_capacity(matrix.values.len());
+        for c in 0..matrix.ncols {
+            for k in matrix.col_ptr[c]..matrix.col_ptr[c + 1] {
+                positions.push(pattern.position(matrix.row_idx[k], c));
+            }
+        }
+        ElasticMatrix { matrix, positions }
+    }
+
+    /// `out += w * A x`.
+    pub fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
+        let m = &self.matrix;
+        for c in 0..m.ncols {
+            let xc = w * x[c];
+            if xc != 0.0 {
+                for k in m.col_ptr[c]..m.col_ptr[c + 1] {
+                    out[m.row_idx[k]] += m.values[k] * xc;
+                }
+            }
+        }
+    }
+
+    /// `values[positions] += w * A` (values on the body's elastic pattern).
+    pub fn add_to_pattern(&self, w: f64, values: &mut [f64]) {
+        if w != 0.0 {
+            for (&p, &v) in self.positions.iter().zip(&self.matrix.values) {
+                values[p] += w * v;
+            }
+        }
+    }
+}
+
+/// The invariants and matrices of a deformable body as given by the preprocessor.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FlexibleBodyInput {
+    /// m = int rho dV (kg).
+    pub mass: f64,
+    /// s0 = int rho u0 dV (kg m).
+    pub first_moment: Vec3,
+    /// J0_kl = int rho u0_k u0_l dV (kg m^2).
+    pub second_moment: Mat3,
+    /// I1 = int rho S dV, 3 x n_f row-major.
+    pub i1: Vec<f64>,
+    /// Ibar_kl = int rho u0_k S_l dV, index [(3 k + l) n_f + j].
+    pub ibar: Vec<f64>,
+    /// I_kl = int rho S_k^T S_l dV, index 3 k + l (n_f x n_f each).
+    pub i_kl: Vec<Csc>,
+    /// K_ff (n_f x n_f).
+    pub stiffness: Csc,
+    /// D_ff (n_f x n_f); may have no entries.
+    pub damping: Csc,
+    /// Beam elements of the geometric stiffness (elastic coupling); empty: linear elasticity.
+    pub stiffening: Vec<StiffeningElement>,
+}
+
+/// The constant data of a deformable body of a compiled model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlexibleBody {
+    /// m (kg).
+    pub mass: f64,
+    /// s0 (kg m).
+    pub first_moment: Vec3,
+    /// J0 (kg m^2).
+    pub second_moment: Mat3,
+    /// n_f.
+    pub elastic_count: usize,
+    /// I1, 3 x n_f row-major.
+    pub i1: Vec<f64>,
+    /// Ibar_kl, index [(3 k + l) n_f + j].
+    pub ibar: Vec<f64>,
+    /// Union pattern of the (f, f) matrices.
+    pub pattern: ElasticPattern,
+    /// I_kl, index 3 k + l.
+    pub i_kl: Vec<ElasticMatrix>,
+    /// K_ff.
+    pub stiffness: ElasticMatrix,
+    /// D_ff.
+    pub damping: ElasticMatrix,
+    /// Beam elements of the geometric stiffness (empty: linear elasticity).
+    pub stiffening: Vec<StiffeningElement>,
+}
+
+fn check_square(item: &str, what: &str, m: &Csc, n: usize) -> Result<()> {
+    let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
+    if m.nrows != n || m.ncols != n || m.col_ptr.len() != n + 1 {
+        return Err(bad(format!("{what} must be {n} x {n}, got {} x {}", m.nrows, m.ncols)));
+    }
+    if m.row_idx.len() != m.values.len() || m.col_ptr[n] != m.values.len() {
+        return Err(bad(format!("{what}: inconsistent sparse storage")));
+    }
+    for c in 0..n {
+        let rows = &m.row_idx[m.col_ptr[c]..m.col_ptr[c + 1]];
+        if rows.windows(2).any(|w| w[0] >= w[1]) || rows.iter().any(|&r| r >= n) {
+            return Err(bad(format!("{what}: row indices of column {c} are not sorted and in range")));
+        }
+    }
+    if let Some(k) = m.values.iter().position(|v| !v.is_finite()) {
+        return Err(FlexmbdError::InvalidParameter {
+            item: item.to_string(),
+            message: format!("{what} has a non-finite entry (stored entry {k})"),
+        });
+    }
+    Ok(())
+}
+
+/// Largest |A - B^T| relative to the largest entry.
+fn transpose_mismatch(a: &Csc, b: &Csc) -> f64 {
+    let scale = a.values.iter().chain(&b.values).fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    let mut worst = 0.0f64;
+    for c in 0..a.ncols {
+        for k in a.col_ptr[c]..a.col_ptr[c + 1] {
+            worst = worst.max((a.values[k] - b.get(c, a.row_idx[k])).abs());
+        }
+    }
+    for c in 0..b.ncols {
+        for k in b.col_ptr[c]..b.col_ptr[c + 1] {
+            worst = worst.max((b.values[k] - a.get(c, b.row_idx[k])).abs());
+        }
+    }
+    worst / scale
+}
+
+impl FlexibleBody {
+    /// Checks the data (positive mass, finite values, shapes, I_kl^T = I_lk, symmetric K_ff and
+    /// D_ff) and lays out the elastic pattern.
+    pub fn new(item: &str, input: FlexibleBodyInput) -> Result<Self> {
+        let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
+        if !(input.mass.is_finite() && input.mass > 0.0) {
+            return Err(bad(format!("mass must be positive and finite, got {}", input.mass)));
+        }
+        if !input.first_moment.is_finite() || !input.second_moment.is_finite() {
+            return Err(bad("first and second moments must be finite".to_string()));
+        }
+        let n = input.i1.len() / 3;
+        if input.i1.len() != 3 * n || input.ibar.len() != 9 * n || input.i_kl.len() != 9 {
+            return Err(bad(format!(
+                "invariants of inconsistent size: I1 has {} entries, Ibar {}, {} matrices I_kl \
+                 (expected 3 n_f, 9 n_f and 9)",
+                input.i1.len(),
+                input.ibar.len(),
+                input.i_kl.len()
+            )));
+        }
+        if input.i1.iter().chain(&input.ibar).any(|v| !v.is_finite()) {
+            return Err(bad("invariants I1 and Ibar must be finite".to_string()));
+        }
+        for (kl, m) in input.i_kl.iter().enumerate() {
+            check_square(item, &format!("invariant I_{}{}", kl / 3 + 1, kl % 3 + 1), m, n)?;
+        }
+        check_square(item, "stiffness matrix", &input.stiffness, n)?;
+        check_square(item, "damping matrix", &input.damping, n)?;
+        for k in 0..3 {
+            for l in k..3 {
+                let mismatch = transpose_mismatch(&input.i_kl[3 * k + l], &input.i_kl[3 * l + k]);
+                if mismatch > 1e-9 {
+                    return Err(bad(format!(
+                        "invariants I_{}{} and I_{}{} must be transposes of each other (mismatch {mismatch:.1e})",
+                        k + 1,
+                        l + 1,
+                        l + 1,
+                        k + 1
+                    )));
+                }
+            }
+        }
+        for (what, m) in [("stiffness matrix", &input.stiffness), ("damping matrix", &input.damping)] {
+            let mismatch = transpose_mismatch(m, m);
+            if mismatch > 1e-9 {
+                return Err(bad(format!("{what} must be symmetric (mismatch {mismatch:.1e})")));
+            }
+        }
+        for (k, el) in input.stiffening.iter().enumerate() {
+            let nl = el.indices.len();
+            let ok = el.map.len() == 12 * nl
+                && el.indices.iter().all(|&i| i < n)
+                && el.map.iter().all(|v| v.is_finite())
+                && el.length.is_finite()
+                && el.length > 0.0
+                && el.axial_stiffness.is_finite()
+                && el.axial_stiffness > 0.0;
+            if !ok {
+                return Err(bad(format!(
+                    "stiffening element {k}: needs a 12 x n_l map over existing elastic coordinates, \
+                     a positive length and a positive axial stiffness"
+                )));
+            }
+        }
+        let mut all: Vec<&Csc> = input.i_kl.iter().collect();
+        all.push(&input.stiffness);
+        all.push(&input.damping);
+        let blocks: Vec<&[usize]> = input.stiffening.iter().map(|e| e.indices.as_slice()).collect();
+        let pattern = ElasticPattern::union(n, &all, &blocks);
+        let mut stiffening = input.stiffening;
+        for el in stiffening.iter_mut() {
+            el.positions = el
+                .indices
+                .iter()
+                .flat_map(|&r| el.indices.iter().map(move |&c| (r, c)))
+                .map(|(r, c)| pattern.position(r, c))
+                .collect();
+        }
+        let i_kl = input.i_kl.into_iter().map(|m| ElasticMatrix::new(m, &pattern)).collect();
+        Ok(FlexibleBody {
+            mass: input.mass,
+            first_moment: input.first_moment,
+            second_moment: input.second_moment,
+            elastic_count: n,
+            i1: input.i1,
+            ibar: input.ibar,
+            stiffness: ElasticMatrix::new(input.stiffness, &pattern),
+            damping: ElasticMatrix::new(input.damping, &pattern),
+            stiffening,
+            i_kl,
+            pattern,
+        })
+    }
+
+    /// Number of coordinates 7 + n_f.
+    pub fn coordinate_count(&self) -> usize {
+        REFERENCE_COORDINATES + self.elastic_count
+    }
+
+    /// Inertia tensor of the undeformed body about the body origin, tr(J0) I - J0 (kg m^2).
+    pub fn undeformed_inertia(&self) -> Mat3 {
+        let j0 = self.second_moment;
+        let mut j = j0.scale(-1.0);
+        for k in 0..3 {
+            j.0[k][k] += j0.trace();
+        }
+        j
+    }
+
+    fn ibar_row(&self, k: usize, l: usize) -> &[f64] {
+        let n = self.elastic_count;
+        &self.ibar[(3 * k + l) * n..(3 * k + l + 1) * n]
+    }
+
+    /// I1 v (3-vector) for an elastic vector v.
+    pub fn i1_times(&self, v: &[f64]) -> Vec3 {
+        let n = self.elastic_count;
+        let mut out = Vec3::ZERO;
+        for k in 0..3 {
+            out[k] = self.i1[k * n..(k + 1) * n].iter().zip(v).map(|(a, b)| a * b).sum();
+        }
+        out
+    }
+
+    /// `out += I1^T c` for a 3-vector c.
+    pub fn add_i1_transpose_times(&self, c: &Vec3, out: &mut [f64]) {
+        let n = self.elastic_count;
+        for k in 0..3 {
+            if c[k] != 0.0 {
+                for (o, a) in out.iter_mut().zip(&self.i1[k * n..(k + 1) * n]) {
+                    *o += c[k] * a;
+                }
+            }
+        }
+    }
+
+    /// `out[kl] = I_kl v` for the nine invariants (out: 9 n_f, index (3 k + l) n_f + j).
+    pub fn i_kl_products(&self, v: &[f64], out: &mut [f64]) {
+        let n = self.elastic_count;
+        out.iter_mut().for_each(|x| *x = 0.0);
+        for (kl, m) in self.i_kl.iter().enumerate() {
+            m.mul_vec_add(1.0, v, &mut out[kl * n..(kl + 1) * n]);
+        }
+    }
+
+    /// `values += sum_kl c_kl I_kl` on the elastic pattern.
+    pub fn add_i_kl_to_pattern(&self, c: &Mat3, values: &mut [f64]) {
+        for (kl, m) in self.i_kl.iter().enumerate() {
+            m.add_to_pattern(c.0[kl / 3][kl % 3], values);
+        }
+    }
+
+    /// `out += sum_kl c_kl I_kl v`.
+    pub fn add_i_kl_times(&self, c: &Mat3, v: &[f64], out: &mut [f64]) {
+        for (kl, m) in self.i_kl.iter().enumerate() {
+            let w = c.0[kl / 3][kl % 3];
+            if w != 0.0 {
+                m.mul_vec_add(w, v, out);
+            }
+        }
+    }
+}
+
+/// Levi-Civita symbol eps_ikl.
+fn levi(i: usize, k: usize, l: usize) -> f64 {
+    match (i, k, l) {
+        (0, 1, 2) | (1, 2, 0) | (2, 0, 1) => 1.0,
+        (0, 2, 1) | (2, 1, 0) | (1, 0, 2) => -1.0,
+        _ => 0.0,
+    }
+}
+
+/// Per-body buffers of the flexible-body kernels (each 9 n_f unless noted).
+#[derive(Clone, Debug, Default)]
+pub struct FlexibleScratch {
+    /// y_kl = I_kl q_f.
+    pub y: Vec<f64>,
+    /// z_kl = I_kl qf_dot.
+    pub z: Vec<f64>,
+    /// x_kl = I_kl qf_dd.
+    pub x: Vec<f64>,
+    /// N_kl = Ibar_kl + y_lk (the rows int rho u_k S_l).
+    pub n: Vec<f64>,
+    /// Scratch rows, 3 n_f.
+    pub rows: Vec<f64>,
+    /// Scratch rows, 3 n_f.
+    pub rows2: Vec<f64>,
+}
+
+impl FlexibleScratch {
+    /// Buffers for a body with `n` elastic coordinates.
+    pub fn with_size(n: usize) -> Self {
+        FlexibleScratch {
+            y: vec![0.0; 9 * n],
+            z: vec![0.0; 9 * n],
+            x: vec![0.0; 9 * n],
+            n: vec![0.0; 9 * n],
+            rows: vec![0.0; 3 * n],
+            rows2: vec![0.0; 3 * n],
+        }
+    }
+}
+
+/// Configuration-dependent quantities of a body at one state (body frame).
+struct Quantities {
+    p: Quaternion,
+    a: Mat3,
+    l: Mat34,
+    w: Vec3,
+    alpha: Vec3,
+    /// A^T R_dd.
+    acc: Vec3,
+    /// s = s0 + I1 q_f.
+    s: Vec3,
+    /// J = tr(U) I - U.
+    j: Mat3,
+    /// P_kl = N_kl qf_dot.
+    pm: Mat3,
+    /// J_f qf_dd.
+    jf_qdd: Vec3,
+    /// I1 qf_dot.
+    i1_qfd: Vec3,
+    /// I1 qf_dd.
+    i1_qfdd: Vec3,
+}
+
+fn quat(q: &[f64]) -> Quaternion {
+    [q[3], q[4], q[5], q[6]]
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn row(v: &[f64], k: usize, l: usize, n: usize) -> &[f64] {
+    &v[(3 * k + l) * n..(3 * k + l + 1) * n]
+}
+
+/// Fills the products and N_kl of `scratch` and returns the body quantities. `with_velocity`
+/// and `with_acceleration` say whether z = I_kl qf_dot and x = I_kl qf_dd are needed.
+fn quantities(
+    body: &FlexibleBody,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    scratch: &mut FlexibleScratch,
+    with_products: bool,
+) -> Quantities {
+    let nf = body.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let (qf, qfd, qfdd) = (&q[r7..r7 + nf], &qd[r7..r7 + nf], &qdd[r7..r7 + nf]);
+    let p = quat(q);
+    let a = euler::rotation_matrix(&p);
+    let l = l_matrix(&p);
+    let w = euler::body_angular_velocity(&p, &quat(qd));
+    let alpha = euler::body_angular_velocity(&p, &quat(qdd));
+    let acc = a.tr_mul_vec(&Vec3::from_slice(qdd));
+    body.i_kl_products(qf, &mut scratch.y);
+    if with_products {
+        body.i_kl_products(qfd, &mut scratch.z);
+        body.i_kl_products(qfdd, &mut scratch.x);
+    }
+    for k in 0..3 {
+        for l2 in 0..3 {
+            let dst = &mut scratch.n[(3 * k + l2) * nf..(3 * k + l2 + 1) * nf];
+            let ib = body.ibar_row(k, l2);
+            let y = row(&scratch.y, l2, k, nf);
+            for j in 0..nf {
+                dst[j] = ib[j] + y[j];
+            }
+        }
+    }
+    let s = body.first_moment + body.i1_times(qf);
+    let mut u = Mat3::ZERO;
+    let mut pm = Mat3::ZERO;
+    for k in 0..3 {
+        for l2 in 0..3 {
+            u.0[k][l2] = body.second_moment.0[k][l2]
+                + dot(body.ibar_row(k, l2), qf)
+                + dot(body.ibar_row(l2, k), qf)
+                + dot(qf, row(&scratch.y, k, l2, nf));
+            pm.0[k][l2] = dot(row(&scratch.n, k, l2, nf), qfd);
+        }
+    }
+    let mut j = u.scale(-1.0);
+    for k in 0..3 {
+        j.0[k][k] += u.trace();
+    }
+    let mut jf_qdd = Vec3::ZERO;
+    for i in 0..3 {
+        let (k, l2) = ((i + 1) % 3, (i + 2) % 3);
+        jf_qdd[i] = dot(row(&scratch.n, k, l2, nf), qfdd) - dot(row(&scratch.n, l2, k, nf), qfdd);
+    }
+    Quantities {
+        p,
+        a,
+        l,
+        w,
+        alpha,
+        acc,
+        s,
+        j,
+        pm,
+        jf_qdd,
+        i1_qfd: body.i1_times(qfd),
+        i1_qfdd: body.i1_times(qfdd),
+    }
+}
+
+/// Fills `rows` (3 n_f) with the rows of J_f = int rho u~ S: row i = N_jk - N_kj for (i, j, k)
+/// cyclic.
+fn jf_rows(scratch: &FlexibleScratch, nf: usize, rows: &mut [f64]) {
+    for i in 0..3 {
+        let (k, l) = ((i + 1) % 3, (i + 2) % 3);
+        let (a, b) = (row(&scratch.n, k, l, nf), row(&scratch.n, l, k, nf));
+        for j in 0..nf {
+            rows[i * nf + j] = a[j] - b[j];
+        }
+    }
+}
+
+fn map_rows_2lt(
+    l: &Mat34,
+    rows: &[f64],
+    nf: usize,
+    out: &mut [f64],
+    out_row0: usize,
+    out_cols: usize,
+    col0: usize,
+) {
+    // out[(out_row0 + a) * out_cols + col0 + j] += sum_i 2 L[i][a] rows[i][j] for a in 0..4.
+    for a in 0..4 {
+        let dst = &mut out[(out_row0 + a) * out_cols + col0..(out_row0 + a) * out_cols + col0 + nf];
+        for i in 0..3 {
+            let c = 2.0 * l[i][a];
+            if c != 0.0 {
+                for (d, r) in dst.iter_mut().zip(&rows[i * nf..(i + 1) * nf]) {
+                    *d += c * r;
+                }
+            }
+        }
+    }
+}
+
+/// Generalized inertia force f(q, q_dot, q_dd) of seed eq. 15 into `out` (7 + n_f).
+pub fn inertia_force(
+    body: &FlexibleBody,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    scratch: &mut FlexibleScratch,
+    out: &mut [f64],
+) {
+    let nf = body.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let k = quantities(body, q, qd, qdd, scratch, true);
+    let (w, alpha, s) = (k.w, k.alpha, k.s);
+    // Translation: m R_dd + A (alpha x s + w x (w x s) + 2 w x I1 qf_dot + I1 qf_dd).
+    let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
+    let f_r = Vec3::from_slice(qdd) * body.mass + k.a.mul_vec(&h_r);
+    // Rotation (body frame), mapped by 2 L^T.
+    let g = rotation_force(&k);
+    out[..3].copy_from_slice(&f_r.0);
+    for a in 0..4 {
+        out[3 + a] = 2.0 * (0..3).map(|i| k.l[i][a] * g[i]).sum::<f64>();
+    }
+    // Elastic: I1^T a + sum_kl E_kl N_lk + 2 sum_kl w~_kl z_kl + sum_k x_kk, E = alpha~ + w~w~.
+    let f = &mut out[r7..r7 + nf];
+    f.iter_mut().for_each(|x| *x = 0.0);
+    body.add_i1_transpose_times(&k.acc, f);
+    let e = alpha.skew() + w.skew().mul_mat(&w.skew());
+    let ws = w.skew();
+    for kk in 0..3 {
+        for l in 0..3 {
+            let (ce, cw) = (e.0[kk][l], 2.0 * ws.0[kk][l]);
+            let n_lk = row(&scratch.n, l, kk, nf);
+            let z_kl = row(&scratch.z, kk, l, nf);
+            for j in 0..nf {
+                f[j] += ce * n_lk[j] + cw * z_kl[j];
+            }
+        }
+        let x_kk = row(&scratch.x, kk, kk, nf);
+        for j in 0..nf {
+            f[j] += x_kk[j];
+        }
+    }
+}
+
+/// g = s x a + J alpha + w x J w + 2 (tr(P) w - P^T w) + J_f qf_dd (body frame).
+fn rotation_force(k: &Quantities) -> Vec3 {
+    let (w, alpha) = (k.w, k.alpha);
+    let jw = k.j.mul_vec(&w);
+    k.s.cross(&k.acc)
+        + k.j.mul_vec(&alpha)
+        + w.cross(&jw)
+        + (w * k.pm.trace() - k.pm.tr_mul_vec(&w)) * 2.0
+        + k.jf_qdd
+}
+
+/// Analytic Jacobians of [`inertia_force`]: df/dq_dd (mass), df/dq_dot (velocity) and df/dq
+/// (position). Reference blocks are dense; the (f, f) blocks are sum_kl c_kl I_kl with the
+/// coefficient matrices below (the mass block has c = I: M_ff = sum_k I_kk).
+#[derive(Clone, Debug, Default)]
+pub struct FlexibleTangent {
+    /// n_f.
+    pub n: usize,
+    /// (reference, reference) blocks of the mass, velocity and position Jacobians.
+    pub reference: [[[f64; 7]; 7]; 3],
+    /// (reference, f) blocks, 7 x n_f row-major, for mass, velocity and position.
+    pub reference_elastic: [Vec<f64>; 3],
+    /// (f, reference) blocks, n_f x 7 row-major, for mass, velocity and position.
+    pub elastic_reference: [Vec<f64>; 3],
+    /// Coefficients of the (f, f) velocity block sum_kl c_kl I_kl (2 w~).
+    pub velocity_coefficients: Mat3,
+    /// Coefficients of the (f, f) position block (alpha~ + w~ w~).
+    pub position_coefficients: Mat3,
+}
+
+impl FlexibleTangent {
+    /// Buffers for a body with `n` elastic coordinates.
+    pub fn with_size(n: usize) -> Self {
+        FlexibleTangent {
+            n,
+            reference_elastic: std::array::from_fn(|_| vec![0.0; 7 * n]),
+            elastic_reference: std::array::from_fn(|_| vec![0.0; 7 * n]),
+            ..Default::default()
+        }
+    }
+
+    fn clear(&mut self) {
+        self.reference = [[[0.0; 7]; 7]; 3];
+        for b in self.reference_elastic.iter_mut().chain(self.elastic_reference.iter_mut()) {
+            b.iter_mut().for_each(|x| *x = 0.0);
+        }
+    }
+}
+
+fn add34(out: &mut [[f64; 7]; 7], r0: usize, c0: usize, m: &[[f64; 4]; 3], w: f64) {
+    for i in 0..3 {
+        for j in 0..4 {
+            out[r0 + i][c0 + j] += w * m[i][j];
+        }
+    }
+}
+
+fn mat3_times_34(a: &Mat3, b: &Mat34) -> Mat34 {
+    crate::math::small::matmul(&a.0, b)
+}
+
+/// d(w x (w x s))/dw = w s^T + (w.s) I - 2 s w^T.
+fn centripetal_jacobian(w: &Vec3, s: &Vec3) -> Mat3 {
+    w.outer(s) + Mat3::IDENTITY.scale(w.dot(s)) - s.outer(w).scale(2.0)
+}
+
+/// Fills `t` with the Jacobians of [`inertia_force`] at (q, q_dot, q_dd).
+pub fn inertia_tangent(
+    body: &FlexibleBody,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    scratch: &mut FlexibleScratch,
+    t: &mut FlexibleTangent,
+) {
+    let nf = body.elastic_count;
+    let k = quantities(body, q, qd, qdd, scratch, true);
+    let (p, a, l, w, alpha, s, j) = (k.p, k.a, k.l, k.w, k.alpha, k.s, k.j);
+    let pd = quat(qd);
+    let pdd = quat(qdd);
+    let r_dd = Vec3::from_slice(qdd);
+    let two_l = crate::math::small::scaled(&l, 2.0);
+    let dw_dp = crate::math::small::scaled(&l_jacobian(&pd), 2.0);
+    let dalpha_dp = crate::math::small::scaled(&l_jacobian(&pdd), 2.0);
+    let dacc_dp = rotate_transpose_jacobian(&p, &r_dd);
+    let s_skew = s.skew();
+    let jw = j.mul_vec(&w);
+    t.clear();
+    t.n = nf;
+    let [tm, tv, tx] = &mut t.reference;
+
+    // (R, R), (R, p), (p, R), (p, p) of the mass matrix.
+    let m_rp = mat3_times_34(&a.mul_mat(&s_skew), &two_l);
+    for i in 0..3 {
+        tm[i][i] = body.mass;
+        for c in 0..4 {
+            tm[i][3 + c] = -m_rp[i][c];
+            tm[3 + c][i] = -m_rp[i][c];
+        }
+    }
+    let m_pp = crate::math::small::tr_matmul(&two_l, &mat3_times_34(&j, &two_l));
+    for r in 0..4 {
+        for c in 0..4 {
+            tm[3 + r][3 + c] = m_pp[r][c];
+        }
+    }
+
+    // Velocity: f_R through w (and qf_dot), g through w (and qf_dot).
+    let dh_dw = centripetal_jacobian(&w, &s) - k.i1_qfd.skew().scale(2.0);
+    add34(tv, 0, 3, &mat3_times_34(&a.mul_mat(&dh_dw), &two_l), 1.0);
+    let mut dg_dw = w.skew().mul_mat(&j) - jw.skew();
+    dg_dw = dg_dw + Mat3::IDENTITY.scale(2.0 * k.pm.trace()) - k.pm.transpose().scale(2.0);
+    let v_pp = crate::math::small::tr_matmul(&two_l, &mat3_times_34(&dg_dw, &two_l));
+    for r in 0..4 {
+        for c in 0..4 {
+            tv[3 + r][3 + c] = v_pp[r][c];
+        }
+    }
+
+    // Position: rotation of A, L and p inside w, alpha and a = A^T R_dd.
+    let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
+    let mut k_rp = rotate_jacobian(&p, &h_r);
+    let inner = {
+        let mut m = mat3_times_34(&dh_dw, &dw_dp);
+        crate::math::small::add_scaled(&mut m, -1.0, &mat3_times_34(&s_skew, &dalpha_dp));
+        m
+    };
+    crate::math::small::add_scaled(&mut k_rp, 1.0, &mat3_times_34(&a, &inner));
+    add34(tx, 0, 3, &k_rp, 1.0);
+    let g = rotation_force(&k);
+    let inner_p = {
+        let mut m = mat3_times_34(&s_skew, &dacc_dp);
+        crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&j, &dalpha_dp));
+        crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&dg_dw, &dw_dp));
+        m
+    };
+    let k_pp_a = lt_jacobian(&g);
+    let k_pp_b = crate::math::small::tr_matmul(&two_l, &inner_p);
+    for r in 0..4 {
+        for c in 0..4 {
+            tx[3 + r][3 + c] = 2.0 * k_pp_a[r][c] + k_pp_b[r][c];
+        }
+    }
+
+    if nf == 0 {
+        t.velocity_coefficients = Mat3::ZERO;
+        t.position_coefficients = Mat3::ZERO;
+        return;
+    }
+
+    // Rows of J_f and sum_k N_kk.
+    let mut jf = std::mem::take(&mut scratch.rows);
+    jf_rows(scratch, nf, &mut jf);
+    let mut rows = std::mem::take(&mut scratch.rows2);
+    let n_trace: Vec<f64> = (0..nf).map(|c| (0..3).map(|kk| row(&scratch.n, kk, kk, nf)[c]).sum()).collect();
+    let [rm, rv, rx] = &mut t.reference_elastic;
+    let [fm, fv, fx] = &mut t.elastic_reference;
+
+    // Mass: (R, f) = A I1, (p, f) = 2 L^T J_f; the (f, R), (f, p) blocks are their transposes.
+    for i in 0..3 {
+        for c in 0..nf {
+            rm[i * nf + c] = (0..3).map(|kk| a.0[i][kk] * body.i1[kk * nf + c]).sum();
+        }
+    }
+    map_rows_2lt(&l, &jf, nf, rm, 3, nf, 0);
+    for r in 0..7 {
+        for c in 0..nf {
+            fm[c * 7 + r] = rm[r * nf + c];
+        }
+    }
+
+    // Velocity (R, f) = A 2 w~ I1; (p, f) = 2 L^T 2 (w (sum_k N_kk)^T - [sum_k w_k N_kl]_l).
+    let ws = w.skew();
+    let aw = a.mul_mat(&ws);
+    for i in 0..3 {
+        for c in 0..nf {
+            rv[i * nf + c] = (0..3).map(|m| aw.0[i][m] * 2.0 * body.i1[m * nf + c]).sum();
+        }
+    }
+    for lrow in 0..3 {
+        for c in 0..nf {
+            let wn: f64 = (0..3).map(|kk| w[kk] * row(&scratch.n, kk, lrow, nf)[c]).sum();
+            rows[lrow * nf + c] = 2.0 * (w[lrow] * n_trace[c] - wn);
+        }
+    }
+    map_rows_2lt(&l, &rows, nf, rv, 3, nf, 0);
+
+    // Velocity (f, p): d/dw of int rho S^T w~w~ u and of 2 sum w~_kl z_kl, times 2L.
+    // Columns m: sum_l w_l N_lm + sum_k w_k N_mk - 2 w_m sum_k N_kk - 2 sum_kl eps_klm z_kl.
+    let mut dfw = vec![0.0; 3 * nf];
+    for m in 0..3 {
+        for c in 0..nf {
+            let mut v = -2.0 * w[m] * n_trace[c];
+            for kk in 0..3 {
+                v += w[kk] * (row(&scratch.n, kk, m, nf)[c] + row(&scratch.n, m, kk, nf)[c]);
+                for l2 in 0..3 {
+                    let e = levi(kk, l2, m);
+                    if e != 0.0 {
+                        v -= 2.0 * e * row(&scratch.z, kk, l2, nf)[c];
+                    }
+                }
+            }
+            dfw[m * nf + c] = v;
+        }
+    }
+    for c in 0..nf {
+        for col in 0..4 {
+            fv[c * 7 + 3 + col] = (0..3).map(|m| dfw[m * nf + c] * two_l[m][col]).sum();
+        }
+    }
+
+    // Position (R, f) = A (alpha~ + w~w~) I1.
+    let e_mat = alpha.skew() + ws.mul_mat(&ws);
+    let ae = a.mul_mat(&e_mat);
+    for i in 0..3 {
+        for c in 0..nf {
+            rx[i * nf + c] = (0..3).map(|m| ae.0[i][m] * body.i1[m * nf + c]).sum();
+        }
+    }
+    // Position (p, f) = 2 L^T dg/dq_f.
+    let acc_skew = k.acc.skew();
+    let z_trace: Vec<f64> = (0..nf).map(|c| (0..3).map(|kk| row(&scratch.z, kk, kk, nf)[c]).sum()).collect();
+    // d(J v)_i/dq_f = 2 v_i sum_k N_kk - sum_l v_l (N_il + N_li).
+    let dj = |v: &Vec3, i: usize, c: usize| -> f64 {
+        2.0 * v[i] * n_trace[c]
+            - (0..3)
+                .map(|l2| v[l2] * (row(&scratch.n, i, l2, nf)[c] + row(&scratch.n, l2, i, nf)[c]))
+                .sum::<f64>()
+    };
+    for c in 0..nf {
+        let djw = Vec3([dj(&w, 0, c), dj(&w, 1, c), dj(&w, 2, c)]);
+        let w_djw = w.cross(&djw);
+        let i1c = Vec3([body.i1[c], body.i1[nf + c], body.i1[2 * nf + c]]);
+        let sa = acc_skew.mul_vec(&i1c);
+        for i in 0..3 {
+            let wz: f64 = (0..3).map(|kk| w[kk] * row(&scratch.z, kk, i, nf)[c]).sum();
+            let (kk, l2) = ((i + 1) % 3, (i + 2) % 3);
+            let jfx = row(&scratch.x, kk, l2, nf)[c] - row(&scratch.x, l2, kk, nf)[c];
+            rows[i * nf + c] = -sa[i] + dj(&alpha, i, c) + w_djw[i] + 2.0 * (w[i] * z_trace[c] - wz) + jfx;
+        }
+    }
+    map_rows_2lt(&l, &rows, nf, rx, 3, nf, 0);
+
+    // Position (f, p) = I1^T d(a)/dp + J_f^T dalpha/dp + (dfw) dw/dp.
+    for c in 0..nf {
+        for col in 0..4 {
+            let mut v = 0.0;
+            for m in 0..3 {
+                v += body.i1[m * nf + c] * dacc_dp[m][col]
+                    + jf[m * nf + c] * dalpha_dp[m][col]
+                    + dfw[m * nf + c] * dw_dp[m][col];
+            }
+            fx[c * 7 + 3 + col] = v;
+        }
+    }
+    scratch.rows = jf;
+    scratch.rows2 = rows;
+    t.velocity_coefficients = ws.scale(2.0);
+    t.position_coefficients = e_mat;
+}
+
+/// Kinetic energy 1/2 q_dot^T M q_dot.
+pub fn kinetic_energy(body: &FlexibleBody, q: &[f64], qd: &[f64], scratch: &mut FlexibleScratch) -> f64 {
+    let nf = body.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let zero = vec![0.0; q.len()];
+    let k = quantities(body, q, qd, &zero, scratch, true);
+    let qfd = &qd[r7..r7 + nf];
+    let v = Vec3::from_slice(qd);
+    let mut jf = std::mem::take(&mut scratch.rows);
+    jf_rows(scratch, nf, &mut jf);
+    let jf_qfd = Vec3([dot(&jf[..nf], qfd), dot(&jf[nf..2 * nf], qfd), dot(&jf[2 * nf..], qfd)]);
+    scratch.rows = jf;
+    let mut m_qfd = vec![0.0; nf];
+    for kk in 0..3 {
+        body.i_kl[4 * kk].mul_vec_add(1.0, qfd, &mut m_qfd);
+    }
+    0.5 * body.mass * v.dot(&v)
+        + v.dot(&k.a.mul_vec(&(k.w.cross(&k.s) + k.i1_qfd)))
+        + 0.5 * k.w.dot(&k.j.mul_vec(&k.w))
+        + k.w.dot(&jf_qfd)
+        + 0.5 * dot(qfd, &m_qfd)
+}
+
+/// Strain energy 1/2 q_f^T K_ff q_f plus the nonlinear part of the geometric stiffness.
+pub fn strain_energy(body: &FlexibleBody, q: &[f64]) -> f64 {
+    let nf = body.elastic_count;
+    let qf = &q[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf];
+    let mut kq = vec![0.0; nf];
+    body.stiffness.mul_vec_add(1.0, qf, &mut kq);
+    let nonlinear = add_stiffening(&body.stiffening, qf, &mut kq.clone(), None);
+    0.5 * dot(qf, &kq) + nonlinear
+}
+
+/// Adds the elastic forces K_ff q_f + D_ff qf_dot (plus the nonlinear beam forces of the
+/// geometric stiffness) to `out` (n_f) and, with `tangent = Some((position, velocity, values))`,
+/// their Jacobians position dF/dq_f + velocity dF/dqf_dot to the elastic pattern values.
+pub fn add_elastic_forces(
+    body: &FlexibleBody,
+    qf: &[f64],
+    qfd: &[f64],
+    out: &mut [f64],
+    tangent: Option<(f64, f64, &mut [f64])>,
+) {
+    body.stiffness.mul_vec_add(1.0, qf, out);
+    body.damping.mul_vec_add(1.0, qfd, out);
+    match tangent {
+        Some((position, velocity, values)) => {
+            body.stiffness.add_to_pattern(position, values);
+            body.damping.add_to_pattern(velocity, values);
+            add_stiffening(&body.stiffening, qf, out, Some((position, values)));
+        }
+        None => {
+            add_stiffening(&body.stiffening, qf, out, None);
+        }
+    }
+}
+
+/// Adds the generalized gravity force Q = int rho (dr/dq)^T g dV into `out` (7 + n_f):
+/// [m g, d(A s)/dp^T g, I1^T A^T g] with s = s0 + I1 q_f.
+pub fn add_gravity_force(body: &FlexibleBody, q: &[f64], gravity: &Vec3, out: &mut [f64]) {
+    let nf = body.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let p = quat(q);
+    let s = body.first_moment + body.i1_times(&q[r7..r7 + nf]);
+    let rt = rotate_transpose_jacobian(&p, gravity);
+    for k in 0..3 {
+        out[k] += body.mass * gravity[k];
+    }
+    for c in 0..4 {
+        out[3 + c] += (0..3).map(|i| rt[i][c] * s[i]).sum::<f64>();
+    }
+    let local = euler::rotation_matrix(&p).tr_mul_vec(gravity);
+    body.add_i1_transpose_times(&local, &mut out[r7..r7 + nf]);
+}
+
+/// dQ/dq of gravity: the (p, p) block (4 x 4), (p, f) (4 x n_f row-major) and (f, p)
+/// (n_f x 4 row-major).
+pub fn gravity_jacobian(
+    body: &FlexibleBody,
+    q: &[f64],
+    gravity: &Vec3,
+    pf: &mut [f64],
+    fp: &mut [f64],
+) -> [[f64; 4]; 4] {
+    let nf = body.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let p = quat(q);
+    let s = body.first_moment + body.i1_times(&q[r7..r7 + nf]);
+    let rt = rotate_transpose_jacobian(&p, gravity);
+    for c in 0..nf {
+        for a in 0..4 {
+            let v: f64 = (0..3).map(|i| rt[i][a] * body.i1[i * nf + c]).sum();
+            pf[a * nf + c] = v;
+            fp[c * 4 + a] = v;
+        }
+    }
+    bilinear_hessian(gravity, &s)
+}
+
+/// Potential energy of gravity -g . (m R + A s) (J).
+pub fn gravity_potential(body: &FlexibleBody, q: &[f64], gravity: &Vec3) -> f64 {
+    let nf = body.elastic_count;
+    let r7 = REFERENCE_COORDINATES;
+    let s = body.first_moment + body.i1_times(&q[r7..r7 + nf]);
+    let a = euler::rotation_matrix(&quat(q));
+    -gravity.dot(&(Vec3::from_slice(q) * body.mass + a.mul_vec(&s)))
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::math::dense::DenseMatrix;
+
+    /// A body of mass points: point i has mass m_i, undeformed position u0_i and shape rows
+    /// S_i (3 x n_f): u_i = u0_i + S_i q_f. Invariants are the sums of `DESIGN.md`.
+    pub struct PointBody {
+        pub masses: Vec<f64>,
+        pub positions: Vec<Vec3>,
+        pub shapes: Vec<[Vec<f64>; 3]>,
+        pub n: usize,
+    }
+
+    pub struct Lcg(pub u64);
+    impl Lcg {
+        pub fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) * 2.0 - 1.0
+        }
+    }
+
+    pub fn dense_csc(n: usize, f: impl Fn(usize, usize) -> f64) -> Csc {
+        let mut col_ptr = vec![0];
+        let mut row_idx = Vec::new();
+        let mut values = Vec::new();
+        for c in 0..n {
+            for r in 0..n {
+                row_idx.push(r);
+                values.push(f(r, c));
+            }
+            col_ptr.push(row_idx.len());
+        }
+        Csc { nrows: n, ncols: n, col_ptr, row_idx, values }
+    }
+
+    impl PointBody {
+        pub fn random(points: usize, n: usize, seed: u64) -> Self {
+            let mut g = Lcg(seed);
+            let masses = (0..points).map(|_| 1.0 + 0.5 * g.next()).collect();
+            let positions = (0..points).map(|_| Vec3([g.next(), 0.5 * g.next(), 0.3 * g.next()])).collect();
+            let shapes = (0..points)
+                .map(|_| std::array::from_fn(|_| (0..n).map(|_| 0.3 * g.next()).collect()))
+                .collect();
+            PointBody { masses, positions, shapes, n }
+        }
+
+        pub fn input(&self, stiffness: f64, damping: f64) -> FlexibleBodyInput {
+            let n = self.n;
+            let mut inp =
+                FlexibleBodyInput { i1: vec![0.0; 3 * n], ibar: vec![0.0; 9 * n], ..Default::default() };
+            let mut ikl = vec![vec![0.0; n * n]; 9];
+            for (i, &m) in self.masses.iter().enumerate() {
+                let u0 = self.positions[i];
+                let sh = &self.shapes[i];
+                inp.mass += m;
+                inp.first_moment += u0 * m;
+                inp.second_moment = inp.second_moment + u0.outer(&u0).scale(m);
+                for k in 0..3 {
+                    for j in 0..n {
+                        inp.i1[k * n + j] += m * sh[k][j];
+                    }
+                    for l in 0..3 {
+                        for j in 0..n {
+                            inp.ibar[(3 * k + l) * n + j] += m * u0[k] * sh[l][j];
+                            for jj in 0..n {
+                                ikl[3 * k + l][j * n + jj] += m * sh[k][j] * sh[l][jj];
+                            }
+                        }
+                    }
+                }
+            }
+            inp.i_kl = ikl.iter().map(|a| dense_csc(n, |r, c| a[r * n + c])).collect();
+            // A symmetric positive definite stiffness and a damping proportional to it.
+            inp.stiffness = dense_csc(n, |r, c| {
+                stiffness * if r == c { 2.0 + r as f64 } else { 0.3 / (1.0 + (r + c) as f64) }
+            });
+            inp.damping = dense_csc(n, |r, c| {
+                damping * if r == c { 2.0 + r as f64 } else { 0.3 / (1.0 + (r + c) as f64) }
+            });
+            inp
+        }
+
+        /// Brute-force inertia force by virtual work over the points (seed eqs. 11-13).
+        pub fn inertia_force(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+            let n = self.n;
+            let p = quat(q);
+            let a = euler::rotation_matrix(&p);
+            let w = euler::body_angular_velocity(&p, &quat(qd));
+            let alpha = euler::body_angular_velocity(&p, &quat(qdd));
+            let l = l_matrix(&p);
+            let mut out = vec![0.0; 7 + n];
+            let mut g = Vec3::ZERO;
+            for (i, &m) in self.masses.iter().enumerate() {
+                let sh = &self.shapes[i];
+                let su = |v: &[f64]| Vec3(std::array::from_fn(|k| dot(&sh[k], v)));
+                let u = self.positions[i] + su(&q[7..]);
+                let ud = su(&qd[7..]);
+                let udd = su(&qdd[7..]);
+                let local = alpha.cross(&u) + w.cross(&w.cross(&u)) + w.cross(&ud) * 2.0 + udd;
+                let r_dd = Vec3::from_slice(qdd) + a.mul_vec(&local);
+                let b = a.tr_mul_vec(&r_dd);
+                for k in 0..3 {
+                    out[k] += m * r_dd[k];
+                }
+                g += u.cross(&b) * m;
+                for j in 0..n {
+                    out[7 + j] += m * (0..3).map(|k| sh[k][j] * b[k]).sum::<f64>();
+                }
+            }
+            for c in 0..4 {
+                out[3 + c] = 2.0 * (0..3).map(|i| l[i][c] * g[i]).sum::<f64>();
+            }
+            out
+        }
+
+        pub fn kinetic_energy(&self, q: &[f64], qd: &[f64]) -> f64 {
+            let p = quat(q);
+            let a = euler::rotation_matrix(&p);
+            let w = euler::body_angular_velocity(&p, &quat(qd));
+            let mut e = 0.0;
+            for (i, &m) in self.masses.iter().enumerate() {
+                let sh = &self.shapes[i];
+                let su = |v: &[f64]| Vec3(std::array::from_fn(|k| dot(&sh[k], v)));
+                let u = self.positions[i] + su(&q[7..]);
+                let v = Vec3::from_slice(qd) + a.mul_vec(&(w.cross(&u) + su(&qd[7..])));
+                e += 0.5 * m * v.dot(&v);
+            }
+            e
+        }
+    }
+
+    pub fn random_state(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let mut g = Lcg(seed);
+        let mut p = [0.8 + 0.1 * g.next(), 0.3 * g.next(), -0.4 + 0.1 * g.next(), 0.3 * g.next()];
+        let norm = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+        p.iter_mut().for_each(|x| *x /= norm);
+        let mut q = vec![0.5 * g.next(), g.next(), 2.0 * g.next(), p[0], p[1], p[2], p[3]];
+        q.extend((0..n).map(|_| 0.2 * g.next()));
+        let qd: Vec<f64> = (0..7 + n).map(|_| g.next()).collect();
+        let qdd: Vec<f64> = (0..7 + n).map(|_| g.next()).collect();
+        (q, qd, qdd)
+    }
+
+    /// Full dense tangent matrices (mass, velocity, position) of the inertia force.
+    pub fn dense_tangent(body: &FlexibleBody, t: &FlexibleTangent) -> [DenseMatrix; 3] {
+        let n = body.elastic_count;
+        let size = 7 + n;
+        std::array::from_fn(|b| {
+            let mut m = DenseMatrix::zeros(size, size);
+            for r in 0..7 {
+                for c in 0..7 {
+                    m.add(r, c, t.reference[b][r][c]);
+                }
+                for c in 0..n {
+                    m.add(r, 7 + c, t.reference_elastic[b][r * n + c]);
+                    m.add(7 + c, r, t.elastic_reference[b][c * 7 + r]);
+                }
+            }
+            let coef = match b {
+                0 => Mat3::IDENTITY,
+                1 => t.velocity_coefficients,
+                _ => t.position_coefficients,
+            };
+            let mut values = vec![0.0; body.pattern.nnz()];
+            body.add_i_kl_to_pattern(&coef, &mut values);
+            for c in 0..n {
+                for k in body.pattern.col_ptr[c]..body.pattern.col_ptr[c + 1] {
+                    m.add(7 + body.pattern.row_idx[k], 7 + c, values[k]);
+                }
+            }
+            m
+        })
+    }
+
+    fn close(a: f64, b: f64, tol: f64) -> bool {
+        (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
+    }
+
+    #[test]
+    fn inertia_force_equals_brute_force_sum_over_mass_points() {
+        for (n, seed) in [(0, 1), (1, 2), (4, 3)] {
+            let pts = PointBody::random(7, n, seed);
+            let body = FlexibleBody::new("b", pts.input(1.0, 0.0)).unwrap();
+            let (q, qd, qdd) = random_state(n, seed + 10);
+            let mut scratch = FlexibleScratch::with_size(n);
+            let mut f = vec![0.0; 7 + n];
+            inertia_force(&body, &q, &qd, &qdd, &mut scratch, &mut f);
+            let brute = pts.inertia_force(&q, &qd, &qdd);
+            for i in 0..7 + n {
+                assert!(close(f[i], brute[i], 1e-12), "n = {n}, entry {i}: {} vs {}", f[i], brute[i]);
+            }
+            let e = kinetic_energy(&body, &q, &qd, &mut scratch);
+            assert!(close(e, pts.kinetic_energy(&q, &qd), 1e-12));
+        }
+    }
+
+    #[test]
+    fn tangent_matches_finite_differences() {
+        let n = 3;
+        let pts = PointBody::random(6, n, 7);
+        let body = FlexibleBody::new("b", pts.input(1.0, 0.0)).unwrap();
+        let (q, qd, qdd) = random_state(n, 8);
+        let mut scratch = FlexibleScratch::with_size(n);
+        let mut t = FlexibleTangent::with_size(n);
+        inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t);
+        let dense = dense_tangent(&body, &t);
+        let h = 1e-6;
+        for which in 0..3 {
+            for c in 0..7 + n {
+                let mut eval = |s: f64| {
+                    let (mut a, mut b, mut d) = (q.clone(), qd.clone(), qdd.clone());
+                    match which {
+                        0 => d[c] += s,
+                        1 => b[c] += s,
+                        _ => a[c] += s,
+                    }
+                    let mut f = vec![0.0; 7 + n];
+                    inertia_force(&body, &a, &b, &d, &mut scratch, &mut f);
+                    f
+                };
+                let (fp, fm) = (eval(h), eval(-h));
+                for r in 0..7 + n {
+                    let fd = (fp[r] - fm[r]) / (2.0 * h);
+                    let an = dense[which].get(r, c);
+                    assert!(close(fd, an, 1e-7), "block {which} ({r}, {c}): fd {fd} vs analytic {an}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn mass_matrix_is_symmetric_and_gives_the_kinetic_energy() {
+        let n = 4;
+        let pts = PointBody::random(8, n, 11);
+        let body = FlexibleBody::new("b", pts.input(1.0, 0.0)).unwrap();
+        let (q, qd, qdd) = random_state(n, 12);
+        let mut scratch = FlexibleScratch::with_size(n);
+        let mut t = FlexibleTangent::with_size(n);
+        inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t);
+        let m = &dense_tangent(&body, &t)[0];
+        for r in 0..7 + n {
+            for c in 0..7 + n {
+                assert!(close(m.get(r, c), m.get(c, r), 1e-13));
+            }
+        }
+        // f(q, q_dot, q_dd) - f(q, q_dot, 0) = M q_dd.
+        let mut f = vec![0.0; 7 + n];
+        let mut f0 = vec![0.0; 7 + n];
+        inertia_force(&body, &q, &qd, &qdd, &mut scratch, &mut f);
+        inertia_force(&body, &q, &qd, &vec![0.0; 7 + n], &mut scratch, &mut f0);
+        let mut mq = vec![0.0; 7 + n];
+        m.mul_vec_add(1.0, &qdd, &mut mq);
+        for r in 0..7 + n {
+            assert!(close(f[r] - f0[r], mq[r], 1e-12));
+        }
+        assert!(close(0.5 * m.quadratic_form(&qd), kinetic_energy(&body, &q, &qd, &mut scratch), 1e-12));
+    }
+
+    #[test]
+    fn gravity_jacobian_matches_finite_differences_and_potential() {
+        let n = 3;
+        let pts = PointBody::random(5, n, 21);
+        let body = FlexibleBody::new("b", pts.input(1.0, 0.0)).unwrap();
+        let (q, _, _) = random_state(n, 22);
+        let g = Vec3([0.3, -9.81, 1.2]);
+        let mut pf = vec![0.0; 4 * n];
+        let mut fp = vec![0.0; 4 * n];
+        let pp = gravity_jacobian(&body, &q, &g, &mut pf, &mut fp);
+        let h = 1e-6;
+        for c in 3..7 + n {
+            let eval = |s: f64| {
+                let mut a = q.clone();
+                a[c] += s;
+                let mut out = vec![0.0; 7 + n];
+                add_gravity_force(&body, &a, &g, &mut out);
+                (out, gravity_potential(&body, &a, &g))
+            };
+            let ((fp1, v1), (fm1, v2)) = (eval(h), eval(-h));
+            for r in 3..7 + n {
+                let fd = (fp1[r] - fm1[r]) / (2.0 * h);
+                let an = match (r < 7, c < 7) {
+                    (true, true) => pp[r - 3][c - 3],
+                    (true, false) => pf[(r - 3) * n + c - 7],
+                    (false, true) => fp[(r - 7) * 4 + c - 3],
+                    (false, false) => 0.0,
+                };
+                assert!(close(fd, an, 1e-7), "({r}, {c}): {fd} vs {an}");
+            }
+            // Q = -dV/dq.
+            let mut out = vec![0.0; 7 + n];
+            add_gravity_force(&body, &q, &g, &mut out);
+            assert!(close(-(v1 - v2) / (2.0 * h), out[c], 1e-7));
+        }
+    }
+
+    #[test]
+    fn bad_data_is_rejected() {
+        let pts = PointBody::random(4, 2, 31);
+        let mut inp = pts.input(1.0, 0.0);
+        inp.mass = -1.0;
+        assert!(FlexibleBody::new("b", inp).is_err());
+        let mut inp = pts.input(1.0, 0.0);
+        inp.i_kl[1].values[0] += 1.0;
+        assert!(FlexibleBody::new("b", inp).is_err());
+        let mut inp = pts.input(1.0, 0.0);
+        inp.stiffness.values[1] = f64::NAN;
+        assert!(FlexibleBody::new("b", inp).is_err());
+        let mut inp = pts.input(1.0, 0.0);
+        inp.i1.pop();
+        assert!(FlexibleBody::new("b", inp).is_err());
+    }
+}

@@ -1,0 +1,216 @@
+"""Analyses of a model at one state: static and steady equilibrium, linearization, and the
+eigenvalues of the linearized motion (for example the frequencies of a rotating blade).
+
+    eq = fm.equilibrium(system)            # static, or steady under prescribed motion
+    lin = fm.linearize(system, eq)
+    lin.frequencies()                      # Hz, damped natural frequencies
+
+Both work on the augmented equations (seed eqs. 20, 25) through ``Model.evaluate``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from . import _core
+from .errors import InvalidModelError, NewtonDivergedError
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class EquilibriumState:
+    """A state of equilibrium: coordinates, the velocities and accelerations of the prescribed
+    motion (zero for statics), and the multipliers (constraint forces)."""
+
+    time: float
+    coordinates: Array
+    velocities: Array
+    accelerations: Array
+    multipliers: Array
+    iterations: int = 0
+    residual: float = 0.0
+
+
+def _model(model: _core.Model | _core.System) -> _core.Model:
+    return model.compile() if isinstance(model, _core.System) else model
+
+
+def _elastic_mask(layout: dict[str, Any]) -> NDArray[np.bool_]:
+    """True for the elastic coordinates of deformable bodies."""
+    mask = np.zeros(layout["coordinate_count"], dtype=bool)
+    for b in layout["bodies"]:
+        if b["kind"] == "flexible":
+            mask[b["offset"] + 7 : b["offset"] + b["count"]] = True
+    return mask
+
+
+def _matrix(ev: dict[str, Any]) -> sp.csc_matrix:
+    data, indices, indptr, n = ev["matrix"]
+    return sp.csc_matrix((data, indices, indptr), shape=(n, n))
+
+
+def _prescribed_rates(
+    model: _core.Model, time: float, q: Array, rigid: NDArray[np.bool_]
+) -> tuple[Array, Array]:
+    """Velocities and accelerations of the prescribed motion at q: the minimum-norm solutions
+    of C_q q_dot = -C_t and C_q q_dd = gamma over the non-elastic coordinates (elastic
+    coordinates at rest)."""
+    nq = model.coordinate_count
+    zero_q = np.zeros(nq)
+    zero_l = np.zeros(model.constraint_count)
+    ev = model.evaluate(time, q, zero_q, zero_q, zero_l, position=1.0)
+    cq = _matrix(ev)[nq:, :nq].toarray()[:, rigid]
+    qd = np.zeros(nq)
+    if np.any(ev["constraint_rate"] != 0.0):
+        qd[rigid] = np.linalg.lstsq(cq, -ev["constraint_rate"], rcond=None)[0]
+    qdd = np.zeros(nq)
+    if np.any(qd != 0.0):
+        gamma = model.evaluate(time, q, qd, zero_q, zero_l)["gamma"]
+        qdd[rigid] = np.linalg.lstsq(cq, gamma, rcond=None)[0]
+    return qd, qdd
+
+
+def equilibrium(
+    model: _core.Model | _core.System,
+    time: float = 0.0,
+    *,
+    coordinates: Array | None = None,
+    tolerance: float = 1e-10,
+    max_iterations: int = 100,
+) -> EquilibriumState:
+    """Static equilibrium, or steady equilibrium under the prescribed motion of the drivers
+    at `time`: every elastic coordinate at rest, the other coordinates moving as the drivers
+    prescribe (the minimum-norm velocities and accelerations that satisfy the constraints;
+    zero when nothing is driven). For a blade turned at constant speed by an angle driver this
+    is the steadily rotating, centrifugally stretched blade.
+
+    Newton's method on [M q_dd - F - Q_e + C_q^T lambda; C] = 0 for q and lambda with the
+    matrix [[K, C_q^T], [C_q, 0]] (the dependence of the prescribed velocities on q is left
+    out of the matrix, which then converges linearly when the motion is driven). Starts from
+    `coordinates` or the model's initial coordinates. Converged when the Newton increment is
+    below `tolerance` (relative to the coordinates, at least 1).
+    """
+    model = _model(model)
+    layout = model.describe()
+    nq, nc = model.coordinate_count, model.constraint_count
+    rigid = ~_elastic_mask(layout)
+    q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
+    lam = np.zeros(nc)
+    scale = max(1.0, float(np.max(np.abs(q))))
+    step = np.inf
+    for iteration in range(1, max_iterations + 1):
+        qd, qdd = _prescribed_rates(model, time, q, rigid)
+        ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+        a = _matrix(ev)
+        try:
+            delta = spla.spsolve(a.tocsc(), -ev["residual"])
+        except RuntimeError as exc:  # pragma: no cover - scipy raises on exact singularity
+            raise InvalidModelError(f"equilibrium: singular matrix ({exc})") from exc
+        if not np.all(np.isfinite(delta)):
+            raise InvalidModelError(
+                "equilibrium: the stiffness matrix is singular (a free motion without "
+                "stiffness, or redundant constraints)"
+            )
+        q += delta[:nq]
+        lam += delta[nq:]
+        step = float(np.max(np.abs(delta[:nq]))) / scale
+        if step <= tolerance:
+            qd, qdd = _prescribed_rates(model, time, q, rigid)
+            final = model.evaluate(time, q, qd, qdd, lam)["residual"]
+            return EquilibriumState(time, q, qd, qdd, lam, iteration, float(np.max(np.abs(final))))
+    raise NewtonDivergedError(
+        f"equilibrium: no convergence in {max_iterations} iterations "
+        f"(last relative increment {step:.2e})",
+        time=time,
+    )
+
+
+@dataclass
+class LinearizedSystem:
+    """The motion linearized about a state, in the independent directions of the constraints:
+    mass @ z_dd + damping @ z_dot + stiffness @ z = 0 with q = q0 + basis @ z. `damping`
+    holds the gyroscopic terms, `stiffness` the centrifugal softening, the geometric stiffness
+    and the constraint-force terms."""
+
+    mass: Array
+    damping: Array
+    stiffness: Array
+    basis: Array
+    state: EquilibriumState
+    _eigen: tuple[Array, Array] | None = field(default=None, repr=False)
+
+    def eigenvalues(self) -> tuple[Array, Array]:
+        """Eigenvalues s (1/s) of the first-order form, sorted by |Im s| then Re s, and the
+        mode shapes in the coordinates q (columns)."""
+        if self._eigen is None:
+            n = self.mass.shape[0]
+            minv_k = np.linalg.solve(self.mass, self.stiffness)
+            minv_d = np.linalg.solve(self.mass, self.damping)
+            a = np.block([[np.zeros((n, n)), np.eye(n)], [-minv_k, -minv_d]])
+            values, vectors = sla.eig(a)
+            order = np.lexsort((values.real, np.abs(values.imag)))
+            values, vectors = values[order], vectors[:, order]
+            self._eigen = (values, self.basis @ vectors[:n])
+        return self._eigen
+
+    def frequencies(self) -> Array:
+        """Damped natural frequencies (Hz) of the oscillating modes, ascending (one per pair
+        of complex eigenvalues)."""
+        values, _ = self.eigenvalues()
+        positive = values[values.imag > 1e-9 * max(1.0, float(np.max(np.abs(values))))]
+        return np.sort(positive.imag) / (2.0 * np.pi)
+
+    def modes(self) -> tuple[Array, Array]:
+        """Frequencies (Hz) and mode shapes (real parts of the eigenvectors in q, columns) of
+        the oscillating modes."""
+        values, vectors = self.eigenvalues()
+        keep = values.imag > 1e-9 * max(1.0, float(np.max(np.abs(values))))
+        freq = values[keep].imag / (2.0 * np.pi)
+        shapes = vectors[:, keep]
+        order = np.argsort(freq)
+        # Rotate each complex shape so that its largest entry is real.
+        shapes = shapes[:, order]
+        peak = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
+        return freq[order], np.real(shapes / (peak / np.abs(peak)))
+
+
+def linearize(
+    model: _core.Model | _core.System, state: EquilibriumState | None = None
+) -> LinearizedSystem:
+    """Linearizes the equations of motion about `state` (default: :func:`equilibrium` of the
+    model): M, D = dr/dq_dot and K = dr/dq (with the multipliers' constraint Hessians) of the
+    augmented system, restricted to the null space of the constraint Jacobian C_q. The
+    eigenvalues are those of the motion about a static state, or about a steady rotation
+    whose linearized equations do not depend on time (for example the elastic coordinates of
+    a body whose reference motion is prescribed)."""
+    model = _model(model)
+    if state is None:
+        state = equilibrium(model)
+    nq = model.coordinate_count
+    args = (
+        state.time,
+        state.coordinates,
+        state.velocities,
+        state.accelerations,
+        state.multipliers,
+    )
+    m = _matrix(model.evaluate(*args, mass=1.0))
+    d = _matrix(model.evaluate(*args, velocity=1.0))
+    k = _matrix(model.evaluate(*args, position=1.0))
+    cq = m[nq:, :nq].toarray()
+    basis = sla.null_space(cq) if cq.shape[0] else np.eye(nq)
+    if basis.shape[1] == 0:
+        raise InvalidModelError("linearize: the constraints leave no degree of freedom")
+
+    def reduce(a: sp.csc_matrix) -> Array:
+        return basis.T @ (a[:nq, :nq] @ basis)
+
+    return LinearizedSystem(reduce(m), reduce(d), reduce(k), basis, state)

@@ -1,0 +1,339 @@
+"""``System``: the multibody system, with deformable bodies from the preprocessor.
+
+The Rust class ``flexmbd._core.System`` builds rigid bodies, markers, joints and forces; this
+subclass adds deformable bodies (a :class:`flexmbd.fe.FlexibleBodyData` in the floating frame
+of reference, seed section 3) and markers on their nodes and node sets (the intermediate
+joint frames of seed Figure 4).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
+
+from . import _core
+from .errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from .fe.body import FlexibleBodyData
+
+
+def _csc_tuple(
+    m: Any, n: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
+    """(data, indices, indptr, n) of a square matrix (dense or sparse), indices sorted."""
+    c = sp.csc_matrix(m, dtype=float)
+    if c.shape != (n, n):
+        raise InvalidParameterError(f"matrix of shape {c.shape}, expected ({n}, {n})")
+    c.sum_duplicates()
+    c.sort_indices()
+    return (
+        np.ascontiguousarray(c.data, dtype=float),
+        np.ascontiguousarray(c.indices, dtype=np.int64),
+        np.ascontiguousarray(c.indptr, dtype=np.int64),
+        n,
+    )
+
+
+def elastic_basis(body: FlexibleBodyData) -> sp.csr_matrix:
+    """The matrix (n_nodal_dofs, n_f) that maps the elastic coordinates of `body` to its nodal
+    displacements (zero at the dofs held by the reference conditions): the selection of the
+    kept dofs for nodal bodies, the modal matrix B_m of seed eq. 18 for modal ones."""
+    free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+    n_dofs = body.dof_count
+    if body.modes is None:
+        return sp.csr_matrix(
+            (np.ones(len(free)), (free, np.arange(len(free)))), shape=(n_dofs, len(free))
+        )
+    full = np.zeros((n_dofs, body.modes.shape[1]))
+    full[free] = body.modes
+    return sp.csr_matrix(full)
+
+
+def _node_index(body: FlexibleBodyData, node: int, item: str) -> int:
+    ids = np.asarray(body.node_ids)
+    hits = np.flatnonzero(ids == node)
+    if len(hits) == 0:
+        raise UnknownItemError(
+            f"{item}: the body has no node with id {node} (ids {ids.min()} .. {ids.max()})",
+            item=item,
+        )
+    return int(hits[0])
+
+
+def _node_shapes(
+    body: FlexibleBodyData, basis: sp.csr_matrix, index: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Displacement and small-rotation rows (3, n_f) of a node: u = T q_f, theta = R q_f."""
+    d = body.dofs_per_node
+    rows = basis[index * d : (index + 1) * d].toarray()
+    translation = rows[:3]
+    rotation = rows[3:6] if d == 6 else np.zeros_like(translation)
+    return translation, rotation
+
+
+def _compress(
+    translation: NDArray[np.float64], rotation: NDArray[np.float64], modal: bool
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Keeps the elastic coordinates a marker depends on (all of them for modal bodies)."""
+    if modal:
+        columns = np.arange(translation.shape[1])
+    else:
+        columns = np.flatnonzero(np.any(translation != 0, axis=0) | np.any(rotation != 0, axis=0))
+    return (
+        columns.astype(np.int64),
+        np.ascontiguousarray(translation[:, columns]),
+        np.ascontiguousarray(rotation[:, columns]),
+    )
+
+
+def _stiffening_elements(
+    body: FlexibleBodyData, basis: sp.csr_matrix, item: str
+) -> list[tuple[NDArray[np.int64], NDArray[np.float64], float, float]]:
+    """The beam elements of the geometric stiffness: for each, the map (12, n_l) from the
+    elastic coordinates to its nodal coordinates in element axes, its length and EA."""
+    conn = body.elements.get("beam2")
+    if conn is None or len(conn) == 0 or body.section is None:
+        raise InvalidModelError(
+            f"{item}: geometric stiffness is available for beam elements; the body has none",
+            item=item,
+        )
+    ea = float(body.material["young_modulus"]) * float(body.section["area"])
+    d = body.dofs_per_node
+    modal = body.modes is not None
+    elements = []
+    for a, b in np.asarray(conn, dtype=np.int64):
+        axis = body.nodes[b] - body.nodes[a]
+        length = float(np.linalg.norm(axis))
+        ex = axis / length
+        helper = np.eye(3)[int(np.argmin(np.abs(ex)))]
+        ey = helper - ex * (helper @ ex)
+        ey /= np.linalg.norm(ey)
+        rot = np.vstack([ex, ey, np.cross(ex, ey)])
+        rows = np.concatenate([np.arange(a * d, a * d + 6), np.arange(b * d, b * d + 6)])
+        local = np.kron(np.eye(4), rot) @ basis[rows].toarray()
+        columns = np.arange(local.shape[1]) if modal else np.flatnonzero(np.any(local != 0, axis=0))
+        elements.append(
+            (columns.astype(np.int64), np.ascontiguousarray(local[:, columns]), length, ea)
+        )
+    return elements
+
+
+class System(_core.System):
+    """A multibody system under construction. Body 0 (``system.ground``) is the fixed frame.
+
+    Units are SI by convention (m, kg, s, N, rad). Orientations are 3 x 3 rotation matrices
+    whose columns are the local axes in the parent frame. Marker z axes are joint axes.
+    Besides rigid bodies and point masses it holds deformable bodies
+    (:meth:`add_flexible_body`) with markers on their nodes (:meth:`add_node_marker`) and node
+    sets (:meth:`add_node_set_marker`).
+    """
+
+    def __init__(self, gravity: ArrayLike | None = None):
+        self._flexible: dict[int, FlexibleBodyData] = {}
+        self._bases: dict[int, sp.csr_matrix] = {}
+
+    def add_flexible_body(
+        self,
+        body: FlexibleBodyData,
+        *,
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        velocity: ArrayLike | None = None,
+        angular_velocity: ArrayLike | None = None,
+        elastic_coordinates: ArrayLike | None = None,
+        elastic_velocities: ArrayLike | None = None,
+        rayleigh_damping: tuple[float, float] | None = None,
+        modal_damping: float | None = None,
+        geometric_stiffness: bool = False,
+        name: str | None = None,
+    ) -> _core.BodyId:
+        """Adds a deformable body in the floating frame of reference (seed eq. 15).
+
+        `body` comes from the preprocessor (:func:`flexmbd.fe.build_body`,
+        :func:`flexmbd.fe.load_body`, ...); its node coordinates are in the body frame, which
+        `position` and `orientation` place. `velocity` (of the body origin) and
+        `angular_velocity` are global. `elastic_coordinates` and `elastic_velocities` (n_f)
+        start the body deformed (default: undeformed, at rest).
+
+        Damping: `rayleigh_damping=(alpha, beta)` gives D_ff = alpha M_ff + beta K_ff;
+        `modal_damping=zeta` (modal bodies) the damping ratio zeta in every mode of the
+        reduced body.
+
+        `geometric_stiffness=True` adds the elastic coupling of the beam elements (seed
+        section 6): the nonlinear axial strain u' + (v'^2 + w'^2)/2, whose tangent is the
+        geometric stiffness of the axial force. Needed for beams that rotate fast (without it
+        a beam spun beyond its first bending frequency diverges). Modal bodies need axial
+        modes for it to act.
+        """
+        item = f"body '{name}'" if name else "flexible body"
+        if not isinstance(body, FlexibleBodyData):
+            raise InvalidParameterError(
+                f"{item}: expected a FlexibleBodyData (from flexmbd.fe), got {type(body).__name__}"
+            )
+        inv = body.invariants
+        needed = ("mass", "first_moment", "second_moment", "i1", "i_kl", "ibar", "k_ff", "m_ff")
+        missing = [k for k in needed if inv.get(k) is None]
+        if missing:
+            raise InvalidModelError(
+                f"{item}: the body data has no invariants {missing} (run the preprocessor, "
+                "or load a body file written by it)",
+                item=item,
+            )
+        n = body.elastic_coordinate_count
+        damping = sp.csc_matrix((n, n))
+        if rayleigh_damping is not None:
+            alpha, beta = (float(v) for v in rayleigh_damping)
+            if not (np.isfinite(alpha) and np.isfinite(beta) and alpha >= 0 and beta >= 0):
+                raise InvalidParameterError(
+                    f"{item}: Rayleigh damping coefficients must be >= 0, got {rayleigh_damping}",
+                    item=item,
+                )
+            damping = (
+                damping + alpha * sp.csc_matrix(inv["m_ff"]) + beta * sp.csc_matrix(inv["k_ff"])
+            )
+        if modal_damping is not None:
+            damping = damping + sp.csc_matrix(self._modal_damping(body, float(modal_damping), item))
+        i_kl = [_csc_tuple(inv["i_kl"][k][j], n) for k in range(3) for j in range(3)]
+        basis = elastic_basis(body)
+        stiffening = _stiffening_elements(body, basis, item) if geometric_stiffness else None
+        body_id = self._add_flexible_body(
+            mass=float(inv["mass"]),
+            first_moment=np.asarray(inv["first_moment"], dtype=float),
+            second_moment=np.asarray(inv["second_moment"], dtype=float),
+            i1=np.ascontiguousarray(np.asarray(inv["i1"], dtype=float).reshape(3, n)),
+            ibar=np.ascontiguousarray(np.asarray(inv["ibar"], dtype=float).reshape(9, n)),
+            i_kl=i_kl,
+            stiffness=_csc_tuple(inv["k_ff"], n),
+            damping=_csc_tuple(damping, n),
+            position=position,
+            orientation=orientation,
+            velocity=velocity,
+            angular_velocity=angular_velocity,
+            elastic_coordinates=None
+            if elastic_coordinates is None
+            else np.ascontiguousarray(elastic_coordinates, dtype=float).ravel(),
+            elastic_velocities=None
+            if elastic_velocities is None
+            else np.ascontiguousarray(elastic_velocities, dtype=float).ravel(),
+            stiffening=stiffening,
+            name=name,
+        )
+        self._flexible[body_id.index] = body
+        self._bases[body_id.index] = basis
+        return body_id
+
+    @staticmethod
+    def _modal_damping(body: FlexibleBodyData, zeta: float, item: str) -> NDArray[np.float64]:
+        if body.modes is None:
+            raise InvalidModelError(
+                f"{item}: modal damping needs a modal body; use rayleigh_damping for nodal bodies",
+                item=item,
+            )
+        if not (np.isfinite(zeta) and zeta >= 0):
+            raise InvalidParameterError(f"{item}: modal damping ratio must be >= 0, got {zeta}")
+        k = np.asarray(sp.csc_matrix(body.invariants["k_ff"]).toarray())
+        m = np.asarray(sp.csc_matrix(body.invariants["m_ff"]).toarray())
+        import scipy.linalg as sla
+
+        w2, phi = sla.eigh(k, m)
+        omega = np.sqrt(np.clip(w2, 0.0, None))
+        mphi = m @ phi
+        return mphi @ np.diag(2.0 * zeta * omega) @ mphi.T
+
+    def _flexible_data(self, body: _core.BodyId, item: str) -> tuple[FlexibleBodyData, Any]:
+        index = body.index if isinstance(body, _core.BodyId) else int(body)
+        if index not in self._flexible:
+            raise InvalidModelError(f"{item}: body {index} is not a deformable body", item=item)
+        return self._flexible[index], self._bases[index]
+
+    def add_node_marker(
+        self,
+        body: _core.BodyId,
+        node: int,
+        *,
+        orientation: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> _core.MarkerId:
+        """Adds a marker at node `node` (its id in the mesh) of a deformable body: it moves with
+        the node and, on beams, turns with the node's small rotations (the intermediate joint
+        frame of seed Figure 4). A node of a solid has no rotation of its own: its marker turns
+        with the body frame only; use :meth:`add_node_set_marker` on a face for joints that
+        transmit moments. `orientation` is in the body frame."""
+        item = f"marker '{name}'" if name else "node marker"
+        data, basis = self._flexible_data(body, item)
+        index = _node_index(data, int(node), item)
+        translation, rotation = _node_shapes(data, basis, index)
+        columns, t, r = _compress(translation, rotation, data.modes is not None)
+        return self._add_flexible_marker(
+            body,
+            position=data.nodes[index],
+            indices=columns,
+            translation=t,
+            rotation=r,
+            orientation=orientation,
+            name=name,
+        )
+
+    def add_node_set_marker(
+        self,
+        body: _core.BodyId,
+        nodes: str | Sequence[int],
+        *,
+        orientation: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> _core.MarkerId:
+        """Adds a marker at the centroid of a node set (a name of the body's node sets, or node
+        ids) that follows the set's averaged motion, like an RBE3 element: its origin moves with
+        the mean displacement and its axes turn with the least-squares rotation of the nodes
+        about the centroid. The nodes must not lie on one line."""
+        item = f"marker '{name}'" if name else "node set marker"
+        data, basis = self._flexible_data(body, item)
+        if isinstance(nodes, str):
+            if nodes not in data.node_sets:
+                raise UnknownItemError(
+                    f"{item}: the body has no node set {nodes!r}; known: {sorted(data.node_sets)}",
+                    item=item,
+                )
+            indices = np.asarray(data.node_sets[nodes], dtype=np.int64)
+        else:
+            indices = np.array([_node_index(data, int(k), item) for k in nodes], dtype=np.int64)
+        if len(indices) < 3:
+            raise InvalidModelError(f"{item}: a node set marker needs at least 3 nodes", item=item)
+        x = data.nodes[indices]
+        centroid = x.mean(axis=0)
+        r = x - centroid
+        # Least-squares rotation: theta = H^-1 sum r_a x d_a with H = sum (|r|^2 I - r r^T).
+        h = np.einsum("ai,ai->", r, r) * np.eye(3) - r.T @ r
+        if np.linalg.cond(h) > 1e12:
+            raise InvalidModelError(
+                f"{item}: the nodes lie on one line; their rotation about it is undefined",
+                item=item,
+            )
+        n_f = basis.shape[1]
+        translation = np.zeros((3, n_f))
+        moment = np.zeros((3, n_f))
+        for a, k in enumerate(indices):
+            t, _ = _node_shapes(data, basis, int(k))
+            translation += t
+            moment += np.cross(r[a][:, None], t, axis=0)
+        translation /= len(indices)
+        rotation = np.linalg.solve(h, moment)
+        columns, t, rot = _compress(translation, rotation, data.modes is not None)
+        return self._add_flexible_marker(
+            body,
+            position=centroid,
+            indices=columns,
+            translation=t,
+            rotation=rot,
+            orientation=orientation,
+            name=name,
+        )
+
+    def compile(self) -> _core.Model:
+        """Checks the whole system and compiles the immutable :class:`Model`."""
+        model = super().compile()
+        model._flexible = dict(self._flexible)  # type: ignore[attr-defined]
+        return model

@@ -1,0 +1,164 @@
+"""Deformable bodies in the main processor (seed eq. 15): equivalences with the rigid body and
+between nodal and modal coordinates, energy, markers on nodes and node sets, and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+from flexmbd.fe import Material, Section, build_body, shapes, straight_beam
+
+STEEL = Material(2.1e11, 0.3, 7800.0)
+
+
+def beam_body(elements: int = 6, length: float = 1.0, **kwargs):
+    nodes, conn = straight_beam(length, elements)
+    kwargs.setdefault("reference", "clamped")
+    kwargs.setdefault("reference_nodes", [0])
+    return build_body(nodes, conn, STEEL, section=Section.rectangle(0.02, 0.01), **kwargs)
+
+
+def rigid_inertia(data):
+    """Mass, centre of mass and inertia about it of the undeformed body, from its invariants."""
+    inv = data.invariants
+    m = inv["mass"]
+    c = np.asarray(inv["first_moment"]) / m
+    j0 = np.asarray(inv["second_moment"])
+    about_origin = np.trace(j0) * np.eye(3) - j0
+    about_center = about_origin - m * (c @ c * np.eye(3) - np.outer(c, c))
+    return m, c, about_center
+
+
+def test_flexible_body_without_elastic_coordinates_moves_like_the_rigid_body():
+    free = beam_body().elastic_coordinate_count
+    data = beam_body(modes="external", external_modes=np.zeros((free, 0)))
+    assert data.elastic_coordinate_count == 0
+    mass, center, inertia = rigid_inertia(data)
+    orientation = fm.rotation("x", 0.4) @ fm.rotation("z", -0.3)
+    hinge_local = np.array([0.5, 0.0, 0.0])
+    hinge = orientation @ hinge_local
+    results = []
+    for kind in ("flexible", "rigid"):
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        common = dict(orientation=orientation, angular_velocity=(0.3, -0.5, 2.0))
+        if kind == "flexible":
+            body = system.add_flexible_body(data, **common)
+            pin = system.add_node_marker(body, 4)  # node 4 is at x = 0.5
+        else:
+            body = system.add_rigid_body(mass, inertia, center_of_mass=center, **common)
+            pin = system.add_marker(body, position=hinge_local)
+        system.add_spherical_joint(system.add_marker(system.ground, position=hinge), pin)
+        # Tight Newton tolerance: the comparison is of the equations, not of the iterations.
+        solver = fm.GeneralizedAlpha(newton_tolerance=1e-12)
+        results.append(fm.simulate(system, 0.5, 1e-3, output_interval=0.05, solver=solver))
+    flexible, rigid = results
+    assert np.max(np.abs(flexible.coordinates - rigid.coordinates)) < 1e-10
+    assert np.max(np.abs(flexible.total_energy - rigid.total_energy)) < 1e-10 * abs(
+        rigid.total_energy[0]
+    )
+
+
+def swinging_beam(data, **kwargs):
+    """A beam clamped to a hinge at its root, released horizontally under gravity."""
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    beam = system.add_flexible_body(data, name="beam", **kwargs)
+    system.add_revolute_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
+    return system, beam
+
+
+def test_modal_body_with_all_modes_matches_the_nodal_body():
+    nodal = beam_body()
+    modal = beam_body(modes="fixed-interface", mode_count=nodal.elastic_coordinate_count)
+    tips = []
+    for data in (nodal, modal):
+        system, beam = swinging_beam(data)
+        result = fm.simulate(system, 0.3, 5e-4, output_interval=0.01)
+        tips.append(result.node_positions(beam, [7])[:, 0, :])
+    assert np.max(np.abs(tips[0] - tips[1])) < 1e-8
+    # The beam swings down and bends.
+    assert tips[0][-1, 1] < -0.2
+
+
+def test_swinging_beam_conserves_energy_at_spectral_radius_one():
+    data = beam_body(elements=4)
+    system, beam = swinging_beam(data)
+    result = fm.simulate(
+        system, 0.5, 2e-4, output_interval=0.01, solver=fm.GeneralizedAlpha(spectral_radius=1.0)
+    )
+    energy = result.total_energy
+    scale = np.max(np.abs(result.potential_energy - result.potential_energy[0]))
+    assert scale > 1.0  # it did swing
+    assert np.max(np.abs(energy - energy[0])) < 1e-5 * scale
+
+
+def test_elastic_outputs_and_deflection_under_gravity():
+    """Static deflection of a cantilever held horizontally by a fixed joint, against
+    P L^3 / (8 E I) for its weight (R1), reached by damped motion."""
+    data = beam_body(elements=8)
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    beam = system.add_flexible_body(data, rayleigh_damping=(20.0, 0.0))
+    system.add_fixed_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
+    result = fm.simulate(system, 1.5, 2e-3, output_interval=0.05)
+    tip = result.node_displacements(beam, [9])[-1, 0]
+    w = 7800.0 * 0.02 * 0.01 * 9.81
+    ei = 2.1e11 * 0.01 * 0.02**3 / 12  # bending in y: the section is 0.02 m along y
+    assert tip[1] == pytest.approx(-w / (8 * ei), rel=2e-3)
+    assert result.elastic_coordinates(beam).shape[1] == data.elastic_coordinate_count
+    positions = result.node_positions(beam)
+    assert positions.shape == (len(result.time), 9, 3)
+
+
+def test_node_set_marker_of_a_solid_follows_the_face():
+    mesh = shapes.box((0.4, 0.05, 0.05), (8, 1, 1), "hex8")
+    data = build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+    )
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    bar = system.add_flexible_body(data, rayleigh_damping=(50.0, 0.0))
+    system.add_fixed_joint(system.add_marker(system.ground), system.add_node_set_marker(bar, "x0"))
+    tip = system.add_node_set_marker(bar, "x1")
+    sensor = system.add_sensor(tip, "orientation")
+    result = fm.simulate(system, 0.6, 2e-3, output_interval=0.05)
+    # The end face turns down (negative rotation about z) as the bar sags.
+    assert result.sensor(sensor)[-1][1, 0] < -1e-5
+
+
+def test_bad_flexible_input_names_the_item():
+    data = beam_body()
+    system = fm.System()
+    beam = system.add_flexible_body(data, name="beam")
+    with pytest.raises(fm.UnknownItemError, match="no node with id 99"):
+        system.add_node_marker(beam, 99)
+    rigid = system.add_rigid_body(1.0, (1, 1, 1))
+    with pytest.raises(fm.InvalidModelError, match="not a deformable body"):
+        system.add_node_marker(rigid, 1)
+    with pytest.raises(fm.UnknownItemError, match="node set"):
+        system.add_node_set_marker(beam, "nothing")
+    with pytest.raises(fm.InvalidModelError, match="one line"):
+        system.add_node_set_marker(beam, [1, 2, 3])
+    with pytest.raises(fm.InvalidModelError, match="joint connects two different bodies"):
+        system.add_revolute_joint(system.add_node_marker(beam, 1), system.add_node_marker(beam, 3))
+    with pytest.raises(fm.InvalidParameterError, match="elastic coordinates"):
+        system.add_flexible_body(data, elastic_coordinates=np.zeros(3))
+    with pytest.raises(fm.InvalidParameterError, match="finite"):
+        system.add_flexible_body(
+            data, elastic_coordinates=np.full(data.elastic_coordinate_count, np.nan)
+        )
+    stripped = beam_body()
+    stripped.invariants = {}
+    with pytest.raises(fm.InvalidModelError, match="invariants"):
+        system.add_flexible_body(stripped)
+    with pytest.raises(fm.InvalidModelError, match="beam elements"):
+        mesh = shapes.box((0.4, 0.05, 0.05), (2, 1, 1), "hex8")
+        solid = build_body(
+            mesh.nodes, mesh.elements, STEEL, reference="clamped", reference_nodes=[0, 1, 2, 3]
+        )
+        system.add_flexible_body(solid, geometric_stiffness=True)
+    with pytest.raises(fm.InvalidModelError, match="modal body"):
+        system.add_flexible_body(data, modal_damping=0.01)
