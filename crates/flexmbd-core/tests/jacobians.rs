@@ -1,15 +1,21 @@
 //! Analytic Jacobians against central finite differences, in random (inconsistent)
 //! configurations: the constraint Jacobian C_q of every joint type and driver, the blocks
-//! dr/dq, dr/dq_dot, dr/dq_dd of the assembled Newton matrix (bodies, constraint Hessians,
-//! every force element), and gamma of seed eq. 25 against the second time derivative of C.
+//! dr/dq, dr/dq_dot, dr/dq_dd of the assembled Newton matrix (rigid and deformable bodies,
+//! markers on deformable bodies, constraint Hessians, every force element, geometric
+//! stiffness), and gamma of seed eq. 25 against the second time derivative of C.
 
 mod common;
 
 use std::sync::Arc;
 
 use common::{close, Rng};
+use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
+use flexmbd_core::body::marker::MarkerElastic;
+use flexmbd_core::body::stiffening::StiffeningElement;
+use flexmbd_core::fem::assembly::Csc;
 use flexmbd_core::force::{ForceCallback, ForceKind, Frame};
 use flexmbd_core::joint::JointKind;
+use flexmbd_core::math::dense::Jacobian3;
 use flexmbd_core::math::time_function::TimeFunction;
 use flexmbd_core::math::{Mat3, Vec3};
 use flexmbd_core::solver::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
@@ -52,7 +58,55 @@ fn random_model(seed: u64) -> (Model, State) {
         bodies.push(b);
     }
     bodies.push(sys.add_point_mass("particle", 0.7, rng.vec3(1.0), rng.vec3(1.0)).unwrap());
+    // Two deformable bodies of random mass points, deformed and moving; the second with a
+    // beam element of geometric stiffness.
+    for (k, n) in [(0usize, 4usize), (1, 5)] {
+        let points = 6;
+        let masses: Vec<f64> = (0..points).map(|_| 1.0 + 0.3 * rng.uniform()).collect();
+        let positions: Vec<Vec3> = (0..points).map(|_| rng.vec3(0.6)).collect();
+        let shapes: Vec<Vec<f64>> =
+            (0..points).map(|_| (0..3 * n).map(|_| 0.2 * rng.uniform()).collect()).collect();
+        let stiffness =
+            Csc::from_dense(
+                n,
+                n,
+                |r, c| if r == c { 50.0 + 10.0 * r as f64 } else { 3.0 / (1.0 + (r + c) as f64) },
+            );
+        let damping = Csc::from_dense(n, n, |r, c| if r == c { 0.5 } else { 0.05 });
+        let mut input = FlexibleBodyInput::from_mass_points(&masses, &positions, &shapes, stiffness, damping);
+        if k == 1 {
+            input.stiffening = vec![StiffeningElement {
+                indices: vec![0, 2, 3],
+                map: (0..36).map(|_| rng.uniform()).collect(),
+                length: 0.7,
+                axial_stiffness: 400.0,
+                positions: vec![],
+            }];
+        }
+        let body = FlexibleBody::new("flexible", input).unwrap();
+        let qf: Vec<f64> = (0..n).map(|_| 0.1 * rng.uniform()).collect();
+        let qfd: Vec<f64> = (0..n).map(|_| rng.uniform()).collect();
+        let id = sys
+            .add_flexible_body("", body, rng.vec3(1.0), rng.rotation(), rng.vec3(1.0), rng.vec3(2.0), qf, qfd)
+            .unwrap();
+        bodies.push(id);
+    }
     let marker = |sys: &mut SystemBuilder, rng: &mut Rng, body| {
+        if body == bodies[8] || body == bodies[9] {
+            // An elastic marker on some of the body's elastic coordinates.
+            let indices = if body == bodies[8] { vec![0, 2, 3] } else { vec![4, 1] };
+            let nl = indices.len();
+            let mut translation = Jacobian3::zeros(nl);
+            let mut rotation = Jacobian3::zeros(nl);
+            for r in 0..3 {
+                for c in 0..nl {
+                    translation.set(r, c, 0.3 * rng.uniform());
+                    rotation.set(r, c, 0.3 * rng.uniform());
+                }
+            }
+            let elastic = MarkerElastic { indices, translation, rotation };
+            return sys.add_flexible_marker("", body, rng.vec3(0.5), rng.rotation(), elastic).unwrap();
+        }
         let pos = if body == bodies[7] { Vec3::ZERO } else { rng.vec3(0.5) };
         sys.add_marker("", body, pos, rng.rotation()).unwrap()
     };
@@ -70,6 +124,12 @@ fn random_model(seed: u64) -> (Model, State) {
         JointKind::TranslationDriver(harmonic(0.2, 3.0)),
         JointKind::Revolute,
         JointKind::Spherical,
+        JointKind::Revolute,
+        JointKind::Prismatic,
+        JointKind::Universal,
+        JointKind::Distance { distance: 0.6 },
+        JointKind::AngleDriver(harmonic(0.5, 1.5)),
+        JointKind::Cylindrical,
     ];
     let pairs = [
         (0, 1),
@@ -85,6 +145,12 @@ fn random_model(seed: u64) -> (Model, State) {
         (5, 2),
         (7, 6),
         (0, 7),
+        (8, 1),
+        (3, 9),
+        (9, 8),
+        (0, 8),
+        (9, 2),
+        (8, 7),
     ];
     for (kind, (a, b)) in kinds.into_iter().zip(pairs) {
         let mi = marker(&mut sys, &mut rng, bodies[a]);
@@ -139,6 +205,36 @@ fn random_model(seed: u64) -> (Model, State) {
     .unwrap();
     sys.add_force("", ForceKind::Callback { bodies: vec![bodies[4], bodies[7]], callback: Arc::new(Drag) })
         .unwrap();
+    // Loads on the deformable bodies: a moment on a deformable body is not a free vector.
+    let f1 = marker(&mut sys, &mut rng, bodies[8]);
+    let f2 = marker(&mut sys, &mut rng, bodies[9]);
+    let r1 = marker(&mut sys, &mut rng, bodies[1]);
+    sys.add_force("", ForceKind::PointForce { marker: f1, components: comps(), frame: Frame::Marker })
+        .unwrap();
+    sys.add_force("", ForceKind::Torque { marker: f2, components: comps(), frame: Frame::Marker }).unwrap();
+    sys.add_force("", ForceKind::Torque { marker: f1, components: comps(), frame: Frame::Global }).unwrap();
+    sys.add_force(
+        "",
+        ForceKind::SpringDamper {
+            markers: [f2, r1],
+            stiffness: 30.0,
+            damping: 2.0,
+            rest_length: 0.2,
+            preload: 1.0,
+        },
+    )
+    .unwrap();
+    sys.add_force(
+        "",
+        ForceKind::RotationalSpringDamper {
+            markers: [f1, f2],
+            stiffness: 4.0,
+            damping: 0.3,
+            rest_angle: 0.1,
+            preload: 0.2,
+        },
+    )
+    .unwrap();
     let model = sys.compile().unwrap();
     let mut state = State::initial(&model, 0.37);
     for v in state.accelerations.iter_mut() {
@@ -147,8 +243,8 @@ fn random_model(seed: u64) -> (Model, State) {
     for v in state.multipliers.iter_mut() {
         *v = rng.uniform() * 5.0;
     }
-    // Reference angle of the rotational spring near its current angle.
-    state.discrete[0] = 0.0;
+    // Reference angles of the rotational springs near their current angles.
+    state.discrete.iter_mut().for_each(|x| *x = 0.0);
     (model, state)
 }
 

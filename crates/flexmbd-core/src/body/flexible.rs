@@ -160,6 +160,51 @@ pub struct FlexibleBodyInput {
     pub stiffening: Vec<StiffeningElement>,
 }
 
+impl FlexibleBodyInput {
+    /// The invariants of a body of point masses, by the sums of `DESIGN.md`: point i has mass
+    /// `masses[i]`, undeformed position `positions[i]` and shape rows `shapes[i]` (3 x n_f
+    /// row-major), u_i = u0_i + S_i q_f. With the elastic matrices given, a complete body (used
+    /// by the tests as the brute-force reference of the invariant-based equations).
+    pub fn from_mass_points(
+        masses: &[f64],
+        positions: &[Vec3],
+        shapes: &[Vec<f64>],
+        stiffness: Csc,
+        damping: Csc,
+    ) -> Self {
+        let n = stiffness.ncols;
+        let mut inp = FlexibleBodyInput {
+            i1: vec![0.0; 3 * n],
+            ibar: vec![0.0; 9 * n],
+            stiffness,
+            damping,
+            ..Default::default()
+        };
+        let mut ikl = vec![vec![0.0; n * n]; 9];
+        for (i, &m) in masses.iter().enumerate() {
+            let (u0, sh) = (positions[i], &shapes[i]);
+            inp.mass += m;
+            inp.first_moment += u0 * m;
+            inp.second_moment = inp.second_moment + u0.outer(&u0).scale(m);
+            for k in 0..3 {
+                for j in 0..n {
+                    inp.i1[k * n + j] += m * sh[k * n + j];
+                }
+                for l in 0..3 {
+                    for j in 0..n {
+                        inp.ibar[(3 * k + l) * n + j] += m * u0[k] * sh[l * n + j];
+                        for jj in 0..n {
+                            ikl[3 * k + l][j * n + jj] += m * sh[k * n + j] * sh[l * n + jj];
+                        }
+                    }
+                }
+            }
+        }
+        inp.i_kl = ikl.iter().map(|a| Csc::from_dense(n, n, |r, c| a[r * n + c])).collect();
+        inp
+    }
+}
+
 /// The constant data of a deformable body of a compiled model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FlexibleBody {
@@ -991,11 +1036,11 @@ pub(crate) mod tests {
     use crate::math::dense::DenseMatrix;
 
     /// A body of mass points: point i has mass m_i, undeformed position u0_i and shape rows
-    /// S_i (3 x n_f): u_i = u0_i + S_i q_f. Invariants are the sums of `DESIGN.md`.
+    /// S_i (3 x n_f, row-major): u_i = u0_i + S_i q_f.
     pub struct PointBody {
         pub masses: Vec<f64>,
         pub positions: Vec<Vec3>,
-        pub shapes: Vec<[Vec<f64>; 3]>,
+        pub shapes: Vec<Vec<f64>>,
         pub n: usize,
     }
 
@@ -1007,18 +1052,11 @@ pub(crate) mod tests {
         }
     }
 
-    pub fn dense_csc(n: usize, f: impl Fn(usize, usize) -> f64) -> Csc {
-        let mut col_ptr = vec![0];
-        let mut row_idx = Vec::new();
-        let mut values = Vec::new();
-        for c in 0..n {
-            for r in 0..n {
-                row_idx.push(r);
-                values.push(f(r, c));
-            }
-            col_ptr.push(row_idx.len());
-        }
-        Csc { nrows: n, ncols: n, col_ptr, row_idx, values }
+    /// A symmetric positive definite test matrix.
+    fn spd(n: usize, scale: f64) -> Csc {
+        Csc::from_dense(n, n, |r, c| {
+            scale * if r == c { 2.0 + r as f64 } else { 0.3 / (1.0 + (r + c) as f64) }
+        })
     }
 
     impl PointBody {
@@ -1026,46 +1064,18 @@ pub(crate) mod tests {
             let mut g = Lcg(seed);
             let masses = (0..points).map(|_| 1.0 + 0.5 * g.next()).collect();
             let positions = (0..points).map(|_| Vec3([g.next(), 0.5 * g.next(), 0.3 * g.next()])).collect();
-            let shapes = (0..points)
-                .map(|_| std::array::from_fn(|_| (0..n).map(|_| 0.3 * g.next()).collect()))
-                .collect();
+            let shapes = (0..points).map(|_| (0..3 * n).map(|_| 0.3 * g.next()).collect()).collect();
             PointBody { masses, positions, shapes, n }
         }
 
         pub fn input(&self, stiffness: f64, damping: f64) -> FlexibleBodyInput {
-            let n = self.n;
-            let mut inp =
-                FlexibleBodyInput { i1: vec![0.0; 3 * n], ibar: vec![0.0; 9 * n], ..Default::default() };
-            let mut ikl = vec![vec![0.0; n * n]; 9];
-            for (i, &m) in self.masses.iter().enumerate() {
-                let u0 = self.positions[i];
-                let sh = &self.shapes[i];
-                inp.mass += m;
-                inp.first_moment += u0 * m;
-                inp.second_moment = inp.second_moment + u0.outer(&u0).scale(m);
-                for k in 0..3 {
-                    for j in 0..n {
-                        inp.i1[k * n + j] += m * sh[k][j];
-                    }
-                    for l in 0..3 {
-                        for j in 0..n {
-                            inp.ibar[(3 * k + l) * n + j] += m * u0[k] * sh[l][j];
-                            for jj in 0..n {
-                                ikl[3 * k + l][j * n + jj] += m * sh[k][j] * sh[l][jj];
-                            }
-                        }
-                    }
-                }
-            }
-            inp.i_kl = ikl.iter().map(|a| dense_csc(n, |r, c| a[r * n + c])).collect();
-            // A symmetric positive definite stiffness and a damping proportional to it.
-            inp.stiffness = dense_csc(n, |r, c| {
-                stiffness * if r == c { 2.0 + r as f64 } else { 0.3 / (1.0 + (r + c) as f64) }
-            });
-            inp.damping = dense_csc(n, |r, c| {
-                damping * if r == c { 2.0 + r as f64 } else { 0.3 / (1.0 + (r + c) as f64) }
-            });
-            inp
+            FlexibleBodyInput::from_mass_points(
+                &self.masses,
+                &self.positions,
+                &self.shapes,
+                spd(self.n, stiffness),
+                spd(self.n, damping),
+            )
         }
 
         /// Brute-force inertia force by virtual work over the points (seed eqs. 11-13).
@@ -1080,7 +1090,7 @@ pub(crate) mod tests {
             let mut g = Vec3::ZERO;
             for (i, &m) in self.masses.iter().enumerate() {
                 let sh = &self.shapes[i];
-                let su = |v: &[f64]| Vec3(std::array::from_fn(|k| dot(&sh[k], v)));
+                let su = |v: &[f64]| Vec3(std::array::from_fn(|k| dot(&sh[k * n..(k + 1) * n], v)));
                 let u = self.positions[i] + su(&q[7..]);
                 let ud = su(&qd[7..]);
                 let udd = su(&qdd[7..]);
@@ -1092,7 +1102,7 @@ pub(crate) mod tests {
                 }
                 g += u.cross(&b) * m;
                 for j in 0..n {
-                    out[7 + j] += m * (0..3).map(|k| sh[k][j] * b[k]).sum::<f64>();
+                    out[7 + j] += m * (0..3).map(|k| sh[k * n + j] * b[k]).sum::<f64>();
                 }
             }
             for c in 0..4 {
@@ -1106,9 +1116,10 @@ pub(crate) mod tests {
             let a = euler::rotation_matrix(&p);
             let w = euler::body_angular_velocity(&p, &quat(qd));
             let mut e = 0.0;
+            let n = self.n;
             for (i, &m) in self.masses.iter().enumerate() {
                 let sh = &self.shapes[i];
-                let su = |v: &[f64]| Vec3(std::array::from_fn(|k| dot(&sh[k], v)));
+                let su = |v: &[f64]| Vec3(std::array::from_fn(|k| dot(&sh[k * n..(k + 1) * n], v)));
                 let u = self.positions[i] + su(&q[7..]);
                 let v = Vec3::from_slice(qd) + a.mul_vec(&(w.cross(&u) + su(&qd[7..])));
                 e += 0.5 * m * v.dot(&v);

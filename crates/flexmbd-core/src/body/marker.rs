@@ -200,15 +200,16 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                         e.translation.get(1, j),
                         e.translation.get(2, j),
                     ]));
-                    let st =
-                        a.mul_vec(&Vec3([e.rotation.get(0, j), e.rotation.get(1, j), e.rotation.get(2, j)]));
+                    let t = Vec3([e.rotation.get(0, j), e.rotation.get(1, j), e.rotation.get(2, j)]);
+                    let st = a.mul_vec(&t);
                     for i in 0..3 {
                         out.jac_position.set(i, 7 + j, su[i]);
                         out.jac_angular.set(i, 7 + j, st[i]);
                     }
                     if marker.axis_jacobians {
                         for k in 0..3 {
-                            let col = st.cross(&a.mul_vec(&marker.rotation.column(k)));
+                            // A (t x c), exact also off |p| = 1 (where A(p) is a scaled rotation).
+                            let col = a.mul_vec(&t.cross(&marker.rotation.column(k)));
                             for i in 0..3 {
                                 out.jac_axes[k].set(i, 7 + j, col[i]);
                             }
@@ -347,5 +348,121 @@ pub fn marker_accelerations(
             let acc = Vec3::from_slice(&qdd[o..]) + a.mul_vec(&local);
             (acc, a.mul_vec(&(alpha + thdd + w.cross(&thd))))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::flexible::tests::{random_state, PointBody};
+    use crate::body::flexible::FlexibleBody;
+
+    fn setup() -> (Body, Marker, Vec<f64>, Vec<f64>) {
+        let n = 4;
+        let body = FlexibleBody::new("b", PointBody::random(5, n, 3).input(1.0, 0.1)).unwrap();
+        let body = Body {
+            name: "b".into(),
+            kind: BodyKind::Flexible(Box::new(body)),
+            offset: 0,
+            dofs: (0..7 + n).collect(),
+        };
+        let mut translation = Jacobian3::zeros(2);
+        let mut rotation = Jacobian3::zeros(2);
+        for (k, v) in [0.3, -0.2, 0.5, 0.1, 0.7, -0.4].iter().enumerate() {
+            translation.data[k] = *v;
+            rotation.data[k] = 0.5 * v + 0.1;
+        }
+        let p: [f64; 4] = [0.9, 0.1, -0.3, 0.2];
+        let norm = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let c = crate::math::euler::rotation_matrix(&p.map(|x| x / norm));
+        let marker = Marker {
+            name: "m".into(),
+            body: BodyId(1),
+            position: Vec3([0.3, -0.1, 0.2]),
+            rotation: c,
+            elastic: Some(MarkerElastic { indices: vec![3, 1], translation, rotation }),
+            dofs: vec![0, 1, 2, 3, 4, 5, 6, 10, 8],
+            axis_jacobians: true,
+        };
+        let (q, qd, _) = random_state(n, 5);
+        (body, marker, q, qd)
+    }
+
+    fn local(marker: &Marker, q: &[f64]) -> Vec<f64> {
+        marker.dofs.iter().map(|&d| q[d]).collect()
+    }
+
+    #[test]
+    fn jacobians_and_hessians_match_finite_differences() {
+        let (body, marker, q, qd) = setup();
+        let nl = marker.dofs.len();
+        let mut kin = MarkerKinematics::with_size(nl);
+        marker_kinematics(&body, &marker, &q, &qd, &mut kin);
+        let v = Vec3([0.4, -1.1, 0.7]);
+        let h = 1e-6;
+        // Value of v . r and v . axis_k, and their gradients, at perturbed coordinates.
+        let eval = |q: &[f64]| {
+            let mut k = MarkerKinematics::with_size(nl);
+            marker_kinematics(&body, &marker, q, &qd, &mut k);
+            k
+        };
+        for (which, k) in [(0usize, 0usize), (1, 0), (1, 1), (1, 2)] {
+            let mut hess = DenseMatrix::zeros(nl, nl);
+            if which == 0 {
+                add_position_hessian(&body, &marker, &kin, &v, 1.0, &mut hess, 0);
+            } else {
+                add_axis_hessian(&body, &marker, &kin, k, &v, 1.0, &mut hess, 0);
+            }
+            for (c, &d) in marker.dofs.iter().enumerate() {
+                let (mut qp, mut qm) = (q.clone(), q.clone());
+                qp[d] += h;
+                qm[d] -= h;
+                let (kp, km) = (eval(&qp), eval(&qm));
+                let value = |kk: &MarkerKinematics| if which == 0 { kk.position } else { kk.axis(k) };
+                let fd = (value(&kp) - value(&km)) * (1.0 / (2.0 * h));
+                let jac = if which == 0 { &kin.jac_position } else { &kin.jac_axes[k] };
+                for i in 0..3 {
+                    assert!((fd[i] - jac.get(i, c)).abs() < 1e-8, "jacobian {which}/{k} ({i}, {c})");
+                }
+                // Hessian column c: d/dq_c of the gradient v^T J.
+                let grad = |kk: &MarkerKinematics| {
+                    let j = if which == 0 { &kk.jac_position } else { &kk.jac_axes[k] };
+                    let mut g = vec![0.0; nl];
+                    j.add_transpose_times(1.0, &v, &mut g, 0);
+                    g
+                };
+                let (gp, gm) = (grad(&kp), grad(&km));
+                for r in 0..nl {
+                    let fd = (gp[r] - gm[r]) / (2.0 * h);
+                    assert!(
+                        (fd - hess.get(r, c)).abs() < 1e-7,
+                        "hessian {which}/{k} ({r}, {c}): {fd} vs {}",
+                        hess.get(r, c)
+                    );
+                }
+            }
+        }
+        // Velocity and angular velocity, in an undeformed configuration (there the marker frame
+        // is a rotation) moving with p . p_dot = 0: R_dot R^T = w~.
+        let vel = |q: &[f64], qd: &[f64]| {
+            let step = |s: f64| -> Vec<f64> { q.iter().zip(qd).map(|(a, b)| a + s * b).collect() };
+            let dt = 1e-6;
+            let (kp, km) = (eval(&step(dt)), eval(&step(-dt)));
+            ((kp.position - km.position) * (1.0 / (2.0 * dt)), (kp.rotation - km.rotation).scale(0.5 / dt))
+        };
+        let (fd, _) = vel(&q, &qd);
+        assert!((fd - kin.velocity).norm() < 1e-8);
+        assert!((kin.jac_position.times(&local(&marker, &qd)) - kin.velocity).norm() < 1e-12);
+        let mut q0 = q.clone();
+        q0[7..].iter_mut().for_each(|x| *x = 0.0);
+        let mut qd0 = qd.clone();
+        let pp: f64 = (3..7).map(|k| q0[k] * qd0[k]).sum();
+        (3..7).for_each(|k| qd0[k] -= pp * q0[k]);
+        let mut k0 = MarkerKinematics::with_size(nl);
+        marker_kinematics(&body, &marker, &q0, &qd0, &mut k0);
+        let (_, rdot) = vel(&q0, &qd0);
+        let wt = rdot.mul_mat(&k0.rotation.transpose());
+        let w = Vec3([wt.0[2][1], wt.0[0][2], wt.0[1][0]]);
+        assert!((w - k0.angular_velocity).norm() < 1e-7, "{w:?} vs {:?}", k0.angular_velocity);
     }
 }

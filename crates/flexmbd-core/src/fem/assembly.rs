@@ -86,6 +86,22 @@ pub struct Csc {
 }
 
 impl Csc {
+    /// A dense `rows x cols` matrix with entries f(r, c) in compressed columns (every entry
+    /// stored).
+    pub fn from_dense(rows: usize, cols: usize, f: impl Fn(usize, usize) -> f64) -> Self {
+        let mut col_ptr = vec![0];
+        let mut row_idx = Vec::with_capacity(rows * cols);
+        let mut values = Vec::with_capacity(rows * cols);
+        for c in 0..cols {
+            for r in 0..rows {
+                row_idx.push(r);
+                values.push(f(r, c));
+            }
+            col_ptr.push(row_idx.len());
+        }
+        Csc { nrows: rows, ncols: cols, col_ptr, row_idx, values }
+    }
+
     /// `y += A x`.
     pub fn mul_vec_add(&self, x: &[f64], y: &mut [f64]) {
         for c in 0..self.ncols {
