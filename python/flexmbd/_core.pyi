@@ -353,6 +353,16 @@ def assemble_body(
     lumped: bool = False,
     shear: bool = False,
 ) -> dict[str, Any]: ...
+def recover_stresses(
+    nodes: NDArray[np.float64],
+    node_ids: NDArray[np.int64],
+    elements: dict[str, tuple[NDArray[np.int64], NDArray[np.int64]]],
+    material: Material,
+    displacements: NDArray[np.float64],
+    section: Section | None = None,
+    orientation: Sequence[float] | None = None,
+    shear: bool = False,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
 def body_mass_points(
     nodes: NDArray[np.float64],
     node_ids: NDArray[np.int64],

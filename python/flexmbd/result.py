@@ -186,6 +186,47 @@ class Result:
         rot = self.orientation(body)
         return self.position(body)[:, None, :] + np.einsum("tij,tnj->tni", rot, local)
 
+    def _nodal_displacements(self, body: object, records: Any) -> Array:
+        from .system import elastic_basis
+
+        _, data = self._flexible(body)
+        q_f = self.elastic_coordinates(body)
+        q_f = q_f if records is None else q_f[np.atleast_1d(records)]
+        return np.asarray(elastic_basis(data) @ q_f.T).T
+
+    def stresses(self, body: object, records: Any = None) -> Array:
+        """Stresses of the solid elements of a deformable body averaged at its nodes (Pa, body
+        axes, Voigt order xx, yy, zz, yz, xz, xy): (n, nodes, 6), for all records or the
+        given record indices. See :mod:`flexmbd.fe.stress`."""
+        from .fe.stress import recover_stresses
+
+        _, data = self._flexible(body)
+        return recover_stresses(data, self._nodal_displacements(body, records))[0]
+
+    def section_forces(self, body: object, records: Any = None) -> Array:
+        """Section resultants [N, V_y, V_z, T, M_y, M_z] (N, N m; element axes; tension
+        positive) at both ends of every beam element of a deformable body: (n, beams, 2, 6)."""
+        from .fe.stress import recover_stresses
+
+        _, data = self._flexible(body)
+        return recover_stresses(data, self._nodal_displacements(body, records))[1]
+
+    def deflection(self, body: object, node: int, chord: tuple[int, int] | None = None) -> Array:
+        """Deflection of a node of a deformable body (m, body axes): (n, 3). Without `chord`,
+        its elastic displacement relative to the body frame; with `chord=(a, b)` (node ids),
+        its distance vector from the straight line through the deformed nodes a and b (the
+        deflection from the chord, exact for large deformations)."""
+        _, data = self._flexible(body)
+        if chord is None:
+            return self.node_displacements(body, [node])[:, 0]
+        ids = [chord[0], chord[1], node]
+        index = self._node_indices(data, ids)
+        x = data.nodes[index][None, :, :] + self.node_displacements(body, ids)
+        d = x[:, 1] - x[:, 0]
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        r = x[:, 2] - x[:, 0]
+        return r - np.sum(r * d, axis=1)[:, None] * d
+
     @staticmethod
     def _node_indices(data: Any, nodes: Any) -> NDArray[np.int64]:
         if nodes is None:

@@ -291,6 +291,51 @@ pub fn assemble_body<'py>(
     Ok(d)
 }
 
+/// Stresses recovered from nodal displacements (same mesh arguments as `assemble_body`),
+/// `displacements` (records, n_dofs) node-major in body axes. Returns `(nodal, beams)`:
+/// solid stresses averaged at the nodes (records, nodes, 6) in Voigt order
+/// (xx, yy, zz, yz, xz, xy), body axes, Pa; and beam section resultants
+/// [N, V_y, V_z, T, M_y, M_z] at both ends of every beam element (records, beams, 2, 6),
+/// element axes.
+#[pyfunction]
+#[pyo3(signature = (nodes, node_ids, elements, material, displacements, section = None, orientation = None, shear = false))]
+#[allow(clippy::too_many_arguments)]
+pub fn recover_stresses<'py>(
+    py: Python<'py>,
+    nodes: PyReadonlyArray2<'py, f64>,
+    node_ids: PyReadonlyArray1<'py, i64>,
+    elements: &Bound<'py, PyDict>,
+    material: &Material,
+    displacements: PyReadonlyArray2<'py, f64>,
+    section: Option<Section>,
+    orientation: Option<Vec<f64>>,
+    shear: bool,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let mesh =
+        build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref(), shear)?;
+    let u = displacements.as_array();
+    let records: Vec<Vec<f64>> = u.rows().into_iter().map(|r| r.to_vec()).collect();
+    let result = py.detach(|| -> flexmbd_core::Result<(Vec<f64>, Vec<f64>, usize)> {
+        let mut nodal = Vec::new();
+        let mut beams = Vec::new();
+        let mut count = 0;
+        for r in &records {
+            let s = mesh.recover_stresses(r)?;
+            nodal.extend(s.nodal.iter().flatten());
+            beams.extend(s.beams.iter().flatten().flatten());
+            count = s.beams.len();
+        }
+        Ok((nodal, beams, count))
+    });
+    let (nodal, beams, count) = check(result)?;
+    let n = mesh.nodes.len();
+    let r = records.len();
+    Ok((
+        PyArray1::from_vec(py, nodal).reshape([r, n, 6])?.into_any(),
+        PyArray1::from_vec(py, beams).reshape([r, count, 2, 6])?.into_any(),
+    ))
+}
+
 /// The mass points of a body (same arguments as `assemble_body`): weights (P,) = rho dV,
 /// positions (P, 3) and the shape matrices as the (data, indices, indptr, shape) of a CSR
 /// matrix (3 P, n_dofs) whose rows 3 p .. 3 p + 3 are S of point p. For brute-force checks of

@@ -18,6 +18,7 @@ from .preprocess import (
     build_body,
     straight_beam,
 )
+from .stress import recover_stresses, von_mises
 
 __all__ = [
     "FlexibleBodyData",
@@ -31,8 +32,10 @@ __all__ = [
     "load_body",
     "read_abaqus_matrix",
     "read_mesh",
+    "recover_stresses",
     "save_body",
     "shapes",
     "straight_beam",
     "validate_mesh",
+    "von_mises",
 ]

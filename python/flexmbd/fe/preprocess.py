@@ -391,6 +391,7 @@ def build_body(
             "density": material.density,
         },
         section=section,
+        orientation=orientation,
         beam_theory=beam_theory,
         mass=mass,
         reference=reference,
@@ -416,6 +417,7 @@ def _body_from_nodal(
     *,
     section: Section | None,
     beam_theory: str,
+    orientation: ArrayLike | None = None,
     mass: str,
     reference: str,
     reference_nodes: str | Sequence[int],
@@ -542,6 +544,9 @@ def _body_from_nodal(
             "torsion_constant": section.torsion_constant,
             "shear_factor": section.shear_factor,
             "beam_theory": beam_theory,
+            "orientation": None
+            if orientation is None
+            else [float(v) for v in np.asarray(orientation, dtype=float).ravel()],
         },
         dofs_per_node=d,
         stiffness=nodal.stiffness,

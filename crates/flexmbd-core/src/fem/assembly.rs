@@ -209,7 +209,67 @@ fn element_error(e: &Element, err: super::element::ElementError) -> FlexmbdError
     FlexmbdError::InvalidModel { item: format!("element {}", e.id), message: err.to_string() }
 }
 
+/// Stresses recovered from a displacement field of a body (see [`Mesh::recover_stresses`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RecoveredStresses {
+    /// Per node: the stress of the solid elements around it, averaged (Voigt order
+    /// xx, yy, zz, yz, xz, xy; body axes; Pa); zeros at nodes of beams only.
+    pub nodal: Vec<[f64; 6]>,
+    /// Per beam element (in mesh order): the section resultants [N, V_y, V_z, T, M_y, M_z] at
+    /// its two ends, element axes (N, N m).
+    pub beams: Vec<[[f64; 6]; 2]>,
+}
+
 impl Mesh {
+    /// Recovers stresses from nodal displacements `u` (node-major, `dofs_per_node` per node,
+    /// body axes): solid stresses evaluated at the element nodes and averaged over the
+    /// elements that share a node, and the section resultants at the ends of every beam.
+    pub fn recover_stresses(&self, u: &[f64]) -> Result<RecoveredStresses> {
+        let d = self.dofs_per_node();
+        let n = self.nodes.len();
+        if u.len() != n * d {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "stress recovery".to_string(),
+                message: format!("{} displacements given, the mesh has {}", u.len(), n * d),
+            });
+        }
+        let mut nodal = vec![[0.0; 6]; n];
+        let mut count = vec![0usize; n];
+        let mut beams = Vec::new();
+        let mut x = Vec::new();
+        let mut ue = Vec::new();
+        let mut out = Vec::new();
+        for e in &self.elements {
+            let kernel = e.kind.kernel();
+            let per = kernel.dofs_per_node();
+            x.clear();
+            ue.clear();
+            for &a in &e.nodes {
+                x.push(self.nodes[a]);
+                ue.extend_from_slice(&u[d * a..d * a + per]);
+            }
+            out.clear();
+            out.resize(e.nodes.len(), [0.0; 6]);
+            kernel.nodal_stresses(&self.material, &x, &ue, &mut out).map_err(|err| element_error(e, err))?;
+            if e.kind.is_solid() {
+                for (k, &a) in e.nodes.iter().enumerate() {
+                    for r in 0..6 {
+                        nodal[a][r] += out[k][r];
+                    }
+                    count[a] += 1;
+                }
+            } else {
+                beams.push([out[0], out[1]]);
+            }
+        }
+        for (s, &c) in nodal.iter_mut().zip(&count) {
+            if c > 0 {
+                s.iter_mut().for_each(|v| *v /= c as f64);
+            }
+        }
+        Ok(RecoveredStresses { nodal, beams })
+    }
+
     /// Coordinates per node of the body: 6 when any beam is present, else 3.
     pub fn dofs_per_node(&self) -> usize {
         if self.elements.iter().any(|e| !e.kind.is_solid()) {

@@ -242,6 +242,31 @@ impl ElementKernel for Beam {
         Ok(())
     }
 
+    fn nodal_stresses(
+        &self,
+        material: &Material,
+        x: &[Vec3],
+        u: &[f64],
+        out: &mut [[f64; 6]],
+    ) -> ElementResult<()> {
+        let (length, r) = self.frame(x)?;
+        let local = self.local_stiffness(material, length);
+        // Displacements in element axes, end forces f = K_local u_local on the element.
+        let mut ul = [0.0; 12];
+        for block in 0..4 {
+            for i in 0..3 {
+                ul[3 * block + i] = (0..3).map(|j| r.0[i][j] * u[3 * block + j]).sum();
+            }
+        }
+        let f: [f64; 12] = std::array::from_fn(|i| (0..12).map(|j| local[i][j] * ul[j]).sum());
+        // Resultants on the +x face: minus the end force at node 1, the end force at node 2.
+        for k in 0..6 {
+            out[0][k] = -f[k];
+            out[1][k] = f[6 + k];
+        }
+        Ok(())
+    }
+
     fn mass_points(&self, material: &Material, x: &[Vec3], out: &mut Vec<MassPoint>) -> ElementResult<()> {
         let (length, r) = self.frame(x)?;
         let phi = self.shear_parameters(material, length);

@@ -77,6 +77,19 @@ pub trait ElementKernel {
     ) -> ElementResult<()>;
     /// Volume (m^3).
     fn volume(&self, x: &[Vec3]) -> ElementResult<f64>;
+    /// Stresses recovered at the element's nodes from its nodal displacements `u` (element
+    /// order, `dofs_per_node` each, body axes), one row of 6 per node into `out`. Solids: the
+    /// stress of the displacement field evaluated at the node, in Voigt order
+    /// (xx, yy, zz, yz, xz, xy), body axes (Pa). Beams: the section resultants
+    /// [N, V_y, V_z, T, M_y, M_z] at the two ends, in element axes (N, N m), acting on the
+    /// section face whose outward normal is +x (tension positive).
+    fn nodal_stresses(
+        &self,
+        material: &Material,
+        x: &[Vec3],
+        u: &[f64],
+        out: &mut [[f64; 6]],
+    ) -> ElementResult<()>;
 }
 
 /// Consistent mass matrix M = sum w S^T S from mass points (n_e x n_e).

@@ -387,6 +387,31 @@ fn volume<E: Isoparametric<N>, const N: usize>(x: &[Vec3]) -> ElementResult<f64>
     Ok(E::MASS_RULE.iter().map(|p| p.weight * jacobian_determinant::<E, N>(x, p.coordinates)).sum())
 }
 
+/// Stress D B(xi_a) u at every node a of the element (Voigt order, body axes).
+fn nodal_stresses<E: Isoparametric<N>, const N: usize>(
+    material: &Material,
+    x: &[Vec3],
+    u: &[f64],
+    out: &mut [[f64; 6]],
+) -> ElementResult<()> {
+    validate::<E, N>(x, E::STIFFNESS_RULE)?;
+    let d = material.elasticity();
+    for (a, xi) in E::NODES.iter().enumerate() {
+        let (g, _) = physical_gradients::<E, N>(x, *xi);
+        let mut strain = [0.0; 6];
+        for (b, gb) in g.iter().enumerate() {
+            let bb = strain_displacement(*gb);
+            for r in 0..6 {
+                strain[r] += (0..3).map(|j| bb[r][j] * u[3 * b + j]).sum::<f64>();
+            }
+        }
+        for r in 0..6 {
+            out[a][r] = (0..6).map(|c| d[r][c] * strain[c]).sum();
+        }
+    }
+    Ok(())
+}
+
 // The element kernels delegate to the generic isoparametric routines above.
 macro_rules! solid_element_kernel {
     ($element:ty, $nodes:literal) => {
@@ -423,6 +448,16 @@ macro_rules! solid_element_kernel {
 
             fn volume(&self, x: &[Vec3]) -> ElementResult<f64> {
                 volume::<$element, $nodes>(x)
+            }
+
+            fn nodal_stresses(
+                &self,
+                material: &Material,
+                x: &[Vec3],
+                u: &[f64],
+                out: &mut [[f64; 6]],
+            ) -> ElementResult<()> {
+                nodal_stresses::<$element, $nodes>(material, x, u, out)
             }
         }
     };
@@ -652,6 +687,28 @@ mod tests {
         let mut points = Vec::new();
         element(case.kind).lumped_mass_points(&steel(), &case.nodes, &mut points).unwrap();
         points
+    }
+
+    #[test]
+    fn affine_displacements_give_their_exact_stress_at_every_node() {
+        // u = E x + t: strain (E + E^T)/2 everywhere, stress D eps at every node, for every
+        // element shape (curved and distorted ones included: the fields are in their spaces).
+        let e = [[1e-3, 2e-4, -5e-4], [-3e-4, 7e-4, 1e-4], [4e-4, -2e-4, -6e-4]];
+        let eps = [e[0][0], e[1][1], e[2][2], e[1][2] + e[2][1], e[0][2] + e[2][0], e[0][1] + e[1][0]];
+        let d = steel().elasticity();
+        let sigma: Vec<f64> = (0..6).map(|r| (0..6).map(|c| d[r][c] * eps[c]).sum()).collect();
+        for case in cases() {
+            let u = nodal_field(&case.nodes, |p| {
+                Vec3(std::array::from_fn(|i| (0..3).map(|j| e[i][j] * p[j]).sum::<f64>() + 0.01 * i as f64))
+            });
+            let mut out = vec![[0.0; 6]; case.nodes.len()];
+            element(case.kind).nodal_stresses(&steel(), &case.nodes, &u, &mut out).unwrap();
+            for node in &out {
+                for r in 0..6 {
+                    assert!((node[r] - sigma[r]).abs() < 1e-9 * max_abs(&sigma), "{}: {node:?}", case.name);
+                }
+            }
+        }
     }
 
     fn max_abs(values: &[f64]) -> f64 {

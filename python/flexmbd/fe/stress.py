@@ -1,0 +1,80 @@
+"""Stresses of a deformed body, recovered from its nodal displacements (Rust kernels).
+
+- Solids: the stress of the element's displacement field evaluated at its nodes and
+  averaged over the elements around each node (Voigt order xx, yy, zz, yz, xz, xy, body axes,
+  Pa): exact for affine fields, otherwise the usual nodal averaging of a displacement-based
+  element (lower order than the displacements).
+- Beams: the section resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every element
+  (element axes; N, N m; tension positive), from the element stiffness: exact for the static
+  end-loaded element.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .. import _core
+from ..errors import InvalidParameterError
+from .body import FlexibleBodyData
+
+#: Names of the stress components, in order.
+STRESS_COMPONENTS = ("xx", "yy", "zz", "yz", "xz", "xy")
+#: Names of the beam section resultants, in order.
+SECTION_RESULTANTS = ("N", "Vy", "Vz", "T", "My", "Mz")
+
+
+def recover_stresses(
+    body: FlexibleBodyData, displacements: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Nodal stresses (records, nodes, 6) of the solid elements and section resultants
+    (records, beams, 2, 6) of the beam elements of `body`, for nodal displacements
+    (records, n_dofs) or (n_dofs,) in body axes (node-major, ``dofs_per_node`` per node)."""
+    u = np.asarray(displacements, dtype=float)
+    single = u.ndim == 1
+    u = np.atleast_2d(u)
+    if u.shape[1] != body.dof_count:
+        raise InvalidParameterError(
+            f"displacements must have {body.dof_count} entries per record, got {u.shape[1]}"
+        )
+    blocks = {}
+    for kind, conn in body.elements.items():
+        blocks[kind] = (
+            np.ascontiguousarray(conn, dtype=np.int64),
+            np.ascontiguousarray(body.element_ids[kind], dtype=np.int64),
+        )
+    material = _core.Material(
+        body.material["young_modulus"], body.material["poisson_ratio"], body.material["density"]
+    )
+    section = None
+    orientation = None
+    shear = False
+    if body.section is not None:
+        s = body.section
+        section = _core.Section(s["area"], s["iy"], s["iz"], s["torsion_constant"])
+        if "shear_factor" in s:
+            section = section.with_shear_factor(s["shear_factor"])
+        orientation = s.get("orientation")
+        shear = s.get("beam_theory") == "timoshenko"
+    nodal, beams = _core.recover_stresses(
+        np.ascontiguousarray(body.nodes, dtype=float),
+        np.ascontiguousarray(body.node_ids, dtype=np.int64),
+        blocks,
+        material,
+        np.ascontiguousarray(u),
+        section,
+        orientation,
+        shear,
+    )
+    if single:
+        return nodal[0], beams[0]
+    return nodal, beams
+
+
+def von_mises(stress: ArrayLike) -> NDArray[np.float64]:
+    """Von Mises equivalent stress of stresses in Voigt order (..., 6)."""
+    s = np.asarray(stress, dtype=float)
+    xx, yy, zz, yz, xz, xy = (s[..., k] for k in range(6))
+    return np.sqrt(
+        0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2) + 3.0 * (yz**2 + xz**2 + xy**2)
+    )
