@@ -224,6 +224,10 @@ pub struct FlexibleBody {
     pub pattern: ElasticPattern,
     /// I_kl, index 3 k + l.
     pub i_kl: Vec<ElasticMatrix>,
+    /// M_ff = sum_k I_kk.
+    pub mass_matrix: ElasticMatrix,
+    /// A_m = I_{m+1,m+2} - I_{m+2,m+1} (indices mod 3), m = 0..3: sum_kl w~_kl I_kl = -sum_m w_m A_m.
+    pub antisymmetric: Vec<ElasticMatrix>,
     /// K_ff.
     pub stiffness: ElasticMatrix,
     /// D_ff.
@@ -351,6 +355,25 @@ impl FlexibleBody {
                 .map(|(r, c)| pattern.position(r, c))
                 .collect();
         }
+        let combination = |terms: &[(f64, usize)]| -> Csc {
+            let mut values = vec![0.0; pattern.nnz()];
+            for &(w, kl) in terms {
+                let m = &input.i_kl[kl];
+                for c in 0..n {
+                    for k in m.col_ptr[c]..m.col_ptr[c + 1] {
+                        values[pattern.position(m.row_idx[k], c)] += w * m.values[k];
+                    }
+                }
+            }
+            Csc { nrows: n, ncols: n, col_ptr: pattern.col_ptr.clone(), row_idx: pattern.row_idx.clone(), values }
+        };
+        let mass_matrix = ElasticMatrix::new(combination(&[(1.0, 0), (1.0, 4), (1.0, 8)]), &pattern);
+        let antisymmetric = (0..3)
+            .map(|m| {
+                let (a, b) = ((m + 1) % 3, (m + 2) % 3);
+                ElasticMatrix::new(combination(&[(1.0, 3 * a + b), (-1.0, 3 * b + a)]), &pattern)
+            })
+            .collect();
         let i_kl = input.i_kl.into_iter().map(|m| ElasticMatrix::new(m, &pattern)).collect();
         Ok(FlexibleBody {
             mass: input.mass,
@@ -363,6 +386,8 @@ impl FlexibleBody {
             damping: ElasticMatrix::new(input.damping, &pattern),
             stiffening,
             i_kl,
+            mass_matrix,
+            antisymmetric,
             pattern,
         })
     }
@@ -409,12 +434,39 @@ impl FlexibleBody {
         }
     }
 
-    /// `out[kl] = I_kl v` for the nine invariants (out: 9 n_f, index (3 k + l) n_f + j).
+    /// `out[kl] = I_kl v` for the nine invariants (out: 9 n_f, index (3 k + l) n_f + j), from
+    /// six traversals: I_lk = I_kl^T.
     pub fn i_kl_products(&self, v: &[f64], out: &mut [f64]) {
         let n = self.elastic_count;
         out.iter_mut().for_each(|x| *x = 0.0);
-        for (kl, m) in self.i_kl.iter().enumerate() {
-            m.mul_vec_add(1.0, v, &mut out[kl * n..(kl + 1) * n]);
+        for k in 0..3 {
+            for l in k..3 {
+                let m = &self.i_kl[3 * k + l].matrix;
+                if k == l {
+                    let y = &mut out[(4 * k) * n..(4 * k + 1) * n];
+                    for c in 0..m.ncols {
+                        let vc = v[c];
+                        for e in m.col_ptr[c]..m.col_ptr[c + 1] {
+                            y[m.row_idx[e]] += m.values[e] * vc;
+                        }
+                    }
+                    continue;
+                }
+                // y_kl = I_kl v (by columns) and y_lk = I_kl^T v (by rows) in one pass.
+                let (first, second) = out.split_at_mut((3 * l + k) * n);
+                let y_kl = &mut first[(3 * k + l) * n..(3 * k + l + 1) * n];
+                let y_lk = &mut second[..n];
+                for c in 0..m.ncols {
+                    let vc = v[c];
+                    let mut acc = 0.0;
+                    for e in m.col_ptr[c]..m.col_ptr[c + 1] {
+                        let (r, value) = (m.row_idx[e], m.values[e]);
+                        y_kl[r] += value * vc;
+                        acc += value * v[r];
+                    }
+                    y_lk[c] += acc;
+                }
+            }
         }
     }
 
@@ -452,7 +504,7 @@ pub struct FlexibleScratch {
     pub y: Vec<f64>,
     /// z_kl = I_kl qf_dot.
     pub z: Vec<f64>,
-    /// x_kl = I_kl qf_dd.
+    /// A_m qf_dot (3 n_f), then A_m qf_dd (3 n_f).
     pub x: Vec<f64>,
     /// N_kl = Ibar_kl + y_lk (the rows int rho u_k S_l).
     pub n: Vec<f64>,
@@ -468,7 +520,7 @@ impl FlexibleScratch {
         FlexibleScratch {
             y: vec![0.0; 9 * n],
             z: vec![0.0; 9 * n],
-            x: vec![0.0; 9 * n],
+            x: vec![0.0; 6 * n],
             n: vec![0.0; 9 * n],
             rows: vec![0.0; 3 * n],
             rows2: vec![0.0; 3 * n],
@@ -533,7 +585,6 @@ fn quantities(
     body.i_kl_products(qf, &mut scratch.y);
     if with_products {
         body.i_kl_products(qfd, &mut scratch.z);
-        body.i_kl_products(qfdd, &mut scratch.x);
     }
     for k in 0..3 {
         for l2 in 0..3 {
@@ -628,7 +679,7 @@ pub fn inertia_force(
 ) {
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
-    let k = quantities(body, q, qd, qdd, scratch, true);
+    let k = quantities(body, q, qd, qdd, scratch, false);
     let (w, alpha, s) = (k.w, k.alpha, k.s);
     // Translation: m R_dd + A (alpha x s + w x (w x s) + 2 w x I1 qf_dot + I1 qf_dd).
     let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
@@ -639,26 +690,29 @@ pub fn inertia_force(
     for a in 0..4 {
         out[3 + a] = 2.0 * (0..3).map(|i| k.l[i][a] * g[i]).sum::<f64>();
     }
-    // Elastic: I1^T a + sum_kl E_kl N_lk + 2 sum_kl w~_kl z_kl + sum_k x_kk, E = alpha~ + w~w~.
+    // Elastic: I1^T a + sum_kl E_kl N_lk (E = alpha~ + w~w~) + 2 sum_kl w~_kl I_kl qf_dot
+    // + M_ff qf_dd, with sum_kl w~_kl I_kl = -sum_m w_m A_m.
     let f = &mut out[r7..r7 + nf];
     f.iter_mut().for_each(|x| *x = 0.0);
     body.add_i1_transpose_times(&k.acc, f);
     let e = alpha.skew() + w.skew().mul_mat(&w.skew());
-    let ws = w.skew();
     for kk in 0..3 {
         for l in 0..3 {
-            let (ce, cw) = (e.0[kk][l], 2.0 * ws.0[kk][l]);
-            let n_lk = row(&scratch.n, l, kk, nf);
-            let z_kl = row(&scratch.z, kk, l, nf);
-            for j in 0..nf {
-                f[j] += ce * n_lk[j] + cw * z_kl[j];
+            let ce = e.0[kk][l];
+            if ce != 0.0 {
+                for (fj, nj) in f.iter_mut().zip(row(&scratch.n, l, kk, nf)) {
+                    *fj += ce * nj;
+                }
             }
         }
-        let x_kk = row(&scratch.x, kk, kk, nf);
-        for j in 0..nf {
-            f[j] += x_kk[j];
+    }
+    let qfd = &qd[r7..r7 + nf];
+    for m in 0..3 {
+        if w[m] != 0.0 {
+            body.antisymmetric[m].mul_vec_add(-2.0 * w[m], qfd, f);
         }
     }
+    body.mass_matrix.mul_vec_add(1.0, &qdd[r7..r7 + nf], f);
 }
 
 /// g = s x a + J alpha + w x J w + 2 (tr(P) w - P^T w) + J_f qf_dd (body frame).
@@ -882,6 +936,12 @@ pub fn inertia_tangent(
     }
     // Position (p, f) = 2 L^T dg/dq_f.
     let acc_skew = k.acc.skew();
+    // A_i qf_dd: row i of d(J_f qf_dd)/dq_f.
+    let qfdd = &qdd[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf];
+    scratch.x[3 * nf..].iter_mut().for_each(|x| *x = 0.0);
+    for i in 0..3 {
+        body.antisymmetric[i].mul_vec_add(1.0, qfdd, &mut scratch.x[(3 + i) * nf..(4 + i) * nf]);
+    }
     let z_trace: Vec<f64> = (0..nf).map(|c| (0..3).map(|kk| row(&scratch.z, kk, kk, nf)[c]).sum()).collect();
     // d(J v)_i/dq_f = 2 v_i sum_k N_kk - sum_l v_l (N_il + N_li).
     let dj = |v: &Vec3, i: usize, c: usize| -> f64 {
@@ -897,8 +957,7 @@ pub fn inertia_tangent(
         let sa = acc_skew.mul_vec(&i1c);
         for i in 0..3 {
             let wz: f64 = (0..3).map(|kk| w[kk] * row(&scratch.z, kk, i, nf)[c]).sum();
-            let (kk, l2) = ((i + 1) % 3, (i + 2) % 3);
-            let jfx = row(&scratch.x, kk, l2, nf)[c] - row(&scratch.x, l2, kk, nf)[c];
+            let jfx = scratch.x[3 * nf + i * nf + c];
             rows[i * nf + c] = -sa[i] + dj(&alpha, i, c) + w_djw[i] + 2.0 * (w[i] * z_trace[c] - wz) + jfx;
         }
     }
@@ -935,9 +994,7 @@ pub fn kinetic_energy(body: &FlexibleBody, q: &[f64], qd: &[f64], scratch: &mut 
     let jf_qfd = Vec3([dot(&jf[..nf], qfd), dot(&jf[nf..2 * nf], qfd), dot(&jf[2 * nf..], qfd)]);
     scratch.rows = jf;
     let mut m_qfd = vec![0.0; nf];
-    for kk in 0..3 {
-        body.i_kl[4 * kk].mul_vec_add(1.0, qfd, &mut m_qfd);
-    }
+    body.mass_matrix.mul_vec_add(1.0, qfd, &mut m_qfd);
     0.5 * body.mass * v.dot(&v)
         + v.dot(&k.a.mul_vec(&(k.w.cross(&k.s) + k.i1_qfd)))
         + 0.5 * k.w.dot(&k.j.mul_vec(&k.w))

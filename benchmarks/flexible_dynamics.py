@@ -1,0 +1,153 @@
+"""Dynamics of deformable bodies in flexmbd, side by side with Exudyn if it is installed:
+steps per second, Newton iterations per step and the largest difference of the trajectories.
+
+Models (`flexible_models.py`): the reduced flexible pendulum (Craig-Bampton, 16 modes), the
+flexible slider-crank (reduced rod, 12 modes), and the unreduced pendulum bar with about 1k,
+10k and 50k elastic coordinates. Both codes use the same finite-element matrices and modes and
+implicit generalized-alpha (index 3, spectral radius 0.9) at the same fixed step.
+
+    python benchmarks/flexible_dynamics.py pendulum          # flexmbd and Exudyn
+    python benchmarks/flexible_dynamics.py slider-crank
+    python benchmarks/flexible_dynamics.py nodal --size 10k
+    python benchmarks/flexible_dynamics.py nodal --size 1k --no-exudyn
+
+Timings are wall-clock times of the simulation call (model building excluded, initial
+conditions included), best of `--repeat` runs, with numpy's BLAS on one thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import flexible_models as models  # noqa: E402
+import numpy as np  # noqa: E402
+
+import flexmbd as fm  # noqa: E402
+
+#: Step size and end time of each model.
+RUNS = {
+    "pendulum": (1e-3, 1.0),
+    "slider-crank": (1e-5, 4 * np.pi / models.OMEGA),
+    "nodal": (1e-3, 0.05),
+}
+
+
+def build_pendulum(model: models.FlexibleModel) -> tuple[fm.System, dict]:
+    """The hinged bar (pendulum or nodal): the frame on face x0, hinge about global z."""
+    system = fm.System(gravity=models.GRAVITY)
+    bar = system.add_flexible_body(model.body, name="bar")
+    hinge = system.add_node_set_marker(bar, "x0")
+    system.add_revolute_joint(system.add_marker(system.ground), hinge, name="hinge")
+    return system, {"body": bar, "tip face": "x1"}
+
+
+def build_slider_crank(model: models.FlexibleModel) -> tuple[fm.System, dict]:
+    """The slider-crank with the reduced rod."""
+    crank_length, omega = models.CRANK, models.OMEGA
+    system = fm.System()
+    crank = system.add_rigid_body(
+        0.1,
+        (1e-6, 0.1 * crank_length**2 / 12, 0.1 * crank_length**2 / 12),
+        center_of_mass=(crank_length / 2, 0, 0),
+        angular_velocity=(0, 0, omega),
+        name="crank",
+    )
+    rod = system.add_flexible_body(
+        model.body,
+        position=(crank_length, 0, 0),
+        velocity=(0, omega * crank_length, 0),
+        angular_velocity=(0, 0, -omega * crank_length / models.ROD),
+        name="rod",
+    )
+    slider = system.add_point_mass(
+        model.body.invariants["mass"] / 2, position=(crank_length + models.ROD, 0, 0), name="slider"
+    )
+    pivot, root = system.add_marker(system.ground), system.add_marker(crank)
+    system.add_revolute_joint(pivot, root, name="bearing")
+    system.add_angle_driver(pivot, root, fm.Polynomial([0.0, omega]), name="drive")
+    system.add_revolute_joint(
+        system.add_marker(crank, position=(crank_length, 0, 0)),
+        system.add_node_set_marker(rod, "x0"),
+        name="crank pin",
+    )
+    system.add_spherical_joint(
+        system.add_node_set_marker(rod, "x1"), system.add_marker(slider), name="wrist pin"
+    )
+    along_x = fm.rotation("y", np.pi / 2)
+    system.add_inline_joint(
+        system.add_marker(system.ground, orientation=along_x),
+        system.add_marker(slider),
+        name="guide",
+    )
+    return system, {"body": rod, "tip face": "x1", "slider": slider}
+
+
+def face_centroid(result: fm.Result, body, model: models.FlexibleModel, face: str) -> np.ndarray:
+    """Trajectory of the centroid of a face of the deformed body (n, 3)."""
+    ids = model.body.node_ids[models.nodes_of(model, face)]
+    return result.node_positions(body, ids).mean(axis=1)
+
+
+def run_flexmbd(name: str, size: str, repeat: int, solver: fm.GeneralizedAlpha) -> dict:
+    model = {
+        "pendulum": models.pendulum,
+        "slider-crank": models.slider_crank_rod,
+        "nodal": lambda: models.nodal(size),
+    }[name]()
+    build = build_slider_crank if name == "slider-crank" else build_pendulum
+    step, end = RUNS[name]
+    interval = 1e-4 if name == "slider-crank" else 0.01
+    best = None
+    for _ in range(repeat):
+        system, items = build(model)
+        compiled = system.compile()
+        start = time.perf_counter()
+        result = fm.simulate(compiled, end, step, output_interval=interval, solver=solver)
+        wall = time.perf_counter() - start
+        if best is None or wall < best[0]:
+            best = (wall, result, items)
+    wall, result, items = best
+    stats = result.statistics
+    return {
+        "code": "flexmbd",
+        "model": name,
+        "size": size,
+        "elastic_coordinates": model.body.elastic_coordinate_count,
+        "steps": int(stats["steps"]),
+        "wall": wall,
+        "steps_per_second": stats["steps"] / wall,
+        "newton_per_step": stats["newton_iterations"] / stats["steps"],
+        "factorizations": int(stats["factorizations"]),
+        "time": result.time,
+        "tip": face_centroid(result, items["body"], model, items["tip face"]),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("model", choices=sorted(RUNS))
+    parser.add_argument("--size", default="1k", choices=sorted(models.NODAL_SIZES))
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--no-exudyn", action="store_true")
+    parser.add_argument("--spectral-radius", type=float, default=0.9)
+    args = parser.parse_args(argv)
+    solver = fm.GeneralizedAlpha(args.spectral_radius)
+    ours = run_flexmbd(args.model, args.size, args.repeat, solver)
+    print(
+        f"flexmbd  {args.model} ({ours['elastic_coordinates']} elastic coordinates): "
+        f"{ours['steps']} steps in {ours['wall']:.3f} s = {ours['steps_per_second']:.0f} steps/s "
+        f"({1e3 * ours['wall'] / ours['steps']:.3f} ms/step), "
+        f"{ours['newton_per_step']:.2f} Newton its/step, {ours['factorizations']} factorizations"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
