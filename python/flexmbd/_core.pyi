@@ -154,6 +154,9 @@ class System:
         elastic_coordinates: NDArray[np.float64] | None = None,
         elastic_velocities: NDArray[np.float64] | None = None,
         stiffening: Sequence[tuple[Any, Any, float, float]] | None = None,
+        dof_nodes: NDArray[np.int64] | None = None,
+        node_positions: NDArray[np.float64] | None = None,
+        condense: bool | None = None,
         name: str | None = None,
     ) -> BodyId: ...
     def _add_flexible_marker(

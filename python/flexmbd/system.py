@@ -148,6 +148,7 @@ class System(_core.System):
         rayleigh_damping: tuple[float, float] | None = None,
         modal_damping: float | None = None,
         geometric_stiffness: bool = False,
+        condense: bool | None = None,
         name: str | None = None,
     ) -> _core.BodyId:
         """Adds a deformable body in the floating frame of reference (seed eq. 15).
@@ -167,6 +168,11 @@ class System(_core.System):
         geometric stiffness of the axial force. Needed for beams that rotate fast (without it
         a beam spun beyond its first bending frequency diverges). Modal bodies need axial
         modes for it to act.
+
+        `condense` (default: for bodies of at least 300 elastic coordinates) makes the linear
+        solves of the integrator eliminate the elastic coordinates through the constant
+        factorized matrix beta' M_ff + gamma' D_ff + K_ff (see ``docs/solvers.md``): one
+        sparse Cholesky factorization for the whole run instead of refactorizing the body.
         """
         item = f"body '{name}'" if name else "flexible body"
         if not isinstance(body, FlexibleBodyData):
@@ -199,6 +205,13 @@ class System(_core.System):
         i_kl = [_csc_tuple(inv["i_kl"][k][j], n) for k in range(3) for j in range(3)]
         basis = elastic_basis(body)
         stiffening = _stiffening_elements(body, basis, item) if geometric_stiffness else None
+        # Nodes of the elastic coordinates of nodal bodies: the geometric nested-dissection
+        # ordering of their factorizations.
+        dof_nodes = node_positions = None
+        if body.modes is None:
+            free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+            dof_nodes = np.ascontiguousarray(free // body.dofs_per_node, dtype=np.int64)
+            node_positions = np.ascontiguousarray(body.nodes, dtype=float)
         body_id = self._add_flexible_body(
             mass=float(inv["mass"]),
             first_moment=np.asarray(inv["first_moment"], dtype=float),
@@ -219,6 +232,9 @@ class System(_core.System):
             if elastic_velocities is None
             else np.ascontiguousarray(elastic_velocities, dtype=float).ravel(),
             stiffening=stiffening,
+            dof_nodes=dof_nodes,
+            node_positions=node_positions,
+            condense=condense,
             name=name,
         )
         self._flexible[body_id.index] = body

@@ -92,7 +92,8 @@ impl System {
     /// `(data, indices, indptr, n_f)`, `stiffness` and `damping` CSC tuples.
     #[pyo3(signature = (*, mass, first_moment, second_moment, i1, ibar, i_kl, stiffness, damping,
                         position = None, orientation = None, velocity = None, angular_velocity = None,
-                        elastic_coordinates = None, elastic_velocities = None, stiffening = None, name = None))]
+                        elastic_coordinates = None, elastic_velocities = None, stiffening = None,
+                        dof_nodes = None, node_positions = None, condense = None, name = None))]
     #[allow(clippy::too_many_arguments)]
     fn _add_flexible_body(
         &mut self,
@@ -111,6 +112,9 @@ impl System {
         elastic_coordinates: Option<PyReadonlyArray1<f64>>,
         elastic_velocities: Option<PyReadonlyArray1<f64>>,
         stiffening: Option<Vec<Bound<'_, PyAny>>>,
+        dof_nodes: Option<PyReadonlyArray1<i64>>,
+        node_positions: Option<PyReadonlyArray2<f64>>,
+        condense: Option<bool>,
         name: Option<String>,
     ) -> PyResult<BodyId> {
         let index = self.inner.body_count();
@@ -144,6 +148,20 @@ impl System {
                 .iter()
                 .map(|e| stiffening_element(e, &item))
                 .collect::<PyResult<_>>()?,
+            dof_nodes: match dof_nodes {
+                Some(d) => Some(
+                    d.as_slice()?
+                        .iter()
+                        .map(|&k| {
+                            usize::try_from(k).map_err(|_| invalid(&item, format!("negative node index {k}")))
+                        })
+                        .collect::<PyResult<Vec<_>>>()?,
+                ),
+                None => None,
+            },
+            node_positions: node_positions
+                .map(|p| p.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect()),
+            condense,
         };
         let body = check(FlexibleBody::new(&item, input))?;
         let v = |o: Option<&Bound<'_, PyAny>>, what: &str| -> PyResult<Vec3> {

@@ -158,6 +158,15 @@ pub struct FlexibleBodyInput {
     pub damping: Csc,
     /// Beam elements of the geometric stiffness (elastic coupling); empty: linear elasticity.
     pub stiffening: Vec<StiffeningElement>,
+    /// Node of each elastic coordinate (nodal bodies), for the fill-reducing ordering of
+    /// the factorizations of large bodies (`solver::condensed`); None: minimum degree.
+    pub dof_nodes: Option<Vec<usize>>,
+    /// Node positions that `dof_nodes` refer to.
+    pub node_positions: Option<Vec<Vec3>>,
+    /// Whether the linear solves condense the elastic coordinates out through a constant
+    /// factorized matrix (`solver::condensed`); None: when n_f is at least
+    /// `solver::condensed::CONDENSATION_THRESHOLD`.
+    pub condense: Option<bool>,
 }
 
 impl FlexibleBodyInput {
@@ -234,6 +243,12 @@ pub struct FlexibleBody {
     pub damping: ElasticMatrix,
     /// Beam elements of the geometric stiffness (empty: linear elasticity).
     pub stiffening: Vec<StiffeningElement>,
+    /// Node of each elastic coordinate (for orderings), see [`FlexibleBodyInput`].
+    pub dof_nodes: Option<Vec<usize>>,
+    /// Node positions (for orderings).
+    pub node_positions: Option<Vec<Vec3>>,
+    /// Condensation in the linear solves, see [`FlexibleBodyInput`].
+    pub condense: Option<bool>,
 }
 
 fn check_square(item: &str, what: &str, m: &Csc, n: usize) -> Result<()> {
@@ -304,6 +319,15 @@ impl FlexibleBody {
             check_square(item, &format!("invariant I_{}{}", kl / 3 + 1, kl % 3 + 1), m, n)?;
         }
         check_square(item, "stiffness matrix", &input.stiffness, n)?;
+        match (&input.dof_nodes, &input.node_positions) {
+            (None, None) => {}
+            (Some(d), Some(p)) if d.len() == n && d.iter().all(|&k| k < p.len()) => {}
+            _ => {
+                return Err(bad(format!(
+                    "dof_nodes must give a node (of node_positions) for each of the {n} elastic coordinates"
+                )))
+            }
+        }
         check_square(item, "damping matrix", &input.damping, n)?;
         for k in 0..3 {
             for l in k..3 {
@@ -365,7 +389,13 @@ impl FlexibleBody {
                     }
                 }
             }
-            Csc { nrows: n, ncols: n, col_ptr: pattern.col_ptr.clone(), row_idx: pattern.row_idx.clone(), values }
+            Csc {
+                nrows: n,
+                ncols: n,
+                col_ptr: pattern.col_ptr.clone(),
+                row_idx: pattern.row_idx.clone(),
+                values,
+            }
         };
         let mass_matrix = ElasticMatrix::new(combination(&[(1.0, 0), (1.0, 4), (1.0, 8)]), &pattern);
         let antisymmetric = (0..3)
@@ -385,6 +415,9 @@ impl FlexibleBody {
             stiffness: ElasticMatrix::new(input.stiffness, &pattern),
             damping: ElasticMatrix::new(input.damping, &pattern),
             stiffening,
+            dof_nodes: input.dof_nodes,
+            node_positions: input.node_positions,
+            condense: input.condense,
             i_kl,
             mass_matrix,
             antisymmetric,

@@ -17,6 +17,7 @@
 use super::assembly::{assemble, MatrixCoefficients, StateView};
 use super::settings::{JacobianUpdate, LinearSolver, NewtonSettings};
 use crate::error::{FlexmbdError, Result};
+use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};
 
 /// The four parameters of the method.
@@ -100,29 +101,38 @@ pub struct JacobianCache {
     pub kind: Factorization,
 }
 
-/// Factorizes the assembled Newton matrix in `ws.values` with `kind`. For LDL^T the
-/// normalization constraints get the penalty s kappa (2p)(2p)^T: adding s kappa C_n^T C_n to
-/// the coordinate block leaves dq unchanged (C_n dq is fixed by the constraint rows) and only
-/// shifts dmu_n by s kappa C_n dq, which `solve` takes back.
+/// Factorizes the assembled Newton matrix in `ws.values` (assembled with the coefficients
+/// `coef`) with `kind`. For LDL^T the normalization constraints get the penalty
+/// s kappa (2p)(2p)^T: adding s kappa C_n^T C_n to the coordinate block leaves dq unchanged
+/// (C_n dq is fixed by the constraint rows) and only shifts dmu_n by s kappa C_n dq, which
+/// `solve` takes back. Models with condensed deformable bodies factorize their Schur
+/// complement instead (`solver::condensed`; LU of the reduced system, whatever `kind`).
 fn factorize(
     model: &Model,
     ws: &mut Workspace,
     kind: Factorization,
-    scale: f64,
+    coef: &MatrixCoefficients,
     q: &[f64],
 ) -> std::result::Result<(), String> {
-    match kind {
-        Factorization::Lu => ws.lu.factorize(&ws.values),
-        Factorization::Ldlt | Factorization::Projection => {
-            for (k, nz) in model.normalizations.iter().enumerate() {
-                ws.penalties[k] = (
-                    scale * ws.normalization_weights[k],
-                    [q[nz.dofs[0]], q[nz.dofs[1]], q[nz.dofs[2]], q[nz.dofs[3]]],
-                );
-            }
-            let target = if kind == Factorization::Ldlt { &mut ws.ldlt } else { &mut ws.projection };
-            target.factorize(&ws.values, &ws.penalties)
+    let scale = coef.scale;
+    match &mut ws.linear {
+        LinearSolvers::Condensed { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.factorize(model, &ws.values, coef, q).map_err(|e| e.to_string())
         }
+        LinearSolvers::Direct { lu, ldlt, projection } => match kind {
+            Factorization::Lu => lu.factorize(&ws.values),
+            Factorization::Ldlt | Factorization::Projection => {
+                for (k, nz) in model.normalizations.iter().enumerate() {
+                    ws.penalties[k] = (
+                        scale * ws.normalization_weights[k],
+                        [q[nz.dofs[0]], q[nz.dofs[1]], q[nz.dofs[2]], q[nz.dofs[3]]],
+                    );
+                }
+                let target = if kind == Factorization::Ldlt { ldlt } else { projection };
+                target.factorize(&ws.values, &ws.penalties)
+            }
+        },
     }
 }
 
@@ -133,21 +143,27 @@ fn solve(
     kind: Factorization,
     scale: f64,
 ) -> std::result::Result<(), String> {
-    match kind {
-        Factorization::Lu => ws.lu.solve_in_place(&mut ws.solution),
-        Factorization::Ldlt | Factorization::Projection => {
-            let nq = model.coordinate_count;
-            // C_n dq equals the right-hand side of the normalization rows.
-            for (k, nz) in model.normalizations.iter().enumerate() {
-                ws.scratch[2][k] = ws.solution[nq + nz.row];
-            }
-            let target = if kind == Factorization::Ldlt { &mut ws.ldlt } else { &mut ws.projection };
-            target.solve_in_place(&mut ws.solution)?;
-            for (k, nz) in model.normalizations.iter().enumerate() {
-                ws.solution[nq + nz.row] += scale * ws.normalization_weights[k] * ws.scratch[2][k];
-            }
-            Ok(())
+    match &mut ws.linear {
+        LinearSolvers::Condensed { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.solve_in_place(&mut ws.solution)
         }
+        LinearSolvers::Direct { lu, ldlt, projection } => match kind {
+            Factorization::Lu => lu.solve_in_place(&mut ws.solution),
+            Factorization::Ldlt | Factorization::Projection => {
+                let nq = model.coordinate_count;
+                // C_n dq equals the right-hand side of the normalization rows.
+                for (k, nz) in model.normalizations.iter().enumerate() {
+                    ws.scratch[2][k] = ws.solution[nq + nz.row];
+                }
+                let target = if kind == Factorization::Ldlt { ldlt } else { projection };
+                target.solve_in_place(&mut ws.solution)?;
+                for (k, nz) in model.normalizations.iter().enumerate() {
+                    ws.solution[nq + nz.row] += scale * ws.normalization_weights[k] * ws.scratch[2][k];
+                }
+                Ok(())
+            }
+        },
     }
 }
 
@@ -249,7 +265,7 @@ fn iterate(
         let view = StateView::of(next);
         assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
         if need_matrix {
-            if let Err(detail) = factorize(model, ws, kind, s, &next.coordinates) {
+            if let Err(detail) = factorize(model, ws, kind, &coef, &next.coordinates) {
                 cache.step_size = None;
                 report.failure = Some(format!("singular Newton matrix: {detail}"));
                 return Ok(report);
@@ -401,7 +417,13 @@ pub fn step(
     if project_velocities && nc > 0 {
         let view = StateView::of(next);
         assemble(model, view, ws, Some(MatrixCoefficients::ACCELERATION))?;
-        if let Err(detail) = factorize(model, ws, Factorization::Projection, 1.0, &next.coordinates) {
+        if let Err(detail) = factorize(
+            model,
+            ws,
+            Factorization::Projection,
+            &MatrixCoefficients::ACCELERATION,
+            &next.coordinates,
+        ) {
             report.converged = false;
             report.failure = Some(format!("singular mass matrix in the velocity projection: {detail}"));
             return Ok(report);

@@ -8,6 +8,7 @@
 
 use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use crate::error::{FlexmbdError, Result};
+use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};
 
 /// Settings of the initial-condition solve.
@@ -34,8 +35,23 @@ impl Default for InitialSettings {
     }
 }
 
-fn factorize(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
-    ws.lu.factorize(&ws.values).map_err(|detail| FlexmbdError::SingularMatrix {
+/// Factorizes the matrix assembled in `ws.values` with the coefficients `coef`: by LU, or by
+/// the condensed solver for models with large deformable bodies.
+fn factorize(
+    model: &Model,
+    ws: &mut Workspace,
+    coef: &MatrixCoefficients,
+    q: &[f64],
+    time: f64,
+    context: &str,
+) -> Result<()> {
+    let result = match &mut ws.linear {
+        LinearSolvers::Direct { lu, .. } => lu.factorize(&ws.values),
+        LinearSolvers::Condensed { projection, .. } => {
+            projection.factorize(model, &ws.values, coef, q).map_err(|e| e.to_string())
+        }
+    };
+    result.map_err(|detail| FlexmbdError::SingularMatrix {
         time,
         context: context.to_string(),
         detail: format!("{detail} (redundant or conflicting constraints, or a singular configuration)"),
@@ -44,7 +60,10 @@ fn factorize(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
 
 fn solve(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
     let mut x = std::mem::take(&mut ws.solution);
-    let r = ws.lu.solve_in_place(&mut x);
+    let r = match &mut ws.linear {
+        LinearSolvers::Direct { lu, .. } => lu.solve_in_place(&mut x),
+        LinearSolvers::Condensed { projection, .. } => projection.solve_in_place(&mut x),
+    };
     ws.solution = x;
     r.map_err(|detail| FlexmbdError::SingularMatrix {
         time,
@@ -88,7 +107,14 @@ pub fn solve_initial_positions_and_velocities(
                 iterations,
             });
         }
-        factorize(ws, t, "initial position correction")?;
+        factorize(
+            model,
+            ws,
+            &MatrixCoefficients::PROJECTION,
+            &state.coordinates,
+            t,
+            "initial position correction",
+        )?;
         ws.solution[..nq].iter_mut().for_each(|x| *x = 0.0);
         for k in 0..model.constraint_count {
             ws.solution[nq + k] = -ws.residual[nq + k];
@@ -104,7 +130,14 @@ pub fn solve_initial_positions_and_velocities(
         let mut ct = vec![0.0; model.constraint_count];
         constraint_time_terms(model, StateView::of(state), ws, &mut ct, None)?;
         if settings.correct_velocities {
-            factorize(ws, t, "initial velocity correction")?;
+            factorize(
+                model,
+                ws,
+                &MatrixCoefficients::PROJECTION,
+                &state.coordinates,
+                t,
+                "initial velocity correction",
+            )?;
             ws.solution[..nq].copy_from_slice(&state.velocities);
             for k in 0..model.constraint_count {
                 ws.solution[nq + k] = -ct[k];
@@ -126,7 +159,14 @@ pub fn solve_accelerations(model: &Model, state: &mut State, ws: &mut Workspace)
     let mut gamma = vec![0.0; model.constraint_count];
     let mut ct = vec![0.0; model.constraint_count];
     constraint_time_terms(model, StateView::of(state), ws, &mut ct, Some(&mut gamma))?;
-    factorize(ws, t, "acceleration system (seed eq. 26)")?;
+    factorize(
+        model,
+        ws,
+        &MatrixCoefficients::ACCELERATION,
+        &state.coordinates,
+        t,
+        "acceleration system (seed eq. 26)",
+    )?;
     for k in 0..nq {
         ws.solution[k] = -ws.residual[k];
     }

@@ -3,6 +3,7 @@
 //! the time loop.
 
 pub mod assembly;
+pub mod condensed;
 pub mod generalized_alpha;
 pub mod initial;
 pub mod settings;

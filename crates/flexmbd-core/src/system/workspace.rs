@@ -9,6 +9,7 @@ use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::force::ForceLocal;
 use crate::math::dense::DenseMatrix;
+use crate::solver::condensed::{has_condensed_bodies, CondensedSolver};
 use crate::solver::sparse::{SparseLdlt, SparseLu};
 use crate::system::model::Model;
 
@@ -63,6 +64,30 @@ impl FlexibleWork {
     }
 }
 
+/// The factorizations a simulation keeps.
+pub enum LinearSolvers {
+    /// Models without condensed bodies: factorizations of the whole Newton matrix.
+    Direct {
+        /// Sparse LU of the last factorized matrix (exact Newton steps, initial conditions).
+        lu: Box<SparseLu>,
+        /// Symmetric quasi-definite LDL^T of the last factorized iteration matrix (modified
+        /// Newton).
+        ldlt: Box<SparseLdlt>,
+        /// LDL^T of [[M, C_q^T], [C_q, 0]] for the velocity projection (kept apart so that
+        /// the Newton matrix can be reused by the next step).
+        projection: Box<SparseLdlt>,
+    },
+    /// Models with large deformable bodies: their elastic coordinates condensed out
+    /// (`solver::condensed`), one solver for the Newton matrix, one for the projection and
+    /// acceleration systems.
+    Condensed {
+        /// Newton iteration matrix.
+        newton: Box<CondensedSolver>,
+        /// Projection, acceleration and initial-condition systems.
+        projection: Box<CondensedSolver>,
+    },
+}
+
 /// Workspace of a simulation of one model.
 pub struct Workspace {
     /// Kinematics of every marker (filled by `update_kinematics`).
@@ -71,14 +96,8 @@ pub struct Workspace {
     pub residual: Vec<f64>,
     /// Values of the Newton matrix on the model's pattern (nnz); filled by `assemble`.
     pub values: Vec<f64>,
-    /// Sparse LU of the last factorized matrix (exact Newton steps, initial conditions).
-    pub lu: SparseLu,
-    /// Symmetric quasi-definite LDL^T of the last factorized iteration matrix (modified
-    /// Newton).
-    pub ldlt: SparseLdlt,
-    /// LDL^T of [[M, C_q^T], [C_q, 0]] for the velocity projection (kept apart so that the
-    /// Newton matrix can be reused by the next step).
-    pub projection: SparseLdlt,
+    /// The factorizations of the linear solves.
+    pub linear: LinearSolvers,
     /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
     /// trace of its inertia about the body origin.
     pub normalization_weights: Vec<f64>,
@@ -105,28 +124,29 @@ impl Workspace {
     /// Allocates every buffer for `model` and performs the symbolic factorization.
     pub fn new(model: &Model) -> Result<Self> {
         let n = model.system_size();
-        let lu = SparseLu::new(&model.layout.pattern).map_err(|detail| FlexmbdError::SingularMatrix {
-            time: 0.0,
-            context: "symbolic analysis of the Newton matrix".to_string(),
-            detail,
-        })?;
-        let blocks: Vec<[usize; 4]> = model.normalizations.iter().map(|nz| nz.dofs).collect();
-        let ldlt =
-            SparseLdlt::new(&model.layout.pattern, model.coordinate_count, &blocks).map_err(|detail| {
-                FlexmbdError::SingularMatrix {
-                    time: 0.0,
-                    context: "symbolic analysis of the iteration matrix".to_string(),
-                    detail,
-                }
+        let linear = if has_condensed_bodies(model) {
+            LinearSolvers::Condensed {
+                newton: Box::new(CondensedSolver::new(model, true)?),
+                projection: Box::new(CondensedSolver::new(model, false)?),
+            }
+        } else {
+            let lu = SparseLu::new(&model.layout.pattern).map_err(|detail| FlexmbdError::SingularMatrix {
+                time: 0.0,
+                context: "symbolic analysis of the Newton matrix".to_string(),
+                detail,
             })?;
-        let projection =
-            SparseLdlt::new(&model.layout.pattern, model.coordinate_count, &blocks).map_err(|detail| {
-                FlexmbdError::SingularMatrix {
-                    time: 0.0,
-                    context: "symbolic analysis of the projection matrix".to_string(),
-                    detail,
-                }
-            })?;
+            let blocks: Vec<[usize; 4]> = model.normalizations.iter().map(|nz| nz.dofs).collect();
+            let symmetric = |context: &str| {
+                SparseLdlt::new(&model.layout.pattern, model.coordinate_count, &blocks).map_err(|detail| {
+                    FlexmbdError::SingularMatrix { time: 0.0, context: context.to_string(), detail }
+                })
+            };
+            LinearSolvers::Direct {
+                lu: Box::new(lu),
+                ldlt: Box::new(symmetric("symbolic analysis of the iteration matrix")?),
+                projection: Box::new(symmetric("symbolic analysis of the projection matrix")?),
+            }
+        };
         let normalization_weights = model
             .normalizations
             .iter()
@@ -140,9 +160,7 @@ impl Workspace {
             markers: model.markers.iter().map(|m| MarkerKinematics::with_size(m.dofs.len())).collect(),
             residual: vec![0.0; n],
             values: vec![0.0; model.layout.pattern.nnz()],
-            lu,
-            ldlt,
-            projection,
+            linear,
             penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
             normalization_weights,
             rigid: RigidTangent::default(),

@@ -1,0 +1,585 @@
+//! Linear solves with the elastic coordinates of large deformable bodies condensed out through
+//! a constant factorized matrix: what M_ff and K_ff being constant allows (seed section 3,
+//! "computational strategy", and section 5, eq. 41, where the constant M_ff is the pivot that
+//! decouples the elastic accelerations).
+//!
+//! Split the unknowns of the Newton system N x = r into F (the elastic coordinates of the
+//! condensed bodies) and S (everything else: rigid bodies, reference coordinates, multipliers).
+//! The iteration matrix keeps N_SS, N_SF and N_FS as assembled, and replaces N_FF, body by body,
+//! by the constant A = s (m M_ff + v D_ff + p K_ff + i I) with the coefficients of the solve
+//! (generalized-alpha: m = beta', v = gamma', p = 1; the acceleration system: m = 1). What it
+//! leaves out of N_FF (the velocity-dependent inertia terms sum c_kl I_kl, the geometric
+//! stiffness, the constraint Hessians at elastic markers) is small against A at the step sizes
+//! of an implicit integration, so modified Newton still converges, to the exact solution: the
+//! residual is exact. A is factorized (sparse Cholesky) once per set of coefficients and kept.
+//!
+//! With the coupling columns J (the S unknowns that touch F: the body's reference coordinates,
+//! the multipliers of joints at its elastic markers, ...) and Z = A^-1 N_FJ (|J| solves, when
+//! the iteration matrix is refreshed), the Schur complement S_hat = N_SS - N_SF Z differs from
+//! N_SS only in the dense J x J block, and is factorized by sparse LU. A solve then costs one
+//! solve with A per body, the small LU solve and a dense product with Z:
+//!   y = A^-1 r_F,   S_hat x_S = r_S - N_SF y,   x_F = y - Z x_J.
+
+use crate::body::flexible::{FlexibleBody, REFERENCE_COORDINATES};
+use crate::body::BodyKind;
+use crate::error::{FlexmbdError, Result};
+use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
+use crate::solver::assembly::MatrixCoefficients;
+use crate::solver::sparse::{PatternBuilder, SparseLu};
+use crate::system::model::Model;
+
+/// Deformable bodies with at least this many elastic coordinates are condensed.
+pub const CONDENSATION_THRESHOLD: usize = 300;
+
+/// Whether a model has bodies to condense.
+pub fn has_condensed_bodies(model: &Model) -> bool {
+    model.bodies.iter().any(|b| is_condensed(&b.kind))
+}
+
+/// Whether a body is condensed: as its `condense` option says, else when it has at least
+/// [`CONDENSATION_THRESHOLD`] elastic coordinates.
+pub fn is_condensed(kind: &BodyKind) -> bool {
+    match kind {
+        BodyKind::Flexible(f) => {
+            f.elastic_count > 0 && f.condense.unwrap_or(f.elastic_count >= CONDENSATION_THRESHOLD)
+        }
+        _ => false,
+    }
+}
+
+/// The coefficients that define A (m, v, p, i, s), as bits for exact comparison.
+type Key = [u64; 5];
+
+fn key(c: &MatrixCoefficients) -> Key {
+    [c.mass.to_bits(), c.velocity.to_bits(), c.position.to_bits(), c.identity.to_bits(), c.scale.to_bits()]
+}
+
+/// The entries (local f, value index) of one coupling unknown j: N_{f, j}, then N_{j, f}.
+type Coupling = (Vec<(usize, usize)>, Vec<(usize, usize)>);
+
+/// A factorized A of one body for one set of coefficients.
+struct BlockFactor {
+    key: Key,
+    /// Cholesky factor, or None when A = s i I (only the identity term).
+    factor: Option<SymmetricFactor>,
+    /// s i when A is a multiple of the identity.
+    diagonal: f64,
+    /// A^-1 [I1^T, J_f0^T] (n x 6, column-major): the solves of the coupling with the body's
+    /// own reference coordinates, made once per factorization (see `reference_coupling`).
+    influence: Vec<f64>,
+}
+
+impl BlockFactor {
+    fn solve_in_place(&self, x: &mut [f64]) -> Result<()> {
+        match &self.factor {
+            Some(f) => f.solve_in_place(x),
+            None => {
+                x.iter_mut().for_each(|v| *v /= self.diagonal);
+                Ok(())
+            }
+        }
+    }
+}
+
+/// One condensed body: its F range, coupling columns and factorizations.
+struct Block {
+    /// Body index.
+    body: usize,
+    /// First global index of its elastic coordinates.
+    first: usize,
+    /// n_f.
+    n: usize,
+    /// Coupling unknowns J (global indices in S).
+    coupling: Vec<usize>,
+    /// Per coupling column j: (local row f, value index) of the entries N_{f, J[j]}.
+    column_entries: Vec<Vec<(usize, usize)>>,
+    /// Per coupling row j: (local column f, value index) of the entries N_{J[j], f}.
+    row_entries: Vec<Vec<(usize, usize)>>,
+    /// The values of `row_entries` at the last factorization (the solves need N_JF after the
+    /// global values have been overwritten).
+    row_values: Vec<Vec<f64>>,
+    /// Reduced value index of each (J[a], J[b]) pair, row-major |J| x |J|.
+    schur_entries: Vec<usize>,
+    /// Z = A^-1 N_FJ, column-major n x |J|.
+    z: Vec<f64>,
+    /// Factorizations of A, most recently used first (at most two).
+    factors: Vec<BlockFactor>,
+    /// Which factor the current Z belongs to.
+    current: usize,
+    /// Position in `coupling` of each of the body's reference coordinates [R, p].
+    reference: [usize; 7],
+}
+
+/// The condensed linear solver of a model (one per kind of matrix kept: Newton iteration
+/// matrix, projection / acceleration matrix).
+pub struct CondensedSolver {
+    blocks: Vec<Block>,
+    /// Global index -> reduced index (usize::MAX for condensed unknowns).
+    reduced_of: Vec<usize>,
+    /// Reduced index -> global index.
+    global_of: Vec<usize>,
+    /// For each reduced value, the global value index it copies (usize::MAX for the fill of
+    /// the J x J blocks).
+    copy_from: Vec<usize>,
+    reduced_values: Vec<f64>,
+    lu: SparseLu,
+    /// Whether the coupling with the reference coordinates comes from its mass part (an
+    /// iteration matrix) or as assembled (exact: for the direct solves of the projection and
+    /// acceleration systems).
+    approximate_reference: bool,
+    /// Scratch: per block its y = A^-1 r_F (n each, concatenated), reduced rhs.
+    y: Vec<f64>,
+    rhs: Vec<f64>,
+    factorized: bool,
+}
+
+impl std::fmt::Debug for CondensedSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "CondensedSolver({} bodies, reduced n = {})", self.blocks.len(), self.global_of.len())
+    }
+}
+
+fn flexible(model: &Model, body: usize) -> &FlexibleBody {
+    match &model.bodies[body].kind {
+        BodyKind::Flexible(f) => f,
+        _ => unreachable!("condensed bodies are flexible"),
+    }
+}
+
+impl CondensedSolver {
+    /// Lays out the split of the model's Newton matrix (pattern `model.layout.pattern`). With
+    /// `approximate_reference`, the coupling of each body with its reference coordinates is
+    /// taken from its mass part without solves (for iteration matrices, see `factorize`);
+    /// else as assembled (exact).
+    pub fn new(model: &Model, approximate_reference: bool) -> Result<Self> {
+        let pattern = &model.layout.pattern;
+        let n = pattern.n;
+        let mut reduced_of = vec![0usize; n];
+        let mut blocks = Vec::new();
+        for (bi, body) in model.bodies.iter().enumerate() {
+            if is_condensed(&body.kind) {
+                let fb = flexible(model, bi);
+                let first = body.offset + REFERENCE_COORDINATES;
+                for k in first..first + fb.elastic_count {
+                    reduced_of[k] = usize::MAX;
+                }
+                blocks.push((bi, first, fb.elastic_count));
+            }
+        }
+        let mut global_of = Vec::new();
+        for (g, r) in reduced_of.iter_mut().enumerate() {
+            if *r != usize::MAX {
+                *r = global_of.len();
+                global_of.push(g);
+            }
+        }
+        let in_block = |g: usize| blocks.iter().position(|&(_, first, m)| g >= first && g < first + m);
+        // Coupling entries of every block, from the global pattern.
+        let mut coupling_sets: Vec<std::collections::BTreeMap<usize, Coupling>> =
+            vec![Default::default(); blocks.len()];
+        let mut builder = PatternBuilder::new(global_of.len());
+        for c in 0..n {
+            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                let r = pattern.row_idx[k];
+                match (in_block(r), in_block(c)) {
+                    (None, None) => builder.add_entry(reduced_of[r], reduced_of[c]),
+                    (Some(b), None) => {
+                        coupling_sets[b].entry(c).or_default().0.push((r - blocks[b].1, k));
+                    }
+                    (None, Some(b)) => {
+                        coupling_sets[b].entry(r).or_default().1.push((c - blocks[b].1, k));
+                    }
+                    (Some(_), Some(_)) => {}
+                }
+            }
+        }
+        for set in &coupling_sets {
+            let j: Vec<usize> = set.keys().map(|&g| reduced_of[g]).collect();
+            builder.add_block(&j, &j);
+        }
+        builder.add_diagonal(&(0..global_of.len()).collect::<Vec<_>>());
+        let reduced_pattern = builder.build();
+        let mut copy_from = vec![usize::MAX; reduced_pattern.nnz()];
+        for c in 0..n {
+            if reduced_of[c] == usize::MAX {
+                continue;
+            }
+            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                let r = pattern.row_idx[k];
+                if reduced_of[r] != usize::MAX {
+                    copy_from[reduced_pattern.index(reduced_of[r], reduced_of[c])] = k;
+                }
+            }
+        }
+        let lu = SparseLu::new(&reduced_pattern).map_err(|detail| FlexmbdError::SingularMatrix {
+            time: 0.0,
+            context: "symbolic analysis of the condensed Newton matrix".to_string(),
+            detail,
+        })?;
+        let mut out_blocks = Vec::with_capacity(blocks.len());
+        let mut y_len = 0;
+        for ((bi, first, m), set) in blocks.into_iter().zip(coupling_sets) {
+            let coupling: Vec<usize> = set.keys().copied().collect();
+            let reduced: Vec<usize> = coupling.iter().map(|&g| reduced_of[g]).collect();
+            let schur_entries = reduced_pattern.block_indices(&reduced, &reduced);
+            let (column_entries, row_entries): (Vec<_>, Vec<Vec<(usize, usize)>>) = set.into_values().unzip();
+            let row_values = row_entries.iter().map(|e| vec![0.0; e.len()]).collect();
+            let offset = model.bodies[bi].offset;
+            let mut reference = [0usize; 7];
+            for (r, slot) in reference.iter_mut().enumerate() {
+                *slot = coupling.iter().position(|&g| g == offset + r).ok_or_else(|| {
+                    FlexmbdError::InvalidModel {
+                        item: format!("body '{}'", model.bodies[bi].name),
+                        message: "condensed body without reference coupling".to_string(),
+                    }
+                })?;
+            }
+            y_len += m;
+            out_blocks.push(Block {
+                body: bi,
+                first,
+                n: m,
+                z: vec![0.0; m * coupling.len()],
+                coupling,
+                column_entries,
+                row_entries,
+                row_values,
+                schur_entries,
+                factors: Vec::new(),
+                current: 0,
+                reference,
+            });
+        }
+        Ok(CondensedSolver {
+            blocks: out_blocks,
+            reduced_values: vec![0.0; reduced_pattern.nnz()],
+            rhs: vec![0.0; global_of.len()],
+            y: vec![0.0; y_len],
+            reduced_of,
+            global_of,
+            copy_from,
+            lu,
+            approximate_reference,
+            factorized: false,
+        })
+    }
+
+    /// Size of the reduced (Schur complement) system.
+    pub fn reduced_size(&self) -> usize {
+        self.global_of.len()
+    }
+
+    /// Factorizes the iteration matrix with the assembled `values` (global pattern) and the
+    /// constant blocks A for the coefficients `c`, at coordinates `q`.
+    ///
+    /// With `approximate_reference`, the coupling of each body with its own reference
+    /// coordinates enters through its mass part s m [I1^T A^T, J_f0^T 2L] (and the
+    /// transpose), with J_f0 = int rho u0~ S the undeformed J_f: then Z needs no solve at all,
+    /// only the influence A^-1 [I1^T, J_f0^T] kept with the factorization. The velocity and position parts left out are of relative
+    /// size h w and h^2 (g / L) against the mass part; the other couplings (joints and forces
+    /// at elastic markers) are taken as assembled, one solve per coupling column.
+    pub fn factorize(
+        &mut self,
+        model: &Model,
+        values: &[f64],
+        c: &MatrixCoefficients,
+        q: &[f64],
+    ) -> Result<()> {
+        self.factorized = false;
+        for (r, &g) in self.reduced_values.iter_mut().zip(&self.copy_from) {
+            *r = if g == usize::MAX { 0.0 } else { values[g] };
+        }
+        for block in &mut self.blocks {
+            let fb = flexible(model, block.body);
+            block.select_factor(fb, c)?;
+            let (m, nj) = (block.n, block.coupling.len());
+            let structured = self.approximate_reference;
+            let is_reference = |j: usize| structured && block.reference.contains(&j);
+            // Z = A^-1 N_FJ: the other coupling columns by solves, packed together.
+            let others: Vec<usize> = (0..nj).filter(|&j| !is_reference(j)).collect();
+            let mut packed = vec![0.0; m * others.len()];
+            for (slot, &j) in others.iter().enumerate() {
+                for &(f, k) in &block.column_entries[j] {
+                    packed[slot * m + f] = values[k];
+                }
+            }
+            if !others.is_empty() {
+                block.factors[block.current].solve_in_place(&mut packed)?;
+            }
+            for (slot, &j) in others.iter().enumerate() {
+                block.z[j * m..(j + 1) * m].copy_from_slice(&packed[slot * m..(slot + 1) * m]);
+            }
+            for (j, (stored, entries)) in block.row_values.iter_mut().zip(&block.row_entries).enumerate() {
+                if !is_reference(j) {
+                    for (v, &(_, k)) in stored.iter_mut().zip(entries) {
+                        *v = values[k];
+                    }
+                }
+            }
+            if structured {
+                block.reference_coupling(fb, c, &q[model.bodies[block.body].offset..]);
+            }
+            // S_hat(J, J) -= N_JF Z.
+            for (a, entries) in block.row_entries.iter().enumerate() {
+                let stored = &block.row_values[a];
+                for b in 0..nj {
+                    let zb = &block.z[b * m..(b + 1) * m];
+                    let update: f64 = entries.iter().zip(stored).map(|(&(f, _), v)| v * zb[f]).sum();
+                    self.reduced_values[block.schur_entries[a * nj + b]] -= update;
+                }
+            }
+        }
+        self.lu.factorize(&self.reduced_values).map_err(|detail| FlexmbdError::SingularMatrix {
+            time: 0.0,
+            context: "condensed Newton matrix".to_string(),
+            detail,
+        })?;
+        self.factorized = true;
+        Ok(())
+    }
+
+    /// Solves in place (global vector) with the last factorization.
+    pub fn solve_in_place(&mut self, x: &mut [f64]) -> std::result::Result<(), String> {
+        if !self.factorized {
+            return Err("no valid factorization".to_string());
+        }
+        for (r, &g) in self.rhs.iter_mut().zip(&self.global_of) {
+            *r = x[g];
+        }
+        let mut offset = 0;
+        for block in &self.blocks {
+            let y = &mut self.y[offset..offset + block.n];
+            y.copy_from_slice(&x[block.first..block.first + block.n]);
+            block.factors[block.current].solve_in_place(y).map_err(|e| e.to_string())?;
+            for (a, entries) in block.row_entries.iter().enumerate() {
+                let stored = &block.row_values[a];
+                let update: f64 = entries.iter().zip(stored).map(|(&(f, _), v)| v * y[f]).sum();
+                self.rhs[self.reduced_of[block.coupling[a]]] -= update;
+            }
+            offset += block.n;
+        }
+        self.lu.solve_in_place(&mut self.rhs)?;
+        for (&r, &g) in self.rhs.iter().zip(&self.global_of) {
+            x[g] = r;
+        }
+        let mut offset = 0;
+        for block in &self.blocks {
+            let y = &self.y[offset..offset + block.n];
+            let out = &mut x[block.first..block.first + block.n];
+            out.copy_from_slice(y);
+            for (j, &g) in block.coupling.iter().enumerate() {
+                let xj = self.rhs[self.reduced_of[g]];
+                if xj != 0.0 {
+                    for (o, zv) in out.iter_mut().zip(&block.z[j * block.n..(j + 1) * block.n]) {
+                        *o -= zv * xj;
+                    }
+                }
+            }
+            offset += block.n;
+        }
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err("the matrix is singular (the solution is not finite)".to_string());
+        }
+        Ok(())
+    }
+}
+
+/// Rows of I1 (i = 0..3) and of J_f0 = int rho u0~ S (i = 3..6: Ibar_jk - Ibar_kj for
+/// (i, j, k) cyclic), each n_f long.
+fn coupling_rows(fb: &FlexibleBody, i: usize) -> Vec<f64> {
+    let n = fb.elastic_count;
+    if i < 3 {
+        return fb.i1[i * n..(i + 1) * n].to_vec();
+    }
+    let i = i - 3;
+    let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+    let (a, b) =
+        (&fb.ibar[(3 * j + k) * n..(3 * j + k + 1) * n], &fb.ibar[(3 * k + j) * n..(3 * k + j + 1) * n]);
+    a.iter().zip(b).map(|(x, y)| x - y).collect()
+}
+
+impl Block {
+    /// Z and N_JF of the reference coordinates from their mass part (see `factorize`), at the
+    /// body coordinates `qb`.
+    fn reference_coupling(&mut self, fb: &FlexibleBody, c: &MatrixCoefficients, qb: &[f64]) {
+        let m = self.n;
+        let sm = c.scale * c.mass;
+        let p = [qb[3], qb[4], qb[5], qb[6]];
+        let a = crate::math::euler::rotation_matrix(&p);
+        let l = crate::math::euler::l_matrix(&p);
+        let influence = &self.factors[self.current].influence;
+        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f0^T 2L e_c.
+        for col in 0..7 {
+            let weights: [f64; 3] =
+                std::array::from_fn(|i| if col < 3 { a.0[col][i] } else { 2.0 * l[i][col - 3] });
+            let shift = if col < 3 { 0 } else { 3 };
+            let j = self.reference[col];
+            let z = &mut self.z[j * m..(j + 1) * m];
+            z.iter_mut().for_each(|x| *x = 0.0);
+            let row = &mut self.row_values[j];
+            row.iter_mut().for_each(|x| *x = 0.0);
+            if sm == 0.0 {
+                continue;
+            }
+            for i in 0..3 {
+                let w = sm * weights[i];
+                let column = &influence[(shift + i) * m..(shift + i + 1) * m];
+                for (zf, v) in z.iter_mut().zip(column) {
+                    *zf += w * v;
+                }
+                let rows = coupling_rows(fb, shift + i);
+                for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
+                    *r += w * rows[f];
+                }
+            }
+        }
+    }
+
+    /// Makes `current` a factorization of A for the coefficients `c`, reusing a kept one.
+    fn select_factor(&mut self, fb: &FlexibleBody, c: &MatrixCoefficients) -> Result<()> {
+        let k = key(c);
+        if let Some(pos) = self.factors.iter().position(|f| f.key == k) {
+            self.current = pos;
+            return Ok(());
+        }
+        let only_identity = c.mass == 0.0 && c.velocity == 0.0 && c.position == 0.0;
+        let mut factor = if only_identity {
+            BlockFactor { key: k, factor: None, diagonal: c.scale * c.identity, influence: Vec::new() }
+        } else {
+            let mut on_pattern = vec![0.0; fb.pattern.nnz()];
+            fb.mass_matrix.add_to_pattern(c.scale * c.mass, &mut on_pattern);
+            fb.damping.add_to_pattern(c.scale * c.velocity, &mut on_pattern);
+            fb.stiffness.add_to_pattern(c.scale * c.position, &mut on_pattern);
+            // The pattern with a diagonal entry appended to every column (duplicates are
+            // summed by the factorization) for the identity term.
+            let ep = &fb.pattern;
+            let mut col_ptr = Vec::with_capacity(ep.n + 1);
+            let mut row_idx = Vec::with_capacity(ep.nnz() + ep.n);
+            let mut values = Vec::with_capacity(ep.nnz() + ep.n);
+            col_ptr.push(0);
+            for col in 0..ep.n {
+                for k in ep.col_ptr[col]..ep.col_ptr[col + 1] {
+                    row_idx.push(ep.row_idx[k]);
+                    values.push(on_pattern[k]);
+                }
+                row_idx.push(col);
+                values.push(c.scale * c.identity);
+                col_ptr.push(row_idx.len());
+            }
+            let matrix = CscRef { n: self.n, col_ptr: &col_ptr, row_idx: &row_idx, values: &values };
+            let ordering = match (&fb.dof_nodes, &fb.node_positions) {
+                (Some(nodes), Some(positions)) => Ordering::NestedDissection { dof_nodes: nodes, positions },
+                _ => Ordering::Amd,
+            };
+            let factor =
+                SymmetricFactor::new("elastic iteration matrix", matrix, ordering, FactorKind::Cholesky, 1)?;
+            BlockFactor { key: k, factor: Some(factor), diagonal: 0.0, influence: Vec::new() }
+        };
+        let mut influence = Vec::with_capacity(6 * self.n);
+        for i in 0..6 {
+            influence.extend(coupling_rows(fb, i));
+        }
+        factor.solve_in_place(&mut influence)?;
+        factor.influence = influence;
+        if self.factors.len() >= 2 {
+            self.factors.pop();
+        }
+        self.factors.insert(0, factor);
+        self.current = 0;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::flexible::tests::PointBody;
+    use crate::joint::JointKind;
+    use crate::math::{Mat3, Vec3};
+    use crate::solver::assembly::{assemble, StateView};
+    use crate::system::{State, SystemBuilder, Workspace};
+
+    /// A rigid link hinged to the ground and a deformable body hinged to it (joints at
+    /// reference markers), the deformable body condensed or not.
+    fn model(condense: bool) -> Model {
+        let mut sys = SystemBuilder::new();
+        sys.set_gravity(Vec3([0.0, -9.81, 0.0])).unwrap();
+        let link = sys
+            .add_rigid_body(
+                "link",
+                2.0,
+                Mat3::diagonal(Vec3([0.1, 0.2, 0.2])),
+                Vec3::ZERO,
+                Vec3([0.5, 0.0, 0.0]),
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+            )
+            .unwrap();
+        let mut input = PointBody::random(8, 6, 41).input(30.0, 0.5);
+        input.condense = Some(condense);
+        let body = FlexibleBody::new("flexible", input).unwrap();
+        let fb = sys
+            .add_flexible_body(
+                "flexible",
+                body,
+                Vec3([1.0, 0.0, 0.0]),
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                vec![0.01; 6],
+                vec![],
+            )
+            .unwrap();
+        let ground = sys.ground();
+        let g = sys.add_marker("", ground, Vec3::ZERO, Mat3::IDENTITY).unwrap();
+        let a = sys.add_marker("", link, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        let b = sys.add_marker("", link, Vec3([0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        let c = sys.add_marker("", fb, Vec3::ZERO, Mat3::IDENTITY).unwrap();
+        sys.add_joint("", JointKind::Revolute, [g, a]).unwrap();
+        sys.add_joint("", JointKind::Revolute, [b, c]).unwrap();
+        sys.compile().unwrap()
+    }
+
+    #[test]
+    fn condensed_solves_equal_the_direct_solves_where_the_elastic_block_is_constant() {
+        // At rest (w = alpha = 0) the elastic block of the Newton matrix is exactly
+        // s (m M_ff + v D_ff + p K_ff): the exact condensed solver must reproduce the LU solve.
+        let (direct, condensed) = (model(false), model(true));
+        assert!(!has_condensed_bodies(&direct) && has_condensed_bodies(&condensed));
+        let mut state = State::initial(&direct, 0.0);
+        state.multipliers.iter_mut().enumerate().for_each(|(k, l)| *l = 0.1 * k as f64 - 0.3);
+        let n = direct.system_size();
+        let rhs: Vec<f64> = (0..n).map(|k| ((k * 37 % 11) as f64 - 5.0) * 0.1).collect();
+        let coefficients = [
+            MatrixCoefficients::ACCELERATION,
+            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 },
+        ];
+        for c in coefficients {
+            let mut ws = Workspace::new(&direct).unwrap();
+            assemble(&direct, StateView::of(&state), &mut ws, Some(c)).unwrap();
+            let mut lu = SparseLu::new(&direct.layout.pattern).unwrap();
+            lu.factorize(&ws.values).unwrap();
+            let mut expected = rhs.clone();
+            lu.solve_in_place(&mut expected).unwrap();
+            let mut ws2 = Workspace::new(&condensed).unwrap();
+            assemble(&condensed, StateView::of(&state), &mut ws2, Some(c)).unwrap();
+            let mut solver = CondensedSolver::new(&condensed, false).unwrap();
+            assert_eq!(solver.reduced_size(), n - 6);
+            solver.factorize(&condensed, &ws2.values, &c, &state.coordinates).unwrap();
+            let mut x = rhs.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for k in 0..n {
+                assert!((x[k] - expected[k]).abs() < 1e-9 * scale, "{k}: {} vs {}", x[k], expected[k]);
+            }
+            // The approximate reference coupling is an iteration matrix: its solve is close.
+            let mut approximate = CondensedSolver::new(&condensed, true).unwrap();
+            approximate.factorize(&condensed, &ws2.values, &c, &state.coordinates).unwrap();
+            let mut y = rhs.clone();
+            approximate.solve_in_place(&mut y).unwrap();
+            let worst = (0..n).fold(0.0f64, |m, k| m.max((y[k] - expected[k]).abs()));
+            assert!(worst < 0.2 * scale, "approximate solve off by {worst} (scale {scale})");
+        }
+    }
+}
