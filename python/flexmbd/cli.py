@@ -93,7 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--version", action="version", version=f"flexmbd {__version__}")
     sub = parser.add_subparsers(dest="command")
     run = sub.add_parser("run", help="run a built-in example (default: four-bar)")
-    run.add_argument("example", nargs="?", default="four-bar", choices=sorted(EXAMPLES))
+    run.add_argument(
+        "example", nargs="?", default="flexible-slider-crank", choices=sorted(EXAMPLES)
+    )
     run.add_argument("--end", type=float, help="end time (s)")
     run.add_argument("--step", type=float, help="step size (s)")
     sub.add_parser("examples", help="list the built-in examples")
