@@ -130,6 +130,56 @@ def run_flexmbd(name: str, size: str, repeat: int, solver: fm.GeneralizedAlpha) 
     }
 
 
+def one_solve_seconds(size: str, spectral_radius: float = 0.9, repeat: int = 5) -> float:
+    """Time of one solve with the factorized constant elastic iteration matrix
+    beta' M_ff + K_ff of the nodal body (what each Newton iteration of the condensed solver
+    needs), best of `repeat`."""
+    import scipy.sparse as sp
+
+    from flexmbd.fe.modal import factorize
+
+    body = models.nodal(size).body
+    ga = fm.GeneralizedAlpha(spectral_radius)
+    rho = ga.spectral_radius
+    alpha_m, alpha_f = (2 * rho - 1) / (rho + 1), rho / (rho + 1)
+    beta = 0.25 * (0.5 + alpha_f - alpha_m + 0.5) ** 2
+    step = RUNS["nodal"][0]
+    matrix = sp.csc_matrix(body.invariants["k_ff"]) + sp.csc_matrix(body.invariants["m_ff"]) * (
+        (1 - alpha_m) / ((1 - alpha_f) * beta * step**2)
+    )
+    free = body.reference["free_dofs"]
+    factor = factorize(matrix, dofs=free, nodes=body.nodes, dofs_per_node=3)
+    rhs = np.random.default_rng(1).standard_normal(matrix.shape[0])
+    best = np.inf
+    for _ in range(repeat):
+        start = time.perf_counter()
+        factor.solve(rhs)
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def marginal_step_seconds(size: str, solver: fm.GeneralizedAlpha, steps: int = 40) -> dict:
+    """Time per step of the nodal pendulum without its set-up (factorizations, initial
+    conditions): the difference of a run of `steps` + 2 steps and one of 2 steps."""
+    model = models.nodal(size)
+    compiled = build_pendulum(model)[0].compile()
+    step = RUNS["nodal"][0]
+    walls = []
+    for count in (2, steps + 2):
+        start = time.perf_counter()
+        result = fm.simulate(
+            compiled, count * step, step, output_interval=count * step, solver=solver
+        )
+        walls.append(time.perf_counter() - start)
+    stats = result.statistics
+    return {
+        "per_step": (walls[1] - walls[0]) / steps,
+        "setup": 2 * walls[0] - walls[1] * 2 / (steps + 2),
+        "newton_per_step": stats["newton_iterations"] / stats["steps"],
+        "factorizations": int(stats["factorizations"]),
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("model", choices=sorted(RUNS))
@@ -139,6 +189,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spectral-radius", type=float, default=0.9)
     args = parser.parse_args(argv)
     solver = fm.GeneralizedAlpha(args.spectral_radius)
+    if args.model == "nodal":
+        solve = one_solve_seconds(args.size, args.spectral_radius)
+        marginal = marginal_step_seconds(args.size, solver)
+        n_f = models.nodal(args.size).body.elastic_coordinate_count
+        print(
+            f"flexmbd  nodal {args.size} ({n_f} elastic coordinates): "
+            f"{1e3 * marginal['per_step']:.2f} ms per step after the set-up "
+            f"({marginal['newton_per_step']:.2f} Newton its/step, "
+            f"{marginal['factorizations']} factorizations), one solve with the factorized "
+            f"constant elastic matrix {1e3 * solve:.2f} ms: ratio "
+            f"{marginal['per_step'] / solve:.2f}"
+        )
     ours = run_flexmbd(args.model, args.size, args.repeat, solver)
     print(
         f"flexmbd  {args.model} ({ours['elastic_coordinates']} elastic coordinates): "

@@ -379,7 +379,25 @@ impl SymmetricFactor {
         }
         let req = StackReq::any_of(&[self.symbolic.solve_in_place_scratch::<f64>(k, self.par)]);
         let mut memory = MemBuffer::try_new(req).map_err(|_| out_of_memory("solve"))?;
-        let stack = MemStack::new(&mut memory);
+        self.solve_with_memory(rhs, &mut memory)
+    }
+
+    /// Scratch memory for [`Self::solve_with_memory`] with `k` right-hand sides.
+    pub fn solve_memory(&self, k: usize) -> Result<MemBuffer> {
+        let req = StackReq::any_of(&[self.symbolic.solve_in_place_scratch::<f64>(k, self.par)]);
+        MemBuffer::try_new(req).map_err(|_| out_of_memory("solve"))
+    }
+
+    /// [`Self::solve_in_place`] with caller-provided scratch (from [`Self::solve_memory`] for
+    /// at least as many right-hand sides): no allocation in a loop of solves. Not for
+    /// single-precision factors.
+    pub fn solve_with_memory(&self, rhs: &mut [f64], memory: &mut MemBuffer) -> Result<()> {
+        let n = self.n;
+        if n == 0 {
+            return Ok(());
+        }
+        let k = rhs.len() / n;
+        let stack = MemStack::new(memory);
         let mat = MatMut::from_column_major_slice_mut(rhs, n, k);
         match self.kind {
             FactorKind::Cholesky => LltRef::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
@@ -390,7 +408,12 @@ impl SymmetricFactor {
             ),
             FactorKind::QuasiDefinite { .. } => LdltRef::new(&self.symbolic, &self.factor)
                 .solve_in_place_with_conj(Conj::No, mat, self.par, stack),
-            FactorKind::CholeskySingle => unreachable!("solved above"),
+            FactorKind::CholeskySingle => {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: "solve".to_string(),
+                    message: "a single-precision factor needs solve_in_place".to_string(),
+                })
+            }
         }
         if rhs.iter().any(|v| !v.is_finite()) {
             return Err(FlexmbdError::NonFinite {

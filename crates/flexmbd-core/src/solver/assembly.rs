@@ -18,6 +18,7 @@ use crate::force::gravity::{add_gravity_force, gravity_jacobian};
 use crate::force::{evaluate_force, ForceEnv};
 use crate::joint::equation::{equation_gradient, equation_hessian, equation_value, MarkerPair};
 use crate::math::Mat3;
+use crate::solver::condensed::is_condensed;
 use crate::system::workspace::FlexibleWork;
 use crate::system::workspace::JointLocal;
 use crate::system::{Model, Workspace};
@@ -131,7 +132,18 @@ pub fn assemble(
         let o = body.offset;
         if let BodyKind::Flexible(fb) = &body.kind {
             let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
-            assemble_flexible(fb, body, model, &s, work, &mut ws.residual, &mut ws.values, matrix, &c, bi);
+            let elastic_block = ws.assemble_condensed_blocks || !is_condensed(&body.kind);
+            assemble_flexible(
+                fb,
+                body,
+                model,
+                &s,
+                work,
+                (&mut ws.residual, &mut ws.values),
+                (matrix, &c),
+                bi,
+                elastic_block,
+            );
             continue;
         }
         let f = &mut ws.body_force[..nb];
@@ -283,6 +295,7 @@ pub fn assemble(
 
 /// Residual and Newton-matrix entries of a deformable body: the inertia force of seed eq. 15
 /// minus gravity plus the elastic forces K_ff q_f + D_ff qf_dot.
+/// `elastic_block` false skips the (f, f) block of the matrix (condensed solves replace it).
 #[allow(clippy::too_many_arguments)]
 fn assemble_flexible(
     fb: &FlexibleBody,
@@ -290,11 +303,10 @@ fn assemble_flexible(
     model: &Model,
     s: &StateView,
     work: &mut FlexibleWork,
-    residual: &mut [f64],
-    values: &mut [f64],
-    matrix: Option<MatrixCoefficients>,
-    c: &MatrixCoefficients,
+    (residual, values): (&mut [f64], &mut [f64]),
+    (matrix, c): (Option<MatrixCoefficients>, &MatrixCoefficients),
     bi: usize,
+    elastic_block: bool,
 ) {
     let o = body.offset;
     let nb = body.dofs.len();
@@ -312,7 +324,7 @@ fn assemble_flexible(
     }
     let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
     let ev = &mut work.elastic_values;
-    if matrix.is_some() && needs_tangent {
+    if matrix.is_some() && needs_tangent && elastic_block {
         ev.iter_mut().for_each(|x| *x = 0.0);
         let tangent = Some((c.position, c.velocity, &mut ev[..]));
         flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], &mut residual[o + r7..o + nb], tangent);
@@ -355,13 +367,15 @@ fn assemble_flexible(
         }
         // (f, f): sum_kl (m I + v 2 w~ + p (alpha~ + w~ w~))_kl I_kl, added to the elastic
         // force Jacobians v D_ff + p (K_ff + geometric stiffness) already in the values.
-        let ev = &mut work.elastic_values;
-        let coefficients = Mat3::IDENTITY.scale(c.mass)
-            + t.velocity_coefficients.scale(c.velocity)
-            + t.position_coefficients.scale(c.position);
-        fb.add_i_kl_to_pattern(&coefficients, ev);
-        for (&e, &v) in entries.elastic.iter().zip(ev.iter()) {
-            values[e] += c.scale * v;
+        if elastic_block {
+            let ev = &mut work.elastic_values;
+            let coefficients = Mat3::IDENTITY.scale(c.mass)
+                + t.velocity_coefficients.scale(c.velocity)
+                + t.position_coefficients.scale(c.position);
+            fb.add_i_kl_to_pattern(&coefficients, ev);
+            for (&e, &v) in entries.elastic.iter().zip(ev.iter()) {
+                values[e] += c.scale * v;
+            }
         }
     }
     if c.identity != 0.0 {

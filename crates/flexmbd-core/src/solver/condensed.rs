@@ -67,11 +67,20 @@ struct BlockFactor {
     /// A^-1 [I1^T, J_f0^T] (n x 6, column-major): the solves of the coupling with the body's
     /// own reference coordinates, made once per factorization (see `reference_coupling`).
     influence: Vec<f64>,
+    /// Scratch of single solves (allocated at the first).
+    memory: Option<faer::dyn_stack::MemBuffer>,
 }
 
 impl BlockFactor {
-    fn solve_in_place(&self, x: &mut [f64]) -> Result<()> {
+    /// Solves for one or more right-hand sides (column-major).
+    fn solve_in_place(&mut self, x: &mut [f64]) -> Result<()> {
         match &self.factor {
+            Some(f) if x.len() == f.dim() => {
+                if self.memory.is_none() {
+                    self.memory = Some(f.solve_memory(1)?);
+                }
+                f.solve_with_memory(x, self.memory.as_mut().expect("allocated above"))
+            }
             Some(f) => f.solve_in_place(x),
             None => {
                 x.iter_mut().for_each(|v| *v /= self.diagonal);
@@ -347,7 +356,7 @@ impl CondensedSolver {
             *r = x[g];
         }
         let mut offset = 0;
-        for block in &self.blocks {
+        for block in &mut self.blocks {
             let y = &mut self.y[offset..offset + block.n];
             y.copy_from_slice(&x[block.first..block.first + block.n]);
             block.factors[block.current].solve_in_place(y).map_err(|e| e.to_string())?;
@@ -444,7 +453,13 @@ impl Block {
         }
         let only_identity = c.mass == 0.0 && c.velocity == 0.0 && c.position == 0.0;
         let mut factor = if only_identity {
-            BlockFactor { key: k, factor: None, diagonal: c.scale * c.identity, influence: Vec::new() }
+            BlockFactor {
+                key: k,
+                factor: None,
+                diagonal: c.scale * c.identity,
+                influence: Vec::new(),
+                memory: None,
+            }
         } else {
             let mut on_pattern = vec![0.0; fb.pattern.nnz()];
             fb.mass_matrix.add_to_pattern(c.scale * c.mass, &mut on_pattern);
@@ -473,7 +488,7 @@ impl Block {
             };
             let factor =
                 SymmetricFactor::new("elastic iteration matrix", matrix, ordering, FactorKind::Cholesky, 1)?;
-            BlockFactor { key: k, factor: Some(factor), diagonal: 0.0, influence: Vec::new() }
+            BlockFactor { key: k, factor: Some(factor), diagonal: 0.0, influence: Vec::new(), memory: None }
         };
         let mut influence = Vec::with_capacity(6 * self.n);
         for i in 0..6 {

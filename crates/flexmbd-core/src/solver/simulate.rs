@@ -144,6 +144,8 @@ fn run(
     let method = GeneralizedAlpha::from_spectral_radius(settings.spectral_radius)?;
     let project_velocities = settings.newton.velocity_projection.enabled(settings.spectral_radius);
     let mut ws = Workspace::new(model)?;
+    // The condensed solves replace the elastic blocks of condensed bodies: skip them.
+    ws.assemble_condensed_blocks = false;
     let mut state = State::initial(model, settings.start_time);
     solve_initial_positions_and_velocities(model, &mut state, &mut ws, &settings.initial)?;
     update_discrete(model, &mut state, &mut ws, true);

@@ -98,6 +98,10 @@ pub struct Workspace {
     pub values: Vec<f64>,
     /// The factorizations of the linear solves.
     pub linear: LinearSolvers,
+    /// Whether the assembly writes the elastic blocks of condensed bodies into the Newton
+    /// matrix (their condensed solves never read them; analyses that need the whole matrix
+    /// keep the default, true).
+    pub assemble_condensed_blocks: bool,
     /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
     /// trace of its inertia about the body origin.
     pub normalization_weights: Vec<f64>,
@@ -161,6 +165,7 @@ impl Workspace {
             residual: vec![0.0; n],
             values: vec![0.0; model.layout.pattern.nnz()],
             linear,
+            assemble_condensed_blocks: true,
             penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
             normalization_weights,
             rigid: RigidTangent::default(),
