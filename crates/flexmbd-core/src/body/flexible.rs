@@ -101,6 +101,9 @@ pub struct ElasticMatrix {
     pub matrix: Csc,
     /// Pattern position of each stored entry (same order as `matrix.values`).
     pub positions: Vec<usize>,
+    /// Every entry is stored (a modal body's matrices): `matrix.values` is the dense matrix in
+    /// column-major order, and the products skip the row indices.
+    pub full: bool,
 }
 
 impl ElasticMatrix {
@@ -111,12 +114,23 @@ impl ElasticMatrix {
                 positions.push(pattern.position(matrix.row_idx[k], c));
             }
         }
-        ElasticMatrix { matrix, positions }
+        let full = matrix.nrows > 0 && matrix.values.len() == matrix.nrows * matrix.ncols;
+        ElasticMatrix { matrix, positions, full }
     }
 
     /// `out += w * A x`.
     pub fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
         let m = &self.matrix;
+        if self.full {
+            let n = m.nrows;
+            for (c, column) in m.values.chunks_exact(n).enumerate() {
+                let xc = w * x[c];
+                for (o, v) in out[..n].iter_mut().zip(column) {
+                    *o += v * xc;
+                }
+            }
+            return;
+        }
         for c in 0..m.ncols {
             let xc = w * x[c];
             if xc != 0.0 {
@@ -477,6 +491,15 @@ impl FlexibleBody {
                 let m = &self.i_kl[3 * k + l].matrix;
                 if k == l {
                     let y = &mut out[(4 * k) * n..(4 * k + 1) * n];
+                    if self.i_kl[3 * k + l].full {
+                        for (c, column) in m.values.chunks_exact(n).enumerate() {
+                            let vc = v[c];
+                            for (yr, a) in y.iter_mut().zip(column) {
+                                *yr += a * vc;
+                            }
+                        }
+                        continue;
+                    }
                     for c in 0..m.ncols {
                         let vc = v[c];
                         for e in m.col_ptr[c]..m.col_ptr[c + 1] {
@@ -489,6 +512,18 @@ impl FlexibleBody {
                 let (first, second) = out.split_at_mut((3 * l + k) * n);
                 let y_kl = &mut first[(3 * k + l) * n..(3 * k + l + 1) * n];
                 let y_lk = &mut second[..n];
+                if self.i_kl[3 * k + l].full {
+                    for (c, column) in m.values.chunks_exact(n).enumerate() {
+                        let vc = v[c];
+                        let mut acc = 0.0;
+                        for ((y, a), vr) in y_kl.iter_mut().zip(column).zip(v) {
+                            *y += a * vc;
+                            acc += a * vr;
+                        }
+                        y_lk[c] += acc;
+                    }
+                    continue;
+                }
                 for c in 0..m.ncols {
                     let vc = v[c];
                     let mut acc = 0.0;
