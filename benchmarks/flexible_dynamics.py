@@ -31,10 +31,10 @@ import numpy as np  # noqa: E402
 
 import flexmbd as fm  # noqa: E402
 
-#: Step size and end time of each model.
+#: Step size and end time of each model (two crank turns are 8377.6 steps: 8378, as Exudyn).
 RUNS = {
     "pendulum": (1e-3, 1.0),
-    "slider-crank": (1e-5, 4 * np.pi / models.OMEGA),
+    "slider-crank": (1e-5, 8378 * 1e-5),
     "nodal": (1e-3, 0.05),
 }
 
@@ -44,7 +44,9 @@ def build_pendulum(model: models.FlexibleModel) -> tuple[fm.System, dict]:
     system = fm.System(gravity=models.GRAVITY)
     bar = system.add_flexible_body(model.body, name="bar")
     hinge = system.add_node_set_marker(bar, "x0")
-    system.add_revolute_joint(system.add_marker(system.ground), hinge, name="hinge")
+    centroid = model.body.nodes[models.nodes_of(model, "x0")].mean(axis=0)
+    pivot = system.add_marker(system.ground, position=centroid)
+    system.add_revolute_joint(pivot, hinge, name="hinge")
     return system, {"body": bar, "tip face": "x1"}
 
 
@@ -59,11 +61,17 @@ def build_slider_crank(model: models.FlexibleModel) -> tuple[fm.System, dict]:
         angular_velocity=(0, 0, omega),
         name="crank",
     )
+    # The rod's end-face centroids lie 3 mm off its frame's x axis (the mesh spans y, z = 0 ..
+    # 0.006): its frame starts so that the x0 centroid is at the crank tip, with the velocity
+    # of that point of the rigid mechanism at crank angle 0 (rod turning about the slider end).
+    centroid = model.body.nodes[models.nodes_of(model, "x0")].mean(axis=0)
+    w_rod = np.array([0.0, 0.0, -omega * crank_length / models.ROD])
+    tip_velocity = np.array([0.0, omega * crank_length, 0.0])
     rod = system.add_flexible_body(
         model.body,
-        position=(crank_length, 0, 0),
-        velocity=(0, omega * crank_length, 0),
-        angular_velocity=(0, 0, -omega * crank_length / models.ROD),
+        position=np.array([crank_length, 0.0, 0.0]) - centroid,
+        velocity=tip_velocity + np.cross(w_rod, -centroid),
+        angular_velocity=w_rod,
         name="rod",
     )
     slider = system.add_point_mass(
@@ -180,6 +188,19 @@ def marginal_step_seconds(size: str, solver: fm.GeneralizedAlpha, steps: int = 4
     }
 
 
+def run_exudyn(name: str, size: str, repeat: int) -> dict | None:
+    """Exudyn's fastest configuration of the model (`exudyn_flexible.py`), or None if
+    Exudyn is not installed."""
+    try:
+        import exudyn  # noqa: F401
+    except ImportError:
+        return None
+    import exudyn_flexible
+
+    config = exudyn_flexible.FASTEST_CONFIGS[name]
+    return exudyn_flexible.run_best_of(name, size if name == "nodal" else None, config, repeat)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("model", choices=sorted(RUNS))
@@ -189,6 +210,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spectral-radius", type=float, default=0.9)
     args = parser.parse_args(argv)
     solver = fm.GeneralizedAlpha(args.spectral_radius)
+    theirs = None if args.no_exudyn else run_exudyn(args.model, args.size, args.repeat)
     if args.model == "nodal":
         solve = one_solve_seconds(args.size, args.spectral_radius)
         marginal = marginal_step_seconds(args.size, solver)
@@ -201,6 +223,19 @@ def main(argv: list[str] | None = None) -> int:
             f"constant elastic matrix {1e3 * solve:.2f} ms: ratio "
             f"{marginal['per_step'] / solve:.2f}"
         )
+        if theirs is not None:
+            if "error" in theirs:
+                print(f"Exudyn   nodal {args.size}: {theirs['error']}")
+            else:
+                later = theirs["later_step_time_median"]
+                print(
+                    f"Exudyn   nodal {args.size} ({theirs['config']}): "
+                    f"{1e3 * later:.1f} ms per step after the first "
+                    f"(first {theirs['first_step_time']:.2f} s, "
+                    f"{theirs['newton_iterations_per_step']:.2f} Newton its/step): "
+                    f"flexmbd {later / marginal['per_step']:.0f}x faster per step"
+                )
+        return 0
     ours = run_flexmbd(args.model, args.size, args.repeat, solver)
     print(
         f"flexmbd  {args.model} ({ours['elastic_coordinates']} elastic coordinates): "
@@ -208,6 +243,25 @@ def main(argv: list[str] | None = None) -> int:
         f"({1e3 * ours['wall'] / ours['steps']:.3f} ms/step), "
         f"{ours['newton_per_step']:.2f} Newton its/step, {ours['factorizations']} factorizations"
     )
+    if theirs is not None:
+        if "error" in theirs:
+            print(f"Exudyn   {args.model}: {theirs['error']}")
+            return 0
+        print(
+            f"Exudyn   {args.model} ({theirs['config']}, {theirs['exudyn_version']}): "
+            f"{theirs['steps']} steps in {theirs['wall_time']:.3f} s = "
+            f"{theirs['steps_per_second']:.0f} steps/s, "
+            f"{theirs['newton_iterations_per_step']:.2f} Newton its/step"
+        )
+        times = np.asarray(theirs["outputs"]["times"])
+        tip = np.asarray(theirs["outputs"]["x1_centroid"])
+        ours_tip = np.array([np.interp(times, ours["time"], ours["tip"][:, k]) for k in range(3)]).T
+        difference = float(np.max(np.abs(ours_tip - tip)))
+        ratio = ours["steps_per_second"] / theirs["steps_per_second"]
+        print(
+            f"ratio of steps per second: {ratio:.2f}; "
+            f"largest difference of the x1-face centroid trajectory: {difference:.2e} m"
+        )
     return 0
 
 

@@ -116,6 +116,10 @@ fn factorize(
 ) -> std::result::Result<(), String> {
     let scale = coef.scale;
     match &mut ws.linear {
+        LinearSolvers::Dense { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.factorize(&model.layout.pattern, &ws.values)
+        }
         LinearSolvers::Condensed { newton, projection } => {
             let target = if kind == Factorization::Projection { projection } else { newton };
             target.factorize(model, &ws.values, coef, q).map_err(|e| e.to_string())
@@ -144,6 +148,10 @@ fn solve(
     scale: f64,
 ) -> std::result::Result<(), String> {
     match &mut ws.linear {
+        LinearSolvers::Dense { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.solve_in_place(&mut ws.solution)
+        }
         LinearSolvers::Condensed { newton, projection } => {
             let target = if kind == Factorization::Projection { projection } else { newton };
             target.solve_in_place(&mut ws.solution)

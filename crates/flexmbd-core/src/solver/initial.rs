@@ -47,6 +47,7 @@ fn factorize(
 ) -> Result<()> {
     let result = match &mut ws.linear {
         LinearSolvers::Direct { lu, .. } => lu.factorize(&ws.values),
+        LinearSolvers::Dense { projection, .. } => projection.factorize(&model.layout.pattern, &ws.values),
         LinearSolvers::Condensed { projection, .. } => {
             projection.factorize(model, &ws.values, coef, q).map_err(|e| e.to_string())
         }
@@ -62,6 +63,7 @@ fn solve(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
     let mut x = std::mem::take(&mut ws.solution);
     let r = match &mut ws.linear {
         LinearSolvers::Direct { lu, .. } => lu.solve_in_place(&mut x),
+        LinearSolvers::Dense { projection, .. } => projection.solve_in_place(&mut x),
         LinearSolvers::Condensed { projection, .. } => projection.solve_in_place(&mut x),
     };
     ws.solution = x;

@@ -4,6 +4,7 @@
 
 pub mod assembly;
 pub mod condensed;
+pub mod dense;
 pub mod generalized_alpha;
 pub mod initial;
 pub mod settings;

@@ -10,6 +10,7 @@ use crate::error::{FlexmbdError, Result};
 use crate::force::ForceLocal;
 use crate::math::dense::DenseMatrix;
 use crate::solver::condensed::{has_condensed_bodies, CondensedSolver};
+use crate::solver::dense::{DenseLu, DENSE_SYSTEM_SIZE};
 use crate::solver::sparse::{SparseLdlt, SparseLu};
 use crate::system::model::Model;
 
@@ -77,6 +78,13 @@ pub enum LinearSolvers {
         /// the Newton matrix can be reused by the next step).
         projection: Box<SparseLdlt>,
     },
+    /// Small models (at most `solver::dense::DENSE_SYSTEM_SIZE` unknowns): dense LU.
+    Dense {
+        /// Newton iteration matrix (modified and exact Newton).
+        newton: Box<DenseLu>,
+        /// Projection, acceleration and initial-condition systems.
+        projection: Box<DenseLu>,
+    },
     /// Models with large deformable bodies: their elastic coordinates condensed out
     /// (`solver::condensed`), one solver for the Newton matrix, one for the projection and
     /// acceleration systems.
@@ -128,10 +136,16 @@ impl Workspace {
     /// Allocates every buffer for `model` and performs the symbolic factorization.
     pub fn new(model: &Model) -> Result<Self> {
         let n = model.system_size();
+        let size = model.system_size();
         let linear = if has_condensed_bodies(model) {
             LinearSolvers::Condensed {
                 newton: Box::new(CondensedSolver::new(model, true)?),
                 projection: Box::new(CondensedSolver::new(model, false)?),
+            }
+        } else if size <= DENSE_SYSTEM_SIZE {
+            LinearSolvers::Dense {
+                newton: Box::new(DenseLu::new(size)),
+                projection: Box::new(DenseLu::new(size)),
             }
         } else {
             let lu = SparseLu::new(&model.layout.pattern).map_err(|detail| FlexmbdError::SingularMatrix {
