@@ -213,3 +213,31 @@ def test_condensed_elastic_coordinates_give_the_same_motion(modal):
         result = fm.simulate(system, 0.3, 5e-4, output_interval=0.01)
         tips.append(result.node_positions(beam, [7])[:, 0, :])
     assert np.max(np.abs(tips[0] - tips[1])) < 1e-8
+
+
+def test_scalar_mass_products_of_solids_give_the_same_motion(monkeypatch):
+    """Bodies of solids use the scalar mass matrix M_s (I_kl = M_s (x) e_k e_l^T) for the
+    products of the inertia force; the general invariant products give the same motion."""
+    import flexmbd.system
+
+    mesh = shapes.box((0.4, 0.04, 0.04), (8, 2, 2), "tet4")
+    data = build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+    )
+    assert flexmbd.system._scalar_mass(data, data.reference["free_dofs"]) is not None
+    tips = []
+    for fast in (True, False):
+        if not fast:
+            monkeypatch.setattr(flexmbd.system, "_scalar_mass", lambda body, free: None)
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        bar = system.add_flexible_body(data)
+        hinge = system.add_node_set_marker(bar, "x0")
+        system.add_revolute_joint(system.add_marker(system.ground), hinge)
+        result = fm.simulate(system, 0.1, 5e-4, output_interval=0.01)
+        tips.append(result.node_positions(bar, [data.node_ids[-1]])[:, 0])
+    assert np.max(np.abs(tips[0] - tips[1])) < 1e-10

@@ -157,6 +157,7 @@ class System:
         dof_nodes: NDArray[np.int64] | None = None,
         node_positions: NDArray[np.float64] | None = None,
         condense: bool | None = None,
+        scalar_mass: tuple[tuple[Any, Any, Any, int], NDArray[np.int64]] | None = None,
         name: str | None = None,
     ) -> BodyId: ...
     def _add_flexible_marker(

@@ -89,6 +89,18 @@ def _compress(
     )
 
 
+def _scalar_mass(body: FlexibleBodyData, free: NDArray[np.int64]) -> Any:
+    """(M_s, kept coordinates) of a body of solids whose nodal mass matrix is M_s (x) I_3 (the
+    fast products of `ScalarMass` in the core), else None."""
+    if body.dofs_per_node != 3:
+        return None
+    mass = sp.csr_matrix(body.mass)
+    scalar = mass[0::3, 0::3].tocsc()
+    if abs(sp.kron(scalar, sp.identity(3), format="csr") - mass).max() > 1e-12 * abs(mass).max():
+        return None
+    return _csc_tuple(scalar, scalar.shape[0]), np.ascontiguousarray(free, dtype=np.int64)
+
+
 def _stiffening_elements(
     body: FlexibleBodyData, basis: sp.csr_matrix, item: str
 ) -> list[tuple[NDArray[np.int64], NDArray[np.float64], float, float]]:
@@ -207,11 +219,12 @@ class System(_core.System):
         stiffening = _stiffening_elements(body, basis, item) if geometric_stiffness else None
         # Nodes of the elastic coordinates of nodal bodies: the geometric nested-dissection
         # ordering of their factorizations.
-        dof_nodes = node_positions = None
+        dof_nodes = node_positions = scalar_mass = None
         if body.modes is None:
             free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
             dof_nodes = np.ascontiguousarray(free // body.dofs_per_node, dtype=np.int64)
             node_positions = np.ascontiguousarray(body.nodes, dtype=float)
+            scalar_mass = _scalar_mass(body, free)
         body_id = self._add_flexible_body(
             mass=float(inv["mass"]),
             first_moment=np.asarray(inv["first_moment"], dtype=float),
@@ -235,6 +248,7 @@ class System(_core.System):
             dof_nodes=dof_nodes,
             node_positions=node_positions,
             condense=condense,
+            scalar_mass=scalar_mass,
             name=name,
         )
         self._flexible[body_id.index] = body

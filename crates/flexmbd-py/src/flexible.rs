@@ -2,7 +2,7 @@
 //! `add_flexible_body`, `add_node_marker` and `add_node_set_marker` of `flexmbd.System` turn a
 //! `FlexibleBodyData` into these calls).
 
-use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
+use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput, ScalarMass};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
 use flexmbd_core::fem::assembly::Csc;
@@ -93,7 +93,8 @@ impl System {
     #[pyo3(signature = (*, mass, first_moment, second_moment, i1, ibar, i_kl, stiffness, damping,
                         position = None, orientation = None, velocity = None, angular_velocity = None,
                         elastic_coordinates = None, elastic_velocities = None, stiffening = None,
-                        dof_nodes = None, node_positions = None, condense = None, name = None))]
+                        dof_nodes = None, node_positions = None, condense = None, scalar_mass = None,
+                        name = None))]
     #[allow(clippy::too_many_arguments)]
     fn _add_flexible_body(
         &mut self,
@@ -115,6 +116,7 @@ impl System {
         dof_nodes: Option<PyReadonlyArray1<i64>>,
         node_positions: Option<PyReadonlyArray2<f64>>,
         condense: Option<bool>,
+        scalar_mass: Option<(Bound<'_, PyAny>, PyReadonlyArray1<i64>)>,
         name: Option<String>,
     ) -> PyResult<BodyId> {
         let index = self.inner.body_count();
@@ -162,6 +164,19 @@ impl System {
             node_positions: node_positions
                 .map(|p| p.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect()),
             condense,
+            scalar_mass: match scalar_mass {
+                Some((matrix, coordinates)) => Some(ScalarMass {
+                    matrix: csc(&matrix, &item, "scalar mass matrix")?,
+                    coordinates: coordinates
+                        .as_slice()?
+                        .iter()
+                        .map(|&c| {
+                            usize::try_from(c).map_err(|_| invalid(&item, format!("negative coordinate {c}")))
+                        })
+                        .collect::<PyResult<Vec<_>>>()?,
+                }),
+                None => None,
+            },
         };
         let body = check(FlexibleBody::new(&item, input))?;
         let v = |o: Option<&Bound<'_, PyAny>>, what: &str| -> PyResult<Vec3> {

@@ -151,6 +151,49 @@ impl ElasticMatrix {
     }
 }
 
+/// The structure of the invariants of a body of solid elements: S = [N_1 I, N_2 I, ...] makes
+/// I_kl = P^T (M_s (x) e_k e_l^T) P with the scalar nodal mass matrix M_s and the selection P
+/// of the kept nodal coordinates (`DESIGN.md`). The products the inertia force needs,
+/// I_kl q_f, sum_kl w~_kl I_kl qf_dot and M_ff qf_dd, then all come from one pass over M_s
+/// with the node-wise vectors (q_f, qf_dot, qf_dd) instead of ten passes over the I_kl.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScalarMass {
+    /// M_s (nodes x nodes).
+    pub matrix: Csc,
+    /// Nodal coordinate (3 node + component) of each elastic coordinate.
+    pub coordinates: Vec<usize>,
+}
+
+impl ScalarMass {
+    /// Node count.
+    fn nodes(&self) -> usize {
+        self.matrix.nrows
+    }
+
+    /// Node-wise products Y = M_s [V_0, V_1, V_2] of three elastic vectors (each spread over
+    /// the nodes as nodes x 3, zero at the coordinates the reference conditions hold), into
+    /// `out` (nodes x 9: per node Y_0, Y_1, Y_2); `gathered` is scratch (nodes x 9).
+    fn products(&self, vectors: [&[f64]; 3], gathered: &mut [f64], out: &mut [f64]) {
+        gathered.iter_mut().for_each(|x| *x = 0.0);
+        for (v, vector) in vectors.iter().enumerate() {
+            for (&c, &x) in self.coordinates.iter().zip(vector.iter()) {
+                gathered[(c / 3) * 9 + 3 * v + c % 3] = x;
+            }
+        }
+        out.iter_mut().for_each(|x| *x = 0.0);
+        let m = &self.matrix;
+        for col in 0..m.ncols {
+            let source: [f64; 9] = gathered[9 * col..9 * col + 9].try_into().expect("9 entries");
+            for e in m.col_ptr[col]..m.col_ptr[col + 1] {
+                let (row, value) = (m.row_idx[e], m.values[e]);
+                for (o, x) in out[9 * row..9 * row + 9].iter_mut().zip(&source) {
+                    *o += value * x;
+                }
+            }
+        }
+    }
+}
+
 /// The invariants and matrices of a deformable body as given by the preprocessor.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FlexibleBodyInput {
@@ -181,6 +224,9 @@ pub struct FlexibleBodyInput {
     /// factorized matrix (`solver::condensed`); None: when n_f is at least
     /// `solver::condensed::CONDENSATION_THRESHOLD`.
     pub condense: Option<bool>,
+    /// Bodies of solids in nodal coordinates: the scalar mass matrix behind the I_kl
+    /// (checked against them when the body is built).
+    pub scalar_mass: Option<ScalarMass>,
 }
 
 impl FlexibleBodyInput {
@@ -263,6 +309,8 @@ pub struct FlexibleBody {
     pub node_positions: Option<Vec<Vec3>>,
     /// Condensation in the linear solves, see [`FlexibleBodyInput`].
     pub condense: Option<bool>,
+    /// The scalar mass structure of a body of solids, see [`FlexibleBodyInput`].
+    pub scalar_mass: Option<ScalarMass>,
 }
 
 fn check_square(item: &str, what: &str, m: &Csc, n: usize) -> Result<()> {
@@ -419,7 +467,8 @@ impl FlexibleBody {
             })
             .collect();
         let i_kl = input.i_kl.into_iter().map(|m| ElasticMatrix::new(m, &pattern)).collect();
-        Ok(FlexibleBody {
+        let scalar_mass = input.scalar_mass;
+        let mut body = FlexibleBody {
             mass: input.mass,
             first_moment: input.first_moment,
             second_moment: input.second_moment,
@@ -432,11 +481,53 @@ impl FlexibleBody {
             dof_nodes: input.dof_nodes,
             node_positions: input.node_positions,
             condense: input.condense,
+            scalar_mass: None,
             i_kl,
             mass_matrix,
             antisymmetric,
             pattern,
-        })
+        };
+        if let Some(sm) = scalar_mass {
+            body.check_scalar_mass(item, &sm)?;
+            body.scalar_mass = Some(sm);
+        }
+        Ok(body)
+    }
+
+    /// Checks that the scalar mass matrix gives the body's I_kl (products with a test vector).
+    fn check_scalar_mass(&self, item: &str, sm: &ScalarMass) -> Result<()> {
+        let n = self.elastic_count;
+        let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
+        if sm.matrix.nrows != sm.matrix.ncols
+            || sm.matrix.col_ptr.len() != sm.matrix.ncols + 1
+            || sm.coordinates.len() != n
+            || sm.coordinates.iter().any(|&c| c >= 3 * sm.nodes())
+        {
+            return Err(bad("scalar mass matrix: sizes do not match the elastic coordinates".to_string()));
+        }
+        let v: Vec<f64> = (0..n).map(|j| ((j * 7919 % 101) as f64 - 50.0) / 50.0).collect();
+        let mut expected = vec![0.0; 9 * n];
+        self.i_kl_products(&v, &mut expected);
+        let mut gathered = vec![0.0; 9 * sm.nodes()];
+        let mut nodal = vec![0.0; 9 * sm.nodes()];
+        sm.products([&v, &v, &v], &mut gathered, &mut nodal);
+        let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
+        for (j, &c) in sm.coordinates.iter().enumerate() {
+            let (node, comp) = (c / 3, c % 3);
+            for k in 0..3 {
+                for l in 0..3 {
+                    let from_scalar = if comp == k { nodal[9 * node + l] } else { 0.0 };
+                    if (expected[(3 * k + l) * n + j] - from_scalar).abs() > 1e-9 * scale {
+                        return Err(bad(format!(
+                            "the scalar mass matrix does not give the invariant I_{}{} (elastic coordinate {j})",
+                            k + 1,
+                            l + 1
+                        )));
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Number of coordinates 7 + n_f.
@@ -580,10 +671,24 @@ pub struct FlexibleScratch {
     pub rows: Vec<f64>,
     /// Scratch rows, 3 n_f.
     pub rows2: Vec<f64>,
+    /// Bodies of solids: node-wise M_s [q_f, qf_dot, qf_dd] (nodes x 9), see [`ScalarMass`].
+    pub nodal: Vec<f64>,
+    /// Scratch of the same size.
+    pub gathered: Vec<f64>,
 }
 
 impl FlexibleScratch {
-    /// Buffers for a body with `n` elastic coordinates.
+    /// Buffers for `body`.
+    pub fn for_body(body: &FlexibleBody) -> Self {
+        let mut scratch = Self::with_size(body.elastic_count);
+        if let Some(sm) = &body.scalar_mass {
+            scratch.nodal = vec![0.0; 9 * sm.nodes()];
+            scratch.gathered = vec![0.0; 9 * sm.nodes()];
+        }
+        scratch
+    }
+
+    /// Buffers for a body with `n` elastic coordinates (and no scalar mass structure).
     pub fn with_size(n: usize) -> Self {
         FlexibleScratch {
             y: vec![0.0; 9 * n],
@@ -592,6 +697,8 @@ impl FlexibleScratch {
             n: vec![0.0; 9 * n],
             rows: vec![0.0; 3 * n],
             rows2: vec![0.0; 3 * n],
+            nodal: Vec::new(),
+            gathered: Vec::new(),
         }
     }
 }
@@ -650,9 +757,24 @@ fn quantities(
     let w = euler::body_angular_velocity(&p, &quat(qd));
     let alpha = euler::body_angular_velocity(&p, &quat(qdd));
     let acc = a.tr_mul_vec(&Vec3::from_slice(qdd));
-    body.i_kl_products(qf, &mut scratch.y);
-    if with_products {
-        body.i_kl_products(qfd, &mut scratch.z);
+    match (&body.scalar_mass, with_products) {
+        (Some(sm), false) if !scratch.nodal.is_empty() => {
+            // y_kl at the coordinate j of (node, component c): delta_ck (M_s Q_f)[node][l].
+            sm.products([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
+            scratch.y.iter_mut().for_each(|x| *x = 0.0);
+            for (j, &c) in sm.coordinates.iter().enumerate() {
+                let (node, k) = (c / 3, c % 3);
+                for l in 0..3 {
+                    scratch.y[(3 * k + l) * nf + j] = scratch.nodal[9 * node + l];
+                }
+            }
+        }
+        _ => {
+            body.i_kl_products(qf, &mut scratch.y);
+            if with_products {
+                body.i_kl_products(qfd, &mut scratch.z);
+            }
+        }
     }
     for k in 0..3 {
         for l2 in 0..3 {
@@ -774,13 +896,26 @@ pub fn inertia_force(
             }
         }
     }
-    let qfd = &qd[r7..r7 + nf];
-    for m in 0..3 {
-        if w[m] != 0.0 {
-            body.antisymmetric[m].mul_vec_add(-2.0 * w[m], qfd, f);
+    match &body.scalar_mass {
+        Some(sm) if !scratch.nodal.is_empty() => {
+            // Node-wise: M_s (2 w x U_dot) + M_s U_dd, from the products of `quantities`.
+            for (j, &c) in sm.coordinates.iter().enumerate() {
+                let (node, comp) = (c / 3, c % 3);
+                let p = &scratch.nodal[9 * node..9 * node + 9];
+                let yd = Vec3([p[3], p[4], p[5]]);
+                f[j] += 2.0 * w.cross(&yd)[comp] + p[6 + comp];
+            }
+        }
+        _ => {
+            let qfd = &qd[r7..r7 + nf];
+            for m in 0..3 {
+                if w[m] != 0.0 {
+                    body.antisymmetric[m].mul_vec_add(-2.0 * w[m], qfd, f);
+                }
+            }
+            body.mass_matrix.mul_vec_add(1.0, &qdd[r7..r7 + nf], f);
         }
     }
-    body.mass_matrix.mul_vec_add(1.0, &qdd[r7..r7 + nf], f);
 }
 
 /// g = s x a + J alpha + w x J w + 2 (tr(P) w - P^T w) + J_f qf_dd (body frame).
@@ -1415,6 +1550,83 @@ pub(crate) mod tests {
             add_gravity_force(&body, &q, &g, &mut out);
             assert!(close(-(v1 - v2) / (2.0 * h), out[c], 1e-7));
         }
+    }
+
+    /// A body of solids: nodes with translations only, I_kl = P^T (M_s (x) e_k e_l^T) P over
+    /// the kept coordinates (node 0 held), with or without its scalar mass structure.
+    fn solid_body(with_scalar: bool, corrupt: bool) -> Result<FlexibleBody> {
+        let nodes = 4;
+        let ms =
+            Csc::from_dense(
+                nodes,
+                nodes,
+                |r, c| if r == c { 2.0 + r as f64 } else { 0.4 / (1 + r + c) as f64 },
+            );
+        let coordinates: Vec<usize> = (3..3 * nodes).collect();
+        let n = coordinates.len();
+        let positions: Vec<Vec3> =
+            (0..nodes).map(|a| Vec3([0.3 * a as f64, 0.1 * (a % 2) as f64, 0.05])).collect();
+        let mut input = FlexibleBodyInput {
+            i1: vec![0.0; 3 * n],
+            ibar: vec![0.0; 9 * n],
+            stiffness: Csc::from_dense(n, n, |r, c| if r == c { 100.0 } else { 1.0 / (1 + r + c) as f64 }),
+            damping: Csc::from_dense(n, n, |_, _| 0.0),
+            ..Default::default()
+        };
+        // Moments from M_s (consistent with its row sums as the nodal masses).
+        for a in 0..nodes {
+            for b in 0..nodes {
+                let m = ms.get(a, b);
+                input.mass += m;
+                input.first_moment += positions[b] * m;
+                input.second_moment = input.second_moment + positions[a].outer(&positions[b]).scale(m);
+            }
+        }
+        for (j, &c) in coordinates.iter().enumerate() {
+            let (b, l) = (c / 3, c % 3);
+            for a in 0..nodes {
+                let m = ms.get(a, b);
+                input.i1[l * n + j] += m;
+                for k in 0..3 {
+                    input.ibar[(3 * k + l) * n + j] += m * positions[a][k];
+                }
+            }
+        }
+        input.i_kl = (0..9)
+            .map(|kl| {
+                let (k, l) = (kl / 3, kl % 3);
+                Csc::from_dense(n, n, |r, c| {
+                    let (cr, cc) = (coordinates[r], coordinates[c]);
+                    if cr % 3 == k && cc % 3 == l {
+                        ms.get(cr / 3, cc / 3)
+                    } else {
+                        0.0
+                    }
+                })
+            })
+            .collect();
+        if with_scalar {
+            let mut matrix = ms.clone();
+            if corrupt {
+                matrix.values[5] *= 1.1;
+            }
+            input.scalar_mass = Some(ScalarMass { matrix, coordinates });
+        }
+        FlexibleBody::new("solid", input)
+    }
+
+    #[test]
+    fn scalar_mass_products_equal_the_invariant_products() {
+        let (plain, fast) = (solid_body(false, false).unwrap(), solid_body(true, false).unwrap());
+        let n = plain.elastic_count;
+        let (q, qd, qdd) = random_state(n, 51);
+        let (mut a, mut b) = (vec![0.0; 7 + n], vec![0.0; 7 + n]);
+        inertia_force(&plain, &q, &qd, &qdd, &mut FlexibleScratch::for_body(&plain), &mut a);
+        inertia_force(&fast, &q, &qd, &qdd, &mut FlexibleScratch::for_body(&fast), &mut b);
+        for k in 0..7 + n {
+            assert!(close(a[k], b[k], 1e-12), "{k}: {} vs {}", a[k], b[k]);
+        }
+        assert!(solid_body(true, true).is_err());
     }
 
     #[test]

@@ -55,7 +55,7 @@ impl FlexibleWork {
     pub fn new(body: &FlexibleBody) -> Self {
         let n = body.elastic_count;
         FlexibleWork {
-            scratch: FlexibleScratch::with_size(n),
+            scratch: FlexibleScratch::for_body(body),
             tangent: FlexibleTangent::with_size(n),
             force: vec![0.0; REFERENCE_COORDINATES + n],
             elastic_values: vec![0.0; body.pattern.nnz()],
