@@ -311,6 +311,9 @@ pub struct FlexibleBody {
     pub condense: Option<bool>,
     /// The scalar mass structure of a body of solids, see [`FlexibleBodyInput`].
     pub scalar_mass: Option<ScalarMass>,
+    /// When every I_kl is stored full (modal bodies): the nine stacked row by row, (9 n_f) x n_f
+    /// row-major, so that `i_kl_products` is one matrix-vector product.
+    stacked_i_kl: Option<Vec<f64>>,
 }
 
 fn check_square(item: &str, what: &str, m: &Csc, n: usize) -> Result<()> {
@@ -482,6 +485,7 @@ impl FlexibleBody {
             node_positions: input.node_positions,
             condense: input.condense,
             scalar_mass: None,
+            stacked_i_kl: None,
             i_kl,
             mass_matrix,
             antisymmetric,
@@ -490,6 +494,17 @@ impl FlexibleBody {
         if let Some(sm) = scalar_mass {
             body.check_scalar_mass(item, &sm)?;
             body.scalar_mass = Some(sm);
+        }
+        if n > 0 && body.i_kl.iter().all(|m| m.full) {
+            let mut stacked = vec![0.0; 9 * n * n];
+            for (kl, m) in body.i_kl.iter().enumerate() {
+                for (c, column) in m.matrix.values.chunks_exact(n).enumerate() {
+                    for (r, &v) in column.iter().enumerate() {
+                        stacked[(kl * n + r) * n + c] = v;
+                    }
+                }
+            }
+            body.stacked_i_kl = Some(stacked);
         }
         Ok(body)
     }
@@ -576,6 +591,12 @@ impl FlexibleBody {
     /// six traversals: I_lk = I_kl^T.
     pub fn i_kl_products(&self, v: &[f64], out: &mut [f64]) {
         let n = self.elastic_count;
+        if let Some(stacked) = &self.stacked_i_kl {
+            for (o, row) in out[..9 * n].iter_mut().zip(stacked.chunks_exact(n)) {
+                *o = row.iter().zip(&v[..n]).map(|(a, b)| a * b).sum();
+            }
+            return;
+        }
         out.iter_mut().for_each(|x| *x = 0.0);
         for k in 0..3 {
             for l in k..3 {
