@@ -311,8 +311,9 @@ pub struct FlexibleBody {
     pub condense: Option<bool>,
     /// The scalar mass structure of a body of solids, see [`FlexibleBodyInput`].
     pub scalar_mass: Option<ScalarMass>,
-    /// When every I_kl is stored full (modal bodies): the nine stacked row by row, (9 n_f) x n_f
-    /// row-major, so that `i_kl_products` is one matrix-vector product.
+    /// When every I_kl is stored full (modal bodies): the nine stacked, (9 n_f) x n_f
+    /// column-major (column c = the columns c of I_00, I_01, ..., I_22), so that
+    /// `i_kl_products` is one matrix-vector product by contiguous column updates.
     stacked_i_kl: Option<Vec<f64>>,
 }
 
@@ -499,9 +500,7 @@ impl FlexibleBody {
             let mut stacked = vec![0.0; 9 * n * n];
             for (kl, m) in body.i_kl.iter().enumerate() {
                 for (c, column) in m.matrix.values.chunks_exact(n).enumerate() {
-                    for (r, &v) in column.iter().enumerate() {
-                        stacked[(kl * n + r) * n + c] = v;
-                    }
+                    stacked[c * 9 * n + kl * n..c * 9 * n + (kl + 1) * n].copy_from_slice(column);
                 }
             }
             body.stacked_i_kl = Some(stacked);
@@ -592,8 +591,12 @@ impl FlexibleBody {
     pub fn i_kl_products(&self, v: &[f64], out: &mut [f64]) {
         let n = self.elastic_count;
         if let Some(stacked) = &self.stacked_i_kl {
-            for (o, row) in out[..9 * n].iter_mut().zip(stacked.chunks_exact(n)) {
-                *o = row.iter().zip(&v[..n]).map(|(a, b)| a * b).sum();
+            let out = &mut out[..9 * n];
+            out.iter_mut().for_each(|x| *x = 0.0);
+            for (column, &vc) in stacked.chunks_exact(9 * n).zip(v) {
+                for (o, a) in out.iter_mut().zip(column) {
+                    *o += a * vc;
+                }
             }
             return;
         }
@@ -751,8 +754,19 @@ fn quat(q: &[f64]) -> Quaternion {
     [q[3], q[4], q[5], q[6]]
 }
 
+/// Dot product with four partial sums (vectorizable; a plain sum of f64 products is not).
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let n = a.len().min(b.len());
+    let (a4, b4) = (a[..n].chunks_exact(4), b[..n].chunks_exact(4));
+    let (ra, rb) = (a4.remainder(), b4.remainder());
+    let mut acc = [0.0f64; 4];
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 fn row(v: &[f64], k: usize, l: usize, n: usize) -> &[f64] {

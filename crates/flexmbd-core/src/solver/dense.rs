@@ -25,6 +25,8 @@ pub struct DenseLu {
     n: usize,
     /// Row-major factors: L (unit lower, below the diagonal) and U.
     lu: Vec<f64>,
+    /// The same factors column-major, for substitutions by column updates (which vectorize).
+    columns: Vec<f64>,
     /// Row swapped with row k at step k.
     pivots: Vec<usize>,
     factorized: bool,
@@ -43,6 +45,7 @@ impl DenseLu {
         DenseLu {
             n,
             lu: vec![0.0; n * n],
+            columns: vec![0.0; n * n],
             pivots: vec![0; n],
             factorized: false,
             solves: 0,
@@ -102,6 +105,11 @@ impl DenseLu {
                 }
             }
         }
+        for i in 0..n {
+            for j in 0..n {
+                self.columns[j * n + i] = self.lu[i * n + j];
+            }
+        }
         self.factorized = true;
         Ok(())
     }
@@ -131,21 +139,30 @@ impl DenseLu {
         }
     }
 
-    /// Forward and back substitution with the factors.
+    /// Forward and back substitution with the factors, by column updates.
     fn substitute(&self, rhs: &mut [f64]) {
         let n = self.n;
         for k in 0..n {
             rhs.swap(k, self.pivots[k]);
         }
-        for i in 0..n {
-            let row = &self.lu[i * n..i * n + i];
-            let s: f64 = row.iter().zip(&rhs[..i]).map(|(a, b)| a * b).sum();
-            rhs[i] -= s;
+        for k in 0..n {
+            let xk = rhs[k];
+            if xk != 0.0 {
+                let column = &self.columns[k * n + k + 1..(k + 1) * n];
+                for (x, l) in rhs[k + 1..n].iter_mut().zip(column) {
+                    *x -= l * xk;
+                }
+            }
         }
-        for i in (0..n).rev() {
-            let row = &self.lu[i * n..(i + 1) * n];
-            let s: f64 = row[i + 1..].iter().zip(&rhs[i + 1..]).map(|(a, b)| a * b).sum();
-            rhs[i] = (rhs[i] - s) / row[i];
+        for k in (0..n).rev() {
+            let column = &self.columns[k * n..k * n + k + 1];
+            let xk = rhs[k] / column[k];
+            rhs[k] = xk;
+            if xk != 0.0 {
+                for (x, u) in rhs[..k].iter_mut().zip(&column[..k]) {
+                    *x -= u * xk;
+                }
+            }
         }
     }
 
