@@ -52,9 +52,9 @@ pub struct Marker {
     pub elastic: Option<MarkerElastic>,
     /// Global coordinate indices the marker depends on (its local column order).
     pub dofs: Vec<usize>,
-    /// Whether some joint or force differentiates the marker's axes (else their Jacobians are
-    /// not computed).
-    pub axis_jacobians: bool,
+    /// Per axis: whether some joint or force differentiates it (else its Jacobian is not
+    /// computed).
+    pub axis_jacobians: [bool; 3],
 }
 
 /// Position, orientation, velocities and Jacobians of a marker at the current state.
@@ -182,8 +182,8 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                     out.jac_angular.set(i, 3 + j, 2.0 * g[i][j]);
                 }
             }
-            if marker.axis_jacobians {
-                for k in 0..3 {
+            for k in 0..3 {
+                if marker.axis_jacobians[k] {
                     let jk = rotate_jacobian(&p, &axes.column(k));
                     for i in 0..3 {
                         for j in 0..4 {
@@ -206,8 +206,8 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                         out.jac_position.set(i, 7 + j, su[i]);
                         out.jac_angular.set(i, 7 + j, st[i]);
                     }
-                    if marker.axis_jacobians {
-                        for k in 0..3 {
+                    for k in 0..3 {
+                        if marker.axis_jacobians[k] {
                             // A (t x c), exact also off |p| = 1 (where A(p) is a scaled rotation).
                             let col = a.mul_vec(&t.cross(&marker.rotation.column(k)));
                             for i in 0..3 {
@@ -382,7 +382,7 @@ mod tests {
             rotation: c,
             elastic: Some(MarkerElastic { indices: vec![3, 1], translation, rotation }),
             dofs: vec![0, 1, 2, 3, 4, 5, 6, 10, 8],
-            axis_jacobians: true,
+            axis_jacobians: [true; 3],
         };
         let (q, qd, _) = random_state(n, 5);
         (body, marker, q, qd)

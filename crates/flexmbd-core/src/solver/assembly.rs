@@ -460,19 +460,41 @@ pub fn velocity_violation(model: &Model, qd: &[f64], ws: &Workspace, out: &mut [
 /// `out += C_q^T w` for a vector `w` over the constraint rows, with the joint Jacobians of the
 /// last `assemble` (`joints`, at coordinates `q`).
 pub fn add_constraint_forces(model: &Model, q: &[f64], joints: &[JointLocal], w: &[f64], out: &mut [f64]) {
+    add_constraint_force_pair(model, q, joints, [w, w], [out, &mut []]);
+}
+
+/// `out[0] += C_q^T w[0]` and, unless `out[1]` is empty, `out[1] += C_q^T w[1]` in one pass
+/// over the constraint Jacobians.
+pub fn add_constraint_force_pair(
+    model: &Model,
+    q: &[f64],
+    joints: &[JointLocal],
+    w: [&[f64]; 2],
+    out: [&mut [f64]; 2],
+) {
+    let [out0, out1] = out;
+    let both = !out1.is_empty();
     for nz in &model.normalizations {
         for &d in &nz.dofs {
-            out[d] += 2.0 * q[d] * w[nz.row];
+            out0[d] += 2.0 * q[d] * w[0][nz.row];
+            if both {
+                out1[d] += 2.0 * q[d] * w[1][nz.row];
+            }
         }
     }
     for (j, joint) in model.joints.iter().enumerate() {
         let jac = &joints[j].jacobian;
         let nd = joint.dofs.len();
         for e in 0..joint.equations.len() {
-            let we = w[joint.row + e];
-            if we != 0.0 {
-                for (a, &d) in joint.dofs.iter().enumerate() {
-                    out[d] += jac.data[e * nd + a] * we;
+            let (w0, w1) = (w[0][joint.row + e], if both { w[1][joint.row + e] } else { 0.0 });
+            if w0 == 0.0 && w1 == 0.0 {
+                continue;
+            }
+            let row = &jac.data[e * nd..(e + 1) * nd];
+            for (&c, &d) in row.iter().zip(&joint.dofs) {
+                out0[d] += c * w0;
+                if both {
+                    out1[d] += c * w1;
                 }
             }
         }

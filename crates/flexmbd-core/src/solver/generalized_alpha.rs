@@ -302,8 +302,13 @@ fn iterate(
             force_increment[..nq].iter_mut().for_each(|x| *x = 0.0);
             force[..nq].iter_mut().for_each(|x| *x = 0.0);
             let (q, lambda) = (&next.coordinates, &next.multipliers);
-            super::assembly::add_constraint_forces(model, q, &ws.joints, &ws.solution[nq..], force_increment);
-            super::assembly::add_constraint_forces(model, q, &ws.joints, lambda, force);
+            super::assembly::add_constraint_force_pair(
+                model,
+                q,
+                &ws.joints,
+                [&ws.solution[nq..], lambda],
+                [&mut force_increment[..], &mut force[..]],
+            );
             force_increment[..nq].iter_mut().for_each(|x| *x /= s);
         }
         for k in 0..nq {

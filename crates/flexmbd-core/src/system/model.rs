@@ -192,7 +192,7 @@ impl SystemBuilder {
                     rotation: m.orientation,
                     elastic: m.elastic.clone(),
                     dofs,
-                    axis_jacobians: false,
+                    axis_jacobians: [false; 3],
                 }
             })
             .collect();
@@ -201,11 +201,11 @@ impl SystemBuilder {
             for eq in def.kind.equations() {
                 for (_, primitive) in &eq.terms {
                     match primitive {
-                        Primitive::AxisDotAxis(..) => {
-                            markers[def.markers[0].0].axis_jacobians = true;
-                            markers[def.markers[1].0].axis_jacobians = true;
+                        Primitive::AxisDotAxis(k, l) => {
+                            markers[def.markers[0].0].axis_jacobians[*k] = true;
+                            markers[def.markers[1].0].axis_jacobians[*l] = true;
                         }
-                        Primitive::AxisDotOffset(_) => markers[def.markers[0].0].axis_jacobians = true,
+                        Primitive::AxisDotOffset(k) => markers[def.markers[0].0].axis_jacobians[*k] = true,
                         _ => {}
                     }
                 }
@@ -221,7 +221,7 @@ impl SystemBuilder {
             };
             if uses_axes {
                 for m in def.kind.markers() {
-                    markers[m.0].axis_jacobians = true;
+                    markers[m.0].axis_jacobians = [true; 3];
                 }
             }
         }
