@@ -27,6 +27,20 @@ pub struct Statistics {
     pub min_step_size_used: f64,
     /// Largest step size used (s).
     pub max_step_size_used: f64,
+    /// Evaluations of the accelerations (explicit integrators).
+    pub function_evaluations: usize,
+}
+
+/// Something that happened during a run and is reported with the results: a repartition of
+/// the coordinates, constraint drift beyond a threshold, redundant constraints removed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Event {
+    /// Time (s).
+    pub time: f64,
+    /// Kind: "repartition", "constraint drift", "redundant constraints".
+    pub kind: String,
+    /// Description.
+    pub message: String,
 }
 
 /// Recorded results.
@@ -61,6 +75,10 @@ pub struct Output {
     pub constraint_violation: Vec<f64>,
     /// Counters.
     pub statistics: Statistics,
+    /// Events, in order.
+    pub events: Vec<Event>,
+    /// The redundant constraints found at the start, if any.
+    pub redundancy: Option<crate::solver::redundancy::Redundancy>,
 }
 
 impl Output {

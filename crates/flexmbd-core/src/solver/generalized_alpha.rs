@@ -107,6 +107,9 @@ pub struct JacobianCache {
 /// (C_n dq is fixed by the constraint rows) and only shifts dmu_n by s kappa C_n dq, which
 /// `solve` takes back. Models with condensed deformable bodies factorize their Schur
 /// complement instead (`solver::condensed`; LU of the reduced system, whatever `kind`).
+/// Message of a solve attempted with an evaluation-only workspace.
+pub(crate) const NO_SOLVERS: &str = "the workspace has no linear solvers (evaluation only)";
+
 fn factorize(
     model: &Model,
     ws: &mut Workspace,
@@ -137,6 +140,7 @@ fn factorize(
                 target.factorize(&ws.values, &ws.penalties)
             }
         },
+        LinearSolvers::None => Err(NO_SOLVERS.to_string()),
     }
 }
 
@@ -172,6 +176,7 @@ fn solve(
                 Ok(())
             }
         },
+        LinearSolvers::None => Err(NO_SOLVERS.to_string()),
     }
 }
 

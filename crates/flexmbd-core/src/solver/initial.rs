@@ -7,6 +7,7 @@
 //! - Accelerations and multipliers: [[M, C_q^T], [C_q, 0]] [q_dd; lambda] = [Q_e + F; gamma].
 
 use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use super::generalized_alpha::NO_SOLVERS;
 use crate::error::{FlexmbdError, Result};
 use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};
@@ -51,6 +52,7 @@ fn factorize(
         LinearSolvers::Condensed { projection, .. } => {
             projection.factorize(model, &ws.values, coef, q).map_err(|e| e.to_string())
         }
+        LinearSolvers::None => Err(NO_SOLVERS.to_string()),
     };
     result.map_err(|detail| FlexmbdError::SingularMatrix {
         time,
@@ -65,6 +67,7 @@ fn solve(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
         LinearSolvers::Direct { lu, .. } => lu.solve_in_place(&mut x),
         LinearSolvers::Dense { projection, .. } => projection.solve_in_place(&mut x),
         LinearSolvers::Condensed { projection, .. } => projection.solve_in_place(&mut x),
+        LinearSolvers::None => Err(NO_SOLVERS.to_string()),
     };
     ws.solution = x;
     r.map_err(|detail| FlexmbdError::SingularMatrix {

@@ -5,13 +5,18 @@
 pub mod assembly;
 pub mod condensed;
 pub mod dense;
+pub mod dense_system;
+pub mod explicit;
 pub mod generalized_alpha;
 pub mod initial;
+pub mod partition;
+pub mod redundancy;
 pub mod settings;
 pub mod simulate;
 pub mod sparse;
 
 pub use settings::{
-    JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl, VelocityProjection,
+    Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
+    VelocityProjection,
 };
 pub use simulate::{simulate, Progress, SimulationOutcome};

@@ -1,6 +1,8 @@
 //! Settings of a simulation: time span, step size and its control, Newton's method, output.
 
+use super::explicit::ExplicitSettings;
 use super::initial::InitialSettings;
+use super::redundancy::RedundancySettings;
 use crate::error::{FlexmbdError, Result};
 
 /// When the Newton matrix is recomputed and refactorized.
@@ -104,6 +106,16 @@ pub enum StepControl {
     },
 }
 
+/// The time integrator.
+#[derive(Clone, Debug, Default)]
+pub enum Integrator {
+    /// Implicit index-3 generalized-alpha on the augmented equations (sparse, all model sizes).
+    #[default]
+    GeneralizedAlpha,
+    /// Explicit Runge-Kutta with one of the seed's three strategies (dense, small models).
+    Explicit(ExplicitSettings),
+}
+
 /// All settings of `simulate`.
 #[derive(Clone, Debug)]
 pub struct SimulationSettings {
@@ -127,6 +139,10 @@ pub struct SimulationSettings {
     pub step_control: StepControl,
     /// Initial conditions.
     pub initial: InitialSettings,
+    /// The integrator.
+    pub integrator: Integrator,
+    /// Redundant constraints.
+    pub redundancy: RedundancySettings,
 }
 
 impl SimulationSettings {
@@ -143,6 +159,8 @@ impl SimulationSettings {
             newton: NewtonSettings::default(),
             step_control: StepControl::Newton,
             initial: InitialSettings::default(),
+            integrator: Integrator::GeneralizedAlpha,
+            redundancy: RedundancySettings::default(),
         }
     }
 
@@ -177,6 +195,9 @@ impl SimulationSettings {
         }
         if self.newton.max_iterations == 0 || !(self.newton.tolerance > 0.0) {
             return bad("Newton needs at least one iteration and a positive tolerance".to_string());
+        }
+        if !(self.redundancy.tolerance > 0.0 && self.redundancy.tolerance < 1.0) {
+            return bad(format!("rank tolerance must be in (0, 1), got {}", self.redundancy.tolerance));
         }
         if let StepControl::Error { relative_tolerance, absolute_tolerance } = self.step_control {
             if !(relative_tolerance > 0.0 && absolute_tolerance > 0.0) {

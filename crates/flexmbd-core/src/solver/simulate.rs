@@ -2,9 +2,11 @@
 //! control, landing exactly on output times, recording. A failure returns everything recorded
 //! up to it together with the error.
 
+use super::explicit;
 use super::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
 use super::initial::{solve_accelerations, solve_initial_positions_and_velocities};
-use super::settings::{SimulationSettings, StepControl};
+use super::redundancy::analyse;
+use super::settings::{Integrator, SimulationSettings, StepControl};
 use crate::error::{FlexmbdError, Result};
 use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
 use crate::force::{ForceEnv, ForceKind};
@@ -37,7 +39,7 @@ pub struct SimulationOutcome {
 }
 
 /// Sets or advances the discrete variables (unwrapped spring angles) from the state.
-fn update_discrete(model: &Model, state: &mut State, ws: &mut Workspace, initialize: bool) {
+pub(crate) fn update_discrete(model: &Model, state: &mut State, ws: &mut Workspace, initialize: bool) {
     if model.discrete_count == 0 {
         return;
     }
@@ -128,8 +130,34 @@ pub fn simulate(
 ) -> SimulationOutcome {
     let mut output = Output::new(model);
     let mut last_state = None;
-    let error = run(model, settings, observer, &mut output, &mut last_state).err();
+    let error = match settings.validate().and_then(|_| analyse(model, settings)) {
+        Err(e) => Some(e),
+        Ok(None) => dispatch(model, settings, observer, &mut output, &mut last_state).err(),
+        Ok(Some(reduction)) => {
+            let mut reduced = Output::new(&reduction.model);
+            let error = dispatch(&reduction.model, settings, observer, &mut reduced, &mut last_state).err();
+            output = reduction.expand_output(model, reduced, settings.redundancy.handling);
+            last_state = last_state.map(|s| reduction.expand_state(model, s));
+            error
+        }
+    };
     SimulationOutcome { output, final_state: last_state, error }
+}
+
+/// Runs the integrator of the settings.
+fn dispatch(
+    model: &Model,
+    settings: &SimulationSettings,
+    observer: &mut dyn FnMut(&Progress) -> bool,
+    output: &mut Output,
+    last_state: &mut Option<State>,
+) -> Result<()> {
+    match &settings.integrator {
+        Integrator::GeneralizedAlpha => run(model, settings, observer, output, last_state),
+        Integrator::Explicit(explicit) => {
+            explicit::run(model, settings, explicit, observer, output, last_state)
+        }
+    }
 }
 
 /// The time loop; keeps the last accepted state in `last_state` (also on failure).

@@ -142,6 +142,49 @@ impl Model {
         format!("coordinate {index}")
     }
 
+    /// The model without the given joint equations (constraint rows), for redundant
+    /// constraints: the remaining rows are renumbered in order and the matrix layout rebuilt.
+    /// Also returns, for each row of the new model, its row in this one. Normalization rows
+    /// cannot be removed.
+    pub fn without_constraint_rows(&self, removed: &[usize]) -> Result<(Model, Vec<usize>)> {
+        let mut drop = vec![false; self.constraint_count];
+        for &r in removed {
+            if r >= self.constraint_count || self.normalizations.iter().any(|n| n.row == r) {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: "constraint removal".to_string(),
+                    message: format!("cannot remove {}", self.constraint_name(r)),
+                });
+            }
+            drop[r] = true;
+        }
+        let mut model = self.clone();
+        let mut row_map: Vec<usize> = model.normalizations.iter().map(|n| n.row).collect();
+        let mut row = row_map.len();
+        for joint in &mut model.joints {
+            let first = joint.row;
+            let mut kept = Vec::with_capacity(joint.equations.len());
+            for (e, eq) in joint.equations.drain(..).enumerate() {
+                if !drop[first + e] {
+                    kept.push(eq);
+                    row_map.push(first + e);
+                }
+            }
+            joint.equations = kept;
+            joint.row = row;
+            row += joint.equations.len();
+        }
+        model.constraint_count = row;
+        model.layout = matrix_layout(
+            &model.bodies,
+            &model.normalizations,
+            &model.joints,
+            &model.forces,
+            model.coordinate_count,
+            model.constraint_count,
+        );
+        Ok((model, row_map))
+    }
+
     /// Body of a marker.
     pub fn marker_body(&self, marker: MarkerId) -> &Body {
         &self.bodies[self.markers[marker.0].body.0]
@@ -294,78 +337,8 @@ impl SystemBuilder {
             .map(|s| Sensor { name: s.name.clone(), marker: s.marker, quantity: s.quantity })
             .collect();
 
-        // Sparse pattern of the Newton matrix.
-        let n = coordinate_count + constraint_count;
-        let mut pb = PatternBuilder::new(n);
-        let all: Vec<usize> = (0..n).collect();
-        for b in &bodies {
-            match &b.kind {
-                BodyKind::Flexible(fb) => {
-                    let (reference, elastic) = b.dofs.split_at(REFERENCE_COORDINATES);
-                    pb.add_block(reference, reference);
-                    pb.add_block(reference, elastic);
-                    pb.add_block(elastic, reference);
-                    let ep = &fb.pattern;
-                    for c in 0..ep.n {
-                        for &r in &ep.row_idx[ep.col_ptr[c]..ep.col_ptr[c + 1]] {
-                            pb.add_entry(elastic[r], elastic[c]);
-                        }
-                    }
-                }
-                _ => pb.add_block(&b.dofs, &b.dofs),
-            }
-        }
-        for nz in &normalizations {
-            pb.add_block(&[coordinate_count + nz.row], &nz.dofs);
-            pb.add_block(&nz.dofs, &[coordinate_count + nz.row]);
-        }
-        for j in &joints {
-            let rows: Vec<usize> = (0..j.equations.len()).map(|e| coordinate_count + j.row + e).collect();
-            pb.add_block(&rows, &j.dofs);
-            pb.add_block(&j.dofs, &rows);
-            pb.add_block(&j.dofs, &j.dofs);
-        }
-        for f in &forces {
-            pb.add_block(&f.dofs, &f.dofs);
-        }
-        // Every coordinate has a diagonal entry (the projection matrices use it).
-        pb.add_diagonal(&all[..coordinate_count]);
-        let pattern = pb.build();
-        let layout = MatrixLayout {
-            bodies: bodies.iter().map(|b| body_entries(&pattern, b)).collect(),
-            normalizations: normalizations
-                .iter()
-                .map(|nz| {
-                    let r = coordinate_count + nz.row;
-                    let mut e = [0usize; 8];
-                    for k in 0..4 {
-                        e[k] = pattern.index(r, nz.dofs[k]);
-                        e[4 + k] = pattern.index(nz.dofs[k], r);
-                    }
-                    e
-                })
-                .collect(),
-            joints: joints
-                .iter()
-                .map(|j| {
-                    let rows: Vec<usize> =
-                        (0..j.equations.len()).map(|e| coordinate_count + j.row + e).collect();
-                    let mut transpose = Vec::with_capacity(rows.len() * j.dofs.len());
-                    for &r in &rows {
-                        for &d in &j.dofs {
-                            transpose.push(pattern.index(d, r));
-                        }
-                    }
-                    JointEntries {
-                        jacobian: pattern.block_indices(&rows, &j.dofs),
-                        jacobian_transpose: transpose,
-                        hessian: pattern.block_indices(&j.dofs, &j.dofs),
-                    }
-                })
-                .collect(),
-            forces: forces.iter().map(|f| pattern.block_indices(&f.dofs, &f.dofs)).collect(),
-            pattern,
-        };
+        let layout =
+            matrix_layout(&bodies, &normalizations, &joints, &forces, coordinate_count, constraint_count);
 
         Ok(Model {
             gravity: self.gravity,
@@ -382,6 +355,88 @@ impl SystemBuilder {
             initial_velocities,
             layout,
         })
+    }
+}
+
+/// The sparse pattern of the Newton matrix [[S, C_q^T], [C_q, 0]] and where each element
+/// writes in it.
+fn matrix_layout(
+    bodies: &[Body],
+    normalizations: &[Normalization],
+    joints: &[Joint],
+    forces: &[ForceElement],
+    coordinate_count: usize,
+    constraint_count: usize,
+) -> MatrixLayout {
+    let n = coordinate_count + constraint_count;
+    let mut pb = PatternBuilder::new(n);
+    let all: Vec<usize> = (0..n).collect();
+    for b in bodies {
+        match &b.kind {
+            BodyKind::Flexible(fb) => {
+                let (reference, elastic) = b.dofs.split_at(REFERENCE_COORDINATES);
+                pb.add_block(reference, reference);
+                pb.add_block(reference, elastic);
+                pb.add_block(elastic, reference);
+                let ep = &fb.pattern;
+                for c in 0..ep.n {
+                    for &r in &ep.row_idx[ep.col_ptr[c]..ep.col_ptr[c + 1]] {
+                        pb.add_entry(elastic[r], elastic[c]);
+                    }
+                }
+            }
+            _ => pb.add_block(&b.dofs, &b.dofs),
+        }
+    }
+    for nz in normalizations {
+        pb.add_block(&[coordinate_count + nz.row], &nz.dofs);
+        pb.add_block(&nz.dofs, &[coordinate_count + nz.row]);
+    }
+    for j in joints {
+        let rows: Vec<usize> = (0..j.equations.len()).map(|e| coordinate_count + j.row + e).collect();
+        pb.add_block(&rows, &j.dofs);
+        pb.add_block(&j.dofs, &rows);
+        pb.add_block(&j.dofs, &j.dofs);
+    }
+    for f in forces {
+        pb.add_block(&f.dofs, &f.dofs);
+    }
+    // Every coordinate has a diagonal entry (the projection matrices use it).
+    pb.add_diagonal(&all[..coordinate_count]);
+    let pattern = pb.build();
+    MatrixLayout {
+        bodies: bodies.iter().map(|b| body_entries(&pattern, b)).collect(),
+        normalizations: normalizations
+            .iter()
+            .map(|nz| {
+                let r = coordinate_count + nz.row;
+                let mut e = [0usize; 8];
+                for k in 0..4 {
+                    e[k] = pattern.index(r, nz.dofs[k]);
+                    e[4 + k] = pattern.index(nz.dofs[k], r);
+                }
+                e
+            })
+            .collect(),
+        joints: joints
+            .iter()
+            .map(|j| {
+                let rows: Vec<usize> = (0..j.equations.len()).map(|e| coordinate_count + j.row + e).collect();
+                let mut transpose = Vec::with_capacity(rows.len() * j.dofs.len());
+                for &r in &rows {
+                    for &d in &j.dofs {
+                        transpose.push(pattern.index(d, r));
+                    }
+                }
+                JointEntries {
+                    jacobian: pattern.block_indices(&rows, &j.dofs),
+                    jacobian_transpose: transpose,
+                    hessian: pattern.block_indices(&j.dofs, &j.dofs),
+                }
+            })
+            .collect(),
+        forces: forces.iter().map(|f| pattern.block_indices(&f.dofs, &f.dofs)).collect(),
+        pattern,
     }
 }
 

@@ -94,6 +94,9 @@ pub enum LinearSolvers {
         /// Projection, acceleration and initial-condition systems.
         projection: Box<CondensedSolver>,
     },
+    /// No factorizations: a workspace for evaluating the equations only
+    /// (`Workspace::for_evaluation`).
+    None,
 }
 
 /// Workspace of a simulation of one model.
@@ -135,9 +138,19 @@ pub struct Workspace {
 impl Workspace {
     /// Allocates every buffer for `model` and performs the symbolic factorization.
     pub fn new(model: &Model) -> Result<Self> {
-        let n = model.system_size();
+        let linear = Self::linear_solvers(model)?;
+        Ok(Self::with_linear_solvers(model, linear))
+    }
+
+    /// A workspace that evaluates the equations (assembly) but has no sparse factorizations:
+    /// for the dense solvers and analyses.
+    pub fn for_evaluation(model: &Model) -> Self {
+        Self::with_linear_solvers(model, LinearSolvers::None)
+    }
+
+    fn linear_solvers(model: &Model) -> Result<LinearSolvers> {
         let size = model.system_size();
-        let linear = if has_condensed_bodies(model) {
+        Ok(if has_condensed_bodies(model) {
             LinearSolvers::Condensed {
                 newton: Box::new(CondensedSolver::new(model, true)?),
                 projection: Box::new(CondensedSolver::new(model, false)?),
@@ -164,7 +177,11 @@ impl Workspace {
                 ldlt: Box::new(symmetric("symbolic analysis of the iteration matrix")?),
                 projection: Box::new(symmetric("symbolic analysis of the projection matrix")?),
             }
-        };
+        })
+    }
+
+    fn with_linear_solvers(model: &Model, linear: LinearSolvers) -> Self {
+        let n = model.system_size();
         let normalization_weights = model
             .normalizations
             .iter()
@@ -174,7 +191,7 @@ impl Workspace {
                 _ => 1.0,
             })
             .collect();
-        Ok(Workspace {
+        Workspace {
             markers: model.markers.iter().map(|m| MarkerKinematics::with_size(m.dofs.len())).collect(),
             residual: vec![0.0; n],
             values: vec![0.0; model.layout.pattern.nnz()],
@@ -211,6 +228,6 @@ impl Workspace {
             forces: model.forces.iter().map(|f| ForceLocal::with_size(f.dofs.len())).collect(),
             solution: vec![0.0; n],
             scratch: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
-        })
+        }
     }
 }

@@ -1,0 +1,457 @@
+//! Dense form of the constrained equations of motion (seed eqs. 20, 25, 26), for the explicit
+//! solvers and the redundancy analysis:
+//!
+//!   M(q) q_dd + C_q^T lambda = f(q, q_dot, t) = F + Q_e,   C_q q_dd = gamma,
+//!
+//! with M, f, C, C_q, C_t and gamma taken from the sparse assembly at q_dd = 0, lambda = 0.
+//! On a partition (`solver::partition`) of the constraints and coordinates the accelerations
+//! come from either
+//!
+//! - the augmented system [[M, C_r^T], [C_r, 0]] [q_dd; lambda_r] = [f; gamma_r] over the
+//!   independent rows r (seed eq. 26), or
+//! - the embedding technique (seed eqs. 27-30): q_dd_d = B_di q_dd_i + C_qd^-1 gamma with
+//!   B_di = -C_qd^-1 C_qi, so q_dd = B q_dd_i + g_hat with B = [I; B_di], and the reduced
+//!   equations M_ii q_dd_i = R_i with M_ii = B^T M B, R_i = B^T (f - M g_hat); the multipliers
+//!   follow from the dependent rows, C_qd^T lambda = f_d - (M q_dd)_d.
+//!
+//! Redundant rows (outside r) get zero multipliers.
+
+use faer::linalg::solvers::{PartialPivLu, Solve};
+use faer::{Mat, Side};
+
+use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use super::initial::InitialSettings;
+use super::partition::{minimum_norm_solve, partition_condition, submatrix, Partition};
+use crate::error::{FlexmbdError, Result};
+use crate::system::{Model, State, Workspace};
+
+/// How the accelerations are solved for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Formulation {
+    /// The augmented system of seed eq. 26 (dense LU).
+    Augmented,
+    /// The embedding technique of seed eqs. 27-30 (reduced mass matrix, Cholesky).
+    Embedding,
+}
+
+impl Formulation {
+    /// Name in settings and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Formulation::Augmented => "augmented",
+            Formulation::Embedding => "embedding",
+        }
+    }
+}
+
+/// What `DenseEquations::evaluate` computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Level {
+    /// C and C_q.
+    Position,
+    /// And C_t.
+    Velocity,
+    /// And M, f and gamma.
+    Acceleration,
+}
+
+/// Relative size of the smallest LU pivot below which a matrix is treated as ill-conditioned:
+/// the solves then fall back to truncated singular value decompositions.
+pub const ILL_CONDITIONED_PIVOT: f64 = 1e-7;
+
+/// Relative cut-off of the singular values in those fallbacks (near-singular configurations:
+/// directions in which the constraints have lost rank are left free for that evaluation).
+pub const SINGULAR_VALUE_CUTOFF: f64 = 1e-5;
+
+/// Dense LU with partial pivoting; errors if a pivot is below `ILL_CONDITIONED_PIVOT` times
+/// the largest.
+pub fn checked_lu(a: &Mat<f64>, what: &str) -> std::result::Result<PartialPivLu<f64>, String> {
+    let lu = a.partial_piv_lu();
+    let u = lu.U();
+    let (mut largest, mut smallest) = (0.0f64, f64::INFINITY);
+    for k in 0..u.nrows() {
+        let v = u[(k, k)].abs();
+        largest = largest.max(v);
+        smallest = smallest.min(v);
+    }
+    if u.nrows() > 0 && !(smallest > ILL_CONDITIONED_PIVOT * largest) {
+        return Err(format!("{what} is singular (smallest LU pivot {smallest:.3e}, largest {largest:.3e})"));
+    }
+    Ok(lu)
+}
+
+/// The equations of motion at one state, dense.
+#[derive(Clone, Debug)]
+pub struct DenseEquations {
+    /// Mass matrix M (n x n).
+    pub mass: Mat<f64>,
+    /// Generalized forces f = F + Q_e: quadratic velocity, applied and elastic forces (n).
+    pub force: Vec<f64>,
+    /// Constraint values C (m).
+    pub constraints: Vec<f64>,
+    /// Constraint Jacobian C_q (m x n).
+    pub jacobian: Mat<f64>,
+    /// C_t (m).
+    pub rate: Vec<f64>,
+    /// gamma of C_q q_dd = gamma (m).
+    pub gamma: Vec<f64>,
+    zero_coordinates: Vec<f64>,
+    zero_multipliers: Vec<f64>,
+}
+
+impl DenseEquations {
+    /// Buffers for `model`.
+    pub fn new(model: &Model) -> Self {
+        let (n, m) = (model.coordinate_count, model.constraint_count);
+        DenseEquations {
+            // Allocated at the first acceleration-level evaluation (the redundancy analysis of
+            // large models needs only C_q).
+            mass: Mat::zeros(0, 0),
+            force: vec![0.0; n],
+            constraints: vec![0.0; m],
+            jacobian: Mat::zeros(m, n),
+            rate: vec![0.0; m],
+            gamma: vec![0.0; m],
+            zero_coordinates: vec![0.0; n],
+            zero_multipliers: vec![0.0; m],
+        }
+    }
+
+    /// Evaluates the equations at (time, q, q_dot) up to `level`. `ws` must assemble the
+    /// elastic blocks of every body (`Workspace::for_evaluation`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn evaluate(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        time: f64,
+        q: &[f64],
+        qd: &[f64],
+        discrete: &[f64],
+        level: Level,
+    ) -> Result<()> {
+        let nq = model.coordinate_count;
+        let view =
+            StateView { time, q, qd, qdd: &self.zero_coordinates, lambda: &self.zero_multipliers, discrete };
+        let coefficients = if level == Level::Acceleration {
+            MatrixCoefficients::ACCELERATION
+        } else {
+            MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
+        };
+        assemble(model, view, ws, Some(coefficients))?;
+        let pattern = &model.layout.pattern;
+        self.jacobian.fill(0.0);
+        if level == Level::Acceleration {
+            if self.mass.nrows() != nq {
+                self.mass = Mat::zeros(nq, nq);
+            }
+            self.mass.fill(0.0);
+        }
+        for c in 0..nq {
+            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                let r = pattern.row_idx[k];
+                if r >= nq {
+                    self.jacobian[(r - nq, c)] = ws.values[k];
+                } else if level == Level::Acceleration {
+                    self.mass[(r, c)] = ws.values[k];
+                }
+            }
+        }
+        self.constraints.copy_from_slice(&ws.residual[nq..]);
+        if level == Level::Acceleration {
+            for k in 0..nq {
+                self.force[k] = -ws.residual[k];
+            }
+        }
+        if level >= Level::Velocity {
+            let gamma = if level == Level::Acceleration { Some(&mut self.gamma[..]) } else { None };
+            constraint_time_terms(model, view, ws, &mut self.rate, gamma)?;
+        }
+        Ok(())
+    }
+
+    /// Velocity constraint violation C_q q_dot + C_t of row `row` (after a `Velocity` or
+    /// `Acceleration` evaluation).
+    pub fn velocity_violation(&self, row: usize, qd: &[f64]) -> f64 {
+        (0..qd.len()).map(|j| self.jacobian[(row, j)] * qd[j]).sum::<f64>() + self.rate[row]
+    }
+
+    /// The accelerations on partition `p` with the right-hand side `gamma` (m entries: the
+    /// evaluated one, or a stabilized one) into `qdd`. Near a singular configuration (a
+    /// partition condition above `singular_condition`, or an ill-conditioned matrix) they come
+    /// from the null-space method with a truncated SVD of C_q instead; returns whether that
+    /// happened. Errors name the singular matrix.
+    pub fn accelerations(
+        &self,
+        p: &Partition,
+        formulation: Formulation,
+        gamma: &[f64],
+        singular_condition: f64,
+        qdd: &mut [f64],
+    ) -> std::result::Result<bool, String> {
+        if !(partition_condition(self.jacobian.as_ref(), &p.rows, &p.dependent) <= singular_condition) {
+            return self.null_space_accelerations(p, gamma, qdd).map(|_| true);
+        }
+        match self.accelerations_with(p, formulation, gamma, qdd) {
+            Ok(()) => Ok(false),
+            Err(first) => self
+                .null_space_accelerations(p, gamma, qdd)
+                .map(|_| true)
+                .map_err(|second| format!("{first}; the truncated-SVD fallback failed too: {second}")),
+        }
+    }
+
+    /// The null-space method: C_r = U S V^T, q_dd = V_1 S_1^-1 U_1^T gamma_r + V_2 z with
+    /// (V_2^T M V_2) z = V_2^T (f - M q_dd_p), singular values below `SINGULAR_VALUE_CUTOFF`
+    /// times the largest treated as zero.
+    fn null_space_accelerations(
+        &self,
+        p: &Partition,
+        gamma: &[f64],
+        qdd: &mut [f64],
+    ) -> std::result::Result<(), String> {
+        let n = self.force.len();
+        let c = Mat::from_fn(p.rows.len(), n, |a, j| self.jacobian[(p.rows[a], j)]);
+        let g: Vec<f64> = p.rows.iter().map(|&r| gamma[r]).collect();
+        let particular = minimum_norm_solve(c.as_ref(), &g, SINGULAR_VALUE_CUTOFF);
+        let svd = c.svd().map_err(|_| "the SVD of C_q did not converge".to_string())?;
+        let s = svd.S().column_vector();
+        let largest = if s.nrows() > 0 { s[0] } else { 0.0 };
+        let rank = (0..s.nrows()).take_while(|&k| s[k] > SINGULAR_VALUE_CUTOFF * largest).count();
+        let v2 = svd.V().subcols(rank, n - rank).to_owned();
+        let mv2 = &self.mass * &v2;
+        let reduced = v2.transpose() * &mv2;
+        let mut rhs = Mat::from_fn(n, 1, |i, _| {
+            self.force[i] - (0..n).map(|j| self.mass[(i, j)] * particular[j]).sum::<f64>()
+        });
+        rhs = v2.transpose() * &rhs;
+        let llt = reduced
+            .llt(Side::Lower)
+            .map_err(|_| "the mass matrix on the null space of C_q is not positive definite".to_string())?;
+        llt.solve_in_place(&mut rhs);
+        for i in 0..n {
+            qdd[i] = particular[i] + (0..n - rank).map(|k| v2[(i, k)] * rhs[(k, 0)]).sum::<f64>();
+        }
+        if qdd.iter().any(|x| !x.is_finite()) {
+            return Err("the accelerations are not finite".to_string());
+        }
+        Ok(())
+    }
+
+    fn accelerations_with(
+        &self,
+        p: &Partition,
+        formulation: Formulation,
+        gamma: &[f64],
+        qdd: &mut [f64],
+    ) -> std::result::Result<(), String> {
+        let n = self.force.len();
+        let r = p.rows.len();
+        match formulation {
+            Formulation::Augmented => {
+                let mut k = Mat::<f64>::zeros(n + r, n + r);
+                for i in 0..n {
+                    for j in 0..n {
+                        k[(i, j)] = self.mass[(i, j)];
+                    }
+                }
+                for (a, &row) in p.rows.iter().enumerate() {
+                    for j in 0..n {
+                        let v = self.jacobian[(row, j)];
+                        k[(n + a, j)] = v;
+                        k[(j, n + a)] = v;
+                    }
+                }
+                let lu = checked_lu(&k, "augmented acceleration matrix [[M, C_q^T], [C_q, 0]]")?;
+                let mut x =
+                    Mat::from_fn(n + r, 1, |i, _| if i < n { self.force[i] } else { gamma[p.rows[i - n]] });
+                lu.solve_in_place(&mut x);
+                for i in 0..n {
+                    qdd[i] = x[(i, 0)];
+                }
+            }
+            Formulation::Embedding => {
+                let ni = p.independent.len();
+                let cd = submatrix(self.jacobian.as_ref(), &p.rows, &p.dependent);
+                let lu = checked_lu(&cd, "dependent block C_qd")?;
+                // X = C_qd^-1 [C_qi | gamma_r].
+                let mut x = Mat::from_fn(r, ni + 1, |a, k| {
+                    if k < ni {
+                        self.jacobian[(p.rows[a], p.independent[k])]
+                    } else {
+                        gamma[p.rows[a]]
+                    }
+                });
+                lu.solve_in_place(&mut x);
+                let mut b = Mat::<f64>::zeros(n, ni);
+                let mut g_hat = vec![0.0; n];
+                for (k, &c) in p.independent.iter().enumerate() {
+                    b[(c, k)] = 1.0;
+                }
+                for (a, &d) in p.dependent.iter().enumerate() {
+                    for k in 0..ni {
+                        b[(d, k)] = -x[(a, k)];
+                    }
+                    g_hat[d] = x[(a, ni)];
+                }
+                let mb = &self.mass * &b;
+                let m_ii = b.transpose() * &mb;
+                let mut rhs = Mat::from_fn(n, 1, |i, _| {
+                    self.force[i] - (0..n).map(|j| self.mass[(i, j)] * g_hat[j]).sum::<f64>()
+                });
+                rhs = b.transpose() * &rhs;
+                let llt = m_ii.llt(Side::Lower).map_err(|_| {
+                    "reduced mass matrix M_ii = B^T M B of seed eq. 30 is not positive definite".to_string()
+                })?;
+                llt.solve_in_place(&mut rhs);
+                for i in 0..n {
+                    qdd[i] = g_hat[i] + (0..ni).map(|k| b[(i, k)] * rhs[(k, 0)]).sum::<f64>();
+                }
+            }
+        }
+        if qdd.iter().any(|x| !x.is_finite()) {
+            return Err("the accelerations are not finite".to_string());
+        }
+        Ok(())
+    }
+
+    /// Multipliers consistent with `qdd`: C_qd^T lambda_r = (f - M q_dd)_d over the partition's
+    /// rows and dependent coordinates (minimum-norm least squares of C_r^T lambda_r = f - M q_dd
+    /// if C_qd is ill-conditioned); zero on redundant rows.
+    pub fn multipliers(
+        &self,
+        p: &Partition,
+        qdd: &[f64],
+        lambda: &mut [f64],
+    ) -> std::result::Result<(), String> {
+        let n = self.force.len();
+        lambda.iter_mut().for_each(|x| *x = 0.0);
+        if p.rows.is_empty() {
+            return Ok(());
+        }
+        let residual: Vec<f64> =
+            (0..n).map(|i| self.force[i] - (0..n).map(|j| self.mass[(i, j)] * qdd[j]).sum::<f64>()).collect();
+        let cd = submatrix(self.jacobian.as_ref(), &p.rows, &p.dependent);
+        if let Ok(lu) = checked_lu(&cd, "dependent block C_qd") {
+            let mut g = Mat::from_fn(p.dependent.len(), 1, |a, _| residual[p.dependent[a]]);
+            lu.solve_transpose_in_place(&mut g);
+            for (a, &row) in p.rows.iter().enumerate() {
+                lambda[row] = g[(a, 0)];
+            }
+        } else {
+            let ct = Mat::from_fn(n, p.rows.len(), |j, a| self.jacobian[(p.rows[a], j)]);
+            let l = minimum_norm_solve(ct.as_ref(), &residual, SINGULAR_VALUE_CUTOFF);
+            for (a, &row) in p.rows.iter().enumerate() {
+                lambda[row] = l[a];
+            }
+        }
+        if lambda.iter().any(|x| !x.is_finite()) {
+            return Err("the multipliers are not finite".to_string());
+        }
+        Ok(())
+    }
+}
+
+/// Relative singular-value cut-off of the minimum-norm corrections.
+const PSEUDO_INVERSE_TOLERANCE: f64 = 1e-10;
+
+/// Consistent initial positions and velocities with dense minimum-norm corrections (truncated
+/// pseudo-inverse of C_q), which also converge for redundant constraints:
+/// q <- q - C_q^+ C(q) until |C| <= tolerance, then q_dot <- q_dot - C_q^+ (C_q q_dot + C_t).
+pub fn dense_initial_conditions(
+    model: &Model,
+    ws: &mut Workspace,
+    eq: &mut DenseEquations,
+    state: &mut State,
+    settings: &InitialSettings,
+) -> Result<()> {
+    let t = state.time;
+    let mut iterations = 0;
+    loop {
+        eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+        let (row, violation) = worst(&eq.constraints);
+        if violation <= settings.tolerance {
+            break;
+        }
+        if !settings.correct_positions || iterations >= settings.max_iterations || !violation.is_finite() {
+            return Err(FlexmbdError::InconsistentInitialConditions {
+                time: t,
+                item: violated_constraints(model, row, &eq.constraints, settings.tolerance),
+                residual: violation,
+                iterations,
+            });
+        }
+        // Weighted rows: where the constraints cannot all be met, the least-squares compromise
+        // keeps the normalizations and drivers and leaves the violation on the joints.
+        let mut jacobian = eq.jacobian.clone();
+        let mut residual = eq.constraints.clone();
+        for (r, value) in residual.iter_mut().enumerate() {
+            let w = row_weight(model, r);
+            *value *= w;
+            for c in 0..model.coordinate_count {
+                jacobian[(r, c)] *= w;
+            }
+        }
+        let dq = minimum_norm_solve(jacobian.as_ref(), &residual, PSEUDO_INVERSE_TOLERANCE);
+        for (x, d) in state.coordinates.iter_mut().zip(&dq) {
+            *x -= d;
+        }
+        iterations += 1;
+    }
+    if model.constraint_count > 0 && settings.correct_velocities {
+        eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Velocity)?;
+        let violation: Vec<f64> =
+            (0..model.constraint_count).map(|k| eq.velocity_violation(k, &state.velocities)).collect();
+        let dv = minimum_norm_solve(eq.jacobian.as_ref(), &violation, PSEUDO_INVERSE_TOLERANCE);
+        for (x, d) in state.velocities.iter_mut().zip(&dv) {
+            *x -= d;
+        }
+    }
+    Ok(())
+}
+
+/// Weight of a constraint row where rows compete (choice of the kept rows of redundant
+/// constraints, least-squares initial projection): Euler-parameter normalizations first, then
+/// drivers, then joints.
+pub(crate) fn row_weight(model: &Model, row: usize) -> f64 {
+    if model.normalizations.iter().any(|n| n.row == row) {
+        return 1e4;
+    }
+    match model.joints.iter().find(|j| row >= j.row && row < j.row + j.equations.len()) {
+        Some(j) if j.kind.function().is_some() => 1e2,
+        _ => 1.0,
+    }
+}
+
+/// The worst violated row, and the other joints left violated with it (when constraints
+/// conflict, the least-squares compromise spreads the violation over all joints involved).
+fn violated_constraints(model: &Model, worst_row: usize, constraints: &[f64], tolerance: f64) -> String {
+    let mut item = model.constraint_name(worst_row);
+    let threshold = tolerance.max(1e-6 * constraints[worst_row].abs());
+    let mut others: Vec<String> = Vec::new();
+    for j in &model.joints {
+        let violated = (j.row..j.row + j.equations.len()).any(|r| constraints[r].abs() > threshold);
+        let name = format!("'{}'", j.name);
+        if violated
+            && !(worst_row >= j.row && worst_row < j.row + j.equations.len())
+            && !others.contains(&name)
+        {
+            others.push(name);
+        }
+    }
+    if !others.is_empty() {
+        item.push_str(&format!(" (also violated: joint {})", others.join(", ")));
+    }
+    item
+}
+
+/// Index and magnitude of the largest entry.
+pub fn worst(values: &[f64]) -> (usize, f64) {
+    values.iter().enumerate().fold((0, 0.0f64), |best, (k, v)| {
+        if v.abs() > best.1 || v.is_nan() {
+            (k, if v.is_nan() { f64::INFINITY } else { v.abs() })
+        } else {
+            best
+        }
+    })
+}

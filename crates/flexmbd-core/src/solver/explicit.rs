@@ -1,0 +1,939 @@
+//! Explicit integration of the constrained equations of motion: the three strategies of seed
+//! section 4 ("Numerical solution of the augmented equations"), each with the accelerations
+//! from the augmented system (seed eq. 26) or from the embedding technique (seed eqs. 27-30),
+//! and a classical Runge-Kutta method of order 4 (fixed step) or the embedded Dormand-Prince
+//! 5(4) pair (error-controlled step):
+//!
+//! 1. `IntegrateAll`: integrate q and q_dot, dependent and independent. The constraints hold
+//!    only at the acceleration level, so C and C_q q_dot + C_t drift; Baumgarte's
+//!    stabilization replaces gamma by gamma - 2 alpha (C_q q_dot + C_t) - beta^2 C. The drift
+//!    is recorded (constraint violation of every output) and reported as an event when it
+//!    passes a threshold.
+//! 2. `CoordinatePartitioning` (Wehage and Haug): integrate the independent coordinates and
+//!    velocities only; at every evaluation the dependent coordinates solve C(q, t) = 0 by
+//!    Newton-Raphson and the dependent velocities C_qd qd_d = -(C_qi qd_i + C_t). The partition
+//!    is chosen at the start and again (an event) when the dependent block becomes
+//!    ill-conditioned.
+//! 3. `Projection`: integrate all, then after each step project q onto C = 0 and q_dot onto the
+//!    velocity constraints (minimum-norm corrections).
+//!
+//! The linear algebra is dense (`solver::dense_system`): explicit solvers are meant for rigid
+//! and small deformable models, up to `EXPLICIT_COORDINATE_LIMIT` coordinates.
+
+use faer::linalg::solvers::Solve;
+use faer::Mat;
+
+use super::dense_system::{
+    checked_lu, dense_initial_conditions, worst, DenseEquations, Formulation, Level, SINGULAR_VALUE_CUTOFF,
+};
+use super::partition::{
+    minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
+    PartitionMethod,
+};
+use super::settings::SimulationSettings;
+use super::simulate::{update_discrete, Progress};
+use crate::error::{FlexmbdError, Result};
+use crate::output::{Event, Output};
+use crate::system::{Model, State, Workspace};
+
+/// Largest number of coordinates the (dense) explicit solvers accept.
+pub const EXPLICIT_COORDINATE_LIMIT: usize = 2000;
+
+/// The explicit integration method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExplicitMethod {
+    /// Classical Runge-Kutta of order 4, fixed step.
+    Rk4,
+    /// Dormand-Prince 5(4), error-controlled step.
+    Dopri5,
+}
+
+impl ExplicitMethod {
+    /// Name in settings and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExplicitMethod::Rk4 => "rk4",
+            ExplicitMethod::Dopri5 => "dopri5",
+        }
+    }
+}
+
+/// The seed's strategies for the constrained equations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategy {
+    /// (1) Integrate all accelerations, dependent and independent.
+    IntegrateAll,
+    /// (2) Wehage's generalized coordinate partitioning.
+    CoordinatePartitioning,
+    /// (3) Integrate all, then project onto the position and velocity constraints.
+    Projection,
+}
+
+impl Strategy {
+    /// Name in settings and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::IntegrateAll => "integrate-all",
+            Strategy::CoordinatePartitioning => "partitioning",
+            Strategy::Projection => "projection",
+        }
+    }
+}
+
+/// Settings of the explicit solvers.
+#[derive(Clone, Debug)]
+pub struct ExplicitSettings {
+    /// Integration method.
+    pub method: ExplicitMethod,
+    /// Strategy for the constraints.
+    pub strategy: Strategy,
+    /// How the accelerations are solved for.
+    pub formulation: Formulation,
+    /// Decomposition that chooses the partition.
+    pub partition: PartitionMethod,
+    /// Independent coordinates given by the user (indices); None: chosen by `partition`.
+    pub independent: Option<Vec<usize>>,
+    /// Baumgarte stabilization (alpha, beta) of strategy (1).
+    pub baumgarte: Option<(f64, f64)>,
+    /// Relative tolerance of the Dormand-Prince error control.
+    pub relative_tolerance: f64,
+    /// Absolute tolerance of the Dormand-Prince error control.
+    pub absolute_tolerance: f64,
+    /// Tolerance on |C| of the dependent-coordinate Newton iteration and of the projection.
+    pub constraint_tolerance: f64,
+    /// Iterations of those Newton iterations.
+    pub max_iterations: usize,
+    /// After every step the decomposition proposes a partition at the new state; it replaces
+    /// the current one when its condition (`Partition::condition`) is this factor smaller.
+    pub repartition_ratio: f64,
+    /// Relative tolerance of rank decisions.
+    pub rank_tolerance: f64,
+    /// A configuration counts as singular where even the best partition's condition exceeds
+    /// this factor times the condition of the partition at the start: there the embedding
+    /// uses an SVD null-space basis, coordinate partitioning takes projection steps.
+    pub singular_factor: f64,
+    /// Constraint violation at which the drift of strategy (1) is reported as an event.
+    pub drift_threshold: f64,
+}
+
+impl Default for ExplicitSettings {
+    fn default() -> Self {
+        ExplicitSettings {
+            method: ExplicitMethod::Dopri5,
+            strategy: Strategy::CoordinatePartitioning,
+            formulation: Formulation::Augmented,
+            partition: PartitionMethod::Lu,
+            independent: None,
+            baumgarte: None,
+            relative_tolerance: 1e-8,
+            absolute_tolerance: 1e-10,
+            constraint_tolerance: 1e-12,
+            max_iterations: 20,
+            repartition_ratio: 2.0,
+            rank_tolerance: super::partition::DEFAULT_RANK_TOLERANCE,
+            singular_factor: 4.0,
+            drift_threshold: 1e-6,
+        }
+    }
+}
+
+impl ExplicitSettings {
+    /// Checks the settings against the model.
+    pub fn validate(&self, model: &Model) -> Result<()> {
+        let bad = |message: String| {
+            Err(FlexmbdError::InvalidParameter { item: "explicit solver settings".to_string(), message })
+        };
+        if model.coordinate_count > EXPLICIT_COORDINATE_LIMIT {
+            let largest = model.bodies.iter().max_by_key(|b| b.dofs.len()).map(|b| b.name.clone());
+            return bad(format!(
+                "the explicit solvers use dense linear algebra and support models of up to \
+                 {EXPLICIT_COORDINATE_LIMIT} coordinates; this model has {} (largest body '{}'). \
+                 Use generalized-alpha, whose sparse and condensed solves handle large deformable bodies",
+                model.coordinate_count,
+                largest.unwrap_or_default()
+            ));
+        }
+        if self.baumgarte.is_some() && self.strategy != Strategy::IntegrateAll {
+            return bad(format!(
+                "Baumgarte stabilization applies to strategy 'integrate-all', not '{}' (which keeps \
+                 the constraints by Newton iterations or projections)",
+                self.strategy.name()
+            ));
+        }
+        if let Some((alpha, beta)) = self.baumgarte {
+            if !(alpha >= 0.0 && beta >= 0.0 && alpha.is_finite() && beta.is_finite()) {
+                return bad(format!(
+                    "Baumgarte parameters must be finite and non-negative, got ({alpha}, {beta})"
+                ));
+            }
+        }
+        let positive = [
+            self.relative_tolerance,
+            self.absolute_tolerance,
+            self.constraint_tolerance,
+            self.repartition_ratio - 1.0,
+            self.rank_tolerance,
+            self.drift_threshold,
+            self.singular_factor - 1.0,
+        ];
+        if !positive.iter().all(|x| *x > 0.0 && x.is_finite()) {
+            return bad(
+                "tolerances and thresholds must be positive, the repartition ratio above 1".to_string()
+            );
+        }
+        if self.max_iterations == 0 {
+            return bad("at least one Newton iteration is needed".to_string());
+        }
+        Ok(())
+    }
+
+    /// Whether the run uses the partition's coordinates (not only its rows).
+    fn uses_coordinates(&self) -> bool {
+        self.strategy == Strategy::CoordinatePartitioning || self.formulation == Formulation::Embedding
+    }
+}
+
+/// Evaluation of the right-hand sides, with its buffers and counters.
+struct Engine<'a> {
+    model: &'a Model,
+    settings: &'a ExplicitSettings,
+    ws: Workspace,
+    eq: DenseEquations,
+    partition: Partition,
+    /// Full coordinates, velocities and accelerations of the last evaluation.
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    /// The accepted full state (start of the step): guesses for the dependent coordinates.
+    accepted_q: Vec<f64>,
+    accepted_qd: Vec<f64>,
+    accepted_time: f64,
+    gamma: Vec<f64>,
+    discrete: Vec<f64>,
+    evaluations: usize,
+    newton_iterations: usize,
+    /// Evaluations near a singular configuration (truncated-SVD accelerations).
+    singular_evaluations: usize,
+    /// The strategy of the current steps: the chosen one, or projection while coordinate
+    /// partitioning passes a singular configuration.
+    mode: Strategy,
+    /// Partition condition above which a configuration counts as singular.
+    singular_limit: f64,
+}
+
+impl<'a> Engine<'a> {
+    fn singular(&self, time: f64, detail: String) -> FlexmbdError {
+        FlexmbdError::SingularMatrix {
+            time,
+            context: format!(
+                "{} accelerations ({} strategy, {} partition)",
+                self.settings.formulation.name(),
+                self.settings.strategy.name(),
+                self.partition.method.map_or("given", |m| m.name())
+            ),
+            detail,
+        }
+    }
+
+    /// Accelerations at (time, self.q, self.qd) into self.qdd.
+    fn accelerations(&mut self, time: f64) -> Result<()> {
+        self.eq.evaluate(
+            self.model,
+            &mut self.ws,
+            time,
+            &self.q,
+            &self.qd,
+            &self.discrete,
+            Level::Acceleration,
+        )?;
+        self.evaluations += 1;
+        self.gamma.copy_from_slice(&self.eq.gamma);
+        if let Some((alpha, beta)) = self.settings.baumgarte {
+            for k in 0..self.gamma.len() {
+                let rate = self.eq.velocity_violation(k, &self.qd);
+                self.gamma[k] -= 2.0 * alpha * rate + beta * beta * self.eq.constraints[k];
+            }
+        }
+        let result = self.eq.accelerations(
+            &self.partition,
+            self.settings.formulation,
+            &self.gamma,
+            self.singular_limit,
+            &mut self.qdd,
+        );
+        if result.map_err(|detail| self.singular(time, detail))? {
+            self.singular_evaluations += 1;
+        }
+        Ok(())
+    }
+
+    /// Multipliers consistent with self.qdd (after `accelerations`).
+    fn multipliers(&self, time: f64, lambda: &mut [f64]) -> Result<()> {
+        self.eq.multipliers(&self.partition, &self.qdd, lambda).map_err(|detail| self.singular(time, detail))
+    }
+
+    /// Wehage: the full q and q_dot from the independent ones `y` = [q_i; qd_i] at `time`.
+    fn reconstruct(&mut self, time: f64, y: &[f64]) -> Result<()> {
+        let p = &self.partition;
+        let ni = p.independent.len();
+        let dt = time - self.accepted_time;
+        for (k, &c) in p.independent.iter().enumerate() {
+            self.q[c] = y[k];
+            self.qd[c] = y[ni + k];
+        }
+        for &d in &p.dependent {
+            self.q[d] = self.accepted_q[d] + dt * self.accepted_qd[d];
+        }
+        let mut iterations = 0;
+        loop {
+            self.eq.evaluate(
+                self.model,
+                &mut self.ws,
+                time,
+                &self.q,
+                &self.qd,
+                &self.discrete,
+                Level::Position,
+            )?;
+            let residual: Vec<f64> = self.partition.rows.iter().map(|&r| self.eq.constraints[r]).collect();
+            let (k, violation) = worst(&residual);
+            if violation <= self.settings.constraint_tolerance {
+                break;
+            }
+            if iterations >= self.settings.max_iterations || !violation.is_finite() {
+                return Err(FlexmbdError::NewtonDiverged {
+                    time,
+                    step_size: dt,
+                    iterations,
+                    residual: violation,
+                    item: format!(
+                        "{}; the dependent coordinates (coordinate partitioning) did not converge",
+                        self.model.constraint_name(self.partition.rows[k])
+                    ),
+                });
+            }
+            let step = dependent_solve(&self.eq, &self.partition, &residual);
+            for (a, &d) in self.partition.dependent.iter().enumerate() {
+                self.q[d] -= step[a];
+            }
+            iterations += 1;
+            self.newton_iterations += 1;
+        }
+        // Dependent velocities: C_qd qd_d = -(C_qi qd_i + C_t).
+        self.eq.evaluate(
+            self.model,
+            &mut self.ws,
+            time,
+            &self.q,
+            &self.qd,
+            &self.discrete,
+            Level::Velocity,
+        )?;
+        let p = &self.partition;
+        for &d in &p.dependent {
+            self.qd[d] = 0.0;
+        }
+        let rhs: Vec<f64> = p.rows.iter().map(|&r| -self.eq.velocity_violation(r, &self.qd)).collect();
+        let x = dependent_solve(&self.eq, p, &rhs);
+        for (a, &d) in p.dependent.iter().enumerate() {
+            self.qd[d] = x[a];
+        }
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err(self.singular(time, "the dependent velocities are not finite".to_string()));
+        }
+        Ok(())
+    }
+
+    /// The integrated vector of the current full state.
+    fn pack(&self, y: &mut Vec<f64>) {
+        y.clear();
+        match self.mode {
+            Strategy::CoordinatePartitioning => {
+                y.extend(self.partition.independent.iter().map(|&c| self.q[c]));
+                y.extend(self.partition.independent.iter().map(|&c| self.qd[c]));
+            }
+            _ => {
+                y.extend_from_slice(&self.q);
+                y.extend_from_slice(&self.qd);
+            }
+        }
+    }
+
+    /// Sets the full state from the integrated vector (Wehage: Newton for the dependent part).
+    fn unpack(&mut self, time: f64, y: &[f64]) -> Result<()> {
+        match self.mode {
+            Strategy::CoordinatePartitioning => self.reconstruct(time, y),
+            _ => {
+                let n = self.q.len();
+                self.q.copy_from_slice(&y[..n]);
+                self.qd.copy_from_slice(&y[n..]);
+                Ok(())
+            }
+        }
+    }
+
+    /// dy/dt at (time, y).
+    fn derivative(&mut self, time: f64, y: &[f64], dy: &mut [f64]) -> Result<()> {
+        self.unpack(time, y)?;
+        self.accelerations(time)?;
+        match self.mode {
+            Strategy::CoordinatePartitioning => {
+                let ni = self.partition.independent.len();
+                for (k, &c) in self.partition.independent.iter().enumerate() {
+                    dy[k] = self.qd[c];
+                    dy[ni + k] = self.qdd[c];
+                }
+            }
+            _ => {
+                let n = self.q.len();
+                dy[..n].copy_from_slice(&self.qd);
+                dy[n..].copy_from_slice(&self.qdd);
+            }
+        }
+        Ok(())
+    }
+
+    /// Projects self.q onto C = 0 (Newton with minimum-norm steps over the partition's rows)
+    /// and self.qd onto C_q q_dot + C_t = 0.
+    fn project(&mut self, time: f64) -> Result<()> {
+        let rows = self.partition.rows.clone();
+        let n = self.q.len();
+        let mut iterations = 0;
+        let mut level = Level::Position;
+        loop {
+            self.eq.evaluate(self.model, &mut self.ws, time, &self.q, &self.qd, &self.discrete, level)?;
+            let residual: Vec<f64> = if level == Level::Position {
+                rows.iter().map(|&r| self.eq.constraints[r]).collect()
+            } else {
+                rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect()
+            };
+            let (k, violation) = worst(&residual);
+            if level == Level::Position && violation <= self.settings.constraint_tolerance {
+                level = Level::Velocity;
+                continue;
+            }
+            if level == Level::Position
+                && (iterations >= self.settings.max_iterations || !violation.is_finite())
+            {
+                return Err(FlexmbdError::NewtonDiverged {
+                    time,
+                    step_size: 0.0,
+                    iterations,
+                    residual: violation,
+                    item: format!("{}; projection onto the constraints", self.model.constraint_name(rows[k])),
+                });
+            }
+            // Minimum-norm correction dx = C_r^+ residual (truncated near singular
+            // configurations).
+            let c = Mat::from_fn(rows.len(), n, |a, j| self.eq.jacobian[(rows[a], j)]);
+            let dx = minimum_norm_solve(c.as_ref(), &residual, SINGULAR_VALUE_CUTOFF);
+            if dx.iter().any(|v| !v.is_finite()) {
+                return Err(self.singular(time, "the projection correction is not finite".to_string()));
+            }
+            if level == Level::Position {
+                for j in 0..n {
+                    self.q[j] -= dx[j];
+                }
+                iterations += 1;
+                self.newton_iterations += 1;
+            } else {
+                for j in 0..n {
+                    self.qd[j] -= dx[j];
+                }
+                return Ok(());
+            }
+        }
+    }
+
+    /// Replaces the partition by the one the decomposition proposes at the current state if
+    /// that is `repartition_ratio` times better conditioned (`force`: if it is better at all).
+    /// Returns the event.
+    fn repartition(&mut self, time: f64, force: bool) -> Result<Option<Event>> {
+        if !self.settings.uses_coordinates() || self.settings.independent.is_some() {
+            return Ok(None);
+        }
+        self.eq.evaluate(
+            self.model,
+            &mut self.ws,
+            time,
+            &self.q,
+            &self.qd,
+            &self.discrete,
+            Level::Position,
+        )?;
+        let p = &self.partition;
+        let condition = partition_condition(self.eq.jacobian.as_ref(), &p.rows, &p.dependent);
+        let fresh =
+            partition(self.eq.jacobian.as_ref(), self.settings.partition, self.settings.rank_tolerance);
+        let ratio = if force { 1.0 } else { self.settings.repartition_ratio };
+        if !(fresh.condition * ratio < condition)
+            || fresh.rank != p.rank
+            || fresh.independent == p.independent
+        {
+            return Ok(None);
+        }
+        let reason = if force { "a step failed" } else { "the dependent block became ill-conditioned" };
+        let event = Event {
+            time,
+            kind: "repartition".to_string(),
+            message: format!(
+                "{reason}: new independent coordinates [{}] (condition {:.3e}, was {condition:.3e}), were [{}]",
+                self.names(&fresh.independent),
+                fresh.condition,
+                self.names(&p.independent)
+            ),
+        };
+        self.partition = fresh;
+        Ok(Some(event))
+    }
+
+    fn names(&self, coordinates: &[usize]) -> String {
+        coordinates.iter().map(|&c| self.model.coordinate_name(c)).collect::<Vec<_>>().join(", ")
+    }
+
+    /// After an accepted step: a better partition if one is proposed, and for coordinate
+    /// partitioning the passage through singular configurations. Where even the best
+    /// partition has a condition above `singular_limit` (the constraint Jacobian is near
+    /// rank-deficient, as at the change points of a parallelogram linkage, so that no choice
+    /// of independent coordinates determines the dependent ones well), the steps are taken
+    /// with strategy (3), integrate-all-then-project, until a partition below half of that
+    /// limit exists again. Returns the events.
+    fn update_partition(&mut self, time: f64) -> Result<Vec<Event>> {
+        let mut events = Vec::new();
+        let wehage = self.settings.strategy == Strategy::CoordinatePartitioning;
+        let limit = self.singular_limit;
+        if wehage && self.mode == Strategy::Projection {
+            self.eq.evaluate(
+                self.model,
+                &mut self.ws,
+                time,
+                &self.q,
+                &self.qd,
+                &self.discrete,
+                Level::Position,
+            )?;
+            let jacobian = self.eq.jacobian.as_ref();
+            let fresh = match &self.settings.independent {
+                Some(list) => partition_with_independent(jacobian, list, self.settings.rank_tolerance).ok(),
+                None => Some(partition(jacobian, self.settings.partition, self.settings.rank_tolerance)),
+            };
+            if let Some(fresh) = fresh.filter(|f| f.condition < 0.5 * limit && f.rank == self.partition.rank)
+            {
+                events.push(Event {
+                    time,
+                    kind: "singular configuration".to_string(),
+                    message: format!(
+                        "passed: coordinate partitioning resumes with independent coordinates [{}] (condition {:.3e})",
+                        self.names(&fresh.independent),
+                        fresh.condition
+                    ),
+                });
+                self.partition = fresh;
+                self.mode = Strategy::CoordinatePartitioning;
+            }
+            return Ok(events);
+        }
+        events.extend(self.repartition(time, false)?);
+        if wehage {
+            self.eq.evaluate(
+                self.model,
+                &mut self.ws,
+                time,
+                &self.q,
+                &self.qd,
+                &self.discrete,
+                Level::Position,
+            )?;
+            let p = &self.partition;
+            let condition = partition_condition(self.eq.jacobian.as_ref(), &p.rows, &p.dependent);
+            if condition > limit {
+                events.push(Event {
+                    time,
+                    kind: "singular configuration".to_string(),
+                    message: format!(
+                        "partition condition {condition:.3e} above {limit:.3e} with the best partition: the \
+                         constraint Jacobian is near rank-deficient; steps by integration of all coordinates \
+                         with projection until it is passed"
+                    ),
+                });
+                self.mode = Strategy::Projection;
+            }
+        }
+        Ok(events)
+    }
+
+    /// After a failed step attempt: back to the accepted state, and a new partition there if
+    /// a better one exists.
+    fn repartition_after_failure(&mut self) -> Result<Option<Event>> {
+        self.q.copy_from_slice(&self.accepted_q);
+        self.qd.copy_from_slice(&self.accepted_qd);
+        self.repartition(self.accepted_time, true)
+    }
+}
+
+/// Solves C_qd x = rhs for the partition's dependent block: LU, or the minimum-norm solution
+/// with a truncated SVD when the block is ill-conditioned (near a singular configuration the
+/// smallest change of the dependent coordinates that satisfies the constraints keeps the
+/// motion on its branch).
+fn dependent_solve(eq: &DenseEquations, p: &Partition, rhs: &[f64]) -> Vec<f64> {
+    let cd = submatrix(eq.jacobian.as_ref(), &p.rows, &p.dependent);
+    match checked_lu(&cd, "dependent block C_qd") {
+        Ok(lu) => {
+            let mut x = Mat::from_fn(rhs.len(), 1, |i, _| rhs[i]);
+            lu.solve_in_place(&mut x);
+            (0..rhs.len()).map(|i| x[(i, 0)]).collect()
+        }
+        Err(_) => minimum_norm_solve(cd.as_ref(), rhs, SINGULAR_VALUE_CUTOFF),
+    }
+}
+
+/// Dormand-Prince 5(4) coefficients (Dormand and Prince 1980; Hairer, Norsett and Wanner,
+/// Solving ODEs I, table 5.2).
+const DP_C: [f64; 7] = [0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0];
+const DP_A: [[f64; 6]; 7] = [
+    [0.0; 6],
+    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
+    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
+    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0],
+    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0],
+    [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0],
+];
+/// Fifth-order weights minus fourth-order weights (the error estimate).
+const DP_E: [f64; 7] =
+    [71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0, 22.0 / 525.0, -1.0 / 40.0];
+
+/// One step attempt of `method` from (t, y) with step h. `k[0]` must hold dy/dt at (t, y).
+/// Writes y(t + h) into `y_new`, leaves dy/dt at (t + h, y_new) in `k[6]` for Dormand-Prince
+/// (first same as last), and returns the error norm (0 for RK4).
+#[allow(clippy::too_many_arguments)]
+fn attempt(
+    engine: &mut Engine,
+    method: ExplicitMethod,
+    t: f64,
+    h: f64,
+    y: &[f64],
+    k: &mut [Vec<f64>; 7],
+    y_new: &mut [f64],
+    stage: &mut [f64],
+) -> Result<f64> {
+    let n = y.len();
+    match method {
+        ExplicitMethod::Rk4 => {
+            let half = 0.5 * h;
+            for (s, c) in [(1usize, half), (2, half), (3, h)] {
+                for i in 0..n {
+                    stage[i] = y[i] + c * k[s - 1][i];
+                }
+                let (head, tail) = k.split_at_mut(s);
+                let _ = head;
+                engine.derivative(t + c, stage, &mut tail[0])?;
+            }
+            for i in 0..n {
+                y_new[i] = y[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
+            }
+            Ok(0.0)
+        }
+        ExplicitMethod::Dopri5 => {
+            for s in 1..7 {
+                for i in 0..n {
+                    let mut v = y[i];
+                    for j in 0..s {
+                        v += h * DP_A[s][j] * k[j][i];
+                    }
+                    stage[i] = v;
+                }
+                if s == 6 {
+                    y_new.copy_from_slice(stage);
+                }
+                let (_, tail) = k.split_at_mut(s);
+                engine.derivative(t + DP_C[s] * h, stage, &mut tail[0])?;
+            }
+            let (rtol, atol) = (engine.settings.relative_tolerance, engine.settings.absolute_tolerance);
+            let sum: f64 = (0..n)
+                .map(|i| {
+                    let e: f64 = h * (0..7).map(|s| DP_E[s] * k[s][i]).sum::<f64>();
+                    let scale = atol + rtol * y[i].abs().max(y_new[i].abs());
+                    (e / scale).powi(2)
+                })
+                .sum();
+            Ok(if n == 0 { 0.0 } else { (sum / n as f64).sqrt() })
+        }
+    }
+}
+
+/// The integrated vector of the engine's state, and the stage buffers sized for it.
+fn resize_for(
+    engine: &mut Engine,
+    y: &mut Vec<f64>,
+    y_new: &mut Vec<f64>,
+    stage: &mut Vec<f64>,
+    k: &mut [Vec<f64>; 7],
+) {
+    engine.pack(y);
+    y_new.resize(y.len(), 0.0);
+    stage.resize(y.len(), 0.0);
+    k.iter_mut().for_each(|v| v.resize(y.len(), 0.0));
+}
+
+/// Whether an error is a failure of one step attempt that a smaller step may avoid.
+fn retryable(e: &FlexmbdError) -> bool {
+    matches!(
+        e,
+        FlexmbdError::NewtonDiverged { .. }
+            | FlexmbdError::SingularMatrix { .. }
+            | FlexmbdError::NonFinite { .. }
+    )
+}
+
+/// The explicit time loop; keeps the last accepted state in `last_state`.
+pub fn run(
+    model: &Model,
+    settings: &SimulationSettings,
+    explicit: &ExplicitSettings,
+    observer: &mut dyn FnMut(&Progress) -> bool,
+    output: &mut Output,
+    last_state: &mut Option<State>,
+) -> Result<()> {
+    settings.validate()?;
+    explicit.validate(model)?;
+    let n = model.coordinate_count;
+    let mut ws = Workspace::for_evaluation(model);
+    let mut eq = DenseEquations::new(model);
+    let mut state = State::initial(model, settings.start_time);
+    dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &settings.initial)?;
+    update_discrete(model, &mut state, &mut ws, true);
+
+    // The partition at the start.
+    let t0 = state.time;
+    eq.evaluate(model, &mut ws, t0, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+    let first = match &explicit.independent {
+        Some(list) => partition_with_independent(eq.jacobian.as_ref(), list, explicit.rank_tolerance)
+            .map_err(|m| {
+                let names: Vec<String> =
+                    list.iter().filter(|&&c| c < n).map(|&c| model.coordinate_name(c)).collect();
+                FlexmbdError::InvalidParameter {
+                    item: format!("independent coordinates [{}]", names.join(", ")),
+                    message: m,
+                }
+            })?,
+        None => partition(eq.jacobian.as_ref(), explicit.partition, explicit.rank_tolerance),
+    };
+    let mut engine = Engine {
+        model,
+        settings: explicit,
+        ws,
+        eq,
+        partition: first,
+        q: state.coordinates.clone(),
+        qd: state.velocities.clone(),
+        qdd: vec![0.0; n],
+        accepted_q: state.coordinates.clone(),
+        accepted_qd: state.velocities.clone(),
+        accepted_time: t0,
+        gamma: vec![0.0; model.constraint_count],
+        discrete: state.discrete.clone(),
+        evaluations: 0,
+        newton_iterations: 0,
+        singular_evaluations: 0,
+        mode: explicit.strategy,
+        singular_limit: 0.0,
+    };
+    engine.singular_limit = explicit.singular_factor * engine.partition.condition.max(1.0);
+    if !engine.partition.redundant_rows.is_empty() {
+        let names: Vec<String> =
+            engine.partition.redundant_rows.iter().map(|&r| model.constraint_name(r)).collect();
+        output.events.push(Event {
+            time: t0,
+            kind: "redundant constraints".to_string(),
+            message: format!("rows without multipliers (dependent on the others): {}", names.join("; ")),
+        });
+    }
+
+    // Record the start.
+    let record = |engine: &mut Engine, state: &mut State, output: &mut Output| -> Result<()> {
+        engine.q.copy_from_slice(&state.coordinates);
+        engine.qd.copy_from_slice(&state.velocities);
+        engine.discrete.copy_from_slice(&state.discrete);
+        engine.accelerations(state.time)?;
+        state.accelerations.copy_from_slice(&engine.qdd);
+        engine.multipliers(state.time, &mut state.multipliers)?;
+        output.record(model, state, &mut engine.ws);
+        Ok(())
+    };
+    record(&mut engine, &mut state, output)?;
+    *last_state = Some(state.clone());
+
+    let t_end = settings.end_time;
+    let time_eps = 1e-12 * (1.0 + t_end.abs());
+    let mut next_output = settings.output_interval.map(|dt| settings.start_time + dt);
+    let mut output_index = 1usize;
+    let mut h = settings.step_size;
+    let adaptive = explicit.method == ExplicitMethod::Dopri5;
+    let mut y = Vec::new();
+    engine.pack(&mut y);
+    let mut y_new = vec![0.0; y.len()];
+    let mut stage = vec![0.0; y.len()];
+    let mut k: [Vec<f64>; 7] = std::array::from_fn(|_| vec![0.0; y.len()]);
+    let mut first_derivative_valid = false;
+    let mut drift_reported = false;
+    output.statistics.min_step_size_used = f64::INFINITY;
+
+    let mut near_singular = false;
+    while state.time < t_end - time_eps {
+        let t = state.time;
+        let singular_before = engine.singular_evaluations;
+        let mut h_try = h.min(t_end - t);
+        if let Some(t_out) = next_output {
+            if t_out - t < h_try + time_eps {
+                h_try = t_out - t;
+            }
+        }
+        if !first_derivative_valid {
+            engine.derivative(t, &y, &mut k[0])?;
+            first_derivative_valid = true;
+        }
+        let attempt_result =
+            attempt(&mut engine, explicit.method, t, h_try, &y, &mut k, &mut y_new, &mut stage);
+        let (accepted, factor) = match attempt_result {
+            Ok(err) if !adaptive => (err.is_finite(), 1.0),
+            Ok(err) => {
+                let factor =
+                    if err.is_finite() { (0.9 * err.max(1e-10).powf(-0.2)).clamp(0.2, 5.0) } else { 0.2 };
+                (err <= 1.0, factor)
+            }
+            Err(e) if retryable(&e) => {
+                // A failed Newton iteration or a singular block: first try a better partition
+                // at the start of the step, then (error control) a smaller step.
+                if let Some(event) = engine.repartition_after_failure()? {
+                    output.events.push(event);
+                    output.statistics.rejected_steps += 1;
+                    resize_for(&mut engine, &mut y, &mut y_new, &mut stage, &mut k);
+                    first_derivative_valid = false;
+                    continue;
+                }
+                if !adaptive || h_try * 0.25 < settings.min_step_size {
+                    return Err(e);
+                }
+                (false, 0.25)
+            }
+            Err(e) => return Err(e),
+        };
+        if !accepted {
+            output.statistics.rejected_steps += 1;
+            if !adaptive {
+                return Err(FlexmbdError::NonFinite { item: "the Runge-Kutta step".to_string(), time: t });
+            }
+            h = h_try * factor.min(1.0);
+            if h < settings.min_step_size {
+                return Err(FlexmbdError::StepSizeTooSmall {
+                    time: t,
+                    step_size: h,
+                    min_step_size: settings.min_step_size,
+                });
+            }
+            continue;
+        }
+
+        // Accept.
+        let t_new = t + h_try;
+        std::mem::swap(&mut y, &mut y_new);
+        engine.unpack(t_new, &y)?;
+        let mut modified = false;
+        if engine.mode == Strategy::Projection {
+            engine.project(t_new)?;
+            modified = true;
+        }
+        let mode = engine.mode;
+        let events = engine.update_partition(t_new)?;
+        if !events.is_empty() || engine.mode != mode {
+            modified = true;
+        }
+        output.events.extend(events);
+        if modified {
+            resize_for(&mut engine, &mut y, &mut y_new, &mut stage, &mut k);
+        }
+        engine.accepted_q.copy_from_slice(&engine.q);
+        engine.accepted_qd.copy_from_slice(&engine.qd);
+        engine.accepted_time = t_new;
+        state.time = t_new;
+        state.coordinates.copy_from_slice(&engine.q);
+        state.velocities.copy_from_slice(&engine.qd);
+        let discrete_before = state.discrete.clone();
+        update_discrete(model, &mut state, &mut engine.ws, false);
+        engine.discrete.copy_from_slice(&state.discrete);
+        // First same as last: dy/dt at the new point, unless the state or the forces changed.
+        first_derivative_valid = adaptive && !modified && discrete_before == state.discrete;
+        if first_derivative_valid {
+            let (head, tail) = k.split_at_mut(6);
+            head[0].copy_from_slice(&tail[0]);
+        }
+        if engine.singular_evaluations > singular_before {
+            if !near_singular {
+                output.events.push(Event {
+                    time: t_new,
+                    kind: "singular configuration".to_string(),
+                    message: format!(
+                        "the constraint Jacobian is near rank-deficient between t = {t} and {t_new}: \
+                         accelerations from a truncated SVD of C_q"
+                    ),
+                });
+            }
+            near_singular = true;
+        } else {
+            near_singular = false;
+        }
+        let stats = &mut output.statistics;
+        stats.steps += 1;
+        stats.min_step_size_used = stats.min_step_size_used.min(h_try);
+        stats.max_step_size_used = stats.max_step_size_used.max(h_try);
+        if let Some(k) = state.first_non_finite() {
+            return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
+        }
+        let at_end = state.time >= t_end - time_eps;
+        let at_output = match next_output {
+            None => true,
+            Some(t_out) => (state.time - t_out).abs() <= time_eps || at_end,
+        };
+        if at_output {
+            if let Some(dt) = settings.output_interval {
+                output_index += 1;
+                next_output =
+                    if at_end { None } else { Some(settings.start_time + dt * output_index as f64) };
+            }
+            record(&mut engine, &mut state, output)?;
+            let violation = output.constraint_violation.last().copied().unwrap_or(0.0);
+            if !drift_reported && violation > explicit.drift_threshold {
+                drift_reported = true;
+                output.events.push(Event {
+                    time: state.time,
+                    kind: "constraint drift".to_string(),
+                    message: format!(
+                        "constraint violation {violation:.3e} passed {:.1e} (strategy '{}' does not \
+                         correct the positions)",
+                        explicit.drift_threshold,
+                        explicit.strategy.name()
+                    ),
+                });
+            }
+        }
+        *last_state = Some(state.clone());
+        output.statistics.function_evaluations = engine.evaluations;
+        output.statistics.newton_iterations = engine.newton_iterations;
+        if adaptive && h_try >= h * (1.0 - 1e-12) {
+            h = (h_try * factor).min(settings.max_step_size);
+        }
+        let progress = Progress {
+            time: state.time,
+            step_size: h_try,
+            newton_iterations: 0,
+            steps: output.statistics.steps,
+        };
+        if !observer(&progress) {
+            return Err(FlexmbdError::Interrupted { time: state.time });
+        }
+    }
+    output.statistics.function_evaluations = engine.evaluations;
+    output.statistics.newton_iterations = engine.newton_iterations;
+    Ok(())
+}

@@ -1,0 +1,244 @@
+//! Redundant constraints: equations that are linear combinations of the others on the
+//! constraint manifold (a planar four-bar modelled with spatial revolute joints, the Bricard
+//! mechanism, a parallel crank). Their Jacobian C_q is rank deficient, so the augmented matrix
+//! of seed eq. 26 is singular and the multipliers are not unique.
+//!
+//! Before a run, the initial configuration is brought onto the constraints with minimum-norm
+//! Gauss-Newton corrections (truncated pseudo-inverse, which converges with redundant rows) and
+//! the rank of C_q is decided by QR with column pivoting of C_q^T. Rows are chosen in the
+//! order: Euler-parameter normalizations, driver equations, joint equations, so the removed
+//! rows are always joint equations. The run continues on the model without the redundant rows
+//! (`Model::without_constraint_rows`), which has the same motion; the results are mapped back
+//! to all rows, with the multipliers of the removed rows either zero (`Remove`) or the
+//! minimum-norm multipliers of the same constraint forces C_q^T lambda (`MinimumNorm`). The
+//! analysis is reported (rank, removed rows, the groups of rows that are dependent together
+//! and their joints).
+//!
+//! The analysis is dense: models where it would cost more than about `ANALYSIS_FLOPS` are not
+//! analysed (a singular Newton matrix then reports redundant or conflicting constraints).
+
+use super::dense_system::{dense_initial_conditions, row_weight, DenseEquations, Level};
+use super::partition::{dependent_row_groups, minimum_norm_solve, partition, PartitionMethod};
+use super::settings::SimulationSettings;
+use crate::error::{FlexmbdError, Result};
+use crate::joint::reaction::joint_reaction;
+use crate::output::{Event, Output};
+use crate::solver::assembly::{joint_pair, update_kinematics};
+use crate::system::{Model, State, Workspace};
+
+/// Largest m n min(m, n) of C_q for which the analysis runs.
+pub const ANALYSIS_FLOPS: f64 = 2e9;
+
+/// What is done with redundant constraints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RedundancyHandling {
+    /// Remove them; their multipliers are zero.
+    Remove,
+    /// Remove them for the integration; report the minimum-norm multipliers of all rows.
+    MinimumNorm,
+    /// Stop with an error that lists them.
+    Error,
+}
+
+impl RedundancyHandling {
+    /// Name in settings.
+    pub fn name(self) -> &'static str {
+        match self {
+            RedundancyHandling::Remove => "remove",
+            RedundancyHandling::MinimumNorm => "minimum-norm",
+            RedundancyHandling::Error => "error",
+        }
+    }
+}
+
+/// Settings of the redundancy analysis.
+#[derive(Clone, Copy, Debug)]
+pub struct RedundancySettings {
+    /// Handling.
+    pub handling: RedundancyHandling,
+    /// Relative tolerance of the rank decision.
+    pub tolerance: f64,
+}
+
+impl Default for RedundancySettings {
+    fn default() -> Self {
+        RedundancySettings { handling: RedundancyHandling::Remove, tolerance: 1e-9 }
+    }
+}
+
+/// The result of the analysis of a redundant model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Redundancy {
+    /// Time of the analysis (the start).
+    pub time: f64,
+    /// Number of constraint rows.
+    pub rows: usize,
+    /// Rank of C_q.
+    pub rank: usize,
+    /// Removed rows.
+    pub removed_rows: Vec<usize>,
+    /// Groups of rows that are linearly dependent together (one per null vector of C_q^T).
+    pub groups: Vec<Vec<usize>>,
+    /// Joints with rows in a group.
+    pub joints: Vec<usize>,
+    /// Human-readable summary.
+    pub message: String,
+}
+
+/// A model with its redundant rows removed.
+pub struct Reduction {
+    /// The reduced model (initial coordinates on the constraints).
+    pub model: Model,
+    /// Row of the original model of each reduced row.
+    pub row_map: Vec<usize>,
+    /// The analysis.
+    pub report: Redundancy,
+    /// Relative tolerance of the rank decisions.
+    pub tolerance: f64,
+}
+
+/// Analyses the model at its initial configuration. Ok(None) if the constraints are
+/// independent (or the model too large to analyse densely).
+pub fn analyse(model: &Model, settings: &SimulationSettings) -> Result<Option<Reduction>> {
+    let (n, m) = (model.coordinate_count, model.constraint_count);
+    if m == 0 || (m as f64) * (n as f64) * (m.min(n) as f64) > ANALYSIS_FLOPS {
+        return Ok(None);
+    }
+    let tolerance = settings.redundancy.tolerance;
+    let mut ws = Workspace::for_evaluation(model);
+    let mut eq = DenseEquations::new(model);
+    let mut state = State::initial(model, settings.start_time);
+    let mut initial = settings.initial.clone();
+    initial.correct_velocities = false;
+    dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &initial)?;
+    let t = state.time;
+    eq.evaluate(model, &mut ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+    let mut weighted = eq.jacobian.clone();
+    for r in 0..m {
+        let w = row_weight(model, r);
+        for c in 0..n {
+            weighted[(r, c)] *= w;
+        }
+    }
+    let p = partition(weighted.as_ref(), PartitionMethod::Qr, tolerance);
+    if p.redundant_rows.is_empty() {
+        return Ok(None);
+    }
+    let groups = dependent_row_groups(eq.jacobian.as_ref(), tolerance);
+    let mut joints: Vec<usize> = groups
+        .iter()
+        .flatten()
+        .filter_map(|&r| model.joints.iter().position(|j| r >= j.row && r < j.row + j.equations.len()))
+        .collect();
+    joints.sort_unstable();
+    joints.dedup();
+    let joint_names: Vec<String> = joints.iter().map(|&j| format!("'{}'", model.joints[j].name)).collect();
+    let removed: Vec<String> = p.redundant_rows.iter().map(|&r| model.constraint_name(r)).collect();
+    let message = format!(
+        "{} of {m} constraint equations are redundant (rank of C_q {} at t = {t}); they involve joints {}; \
+         removed: {}",
+        p.redundant_rows.len(),
+        p.rank,
+        joint_names.join(", "),
+        removed.join("; ")
+    );
+    let report = Redundancy {
+        time: t,
+        rows: m,
+        rank: p.rank,
+        removed_rows: p.redundant_rows.clone(),
+        groups,
+        joints,
+        message,
+    };
+    if settings.redundancy.handling == RedundancyHandling::Error {
+        return Err(FlexmbdError::InvalidModel { item: "constraints".to_string(), message: report.message });
+    }
+    let (mut reduced, row_map) = model.without_constraint_rows(&p.redundant_rows)?;
+    reduced.initial_coordinates = state.coordinates;
+    Ok(Some(Reduction { model: reduced, row_map, report, tolerance }))
+}
+
+impl Reduction {
+    /// Multipliers of all rows of `original` from those of the reduced model.
+    fn expand_multipliers(&self, reduced: &[f64], full: &mut [f64]) {
+        full.iter_mut().for_each(|x| *x = 0.0);
+        for (k, &row) in self.row_map.iter().enumerate() {
+            full[row] = reduced[k];
+        }
+    }
+
+    /// A state of the reduced model as a state of `original`.
+    pub fn expand_state(&self, original: &Model, mut state: State) -> State {
+        let mut full = vec![0.0; original.constraint_count];
+        self.expand_multipliers(&state.multipliers, &mut full);
+        state.multipliers = full;
+        let mut previous = vec![0.0; original.constraint_count];
+        self.expand_multipliers(&state.previous_multipliers, &mut previous);
+        state.previous_multipliers = previous;
+        state
+    }
+
+    /// The output of the reduced model as an output of `original`: multipliers of all rows
+    /// (zero or minimum-norm on the removed ones), reactions from them, and the constraint
+    /// violation over all rows; an event reports the redundancy.
+    pub fn expand_output(&self, original: &Model, reduced: Output, handling: RedundancyHandling) -> Output {
+        let (n, m) = (original.coordinate_count, original.constraint_count);
+        let records = reduced.len();
+        let mut out = reduced;
+        let mr = self.model.constraint_count;
+        let mut multipliers = vec![0.0; records * m];
+        let mut ws = Workspace::for_evaluation(original);
+        let mut eq = DenseEquations::new(original);
+        let no_discrete = vec![0.0; original.discrete_count];
+        for k in 0..records {
+            let lambda = &mut multipliers[k * m..(k + 1) * m];
+            self.expand_multipliers(&out.multipliers[k * mr..(k + 1) * mr], lambda);
+            let q = &out.coordinates[k * n..(k + 1) * n];
+            let qd = &out.velocities[k * n..(k + 1) * n];
+            let t = out.time[k];
+            if eq.evaluate(original, &mut ws, t, q, qd, &no_discrete, Level::Position).is_err() {
+                continue;
+            }
+            let removed_violation =
+                self.report.removed_rows.iter().map(|&r| eq.constraints[r].abs()).fold(0.0, f64::max);
+            out.constraint_violation[k] = out.constraint_violation[k].max(removed_violation);
+            if handling == RedundancyHandling::MinimumNorm {
+                // The same constraint forces C_q^T lambda, distributed with minimum norm.
+                let mut force = vec![0.0; n];
+                for r in 0..m {
+                    for c in 0..n {
+                        force[c] += eq.jacobian[(r, c)] * lambda[r];
+                    }
+                }
+                let transpose = eq.jacobian.transpose().to_owned();
+                let spread = minimum_norm_solve(transpose.as_ref(), &force, self.tolerance);
+                lambda.copy_from_slice(&spread);
+                update_kinematics(original, q, qd, &mut ws);
+                for (j, joint) in original.joints.iter().enumerate() {
+                    let driver = joint.driver_values(t).unwrap_or([f64::NAN; 3]);
+                    let mut scratch = std::mem::take(&mut ws.joints[j].scratch);
+                    let pair = joint_pair(original, &ws.markers, j);
+                    let l = &lambda[joint.row..joint.row + joint.equations.len()];
+                    let (f, tq) = joint_reaction(joint, &pair, &driver, l, q, &mut scratch);
+                    ws.joints[j].scratch = scratch;
+                    let base = (k * original.joints.len() + j) * 6;
+                    out.reactions[base..base + 3].copy_from_slice(&f.0);
+                    out.reactions[base + 3..base + 6].copy_from_slice(&tq.0);
+                }
+            }
+        }
+        out.multipliers = multipliers;
+        out.constraint_count = m;
+        out.events.insert(
+            0,
+            Event {
+                time: self.report.time,
+                kind: "redundant constraints".to_string(),
+                message: self.report.message.clone(),
+            },
+        );
+        out.redundancy = Some(self.report.clone());
+        out
+    }
+}
