@@ -127,14 +127,23 @@ def test_slightly_inconsistent_initial_positions_are_corrected():
     assert abs(np.linalg.norm(result.position(mass)[0]) - 1.0) < 1e-11
 
 
-def test_redundant_constraints_are_reported_as_singular():
-    # Two revolute joints on the same axis: five of their ten equations are redundant.
+def test_redundant_constraints_are_reported_or_refused():
+    # Two revolute joints on the same axis: five of their ten equations are redundant. By
+    # default they are removed and reported; with redundant_constraints="error" the model is
+    # refused with both joints named.
     s = fm.System()
     body = s.add_rigid_body(1.0, (1, 1, 1))
     for name in ("first", "second"):
         s.add_revolute_joint(s.add_marker(s.ground), s.add_marker(body), name=name)
-    with pytest.raises(fm.SingularMatrixError, match="redundant or conflicting constraints"):
-        fm.simulate(s, 0.1, 1e-3)
+    result = fm.simulate(s, 0.1, 1e-3)
+    assert len(result.redundancy["removed_rows"]) == 5
+    assert result.events[0]["kind"] == "redundant constraints"
+    message = "5 of 11 constraint equations are redundant"
+    with pytest.raises(fm.InvalidModelError, match=message) as info:
+        fm.simulate(s, 0.1, 1e-3, solver=fm.GeneralizedAlpha(redundant_constraints="error"))
+    assert "'first'" in str(info.value) and "'second'" in str(info.value)
+    with pytest.raises(fm.InvalidParameterError, match="redundant"):
+        fm.GeneralizedAlpha(redundant_constraints="ignore")
 
 
 def stiffening(threshold):

@@ -20,6 +20,7 @@ from . import errors, examples
 from ._core import (
     BodyId,
     Constant,
+    ExplicitSolver,
     ForceId,
     GeneralizedAlpha,
     Harmonic,
@@ -59,6 +60,7 @@ __all__ = [
     "LinearizedSystem",
     "CallbackError",
     "Constant",
+    "ExplicitSolver",
     "FlexmbdError",
     "ForceId",
     "GeneralizedAlpha",

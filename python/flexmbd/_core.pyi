@@ -284,6 +284,8 @@ class GeneralizedAlpha:
     initial_tolerance: float
     correct_initial_positions: bool
     correct_initial_velocities: bool
+    redundant_constraints: str
+    rank_tolerance: float
     def __init__(
         self,
         spectral_radius: float = 0.9,
@@ -301,6 +303,54 @@ class GeneralizedAlpha:
         initial_tolerance: float = 1e-11,
         correct_initial_positions: bool = True,
         correct_initial_velocities: bool = True,
+        redundant_constraints: str = "remove",
+        rank_tolerance: float = 1e-9,
+    ) -> None: ...
+
+class ExplicitSolver:
+    method: str
+    strategy: str
+    formulation: str
+    partition: str
+    independent: list[int] | None
+    baumgarte: tuple[float, float] | None
+    relative_tolerance: float
+    absolute_tolerance: float
+    constraint_tolerance: float
+    max_iterations: int
+    repartition_ratio: float
+    drift_threshold: float
+    singular_factor: float
+    min_step_size: float | None
+    max_step_size: float | None
+    initial_tolerance: float
+    correct_initial_positions: bool
+    correct_initial_velocities: bool
+    redundant_constraints: str
+    rank_tolerance: float
+    def __init__(
+        self,
+        method: str = "dopri5",
+        strategy: str = "partitioning",
+        *,
+        formulation: str = "augmented",
+        partition: str = "lu",
+        independent: Sequence[int] | None = None,
+        baumgarte: tuple[float, float] | None = None,
+        relative_tolerance: float = 1e-8,
+        absolute_tolerance: float = 1e-10,
+        constraint_tolerance: float = 1e-12,
+        max_iterations: int = 20,
+        repartition_ratio: float = 2.0,
+        drift_threshold: float = 1e-6,
+        singular_factor: float = 4.0,
+        min_step_size: float | None = None,
+        max_step_size: float | None = None,
+        initial_tolerance: float = 1e-11,
+        correct_initial_positions: bool = True,
+        correct_initial_velocities: bool = True,
+        redundant_constraints: str = "remove",
+        rank_tolerance: float = 1e-9,
     ) -> None: ...
 
 def simulate(
@@ -310,7 +360,7 @@ def simulate(
     *,
     start_time: float = 0.0,
     output_interval: float | None = None,
-    solver: GeneralizedAlpha | None = None,
+    solver: GeneralizedAlpha | ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
 ) -> tuple[dict[str, Any], BaseException | None]: ...
 

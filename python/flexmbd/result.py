@@ -27,7 +27,13 @@ class Result:
             derivatives, (n, coordinate_count).
         multipliers: Lagrange multipliers, (n, constraint_count).
         constraint_violation: largest |C(q, t)| at each output, (n,).
-        statistics: steps, rejected steps, Newton iterations, factorizations, step sizes.
+        statistics: steps, rejected steps, Newton iterations, factorizations, function
+            evaluations (explicit solvers), step sizes.
+        events: what happened during the run, in order: dicts with ``time``, ``kind``
+            ("redundant constraints", "repartition", "constraint drift") and ``message``.
+        redundancy: the redundant constraints found at the start (dict with ``rows``,
+            ``rank``, ``removed_rows``, ``groups`` of rows dependent together, ``joints``
+            involved and ``message``), or None.
         success: False if the run stopped on an error (then ``error`` is that error).
         layout: the model description (``Model.describe()``).
     """
@@ -46,6 +52,8 @@ class Result:
         self.multipliers: Array = raw["multipliers"]
         self.constraint_violation: Array = raw["constraint_violation"]
         self.statistics: dict[str, float] = dict(raw["statistics"])
+        self.events: list[dict[str, Any]] = list(raw.get("events", []))
+        self.redundancy: dict[str, Any] | None = raw.get("redundancy")
         self.layout = layout
         self.error = error
         self.success = error is None

@@ -15,7 +15,7 @@ def simulate(
     *,
     start_time: float = 0.0,
     output_interval: float | None = None,
-    solver: _core.GeneralizedAlpha | None = None,
+    solver: _core.GeneralizedAlpha | _core.ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
 ) -> Result:
     """Simulates ``model`` (a :class:`Model`, or a :class:`System`, which is compiled first)
@@ -23,8 +23,13 @@ def simulate(
 
     Results are recorded every ``output_interval`` seconds (steps land exactly on these times)
     or, if None, after every step. ``solver`` defaults to ``GeneralizedAlpha()`` (spectral
-    radius 0.9). ``progress(time, step_size, newton_iterations)`` is called about ten times a
-    second.
+    radius 0.9); an :class:`ExplicitSolver` selects Runge-Kutta 4 or Dormand-Prince 5(4) with
+    one of the seed's three strategies (integrate all accelerations, coordinate partitioning,
+    projection), see ``docs/solvers.md``. ``progress(time, step_size, newton_iterations)`` is
+    called about ten times a second.
+
+    Redundant constraints are found by rank before the run and, by default, removed (see
+    ``Result.redundancy`` and ``Result.events``).
 
     Initial positions and velocities that violate the constraints are corrected first
     (minimum-norm change); initial accelerations and multipliers come from seed eq. 26.

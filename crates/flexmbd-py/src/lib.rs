@@ -28,6 +28,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<time_function::Spline>()?;
     m.add_class::<time_function::UserFunction>()?;
     m.add_class::<solver::GeneralizedAlpha>()?;
+    m.add_class::<solver::ExplicitSolver>()?;
     m.add_function(wrap_pyfunction!(solver::simulate, m)?)?;
     m.add_class::<fem::Material>()?;
     m.add_class::<fem::Section>()?;

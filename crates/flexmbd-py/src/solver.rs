@@ -5,14 +5,18 @@
 use std::time::{Duration, Instant};
 
 use flexmbd_core::output::Output;
+use flexmbd_core::solver::dense_system::Formulation;
+use flexmbd_core::solver::explicit::{ExplicitMethod, ExplicitSettings, Strategy};
 use flexmbd_core::solver::initial::InitialSettings;
+use flexmbd_core::solver::partition::PartitionMethod;
+use flexmbd_core::solver::redundancy::{RedundancyHandling, RedundancySettings};
 use flexmbd_core::solver::{
-    simulate as core_simulate, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
-    VelocityProjection,
+    simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
+    StepControl, VelocityProjection,
 };
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 
 use crate::errors::{invalid, to_exception};
 use crate::model::Model;
@@ -71,6 +75,10 @@ pub struct GeneralizedAlpha {
     pub correct_initial_positions: bool,
     /// Correct inconsistent initial velocities.
     pub correct_initial_velocities: bool,
+    /// "remove", "minimum-norm" or "error".
+    pub redundant_constraints: String,
+    /// Relative tolerance of the rank decision for redundant constraints.
+    pub rank_tolerance: f64,
 }
 
 #[pymethods]
@@ -79,7 +87,8 @@ impl GeneralizedAlpha {
     #[pyo3(signature = (spectral_radius = 0.9, *, newton_tolerance = 1e-6, max_iterations = 12, jacobian = "modified",
                         step_control = "newton", relative_tolerance = 1e-6, absolute_tolerance = 1e-8,
                         min_step_size = None, max_step_size = None, velocity_projection = "auto", linear_solver = "auto",
-                        initial_tolerance = 1e-11, correct_initial_positions = true, correct_initial_velocities = true))]
+                        initial_tolerance = 1e-11, correct_initial_positions = true, correct_initial_velocities = true,
+                        redundant_constraints = "remove", rank_tolerance = 1e-9))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         spectral_radius: f64,
@@ -96,6 +105,8 @@ impl GeneralizedAlpha {
         initial_tolerance: f64,
         correct_initial_positions: bool,
         correct_initial_velocities: bool,
+        redundant_constraints: &str,
+        rank_tolerance: f64,
     ) -> PyResult<Self> {
         let s = GeneralizedAlpha {
             spectral_radius,
@@ -112,6 +123,8 @@ impl GeneralizedAlpha {
             initial_tolerance,
             correct_initial_positions,
             correct_initial_velocities,
+            redundant_constraints: redundant_constraints.to_string(),
+            rank_tolerance,
         };
         s.settings(1.0, 1e-3)?;
         Ok(s)
@@ -193,12 +206,225 @@ impl GeneralizedAlpha {
             s.min_step_size = h;
         }
         s.max_step_size = self.max_step_size.unwrap_or(step_size).max(step_size);
-        s.initial = InitialSettings {
-            tolerance: self.initial_tolerance,
-            correct_positions: self.correct_initial_positions,
-            correct_velocities: self.correct_initial_velocities,
-            ..InitialSettings::default()
+        s.initial = initial_settings(
+            self.initial_tolerance,
+            self.correct_initial_positions,
+            self.correct_initial_velocities,
+        );
+        s.redundancy = redundancy_settings(item, &self.redundant_constraints, self.rank_tolerance)?;
+        Ok(s)
+    }
+}
+
+fn initial_settings(tolerance: f64, positions: bool, velocities: bool) -> InitialSettings {
+    InitialSettings {
+        tolerance,
+        correct_positions: positions,
+        correct_velocities: velocities,
+        ..InitialSettings::default()
+    }
+}
+
+fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<RedundancySettings> {
+    let handling = match handling {
+        "remove" => RedundancyHandling::Remove,
+        "minimum-norm" => RedundancyHandling::MinimumNorm,
+        "error" => RedundancyHandling::Error,
+        o => {
+            return Err(invalid(
+                item,
+                format!("redundant_constraints must be 'remove', 'minimum-norm' or 'error', got '{o}'"),
+            ))
+        }
+    };
+    if !(tolerance > 0.0 && tolerance < 1.0) {
+        return Err(invalid(item, format!("rank_tolerance must be in (0, 1), got {tolerance}")));
+    }
+    Ok(RedundancySettings { handling, tolerance })
+}
+
+/// Explicit Runge-Kutta integration of the constrained equations with one of the seed's three
+/// strategies (section 4, "Numerical solution of the augmented equations"). Dense linear
+/// algebra: for rigid and small deformable models (up to 2000 coordinates).
+///
+/// - `method`: "dopri5" (Dormand-Prince 5(4), error-controlled step with
+///   `relative_tolerance` and `absolute_tolerance`, starting from the step size given to
+///   `simulate`) or "rk4" (classical Runge-Kutta, fixed step).
+/// - `strategy`: "integrate-all" (integrate all coordinates and velocities; the constraints
+///   drift unless `baumgarte=(alpha, beta)` stabilizes them), "partitioning" (Wehage:
+///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
+///   "projection" (integrate all, then project onto the position and velocity constraints).
+/// - `formulation`: "augmented" (seed eq. 26) or "embedding" (seed eqs. 27-30).
+/// - `partition`: "lu" (full pivoting), "qr" (column pivoting) or "svd": how the independent
+///   coordinates are chosen; `independent`: coordinate indices to use instead. The
+///   coordinates are repartitioned (an event) when the decomposition proposes, after a step,
+///   a partition whose dependent block is `repartition_ratio` times better conditioned.
+/// - `singular_factor`: a configuration counts as singular (the constraint Jacobian near
+///   rank-deficient, as at the change points of a parallelogram linkage) where even the best
+///   partition's condition (|C_q|_F |C_qd^-1|_F) exceeds this factor times the condition at
+///   the start: there the embedding uses an SVD null-space basis and coordinate partitioning
+///   takes projection steps until the configuration is passed (reported as events).
+/// - `constraint_tolerance`, `max_iterations`: the Newton iterations of the dependent
+///   coordinates and of the projection.
+/// - `redundant_constraints`, `rank_tolerance`, `initial_tolerance`,
+///   `correct_initial_positions`, `correct_initial_velocities`: as for `GeneralizedAlpha`.
+#[pyclass(module = "flexmbd._core", get_all, set_all, from_py_object)]
+#[derive(Clone)]
+pub struct ExplicitSolver {
+    /// "dopri5" or "rk4".
+    pub method: String,
+    /// "integrate-all", "partitioning" or "projection".
+    pub strategy: String,
+    /// "augmented" or "embedding".
+    pub formulation: String,
+    /// "lu", "qr" or "svd".
+    pub partition: String,
+    /// Independent coordinate indices, or None.
+    pub independent: Option<Vec<usize>>,
+    /// Baumgarte (alpha, beta), or None.
+    pub baumgarte: Option<(f64, f64)>,
+    /// Relative tolerance of the error control.
+    pub relative_tolerance: f64,
+    /// Absolute tolerance of the error control.
+    pub absolute_tolerance: f64,
+    /// Tolerance on |C| of the Newton iterations.
+    pub constraint_tolerance: f64,
+    /// Newton iterations.
+    pub max_iterations: usize,
+    /// Factor by which a proposed partition must be better conditioned to replace the current.
+    pub repartition_ratio: f64,
+    /// Constraint violation reported as drift.
+    pub drift_threshold: f64,
+    /// Factor over the initial partition condition at which a configuration counts as singular.
+    pub singular_factor: f64,
+    /// Smallest step size (default: 1e-9 of the step size).
+    pub min_step_size: Option<f64>,
+    /// Largest step size (default: unbounded).
+    pub max_step_size: Option<f64>,
+    /// Largest constraint violation accepted at the start.
+    pub initial_tolerance: f64,
+    /// Correct inconsistent initial positions.
+    pub correct_initial_positions: bool,
+    /// Correct inconsistent initial velocities.
+    pub correct_initial_velocities: bool,
+    /// "remove", "minimum-norm" or "error".
+    pub redundant_constraints: String,
+    /// Relative tolerance of rank decisions.
+    pub rank_tolerance: f64,
+}
+
+#[pymethods]
+impl ExplicitSolver {
+    #[new]
+    #[pyo3(signature = (method = "dopri5", strategy = "partitioning", *, formulation = "augmented", partition = "lu",
+                        independent = None, baumgarte = None, relative_tolerance = 1e-8, absolute_tolerance = 1e-10,
+                        constraint_tolerance = 1e-12, max_iterations = 20, repartition_ratio = 2.0,
+                        drift_threshold = 1e-6, singular_factor = 4.0, min_step_size = None, max_step_size = None, initial_tolerance = 1e-11,
+                        correct_initial_positions = true, correct_initial_velocities = true,
+                        redundant_constraints = "remove", rank_tolerance = 1e-9))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        method: &str,
+        strategy: &str,
+        formulation: &str,
+        partition: &str,
+        independent: Option<Vec<usize>>,
+        baumgarte: Option<(f64, f64)>,
+        relative_tolerance: f64,
+        absolute_tolerance: f64,
+        constraint_tolerance: f64,
+        max_iterations: usize,
+        repartition_ratio: f64,
+        drift_threshold: f64,
+        singular_factor: f64,
+        min_step_size: Option<f64>,
+        max_step_size: Option<f64>,
+        initial_tolerance: f64,
+        correct_initial_positions: bool,
+        correct_initial_velocities: bool,
+        redundant_constraints: &str,
+        rank_tolerance: f64,
+    ) -> PyResult<Self> {
+        let s = ExplicitSolver {
+            method: method.to_string(),
+            strategy: strategy.to_string(),
+            formulation: formulation.to_string(),
+            partition: partition.to_string(),
+            independent,
+            baumgarte,
+            relative_tolerance,
+            absolute_tolerance,
+            constraint_tolerance,
+            max_iterations,
+            repartition_ratio,
+            drift_threshold,
+            singular_factor,
+            min_step_size,
+            max_step_size,
+            initial_tolerance,
+            correct_initial_positions,
+            correct_initial_velocities,
+            redundant_constraints: redundant_constraints.to_string(),
+            rank_tolerance,
         };
+        s.settings(1.0, 1e-3)?;
+        Ok(s)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "ExplicitSolver(method='{}', strategy='{}', formulation='{}', partition='{}')",
+            self.method, self.strategy, self.formulation, self.partition
+        )
+    }
+}
+
+impl ExplicitSolver {
+    fn settings(&self, end_time: f64, step_size: f64) -> PyResult<SimulationSettings> {
+        let item = "ExplicitSolver";
+        let choice = |name: &str, value: &str, options: &[&str]| -> PyResult<usize> {
+            options.iter().position(|o| *o == value).ok_or_else(|| {
+                let list: Vec<String> = options.iter().map(|o| format!("'{o}'")).collect();
+                invalid(item, format!("{name} must be one of {}, got '{value}'", list.join(", ")))
+            })
+        };
+        let method = [ExplicitMethod::Dopri5, ExplicitMethod::Rk4]
+            [choice("method", &self.method, &["dopri5", "rk4"])?];
+        let strategy = [Strategy::IntegrateAll, Strategy::CoordinatePartitioning, Strategy::Projection]
+            [choice("strategy", &self.strategy, &["integrate-all", "partitioning", "projection"])?];
+        let formulation = [Formulation::Augmented, Formulation::Embedding]
+            [choice("formulation", &self.formulation, &["augmented", "embedding"])?];
+        let partition = [PartitionMethod::Lu, PartitionMethod::Qr, PartitionMethod::Svd]
+            [choice("partition", &self.partition, &["lu", "qr", "svd"])?];
+        let explicit = ExplicitSettings {
+            method,
+            strategy,
+            formulation,
+            partition,
+            independent: self.independent.clone(),
+            baumgarte: self.baumgarte,
+            relative_tolerance: self.relative_tolerance,
+            absolute_tolerance: self.absolute_tolerance,
+            constraint_tolerance: self.constraint_tolerance,
+            max_iterations: self.max_iterations,
+            repartition_ratio: self.repartition_ratio,
+            rank_tolerance: self.rank_tolerance,
+            drift_threshold: self.drift_threshold,
+            singular_factor: self.singular_factor,
+        };
+        let mut s = SimulationSettings::new(end_time, step_size);
+        s.min_step_size = self.min_step_size.unwrap_or(step_size * 1e-9);
+        s.max_step_size = match method {
+            ExplicitMethod::Rk4 => step_size,
+            ExplicitMethod::Dopri5 => self.max_step_size.unwrap_or(f64::MAX).max(step_size),
+        };
+        s.initial = initial_settings(
+            self.initial_tolerance,
+            self.correct_initial_positions,
+            self.correct_initial_velocities,
+        );
+        s.redundancy = redundancy_settings(item, &self.redundant_constraints, self.rank_tolerance)?;
+        s.integrator = Integrator::Explicit(explicit);
         Ok(s)
     }
 }
@@ -228,7 +454,31 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     s.set_item("factorizations", st.factorizations)?;
     s.set_item("min_step_size", if st.steps > 0 { st.min_step_size_used } else { f64::NAN })?;
     s.set_item("max_step_size", if st.steps > 0 { st.max_step_size_used } else { f64::NAN })?;
+    s.set_item("function_evaluations", st.function_evaluations)?;
     d.set_item("statistics", s)?;
+    let events = PyList::empty(py);
+    for e in &out.events {
+        let item = PyDict::new(py);
+        item.set_item("time", e.time)?;
+        item.set_item("kind", &e.kind)?;
+        item.set_item("message", &e.message)?;
+        events.append(item)?;
+    }
+    d.set_item("events", events)?;
+    match &out.redundancy {
+        None => d.set_item("redundancy", py.None())?,
+        Some(r) => {
+            let item = PyDict::new(py);
+            item.set_item("time", r.time)?;
+            item.set_item("rows", r.rows)?;
+            item.set_item("rank", r.rank)?;
+            item.set_item("removed_rows", r.removed_rows.clone())?;
+            item.set_item("groups", r.groups.clone())?;
+            item.set_item("joints", r.joints.clone())?;
+            item.set_item("message", &r.message)?;
+            d.set_item("redundancy", item)?;
+        }
+    }
     Ok(d)
 }
 
@@ -247,21 +497,37 @@ pub fn simulate<'py>(
     step_size: f64,
     start_time: f64,
     output_interval: Option<f64>,
-    solver: Option<GeneralizedAlpha>,
+    solver: Option<Bound<'py, PyAny>>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Option<Py<PyAny>>)> {
-    let solver = match solver {
-        Some(s) => s,
+    let mut settings = match solver {
         None => GeneralizedAlpha::new(
             0.9, 1e-6, 12, "modified", "newton", 1e-6, 1e-8, None, None, "auto", "auto", 1e-11, true, true,
-        )?,
+            "remove", 1e-9,
+        )?
+        .settings(end_time, step_size)?,
+        Some(s) => {
+            if let Ok(g) = s.extract::<GeneralizedAlpha>() {
+                let mut settings = g.settings(end_time, step_size)?;
+                if let Some(h) = g.min_step_size {
+                    settings.min_step_size = h;
+                }
+                settings
+            } else if let Ok(e) = s.extract::<ExplicitSolver>() {
+                e.settings(end_time, step_size)?
+            } else {
+                return Err(invalid(
+                    "simulate",
+                    format!(
+                        "solver must be a GeneralizedAlpha or an ExplicitSolver, got {}",
+                        s.get_type().name()?
+                    ),
+                ));
+            }
+        }
     };
-    let mut settings = solver.settings(end_time, step_size)?;
     settings.start_time = start_time;
     settings.output_interval = output_interval;
-    if let Some(h) = solver.min_step_size {
-        settings.min_step_size = h;
-    }
     let model_ref = model.inner.clone();
     let mut pending: Option<PyErr> = None;
     let outcome = py.detach(|| {
