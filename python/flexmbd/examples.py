@@ -404,10 +404,337 @@ def rotating_blade_flap_frequencies(
 
 
 EXAMPLES: dict[str, Callable[[], Example]] = {
+    "andrews": lambda: andrews(),
+    "bricard": lambda: bricard(),
     "flexible-slider-crank": flexible_slider_crank,
     "four-bar": four_bar,
+    "four-bar-spatial": lambda: four_bar_spatial(),
     "pendulum": pendulum,
     "spin-up": spin_up,
     "tetrahedral-pendulum": tetrahedral_pendulum,
 }
 """Builders of the built-in examples, by name."""
+
+
+def andrews() -> Example:
+    """IFToMM A03, Andrews' squeezing mechanism (reference R5), with the data, coordinates and
+    consistent initial angles of the IVP test set "andrews" (Hairer and Wanner, Solving ODEs II,
+    section VII.7): seven bodies moving in the x-y plane, 1 degree of freedom, started at rest,
+    driven by a torque of 0.033 N m on body 1 and a spring (4530 N/m, rest length 0.07785 m)
+    between the fixed point C and the point D of body 3; no gravity.
+
+    The test set's angles are beta (body 1 about O), Theta (body 2 relative to body 1), gamma
+    (body 3 about B), Phi (body 4 relative to body 5), delta (body 5 about A), Omega (body 6
+    relative to body 7) and epsilon (body 7 about A); its loop equations place the points
+    F = rr e(beta), E = F - d e(beta + Theta) = B + ss (sin gamma, -cos gamma)
+    = A + zt e(delta) + e (sin(Phi + delta), -cos(Phi + delta))
+    = A + u (sin epsilon, -cos epsilon) + zf e(Omega + epsilon), with e(a) = (cos a, sin a).
+    Each body frame sits on a pivot and turns by the body's absolute angle, so that its
+    rotation about z is that angle. The mass matrix of the test set fixes only the distance of
+    each centre of mass from the body's pivot; for bodies 3, 5 and 7 (about fixed pivots) the
+    direction is free and taken as (sa, sb), (ta, tb) and (ua, ub) in the body frame. The
+    inertias about the x and y axes equal those about z (the motion stays planar).
+
+    In 3D, seven revolute joints (z axes) form a tree from the ground (O, F, the three joints
+    at E, G, H) and in-line joints close the loops at the ground pivots B, A, A (in-plane
+    position only), so that the spatial model has no redundant equations. ``check`` compares
+    the seven angles at t = 0.03 s (beta and Theta unwrapped over the output, which must be fine
+    enough: a step of body 1's angle between outputs below pi) with the test set's solution;
+    ``items["angles"](result)`` returns them, (n, 7)."""
+    # Test set data (m, kg, kg m^2).
+    masses = (0.04325, 0.00365, 0.02373, 0.00706, 0.07050, 0.00706, 0.05498)
+    inertias = (2.194e-6, 4.410e-7, 5.255e-6, 5.667e-7, 1.169e-5, 5.667e-7, 1.912e-5)
+    xa, ya, xb, yb, xc, yc = -0.06934, -0.00227, -0.03635, 0.03273, 0.014, 0.072
+    d, da, e, ea, rr, ra = 0.028, 0.0115, 0.02, 0.01421, 0.007, 0.00092
+    ss, sa, sb, sc, sd = 0.035, 0.01874, 0.01043, 0.018, 0.02
+    ta, tb, u, ua, ub = 0.02308, 0.00916, 0.04, 0.01228, 0.00449
+    zf, zt, fa = 0.02, 0.04, 0.01421
+    torque, stiffness, rest_length = 0.033, 4530.0, 0.07785
+    initial = {
+        "beta": -0.0617138900142764496358948458001,
+        "Theta": 0.0,
+        "gamma": 0.455279819163070380255912382449,
+        "Phi": 0.222668390165885884674473185609,
+        "delta": 0.487364979543842550225598953530,
+        "Omega": -0.222668390165885884674473185609,
+        "epsilon": 1.23054744454982119249735015568,
+    }
+    reference = {
+        "beta": 15.81077119629904,
+        "Theta": -15.75637105984298,
+        "gamma": 0.04082224013073101,
+        "Phi": -0.5347301163226948,
+        "delta": 0.5244099658805304,
+        "Omega": 0.5347301163226948,
+        "epsilon": 1.048080741042263,
+    }
+    # Absolute angles of the seven bodies.
+    beta, theta, gamma, phi, delta, omega, epsilon = initial.values()
+    angles = (beta, beta + theta, gamma, phi + delta, delta, omega + epsilon, epsilon)
+
+    def turned(k: int, local: tuple[float, float]) -> np.ndarray:
+        """A vector fixed in body k (1-based), in global axes at the initial angles."""
+        c, s = np.cos(angles[k - 1]), np.sin(angles[k - 1])
+        return np.array([c * local[0] - s * local[1], s * local[0] + c * local[1], 0.0])
+
+    point_a = np.array([xa, ya, 0.0])
+    point_b = np.array([xb, yb, 0.0])
+    point_f = turned(1, (rr, 0.0))
+    point_g = point_a + turned(5, (zt, 0.0))
+    point_h = point_a + turned(7, (0.0, -u))
+    # Body frames: origin on the pivot, axes turned by the absolute angle.
+    origins = (np.zeros(3), point_f, point_b, point_g, point_a, point_h, point_a)
+    centres = ((ra, 0), (-da, 0), (sa, sb), (0, -(e - ea)), (ta, tb), (zf - fa, 0), (ua, ub))
+    system = _core.System()
+    bodies = [
+        system.add_rigid_body(
+            masses[k - 1],
+            (inertias[k - 1],) * 3,
+            center_of_mass=(*centres[k - 1], 0.0),
+            position=origins[k - 1],
+            orientation=rotation("z", angles[k - 1]),
+            name=f"body {k}",
+        )
+        for k in range(1, 8)
+    ]
+
+    def marker(k: int, local: tuple[float, float] = (0.0, 0.0)) -> _core.MarkerId:
+        body = system.ground if k == 0 else bodies[k - 1]
+        return system.add_marker(body, position=(*local, 0.0))
+
+    ground = system.ground
+    # Tree of revolute joints (z axes) from the ground.
+    joints = {
+        "O": system.add_revolute_joint(marker(0), marker(1), name="O"),
+        "F": system.add_revolute_joint(marker(1, (rr, 0)), marker(2), name="F"),
+        "E 2-3": system.add_revolute_joint(marker(2, (-d, 0)), marker(3, (0, -ss)), name="E 2-3"),
+        "E 2-4": system.add_revolute_joint(marker(2, (-d, 0)), marker(4, (0, -e)), name="E 2-4"),
+        "E 2-6": system.add_revolute_joint(marker(2, (-d, 0)), marker(6, (zf, 0)), name="E 2-6"),
+        "G": system.add_revolute_joint(marker(4), marker(5, (zt, 0)), name="G"),
+        "H": system.add_revolute_joint(marker(6), marker(7, (0, -u)), name="H"),
+    }
+    # Loop closures at the ground pivots: in-plane position only.
+    for label, point, k in (("B", point_b, 3), ("A 5", point_a, 5), ("A 7", point_a, 7)):
+        pivot = system.add_marker(ground, position=point)
+        joints[label] = system.add_inline_joint(pivot, marker(k), name=label)
+    drive = system.add_torque(marker(1), (0.0, 0.0, torque), name="driving torque")
+    spring = system.add_spring_damper(
+        system.add_marker(ground, position=(xc, yc, 0.0)),
+        marker(3, (sd, -sc)),
+        stiffness=stiffness,
+        rest_length=rest_length,
+        name="spring",
+    )
+    names = tuple(reference)
+
+    def body_angles(result: Any) -> np.ndarray:
+        """The test set's seven angles (rad) at every output, (n, 7): absolute body angles
+        unwrapped through the output, then the relative ones as differences."""
+        absolute = np.empty((len(result.time), 7))
+        for k, body in enumerate(bodies):
+            r = result.orientation(body)
+            absolute[:, k] = np.unwrap(np.arctan2(r[:, 1, 0], r[:, 0, 0]))
+        out = absolute.copy()
+        out[:, 1] = absolute[:, 1] - absolute[:, 0]
+        out[:, 3] = absolute[:, 3] - absolute[:, 4]
+        out[:, 5] = absolute[:, 5] - absolute[:, 6]
+        return out
+
+    def check(result: Any) -> dict[str, float]:
+        k = int(np.argmin(np.abs(result.time - 0.03)))
+        if abs(result.time[k] - 0.03) > 1e-12:
+            return {}
+        values = dict(zip(names, body_angles(result)[k], strict=True))
+        return {f"{n} error at t = 0.03 s": float(abs(v - reference[n])) for n, v in values.items()}
+
+    return Example(
+        name="andrews",
+        description="IFToMM A03 Andrews' squeezing mechanism (7 rigid bodies, stiff spring, 3D)",
+        system=system,
+        end_time=0.03,
+        step_size=2e-6,
+        solver=_core.GeneralizedAlpha(0.9, newton_tolerance=1e-10),
+        output_interval=1e-5,
+        items={
+            "bodies": bodies,
+            "joints": joints,
+            "driving torque": drive,
+            "spring": spring,
+            "initial angles": initial,
+            "angles": body_angles,
+        },
+        reference=reference,
+        check=check,
+    )
+
+
+def four_bar_spatial() -> Example:
+    """A redundant model: the IFToMM A02 four-bar with N = 1 (two cranks and one coupler, uniform
+    1 kg, 1 m links; gravity 9.81 m/s^2 along -y) closed by four spatial revolute joints with
+    parallel z axes. The cranks stand vertically on pivots (0, 0) and (1, 0), the coupler lies
+    horizontally at y = 1, and the top of the first crank, B0, starts at 1 m/s along +x (a
+    velocity that satisfies the joints). In 3D each revolute joint has 5 equations: 20 for
+    18 coordinates of motion and 1 degree of freedom, so 3 equations are redundant and the
+    constraint Jacobian is rank deficient (the out-of-plane equations of a planar loop repeat
+    each other). Needs a solver that handles redundant constraints.
+
+    The motion has one degree of freedom: the cranks stay parallel at the angle theta from the
+    vertical and the coupler translates, (5/3) theta'' = 2 g sin(theta), theta(0) = 0,
+    theta'(0) = 1 rad/s. ``check`` compares B0 with that equation, solved by SciPy."""
+    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    inertia = (5e-5, 1.0 / 12.0, 1.0 / 12.0)  # slender rod along its local x axis
+    up = rotation("z", np.pi / 2)  # crank frame: local x points up
+    to_joint = rotation("z", -np.pi / 2)  # marker axes parallel to the global axes
+    cranks, tops, pivots = [], [], []
+    for k in range(2):
+        crank = system.add_rigid_body(
+            1.0,
+            inertia,
+            position=(k, 0.5, 0.0),
+            orientation=up,
+            velocity=(0.5, 0.0, 0.0),
+            angular_velocity=(0.0, 0.0, -1.0),
+            name=f"crank {k}",
+        )
+        ground_marker = system.add_marker(system.ground, position=(k, 0.0, 0.0))
+        bottom = system.add_marker(crank, position=(-0.5, 0.0, 0.0), orientation=to_joint)
+        pivots.append(system.add_revolute_joint(ground_marker, bottom, name=f"pivot {k}"))
+        tops.append(
+            system.add_marker(crank, position=(0.5, 0.0, 0.0), orientation=to_joint, name=f"B{k}")
+        )
+        cranks.append(crank)
+    coupler = system.add_rigid_body(
+        1.0, inertia, position=(0.5, 1.0, 0.0), velocity=(1.0, 0.0, 0.0), name="coupler"
+    )
+    left = system.add_marker(coupler, position=(-0.5, 0.0, 0.0))
+    right = system.add_marker(coupler, position=(0.5, 0.0, 0.0))
+    couplings = [
+        system.add_revolute_joint(tops[0], left, name="coupler left"),
+        system.add_revolute_joint(tops[1], right, name="coupler right"),
+    ]
+    b0_position = system.add_sensor(tops[0], "position", name="B0 position")
+    b0_velocity = system.add_sensor(tops[0], "velocity", name="B0 velocity")
+
+    def check(result: Any) -> dict[str, float]:
+        from scipy.integrate import solve_ivp
+
+        # Lagrange's equation of the crank angle: (5/3) theta'' = 2 g sin(theta).
+        solution = solve_ivp(
+            lambda t, s: (s[1], 6.0 * 9.81 / 5.0 * np.sin(s[0])),
+            (result.time[0], result.time[-1]),
+            (0.0, 1.0),
+            t_eval=result.time,
+            rtol=1e-11,
+            atol=1e-12,
+        )
+        theta = solution.y[0]
+        exact = np.column_stack((np.sin(theta), np.cos(theta)))
+        p = result.sensor(b0_position)[:, :2]
+        return {"largest B0 position error (m)": float(np.max(np.abs(p - exact)))}
+
+    return Example(
+        name="four-bar-spatial",
+        description="A02 four-bar, N = 1, with four spatial revolute joints (3 redundant)",
+        system=system,
+        end_time=10.0,
+        step_size=2e-4,
+        solver=_core.GeneralizedAlpha(0.9),
+        output_interval=0.01,
+        items={
+            "cranks": cranks,
+            "coupler": coupler,
+            "pivots": pivots,
+            "couplings": couplings,
+            "B0 position": b0_position,
+            "B0 velocity": b0_velocity,
+            "redundant equations": 3,
+        },
+        check=check,
+    )
+
+
+def bricard() -> Example:
+    """A redundant model: Bricard's mechanism, IFToMM benchmark A04. Five uniform 1 kg, 1 m rods
+    (square section 0.1 m) and the ground form a closed loop of six revolute joints along the
+    edges of a unit cube, P0 = (0, 0, 0) -> (1, 0, 0) -> (1, -1, 0) -> (1, -1, 1) -> (0, -1, 1)
+    -> P5 = (0, 0, 1), the ground closing P5 -> P0; each joint axis is perpendicular to both
+    links it joins (y, z, x, y, z, x at P0 .. P5). Gravity 9.81 m/s^2 along -y; released at
+    rest. Grubler's count gives 6 x 5 - 5 x 6 = 0 degrees of freedom, but the mechanism has
+    one: one of the 30 joint equations is redundant and the constraint Jacobian is rank
+    deficient everywhere on the motion. Needs a solver that handles redundant constraints.
+
+    Source of the geometry and initial state: the IFToMM / MBS benchmark A04 (lim.ii.udc.es
+    mbsbenchmark, Gonzalez et al. 2006) as implemented in the public models of
+    MBSbenchmarksInOpenSim (A04), simEngine3D and Exudyn (bricardMechanism), which agree;
+    the benchmark's own specification text was not available. ``check`` returns the drift of
+    the total energy (conserved: no dissipation, spectral radius 1)."""
+    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    corners = np.array(
+        [[0, 0, 0], [1, 0, 0], [1, -1, 0], [1, -1, 1], [0, -1, 1], [0, 0, 1]], dtype=float
+    )
+    axes = np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0]], float)
+    section = 0.1
+    inertia = (section**2 / 6.0, (1.0 + section**2) / 12.0, (1.0 + section**2) / 12.0)
+
+    def frame(x_axis: np.ndarray, z_axis: np.ndarray) -> np.ndarray:
+        """Rotation matrix with the given (orthogonal, unit) x and z axes as columns."""
+        return np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
+
+    links, frames = [], []
+    for k in range(5):
+        start, end = corners[k], corners[k + 1]
+        along = end - start
+        side = axes[k]  # perpendicular to the link: completes the body frame
+        orientation = frame(along, side)
+        links.append(
+            system.add_rigid_body(
+                1.0,
+                inertia,
+                position=(start + end) / 2,
+                orientation=orientation,
+                name=f"link {k + 1}",
+            )
+        )
+        frames.append(orientation)
+
+    def joint_marker(k: int, corner: int) -> _core.MarkerId:
+        """Marker at `corner` on link k (1-based; 0 is the ground): z along the corner's joint
+        axis, x along the link that leaves the corner (perpendicular to that axis)."""
+        leaving = corners[(corner + 1) % 6] - corners[corner]
+        global_frame = frame(leaving, axes[corner])
+        if k == 0:
+            return system.add_marker(
+                system.ground, position=corners[corner], orientation=global_frame
+            )
+        centre = (corners[k - 1] + corners[k]) / 2
+        to_local = frames[k - 1].T
+        return system.add_marker(
+            links[k - 1],
+            position=to_local @ (corners[corner] - centre),
+            orientation=to_local @ global_frame,
+        )
+
+    joints = [system.add_revolute_joint(joint_marker(0, 0), joint_marker(1, 0), name="joint 0")]
+    for k in range(1, 5):
+        joints.append(
+            system.add_revolute_joint(joint_marker(k, k), joint_marker(k + 1, k), name=f"joint {k}")
+        )
+    joints.append(system.add_revolute_joint(joint_marker(5, 5), joint_marker(0, 5), name="joint 5"))
+    # The point the benchmark implementations record (between links 2 and 3).
+    tracked = system.add_sensor(joint_marker(2, 2), "position", name="P3 position")
+
+    def check(result: Any) -> dict[str, float]:
+        energy = result.total_energy
+        return {"largest energy drift (J)": float(np.max(np.abs(energy - energy[0])))}
+
+    return Example(
+        name="bricard",
+        description="IFToMM A04 Bricard's mechanism (5 rods, 6 revolute joints, 1 redundant)",
+        system=system,
+        end_time=10.0,
+        step_size=1e-3,
+        solver=_core.GeneralizedAlpha(1.0),
+        output_interval=0.01,
+        items={"links": links, "joints": joints, "P3 position": tracked, "redundant equations": 1},
+        check=check,
+    )
