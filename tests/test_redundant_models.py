@@ -72,3 +72,84 @@ def test_mechanism_moves_along_the_null_space(case):
     assert np.abs(violation).max() < 1e-12
     assert abs(np.linalg.norm(q - start) / s - 1.0) < 1e-2
     assert numerical_rank(jacobian) == model.constraint_count - redundant
+
+
+def energy_drift(result):
+    """Largest change of the total energy relative to the largest kinetic energy."""
+    energy = result.total_energy
+    return np.abs(energy - energy[0]).max() / result.kinetic_energy.max()
+
+
+@pytest.mark.parametrize("builder", [fm.examples.four_bar_spatial, fm.examples.bricard])
+@pytest.mark.parametrize("strategy", ["projection", "partitioning"])
+def test_explicit_solvers_conserve_energy_with_redundant_joints(builder, strategy):
+    # Over the examples' 10 s, no dissipation: the total energy stays to 1e-6 of the largest
+    # kinetic energy; the redundancy is found before the run and reported with its joints.
+    example = builder()
+    solver = fm.ExplicitSolver(
+        "dopri5", strategy, relative_tolerance=1e-11, absolute_tolerance=1e-13
+    )
+    result = fm.simulate(example.system, 10.0, 1e-3, output_interval=0.01, solver=solver)
+    assert energy_drift(result) < 1e-6
+    assert result.constraint_violation.max() < 1e-10
+    redundancy = result.redundancy
+    assert len(redundancy["removed_rows"]) == example.items["redundant equations"]
+    assert redundancy["rank"] == redundancy["rows"] - len(redundancy["removed_rows"])
+    assert result.events[0]["kind"] == "redundant constraints"
+    # Every removed row belongs to a group of rows that are dependent together.
+    grouped = {row for group in redundancy["groups"] for row in group}
+    assert set(redundancy["removed_rows"]) <= grouped
+
+
+def test_bricard_redundancy_involves_all_six_joints():
+    # The single redundant equation is a relation among all six revolute joints of the loop.
+    example = fm.examples.bricard()
+    result = fm.simulate(example.system, 0.01, 1e-3)
+    message = result.redundancy["message"]
+    assert "1 of 35 constraint equations are redundant" in message
+    assert len(result.redundancy["joints"]) == len(example.items["joints"]) == 6
+    for k in range(6):
+        assert f"'joint {k}'" in message
+
+
+def test_generalized_alpha_with_the_redundant_rows_removed():
+    # Spectral radius 1 and a tight Newton tolerance: energy to 1e-6 relative over 2 s.
+    example = fm.examples.bricard()
+    solver = fm.GeneralizedAlpha(1.0, newton_tolerance=1e-10)
+    result = fm.simulate(example.system, 2.0, 2.5e-4, output_interval=0.01, solver=solver)
+    assert energy_drift(result) < 1e-6
+    assert result.constraint_violation.max() < 1e-10
+
+
+def test_minimum_norm_multipliers_give_the_same_constraint_forces():
+    # With redundant rows the multipliers are not unique; C_q^T lambda is. "remove" sets the
+    # removed rows' multipliers to zero, "minimum-norm" spreads them over all rows.
+    example = fm.examples.four_bar_spatial()
+    model = example.system.compile()
+    runs = {}
+    for handling in ["remove", "minimum-norm"]:
+        solver = fm.GeneralizedAlpha(1.0, newton_tolerance=1e-10, redundant_constraints=handling)
+        runs[handling] = fm.simulate(model, 0.5, 1e-3, output_interval=0.1, solver=solver)
+    removed = runs["remove"].redundancy["removed_rows"]
+    assert np.all(runs["remove"].multipliers[:, removed] == 0.0)
+    assert np.abs(runs["minimum-norm"].multipliers[:, removed]).max() > 0.0
+    nq = model.coordinate_count
+    for k in range(len(runs["remove"].time)):
+        forces = []
+        for handling in ["remove", "minimum-norm"]:
+            result = runs[handling]
+            _, jacobian = constraint_parts(model, result.coordinates[k])
+            forces.append(jacobian.T @ result.multipliers[k])
+        scale = np.abs(forces[0]).max()
+        assert np.abs(forces[0] - forces[1]).max() < 1e-8 * scale
+        assert np.linalg.norm(runs["minimum-norm"].multipliers[k]) <= np.linalg.norm(
+            runs["remove"].multipliers[k]
+        ) * (1 + 1e-12)
+    assert nq == 21
+
+
+def test_redundant_constraints_can_be_refused():
+    example = fm.examples.four_bar_spatial()
+    solver = fm.ExplicitSolver(redundant_constraints="error")
+    with pytest.raises(fm.InvalidModelError, match="3 of 23 constraint equations are redundant"):
+        fm.simulate(example.system, 0.1, 1e-3, solver=solver)

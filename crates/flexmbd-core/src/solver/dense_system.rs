@@ -58,6 +58,13 @@ pub enum Level {
 /// Relative size of the smallest LU pivot below which a matrix is treated as ill-conditioned:
 /// the solves then fall back to truncated singular value decompositions.
 pub const ILL_CONDITIONED_PIVOT: f64 = 1e-7;
+/// The same for the augmented matrix [[M, C_q^T], [C_q, 0]]. Its pivots also span the scales
+/// of the mass matrix, so the test flags more than rank-deficient C_q, and the null-space
+/// fallback then runs often (38% of the evaluations of A02). Measured on A02 over 10 s: a
+/// threshold of 1e-9 halves the run time but the LU accelerations near the change points make
+/// integrate-all with Dormand-Prince 20 times less accurate (4.3e-6 against 2.1e-7), and at
+/// 1e-10 the step size collapses at the first change point; accuracy is kept.
+pub const SINGULAR_AUGMENTED_PIVOT: f64 = 1e-7;
 
 /// Relative cut-off of the singular values in those fallbacks (near-singular configurations:
 /// directions in which the constraints have lost rank are left free for that evaluation).
@@ -66,6 +73,15 @@ pub const SINGULAR_VALUE_CUTOFF: f64 = 1e-5;
 /// Dense LU with partial pivoting; errors if a pivot is below `ILL_CONDITIONED_PIVOT` times
 /// the largest.
 pub fn checked_lu(a: &Mat<f64>, what: &str) -> std::result::Result<PartialPivLu<f64>, String> {
+    checked_lu_with(a, what, ILL_CONDITIONED_PIVOT)
+}
+
+/// `checked_lu` with the smallest admissible ratio of pivots `ratio`.
+pub fn checked_lu_with(
+    a: &Mat<f64>,
+    what: &str,
+    ratio: f64,
+) -> std::result::Result<PartialPivLu<f64>, String> {
     let lu = a.partial_piv_lu();
     let u = lu.U();
     let (mut largest, mut smallest) = (0.0f64, f64::INFINITY);
@@ -74,7 +90,7 @@ pub fn checked_lu(a: &Mat<f64>, what: &str) -> std::result::Result<PartialPivLu<
         largest = largest.max(v);
         smallest = smallest.min(v);
     }
-    if u.nrows() > 0 && !(smallest > ILL_CONDITIONED_PIVOT * largest) {
+    if u.nrows() > 0 && !(smallest > ratio * largest) {
         return Err(format!("{what} is singular (smallest LU pivot {smallest:.3e}, largest {largest:.3e})"));
     }
     Ok(lu)
@@ -180,7 +196,10 @@ impl DenseEquations {
     /// evaluated one, or a stabilized one) into `qdd`. Near a singular configuration (a
     /// partition condition above `singular_condition`, or an ill-conditioned matrix) they come
     /// from the null-space method with a truncated SVD of C_q instead; returns whether that
-    /// happened. Errors name the singular matrix.
+    /// happened. The augmented matrix does not depend on the choice of dependent coordinates,
+    /// but the partition's condition is kept as the test for both formulations: with the LU
+    /// pivot test alone, Dormand-Prince's step size collapses at the change point of the
+    /// redundant spatial four-bar (measured). Errors name the singular matrix.
     pub fn accelerations(
         &self,
         p: &Partition,
@@ -213,12 +232,20 @@ impl DenseEquations {
         let n = self.force.len();
         let c = Mat::from_fn(p.rows.len(), n, |a, j| self.jacobian[(p.rows[a], j)]);
         let g: Vec<f64> = p.rows.iter().map(|&r| gamma[r]).collect();
-        let particular = minimum_norm_solve(c.as_ref(), &g, SINGULAR_VALUE_CUTOFF);
         let svd = c.svd().map_err(|_| "the SVD of C_q did not converge".to_string())?;
         let s = svd.S().column_vector();
         let largest = if s.nrows() > 0 { s[0] } else { 0.0 };
         let rank = (0..s.nrows()).take_while(|&k| s[k] > SINGULAR_VALUE_CUTOFF * largest).count();
-        let v2 = svd.V().subcols(rank, n - rank).to_owned();
+        // Particular solution V_1 S_1^-1 U_1^T gamma_r.
+        let (u, v) = (svd.U(), svd.V());
+        let mut particular = vec![0.0; n];
+        for k in 0..rank {
+            let coefficient = (0..g.len()).map(|i| u[(i, k)] * g[i]).sum::<f64>() / s[k];
+            for (j, x) in particular.iter_mut().enumerate() {
+                *x += v[(j, k)] * coefficient;
+            }
+        }
+        let v2 = v.subcols(rank, n - rank).to_owned();
         let mv2 = &self.mass * &v2;
         let reduced = v2.transpose() * &mv2;
         let mut rhs = Mat::from_fn(n, 1, |i, _| {
@@ -262,7 +289,11 @@ impl DenseEquations {
                         k[(j, n + a)] = v;
                     }
                 }
-                let lu = checked_lu(&k, "augmented acceleration matrix [[M, C_q^T], [C_q, 0]]")?;
+                let lu = checked_lu_with(
+                    &k,
+                    "augmented acceleration matrix [[M, C_q^T], [C_q, 0]]",
+                    SINGULAR_AUGMENTED_PIVOT,
+                )?;
                 let mut x =
                     Mat::from_fn(n + r, 1, |i, _| if i < n { self.force[i] } else { gamma[p.rows[i - n]] });
                 lu.solve_in_place(&mut x);

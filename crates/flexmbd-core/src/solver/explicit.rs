@@ -285,6 +285,7 @@ impl<'a> Engine<'a> {
             self.q[d] = self.accepted_q[d] + dt * self.accepted_qd[d];
         }
         let mut iterations = 0;
+        let mut previous = f64::INFINITY;
         loop {
             self.eq.evaluate(
                 self.model,
@@ -297,9 +298,10 @@ impl<'a> Engine<'a> {
             )?;
             let residual: Vec<f64> = self.partition.rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
-            if violation <= self.settings.constraint_tolerance {
+            if converged(violation, previous, self.settings.constraint_tolerance) {
                 break;
             }
+            previous = violation;
             if iterations >= self.settings.max_iterations || !violation.is_finite() {
                 return Err(FlexmbdError::NewtonDiverged {
                     time,
@@ -399,6 +401,7 @@ impl<'a> Engine<'a> {
         let rows = self.partition.rows.clone();
         let n = self.q.len();
         let mut iterations = 0;
+        let mut previous = f64::INFINITY;
         let mut level = Level::Position;
         loop {
             self.eq.evaluate(self.model, &mut self.ws, time, &self.q, &self.qd, &self.discrete, level)?;
@@ -408,10 +411,12 @@ impl<'a> Engine<'a> {
                 rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect()
             };
             let (k, violation) = worst(&residual);
-            if level == Level::Position && violation <= self.settings.constraint_tolerance {
+            if level == Level::Position && converged(violation, previous, self.settings.constraint_tolerance)
+            {
                 level = Level::Velocity;
                 continue;
             }
+            previous = violation;
             if level == Level::Position
                 && (iterations >= self.settings.max_iterations || !violation.is_finite())
             {
@@ -551,9 +556,13 @@ impl<'a> Engine<'a> {
                     time,
                     kind: "singular configuration".to_string(),
                     message: format!(
-                        "partition condition {condition:.3e} above {limit:.3e} with the best partition: the \
-                         constraint Jacobian is near rank-deficient; steps by integration of all coordinates \
-                         with projection until it is passed"
+                        "partition condition {condition:.3e} above {limit:.3e} with {}: steps by integration \
+                         of all coordinates with projection until a partition below half the limit exists",
+                        if self.settings.independent.is_some() {
+                            "the given independent coordinates"
+                        } else {
+                            "the best partition (the constraint Jacobian is near rank-deficient)"
+                        }
                     ),
                 });
                 self.mode = Strategy::Projection;
@@ -570,6 +579,16 @@ impl<'a> Engine<'a> {
         self.repartition(self.accepted_time, true)
     }
 }
+
+/// Newton iterations on the constraints end at `tolerance`, or where they stagnate within
+/// `STAGNATION_FACTOR` of it: the last digits of C are round-off (a body far from the origin,
+/// a rank-deficient Jacobian near a singular configuration).
+fn converged(violation: f64, previous: f64, tolerance: f64) -> bool {
+    violation <= tolerance || (violation <= STAGNATION_FACTOR * tolerance && violation > 0.5 * previous)
+}
+
+/// See `converged`.
+const STAGNATION_FACTOR: f64 = 100.0;
 
 /// Solves C_qd x = rhs for the partition's dependent block: LU, or the minimum-norm solution
 /// with a truncated SVD when the block is ill-conditioned (near a singular configuration the
@@ -874,8 +893,9 @@ pub fn run(
                     time: t_new,
                     kind: "singular configuration".to_string(),
                     message: format!(
-                        "the constraint Jacobian is near rank-deficient between t = {t} and {t_new}: \
-                         accelerations from a truncated SVD of C_q"
+                        "ill-conditioned dependent block or near rank-deficient constraint Jacobian \
+                         between t = {t} and {t_new}: accelerations by the null-space method (truncated \
+                         SVD of C_q)"
                     ),
                 });
             }
@@ -910,9 +930,15 @@ pub fn run(
                     kind: "constraint drift".to_string(),
                     message: format!(
                         "constraint violation {violation:.3e} passed {:.1e} (strategy '{}' does not \
-                         correct the positions)",
+                         correct the positions{})",
                         explicit.drift_threshold,
-                        explicit.strategy.name()
+                        explicit.strategy.name(),
+                        if explicit.baumgarte.is_some() {
+                            "; larger Baumgarte parameters hold it closer"
+                        } else {
+                            "; Baumgarte stabilization, or strategy 'partitioning' or 'projection', \
+                             holds it"
+                        }
                     ),
                 });
             }

@@ -1,0 +1,217 @@
+"""The explicit solvers of seed section 4: Runge-Kutta 4 and Dormand-Prince 5(4) with the three
+strategies (integrate all accelerations, coordinate partitioning, projection), the augmented
+and the embedding formulation, and the LU, QR and SVD partitions, against IFToMM A01 and A02
+(reference R5) and against each other."""
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+
+STRATEGIES = ["integrate-all", "partitioning", "projection"]
+FORMULATIONS = ["augmented", "embedding"]
+
+
+def explicit(method="dopri5", strategy="partitioning", tolerance=1e-10, **options):
+    return fm.ExplicitSolver(
+        method,
+        strategy,
+        relative_tolerance=tolerance,
+        absolute_tolerance=1e-2 * tolerance,
+        **options,
+    )
+
+
+@pytest.fixture(scope="module")
+def a01():
+    return fm.examples.pendulum()
+
+
+@pytest.fixture(scope="module")
+def a02():
+    return fm.examples.four_bar(2)
+
+
+@pytest.mark.parametrize("method", ["rk4", "dopri5"])
+@pytest.mark.parametrize("formulation", FORMULATIONS)
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_every_strategy_reproduces_the_pendulum(a01, strategy, formulation, method):
+    # A01 over its 10 s against the exact solution (elliptic functions), to the foundation's
+    # 1e-6. RK4 at a fixed 1 ms step; Dormand-Prince from 1 ms with error control.
+    solver = explicit(method, strategy, formulation=formulation)
+    result = fm.simulate(
+        a01.system, a01.end_time, 1e-3, output_interval=a01.output_interval, solver=solver
+    )
+    errors = a01.check(result)
+    assert len(errors) == 4
+    for name, error in errors.items():
+        assert error < 1e-6, name
+    if strategy != "integrate-all":
+        assert result.constraint_violation.max() < 1e-10
+    assert result.statistics["function_evaluations"] >= 4 * result.statistics["steps"]
+
+
+def test_pendulum_repartitions_as_it_swings_through_the_bottom(a01):
+    # Released horizontally, the dependent coordinate is y's partner x at first (C_q = [2x,
+    # 2y, 2z]); near the bottom x loses its pivot and the partition must change.
+    result = fm.simulate(a01.system, 2.0, 1e-3, output_interval=0.01, solver=explicit())
+    repartitions = [e for e in result.events if e["kind"] == "repartition"]
+    assert repartitions, result.events
+    assert "condition" in repartitions[0]["message"]
+    assert max(a01.check(result).values()) < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("strategy", "formulation", "method", "baumgarte"),
+    [
+        ("partitioning", "augmented", "dopri5", None),
+        ("partitioning", "embedding", "rk4", None),
+        ("projection", "augmented", "rk4", None),
+        ("projection", "embedding", "rk4", None),
+        ("integrate-all", "augmented", "dopri5", (20.0, 20.0)),
+    ],
+)
+def test_strategies_reproduce_the_four_bar_through_its_singular_configurations(
+    a02, strategy, formulation, method, baumgarte
+):
+    # A02, N = 2, over 10 s: the mechanism passes 20 singular (flat) configurations, where the
+    # constraint Jacobian loses rank and every partition degenerates. Error at t = 10 s against
+    # the one-degree-of-freedom solution, to the foundation's 1e-4.
+    solver = explicit(method, strategy, formulation=formulation, baumgarte=baumgarte)
+    result = fm.simulate(a02.system, 10.0, 1e-3, output_interval=0.01, solver=solver)
+    errors = a02.check(result)
+    assert errors["B0 position error at t = 10 s"] < 1e-4
+    assert errors["B0 velocity error at t = 10 s"] < 1e-4
+    if baumgarte is None:
+        assert result.constraint_violation.max() < 1e-10
+    else:
+        assert result.constraint_violation.max() < 1e-5
+
+
+def test_drift_of_integrate_all_grows_and_is_reported_while_the_others_hold_it(a02):
+    # Strategy (1) without stabilization integrates q_ddot of the index-1 equations: the
+    # position constraints drift (quadratically in time once the velocity drift sets in);
+    # strategies (2) and (3) hold them to the Newton tolerance.
+    end = 2.0
+    result = fm.simulate(
+        a02.system, end, 1e-3, output_interval=0.01, solver=explicit("rk4", "integrate-all")
+    )
+    violation = result.constraint_violation
+    quarter = len(violation) // 4
+    assert violation[:quarter].max() < violation[-quarter:].max() / 10
+    assert violation.max() > 1e-6
+    drift = [e for e in result.events if e["kind"] == "constraint drift"]
+    assert drift and "baumgarte" in drift[0]["message"].lower()
+    for strategy in ["partitioning", "projection"]:
+        held = fm.simulate(
+            a02.system, end, 1e-3, output_interval=0.01, solver=explicit("rk4", strategy)
+        )
+        assert held.constraint_violation.max() < 1e-10, strategy
+        assert not [e for e in held.events if e["kind"] == "constraint drift"]
+
+
+def test_baumgarte_stabilization_bounds_the_drift(a02):
+    free = fm.simulate(
+        a02.system, 2.0, 1e-3, output_interval=0.01, solver=explicit("rk4", "integrate-all")
+    )
+    stabilized = fm.simulate(
+        a02.system,
+        2.0,
+        1e-3,
+        output_interval=0.01,
+        solver=explicit("rk4", "integrate-all", baumgarte=(20.0, 20.0)),
+    )
+    assert stabilized.constraint_violation.max() < free.constraint_violation.max() / 100
+
+
+@pytest.mark.parametrize("partition", ["lu", "qr", "svd"])
+def test_partition_methods_agree(a02, partition):
+    # Wehage's LU with full pivoting, QR with column pivoting and the SVD choose their
+    # dependent coordinates differently; the motion is the same. 1.5 s crosses the first
+    # singular configurations.
+    solver = explicit(partition=partition)
+    result = fm.simulate(a02.system, 1.5, 1e-3, output_interval=0.01, solver=solver)
+    reference = fm.simulate(
+        a02.system,
+        1.5,
+        1e-4,
+        output_interval=0.01,
+        solver=fm.GeneralizedAlpha(1.0, newton_tolerance=1e-10),
+    )
+    assert np.abs(result.coordinates - reference.coordinates).max() < 1e-6
+    assert result.constraint_violation.max() < 1e-10
+
+
+def test_embedding_and_augmented_multipliers_agree(a02):
+    # The embedding formulation recovers the multipliers afterwards from C_qd^T lambda =
+    # (Q - M q_ddot)_d (seed eq. 30); the augmented one solves for them with the
+    # accelerations (eq. 26).
+    runs = [
+        fm.simulate(
+            a02.system, 0.5, 1e-3, output_interval=0.05, solver=explicit(formulation=formulation)
+        )
+        for formulation in FORMULATIONS
+    ]
+    scale = np.abs(runs[0].multipliers).max()
+    assert np.abs(runs[0].multipliers - runs[1].multipliers).max() < 1e-6 * scale
+    assert np.abs(runs[0].accelerations - runs[1].accelerations).max() < 1e-6
+
+
+def test_given_independent_coordinates_are_used_and_checked(a01):
+    # The pendulum's point mass: q = (x, y, z), C = x^2 + y^2 + z^2 - L^2, released at
+    # (L, 0, 0). y and z independent leave x dependent: a regular 1 x 1 block, until x passes
+    # zero at the bottom; the given partition is kept, and the steps near the bottom are
+    # taken by projection (a "singular configuration" event each way).
+    result = fm.simulate(
+        a01.system, 1.0, 1e-3, output_interval=0.01, solver=explicit(independent=[1, 2])
+    )
+    assert max(a01.check(result).values()) < 1e-6
+    assert {e["kind"] for e in result.events} == {"singular configuration"}
+    assert "the given independent coordinates" in result.events[0]["message"]
+    assert "resumes" in result.events[-1]["message"]
+    assert result.constraint_violation.max() < 1e-10
+    # x and z independent leave y dependent, whose column of C_q is zero at the start.
+    with pytest.raises(fm.InvalidParameterError, match="independent coordinates") as info:
+        fm.simulate(a01.system, 0.3, 1e-3, solver=explicit(independent=[0, 2]))
+    assert "singular" in str(info.value)
+    assert "coordinate x" in str(info.value) and "coordinate z" in str(info.value)
+    with pytest.raises(fm.InvalidParameterError, match="leave 2 degrees of freedom"):
+        fm.simulate(a01.system, 0.3, 1e-3, solver=explicit(independent=[1]))
+    with pytest.raises(fm.InvalidParameterError, match="out of range"):
+        fm.simulate(a01.system, 0.3, 1e-3, solver=explicit(independent=[1, 7]))
+
+
+def test_invalid_solver_choices_are_refused(a01):
+    with pytest.raises(fm.InvalidParameterError, match="Baumgarte"):
+        fm.simulate(
+            a01.system, 0.1, 1e-3, solver=explicit(strategy="projection", baumgarte=(5.0, 5.0))
+        )
+    for bad in [
+        {"method": "euler"},
+        {"strategy": "stabilized"},
+        {"formulation": "penalty"},
+        {"partition": "cholesky"},
+    ]:
+        with pytest.raises(fm.InvalidParameterError):
+            explicit(**bad)
+    with pytest.raises(fm.InvalidParameterError, match="repartition ratio"):
+        fm.simulate(a01.system, 0.1, 1e-3, solver=explicit(repartition_ratio=0.5))
+
+
+def test_models_too_large_for_the_dense_explicit_solvers_are_refused():
+    # A deformable body of more than 2000 coordinates: the explicit solvers are dense.
+    example = fm.examples.spin_up(elements=400)
+    with pytest.raises(fm.InvalidParameterError, match="up to 2000 coordinates") as info:
+        fm.simulate(example.system, 0.1, 1e-3, solver=explicit())
+    assert "generalized-alpha" in str(info.value)
+
+
+def test_failed_explicit_run_keeps_the_results_so_far(a02):
+    # A step-size floor that Dormand-Prince cannot keep through the four-bar's first change
+    # point (near t = 0.714 s) at this tolerance.
+    solver = explicit(tolerance=1e-12, min_step_size=5e-3)
+    with pytest.raises(fm.StepSizeTooSmallError) as info:
+        fm.simulate(a02.system, 1.0, 1e-2, output_interval=0.01, solver=solver)
+    result = info.value.result
+    assert 0.65 < result.time[-1] < 0.72
+    assert result.constraint_violation.max() < 1e-10
