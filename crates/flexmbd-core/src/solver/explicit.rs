@@ -207,6 +207,14 @@ struct Engine<'a> {
     /// The accepted full state (start of the step): guesses for the dependent coordinates.
     accepted_q: Vec<f64>,
     accepted_qd: Vec<f64>,
+    /// Accelerations at the accepted state (for the dependent coordinates' predictor).
+    accepted_qdd: Vec<f64>,
+    /// Time and accelerations of the last evaluation (first same as last: they become the
+    /// accepted ones when that evaluation was at the accepted state).
+    last_time: f64,
+    /// Whether `reconstruct` checks for a jump to another solution branch (only at the end
+    /// of a step: the Runge-Kutta stages are not points of the trajectory).
+    check_branch: bool,
     accepted_time: f64,
     gamma: Vec<f64>,
     discrete: Vec<f64>,
@@ -219,6 +227,9 @@ struct Engine<'a> {
     mode: Strategy,
     /// Partition condition above which a configuration counts as singular.
     singular_limit: f64,
+    /// Condition of the partition after the previous accepted step (its growth rate predicts
+    /// the next step's, see `repartition`).
+    last_condition: f64,
 }
 
 impl<'a> Engine<'a> {
@@ -281,9 +292,16 @@ impl<'a> Engine<'a> {
             self.q[c] = y[k];
             self.qd[c] = y[ni + k];
         }
+        // Second-order predictor: the Newton correction is then O(dt^3), and a correction of
+        // the size of the step's motion means the iteration went to another root of C = 0
+        // (another assembly branch) where a dependent coordinate passes a turning point.
+        let mut motion = 0.0f64;
         for &d in &p.dependent {
-            self.q[d] = self.accepted_q[d] + dt * self.accepted_qd[d];
+            let step = dt * self.accepted_qd[d] + 0.5 * dt * dt * self.accepted_qdd[d];
+            self.q[d] = self.accepted_q[d] + step;
+            motion = motion.max(step.abs());
         }
+        let predicted: Vec<f64> = p.dependent.iter().map(|&d| self.q[d]).collect();
         let mut iterations = 0;
         let mut previous = f64::INFINITY;
         loop {
@@ -299,6 +317,30 @@ impl<'a> Engine<'a> {
             let residual: Vec<f64> = self.partition.rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
             if converged(violation, previous, self.settings.constraint_tolerance) {
+                if !self.check_branch {
+                    break;
+                }
+                let (a, correction) = self
+                    .partition
+                    .dependent
+                    .iter()
+                    .zip(&predicted)
+                    .map(|(&d, x)| (self.q[d] - x).abs())
+                    .enumerate()
+                    .fold((0, 0.0f64), |best, (a, v)| if v > best.1 { (a, v) } else { best });
+                if correction > BRANCH_JUMP_FRACTION * motion + 1e3 * self.settings.constraint_tolerance {
+                    return Err(FlexmbdError::NewtonDiverged {
+                        time,
+                        step_size: dt,
+                        iterations,
+                        residual: correction,
+                        item: format!(
+                            "{}: the dependent coordinates moved to another solution of C = 0 (correction \
+                             {correction:.3e} against a predicted motion of {motion:.3e})",
+                            self.model.coordinate_name(self.partition.dependent[a])
+                        ),
+                    });
+                }
                 break;
             }
             previous = violation;
@@ -378,6 +420,10 @@ impl<'a> Engine<'a> {
     fn derivative(&mut self, time: f64, y: &[f64], dy: &mut [f64]) -> Result<()> {
         self.unpack(time, y)?;
         self.accelerations(time)?;
+        self.last_time = time;
+        if time == self.accepted_time {
+            self.accepted_qdd.copy_from_slice(&self.qdd);
+        }
         match self.mode {
             Strategy::CoordinatePartitioning => {
                 let ni = self.partition.independent.len();
@@ -468,12 +514,18 @@ impl<'a> Engine<'a> {
         )?;
         let p = &self.partition;
         let condition = partition_condition(self.eq.jacobian.as_ref(), &p.rows, &p.dependent);
+        // Where a dependent coordinate approaches a turning point its pivot falls roughly
+        // linearly and the condition grows like 1 / (t_turn - t), by a large factor within one
+        // fixed step: the condition expected after the next step (the growth of the last one
+        // repeated) is compared, so that the partition changes one step early.
+        let growth =
+            if self.last_condition.is_finite() { (condition / self.last_condition).max(1.0) } else { 1.0 };
+        self.last_condition = condition;
+        let expected = condition * growth;
         let fresh =
             partition(self.eq.jacobian.as_ref(), self.settings.partition, self.settings.rank_tolerance);
         let ratio = if force { 1.0 } else { self.settings.repartition_ratio };
-        if !(fresh.condition * ratio < condition)
-            || fresh.rank != p.rank
-            || fresh.independent == p.independent
+        if !(fresh.condition * ratio < expected) || fresh.rank != p.rank || fresh.independent == p.independent
         {
             return Ok(None);
         }
@@ -488,6 +540,7 @@ impl<'a> Engine<'a> {
                 self.names(&p.independent)
             ),
         };
+        self.last_condition = fresh.condition;
         self.partition = fresh;
         Ok(Some(event))
     }
@@ -533,6 +586,7 @@ impl<'a> Engine<'a> {
                         fresh.condition
                     ),
                 });
+                self.last_condition = fresh.condition;
                 self.partition = fresh;
                 self.mode = Strategy::CoordinatePartitioning;
             }
@@ -589,6 +643,10 @@ fn converged(violation: f64, previous: f64, tolerance: f64) -> bool {
 
 /// See `converged`.
 const STAGNATION_FACTOR: f64 = 100.0;
+
+/// Largest Newton correction of the dependent coordinates, as a fraction of their predicted
+/// motion over the step, that is taken for the same solution branch (see `reconstruct`).
+const BRANCH_JUMP_FRACTION: f64 = 0.25;
 
 /// Solves C_qd x = rhs for the partition's dependent block: LU, or the minimum-norm solution
 /// with a truncated SVD when the block is ill-conditioned (near a singular configuration the
@@ -749,6 +807,9 @@ pub fn run(
         qdd: vec![0.0; n],
         accepted_q: state.coordinates.clone(),
         accepted_qd: state.velocities.clone(),
+        accepted_qdd: vec![0.0; n],
+        last_time: f64::NAN,
+        check_branch: false,
         accepted_time: t0,
         gamma: vec![0.0; model.constraint_count],
         discrete: state.discrete.clone(),
@@ -757,6 +818,7 @@ pub fn run(
         singular_evaluations: 0,
         mode: explicit.strategy,
         singular_limit: 0.0,
+        last_condition: f64::INFINITY,
     };
     engine.singular_limit = explicit.singular_factor * engine.partition.condition.max(1.0);
     if !engine.partition.redundant_rows.is_empty() {
@@ -813,7 +875,19 @@ pub fn run(
             first_derivative_valid = true;
         }
         let attempt_result =
-            attempt(&mut engine, explicit.method, t, h_try, &y, &mut k, &mut y_new, &mut stage);
+            attempt(&mut engine, explicit.method, t, h_try, &y, &mut k, &mut y_new, &mut stage).and_then(
+                |err| {
+                    // The end point of a step that passes the error test: the full state, with
+                    // the check that the dependent coordinates stayed on their branch.
+                    if (adaptive && err <= 1.0) || (!adaptive && err.is_finite()) {
+                        engine.check_branch = true;
+                        let result = engine.unpack(t + h_try, &y_new);
+                        engine.check_branch = false;
+                        result?;
+                    }
+                    Ok(err)
+                },
+            );
         let (accepted, factor) = match attempt_result {
             Ok(err) if !adaptive => (err.is_finite(), 1.0),
             Ok(err) => {
@@ -857,7 +931,6 @@ pub fn run(
         // Accept.
         let t_new = t + h_try;
         std::mem::swap(&mut y, &mut y_new);
-        engine.unpack(t_new, &y)?;
         let mut modified = false;
         if engine.mode == Strategy::Projection {
             engine.project(t_new)?;
@@ -874,6 +947,10 @@ pub fn run(
         }
         engine.accepted_q.copy_from_slice(&engine.q);
         engine.accepted_qd.copy_from_slice(&engine.qd);
+        if !modified && engine.last_time == t_new {
+            // Dormand-Prince's last stage was evaluated at exactly this state.
+            engine.accepted_qdd.copy_from_slice(&engine.qdd);
+        }
         engine.accepted_time = t_new;
         state.time = t_new;
         state.coordinates.copy_from_slice(&engine.q);
