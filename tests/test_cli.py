@@ -18,6 +18,22 @@ def test_run_pendulum_reports_the_reference_errors(capsys):
     assert "position error at t = 0.5 s" in out and "steps" in out
 
 
+def test_run_with_an_explicit_solver_reports_evaluations_and_events(capsys):
+    argv = ["run", "pendulum", "--end", "1.0", "--step", "1e-3", "--solver", "rk4:partitioning"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "function evaluations" in out
+    assert "(repartition)" in out
+    error = float(out.split("position error at t = 1 s:")[1].split()[0])
+    assert error < 1e-6
+
+
+def test_run_refuses_an_unknown_solver(capsys):
+    assert main(["run", "pendulum", "--solver", "rk4:sideways"]) == 2
+    assert "strategy must be one of" in capsys.readouterr().err
+    assert main(["run", "pendulum", "--solver", "rk4"]) == 2
+
+
 def test_python_dash_m_runs_the_default_example():
     run = subprocess.run(
         [sys.executable, "-m", "flexmbd", "run", "--end", "0.01", "--step", "1e-4"],

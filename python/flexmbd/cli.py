@@ -7,11 +7,26 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import Any
 
-from . import __version__
+from . import __version__, _core
 from .errors import FlexmbdError
 from .examples import EXAMPLES
 from .simulation import simulate
+
+
+def _solver(text: str | None, default: _core.GeneralizedAlpha) -> Any:
+    """The solver named by ``--solver``: "generalized-alpha", or METHOD:STRATEGY[:FORMULATION]
+    for an explicit solver, e.g. "dopri5:partitioning:embedding"."""
+    if text is None or text == "generalized-alpha":
+        return default
+    parts = text.split(":")
+    if not 2 <= len(parts) <= 3:
+        raise argparse.ArgumentTypeError(
+            f"--solver {text!r}: expected generalized-alpha or METHOD:STRATEGY[:FORMULATION]"
+        )
+    formulation = parts[2] if len(parts) == 3 else "augmented"
+    return _core.ExplicitSolver(parts[0], parts[1], formulation=formulation)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -21,22 +36,32 @@ def _run(args: argparse.Namespace) -> int:
     print(f"flexmbd {__version__}: {example.description}")
     model = example.system.compile()
     print(f"  {model!r}")
-    print(f"  simulating to t = {end:g} s with step {step:g} s ({example.solver!r})")
+    try:
+        solver = _solver(args.solver, example.solver)
+    except (argparse.ArgumentTypeError, FlexmbdError) as error:
+        print(f"  {error}", file=sys.stderr)
+        return 2
+    print(f"  simulating to t = {end:g} s with step {step:g} s ({solver!r})")
     start = time.perf_counter()
     try:
-        result = simulate(
-            model, end, step, output_interval=example.output_interval, solver=example.solver
-        )
+        result = simulate(model, end, step, output_interval=example.output_interval, solver=solver)
     except FlexmbdError as error:
         print(f"  failed: {error}", file=sys.stderr)
         return 1
     elapsed = time.perf_counter() - start
     stats = result.statistics
-    print(
-        f"  done in {elapsed:.3f} s: {stats['steps']} steps, "
-        f"{stats['newton_iterations'] / max(stats['steps'], 1):.2f} Newton iterations per step, "
-        f"{stats['factorizations']} factorizations"
-    )
+    if stats.get("function_evaluations"):
+        work = f"{stats['function_evaluations']} function evaluations"
+    else:
+        work = (
+            f"{stats['newton_iterations'] / max(stats['steps'], 1):.2f} Newton iterations per "
+            f"step, {stats['factorizations']} factorizations"
+        )
+    print(f"  done in {elapsed:.3f} s: {stats['steps']} steps, {work}")
+    for event in result.events[:10]:
+        print(f"  event at t = {event['time']:.6g} s ({event['kind']}): {event['message']}")
+    if len(result.events) > 10:
+        print(f"  ... {len(result.events) - 10} more events")
     energy = result.total_energy
     print(f"  largest constraint violation {result.constraint_violation.max():.2e}")
     print(f"  total energy {energy[0]:.6f} J -> {energy[-1]:.6f} J")
@@ -98,6 +123,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     run.add_argument("--end", type=float, help="end time (s)")
     run.add_argument("--step", type=float, help="step size (s)")
+    run.add_argument(
+        "--solver",
+        help="generalized-alpha (default: the example's settings), or an explicit solver "
+        "METHOD:STRATEGY[:FORMULATION] with METHOD rk4 or dopri5, STRATEGY integrate-all, "
+        "partitioning or projection, FORMULATION augmented or embedding",
+    )
     sub.add_parser("examples", help="list the built-in examples")
     pre = sub.add_parser(
         "preprocess",
