@@ -242,3 +242,109 @@ impl Reduction {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::joint::JointKind;
+    use crate::math::{Mat3, Vec3};
+    use crate::SystemBuilder;
+
+    /// A body on two revolute joints with the same axis (5 of their 10 equations redundant)
+    /// and a spherical joint of a second body to it.
+    fn doubly_hinged() -> Model {
+        let mut sys = SystemBuilder::new();
+        sys.set_gravity(Vec3([0.0, -9.81, 0.0])).unwrap();
+        let inertia = Mat3::diagonal(Vec3([0.01, 0.1, 0.1]));
+        let body = sys
+            .add_rigid_body(
+                "arm",
+                1.0,
+                inertia,
+                Vec3::ZERO,
+                Vec3([0.5, 0.0, 0.0]),
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+            )
+            .unwrap();
+        let tip = sys
+            .add_rigid_body(
+                "tip",
+                1.0,
+                inertia,
+                Vec3::ZERO,
+                Vec3([1.5, 0.0, 0.0]),
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+            )
+            .unwrap();
+        for (name, z) in [("front", 0.1), ("back", -0.1)] {
+            let g = sys.add_marker("", sys.ground(), Vec3([0.0, 0.0, z]), Mat3::IDENTITY).unwrap();
+            let b = sys.add_marker("", body, Vec3([-0.5, 0.0, z]), Mat3::IDENTITY).unwrap();
+            sys.add_joint(name, JointKind::Revolute, [g, b]).unwrap();
+        }
+        let a = sys.add_marker("", body, Vec3([0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        let b = sys.add_marker("", tip, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        sys.add_joint("ball", JointKind::Spherical, [a, b]).unwrap();
+        sys.compile().unwrap()
+    }
+
+    #[test]
+    fn redundant_rows_are_found_reported_and_removed() {
+        let model = doubly_hinged();
+        // 2 normalizations + 5 + 5 + 3 joint equations; rank 10.
+        assert_eq!(model.constraint_count, 15);
+        let settings = SimulationSettings::new(1.0, 1e-3);
+        let reduction = analyse(&model, &settings).unwrap().expect("redundant");
+        let report = &reduction.report;
+        assert_eq!((report.rows, report.rank), (15, 10));
+        assert_eq!(report.removed_rows.len(), 5);
+        // Only joint equations of the two hinges are removed; the ball is not involved.
+        let hinges: Vec<usize> =
+            model.joints.iter().enumerate().filter(|(_, j)| j.name != "ball").map(|(k, _)| k).collect();
+        assert_eq!(report.joints, hinges);
+        for &r in &report.removed_rows {
+            assert!(
+                model.constraint_name(r).contains("joint 'front'")
+                    || model.constraint_name(r).contains("joint 'back'")
+            );
+        }
+        assert!(report.message.contains("'front'") && report.message.contains("'back'"));
+        assert!(!report.message.contains("'ball'"));
+        // The reduced model keeps the other rows in order.
+        assert_eq!(reduction.model.constraint_count, 10);
+        assert_eq!(reduction.row_map.len(), 10);
+        assert!(reduction.row_map.windows(2).all(|w| w[0] < w[1]));
+        assert!(reduction.row_map.iter().all(|r| !report.removed_rows.contains(r)));
+    }
+
+    #[test]
+    fn error_handling_refuses_the_model_and_independent_models_pass() {
+        let model = doubly_hinged();
+        let mut settings = SimulationSettings::new(1.0, 1e-3);
+        settings.redundancy.handling = RedundancyHandling::Error;
+        let error = analyse(&model, &settings).err().expect("refused").to_string();
+        assert!(error.contains("5 of 15 constraint equations are redundant"), "{error}");
+        // A model without redundancy gives None.
+        let mut sys = SystemBuilder::new();
+        let body = sys
+            .add_rigid_body(
+                "arm",
+                1.0,
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+            )
+            .unwrap();
+        let g = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
+        let b = sys.add_marker("", body, Vec3::ZERO, Mat3::IDENTITY).unwrap();
+        sys.add_joint("hinge", JointKind::Revolute, [g, b]).unwrap();
+        let single = sys.compile().unwrap();
+        assert!(analyse(&single, &SimulationSettings::new(1.0, 1e-3)).unwrap().is_none());
+    }
+}
