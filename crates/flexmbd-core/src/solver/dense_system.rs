@@ -58,12 +58,12 @@ pub enum Level {
 /// Relative size of the smallest LU pivot below which a matrix is treated as ill-conditioned:
 /// the solves then fall back to truncated singular value decompositions.
 pub const ILL_CONDITIONED_PIVOT: f64 = 1e-7;
-/// The same for the augmented matrix [[M, C_q^T], [C_q, 0]]. Its pivots also span the scales
-/// of the mass matrix, so the test flags more than rank-deficient C_q, and the null-space
-/// fallback then runs often (38% of the evaluations of A02). Measured on A02 over 10 s: a
-/// threshold of 1e-9 halves the run time but the LU accelerations near the change points make
-/// integrate-all with Dormand-Prince 20 times less accurate (4.3e-6 against 2.1e-7), and at
-/// 1e-10 the step size collapses at the first change point; accuracy is kept.
+/// The same for the augmented matrix [[M, C_q^T], [C_q, 0]], whose pivots also span the
+/// scales of the mass matrix. Behind the partition-condition test of `accelerations` this is
+/// only a safeguard: on A02, Andrews' mechanism and the redundant four-bar the results are the
+/// same with 1e-7 and 1e-13. Without that test, thresholds of 1e-9 and below let inaccurate LU
+/// accelerations through near the change points of A02 (integrate-all with Dormand-Prince:
+/// error 4.3e-6 against 2.1e-7; at 1e-10 the step size collapses), all measured.
 pub const SINGULAR_AUGMENTED_PIVOT: f64 = 1e-7;
 
 /// Relative cut-off of the singular values in those fallbacks (near-singular configurations:
