@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 
 def relative_drift(energy: np.ndarray) -> float:
@@ -14,3 +15,12 @@ def rod_inertia(mass: float, length: float, axial: float = 1e-6) -> tuple[float,
     """Principal inertia of a slender rod along its local x axis about its centre."""
     transverse = mass * length**2 / 12.0
     return (axial, transverse, transverse)
+
+
+def constraint_parts(model, q):
+    """C(q) and C_q (constraint rows x coordinates) of a compiled model, from Model.evaluate."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    out = model.evaluate(0.0, q, np.zeros(nq), np.zeros(nq), np.zeros(nc), mass=1.0)
+    data, indices, indptr, n = out["matrix"]
+    matrix = sp.csc_matrix((data, indices, indptr), shape=(n, n)).toarray()
+    return out["residual"][nq:], matrix[nq:, :nq]

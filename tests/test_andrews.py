@@ -3,18 +3,9 @@ set's data against the test set's solution at t = 0.03 s."""
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
+from conftest import constraint_parts
 
 import flexmbd as fm
-
-
-def constraint_parts(model, q):
-    """C(q) and C_q (constraint rows x coordinates) from Model.evaluate."""
-    nq, nc = model.coordinate_count, model.constraint_count
-    out = model.evaluate(0.0, q, np.zeros(nq), np.zeros(nq), np.zeros(nc), mass=1.0)
-    data, indices, indptr, n = out["matrix"]
-    matrix = sp.csc_matrix((data, indices, indptr), shape=(n, n)).toarray()
-    return out["residual"][nq:], matrix[nq:, :nq]
 
 
 def test_initial_angles_satisfy_the_joints_without_correction():

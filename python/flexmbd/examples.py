@@ -72,27 +72,22 @@ def pendulum() -> Example:
     )
 
 
-def four_bar(n: int = 2) -> Example:
-    """IFToMM A02 N-four-bar in 3D: 2N+1 uniform 1 kg, 1 m links, gravity 9.81 m/s^2 along -y.
-    Cranks stand vertically on pivots at x = 0..N, couplers lie horizontally at y = 1; the top
-    of the first crank, B0, starts at 1 m/s along +x. Cranks: revolute joints to the ground;
-    couplers: revolute joint to crank k and an in-line joint (in-plane position only) to crank
-    k+1, so that the spatial model has no redundant equations. The mechanism passes singular
-    configurations (cranks horizontal) twice per turn. Exact B0 at t = 10 s for N = 2."""
-    if n < 1:
-        raise ValueError(f"n must be at least 1, got {n}")
-    system = _core.System(gravity=(0.0, -9.81, 0.0))
-    # A slender rod along its local x axis (the axial moment is irrelevant for planar motion).
-    inertia = (5e-5, 1.0 / 12.0, 1.0 / 12.0)
+# The links of the four-bars: 1 kg, 1 m slender rods along their local x axis (the axial
+# moment is irrelevant for planar motion).
+FOUR_BAR_ROD = (5e-5, 1.0 / 12.0, 1.0 / 12.0)
+
+
+def _four_bar_cranks(system: _core.System, count: int) -> tuple[list, list, list]:
+    """The vertical cranks of the four-bars at x = 0 .. count - 1, pivoted on the ground about
+    z at y = 0, turning at -1 rad/s (B0 moves at 1 m/s along +x): bodies, top markers B<k> (axes
+    parallel to the global ones) and pivot joints."""
     up = rotation("z", np.pi / 2)  # crank frame: local x points up
     to_joint = rotation("z", -np.pi / 2)  # marker axes parallel to the global axes
-    tops = []
-    cranks = []
-    pivots = []
-    for k in range(n + 1):
+    cranks, tops, pivots = [], [], []
+    for k in range(count):
         crank = system.add_rigid_body(
             1.0,
-            inertia,
+            FOUR_BAR_ROD,
             position=(k, 0.5, 0.0),
             orientation=up,
             velocity=(0.5, 0.0, 0.0),
@@ -106,6 +101,21 @@ def four_bar(n: int = 2) -> Example:
             system.add_marker(crank, position=(0.5, 0.0, 0.0), orientation=to_joint, name=f"B{k}")
         )
         cranks.append(crank)
+    return cranks, tops, pivots
+
+
+def four_bar(n: int = 2) -> Example:
+    """IFToMM A02 N-four-bar in 3D: 2N+1 uniform 1 kg, 1 m links, gravity 9.81 m/s^2 along -y.
+    Cranks stand vertically on pivots at x = 0..N, couplers lie horizontally at y = 1; the top
+    of the first crank, B0, starts at 1 m/s along +x. Cranks: revolute joints to the ground;
+    couplers: revolute joint to crank k and an in-line joint (in-plane position only) to crank
+    k+1, so that the spatial model has no redundant equations. The mechanism passes singular
+    configurations (cranks horizontal) twice per turn. Exact B0 at t = 10 s for N = 2."""
+    if n < 1:
+        raise ValueError(f"n must be at least 1, got {n}")
+    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    inertia = FOUR_BAR_ROD
+    cranks, tops, pivots = _four_bar_cranks(system, n + 1)
     couplers = []
     for k in range(n):
         coupler = system.add_rigid_body(
@@ -582,27 +592,8 @@ def four_bar_spatial() -> Example:
     vertical and the coupler translates, (5/3) theta'' = 2 g sin(theta), theta(0) = 0,
     theta'(0) = 1 rad/s. ``check`` compares B0 with that equation, solved by SciPy."""
     system = _core.System(gravity=(0.0, -9.81, 0.0))
-    inertia = (5e-5, 1.0 / 12.0, 1.0 / 12.0)  # slender rod along its local x axis
-    up = rotation("z", np.pi / 2)  # crank frame: local x points up
-    to_joint = rotation("z", -np.pi / 2)  # marker axes parallel to the global axes
-    cranks, tops, pivots = [], [], []
-    for k in range(2):
-        crank = system.add_rigid_body(
-            1.0,
-            inertia,
-            position=(k, 0.5, 0.0),
-            orientation=up,
-            velocity=(0.5, 0.0, 0.0),
-            angular_velocity=(0.0, 0.0, -1.0),
-            name=f"crank {k}",
-        )
-        ground_marker = system.add_marker(system.ground, position=(k, 0.0, 0.0))
-        bottom = system.add_marker(crank, position=(-0.5, 0.0, 0.0), orientation=to_joint)
-        pivots.append(system.add_revolute_joint(ground_marker, bottom, name=f"pivot {k}"))
-        tops.append(
-            system.add_marker(crank, position=(0.5, 0.0, 0.0), orientation=to_joint, name=f"B{k}")
-        )
-        cranks.append(crank)
+    inertia = FOUR_BAR_ROD
+    cranks, tops, pivots = _four_bar_cranks(system, 2)
     coupler = system.add_rigid_body(
         1.0, inertia, position=(0.5, 1.0, 0.0), velocity=(1.0, 0.0, 0.0), name="coupler"
     )

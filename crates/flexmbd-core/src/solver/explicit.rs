@@ -31,7 +31,7 @@ use super::partition::{
     PartitionMethod,
 };
 use super::settings::SimulationSettings;
-use super::simulate::{update_discrete, Progress};
+use super::simulate::{update_discrete, OutputClock, Progress};
 use crate::error::{FlexmbdError, Result};
 use crate::output::{Event, Output};
 use crate::system::{Model, State, Workspace};
@@ -248,15 +248,7 @@ impl<'a> Engine<'a> {
 
     /// Accelerations at (time, self.q, self.qd) into self.qdd.
     fn accelerations(&mut self, time: f64) -> Result<()> {
-        self.eq.evaluate(
-            self.model,
-            &mut self.ws,
-            time,
-            &self.q,
-            &self.qd,
-            &self.discrete,
-            Level::Acceleration,
-        )?;
+        self.evaluate(time, Level::Acceleration)?;
         self.evaluations += 1;
         self.gamma.copy_from_slice(&self.eq.gamma);
         if let Some((alpha, beta)) = self.settings.baumgarte {
@@ -305,15 +297,7 @@ impl<'a> Engine<'a> {
         let mut iterations = 0;
         let mut previous = f64::INFINITY;
         loop {
-            self.eq.evaluate(
-                self.model,
-                &mut self.ws,
-                time,
-                &self.q,
-                &self.qd,
-                &self.discrete,
-                Level::Position,
-            )?;
+            self.evaluate(time, Level::Position)?;
             let residual: Vec<f64> = self.partition.rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
             if converged(violation, previous, self.settings.constraint_tolerance) {
@@ -364,15 +348,7 @@ impl<'a> Engine<'a> {
             self.newton_iterations += 1;
         }
         // Dependent velocities: C_qd qd_d = -(C_qi qd_i + C_t).
-        self.eq.evaluate(
-            self.model,
-            &mut self.ws,
-            time,
-            &self.q,
-            &self.qd,
-            &self.discrete,
-            Level::Velocity,
-        )?;
+        self.evaluate(time, Level::Velocity)?;
         let p = &self.partition;
         for &d in &p.dependent {
             self.qd[d] = 0.0;
@@ -416,6 +392,11 @@ impl<'a> Engine<'a> {
         }
     }
 
+    /// Evaluates the equations at (time, self.q, self.qd) up to `level`.
+    fn evaluate(&mut self, time: f64, level: Level) -> Result<()> {
+        self.eq.evaluate(self.model, &mut self.ws, time, &self.q, &self.qd, &self.discrete, level)
+    }
+
     /// dy/dt at (time, y).
     fn derivative(&mut self, time: f64, y: &[f64], dy: &mut [f64]) -> Result<()> {
         self.unpack(time, y)?;
@@ -450,7 +431,7 @@ impl<'a> Engine<'a> {
         let mut previous = f64::INFINITY;
         let mut level = Level::Position;
         loop {
-            self.eq.evaluate(self.model, &mut self.ws, time, &self.q, &self.qd, &self.discrete, level)?;
+            self.evaluate(time, level)?;
             let residual: Vec<f64> = if level == Level::Position {
                 rows.iter().map(|&r| self.eq.constraints[r]).collect()
             } else {
@@ -503,15 +484,7 @@ impl<'a> Engine<'a> {
         if !self.settings.uses_coordinates() || self.settings.independent.is_some() {
             return Ok(None);
         }
-        self.eq.evaluate(
-            self.model,
-            &mut self.ws,
-            time,
-            &self.q,
-            &self.qd,
-            &self.discrete,
-            Level::Position,
-        )?;
+        self.evaluate(time, Level::Position)?;
         let p = &self.partition;
         let condition = partition_condition(self.eq.jacobian.as_ref(), &p.rows, &p.dependent);
         // Where a dependent coordinate approaches a turning point its pivot falls roughly
@@ -561,15 +534,7 @@ impl<'a> Engine<'a> {
         let wehage = self.settings.strategy == Strategy::CoordinatePartitioning;
         let limit = self.singular_limit;
         if wehage && self.mode == Strategy::Projection {
-            self.eq.evaluate(
-                self.model,
-                &mut self.ws,
-                time,
-                &self.q,
-                &self.qd,
-                &self.discrete,
-                Level::Position,
-            )?;
+            self.evaluate(time, Level::Position)?;
             let jacobian = self.eq.jacobian.as_ref();
             let fresh = match &self.settings.independent {
                 Some(list) => partition_with_independent(jacobian, list, self.settings.rank_tolerance).ok(),
@@ -594,15 +559,7 @@ impl<'a> Engine<'a> {
         }
         events.extend(self.repartition(time, false)?);
         if wehage {
-            self.eq.evaluate(
-                self.model,
-                &mut self.ws,
-                time,
-                &self.q,
-                &self.qd,
-                &self.discrete,
-                Level::Position,
-            )?;
+            self.evaluate(time, Level::Position)?;
             let p = &self.partition;
             let condition = partition_condition(self.eq.jacobian.as_ref(), &p.rows, &p.dependent);
             if condition > limit {
@@ -845,10 +802,7 @@ pub fn run(
     record(&mut engine, &mut state, output)?;
     *last_state = Some(state.clone());
 
-    let t_end = settings.end_time;
-    let time_eps = 1e-12 * (1.0 + t_end.abs());
-    let mut next_output = settings.output_interval.map(|dt| settings.start_time + dt);
-    let mut output_index = 1usize;
+    let mut clock = OutputClock::new(settings);
     let mut h = settings.step_size;
     let adaptive = explicit.method == ExplicitMethod::Dopri5;
     let mut y = Vec::new();
@@ -861,15 +815,10 @@ pub fn run(
     output.statistics.min_step_size_used = f64::INFINITY;
 
     let mut near_singular = false;
-    while state.time < t_end - time_eps {
+    while clock.running(state.time) {
         let t = state.time;
         let singular_before = engine.singular_evaluations;
-        let mut h_try = h.min(t_end - t);
-        if let Some(t_out) = next_output {
-            if t_out - t < h_try + time_eps {
-                h_try = t_out - t;
-            }
-        }
+        let h_try = clock.step(t, h);
         if !first_derivative_valid {
             engine.derivative(t, &y, &mut k[0])?;
             first_derivative_valid = true;
@@ -987,17 +936,7 @@ pub fn run(
         if let Some(k) = state.first_non_finite() {
             return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
         }
-        let at_end = state.time >= t_end - time_eps;
-        let at_output = match next_output {
-            None => true,
-            Some(t_out) => (state.time - t_out).abs() <= time_eps || at_end,
-        };
-        if at_output {
-            if let Some(dt) = settings.output_interval {
-                output_index += 1;
-                next_output =
-                    if at_end { None } else { Some(settings.start_time + dt * output_index as f64) };
-            }
+        if clock.due(state.time) {
             record(&mut engine, &mut state, output)?;
             let violation = output.constraint_violation.last().copied().unwrap_or(0.0);
             if !drift_reported && violation > explicit.drift_threshold {
