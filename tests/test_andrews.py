@@ -19,8 +19,8 @@ def test_initial_angles_satisfy_the_joints_without_correction():
 
 def test_generalized_alpha_reproduces_the_test_set_solution_at_30_ms():
     # Fixed steps of 2 us at spectral radius 0.9: the errors fall as h^2 (1.8e-4 rad at
-    # 10 us, 1.1e-5 at 2.5 us, 7e-6 here). At spectral radius 1 the velocity projection makes
-    # the result depend on the Newton tolerance (scatter up to 3e-4 rad), so it is not used.
+    # 10 us, 1.1e-5 at 2.5 us, 7e-6 here). Spectral radius 1 is not used: the velocity
+    # projection it switches on loses the convergence in h on this model (docs/solvers.md).
     example = fm.examples.andrews()
     result = fm.simulate(
         example.system,
