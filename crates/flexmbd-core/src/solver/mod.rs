@@ -10,6 +10,7 @@ pub mod explicit;
 pub mod generalized_alpha;
 pub mod initial;
 pub mod partition;
+pub mod recursive;
 pub mod redundancy;
 pub mod settings;
 pub mod simulate;
