@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         "--solver",
         help="generalized-alpha (default: the example's settings), or an explicit solver "
         "METHOD:STRATEGY[:FORMULATION] with METHOD rk4 or dopri5, STRATEGY integrate-all, "
-        "partitioning or projection, FORMULATION augmented or embedding",
+        "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding",
     )
     sub.add_parser("examples", help="list the built-in examples")
     pre = sub.add_parser(

@@ -253,7 +253,9 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 /// - `strategy`: "integrate-all" (integrate all coordinates and velocities; the constraints
 ///   drift unless `baumgarte=(alpha, beta)` stabilizes them), "partitioning" (Wehage:
 ///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
-///   "projection" (integrate all, then project onto the position and velocity constraints).
+///   "projection" (integrate all, then project onto the position and velocity constraints),
+///   or "joint-coordinates" (seed section 5: integrate the joint coordinates of an open tree of
+///   rigid bodies with revolute and prismatic joints, so far; the joints hold exactly).
 /// - `formulation`: "augmented" (seed eq. 26) or "embedding" (seed eqs. 27-30).
 /// - `partition`: "lu" (full pivoting), "qr" (column pivoting) or "svd": how the independent
 ///   coordinates are chosen; `independent`: coordinate indices to use instead. The
@@ -273,7 +275,7 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 pub struct ExplicitSolver {
     /// "dopri5" or "rk4".
     pub method: String,
-    /// "integrate-all", "partitioning" or "projection".
+    /// "integrate-all", "partitioning", "projection" or "joint-coordinates".
     pub strategy: String,
     /// "augmented" or "embedding".
     pub formulation: String,
@@ -390,8 +392,16 @@ impl ExplicitSolver {
         };
         let method = [ExplicitMethod::Dopri5, ExplicitMethod::Rk4]
             [choice("method", &self.method, &["dopri5", "rk4"])?];
-        let strategy = [Strategy::IntegrateAll, Strategy::CoordinatePartitioning, Strategy::Projection]
-            [choice("strategy", &self.strategy, &["integrate-all", "partitioning", "projection"])?];
+        let strategy = [
+            Strategy::IntegrateAll,
+            Strategy::CoordinatePartitioning,
+            Strategy::Projection,
+            Strategy::JointCoordinates,
+        ][choice(
+            "strategy",
+            &self.strategy,
+            &["integrate-all", "partitioning", "projection", "joint-coordinates"],
+        )?];
         let formulation = [Formulation::Augmented, Formulation::Embedding]
             [choice("formulation", &self.formulation, &["augmented", "embedding"])?];
         let partition = [PartitionMethod::Lu, PartitionMethod::Qr, PartitionMethod::Svd]

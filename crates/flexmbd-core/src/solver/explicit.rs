@@ -30,6 +30,7 @@ use super::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
     PartitionMethod,
 };
+use super::recursive::{joint_accelerations, Tree};
 use super::settings::SimulationSettings;
 use super::simulate::{update_discrete, OutputClock, Progress};
 use crate::error::{FlexmbdError, Result};
@@ -67,6 +68,9 @@ pub enum Strategy {
     CoordinatePartitioning,
     /// (3) Integrate all, then project onto the position and velocity constraints.
     Projection,
+    /// Joint coordinates (seed section 5): integrate the joint coordinates of an open tree;
+    /// the body coordinates follow from them and satisfy the joints exactly.
+    JointCoordinates,
 }
 
 impl Strategy {
@@ -76,6 +80,7 @@ impl Strategy {
             Strategy::IntegrateAll => "integrate-all",
             Strategy::CoordinatePartitioning => "partitioning",
             Strategy::Projection => "projection",
+            Strategy::JointCoordinates => "joint-coordinates",
         }
     }
 }
@@ -189,7 +194,8 @@ impl ExplicitSettings {
 
     /// Whether the run uses the partition's coordinates (not only its rows).
     fn uses_coordinates(&self) -> bool {
-        self.strategy == Strategy::CoordinatePartitioning || self.formulation == Formulation::Embedding
+        self.strategy == Strategy::CoordinatePartitioning
+            || (self.formulation == Formulation::Embedding && self.strategy != Strategy::JointCoordinates)
     }
 }
 
@@ -230,6 +236,13 @@ struct Engine<'a> {
     /// Condition of the partition after the previous accepted step (its growth rate predicts
     /// the next step's, see `repartition`).
     last_condition: f64,
+    /// Joint coordinates: the tree, the joint coordinates, rates and accelerations, and the
+    /// velocity-quadratic accelerations gamma_B of the body coordinates.
+    tree: Option<Tree>,
+    p: Vec<f64>,
+    pd: Vec<f64>,
+    pdd: Vec<f64>,
+    gamma_b: Vec<f64>,
 }
 
 impl<'a> Engine<'a> {
@@ -250,6 +263,17 @@ impl<'a> Engine<'a> {
     fn accelerations(&mut self, time: f64) -> Result<()> {
         self.evaluate(time, Level::Acceleration)?;
         self.evaluations += 1;
+        if let Some(tree) = &self.tree {
+            let n = self.q.len();
+            let b = tree.influence(n, &self.p);
+            self.pdd = joint_accelerations(&b, &self.eq.mass, &self.eq.force, &self.gamma_b)
+                .map_err(|e| self.singular(time, e.to_string()))?;
+            for i in 0..n {
+                self.qdd[i] =
+                    self.gamma_b[i] + (0..self.pdd.len()).map(|k| b[(i, k)] * self.pdd[k]).sum::<f64>();
+            }
+            return Ok(());
+        }
         self.gamma.copy_from_slice(&self.eq.gamma);
         if let Some((alpha, beta)) = self.settings.baumgarte {
             for k in 0..self.gamma.len() {
@@ -272,6 +296,18 @@ impl<'a> Engine<'a> {
 
     /// Multipliers consistent with self.qdd (after `accelerations`).
     fn multipliers(&self, time: f64, lambda: &mut [f64]) -> Result<()> {
+        if self.tree.is_some() {
+            // C_q^T lambda = f - M q_dd over all rows (the joint reactions, eliminated from the
+            // joint-coordinate equations, recovered here).
+            let n = self.q.len();
+            let residual: Vec<f64> = (0..n)
+                .map(|i| self.eq.force[i] - (0..n).map(|j| self.eq.mass[(i, j)] * self.qdd[j]).sum::<f64>())
+                .collect();
+            let ct = self.eq.jacobian.transpose().to_owned();
+            let solution = minimum_norm_solve(ct.as_ref(), &residual, SINGULAR_VALUE_CUTOFF);
+            lambda.copy_from_slice(&solution);
+            return Ok(());
+        }
         self.eq.multipliers(&self.partition, &self.qdd, lambda).map_err(|detail| self.singular(time, detail))
     }
 
@@ -372,6 +408,10 @@ impl<'a> Engine<'a> {
                 y.extend(self.partition.independent.iter().map(|&c| self.q[c]));
                 y.extend(self.partition.independent.iter().map(|&c| self.qd[c]));
             }
+            Strategy::JointCoordinates => {
+                y.extend_from_slice(&self.p);
+                y.extend_from_slice(&self.pd);
+            }
             _ => {
                 y.extend_from_slice(&self.q);
                 y.extend_from_slice(&self.qd);
@@ -383,6 +423,18 @@ impl<'a> Engine<'a> {
     fn unpack(&mut self, time: f64, y: &[f64]) -> Result<()> {
         match self.mode {
             Strategy::CoordinatePartitioning => self.reconstruct(time, y),
+            Strategy::JointCoordinates => {
+                let np = self.p.len();
+                self.p.copy_from_slice(&y[..np]);
+                self.pd.copy_from_slice(&y[np..]);
+                if let Some(tree) = &self.tree {
+                    let (q, qd, gamma_b) = tree.state(self.q.len(), &self.p, &self.pd);
+                    self.q = q;
+                    self.qd = qd;
+                    self.gamma_b = gamma_b;
+                }
+                Ok(())
+            }
             _ => {
                 let n = self.q.len();
                 self.q.copy_from_slice(&y[..n]);
@@ -412,6 +464,11 @@ impl<'a> Engine<'a> {
                     dy[k] = self.qd[c];
                     dy[ni + k] = self.qdd[c];
                 }
+            }
+            Strategy::JointCoordinates => {
+                let np = self.p.len();
+                dy[..np].copy_from_slice(&self.pd);
+                dy[np..].copy_from_slice(&self.pdd);
             }
             _ => {
                 let n = self.q.len();
@@ -776,7 +833,29 @@ pub fn run(
         mode: explicit.strategy,
         singular_limit: 0.0,
         last_condition: f64::INFINITY,
+        tree: None,
+        p: Vec::new(),
+        pd: Vec::new(),
+        pdd: Vec::new(),
+        gamma_b: vec![0.0; n],
     };
+    if explicit.strategy == Strategy::JointCoordinates {
+        // The tree and the joint coordinates of the consistent initial state; the body state is
+        // then recomputed from them (it satisfies the joints exactly).
+        let (tree, p0) = Tree::new(model, &state.coordinates)?;
+        let b = tree.influence(n, &p0);
+        let pd0 = minimum_norm_solve(b.as_ref(), &state.velocities, 1e-12);
+        let (q, qd, gamma_b) = tree.state(n, &p0, &pd0);
+        state.coordinates.copy_from_slice(&q);
+        state.velocities.copy_from_slice(&qd);
+        engine.q = q;
+        engine.qd = qd;
+        engine.gamma_b = gamma_b;
+        engine.pdd = vec![0.0; p0.len()];
+        engine.p = p0;
+        engine.pd = pd0;
+        engine.tree = Some(tree);
+    }
     engine.singular_limit = explicit.singular_factor * engine.partition.condition.max(1.0);
     if !engine.partition.redundant_rows.is_empty() {
         let names: Vec<String> =
