@@ -243,6 +243,8 @@ struct Engine<'a> {
     pd: Vec<f64>,
     pdd: Vec<f64>,
     gamma_b: Vec<f64>,
+    /// Velocity influence coefficients of the free joint coordinates at p.
+    influence: Mat<f64>,
 }
 
 impl<'a> Engine<'a> {
@@ -263,10 +265,10 @@ impl<'a> Engine<'a> {
     fn accelerations(&mut self, time: f64) -> Result<()> {
         self.evaluate(time, Level::Acceleration)?;
         self.evaluations += 1;
-        if let Some(tree) = &self.tree {
+        if self.tree.is_some() {
             let n = self.q.len();
-            let b = tree.influence(n, &self.p);
-            self.pdd = joint_accelerations(&b, &self.eq.mass, &self.eq.force, &self.gamma_b)
+            let b = &self.influence;
+            self.pdd = joint_accelerations(b, &self.eq.mass, &self.eq.force, &self.gamma_b)
                 .map_err(|e| self.singular(time, e.to_string()))?;
             for i in 0..n {
                 self.qdd[i] =
@@ -428,10 +430,11 @@ impl<'a> Engine<'a> {
                 self.p.copy_from_slice(&y[..np]);
                 self.pd.copy_from_slice(&y[np..]);
                 if let Some(tree) = &self.tree {
-                    let (q, qd, gamma_b) = tree.state(self.q.len(), &self.p, &self.pd);
-                    self.q = q;
-                    self.qd = qd;
-                    self.gamma_b = gamma_b;
+                    let state = tree.evaluate(self.model, time, &self.p, &self.pd)?;
+                    self.q = state.coordinates;
+                    self.qd = state.velocities;
+                    self.gamma_b = state.gamma;
+                    self.influence = state.influence;
                 }
                 Ok(())
             }
@@ -838,19 +841,24 @@ pub fn run(
         pd: Vec::new(),
         pdd: Vec::new(),
         gamma_b: vec![0.0; n],
+        influence: Mat::zeros(0, 0),
     };
     if explicit.strategy == Strategy::JointCoordinates {
         // The tree and the joint coordinates of the consistent initial state; the body state is
         // then recomputed from them (it satisfies the joints exactly).
         let (tree, p0) = Tree::new(model, &state.coordinates)?;
-        let b = tree.influence(n, &p0);
-        let pd0 = minimum_norm_solve(b.as_ref(), &state.velocities, 1e-12);
-        let (q, qd, gamma_b) = tree.state(n, &p0, &pd0);
-        state.coordinates.copy_from_slice(&q);
-        state.velocities.copy_from_slice(&qd);
-        engine.q = q;
-        engine.qd = qd;
-        engine.gamma_b = gamma_b;
+        // Free joint rates from q_dot = B_free p_dot + (the prescribed part).
+        let prescribed = tree.evaluate(model, t0, &p0, &vec![0.0; p0.len()])?;
+        let rest: Vec<f64> =
+            state.velocities.iter().zip(&prescribed.velocities).map(|(v, w)| v - w).collect();
+        let pd0 = minimum_norm_solve(prescribed.influence.as_ref(), &rest, 1e-12);
+        let start = tree.evaluate(model, t0, &p0, &pd0)?;
+        state.coordinates.copy_from_slice(&start.coordinates);
+        state.velocities.copy_from_slice(&start.velocities);
+        engine.q = start.coordinates;
+        engine.qd = start.velocities;
+        engine.gamma_b = start.gamma;
+        engine.influence = start.influence;
         engine.pdd = vec![0.0; p0.len()];
         engine.p = p0;
         engine.pd = pd0;

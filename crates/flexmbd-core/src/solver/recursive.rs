@@ -1,5 +1,6 @@
 //! Joint coordinates (seed section 5), first part: open trees of rigid bodies connected by
-//! revolute and prismatic joints.
+//! revolute, prismatic, cylindrical and fixed joints, with angle and translation drivers on
+//! them (prescribed joint coordinates).
 //!
 //! The bodies' reference coordinates q (origin and Euler parameters) follow from the joint
 //! coordinates p body by body from the ground to the tips. Differentiating that recursion gives
@@ -19,7 +20,9 @@
 //! Joint coordinates: for a revolute joint the angle about the common z axis of its markers
 //! from the parent-side marker to the child-side marker; for a prismatic joint the
 //! translation along the z axis of marker i (the parent side is whichever marker is on the
-//! body nearer the ground).
+//! body nearer the ground); a cylindrical joint has both (angle first), a fixed joint none.
+//! A driver on the markers of a tree joint prescribes its coordinate: p_d = f(t), and
+//! q_dd = B_free p_dd_free + B_d f''(t) + gamma_B.
 
 use faer::Mat;
 
@@ -35,12 +38,27 @@ use crate::system::Model;
 enum TreeJointKind {
     Revolute,
     Prismatic,
+    Cylindrical,
+    Fixed,
+}
+
+impl TreeJointKind {
+    /// Number of joint coordinates (the angle first).
+    fn coordinate_count(self) -> usize {
+        match self {
+            TreeJointKind::Revolute | TreeJointKind::Prismatic => 1,
+            TreeJointKind::Cylindrical => 2,
+            TreeJointKind::Fixed => 0,
+        }
+    }
 }
 
 /// A joint of the tree, seen from its parent side.
 #[derive(Clone, Debug)]
 struct TreeJoint {
     kind: TreeJointKind,
+    /// Index of its first coordinate in p.
+    first: usize,
     /// Parent body (0: ground) and child body.
     parent: usize,
     child: usize,
@@ -53,10 +71,35 @@ struct TreeJoint {
     axis: Vec3,
 }
 
+/// A joint coordinate prescribed by a driver: p = sign f(t).
+#[derive(Clone, Copy, Debug)]
+struct Prescribed {
+    coordinate: usize,
+    driver: usize,
+    sign: f64,
+}
+
+/// The body state of a tree at given joint coordinates (see [`Tree::evaluate`]).
+#[derive(Clone, Debug)]
+pub struct TreeState {
+    /// Body coordinates q.
+    pub coordinates: Vec<f64>,
+    /// Body velocities q_dot.
+    pub velocities: Vec<f64>,
+    /// q_dd with the free joint accelerations zero: the velocity-quadratic terms and the
+    /// prescribed joint accelerations.
+    pub gamma: Vec<f64>,
+    /// Velocity influence coefficients of the free joint coordinates (n x free).
+    pub influence: Mat<f64>,
+}
+
 /// An open tree of rigid bodies in joint coordinates.
 #[derive(Clone, Debug)]
 pub struct Tree {
     joints: Vec<TreeJoint>,
+    prescribed: Vec<Prescribed>,
+    /// The free (integrated) joint coordinates, in p's order.
+    free: Vec<usize>,
     /// First coordinate index of each body in q (rigid bodies: 7 coordinates).
     offsets: Vec<usize>,
     /// Euler parameters of each body at the start: the sign of the parameters computed from
@@ -111,7 +154,7 @@ impl Tree {
         loop {
             let mut progress = false;
             for (k, joint) in model.joints.iter().enumerate() {
-                if used[k] {
+                if used[k] || joint.kind.function().is_some() {
                     continue;
                 }
                 let [bi, bj] = joint.markers.map(|m| model.markers[m.0].body.0);
@@ -127,11 +170,15 @@ impl Tree {
                     (false, false) => continue,
                     (parent_i, _) => parent_i,
                 };
-                if !matches!(joint.kind, JointKind::Revolute | JointKind::Prismatic) {
+                if !matches!(
+                    joint.kind,
+                    JointKind::Revolute | JointKind::Prismatic | JointKind::Cylindrical | JointKind::Fixed
+                ) {
                     return bad(
                         format!("joint '{}'", joint.name),
                         format!(
-                            "the joint-coordinate formulation takes revolute and prismatic joints so far, not {}",
+                            "the joint-coordinate formulation takes revolute, prismatic, cylindrical and fixed \
+                             joints so far, not {}",
                             joint.kind.type_name()
                         ),
                     );
@@ -152,7 +199,7 @@ impl Tree {
                 "it is not connected to the ground".to_string(),
             );
         }
-        if let Some(k) = used.iter().position(|u| !u) {
+        if let Some(k) = (0..used.len()).find(|&k| !used[k] && model.joints[k].kind.function().is_none()) {
             return bad(
                 format!("joint '{}'", model.joints[k].name),
                 "it does not connect to the ground".to_string(),
@@ -177,6 +224,7 @@ impl Tree {
         };
         let mut joints = Vec::new();
         let mut p0 = Vec::new();
+        let mut tree_markers = Vec::new(); // (marker i, marker j, parent-side marker, child-side marker)
         for (k, i_parent) in order {
             let joint = &model.joints[k];
             let [mi, mj] = joint.markers.map(|m| &model.markers[m.0]);
@@ -189,35 +237,117 @@ impl Tree {
             let relative = a_pm.transpose().mul_mat(&a_cm);
             let offset =
                 a_pm.tr_mul_vec(&(r_c + a_c.mul_vec(&cm.position) - r_p - a_p.mul_vec(&pm.position)));
-            let (kind, axis, value) = match joint.kind {
-                JointKind::Revolute => {
-                    (TreeJointKind::Revolute, Vec3::unit(2), relative.0[1][0].atan2(relative.0[0][0]))
-                }
-                _ => {
-                    // Translation along z of marker i: +z of the parent-side marker, or -z of
-                    // the child-side marker expressed in the parent-side frame.
-                    let axis = if i_parent { Vec3::unit(2) } else { -relative.mul_vec(&Vec3::unit(2)) };
-                    (TreeJointKind::Prismatic, axis, offset.dot(&axis))
-                }
+            let angle = relative.0[1][0].atan2(relative.0[0][0]);
+            // Translation along z of marker i: +z of the parent-side marker, or -z of the
+            // child-side marker expressed in the parent-side frame (the same axis for a
+            // cylindrical joint, whose rotation keeps z).
+            let axis = if i_parent { Vec3::unit(2) } else { -relative.mul_vec(&Vec3::unit(2)) };
+            let (kind, values) = match joint.kind {
+                JointKind::Revolute => (TreeJointKind::Revolute, vec![angle]),
+                JointKind::Prismatic => (TreeJointKind::Prismatic, vec![offset.dot(&axis)]),
+                JointKind::Cylindrical => (TreeJointKind::Cylindrical, vec![angle, offset.dot(&axis)]),
+                _ => (TreeJointKind::Fixed, vec![]),
             };
+            let first = p0.len();
+            p0.extend(values);
             joints.push(TreeJoint {
                 kind,
+                first,
                 parent,
                 child,
                 parent_marker: (pm.position, pm.rotation),
                 child_marker: (cm.position, cm.rotation),
-                rotation: relative,
+                rotation: if kind == TreeJointKind::Fixed { Mat3::IDENTITY } else { relative },
                 axis,
             });
-            p0.push(value);
+            let [i, j] = joint.markers.map(|m| m.0);
+            let (pid, cid) = if i_parent { (i, j) } else { (j, i) };
+            tree_markers.push((i, j, pid, cid));
         }
-        let tree = Tree { coordinate_count: joints.len(), joints, offsets, reference_parameters };
+        // Drivers prescribe the coordinate of the tree joint on the same markers.
+        let mut prescribed: Vec<Prescribed> = Vec::new();
+        for (d, driver) in model.joints.iter().enumerate() {
+            if driver.kind.function().is_none() {
+                continue;
+            }
+            let [di, dj] = driver.markers.map(|m| m.0);
+            let angle = matches!(driver.kind, JointKind::AngleDriver(_));
+            let found = joints.iter().zip(&tree_markers).find_map(|(tj, &(i, j, pid, cid))| {
+                let (slot, sign) = match (angle, tj.kind) {
+                    (true, TreeJointKind::Revolute | TreeJointKind::Cylindrical) => {
+                        (tj.first, if (di, dj) == (pid, cid) { 1.0 } else { -1.0 })
+                    }
+                    (false, TreeJointKind::Prismatic) => {
+                        (tj.first, if (di, dj) == (i, j) { 1.0 } else { -1.0 })
+                    }
+                    (false, TreeJointKind::Cylindrical) => {
+                        (tj.first + 1, if (di, dj) == (i, j) { 1.0 } else { -1.0 })
+                    }
+                    _ => return None,
+                };
+                let same_pair = (di, dj) == (i, j) || (di, dj) == (j, i);
+                same_pair.then_some((slot, sign))
+            });
+            let Some((coordinate, sign)) = found else {
+                return bad(
+                    format!("driver '{}'", driver.name),
+                    "the joint-coordinate formulation takes drivers on the markers of a revolute, prismatic or \
+                     cylindrical joint of the tree only"
+                        .to_string(),
+                );
+            };
+            if prescribed.iter().any(|p| p.coordinate == coordinate) {
+                return bad(
+                    format!("driver '{}'", driver.name),
+                    "a second driver on the same joint coordinate".to_string(),
+                );
+            }
+            prescribed.push(Prescribed { coordinate, driver: d, sign });
+        }
+        let free: Vec<usize> =
+            (0..p0.len()).filter(|c| prescribed.iter().all(|p| p.coordinate != *c)).collect();
+        let p0: Vec<f64> = free.iter().map(|&c| p0[c]).collect();
+        let coordinate_count = joints.iter().map(|j| j.kind.coordinate_count()).sum();
+        let tree = Tree { coordinate_count, joints, prescribed, free, offsets, reference_parameters };
         Ok((tree, p0))
     }
 
-    /// Number of joint coordinates.
+    /// Number of joint coordinates, prescribed ones included.
     pub fn coordinate_count(&self) -> usize {
         self.coordinate_count
+    }
+
+    /// Number of free (integrated) joint coordinates.
+    pub fn free_count(&self) -> usize {
+        self.free.len()
+    }
+
+    /// The body state at time `time` for the free joint coordinates `p` and rates `pd`, the
+    /// prescribed ones from their drivers.
+    pub fn evaluate(&self, model: &Model, time: f64, p: &[f64], pd: &[f64]) -> Result<TreeState> {
+        let n = model.coordinate_count;
+        let np = self.coordinate_count;
+        let (mut full_p, mut full_pd, mut pdd) = (vec![0.0; np], vec![0.0; np], vec![0.0; np]);
+        for (k, &c) in self.free.iter().enumerate() {
+            full_p[c] = p[k];
+            full_pd[c] = pd[k];
+        }
+        for presc in &self.prescribed {
+            let [f, fd, fdd] = model.joints[presc.driver].driver_values(time)?;
+            full_p[presc.coordinate] = presc.sign * f;
+            full_pd[presc.coordinate] = presc.sign * fd;
+            pdd[presc.coordinate] = presc.sign * fdd;
+        }
+        let (coordinates, velocities, mut gamma) = self.state(n, &full_p, &full_pd);
+        let b = self.influence(n, &full_p);
+        for presc in &self.prescribed {
+            let a = pdd[presc.coordinate];
+            for (i, g) in gamma.iter_mut().enumerate() {
+                *g += b[(i, presc.coordinate)] * a;
+            }
+        }
+        let influence = Mat::from_fn(n, self.free.len(), |i, k| b[(i, self.free[k])]);
+        Ok(TreeState { coordinates, velocities, gamma, influence })
     }
 
     /// Motions of all bodies for joint coordinates p, rates p_dot and p_dd = 0 (the
@@ -225,7 +355,7 @@ impl Tree {
     fn motions(&self, p: &[f64], pd: &[f64]) -> Vec<Motion> {
         let nb = self.offsets.len();
         let mut m = vec![REST; nb];
-        for (k, joint) in self.joints.iter().enumerate() {
+        for joint in &self.joints {
             let parent = m[joint.parent];
             let (s_p, a_pm_bar) = joint.parent_marker;
             let (s_c, a_cm_bar) = joint.child_marker;
@@ -238,21 +368,28 @@ impl Tree {
                 + parent.alpha.cross(&rho_p)
                 + parent.omega.cross(&parent.omega.cross(&rho_p));
             // The child-side marker frame relative to it.
+            let z = a_pm.column(2);
+            let axis = a_pm.mul_vec(&joint.axis);
+            let f = joint.first;
             let (relative, translation, rate, omega, alpha) = match joint.kind {
-                TreeJointKind::Revolute => {
-                    let z = a_pm.column(2);
-                    (
-                        rot_z(p[k]),
-                        Vec3::ZERO,
-                        Vec3::ZERO,
-                        parent.omega + z * pd[k],
-                        parent.alpha + parent.omega.cross(&(z * pd[k])),
-                    )
-                }
+                TreeJointKind::Revolute => (
+                    rot_z(p[f]),
+                    Vec3::ZERO,
+                    Vec3::ZERO,
+                    parent.omega + z * pd[f],
+                    parent.alpha + parent.omega.cross(&(z * pd[f])),
+                ),
                 TreeJointKind::Prismatic => {
-                    let axis = a_pm.mul_vec(&joint.axis);
-                    (joint.rotation, axis * p[k], axis * pd[k], parent.omega, parent.alpha)
+                    (joint.rotation, axis * p[f], axis * pd[f], parent.omega, parent.alpha)
                 }
+                TreeJointKind::Cylindrical => (
+                    rot_z(p[f]),
+                    axis * p[f + 1],
+                    axis * pd[f + 1],
+                    parent.omega + z * pd[f],
+                    parent.alpha + parent.omega.cross(&(z * pd[f])),
+                ),
+                TreeJointKind::Fixed => (Mat3::IDENTITY, Vec3::ZERO, Vec3::ZERO, parent.omega, parent.alpha),
             };
             let a_cm = a_pm.mul_mat(&relative);
             let o_cm = o_pm + translation;
@@ -344,6 +481,7 @@ pub fn joint_accelerations(b: &Mat<f64>, mass: &Mat<f64>, force: &[f64], gamma: 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::time_function::TimeFunction;
     use crate::solver::dense_system::{dense_initial_conditions, DenseEquations, Formulation, Level};
     use crate::solver::initial::InitialSettings;
     use crate::solver::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
@@ -358,7 +496,7 @@ mod tests {
     /// Ground -revolute (z)- arm -revolute (tilted axis)- forearm -prismatic- slider, and a
     /// second branch: ground -prismatic- carriage -revolute- pendulum (marker i on the child
     /// side). Gravity, offset centres of mass and full inertia tensors.
-    fn tree_model() -> Model {
+    fn tree_model(driven: bool) -> Model {
         let mut sys = SystemBuilder::new();
         sys.set_gravity(Vec3([0.3, -9.81, 0.5])).unwrap();
         let inertia = Mat3([[0.05, 0.004, -0.002], [0.004, 0.08, 0.003], [-0.002, 0.003, 0.09]]);
@@ -416,7 +554,42 @@ mod tests {
             m(&mut sys, carriage, Vec3([0.0, 0.1, 0.0]), rot_x(0.2)),
         );
         sys.add_joint("swing", JointKind::Revolute, [p0, c1]).unwrap();
+        // A sleeve on the pendulum (cylindrical, marker i on the child side) and a weight
+        // welded to the sleeve (fixed).
+        let sleeve = body(&mut sys, "sleeve", 0.6, Mat3::IDENTITY);
+        let weight = body(&mut sys, "weight", 0.9, Mat3::IDENTITY);
+        let (s0, q1) = (
+            m(&mut sys, sleeve, Vec3::ZERO, along_x()),
+            m(&mut sys, pendulum, Vec3([0.2, 0.0, 0.0]), along_x()),
+        );
+        sys.add_joint("sleeve", JointKind::Cylindrical, [s0, q1]).unwrap();
+        let (s1, w0) = (
+            m(&mut sys, sleeve, Vec3([0.15, 0.0, 0.0]), rot_x(0.7)),
+            m(&mut sys, weight, Vec3([-0.15, 0.0, 0.0]), rot_x(0.7)),
+        );
+        sys.add_joint("weld", JointKind::Fixed, [s1, w0]).unwrap();
+        if driven {
+            // The shoulder angle prescribed (markers in the revolute's order), the rail
+            // translation prescribed with the markers reversed.
+            sys.add_joint(
+                "shoulder drive",
+                JointKind::AngleDriver(TimeFunction::Polynomial(vec![0.0, 0.8, -1.5])),
+                [g0, a0],
+            )
+            .unwrap();
+            sys.add_joint(
+                "rail drive",
+                JointKind::TranslationDriver(TimeFunction::Polynomial(vec![0.0, -0.3, 0.9])),
+                [c0, g1],
+            )
+            .unwrap();
+        }
         sys.compile().unwrap()
+    }
+
+    fn along_x() -> Mat3 {
+        // Marker z along body x.
+        Mat3([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
     }
 
     fn consistent(model: &Model) -> Vec<f64> {
@@ -439,10 +612,10 @@ mod tests {
 
     #[test]
     fn influence_coefficients_and_quadratic_terms_match_finite_differences() {
-        let model = tree_model();
+        let model = tree_model(false);
         let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
         let (n, np) = (model.coordinate_count, tree.coordinate_count());
-        assert_eq!(np, 5);
+        assert_eq!(np, 7);
         let p: Vec<f64> = p0.iter().zip(sample(np, 3, 1.0)).map(|(a, b)| a + b).collect();
         let pd = sample(np, 7, 4.0);
         let b = tree.influence(n, &p);
@@ -474,36 +647,43 @@ mod tests {
 
     #[test]
     fn joint_coordinate_accelerations_equal_the_augmented_ones() {
-        let model = tree_model();
-        let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
-        let (n, np) = (model.coordinate_count, tree.coordinate_count());
-        for seed in 0..5 {
-            let p: Vec<f64> = p0.iter().zip(sample(np, 11 + seed, 2.0)).map(|(a, b)| a + b).collect();
-            let pd = sample(np, 29 + seed, 6.0);
-            let (q, qd, gamma_b) = tree.state(n, &p, &pd);
-            let mut ws = Workspace::for_evaluation(&model);
-            let mut eq = DenseEquations::new(&model);
-            eq.evaluate(&model, &mut ws, 0.0, &q, &qd, &[], Level::Acceleration).unwrap();
-            // The tree state satisfies every joint, at position and velocity level.
-            assert!(eq.constraints.iter().all(|c| c.abs() < 1e-12), "{:?}", eq.constraints);
-            for r in 0..model.constraint_count {
-                assert!(eq.velocity_violation(r, &qd).abs() < 1e-11);
-            }
-            let b = tree.influence(n, &p);
-            let pdd = joint_accelerations(&b, &eq.mass, &eq.force, &gamma_b).unwrap();
-            let qdd_tree: Vec<f64> =
-                (0..n).map(|i| gamma_b[i] + (0..np).map(|k| b[(i, k)] * pdd[k]).sum::<f64>()).collect();
-            let part = partition(eq.jacobian.as_ref(), PartitionMethod::Lu, DEFAULT_RANK_TOLERANCE);
-            let mut qdd = vec![0.0; n];
-            eq.accelerations(&part, Formulation::Augmented, &eq.gamma, f64::INFINITY, &mut qdd).unwrap();
-            let scale = qdd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-            for i in 0..n {
-                assert!(
-                    (qdd[i] - qdd_tree[i]).abs() < 1e-10 * scale,
-                    "seed {seed} q_dd[{i}]: {} vs {}",
-                    qdd[i],
-                    qdd_tree[i]
-                );
+        for driven in [false, true] {
+            let model = tree_model(driven);
+            let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
+            let n = model.coordinate_count;
+            let nf = tree.free_count();
+            assert_eq!(nf, if driven { 5 } else { 7 });
+            for seed in 0..5 {
+                let time = 0.1 + 0.3 * seed as f64;
+                let p: Vec<f64> = p0.iter().zip(sample(nf, 11 + seed, 2.0)).map(|(a, b)| a + b).collect();
+                let pd = sample(nf, 29 + seed, 6.0);
+                let state = tree.evaluate(&model, time, &p, &pd).unwrap();
+                let (q, qd) = (&state.coordinates, &state.velocities);
+                let mut ws = Workspace::for_evaluation(&model);
+                let mut eq = DenseEquations::new(&model);
+                eq.evaluate(&model, &mut ws, time, q, qd, &[], Level::Acceleration).unwrap();
+                // The tree state satisfies every joint and driver, at position and velocity level.
+                assert!(eq.constraints.iter().all(|c| c.abs() < 1e-12), "{:?}", eq.constraints);
+                for r in 0..model.constraint_count {
+                    assert!(eq.velocity_violation(r, qd).abs() < 1e-11, "row {r}");
+                }
+                let b = &state.influence;
+                let pdd = joint_accelerations(b, &eq.mass, &eq.force, &state.gamma).unwrap();
+                let qdd_tree: Vec<f64> = (0..n)
+                    .map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>())
+                    .collect();
+                let part = partition(eq.jacobian.as_ref(), PartitionMethod::Lu, DEFAULT_RANK_TOLERANCE);
+                let mut qdd = vec![0.0; n];
+                eq.accelerations(&part, Formulation::Augmented, &eq.gamma, f64::INFINITY, &mut qdd).unwrap();
+                let scale = qdd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+                for i in 0..n {
+                    assert!(
+                        (qdd[i] - qdd_tree[i]).abs() < 1e-10 * scale,
+                        "driven {driven} seed {seed} q_dd[{i}]: {} vs {}",
+                        qdd[i],
+                        qdd_tree[i]
+                    );
+                }
             }
         }
     }
