@@ -254,9 +254,9 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   drift unless `baumgarte=(alpha, beta)` stabilizes them), "partitioning" (Wehage:
 ///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
 ///   "projection" (integrate all, then project onto the position and velocity constraints),
-///   or "joint-coordinates" (seed section 5: integrate the joint coordinates of an open tree of
-///   rigid bodies with revolute, prismatic, cylindrical and fixed joints and drivers on them,
-///   so far; the joints hold exactly).
+///   or "joint-coordinates" (seed section 5: integrate the joint coordinates of a tree of rigid
+///   bodies with revolute, prismatic, cylindrical and fixed joints and drivers on them, loops
+///   closed by cut joints, so far; the tree joints hold exactly).
 /// - `formulation`: "augmented" (seed eq. 26) or "embedding" (seed eqs. 27-30).
 /// - `partition`: "lu" (full pivoting), "qr" (column pivoting) or "svd": how the independent
 ///   coordinates are chosen; `independent`: coordinate indices to use instead. The

@@ -30,7 +30,7 @@ use super::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
     PartitionMethod,
 };
-use super::recursive::{joint_accelerations, Tree};
+use super::recursive::{constrained_joint_accelerations, joint_accelerations, Tree};
 use super::settings::SimulationSettings;
 use super::simulate::{update_discrete, OutputClock, Progress};
 use crate::error::{FlexmbdError, Result};
@@ -265,11 +265,34 @@ impl<'a> Engine<'a> {
     fn accelerations(&mut self, time: f64) -> Result<()> {
         self.evaluate(time, Level::Acceleration)?;
         self.evaluations += 1;
-        if self.tree.is_some() {
+        if let Some(tree) = &self.tree {
             let n = self.q.len();
             let b = &self.influence;
-            self.pdd = joint_accelerations(b, &self.eq.mass, &self.eq.force, &self.gamma_b)
-                .map_err(|e| self.singular(time, e.to_string()))?;
+            self.pdd = if tree.cut_rows.is_empty() {
+                joint_accelerations(b, &self.eq.mass, &self.eq.force, &self.gamma_b)
+            } else {
+                // Cut joints: C_cut (B p_dd + gamma_B) = gamma_cut.
+                let rows = &tree.cut_rows;
+                let c_cut = Mat::from_fn(rows.len(), n, |a, j| self.eq.jacobian[(rows[a], j)]);
+                let c_hat = &c_cut * b;
+                let g_hat: Vec<f64> = rows
+                    .iter()
+                    .enumerate()
+                    .map(|(a, &r)| {
+                        self.eq.gamma[r] - (0..n).map(|j| c_cut[(a, j)] * self.gamma_b[j]).sum::<f64>()
+                    })
+                    .collect();
+                constrained_joint_accelerations(
+                    b,
+                    &self.eq.mass,
+                    &self.eq.force,
+                    &self.gamma_b,
+                    &c_hat,
+                    &g_hat,
+                    SINGULAR_VALUE_CUTOFF,
+                )
+            }
+            .map_err(|e| self.singular(time, e.to_string()))?;
             for i in 0..n {
                 self.qdd[i] =
                     self.gamma_b[i] + (0..self.pdd.len()).map(|k| b[(i, k)] * self.pdd[k]).sum::<f64>();
@@ -480,6 +503,51 @@ impl<'a> Engine<'a> {
             }
         }
         Ok(())
+    }
+
+    /// Joint coordinates with cut joints: projects p onto C_cut(q(p), t) = 0 (Newton with
+    /// minimum-norm steps) and p_dot onto the cut joints' velocity constraints.
+    fn project_joint_coordinates(&mut self, time: f64) -> Result<()> {
+        let Some(tree) = self.tree.clone() else { return Ok(()) };
+        let rows = tree.cut_rows.clone();
+        let n = self.q.len();
+        let mut iterations = 0;
+        let mut previous = f64::INFINITY;
+        loop {
+            self.unpack(time, &[self.p.clone(), self.pd.clone()].concat())?;
+            self.evaluate(time, Level::Velocity)?;
+            let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
+            let (k, violation) = worst(&residual);
+            let c_hat = Mat::from_fn(rows.len(), n, |a, j| self.eq.jacobian[(rows[a], j)]) * &self.influence;
+            if converged(violation, previous, self.settings.constraint_tolerance) {
+                // Velocities: C_cut (B p_dot + v_prescribed) + C_t = 0.
+                let rate: Vec<f64> = rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect();
+                let dv = minimum_norm_solve(c_hat.as_ref(), &rate, SINGULAR_VALUE_CUTOFF);
+                for (x, d) in self.pd.iter_mut().zip(&dv) {
+                    *x -= d;
+                }
+                return self.unpack(time, &[self.p.clone(), self.pd.clone()].concat());
+            }
+            previous = violation;
+            if iterations >= self.settings.max_iterations || !violation.is_finite() {
+                return Err(FlexmbdError::NewtonDiverged {
+                    time,
+                    step_size: 0.0,
+                    iterations,
+                    residual: violation,
+                    item: format!(
+                        "{}; joint coordinates onto the cut joints",
+                        self.model.constraint_name(rows[k])
+                    ),
+                });
+            }
+            let dp = minimum_norm_solve(c_hat.as_ref(), &residual, SINGULAR_VALUE_CUTOFF);
+            for (x, d) in self.p.iter_mut().zip(&dp) {
+                *x -= d;
+            }
+            iterations += 1;
+            self.newton_iterations += 1;
+        }
     }
 
     /// Projects self.q onto C = 0 (Newton with minimum-norm steps over the partition's rows)
@@ -970,6 +1038,10 @@ pub fn run(
         let mut modified = false;
         if engine.mode == Strategy::Projection {
             engine.project(t_new)?;
+            modified = true;
+        }
+        if engine.tree.as_ref().is_some_and(|t| !t.cut_rows.is_empty()) {
+            engine.project_joint_coordinates(t_new)?;
             modified = true;
         }
         let mode = engine.mode;

@@ -13,9 +13,11 @@
 //!     (B^T M B) p_dd = B^T (f - M gamma_B).
 //!
 //! This is the joint-coordinate system that the body-by-body elimination of eqs. 31-32
-//! produces; here it is formed with B explicitly. The recursive elimination, deformable bodies
-//! with the elastic motion of the joint frames, the other joint types, cut joints of closed
-//! loops and the decoupled formulation of eqs. 33-41 are the next parts of issue 6.
+//! produces; here it is formed with B explicitly. Joints outside the tree (loop closures,
+//! other joint types, drivers on other markers) are cut: their equations constrain p (see
+//! [`constrained_joint_accelerations`]). The recursive elimination, deformable bodies with the
+//! elastic motion of the joint frames, the other tree joint types and the decoupled
+//! formulation of eqs. 33-41 are the next parts of issue 6.
 //!
 //! Joint coordinates: for a revolute joint the angle about the common z axis of its markers
 //! from the parent-side marker to the child-side marker; for a prismatic joint the
@@ -100,6 +102,11 @@ pub struct Tree {
     prescribed: Vec<Prescribed>,
     /// The free (integrated) joint coordinates, in p's order.
     free: Vec<usize>,
+    /// Joints cut to open the loops (and drivers on other markers than a tree joint's), and
+    /// their constraint rows, which the joint coordinates must satisfy.
+    pub cut_joints: Vec<usize>,
+    /// Constraint rows of the cut joints.
+    pub cut_rows: Vec<usize>,
     /// First coordinate index of each body in q (rigid bodies: 7 coordinates).
     offsets: Vec<usize>,
     /// Euler parameters of each body at the start: the sign of the parameters computed from
@@ -151,38 +158,24 @@ impl Tree {
         reached[0] = true;
         let mut order: Vec<(usize, bool)> = Vec::new(); // (joint, marker i on the parent side)
         let mut used = vec![false; model.joints.len()];
+        let tree_kind = |k: &JointKind| {
+            matches!(
+                k,
+                JointKind::Revolute | JointKind::Prismatic | JointKind::Cylindrical | JointKind::Fixed
+            )
+        };
         loop {
             let mut progress = false;
             for (k, joint) in model.joints.iter().enumerate() {
-                if used[k] || joint.kind.function().is_some() {
+                if used[k] || !tree_kind(&joint.kind) {
                     continue;
                 }
                 let [bi, bj] = joint.markers.map(|m| model.markers[m.0].body.0);
                 let i_parent = match (reached[bi], reached[bj]) {
-                    (true, true) => {
-                        return bad(
-                            format!("joint '{}'", joint.name),
-                            "it closes a loop; cut joints of closed loops are not supported yet by the \
-                             joint-coordinate formulation"
-                                .to_string(),
-                        )
-                    }
-                    (false, false) => continue,
+                    // A joint between two bodies of the tree closes a loop: it is cut.
+                    (true, true) | (false, false) => continue,
                     (parent_i, _) => parent_i,
                 };
-                if !matches!(
-                    joint.kind,
-                    JointKind::Revolute | JointKind::Prismatic | JointKind::Cylindrical | JointKind::Fixed
-                ) {
-                    return bad(
-                        format!("joint '{}'", joint.name),
-                        format!(
-                            "the joint-coordinate formulation takes revolute, prismatic, cylindrical and fixed \
-                             joints so far, not {}",
-                            joint.kind.type_name()
-                        ),
-                    );
-                }
                 used[k] = true;
                 reached[bi] = true;
                 reached[bj] = true;
@@ -194,15 +187,19 @@ impl Tree {
             }
         }
         if let Some(b) = (1..nb).find(|&b| !reached[b]) {
+            let attached: Vec<String> = model
+                .joints
+                .iter()
+                .filter(|j| j.markers.iter().any(|m| model.markers[m.0].body.0 == b))
+                .map(|j| format!("'{}' ({})", j.name, j.kind.type_name()))
+                .collect();
             return bad(
                 format!("body '{}'", model.bodies[b].name),
-                "it is not connected to the ground".to_string(),
-            );
-        }
-        if let Some(k) = (0..used.len()).find(|&k| !used[k] && model.joints[k].kind.function().is_none()) {
-            return bad(
-                format!("joint '{}'", model.joints[k].name),
-                "it does not connect to the ground".to_string(),
+                format!(
+                    "it is not connected to the ground by revolute, prismatic, cylindrical or fixed joints, \
+                     which the joint-coordinate formulation takes as tree joints so far (its joints: {})",
+                    if attached.is_empty() { "none".to_string() } else { attached.join(", ") }
+                ),
             );
         }
         let offsets: Vec<usize> = model.bodies.iter().map(|b| b.offset).collect();
@@ -289,12 +286,8 @@ impl Tree {
                 same_pair.then_some((slot, sign))
             });
             let Some((coordinate, sign)) = found else {
-                return bad(
-                    format!("driver '{}'", driver.name),
-                    "the joint-coordinate formulation takes drivers on the markers of a revolute, prismatic or \
-                     cylindrical joint of the tree only"
-                        .to_string(),
-                );
+                // A driver on other markers: a rheonomic constraint cut like a loop joint.
+                continue;
             };
             if prescribed.iter().any(|p| p.coordinate == coordinate) {
                 return bad(
@@ -303,12 +296,28 @@ impl Tree {
                 );
             }
             prescribed.push(Prescribed { coordinate, driver: d, sign });
+            used[d] = true;
         }
+        // Every other joint or driver closes a loop: its equations are cut constraints.
+        let cut_joints: Vec<usize> = (0..model.joints.len()).filter(|&k| !used[k]).collect();
+        let cut_rows: Vec<usize> = cut_joints
+            .iter()
+            .flat_map(|&k| model.joints[k].row..model.joints[k].row + model.joints[k].equations.len())
+            .collect();
         let free: Vec<usize> =
             (0..p0.len()).filter(|c| prescribed.iter().all(|p| p.coordinate != *c)).collect();
         let p0: Vec<f64> = free.iter().map(|&c| p0[c]).collect();
         let coordinate_count = joints.iter().map(|j| j.kind.coordinate_count()).sum();
-        let tree = Tree { coordinate_count, joints, prescribed, free, offsets, reference_parameters };
+        let tree = Tree {
+            coordinate_count,
+            joints,
+            prescribed,
+            free,
+            cut_joints,
+            cut_rows,
+            offsets,
+            reference_parameters,
+        };
         Ok((tree, p0))
     }
 
@@ -476,6 +485,56 @@ pub fn joint_accelerations(b: &Mat<f64>, mass: &Mat<f64>, force: &[f64], gamma: 
     })?;
     faer::linalg::solvers::Solve::solve_in_place(&llt, &mut rhs);
     Ok((0..b.ncols()).map(|k| rhs[(k, 0)]).collect())
+}
+
+/// Joint accelerations with cut-joint constraints: (B^T M B) p_dd + C_hat^T mu =
+/// B^T (f - M gamma_B), C_hat p_dd = g_hat, with C_hat = C_cut B and g_hat = gamma_cut -
+/// C_cut gamma_B. Null-space method on the SVD of C_hat (singular values below `cutoff` of the
+/// largest treated as zero: redundant cut equations and singular configurations).
+pub fn constrained_joint_accelerations(
+    b: &Mat<f64>,
+    mass: &Mat<f64>,
+    force: &[f64],
+    gamma_b: &[f64],
+    c_hat: &Mat<f64>,
+    g_hat: &[f64],
+    cutoff: f64,
+) -> Result<Vec<f64>> {
+    let n = force.len();
+    let nf = b.ncols();
+    let mb = mass * b;
+    let reduced_mass = b.transpose() * &mb;
+    let rhs_full =
+        Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * gamma_b[j]).sum::<f64>());
+    let rhs = b.transpose() * &rhs_full;
+    let singular = |detail: &str| FlexmbdError::SingularMatrix {
+        time: f64::NAN,
+        context: "joint-coordinate accelerations with cut joints".to_string(),
+        detail: detail.to_string(),
+    };
+    let svd = c_hat.svd().map_err(|_| singular("the SVD of C_cut B did not converge"))?;
+    let sv = svd.S().column_vector();
+    let largest = if sv.nrows() > 0 { sv[0] } else { 0.0 };
+    let rank = (0..sv.nrows()).take_while(|&k| sv[k] > cutoff * largest).count();
+    let (u, v) = (svd.U(), svd.V());
+    let mut particular = vec![0.0; nf];
+    for k in 0..rank {
+        let coefficient = (0..g_hat.len()).map(|i| u[(i, k)] * g_hat[i]).sum::<f64>() / sv[k];
+        for (j, x) in particular.iter_mut().enumerate() {
+            *x += v[(j, k)] * coefficient;
+        }
+    }
+    let v2 = v.subcols(rank, nf - rank).to_owned();
+    let projected = v2.transpose() * (&reduced_mass * &v2);
+    let residual = Mat::from_fn(nf, 1, |i, _| {
+        rhs[(i, 0)] - (0..nf).map(|j| reduced_mass[(i, j)] * particular[j]).sum::<f64>()
+    });
+    let mut z = v2.transpose() * &residual;
+    let llt = projected
+        .llt(faer::Side::Lower)
+        .map_err(|_| singular("the mass matrix on the free motions is not positive definite"))?;
+    faer::linalg::solvers::Solve::solve_in_place(&llt, &mut z);
+    Ok((0..nf).map(|i| particular[i] + (0..nf - rank).map(|k| v2[(i, k)] * z[(k, 0)]).sum::<f64>()).collect())
 }
 
 #[cfg(test)]
@@ -689,7 +748,7 @@ mod tests {
     }
 
     #[test]
-    fn unsupported_trees_are_refused_with_the_item_named() {
+    fn unsupported_trees_are_refused_and_loops_are_cut() {
         let mut sys = SystemBuilder::new();
         let body = sys
             .add_rigid_body(
@@ -729,7 +788,9 @@ mod tests {
             sys.add_joint(name, JointKind::Revolute, [g0, b0]).unwrap();
         }
         let model = sys.compile().unwrap();
-        let error = Tree::new(&model, &model.initial_coordinates).unwrap_err().to_string();
-        assert!(error.contains("'second'") && error.contains("loop"), "{error}");
+        // The second hinge closes a loop: it is cut, its five equations constrain the tree.
+        let (tree, _) = Tree::new(&model, &model.initial_coordinates).unwrap();
+        assert_eq!(tree.cut_joints, vec![1]);
+        assert_eq!(tree.cut_rows.len(), 5);
     }
 }
