@@ -93,6 +93,18 @@ def test_explicit_solvers_conserve_energy_with_redundant_joints(builder, strateg
     assert set(redundancy["removed_rows"]) <= grouped
 
 
+def test_bricard_in_joint_coordinates_conserves_energy():
+    # Five revolute joints form the tree and the sixth is cut: its equations (less the
+    # redundant one removed before the run) constrain the joint coordinates.
+    example = fm.examples.bricard()
+    solver = fm.ExplicitSolver(
+        "dopri5", "joint-coordinates", relative_tolerance=1e-11, absolute_tolerance=1e-13
+    )
+    result = fm.simulate(example.system, 10.0, 1e-3, output_interval=0.01, solver=solver)
+    assert energy_drift(result) < 1e-6
+    assert result.constraint_violation.max() < 1e-10
+
+
 def test_bricard_redundancy_involves_all_six_joints():
     # The single redundant equation is a relation among all six revolute joints of the loop.
     example = fm.examples.bricard()
