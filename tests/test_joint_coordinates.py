@@ -1,6 +1,6 @@
-"""Joint coordinates (seed section 5, first part): open trees of rigid bodies with revolute,
-prismatic, cylindrical and fixed joints and drivers on them, integrated in joint coordinates,
-against the augmented formulation."""
+"""Joint coordinates (seed section 5, first part): trees of rigid bodies with revolute,
+prismatic, cylindrical, fixed and universal joints and drivers on them, loops closed by cut
+joints, integrated in joint coordinates, against the augmented formulation."""
 
 import numpy as np
 import pytest

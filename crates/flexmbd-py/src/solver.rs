@@ -255,7 +255,7 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
 ///   "projection" (integrate all, then project onto the position and velocity constraints),
 ///   or "joint-coordinates" (seed section 5: integrate the joint coordinates of a tree of rigid
-///   bodies with revolute, prismatic, cylindrical and fixed joints and drivers on them, loops
+///   bodies with revolute, prismatic, cylindrical, fixed and universal joints and drivers on them, loops
 ///   closed by cut joints, so far; the tree joints hold exactly).
 /// - `formulation`: "augmented" (seed eq. 26) or "embedding" (seed eqs. 27-30).
 /// - `partition`: "lu" (full pivoting), "qr" (column pivoting) or "svd": how the independent

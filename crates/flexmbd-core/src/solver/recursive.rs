@@ -1,5 +1,5 @@
 //! Joint coordinates (seed section 5), first part: open trees of rigid bodies connected by
-//! revolute, prismatic, cylindrical and fixed joints, with angle and translation drivers on
+//! revolute, prismatic, cylindrical, fixed and universal joints, with angle and translation drivers on
 //! them (prescribed joint coordinates).
 //!
 //! The bodies' reference coordinates q (origin and Euler parameters) follow from the joint
@@ -22,7 +22,9 @@
 //! Joint coordinates: for a revolute joint the angle about the common z axis of its markers
 //! from the parent-side marker to the child-side marker; for a prismatic joint the
 //! translation along the z axis of marker i (the parent side is whichever marker is on the
-//! body nearer the ground); a cylindrical joint has both (angle first), a fixed joint none.
+//! body nearer the ground); a cylindrical joint has both (angle first), a fixed joint none; a
+//! universal joint the rotations a, b about its cross axes, R_rel = R_x(a) R_y(b) from marker i
+//! to marker j (R_y(a) R_x(b) seen from marker j when that is the parent side).
 //! A driver on the markers of a tree joint prescribes its coordinate: p_d = f(t), and
 //! q_dd = B_free p_dd_free + B_d f''(t) + gamma_B.
 
@@ -42,6 +44,10 @@ enum TreeJointKind {
     Prismatic,
     Cylindrical,
     Fixed,
+    /// Universal joint with marker i on the parent side: R_rel = R_x(a) R_y(b).
+    UniversalXY,
+    /// Universal joint with marker j on the parent side: R_rel = R_y(a) R_x(b).
+    UniversalYX,
 }
 
 impl TreeJointKind {
@@ -49,7 +55,7 @@ impl TreeJointKind {
     fn coordinate_count(self) -> usize {
         match self {
             TreeJointKind::Revolute | TreeJointKind::Prismatic => 1,
-            TreeJointKind::Cylindrical => 2,
+            TreeJointKind::Cylindrical | TreeJointKind::UniversalXY | TreeJointKind::UniversalYX => 2,
             TreeJointKind::Fixed => 0,
         }
     }
@@ -135,6 +141,16 @@ const REST: Motion = Motion {
     acceleration: Vec3::ZERO,
 };
 
+fn rot_x(angle: f64) -> Mat3 {
+    let (s, c) = angle.sin_cos();
+    Mat3([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+}
+
+fn rot_y(angle: f64) -> Mat3 {
+    let (s, c) = angle.sin_cos();
+    Mat3([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+}
+
 fn rot_z(angle: f64) -> Mat3 {
     let (s, c) = angle.sin_cos();
     Mat3([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -161,7 +177,11 @@ impl Tree {
         let tree_kind = |k: &JointKind| {
             matches!(
                 k,
-                JointKind::Revolute | JointKind::Prismatic | JointKind::Cylindrical | JointKind::Fixed
+                JointKind::Revolute
+                    | JointKind::Prismatic
+                    | JointKind::Cylindrical
+                    | JointKind::Fixed
+                    | JointKind::Universal
             )
         };
         loop {
@@ -196,7 +216,7 @@ impl Tree {
             return bad(
                 format!("body '{}'", model.bodies[b].name),
                 format!(
-                    "it is not connected to the ground by revolute, prismatic, cylindrical or fixed joints, \
+                    "it is not connected to the ground by revolute, prismatic, cylindrical, fixed or universal joints, \
                      which the joint-coordinate formulation takes as tree joints so far (its joints: {})",
                     if attached.is_empty() { "none".to_string() } else { attached.join(", ") }
                 ),
@@ -243,6 +263,16 @@ impl Tree {
                 JointKind::Revolute => (TreeJointKind::Revolute, vec![angle]),
                 JointKind::Prismatic => (TreeJointKind::Prismatic, vec![offset.dot(&axis)]),
                 JointKind::Cylindrical => (TreeJointKind::Cylindrical, vec![angle, offset.dot(&axis)]),
+                JointKind::Universal if i_parent => {
+                    // R_x(a) R_y(b): b from the first row, a from the last column's rows.
+                    let r = &relative.0;
+                    (TreeJointKind::UniversalXY, vec![r[2][1].atan2(r[1][1]), r[0][2].atan2(r[0][0])])
+                }
+                JointKind::Universal => {
+                    // R_y(a) R_x(b).
+                    let r = &relative.0;
+                    (TreeJointKind::UniversalYX, vec![(-r[2][0]).atan2(r[0][0]), (-r[1][2]).atan2(r[1][1])])
+                }
                 _ => (TreeJointKind::Fixed, vec![]),
             };
             let first = p0.len();
@@ -399,6 +429,22 @@ impl Tree {
                     parent.alpha + parent.omega.cross(&(z * pd[f])),
                 ),
                 TreeJointKind::Fixed => (Mat3::IDENTITY, Vec3::ZERO, Vec3::ZERO, parent.omega, parent.alpha),
+                TreeJointKind::UniversalXY | TreeJointKind::UniversalYX => {
+                    let (first, second) =
+                        if joint.kind == TreeJointKind::UniversalXY { (0, 1) } else { (1, 0) };
+                    let rot = |axis: usize, angle: f64| if axis == 0 { rot_x(angle) } else { rot_y(angle) };
+                    let r1 = rot(first, p[f]);
+                    let u1 = a_pm.column(first);
+                    let u2 = a_pm.mul_mat(&r1).column(second);
+                    let (w1, w2) = (u1 * pd[f], u2 * pd[f + 1]);
+                    (
+                        r1.mul_mat(&rot(second, p[f + 1])),
+                        Vec3::ZERO,
+                        Vec3::ZERO,
+                        parent.omega + w1 + w2,
+                        parent.alpha + parent.omega.cross(&w1) + (parent.omega + w1).cross(&w2),
+                    )
+                }
             };
             let a_cm = a_pm.mul_mat(&relative);
             let o_cm = o_pm + translation;
@@ -627,6 +673,19 @@ mod tests {
             m(&mut sys, weight, Vec3([-0.15, 0.0, 0.0]), rot_x(0.7)),
         );
         sys.add_joint("weld", JointKind::Fixed, [s1, w0]).unwrap();
+        // Two Cardan-jointed shafts on the forearm, marker i on each side in turn.
+        let shaft = body(&mut sys, "shaft", 1.5, Mat3::IDENTITY);
+        let tip = body(&mut sys, "tip", 1.5, Mat3::IDENTITY);
+        let (f2, h0) = (
+            m(&mut sys, forearm, Vec3([0.0, 0.3, 0.0]), rot_x(-1.2)),
+            m(&mut sys, shaft, Vec3([0.0, 0.3, 0.0]), rot_x(-1.2)),
+        );
+        sys.add_joint("cardan", JointKind::Universal, [f2, h0]).unwrap();
+        let (t0, h1) = (
+            m(&mut sys, tip, Vec3([0.0, 0.2, 0.1]), rot_x(0.3)),
+            m(&mut sys, shaft, Vec3([0.0, 0.2, 0.1]), rot_x(0.3)),
+        );
+        sys.add_joint("cardan 2", JointKind::Universal, [t0, h1]).unwrap();
         if driven {
             // The shoulder angle prescribed (markers in the revolute's order), the rail
             // translation prescribed with the markers reversed.
@@ -674,7 +733,7 @@ mod tests {
         let model = tree_model(false);
         let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
         let (n, np) = (model.coordinate_count, tree.coordinate_count());
-        assert_eq!(np, 7);
+        assert_eq!(np, 11);
         let p: Vec<f64> = p0.iter().zip(sample(np, 3, 1.0)).map(|(a, b)| a + b).collect();
         let pd = sample(np, 7, 4.0);
         let b = tree.influence(n, &p);
@@ -711,7 +770,7 @@ mod tests {
             let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
             let n = model.coordinate_count;
             let nf = tree.free_count();
-            assert_eq!(nf, if driven { 5 } else { 7 });
+            assert_eq!(nf, if driven { 9 } else { 11 });
             for seed in 0..5 {
                 let time = 0.1 + 0.3 * seed as f64;
                 let p: Vec<f64> = p0.iter().zip(sample(nf, 11 + seed, 2.0)).map(|(a, b)| a + b).collect();
