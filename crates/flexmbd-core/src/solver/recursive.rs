@@ -10,7 +10,9 @@
 //! the equations of motion of all bodies, M q_dd + C_q^T lambda = f, on B eliminates every
 //! joint reaction (B^T C_q^T = 0 for the tree joints):
 //!
-//!     (B^T M B) p_dd = B^T (f - M gamma_B).
+//! ```text
+//! (B^T M B) p_dd = B^T (f - M gamma_B).
+//! ```
 //!
 //! This is the joint-coordinate system that the body-by-body elimination of eqs. 31-32
 //! produces; here it is formed with B explicitly. Joints outside the tree (loop closures,
