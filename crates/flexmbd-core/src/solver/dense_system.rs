@@ -220,9 +220,8 @@ impl DenseEquations {
         }
     }
 
-    /// The null-space method: C_r = U S V^T, q_dd = V_1 S_1^-1 U_1^T gamma_r + V_2 z with
-    /// (V_2^T M V_2) z = V_2^T (f - M q_dd_p), singular values below `SINGULAR_VALUE_CUTOFF`
-    /// times the largest treated as zero.
+    /// The null-space method on the partition's rows (see [`null_space_solve`]), singular
+    /// values below `SINGULAR_VALUE_CUTOFF` times the largest treated as zero.
     fn null_space_accelerations(
         &self,
         p: &Partition,
@@ -232,36 +231,7 @@ impl DenseEquations {
         let n = self.force.len();
         let c = Mat::from_fn(p.rows.len(), n, |a, j| self.jacobian[(p.rows[a], j)]);
         let g: Vec<f64> = p.rows.iter().map(|&r| gamma[r]).collect();
-        let svd = c.svd().map_err(|_| "the SVD of C_q did not converge".to_string())?;
-        let s = svd.S().column_vector();
-        let largest = if s.nrows() > 0 { s[0] } else { 0.0 };
-        let rank = (0..s.nrows()).take_while(|&k| s[k] > SINGULAR_VALUE_CUTOFF * largest).count();
-        // Particular solution V_1 S_1^-1 U_1^T gamma_r.
-        let (u, v) = (svd.U(), svd.V());
-        let mut particular = vec![0.0; n];
-        for k in 0..rank {
-            let coefficient = (0..g.len()).map(|i| u[(i, k)] * g[i]).sum::<f64>() / s[k];
-            for (j, x) in particular.iter_mut().enumerate() {
-                *x += v[(j, k)] * coefficient;
-            }
-        }
-        let v2 = v.subcols(rank, n - rank).to_owned();
-        let mv2 = &self.mass * &v2;
-        let reduced = v2.transpose() * &mv2;
-        let mut rhs = Mat::from_fn(n, 1, |i, _| {
-            self.force[i] - (0..n).map(|j| self.mass[(i, j)] * particular[j]).sum::<f64>()
-        });
-        rhs = v2.transpose() * &rhs;
-        let llt = reduced
-            .llt(Side::Lower)
-            .map_err(|_| "the mass matrix on the null space of C_q is not positive definite".to_string())?;
-        llt.solve_in_place(&mut rhs);
-        for i in 0..n {
-            qdd[i] = particular[i] + (0..n - rank).map(|k| v2[(i, k)] * rhs[(k, 0)]).sum::<f64>();
-        }
-        if qdd.iter().any(|x| !x.is_finite()) {
-            return Err("the accelerations are not finite".to_string());
-        }
+        qdd.copy_from_slice(&null_space_solve(&self.mass, &self.force, &c, &g, SINGULAR_VALUE_CUTOFF)?);
         Ok(())
     }
 
@@ -454,6 +424,48 @@ pub(crate) fn row_weight(model: &Model, row: usize) -> f64 {
     }
 }
 
+/// The null-space method for M x + C^T mu = f, C x = g (M symmetric, positive definite on the
+/// null space of C): C = U S V^T, x = V_1 S_1^-1 U_1^T g + V_2 z with
+/// (V_2^T M V_2) z = V_2^T (f - M x_p); singular values below `cutoff` times the largest count
+/// as zero (redundant rows, singular configurations). Errors say which step failed.
+pub fn null_space_solve(
+    mass: &Mat<f64>,
+    force: &[f64],
+    c: &Mat<f64>,
+    g: &[f64],
+    cutoff: f64,
+) -> std::result::Result<Vec<f64>, String> {
+    let n = force.len();
+    let svd = c.svd().map_err(|_| "the SVD of the constraint Jacobian did not converge".to_string())?;
+    let s = svd.S().column_vector();
+    let largest = if s.nrows() > 0 { s[0] } else { 0.0 };
+    let rank = (0..s.nrows()).take_while(|&k| s[k] > cutoff * largest).count();
+    // Particular solution V_1 S_1^-1 U_1^T g.
+    let (u, v) = (svd.U(), svd.V());
+    let mut x = vec![0.0; n];
+    for k in 0..rank {
+        let coefficient = (0..g.len()).map(|i| u[(i, k)] * g[i]).sum::<f64>() / s[k];
+        for (j, xj) in x.iter_mut().enumerate() {
+            *xj += v[(j, k)] * coefficient;
+        }
+    }
+    let v2 = v.subcols(rank, n - rank).to_owned();
+    let reduced = v2.transpose() * (mass * &v2);
+    let residual = Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * x[j]).sum::<f64>());
+    let mut z = v2.transpose() * &residual;
+    let llt = reduced.llt(Side::Lower).map_err(|_| {
+        "the mass matrix on the null space of the constraints is not positive definite".to_string()
+    })?;
+    llt.solve_in_place(&mut z);
+    for (i, xi) in x.iter_mut().enumerate() {
+        *xi += (0..n - rank).map(|k| v2[(i, k)] * z[(k, 0)]).sum::<f64>();
+    }
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err("the accelerations are not finite".to_string());
+    }
+    Ok(x)
+}
+
 /// The worst violated row, and the other joints left violated with it (when constraints
 /// conflict, the least-squares compromise spreads the violation over all joints involved).
 fn violated_constraints(model: &Model, worst_row: usize, constraints: &[f64], tolerance: f64) -> String {
@@ -493,6 +505,7 @@ mod tests {
     use crate::joint::JointKind;
     use crate::math::{Mat3, Vec3};
     use crate::solver::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
+    use crate::solver::test_models::{ground_joint, unit_body};
     use crate::SystemBuilder;
 
     fn rot_z(angle: f64) -> Mat3 {
@@ -631,24 +644,16 @@ mod tests {
         // A pinned body cannot also reach a ground point 5 m away with a marker 1 m from its
         // pin: the compromise keeps the normalization and names both joints.
         let mut sys = SystemBuilder::new();
-        let body = sys
-            .add_rigid_body(
-                "body",
-                1.0,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-            )
-            .unwrap();
-        let g0 = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        let b0 = sys.add_marker("", body, Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        sys.add_joint("pin", JointKind::Revolute, [g0, b0]).unwrap();
-        let g1 = sys.add_marker("", sys.ground(), Vec3([5.0, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        let b1 = sys.add_marker("", body, Vec3([1.0, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        sys.add_joint("unreachable", JointKind::Spherical, [g1, b1]).unwrap();
+        let body = unit_body(&mut sys, "body", Vec3::ZERO);
+        ground_joint(&mut sys, "pin", JointKind::Revolute, body, Vec3::ZERO, Vec3::ZERO);
+        ground_joint(
+            &mut sys,
+            "unreachable",
+            JointKind::Spherical,
+            body,
+            Vec3([5.0, 0.0, 0.0]),
+            Vec3([1.0, 0.0, 0.0]),
+        );
         let model = sys.compile().unwrap();
         let mut ws = Workspace::for_evaluation(&model);
         let mut eq = DenseEquations::new(&model);

@@ -444,6 +444,18 @@ impl<'a> Engine<'a> {
         }
     }
 
+    /// Joint coordinates: the body state (q, q_dot, gamma_B and B) from self.p and self.pd.
+    fn update_bodies(&mut self, time: f64) -> Result<()> {
+        if let Some(tree) = &self.tree {
+            let state = tree.evaluate(self.model, time, &self.p, &self.pd)?;
+            self.q = state.coordinates;
+            self.qd = state.velocities;
+            self.gamma_b = state.gamma;
+            self.influence = state.influence;
+        }
+        Ok(())
+    }
+
     /// Sets the full state from the integrated vector (Wehage: Newton for the dependent part).
     fn unpack(&mut self, time: f64, y: &[f64]) -> Result<()> {
         match self.mode {
@@ -452,14 +464,7 @@ impl<'a> Engine<'a> {
                 let np = self.p.len();
                 self.p.copy_from_slice(&y[..np]);
                 self.pd.copy_from_slice(&y[np..]);
-                if let Some(tree) = &self.tree {
-                    let state = tree.evaluate(self.model, time, &self.p, &self.pd)?;
-                    self.q = state.coordinates;
-                    self.qd = state.velocities;
-                    self.gamma_b = state.gamma;
-                    self.influence = state.influence;
-                }
-                Ok(())
+                self.update_bodies(time)
             }
             _ => {
                 let n = self.q.len();
@@ -508,13 +513,12 @@ impl<'a> Engine<'a> {
     /// Joint coordinates with cut joints: projects p onto C_cut(q(p), t) = 0 (Newton with
     /// minimum-norm steps) and p_dot onto the cut joints' velocity constraints.
     fn project_joint_coordinates(&mut self, time: f64) -> Result<()> {
-        let Some(tree) = self.tree.clone() else { return Ok(()) };
-        let rows = tree.cut_rows.clone();
+        let Some(rows) = self.tree.as_ref().map(|t| t.cut_rows.clone()) else { return Ok(()) };
         let n = self.q.len();
         let mut iterations = 0;
         let mut previous = f64::INFINITY;
         loop {
-            self.unpack(time, &[self.p.clone(), self.pd.clone()].concat())?;
+            self.update_bodies(time)?;
             self.evaluate(time, Level::Velocity)?;
             let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
@@ -526,7 +530,7 @@ impl<'a> Engine<'a> {
                 for (x, d) in self.pd.iter_mut().zip(&dv) {
                     *x -= d;
                 }
-                return self.unpack(time, &[self.p.clone(), self.pd.clone()].concat());
+                return self.update_bodies(time);
             }
             previous = violation;
             if iterations >= self.settings.max_iterations || !violation.is_finite() {
@@ -920,17 +924,13 @@ pub fn run(
         let rest: Vec<f64> =
             state.velocities.iter().zip(&prescribed.velocities).map(|(v, w)| v - w).collect();
         let pd0 = minimum_norm_solve(prescribed.influence.as_ref(), &rest, 1e-12);
-        let start = tree.evaluate(model, t0, &p0, &pd0)?;
-        state.coordinates.copy_from_slice(&start.coordinates);
-        state.velocities.copy_from_slice(&start.velocities);
-        engine.q = start.coordinates;
-        engine.qd = start.velocities;
-        engine.gamma_b = start.gamma;
-        engine.influence = start.influence;
         engine.pdd = vec![0.0; p0.len()];
         engine.p = p0;
         engine.pd = pd0;
         engine.tree = Some(tree);
+        engine.update_bodies(t0)?;
+        state.coordinates.copy_from_slice(&engine.q);
+        state.velocities.copy_from_slice(&engine.qd);
     }
     engine.singular_limit = explicit.singular_factor * engine.partition.condition.max(1.0);
     if !engine.partition.redundant_rows.is_empty() {

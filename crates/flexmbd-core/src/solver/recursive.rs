@@ -32,6 +32,7 @@
 
 use faer::Mat;
 
+use super::dense_system::null_space_solve;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::joint::JointKind;
@@ -521,24 +522,31 @@ impl Tree {
 /// Joint accelerations from (B^T M B) p_dd = B^T (f - M gamma_B), given M and f of the
 /// model at the tree's state (q, B p_dot).
 pub fn joint_accelerations(b: &Mat<f64>, mass: &Mat<f64>, force: &[f64], gamma: &[f64]) -> Result<Vec<f64>> {
-    let n = force.len();
-    let mb = mass * b;
-    let reduced = b.transpose() * &mb;
-    let rhs_full = Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * gamma[j]).sum::<f64>());
-    let mut rhs = b.transpose() * &rhs_full;
-    let llt = reduced.llt(faer::Side::Lower).map_err(|_| FlexmbdError::SingularMatrix {
+    let (reduced_mass, reduced_force) = joint_space(b, mass, force, gamma);
+    let llt = reduced_mass.llt(faer::Side::Lower).map_err(|_| FlexmbdError::SingularMatrix {
         time: f64::NAN,
         context: "joint-space mass matrix B^T M B".to_string(),
         detail: "not positive definite".to_string(),
     })?;
+    let mut rhs = Mat::from_fn(reduced_force.len(), 1, |k, _| reduced_force[k]);
     faer::linalg::solvers::Solve::solve_in_place(&llt, &mut rhs);
     Ok((0..b.ncols()).map(|k| rhs[(k, 0)]).collect())
 }
 
+/// The equations of motion projected on B: (B^T M B, B^T (f - M gamma)).
+fn joint_space(b: &Mat<f64>, mass: &Mat<f64>, force: &[f64], gamma: &[f64]) -> (Mat<f64>, Vec<f64>) {
+    let n = force.len();
+    let reduced_mass = b.transpose() * (mass * b);
+    let rhs_full = Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * gamma[j]).sum::<f64>());
+    let rhs = b.transpose() * &rhs_full;
+    (reduced_mass, (0..b.ncols()).map(|k| rhs[(k, 0)]).collect())
+}
+
 /// Joint accelerations with cut-joint constraints: (B^T M B) p_dd + C_hat^T mu =
 /// B^T (f - M gamma_B), C_hat p_dd = g_hat, with C_hat = C_cut B and g_hat = gamma_cut -
-/// C_cut gamma_B. Null-space method on the SVD of C_hat (singular values below `cutoff` of the
-/// largest treated as zero: redundant cut equations and singular configurations).
+/// C_cut gamma_B, by the null-space method ([`null_space_solve`]; singular values below
+/// `cutoff` of the largest treated as zero: redundant cut equations and singular
+/// configurations).
 pub fn constrained_joint_accelerations(
     b: &Mat<f64>,
     mass: &Mat<f64>,
@@ -548,41 +556,14 @@ pub fn constrained_joint_accelerations(
     g_hat: &[f64],
     cutoff: f64,
 ) -> Result<Vec<f64>> {
-    let n = force.len();
-    let nf = b.ncols();
-    let mb = mass * b;
-    let reduced_mass = b.transpose() * &mb;
-    let rhs_full =
-        Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * gamma_b[j]).sum::<f64>());
-    let rhs = b.transpose() * &rhs_full;
-    let singular = |detail: &str| FlexmbdError::SingularMatrix {
-        time: f64::NAN,
-        context: "joint-coordinate accelerations with cut joints".to_string(),
-        detail: detail.to_string(),
-    };
-    let svd = c_hat.svd().map_err(|_| singular("the SVD of C_cut B did not converge"))?;
-    let sv = svd.S().column_vector();
-    let largest = if sv.nrows() > 0 { sv[0] } else { 0.0 };
-    let rank = (0..sv.nrows()).take_while(|&k| sv[k] > cutoff * largest).count();
-    let (u, v) = (svd.U(), svd.V());
-    let mut particular = vec![0.0; nf];
-    for k in 0..rank {
-        let coefficient = (0..g_hat.len()).map(|i| u[(i, k)] * g_hat[i]).sum::<f64>() / sv[k];
-        for (j, x) in particular.iter_mut().enumerate() {
-            *x += v[(j, k)] * coefficient;
+    let (reduced_mass, reduced_force) = joint_space(b, mass, force, gamma_b);
+    null_space_solve(&reduced_mass, &reduced_force, c_hat, g_hat, cutoff).map_err(|detail| {
+        FlexmbdError::SingularMatrix {
+            time: f64::NAN,
+            context: "joint-coordinate accelerations with cut joints".to_string(),
+            detail,
         }
-    }
-    let v2 = v.subcols(rank, nf - rank).to_owned();
-    let projected = v2.transpose() * (&reduced_mass * &v2);
-    let residual = Mat::from_fn(nf, 1, |i, _| {
-        rhs[(i, 0)] - (0..nf).map(|j| reduced_mass[(i, j)] * particular[j]).sum::<f64>()
-    });
-    let mut z = v2.transpose() * &residual;
-    let llt = projected
-        .llt(faer::Side::Lower)
-        .map_err(|_| singular("the mass matrix on the free motions is not positive definite"))?;
-    faer::linalg::solvers::Solve::solve_in_place(&llt, &mut z);
-    Ok((0..nf).map(|i| particular[i] + (0..nf - rank).map(|k| v2[(i, k)] * z[(k, 0)]).sum::<f64>()).collect())
+    })
 }
 
 #[cfg(test)]
@@ -592,6 +573,7 @@ mod tests {
     use crate::solver::dense_system::{dense_initial_conditions, DenseEquations, Formulation, Level};
     use crate::solver::initial::InitialSettings;
     use crate::solver::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
+    use crate::solver::test_models::{ground_joint, unit_body};
     use crate::system::{State, Workspace};
     use crate::SystemBuilder;
 
@@ -811,42 +793,16 @@ mod tests {
     #[test]
     fn unsupported_trees_are_refused_and_loops_are_cut() {
         let mut sys = SystemBuilder::new();
-        let body = sys
-            .add_rigid_body(
-                "link",
-                1.0,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-            )
-            .unwrap();
-        let g0 = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        let b0 = sys.add_marker("", body, Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        sys.add_joint("ball", JointKind::Spherical, [g0, b0]).unwrap();
+        let body = unit_body(&mut sys, "link", Vec3::ZERO);
+        ground_joint(&mut sys, "ball", JointKind::Spherical, body, Vec3::ZERO, Vec3::ZERO);
         let model = sys.compile().unwrap();
         let error = Tree::new(&model, &model.initial_coordinates).unwrap_err().to_string();
         assert!(error.contains("'ball'") && error.contains("spherical"), "{error}");
 
         let mut sys = SystemBuilder::new();
-        let body = sys
-            .add_rigid_body(
-                "link",
-                1.0,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-            )
-            .unwrap();
+        let body = unit_body(&mut sys, "link", Vec3::ZERO);
         for name in ["first", "second"] {
-            let g0 = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
-            let b0 = sys.add_marker("", body, Vec3::ZERO, Mat3::IDENTITY).unwrap();
-            sys.add_joint(name, JointKind::Revolute, [g0, b0]).unwrap();
+            ground_joint(&mut sys, name, JointKind::Revolute, body, Vec3::ZERO, Vec3::ZERO);
         }
         let model = sys.compile().unwrap();
         // The second hinge closes a loop: it is cut, its five equations constrain the tree.

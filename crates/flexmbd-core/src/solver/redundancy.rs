@@ -248,6 +248,7 @@ mod tests {
     use super::*;
     use crate::joint::JointKind;
     use crate::math::{Mat3, Vec3};
+    use crate::solver::test_models::{ground_joint, unit_body};
     use crate::SystemBuilder;
 
     /// A body on two revolute joints with the same axis (5 of their 10 equations redundant)
@@ -329,21 +330,8 @@ mod tests {
         assert!(error.contains("5 of 15 constraint equations are redundant"), "{error}");
         // A model without redundancy gives None.
         let mut sys = SystemBuilder::new();
-        let body = sys
-            .add_rigid_body(
-                "arm",
-                1.0,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-            )
-            .unwrap();
-        let g = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        let b = sys.add_marker("", body, Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        sys.add_joint("hinge", JointKind::Revolute, [g, b]).unwrap();
+        let body = unit_body(&mut sys, "arm", Vec3::ZERO);
+        ground_joint(&mut sys, "hinge", JointKind::Revolute, body, Vec3::ZERO, Vec3::ZERO);
         let single = sys.compile().unwrap();
         assert!(analyse(&single, &SimulationSettings::new(1.0, 1e-3)).unwrap().is_none());
     }
