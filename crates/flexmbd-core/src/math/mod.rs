@@ -2,6 +2,7 @@
 
 pub mod dense;
 pub mod euler;
+pub mod hyper_dual;
 pub mod small;
 pub mod time_function;
 pub mod vec3;

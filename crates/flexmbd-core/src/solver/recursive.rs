@@ -1,42 +1,59 @@
-//! Joint coordinates (seed section 5), first part: open trees of rigid bodies connected by
-//! revolute, prismatic, cylindrical, fixed and universal joints, with angle and translation drivers on
-//! them (prescribed joint coordinates).
+//! Joint coordinates (seed section 5): open trees of rigid and deformable bodies connected by
+//! revolute, prismatic, cylindrical, fixed and universal joints, with angle and translation
+//! drivers on them (prescribed joint coordinates), in joint plus elastic coordinates p.
 //!
-//! The bodies' reference coordinates q (origin and Euler parameters) follow from the joint
-//! coordinates p body by body from the ground to the tips. Differentiating that recursion gives
-//! the velocity influence coefficients B = dq/dp (q_dot = B p_dot, the matrices G and H of
-//! seed eq. 31 stacked for the whole tree) and the terms quadratic in the velocities,
-//! gamma_B = B_dot p_dot (the gamma of eq. 31), so that q_dd = B p_dd + gamma_B. Projecting
-//! the equations of motion of all bodies, M q_dd + C_q^T lambda = f, on B eliminates every
-//! joint reaction (B^T C_q^T = 0 for the tree joints):
+//! The bodies' reference coordinates q_r (origin and Euler parameters) follow from p body by
+//! body from the ground to the tips; their elastic coordinates are entries of p. The joint
+//! frames on a deformable body are its markers' intermediate frames (seed Figure 4): they move
+//! with the deformation (u = u0 + S_u q_l, axes (I + theta~) A_m with theta = S_t q_l), so the
+//! elastic coordinates of a body move the bodies beyond it. The recursion is evaluated in
+//! hyper-dual numbers ([`crate::math::hyper_dual`]): one pass along (p_dot, p_dd) gives q,
+//! q_dot = B p_dot and q_dd at zero free accelerations, gamma_B (the gamma of eq. 31, with the
+//! prescribed accelerations), exactly; one pass per joint coordinate and per deformation
+//! component of a joint marker gives the velocity influence coefficients B = dq/dp (the
+//! matrices G and H of eq. 31 stacked for the tree; H_pp and H_pf of eq. 33). Projecting the
+//! equations of motion of all bodies, M q_dd + C_q^T lambda = f, on B eliminates every joint
+//! reaction (B^T C_q^T = 0 for the tree joints):
 //!
 //! ```text
 //! (B^T M B) p_dd = B^T (f - M gamma_B).
 //! ```
 //!
 //! This is the joint-coordinate system that the body-by-body elimination of eqs. 31-32
-//! produces; here it is formed with B explicitly. Joints outside the tree (loop closures,
-//! other joint types, drivers on other markers) are cut: their equations constrain p (see
-//! [`constrained_joint_accelerations`]). The recursive elimination, deformable bodies with the
-//! elastic motion of the joint frames, the other tree joint types and the decoupled
-//! formulation of eqs. 33-41 are the next parts of issue 6.
+//! produces, here formed with B explicitly. Joints outside the tree (loop closures, other
+//! joint types, drivers on other markers) are cut: their equations constrain p (see
+//! [`constrained_joint_accelerations`]).
 //!
-//! Joint coordinates: for a revolute joint the angle about the common z axis of its markers
-//! from the parent-side marker to the child-side marker; for a prismatic joint the
-//! translation along the z axis of marker i (the parent side is whichever marker is on the
-//! body nearer the ground); a cylindrical joint has both (angle first), a fixed joint none; a
-//! universal joint the rotations a, b about its cross axes, R_rel = R_x(a) R_y(b) from marker i
-//! to marker j (R_y(a) R_x(b) seen from marker j when that is the parent side).
-//! A driver on the markers of a tree joint prescribes its coordinate: p_d = f(t), and
-//! q_dd = B_free p_dd_free + B_d f''(t) + gamma_B.
+//! Joint coordinates: for a revolute joint the angle an angle driver on its markers (i, j)
+//! measures, atan2(y_i . x_j, x_i . x_j); for a prismatic joint the translation along the z
+//! axis of marker i (the parent side is whichever marker is on the body nearer the ground); a
+//! cylindrical joint has the angle about z from the parent-side to the child-side marker and
+//! the translation, a fixed joint none; a universal joint the rotations a, b about its cross
+//! axes, R_rel = R_x(a) R_y(b) from marker i to marker j (R_y(a) R_x(b) seen from marker j
+//! when that is the parent side). A driver on the markers of a tree joint prescribes its
+//! coordinate.
+//!
+//! Deformed marker axes are not exactly orthonormal (the small rotation is linearized, as in
+//! the augmented formulation). A revolute joint there is placed so that its own equations
+//! (x_i . z_j = 0, y_i . z_j = 0) and its driver's hold exactly: the child body's rotation maps
+//! an orthonormal frame built from the child-side marker's deformed axes onto one built from
+//! the parent side's, the normal of the plane of x_i and y_i being the common axis. The tree
+//! therefore satisfies the augmented formulation's joints to round-off, and both give the same
+//! accelerations. The other tree joint types take undeformed markers (markers on rigid bodies
+//! or markers without elastic motion) so far.
 
 use faer::Mat;
 
 use super::dense_system::null_space_solve;
+use crate::body::marker::MarkerElastic;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::joint::JointKind;
-use crate::math::euler::{from_rotation_matrix, g_matrix, rotation_matrix, Quaternion};
+use crate::math::euler::rotation_matrix;
+use crate::math::hyper_dual::{
+    add, column, cross, dot, euler_parameters, from_columns, hmat, hvec, mul_mat, mul_transpose, mul_vec,
+    normalize, scale, sub, HMat, HVec, HyperDual, HIDENTITY,
+};
 use crate::math::{Mat3, Vec3};
 use crate::system::Model;
 
@@ -53,15 +70,14 @@ enum TreeJointKind {
     UniversalYX,
 }
 
-impl TreeJointKind {
-    /// Number of joint coordinates (the angle first).
-    fn coordinate_count(self) -> usize {
-        match self {
-            TreeJointKind::Revolute | TreeJointKind::Prismatic => 1,
-            TreeJointKind::Cylindrical | TreeJointKind::UniversalXY | TreeJointKind::UniversalYX => 2,
-            TreeJointKind::Fixed => 0,
-        }
-    }
+/// One side of a tree joint: a marker on a body, moving with the body's deformation when the
+/// body is deformable (u = u0 + S_u q_l, axes (I + theta~) A_m with theta = S_t q_l).
+#[derive(Clone, Debug)]
+struct Side {
+    body: usize,
+    position: Vec3,
+    rotation: Mat3,
+    elastic: Option<MarkerElastic>,
 }
 
 /// A joint of the tree, seen from its parent side.
@@ -70,16 +86,23 @@ struct TreeJoint {
     kind: TreeJointKind,
     /// Index of its first coordinate in p.
     first: usize,
-    /// Parent body (0: ground) and child body.
-    parent: usize,
-    child: usize,
-    /// Marker positions and orientations in their body frames, parent side and child side.
-    parent_marker: (Vec3, Mat3),
-    child_marker: (Vec3, Mat3),
+    /// Whether marker i of the joint is on the parent side.
+    i_parent: bool,
+    parent: Side,
+    child: Side,
     /// Prismatic: the constant rotation from the parent-side to the child-side marker frame,
     /// and the sliding axis in the parent-side marker frame.
     rotation: Mat3,
     axis: Vec3,
+}
+
+/// The elastic coordinates of a deformable body in p.
+#[derive(Clone, Copy, Debug)]
+struct ElasticBlock {
+    body: usize,
+    /// First index in p.
+    first: usize,
+    count: usize,
 }
 
 /// A joint coordinate prescribed by a driver: p = sign f(t).
@@ -97,79 +120,127 @@ pub struct TreeState {
     pub coordinates: Vec<f64>,
     /// Body velocities q_dot.
     pub velocities: Vec<f64>,
-    /// q_dd with the free joint accelerations zero: the velocity-quadratic terms and the
-    /// prescribed joint accelerations.
+    /// q_dd with the free joint and elastic accelerations zero: the velocity-quadratic terms
+    /// and the prescribed joint accelerations.
     pub gamma: Vec<f64>,
-    /// Velocity influence coefficients of the free joint coordinates (n x free).
+    /// Velocity influence coefficients of the free coordinates (n x free).
     pub influence: Mat<f64>,
 }
 
-/// An open tree of rigid bodies in joint coordinates.
+/// An open tree of rigid and deformable bodies in joint and elastic coordinates.
 #[derive(Clone, Debug)]
 pub struct Tree {
     joints: Vec<TreeJoint>,
     prescribed: Vec<Prescribed>,
-    /// The free (integrated) joint coordinates, in p's order.
+    /// The free (integrated) coordinates, in p's order: joint coordinates, then elastic ones.
     free: Vec<usize>,
     /// Joints cut to open the loops (and drivers on other markers than a tree joint's), and
     /// their constraint rows, which the joint coordinates must satisfy.
     pub cut_joints: Vec<usize>,
     /// Constraint rows of the cut joints.
     pub cut_rows: Vec<usize>,
-    /// First coordinate index of each body in q (rigid bodies: 7 coordinates).
+    /// First coordinate index of each body in q.
     offsets: Vec<usize>,
     /// Euler parameters of each body at the start: the sign of the parameters computed from
     /// rotation matrices follows them.
-    reference_parameters: Vec<Quaternion>,
+    reference_parameters: Vec<[f64; 4]>,
+    /// Elastic coordinates of the deformable bodies, after the joint coordinates in p.
+    elastic: Vec<ElasticBlock>,
+    /// Number of joint coordinates (prescribed ones included).
+    joint_coordinate_count: usize,
     coordinate_count: usize,
 }
 
-/// Pose, velocity and velocity-quadratic acceleration of a body.
-#[derive(Clone, Copy, Debug)]
-struct Motion {
-    rotation: Mat3,
-    origin: Vec3,
-    omega: Vec3,
-    velocity: Vec3,
-    alpha: Vec3,
-    acceleration: Vec3,
+fn rot(axis: usize, angle: HyperDual) -> HMat {
+    let (s, c) = (angle.sin(), angle.cos());
+    let (o, z) = (HyperDual::ONE, HyperDual::ZERO);
+    match axis {
+        0 => [[o, z, z], [z, c, -s], [z, s, c]],
+        1 => [[c, z, s], [z, o, z], [-s, z, c]],
+        _ => [[c, -s, z], [s, c, z], [z, z, o]],
+    }
 }
 
-const REST: Motion = Motion {
-    rotation: Mat3::IDENTITY,
-    origin: Vec3::ZERO,
-    omega: Vec3::ZERO,
-    velocity: Vec3::ZERO,
-    alpha: Vec3::ZERO,
-    acceleration: Vec3::ZERO,
-};
-
-fn rot_x(angle: f64) -> Mat3 {
-    let (s, c) = angle.sin_cos();
-    Mat3([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+/// The unit vector v in the plane of x and y with (x . v, y . v) a positive multiple of
+/// (cos phi, sin phi): the direction an angle driver prescribes when x and y are the
+/// (deformed, not exactly orthonormal) axes of its marker i. For orthonormal x, y it is
+/// cos phi x + sin phi y.
+fn driver_direction(x: &HVec, y: &HVec, phi: HyperDual) -> HVec {
+    let (c, s) = (phi.cos(), phi.sin());
+    let (g11, g12, g22) = (dot(x, x), dot(x, y), dot(y, y));
+    let alpha = g22 * c - g12 * s;
+    let beta = g11 * s - g12 * c;
+    normalize(&add(&scale(x, alpha), &scale(y, beta)))
 }
 
-fn rot_y(angle: f64) -> Mat3 {
-    let (s, c) = angle.sin_cos();
-    Mat3([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+/// The orthonormal frame [w, z x w, z] with z along `z` and w along the part of `x`
+/// perpendicular to it.
+fn frame_from_z(z: &HVec, x: &HVec) -> HMat {
+    let z = normalize(z);
+    let w = normalize(&sub(x, &scale(&z, dot(x, &z))));
+    from_columns(&w, &cross(&z, &w), &z)
 }
 
-fn rot_z(angle: f64) -> Mat3 {
-    let (s, c) = angle.sin_cos();
-    Mat3([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+/// The orthonormal frame [v, n x v, n] with n along x x y and v the driver direction of phi.
+fn frame_from_plane(x: &HVec, y: &HVec, phi: HyperDual) -> HMat {
+    let n = normalize(&cross(x, y));
+    let v = driver_direction(x, y, phi);
+    from_columns(&v, &cross(&n, &v), &n)
 }
+
+impl Side {
+    /// The side's marker on `model`'s marker `m`.
+    fn new(model: &Model, m: usize) -> Side {
+        let marker = &model.markers[m];
+        Side {
+            body: marker.body.0,
+            position: marker.position,
+            rotation: marker.rotation,
+            elastic: marker.elastic.clone(),
+        }
+    }
+
+    /// Deformation (u - u0, theta) in the body frame for the body's elastic coordinates q_f.
+    fn deformation(&self, qf: &[HyperDual]) -> [HVec; 2] {
+        let mut out = [[HyperDual::ZERO; 3]; 2];
+        if let Some(e) = &self.elastic {
+            for (j, &idx) in e.indices.iter().enumerate() {
+                for i in 0..3 {
+                    out[0][i] = out[0][i] + qf[idx] * e.translation.get(i, j);
+                    out[1][i] = out[1][i] + qf[idx] * e.rotation.get(i, j);
+                }
+            }
+        }
+        out
+    }
+
+    /// Body-frame position and axes for the deformation `d`.
+    fn local_frame(&self, d: &[HVec; 2]) -> (HVec, HMat) {
+        let u = add(&hvec(self.position.0), &d[0]);
+        let a = hmat(self.rotation.0);
+        let cols: [HVec; 3] = std::array::from_fn(|k| {
+            let c = column(&a, k);
+            add(&c, &cross(&d[1], &c))
+        });
+        (u, from_columns(&cols[0], &cols[1], &cols[2]))
+    }
+}
+
+/// The state of the bodies as hyper-dual numbers: rotation matrix and origin.
+type Pose = (HMat, HVec);
 
 impl Tree {
-    /// The tree of `model`, with the joint coordinates of the model's configuration `q`
-    /// (which must satisfy the joints). Errors name the body or joint the tree cannot take.
+    /// The tree of `model`, with the joint and elastic coordinates of the model's
+    /// configuration `q` (which must satisfy the joints). Errors name the body or joint the
+    /// tree cannot take.
     pub fn new(model: &Model, q: &[f64]) -> Result<(Tree, Vec<f64>)> {
         let bad = |item: String, message: String| Err(FlexmbdError::InvalidModel { item, message });
         let nb = model.bodies.len();
         for body in &model.bodies[1..] {
-            if !matches!(body.kind, BodyKind::Rigid(_)) {
+            if !matches!(body.kind, BodyKind::Rigid(_) | BodyKind::Flexible(_)) {
                 return bad(
                     format!("body '{}'", body.name),
-                    "the joint-coordinate formulation takes rigid bodies so far".to_string(),
+                    "the joint-coordinate formulation takes rigid and deformable bodies so far".to_string(),
                 );
             }
         }
@@ -199,6 +270,15 @@ impl Tree {
                     (true, true) | (false, false) => continue,
                     (parent_i, _) => parent_i,
                 };
+                let elastic = joint.markers.iter().any(|m| model.markers[m.0].elastic.is_some());
+                if elastic && !matches!(joint.kind, JointKind::Revolute) {
+                    return bad(
+                        format!("joint '{}' ({})", joint.name, joint.kind.type_name()),
+                        "it joins the tree at a marker that moves with a body's deformation; the \
+                         joint-coordinate formulation takes revolute joints there so far"
+                            .to_string(),
+                    );
+                }
                 used[k] = true;
                 reached[bi] = true;
                 reached[bj] = true;
@@ -226,7 +306,7 @@ impl Tree {
             );
         }
         let offsets: Vec<usize> = model.bodies.iter().map(|b| b.offset).collect();
-        let reference_parameters: Vec<Quaternion> = model
+        let reference_parameters: Vec<[f64; 4]> = model
             .bodies
             .iter()
             .map(|b| match b.kind {
@@ -242,28 +322,44 @@ impl Tree {
                 (rotation_matrix(&reference_parameters[body]), Vec3([q[o], q[o + 1], q[o + 2]]))
             }
         };
+        // The marker frame of a side in the current configuration (deformed axes).
+        let marker_frame = |side: &Side| -> (Mat3, Vec3) {
+            let (a, r) = pose(side.body);
+            let qf: Vec<HyperDual> = match &model.bodies[side.body].kind {
+                BodyKind::Flexible(f) => {
+                    let o = offsets[side.body] + 7;
+                    q[o..o + f.elastic_count].iter().map(|&x| HyperDual::constant(x)).collect()
+                }
+                _ => Vec::new(),
+            };
+            let (u, axes) = side.local_frame(&side.deformation(&qf));
+            let axes = Mat3(crate::math::hyper_dual::values(&axes));
+            let u = Vec3(u.map(|x| x.v));
+            (a.mul_mat(&axes), r + a.mul_vec(&u))
+        };
         let mut joints = Vec::new();
         let mut p0 = Vec::new();
         let mut tree_markers = Vec::new(); // (marker i, marker j, parent-side marker, child-side marker)
         for (k, i_parent) in order {
             let joint = &model.joints[k];
-            let [mi, mj] = joint.markers.map(|m| &model.markers[m.0]);
-            let (pm, cm) = if i_parent { (mi, mj) } else { (mj, mi) };
-            let (parent, child) = (pm.body.0, cm.body.0);
-            let (a_p, r_p) = pose(parent);
-            let (a_c, r_c) = pose(child);
-            let a_pm = a_p.mul_mat(&pm.rotation);
-            let a_cm = a_c.mul_mat(&cm.rotation);
+            let [mi, mj] = joint.markers.map(|m| m.0);
+            let (pid, cid) = if i_parent { (mi, mj) } else { (mj, mi) };
+            let (parent, child) = (Side::new(model, pid), Side::new(model, cid));
+            let (a_pm, o_pm) = marker_frame(&parent);
+            let (a_cm, o_cm) = marker_frame(&child);
             let relative = a_pm.transpose().mul_mat(&a_cm);
-            let offset =
-                a_pm.tr_mul_vec(&(r_c + a_c.mul_vec(&cm.position) - r_p - a_p.mul_vec(&pm.position)));
+            let offset = a_pm.tr_mul_vec(&(o_cm - o_pm));
+            // The revolute angle is the one an angle driver on (i, j) measures, whichever side
+            // is the parent: atan2(y_i . x_j, x_i . x_j).
+            let (a_i, a_j) = if i_parent { (a_pm, a_cm) } else { (a_cm, a_pm) };
+            let driver_angle = a_i.column(1).dot(&a_j.column(0)).atan2(a_i.column(0).dot(&a_j.column(0)));
             let angle = relative.0[1][0].atan2(relative.0[0][0]);
             // Translation along z of marker i: +z of the parent-side marker, or -z of the
             // child-side marker expressed in the parent-side frame (the same axis for a
             // cylindrical joint, whose rotation keeps z).
             let axis = if i_parent { Vec3::unit(2) } else { -relative.mul_vec(&Vec3::unit(2)) };
             let (kind, values) = match joint.kind {
-                JointKind::Revolute => (TreeJointKind::Revolute, vec![angle]),
+                JointKind::Revolute => (TreeJointKind::Revolute, vec![driver_angle]),
                 JointKind::Prismatic => (TreeJointKind::Prismatic, vec![offset.dot(&axis)]),
                 JointKind::Cylindrical => (TreeJointKind::Cylindrical, vec![angle, offset.dot(&axis)]),
                 JointKind::Universal if i_parent => {
@@ -283,16 +379,13 @@ impl Tree {
             joints.push(TreeJoint {
                 kind,
                 first,
+                i_parent,
                 parent,
                 child,
-                parent_marker: (pm.position, pm.rotation),
-                child_marker: (cm.position, cm.rotation),
                 rotation: if kind == TreeJointKind::Fixed { Mat3::IDENTITY } else { relative },
                 axis,
             });
-            let [i, j] = joint.markers.map(|m| m.0);
-            let (pid, cid) = if i_parent { (i, j) } else { (j, i) };
-            tree_markers.push((i, j, pid, cid));
+            tree_markers.push((mi, mj, pid, cid));
         }
         // Drivers prescribe the coordinate of the tree joint on the same markers.
         let mut prescribed: Vec<Prescribed> = Vec::new();
@@ -302,9 +395,14 @@ impl Tree {
             }
             let [di, dj] = driver.markers.map(|m| m.0);
             let angle = matches!(driver.kind, JointKind::AngleDriver(_));
+            let elastic = driver.markers.iter().any(|m| model.markers[m.0].elastic.is_some());
             let found = joints.iter().zip(&tree_markers).find_map(|(tj, &(i, j, pid, cid))| {
                 let (slot, sign) = match (angle, tj.kind) {
-                    (true, TreeJointKind::Revolute | TreeJointKind::Cylindrical) => {
+                    // The revolute coordinate is the driver's angle on (i, j); reversed markers
+                    // measure minus it only when both frames are orthonormal (rigid).
+                    (true, TreeJointKind::Revolute) if (di, dj) == (i, j) => (tj.first, 1.0),
+                    (true, TreeJointKind::Revolute) if !elastic => (tj.first, -1.0),
+                    (true, TreeJointKind::Cylindrical) => {
                         (tj.first, if (di, dj) == (pid, cid) { 1.0 } else { -1.0 })
                     }
                     (false, TreeJointKind::Prismatic) => {
@@ -337,12 +435,23 @@ impl Tree {
             .iter()
             .flat_map(|&k| model.joints[k].row..model.joints[k].row + model.joints[k].equations.len())
             .collect();
+        // The elastic coordinates of the deformable bodies follow the joint coordinates.
+        let joint_coordinate_count = p0.len();
+        let mut elastic = Vec::new();
+        for (b, body) in model.bodies.iter().enumerate() {
+            if let BodyKind::Flexible(f) = &body.kind {
+                let o = body.offset + 7;
+                elastic.push(ElasticBlock { body: b, first: p0.len(), count: f.elastic_count });
+                p0.extend_from_slice(&q[o..o + f.elastic_count]);
+            }
+        }
+        let coordinate_count = p0.len();
         let free: Vec<usize> =
-            (0..p0.len()).filter(|c| prescribed.iter().all(|p| p.coordinate != *c)).collect();
+            (0..coordinate_count).filter(|c| prescribed.iter().all(|p| p.coordinate != *c)).collect();
         let p0: Vec<f64> = free.iter().map(|&c| p0[c]).collect();
-        let coordinate_count = joints.iter().map(|j| j.kind.coordinate_count()).sum();
         let tree = Tree {
             coordinate_count,
+            joint_coordinate_count,
             joints,
             prescribed,
             free,
@@ -350,21 +459,27 @@ impl Tree {
             cut_rows,
             offsets,
             reference_parameters,
+            elastic,
         };
         Ok((tree, p0))
     }
 
-    /// Number of joint coordinates, prescribed ones included.
+    /// Number of coordinates: joint coordinates (prescribed ones included) and elastic ones.
     pub fn coordinate_count(&self) -> usize {
         self.coordinate_count
     }
 
-    /// Number of free (integrated) joint coordinates.
+    /// Number of joint coordinates (prescribed ones included).
+    pub fn joint_coordinate_count(&self) -> usize {
+        self.joint_coordinate_count
+    }
+
+    /// Number of free (integrated) coordinates.
     pub fn free_count(&self) -> usize {
         self.free.len()
     }
 
-    /// The body state at time `time` for the free joint coordinates `p` and rates `pd`, the
+    /// The body state at time `time` for the free coordinates `p` and rates `pd`, the
     /// prescribed ones from their drivers.
     pub fn evaluate(&self, model: &Model, time: f64, p: &[f64], pd: &[f64]) -> Result<TreeState> {
         let n = model.coordinate_count;
@@ -380,140 +495,187 @@ impl Tree {
             full_pd[presc.coordinate] = presc.sign * fd;
             pdd[presc.coordinate] = presc.sign * fdd;
         }
-        let (coordinates, velocities, mut gamma) = self.state(n, &full_p, &full_pd);
-        let b = self.influence(n, &full_p);
-        for presc in &self.prescribed {
-            let a = pdd[presc.coordinate];
-            for (i, g) in gamma.iter_mut().enumerate() {
-                *g += b[(i, presc.coordinate)] * a;
-            }
-        }
-        let influence = Mat::from_fn(n, self.free.len(), |i, k| b[(i, self.free[k])]);
+        let (coordinates, velocities, gamma) = self.state_with(n, &full_p, &full_pd, &pdd);
+        let influence = self.influence_columns(n, &full_p, &self.free);
         Ok(TreeState { coordinates, velocities, gamma, influence })
     }
 
-    /// Motions of all bodies for joint coordinates p, rates p_dot and p_dd = 0 (the
-    /// accelerations are then the velocity-quadratic terms).
-    fn motions(&self, p: &[f64], pd: &[f64]) -> Vec<Motion> {
-        let nb = self.offsets.len();
-        let mut m = vec![REST; nb];
-        for joint in &self.joints {
-            let parent = m[joint.parent];
-            let (s_p, a_pm_bar) = joint.parent_marker;
-            let (s_c, a_cm_bar) = joint.child_marker;
-            let a_pm = parent.rotation.mul_mat(&a_pm_bar);
-            let rho_p = parent.rotation.mul_vec(&s_p);
-            // The parent-side marker frame.
-            let o_pm = parent.origin + rho_p;
-            let v_pm = parent.velocity + parent.omega.cross(&rho_p);
-            let acc_pm = parent.acceleration
-                + parent.alpha.cross(&rho_p)
-                + parent.omega.cross(&parent.omega.cross(&rho_p));
-            // The child-side marker frame relative to it.
-            let z = a_pm.column(2);
-            let axis = a_pm.mul_vec(&joint.axis);
+    /// Poses of all bodies for the joint coordinates `p` (hyper-dual) and the deformation of
+    /// each joint's markers (`deformation[joint] = [parent side, child side]`).
+    fn poses(&self, p: &[HyperDual], deformation: &[[[HVec; 2]; 2]]) -> Vec<Pose> {
+        let mut poses: Vec<Pose> = vec![(HIDENTITY, [HyperDual::ZERO; 3]); self.offsets.len()];
+        for (joint, d) in self.joints.iter().zip(deformation) {
+            let (a_p, r_p) = poses[joint.parent.body];
+            let (u_p, xb_p) = joint.parent.local_frame(&d[0]);
+            let (u_c, xb_c) = joint.child.local_frame(&d[1]);
+            let x_p = mul_mat(&a_p, &xb_p);
+            let o_p = add(&r_p, &mul_vec(&a_p, &u_p));
             let f = joint.first;
-            let (relative, translation, rate, omega, alpha) = match joint.kind {
-                TreeJointKind::Revolute => (
-                    rot_z(p[f]),
-                    Vec3::ZERO,
-                    Vec3::ZERO,
-                    parent.omega + z * pd[f],
-                    parent.alpha + parent.omega.cross(&(z * pd[f])),
-                ),
-                TreeJointKind::Prismatic => {
-                    (joint.rotation, axis * p[f], axis * pd[f], parent.omega, parent.alpha)
+            let (rotation, o_c) = match joint.kind {
+                TreeJointKind::Revolute => {
+                    // Orthonormal frames P (global, parent side) and Q (child body frame) with
+                    // A_child Q = P that satisfy the revolute's equations (x_i . z_j = 0,
+                    // y_i . z_j = 0) and its angle (the driver's) exactly, also for the deformed,
+                    // not exactly orthonormal axes of markers on deformable bodies.
+                    let (p_frame, q_frame) = if joint.i_parent {
+                        (
+                            frame_from_plane(&column(&x_p, 0), &column(&x_p, 1), p[f]),
+                            frame_from_z(&column(&xb_c, 2), &column(&xb_c, 0)),
+                        )
+                    } else {
+                        (
+                            frame_from_z(&column(&x_p, 2), &column(&x_p, 0)),
+                            frame_from_plane(&column(&xb_c, 0), &column(&xb_c, 1), p[f]),
+                        )
+                    };
+                    (mul_transpose(&p_frame, &q_frame), o_p)
                 }
-                TreeJointKind::Cylindrical => (
-                    rot_z(p[f]),
-                    axis * p[f + 1],
-                    axis * pd[f + 1],
-                    parent.omega + z * pd[f],
-                    parent.alpha + parent.omega.cross(&(z * pd[f])),
-                ),
-                TreeJointKind::Fixed => (Mat3::IDENTITY, Vec3::ZERO, Vec3::ZERO, parent.omega, parent.alpha),
-                TreeJointKind::UniversalXY | TreeJointKind::UniversalYX => {
-                    let (first, second) =
-                        if joint.kind == TreeJointKind::UniversalXY { (0, 1) } else { (1, 0) };
-                    let rot = |axis: usize, angle: f64| if axis == 0 { rot_x(angle) } else { rot_y(angle) };
-                    let r1 = rot(first, p[f]);
-                    let u1 = a_pm.column(first);
-                    let u2 = a_pm.mul_mat(&r1).column(second);
-                    let (w1, w2) = (u1 * pd[f], u2 * pd[f + 1]);
-                    (
-                        r1.mul_mat(&rot(second, p[f + 1])),
-                        Vec3::ZERO,
-                        Vec3::ZERO,
-                        parent.omega + w1 + w2,
-                        parent.alpha + parent.omega.cross(&w1) + (parent.omega + w1).cross(&w2),
-                    )
+                kind => {
+                    // Rigid markers: the child marker frame A_pm R_rel, moved along the axis.
+                    let axis = mul_vec(&x_p, &hvec(joint.axis.0));
+                    let (relative, translation) = match kind {
+                        TreeJointKind::Prismatic => (hmat(joint.rotation.0), scale(&axis, p[f])),
+                        TreeJointKind::Cylindrical => (rot(2, p[f]), scale(&axis, p[f + 1])),
+                        TreeJointKind::UniversalXY => {
+                            (mul_mat(&rot(0, p[f]), &rot(1, p[f + 1])), hvec([0.0; 3]))
+                        }
+                        TreeJointKind::UniversalYX => {
+                            (mul_mat(&rot(1, p[f]), &rot(0, p[f + 1])), hvec([0.0; 3]))
+                        }
+                        _ => (HIDENTITY, hvec([0.0; 3])),
+                    };
+                    (mul_transpose(&mul_mat(&x_p, &relative), &xb_c), add(&o_p, &translation))
                 }
             };
-            let a_cm = a_pm.mul_mat(&relative);
-            let o_cm = o_pm + translation;
-            let v_cm = v_pm + parent.omega.cross(&translation) + rate;
-            let acc_cm = acc_pm
-                + parent.alpha.cross(&translation)
-                + parent.omega.cross(&parent.omega.cross(&translation))
-                + parent.omega.cross(&rate) * 2.0;
-            // The child body.
-            let rotation = a_cm.mul_mat(&a_cm_bar.transpose());
-            let rho_c = rotation.mul_vec(&s_c);
-            m[joint.child] = Motion {
-                rotation,
-                origin: o_cm - rho_c,
-                omega,
-                velocity: v_cm - omega.cross(&rho_c),
-                alpha,
-                acceleration: acc_cm - alpha.cross(&rho_c) - omega.cross(&omega.cross(&rho_c)),
-            };
+            let origin = sub(&o_c, &mul_vec(&rotation, &u_c));
+            poses[joint.child.body] = (rotation, origin);
         }
-        m
+        poses
+    }
+
+    /// Reference coordinates (origin, Euler parameters) of every body as hyper-dual numbers,
+    /// in q's layout (the elastic entries are left zero).
+    fn reference_coordinates(
+        &self,
+        n: usize,
+        p: &[HyperDual],
+        deformation: &[[[HVec; 2]; 2]],
+    ) -> Vec<HyperDual> {
+        let poses = self.poses(p, deformation);
+        let mut q = vec![HyperDual::ZERO; n];
+        for (b, (a, r)) in poses.iter().enumerate().skip(1) {
+            let o = self.offsets[b];
+            q[o..o + 3].copy_from_slice(r);
+            q[o + 3..o + 7].copy_from_slice(&euler_parameters(a, &self.reference_parameters[b]));
+        }
+        q
+    }
+
+    /// The marker deformations of every joint for elastic coordinates given per p index.
+    fn deformations(&self, p: &[HyperDual]) -> Vec<[[HVec; 2]; 2]> {
+        let qf = |body: usize| -> &[HyperDual] {
+            match self.elastic.iter().find(|e| e.body == body) {
+                Some(e) => &p[e.first..e.first + e.count],
+                None => &[],
+            }
+        };
+        self.joints
+            .iter()
+            .map(|j| [j.parent.deformation(qf(j.parent.body)), j.child.deformation(qf(j.child.body))])
+            .collect()
+    }
+
+    /// Body coordinates q, velocities q_dot and accelerations q_dd at (p, p_dot, p_dd), all of
+    /// length `n` (the model's coordinate count), with the elastic accelerations in p_dd taken
+    /// zero: q_dd = gamma_B + B p_dd over the joint coordinates.
+    fn state_with(&self, n: usize, p: &[f64], pd: &[f64], pdd: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let ph: Vec<HyperDual> = (0..p.len())
+            .map(|k| {
+                HyperDual::curve(p[k], pd[k], if k < self.joint_coordinate_count { pdd[k] } else { 0.0 })
+            })
+            .collect();
+        let deformation = self.deformations(&ph);
+        let qh = self.reference_coordinates(n, &ph, &deformation);
+        let (mut q, mut qd, mut gamma): (Vec<f64>, Vec<f64>, Vec<f64>) = (
+            qh.iter().map(|x| x.v).collect(),
+            qh.iter().map(|x| x.e1).collect(),
+            qh.iter().map(|x| x.e12).collect(),
+        );
+        for e in &self.elastic {
+            let o = self.offsets[e.body] + 7;
+            q[o..o + e.count].copy_from_slice(&p[e.first..e.first + e.count]);
+            qd[o..o + e.count].copy_from_slice(&pd[e.first..e.first + e.count]);
+            gamma[o..o + e.count].iter_mut().for_each(|g| *g = 0.0);
+        }
+        (q, qd, gamma)
     }
 
     /// Body coordinates q, velocities q_dot = B p_dot and gamma_B = B_dot p_dot at (p, p_dot),
     /// all of length `n` (the model's coordinate count).
     pub fn state(&self, n: usize, p: &[f64], pd: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let motions = self.motions(p, pd);
-        let (mut q, mut qd, mut gamma) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for (b, m) in motions.iter().enumerate().skip(1) {
-            let o = self.offsets[b];
-            let mut e = from_rotation_matrix(&m.rotation);
-            let reference = &self.reference_parameters[b];
-            if (0..4).map(|k| e[k] * reference[k]).sum::<f64>() < 0.0 {
-                e.iter_mut().for_each(|x| *x = -*x);
-            }
-            let g = g_matrix(&e);
-            // e_dot = G^T omega / 2; e_dd = G^T omega_dot / 2 - |e_dot|^2 e (unit e).
-            let ed: Vec<f64> =
-                (0..4).map(|c| 0.5 * (0..3).map(|r| g[r][c] * m.omega[r]).sum::<f64>()).collect();
-            let ed2: f64 = ed.iter().map(|x| x * x).sum();
-            for k in 0..3 {
-                q[o + k] = m.origin[k];
-                qd[o + k] = m.velocity[k];
-                gamma[o + k] = m.acceleration[k];
-            }
-            for c in 0..4 {
-                q[o + 3 + c] = e[c];
-                qd[o + 3 + c] = ed[c];
-                gamma[o + 3 + c] = 0.5 * (0..3).map(|r| g[r][c] * m.alpha[r]).sum::<f64>() - ed2 * e[c];
-            }
-        }
-        (q, qd, gamma)
+        self.state_with(n, p, pd, &vec![0.0; p.len()])
     }
 
     /// The velocity influence coefficients B = dq/dp (n x coordinate_count) at p.
     pub fn influence(&self, n: usize, p: &[f64]) -> Mat<f64> {
-        let np = self.coordinate_count;
-        let mut b = Mat::zeros(n, np);
-        let mut unit = vec![0.0; np];
-        for k in 0..np {
-            unit[k] = 1.0;
-            let (_, column, _) = self.state(n, p, &unit);
-            for (i, v) in column.iter().enumerate() {
-                b[(i, k)] = *v;
+        let all: Vec<usize> = (0..self.coordinate_count).collect();
+        self.influence_columns(n, p, &all)
+    }
+
+    /// The columns `columns` of B at p. A joint coordinate's column takes one pass of the
+    /// kinematics; the elastic coordinates act through the six deformation components of the
+    /// joint markers on their body (one pass each), then through the markers' shape matrices:
+    /// the identity on the body's own elastic coordinates, and dq_r/d(u, theta) S on the
+    /// reference coordinates of the bodies beyond (the matrix H_pf of seed eq. 33).
+    fn influence_columns(&self, n: usize, p: &[f64], columns: &[usize]) -> Mat<f64> {
+        let mut b = Mat::zeros(n, columns.len());
+        let constant: Vec<HyperDual> = p.iter().map(|&x| HyperDual::constant(x)).collect();
+        let deformation = self.deformations(&constant);
+        let njc = self.joint_coordinate_count;
+        let mut ph = constant.clone();
+        for (col, &k) in columns.iter().enumerate() {
+            if k < njc {
+                ph[k] = HyperDual::curve(p[k], 1.0, 0.0);
+                let q = self.reference_coordinates(n, &ph, &deformation);
+                ph[k] = constant[k];
+                for (i, x) in q.iter().enumerate() {
+                    b[(i, col)] = x.e1;
+                }
+            } else {
+                let block = self.elastic.iter().find(|e| (e.first..e.first + e.count).contains(&k));
+                let block = block.expect("elastic coordinates follow the joint coordinates");
+                b[(self.offsets[block.body] + 7 + k - block.first, col)] = 1.0;
             }
-            unit[k] = 0.0;
+        }
+        // Elastic columns: through each deformed joint marker.
+        let mut column_of = vec![usize::MAX; self.coordinate_count];
+        for (col, &k) in columns.iter().enumerate() {
+            column_of[k] = col;
+        }
+        for (jk, joint) in self.joints.iter().enumerate() {
+            for (s, side) in [&joint.parent, &joint.child].into_iter().enumerate() {
+                let Some(e) = &side.elastic else { continue };
+                let block = self.elastic.iter().find(|b| b.body == side.body).expect("a deformable body");
+                for c in 0..6 {
+                    let mut d = deformation.clone();
+                    let x = &mut d[jk][s][c / 3][c % 3];
+                    *x = HyperDual::curve(x.v, 1.0, 0.0);
+                    let q = self.reference_coordinates(n, &ph, &d);
+                    let shape = if c < 3 { &e.translation } else { &e.rotation };
+                    for (j, &idx) in e.indices.iter().enumerate() {
+                        let col = column_of[block.first + idx];
+                        let w = shape.get(c % 3, j);
+                        if col == usize::MAX || w == 0.0 {
+                            continue;
+                        }
+                        for (i, x) in q.iter().enumerate() {
+                            if x.e1 != 0.0 {
+                                b[(i, col)] += w * x.e1;
+                            }
+                        }
+                    }
+                }
+            }
         }
         b
     }
@@ -694,6 +856,84 @@ mod tests {
         Mat3([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
     }
 
+    /// Three deformable links and two rigid bodies: ground -revolute- link 1 (child marker
+    /// deformed) -revolute- link 2 (both markers deformed) -revolute- tip (marker i on the
+    /// rigid child, j on the deformed parent) and link 3 (both deformed, marker i on the
+    /// child); a slider on an undeformed marker of link 2 (prismatic). Gravity.
+    fn flexible_tree_model(driven: bool) -> Model {
+        use crate::body::flexible::tests::{Lcg, PointBody};
+        use crate::body::flexible::FlexibleBody;
+        use crate::math::dense::Jacobian3;
+        let mut sys = SystemBuilder::new();
+        sys.set_gravity(Vec3([0.2, -9.81, 0.4])).unwrap();
+        let g = sys.ground();
+        let link = |sys: &mut SystemBuilder, name: &str, seed: u64, x: Vec3| {
+            let body = FlexibleBody::new(name, PointBody::random(6, 4, seed).input(50.0, 0.1)).unwrap();
+            sys.add_flexible_body(name, body, x, Mat3::IDENTITY, Vec3::ZERO, Vec3::ZERO, vec![], vec![])
+                .unwrap()
+        };
+        let l1 = link(&mut sys, "link 1", 3, Vec3([0.5, 0.0, 0.0]));
+        let l2 = link(&mut sys, "link 2", 5, Vec3([1.5, 0.0, 0.0]));
+        let l3 = link(&mut sys, "link 3", 7, Vec3([1.5, 0.3, 0.0]));
+        let inertia = Mat3([[0.05, 0.004, -0.002], [0.004, 0.08, 0.003], [-0.002, 0.003, 0.09]]);
+        let rigid = |sys: &mut SystemBuilder, name: &str, x: Vec3| {
+            sys.add_rigid_body(
+                name,
+                1.1,
+                inertia,
+                Vec3([0.05, 0.02, 0.0]),
+                x,
+                Mat3::IDENTITY,
+                Vec3::ZERO,
+                Vec3::ZERO,
+            )
+            .unwrap()
+        };
+        let tip = rigid(&mut sys, "tip", Vec3([2.3, 0.0, 0.0]));
+        let slider = rigid(&mut sys, "slider", Vec3([1.5, 0.0, 0.0]));
+        let mut rng = Lcg(17);
+        let mut elastic = |indices: Vec<usize>| {
+            let nl = indices.len();
+            let mut shape = || Jacobian3 { n: nl, data: (0..3 * nl).map(|_| 0.4 * rng.next()).collect() };
+            MarkerElastic { translation: shape(), rotation: shape(), indices }
+        };
+        let mut fm = |sys: &mut SystemBuilder, b, s: Vec3, r: Mat3, idx: Vec<usize>| {
+            sys.add_flexible_marker("", b, s, r, elastic(idx)).unwrap()
+        };
+        let g0 = sys.add_marker("", g, Vec3::ZERO, Mat3::IDENTITY).unwrap();
+        let l1a = fm(&mut sys, l1, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY, vec![0, 2, 3]);
+        sys.add_joint("root", JointKind::Revolute, [g0, l1a]).unwrap();
+        let l1b = fm(&mut sys, l1, Vec3([0.5, 0.0, 0.0]), rot_x(0.4), vec![0, 1, 2, 3]);
+        let l2a = fm(&mut sys, l2, Vec3([-0.5, 0.0, 0.0]), rot_x(0.4), vec![1, 3]);
+        sys.add_joint("elbow", JointKind::Revolute, [l1b, l2a]).unwrap();
+        let t0 = sys.add_marker("", tip, Vec3([-0.3, 0.0, 0.0]), rot_x(-0.7)).unwrap();
+        let l2b = fm(&mut sys, l2, Vec3([0.5, 0.0, 0.0]), rot_x(-0.7), vec![0, 1, 2]);
+        sys.add_joint("wrist", JointKind::Revolute, [t0, l2b]).unwrap();
+        let l3a = fm(&mut sys, l3, Vec3::ZERO, rot_x(-1.2), vec![0, 1, 2, 3]);
+        let l2c = fm(&mut sys, l2, Vec3([0.0, 0.3, 0.0]), rot_x(-1.2), vec![2, 3]);
+        sys.add_joint("branch", JointKind::Revolute, [l3a, l2c]).unwrap();
+        let l2d = sys.add_marker("", l2, Vec3::ZERO, along_x()).unwrap();
+        let s0 = sys.add_marker("", slider, Vec3::ZERO, along_x()).unwrap();
+        sys.add_joint("slide", JointKind::Prismatic, [l2d, s0]).unwrap();
+        if driven {
+            sys.add_joint(
+                "root drive",
+                JointKind::AngleDriver(TimeFunction::Polynomial(vec![0.0, 0.8, -1.5])),
+                [g0, l1a],
+            )
+            .unwrap();
+            // Marker i of the elbow moves with link 1's deformation: its angle is measured
+            // with deformed axes.
+            sys.add_joint(
+                "elbow drive",
+                JointKind::AngleDriver(TimeFunction::Polynomial(vec![0.3, -0.5, 0.7])),
+                [l1b, l2a],
+            )
+            .unwrap();
+        }
+        sys.compile().unwrap()
+    }
+
     fn consistent(model: &Model) -> Vec<f64> {
         let mut ws = Workspace::for_evaluation(model);
         let mut eq = DenseEquations::new(model);
@@ -712,14 +952,31 @@ mod tests {
             .collect()
     }
 
+    /// x + a random perturbation of the free coordinates of `tree` (entries within scale / 2,
+    /// a tenth of that for the elastic coordinates).
+    fn perturbed(tree: &Tree, x: &[f64], seed: u64, scale: f64) -> Vec<f64> {
+        let elastic = tree.coordinate_count() - tree.joint_coordinate_count();
+        let joints = x.len() - elastic;
+        x.iter()
+            .zip(sample(x.len(), seed, scale))
+            .enumerate()
+            .map(|(k, (a, b))| a + if k < joints { b } else { 0.1 * b })
+            .collect()
+    }
+
     #[test]
     fn influence_coefficients_and_quadratic_terms_match_finite_differences() {
-        let model = tree_model(false);
-        let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
+        for (model, count) in [(tree_model(false), 11), (flexible_tree_model(false), 5 + 12)] {
+            influence_check(&model, count);
+        }
+    }
+
+    fn influence_check(model: &Model, count: usize) {
+        let (tree, p0) = Tree::new(model, &consistent(model)).unwrap();
         let (n, np) = (model.coordinate_count, tree.coordinate_count());
-        assert_eq!(np, 11);
-        let p: Vec<f64> = p0.iter().zip(sample(np, 3, 1.0)).map(|(a, b)| a + b).collect();
-        let pd = sample(np, 7, 4.0);
+        assert_eq!(np, count);
+        let p = perturbed(&tree, &p0, 3, 1.0);
+        let pd = perturbed(&tree, &vec![0.0; np], 7, 4.0);
         let b = tree.influence(n, &p);
         let eps = 1e-6;
         for k in 0..np {
@@ -749,16 +1006,21 @@ mod tests {
 
     #[test]
     fn joint_coordinate_accelerations_equal_the_augmented_ones() {
-        for driven in [false, true] {
-            let model = tree_model(driven);
+        let cases = [
+            (tree_model(false), 11),
+            (tree_model(true), 9),
+            (flexible_tree_model(false), 17),
+            (flexible_tree_model(true), 15),
+        ];
+        for (case, (model, free)) in cases.into_iter().enumerate() {
             let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
             let n = model.coordinate_count;
             let nf = tree.free_count();
-            assert_eq!(nf, if driven { 9 } else { 11 });
+            assert_eq!(nf, free);
             for seed in 0..5 {
                 let time = 0.1 + 0.3 * seed as f64;
-                let p: Vec<f64> = p0.iter().zip(sample(nf, 11 + seed, 2.0)).map(|(a, b)| a + b).collect();
-                let pd = sample(nf, 29 + seed, 6.0);
+                let p = perturbed(&tree, &p0, 11 + seed, 2.0);
+                let pd = perturbed(&tree, &vec![0.0; nf], 29 + seed, 6.0);
                 let state = tree.evaluate(&model, time, &p, &pd).unwrap();
                 let (q, qd) = (&state.coordinates, &state.velocities);
                 let mut ws = Workspace::for_evaluation(&model);
@@ -781,7 +1043,7 @@ mod tests {
                 for i in 0..n {
                     assert!(
                         (qdd[i] - qdd_tree[i]).abs() < 1e-10 * scale,
-                        "driven {driven} seed {seed} q_dd[{i}]: {} vs {}",
+                        "case {case} seed {seed} q_dd[{i}]: {} vs {}",
                         qdd[i],
                         qdd_tree[i]
                     );
