@@ -1,6 +1,7 @@
-"""Joint coordinates (seed section 5, first part): trees of rigid bodies with revolute,
-prismatic, cylindrical, fixed and universal joints and drivers on them, loops closed by cut
-joints, integrated in joint coordinates, against the augmented formulation."""
+"""Joint coordinates (seed section 5): trees of rigid and deformable bodies and point masses
+with revolute, prismatic, cylindrical, fixed, universal, spherical and free joints and drivers
+on them, loops closed by cut joints, integrated in joint plus elastic coordinates, against the
+augmented formulation."""
 
 import numpy as np
 import pytest
@@ -156,12 +157,98 @@ def test_closed_loop_by_a_cut_joint_equals_the_augmented_formulation():
     assert tree.constraint_violation.max() < 1e-11
 
 
+def test_spherical_joints_point_masses_and_free_bodies_equal_the_augmented_formulation():
+    # A spherical pendulum of a rigid body carrying a point mass on a second spherical joint,
+    # the IFToMM A01 pendulum (a point mass on a distance constraint: a free point mass and a
+    # cut joint) and a tumbling free body.
+    s = fm.System(gravity=(0.3, -9.81, 0.2))
+    ball = s.add_rigid_body(
+        1.2,
+        (0.05, 0.08, 0.09),
+        position=(0.3, -0.4, 0),
+        angular_velocity=(0.5, -1.0, 2.0),
+        name="ball",
+    )
+    bob = s.add_point_mass(0.5, position=(0.6, -0.9, 0.1), velocity=(0, 0, 1.0), name="bob")
+    s.add_spherical_joint(
+        s.add_marker(s.ground), s.add_marker(ball, position=(-0.3, 0.4, 0)), name="shoulder"
+    )
+    s.add_spherical_joint(
+        s.add_marker(ball, position=(0.3, -0.5, 0.1)), s.add_marker(bob), name="wrist"
+    )
+    tumbler = s.add_rigid_body(
+        2.0, (0.1, 0.2, 0.3), position=(3, 0, 0), angular_velocity=(0.3, 4.0, 0.2)
+    )
+    a01 = fm.examples.pendulum()
+    for system, bodies, end in (
+        (s, [ball, bob, tumbler], 1.0),
+        (a01.system, [a01.items["mass"]], 1.0),
+    ):
+        model = system.compile()
+        tree, augmented = (
+            fm.simulate(model, end, 1e-3, output_interval=0.01, solver=solver(strategy))
+            for strategy in ("joint-coordinates", "projection")
+        )
+        for body in bodies:
+            assert np.abs(tree.position(body) - augmented.position(body)).max() < 1e-8
+            assert np.abs(tree.velocity(body) - augmented.velocity(body)).max() < 1e-7
+        assert tree.constraint_violation.max() < 1e-11
+
+
+def flexible_solver(strategy):
+    return fm.ExplicitSolver("dopri5", strategy, relative_tolerance=1e-9, absolute_tolerance=1e-11)
+
+
+@pytest.mark.parametrize(
+    "build, end, reaction_tolerance",
+    [
+        (lambda: fm.examples.flexible_double_pendulum(mode_count=4), 0.3, 1e-6),
+        (lambda: fm.examples.flexible_robot_arm(mode_count=4), 0.1, 1e-6),
+        # Nodal beam: its axial modes (about 3e4 rad/s) turn position differences of 1e-11 m
+        # between the two runs into reaction differences of 1e-5 of the largest.
+        (lambda: fm.examples.spin_up(elements=4), 0.3, 2e-4),
+        (lambda: fm.examples.tetrahedral_pendulum(), 0.05, 1e-6),
+    ],
+    ids=["double-pendulum", "robot-arm", "spin-up", "tetrahedral-pendulum"],
+)
+def test_deformable_trees_equal_the_augmented_formulation(build, end, reaction_tolerance):
+    # Joint plus elastic coordinates; the hinges sit at markers that move with the links'
+    # deformation (beam node markers; a node-set marker on the solid).
+    example = build()
+    model = example.system.compile()
+    tree, augmented = (
+        fm.simulate(model, end, 1e-3, output_interval=end / 20, solver=flexible_solver(strategy))
+        for strategy in ("joint-coordinates", "projection")
+    )
+    q_tree, q_aug = np.asarray(tree.coordinates), np.asarray(augmented.coordinates)
+    assert np.abs(q_tree - q_aug).max() < 1e-8 * max(1.0, np.abs(q_aug).max())
+    assert tree.constraint_violation.max() < 1e-11
+    a, b = tree._reactions, augmented._reactions
+    assert np.abs(a - b).max() < reaction_tolerance * max(1.0, np.abs(b).max())
+
+
+def test_flexible_slider_crank_closed_by_cut_joints_equals_the_augmented_formulation():
+    # R4: the crank pin at the rod's deformed first node; the slider (a point mass) on the
+    # spherical wrist pin at the rod's deformed last node; the guide (in-line) cut.
+    example = fm.examples.flexible_slider_crank(elements=4)
+    model = example.system.compile()
+    tree, augmented = (
+        fm.simulate(model, 1e-3, 1e-4, output_interval=1e-4, solver=flexible_solver(strategy))
+        for strategy in ("joint-coordinates", "projection")
+    )
+    assert np.abs(np.asarray(tree.coordinates) - np.asarray(augmented.coordinates)).max() < 1e-10
+    torque = [run.reaction_torque(example.items["drive"])[:, 2] for run in (tree, augmented)]
+    assert np.abs(torque[0] - torque[1]).max() < 1e-6 * np.abs(torque[1]).max()
+    assert tree.constraint_violation.max() < 1e-11
+
+
 def test_models_outside_the_supported_trees_are_refused():
-    # A body held by a spherical joint only (not yet a tree joint), a point mass.
-    s = fm.System()
-    body = s.add_rigid_body(1.0, (1, 1, 1), name="link")
-    s.add_spherical_joint(s.add_marker(s.ground), s.add_marker(body), name="ball")
-    with pytest.raises(fm.InvalidModelError, match="'link'.*'ball' \\(spherical\\)"):
+    # A prismatic joint at a beam node (a marker that moves with the deformation).
+    example = fm.examples.flexible_double_pendulum(elements=2)
+    s = example.system
+    slider = s.add_rigid_body(1.0, (1, 1, 1), position=(2.0, 0, 0), name="slider")
+    s.add_prismatic_joint(
+        s.add_node_marker(example.items["lower link"], 3), s.add_marker(slider), name="rail"
+    )
+    with pytest.raises(fm.InvalidModelError, match="'rail' \\(prismatic\\).*deformation"):
         fm.simulate(s, 0.1, 1e-3, solver=solver("joint-coordinates"))
-    with pytest.raises(fm.InvalidModelError, match="rigid bodies"):
-        fm.simulate(fm.examples.pendulum().system, 0.1, 1e-3, solver=solver("joint-coordinates"))

@@ -413,9 +413,153 @@ def rotating_blade_flap_frequencies(
     return 2 * np.pi * frequencies[selected][:count] * scale
 
 
+def _beam_link(length: float, elements: int, mode_count: int = 0) -> Any:
+    """An aluminium link (circular section, radius 5 mm) of `elements` Euler-Bernoulli beam
+    elements along x, the body frame clamped at its first node: nodal elastic coordinates, or
+    the first `mode_count` fixed-interface (clamped) modes if `mode_count` > 0."""
+    from .fe import Material, Section, build_body, straight_beam
+
+    nodes, conn = straight_beam(length, elements)
+    return build_body(
+        nodes,
+        conn,
+        Material(7.0e10, 0.33, 2700.0),
+        section=Section.circle(0.005),
+        reference="clamped",
+        reference_nodes=[0],
+        modes="fixed-interface" if mode_count > 0 else None,
+        mode_count=mode_count,
+    )
+
+
+def _energy_balance(result: Any, power: Any = None) -> float:
+    """Largest |change of the total energy - work of the drives| over the run, relative to the
+    largest kinetic energy (`power`: the drives' power at the output times, or None)."""
+    energy = result.total_energy - result.total_energy[0]
+    work = np.zeros_like(energy)
+    if power is not None:
+        steps = np.diff(result.time)
+        work[1:] = np.cumsum(0.5 * (power[1:] + power[:-1]) * steps)
+    return float(np.max(np.abs(energy - work)) / np.max(np.abs(result.kinetic_energy)))
+
+
+def flexible_double_pendulum(elements: int = 4, mode_count: int = 0) -> Example:
+    """Two elastic aluminium links (1 m, circular section of radius 5 mm, `elements` beam
+    elements each, frames clamped at their first nodes) hinged to the ground and to each other
+    by revolute joints about z, released from the horizontal under gravity (9.81 m/s^2 along
+    -y); the second hinge is at the deformed tip of the first link (node marker). With
+    `mode_count` > 0 each link keeps that many clamped modes instead of its nodal coordinates
+    (without the axial and high bending modes the explicit solvers take large steps). No damping:
+    the total (kinetic, strain and gravity) energy is conserved. A model for the
+    joint-coordinate formulation with deformable bodies (seed section 5), which integrates the
+    two hinge angles and the elastic coordinates."""
+    from .system import System
+
+    system = System(gravity=(0, -9.81, 0))
+    data = _beam_link(1.0, elements, mode_count)
+    upper = system.add_flexible_body(data, name="upper link")
+    lower = system.add_flexible_body(data, position=(1.0, 0, 0), name="lower link")
+    tip = elements + 1
+    shoulder = system.add_revolute_joint(
+        system.add_marker(system.ground), system.add_node_marker(upper, 1), name="shoulder"
+    )
+    elbow = system.add_revolute_joint(
+        system.add_node_marker(upper, tip), system.add_node_marker(lower, 1), name="elbow"
+    )
+
+    def check(result: Any) -> dict[str, float]:
+        return {"energy change / max kinetic energy": _energy_balance(result)}
+
+    return Example(
+        name="flexible-double-pendulum",
+        description="two elastic links hinged in series, swinging under gravity",
+        system=system,
+        end_time=2.0,
+        step_size=1e-3,
+        solver=_core.GeneralizedAlpha(1.0),
+        output_interval=0.01,
+        items={
+            "upper link": upper,
+            "lower link": lower,
+            "tip node": tip,
+            "shoulder": shoulder,
+            "elbow": elbow,
+        },
+        reference={"energy change / max kinetic energy": 0.0},
+        check=check,
+    )
+
+
+def flexible_robot_arm(elements: int = 4, mode_count: int = 0) -> Example:
+    """A spatial arm of three elastic aluminium links (0.6, 0.5 and 0.4 m, circular section of
+    radius 5 mm, `elements` beam elements each, frames clamped at their first nodes). The base
+    joint turns the first link about the vertical y axis with the prescribed rest-to-rest
+    profile 0.8 (3 (t/T)^2 - 2 (t/T)^3) rad, T = 1 s (an angle driver); the shoulder and
+    the elbow (revolute joints about z at the deformed tips) swing freely under gravity
+    (9.81 m/s^2 along -y). No damping: the work of the base drive equals the change of the
+    total energy. `mode_count` > 0: that many clamped modes per link instead of the nodal
+    coordinates. A model for the joint-coordinate formulation with deformable bodies (seed
+    section 5)."""
+    from .system import System
+
+    system = System(gravity=(0, -9.81, 0))
+    lengths = (0.6, 0.5, 0.4)
+    links, x = [], 0.0
+    for k, length in enumerate(lengths):
+        links.append(
+            system.add_flexible_body(
+                _beam_link(length, elements, mode_count), position=(x, 0, 0), name=f"link {k + 1}"
+            )
+        )
+        x += length
+    tip = elements + 1
+    vertical = rotation("x", -np.pi / 2)  # marker z along the global y axis
+    base = (
+        system.add_marker(system.ground, orientation=vertical),
+        system.add_node_marker(links[0], 1, orientation=vertical),
+    )
+    joints = [system.add_revolute_joint(*base, name="base")]
+    for k, name in ((1, "shoulder"), (2, "elbow")):
+        joints.append(
+            system.add_revolute_joint(
+                system.add_node_marker(links[k - 1], tip),
+                system.add_node_marker(links[k], 1),
+                name=name,
+            )
+        )
+    angle = 0.8
+    drive = system.add_angle_driver(
+        *base, _core.Polynomial([0.0, 0.0, 3 * angle, -2 * angle]), name="drive"
+    )
+
+    def check(result: Any) -> dict[str, float]:
+        t = result.time
+        rate = 6 * angle * (t - t**2)
+        power = result.reaction_torque(drive)[:, 2] * rate
+        return {
+            "energy balance error / max kinetic energy": _energy_balance(result, power),
+            "largest constraint violation": float(np.max(result.constraint_violation)),
+        }
+
+    return Example(
+        name="flexible-robot-arm",
+        description="three elastic links, the base turned by a drive, shoulder and elbow free",
+        system=system,
+        end_time=1.0,
+        step_size=1e-3,
+        solver=_core.GeneralizedAlpha(1.0),
+        output_interval=0.005,
+        items={"links": links, "tip node": tip, "joints": joints, "drive": drive},
+        reference={"energy balance error / max kinetic energy": 0.0},
+        check=check,
+    )
+
+
 EXAMPLES: dict[str, Callable[[], Example]] = {
     "andrews": lambda: andrews(),
     "bricard": lambda: bricard(),
+    "flexible-double-pendulum": flexible_double_pendulum,
+    "flexible-robot-arm": flexible_robot_arm,
     "flexible-slider-crank": flexible_slider_crank,
     "four-bar": four_bar,
     "four-bar-spatial": lambda: four_bar_spatial(),

@@ -25,7 +25,7 @@ def simulate(
     or, if None, after every step. ``solver`` defaults to ``GeneralizedAlpha()`` (spectral
     radius 0.9); an :class:`ExplicitSolver` selects Runge-Kutta 4 or Dormand-Prince 5(4) with
     one of the seed's three strategies (integrate all accelerations, coordinate partitioning,
-    projection) or in joint coordinates (open trees of rigid bodies, so far), see
+    projection) or in joint plus elastic coordinates (open trees, loops cut), see
     ``docs/solvers.md``. ``progress(time, step_size, newton_iterations)`` is
     called about ten times a second.
 

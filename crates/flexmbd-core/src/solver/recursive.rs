@@ -152,6 +152,24 @@ pub struct TreeState {
     pub influence: Mat<f64>,
 }
 
+/// The body state of a tree with the influence coefficients of seed eq. 33 in factored form
+/// (see [`Tree::structured`]).
+#[derive(Clone, Debug)]
+pub struct StructuredState {
+    /// Body coordinates q.
+    pub coordinates: Vec<f64>,
+    /// Body velocities q_dot.
+    pub velocities: Vec<f64>,
+    /// q_dd at zero free accelerations (gamma_r on the reference rows, zero on the elastic).
+    pub gamma: Vec<f64>,
+    /// H_pp: the reference rows' influence coefficients of the free joint coordinates
+    /// (reference rows x free joint coordinates).
+    pub joint_influence: Mat<f64>,
+    /// Per deformed joint marker m, D_m = dq_r/d(u - u0, theta) (reference rows x 6), so that
+    /// H_pf = sum_m D_m S_m over the markers' shape matrices S_m = [S_u; S_t].
+    pub markers: Vec<Mat<f64>>,
+}
+
 /// An open tree of rigid and deformable bodies in joint and elastic coordinates.
 #[derive(Clone, Debug)]
 pub struct Tree {
@@ -175,6 +193,8 @@ pub struct Tree {
     joint_coordinate_count: usize,
     /// Whether each body is a point mass (3 coordinates, no orientation).
     point_masses: Vec<bool>,
+    /// q indices of the bodies' reference coordinates.
+    reference_rows: Vec<usize>,
     coordinate_count: usize,
 }
 
@@ -526,7 +546,14 @@ impl Tree {
         let free: Vec<usize> =
             (0..coordinate_count).filter(|c| prescribed.iter().all(|p| p.coordinate != *c)).collect();
         let p0: Vec<f64> = free.iter().map(|&c| p0[c]).collect();
+        let reference_rows: Vec<usize> = (1..nb)
+            .flat_map(|b| {
+                let o = offsets[b];
+                o..o + if point(b) { 3 } else { 7 }
+            })
+            .collect();
         let tree = Tree {
+            reference_rows,
             point_masses: (0..nb).map(point).collect(),
             coordinate_count,
             joint_coordinate_count,
@@ -561,6 +588,70 @@ impl Tree {
     /// prescribed ones from their drivers.
     pub fn evaluate(&self, model: &Model, time: f64, p: &[f64], pd: &[f64]) -> Result<TreeState> {
         let n = model.coordinate_count;
+        let (full_p, full_pd, pdd) = self.full_coordinates(model, time, p, pd)?;
+        let (coordinates, velocities, gamma) = self.state_with(n, &full_p, &full_pd, &pdd);
+        let influence = self.influence_columns(n, &full_p, &self.free);
+        Ok(TreeState { coordinates, velocities, gamma, influence })
+    }
+
+    /// The body state at time `time` for the free coordinates `p` and rates `pd`, with the
+    /// influence coefficients in the structure of seed eq. 33 instead of a dense B: H_pp over
+    /// the reference rows and, for H_pf, the derivatives of the reference coordinates with
+    /// respect to each deformed joint marker's deformation (H_pf = sum over the markers of
+    /// D_m S_m). Its cost does not depend on the number of elastic coordinates.
+    pub fn structured(&self, model: &Model, time: f64, p: &[f64], pd: &[f64]) -> Result<StructuredState> {
+        let n = model.coordinate_count;
+        let (full_p, full_pd, pdd) = self.full_coordinates(model, time, p, pd)?;
+        let (coordinates, velocities, gamma) = self.state_with(n, &full_p, &full_pd, &pdd);
+        let free_joints: Vec<usize> =
+            self.free.iter().copied().filter(|&c| c < self.joint_coordinate_count).collect();
+        let joints = self.joint_columns(n, &full_p, &free_joints);
+        let rows = &self.reference_rows;
+        let joint_influence = Mat::from_fn(rows.len(), free_joints.len(), |i, k| joints[(rows[i], k)]);
+        let markers = self
+            .marker_derivatives(n, &full_p)
+            .into_iter()
+            .map(|d| Mat::from_fn(rows.len(), 6, |i, c| d[(rows[i], c)]))
+            .collect();
+        Ok(StructuredState { coordinates, velocities, gamma, joint_influence, markers })
+    }
+
+    /// The q indices of the bodies' reference coordinates (the rows r of seed eq. 33), in body
+    /// order.
+    pub fn reference_rows(&self) -> &[usize] {
+        &self.reference_rows
+    }
+
+    /// Number of free joint coordinates (the free coordinates start with them; the elastic
+    /// coordinates follow).
+    pub fn free_joint_count(&self) -> usize {
+        self.free.iter().filter(|&&c| c < self.joint_coordinate_count).count()
+    }
+
+    /// The deformable bodies: (body, index of its first elastic coordinate among the free
+    /// coordinates, count).
+    pub fn elastic_blocks(&self) -> Vec<(usize, usize, usize)> {
+        let shift = self.free_joint_count();
+        self.elastic.iter().map(|e| (e.body, shift + e.first - self.joint_coordinate_count, e.count)).collect()
+    }
+
+    /// The deformed joint markers (the order of [`StructuredState::markers`]): body and shape.
+    pub fn deformed_markers(&self) -> Vec<(usize, &MarkerElastic)> {
+        self.joints
+            .iter()
+            .flat_map(|j| [&j.parent, &j.child])
+            .filter_map(|side| side.elastic.as_ref().map(|e| (side.body, e)))
+            .collect()
+    }
+
+    /// Full p, p_dot and the prescribed p_dd from the free coordinates and the drivers.
+    fn full_coordinates(
+        &self,
+        model: &Model,
+        time: f64,
+        p: &[f64],
+        pd: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
         let np = self.coordinate_count;
         let (mut full_p, mut full_pd, mut pdd) = (vec![0.0; np], vec![0.0; np], vec![0.0; np]);
         for (k, &c) in self.free.iter().enumerate() {
@@ -573,9 +664,7 @@ impl Tree {
             full_pd[presc.coordinate] = presc.sign * fd;
             pdd[presc.coordinate] = presc.sign * fdd;
         }
-        let (coordinates, velocities, gamma) = self.state_with(n, &full_p, &full_pd, &pdd);
-        let influence = self.influence_columns(n, &full_p, &self.free);
-        Ok(TreeState { coordinates, velocities, gamma, influence })
+        Ok((full_p, full_pd, pdd))
     }
 
     /// Poses of all bodies for the joint coordinates `p` (hyper-dual) and the deformation of
@@ -722,55 +811,87 @@ impl Tree {
     /// reference coordinates of the bodies beyond (the matrix H_pf of seed eq. 33).
     fn influence_columns(&self, n: usize, p: &[f64], columns: &[usize]) -> Mat<f64> {
         let mut b = Mat::zeros(n, columns.len());
-        let constant: Vec<HyperDual> = p.iter().map(|&x| HyperDual::constant(x)).collect();
-        let deformation = self.deformations(&constant);
         let njc = self.joint_coordinate_count;
-        let mut ph = constant.clone();
-        for (col, &k) in columns.iter().enumerate() {
-            if k < njc {
-                ph[k] = HyperDual::curve(p[k], 1.0, 0.0);
-                let q = self.reference_coordinates(n, &ph, &deformation);
-                ph[k] = constant[k];
-                for (i, x) in q.iter().enumerate() {
-                    b[(i, col)] = x.e1;
-                }
-            } else {
-                let block = self.elastic.iter().find(|e| (e.first..e.first + e.count).contains(&k));
-                let block = block.expect("elastic coordinates follow the joint coordinates");
-                b[(self.offsets[block.body] + 7 + k - block.first, col)] = 1.0;
-            }
-        }
-        // Elastic columns: through each deformed joint marker.
+        let joint_columns: Vec<usize> = columns.iter().copied().filter(|&k| k < njc).collect();
+        let joints = self.joint_columns(n, p, &joint_columns);
         let mut column_of = vec![usize::MAX; self.coordinate_count];
         for (col, &k) in columns.iter().enumerate() {
             column_of[k] = col;
         }
-        for (jk, joint) in self.joints.iter().enumerate() {
-            for (s, side) in [&joint.parent, &joint.child].into_iter().enumerate() {
-                let Some(e) = &side.elastic else { continue };
-                let block = self.elastic.iter().find(|b| b.body == side.body).expect("a deformable body");
-                for c in 0..6 {
-                    let mut d = deformation.clone();
-                    let x = &mut d[jk][s][c / 3][c % 3];
-                    *x = HyperDual::curve(x.v, 1.0, 0.0);
-                    let q = self.reference_coordinates(n, &ph, &d);
-                    let shape = if c < 3 { &e.translation } else { &e.rotation };
-                    for (j, &idx) in e.indices.iter().enumerate() {
-                        let col = column_of[block.first + idx];
-                        let w = shape.get(c % 3, j);
-                        if col == usize::MAX || w == 0.0 {
-                            continue;
-                        }
-                        for (i, x) in q.iter().enumerate() {
-                            if x.e1 != 0.0 {
-                                b[(i, col)] += w * x.e1;
-                            }
-                        }
+        for (a, &k) in joint_columns.iter().enumerate() {
+            for i in 0..n {
+                b[(i, column_of[k])] = joints[(i, a)];
+            }
+        }
+        for e in &self.elastic {
+            for k in 0..e.count {
+                let col = column_of[e.first + k];
+                if col != usize::MAX {
+                    b[(self.offsets[e.body] + 7 + k, col)] = 1.0;
+                }
+            }
+        }
+        // Elastic columns through each deformed joint marker: D_m S_m.
+        for ((body, shape), d) in self.deformed_markers().into_iter().zip(self.marker_derivatives(n, p)) {
+            let block = self.elastic.iter().find(|e| e.body == body).expect("a deformable body");
+            for c in 0..6 {
+                let s = if c < 3 { &shape.translation } else { &shape.rotation };
+                for (j, &idx) in shape.indices.iter().enumerate() {
+                    let (col, w) = (column_of[block.first + idx], s.get(c % 3, j));
+                    if col == usize::MAX || w == 0.0 {
+                        continue;
+                    }
+                    for i in 0..n {
+                        b[(i, col)] += w * d[(i, c)];
                     }
                 }
             }
         }
         b
+    }
+
+    /// dq/dp_k (n rows) for the joint coordinates `columns` at p: one pass each.
+    fn joint_columns(&self, n: usize, p: &[f64], columns: &[usize]) -> Mat<f64> {
+        let mut b = Mat::zeros(n, columns.len());
+        let mut ph: Vec<HyperDual> = p.iter().map(|&x| HyperDual::constant(x)).collect();
+        let deformation = self.deformations(&ph);
+        for (col, &k) in columns.iter().enumerate() {
+            ph[k] = HyperDual::curve(p[k], 1.0, 0.0);
+            let q = self.reference_coordinates(n, &ph, &deformation);
+            ph[k] = HyperDual::constant(p[k]);
+            for (i, x) in q.iter().enumerate() {
+                b[(i, col)] = x.e1;
+            }
+        }
+        b
+    }
+
+    /// For each deformed joint marker (in the order of [`Tree::deformed_markers`]), the
+    /// derivatives of q (n rows) with respect to its deformation (u - u0, theta) in the body
+    /// frame (6 columns): one pass each.
+    fn marker_derivatives(&self, n: usize, p: &[f64]) -> Vec<Mat<f64>> {
+        let ph: Vec<HyperDual> = p.iter().map(|&x| HyperDual::constant(x)).collect();
+        let deformation = self.deformations(&ph);
+        let mut out = Vec::new();
+        for (jk, joint) in self.joints.iter().enumerate() {
+            for (s, side) in [&joint.parent, &joint.child].into_iter().enumerate() {
+                if side.elastic.is_none() {
+                    continue;
+                }
+                let mut d = Mat::zeros(n, 6);
+                for c in 0..6 {
+                    let mut def = deformation.clone();
+                    let x = &mut def[jk][s][c / 3][c % 3];
+                    *x = HyperDual::curve(x.v, 1.0, 0.0);
+                    let q = self.reference_coordinates(n, &ph, &def);
+                    for (i, x) in q.iter().enumerate() {
+                        d[(i, c)] = x.e1;
+                    }
+                }
+                out.push(d);
+            }
+        }
+        out
     }
 }
 
