@@ -4,6 +4,7 @@
 
 pub mod assembly;
 pub mod condensed;
+pub mod decoupled;
 pub mod dense;
 pub mod dense_system;
 pub mod explicit;

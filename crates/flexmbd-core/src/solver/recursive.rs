@@ -632,7 +632,10 @@ impl Tree {
     /// coordinates, count).
     pub fn elastic_blocks(&self) -> Vec<(usize, usize, usize)> {
         let shift = self.free_joint_count();
-        self.elastic.iter().map(|e| (e.body, shift + e.first - self.joint_coordinate_count, e.count)).collect()
+        self.elastic
+            .iter()
+            .map(|e| (e.body, shift + e.first - self.joint_coordinate_count, e.count))
+            .collect()
     }
 
     /// The deformed joint markers (the order of [`StructuredState::markers`]): body and shape.
@@ -1075,6 +1078,12 @@ mod tests {
     /// rigid child, j on the deformed parent) and link 3 (both deformed, marker i on the
     /// child); a slider on an undeformed marker of link 2 (prismatic). Gravity.
     fn flexible_tree_model(driven: bool) -> Model {
+        flexible_tree_model_with(driven, false, 4)
+    }
+
+    /// `flexible_tree_model`, with `closed`: a distance joint from link 3's deformed tip to
+    /// the tip body closing a loop (cut); `elastic`: elastic coordinates per link (>= 4).
+    fn flexible_tree_model_with(driven: bool, closed: bool, elastic_count: usize) -> Model {
         use crate::body::flexible::tests::{Lcg, PointBody};
         use crate::body::flexible::FlexibleBody;
         use crate::math::dense::Jacobian3;
@@ -1082,7 +1091,8 @@ mod tests {
         sys.set_gravity(Vec3([0.2, -9.81, 0.4])).unwrap();
         let g = sys.ground();
         let link = |sys: &mut SystemBuilder, name: &str, seed: u64, x: Vec3| {
-            let body = FlexibleBody::new(name, PointBody::random(6, 4, seed).input(50.0, 0.1)).unwrap();
+            let body =
+                FlexibleBody::new(name, PointBody::random(6, elastic_count, seed).input(50.0, 0.1)).unwrap();
             sys.add_flexible_body(name, body, x, Mat3::IDENTITY, Vec3::ZERO, Vec3::ZERO, vec![], vec![])
                 .unwrap()
         };
@@ -1126,6 +1136,11 @@ mod tests {
         let l3a = fm(&mut sys, l3, Vec3::ZERO, rot_x(-1.2), vec![0, 1, 2, 3]);
         let l2c = fm(&mut sys, l2, Vec3([0.0, 0.3, 0.0]), rot_x(-1.2), vec![2, 3]);
         sys.add_joint("branch", JointKind::Revolute, [l3a, l2c]).unwrap();
+        if closed {
+            let l3b = fm(&mut sys, l3, Vec3([0.4, -0.3, 0.0]), Mat3::IDENTITY, vec![1, 3]);
+            let t1 = sys.add_marker("", tip, Vec3([-0.4, 0.3, 0.0]), Mat3::IDENTITY).unwrap();
+            sys.add_joint("strut", JointKind::Distance { distance: 0.3 }, [l3b, t1]).unwrap();
+        }
         let l2d = sys.add_marker("", l2, Vec3::ZERO, along_x()).unwrap();
         let s0 = sys.add_marker("", slider, Vec3::ZERO, along_x()).unwrap();
         sys.add_joint("slide", JointKind::Prismatic, [l2d, s0]).unwrap();
@@ -1353,6 +1368,106 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn decoupled_and_coupled_systems_equal_the_joint_space_one() {
+        use crate::solver::decoupled::{TreeFormulation, TreeSolver};
+        let models = [
+            flexible_tree_model(false),
+            flexible_tree_model(true),
+            floating_tree_model(),
+            flexible_tree_model_with(true, true, 5),
+        ];
+        for (case, model) in models.iter().enumerate() {
+            let (tree, p0) = Tree::new(model, &consistent(model)).unwrap();
+            let n = model.coordinate_count;
+            let nf = tree.free_count();
+            let mut coupled = TreeSolver::new(model, &tree, TreeFormulation::Coupled).unwrap();
+            let mut decoupled = TreeSolver::new(model, &tree, TreeFormulation::Decoupled).unwrap();
+            let mut ws = Workspace::for_evaluation(model);
+            for seed in 0..3 {
+                let time = 0.2 + 0.3 * seed as f64;
+                let p = perturbed(&tree, &p0, 41 + seed, 2.0);
+                let pd = perturbed(&tree, &vec![0.0; nf], 53 + seed, 6.0);
+                // Joint space: (B^T M B) p_dd = B^T (f - M gamma_B) (with the cut rows).
+                let state = tree.evaluate(model, time, &p, &pd).unwrap();
+                let mut eq = DenseEquations::new(model);
+                eq.evaluate(
+                    model,
+                    &mut ws,
+                    time,
+                    &state.coordinates,
+                    &state.velocities,
+                    &[],
+                    Level::Acceleration,
+                )
+                .unwrap();
+                let b = &state.influence;
+                let rows = &tree.cut_rows;
+                let c_cut = Mat::from_fn(rows.len(), n, |a, j| eq.jacobian[(rows[a], j)]);
+                let c_hat = &c_cut * b;
+                let g_hat: Vec<f64> = (0..rows.len())
+                    .map(|a| eq.gamma[rows[a]] - (0..n).map(|j| c_cut[(a, j)] * state.gamma[j]).sum::<f64>())
+                    .collect();
+                let pdd = constrained_joint_accelerations(
+                    b,
+                    &eq.mass,
+                    &eq.force,
+                    &state.gamma,
+                    &c_hat,
+                    &g_hat,
+                    1e-12,
+                )
+                .unwrap();
+                let st = tree.structured(model, time, &p, &pd).unwrap();
+                assert!(st.coordinates.iter().zip(&state.coordinates).all(|(a, b)| (a - b).abs() < 1e-14));
+                let r40 = coupled.accelerations(model, &mut ws, &st, time, &[]).unwrap();
+                let r41 = decoupled.accelerations(model, &mut ws, &st, time, &[]).unwrap();
+                let scale = pdd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+                for k in 0..nf {
+                    for (name, r) in [("eq. 40", &r40), ("eq. 41", &r41)] {
+                        assert!(
+                            (r.free_accelerations[k] - pdd[k]).abs() < 1e-10 * scale,
+                            "case {case} seed {seed} {name} p_dd[{k}]: {} vs {}",
+                            r.free_accelerations[k],
+                            pdd[k]
+                        );
+                    }
+                }
+                // The same reactions -F_r and cut multipliers from both.
+                let rscale = r40.reactions.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+                for (a, b) in r40
+                    .reactions
+                    .iter()
+                    .zip(&r41.reactions)
+                    .chain(r40.cut_multipliers.iter().zip(&r41.cut_multipliers))
+                {
+                    assert!((a - b).abs() < 1e-10 * rscale, "case {case}: reactions {a} vs {b}");
+                }
+                // F_r = -y balances M q_dd - Q on the reference rows with the cut rows' C^T mu:
+                // M_r q_dd + y + C_r^T mu = Q_r.
+                let mq: Vec<f64> =
+                    (0..n).map(|i| (0..n).map(|j| eq.mass[(i, j)] * r41.accelerations[j]).sum()).collect();
+                for (k, &row) in tree.reference_rows().iter().enumerate() {
+                    let cmu: f64 = rows
+                        .iter()
+                        .enumerate()
+                        .map(|(a, &r)| eq.jacobian[(r, row)] * r41.cut_multipliers[a])
+                        .sum();
+                    let residual = mq[row] + r41.reactions[k] + cmu - eq.force[row];
+                    assert!(residual.abs() < 1e-9 * rscale, "case {case} row {row}: {residual}");
+                }
+            }
+        }
+        // The size of eq. 41 does not depend on the elastic coordinates; eq. 40 grows with them.
+        let size = |elastic: usize, formulation| {
+            let model = flexible_tree_model_with(false, false, elastic);
+            let (tree, _) = Tree::new(&model, &model.initial_coordinates).unwrap();
+            TreeSolver::new(&model, &tree, formulation).unwrap().reduced_size()
+        };
+        assert_eq!(size(4, TreeFormulation::Decoupled), size(9, TreeFormulation::Decoupled));
+        assert_eq!(size(9, TreeFormulation::Coupled) - size(4, TreeFormulation::Coupled), 3 * 5);
     }
 
     #[test]

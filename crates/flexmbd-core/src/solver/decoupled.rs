@@ -1,0 +1,684 @@
+//! The loosely coupled (seed eq. 40) and decoupled (seed eq. 41) joint-elastic acceleration
+//! equations of a tree of rigid and deformable bodies in joint plus elastic coordinates.
+//!
+//! With the reference accelerations q_dd_r of all bodies written through the joint and elastic
+//! accelerations (eq. 33/39: q_dd_r = H_pp p_dd + H_pf q_dd_f + gamma_r), the equations of
+//! motion of the bodies (eq. 35), the joint reactions on the reference coordinates F_r with
+//! H_pp^T F_r = 0 and F_f = -H_pf^T F_r (eqs. 36-37) and the cut joints' constraints
+//! C_r q_dd_r + C_f q_dd_f = gamma_c (multipliers mu) form the sparse symmetric system of
+//! eq. 40, unknowns [q_dd_r, q_dd_f, -F_r, p_dd, mu]:
+//!
+//! ```text
+//! [ M_rr   M_rf    I        0      C_r^T ]
+//! [ M_fr   M_ff   -H_pf^T   0      C_f^T ]
+//! [ I     -H_pf    0       -H_pp   0     ]  = [Q_r; Q_f; gamma_r; 0; gamma_c]
+//! [ 0      0      -H_pp^T   0      0     ]
+//! [ C_r    C_f     0        0      0     ]
+//! ```
+//!
+//! M_ff of each deformable body is constant: factorized once, it is the pivot that removes
+//! q_dd_f (eq. 38b, q_dd_f = M_ff^-1 (Q_f - M_fr q_dd_r + H_pf^T (-F_r) - C_f^T mu)) and leaves
+//! eq. 41, whose dimension (2 n_r + n_p + n_c) does not depend on the number of elastic
+//! coordinates. Its blocks are formed without any matrix of that size:
+//!
+//! - H_pf = sum over the deformed joint markers m of D_m S_m, with D_m = dq_r/d(u, theta) of
+//!   the marker (6 columns, from the tree recursion) and S_m = [S_u; S_t] its shape matrix;
+//!   W_m = M_ff^-1 S_m^T and S_m W_m' (6 x 6) are constant and computed once;
+//! - X_b = M_ff^-1 [M_fr | Q_f] per body: 8 solves with the constant factor per evaluation;
+//! - M_rf M_ff^-1 H_pf^T = sum_m (S_m X_b)^T D_m^T, H_pf M_ff^-1 H_pf^T = sum D_m (S_m W_m')
+//!   D_m'^T.
+//!
+//! Departure from the paper: the reduced system is solved by a dense LU of its (small)
+//! coefficient matrix instead of the recursive projection of references 19-21; both are
+//! independent of the number of elastic coordinates, the projection would make the solve
+//! linear in the number of bodies as well. With Euler parameters the reference coordinates
+//! are 7 per body (3 for a point mass) instead of 6, so n_r counts 7 per body; the reaction
+//! component along the Euler parameters (the normalization's) is part of F_r.
+
+use faer::Mat;
+
+use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use super::dense_system::checked_lu;
+use super::recursive::{StructuredState, Tree};
+use super::sparse::{PatternBuilder, SparseLu, SparsePattern};
+use crate::body::marker::MarkerElastic;
+use crate::body::BodyKind;
+use crate::error::{FlexmbdError, Result};
+use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
+use crate::system::{Model, Workspace};
+
+/// Which system gives the joint-coordinate accelerations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TreeFormulation {
+    /// (B^T M B) p_dd = B^T (f - M gamma_B) with B formed explicitly (dense; the strongly
+    /// coupled system).
+    JointSpace,
+    /// Seed eq. 40: the loosely coupled sparse system (sparse LU).
+    Coupled,
+    /// Seed eq. 41: the reduced system after eliminating the elastic accelerations with the
+    /// constant M_ff.
+    Decoupled,
+}
+
+impl TreeFormulation {
+    /// Name in settings and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            TreeFormulation::JointSpace => "joint-space",
+            TreeFormulation::Coupled => "coupled",
+            TreeFormulation::Decoupled => "decoupled",
+        }
+    }
+}
+
+/// Accelerations and reactions from eq. 40 or 41.
+#[derive(Clone, Debug, Default)]
+pub struct TreeAccelerations {
+    /// q_dd of every body (model coordinates).
+    pub accelerations: Vec<f64>,
+    /// Free joint accelerations, then elastic accelerations (the free coordinates' order).
+    pub free_accelerations: Vec<f64>,
+    /// -F_r: the joint reactions on the reference coordinates, with the sign of eq. 40
+    /// (reference rows).
+    pub reactions: Vec<f64>,
+    /// Multipliers of the cut joints' rows.
+    pub cut_multipliers: Vec<f64>,
+}
+
+/// One deformable body of the tree.
+struct ElasticBody {
+    /// First model index of its elastic coordinates.
+    first: usize,
+    /// First index among the free coordinates.
+    free_first: usize,
+    n: usize,
+    /// Position of its reference coordinates among the reference rows.
+    reference: usize,
+    factor: SymmetricFactor,
+    /// Its deformed joint markers: (index in StructuredState::markers, W_m = M_ff^-1 S_m^T
+    /// column-major n x 6, shape).
+    markers: Vec<(usize, Vec<f64>, MarkerElastic)>,
+    /// S_m W_m' (6 x 6, row-major) for each pair of its markers (row-major over the pairs).
+    couplings: Vec<[[f64; 6]; 6]>,
+}
+
+/// S_m x for a column x over the body's elastic coordinates: 6 values.
+fn shape_times(shape: &MarkerElastic, x: &[f64]) -> [f64; 6] {
+    let mut out = [0.0; 6];
+    for (j, &idx) in shape.indices.iter().enumerate() {
+        for c in 0..3 {
+            out[c] += shape.translation.get(c, j) * x[idx];
+            out[3 + c] += shape.rotation.get(c, j) * x[idx];
+        }
+    }
+    out
+}
+
+/// The acceleration solver of a tree in the loosely coupled or decoupled form.
+pub struct TreeSolver {
+    formulation: TreeFormulation,
+    bodies: Vec<ElasticBody>,
+    /// Reference rows (model indices) and, per body, its position among them.
+    rows: Vec<usize>,
+    row_of: Vec<usize>,
+    free_joints: usize,
+    cut_rows: Vec<usize>,
+    /// Eq. 40: pattern and LU (symbolic analysis once).
+    sparse: Option<(SparsePattern, SparseLu, Vec<f64>)>,
+    zero_q: Vec<f64>,
+    zero_lambda: Vec<f64>,
+}
+
+impl std::fmt::Debug for TreeSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "TreeSolver({}, reduced size {})", self.formulation.name(), self.reduced_size())
+    }
+}
+
+fn singular(context: &str, detail: String) -> FlexmbdError {
+    FlexmbdError::SingularMatrix { time: f64::NAN, context: context.to_string(), detail }
+}
+
+impl TreeSolver {
+    /// Factorizes the constant M_ff of every deformable body and the constant products with
+    /// its joint markers' shapes; for eq. 40 also the sparse pattern.
+    pub fn new(model: &Model, tree: &Tree, formulation: TreeFormulation) -> Result<TreeSolver> {
+        let rows = tree.reference_rows().to_vec();
+        let mut row_of = vec![usize::MAX; model.coordinate_count];
+        for (i, &r) in rows.iter().enumerate() {
+            row_of[r] = i;
+        }
+        let deformed = tree.deformed_markers();
+        let mut bodies = Vec::new();
+        for (body, free_first, n) in tree.elastic_blocks() {
+            let BodyKind::Flexible(fb) = &model.bodies[body].kind else {
+                unreachable!("elastic blocks are flexible")
+            };
+            let m = &fb.mass_matrix.matrix;
+            let matrix = CscRef { n, col_ptr: &m.col_ptr, row_idx: &m.row_idx, values: &m.values };
+            let ordering = match (&fb.dof_nodes, &fb.node_positions) {
+                (Some(nodes), Some(positions)) => Ordering::NestedDissection { dof_nodes: nodes, positions },
+                _ => Ordering::Amd,
+            };
+            let item = format!("mass matrix M_ff of body '{}'", model.bodies[body].name);
+            let factor = SymmetricFactor::new(&item, matrix, ordering, FactorKind::Cholesky, 1)?;
+            let mut markers = Vec::new();
+            for (k, &(b, shape)) in deformed.iter().enumerate() {
+                if b != body {
+                    continue;
+                }
+                // W_m = M_ff^-1 S_m^T.
+                let mut w = vec![0.0; 6 * n];
+                for (j, &idx) in shape.indices.iter().enumerate() {
+                    for c in 0..3 {
+                        w[c * n + idx] = shape.translation.get(c, j);
+                        w[(3 + c) * n + idx] = shape.rotation.get(c, j);
+                    }
+                }
+                factor.solve_in_place(&mut w)?;
+                markers.push((k, w, shape.clone()));
+            }
+            let mut couplings = Vec::new();
+            for (_, _, shape) in &markers {
+                for (_, w, _) in &markers {
+                    let mut g = [[0.0; 6]; 6];
+                    for c in 0..6 {
+                        let s = shape_times(shape, &w[c * n..(c + 1) * n]);
+                        for r in 0..6 {
+                            g[r][c] = s[r];
+                        }
+                    }
+                    couplings.push(g);
+                }
+            }
+            let o = model.bodies[body].offset;
+            bodies.push(ElasticBody {
+                first: o + 7,
+                free_first,
+                n,
+                reference: row_of[o],
+                factor,
+                markers,
+                couplings,
+            });
+        }
+        let mut solver = TreeSolver {
+            formulation,
+            bodies,
+            rows,
+            row_of,
+            free_joints: tree.free_joint_count(),
+            cut_rows: tree.cut_rows.clone(),
+            sparse: None,
+            zero_q: vec![0.0; model.coordinate_count],
+            zero_lambda: vec![0.0; model.constraint_count],
+        };
+        if formulation == TreeFormulation::Coupled {
+            let pattern = solver.coupled_pattern(model);
+            let lu = SparseLu::new(&pattern).map_err(|e| singular("eq. 40 (symbolic analysis)", e))?;
+            let values = vec![0.0; pattern.nnz()];
+            solver.sparse = Some((pattern, lu, values));
+        }
+        Ok(solver)
+    }
+
+    /// Dimension of the system solved: 2 n_r + n_p + n_c for eq. 41 (independent of the
+    /// elastic coordinates), plus n_f for eq. 40.
+    pub fn reduced_size(&self) -> usize {
+        let base = 2 * self.rows.len() + self.free_joints + self.cut_rows.len();
+        match self.formulation {
+            TreeFormulation::Coupled => base + self.bodies.iter().map(|b| b.n).sum::<usize>(),
+            _ => base,
+        }
+    }
+
+    /// Position of the elastic unknowns of body `k` in eq. 40 (after q_dd_r).
+    fn elastic_offset(&self, k: usize) -> usize {
+        self.rows.len() + self.bodies[..k].iter().map(|b| b.n).sum::<usize>()
+    }
+
+    /// The sparsity pattern of eq. 40 (structural: every entry that can be non-zero).
+    fn coupled_pattern(&self, model: &Model) -> SparsePattern {
+        let nr = self.rows.len();
+        let nf: usize = self.bodies.iter().map(|b| b.n).sum();
+        let (y0, p0) = (nr + nf, 2 * nr + nf);
+        let c0 = p0 + self.free_joints;
+        let mut pb = PatternBuilder::new(c0 + self.cut_rows.len());
+        // Mass blocks: the pattern of M restricted to each body.
+        let pattern = &model.layout.pattern;
+        let nq = model.coordinate_count;
+        let unknown = |q: usize| -> Option<usize> {
+            if self.row_of[q] != usize::MAX {
+                return Some(self.row_of[q]);
+            }
+            self.bodies.iter().enumerate().find_map(|(k, b)| {
+                (b.first..b.first + b.n).contains(&q).then(|| self.elastic_offset(k) + q - b.first)
+            })
+        };
+        for c in 0..nq {
+            let Some(uc) = unknown(c) else { continue };
+            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                let r = pattern.row_idx[k];
+                if r < nq {
+                    if let Some(ur) = unknown(r) {
+                        pb.add_entry(ur, uc);
+                    }
+                } else if let Some(a) = self.cut_rows.iter().position(|&cr| cr == r - nq) {
+                    pb.add_entry(c0 + a, uc);
+                    pb.add_entry(uc, c0 + a);
+                }
+            }
+        }
+        for i in 0..nr {
+            pb.add_entry(i, y0 + i);
+            pb.add_entry(y0 + i, i);
+        }
+        // H_pp (dense over the reference rows) and H_pf (the rows the markers move, the
+        // columns of their shapes).
+        let joints: Vec<usize> = (p0..p0 + self.free_joints).collect();
+        let y_rows: Vec<usize> = (y0..y0 + nr).collect();
+        pb.add_block(&y_rows, &joints);
+        pb.add_block(&joints, &y_rows);
+        for (k, b) in self.bodies.iter().enumerate() {
+            for (_, _, shape) in &b.markers {
+                let cols: Vec<usize> = shape.indices.iter().map(|&i| self.elastic_offset(k) + i).collect();
+                pb.add_block(&y_rows, &cols);
+                pb.add_block(&cols, &y_rows);
+            }
+        }
+        pb.build()
+    }
+
+    /// The accelerations at (time, q, q_dot) of the tree state `st`, with `ws` a workspace
+    /// of `model` for evaluations.
+    pub fn accelerations(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        st: &StructuredState,
+        time: f64,
+        discrete: &[f64],
+    ) -> Result<TreeAccelerations> {
+        let nq = model.coordinate_count;
+        let view = StateView {
+            time,
+            q: &st.coordinates,
+            qd: &st.velocities,
+            qdd: &self.zero_q,
+            lambda: &self.zero_lambda,
+            discrete,
+        };
+        assemble(model, view, ws, Some(MatrixCoefficients::ACCELERATION))?;
+        let nc = self.cut_rows.len();
+        let mut gamma_c = vec![0.0; nc];
+        if nc > 0 {
+            let mut rate = vec![0.0; model.constraint_count];
+            let mut gamma = vec![0.0; model.constraint_count];
+            constraint_time_terms(model, view, ws, &mut rate, Some(&mut gamma))?;
+            for (a, &r) in self.cut_rows.iter().enumerate() {
+                gamma_c[a] = gamma[r];
+            }
+        }
+        let force: Vec<f64> = ws.residual[..nq].iter().map(|r| -r).collect();
+        match self.formulation {
+            TreeFormulation::Coupled => self.coupled(model, ws, st, &force, &gamma_c),
+            _ => self.decoupled(model, ws, st, &force, &gamma_c),
+        }
+    }
+
+    /// M_rr (reference rows x reference rows, block diagonal), M_fr per body (n x 7,
+    /// column-major) and the cut rows' Jacobian C (n_c x model coordinates, by entries) from
+    /// the assembled values.
+    #[allow(clippy::type_complexity)]
+    fn blocks(&self, model: &Model, ws: &Workspace) -> (Mat<f64>, Vec<Vec<f64>>, Vec<Vec<(usize, f64)>>) {
+        let nq = model.coordinate_count;
+        let nr = self.rows.len();
+        let pattern = &model.layout.pattern;
+        let mut m_rr = Mat::zeros(nr, nr);
+        let mut m_fr: Vec<Vec<f64>> = self.bodies.iter().map(|b| vec![0.0; 7 * b.n]).collect();
+        let mut cut: Vec<Vec<(usize, f64)>> = vec![Vec::new(); self.cut_rows.len()];
+        let cut_of = |r: usize| self.cut_rows.iter().position(|&c| c == r);
+        for (i, &c) in self.rows.iter().enumerate() {
+            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                let r = pattern.row_idx[k];
+                let v = ws.values[k];
+                if r >= nq {
+                    if let Some(a) = cut_of(r - nq) {
+                        cut[a].push((c, v));
+                    }
+                } else if self.row_of[r] != usize::MAX {
+                    m_rr[(self.row_of[r], i)] = v;
+                } else if let Some(bk) =
+                    self.bodies.iter().position(|b| (b.first..b.first + b.n).contains(&r))
+                {
+                    // The body's own reference columns (entries of other bodies' columns are
+                    // couplings of the iteration matrix, zero in the mass matrix).
+                    let b = &self.bodies[bk];
+                    if (b.reference..b.reference + 7).contains(&i) {
+                        m_fr[bk][(i - b.reference) * b.n + r - b.first] = v;
+                    }
+                }
+            }
+        }
+        if !self.cut_rows.is_empty() {
+            for b in &self.bodies {
+                for c in b.first..b.first + b.n {
+                    for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                        let r = pattern.row_idx[k];
+                        if r >= nq {
+                            if let Some(a) = cut_of(r - nq) {
+                                cut[a].push((c, ws.values[k]));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (m_rr, m_fr, cut)
+    }
+
+    /// Eq. 41.
+    fn decoupled(
+        &mut self,
+        model: &Model,
+        ws: &Workspace,
+        st: &StructuredState,
+        force: &[f64],
+        gamma_c: &[f64],
+    ) -> Result<TreeAccelerations> {
+        let nr = self.rows.len();
+        let np = self.free_joints;
+        let nc = self.cut_rows.len();
+        let (y0, p0, c0) = (nr, 2 * nr, 2 * nr + np);
+        let size = c0 + nc;
+        let (m_rr, m_fr, cut) = self.blocks(model, ws);
+        let mut a = Mat::<f64>::zeros(size, size);
+        let mut rhs = vec![0.0; size];
+        for i in 0..nr {
+            for j in 0..nr {
+                a[(i, j)] = m_rr[(i, j)];
+            }
+            a[(i, y0 + i)] = 1.0;
+            a[(y0 + i, i)] = 1.0;
+            rhs[i] = force[self.rows[i]];
+            rhs[y0 + i] = st.gamma[self.rows[i]];
+        }
+        for i in 0..nr {
+            for k in 0..np {
+                a[(y0 + i, p0 + k)] = -st.joint_influence[(i, k)];
+                a[(p0 + k, y0 + i)] = -st.joint_influence[(i, k)];
+            }
+        }
+        // Cut rows: C_r.
+        for (c, entries) in cut.iter().enumerate() {
+            for &(q, v) in entries {
+                let i = self.row_of[q];
+                if i != usize::MAX {
+                    a[(c0 + c, i)] += v;
+                    a[(i, c0 + c)] += v;
+                }
+            }
+            rhs[c0 + c] = gamma_c[c];
+        }
+        // Per deformable body: X = M_ff^-1 [M_fr | Q_f] and the cut rows' V = C_f X.
+        let mut xs = Vec::with_capacity(self.bodies.len());
+        let mut cut_solves = Vec::with_capacity(self.bodies.len());
+        for (bk, b) in self.bodies.iter().enumerate() {
+            let n = b.n;
+            let mut x = vec![0.0; 8 * n];
+            x[..7 * n].copy_from_slice(&m_fr[bk]);
+            x[7 * n..].copy_from_slice(&force[b.first..b.first + n]);
+            b.factor.solve_in_place(&mut x)?;
+            let r0 = b.reference;
+            // Rows of the body's reference coordinates: M_rr - M_rf X, Q_r - M_rf M_ff^-1 Q_f.
+            for i in 0..7 {
+                let mi = &m_fr[bk][i * n..(i + 1) * n];
+                for j in 0..8 {
+                    let xj = &x[j * n..(j + 1) * n];
+                    let v: f64 = mi.iter().zip(xj).map(|(p, q)| p * q).sum();
+                    if j < 7 {
+                        a[(r0 + i, r0 + j)] -= v;
+                    } else {
+                        rhs[r0 + i] -= v;
+                    }
+                }
+            }
+            // Markers: E_m = S_m X (6 x 8).
+            for (mk, (index, _, shape)) in b.markers.iter().enumerate() {
+                let d = &st.markers[*index];
+                let e: Vec<[f64; 6]> = (0..8).map(|j| shape_times(shape, &x[j * n..(j + 1) * n])).collect();
+                // M_rf M_ff^-1 H_pf^T (rows of the body) = E[:, :7]^T D^T, and its transpose.
+                for i in 0..7 {
+                    for r in 0..nr {
+                        let v: f64 = (0..6).map(|c| e[i][c] * d[(r, c)]).sum();
+                        a[(r0 + i, y0 + r)] += v;
+                        a[(y0 + r, r0 + i)] += v;
+                    }
+                }
+                // H_pf M_ff^-1 Q_f.
+                for r in 0..nr {
+                    rhs[y0 + r] += (0..6).map(|c| d[(r, c)] * e[7][c]).sum::<f64>();
+                }
+                // -H_pf M_ff^-1 H_pf^T over the pairs of the body's markers.
+                for (mk2, (index2, _, _)) in b.markers.iter().enumerate() {
+                    let d2 = &st.markers[*index2];
+                    let g = &b.couplings[mk * b.markers.len() + mk2];
+                    for r in 0..nr {
+                        let dg: [f64; 6] =
+                            std::array::from_fn(|c2| (0..6).map(|c| d[(r, c)] * g[c][c2]).sum());
+                        for s in 0..nr {
+                            a[(y0 + r, y0 + s)] -= (0..6).map(|c2| dg[c2] * d2[(s, c2)]).sum::<f64>();
+                        }
+                    }
+                }
+            }
+            // Cut rows through the elastic coordinates: C_f M_ff^-1 [.] terms.
+            let mut cf_solves: Vec<Vec<f64>> = Vec::new();
+            if nc > 0 {
+                let columns: Vec<Vec<(usize, f64)>> = cut
+                    .iter()
+                    .map(|e| {
+                        e.iter()
+                            .filter(|(q, _)| (b.first..b.first + n).contains(q))
+                            .map(|&(q, v)| (q - b.first, v))
+                            .collect()
+                    })
+                    .collect();
+                for (c, col) in columns.iter().enumerate() {
+                    if col.is_empty() {
+                        cf_solves.push(Vec::new());
+                        continue;
+                    }
+                    // V = C_f X (row c): 8 values.
+                    let v: Vec<f64> =
+                        (0..8).map(|j| col.iter().map(|&(f, w)| w * x[j * n + f]).sum::<f64>()).collect();
+                    for i in 0..7 {
+                        a[(c0 + c, r0 + i)] -= v[i];
+                        a[(r0 + i, c0 + c)] -= v[i];
+                    }
+                    rhs[c0 + c] -= v[7];
+                    // C_f W_m D_m^T (the y columns) and its transpose.
+                    for (index, w, _) in &b.markers {
+                        let d = &st.markers[*index];
+                        let cw: Vec<f64> = (0..6)
+                            .map(|k| col.iter().map(|&(f, wv)| wv * w[k * n + f]).sum::<f64>())
+                            .collect();
+                        for r in 0..nr {
+                            let val: f64 = (0..6).map(|k| cw[k] * d[(r, k)]).sum();
+                            a[(c0 + c, y0 + r)] += val;
+                            a[(y0 + r, c0 + c)] += val;
+                        }
+                    }
+                    // M_ff^-1 C_f^T (column c).
+                    let mut z = vec![0.0; n];
+                    for &(f, w) in col {
+                        z[f] += w;
+                    }
+                    b.factor.solve_in_place(&mut z)?;
+                    cf_solves.push(z);
+                }
+                // -C_f M_ff^-1 C_f^T.
+                for (c, z) in cf_solves.iter().enumerate() {
+                    if z.is_empty() {
+                        continue;
+                    }
+                    for (c2, col) in columns.iter().enumerate() {
+                        a[(c0 + c2, c0 + c)] -= col.iter().map(|&(f, w)| w * z[f]).sum::<f64>();
+                    }
+                }
+            }
+            xs.push(x);
+            cut_solves.push(cf_solves);
+        }
+        let lu = checked_lu(&a, "the decoupled joint-elastic system (seed eq. 41)")
+            .map_err(|e| singular("joint-coordinate accelerations (seed eq. 41)", e))?;
+        let mut sol = Mat::from_fn(size, 1, |i, _| rhs[i]);
+        faer::linalg::solvers::Solve::solve_in_place(&lu, &mut sol);
+        let z: Vec<f64> = (0..size).map(|i| sol[(i, 0)]).collect();
+        // Elastic accelerations (eq. 38b).
+        let mut qdd = st.gamma.clone();
+        let mut free = vec![0.0; np + self.bodies.iter().map(|b| b.n).sum::<usize>()];
+        free[..np].copy_from_slice(&z[p0..p0 + np]);
+        for i in 0..nr {
+            qdd[self.rows[i]] = z[i];
+        }
+        for (bk, b) in self.bodies.iter().enumerate() {
+            let n = b.n;
+            let x = &xs[bk];
+            let r0 = b.reference;
+            let mut f = x[7 * n..].to_vec();
+            for j in 0..7 {
+                let s = z[r0 + j];
+                for (fi, xj) in f.iter_mut().zip(&x[j * n..(j + 1) * n]) {
+                    *fi -= xj * s;
+                }
+            }
+            for (index, w, _) in &b.markers {
+                let d = &st.markers[*index];
+                for k in 0..6 {
+                    let s: f64 = (0..nr).map(|r| d[(r, k)] * z[y0 + r]).sum();
+                    for (fi, wk) in f.iter_mut().zip(&w[k * n..(k + 1) * n]) {
+                        *fi += wk * s;
+                    }
+                }
+            }
+            for (c, zc) in cut_solves[bk].iter().enumerate() {
+                if zc.is_empty() {
+                    continue;
+                }
+                let mu = z[c0 + c];
+                for (fi, v) in f.iter_mut().zip(zc) {
+                    *fi -= v * mu;
+                }
+            }
+            qdd[b.first..b.first + n].copy_from_slice(&f);
+            free[b.free_first..b.free_first + n].copy_from_slice(&f);
+        }
+        Ok(TreeAccelerations {
+            accelerations: qdd,
+            free_accelerations: free,
+            reactions: z[y0..y0 + nr].to_vec(),
+            cut_multipliers: z[c0..c0 + nc].to_vec(),
+        })
+    }
+
+    /// Eq. 40 (sparse LU).
+    fn coupled(
+        &mut self,
+        model: &Model,
+        ws: &Workspace,
+        st: &StructuredState,
+        force: &[f64],
+        gamma_c: &[f64],
+    ) -> Result<TreeAccelerations> {
+        let nq = model.coordinate_count;
+        let nr = self.rows.len();
+        let nf: usize = self.bodies.iter().map(|b| b.n).sum();
+        let (y0, p0) = (nr + nf, 2 * nr + nf);
+        let np = self.free_joints;
+        let c0 = p0 + np;
+        let nc = self.cut_rows.len();
+        let offsets: Vec<usize> = (0..self.bodies.len()).map(|k| self.elastic_offset(k)).collect();
+        let unknown = |q: usize| -> Option<usize> {
+            if self.row_of[q] != usize::MAX {
+                return Some(self.row_of[q]);
+            }
+            self.bodies
+                .iter()
+                .zip(&offsets)
+                .find_map(|(b, &o)| (b.first..b.first + b.n).contains(&q).then(|| o + q - b.first))
+        };
+        let mut rhs = vec![0.0; c0 + nc];
+        let (pattern, lu, values) = self.sparse.as_mut().expect("eq. 40 pattern");
+        values.iter_mut().for_each(|v| *v = 0.0);
+        let mp = &model.layout.pattern;
+        for c in 0..nq {
+            let Some(uc) = unknown(c) else { continue };
+            rhs[uc] = force[c];
+            for k in mp.col_ptr[c]..mp.col_ptr[c + 1] {
+                let r = mp.row_idx[k];
+                let v = ws.values[k];
+                if r < nq {
+                    if let Some(ur) = unknown(r) {
+                        values[pattern.index(ur, uc)] += v;
+                    }
+                } else if let Some(a) = self.cut_rows.iter().position(|&cr| cr == r - nq) {
+                    values[pattern.index(c0 + a, uc)] += v;
+                    values[pattern.index(uc, c0 + a)] += v;
+                }
+            }
+        }
+        for i in 0..nr {
+            values[pattern.index(i, y0 + i)] += 1.0;
+            values[pattern.index(y0 + i, i)] += 1.0;
+            rhs[y0 + i] = st.gamma[self.rows[i]];
+            for k in 0..np {
+                let h = st.joint_influence[(i, k)];
+                values[pattern.index(y0 + i, p0 + k)] -= h;
+                values[pattern.index(p0 + k, y0 + i)] -= h;
+            }
+        }
+        // -H_pf = -sum D_m S_m in the y rows, and its transpose.
+        for (b, &o) in self.bodies.iter().zip(&offsets) {
+            for (index, _, shape) in &b.markers {
+                let d = &st.markers[*index];
+                for (j, &idx) in shape.indices.iter().enumerate() {
+                    let col = o + idx;
+                    for i in 0..nr {
+                        let h: f64 = (0..3)
+                            .map(|c| {
+                                d[(i, c)] * shape.translation.get(c, j)
+                                    + d[(i, 3 + c)] * shape.rotation.get(c, j)
+                            })
+                            .sum();
+                        if h != 0.0 {
+                            values[pattern.index(y0 + i, col)] -= h;
+                            values[pattern.index(col, y0 + i)] -= h;
+                        }
+                    }
+                }
+            }
+        }
+        rhs[c0..c0 + nc].copy_from_slice(gamma_c);
+        lu.factorize(values)
+            .map_err(|e| singular("the loosely coupled joint-elastic system (seed eq. 40)", e))?;
+        lu.solve_in_place(&mut rhs)
+            .map_err(|e| singular("the loosely coupled joint-elastic system (seed eq. 40)", e))?;
+        let mut qdd = st.gamma.clone();
+        let mut free = vec![0.0; np + nf];
+        free[..np].copy_from_slice(&rhs[p0..p0 + np]);
+        for i in 0..nr {
+            qdd[self.rows[i]] = rhs[i];
+        }
+        for (b, &o) in self.bodies.iter().zip(&offsets) {
+            qdd[b.first..b.first + b.n].copy_from_slice(&rhs[o..o + b.n]);
+            free[b.free_first..b.free_first + b.n].copy_from_slice(&rhs[o..o + b.n]);
+        }
+        Ok(TreeAccelerations {
+            accelerations: qdd,
+            free_accelerations: free,
+            reactions: rhs[y0..y0 + nr].to_vec(),
+            cut_multipliers: rhs[c0..c0 + nc].to_vec(),
+        })
+    }
+}
