@@ -29,6 +29,10 @@ pub struct Statistics {
     pub max_step_size_used: f64,
     /// Evaluations of the accelerations (explicit integrators).
     pub function_evaluations: usize,
+    /// Joint coordinates: the dimension of the acceleration system solved per evaluation
+    /// (joint space: the free coordinates plus the cut rows; seed eq. 40 or 41: see
+    /// `TreeSolver::reduced_size`); 0 otherwise.
+    pub reduced_system_size: usize,
 }
 
 /// Something that happened during a run and is reported with the results: a repartition of

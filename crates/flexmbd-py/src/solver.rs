@@ -5,6 +5,7 @@
 use std::time::{Duration, Instant};
 
 use flexmbd_core::output::Output;
+use flexmbd_core::solver::decoupled::TreeFormulation;
 use flexmbd_core::solver::dense_system::Formulation;
 use flexmbd_core::solver::explicit::{ExplicitMethod, ExplicitSettings, Strategy};
 use flexmbd_core::solver::initial::InitialSettings;
@@ -254,10 +255,16 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   drift unless `baumgarte=(alpha, beta)` stabilizes them), "partitioning" (Wehage:
 ///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
 ///   "projection" (integrate all, then project onto the position and velocity constraints),
-///   or "joint-coordinates" (seed section 5: integrate the joint coordinates of a tree of rigid
-///   bodies with revolute, prismatic, cylindrical, fixed and universal joints and drivers on them, loops
-///   closed by cut joints, so far; the tree joints hold exactly).
-/// - `formulation`: "augmented" (seed eq. 26) or "embedding" (seed eqs. 27-30).
+///   or "joint-coordinates" (seed section 5: integrate the joint and elastic coordinates of a
+///   tree of rigid and deformable bodies and point masses with revolute, prismatic,
+///   cylindrical, fixed, universal, spherical and free joints and drivers on them, loops closed
+///   by cut joints; the tree joints hold exactly).
+/// - `formulation`: "augmented" (seed eq. 26) or "embedding" (seed eqs. 27-30); with
+///   "joint-coordinates": "joint-space" (the default there: (B^T M B) p_dd = B^T (f - M
+///   gamma_B) with B formed, dense), "coupled" (the loosely coupled sparse system of seed eq.
+///   40) or "decoupled" (seed eq. 41: the elastic accelerations eliminated with the constant
+///   M_ff; its size, `statistics["reduced_system_size"]`, does not depend on the number of
+///   elastic coordinates). "coupled" and "decoupled" have no model size limit.
 /// - `partition`: "lu" (full pivoting), "qr" (column pivoting) or "svd": how the independent
 ///   coordinates are chosen; `independent`: coordinate indices to use instead. The
 ///   coordinates are repartitioned (an event) when the decomposition proposes, after a step,
@@ -403,14 +410,33 @@ impl ExplicitSolver {
             &self.strategy,
             &["integrate-all", "partitioning", "projection", "joint-coordinates"],
         )?];
-        let formulation = [Formulation::Augmented, Formulation::Embedding]
-            [choice("formulation", &self.formulation, &["augmented", "embedding"])?];
+        let index = choice(
+            "formulation",
+            &self.formulation,
+            &["augmented", "embedding", "joint-space", "coupled", "decoupled"],
+        )?;
+        let formulation = if index == 1 { Formulation::Embedding } else { Formulation::Augmented };
+        let tree_formulation = match index {
+            3 => TreeFormulation::Coupled,
+            4 => TreeFormulation::Decoupled,
+            _ => TreeFormulation::JointSpace,
+        };
+        if index >= 2 && strategy != Strategy::JointCoordinates {
+            return Err(invalid(
+                item,
+                format!(
+                    "formulation '{}' belongs to strategy 'joint-coordinates'; the others take 'augmented' or 'embedding'",
+                    self.formulation
+                ),
+            ));
+        }
         let partition = [PartitionMethod::Lu, PartitionMethod::Qr, PartitionMethod::Svd]
             [choice("partition", &self.partition, &["lu", "qr", "svd"])?];
         let explicit = ExplicitSettings {
             method,
             strategy,
             formulation,
+            tree_formulation,
             partition,
             independent: self.independent.clone(),
             baumgarte: self.baumgarte,
@@ -466,6 +492,7 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     s.set_item("min_step_size", if st.steps > 0 { st.min_step_size_used } else { f64::NAN })?;
     s.set_item("max_step_size", if st.steps > 0 { st.max_step_size_used } else { f64::NAN })?;
     s.set_item("function_evaluations", st.function_evaluations)?;
+    s.set_item("reduced_system_size", st.reduced_system_size)?;
     d.set_item("statistics", s)?;
     let events = PyList::empty(py);
     for e in &out.events {

@@ -38,7 +38,8 @@
 use faer::Mat;
 
 use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
-use super::dense_system::checked_lu;
+use super::dense_system::{checked_lu_with, SINGULAR_VALUE_CUTOFF};
+use super::partition::minimum_norm_solve;
 use super::recursive::{StructuredState, Tree};
 use super::sparse::{PatternBuilder, SparseLu, SparsePattern};
 use crate::body::marker::MarkerElastic;
@@ -46,6 +47,9 @@ use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
 use crate::system::{Model, Workspace};
+
+/// Smallest ratio of LU pivots of the tree block of eq. 41 taken as regular.
+const TREE_PIVOT_RATIO: f64 = 1e-14;
 
 /// Which system gives the joint-coordinate accelerations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -530,11 +534,7 @@ impl TreeSolver {
             xs.push(x);
             cut_solves.push(cf_solves);
         }
-        let lu = checked_lu(&a, "the decoupled joint-elastic system (seed eq. 41)")
-            .map_err(|e| singular("joint-coordinate accelerations (seed eq. 41)", e))?;
-        let mut sol = Mat::from_fn(size, 1, |i, _| rhs[i]);
-        faer::linalg::solvers::Solve::solve_in_place(&lu, &mut sol);
-        let z: Vec<f64> = (0..size).map(|i| sol[(i, 0)]).collect();
+        let z = Self::solve_with_cut_rows(&a, &rhs, c0)?;
         // Elastic accelerations (eq. 38b).
         let mut qdd = st.gamma.clone();
         let mut free = vec![0.0; np + self.bodies.iter().map(|b| b.n).sum::<usize>()];
@@ -580,6 +580,40 @@ impl TreeSolver {
             reactions: z[y0..y0 + nr].to_vec(),
             cut_multipliers: z[c0..c0 + nc].to_vec(),
         })
+    }
+
+    /// Solves the reduced system `a z = rhs` whose rows from `c0` on are the cut rows: LU of
+    /// the tree block A_0 (regular), then the cut multipliers from their Schur complement
+    /// S = E A_0^-1 E^T - D by a truncated SVD: at a singular configuration of a loop the cut
+    /// rows become dependent and S singular, and the minimum-norm multipliers keep the
+    /// accelerations (the joint-space solver's null-space method does the same with C B).
+    fn solve_with_cut_rows(a: &Mat<f64>, rhs: &[f64], c0: usize) -> Result<Vec<f64>> {
+        let size = rhs.len();
+        let nc = size - c0;
+        let context = "joint-coordinate accelerations (seed eq. 41)";
+        let a0 = a.submatrix(0, 0, c0, c0).to_owned();
+        // The tree block is regular but can be badly scaled (a slender link keeps little
+        // reference inertia about its axis once its elastic coordinates are eliminated): only
+        // pivots at round-off count as singular.
+        let lu = checked_lu_with(&a0, "the decoupled joint-elastic system (seed eq. 41)", TREE_PIVOT_RATIO)
+            .map_err(|e| singular(context, e))?;
+        let mut y = Mat::from_fn(c0, 1 + nc, |i, j| if j == 0 { rhs[i] } else { a[(i, c0 + j - 1)] });
+        faer::linalg::solvers::Solve::solve_in_place(&lu, &mut y);
+        let mut z: Vec<f64> = (0..c0).map(|i| y[(i, 0)]).collect();
+        if nc > 0 {
+            let s = Mat::from_fn(nc, nc, |r, c| {
+                (0..c0).map(|k| a[(c0 + r, k)] * y[(k, 1 + c)]).sum::<f64>() - a[(c0 + r, c0 + c)]
+            });
+            let g: Vec<f64> = (0..nc)
+                .map(|r| (0..c0).map(|k| a[(c0 + r, k)] * y[(k, 0)]).sum::<f64>() - rhs[c0 + r])
+                .collect();
+            let mu = minimum_norm_solve(s.as_ref(), &g, SINGULAR_VALUE_CUTOFF);
+            for (i, zi) in z.iter_mut().enumerate() {
+                *zi -= (0..nc).map(|c| y[(i, 1 + c)] * mu[c]).sum::<f64>();
+            }
+            z.extend(mu);
+        }
+        Ok(z)
     }
 
     /// Eq. 40 (sparse LU).

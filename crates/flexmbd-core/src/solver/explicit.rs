@@ -23,6 +23,7 @@
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 
+use super::decoupled::{TreeAccelerations, TreeFormulation, TreeSolver};
 use super::dense_system::{
     checked_lu, dense_initial_conditions, worst, DenseEquations, Formulation, Level, SINGULAR_VALUE_CUTOFF,
 };
@@ -30,7 +31,7 @@ use super::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
     PartitionMethod,
 };
-use super::recursive::{constrained_joint_accelerations, joint_accelerations, Tree};
+use super::recursive::{constrained_joint_accelerations, joint_accelerations, StructuredState, Tree};
 use super::settings::SimulationSettings;
 use super::simulate::{update_discrete, OutputClock, Progress};
 use crate::error::{FlexmbdError, Result};
@@ -94,6 +95,8 @@ pub struct ExplicitSettings {
     pub strategy: Strategy,
     /// How the accelerations are solved for.
     pub formulation: Formulation,
+    /// Joint coordinates: which system gives the accelerations (B^T M B, seed eq. 40 or 41).
+    pub tree_formulation: TreeFormulation,
     /// Decomposition that chooses the partition.
     pub partition: PartitionMethod,
     /// Independent coordinates given by the user (indices); None: chosen by `partition`.
@@ -127,6 +130,7 @@ impl Default for ExplicitSettings {
             method: ExplicitMethod::Dopri5,
             strategy: Strategy::CoordinatePartitioning,
             formulation: Formulation::Augmented,
+            tree_formulation: TreeFormulation::JointSpace,
             partition: PartitionMethod::Lu,
             independent: None,
             baumgarte: None,
@@ -148,12 +152,23 @@ impl ExplicitSettings {
         let bad = |message: String| {
             Err(FlexmbdError::InvalidParameter { item: "explicit solver settings".to_string(), message })
         };
-        if model.coordinate_count > EXPLICIT_COORDINATE_LIMIT {
+        let structured = self.strategy == Strategy::JointCoordinates
+            && self.tree_formulation != TreeFormulation::JointSpace;
+        if self.tree_formulation != TreeFormulation::JointSpace && self.strategy != Strategy::JointCoordinates
+        {
+            return bad(format!(
+                "the '{}' formulation is one of the joint-coordinate strategy, not of '{}'",
+                self.tree_formulation.name(),
+                self.strategy.name()
+            ));
+        }
+        if model.coordinate_count > EXPLICIT_COORDINATE_LIMIT && !structured {
             let largest = model.bodies.iter().max_by_key(|b| b.dofs.len()).map(|b| b.name.clone());
             return bad(format!(
                 "the explicit solvers use dense linear algebra and support models of up to \
                  {EXPLICIT_COORDINATE_LIMIT} coordinates; this model has {} (largest body '{}'). \
-                 Use generalized-alpha, whose sparse and condensed solves handle large deformable bodies",
+                 Use generalized-alpha, whose sparse and condensed solves handle large deformable bodies, \
+                 or joint coordinates with the 'coupled' or 'decoupled' formulation (trees)",
                 model.coordinate_count,
                 largest.unwrap_or_default()
             ));
@@ -243,6 +258,11 @@ struct Engine<'a> {
     pd: Vec<f64>,
     pdd: Vec<f64>,
     gamma_b: Vec<f64>,
+    /// Joint coordinates by seed eq. 40 or 41: the solver, the tree state with the influence
+    /// coefficients in factored form, and the last reactions -F_r and cut multipliers.
+    tree_solver: Option<TreeSolver>,
+    structured: Option<StructuredState>,
+    tree_reactions: TreeAccelerations,
     /// Velocity influence coefficients of the free joint coordinates at p.
     influence: Mat<f64>,
 }
@@ -263,6 +283,21 @@ impl<'a> Engine<'a> {
 
     /// Accelerations at (time, self.q, self.qd) into self.qdd.
     fn accelerations(&mut self, time: f64) -> Result<()> {
+        if let (Some(solver), Some(st)) = (self.tree_solver.as_mut(), self.structured.as_ref()) {
+            self.evaluations += 1;
+            let r = solver.accelerations(self.model, &mut self.ws, st, time, &self.discrete).map_err(
+                |e| match e {
+                    FlexmbdError::SingularMatrix { context, detail, .. } => {
+                        FlexmbdError::SingularMatrix { time, context, detail }
+                    }
+                    other => other,
+                },
+            )?;
+            self.qdd.copy_from_slice(&r.accelerations);
+            self.pdd.copy_from_slice(&r.free_accelerations);
+            self.tree_reactions = r;
+            return Ok(());
+        }
         self.evaluate(time, Level::Acceleration)?;
         self.evaluations += 1;
         if let Some(tree) = &self.tree {
@@ -321,6 +356,44 @@ impl<'a> Engine<'a> {
 
     /// Multipliers consistent with self.qdd (after `accelerations`).
     fn multipliers(&self, time: f64, lambda: &mut [f64]) -> Result<()> {
+        if let (Some(tree), Some(_)) = (&self.tree, &self.tree_solver) {
+            // The reactions on the reference coordinates, -F_r = C_r^T lambda over the tree
+            // joints' and normalizations' rows (from the assembly of the last evaluation);
+            // the cut rows' multipliers come from the solve.
+            let nq = self.q.len();
+            let rows = tree.reference_rows();
+            let mut row_of = vec![usize::MAX; nq];
+            for (i, &r) in rows.iter().enumerate() {
+                row_of[r] = i;
+            }
+            let kept: Vec<usize> =
+                (0..self.model.constraint_count).filter(|r| !tree.cut_rows.contains(r)).collect();
+            let mut position = vec![usize::MAX; self.model.constraint_count];
+            for (a, &r) in kept.iter().enumerate() {
+                position[r] = a;
+            }
+            let mut ct = Mat::<f64>::zeros(rows.len(), kept.len());
+            let pattern = &self.model.layout.pattern;
+            for (i, &c) in rows.iter().enumerate() {
+                for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                    let r = pattern.row_idx[k];
+                    if r >= nq && position[r - nq] != usize::MAX {
+                        ct[(i, position[r - nq])] = self.ws.values[k];
+                    }
+                }
+            }
+            let solution =
+                minimum_norm_solve(ct.as_ref(), &self.tree_reactions.reactions, SINGULAR_VALUE_CUTOFF);
+            lambda.iter_mut().for_each(|x| *x = 0.0);
+            for (a, &r) in kept.iter().enumerate() {
+                lambda[r] = solution[a];
+            }
+            for (a, &r) in tree.cut_rows.iter().enumerate() {
+                lambda[r] = self.tree_reactions.cut_multipliers[a];
+            }
+            let _ = time;
+            return Ok(());
+        }
         if self.tree.is_some() {
             // C_q^T lambda = f - M q_dd over all rows (the joint reactions, eliminated from the
             // joint-coordinate equations, recovered here).
@@ -446,6 +519,19 @@ impl<'a> Engine<'a> {
 
     /// Joint coordinates: the body state (q, q_dot, gamma_B and B) from self.p and self.pd.
     fn update_bodies(&mut self, time: f64) -> Result<()> {
+        if let (Some(tree), Some(_)) = (&self.tree, &self.tree_solver) {
+            let st = tree.structured(self.model, time, &self.p, &self.pd)?;
+            self.q.copy_from_slice(&st.coordinates);
+            self.qd.copy_from_slice(&st.velocities);
+            self.gamma_b.copy_from_slice(&st.gamma);
+            self.structured = Some(st);
+            return Ok(());
+        }
+        self.update_bodies_with_influence(time)
+    }
+
+    /// Joint coordinates: the body state with the dense influence coefficients B.
+    fn update_bodies_with_influence(&mut self, time: f64) -> Result<()> {
         if let Some(tree) = &self.tree {
             let state = tree.evaluate(self.model, time, &self.p, &self.pd)?;
             self.q = state.coordinates;
@@ -518,7 +604,7 @@ impl<'a> Engine<'a> {
         let mut iterations = 0;
         let mut previous = f64::INFINITY;
         loop {
-            self.update_bodies(time)?;
+            self.update_bodies_with_influence(time)?;
             self.evaluate(time, Level::Velocity)?;
             let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
@@ -914,19 +1000,25 @@ pub fn run(
         pdd: Vec::new(),
         gamma_b: vec![0.0; n],
         influence: Mat::zeros(0, 0),
+        tree_solver: None,
+        structured: None,
+        tree_reactions: TreeAccelerations::default(),
     };
     if explicit.strategy == Strategy::JointCoordinates {
         // The tree and the joint coordinates of the consistent initial state; the body state is
         // then recomputed from them (it satisfies the joints exactly).
         let (tree, p0) = Tree::new(model, &state.coordinates)?;
-        // Free joint rates from q_dot = B_free p_dot + (the prescribed part).
-        let prescribed = tree.evaluate(model, t0, &p0, &vec![0.0; p0.len()])?;
-        let rest: Vec<f64> =
-            state.velocities.iter().zip(&prescribed.velocities).map(|(v, w)| v - w).collect();
-        let pd0 = minimum_norm_solve(prescribed.influence.as_ref(), &rest, 1e-12);
+        let pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
+        if explicit.tree_formulation != TreeFormulation::JointSpace {
+            engine.tree_solver = Some(TreeSolver::new(model, &tree, explicit.tree_formulation)?);
+        }
         engine.pdd = vec![0.0; p0.len()];
         engine.p = p0;
         engine.pd = pd0;
+        output.statistics.reduced_system_size = match &engine.tree_solver {
+            Some(solver) => solver.reduced_size(),
+            None => tree.free_count() + tree.cut_rows.len(),
+        };
         engine.tree = Some(tree);
         engine.update_bodies(t0)?;
         state.coordinates.copy_from_slice(&engine.q);

@@ -616,6 +616,38 @@ impl Tree {
         Ok(StructuredState { coordinates, velocities, gamma, joint_influence, markers })
     }
 
+    /// The free rates p_dot whose body velocities are `qd` (which must be consistent with the
+    /// tree joints and drivers at `time`): the elastic rates are entries of q_dot; the joint
+    /// rates solve H_pp p_dot_j = q_dot_r - H_pf qf_dot - (the prescribed part), a
+    /// least-squares problem of the reference rows' size.
+    pub fn initial_rates(&self, model: &Model, time: f64, p: &[f64], qd: &[f64]) -> Result<Vec<f64>> {
+        let st = self.structured(model, time, p, &vec![0.0; p.len()])?;
+        let nj = self.free_joint_count();
+        let mut pd = vec![0.0; p.len()];
+        for (body, first, count) in self.elastic_blocks() {
+            let o = self.offsets[body] + 7;
+            pd[first..first + count].copy_from_slice(&qd[o..o + count]);
+        }
+        let rows = &self.reference_rows;
+        let mut rhs: Vec<f64> = rows.iter().map(|&r| qd[r] - st.velocities[r]).collect();
+        for ((body, shape), d) in self.deformed_markers().into_iter().zip(&st.markers) {
+            let o = self.offsets[body] + 7;
+            let mut rate = [0.0; 6];
+            for (j, &idx) in shape.indices.iter().enumerate() {
+                for c in 0..3 {
+                    rate[c] += shape.translation.get(c, j) * qd[o + idx];
+                    rate[3 + c] += shape.rotation.get(c, j) * qd[o + idx];
+                }
+            }
+            for (i, value) in rhs.iter_mut().enumerate() {
+                *value -= (0..6).map(|c| d[(i, c)] * rate[c]).sum::<f64>();
+            }
+        }
+        let joints = super::partition::minimum_norm_solve(st.joint_influence.as_ref(), &rhs, 1e-12);
+        pd[..nj].copy_from_slice(&joints);
+        Ok(pd)
+    }
+
     /// The q indices of the bodies' reference coordinates (the rows r of seed eq. 33), in body
     /// order.
     pub fn reference_rows(&self) -> &[usize] {
