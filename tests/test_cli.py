@@ -28,6 +28,18 @@ def test_run_with_an_explicit_solver_reports_evaluations_and_events(capsys):
     assert error < 1e-6
 
 
+def test_run_in_joint_coordinates_prints_the_size_of_the_acceleration_system(capsys):
+    for formulation in ("decoupled", "coupled"):
+        argv = ["run", "flexible-robot-arm", "--end", "1e-8", "--step", "1e-9"]
+        argv += ["--solver", f"rk4:joint-coordinates:{formulation}"]
+        assert main(argv) == 0
+        out = capsys.readouterr().out
+        size = int(out.split("acceleration system of")[1].split()[0])
+        # Eq. 41: 2 x 21 reference rows and 2 free joint coordinates; eq. 40 adds the
+        # elastic accelerations (3 links, 4 nodes of 6 coordinates each).
+        assert size == (44 if formulation == "decoupled" else 44 + 72)
+
+
 def test_run_refuses_an_unknown_solver(capsys):
     assert main(["run", "pendulum", "--solver", "rk4:sideways"]) == 2
     assert "strategy must be one of" in capsys.readouterr().err

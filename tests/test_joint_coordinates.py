@@ -252,3 +252,65 @@ def test_models_outside_the_supported_trees_are_refused():
     )
     with pytest.raises(fm.InvalidModelError, match="'rail' \\(prismatic\\).*deformation"):
         fm.simulate(s, 0.1, 1e-3, solver=solver("joint-coordinates"))
+
+
+@pytest.mark.parametrize(
+    "build, end",
+    [
+        (lambda: fm.examples.flexible_double_pendulum(elements=3), 2e-3),
+        (lambda: fm.examples.flexible_slider_crank(elements=4), 5e-4),
+    ],
+    ids=["double-pendulum", "slider-crank"],
+)
+def test_coupled_and_decoupled_systems_equal_the_joint_space_one(build, end):
+    # Seed eq. 40 (sparse) and eq. 41 (the elastic accelerations eliminated with the constant
+    # M_ff) against (B^T M B) p_dd = B^T (f - M gamma_B): nodal beams, and R4's cut guide.
+    model = build().system.compile()
+    runs = {
+        formulation: fm.simulate(
+            model,
+            end,
+            1e-5,
+            output_interval=end / 5,
+            solver=fm.ExplicitSolver(
+                "dopri5",
+                "joint-coordinates",
+                formulation=formulation,
+                relative_tolerance=1e-9,
+                absolute_tolerance=1e-11,
+            ),
+        )
+        for formulation in ("joint-space", "coupled", "decoupled")
+    }
+    reference = runs["joint-space"]
+    for formulation in ("coupled", "decoupled"):
+        run = runs[formulation]
+        assert np.abs(np.asarray(run.coordinates) - np.asarray(reference.coordinates)).max() < 1e-12
+        assert (
+            np.abs(run.accelerations - reference.accelerations).max()
+            < 1e-7 * np.abs(reference.accelerations).max()
+        )
+        assert np.abs(run._reactions - reference._reactions).max() < 1e-8 * max(
+            1.0, np.abs(reference._reactions).max()
+        )
+
+
+def test_the_decoupled_system_keeps_its_size_as_the_elastic_coordinates_grow():
+    sizes = {}
+    for elements in (2, 6):
+        model = fm.examples.flexible_robot_arm(elements=elements).system.compile()
+        for formulation in ("coupled", "decoupled"):
+            solver = fm.ExplicitSolver("rk4", "joint-coordinates", formulation=formulation)
+            result = fm.simulate(model, 2e-9, 1e-9, solver=solver)
+            sizes[formulation, elements] = result.statistics["reduced_system_size"]
+    # Three links: 2 free joint coordinates, 3 x 7 reference rows twice.
+    assert sizes["decoupled", 2] == sizes["decoupled", 6] == 2 * 21 + 2
+    # Eq. 40 carries the elastic accelerations: 6 per node, 4 more nodes in each of 3 links.
+    assert sizes["coupled", 6] - sizes["coupled", 2] == 3 * 4 * 6
+    with pytest.raises(fm.InvalidParameterError, match="'decoupled'.*joint-coordinates"):
+        fm.simulate(
+            model,
+            1e-9,
+            1e-9,
+            solver=fm.ExplicitSolver("rk4", "projection", formulation="decoupled"),
+        )

@@ -25,7 +25,8 @@ def _solver(text: str | None, default: _core.GeneralizedAlpha) -> Any:
         raise argparse.ArgumentTypeError(
             f"--solver {text!r}: expected generalized-alpha or METHOD:STRATEGY[:FORMULATION]"
         )
-    formulation = parts[2] if len(parts) == 3 else "augmented"
+    default = "joint-space" if parts[1] == "joint-coordinates" else "augmented"
+    formulation = parts[2] if len(parts) == 3 else default
     return _core.ExplicitSolver(parts[0], parts[1], formulation=formulation)
 
 
@@ -52,6 +53,8 @@ def _run(args: argparse.Namespace) -> int:
     stats = result.statistics
     if stats.get("function_evaluations"):
         work = f"{stats['function_evaluations']} function evaluations"
+        if stats.get("reduced_system_size"):
+            work += f", acceleration system of {stats['reduced_system_size']} unknowns"
     else:
         work = (
             f"{stats['newton_iterations'] / max(stats['steps'], 1):.2f} Newton iterations per "
@@ -127,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
         "--solver",
         help="generalized-alpha (default: the example's settings), or an explicit solver "
         "METHOD:STRATEGY[:FORMULATION] with METHOD rk4 or dopri5, STRATEGY integrate-all, "
-        "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding",
+        "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding "
+        "(joint-coordinates: joint-space, coupled or decoupled)",
     )
     sub.add_parser("examples", help="list the built-in examples")
     pre = sub.add_parser(
