@@ -242,6 +242,35 @@ def test_flexible_slider_crank_closed_by_cut_joints_equals_the_augmented_formula
     assert tree.constraint_violation.max() < 1e-11
 
 
+def test_named_cut_joints_choose_the_tree_and_a_loop_left_uncut_is_an_error():
+    system, bodies, drive, wrist = slider_crank()
+    model = system.compile()
+    crank_pin = fm.JointId(2)  # main bearing, drive, crank pin, guide, wrist pin
+    # Cutting the crank pin as well leaves the rod on a free joint, held by two cut joints.
+    tree = fm.simulate(
+        model,
+        0.2,
+        1e-4,
+        output_interval=1e-3,
+        solver=fm.ExplicitSolver(
+            "dopri5",
+            "joint-coordinates",
+            relative_tolerance=1e-11,
+            absolute_tolerance=1e-13,
+            cut_joints=[crank_pin, wrist],
+        ),
+    )
+    augmented = fm.simulate(model, 0.2, 1e-4, output_interval=1e-3, solver=solver("projection"))
+    for body in bodies:
+        assert np.abs(tree.position(body) - augmented.position(body)).max() < 1e-8
+    with pytest.raises(fm.InvalidModelError, match="'wrist pin' \\(inline\\).*not among the cut joints"):
+        fm.simulate(
+            model, 0.01, 1e-4, solver=fm.ExplicitSolver("rk4", "joint-coordinates", cut_joints=[])
+        )
+    with pytest.raises(fm.InvalidParameterError, match="cut_joints"):
+        fm.simulate(model, 0.01, 1e-4, solver=fm.ExplicitSolver("rk4", "projection", cut_joints=[wrist]))
+
+
 def test_models_outside_the_supported_trees_are_refused():
     # A prismatic joint at a beam node (a marker that moves with the deformation).
     example = fm.examples.flexible_double_pendulum(elements=2)

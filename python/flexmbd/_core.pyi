@@ -328,6 +328,7 @@ class ExplicitSolver:
     correct_initial_velocities: bool
     redundant_constraints: str
     rank_tolerance: float
+    cut_joints: list[JointId] | None
     def __init__(
         self,
         method: str = "dopri5",
@@ -351,6 +352,7 @@ class ExplicitSolver:
         correct_initial_velocities: bool = True,
         redundant_constraints: str = "remove",
         rank_tolerance: float = 1e-9,
+        cut_joints: list[JointId] | None = None,
     ) -> None: ...
 
 def simulate(

@@ -4,6 +4,7 @@
 
 use std::time::{Duration, Instant};
 
+use crate::ids::JointId;
 use flexmbd_core::output::Output;
 use flexmbd_core::solver::decoupled::TreeFormulation;
 use flexmbd_core::solver::dense_system::Formulation;
@@ -265,6 +266,10 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   40) or "decoupled" (seed eq. 41: the elastic accelerations eliminated with the constant
 ///   M_ff; its size, `statistics["reduced_system_size"]`, does not depend on the number of
 ///   elastic coordinates). "coupled" and "decoupled" have no model size limit.
+/// - `cut_joints`: with "joint-coordinates", the joints to cut open (their equations become
+///   constraints on the joint coordinates). None (default) cuts every joint that closes a loop
+///   or is of a type the tree does not take; with a list, any other such joint is an error
+///   naming it.
 /// - `partition`: "lu" (full pivoting), "qr" (column pivoting) or "svd": how the independent
 ///   coordinates are chosen; `independent`: coordinate indices to use instead. The
 ///   coordinates are repartitioned (an event) when the decomposition proposes, after a step,
@@ -321,6 +326,8 @@ pub struct ExplicitSolver {
     pub redundant_constraints: String,
     /// Relative tolerance of rank decisions.
     pub rank_tolerance: f64,
+    /// Joint coordinates: the joints to cut, or None (every loop closure).
+    pub cut_joints: Option<Vec<JointId>>,
 }
 
 #[pymethods]
@@ -331,7 +338,7 @@ impl ExplicitSolver {
                         constraint_tolerance = 1e-12, max_iterations = 20, repartition_ratio = 2.0,
                         drift_threshold = 1e-6, singular_factor = 4.0, min_step_size = None, max_step_size = None, initial_tolerance = 1e-11,
                         correct_initial_positions = true, correct_initial_velocities = true,
-                        redundant_constraints = "remove", rank_tolerance = 1e-9))]
+                        redundant_constraints = "remove", rank_tolerance = 1e-9, cut_joints = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         method: &str,
@@ -354,8 +361,10 @@ impl ExplicitSolver {
         correct_initial_velocities: bool,
         redundant_constraints: &str,
         rank_tolerance: f64,
+        cut_joints: Option<Vec<JointId>>,
     ) -> PyResult<Self> {
         let s = ExplicitSolver {
+            cut_joints,
             method: method.to_string(),
             strategy: strategy.to_string(),
             formulation: formulation.to_string(),
@@ -421,6 +430,9 @@ impl ExplicitSolver {
             4 => TreeFormulation::Decoupled,
             _ => TreeFormulation::JointSpace,
         };
+        if self.cut_joints.is_some() && strategy != Strategy::JointCoordinates {
+            return Err(invalid(item, "cut_joints belong to strategy 'joint-coordinates'".to_string()));
+        }
         if index >= 2 && strategy != Strategy::JointCoordinates {
             return Err(invalid(
                 item,
@@ -437,6 +449,7 @@ impl ExplicitSolver {
             strategy,
             formulation,
             tree_formulation,
+            cut_joints: self.cut_joints.as_ref().map(|list| list.iter().map(|j| j.index).collect()),
             partition,
             independent: self.independent.clone(),
             baumgarte: self.baumgarte,

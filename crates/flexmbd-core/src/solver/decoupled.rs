@@ -598,7 +598,11 @@ impl TreeSolver {
         let scale: Vec<f64> = (0..c0)
             .map(|i| {
                 let m = (0..c0).fold(0.0f64, |m, j| m.max(a[(i, j)].abs()));
-                if m > 0.0 { 1.0 / m.sqrt() } else { 1.0 }
+                if m > 0.0 {
+                    1.0 / m.sqrt()
+                } else {
+                    1.0
+                }
             })
             .collect();
         let a0 = Mat::from_fn(c0, c0, |i, j| scale[i] * a[(i, j)] * scale[j]);

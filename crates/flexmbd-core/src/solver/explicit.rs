@@ -97,6 +97,9 @@ pub struct ExplicitSettings {
     pub formulation: Formulation,
     /// Joint coordinates: which system gives the accelerations (B^T M B, seed eq. 40 or 41).
     pub tree_formulation: TreeFormulation,
+    /// Joint coordinates: the joints to cut (indices); None cuts every loop closure and
+    /// every joint of a type the tree does not take.
+    pub cut_joints: Option<Vec<usize>>,
     /// Decomposition that chooses the partition.
     pub partition: PartitionMethod,
     /// Independent coordinates given by the user (indices); None: chosen by `partition`.
@@ -131,6 +134,7 @@ impl Default for ExplicitSettings {
             strategy: Strategy::CoordinatePartitioning,
             formulation: Formulation::Augmented,
             tree_formulation: TreeFormulation::JointSpace,
+            cut_joints: None,
             partition: PartitionMethod::Lu,
             independent: None,
             baumgarte: None,
@@ -1007,7 +1011,7 @@ pub fn run(
     if explicit.strategy == Strategy::JointCoordinates {
         // The tree and the joint coordinates of the consistent initial state; the body state is
         // then recomputed from them (it satisfies the joints exactly).
-        let (tree, p0) = Tree::new(model, &state.coordinates)?;
+        let (tree, p0) = Tree::new(model, &state.coordinates, explicit.cut_joints.as_deref())?;
         let pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
         if explicit.tree_formulation != TreeFormulation::JointSpace {
             engine.tree_solver = Some(TreeSolver::new(model, &tree, explicit.tree_formulation)?);

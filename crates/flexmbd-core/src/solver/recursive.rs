@@ -300,10 +300,21 @@ type Pose = (HMat, HVec);
 impl Tree {
     /// The tree of `model`, with the joint and elastic coordinates of the model's
     /// configuration `q` (which must satisfy the joints). Errors name the body or joint the
-    /// tree cannot take.
-    pub fn new(model: &Model, q: &[f64]) -> Result<(Tree, Vec<f64>)> {
+    /// tree cannot take. `cut`: the joints to cut (loop closures); None cuts every joint that
+    /// closes a loop or is not a tree joint type, a list makes any other such joint an error.
+    pub fn new(model: &Model, q: &[f64], cut: Option<&[usize]>) -> Result<(Tree, Vec<f64>)> {
         let bad = |item: String, message: String| Err(FlexmbdError::InvalidModel { item, message });
         let nb = model.bodies.len();
+        let mut designated = vec![false; model.joints.len()];
+        for &k in cut.unwrap_or(&[]) {
+            if k >= model.joints.len() {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: format!("cut joint {k}"),
+                    message: format!("the model has {} joints and drivers", model.joints.len()),
+                });
+            }
+            designated[k] = true;
+        }
         let point = |b: usize| matches!(model.bodies[b].kind, BodyKind::PointMass { .. });
         let mut reached = vec![false; nb];
         reached[0] = true;
@@ -323,7 +334,7 @@ impl Tree {
         loop {
             let mut progress = false;
             for (k, joint) in model.joints.iter().enumerate() {
-                if used[k] || !tree_kind(&joint.kind) {
+                if used[k] || designated[k] || !tree_kind(&joint.kind) {
                     continue;
                 }
                 let [bi, bj] = joint.markers.map(|m| model.markers[m.0].body.0);
@@ -528,6 +539,20 @@ impl Tree {
         }
         // Every other joint or driver closes a loop: its equations are cut constraints.
         let cut_joints: Vec<usize> = (0..model.joints.len()).filter(|&k| !used[k]).collect();
+        if cut.is_some() {
+            if let Some(&k) =
+                cut_joints.iter().find(|&&k| !designated[k] && model.joints[k].kind.function().is_none())
+            {
+                let joint = &model.joints[k];
+                return bad(
+                    format!("joint '{}' ({})", joint.name, joint.kind.type_name()),
+                    "it closes a loop of the tree (or is of a type the tree does not take) but is \
+                     not among the cut joints: add it to them, or leave them unset to cut such \
+                     joints automatically"
+                        .to_string(),
+                );
+            }
+        }
         let cut_rows: Vec<usize> = cut_joints
             .iter()
             .flat_map(|&k| model.joints[k].row..model.joints[k].row + model.joints[k].equations.len())
@@ -1299,7 +1324,7 @@ mod tests {
     }
 
     fn influence_check(model: &Model, count: usize) {
-        let (tree, p0) = Tree::new(model, &consistent(model)).unwrap();
+        let (tree, p0) = Tree::new(model, &consistent(model), None).unwrap();
         let (n, np) = (model.coordinate_count, tree.coordinate_count());
         assert_eq!(np, count);
         let p = perturbed(&tree, &p0, 3, 1.0);
@@ -1341,7 +1366,7 @@ mod tests {
             (floating_tree_model(), 19),
         ];
         for (case, (model, free)) in cases.into_iter().enumerate() {
-            let (tree, p0) = Tree::new(&model, &consistent(&model)).unwrap();
+            let (tree, p0) = Tree::new(&model, &consistent(&model), None).unwrap();
             let n = model.coordinate_count;
             let nf = tree.free_count();
             assert_eq!(nf, free);
@@ -1412,7 +1437,7 @@ mod tests {
             flexible_tree_model_with(true, true, 5),
         ];
         for (case, model) in models.iter().enumerate() {
-            let (tree, p0) = Tree::new(model, &consistent(model)).unwrap();
+            let (tree, p0) = Tree::new(model, &consistent(model), None).unwrap();
             let n = model.coordinate_count;
             let nf = tree.free_count();
             let mut coupled = TreeSolver::new(model, &tree, TreeFormulation::Coupled).unwrap();
@@ -1495,7 +1520,7 @@ mod tests {
         // The size of eq. 41 does not depend on the elastic coordinates; eq. 40 grows with them.
         let size = |elastic: usize, formulation| {
             let model = flexible_tree_model_with(false, false, elastic);
-            let (tree, _) = Tree::new(&model, &model.initial_coordinates).unwrap();
+            let (tree, _) = Tree::new(&model, &model.initial_coordinates, None).unwrap();
             TreeSolver::new(&model, &tree, formulation).unwrap().reduced_size()
         };
         assert_eq!(size(4, TreeFormulation::Decoupled), size(9, TreeFormulation::Decoupled));
@@ -1529,7 +1554,7 @@ mod tests {
         let base = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
         sys.add_joint("rail", JointKind::Prismatic, [base, tip]).unwrap();
         let model = sys.compile().unwrap();
-        let error = Tree::new(&model, &model.initial_coordinates).unwrap_err().to_string();
+        let error = Tree::new(&model, &model.initial_coordinates, None).unwrap_err().to_string();
         assert!(
             error.contains("'rail'") && error.contains("prismatic") && error.contains("deformation"),
             "{error}"
@@ -1542,8 +1567,16 @@ mod tests {
         }
         let model = sys.compile().unwrap();
         // The second hinge closes a loop: it is cut, its five equations constrain the tree.
-        let (tree, _) = Tree::new(&model, &model.initial_coordinates).unwrap();
+        let (tree, _) = Tree::new(&model, &model.initial_coordinates, None).unwrap();
         assert_eq!(tree.cut_joints, vec![1]);
         assert_eq!(tree.cut_rows.len(), 5);
+        // Named cut joints: the first hinge cut instead; a loop left without a named cut
+        // joint is an error naming the joint; an index out of range too.
+        let (tree, _) = Tree::new(&model, &model.initial_coordinates, Some(&[0])).unwrap();
+        assert_eq!(tree.cut_joints, vec![0]);
+        let error = Tree::new(&model, &model.initial_coordinates, Some(&[])).unwrap_err().to_string();
+        assert!(error.contains("'second' (revolute)") && error.contains("closes a loop"), "{error}");
+        let error = Tree::new(&model, &model.initial_coordinates, Some(&[7])).unwrap_err().to_string();
+        assert!(error.contains("cut joint 7"), "{error}");
     }
 }
