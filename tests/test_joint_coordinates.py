@@ -263,12 +263,16 @@ def test_named_cut_joints_choose_the_tree_and_a_loop_left_uncut_is_an_error():
     augmented = fm.simulate(model, 0.2, 1e-4, output_interval=1e-3, solver=solver("projection"))
     for body in bodies:
         assert np.abs(tree.position(body) - augmented.position(body)).max() < 1e-8
-    with pytest.raises(fm.InvalidModelError, match="'wrist pin' \\(inline\\).*not among the cut joints"):
+    with pytest.raises(
+        fm.InvalidModelError, match="'wrist pin' \\(inline\\).*not among the cut joints"
+    ):
         fm.simulate(
             model, 0.01, 1e-4, solver=fm.ExplicitSolver("rk4", "joint-coordinates", cut_joints=[])
         )
     with pytest.raises(fm.InvalidParameterError, match="cut_joints"):
-        fm.simulate(model, 0.01, 1e-4, solver=fm.ExplicitSolver("rk4", "projection", cut_joints=[wrist]))
+        fm.simulate(
+            model, 0.01, 1e-4, solver=fm.ExplicitSolver("rk4", "projection", cut_joints=[wrist])
+        )
 
 
 def test_models_outside_the_supported_trees_are_refused():

@@ -45,7 +45,8 @@
 //! an orthonormal frame built from the child-side marker's deformed axes onto one built from
 //! the parent side's, the normal of the plane of x_i and y_i being the common axis. The tree
 //! therefore satisfies the augmented formulation's joints to round-off, and both give the same
-//! accelerations. A spherical joint constrains only the origins: any orthonormal frame built
+//! accelerations. A fixed joint uses the same frames with the angle set by its twist equation
+//! x_i . y_j = 0. A spherical joint constrains only the origins: any orthonormal frame built
 //! from the deformed axes serves. The other tree joint types take undeformed markers (markers
 //! on rigid bodies or markers without elastic motion) so far.
 
@@ -350,11 +351,13 @@ impl Tree {
                     continue;
                 }
                 let elastic = joint.markers.iter().any(|m| model.markers[m.0].elastic.is_some());
-                if elastic && !matches!(joint.kind, JointKind::Revolute | JointKind::Spherical) {
+                if elastic
+                    && !matches!(joint.kind, JointKind::Revolute | JointKind::Spherical | JointKind::Fixed)
+                {
                     return bad(
                         format!("joint '{}' ({})", joint.name, joint.kind.type_name()),
                         "it joins the tree at a marker that moves with a body's deformation; the \
-                         joint-coordinate formulation takes revolute and spherical joints there so far"
+                         joint-coordinate formulation takes revolute, spherical and fixed joints there so far"
                             .to_string(),
                     );
                 }
@@ -757,6 +760,30 @@ impl Tree {
                     };
                     (mul_transpose(&p_frame, &q_frame), o_p)
                 }
+                TreeJointKind::Fixed => {
+                    // The revolute's frames with the angle fixed by the twist equation
+                    // x_i . y_j = 0 instead of a coordinate (exact for deformed axes too).
+                    let (p_frame, q_frame) = if joint.i_parent {
+                        let (x_i, y_i) = (column(&x_p, 0), column(&x_p, 1));
+                        let n = normalize(&cross(&x_i, &y_i));
+                        let e1 = normalize(&x_i);
+                        let e2 = cross(&n, &e1);
+                        let q_frame = frame_from_z(&column(&xb_c, 2), &column(&xb_c, 0));
+                        let y_j = column(&xb_c, 1);
+                        let (w1, w2) = (dot(&column(&q_frame, 0), &y_j), dot(&column(&q_frame, 1), &y_j));
+                        let r = (w1 * w1 + w2 * w2).sqrt().recip();
+                        let v = add(&scale(&e1, w2 * r), &scale(&e2, w1 * r));
+                        (from_columns(&v, &cross(&n, &v), &n), q_frame)
+                    } else {
+                        let z = normalize(&column(&x_p, 2));
+                        let p1 = normalize(&cross(&column(&x_p, 1), &z));
+                        let (x_i, y_i) = (column(&xb_c, 0), column(&xb_c, 1));
+                        let n = normalize(&cross(&x_i, &y_i));
+                        let e1 = normalize(&x_i);
+                        (from_columns(&p1, &cross(&z, &p1), &z), from_columns(&e1, &cross(&n, &e1), &n))
+                    };
+                    (mul_transpose(&p_frame, &q_frame), o_p)
+                }
                 TreeJointKind::Spherical | TreeJointKind::Free => {
                     let p_frame = frame_from_z(&column(&x_p, 2), &column(&x_p, 0));
                     let q_frame = frame_from_z(&column(&xb_c, 2), &column(&xb_c, 0));
@@ -1138,7 +1165,8 @@ mod tests {
         flexible_tree_model_with(driven, false, 4)
     }
 
-    /// `flexible_tree_model`, with `closed`: a distance joint from link 3's deformed tip to
+    /// `flexible_tree_model` (with two rigid bodies welded at deformed markers), with
+    /// `closed`: a distance joint from link 3's deformed tip to
     /// the tip body closing a loop (cut); `elastic`: elastic coordinates per link (>= 4).
     fn flexible_tree_model_with(driven: bool, closed: bool, elastic_count: usize) -> Model {
         use crate::body::flexible::tests::{Lcg, PointBody};
@@ -1193,6 +1221,21 @@ mod tests {
         let l3a = fm(&mut sys, l3, Vec3::ZERO, rot_x(-1.2), vec![0, 1, 2, 3]);
         let l2c = fm(&mut sys, l2, Vec3([0.0, 0.3, 0.0]), rot_x(-1.2), vec![2, 3]);
         sys.add_joint("branch", JointKind::Revolute, [l3a, l2c]).unwrap();
+        // Rigid bodies welded at deformed markers: a clamp on link 1 (marker i on the link, the
+        // parent side) and a cap on link 3 (marker i on the cap, the child side).
+        let clamp = rigid(&mut sys, "clamp", Vec3([0.5, 0.2, 0.0]));
+        let l1c = fm(&mut sys, l1, Vec3([0.0, 0.2, 0.0]), rot_x(0.9), vec![0, 1, 3]);
+        let c0 = sys.add_marker("", clamp, Vec3::ZERO, rot_x(0.9)).unwrap();
+        sys.add_joint("clamp weld", JointKind::Fixed, [l1c, c0]).unwrap();
+        let cap = rigid(&mut sys, "cap", Vec3([1.6, 0.4, 0.0]));
+        let k0 = sys.add_marker("", cap, Vec3([0.1, 0.0, 0.0]), rot_x(0.3)).unwrap();
+        let l3c = fm(&mut sys, l3, Vec3([0.2, 0.1, 0.0]), rot_x(0.3), vec![0, 2, 3]);
+        sys.add_joint("cap weld", JointKind::Fixed, [k0, l3c]).unwrap();
+        // A fourth link welded to the cap at a deformed marker on the link (the child side).
+        let fin = link(&mut sys, "fin", 11, Vec3([1.6, 0.7, 0.0]));
+        let k1 = sys.add_marker("", cap, Vec3([0.0, 0.3, 0.0]), rot_x(-0.4)).unwrap();
+        let f0 = fm(&mut sys, fin, Vec3::ZERO, rot_x(-0.4), vec![0, 1, 2, 3]);
+        sys.add_joint("fin weld", JointKind::Fixed, [k1, f0]).unwrap();
         if closed {
             let l3b = fm(&mut sys, l3, Vec3([0.4, -0.3, 0.0]), Mat3::IDENTITY, vec![1, 3]);
             let t1 = sys.add_marker("", tip, Vec3([-0.4, 0.3, 0.0]), Mat3::IDENTITY).unwrap();
@@ -1317,7 +1360,7 @@ mod tests {
     #[test]
     fn influence_coefficients_and_quadratic_terms_match_finite_differences() {
         let cases =
-            [(tree_model(false), 11), (flexible_tree_model(false), 5 + 12), (floating_tree_model(), 15 + 4)];
+            [(tree_model(false), 11), (flexible_tree_model(false), 5 + 16), (floating_tree_model(), 15 + 4)];
         for (model, count) in cases {
             influence_check(&model, count);
         }
@@ -1361,8 +1404,8 @@ mod tests {
         let cases = [
             (tree_model(false), 11),
             (tree_model(true), 9),
-            (flexible_tree_model(false), 17),
-            (flexible_tree_model(true), 15),
+            (flexible_tree_model(false), 21),
+            (flexible_tree_model(true), 19),
             (floating_tree_model(), 19),
         ];
         for (case, (model, free)) in cases.into_iter().enumerate() {
@@ -1524,7 +1567,7 @@ mod tests {
             TreeSolver::new(&model, &tree, formulation).unwrap().reduced_size()
         };
         assert_eq!(size(4, TreeFormulation::Decoupled), size(9, TreeFormulation::Decoupled));
-        assert_eq!(size(9, TreeFormulation::Coupled) - size(4, TreeFormulation::Coupled), 3 * 5);
+        assert_eq!(size(9, TreeFormulation::Coupled) - size(4, TreeFormulation::Coupled), 4 * 5);
     }
 
     #[test]
