@@ -276,14 +276,14 @@ def test_named_cut_joints_choose_the_tree_and_a_loop_left_uncut_is_an_error():
 
 
 def test_models_outside_the_supported_trees_are_refused():
-    # A prismatic joint at a beam node (a marker that moves with the deformation).
+    # A universal joint at a beam node (a marker that moves with the deformation).
     example = fm.examples.flexible_double_pendulum(elements=2)
     s = example.system
-    slider = s.add_rigid_body(1.0, (1, 1, 1), position=(2.0, 0, 0), name="slider")
-    s.add_prismatic_joint(
-        s.add_node_marker(example.items["lower link"], 3), s.add_marker(slider), name="rail"
+    shaft = s.add_rigid_body(1.0, (1, 1, 1), position=(2.0, 0, 0), name="shaft")
+    s.add_universal_joint(
+        s.add_node_marker(example.items["lower link"], 3), s.add_marker(shaft), name="cardan"
     )
-    with pytest.raises(fm.InvalidModelError, match="'rail' \\(prismatic\\).*deformation"):
+    with pytest.raises(fm.InvalidModelError, match="'cardan' \\(universal\\).*deformation"):
         fm.simulate(s, 0.1, 1e-3, solver=solver("joint-coordinates"))
 
 

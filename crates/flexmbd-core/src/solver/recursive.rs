@@ -46,9 +46,11 @@
 //! the parent side's, the normal of the plane of x_i and y_i being the common axis. The tree
 //! therefore satisfies the augmented formulation's joints to round-off, and both give the same
 //! accelerations. A fixed joint uses the same frames with the angle set by its twist equation
-//! x_i . y_j = 0. A spherical joint constrains only the origins: any orthonormal frame built
-//! from the deformed axes serves. The other tree joint types take undeformed markers (markers
-//! on rigid bodies or markers without elastic motion) so far.
+//! x_i . y_j = 0; prismatic and cylindrical joints use the fixed and the revolute frames and
+//! translate along the normal of the plane of x_i, y_i by z_i . d / (z_i . n) (their coordinate
+//! is the driver's z_i . d). A spherical joint constrains only the origins: any orthonormal
+//! frame built from the deformed axes serves. Universal joints take undeformed markers
+//! (markers on rigid bodies or markers without elastic motion) so far.
 
 use faer::Mat;
 
@@ -120,6 +122,10 @@ struct TreeJoint {
     /// and the sliding axis in the parent-side marker frame.
     rotation: Mat3,
     axis: Vec3,
+    /// Whether a marker of the joint moves with a deformation (prismatic and cylindrical
+    /// joints then use the frames that satisfy their equations exactly, and the coordinates
+    /// their drivers measure).
+    deformed: bool,
 }
 
 /// The elastic coordinates of a deformable body in p.
@@ -234,6 +240,50 @@ fn frame_from_plane(x: &HVec, y: &HVec, phi: HyperDual) -> HMat {
     let n = normalize(&cross(x, y));
     let v = driver_direction(x, y, phi);
     from_columns(&v, &cross(&n, &v), &n)
+}
+
+/// Orthonormal frames P (global, parent side) and Q (child body frame) with A_child Q = P
+/// that satisfy a revolute joint's equations (x_i . z_j = 0, y_i . z_j = 0) and its angle (the
+/// driver's) exactly, also for the deformed, not exactly orthonormal axes of markers on
+/// deformable bodies. `x_p`: the parent-side marker's global axes; `xb_c`: the child-side
+/// marker's axes in the child body frame; `i_parent`: whether marker i is the parent side.
+fn revolute_frames(i_parent: bool, x_p: &HMat, xb_c: &HMat, phi: HyperDual) -> (HMat, HMat) {
+    if i_parent {
+        (
+            frame_from_plane(&column(x_p, 0), &column(x_p, 1), phi),
+            frame_from_z(&column(xb_c, 2), &column(xb_c, 0)),
+        )
+    } else {
+        (
+            frame_from_z(&column(x_p, 2), &column(x_p, 0)),
+            frame_from_plane(&column(xb_c, 0), &column(xb_c, 1), phi),
+        )
+    }
+}
+
+/// The revolute's frames with the angle about the common axis fixed by the twist equation
+/// x_i . y_j = 0 instead of a coordinate (exact for deformed axes too): fixed and prismatic
+/// joints.
+fn fixed_frames(i_parent: bool, x_p: &HMat, xb_c: &HMat) -> (HMat, HMat) {
+    if i_parent {
+        let (x_i, y_i) = (column(x_p, 0), column(x_p, 1));
+        let n = normalize(&cross(&x_i, &y_i));
+        let e1 = normalize(&x_i);
+        let e2 = cross(&n, &e1);
+        let q_frame = frame_from_z(&column(xb_c, 2), &column(xb_c, 0));
+        let y_j = column(xb_c, 1);
+        let (w1, w2) = (dot(&column(&q_frame, 0), &y_j), dot(&column(&q_frame, 1), &y_j));
+        let r = (w1 * w1 + w2 * w2).sqrt().recip();
+        let v = add(&scale(&e1, w2 * r), &scale(&e2, w1 * r));
+        (from_columns(&v, &cross(&n, &v), &n), q_frame)
+    } else {
+        let z = normalize(&column(x_p, 2));
+        let p1 = normalize(&cross(&column(x_p, 1), &z));
+        let (x_i, y_i) = (column(xb_c, 0), column(xb_c, 1));
+        let n = normalize(&cross(&x_i, &y_i));
+        let e1 = normalize(&x_i);
+        (from_columns(&p1, &cross(&z, &p1), &z), from_columns(&e1, &cross(&n, &e1), &n))
+    }
 }
 
 /// The orthonormal frame [w, z x w, z] of marker axes (f64; see [`frame_from_z`]).
@@ -351,13 +401,12 @@ impl Tree {
                     continue;
                 }
                 let elastic = joint.markers.iter().any(|m| model.markers[m.0].elastic.is_some());
-                if elastic
-                    && !matches!(joint.kind, JointKind::Revolute | JointKind::Spherical | JointKind::Fixed)
-                {
+                if elastic && matches!(joint.kind, JointKind::Universal) {
                     return bad(
                         format!("joint '{}' ({})", joint.name, joint.kind.type_name()),
                         "it joins the tree at a marker that moves with a body's deformation; the \
-                         joint-coordinate formulation takes revolute, spherical and fixed joints there so far"
+                         joint-coordinate formulation takes revolute, prismatic, cylindrical, \
+                         spherical and fixed joints there so far"
                             .to_string(),
                     );
                 }
@@ -416,6 +465,7 @@ impl Tree {
             (a.mul_mat(&axes), r + a.mul_vec(&u))
         };
         let mut joints = Vec::new();
+        let mut names: Vec<String> = Vec::new();
         let mut p0 = Vec::new();
         let mut tree_markers = Vec::new(); // (marker i, marker j, parent-side marker, child-side marker)
         for link in order {
@@ -439,8 +489,18 @@ impl Tree {
                         TreeJointKind::Free
                     };
                     let (rotation, axis) = (Mat3::IDENTITY, Vec3::ZERO);
-                    joints.push(TreeJoint { kind, first, i_parent: true, parent, child, rotation, axis });
+                    joints.push(TreeJoint {
+                        kind,
+                        first,
+                        i_parent: true,
+                        parent,
+                        child,
+                        rotation,
+                        axis,
+                        deformed: false,
+                    });
                     tree_markers.push((usize::MAX, usize::MAX, usize::MAX, usize::MAX));
+                    names.push(format!("free joint of body '{}'", model.bodies[b].name));
                     continue;
                 }
             };
@@ -461,8 +521,18 @@ impl Tree {
             // child-side marker expressed in the parent-side frame (the same axis for a
             // cylindrical joint, whose rotation keeps z).
             let axis = if i_parent { Vec3::unit(2) } else { -relative.mul_vec(&Vec3::unit(2)) };
+            let deformed = parent.elastic.is_some() || child.elastic.is_some();
+            // Translation along z of marker i as a translation driver measures it, z_i . d.
+            let driver_translation = {
+                let d = if i_parent { o_cm - o_pm } else { o_pm - o_cm };
+                a_i.column(2).dot(&d)
+            };
             let (kind, values) = match joint.kind {
                 JointKind::Revolute => (TreeJointKind::Revolute, vec![driver_angle]),
+                JointKind::Prismatic if deformed => (TreeJointKind::Prismatic, vec![driver_translation]),
+                JointKind::Cylindrical if deformed => {
+                    (TreeJointKind::Cylindrical, vec![driver_angle, driver_translation])
+                }
                 JointKind::Prismatic => (TreeJointKind::Prismatic, vec![offset.dot(&axis)]),
                 JointKind::Cylindrical => (TreeJointKind::Cylindrical, vec![angle, offset.dot(&axis)]),
                 JointKind::Universal if i_parent => {
@@ -495,8 +565,10 @@ impl Tree {
                 child,
                 rotation: if kind == TreeJointKind::Fixed { Mat3::IDENTITY } else { relative },
                 axis,
+                deformed,
             });
             tree_markers.push((mi, mj, pid, cid));
+            names.push(format!("joint '{}' ({})", joint.name, joint.kind.type_name()));
         }
         // Drivers prescribe the coordinate of the tree joint on the same markers.
         let mut prescribed: Vec<Prescribed> = Vec::new();
@@ -508,6 +580,16 @@ impl Tree {
             let angle = matches!(driver.kind, JointKind::AngleDriver(_));
             let elastic = driver.markers.iter().any(|m| model.markers[m.0].elastic.is_some());
             let found = joints.iter().zip(&tree_markers).find_map(|(tj, &(i, j, pid, cid))| {
+                if tj.deformed && tj.kind != TreeJointKind::Revolute {
+                    // The coordinates of these joints are what drivers on (i, j) measure;
+                    // reversed drivers measure something else with deformed axes (cut).
+                    let slot = match (angle, tj.kind) {
+                        (true, TreeJointKind::Cylindrical) | (false, TreeJointKind::Prismatic) => tj.first,
+                        (false, TreeJointKind::Cylindrical) => tj.first + 1,
+                        _ => return None,
+                    };
+                    return ((di, dj) == (i, j)).then_some((slot, 1.0));
+                }
                 let (slot, sign) = match (angle, tj.kind) {
                     // The revolute coordinate is the driver's angle on (i, j); reversed markers
                     // measure minus it only when both frames are orthonormal (rigid).
@@ -573,6 +655,7 @@ impl Tree {
         let coordinate_count = p0.len();
         let free: Vec<usize> =
             (0..coordinate_count).filter(|c| prescribed.iter().all(|p| p.coordinate != *c)).collect();
+        let full_p0 = p0.clone();
         let p0: Vec<f64> = free.iter().map(|&c| p0[c]).collect();
         let reference_rows: Vec<usize> = (1..nb)
             .flat_map(|b| {
@@ -594,6 +677,35 @@ impl Tree {
             reference_parameters,
             elastic,
         };
+        // The tree must reproduce the model's configuration: a joint whose markers are not
+        // aligned as its type assumes (a prismatic joint with opposite z axes, say) would
+        // otherwise move a body silently.
+        let (q_tree, _, _) = tree.state(model.coordinate_count, &full_p0, &vec![0.0; full_p0.len()]);
+        for (joint, name) in tree.joints.iter().zip(&names) {
+            let b = joint.child.body;
+            let o = tree.offsets[b];
+            let position = (0..3).map(|k| (q_tree[o + k] - q[o + k]).abs()).fold(0.0, f64::max);
+            let rotation = if point(b) {
+                0.0
+            } else {
+                let diff = |sign: f64| {
+                    (0..4).map(|k| (q_tree[o + 3 + k] - sign * q[o + 3 + k]).abs()).fold(0.0, f64::max)
+                };
+                diff(1.0).min(diff(-1.0))
+            };
+            let scale = 1.0 + (0..3).map(|k| q[o + k].abs()).fold(0.0, f64::max);
+            if position > 1e-8 * scale || rotation > 1e-8 {
+                return bad(
+                    name.clone(),
+                    format!(
+                        "the joint-coordinate tree places body '{}' {position:.3e} m and {rotation:.3e} (Euler \
+                         parameters) away from the model's configuration: the joint's markers are not aligned \
+                         as its type assumes (for example opposite z axes)",
+                        model.bodies[b].name
+                    ),
+                );
+            }
+        }
         Ok((tree, p0))
     }
 
@@ -743,46 +855,33 @@ impl Tree {
             let f = joint.first;
             let (rotation, o_c) = match joint.kind {
                 TreeJointKind::Revolute => {
-                    // Orthonormal frames P (global, parent side) and Q (child body frame) with
-                    // A_child Q = P that satisfy the revolute's equations (x_i . z_j = 0,
-                    // y_i . z_j = 0) and its angle (the driver's) exactly, also for the deformed,
-                    // not exactly orthonormal axes of markers on deformable bodies.
-                    let (p_frame, q_frame) = if joint.i_parent {
-                        (
-                            frame_from_plane(&column(&x_p, 0), &column(&x_p, 1), p[f]),
-                            frame_from_z(&column(&xb_c, 2), &column(&xb_c, 0)),
-                        )
-                    } else {
-                        (
-                            frame_from_z(&column(&x_p, 2), &column(&x_p, 0)),
-                            frame_from_plane(&column(&xb_c, 0), &column(&xb_c, 1), p[f]),
-                        )
-                    };
+                    let (p_frame, q_frame) = revolute_frames(joint.i_parent, &x_p, &xb_c, p[f]);
                     (mul_transpose(&p_frame, &q_frame), o_p)
                 }
                 TreeJointKind::Fixed => {
-                    // The revolute's frames with the angle fixed by the twist equation
-                    // x_i . y_j = 0 instead of a coordinate (exact for deformed axes too).
-                    let (p_frame, q_frame) = if joint.i_parent {
-                        let (x_i, y_i) = (column(&x_p, 0), column(&x_p, 1));
-                        let n = normalize(&cross(&x_i, &y_i));
-                        let e1 = normalize(&x_i);
-                        let e2 = cross(&n, &e1);
-                        let q_frame = frame_from_z(&column(&xb_c, 2), &column(&xb_c, 0));
-                        let y_j = column(&xb_c, 1);
-                        let (w1, w2) = (dot(&column(&q_frame, 0), &y_j), dot(&column(&q_frame, 1), &y_j));
-                        let r = (w1 * w1 + w2 * w2).sqrt().recip();
-                        let v = add(&scale(&e1, w2 * r), &scale(&e2, w1 * r));
-                        (from_columns(&v, &cross(&n, &v), &n), q_frame)
-                    } else {
-                        let z = normalize(&column(&x_p, 2));
-                        let p1 = normalize(&cross(&column(&x_p, 1), &z));
-                        let (x_i, y_i) = (column(&xb_c, 0), column(&xb_c, 1));
-                        let n = normalize(&cross(&x_i, &y_i));
-                        let e1 = normalize(&x_i);
-                        (from_columns(&p1, &cross(&z, &p1), &z), from_columns(&e1, &cross(&n, &e1), &n))
-                    };
+                    let (p_frame, q_frame) = fixed_frames(joint.i_parent, &x_p, &xb_c);
                     (mul_transpose(&p_frame, &q_frame), o_p)
+                }
+                TreeJointKind::Prismatic | TreeJointKind::Cylindrical if joint.deformed => {
+                    // Orientation: the fixed joint's frames (prismatic) or the revolute's
+                    // (cylindrical); translation along the normal n of the plane of x_i, y_i
+                    // (d . x_i = 0, d . y_i = 0) with z_i . d equal to the coordinate.
+                    let (p_frame, q_frame) = if joint.kind == TreeJointKind::Prismatic {
+                        fixed_frames(joint.i_parent, &x_p, &xb_c)
+                    } else {
+                        revolute_frames(joint.i_parent, &x_p, &xb_c, p[f])
+                    };
+                    let s = p[if joint.kind == TreeJointKind::Prismatic { f } else { f + 1 }];
+                    let origin = if joint.i_parent {
+                        let n = normalize(&cross(&column(&x_p, 0), &column(&x_p, 1)));
+                        add(&o_p, &scale(&n, s / dot(&column(&x_p, 2), &n)))
+                    } else {
+                        // d = r_j - r_i along A_child n_bar = z_j (unit).
+                        let n = normalize(&cross(&column(&xb_c, 0), &column(&xb_c, 1)));
+                        let z = normalize(&column(&x_p, 2));
+                        sub(&o_p, &scale(&z, s / dot(&column(&xb_c, 2), &n)))
+                    };
+                    (mul_transpose(&p_frame, &q_frame), origin)
                 }
                 TreeJointKind::Spherical | TreeJointKind::Free => {
                     let p_frame = frame_from_z(&column(&x_p, 2), &column(&x_p, 0));
@@ -1231,6 +1330,24 @@ mod tests {
         let k0 = sys.add_marker("", cap, Vec3([0.1, 0.0, 0.0]), rot_x(0.3)).unwrap();
         let l3c = fm(&mut sys, l3, Vec3([0.2, 0.1, 0.0]), rot_x(0.3), vec![0, 2, 3]);
         sys.add_joint("cap weld", JointKind::Fixed, [k0, l3c]).unwrap();
+        // A slider on link 2 (prismatic, marker i on the deformed link) and a sleeve on link 1
+        // (cylindrical, marker i on the sleeve, j on the deformed link).
+        let slider2 = rigid(&mut sys, "slider 2", Vec3([1.7, -0.1, 0.0]));
+        let l2e = fm(&mut sys, l2, Vec3([0.2, -0.1, 0.0]), along_x(), vec![0, 2, 3]);
+        let s2 = sys.add_marker("", slider2, Vec3::ZERO, along_x()).unwrap();
+        sys.add_joint("rail 2", JointKind::Prismatic, [l2e, s2]).unwrap();
+        let sleeve = rigid(&mut sys, "sleeve", Vec3([0.6, -0.1, 0.0]));
+        let v0 = sys.add_marker("", sleeve, Vec3::ZERO, rot_x(0.6)).unwrap();
+        let l1d = fm(&mut sys, l1, Vec3([0.1, -0.1, 0.0]), rot_x(0.6), vec![1, 2]);
+        sys.add_joint("sleeve joint", JointKind::Cylindrical, [v0, l1d]).unwrap();
+        if driven {
+            sys.add_joint(
+                "rail 2 drive",
+                JointKind::TranslationDriver(TimeFunction::Polynomial(vec![0.0, 0.2, -0.4])),
+                [l2e, s2],
+            )
+            .unwrap();
+        }
         // A fourth link welded to the cap at a deformed marker on the link (the child side).
         let fin = link(&mut sys, "fin", 11, Vec3([1.6, 0.7, 0.0]));
         let k1 = sys.add_marker("", cap, Vec3([0.0, 0.3, 0.0]), rot_x(-0.4)).unwrap();
@@ -1360,7 +1477,7 @@ mod tests {
     #[test]
     fn influence_coefficients_and_quadratic_terms_match_finite_differences() {
         let cases =
-            [(tree_model(false), 11), (flexible_tree_model(false), 5 + 16), (floating_tree_model(), 15 + 4)];
+            [(tree_model(false), 11), (flexible_tree_model(false), 8 + 16), (floating_tree_model(), 15 + 4)];
         for (model, count) in cases {
             influence_check(&model, count);
         }
@@ -1404,8 +1521,8 @@ mod tests {
         let cases = [
             (tree_model(false), 11),
             (tree_model(true), 9),
-            (flexible_tree_model(false), 21),
-            (flexible_tree_model(true), 19),
+            (flexible_tree_model(false), 24),
+            (flexible_tree_model(true), 21),
             (floating_tree_model(), 19),
         ];
         for (case, (model, free)) in cases.into_iter().enumerate() {
@@ -1572,7 +1689,7 @@ mod tests {
 
     #[test]
     fn unsupported_trees_are_refused_and_loops_are_cut() {
-        // A prismatic joint at a marker that moves with a deformation.
+        // A universal joint at a marker that moves with a deformation.
         let mut sys = SystemBuilder::new();
         let body = crate::body::flexible::FlexibleBody::new(
             "beam",
@@ -1595,13 +1712,21 @@ mod tests {
         let elastic = MarkerElastic { indices: vec![1], translation: shape.clone(), rotation: shape };
         let tip = sys.add_flexible_marker("", beam, Vec3::ZERO, Mat3::IDENTITY, elastic).unwrap();
         let base = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        sys.add_joint("rail", JointKind::Prismatic, [base, tip]).unwrap();
+        sys.add_joint("cardan", JointKind::Universal, [base, tip]).unwrap();
         let model = sys.compile().unwrap();
         let error = Tree::new(&model, &model.initial_coordinates, None).unwrap_err().to_string();
-        assert!(
-            error.contains("'rail'") && error.contains("prismatic") && error.contains("deformation"),
-            "{error}"
-        );
+        assert!(error.contains("'cardan' (universal)") && error.contains("deformation"), "{error}");
+
+        // A weld whose markers are turned half a turn about x (z_j = -z_i, which its equations
+        // allow): the tree, which aligns them, would move the body; refused.
+        let mut sys = SystemBuilder::new();
+        let body = unit_body(&mut sys, "plate", Vec3::ZERO);
+        let base = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
+        let flipped = sys.add_marker("", body, Vec3::ZERO, rot_x(std::f64::consts::PI)).unwrap();
+        sys.add_joint("weld", JointKind::Fixed, [base, flipped]).unwrap();
+        let model = sys.compile().unwrap();
+        let error = Tree::new(&model, &model.initial_coordinates, None).unwrap_err().to_string();
+        assert!(error.contains("'weld' (fixed)") && error.contains("'plate'"), "{error}");
 
         let mut sys = SystemBuilder::new();
         let body = unit_body(&mut sys, "link", Vec3::ZERO);
