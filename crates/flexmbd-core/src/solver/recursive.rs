@@ -48,9 +48,10 @@
 //! accelerations. A fixed joint uses the same frames with the angle set by its twist equation
 //! x_i . y_j = 0; prismatic and cylindrical joints use the fixed and the revolute frames and
 //! translate along the normal of the plane of x_i, y_i by z_i . d / (z_i . n) (their coordinate
-//! is the driver's z_i . d). A spherical joint constrains only the origins: any orthonormal
-//! frame built from the deformed axes serves. Universal joints take undeformed markers
-//! (markers on rigid bodies or markers without elastic motion) so far.
+//! is the driver's z_i . d). A universal joint uses frames built with x_i first on marker i's
+//! side and y_j first on marker j's, so that its cross equation x_i . y_j = 0 holds exactly. A
+//! spherical joint constrains only the origins: any orthonormal frame built from the deformed
+//! axes serves.
 
 use faer::Mat;
 
@@ -62,7 +63,7 @@ use crate::joint::JointKind;
 use crate::math::euler::rotation_matrix;
 use crate::math::hyper_dual::{
     add, column, cross, dot, euler_parameters, from_columns, hmat, hvec, mul_mat, mul_transpose, mul_vec,
-    normalize, scale, sub, HMat, HVec, HyperDual, HIDENTITY,
+    normalize, scale, sub, values, HMat, HVec, HyperDual, HIDENTITY,
 };
 use crate::math::{Mat3, Vec3};
 use crate::system::Model;
@@ -286,6 +287,22 @@ fn fixed_frames(i_parent: bool, x_p: &HMat, xb_c: &HMat) -> (HMat, HMat) {
     }
 }
 
+/// The orthonormal frame [x^, z^ x x^, z^] with x^ along `x` and z^ along the part of `z`
+/// perpendicular to it.
+fn frame_x_first(x: &HVec, z: &HVec) -> HMat {
+    let x = normalize(x);
+    let z = normalize(&sub(z, &scale(&x, dot(z, &x))));
+    from_columns(&x, &cross(&z, &x), &z)
+}
+
+/// The orthonormal frame [y^ x z^, y^, z^] with y^ along `y` and z^ along the part of `z`
+/// perpendicular to it.
+fn frame_y_first(y: &HVec, z: &HVec) -> HMat {
+    let y = normalize(y);
+    let z = normalize(&sub(z, &scale(&y, dot(z, &y))));
+    from_columns(&cross(&y, &z), &y, &z)
+}
+
 /// The orthonormal frame [w, z x w, z] of marker axes (f64; see [`frame_from_z`]).
 fn orthonormal(axes: &Mat3) -> Mat3 {
     let h = hmat(axes.0);
@@ -399,16 +416,6 @@ impl Tree {
                 let child = if i_parent { bj } else { bi };
                 if point(child) && !matches!(joint.kind, JointKind::Spherical) {
                     continue;
-                }
-                let elastic = joint.markers.iter().any(|m| model.markers[m.0].elastic.is_some());
-                if elastic && matches!(joint.kind, JointKind::Universal) {
-                    return bad(
-                        format!("joint '{}' ({})", joint.name, joint.kind.type_name()),
-                        "it joins the tree at a marker that moves with a body's deformation; the \
-                         joint-coordinate formulation takes revolute, prismatic, cylindrical, \
-                         spherical and fixed joints there so far"
-                            .to_string(),
-                    );
                 }
                 used[k] = true;
                 reached[bi] = true;
@@ -535,6 +542,28 @@ impl Tree {
                 }
                 JointKind::Prismatic => (TreeJointKind::Prismatic, vec![offset.dot(&axis)]),
                 JointKind::Cylindrical => (TreeJointKind::Cylindrical, vec![angle, offset.dot(&axis)]),
+                JointKind::Universal if deformed => {
+                    // The angles between the frames the kinematics use (x_i or y_j first).
+                    let h = |m: &Mat3| hmat(m.0);
+                    let (x_first, y_first) = (
+                        |m: &Mat3| Mat3(values(&frame_x_first(&column(&h(m), 0), &column(&h(m), 2)))),
+                        |m: &Mat3| Mat3(values(&frame_y_first(&column(&h(m), 1), &column(&h(m), 2)))),
+                    );
+                    let r = if i_parent {
+                        x_first(&a_pm).transpose().mul_mat(&y_first(&a_cm))
+                    } else {
+                        y_first(&a_pm).transpose().mul_mat(&x_first(&a_cm))
+                    };
+                    let r = &r.0;
+                    if i_parent {
+                        (TreeJointKind::UniversalXY, vec![r[2][1].atan2(r[1][1]), r[0][2].atan2(r[0][0])])
+                    } else {
+                        (
+                            TreeJointKind::UniversalYX,
+                            vec![(-r[2][0]).atan2(r[0][0]), (-r[1][2]).atan2(r[1][1])],
+                        )
+                    }
+                }
                 JointKind::Universal if i_parent => {
                     // R_x(a) R_y(b): b from the first row, a from the last column's rows.
                     let r = &relative.0;
@@ -893,6 +922,22 @@ impl Tree {
                     };
                     let relative = cardan(p[angles], p[angles + 1], p[angles + 2]);
                     (mul_transpose(&mul_mat(&p_frame, &relative), &q_frame), origin)
+                }
+                TreeJointKind::UniversalXY | TreeJointKind::UniversalYX if joint.deformed => {
+                    // Orthonormal frames keeping the cross axes exactly: x_i first on the side of
+                    // marker i, y_j first on the side of marker j; then F = P R_x(a) R_y(b)
+                    // (marker i the parent) keeps F's y perpendicular to x_i, and
+                    // F = P R_y(a) R_x(b) (marker j the parent) keeps F's x perpendicular to y_j.
+                    let (x_first, y_first) = (
+                        |m: &HMat| frame_x_first(&column(m, 0), &column(m, 2)),
+                        |m: &HMat| frame_y_first(&column(m, 1), &column(m, 2)),
+                    );
+                    let (p_frame, relative, q_frame) = if joint.kind == TreeJointKind::UniversalXY {
+                        (x_first(&x_p), mul_mat(&rot(0, p[f]), &rot(1, p[f + 1])), y_first(&xb_c))
+                    } else {
+                        (y_first(&x_p), mul_mat(&rot(1, p[f]), &rot(0, p[f + 1])), x_first(&xb_c))
+                    };
+                    (mul_transpose(&mul_mat(&p_frame, &relative), &q_frame), o_p)
                 }
                 TreeJointKind::SphericalPoint => (HIDENTITY, o_p),
                 TreeJointKind::FreePoint => (HIDENTITY, add(&o_p, &[p[f], p[f + 1], p[f + 2]])),
@@ -1348,6 +1393,16 @@ mod tests {
             )
             .unwrap();
         }
+        // Cardan joints at deformed markers: a shaft on link 2 (marker i on the link, the
+        // parent side) and a knuckle on link 3 (marker i on the knuckle, the child side).
+        let shaft = rigid(&mut sys, "shaft", Vec3([1.4, 0.2, 0.0]));
+        let l2f = fm(&mut sys, l2, Vec3([-0.1, 0.2, 0.0]), rot_x(0.5), vec![1, 2, 3]);
+        let h0 = sys.add_marker("", shaft, Vec3::ZERO, rot_x(0.5)).unwrap();
+        sys.add_joint("cardan 1", JointKind::Universal, [l2f, h0]).unwrap();
+        let knuckle = rigid(&mut sys, "knuckle", Vec3([1.8, 0.2, 0.0]));
+        let n0 = sys.add_marker("", knuckle, Vec3::ZERO, rot_x(-0.8)).unwrap();
+        let l3e = fm(&mut sys, l3, Vec3([0.3, -0.1, 0.0]), rot_x(-0.8), vec![0, 3]);
+        sys.add_joint("cardan 2", JointKind::Universal, [n0, l3e]).unwrap();
         // A fourth link welded to the cap at a deformed marker on the link (the child side).
         let fin = link(&mut sys, "fin", 11, Vec3([1.6, 0.7, 0.0]));
         let k1 = sys.add_marker("", cap, Vec3([0.0, 0.3, 0.0]), rot_x(-0.4)).unwrap();
@@ -1477,7 +1532,7 @@ mod tests {
     #[test]
     fn influence_coefficients_and_quadratic_terms_match_finite_differences() {
         let cases =
-            [(tree_model(false), 11), (flexible_tree_model(false), 8 + 16), (floating_tree_model(), 15 + 4)];
+            [(tree_model(false), 11), (flexible_tree_model(false), 12 + 16), (floating_tree_model(), 15 + 4)];
         for (model, count) in cases {
             influence_check(&model, count);
         }
@@ -1521,8 +1576,8 @@ mod tests {
         let cases = [
             (tree_model(false), 11),
             (tree_model(true), 9),
-            (flexible_tree_model(false), 24),
-            (flexible_tree_model(true), 21),
+            (flexible_tree_model(false), 28),
+            (flexible_tree_model(true), 25),
             (floating_tree_model(), 19),
         ];
         for (case, (model, free)) in cases.into_iter().enumerate() {
@@ -1689,34 +1744,6 @@ mod tests {
 
     #[test]
     fn unsupported_trees_are_refused_and_loops_are_cut() {
-        // A universal joint at a marker that moves with a deformation.
-        let mut sys = SystemBuilder::new();
-        let body = crate::body::flexible::FlexibleBody::new(
-            "beam",
-            crate::body::flexible::tests::PointBody::random(4, 2, 3).input(10.0, 0.0),
-        )
-        .unwrap();
-        let beam = sys
-            .add_flexible_body(
-                "beam",
-                body,
-                Vec3::ZERO,
-                Mat3::IDENTITY,
-                Vec3::ZERO,
-                Vec3::ZERO,
-                vec![],
-                vec![],
-            )
-            .unwrap();
-        let shape = crate::math::dense::Jacobian3 { n: 1, data: vec![0.1, 0.2, 0.3] };
-        let elastic = MarkerElastic { indices: vec![1], translation: shape.clone(), rotation: shape };
-        let tip = sys.add_flexible_marker("", beam, Vec3::ZERO, Mat3::IDENTITY, elastic).unwrap();
-        let base = sys.add_marker("", sys.ground(), Vec3::ZERO, Mat3::IDENTITY).unwrap();
-        sys.add_joint("cardan", JointKind::Universal, [base, tip]).unwrap();
-        let model = sys.compile().unwrap();
-        let error = Tree::new(&model, &model.initial_coordinates, None).unwrap_err().to_string();
-        assert!(error.contains("'cardan' (universal)") && error.contains("deformation"), "{error}");
-
         // A weld whose markers are turned half a turn about x (z_j = -z_i, which its equations
         // allow): the tree, which aligns them, would move the body; refused.
         let mut sys = SystemBuilder::new();
