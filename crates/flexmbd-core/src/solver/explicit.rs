@@ -218,6 +218,10 @@ impl ExplicitSettings {
     }
 }
 
+/// Joint coordinates: the middle Cardan angle (rad) beyond which a spherical or free joint's
+/// angles are rebased (their singularity is at 90 degrees).
+const CARDAN_REBASE_ANGLE: f64 = 1.0;
+
 /// Evaluation of the right-hand sides, with its buffers and counters.
 struct Engine<'a> {
     model: &'a Model,
@@ -1012,7 +1016,17 @@ pub fn run(
         // The tree and the joint coordinates of the consistent initial state; the body state is
         // then recomputed from them (it satisfies the joints exactly).
         let (tree, p0) = Tree::new(model, &state.coordinates, explicit.cut_joints.as_deref())?;
-        let pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
+        let mut p0 = p0;
+        let mut pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
+        let mut tree = tree;
+        let rebased = tree.rebase(model, &mut p0, &mut pd0, CARDAN_REBASE_ANGLE);
+        if !rebased.is_empty() {
+            output.events.push(Event {
+                time: t0,
+                kind: "joint coordinates rebased".to_string(),
+                message: format!("Cardan angles started at zero: {}", rebased.join(", ")),
+            });
+        }
         if explicit.tree_formulation != TreeFormulation::JointSpace {
             engine.tree_solver = Some(TreeSolver::new(model, &tree, explicit.tree_formulation)?);
         }
@@ -1139,6 +1153,23 @@ pub fn run(
         if engine.tree.as_ref().is_some_and(|t| !t.cut_rows.is_empty()) {
             engine.project_joint_coordinates(t_new)?;
             modified = true;
+        }
+        if let Some(tree) = engine.tree.as_mut() {
+            // Cardan angles of spherical and free joints restart before their singularity.
+            let rebased = tree.rebase(model, &mut engine.p, &mut engine.pd, CARDAN_REBASE_ANGLE);
+            if !rebased.is_empty() {
+                engine.update_bodies(t_new)?;
+                output.events.push(Event {
+                    time: t_new,
+                    kind: "joint coordinates rebased".to_string(),
+                    message: format!(
+                        "Cardan angles restarted at zero (the middle angle passed {:.0} degrees): {}",
+                        CARDAN_REBASE_ANGLE.to_degrees(),
+                        rebased.join(", ")
+                    ),
+                });
+                modified = true;
+            }
         }
         let mode = engine.mode;
         let events = engine.update_partition(t_new)?;

@@ -34,10 +34,9 @@
 //! the translation, a fixed joint none; a universal joint the rotations a, b about its cross
 //! axes, R_rel = R_x(a) R_y(b) from marker i to marker j (R_y(a) R_x(b) seen from marker j
 //! when that is the parent side); a spherical joint the Cardan angles R_rel = R_x(a) R_y(b)
-//! R_z(c) from the parent-side to the child-side marker frame, which are singular at b = +-90
-//! degrees (the joint-space mass matrix loses rank there: keep such joints away from it, or
-//! use the augmented formulation). A driver on the markers of a tree joint prescribes its
-//! coordinate.
+//! R_z(c) from the parent-side to the child-side marker frame after a constant rotation R_0,
+//! which [`Tree::rebase`] resets before b reaches its singularity at +-90 degrees. A driver on
+//! the markers of a tree joint prescribes its coordinate.
 //!
 //! Deformed marker axes are not exactly orthonormal (the small rotation is linearized, as in
 //! the augmented formulation). A revolute joint there is placed so that its own equations
@@ -127,6 +126,10 @@ struct TreeJoint {
     /// joints then use the frames that satisfy their equations exactly, and the coordinates
     /// their drivers measure).
     deformed: bool,
+    /// Spherical and free joints: the rotation R_0 before the Cardan angles,
+    /// R_rel = R_0 R_x(a) R_y(b) R_z(c). It absorbs the angles when b nears +-90 degrees
+    /// (see [`Tree::rebase`]).
+    base: Mat3,
 }
 
 /// The elastic coordinates of a deformable body in p.
@@ -505,6 +508,7 @@ impl Tree {
                         rotation,
                         axis,
                         deformed: false,
+                        base: Mat3::IDENTITY,
                     });
                     tree_markers.push((usize::MAX, usize::MAX, usize::MAX, usize::MAX));
                     names.push(format!("free joint of body '{}'", model.bodies[b].name));
@@ -595,6 +599,7 @@ impl Tree {
                 rotation: if kind == TreeJointKind::Fixed { Mat3::IDENTITY } else { relative },
                 axis,
                 deformed,
+                base: Mat3::IDENTITY,
             });
             tree_markers.push((mi, mj, pid, cid));
             names.push(format!("joint '{}' ({})", joint.name, joint.kind.type_name()));
@@ -785,6 +790,48 @@ impl Tree {
         Ok(StructuredState { coordinates, velocities, gamma, joint_influence, markers })
     }
 
+    /// Spherical and free joints whose Cardan angle b is beyond `limit` (rad) from zero, near
+    /// the singularity at +-90 degrees, are rebased: R_0 absorbs the current angles, which
+    /// restart at zero, and the angle rates are transformed so that the relative angular
+    /// velocity is unchanged (theta_dot' = R^T E(a, b) theta_dot, E the map from the Cardan
+    /// rates to the angular velocity in the parent-side frame). The body state does not change.
+    /// `p` and `pd` are the free coordinates and rates; returns the rebased joints' names.
+    pub fn rebase(&mut self, model: &Model, p: &mut [f64], pd: &mut [f64], limit: f64) -> Vec<String> {
+        let mut rebased = Vec::new();
+        let position = |c: usize, free: &[usize]| free.iter().position(|&x| x == c);
+        for joint in self.joints.iter_mut() {
+            let angles = match joint.kind {
+                TreeJointKind::Spherical => joint.first,
+                TreeJointKind::Free => joint.first + 3,
+                _ => continue,
+            };
+            let Some(k) = position(angles, &self.free) else { continue };
+            let (a, b, c) = (p[k], p[k + 1], p[k + 2]);
+            if b.abs() <= limit {
+                continue;
+            }
+            let h = |x: f64| HyperDual::constant(x);
+            let r = Mat3(values(&cardan(h(a), h(b), h(c))));
+            // E(a, b): columns e_x, R_x(a) e_y, R_x(a) R_y(b) e_z.
+            let rx = Mat3(values(&rot(0, h(a))));
+            let rxy = rx.mul_mat(&Mat3(values(&rot(1, h(b)))));
+            let omega = Vec3::unit(0) * pd[k] + rx.column(1) * pd[k + 1] + rxy.column(2) * pd[k + 2];
+            let rates = r.tr_mul_vec(&omega);
+            joint.base = joint.base.mul_mat(&r);
+            for i in 0..3 {
+                p[k + i] = 0.0;
+                pd[k + i] = rates[i];
+            }
+            let body = &model.bodies[joint.child.body].name;
+            rebased.push(if joint.kind == TreeJointKind::Free {
+                format!("free joint of body '{body}'")
+            } else {
+                format!("spherical joint of body '{body}'")
+            });
+        }
+        rebased
+    }
+
     /// The free rates p_dot whose body velocities are `qd` (which must be consistent with the
     /// tree joints and drivers at `time`): the elastic rates are entries of q_dot; the joint
     /// rates solve H_pp p_dot_j = q_dot_r - H_pf qf_dot - (the prescribed part), a
@@ -920,7 +967,8 @@ impl Tree {
                     } else {
                         (f, o_p)
                     };
-                    let relative = cardan(p[angles], p[angles + 1], p[angles + 2]);
+                    let relative =
+                        mul_mat(&hmat(joint.base.0), &cardan(p[angles], p[angles + 1], p[angles + 2]));
                     (mul_transpose(&mul_mat(&p_frame, &relative), &q_frame), origin)
                 }
                 TreeJointKind::UniversalXY | TreeJointKind::UniversalYX if joint.deformed => {
@@ -1740,6 +1788,71 @@ mod tests {
         };
         assert_eq!(size(4, TreeFormulation::Decoupled), size(9, TreeFormulation::Decoupled));
         assert_eq!(size(9, TreeFormulation::Coupled) - size(4, TreeFormulation::Coupled), 4 * 5);
+    }
+
+    #[test]
+    fn rebasing_cardan_angles_keeps_the_body_state() {
+        let model = floating_tree_model();
+        let (mut tree, p0) = Tree::new(&model, &consistent(&model), None).unwrap();
+        let nf = tree.free_count();
+        let mut p = perturbed(&tree, &p0, 61, 1.0);
+        let mut pd = perturbed(&tree, &vec![0.0; nf], 67, 6.0);
+        // Middle Cardan angles past the limit: shoulder (coordinates 0-2), plate joint (3-5),
+        // and the floating body's free joint (6-11, its angles 9-11).
+        for k in [1, 4, 10] {
+            p[k] = 1.3;
+        }
+        let before = tree.evaluate(&model, 0.4, &p, &pd).unwrap();
+        let rebased = tree.rebase(&model, &mut p, &mut pd, 1.0);
+        assert_eq!(rebased.len(), 3, "{rebased:?}");
+        assert!([0, 1, 2, 3, 4, 5, 9, 10, 11].iter().all(|&k| p[k] == 0.0));
+        let after = tree.evaluate(&model, 0.4, &p, &pd).unwrap();
+        // The same state, hence the same accelerations (gamma_B and B differ: they belong to
+        // the parametrization).
+        let n = model.coordinate_count;
+        let mut ws = Workspace::for_evaluation(&model);
+        let mut accelerations = |state: &TreeState| {
+            let mut eq = DenseEquations::new(&model);
+            eq.evaluate(
+                &model,
+                &mut ws,
+                0.4,
+                &state.coordinates,
+                &state.velocities,
+                &[],
+                Level::Acceleration,
+            )
+            .unwrap();
+            let rows = &tree.cut_rows;
+            let b = &state.influence;
+            let c_cut = Mat::from_fn(rows.len(), n, |a, j| eq.jacobian[(rows[a], j)]);
+            let c_hat = &c_cut * b;
+            let g_hat: Vec<f64> = (0..rows.len())
+                .map(|a| eq.gamma[rows[a]] - (0..n).map(|j| c_cut[(a, j)] * state.gamma[j]).sum::<f64>())
+                .collect();
+            let pdd =
+                constrained_joint_accelerations(b, &eq.mass, &eq.force, &state.gamma, &c_hat, &g_hat, 1e-12)
+                    .unwrap();
+            (0..n)
+                .map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>())
+                .collect::<Vec<f64>>()
+        };
+        let (qdd_before, qdd_after) = (accelerations(&before), accelerations(&after));
+        for i in 0..n {
+            assert!((before.velocities[i] - after.velocities[i]).abs() < 1e-12, "q_dot[{i}]");
+            assert!((qdd_before[i] - qdd_after[i]).abs() < 1e-9 * (1.0 + qdd_before[i].abs()), "q_dd[{i}]");
+        }
+        let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+        for (b, body) in model.bodies.iter().enumerate().skip(1) {
+            let o = body.offset;
+            let (qa, qb) = (&before.coordinates[o..o + 3], &after.coordinates[o..o + 3]);
+            assert!(same(qa, qb), "body {b}");
+            if !matches!(body.kind, BodyKind::PointMass { .. }) {
+                let (ea, eb) = (&before.coordinates[o + 3..o + 7], &after.coordinates[o + 3..o + 7]);
+                let flipped: Vec<f64> = eb.iter().map(|x| -x).collect();
+                assert!(same(ea, eb) || same(ea, &flipped), "body {b}");
+            }
+        }
     }
 
     #[test]
