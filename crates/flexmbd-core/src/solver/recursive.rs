@@ -355,6 +355,9 @@ impl Side {
 
     /// Body-frame position and axes for the deformation `d`.
     fn local_frame(&self, d: &[HVec; 2]) -> (HVec, HMat) {
+        if self.elastic.is_none() {
+            return (hvec(self.position.0), hmat(self.rotation.0));
+        }
         let u = add(&hvec(self.position.0), &d[0]);
         let a = hmat(self.rotation.0);
         let cols: [HVec; 3] = std::array::from_fn(|k| {
@@ -930,6 +933,12 @@ impl Tree {
             let o_p = add(&r_p, &mul_vec(&a_p, &u_p));
             let f = joint.first;
             let (rotation, o_c) = match joint.kind {
+                // Undeformed markers are orthonormal: the frames below reduce to these.
+                TreeJointKind::Revolute if !joint.deformed => {
+                    let angle = if joint.i_parent { p[f] } else { -p[f] };
+                    (mul_transpose(&mul_mat(&x_p, &rot(2, angle)), &xb_c), o_p)
+                }
+                TreeJointKind::Fixed if !joint.deformed => (mul_transpose(&x_p, &xb_c), o_p),
                 TreeJointKind::Revolute => {
                     let (p_frame, q_frame) = revolute_frames(joint.i_parent, &x_p, &xb_c, p[f]);
                     (mul_transpose(&p_frame, &q_frame), o_p)
