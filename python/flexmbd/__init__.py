@@ -41,6 +41,7 @@ from .errors import (
     InvalidModelError,
     InvalidParameterError,
     ModelError,
+    ModelFileError,
     NewtonDivergedError,
     NonFiniteError,
     SimulationError,
@@ -50,6 +51,7 @@ from .errors import (
     UnknownItemError,
 )
 from .result import Result
+from .results_file import read_results
 from .rotation import euler_parameters_to_matrix, rotation
 from .simulation import simulate
 from .system import System
@@ -72,6 +74,7 @@ __all__ = [
     "MarkerId",
     "Model",
     "ModelError",
+    "ModelFileError",
     "NewtonDivergedError",
     "NonFiniteError",
     "Polynomial",
@@ -91,6 +94,7 @@ __all__ = [
     "euler_parameters_to_matrix",
     "examples",
     "linearize",
+    "read_results",
     "rotation",
     "simulate",
 ]

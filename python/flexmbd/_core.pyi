@@ -364,6 +364,7 @@ def simulate(
     output_interval: float | None = None,
     solver: GeneralizedAlpha | ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
+    records: Callable[[dict[str, Any]], object] | None = None,
 ) -> tuple[dict[str, Any], BaseException | None]: ...
 
 class Material:

@@ -43,6 +43,31 @@ class InvalidModelError(ModelError):
     """A structural error: a joint between a body and itself, a duplicated name, ..."""
 
 
+class ModelFileError(InvalidModelError):
+    """A model file (YAML) that cannot be read: a syntax error, an unknown key, a value of the
+    wrong type or out of range, a missing file, a name that refers to nothing. The message
+    names the file, the line and the key path (``model.yaml: line 12: joints[1].marker1:
+    ...``); ``file``, ``line`` (1-based, or None) and ``key`` (the key path, or None) carry
+    them as data."""
+
+    file: str | None
+    line: int | None
+    key: str | None
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        line: int | None = None,
+        key: str | None = None,
+    ):
+        super().__init__(message, item=key)
+        self.file = file
+        self.line = line
+        self.key = key
+
+
 class SimulationError(FlexmbdError, RuntimeError):
     """A simulation failed; ``error.result`` holds the results up to the failure."""
 
@@ -84,6 +109,7 @@ __all__ = [
     "InvalidModelError",
     "InvalidParameterError",
     "ModelError",
+    "ModelFileError",
     "NewtonDivergedError",
     "NonFiniteError",
     "SimulationError",

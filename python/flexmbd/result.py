@@ -277,3 +277,96 @@ class Result:
         if s["size"] == 9:
             return values.reshape(-1, 3, 3)
         return values
+
+    # Tables ----------------------------------------------------------------------------
+    def _columns(self) -> dict[str, Array]:
+        """Named time series (SI units): body positions, velocities and Euler parameters,
+        elastic coordinates, joint reactions and multipliers, sensors, energies and the
+        constraint violation."""
+        columns: dict[str, Array] = {}
+        for body in self.layout["bodies"]:
+            if body["kind"] == "ground":
+                continue
+            name = body["name"]
+            for k, axis in enumerate("xyz"):
+                columns[f"{name}.position.{axis}"] = self.position(name)[:, k]
+            for k, axis in enumerate("xyz"):
+                columns[f"{name}.velocity.{axis}"] = self.velocity(name)[:, k]
+            if body["kind"] != "point_mass":
+                for k in range(4):
+                    columns[f"{name}.euler_parameter.{k}"] = self.euler_parameters(name)[:, k]
+            if body["kind"] == "flexible":
+                elastic = self.elastic_coordinates(name)
+                for k in range(elastic.shape[1]):
+                    columns[f"{name}.elastic.{k}"] = elastic[:, k]
+        for joint in self.layout["joints"]:
+            force, torque = self.reaction(joint["name"])
+            for k, axis in enumerate("xyz"):
+                columns[f"{joint['name']}.reaction_force.{axis}"] = force[:, k]
+            for k, axis in enumerate("xyz"):
+                columns[f"{joint['name']}.reaction_torque.{axis}"] = torque[:, k]
+            multipliers = self.joint_multipliers(joint["name"])
+            for k, equation in enumerate(joint["equations"]):
+                columns[f"{joint['name']}.multiplier.{equation}"] = multipliers[:, k]
+        for sensor in self.layout["sensors"]:
+            values = self._sensors[:, sensor["offset"] : sensor["offset"] + sensor["size"]]
+            for k in range(sensor["size"]):
+                columns[f"{sensor['name']}.{k}"] = values[:, k]
+        columns["kinetic_energy"] = self.kinetic_energy
+        columns["potential_energy"] = self.potential_energy
+        columns["constraint_violation"] = self.constraint_violation
+        return columns
+
+    def to_dataframe(self) -> Any:
+        """The named time series as a pandas DataFrame indexed by time (s); columns like
+        ``"crank.position.x"``, ``"bearing.reaction_force.y"``, ``"rod.elastic.3"``,
+        ``"kinetic_energy"``. Needs pandas (``pip install flexmbd[data]``)."""
+        import pandas as pd
+
+        frame = pd.DataFrame(self._columns(), index=pd.Index(self.time, name="time"))
+        frame.attrs["units"] = "SI (m, kg, s, rad, N, N m, J)"
+        return frame
+
+    def to_xarray(self) -> Any:
+        """The results as an xarray Dataset on the dimension ``time``: the generalized
+        coordinates, velocities, accelerations and multipliers as arrays (dimensions
+        ``coordinate`` and ``constraint``, named), the reactions (``joint``, ``component``),
+        sensors, energies and the constraint violation. Needs xarray."""
+        import xarray as xr
+
+        coordinate_names = [""] * self.coordinates.shape[1]
+        for body in self.layout["bodies"]:
+            for k in range(body["count"]):
+                coordinate_names[body["offset"] + k] = f"{body['name']}[{k}]"
+        constraint_names = [""] * self.multipliers.shape[1]
+        for joint in self.layout["joints"]:
+            for k, equation in enumerate(joint["equations"]):
+                if joint["row"] + k < len(constraint_names):
+                    constraint_names[joint["row"] + k] = f"{joint['name']}: {equation}"
+        for k, name in enumerate(constraint_names):
+            constraint_names[k] = name or f"normalization {k}"
+        joints = [joint["name"] for joint in self.layout["joints"]]
+        components = ["force x", "force y", "force z", "torque x", "torque y", "torque z"]
+        data = {
+            "coordinates": (("time", "coordinate"), self.coordinates),
+            "velocities": (("time", "coordinate"), self.velocities),
+            "accelerations": (("time", "coordinate"), self.accelerations),
+            "multipliers": (("time", "constraint"), self.multipliers),
+            "reactions": (("time", "joint", "component"), self._reactions),
+            "sensors": (("time", "sensor_value"), self._sensors),
+            "kinetic_energy": (("time",), self.kinetic_energy),
+            "potential_energy": (("time",), self.potential_energy),
+            "constraint_violation": (("time",), self.constraint_violation),
+        }
+        coords = {
+            "time": self.time,
+            "coordinate": coordinate_names,
+            "constraint": constraint_names,
+            "joint": joints,
+            "component": components,
+        }
+        dataset = xr.Dataset(data, coords=coords)
+        dataset["time"].attrs["units"] = "s"
+        dataset.attrs["units"] = "SI (m, kg, s, rad, N, N m, J)"
+        dataset.attrs["success"] = int(self.success)
+        return dataset

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from typing import Any
 
 from . import _core
 from .result import Result
@@ -17,6 +19,8 @@ def simulate(
     output_interval: float | None = None,
     solver: _core.GeneralizedAlpha | _core.ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
+    results_file: str | os.PathLike[str] | None = None,
+    metadata: dict[str, Any] | None = None,
 ) -> Result:
     """Simulates ``model`` (a :class:`Model`, or a :class:`System`, which is compiled first)
     from ``start_time`` to ``end_time`` (s) with nominal step ``step_size`` (s).
@@ -28,6 +32,12 @@ def simulate(
     projection) or in joint plus elastic coordinates (open trees, loops cut), see
     ``docs/solvers.md``. ``progress(time, step_size, newton_iterations)`` is
     called about ten times a second.
+
+    ``results_file`` (a path, conventionally ``*.h5``) writes the results to an HDF5 file
+    while the run goes on (:mod:`flexmbd.results_file`; ``metadata``, a JSON-compatible dict,
+    is stored with them): a run that fails, is interrupted or is killed keeps every record
+    up to its last flush, about a tenth of a second before. :func:`flexmbd.read_results`
+    reads the file back.
 
     Redundant constraints are found by rank before the run and, by default, removed (see
     ``Result.redundancy`` and ``Result.events``).
@@ -41,16 +51,30 @@ def simulate(
     """
     if isinstance(model, _core.System):
         model = model.compile()
-    raw, error = _core.simulate(
-        model,
-        end_time,
-        step_size,
-        start_time=start_time,
-        output_interval=output_interval,
-        solver=solver,
-        progress=progress,
-    )
-    result = Result(raw, model.describe(), error=error, flexible=getattr(model, "_flexible", None))
+    writer = None
+    if results_file is not None:
+        from .results_file import ResultsWriter
+
+        writer = ResultsWriter(results_file, model, metadata=metadata)
+    try:
+        raw, error = _core.simulate(
+            model,
+            end_time,
+            step_size,
+            start_time=start_time,
+            output_interval=output_interval,
+            solver=solver,
+            progress=progress,
+            records=None if writer is None else writer.append,
+        )
+        result = Result(
+            raw, model.describe(), error=error, flexible=getattr(model, "_flexible", None)
+        )
+        if writer is not None:
+            writer.finish(result)
+    finally:
+        if writer is not None:
+            writer.close()
     if error is not None:
         error.result = result
         raise error

@@ -111,6 +111,32 @@ impl Output {
         self.time.is_empty()
     }
 
+    /// The records from index `from` on (none if `from >= len`), with the statistics, events
+    /// and redundancy report so far: what a results file written during the run appends.
+    pub fn since(&self, from: usize) -> Output {
+        let from = from.min(self.len());
+        let width = *self.sensor_offsets.last().unwrap_or(&0);
+        let rows = |data: &Vec<f64>, per: usize| data[from * per..].to_vec();
+        Output {
+            coordinate_count: self.coordinate_count,
+            constraint_count: self.constraint_count,
+            joint_count: self.joint_count,
+            time: rows(&self.time, 1),
+            coordinates: rows(&self.coordinates, self.coordinate_count),
+            velocities: rows(&self.velocities, self.coordinate_count),
+            accelerations: rows(&self.accelerations, self.coordinate_count),
+            multipliers: rows(&self.multipliers, self.constraint_count),
+            reactions: rows(&self.reactions, self.joint_count * 6),
+            sensors: rows(&self.sensors, width),
+            sensor_offsets: self.sensor_offsets.clone(),
+            energy: rows(&self.energy, 2),
+            constraint_violation: rows(&self.constraint_violation, 1),
+            statistics: self.statistics.clone(),
+            events: self.events.clone(),
+            redundancy: self.redundancy.clone(),
+        }
+    }
+
     /// Appends a record of `state`. Updates the workspace's marker kinematics.
     pub fn record(&mut self, model: &Model, state: &State, ws: &mut Workspace) {
         let (q, qd, qdd) = (&state.coordinates, &state.velocities, &state.accelerations);

@@ -536,10 +536,12 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
 /// Runs a simulation of `model` from `start_time` to `end_time` with nominal step
 /// `step_size`, recording every `output_interval` seconds (every step if None; steps land
 /// on the output times). `progress(time, step_size, newton_iterations)` is called about ten
-/// times a second if given. Returns `(raw_results, error)`; `error` is None on success,
+/// times a second if given; so is `records(raw_chunk)`, with the records added since its last
+/// call (a dict like the raw results, with the statistics and events so far), for results
+/// written during the run. Returns `(raw_results, error)`; `error` is None on success,
 /// otherwise the exception to raise (the raw results then hold everything up to the failure).
 #[pyfunction]
-#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None))]
+#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -550,6 +552,7 @@ pub fn simulate<'py>(
     output_interval: Option<f64>,
     solver: Option<Bound<'py, PyAny>>,
     progress: Option<Py<PyAny>>,
+    records: Option<Py<PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Option<Py<PyAny>>)> {
     let mut settings = match solver {
         None => GeneralizedAlpha::new(
@@ -583,6 +586,7 @@ pub fn simulate<'py>(
     let mut pending: Option<PyErr> = None;
     let outcome = py.detach(|| {
         let mut last_check = Instant::now();
+        let mut delivered = 0;
         let mut observer = |p: &flexmbd_core::solver::Progress| -> bool {
             if last_check.elapsed() < Duration::from_millis(100) {
                 return true;
@@ -597,6 +601,16 @@ pub fn simulate<'py>(
                     if let Err(e) = cb.call1(py, (p.time, p.step_size, p.newton_iterations)) {
                         pending = Some(e);
                         return false;
+                    }
+                }
+                if let Some(cb) = &records {
+                    if p.records.len() > delivered {
+                        let chunk = p.records.since(delivered);
+                        delivered = p.records.len();
+                        if let Err(e) = output_dict(py, chunk).and_then(|d| cb.call1(py, (d,))) {
+                            pending = Some(e);
+                            return false;
+                        }
                     }
                 }
                 true

@@ -109,15 +109,7 @@ def save_body(
     temporary = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         with h5py.File(temporary, "w", track_order=True) as file:
-            file.attrs["format"] = BODY_FILE_FORMAT
-            file.attrs["version"] = np.int64(BODY_DATA_VERSION)
-            file.attrs["units"] = json.dumps(units)
-            file.attrs["writer"] = f"flexmbd {__version__}"
-            writer = _Writer(compression)
-            for field in dataclasses.fields(FlexibleBodyData):
-                if field.name in _ATTRIBUTE_FIELDS:
-                    continue
-                writer.write(file, field.name, getattr(data, field.name), field.name)
+            _write_body(file, data, units, compression)
         os.replace(temporary, path)
     finally:
         if temporary.exists():
@@ -141,27 +133,52 @@ def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
     if not h5py.is_hdf5(path):
         raise InvalidModelError(f"{path} is not a flexmbd body file (not an HDF5 file)", item=item)
     with h5py.File(path, "r") as file:
-        version = _check_header(file, path)
-        reader = _Reader(path)
-        values: dict[str, Any] = {"version": version}
-        try:
-            values["units"] = json.loads(_read_string_attribute(file, "units", path))
-        except json.JSONDecodeError as error:
-            raise InvalidModelError(
-                f"{path}: the 'units' attribute is not valid JSON ({error})", item=item
-            ) from None
-        if not isinstance(values["units"], dict):
-            raise InvalidModelError(
-                f"{path}: the 'units' attribute is not a JSON object", item=item
-            )
-        for field in dataclasses.fields(FlexibleBodyData):
-            if field.name in _ATTRIBUTE_FIELDS:
-                continue
-            if field.name not in file:
-                raise InvalidModelError(
-                    f"{path}: the body file has no field '{field.name}'", item=item
-                )
-            values[field.name] = reader.read(file[field.name], field.name)
+        return read_body_group(file, path)
+
+
+def write_body_group(
+    group: h5py.Group, data: FlexibleBodyData, *, compression: str | None = "gzip"
+) -> None:
+    """Write ``data`` into an open HDF5 group (the layout of a body file, in that group): how
+    results files keep the deformable bodies of their model."""
+    _write_body(group, data, _check_units(data.units), compression)
+
+
+def _write_body(
+    group: h5py.Group, data: FlexibleBodyData, units: dict[str, str], compression: str | None
+) -> None:
+    group.attrs["format"] = BODY_FILE_FORMAT
+    group.attrs["version"] = np.int64(BODY_DATA_VERSION)
+    group.attrs["units"] = json.dumps(units)
+    group.attrs["writer"] = f"flexmbd {__version__}"
+    writer = _Writer(compression)
+    for field in dataclasses.fields(FlexibleBodyData):
+        if field.name in _ATTRIBUTE_FIELDS:
+            continue
+        writer.write(group, field.name, getattr(data, field.name), field.name)
+
+
+def read_body_group(file: h5py.Group, path: Path) -> FlexibleBodyData:
+    """Read a body from an open HDF5 group written like a body file (``path`` names the file
+    in error messages)."""
+    item = f"file '{path}'"
+    version = _check_header(file, path)
+    reader = _Reader(path)
+    values: dict[str, Any] = {"version": version}
+    try:
+        values["units"] = json.loads(_read_string_attribute(file, "units", path))
+    except json.JSONDecodeError as error:
+        raise InvalidModelError(
+            f"{path}: the 'units' attribute is not valid JSON ({error})", item=item
+        ) from None
+    if not isinstance(values["units"], dict):
+        raise InvalidModelError(f"{path}: the 'units' attribute is not a JSON object", item=item)
+    for field in dataclasses.fields(FlexibleBodyData):
+        if field.name in _ATTRIBUTE_FIELDS:
+            continue
+        if field.name not in file:
+            raise InvalidModelError(f"{path}: the body file has no field '{field.name}'", item=item)
+        values[field.name] = reader.read(file[field.name], field.name)
     return FlexibleBodyData(**values)
 
 

@@ -33,7 +33,7 @@ use super::partition::{
 };
 use super::recursive::{constrained_joint_accelerations, joint_accelerations, StructuredState, Tree};
 use super::settings::SimulationSettings;
-use super::simulate::{update_discrete, OutputClock, Progress};
+use super::simulate::{update_discrete, OutputClock, Progress, Records};
 use crate::error::{FlexmbdError, Result};
 use crate::output::{Event, Output};
 use crate::system::{Model, State, Workspace};
@@ -1256,6 +1256,7 @@ pub fn run(
             step_size: h_try,
             newton_iterations: 0,
             steps: output.statistics.steps,
+            records: Records::new(output),
         };
         if !observer(&progress) {
             return Err(FlexmbdError::Interrupted { time: state.time });

@@ -21,7 +21,7 @@ pub use settings::{
     Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
     VelocityProjection,
 };
-pub use simulate::{simulate, Progress, SimulationOutcome};
+pub use simulate::{simulate, Progress, Records, SimulationOutcome};
 
 /// Small models shared by the solver tests.
 #[cfg(test)]

@@ -183,9 +183,29 @@ impl Reduction {
     /// (zero or minimum-norm on the removed ones), reactions from them, and the constraint
     /// violation over all rows; an event reports the redundancy.
     pub fn expand_output(&self, original: &Model, reduced: Output, handling: RedundancyHandling) -> Output {
-        let (n, m) = (original.coordinate_count, original.constraint_count);
-        let records = reduced.len();
         let mut out = reduced;
+        self.expand_records(original, &mut out, handling);
+        out
+    }
+
+    /// The records of `reduced` from index `from` on, expanded as by `expand_output`.
+    pub fn expand_since(
+        &self,
+        original: &Model,
+        reduced: &Output,
+        from: usize,
+        handling: RedundancyHandling,
+    ) -> Output {
+        let mut out = reduced.since(from);
+        self.expand_records(original, &mut out, handling);
+        out
+    }
+
+    /// Expands the multipliers (and reactions, violations) of `out`'s records in place and
+    /// adds the redundancy event and report.
+    fn expand_records(&self, original: &Model, out: &mut Output, handling: RedundancyHandling) {
+        let (n, m) = (original.coordinate_count, original.constraint_count);
+        let records = out.len();
         let mr = self.model.constraint_count;
         let mut multipliers = vec![0.0; records * m];
         let mut ws = Workspace::for_evaluation(original);
@@ -239,7 +259,6 @@ impl Reduction {
             },
         );
         out.redundancy = Some(self.report.clone());
-        out
     }
 }
 
@@ -319,6 +338,39 @@ mod tests {
         assert_eq!(reduction.row_map.len(), 10);
         assert!(reduction.row_map.windows(2).all(|w| w[0] < w[1]));
         assert!(reduction.row_map.iter().all(|r| !report.removed_rows.contains(r)));
+    }
+
+    #[test]
+    fn records_delivered_during_the_run_are_the_final_records() {
+        let model = doubly_hinged();
+        for handling in [RedundancyHandling::Remove, RedundancyHandling::MinimumNorm] {
+            let mut settings = SimulationSettings::new(0.2, 1e-3);
+            settings.output_interval = Some(0.01);
+            settings.redundancy.handling = handling;
+            let mut delivered = Output::default();
+            let mut calls = 0;
+            let outcome = crate::solver::simulate(&model, &settings, &mut |p| {
+                if calls % 7 == 0 {
+                    let chunk = p.records.since(delivered.len());
+                    delivered.time.extend(chunk.time);
+                    delivered.multipliers.extend(chunk.multipliers);
+                    delivered.reactions.extend(chunk.reactions);
+                    delivered.constraint_violation.extend(chunk.constraint_violation);
+                    assert_eq!(chunk.events[0].kind, "redundant constraints");
+                }
+                calls += 1;
+                true
+            });
+            assert!(outcome.error.is_none());
+            let out = outcome.output;
+            let k = delivered.len();
+            assert!(k > 10 && k <= out.len(), "{k} of {} records", out.len());
+            // The same values as the final output, multipliers of the full model included.
+            assert_eq!(delivered.time, out.time[..k]);
+            assert_eq!(delivered.multipliers, out.multipliers[..k * model.constraint_count]);
+            assert_eq!(delivered.reactions, out.reactions[..k * model.joints.len() * 6]);
+            assert_eq!(delivered.constraint_violation, out.constraint_violation[..k]);
+        }
     }
 
     #[test]

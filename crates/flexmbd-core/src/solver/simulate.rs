@@ -5,7 +5,7 @@
 use super::explicit;
 use super::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
 use super::initial::{solve_accelerations, solve_initial_positions_and_velocities};
-use super::redundancy::analyse;
+use super::redundancy::{analyse, Reduction, RedundancyHandling};
 use super::settings::{Integrator, SimulationSettings, StepControl};
 use crate::error::{FlexmbdError, Result};
 use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
@@ -15,8 +15,8 @@ use crate::solver::assembly::update_kinematics;
 use crate::system::{Model, State, Workspace};
 
 /// Progress reported to the observer after every accepted step.
-#[derive(Clone, Copy, Debug)]
-pub struct Progress {
+#[derive(Clone, Copy)]
+pub struct Progress<'a> {
     /// Time reached (s).
     pub time: f64,
     /// Last step size (s).
@@ -25,6 +25,41 @@ pub struct Progress {
     pub newton_iterations: usize,
     /// Accepted steps so far.
     pub steps: usize,
+    /// The records so far, for results written during the run.
+    pub records: Records<'a>,
+}
+
+/// The records of a run in progress, as they will be in its final output.
+#[derive(Clone, Copy)]
+pub struct Records<'a> {
+    output: &'a Output,
+    /// The model of the run, the reduction to expand the records with, and its handling.
+    reduction: Option<(&'a Model, &'a Reduction, RedundancyHandling)>,
+}
+
+impl<'a> Records<'a> {
+    pub(crate) fn new(output: &'a Output) -> Self {
+        Records { output, reduction: None }
+    }
+
+    /// Number of records so far.
+    pub fn len(&self) -> usize {
+        self.output.len()
+    }
+
+    /// True if nothing was recorded yet.
+    pub fn is_empty(&self) -> bool {
+        self.output.is_empty()
+    }
+
+    /// The records from index `from` on, with the statistics and events so far, in the layout
+    /// of the final output (the multipliers of removed redundant rows restored).
+    pub fn since(&self, from: usize) -> Output {
+        match self.reduction {
+            None => self.output.since(from),
+            Some((model, reduction, handling)) => reduction.expand_since(model, self.output, from, handling),
+        }
+    }
 }
 
 /// The result of `simulate`: what was recorded, and the error that stopped the run, if any.
@@ -135,7 +170,14 @@ pub fn simulate(
         Ok(None) => dispatch(model, settings, observer, &mut output, &mut last_state).err(),
         Ok(Some(reduction)) => {
             let mut reduced = Output::new(&reduction.model);
-            let error = dispatch(&reduction.model, settings, observer, &mut reduced, &mut last_state).err();
+            let handling = settings.redundancy.handling;
+            let mut expanding = |p: &Progress| {
+                let records =
+                    Records { output: p.records.output, reduction: Some((model, &reduction, handling)) };
+                observer(&Progress { records, ..*p })
+            };
+            let error =
+                dispatch(&reduction.model, settings, &mut expanding, &mut reduced, &mut last_state).err();
             output = reduction.expand_output(model, reduced, settings.redundancy.handling);
             last_state = last_state.map(|s| reduction.expand_state(model, s));
             error
@@ -294,6 +336,7 @@ fn run(
             step_size: h_try,
             newton_iterations: report.iterations,
             steps: output.statistics.steps,
+            records: Records::new(output),
         };
         if !observer(&progress) {
             return Err(FlexmbdError::Interrupted { time: state.time });

@@ -1,0 +1,205 @@
+"""HDF5 results files: exact round trips, records written during the run, runs that fail, are
+interrupted or are killed keep what was computed, and tables for pandas and xarray."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+import flexmbd as fm
+from flexmbd.examples import EXAMPLES
+from flexmbd.results_file import read_results_metadata
+
+FIELDS = ("time", "coordinates", "velocities", "accelerations", "multipliers")
+
+
+def assert_same_records(a: fm.Result, b: fm.Result, count: int | None = None) -> None:
+    count = len(a) if count is None else count
+    for name in FIELDS + ("constraint_violation",):
+        np.testing.assert_array_equal(getattr(a, name)[:count], getattr(b, name)[:count], name)
+    np.testing.assert_array_equal(a._reactions[:count], b._reactions[:count])
+    np.testing.assert_array_equal(a._sensors[:count], b._sensors[:count])
+    np.testing.assert_array_equal(a._energy[:count], b._energy[:count])
+
+
+def test_round_trip_of_a_flexible_model_is_exact(tmp_path):
+    example = EXAMPLES["flexible-slider-crank"]()
+    path = tmp_path / "crank.h5"
+    result = fm.simulate(
+        example.system,
+        0.01,
+        example.step_size,
+        output_interval=example.output_interval,
+        results_file=path,
+        metadata={"example": "flexible-slider-crank"},
+    )
+    back = fm.read_results(path)
+    assert back.success and len(back) == len(result) == 101
+    assert_same_records(result, back)
+    assert back.statistics == result.statistics
+    assert back.layout["joints"][0]["name"] == "bearing"
+    # The deformable body's data travel with the results: node outputs from the file alone.
+    np.testing.assert_array_equal(back.node_positions("rod"), result.node_positions("rod"))
+    np.testing.assert_array_equal(back.section_forces("rod"), result.section_forces("rod"))
+    np.testing.assert_array_equal(back.reaction_force("guide"), result.reaction_force("guide"))
+    header = read_results_metadata(path)
+    assert header["metadata"] == {"example": "flexible-slider-crank"}
+    assert header["status"]["state"] == "complete" and header["records"] == 101
+    assert header["flexible"] == [2]
+
+
+def test_round_trip_keeps_sensors_events_and_redundancy(tmp_path):
+    example = EXAMPLES["four-bar-spatial"]()
+    path = tmp_path / "fourbar.h5"
+    result = fm.simulate(example.system, 0.2, 1e-3, output_interval=0.01, results_file=path)
+    back = fm.read_results(path)
+    assert_same_records(result, back)
+    assert back.redundancy is not None and back.redundancy["rank"] == result.redundancy["rank"]
+    assert back.redundancy["removed_rows"] == result.redundancy["removed_rows"]
+    assert [e["kind"] for e in back.events] == [e["kind"] for e in result.events]
+    assert "redundant constraints" in [e["kind"] for e in back.events]
+
+
+def test_records_reach_the_file_while_the_run_goes_on(tmp_path):
+    system = fm.System(gravity=(0, -9.81, 0))
+    mass = system.add_point_mass(1.0, position=(1, 0, 0), name="mass")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+
+    def slow_force(t, q, qd):
+        time.sleep(0.002)  # a run long enough for several flushes
+        return np.zeros(3)
+
+    system.add_callback_force([mass], slow_force, name="slow")
+    path = tmp_path / "running.h5"
+    seen: list[int] = []
+
+    def progress(t, h, iterations):
+        # The file is readable by another reader during the run, with the records so far.
+        seen.append(read_results_metadata(path)["records"])
+
+    result = fm.simulate(
+        system, 1.0, 0.005, output_interval=0.01, results_file=path, progress=progress
+    )
+    assert len(seen) >= 3, seen
+    assert seen[-1] > 0 and seen[-1] < len(result), seen
+    assert seen == sorted(seen)
+    assert_same_records(result, fm.read_results(path))
+
+
+def test_a_failed_run_keeps_its_records_and_says_why(tmp_path):
+    system = fm.System()
+    body = system.add_point_mass(1.0, name="mass")
+
+    def force(t, q, qd):
+        if t > 0.05:
+            raise ZeroDivisionError("user bug")
+        return np.array([1.0, 0.0, 0.0])
+
+    system.add_callback_force([body], force, name="user")
+    path = tmp_path / "failed.h5"
+    with pytest.raises(fm.CallbackError) as info:
+        fm.simulate(system, 1.0, 0.01, results_file=path)
+    back = fm.read_results(path)
+    assert not back.success and isinstance(back.error, fm.CallbackError)
+    assert "user bug" in str(back.error)
+    assert back.time[-1] == pytest.approx(0.05)
+    assert_same_records(info.value.result, back)
+    assert read_results_metadata(path)["status"]["state"] == "failed"
+
+
+KILLED_RUN = textwrap.dedent(
+    """
+    import sys
+    import flexmbd as fm
+    from flexmbd.examples import EXAMPLES
+
+    example = EXAMPLES["flexible-slider-crank"]()
+    fm.simulate(example.system, 100.0, example.step_size,
+                output_interval=example.output_interval, results_file=sys.argv[1])
+    """
+)
+
+
+@pytest.mark.parametrize("kill", [signal.SIGKILL, signal.SIGINT])
+def test_a_killed_run_keeps_every_record_written_before_the_kill(tmp_path, kill):
+    path = tmp_path / "killed.h5"
+    process = subprocess.Popen([sys.executable, "-c", KILLED_RUN, str(path)])
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            if path.exists():
+                try:
+                    if read_results_metadata(path)["records"] > 200:
+                        break
+                except (OSError, KeyError, fm.FlexmbdError):
+                    pass  # the writer is still creating the file
+            time.sleep(0.05)
+        else:
+            pytest.fail("the run wrote no records in 120 s")
+        os.kill(process.pid, kill)
+        process.wait(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    back = fm.read_results(path)
+    count = len(back)
+    assert count > 200
+    assert not back.success and isinstance(back.error, fm.SimulationInterrupted)
+    state = read_results_metadata(path)["status"]["state"]
+    assert state == ("running" if kill == signal.SIGKILL else "interrupted")
+    # Every record is complete and valid: the same as an uninterrupted run to that time.
+    example = EXAMPLES["flexible-slider-crank"]()
+    reference = fm.simulate(
+        example.system, back.time[-1], example.step_size, output_interval=example.output_interval
+    )
+    assert len(reference) == count
+    np.testing.assert_allclose(back.time, reference.time, rtol=0, atol=1e-15)
+    for name in ("coordinates", "velocities", "multipliers"):
+        scale = np.abs(getattr(reference, name)).max()
+        np.testing.assert_allclose(
+            getattr(back, name), getattr(reference, name), rtol=0, atol=1e-9 * scale
+        )
+
+
+def test_files_that_are_not_results_files_are_refused(tmp_path):
+    text = tmp_path / "notes.h5"
+    text.write_text("not hdf5")
+    with pytest.raises(fm.InvalidModelError, match="not an HDF5 file"):
+        fm.read_results(text)
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w", libver="latest") as file:
+        file.attrs["format"] = "something else"
+    with pytest.raises(fm.InvalidModelError, match="not a flexmbd results file"):
+        fm.read_results(other)
+    with pytest.raises(FileNotFoundError):
+        fm.read_results(tmp_path / "missing.h5")
+
+
+def test_tables_for_pandas_and_xarray(tmp_path):
+    example = EXAMPLES["flexible-slider-crank"]()
+    path = tmp_path / "crank.h5"
+    fm.simulate(example.system, 0.005, example.step_size, output_interval=1e-3, results_file=path)
+    result = fm.read_results(path)
+    frame = result.to_dataframe()
+    assert len(frame) == len(result)
+    np.testing.assert_array_equal(frame.index.to_numpy(), result.time)
+    np.testing.assert_array_equal(frame["crank.position.x"], result.position("crank")[:, 0])
+    np.testing.assert_array_equal(
+        frame["guide.reaction_force.y"], result.reaction_force("guide")[:, 1]
+    )
+    np.testing.assert_array_equal(frame["rod.elastic.3"], result.elastic_coordinates("rod")[:, 3])
+    np.testing.assert_array_equal(frame["kinetic_energy"], result.kinetic_energy)
+    data = result.to_xarray()
+    np.testing.assert_array_equal(data["coordinates"].to_numpy(), result.coordinates)
+    force = data["reactions"].sel(joint="bearing", component="force y").to_numpy()
+    np.testing.assert_array_equal(force, result.reaction_force("bearing")[:, 1])
+    assert data["multipliers"].sel(constraint="drive: angle").shape == (len(result),)
