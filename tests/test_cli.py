@@ -1,9 +1,25 @@
-"""The command line runs the built-in examples and reports their reference errors."""
+"""The command line: ``run`` (examples and model files, results files, Ctrl-C), ``info``,
+``preprocess``; ``plot`` and ``animate`` are in test_plotting.py and test_animation.py."""
 
+import os
+import signal
 import subprocess
 import sys
+import time
 
+import pytest
+
+import flexmbd as fm
 from flexmbd.cli import main
+from flexmbd.results_file import read_results_metadata
+
+QUIET = ["--no-plot", "--no-animation", "-q"]
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp_path(tmp_path, monkeypatch):
+    """``run`` writes its results into the working directory."""
+    monkeypatch.chdir(tmp_path)
 
 
 def test_examples_are_listed(capsys):
@@ -13,13 +29,14 @@ def test_examples_are_listed(capsys):
 
 
 def test_run_pendulum_reports_the_reference_errors(capsys):
-    assert main(["run", "pendulum", "--end", "1.0", "--step", "1e-3"]) == 0
+    assert main(["run", "pendulum", "--end", "1.0", "--step", "1e-3", *QUIET]) == 0
     out = capsys.readouterr().out
     assert "position error at t = 0.5 s" in out and "steps" in out
 
 
 def test_run_with_an_explicit_solver_reports_evaluations_and_events(capsys):
     argv = ["run", "pendulum", "--end", "1.0", "--step", "1e-3", "--solver", "rk4:partitioning"]
+    argv += QUIET
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "function evaluations" in out
@@ -30,7 +47,7 @@ def test_run_with_an_explicit_solver_reports_evaluations_and_events(capsys):
 
 def test_run_in_joint_coordinates_prints_the_size_of_the_acceleration_system(capsys):
     for formulation in ("decoupled", "coupled"):
-        argv = ["run", "flexible-robot-arm", "--end", "1e-8", "--step", "1e-9"]
+        argv = ["run", "flexible-robot-arm", "--end", "1e-8", "--step", "1e-9", *QUIET]
         argv += ["--solver", f"rk4:joint-coordinates:{formulation}"]
         assert main(argv) == 0
         out = capsys.readouterr().out
@@ -46,9 +63,77 @@ def test_run_refuses_an_unknown_solver(capsys):
     assert main(["run", "pendulum", "--solver", "rk4"]) == 2
 
 
+def test_run_refuses_what_is_neither_a_model_file_nor_an_example(capsys):
+    assert main(["run", "crank.txt"]) == 2
+    err = capsys.readouterr().err
+    assert "'crank.txt' is neither a model file" in err and "flexible-slider-crank" in err
+
+
+def test_run_writes_a_results_file_that_info_summarizes(tmp_path, capsys):
+    argv = ["run", "pendulum", "--end", "0.5", "--output-interval", "0.05", "-o", "a01.h5"]
+    assert main([*argv, *QUIET]) == 0
+    assert "results: a01.h5" in capsys.readouterr().out
+    result = fm.read_results(tmp_path / "a01.h5")
+    assert result.success and len(result) == 11 and result.time[-1] == 0.5
+    header = read_results_metadata(tmp_path / "a01.h5")
+    assert header["metadata"]["source"] == "built-in example 'pendulum'"
+    assert header["metadata"]["end_time"] == 0.5
+    assert main(["info", "a01.h5"]) == 0
+    out = capsys.readouterr().out
+    assert "status: complete" in out and "11 records, t = 0 .. 0.5 s" in out
+    assert "joint 'link': distance" in out
+    assert main(["info", "flexible-slider-crank"]) == 0
+    out = capsys.readouterr().out
+    assert "body 'rod': flexible" in out and "65 coordinates" in out
+    assert main(["info", "missing.h5"]) == 2
+
+
+def test_ctrl_c_stops_a_run_and_keeps_its_records(tmp_path):
+    command = [sys.executable, "-m", "flexmbd", "run", "flexible-slider-crank", "--end", "100"]
+    process = subprocess.Popen(
+        [*command, "-o", "stopped.h5", *QUIET],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            try:
+                if read_results_metadata(tmp_path / "stopped.h5")["records"] > 100:
+                    break
+            except (OSError, KeyError, fm.FlexmbdError):
+                pass
+            time.sleep(0.05)
+        os.kill(process.pid, signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 130, err
+    assert "interrupted:" in err and "kept in stopped.h5" in err
+    kept = int(err.split("interrupted:")[1].split()[0])
+    result = fm.read_results(tmp_path / "stopped.h5")
+    assert len(result) == kept > 100
+    assert isinstance(result.error, fm.SimulationInterrupted)
+    assert read_results_metadata(tmp_path / "stopped.h5")["status"]["state"] == "interrupted"
+
+
+def test_the_progress_bar_shows_time_step_size_and_iterations(capsys):
+    from flexmbd.cli import _ProgressBar
+
+    bar = _ProgressBar(0.0, 2.0, enabled=True)
+    bar(0.5, 1e-3, 4)
+    bar.close()
+    err = capsys.readouterr().err
+    assert "25.0%" in err and "t = 0.5 s" in err and "h = 0.001 s" in err
+    assert "4 Newton its" in err
+
+
 def test_python_dash_m_runs_the_default_example():
     run = subprocess.run(
-        [sys.executable, "-m", "flexmbd", "run", "--end", "0.01", "--step", "1e-4"],
+        [sys.executable, "-m", "flexmbd", "run", "--end", "0.01", "--step", "1e-4", *QUIET],
         capture_output=True,
         text=True,
         timeout=120,
@@ -104,6 +189,9 @@ def test_preprocess_writes_a_body_file_equal_to_the_python_api(tmp_path, capsys)
     )
     np.testing.assert_allclose(body.frequencies, same.frequencies, rtol=1e-10)
     assert body.metadata["source"] == str(tmp_path / "bar.inp")
+    assert main(["info", str(out)]) == 0
+    summary = capsys.readouterr().out
+    assert "flexmbd body file, 81 nodes, 192 tet4" in summary and "x0, x1" in summary
     # A node set the mesh does not have: a clear message and exit status 1.
     assert main([*command, "--interfaces", "x0", "tip"]) == 1
     assert "tip" in capsys.readouterr().err

@@ -1,25 +1,40 @@
-"""Command line: ``flexmbd run [EXAMPLE]`` runs a built-in example and compares it with its
-published reference; ``flexmbd examples`` lists them; ``flexmbd preprocess MESH -o BODY.h5``
-turns a mesh file into a deformable-body file (see ``docs/preprocessor.md``)."""
+"""The ``flexmbd`` command.
+
+* ``flexmbd run [MODEL]``: simulate a model file (YAML, ``docs/model-files.md``) or a built-in
+  example (default: the flexible slider-crank), writing a results file (HDF5, written during
+  the run), a plot and an animation; Ctrl-C stops cleanly and keeps what was computed.
+* ``flexmbd preprocess MESH -o BODY.h5``: a deformable-body file from a mesh
+  (``docs/preprocessor.md``).
+* ``flexmbd info FILE``: summarize a model, body or results file (or a built-in example).
+* ``flexmbd plot RESULTS`` and ``flexmbd animate RESULTS``: figures, ParaView series and
+  rendered animations from a results file (``docs/plots-and-animations.md``).
+* ``flexmbd examples``: the built-in examples; ``flexmbd schema``: the model file schema.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
 import time
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from . import __version__, _core
-from .errors import FlexmbdError
+from .errors import FlexmbdError, SimulationInterrupted
 from .examples import EXAMPLES
 from .simulation import simulate
 
 
-def _solver(text: str | None, default: _core.GeneralizedAlpha) -> Any:
+def _solver(text: str | None, default: Any) -> Any:
     """The solver named by ``--solver``: "generalized-alpha", or METHOD:STRATEGY[:FORMULATION]
     for an explicit solver, e.g. "dopri5:partitioning:embedding"."""
-    if text is None or text == "generalized-alpha":
+    if text is None:
         return default
+    if text == "generalized-alpha":
+        return _core.GeneralizedAlpha()
     parts = text.split(":")
     if not 2 <= len(parts) <= 3:
         raise argparse.ArgumentTypeError(
@@ -30,26 +45,89 @@ def _solver(text: str | None, default: _core.GeneralizedAlpha) -> Any:
     return _core.ExplicitSolver(parts[0], parts[1], formulation=formulation)
 
 
-def _run(args: argparse.Namespace) -> int:
-    example = EXAMPLES[args.example]()
-    end = args.end if args.end is not None else example.end_time
-    step = args.step if args.step is not None else example.step_size
-    print(f"flexmbd {__version__}: {example.description}")
-    model = example.system.compile()
-    print(f"  {model!r}")
-    try:
-        solver = _solver(args.solver, example.solver)
-    except (argparse.ArgumentTypeError, FlexmbdError) as error:
-        print(f"  {error}", file=sys.stderr)
-        return 2
-    print(f"  simulating to t = {end:g} s with step {step:g} s ({solver!r})")
-    start = time.perf_counter()
-    try:
-        result = simulate(model, end, step, output_interval=example.output_interval, solver=solver)
-    except FlexmbdError as error:
-        print(f"  failed: {error}", file=sys.stderr)
-        return 1
-    elapsed = time.perf_counter() - start
+@dataclass
+class _Job:
+    """What ``run`` simulates: a built-in example or a model file."""
+
+    name: str
+    description: str
+    system: Any
+    end_time: float
+    step_size: float
+    output_interval: float | None
+    solver: Any
+    check: Any = None
+    source: str = ""
+    plots: list[str] | None = None
+
+
+def _job(model: str) -> _Job:
+    if model in EXAMPLES:
+        example = EXAMPLES[model]()
+        return _Job(
+            example.name,
+            example.description,
+            example.system,
+            example.end_time,
+            example.step_size,
+            example.output_interval,
+            example.solver,
+            example.check,
+            source=f"built-in example {model!r}",
+        )
+    path = Path(model)
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        known = ", ".join(sorted(EXAMPLES))
+        raise FlexmbdError(
+            f"{model!r} is neither a model file (.yaml, .yml) nor a built-in example ({known})",
+            item=model,
+        )
+    from .model_file import load_model
+
+    loaded = load_model(path)
+    return _Job(
+        loaded.name or path.stem,
+        loaded.description or f"model file {path}",
+        loaded.system,
+        loaded.end_time,
+        loaded.step_size,
+        loaded.output_interval,
+        loaded.solver,
+        source=str(path),
+        plots=list(getattr(loaded, "plots", None) or []) or None,
+    )
+
+
+class _ProgressBar:
+    """One line on the terminal: simulated time, step size, Newton iterations, wall time."""
+
+    def __init__(self, start: float, end: float, enabled: bool):
+        self.start, self.end = start, end
+        self.enabled = enabled
+        self.began = time.perf_counter()
+        self.width = 0
+
+    def __call__(self, t: float, h: float, iterations: int) -> None:
+        if not self.enabled:
+            return
+        span = self.end - self.start
+        fraction = min(1.0, max(0.0, (t - self.start) / span)) if span > 0 else 1.0
+        filled = int(round(24 * fraction))
+        line = (
+            f"  [{'#' * filled}{'.' * (24 - filled)}] {100 * fraction:5.1f}%  t = {t:.6g} s"
+            f"  h = {h:.3g} s  {iterations} Newton its  {time.perf_counter() - self.began:.1f} s"
+        )
+        sys.stderr.write("\r" + line.ljust(self.width))
+        sys.stderr.flush()
+        self.width = len(line)
+
+    def close(self) -> None:
+        if self.enabled and self.width:
+            sys.stderr.write("\r" + " " * self.width + "\r")
+            sys.stderr.flush()
+
+
+def _print_summary(result: Any, elapsed: float) -> None:
     stats = result.statistics
     if stats.get("function_evaluations"):
         work = f"{stats['function_evaluations']} function evaluations"
@@ -65,12 +143,253 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  event at t = {event['time']:.6g} s ({event['kind']}): {event['message']}")
     if len(result.events) > 10:
         print(f"  ... {len(result.events) - 10} more events")
-    energy = result.total_energy
-    print(f"  largest constraint violation {result.constraint_violation.max():.2e}")
-    print(f"  total energy {energy[0]:.6f} J -> {energy[-1]:.6f} J")
-    if example.check is not None:
-        for name, value in example.check(result).items():
+    if len(result):
+        energy = result.total_energy
+        print(f"  largest constraint violation {result.constraint_violation.max():.2e}")
+        print(f"  total energy {energy[0]:.6f} J -> {energy[-1]:.6f} J")
+
+
+def _run(args: argparse.Namespace) -> int:
+    try:
+        job = _job(args.model)
+        solver = _solver(args.solver, job.solver)
+    except (argparse.ArgumentTypeError, FlexmbdError, OSError) as error:
+        print(f"flexmbd run: {error}", file=sys.stderr)
+        return 2
+    end = args.end if args.end is not None else job.end_time
+    step = args.step if args.step is not None else job.step_size
+    interval = args.output_interval if args.output_interval is not None else job.output_interval
+    results = Path(args.output) if args.output else Path(f"{job.name}.h5")
+    print(f"flexmbd {__version__}: {job.description}")
+    try:
+        model = job.system.compile()
+    except FlexmbdError as error:
+        print(f"flexmbd run: {error}", file=sys.stderr)
+        return 2
+    print(f"  {model!r}")
+    print(f"  simulating to t = {end:g} s with step {step:g} s ({solver!r})")
+    bar = _ProgressBar(0.0, end, enabled=not args.quiet and sys.stderr.isatty())
+    metadata = {
+        "source": job.source,
+        "name": job.name,
+        "end_time": end,
+        "step_size": step,
+        "output_interval": interval,
+        "solver": repr(solver),
+    }
+    start = time.perf_counter()
+    try:
+        result = simulate(
+            model,
+            end,
+            step,
+            output_interval=interval,
+            solver=solver,
+            progress=bar,
+            results_file=results,
+            metadata=metadata,
+        )
+    except SimulationInterrupted as error:
+        bar.close()
+        kept = error.result
+        last = f"t = {kept.time[-1]:.6g} s" if kept is not None and len(kept) else "the start"
+        count = len(kept) if kept is not None else 0
+        print(f"  interrupted: {count} records up to {last} kept in {results}", file=sys.stderr)
+        return 130
+    except FlexmbdError as error:
+        bar.close()
+        kept = getattr(error, "result", None)
+        count = len(kept) if kept is not None else 0
+        print(f"  failed: {error}", file=sys.stderr)
+        print(f"  {count} records kept in {results}", file=sys.stderr)
+        return 1
+    bar.close()
+    _print_summary(result, time.perf_counter() - start)
+    if job.check is not None:
+        for name, value in job.check(result).items():
             print(f"  {name}: {value:.2e}")
+    print(f"  results: {results}")
+    if not args.no_plot:
+        from .plotting import plot_result
+
+        plot = Path(args.plot) if args.plot else results.with_suffix(".png")
+        written = plot_result(result, plot, quantities=job.plots)
+        print(f"  plot: {', '.join(str(p) for p in written)}")
+    if not args.no_animation:
+        from .animation import render_animation, write_vtu_series
+
+        movie = Path(args.animation) if args.animation else results.with_suffix(".gif")
+        render_animation(result, movie)
+        print(f"  animation: {movie}")
+        if result.flexible:
+            pvd = write_vtu_series(result, results.with_name(f"{results.stem}_vtu"))
+            print(f"  ParaView series: {pvd}")
+    return 0
+
+
+def _info(args: argparse.Namespace) -> int:
+    target = args.file
+    try:
+        if target in EXAMPLES or Path(target).suffix.lower() in (".yaml", ".yml"):
+            job = _job(target)
+            model = job.system.compile()
+            print(f"{target}: {job.description}")
+            print(f"  {model!r}")
+            _print_layout(model.describe())
+            interval = job.output_interval
+            print(
+                f"  simulation: to t = {job.end_time:g} s, step {job.step_size:g} s, output "
+                f"{'every step' if interval is None else f'every {interval:g} s'}, "
+                f"{job.solver!r}"
+            )
+            return 0
+        path = Path(target)
+        if not path.exists():
+            print(f"flexmbd info: no such file or example: {target}", file=sys.stderr)
+            return 2
+        import h5py
+
+        if not h5py.is_hdf5(path):
+            print(f"flexmbd info: {target}: not a model, body or results file", file=sys.stderr)
+            return 2
+        with h5py.File(path, "r", swmr=True) as file:
+            kind = file.attrs.get("format")
+        if kind == "flexmbd-results":
+            return _info_results(path)
+        if kind == "flexmbd-body":
+            return _info_body(path)
+        print(f"flexmbd info: {target}: an HDF5 file of format {kind!r}", file=sys.stderr)
+        return 2
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd info: {error}", file=sys.stderr)
+        return 2
+
+
+def _print_layout(layout: dict[str, Any]) -> None:
+    bodies = [b for b in layout["bodies"] if b["kind"] != "ground"]
+    print(
+        f"  {len(bodies)} bodies, {len(layout['joints'])} joints, {len(layout['forces'])} "
+        f"forces, {len(layout['sensors'])} sensors; {layout['coordinate_count']} coordinates, "
+        f"{layout['constraint_count']} constraint equations"
+    )
+    for body in bodies:
+        print(
+            f"    body {body['name']!r}: {body['kind']}, {body['mass']:.6g} kg, "
+            f"{body['count']} coordinates"
+        )
+    for joint in layout["joints"]:
+        print(f"    joint {joint['name']!r}: {joint['type']} ({len(joint['equations'])} equations)")
+
+
+def _info_results(path: Path) -> int:
+    from .results_file import read_results_metadata
+
+    header = read_results_metadata(path)
+    status = header["status"] or {}
+    print(f"{path}: flexmbd results file (version {header['version']}, {header['writer']})")
+    source = header["metadata"].get("source")
+    if source:
+        print(f"  model: {source}")
+    state = status.get("state", "?")
+    if state == "running":
+        state = "running, or stopped without closing the file (killed)"
+    elif status.get("error"):
+        state += f" ({status['error']}: {status.get('message', '')})"
+    print(f"  status: {state}")
+    _print_layout(header["layout"])
+    count = header["records"]
+    if count:
+        from .results_file import read_results
+
+        times = read_results(path).time
+        print(f"  {count} records, t = {times[0]:g} .. {times[-1]:g} s")
+    else:
+        print("  no records")
+    stats = header["statistics"]
+    if stats:
+        shown = ", ".join(
+            f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}"
+            for k, v in stats.items()
+            if not (isinstance(v, float) and math.isnan(v))
+        )
+        print(f"  statistics: {shown}")
+    if header["events"]:
+        print(f"  {len(header['events'])} events, first: {header['events'][0]['message']}")
+    if header["flexible"]:
+        print(f"  deformable body data of bodies {header['flexible']}")
+    return 0
+
+
+def _info_body(path: Path) -> int:
+    from .fe.body_file import load_body
+
+    body = load_body(path)
+    elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
+    print(f"{path}: flexmbd body file, {body.node_count} nodes, {elements}")
+    print(
+        f"  mass {body.invariants['mass']:.6g} kg, {body.elastic_coordinate_count} elastic "
+        f"coordinates ({body.mode_kind or 'nodal'})"
+    )
+    if body.frequencies is not None:
+        shown = ", ".join(f"{f:.4g}" for f in body.frequencies[:8])
+        more = " ..." if len(body.frequencies) > 8 else ""
+        print(f"  frequencies (Hz): {shown}{more}")
+    if body.node_sets:
+        print(f"  node sets: {', '.join(sorted(body.node_sets))}")
+    return 0
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from .plotting import plot_result
+    from .results_file import read_results
+
+    try:
+        result = read_results(args.results)
+        output = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
+        written = plot_result(result, output, quantities=args.quantity or None)
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd plot: {error}", file=sys.stderr)
+        return 2
+    for path in written:
+        print(f"written: {path}")
+    return 0
+
+
+def _animate(args: argparse.Namespace) -> int:
+    from .animation import render_animation, write_vtu_series
+    from .results_file import read_results
+
+    try:
+        result = read_results(args.results)
+        results = Path(args.results)
+        options: dict[str, Any] = {}
+        if args.scale is not None:
+            options["scale"] = args.scale
+        if args.vtu or not args.no_vtu and result.flexible:
+            directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
+            pvd = write_vtu_series(result, directory, **options)
+            print(f"written: {pvd}")
+        if not args.no_render:
+            movie = Path(args.output) if args.output else results.with_suffix(".gif")
+            if args.frames is not None:
+                options["frames"] = args.frames
+            render_animation(result, movie, **options)
+            print(f"written: {movie}")
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd animate: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from .model_file import model_schema
+
+    text = json.dumps(model_schema(), indent=2)
+    if args.output:
+        Path(args.output).write_text(text + "\n")
+        print(f"written: {args.output}")
+    else:
+        print(text)
     return 0
 
 
@@ -120,19 +439,58 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="flexmbd", description="Flexible multibody dynamics.")
     parser.add_argument("--version", action="version", version=f"flexmbd {__version__}")
     sub = parser.add_subparsers(dest="command")
-    run = sub.add_parser("run", help="run a built-in example (default: four-bar)")
-    run.add_argument(
-        "example", nargs="?", default="flexible-slider-crank", choices=sorted(EXAMPLES)
+    run = sub.add_parser(
+        "run",
+        help="simulate a model file or a built-in example (default: flexible-slider-crank)",
+        description="Simulate a model file (.yaml) or a built-in example; write the results "
+        "(HDF5, during the run), a plot and an animation next to them. Ctrl-C stops and keeps "
+        "what was computed.",
     )
+    run.add_argument(
+        "model",
+        nargs="?",
+        default="flexible-slider-crank",
+        help="model file (.yaml) or built-in example (flexmbd examples lists them)",
+    )
+    run.add_argument("-o", "--output", help="results file (default: NAME.h5)")
     run.add_argument("--end", type=float, help="end time (s)")
     run.add_argument("--step", type=float, help="step size (s)")
+    run.add_argument("--output-interval", type=float, help="time between records (s)")
     run.add_argument(
         "--solver",
-        help="generalized-alpha (default: the example's settings), or an explicit solver "
+        help="generalized-alpha (default: the model's settings), or an explicit solver "
         "METHOD:STRATEGY[:FORMULATION] with METHOD rk4 or dopri5, STRATEGY integrate-all, "
         "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding "
         "(joint-coordinates: joint-space, coupled or decoupled)",
     )
+    run.add_argument("--plot", help="plot file (.png or .svg; default: NAME.png)")
+    run.add_argument("--animation", help="animation file (.gif; default: NAME.gif)")
+    run.add_argument("--no-plot", action="store_true", help="write no plot")
+    run.add_argument("--no-animation", action="store_true", help="write no animation")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    info = sub.add_parser("info", help="summarize a model, body or results file")
+    info.add_argument("file", help="model file (.yaml), body or results file (.h5), or example")
+    plot = sub.add_parser("plot", help="plot a results file")
+    plot.add_argument("results", help="results file (.h5)")
+    plot.add_argument("-o", "--output", help="image file (.png or .svg; default: RESULTS.png)")
+    plot.add_argument(
+        "quantity",
+        nargs="*",
+        help="what to plot, e.g. energy violation position:crank reaction:guide "
+        "deflection:rod (default: an overview)",
+    )
+    animate = sub.add_parser(
+        "animate", help="render an animation and write a ParaView series of a results file"
+    )
+    animate.add_argument("results", help="results file (.h5)")
+    animate.add_argument("-o", "--output", help="animation file (.gif; default: RESULTS.gif)")
+    animate.add_argument("--vtu", help="folder of the ParaView series (default: RESULTS_vtu)")
+    animate.add_argument("--no-vtu", action="store_true", help="write no ParaView series")
+    animate.add_argument("--no-render", action="store_true", help="render no animation")
+    animate.add_argument("--frames", type=int, help="number of frames rendered")
+    animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
+    schema = sub.add_parser("schema", help="print the JSON schema of model files")
+    schema.add_argument("-o", "--output", help="file to write it to")
     sub.add_parser("examples", help="list the built-in examples")
     pre = sub.add_parser(
         "preprocess",
@@ -166,8 +524,15 @@ def main(argv: list[str] | None = None) -> int:
     pre.add_argument("--interface-kind", choices=("rbe2", "rbe3", "nodal"), default="rbe2")
     pre.add_argument("--precision", choices=("auto", "double", "single"), default="auto")
     args = parser.parse_args(argv)
-    if args.command == "preprocess":
-        return _preprocess(args)
+    commands = {
+        "preprocess": _preprocess,
+        "info": _info,
+        "plot": _plot,
+        "animate": _animate,
+        "schema": _schema,
+    }
+    if args.command in commands:
+        return commands[args.command](args)
     if args.command == "examples":
         for name, builder in sorted(EXAMPLES.items()):
             print(f"{name}: {builder().description}")
