@@ -1,0 +1,641 @@
+"""Model files (docs/model-files.md): a YAML model gives the same simulation as the Python model
+it describes, bit for bit; its units are converted to SI; every malformed file gives one
+ModelFileError naming the line and key path; nothing in a model file is executed."""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+from flexmbd.errors import ModelError, ModelFileError
+from flexmbd.model_file import (
+    ExplicitSolverSpec,
+    FlexibleBodySpec,
+    GeneralizedAlphaSpec,
+    JointSpec,
+    SensorSpec,
+    load_model,
+    model_schema,
+    simulate_model,
+)
+
+ROOT = Path(__file__).parents[1]
+MODELS = ROOT / "examples" / "models"
+RECORDS = ("time", "coordinates", "velocities", "accelerations", "multipliers")
+
+
+def assert_same_run(from_file: fm.Result, from_python: fm.Result) -> None:
+    """Bit-for-bit equal records of two runs."""
+    for name in RECORDS:
+        a, b = getattr(from_file, name), getattr(from_python, name)
+        assert a.shape == b.shape, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def run_example(example: fm.examples.Example, end_time: float, solver=None) -> fm.Result:
+    return fm.simulate(
+        example.system,
+        end_time,
+        example.step_size,
+        output_interval=example.output_interval,
+        solver=example.solver if solver is None else solver,
+    )
+
+
+# The same simulation from a file and from Python ----------------------------------------------
+
+
+def test_pendulum_file_is_the_python_pendulum():
+    model = load_model(MODELS / "pendulum.yaml")
+    assert (model.end_time, model.step_size, model.output_interval) == (10.0, 5e-5, 0.01)
+    result = simulate_model(model, end_time=0.5)
+    assert_same_run(result, run_example(fm.examples.pendulum(), 0.5))
+    np.testing.assert_array_equal(
+        model.output_values(result)["bob position"], result.sensor("bob position")
+    )
+
+
+def test_four_bar_file_is_the_python_four_bar():
+    model = load_model(MODELS / "four_bar.yaml")
+    assert list(model.bodies) == ["crank 0", "crank 1", "crank 2", "coupler 0", "coupler 1"]
+    assert_same_run(simulate_model(model, end_time=0.5), run_example(fm.examples.four_bar(2), 0.5))
+
+
+def test_flexible_slider_crank_file_is_the_python_model():
+    model = load_model(MODELS / "flexible_slider_crank.yaml")
+    result = simulate_model(model, end_time=0.01)
+    example = fm.examples.flexible_slider_crank()
+    assert_same_run(result, run_example(example, 0.01))
+    outputs = model.output_values(result)
+    np.testing.assert_array_equal(outputs["midpoint deflection"], result.deflection("rod", 5))
+    np.testing.assert_array_equal(outputs["drive reaction_torque"], result.reaction_torque("drive"))
+    assert model.plots == ["drive.reaction_torque", "kinetic_energy", "potential_energy"]
+
+
+def test_tetrahedral_pendulum_file_is_the_python_model():
+    model = load_model(MODELS / "tetrahedral_pendulum.yaml")
+    result = simulate_model(model, end_time=0.05)
+    assert_same_run(result, run_example(fm.examples.tetrahedral_pendulum(), 0.05))
+
+
+def test_explicit_solver_settings_are_those_of_the_python_solver(tmp_path):
+    text = (MODELS / "four_bar.yaml").read_text()
+    explicit = (
+        "solver:\n  type: explicit\n  method: rk4\n  strategy: joint-coordinates\n"
+        "  formulation: decoupled\n  cut_joints: [coupler 0 right, coupler 1 right]\n"
+    )
+    text = re.sub(r"solver:\n  type: generalized-alpha\n  spectral_radius: 0.9\n", explicit, text)
+    (tmp_path / "four_bar.yaml").write_text(text)
+    model = load_model(tmp_path / "four_bar.yaml")
+    example = fm.examples.four_bar(2)
+    cut = [model.joints["coupler 0 right"], model.joints["coupler 1 right"]]
+    solver = fm.ExplicitSolver("rk4", "joint-coordinates", formulation="decoupled", cut_joints=cut)
+    assert_same_run(simulate_model(model, end_time=0.2), run_example(example, 0.2, solver))
+
+
+def test_body_file_and_mesh_file_give_the_same_bodies(tmp_path, monkeypatch):
+    import meshio
+
+    from flexmbd.fe import save_body, shapes
+
+    # The slider-crank's rod from a body file in a subfolder, named relative to the model file.
+    example = fm.examples.flexible_slider_crank()
+    (tmp_path / "bodies").mkdir()
+    save_body(example.system._flexible[example.items["rod"].index], tmp_path / "bodies/rod.h5")
+    text = (MODELS / "flexible_slider_crank.yaml").read_text()
+    preprocessed = re.compile(r"    beam: .*?reference_nodes: \[0, 8\][^\n]*\n", re.DOTALL)
+    assert preprocessed.search(text)
+    (tmp_path / "crank.yaml").write_text(preprocessed.sub("    body_file: bodies/rod.h5\n", text))
+    # The tetrahedral pendulum's bar from a VTK mesh file (no node sets: node lists instead).
+    mesh = shapes.box((0.5, 0.03, 0.03), (20, 2, 2), "tet4")
+    meshio.write_points_cells(tmp_path / "bar.vtu", mesh.nodes, [("tetra", mesh.elements["tet4"])])
+    face = mesh.node_sets["x0"]
+    text = (MODELS / "tetrahedral_pendulum.yaml").read_text()
+    text = text.replace(
+        "box: {lengths: [0.5, 0.03, 0.03], divisions: [20, 2, 2], element: tet4}", "mesh: bar.vtu"
+    )
+    text = text.replace("interfaces: [x0]", f"interfaces: [{face.tolist()}]")
+    text = text.replace("node_set: x0", f"node_set: {(face + 1).tolist()}")
+    (tmp_path / "bar.yaml").write_text(text)
+    monkeypatch.chdir(ROOT)  # relative file names are relative to the model file, not here
+
+    crank = load_model(tmp_path / "crank.yaml")
+    assert_same_run(simulate_model(crank, end_time=0.005), run_example(example, 0.005))
+    bar = load_model(tmp_path / "bar.yaml")
+    pendulum = fm.examples.tetrahedral_pendulum()
+    assert_same_run(simulate_model(bar, end_time=0.02), run_example(pendulum, 0.02))
+
+
+# Units ------------------------------------------------------------------------------------------
+
+# A model that uses every converted quantity: a free rigid arm on a spring-damper and a
+# torsional spring-damper, loaded by a harmonic and a spline force and a polynomial torque,
+# carrying a point mass on a distance joint; a slider moved by a translation driver and a
+# wheel turned by an angle driver. SI values; `twin` writes them in cm, g, ms and degrees.
+UNITS_MODEL = """\
+units: {{length: {m}, mass: {kg}, time: {s}, angle: {rad}}}
+gravity: [0.0, {gravity}, 0.0]
+functions:
+  wheel angle: {{type: polynomial, coefficients: [0.0, {wheel_rate}]}}
+bodies:
+  - {{name: arm, type: rigid, mass: {arm_mass}, inertia: [{i1}, {i2}, {i3}],
+     center_of_mass: [{com}, 0.0, 0.0], position: [{x_arm}, {y_arm}, 0.0],
+     orientation: {{axis: z, angle: {arm_angle}}}, velocity: [0.0, {v_arm}, 0.0],
+     angular_velocity: [0.0, 0.0, {w_arm}]}}
+  - {{name: bob, type: point-mass, mass: {bob_mass}, position: [{x_arm}, {y_bob}, 0.0]}}
+  - {{name: slider, type: rigid, mass: {arm_mass}, inertia: [{i3}, {i3}, {i3}],
+     orientation: {{axis: y, angle: {quarter}}}}}
+  - {{name: wheel, type: rigid, mass: {arm_mass}, inertia: [{i3}, {i3}, {i3}],
+     position: [{x_wheel}, 0.0, 0.0]}}
+joints:
+  - {{type: distance, marker1: {{body: arm}}, marker2: {{body: bob}}, distance: {distance}}}
+  - {{name: rail, type: prismatic, marker1: &rail {{body: ground, orientation: {{axis: y,
+     angle: {quarter}}}}}, marker2: {{body: slider}}}}
+  - {{type: translation-driver, marker1: *rail, marker2: {{body: slider}},
+     displacement: {{type: polynomial, coefficients: [0.0, {slide_rate}, {slide_acceleration}]}}}}
+  - {{type: revolute, marker1: &axle {{body: ground, position: [{x_wheel}, 0.0, 0.0]}},
+     marker2: {{body: wheel}}}}
+  - {{name: motor, type: angle-driver, marker1: *axle, marker2: {{body: wheel}},
+     angle: wheel angle}}
+forces:
+  - {{type: spring-damper, marker1: {{body: ground, position: [0.0, {y_anchor}, 0.0]}},
+     marker2: {{body: arm, position: [{com}, 0.0, 0.0]}}, stiffness: {k}, damping: {c},
+     rest_length: {rest}, preload: {preload}}}
+  - {{type: rotational-spring-damper, marker1: {{body: ground}}, marker2: {{body: arm}},
+     stiffness: {k_rot}, damping: {c_rot}, rest_angle: {rest_angle}, preload: {preload_rot}}}
+  - {{type: point-force, marker: {{body: bob}}, force: [{{type: harmonic, amplitude: {f_amp},
+     frequency: {f_freq}, phase: {f_phase}, offset: {f_offset}}}, 0.0, {{type: spline,
+     times: [0.0, {t1}, {t2}], values: [0.0, {f1}, {f2}]}}]}}
+  - {{type: torque, marker: {{body: arm}}, torque: [0.0, 0.0, {{type: polynomial,
+     coefficients: [{c0}, {c1}, {c2}]}}]}}
+sensors:
+  - {{name: bob velocity, marker: {{body: bob}}, quantity: velocity}}
+solver: {{type: generalized-alpha, min_step_size: {min_step}, max_step_size: {step}}}
+simulation: {{end_time: {end}, step_size: {step}, output_interval: {output}}}
+"""
+
+SI_VALUES = {
+    "gravity": -9.81,
+    "wheel_rate": 2.0,
+    "arm_mass": 2.0,
+    "i1": 0.01,
+    "i2": 0.2,
+    "i3": 0.25,
+    "com": 0.1,
+    "x_arm": 0.5,
+    "y_arm": 0.2,
+    "arm_angle": 0.5,
+    "v_arm": 0.1,
+    "w_arm": 0.2,
+    "bob_mass": 0.5,
+    "y_bob": -0.3,
+    "quarter": math.pi / 2,
+    "x_wheel": 2.0,
+    "distance": 0.5,
+    "slide_rate": 0.1,
+    "slide_acceleration": 0.05,
+    "y_anchor": 1.0,
+    "k": 50.0,
+    "c": 0.5,
+    "rest": 0.6,
+    "preload": 1.0,
+    "k_rot": 2.0,
+    "c_rot": 0.05,
+    "rest_angle": 0.3,
+    "preload_rot": 0.1,
+    "f_amp": 1.0,
+    "f_freq": 30.0,
+    "f_phase": 0.1,
+    "f_offset": 0.5,
+    "t1": 0.1,
+    "t2": 0.2,
+    "f1": 1.0,
+    "f2": 0.5,
+    "c0": 0.1,
+    "c1": 2.0,
+    "c2": 3.0,
+    "min_step": 1e-6,
+    "step": 1e-3,
+    "end": 0.2,
+    "output": 0.01,
+}
+
+
+def twin(values: dict[str, float]) -> dict[str, float]:
+    """The values of SI_VALUES in cm, g, ms and degrees (factors written out by hand)."""
+    cm, g, ms, deg = 100.0, 1000.0, 1000.0, 180.0 / math.pi  # per m, kg, s, rad
+    newton = g * cm / ms**2
+    scale = {
+        "gravity": cm / ms**2,
+        "wheel_rate": deg / ms,
+        "arm_mass": g,
+        "bob_mass": g,
+        "i1": g * cm**2,
+        "i2": g * cm**2,
+        "i3": g * cm**2,
+        "arm_angle": deg,
+        "quarter": deg,
+        "rest_angle": deg,
+        "f_phase": deg,
+        "v_arm": cm / ms,
+        "w_arm": deg / ms,
+        "slide_rate": cm / ms,
+        "slide_acceleration": cm / ms**2,
+        "k": newton / cm,
+        "c": newton * ms / cm,
+        "preload": newton,
+        "k_rot": newton * cm / deg,
+        "c_rot": newton * cm * ms / deg,
+        "preload_rot": newton * cm,
+        "f_amp": newton,
+        "f_offset": newton,
+        "f1": newton,
+        "f2": newton,
+        "f_freq": deg / ms,
+        "c0": newton * cm,
+        "c1": newton * cm / ms,
+        "c2": newton * cm / ms**2,
+    }
+    times = ("t1", "t2", "min_step", "step", "end", "output")
+    lengths = ("com", "x_arm", "y_arm", "y_bob", "x_wheel", "distance", "y_anchor", "rest")
+    scale.update({key: ms for key in times})
+    scale.update({key: cm for key in lengths})
+    assert set(scale) == set(values)
+    return {key: value * scale[key] for key, value in values.items()}
+
+
+def test_units_are_converted_to_si(tmp_path):
+    si, other = tmp_path / "si.yaml", tmp_path / "cgs.yaml"
+    si.write_text(UNITS_MODEL.format(m="m", kg="kg", s="s", rad="rad", **SI_VALUES))
+    other.write_text(UNITS_MODEL.format(m="cm", kg="g", s="ms", rad="deg", **twin(SI_VALUES)))
+    first, second = load_model(si), load_model(other)
+    assert second.units == {"length": "cm", "mass": "g", "time": "ms", "angle": "deg"}
+    assert second.end_time == pytest.approx(0.2, rel=1e-15)
+    assert second.step_size == pytest.approx(1e-3, rel=1e-15)
+    a, b = simulate_model(first), simulate_model(second)
+    assert a.statistics["steps"] == b.statistics["steps"] == 200
+    # The model moves: the springs, forces and drivers act.
+    assert np.ptp(a.coordinates, axis=0).max() > 0.05
+    np.testing.assert_allclose(b.time, a.time, rtol=1e-14)
+    np.testing.assert_allclose(b.coordinates, a.coordinates, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.sensor("bob velocity"), a.sensor("bob velocity"), atol=1e-9)
+    scale = np.max(np.abs(a.multipliers))
+    np.testing.assert_allclose(b.multipliers, a.multipliers, rtol=0, atol=1e-9 * scale)
+
+
+def test_mesh_files_and_materials_in_millimetres_tonnes_and_seconds(tmp_path):
+    import meshio
+
+    from flexmbd.fe import shapes
+
+    mesh = shapes.box((0.5, 0.03, 0.03), (10, 1, 1), "tet4")
+    face = mesh.node_sets["x0"].tolist()
+    body = (
+        "bodies:\n  - name: bar\n    type: flexible\n    mesh: {file}\n"
+        "    material: {{young_modulus: {e}, poisson_ratio: 0.33, density: {rho}}}\n"
+        f"    reference: interface\n    modes: craig-bampton\n    mode_count: 3\n"
+        f"    interfaces: [{face}]\n"
+        "simulation: {{end_time: 1.0, step_size: 0.1}}\n"
+    )
+    cells = [("tetra", mesh.elements["tet4"])]
+    meshio.write_points_cells(tmp_path / "m.vtu", mesh.nodes, cells)
+    meshio.write_points_cells(tmp_path / "mm.vtu", mesh.nodes * 1000.0, cells)
+    (tmp_path / "m.yaml").write_text(body.format(file="m.vtu", e="7.0e+10", rho="2700.0"))
+    (tmp_path / "mm.yaml").write_text(
+        "units: {length: mm, mass: t}\n" + body.format(file="mm.vtu", e="7.0e+4", rho="2.7e-9")
+    )
+    si = load_model(tmp_path / "m.yaml").body_data["bar"]
+    mm = load_model(tmp_path / "mm.yaml").body_data["bar"]
+    np.testing.assert_allclose(mm.nodes, si.nodes, rtol=0, atol=1e-15)
+    assert mm.invariants["mass"] == pytest.approx(2700 * 0.5 * 0.03**2, rel=1e-12)
+    assert mm.invariants["mass"] == pytest.approx(si.invariants["mass"], rel=1e-12)
+    np.testing.assert_allclose(mm.frequencies, si.frequencies, rtol=1e-9)
+
+
+# Malformed files: one error with the line and the key path --------------------------------------
+
+PENDULUM = """\
+gravity: [0.0, -9.81, 0.0]
+bodies:
+  - name: mass
+    type: point-mass
+    mass: 1.0
+    position: [1.0, 0.0, 0.0]
+markers:
+  - {name: pivot, body: ground}
+  - {name: bob, body: mass}
+joints:
+  - name: link
+    type: distance
+    marker1: pivot
+    marker2: bob
+simulation:
+  end_time: 1.0
+  step_size: 1.0e-3
+"""
+FLEXIBLE = """\
+    type: flexible
+    beam: {length: 1.0, elements: 2}
+    material: {young_modulus: 1.0e+9, poisson_ratio: 0.3, density: 1000.0}
+    section: {type: circle, radius: 0.01}
+    reference: clamped
+    reference_nodes: [0]
+"""
+POINT_MASS = "    type: point-mass\n    mass: 1.0\n    position: [1.0, 0.0, 0.0]\n"
+
+MALFORMED = {
+    "YAML syntax": (
+        ("mass: 1.0", "mass: [1.0"),
+        "model.yaml: line 6, column 13: YAML syntax error: expected ',' or ']'",
+    ),
+    "tab": (("    mass: 1.0", "\tmass: 1.0"), "model.yaml: line 5, column 1: YAML syntax error"),
+    "unknown key": (
+        ("    mass: 1.0", "    mas: 1.0"),
+        "model.yaml: line 5: bodies[0].mas: unknown key 'mas' (allowed: type, name, mass, "
+        "position, velocity); did you mean 'mass'?",
+    ),
+    "unknown top-level key": (
+        ("simulation:", "simulaton: {}\nsimulation:"),
+        "model.yaml: line 15: simulaton: unknown key 'simulaton'",
+    ),
+    "string for a number": (
+        ("mass: 1.0", "mass: heavy"),
+        "model.yaml: line 5: bodies[0].mass: Input should be a valid number, got 'heavy'",
+    ),
+    "quoted number": (
+        ("mass: 1.0", "mass: '1.0'"),
+        "model.yaml: line 5: bodies[0].mass: Input should be a",
+    ),
+    "boolean for a number": (
+        ("mass: 1.0", "mass: true"),
+        "model.yaml: line 5: bodies[0].mass: Input should",
+    ),
+    "short vector": (
+        ("position: [1.0, 0.0, 0.0]", "position: [1.0, 0.0]"),
+        "model.yaml: line 6: bodies[0].position: expected at least 3 items, got 2",
+    ),
+    "negative mass": (
+        ("mass: 1.0", "mass: -1.0"),
+        "model.yaml: line 5: bodies[0].mass: Input should be greater than 0, got -1.0",
+    ),
+    "zero step size": (
+        ("step_size: 1.0e-3", "step_size: 0"),
+        "model.yaml: line 17: simulation.step_size: Input should be greater than 0, got 0",
+    ),
+    "end before start": (
+        ("end_time: 1.0", "end_time: -1.0"),
+        "model.yaml: line 16: simulation.end_time: end_time must be after start_time",
+    ),
+    "missing section": (
+        ("simulation:\n  end_time: 1.0\n  step_size: 1.0e-3\n", ""),
+        "model.yaml: line 1: missing key 'simulation'",
+    ),
+    "missing key": (("    mass: 1.0\n", ""), "model.yaml: line 3: bodies[0]: missing key 'mass'"),
+    "missing type": (
+        ("    type: distance\n", ""),
+        "model.yaml: line 11: joints[0]: missing key 'type'",
+    ),
+    "unknown type": (
+        ("type: distance", "type: hinge"),
+        "model.yaml: line 12: joints[0].type: unknown type 'hinge' (one of: spherical, revolute",
+    ),
+    "unknown marker": (
+        ("marker2: bob", "marker2: bobb"),
+        "model.yaml: line 14: joints[0].marker2: unknown marker 'bobb' (markers: pivot, bob)",
+    ),
+    "unknown body": (
+        ("{name: bob, body: mass}", "{name: bob, body: crank}"),
+        "model.yaml: line 9: markers[1].body: unknown body 'crank' (bodies: ground, mass)",
+    ),
+    "duplicate body": (
+        ("markers:", "  - {name: mass, type: point-mass, mass: 2.0}\nmarkers:"),
+        "model.yaml: line 7: bodies[1].name: duplicate body name 'mass' (first at line 3)",
+    ),
+    "duplicate marker, inline": (
+        ("marker2: bob", "marker2: {name: pivot, body: mass}"),
+        "model.yaml: line 14: joints[0].marker2.name: duplicate marker name 'pivot' (first at "
+        "line 8)",
+    ),
+    "body named ground": (
+        ("name: mass\n", "name: ground\n"),
+        "model.yaml: line 3: bodies[0].name: 'ground'",
+    ),
+    "duplicate key": (
+        ("    mass: 1.0\n", "    mass: 1.0\n    mass: 2.0\n"),
+        "model.yaml: line 6: bodies[0].mass: duplicate key 'mass' (first at line 5)",
+    ),
+    "unknown unit": (
+        ("gravity:", "units: {length: inch}\ngravity:"),
+        "model.yaml: line 1: units.length: Input should be 'm', 'cm' or 'mm', got 'inch'",
+    ),
+    "unknown unit key": (
+        ("gravity:", "units:\n  length: mm\n  force: N\ngravity:"),
+        "model.yaml: line 3: units.force: unknown key 'force' (allowed: length, mass, time, angle)",
+    ),
+    "unknown function": (
+        (
+            "marker2: bob\n",
+            "marker2: bob\n  - {type: angle-driver, marker1: pivot, marker2: bob, angle: swing}\n",
+        ),
+        "model.yaml: line 15: joints[1].angle: unknown function 'swing' (functions: none)",
+    ),
+    "unknown function type": (
+        (
+            "marker2: bob\n",
+            "marker2: bob\n  - {type: angle-driver, marker1: pivot, "
+            "marker2: bob, angle: {type: sine}}\n",
+        ),
+        "model.yaml: line 15: joints[1].angle.type: unknown type 'sine' (one of: constant, "
+        "polynomial, harmonic, spline)",
+    ),
+    "error of the Python API": (
+        ("{name: bob, body: mass}", "{name: bob, body: mass, position: [0.0, 1.0, 0.0]}"),
+        "model.yaml: line 9: markers[1]: invalid parameter of marker 'bob': a marker on a point "
+        "mass must be at its position",
+    ),
+    "node marker on a rigid body": (
+        ("{name: bob, body: mass}", "{name: bob, body: mass, node: 2}"),
+        "model.yaml: line 9: markers[1].node: body 'mass' is not a flexible body",
+    ),
+    "unknown node": (
+        (POINT_MASS, FLEXIBLE, "{name: bob, body: mass}", "{name: bob, body: mass, node: 7}"),
+        "model.yaml: line 12: markers[1].node: marker 'bob': the body has no node with id 7",
+    ),
+    "missing body file": (
+        (POINT_MASS, "    type: flexible\n    body_file: bodies/rod.h5\n"),
+        "model.yaml: line 5: bodies[0].body_file: no such file: 'bodies/rod.h5' (looked for ",
+    ),
+    "missing mesh file": (
+        (POINT_MASS, FLEXIBLE.replace("beam: {length: 1.0, elements: 2}", "mesh: arm.msh")),
+        "model.yaml: line 5: bodies[0].mesh: no such file: 'arm.msh'",
+    ),
+    "two body sources": (
+        (POINT_MASS, FLEXIBLE + "    box: {lengths: [1.0, 1.0, 1.0], divisions: [1, 1, 1]}\n"),
+        "model.yaml: line 3: bodies[0]: a flexible body needs exactly one of body_file, beam, "
+        "mesh, box, cylinder (got beam, box)",
+    ),
+    "elastic coordinates in other units": (
+        (
+            "gravity:",
+            "units: {length: mm}\ngravity:",
+            POINT_MASS,
+            FLEXIBLE + "    elastic_coordinates: [0.0]\n",
+        ),
+        "model.yaml: line 11: bodies[0].elastic_coordinates: elastic_coordinates are not converted",
+    ),
+    "unknown output": (
+        ("simulation:", "outputs:\n  - {joint: hinge, quantity: reaction_force}\nsimulation:"),
+        "model.yaml: line 16: outputs[0].joint: unknown joint 'hinge' (joints: link)",
+    ),
+    "unknown solver option": (
+        ("simulation:", "solver: {type: generalized-alpha, rho: 0.5}\nsimulation:"),
+        "model.yaml: line 15: solver.rho: unknown key 'rho'",
+    ),
+    "unknown cut joint": (
+        ("simulation:", "solver: {type: explicit, cut_joints: [hinge]}\nsimulation:"),
+        "model.yaml: line 15: solver.cut_joints[0]: unknown joint 'hinge' (joints: link)",
+    ),
+    "not a mapping": ((PENDULUM, "- 1\n- 2\n"), "model.yaml: line 1: a model file is a mapping"),
+    "empty": ((PENDULUM, ""), "model.yaml: the model file is empty"),
+}
+
+
+def edited(*replacements: str) -> str:
+    text = PENDULUM
+    for old, new in zip(replacements[::2], replacements[1::2], strict=True):
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    return text
+
+
+@pytest.mark.parametrize("case", list(MALFORMED))
+def test_malformed_model_files_give_one_error_with_line_and_key_path(case, tmp_path, monkeypatch):
+    replacements, expected = MALFORMED[case]
+    (tmp_path / "model.yaml").write_text(edited(*replacements))
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ModelFileError) as caught:
+        load_model("model.yaml")
+    message = str(caught.value)
+    assert message.startswith(expected), message
+    assert "\n" not in message
+    assert isinstance(caught.value, ModelError) and isinstance(caught.value, ValueError)
+    assert caught.value.file == "model.yaml"
+    line = re.match(r"model\.yaml: line (\d+)", message)
+    assert caught.value.line == (int(line.group(1)) if line else None)
+
+
+def test_the_unedited_base_model_loads_and_runs(tmp_path):
+    """The base of the malformed cases is valid: each case fails for its own edit."""
+    (tmp_path / "model.yaml").write_text(PENDULUM)
+    result = simulate_model(tmp_path / "model.yaml", end_time=0.01)
+    assert len(result.time) == 11
+
+
+def test_missing_model_file(tmp_path):
+    with pytest.raises(ModelFileError, match=r"nothere\.yaml: no such model file"):
+        load_model(tmp_path / "nothere.yaml")
+
+
+@pytest.mark.parametrize(
+    "tag",
+    [
+        "!!python/object/apply:os.mkdir ['{path}']",
+        "!!python/object/new:os.mkdir ['{path}']",
+        "!!python/name:os.mkdir",
+        "!include '{path}'",
+    ],
+)
+def test_nothing_is_executed_from_a_model_file(tag, tmp_path):
+    target = tmp_path / "created"
+    text = edited("mass: 1.0", "mass: " + tag.format(path=target))
+    (tmp_path / "model.yaml").write_text(text)
+    with pytest.raises(ModelFileError, match=r"line 5, column 11: the tag '!.*' is not allowed"):
+        load_model(tmp_path / "model.yaml")
+    assert not target.exists()
+
+
+def test_yaml_1_2_floats_without_a_dot_are_numbers(tmp_path):
+    (tmp_path / "model.yaml").write_text(edited("step_size: 1.0e-3", "step_size: 1e-3"))
+    assert load_model(tmp_path / "model.yaml").step_size == 1e-3
+
+
+# The schema and the reference ---------------------------------------------------------------------
+
+
+def test_schema_is_json_and_validates_the_examples():
+    jsonschema = pytest.importorskip("jsonschema")
+    import yaml
+
+    schema = json.loads(json.dumps(model_schema()))
+    jsonschema.Draft202012Validator.check_schema(schema)
+    validator = jsonschema.Draft202012Validator(schema)
+    files = sorted(MODELS.glob("*.yaml"))
+    assert len(files) >= 4
+    for path in files:
+        data = yaml.safe_load(path.read_text())
+        assert not list(validator.iter_errors(data)), path.name
+        data["bodies"][0]["mass_of_the_moon"] = 7.3e22
+        assert list(validator.iter_errors(data)), path.name
+
+
+def schema_keys(schema: dict) -> set[str]:
+    keys = set()
+
+    def visit(node):
+        if isinstance(node, dict):
+            keys.update(node.get("properties", {}))
+            for value in node.values():
+                visit(value)
+        elif isinstance(node, list):
+            for value in node:
+                visit(value)
+
+    visit(schema)
+    return keys
+
+
+def test_every_key_is_in_the_reference():
+    reference = (ROOT / "docs" / "model-files.md").read_text()
+    missing = {key for key in schema_keys(model_schema()) if f"`{key}`" not in reference}
+    assert not missing
+
+
+def test_the_format_covers_the_python_api():
+    joints = {
+        name[4:-6].replace("_", "-")
+        for name in dir(fm.System)
+        if name.startswith("add_") and name.endswith("_joint")
+    }
+    assert joints == set(JointSpec.model_fields["type"].annotation.__args__) | {"distance"}
+    for spec, solver in (
+        (GeneralizedAlphaSpec, fm.GeneralizedAlpha),
+        (ExplicitSolverSpec, fm.ExplicitSolver),
+    ):
+        options = set(inspect.signature(solver).parameters)
+        assert options == set(spec.model_fields) - {"type"}, solver.__name__
+    placement = set(inspect.signature(fm.System.add_flexible_body).parameters) - {"self", "body"}
+    assert placement <= set(FlexibleBodySpec.model_fields)
+    from flexmbd.fe import build_body
+
+    # Not in model files: the mesh itself (a source key instead), external mode matrices
+    # (use a body file), timings; the mesh is always checked.
+    left_out = {"nodes", "elements", "node_ids", "element_ids", "node_sets", "external_modes"}
+    left_out |= {"check_mesh", "timings"}
+    renamed = {"orientation": "section_orientation", "mass": "mass_matrix"}
+    options = set(inspect.signature(build_body).parameters) - left_out
+    assert {renamed.get(o, o) for o in options} <= set(FlexibleBodySpec.model_fields)
+    quantities = set(SensorSpec.model_fields["quantity"].annotation.__args__)
+    assert "angular_acceleration" in quantities and len(quantities) == 6
+
+
+def test_simulate_model_takes_a_path_and_overrides_in_si(tmp_path):
+    result = simulate_model(MODELS / "pendulum.yaml", end_time=0.1, step_size=1e-3)
+    assert result.time[-1] == pytest.approx(0.1)
+    assert result.statistics["steps"] == 100
