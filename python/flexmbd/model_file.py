@@ -1053,35 +1053,37 @@ class ModelFile:
 
     @property
     def plots(self) -> list[str]:
-        """The outputs as names of the series of :meth:`Result.to_dataframe` (their prefixes,
-        such as ``"crank.position"``, ``"hinge.reaction_force"``, ``"bob position"``,
-        ``"kinetic_energy"``); outputs that have no such series are left out."""
-        names = []
+        """The outputs as quantity names of :func:`flexmbd.plotting.plot_result` (what
+        ``flexmbd run`` plots): ``"sensor:NAME"``, ``"position:NAME"``, ``"reaction:NAME"``,
+        ``"deflection:NAME:NODE"``, ``"energy"``, ``"violation"``, ...; each once, in the order
+        of the outputs. Outputs without a plot of their own are left out."""
+        names: list[str] = []
         for output in self.outputs:
-            series = _SERIES.get(output.quantity) if output.kind != "sensor" else ""
-            if series is None:
-                continue
-            if output.kind == "system":
-                names.extend(["kinetic_energy", "potential_energy"] if series == "" else [series])
+            if output.kind == "sensor":
+                name = f"sensor:{output.item}"
+            elif output.kind == "system":
+                name = "violation" if output.quantity == "constraint_violation" else "energy"
+            elif output.kind == "joint":
+                name = f"reaction:{output.item}"
+            elif output.quantity == "deflection":
+                name = f"deflection:{output.item}:{output.node}"
+            elif output.quantity in _PLOTS:
+                name = f"{_PLOTS[output.quantity]}:{output.item}"
             else:
-                names.append(f"{output.item}.{series}" if series else str(output.item))
+                continue
+            if name not in names:
+                names.append(name)
         return names
 
 
-#: Output quantity -> name of its series in `Result.to_dataframe` ("" for the total energy,
-#: which is the sum of two series).
-_SERIES = {
+#: Body output quantity -> its plot in `flexmbd.plotting`.
+_PLOTS = {
     "position": "position",
     "velocity": "velocity",
-    "euler_parameters": "euler_parameter",
+    "angular_velocity": "angular-velocity",
     "elastic_coordinates": "elastic",
-    "reaction_force": "reaction_force",
-    "reaction_torque": "reaction_torque",
-    "multipliers": "multiplier",
-    "kinetic_energy": "kinetic_energy",
-    "potential_energy": "potential_energy",
-    "total_energy": "",
-    "constraint_violation": "constraint_violation",
+    "node_displacements": "deflection",
+    "stresses": "stress",
 }
 
 
