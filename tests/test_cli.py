@@ -131,15 +131,62 @@ def test_the_progress_bar_shows_time_step_size_and_iterations(capsys):
     assert "4 Newton its" in err
 
 
-def test_python_dash_m_runs_the_default_example():
+def test_python_dash_m_runs_the_default_example_and_writes_results_plot_and_animation(tmp_path):
+    import meshio
+    from PIL import Image
+
     run = subprocess.run(
-        [sys.executable, "-m", "flexmbd", "run", "--end", "0.01", "--step", "1e-4", *QUIET],
+        [sys.executable, "-m", "flexmbd", "run", "--end", "0.004", "--step", "1e-4"],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=300,
     )
     assert run.returncode == 0, run.stderr
     assert "R4 flexible slider-crank" in run.stdout
+    result = fm.read_results(tmp_path / "flexible-slider-crank.h5")
+    assert result.success and len(result) == 41
+    with Image.open(tmp_path / "flexible-slider-crank.png") as image:
+        assert image.size[0] > 400 and len(image.getcolors(1 << 20)) > 10
+    with Image.open(tmp_path / "flexible-slider-crank.gif") as movie:
+        assert movie.n_frames > 10
+    pvd = tmp_path / "flexible-slider-crank_vtu" / "flexible-slider-crank.pvd"
+    assert pvd.exists() and len(list(pvd.parent.glob("*.vtu"))) == 41
+    last = meshio.read(sorted(pvd.parent.glob("*.vtu"))[-1])
+    rod = result.node_positions("rod")[-1]
+    assert abs(last.points[: len(rod)] - rod).max() < 1e-12
+
+
+def test_plot_and_animate_a_results_file(tmp_path, capsys):
+    argv = ["run", "four-bar", "--end", "0.5", "-o", "fourbar.h5", *QUIET]
+    assert main(argv) == 0
+    assert main(["plot", "fourbar.h5", "energy", "reaction:pivot 0", "-o", "b0.svg"]) == 0
+    assert "<svg" in (tmp_path / "b0.svg").read_text()[:500]
+    assert main(["plot", "fourbar.h5", "position:nowhere"]) == 2
+    assert "nowhere" in capsys.readouterr().err
+    assert main(["animate", "fourbar.h5", "--frames", "4", "-o", "fourbar.gif"]) == 0
+    assert (tmp_path / "fourbar.gif").stat().st_size > 1000
+    assert main(["info", "fourbar.h5"]) == 0
+    assert "status: complete" in capsys.readouterr().out
+
+
+def test_run_a_model_file_and_refuse_a_broken_one(tmp_path, capsys):
+    from pathlib import Path
+
+    models = Path(__file__).parents[1] / "examples" / "models"
+    argv = ["run", str(models / "pendulum.yaml"), "--end", "0.2", "-o", "a01.h5", *QUIET]
+    assert main(argv) == 0
+    header = read_results_metadata(tmp_path / "a01.h5")
+    assert header["metadata"]["source"].endswith("pendulum.yaml")
+    assert header["records"] > 1
+    assert main(["info", str(models / "pendulum.yaml")]) == 0
+    assert "joint 'link'" in capsys.readouterr().out
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("bodies:\n  - name: a\n    type: rigid\n    mass: -1\n")
+    assert main(["run", str(broken), *QUIET]) == 2
+    err = capsys.readouterr().err
+    assert "broken.yaml" in err and "line" in err and "mass" in err
+    assert main(["schema", "-o", "schema.json"]) == 0
+    assert "bodies" in (tmp_path / "schema.json").read_text()
 
 
 def _write_abaqus_box(path):

@@ -222,7 +222,8 @@ def _run(args: argparse.Namespace) -> int:
         render_animation(result, movie)
         print(f"  animation: {movie}")
         if result.flexible:
-            pvd = write_vtu_series(result, results.with_name(f"{results.stem}_vtu"))
+            directory = results.with_name(f"{results.stem}_vtu")
+            pvd = write_vtu_series(result, directory, name=results.stem)
             print(f"  ParaView series: {pvd}")
     return 0
 
@@ -367,7 +368,7 @@ def _animate(args: argparse.Namespace) -> int:
             options["scale"] = args.scale
         if args.vtu or not args.no_vtu and result.flexible:
             directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
-            pvd = write_vtu_series(result, directory, **options)
+            pvd = write_vtu_series(result, directory, name=results.stem, **options)
             print(f"written: {pvd}")
         if not args.no_render:
             movie = Path(args.output) if args.output else results.with_suffix(".gif")
