@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import xml.etree.ElementTree as ElementTree
 
 import meshio
@@ -154,8 +155,28 @@ def test_joint_markers_are_located_from_the_motion(four_bar):
     assert not scene.connectors
 
 
-def test_slider_guide_is_drawn_between_body_origins(slider_crank):
+def test_markers_are_drawn_where_the_model_puts_them(slider_crank):
     scene = animation.build_scene(slider_crank)
+    # The layout gives every marker's position: the crank pin at the crank's tip, the guide's
+    # markers at the ground origin and the slider, no guessed connector.
+    assert scene.connectors == []
+    np.testing.assert_array_equal(scene.markers[2][1], [0.15, 0.0, 0.0])
+    nodes = {body: node for body, _, node, _ in scene.markers.values() if node is not None}
+    assert set(nodes) == {2}
+    on_rod = sorted(node for body, _, node, _ in scene.markers.values() if body == 2)
+    assert on_rod == [0, 8]
+
+
+def test_slider_guide_is_drawn_between_body_origins_without_marker_positions(slider_crank):
+    # A layout without marker positions (results of an older writer): the markers of a joint
+    # are fitted to the recorded motion, and the guide's, which slide apart, are drawn as a
+    # connector between the body origins.
+    stripped = copy.copy(slider_crank)
+    stripped.layout = copy.deepcopy(slider_crank.layout)
+    for marker in stripped.layout["markers"]:
+        marker.pop("position", None)
+        marker.pop("orientation", None)
+    scene = animation.build_scene(stripped)
     # The in-line guide's markers slide apart: no common point; the crank pin sits on node 1
     # and the wrist pin on node 9 of the rod.
     assert scene.connectors == [(0, 3)]

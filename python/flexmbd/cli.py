@@ -374,7 +374,7 @@ def _animate(args: argparse.Namespace) -> int:
             movie = Path(args.output) if args.output else results.with_suffix(".gif")
             if args.frames is not None:
                 options["frames"] = args.frames
-            render_animation(result, movie, **options)
+            render_animation(result, movie, backend=args.backend, **options)
             print(f"written: {movie}")
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd animate: {error}", file=sys.stderr)
@@ -490,6 +490,13 @@ def main(argv: list[str] | None = None) -> int:
     animate.add_argument("--no-render", action="store_true", help="render no animation")
     animate.add_argument("--frames", type=int, help="number of frames rendered")
     animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
+    animate.add_argument(
+        "--backend",
+        choices=("matplotlib", "pyvista", "auto"),
+        default="matplotlib",
+        help="renderer: matplotlib (default), pyvista off screen (pip install flexmbd[render]; "
+        "needs an OpenGL/EGL library), or auto (pyvista if it renders, else matplotlib)",
+    )
     schema = sub.add_parser("schema", help="print the JSON schema of model files")
     schema.add_argument("-o", "--output", help="file to write it to")
     sub.add_parser("examples", help="list the built-in examples")

@@ -131,7 +131,8 @@ impl Model {
     }
 
     /// The layout of the model as plain Python data: bodies (name, kind, coordinate offset and
-    /// count, mass), markers, joints (name, type, first multiplier row, equation labels),
+    /// count, mass), markers (name, body, undeformed position and orientation in the body
+    /// frame), joints (name, type, first multiplier row, equation labels),
     /// forces, sensors (name, quantity, offset and size in the sensor record).
     fn describe<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let m = &self.inner;
@@ -163,6 +164,9 @@ impl Model {
             let e = PyDict::new(py);
             e.set_item("name", &mk.name)?;
             e.set_item("body", mk.body.0)?;
+            e.set_item("position", mk.position.0.to_vec())?;
+            let rows: Vec<Vec<f64>> = mk.rotation.0.iter().map(|row| row.to_vec()).collect();
+            e.set_item("orientation", rows)?;
             markers.append(e)?;
         }
         d.set_item("markers", markers)?;
