@@ -129,6 +129,11 @@ pub struct TreeSolver {
     cut_rows: Vec<usize>,
     /// Eq. 40: pattern and LU (symbolic analysis once).
     sparse: Option<(SparsePattern, SparseLu, Vec<f64>)>,
+    /// Eq. 40: the unknown of each model coordinate (a reference or elastic acceleration;
+    /// usize::MAX for the other coordinates), and the position among the cut rows of each
+    /// constraint row (usize::MAX if not cut).
+    unknown_of: Vec<usize>,
+    cut_of: Vec<usize>,
     zero_q: Vec<f64>,
     zero_lambda: Vec<f64>,
 }
@@ -206,6 +211,18 @@ impl TreeSolver {
                 couplings,
             });
         }
+        let mut unknown_of = row_of.clone();
+        let mut offset = rows.len();
+        for b in &bodies {
+            for (i, u) in unknown_of[b.first..b.first + b.n].iter_mut().enumerate() {
+                *u = offset + i;
+            }
+            offset += b.n;
+        }
+        let mut cut_of = vec![usize::MAX; model.constraint_count];
+        for (a, &r) in tree.cut_rows.iter().enumerate() {
+            cut_of[r] = a;
+        }
         let mut solver = TreeSolver {
             formulation,
             bodies,
@@ -214,6 +231,8 @@ impl TreeSolver {
             free_joints: tree.free_joint_count(),
             cut_rows: tree.cut_rows.clone(),
             sparse: None,
+            unknown_of,
+            cut_of,
             zero_q: vec![0.0; model.coordinate_count],
             zero_lambda: vec![0.0; model.constraint_count],
         };
@@ -251,23 +270,19 @@ impl TreeSolver {
         // Mass blocks: the pattern of M restricted to each body.
         let pattern = &model.layout.pattern;
         let nq = model.coordinate_count;
-        let unknown = |q: usize| -> Option<usize> {
-            if self.row_of[q] != usize::MAX {
-                return Some(self.row_of[q]);
-            }
-            self.bodies.iter().enumerate().find_map(|(k, b)| {
-                (b.first..b.first + b.n).contains(&q).then(|| self.elastic_offset(k) + q - b.first)
-            })
-        };
         for c in 0..nq {
-            let Some(uc) = unknown(c) else { continue };
+            let uc = self.unknown_of[c];
+            if uc == usize::MAX {
+                continue;
+            }
             for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
                 let r = pattern.row_idx[k];
                 if r < nq {
-                    if let Some(ur) = unknown(r) {
-                        pb.add_entry(ur, uc);
+                    if self.unknown_of[r] != usize::MAX {
+                        pb.add_entry(self.unknown_of[r], uc);
                     }
-                } else if let Some(a) = self.cut_rows.iter().position(|&cr| cr == r - nq) {
+                } else if self.cut_of[r - nq] != usize::MAX {
+                    let a = self.cut_of[r - nq];
                     pb.add_entry(c0 + a, uc);
                     pb.add_entry(uc, c0 + a);
                 }
@@ -650,30 +665,26 @@ impl TreeSolver {
         let c0 = p0 + np;
         let nc = self.cut_rows.len();
         let offsets: Vec<usize> = (0..self.bodies.len()).map(|k| self.elastic_offset(k)).collect();
-        let unknown = |q: usize| -> Option<usize> {
-            if self.row_of[q] != usize::MAX {
-                return Some(self.row_of[q]);
-            }
-            self.bodies
-                .iter()
-                .zip(&offsets)
-                .find_map(|(b, &o)| (b.first..b.first + b.n).contains(&q).then(|| o + q - b.first))
-        };
         let mut rhs = vec![0.0; c0 + nc];
         let (pattern, lu, values) = self.sparse.as_mut().expect("eq. 40 pattern");
         values.iter_mut().for_each(|v| *v = 0.0);
         let mp = &model.layout.pattern;
+        let (unknown_of, cut_of) = (&self.unknown_of, &self.cut_of);
         for c in 0..nq {
-            let Some(uc) = unknown(c) else { continue };
+            let uc = unknown_of[c];
+            if uc == usize::MAX {
+                continue;
+            }
             rhs[uc] = force[c];
             for k in mp.col_ptr[c]..mp.col_ptr[c + 1] {
                 let r = mp.row_idx[k];
                 let v = ws.values[k];
                 if r < nq {
-                    if let Some(ur) = unknown(r) {
-                        values[pattern.index(ur, uc)] += v;
+                    if unknown_of[r] != usize::MAX {
+                        values[pattern.index(unknown_of[r], uc)] += v;
                     }
-                } else if let Some(a) = self.cut_rows.iter().position(|&cr| cr == r - nq) {
+                } else if cut_of[r - nq] != usize::MAX {
+                    let a = cut_of[r - nq];
                     values[pattern.index(c0 + a, uc)] += v;
                     values[pattern.index(uc, c0 + a)] += v;
                 }

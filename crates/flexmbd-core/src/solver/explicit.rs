@@ -31,7 +31,7 @@ use super::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
     PartitionMethod,
 };
-use super::recursive::{constrained_joint_accelerations, joint_accelerations, StructuredState, Tree};
+use super::recursive::{tree_joint_accelerations, StructuredState, Tree};
 use super::settings::SimulationSettings;
 use super::simulate::{update_discrete, OutputClock, Progress, Records};
 use crate::error::{FlexmbdError, Result};
@@ -311,31 +311,9 @@ impl<'a> Engine<'a> {
         if let Some(tree) = &self.tree {
             let n = self.q.len();
             let b = &self.influence;
-            self.pdd = if tree.cut_rows.is_empty() {
-                joint_accelerations(b, &self.eq.mass, &self.eq.force, &self.gamma_b)
-            } else {
-                // Cut joints: C_cut (B p_dd + gamma_B) = gamma_cut.
-                let rows = &tree.cut_rows;
-                let c_cut = Mat::from_fn(rows.len(), n, |a, j| self.eq.jacobian[(rows[a], j)]);
-                let c_hat = &c_cut * b;
-                let g_hat: Vec<f64> = rows
-                    .iter()
-                    .enumerate()
-                    .map(|(a, &r)| {
-                        self.eq.gamma[r] - (0..n).map(|j| c_cut[(a, j)] * self.gamma_b[j]).sum::<f64>()
-                    })
-                    .collect();
-                constrained_joint_accelerations(
-                    b,
-                    &self.eq.mass,
-                    &self.eq.force,
-                    &self.gamma_b,
-                    &c_hat,
-                    &g_hat,
-                    SINGULAR_VALUE_CUTOFF,
-                )
-            }
-            .map_err(|e| self.singular(time, e.to_string()))?;
+            self.pdd =
+                tree_joint_accelerations(&self.eq, b, &self.gamma_b, &tree.cut_rows, SINGULAR_VALUE_CUTOFF)
+                    .map_err(|e| self.singular(time, e.to_string()))?;
             for i in 0..n {
                 self.qdd[i] =
                     self.gamma_b[i] + (0..self.pdd.len()).map(|k| b[(i, k)] * self.pdd[k]).sum::<f64>();

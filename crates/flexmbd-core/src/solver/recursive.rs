@@ -54,7 +54,7 @@
 
 use faer::Mat;
 
-use super::dense_system::null_space_solve;
+use super::dense_system::{null_space_solve, DenseEquations};
 use crate::body::marker::MarkerElastic;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
@@ -1230,11 +1230,36 @@ pub fn constrained_joint_accelerations(
     })
 }
 
+/// Joint accelerations of a tree whose loops are closed by the cut joints of the constraint
+/// rows `cut_rows` of `eq` (evaluated at the acceleration level): [`joint_accelerations`]
+/// without cut rows, otherwise [`constrained_joint_accelerations`] with C_cut (B p_dd +
+/// gamma_B) = gamma_cut, i.e. C_hat = C_cut B and g_hat = gamma_cut - C_cut gamma_B.
+pub fn tree_joint_accelerations(
+    eq: &DenseEquations,
+    b: &Mat<f64>,
+    gamma_b: &[f64],
+    cut_rows: &[usize],
+    cutoff: f64,
+) -> Result<Vec<f64>> {
+    if cut_rows.is_empty() {
+        return joint_accelerations(b, &eq.mass, &eq.force, gamma_b);
+    }
+    let n = b.nrows();
+    let c_cut = Mat::from_fn(cut_rows.len(), n, |a, j| eq.jacobian[(cut_rows[a], j)]);
+    let c_hat = &c_cut * b;
+    let g_hat: Vec<f64> = cut_rows
+        .iter()
+        .enumerate()
+        .map(|(a, &r)| eq.gamma[r] - (0..n).map(|j| c_cut[(a, j)] * gamma_b[j]).sum::<f64>())
+        .collect();
+    constrained_joint_accelerations(b, &eq.mass, &eq.force, gamma_b, &c_hat, &g_hat, cutoff)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::math::time_function::TimeFunction;
-    use crate::solver::dense_system::{dense_initial_conditions, DenseEquations, Formulation, Level};
+    use crate::solver::dense_system::{dense_initial_conditions, Formulation, Level};
     use crate::solver::initial::InitialSettings;
     use crate::solver::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
     use crate::solver::test_models::{ground_joint, unit_body};
@@ -1658,28 +1683,7 @@ mod tests {
                     assert!(eq.velocity_violation(r, qd).abs() < 1e-11, "row {r}");
                 }
                 let b = &state.influence;
-                let rows = &tree.cut_rows;
-                let pdd = if rows.is_empty() {
-                    joint_accelerations(b, &eq.mass, &eq.force, &state.gamma).unwrap()
-                } else {
-                    let c_cut = Mat::from_fn(rows.len(), n, |a, j| eq.jacobian[(rows[a], j)]);
-                    let c_hat = &c_cut * b;
-                    let g_hat: Vec<f64> = (0..rows.len())
-                        .map(|a| {
-                            eq.gamma[rows[a]] - (0..n).map(|j| c_cut[(a, j)] * state.gamma[j]).sum::<f64>()
-                        })
-                        .collect();
-                    constrained_joint_accelerations(
-                        b,
-                        &eq.mass,
-                        &eq.force,
-                        &state.gamma,
-                        &c_hat,
-                        &g_hat,
-                        1e-12,
-                    )
-                    .unwrap()
-                };
+                let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
                 let qdd_tree: Vec<f64> = (0..n)
                     .map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>())
                     .collect();
@@ -1733,22 +1737,7 @@ mod tests {
                 )
                 .unwrap();
                 let b = &state.influence;
-                let rows = &tree.cut_rows;
-                let c_cut = Mat::from_fn(rows.len(), n, |a, j| eq.jacobian[(rows[a], j)]);
-                let c_hat = &c_cut * b;
-                let g_hat: Vec<f64> = (0..rows.len())
-                    .map(|a| eq.gamma[rows[a]] - (0..n).map(|j| c_cut[(a, j)] * state.gamma[j]).sum::<f64>())
-                    .collect();
-                let pdd = constrained_joint_accelerations(
-                    b,
-                    &eq.mass,
-                    &eq.force,
-                    &state.gamma,
-                    &c_hat,
-                    &g_hat,
-                    1e-12,
-                )
-                .unwrap();
+                let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
                 let st = tree.structured(model, time, &p, &pd).unwrap();
                 assert!(st.coordinates.iter().zip(&state.coordinates).all(|(a, b)| (a - b).abs() < 1e-14));
                 let r40 = coupled.accelerations(model, &mut ws, &st, time, &[]).unwrap();
@@ -1779,7 +1768,8 @@ mod tests {
                 let mq: Vec<f64> =
                     (0..n).map(|i| (0..n).map(|j| eq.mass[(i, j)] * r41.accelerations[j]).sum()).collect();
                 for (k, &row) in tree.reference_rows().iter().enumerate() {
-                    let cmu: f64 = rows
+                    let cmu: f64 = tree
+                        .cut_rows
                         .iter()
                         .enumerate()
                         .map(|(a, &r)| eq.jacobian[(r, row)] * r41.cut_multipliers[a])
@@ -1832,16 +1822,8 @@ mod tests {
                 Level::Acceleration,
             )
             .unwrap();
-            let rows = &tree.cut_rows;
             let b = &state.influence;
-            let c_cut = Mat::from_fn(rows.len(), n, |a, j| eq.jacobian[(rows[a], j)]);
-            let c_hat = &c_cut * b;
-            let g_hat: Vec<f64> = (0..rows.len())
-                .map(|a| eq.gamma[rows[a]] - (0..n).map(|j| c_cut[(a, j)] * state.gamma[j]).sum::<f64>())
-                .collect();
-            let pdd =
-                constrained_joint_accelerations(b, &eq.mass, &eq.force, &state.gamma, &c_hat, &g_hat, 1e-12)
-                    .unwrap();
+            let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
             (0..n)
                 .map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>())
                 .collect::<Vec<f64>>()
