@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+import flexmbd as fm
+
 
 def relative_drift(energy: np.ndarray) -> float:
     """Largest |E(t) - E(0)| / |E(0)| over a run."""
@@ -24,3 +26,15 @@ def constraint_parts(model, q):
     data, indices, indptr, n = out["matrix"]
     matrix = sp.csc_matrix((data, indices, indptr), shape=(n, n)).toarray()
     return out["residual"][nq:], matrix[nq:, :nq]
+
+
+def run_example(name: str, end_time: float, output_interval: float) -> fm.Result:
+    """A short run of a built-in example with its step size and solver."""
+    example = fm.examples.EXAMPLES[name]()
+    return fm.simulate(
+        example.system,
+        end_time=end_time,
+        step_size=example.step_size,
+        solver=example.solver,
+        output_interval=output_interval,
+    )

@@ -8,38 +8,28 @@ import xml.etree.ElementTree as ElementTree
 import meshio
 import numpy as np
 import pytest
+from conftest import run_example
 from PIL import Image
 
 import flexmbd as fm
-from flexmbd import animation, examples
+from flexmbd import animation
 from flexmbd.fe.stress import von_mises
-
-
-def run(name: str, end_time: float, output_interval: float) -> fm.Result:
-    example = examples.EXAMPLES[name]()
-    return fm.simulate(
-        example.system,
-        end_time=end_time,
-        step_size=example.step_size,
-        solver=example.solver,
-        output_interval=output_interval,
-    )
 
 
 @pytest.fixture(scope="module")
 def slider_crank() -> fm.Result:
     # A quarter of a crank turn: the rod is visibly bent.
-    return run("flexible-slider-crank", 0.02, 2e-3)
+    return run_example("flexible-slider-crank", 0.02, 2e-3)
 
 
 @pytest.fixture(scope="module")
 def tet_pendulum() -> fm.Result:
-    return run("tetrahedral-pendulum", 0.1, 0.01)
+    return run_example("tetrahedral-pendulum", 0.1, 0.01)
 
 
 @pytest.fixture(scope="module")
 def four_bar() -> fm.Result:
-    return run("four-bar", 0.5, 0.05)
+    return run_example("four-bar", 0.5, 0.05)
 
 
 def assert_rich_image(path, colours: int = 8) -> None:

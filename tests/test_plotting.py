@@ -4,36 +4,26 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import run_example
 from PIL import Image
 
 import flexmbd as fm
-from flexmbd import examples, plotting
-
-
-def run(name: str, end_time: float, output_interval: float) -> fm.Result:
-    example = examples.EXAMPLES[name]()
-    return fm.simulate(
-        example.system,
-        end_time=end_time,
-        step_size=example.step_size,
-        solver=example.solver,
-        output_interval=output_interval,
-    )
+from flexmbd import plotting
 
 
 @pytest.fixture(scope="module")
 def slider_crank() -> fm.Result:
-    return run("flexible-slider-crank", 0.02, 1e-3)
+    return run_example("flexible-slider-crank", 0.02, 1e-3)
 
 
 @pytest.fixture(scope="module")
 def tet_pendulum() -> fm.Result:
-    return run("tetrahedral-pendulum", 0.1, 0.01)
+    return run_example("tetrahedral-pendulum", 0.1, 0.01)
 
 
 @pytest.fixture(scope="module")
 def four_bar() -> fm.Result:
-    return run("four-bar", 0.5, 0.01)
+    return run_example("four-bar", 0.5, 0.01)
 
 
 def assert_rich_image(path) -> None:

@@ -325,19 +325,24 @@ def _info_body(path: Path) -> int:
     from .fe.body_file import load_body
 
     body = load_body(path)
-    elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
-    print(f"{path}: flexmbd body file, {body.node_count} nodes, {elements}")
-    print(
-        f"  mass {body.invariants['mass']:.6g} kg, {body.elastic_coordinate_count} elastic "
-        f"coordinates ({body.mode_kind or 'nodal'})"
-    )
-    if body.frequencies is not None:
-        shown = ", ".join(f"{f:.4g}" for f in body.frequencies[:8])
-        more = " ..." if len(body.frequencies) > 8 else ""
-        print(f"  frequencies (Hz): {shown}{more}")
+    _print_body(body, f"{path}: flexmbd body file,")
     if body.node_sets:
         print(f"  node sets: {', '.join(sorted(body.node_sets))}")
     return 0
+
+
+def _print_body(body: Any, title: str, more: str = "") -> None:
+    """Nodes, elements, mass, elastic coordinates and the first frequencies of a body."""
+    elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
+    print(f"{title} {body.node_count} nodes, {elements}")
+    print(
+        f"  mass {body.invariants['mass']:.6g} kg, {body.elastic_coordinate_count} elastic "
+        f"coordinates ({body.mode_kind or 'nodal'}){more}"
+    )
+    if body.frequencies is not None:
+        shown = ", ".join(f"{f:.4g}" for f in body.frequencies[:8])
+        tail = " ..." if len(body.frequencies) > 8 else ""
+        print(f"  frequencies (Hz): {shown}{tail}")
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -419,16 +424,7 @@ def _preprocess(args: argparse.Namespace) -> int:
         print(f"flexmbd preprocess: {error}", file=sys.stderr)
         return 1
     elapsed = time.perf_counter() - start
-    elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
-    print(f"flexmbd {__version__}: {args.mesh}: {body.node_count} nodes, {elements}")
-    print(
-        f"  mass {body.invariants['mass']:.6g} kg, {body.elastic_coordinate_count} elastic "
-        f"coordinates ({body.mode_kind or 'nodal'}), reference {args.reference}"
-    )
-    if body.frequencies is not None:
-        shown = ", ".join(f"{f:.4g}" for f in body.frequencies[:8])
-        more = " ..." if len(body.frequencies) > 8 else ""
-        print(f"  frequencies (Hz): {shown}{more}")
+    _print_body(body, f"flexmbd {__version__}: {args.mesh}:", f", reference {args.reference}")
     print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in timings.items()) + f"; {elapsed:.2f} s")
     save_body(body, args.output)
     print(f"  written to {args.output}")
