@@ -242,3 +242,10 @@ def test_preprocess_writes_a_body_file_equal_to_the_python_api(tmp_path, capsys)
     # A node set the mesh does not have: a clear message and exit status 1.
     assert main([*command, "--interfaces", "x0", "tip"]) == 1
     assert "tip" in capsys.readouterr().err
+
+
+def test_output_cut_short_by_a_closed_pipe_is_no_error():
+    command = f"{sys.executable} -m flexmbd examples | head -n 1"
+    run = subprocess.run(command, shell=True, capture_output=True, text=True, timeout=120)
+    assert run.stdout.count("\n") == 1 and ":" in run.stdout
+    assert "Traceback" not in run.stderr and "Broken pipe" not in run.stderr

@@ -261,6 +261,8 @@ def _info(args: argparse.Namespace) -> int:
             return _info_body(path)
         print(f"flexmbd info: {target}: an HDF5 file of format {kind!r}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        raise
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd info: {error}", file=sys.stderr)
         return 2
@@ -353,6 +355,8 @@ def _plot(args: argparse.Namespace) -> int:
         result = read_results(args.results)
         output = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
         written = plot_result(result, output, quantities=args.quantity or None)
+    except BrokenPipeError:
+        raise
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd plot: {error}", file=sys.stderr)
         return 2
@@ -381,6 +385,8 @@ def _animate(args: argparse.Namespace) -> int:
                 options["frames"] = args.frames
             render_animation(result, movie, backend=args.backend, **options)
             print(f"written: {movie}")
+    except BrokenPipeError:
+        raise
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd animate: {error}", file=sys.stderr)
         return 2
@@ -433,6 +439,17 @@ def _preprocess(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``flexmbd`` command."""
+    try:
+        return _main(argv)
+    except BrokenPipeError:
+        # The reader of the output went away (``flexmbd examples | head``): stop quietly.
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+
+
+def _main(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="flexmbd", description="Flexible multibody dynamics.")
     parser.add_argument("--version", action="version", version=f"flexmbd {__version__}")
     sub = parser.add_subparsers(dest="command")
