@@ -156,3 +156,11 @@ def test_names_are_checked_before_anything_is_written(slider_crank, tmp_path):
         plotting.plot_result(slider_crank, tmp_path / "out.jpg", ["energy"])
     with pytest.raises(fm.InvalidParameterError, match="image format"):
         plotting.plot_result(slider_crank, tmp_path / "out", ["energy"], format="bmp")
+
+
+def test_energy_panel_of_a_driven_model_is_called_a_change_not_a_drift(slider_crank, four_bar):
+    # The crank's driver does work: E changes by design; the four-bar conserves it.
+    driven = plotting.plot_energy_drift(slider_crank).get_title()
+    assert driven.startswith("Change of the total energy (work of drivers and forces)")
+    free = plotting.plot_energy_drift(four_bar).get_title()
+    assert free.startswith("Drift of the total energy") and "kinetic energy" in free

@@ -127,14 +127,23 @@ def plot_energy(result: Any, ax: Any = None) -> Any:
 
 def plot_energy_drift(result: Any, ax: Any = None) -> Any:
     """Drift of the total energy E(t) - E(0) (J); the title gives the largest |drift|
-    relative to the largest kinetic energy."""
+    relative to the largest kinetic energy. In a model with drivers or applied forces, whose
+    work changes E, the panel is called the change of the total energy instead."""
     ax = _axes(ax)
     drift = result.total_energy - result.total_energy[0] if len(result.time) else result.time
     ax.plot(result.time, drift, "k")
     largest = float(np.max(np.abs(drift))) if len(drift) else 0.0
     reference = float(np.max(np.abs(result.kinetic_energy))) if len(drift) else 0.0
-    title = f"Drift of the total energy: largest {largest:.3g} J"
-    if reference > 0.0:
+    layout = result.layout
+    # Spring-dampers store their energy (or dissipate it); other forces and drivers do work.
+    driven = any("driver" in joint["type"] for joint in layout["joints"]) or any(
+        "spring-damper" not in force["type"] for force in layout["forces"]
+    )
+    if driven:
+        title = f"Change of the total energy (work of drivers and forces): largest {largest:.3g} J"
+    else:
+        title = f"Drift of the total energy: largest {largest:.3g} J"
+    if reference > 0.0 and not driven:
         title += f" ({largest / reference:.2g} of the largest kinetic energy)"
     return _finish(ax, "E(t) - E(0) (J)", title, flatten_round_off=False)
 
