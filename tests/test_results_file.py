@@ -68,7 +68,12 @@ def test_round_trip_keeps_sensors_events_and_redundancy(tmp_path):
     assert "redundant constraints" in [e["kind"] for e in back.events]
 
 
-def test_records_reach_the_file_while_the_run_goes_on(tmp_path):
+@pytest.mark.parametrize(
+    "solver, end",
+    [(None, 1.0), (fm.ExplicitSolver("rk4", "projection"), 0.2)],
+    ids=["generalized-alpha", "rk4"],
+)
+def test_records_reach_the_file_while_the_run_goes_on(tmp_path, solver, end):
     system = fm.System(gravity=(0, -9.81, 0))
     mass = system.add_point_mass(1.0, position=(1, 0, 0), name="mass")
     system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
@@ -86,7 +91,13 @@ def test_records_reach_the_file_while_the_run_goes_on(tmp_path):
         seen.append(read_results_metadata(path)["records"])
 
     result = fm.simulate(
-        system, 1.0, 0.005, output_interval=0.01, results_file=path, progress=progress
+        system,
+        end,
+        0.005,
+        output_interval=0.01,
+        results_file=path,
+        progress=progress,
+        solver=solver,
     )
     assert len(seen) >= 3, seen
     assert seen[-1] > 0 and seen[-1] < len(result), seen
