@@ -249,3 +249,16 @@ def test_output_cut_short_by_a_closed_pipe_is_no_error():
     run = subprocess.run(command, shell=True, capture_output=True, text=True, timeout=120)
     assert run.stdout.count("\n") == 1 and ":" in run.stdout
     assert "Traceback" not in run.stderr and "Broken pipe" not in run.stderr
+
+
+def test_run_a_model_file_prints_its_outputs(capsys):
+    from pathlib import Path
+
+    model = Path(__file__).parents[1] / "examples" / "models" / "flexible_slider_crank.yaml"
+    assert main(["run", str(model), "-o", "r4.h5", *QUIET]) == 0
+    out = capsys.readouterr().out
+    # R4: the largest midpoint deflection 4.658e-3 m near t = 0.078 s.
+    line = out.split("midpoint deflection: largest |value|")[1]
+    deflection, time_of = float(line.split()[0]), float(line.split("t =")[1].split()[0])
+    assert abs(deflection / 4.658e-3 - 1) < 0.03 and abs(time_of - 0.078) < 0.002
+    assert "drive reaction_torque: largest |value|" in out

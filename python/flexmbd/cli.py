@@ -59,6 +59,7 @@ class _Job:
     check: Any = None
     source: str = ""
     plots: list[str] | None = None
+    outputs: Any = None
 
 
 def _job(model: str) -> _Job:
@@ -95,6 +96,7 @@ def _job(model: str) -> _Job:
         loaded.solver,
         source=str(path),
         plots=list(getattr(loaded, "plots", None) or []) or None,
+        outputs=loaded.output_values,
     )
 
 
@@ -147,6 +149,19 @@ def _print_summary(result: Any, elapsed: float) -> None:
         energy = result.total_energy
         print(f"  largest constraint violation {result.constraint_violation.max():.2e}")
         print(f"  total energy {energy[0]:.6f} J -> {energy[-1]:.6f} J")
+
+
+def _print_outputs(outputs: dict[str, Any], times: Any) -> None:
+    """The largest absolute value of each output of a model file, with its time (SI)."""
+    import numpy as np
+
+    for label, values in outputs.items():
+        values = np.asarray(values, dtype=float)
+        if values.size == 0 or not len(times):
+            continue
+        size = np.abs(values).reshape(len(times), -1).max(axis=1)
+        k = int(np.argmax(size))
+        print(f"  {label}: largest |value| {size[k]:.6g} at t = {times[k]:.6g} s")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -208,6 +223,8 @@ def _run(args: argparse.Namespace) -> int:
     if job.check is not None:
         for name, value in job.check(result).items():
             print(f"  {name}: {value:.2e}")
+    if job.outputs is not None:
+        _print_outputs(job.outputs(result), result.time)
     print(f"  results: {results}")
     if not args.no_plot:
         from .plotting import plot_result
