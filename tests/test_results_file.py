@@ -54,6 +54,13 @@ def test_round_trip_of_a_flexible_model_is_exact(tmp_path):
     assert header["metadata"] == {"example": "flexible-slider-crank"}
     assert header["status"]["state"] == "complete" and header["records"] == 101
     assert header["flexible"] == [2]
+    assert header["units"] == {
+        "length": "m",
+        "mass": "kg",
+        "time": "s",
+        "angle": "rad",
+        "force": "N",
+    }
 
 
 def test_round_trip_keeps_sensors_events_and_redundancy(tmp_path):

@@ -316,6 +316,9 @@ def _info_results(path: Path) -> int:
     elif status.get("error"):
         state += f" ({status['error']}: {status.get('message', '')})"
     print(f"  status: {state}")
+    units = header.get("units") or {}
+    if units:
+        print("  units: " + ", ".join(f"{k} {v}" for k, v in units.items()))
     _print_layout(header["layout"])
     count = header["records"]
     if count:

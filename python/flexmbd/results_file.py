@@ -4,8 +4,9 @@ keeps every record up to its last flush (about every 0.1 s of wall time).
 Layout (``version`` 1)
 ----------------------
 Root attributes: ``format = "flexmbd-results"``, ``version``, ``writer`` (``"flexmbd X.Y"``),
-``layout`` (the model description, :meth:`Model.describe`, as JSON) and ``metadata`` (a JSON
-object given by the caller: model file, solver, end time, step size, ...).
+``layout`` (the model description, :meth:`Model.describe`, as JSON), ``metadata`` (a JSON
+object given by the caller: model file, solver, end time, step size, ...) and ``units`` (JSON:
+SI, ``{"length": "m", "mass": "kg", "time": "s", "angle": "rad", "force": "N"}``).
 
 Datasets, time first, one row per record, extensible along the first axis (SI units):
 
@@ -48,6 +49,8 @@ from .result import Result
 RESULTS_FILE_FORMAT = "flexmbd-results"
 #: Layout version this flexmbd writes.
 RESULTS_FILE_VERSION = 1
+#: The units of every value in a results file (root attribute ``units``): SI.
+RESULTS_UNITS = {"length": "m", "mass": "kg", "time": "s", "angle": "rad", "force": "N"}
 
 #: Record datasets: name -> shape of one record, from the model description.
 _RECORD_FIELDS = (
@@ -120,6 +123,7 @@ class ResultsWriter:
             file.attrs["writer"] = f"flexmbd {_core.__version__}"
             file.attrs["layout"] = _json(self.layout)
             file.attrs["metadata"] = _json(metadata or {})
+            file.attrs["units"] = _json(RESULTS_UNITS)
             for name, shape in self._shapes.items():
                 chunk_rows = max(1, min(1024, (1 << 16) // (8 * max(1, int(np.prod(shape))))))
                 file.create_dataset(
@@ -245,6 +249,7 @@ def read_results_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
             "writer": str(file.attrs.get("writer", "")),
             "layout": json.loads(file.attrs["layout"]),
             "metadata": json.loads(file.attrs["metadata"]),
+            "units": json.loads(file.attrs.get("units", "{}")),
             "records": int(file["records"][0]),
             "status": _text(file, "status"),
             "statistics": _text(file, "statistics") or {},
