@@ -88,7 +88,8 @@ def test_run_writes_a_results_file_that_info_summarizes(tmp_path, capsys):
     assert main(["info", "missing.h5"]) == 2
 
 
-def test_ctrl_c_stops_a_run_and_keeps_its_records(tmp_path):
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_stops_a_run_and_keeps_its_records(tmp_path, stop):
     command = [sys.executable, "-m", "flexmbd", "run", "flexible-slider-crank", "--end", "100"]
     process = subprocess.Popen(
         [*command, "-o", "stopped.h5", *QUIET],
@@ -105,7 +106,7 @@ def test_ctrl_c_stops_a_run_and_keeps_its_records(tmp_path):
             except (OSError, KeyError, fm.FlexmbdError):
                 pass
             time.sleep(0.05)
-        os.kill(process.pid, signal.SIGINT)
+        os.kill(process.pid, stop)
         out, err = process.communicate(timeout=60)
     finally:
         if process.poll() is None:

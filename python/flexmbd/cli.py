@@ -164,6 +164,18 @@ def _print_outputs(outputs: dict[str, Any], times: Any) -> None:
         print(f"  {label}: largest |value| {size[k]:.6g} at t = {times[k]:.6g} s")
 
 
+def _stop_on_sigterm() -> None:
+    """SIGTERM (a batch system's time limit, ``kill``) stops a run like Ctrl-C: cleanly, with
+    the records kept and the results file marked interrupted."""
+    import signal
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    if hasattr(signal, "SIGTERM"):
+        signal.signal(signal.SIGTERM, interrupt)
+
+
 def _run(args: argparse.Namespace) -> int:
     try:
         job = _job(args.model)
@@ -184,6 +196,7 @@ def _run(args: argparse.Namespace) -> int:
     print(f"  {model!r}")
     print(f"  simulating to t = {end:g} s with step {step:g} s ({solver!r})")
     bar = _ProgressBar(0.0, end, enabled=not args.quiet and sys.stderr.isatty())
+    _stop_on_sigterm()
     metadata = {
         "source": job.source,
         "name": job.name,
