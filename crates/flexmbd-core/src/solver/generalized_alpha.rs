@@ -273,8 +273,11 @@ fn iterate(
     let s = coef.scale;
     let mut report = StepReport::default();
     let mut previous_norm = f64::INFINITY;
+    // Whether the matrix was factorized at the predictor, in the first iteration of this step.
+    let mut fresh_at_predictor = false;
     for iteration in 0..newton.max_iterations {
         let need_matrix = !reuse || cache.step_size != Some(h) || cache.kind != kind;
+        fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
         assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
         if need_matrix {
@@ -344,9 +347,11 @@ fn iterate(
         }
         let rate = norm / previous_norm;
         // Remaining error estimated from the contraction rate (Hairer and Wanner). With a
-        // matrix reused from an earlier iterate, the first rate (measured from the predictor,
-        // whose error is of another order) is not trusted.
-        let rate_trusted = iteration > 1 || (iteration == 1 && need_matrix);
+        // matrix reused from an earlier step, the first rate (measured from the predictor,
+        // whose error is of another order) is not trusted; with a matrix factorized at the
+        // predictor, the first increment was a Newton step and the rate after it measures the
+        // contraction of the iterations that follow.
+        let rate_trusted = iteration > 1 || (iteration == 1 && (need_matrix || fresh_at_predictor));
         let estimated_error_small = rate_trusted && rate < 1.0 && rate / (1.0 - rate) * norm <= 1.0;
         // Near singular configurations the Newton matrix is ill-conditioned and the increments
         // stall at a round-off level amplified by its condition: once the relative position
