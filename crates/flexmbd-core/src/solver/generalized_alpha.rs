@@ -99,6 +99,8 @@ pub struct JacobianCache {
     pub step_size: Option<f64>,
     /// The factorization it is held in.
     pub kind: Factorization,
+    /// Steps taken with it.
+    pub age: usize,
 }
 
 /// Factorizes the assembled Newton matrix in `ws.values` (assembled with the coefficients
@@ -276,7 +278,9 @@ fn iterate(
     // Whether the matrix was factorized at the predictor, in the first iteration of this step.
     let mut fresh_at_predictor = false;
     for iteration in 0..newton.max_iterations {
-        let need_matrix = !reuse || cache.step_size != Some(h) || cache.kind != kind;
+        // A step shortened by round-off to land on an output time keeps the matrix.
+        let same_h = cache.step_size.is_some_and(|c| (c - h).abs() <= 1e-12 * h);
+        let need_matrix = !reuse || !same_h || cache.kind != kind;
         fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
         assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
@@ -288,6 +292,7 @@ fn iterate(
             }
             cache.step_size = Some(h);
             cache.kind = kind;
+            cache.age = 0;
             report.factorizations += 1;
         }
         for k in 0..nq {
@@ -427,6 +432,10 @@ pub fn step(
     }
     if !report.converged {
         return Ok(report);
+    }
+    cache.age += 1;
+    if cache.age >= newton.max_matrix_age {
+        cache.step_size = None;
     }
 
     // Velocity projection in the metric of the mass matrix: the correction dv solves

