@@ -613,24 +613,53 @@ mod tests {
         for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
             *x = 0.05 * (k as f64 - 2.5);
         }
-        let n = direct.system_size();
-        let rhs: Vec<f64> = (0..n).map(|k| ((k * 37 % 11) as f64 - 5.0) * 0.1).collect();
+        let rhs = test_rhs(direct.system_size());
         let c = MatrixCoefficients::ACCELERATION;
-        let mut ws = Workspace::new(&direct).unwrap();
-        assemble(&direct, StateView::of(&state), &mut ws, Some(c)).unwrap();
-        let mut lu = SparseLu::new(&direct.layout.pattern).unwrap();
+        let expected = direct_solve(&direct, &state, c, &rhs);
+        let (x, _) = condensed_solve(&condensed, &state, c, &rhs, true);
+        assert_close(&x, &expected);
+    }
+
+    fn test_rhs(n: usize) -> Vec<f64> {
+        (0..n).map(|k| ((k * 37 % 11) as f64 - 5.0) * 0.1).collect()
+    }
+
+    /// The sparse LU solve of the assembled Newton matrix of `model` with coefficients `c`.
+    fn direct_solve(model: &Model, state: &State, c: MatrixCoefficients, rhs: &[f64]) -> Vec<f64> {
+        let mut ws = Workspace::new(model).unwrap();
+        assemble(model, StateView::of(state), &mut ws, Some(c)).unwrap();
+        let mut lu = SparseLu::new(&model.layout.pattern).unwrap();
         lu.factorize(&ws.values).unwrap();
-        let mut expected = rhs.clone();
-        lu.solve_in_place(&mut expected).unwrap();
-        let mut ws2 = Workspace::new(&condensed).unwrap();
-        assemble(&condensed, StateView::of(&state), &mut ws2, Some(c)).unwrap();
-        let mut approximate = CondensedSolver::new(&condensed, true).unwrap();
-        approximate.factorize(&condensed, &ws2.values, &c, &state.coordinates).unwrap();
-        let mut x = rhs.clone();
-        approximate.solve_in_place(&mut x).unwrap();
-        let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for k in 0..n {
-            assert!((x[k] - expected[k]).abs() < 1e-9 * scale, "{k}: {} vs {}", x[k], expected[k]);
+        let mut x = rhs.to_vec();
+        lu.solve_in_place(&mut x).unwrap();
+        x
+    }
+
+    /// The condensed solve (exact or structured reference coupling) and the reduced size.
+    fn condensed_solve(
+        model: &Model,
+        state: &State,
+        c: MatrixCoefficients,
+        rhs: &[f64],
+        approximate_reference: bool,
+    ) -> (Vec<f64>, usize) {
+        let mut ws = Workspace::new(model).unwrap();
+        assemble(model, StateView::of(state), &mut ws, Some(c)).unwrap();
+        let mut solver = CondensedSolver::new(model, approximate_reference).unwrap();
+        solver.factorize(model, &ws.values, &c, &state.coordinates).unwrap();
+        let mut x = rhs.to_vec();
+        solver.solve_in_place(&mut x).unwrap();
+        (x, solver.reduced_size())
+    }
+
+    fn scale_of(v: &[f64]) -> f64 {
+        v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+    }
+
+    fn assert_close(x: &[f64], expected: &[f64]) {
+        let scale = scale_of(expected);
+        for (k, (a, b)) in x.iter().zip(expected).enumerate() {
+            assert!((a - b).abs() < 1e-9 * scale, "{k}: {a} vs {b}");
         }
     }
 
@@ -644,34 +673,19 @@ mod tests {
             state.multipliers.iter_mut().enumerate().for_each(|(k, l)| *l = 0.1 * k as f64 - 0.3);
         }
         let n = direct.system_size();
-        let rhs: Vec<f64> = (0..n).map(|k| ((k * 37 % 11) as f64 - 5.0) * 0.1).collect();
+        let rhs = test_rhs(n);
         let coefficients = [
             MatrixCoefficients::ACCELERATION,
             MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 },
         ];
         for c in coefficients {
-            let mut ws = Workspace::new(&direct).unwrap();
-            assemble(&direct, StateView::of(&state), &mut ws, Some(c)).unwrap();
-            let mut lu = SparseLu::new(&direct.layout.pattern).unwrap();
-            lu.factorize(&ws.values).unwrap();
-            let mut expected = rhs.clone();
-            lu.solve_in_place(&mut expected).unwrap();
-            let mut ws2 = Workspace::new(&condensed).unwrap();
-            assemble(&condensed, StateView::of(&state), &mut ws2, Some(c)).unwrap();
-            let mut solver = CondensedSolver::new(&condensed, false).unwrap();
-            assert_eq!(solver.reduced_size(), n - 6);
-            solver.factorize(&condensed, &ws2.values, &c, &state.coordinates).unwrap();
-            let mut x = rhs.clone();
-            solver.solve_in_place(&mut x).unwrap();
-            let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            for k in 0..n {
-                assert!((x[k] - expected[k]).abs() < 1e-9 * scale, "{k}: {} vs {}", x[k], expected[k]);
-            }
+            let expected = direct_solve(&direct, &state, c, &rhs);
+            let (x, reduced) = condensed_solve(&condensed, &state, c, &rhs, false);
+            assert_eq!(reduced, n - 6);
+            assert_close(&x, &expected);
             // The approximate reference coupling is an iteration matrix: its solve is close.
-            let mut approximate = CondensedSolver::new(&condensed, true).unwrap();
-            approximate.factorize(&condensed, &ws2.values, &c, &state.coordinates).unwrap();
-            let mut y = rhs.clone();
-            approximate.solve_in_place(&mut y).unwrap();
+            let (y, _) = condensed_solve(&condensed, &state, c, &rhs, true);
+            let scale = scale_of(&expected);
             let worst = (0..n).fold(0.0f64, |m, k| m.max((y[k] - expected[k]).abs()));
             assert!(worst < 0.2 * scale, "approximate solve off by {worst} (scale {scale})");
         }
