@@ -104,6 +104,85 @@ pub struct ElasticMatrix {
     /// Every entry is stored (a modal body's matrices): `matrix.values` is the dense matrix in
     /// column-major order, and the products skip the row indices.
     pub full: bool,
+    /// The same matrix in 3 x 3 blocks, when its entries come in such blocks (the stiffness of
+    /// solid elements, node by node): the products read one block index per nine entries.
+    pub blocks: Option<Blocks3>,
+}
+
+/// A square sparse matrix of size 3 n_b stored in block rows of dense 3 x 3 blocks (row-major
+/// within a block); entries missing in a stored block are zeros.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Blocks3 {
+    /// Start of each block row in `columns` and `values` (n_b + 1).
+    row_ptr: Vec<usize>,
+    /// Block column of each block.
+    columns: Vec<u32>,
+    /// The blocks.
+    values: Vec<[f64; 9]>,
+}
+
+impl Blocks3 {
+    /// The blocked form of `m`, or None when it is not square of size 3 n_b or when the
+    /// blocks would store more than 1.5 times its entries (a pattern not made of node blocks).
+    pub fn from_csc(m: &Csc) -> Option<Self> {
+        let n = m.nrows;
+        if n == 0 || m.ncols != n || n % 3 != 0 || u32::try_from(n / 3).is_err() {
+            return None;
+        }
+        let nb = n / 3;
+        // Block columns of each block row, then the blocks in block-row order.
+        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); nb];
+        let mut count = 0;
+        for c in 0..n {
+            for &r in &m.row_idx[m.col_ptr[c]..m.col_ptr[c + 1]] {
+                let (br, bc) = (r / 3, (c / 3) as u32);
+                if rows[br].last() != Some(&bc) && !rows[br].contains(&bc) {
+                    rows[br].push(bc);
+                    count += 1;
+                }
+            }
+            if 9 * count > 3 * m.values.len() / 2 + 9 {
+                return None;
+            }
+        }
+        let mut row_ptr = Vec::with_capacity(nb + 1);
+        row_ptr.push(0);
+        let mut columns = Vec::new();
+        for r in &mut rows {
+            r.sort_unstable();
+            columns.extend_from_slice(r);
+            row_ptr.push(columns.len());
+        }
+        let mut values = vec![[0.0; 9]; columns.len()];
+        for c in 0..n {
+            for k in m.col_ptr[c]..m.col_ptr[c + 1] {
+                let r = m.row_idx[k];
+                let br = r / 3;
+                let slot = &columns[row_ptr[br]..row_ptr[br + 1]];
+                let b = row_ptr[br] + slot.binary_search(&((c / 3) as u32)).expect("block of the pattern");
+                values[b][3 * (r % 3) + c % 3] += m.values[k];
+            }
+        }
+        Some(Blocks3 { row_ptr, columns, values })
+    }
+
+    /// `out += w * A x`, block row by block row.
+    fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
+        let (x, out) = (&x[..3 * (self.row_ptr.len() - 1)], &mut out[..3 * (self.row_ptr.len() - 1)]);
+        for (br, o) in out.chunks_exact_mut(3).enumerate() {
+            let mut sum = [0.0; 3];
+            let range = self.row_ptr[br]..self.row_ptr[br + 1];
+            for (&bc, b) in self.columns[range.clone()].iter().zip(&self.values[range]) {
+                let xc = &x[3 * bc as usize..3 * bc as usize + 3];
+                sum[0] += b[0] * xc[0] + b[1] * xc[1] + b[2] * xc[2];
+                sum[1] += b[3] * xc[0] + b[4] * xc[1] + b[5] * xc[2];
+                sum[2] += b[6] * xc[0] + b[7] * xc[1] + b[8] * xc[2];
+            }
+            for (o, s) in o.iter_mut().zip(sum) {
+                *o += w * s;
+            }
+        }
+    }
 }
 
 impl ElasticMatrix {
@@ -115,7 +194,8 @@ impl ElasticMatrix {
             }
         }
         let full = matrix.nrows > 0 && matrix.values.len() == matrix.nrows * matrix.ncols;
-        ElasticMatrix { matrix, positions, full }
+        let blocks = if full { None } else { Blocks3::from_csc(&matrix) };
+        ElasticMatrix { matrix, positions, full, blocks }
     }
 
     /// `out += w * A x`.
@@ -129,6 +209,10 @@ impl ElasticMatrix {
                     *o += v * xc;
                 }
             }
+            return;
+        }
+        if let Some(blocks) = &self.blocks {
+            blocks.mul_vec_add(w, x, out);
             return;
         }
         for c in 0..m.ncols {
@@ -1662,6 +1746,53 @@ pub(crate) mod tests {
             assert!(close(a[k], b[k], 1e-12), "{k}: {} vs {}", a[k], b[k]);
         }
         assert!(solid_body(true, true).is_err());
+    }
+
+    /// A sparse matrix of 3 x 3 node blocks (node pairs of a chain plus a few long-range
+    /// pairs, some entries inside blocks left out), from a seed.
+    fn node_block_matrix(nodes: usize, seed: u64) -> Csc {
+        let mut rng = Lcg(seed);
+        let coupled = |a: usize, b: usize| a.abs_diff(b) <= 1 || (a * 7 + b * 7) % 5 == 0;
+        let mut col_ptr = vec![0];
+        let (mut row_idx, mut values) = (Vec::new(), Vec::new());
+        for c in 0..3 * nodes {
+            for r in 0..3 * nodes {
+                if coupled(r / 3, c / 3) && (r + 2 * c) % 7 != 3 {
+                    row_idx.push(r);
+                    values.push(rng.next());
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        Csc { nrows: 3 * nodes, ncols: 3 * nodes, col_ptr, row_idx, values }
+    }
+
+    #[test]
+    fn node_block_products_equal_the_compressed_column_products() {
+        let m = node_block_matrix(9, 3);
+        let pattern = ElasticPattern::union(m.nrows, &[&m], &[]);
+        let blocked = ElasticMatrix::new(m.clone(), &pattern);
+        assert!(blocked.blocks.is_some());
+        let x: Vec<f64> = (0..27).map(|k| (0.37 * k as f64).sin()).collect();
+        let mut expected: Vec<f64> = (0..27).map(|k| 0.1 * k as f64).collect();
+        let mut got = expected.clone();
+        blocked.mul_vec_add(-1.5, &x, &mut got);
+        let mut product = vec![0.0; 27];
+        m.mul_vec_add(&x, &mut product);
+        for (e, p) in expected.iter_mut().zip(&product) {
+            *e += -1.5 * p;
+        }
+        for k in 0..27 {
+            assert!((got[k] - expected[k]).abs() <= 1e-14, "{k}: {} vs {}", got[k], expected[k]);
+        }
+        // Not made of node blocks (a diagonal): the compressed columns serve.
+        let diagonal = Csc::from_dense(30, 30, |r, c| if r == c { 1.0 } else { 0.0 });
+        let mut sparse = diagonal.clone();
+        sparse.col_ptr = (0..=30).collect();
+        sparse.row_idx = (0..30).collect();
+        sparse.values = vec![1.0; 30];
+        assert!(Blocks3::from_csc(&sparse).is_none());
+        assert!(Blocks3::from_csc(&diagonal).is_some());
     }
 
     #[test]
