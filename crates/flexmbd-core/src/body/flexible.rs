@@ -839,7 +839,7 @@ fn quat(q: &[f64]) -> Quaternion {
 }
 
 /// Dot product with four partial sums (vectorizable; a plain sum of f64 products is not).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a4, b4) = (a[..n].chunks_exact(4), b[..n].chunks_exact(4));
     let (ra, rb) = (a4.remainder(), b4.remainder());
@@ -1103,7 +1103,10 @@ fn centripetal_jacobian(w: &Vec3, s: &Vec3) -> Mat3 {
     w.outer(s) + Mat3::IDENTITY.scale(w.dot(s)) - s.outer(w).scale(2.0)
 }
 
-/// Fills `t` with the Jacobians of [`inertia_force`] at (q, q_dot, q_dd).
+/// Fills `t` with the Jacobians of [`inertia_force`] at (q, q_dot, q_dd). Without
+/// `reference_elastic`, only the reference block and the coefficients of the elastic block:
+/// the (reference, f) and (f, reference) blocks are left as they were, and so are the general
+/// I_kl products only they need (a condensed body's Newton solver replaces them).
 pub fn inertia_tangent(
     body: &FlexibleBody,
     q: &[f64],
@@ -1111,9 +1114,10 @@ pub fn inertia_tangent(
     qdd: &[f64],
     scratch: &mut FlexibleScratch,
     t: &mut FlexibleTangent,
+    reference_elastic: bool,
 ) {
     let nf = body.elastic_count;
-    let k = quantities(body, q, qd, qdd, scratch, true);
+    let k = quantities(body, q, qd, qdd, scratch, reference_elastic);
     let (p, a, l, w, alpha, s, j) = (k.p, k.a, k.l, k.w, k.alpha, k.s, k.j);
     let pd = quat(qd);
     let pdd = quat(qdd);
@@ -1124,7 +1128,11 @@ pub fn inertia_tangent(
     let dacc_dp = rotate_transpose_jacobian(&p, &r_dd);
     let s_skew = s.skew();
     let jw = j.mul_vec(&w);
-    t.clear();
+    if reference_elastic {
+        t.clear();
+    } else {
+        t.reference = [[[0.0; 7]; 7]; 3];
+    }
     t.n = nf;
     let [tm, tv, tx] = &mut t.reference;
 
@@ -1184,6 +1192,11 @@ pub fn inertia_tangent(
     if nf == 0 {
         t.velocity_coefficients = Mat3::ZERO;
         t.position_coefficients = Mat3::ZERO;
+        return;
+    }
+    if !reference_elastic {
+        t.velocity_coefficients = w.skew().scale(2.0);
+        t.position_coefficients = alpha.skew() + w.skew().mul_mat(&w.skew());
         return;
     }
 
@@ -1580,7 +1593,7 @@ pub(crate) mod tests {
         let (q, qd, qdd) = random_state(n, 8);
         let mut scratch = FlexibleScratch::with_size(n);
         let mut t = FlexibleTangent::with_size(n);
-        inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t);
+        inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t, true);
         let dense = dense_tangent(&body, &t);
         let h = 1e-6;
         for which in 0..3 {
@@ -1607,6 +1620,40 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn reference_only_tangent_equals_the_reference_block_of_the_whole() {
+        // Without the coupling blocks the tangent takes the node-wise products of a solid
+        // body (no general I_kl products): its reference block and the coefficients of the
+        // elastic block must equal those of the whole tangent.
+        for body in [solid_body(true, false).unwrap(), solid_body(false, false).unwrap()] {
+            let n = body.elastic_count;
+            let (q, qd, qdd) = random_state(n, 61);
+            let mut scratch = FlexibleScratch::for_body(&body);
+            let (mut whole, mut reference) = (FlexibleTangent::with_size(n), FlexibleTangent::with_size(n));
+            inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut whole, true);
+            inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut reference, false);
+            for b in 0..3 {
+                for r in 0..7 {
+                    for c in 0..7 {
+                        let (x, y) = (whole.reference[b][r][c], reference.reference[b][r][c]);
+                        assert!(close(x, y, 1e-12), "block {b} ({r}, {c}): {x} vs {y}");
+                    }
+                }
+            }
+            for (x, y) in [
+                (whole.velocity_coefficients, reference.velocity_coefficients),
+                (whole.position_coefficients, reference.position_coefficients),
+            ] {
+                for r in 0..3 {
+                    for c in 0..3 {
+                        assert!(close(x.0[r][c], y.0[r][c], 1e-12));
+                    }
+                }
+            }
+            assert!(reference.reference_elastic.iter().all(|b| b.iter().all(|&x| x == 0.0)));
+        }
+    }
+
+    #[test]
     fn mass_matrix_is_symmetric_and_gives_the_kinetic_energy() {
         let n = 4;
         let pts = PointBody::random(8, n, 11);
@@ -1614,7 +1661,7 @@ pub(crate) mod tests {
         let (q, qd, qdd) = random_state(n, 12);
         let mut scratch = FlexibleScratch::with_size(n);
         let mut t = FlexibleTangent::with_size(n);
-        inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t);
+        inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t, true);
         let m = &dense_tangent(&body, &t)[0];
         for r in 0..7 + n {
             for c in 0..7 + n {

@@ -132,7 +132,11 @@ pub fn assemble(
         let o = body.offset;
         if let BodyKind::Flexible(fb) = &body.kind {
             let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
-            let elastic_block = ws.assemble_condensed_blocks || !is_condensed(&body.kind);
+            let condensed = is_condensed(&body.kind);
+            let blocks = FlexibleBlocks {
+                elastic: ws.assemble_condensed_blocks || !condensed,
+                reference_elastic: !(ws.structured_condensed_coupling && condensed),
+            };
             assemble_flexible(
                 fb,
                 body,
@@ -142,7 +146,7 @@ pub fn assemble(
                 (&mut ws.residual, &mut ws.values),
                 (matrix, &c),
                 bi,
-                elastic_block,
+                blocks,
             );
             continue;
         }
@@ -293,9 +297,19 @@ pub fn assemble(
     Ok(())
 }
 
+/// Which blocks of a deformable body's Newton-matrix entries are assembled (the reference
+/// block always is).
+#[derive(Clone, Copy, Debug)]
+struct FlexibleBlocks {
+    /// The (f, f) block (condensed solves replace it).
+    elastic: bool,
+    /// The (reference, f) and (f, reference) blocks (the structured coupling of the condensed
+    /// Newton solver replaces them).
+    reference_elastic: bool,
+}
+
 /// Residual and Newton-matrix entries of a deformable body: the inertia force of seed eq. 15
 /// minus gravity plus the elastic forces K_ff q_f + D_ff qf_dot.
-/// `elastic_block` false skips the (f, f) block of the matrix (condensed solves replace it).
 #[allow(clippy::too_many_arguments)]
 fn assemble_flexible(
     fb: &FlexibleBody,
@@ -306,8 +320,9 @@ fn assemble_flexible(
     (residual, values): (&mut [f64], &mut [f64]),
     (matrix, c): (Option<MatrixCoefficients>, &MatrixCoefficients),
     bi: usize,
-    elastic_block: bool,
+    blocks: FlexibleBlocks,
 ) {
+    let elastic_block = blocks.elastic;
     let o = body.offset;
     let nb = body.dofs.len();
     let nf = fb.elastic_count;
@@ -335,7 +350,7 @@ fn assemble_flexible(
     let entries = &model.layout.bodies[bi];
     if needs_tangent {
         let t = &mut work.tangent;
-        flexible::inertia_tangent(fb, q, qd, qdd, &mut work.scratch, t);
+        flexible::inertia_tangent(fb, q, qd, qdd, &mut work.scratch, t, blocks.reference_elastic);
         let gpp =
             flexible::gravity_jacobian(fb, q, &model.gravity, &mut work.gravity_pf, &mut work.gravity_fp);
         let [tm, tv, tx] = &t.reference;
@@ -351,7 +366,7 @@ fn assemble_flexible(
         }
         let [rm, rv, rx] = &t.reference_elastic;
         let [fm, fv, fx] = &t.elastic_reference;
-        for a in 0..7 {
+        for a in (0..7).filter(|_| blocks.reference_elastic) {
             for j in 0..nf {
                 let (re, er) = (a * nf + j, j * 7 + a);
                 let (mut k_re, mut k_er) = (rx[re], fx[er]);

@@ -20,7 +20,7 @@
 //! solve with A per body, the small LU solve and a dense product with Z:
 //!   y = A^-1 r_F,   S_hat x_S = r_S - N_SF y,   x_F = y - Z x_J.
 
-use crate::body::flexible::{FlexibleBody, REFERENCE_COORDINATES};
+use crate::body::flexible::{dot, FlexibleBody, REFERENCE_COORDINATES};
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
@@ -67,6 +67,9 @@ struct BlockFactor {
     /// A^-1 [I1^T, J_f0^T] (n x 6, column-major): the solves of the coupling with the body's
     /// own reference coordinates, made once per factorization (see `reference_coupling`).
     influence: Vec<f64>,
+    /// A^-1 Q of the first vectors of the block's coupling basis Q (n each, column-major):
+    /// solved when a factorization first needs them.
+    basis_solved: Vec<f64>,
     /// Scratch of single solves (allocated at the first).
     memory: Option<faer::dyn_stack::MemBuffer>,
 }
@@ -117,7 +120,17 @@ struct Block {
     current: usize,
     /// Position in `coupling` of each of the body's reference coordinates [R, p].
     reference: [usize; 7],
+    /// Orthonormal basis Q of the coupling columns N_Fj met so far (other than the reference
+    /// coordinates), n each, column-major; see `other_couplings`.
+    basis: Vec<f64>,
 }
+
+/// Largest size of a block's coupling basis (6 per marker on the body would need it).
+const BASIS_LIMIT: usize = 24;
+
+/// A coupling column is taken from the basis when the part of it outside the basis is at most
+/// this fraction of it (round-off: the columns of a marker coupling lie in the basis exactly).
+const SPAN_TOLERANCE: f64 = 1e-10;
 
 /// The condensed linear solver of a model (one per kind of matrix kept: Newton iteration
 /// matrix, projection / acceleration matrix).
@@ -257,6 +270,7 @@ impl CondensedSolver {
                 factors: Vec::new(),
                 current: 0,
                 reference,
+                basis: Vec::new(),
             });
         }
         Ok(CondensedSolver {
@@ -304,21 +318,11 @@ impl CondensedSolver {
             block.select_factor(fb, c)?;
             let (m, nj) = (block.n, block.coupling.len());
             let structured = self.approximate_reference;
-            let is_reference = |j: usize| structured && block.reference.contains(&j);
-            // Z = A^-1 N_FJ: the other coupling columns by solves, packed together.
+            let reference = block.reference;
+            let is_reference = |j: usize| structured && reference.contains(&j);
+            // Z = A^-1 N_FJ of the other coupling columns.
             let others: Vec<usize> = (0..nj).filter(|&j| !is_reference(j)).collect();
-            let mut packed = vec![0.0; m * others.len()];
-            for (slot, &j) in others.iter().enumerate() {
-                for &(f, k) in &block.column_entries[j] {
-                    packed[slot * m + f] = values[k];
-                }
-            }
-            if !others.is_empty() {
-                block.factors[block.current].solve_in_place(&mut packed)?;
-            }
-            for (slot, &j) in others.iter().enumerate() {
-                block.z[j * m..(j + 1) * m].copy_from_slice(&packed[slot * m..(slot + 1) * m]);
-            }
+            block.other_couplings(&others, values)?;
             for (j, (stored, entries)) in block.row_values.iter_mut().zip(&block.row_entries).enumerate() {
                 if !is_reference(j) {
                     for (v, &(_, k)) in stored.iter_mut().zip(entries) {
@@ -409,6 +413,78 @@ fn coupling_rows(fb: &FlexibleBody, i: usize) -> Vec<f64> {
 }
 
 impl Block {
+    /// Z = A^-1 N_Fj of the coupling columns `columns` that are not the body's reference
+    /// coordinates (joints and forces at its markers, and through them other bodies). A
+    /// marker's kinematics depends on q_f through A(p) times constant body-frame rows of its
+    /// Jacobians, so these columns stay in a space of dimension at most 6 per marker: each
+    /// column is split over an orthonormal basis Q of the columns met so far (Gram-Schmidt,
+    /// two passes), a part outside it extends Q, and Z_j = (A^-1 Q) c_j with A^-1 Q solved once
+    /// per factorization of A. After the first factorization, these columns need no solves.
+    /// The reference columns of an exact solver (not in a fixed space) and columns met when
+    /// Q is full are solved directly.
+    fn other_couplings(&mut self, columns: &[usize], values: &[f64]) -> Result<()> {
+        let m = self.n;
+        let mut direct = Vec::new();
+        let mut split = Vec::with_capacity(columns.len());
+        let mut v = vec![0.0; m];
+        for &j in columns {
+            v.iter_mut().for_each(|x| *x = 0.0);
+            for &(f, k) in &self.column_entries[j] {
+                v[f] = values[k];
+            }
+            let norm = dot(&v, &v).sqrt();
+            if self.reference.contains(&j) {
+                direct.push(j);
+                continue;
+            }
+            let mut c = vec![0.0; self.basis.len() / m];
+            for _pass in 0..2 {
+                for (ci, q) in c.iter_mut().zip(self.basis.chunks_exact(m)) {
+                    let d = dot(q, &v);
+                    *ci += d;
+                    v.iter_mut().zip(q).for_each(|(x, qv)| *x -= d * qv);
+                }
+            }
+            let outside = dot(&v, &v).sqrt();
+            if outside > SPAN_TOLERANCE * norm {
+                if c.len() >= BASIS_LIMIT {
+                    direct.push(j);
+                    continue;
+                }
+                self.basis.extend(v.iter().map(|x| x / outside));
+                c.push(outside);
+            }
+            split.push((j, c));
+        }
+        let factor = &mut self.factors[self.current];
+        let solved = factor.basis_solved.len();
+        if solved < self.basis.len() {
+            let mut packed = self.basis[solved..].to_vec();
+            factor.solve_in_place(&mut packed)?;
+            factor.basis_solved.extend(packed);
+        }
+        for (j, c) in split {
+            let z = &mut self.z[j * m..(j + 1) * m];
+            z.iter_mut().for_each(|x| *x = 0.0);
+            for (&ci, w) in c.iter().zip(factor.basis_solved.chunks_exact(m)) {
+                z.iter_mut().zip(w).for_each(|(x, wv)| *x += ci * wv);
+            }
+        }
+        if !direct.is_empty() {
+            let mut packed = vec![0.0; m * direct.len()];
+            for (slot, &j) in direct.iter().enumerate() {
+                for &(f, k) in &self.column_entries[j] {
+                    packed[slot * m + f] = values[k];
+                }
+            }
+            factor.solve_in_place(&mut packed)?;
+            for (slot, &j) in direct.iter().enumerate() {
+                self.z[j * m..(j + 1) * m].copy_from_slice(&packed[slot * m..(slot + 1) * m]);
+            }
+        }
+        Ok(())
+    }
+
     /// Z and N_JF of the reference coordinates from their mass part (see `factorize`), at the
     /// body coordinates `qb`. The rotation coupling is that of the deformed body,
     /// J_f = J_f0 + dJ(q_f) with dJ_i^T = -(I_jk - I_kj) q_f: the undeformed J_f0 alone errs
@@ -485,6 +561,7 @@ impl Block {
                 factor: None,
                 diagonal: c.scale * c.identity,
                 influence: Vec::new(),
+                basis_solved: Vec::new(),
                 memory: None,
             }
         } else {
@@ -515,7 +592,14 @@ impl Block {
             };
             let factor =
                 SymmetricFactor::new("elastic iteration matrix", matrix, ordering, FactorKind::Cholesky, 1)?;
-            BlockFactor { key: k, factor: Some(factor), diagonal: 0.0, influence: Vec::new(), memory: None }
+            BlockFactor {
+                key: k,
+                factor: Some(factor),
+                diagonal: 0.0,
+                influence: Vec::new(),
+                basis_solved: Vec::new(),
+                memory: None,
+            }
         };
         let mut influence = Vec::with_capacity(6 * self.n);
         for i in 0..6 {
@@ -618,6 +702,88 @@ mod tests {
         let expected = direct_solve(&direct, &state, c, &rhs);
         let (x, _) = condensed_solve(&condensed, &state, c, &rhs, true);
         assert_close(&x, &expected);
+    }
+
+    #[test]
+    fn marker_couplings_of_later_factorizations_come_from_the_coupling_basis() {
+        // The joint at the elastic marker couples through A(p) times constant marker rows: the
+        // first factorization spans them, later ones at other rotations reuse that span
+        // (no solves) and still reproduce the direct solve (zero velocities and multipliers:
+        // the elastic block is constant there).
+        let (direct, condensed) = (model(false, true), model(true, true));
+        let c =
+            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let rhs = test_rhs(direct.system_size());
+        let mut solver = CondensedSolver::new(&condensed, false).unwrap();
+        let mut ws = Workspace::new(&condensed).unwrap();
+        let axis = Vec3([0.3, -0.5, 0.8]) * (1.0 / Vec3([0.3, -0.5, 0.8]).norm());
+        let mut sizes = Vec::new();
+        for angle in [0.0f64, 0.4, 1.3, -2.0] {
+            let mut state = State::initial(&direct, 0.0);
+            for (body, turn) in [(1, 0.5 * angle), (2, angle)] {
+                let o = direct.bodies[body].offset;
+                let (cos, sin) = ((0.5 * turn).cos(), (0.5 * turn).sin());
+                state.coordinates[o + 3..o + 7].copy_from_slice(&[
+                    cos,
+                    sin * axis[0],
+                    sin * axis[1],
+                    sin * axis[2],
+                ]);
+            }
+            let expected = direct_solve(&direct, &state, c, &rhs);
+            assemble(&condensed, StateView::of(&state), &mut ws, Some(c)).unwrap();
+            solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
+            let mut x = rhs.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            assert_close(&x, &expected);
+            let block = &solver.blocks[0];
+            sizes.push((
+                block.basis.len() / block.n,
+                block.factors[block.current].basis_solved.len() / block.n,
+            ));
+        }
+        assert!(sizes[0].0 > 0 && sizes[0].0 <= 6, "{sizes:?}");
+        assert!(sizes.iter().all(|&s| s == (sizes[0].0, sizes[0].0)), "{sizes:?}");
+    }
+
+    #[test]
+    fn structured_solver_reads_no_assembled_reference_elastic_blocks() {
+        // The Newton matrix assembled without the reference-elastic blocks of the condensed
+        // body (as the integrator does) must give the structured solver the same solves as the
+        // whole matrix, in a moving, deformed state.
+        let model = model(true, true);
+        let mut state = State::initial(&model, 0.0);
+        for (k, v) in state.velocities.iter_mut().enumerate() {
+            *v = 0.3 * ((k * 7 % 5) as f64 - 2.0);
+        }
+        for (k, a) in state.accelerations.iter_mut().enumerate() {
+            *a = 2.0 * ((k * 3 % 7) as f64 - 3.0);
+        }
+        let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
+        for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
+            *x = 0.02 * (k as f64 - 2.5);
+        }
+        let c =
+            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let rhs = test_rhs(model.system_size());
+        let solves: Vec<Vec<f64>> = [false, true]
+            .into_iter()
+            .map(|structured| {
+                let mut ws = Workspace::new(&model).unwrap();
+                ws.assemble_condensed_blocks = false;
+                ws.structured_condensed_coupling = structured;
+                assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
+                let mut solver = CondensedSolver::new(&model, true).unwrap();
+                solver.factorize(&model, &ws.values, &c, &state.coordinates).unwrap();
+                let mut x = rhs.clone();
+                solver.solve_in_place(&mut x).unwrap();
+                x
+            })
+            .collect();
+        let scale = scale_of(&solves[0]);
+        for (k, (a, b)) in solves[0].iter().zip(&solves[1]).enumerate() {
+            assert!((a - b).abs() <= 1e-12 * scale, "{k}: {a} vs {b}");
+        }
     }
 
     fn test_rhs(n: usize) -> Vec<f64> {

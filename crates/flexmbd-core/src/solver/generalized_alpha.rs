@@ -283,7 +283,10 @@ fn iterate(
         let need_matrix = !reuse || !same_h || cache.kind != kind;
         fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
-        assemble(model, view, ws, if need_matrix { Some(coef) } else { None })?;
+        ws.structured_condensed_coupling = need_matrix && kind != Factorization::Projection;
+        let assembled = assemble(model, view, ws, if need_matrix { Some(coef) } else { None });
+        ws.structured_condensed_coupling = false;
+        assembled?;
         if need_matrix {
             if let Err(detail) = factorize(model, ws, kind, &coef, &next.coordinates) {
                 cache.step_size = None;

@@ -113,6 +113,12 @@ pub struct Workspace {
     /// matrix (their condensed solves never read them; analyses that need the whole matrix
     /// keep the default, true).
     pub assemble_condensed_blocks: bool,
+    /// Whether the matrix being assembled is the Newton iteration matrix of a model with
+    /// condensed bodies, whose solver takes the coupling of each condensed body with its own
+    /// reference coordinates from its structured mass part (`CondensedSolver::factorize`): the
+    /// assembly then leaves those blocks out, and with them the inertia products only they
+    /// need. Set by the integrator around that assembly; false otherwise.
+    pub structured_condensed_coupling: bool,
     /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
     /// trace of its inertia about the body origin.
     pub normalization_weights: Vec<f64>,
@@ -197,6 +203,7 @@ impl Workspace {
             values: vec![0.0; model.layout.pattern.nnz()],
             linear,
             assemble_condensed_blocks: true,
+            structured_condensed_coupling: false,
             penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
             normalization_weights,
             rigid: RigidTangent::default(),
