@@ -21,6 +21,7 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -138,10 +139,12 @@ def run_flexmbd(name: str, size: str, repeat: int, solver: fm.GeneralizedAlpha) 
     }
 
 
-def one_solve_seconds(size: str, spectral_radius: float = 0.9, repeat: int = 100) -> float:
-    """Time of one solve with the factorized constant elastic iteration matrix
+def solve_timer(size: str, spectral_radius: float = 0.9, count: int = 50) -> Callable[[], float]:
+    """A timer of one solve with the factorized constant elastic iteration matrix
     beta' M_ff + K_ff of the nodal body (what each Newton iteration of the condensed solver
-    needs), best of `repeat` after a first solve that warms the caches."""
+    needs), factorized on one thread as the simulator's is: each call returns the mean of
+    `count` consecutive solves (as the steps are timed: a best single solve is luckier than the
+    mean of the solves inside a run)."""
     import scipy.sparse as sp
 
     from flexmbd.fe.modal import factorize
@@ -156,44 +159,70 @@ def one_solve_seconds(size: str, spectral_radius: float = 0.9, repeat: int = 100
         (1 - alpha_m) / ((1 - alpha_f) * beta * step**2)
     )
     free = body.reference["free_dofs"]
-    factor = factorize(matrix, dofs=free, nodes=body.nodes, dofs_per_node=3)
+    factor = factorize(matrix, dofs=free, nodes=body.nodes, dofs_per_node=3, threads=1)
     rhs = np.random.default_rng(1).standard_normal(matrix.shape[0])
     factor.solve(rhs)
-    best = np.inf
-    for _ in range(repeat):
+
+    def timer() -> float:
         start = time.perf_counter()
-        factor.solve(rhs)
-        best = min(best, time.perf_counter() - start)
-    return best
+        for _ in range(count):
+            factor.solve(rhs)
+        return (time.perf_counter() - start) / count
+
+    return timer
 
 
-#: Steps of the longer run of `marginal_step_seconds` per nodal size.
+#: Steps of the longer run of `step_timer` per nodal size.
 MARGINAL_STEPS = {"1k": 300, "10k": 100, "50k": 40}
 
 
-def marginal_step_seconds(size: str, solver: fm.GeneralizedAlpha, repeat: int = 3) -> dict:
-    """Time per step of the nodal pendulum without its set-up (factorizations, initial
-    conditions): the difference of a run of `steps` + 2 steps and one of 2 steps, each the
-    best of `repeat` runs."""
-    model = models.nodal(size)
-    compiled = build_pendulum(model)[0].compile()
+def step_timer(size: str, solver: fm.GeneralizedAlpha) -> Callable[[], dict]:
+    """A timer of the nodal pendulum's steps without its set-up (factorizations, initial
+    conditions): each call runs 2 steps and `MARGINAL_STEPS[size]` + 2 steps and returns both
+    wall times (their difference over the extra steps is the time per step)."""
+    compiled = build_pendulum(models.nodal(size))[0].compile()
     step, steps = RUNS["nodal"][0], MARGINAL_STEPS[size]
-    walls = []
-    for count in (2, steps + 2):
-        best = np.inf
-        for _ in range(repeat):
+
+    def timer() -> dict:
+        walls = []
+        for count in (2, steps + 2):
             start = time.perf_counter()
             result = fm.simulate(
                 compiled, count * step, step, output_interval=count * step, solver=solver
             )
-            best = min(best, time.perf_counter() - start)
-        walls.append(best)
-    stats = result.statistics
+            walls.append(time.perf_counter() - start)
+        stats = result.statistics
+        return {
+            "short": walls[0],
+            "long": walls[1],
+            "steps": steps,
+            "newton_per_step": stats["newton_iterations"] / stats["steps"],
+            "factorizations": int(stats["factorizations"]),
+        }
+
+    return timer
+
+
+def nodal_timings(size: str, solver: fm.GeneralizedAlpha, repeat: int) -> dict:
+    """Time per step and of one solve, measured in alternation (`repeat` rounds, so that both
+    see the same state of the machine): the step from the best short and long runs, the solve
+    the best mean; also the ratio of each round."""
+    time_solve = solve_timer(size, solver.spectral_radius)
+    time_steps = step_timer(size, solver)
+    solves, runs = [], []
+    for _ in range(repeat):
+        solves.append(time_solve())
+        runs.append(time_steps())
+    steps = runs[0]["steps"]
+    per_step = (min(r["long"] for r in runs) - min(r["short"] for r in runs)) / steps
     return {
-        "per_step": (walls[1] - walls[0]) / steps,
-        "setup": walls[0] - 2 * (walls[1] - walls[0]) / steps,
-        "newton_per_step": stats["newton_iterations"] / stats["steps"],
-        "factorizations": int(stats["factorizations"]),
+        "per_step": per_step,
+        "solve": min(solves),
+        "round_ratios": [
+            (r["long"] - r["short"]) / steps / s for r, s in zip(runs, solves, strict=True)
+        ],
+        "newton_per_step": runs[0]["newton_per_step"],
+        "factorizations": runs[0]["factorizations"],
     }
 
 
@@ -221,17 +250,17 @@ def main(argv: list[str] | None = None) -> int:
     solver = fm.GeneralizedAlpha(args.spectral_radius)
     if args.model == "nodal":
         theirs = None if args.no_exudyn else run_exudyn(args.model, args.size, args.repeat)
-        solve = one_solve_seconds(args.size, args.spectral_radius)
-        marginal = marginal_step_seconds(args.size, solver, args.repeat)
-        solve = min(solve, one_solve_seconds(args.size, args.spectral_radius))
+        marginal = nodal_timings(args.size, solver, args.repeat)
+        solve = marginal["solve"]
         n_f = models.nodal(args.size).body.elastic_coordinate_count
+        rounds = ", ".join(f"{r:.2f}" for r in marginal["round_ratios"])
         print(
             f"flexmbd  nodal {args.size} ({n_f} elastic coordinates): "
             f"{1e3 * marginal['per_step']:.2f} ms per step after the set-up "
             f"({marginal['newton_per_step']:.2f} Newton its/step, "
             f"{marginal['factorizations']} factorizations), one solve with the factorized "
-            f"constant elastic matrix {1e3 * solve:.2f} ms: ratio "
-            f"{marginal['per_step'] / solve:.2f}"
+            f"constant elastic matrix {1e3 * solve:.3f} ms: ratio "
+            f"{marginal['per_step'] / solve:.2f} (each round: {rounds})"
         )
         if theirs is not None:
             if "error" in theirs:

@@ -213,6 +213,22 @@ def test_condensed_elastic_coordinates_give_the_same_motion(modal, pin_node):
     assert np.max(np.abs(tips[0] - tips[1])) < 1e-8
 
 
+def test_condensed_iteration_matrices_age_ten_steps():
+    """The Newton matrix is refreshed after serving 5 steps, or 10 with condensed bodies (their
+    elastic block is the exact constant A; only the reference coupling ages)."""
+    data = beam_body()
+    refreshes = {}
+    for condense in (False, True):
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        beam = system.add_flexible_body(data, condense=condense, rayleigh_damping=(0.0, 1e-4))
+        pin = system.add_node_marker(beam, 4)
+        system.add_revolute_joint(system.add_marker(system.ground, position=data.nodes[3]), pin)
+        result = fm.simulate(system, 0.1, 5e-4, output_interval=0.01)
+        assert result.statistics["steps"] == 200
+        refreshes[condense] = result.statistics["factorizations"]
+    assert 20 <= refreshes[True] <= 25 < 40 <= refreshes[False], refreshes
+
+
 def test_scalar_mass_products_of_solids_give_the_same_motion(monkeypatch):
     """Bodies of solids use the scalar mass matrix M_s (I_kl = M_s (x) e_k e_l^T) for the
     products of the inertia force; the general invariant products give the same motion."""

@@ -59,13 +59,15 @@ def factorize(
     positive: int | None = None,
     single: bool = False,
     name: str = "matrix",
+    threads: int | None = None,
 ) -> Any:
     """Sparse symmetric factorization of `matrix` (Cholesky, or quasi-definite LDL^T when
     `positive` gives the size of the definite block; `single`: Cholesky in single precision).
     Only the lower triangle of `matrix` is read (it may be given alone, see `lower_triangle`).
     With `nodes`, the unknowns are the nodal coordinates `dofs` (all when None) of a body with
     `dofs_per_node`, and the ordering is a nested dissection of the mesh; unknowns beyond
-    len(dofs) (multipliers) are ordered last."""
+    len(dofs) (multipliers) are ordered last. `threads`: of the factorization and its solves
+    (default: every core)."""
     n = matrix.shape[0]
     kwargs: dict[str, Any] = {}
     if nodes is not None:
@@ -81,7 +83,7 @@ def factorize(
         np.ascontiguousarray(lower.data, dtype=float),
         positive=positive,
         single=single,
-        threads=os.cpu_count() or 1,
+        threads=threads or os.cpu_count() or 1,
         name=name,
         **kwargs,
     )

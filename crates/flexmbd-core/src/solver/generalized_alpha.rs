@@ -437,7 +437,12 @@ pub fn step(
         return Ok(report);
     }
     cache.age += 1;
-    if cache.age >= newton.max_matrix_age {
+    let max_age = if matches!(ws.linear, LinearSolvers::Condensed { .. }) {
+        newton.condensed_matrix_age
+    } else {
+        newton.max_matrix_age
+    };
+    if cache.age >= max_age {
         cache.step_size = None;
     }
 

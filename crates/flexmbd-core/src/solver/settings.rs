@@ -35,6 +35,13 @@ pub struct NewtonSettings {
     /// iterations on the steps that follow (3.21 -> 3.00 per step on the flexible
     /// slider-crank, 3.87 -> 2.98 on a nodal solid body).
     pub max_matrix_age: usize,
+    /// The same for the iteration matrix of models with condensed deformable bodies
+    /// (`solver::condensed`), whose elastic blocks are the exact constant A: only the coupling
+    /// with the reference coordinates ages, a fresh matrix does not make the next step a
+    /// two-iteration one, and a refresh costs solves with A. Nodal 1k / 10k pendulums, ages
+    /// 5, 10, 20: 2.98, 3.13, 3.66 / 2.98, 2.99, 3.24 Newton iterations per step, the time per
+    /// step least at 10 (`benchmarks/README.md`).
+    pub condensed_matrix_age: usize,
     /// Projection of the velocities onto C_q q_dot + C_t = 0 after every step.
     pub velocity_projection: VelocityProjection,
     /// Factorization of the Newton matrix.
@@ -88,6 +95,7 @@ impl Default for NewtonSettings {
             jacobian: JacobianUpdate::Modified,
             contraction_limit: 0.25,
             max_matrix_age: 5,
+            condensed_matrix_age: 10,
             velocity_projection: VelocityProjection::Auto,
             linear_solver: LinearSolver::Auto,
         }
