@@ -857,8 +857,17 @@ fn row(v: &[f64], k: usize, l: usize, n: usize) -> &[f64] {
     &v[(3 * k + l) * n..(3 * k + l + 1) * n]
 }
 
-/// Fills the products and N_kl of `scratch` and returns the body quantities. `with_velocity`
-/// and `with_acceleration` say whether z = I_kl qf_dot and x = I_kl qf_dd are needed.
+/// Whether [`quantities`] without the products takes the node-wise path of a body of solids
+/// (see [`ScalarMass`]): it then leaves `scratch.y` and `scratch.n` unset, and the products
+/// M_s [q_f, qf_dot, qf_dd] are in `scratch.nodal`.
+fn nodewise(body: &FlexibleBody, scratch: &FlexibleScratch) -> bool {
+    body.scalar_mass.is_some() && !scratch.nodal.is_empty()
+}
+
+/// Returns the body quantities. With `with_products` (or for a body without the scalar mass
+/// structure), fills y_kl = I_kl q_f and N_kl of `scratch` (and z_kl = I_kl qf_dot with the
+/// products), which the Jacobians need; else, for a body of solids, takes every sum over the
+/// elastic coordinates that involves y node by node (see [`nodewise`]).
 fn quantities(
     body: &FlexibleBody,
     q: &[f64],
@@ -876,45 +885,73 @@ fn quantities(
     let w = euler::body_angular_velocity(&p, &quat(qd));
     let alpha = euler::body_angular_velocity(&p, &quat(qdd));
     let acc = a.tr_mul_vec(&Vec3::from_slice(qdd));
-    match (&body.scalar_mass, with_products) {
-        (Some(sm), false) if !scratch.nodal.is_empty() => {
-            // y_kl at the coordinate j of (node, component c): delta_ck (M_s Q_f)[node][l].
+    // y_kl[j] = delta(comp j, k) (M_s Q_f)[node j][l] for solids, so with V spread over the
+    // nodes, V . y_kl = sum over nodes of V[node][k] Y0[node][l] =: g_V[k][l], for
+    // V = q_f, qf_dot, qf_dd; and N_kl = Ibar_kl + y_lk.
+    let node_sums = match &body.scalar_mass {
+        Some(sm) if !with_products && nodewise(body, scratch) => {
             sm.products([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
-            scratch.y.iter_mut().for_each(|x| *x = 0.0);
-            for (j, &c) in sm.coordinates.iter().enumerate() {
-                let (node, k) = (c / 3, c % 3);
-                for l in 0..3 {
-                    scratch.y[(3 * k + l) * nf + j] = scratch.nodal[9 * node + l];
+            let mut g = [[[0.0f64; 3]; 3]; 3];
+            for (v, y) in scratch.gathered.chunks_exact(9).zip(scratch.nodal.chunks_exact(9)) {
+                for (gv, vv) in g.iter_mut().zip(v.chunks_exact(3)) {
+                    for (row, &x) in gv.iter_mut().zip(vv) {
+                        for (o, &yb) in row.iter_mut().zip(&y[..3]) {
+                            *o += x * yb;
+                        }
+                    }
                 }
             }
+            Some(g)
         }
         _ => {
             body.i_kl_products(qf, &mut scratch.y);
             if with_products {
                 body.i_kl_products(qfd, &mut scratch.z);
             }
-        }
-    }
-    for k in 0..3 {
-        for l2 in 0..3 {
-            let dst = &mut scratch.n[(3 * k + l2) * nf..(3 * k + l2 + 1) * nf];
-            let ib = body.ibar_row(k, l2);
-            let y = row(&scratch.y, l2, k, nf);
-            for j in 0..nf {
-                dst[j] = ib[j] + y[j];
+            for k in 0..3 {
+                for l2 in 0..3 {
+                    let dst = &mut scratch.n[(3 * k + l2) * nf..(3 * k + l2 + 1) * nf];
+                    let ib = body.ibar_row(k, l2);
+                    let y = row(&scratch.y, l2, k, nf);
+                    for j in 0..nf {
+                        dst[j] = ib[j] + y[j];
+                    }
+                }
             }
+            None
         }
-    }
+    };
     let s = body.first_moment + body.i1_times(qf);
     let mut u = Mat3::ZERO;
     let mut pm = Mat3::ZERO;
-    for k in 0..3 {
-        for l2 in 0..3 {
-            u.0[k][l2] = body.second_moment.0[k][l2]
-                + dot(body.ibar_row(k, l2), qf)
-                + dot(body.ibar_row(l2, k), qf)
-                + dot(qf, row(&scratch.y, k, l2, nf));
-            pm.0[k][l2] = dot(row(&scratch.n, k, l2, nf), qfd);
+    let mut n_qfdd = Mat3::ZERO;
+    match &node_sums {
+        Some(g) => {
+            let ibar_qf: [[f64; 3]; 3] =
+                std::array::from_fn(|k| std::array::from_fn(|l2| dot(body.ibar_row(k, l2), qf)));
+            for k in 0..3 {
+                for l2 in 0..3 {
+                    u.0[k][l2] = body.second_moment.0[k][l2] + ibar_qf[k][l2] + ibar_qf[l2][k] + g[0][k][l2];
+                    pm.0[k][l2] = dot(body.ibar_row(k, l2), qfd) + g[1][l2][k];
+                    if k != l2 {
+                        n_qfdd.0[k][l2] = dot(body.ibar_row(k, l2), qfdd) + g[2][l2][k];
+                    }
+                }
+            }
+        }
+        None => {
+            for k in 0..3 {
+                for l2 in 0..3 {
+                    u.0[k][l2] = body.second_moment.0[k][l2]
+                        + dot(body.ibar_row(k, l2), qf)
+                        + dot(body.ibar_row(l2, k), qf)
+                        + dot(qf, row(&scratch.y, k, l2, nf));
+                    pm.0[k][l2] = dot(row(&scratch.n, k, l2, nf), qfd);
+                    if k != l2 {
+                        n_qfdd.0[k][l2] = dot(row(&scratch.n, k, l2, nf), qfdd);
+                    }
+                }
+            }
         }
     }
     let mut j = u.scale(-1.0);
@@ -924,7 +961,7 @@ fn quantities(
     let mut jf_qdd = Vec3::ZERO;
     for i in 0..3 {
         let (k, l2) = ((i + 1) % 3, (i + 2) % 3);
-        jf_qdd[i] = dot(row(&scratch.n, k, l2, nf), qfdd) - dot(row(&scratch.n, l2, k, nf), qfdd);
+        jf_qdd[i] = n_qfdd.0[k][l2] - n_qfdd.0[l2][k];
     }
     Quantities {
         p,
@@ -1005,24 +1042,29 @@ pub fn inertia_force(
     f.iter_mut().for_each(|x| *x = 0.0);
     body.add_i1_transpose_times(&k.acc, f);
     let e = alpha.skew() + w.skew().mul_mat(&w.skew());
+    let nodes = nodewise(body, scratch);
     for kk in 0..3 {
         for l in 0..3 {
             let ce = e.0[kk][l];
             if ce != 0.0 {
-                for (fj, nj) in f.iter_mut().zip(row(&scratch.n, l, kk, nf)) {
+                // N_lk = Ibar_lk + y_kl; y node-wise below for solids.
+                let source = if nodes { body.ibar_row(l, kk) } else { row(&scratch.n, l, kk, nf) };
+                for (fj, nj) in f.iter_mut().zip(source) {
                     *fj += ce * nj;
                 }
             }
         }
     }
     match &body.scalar_mass {
-        Some(sm) if !scratch.nodal.is_empty() => {
-            // Node-wise: M_s (2 w x U_dot) + M_s U_dd, from the products of `quantities`.
+        Some(sm) if nodes => {
+            // Node-wise: sum_kl E_kl y_kl + M_s (2 w x U_dot) + M_s U_dd, from the products
+            // of `quantities` (y_kl[j] = delta(comp j, k) Y0[node j][l]).
             for (j, &c) in sm.coordinates.iter().enumerate() {
                 let (node, comp) = (c / 3, c % 3);
                 let p = &scratch.nodal[9 * node..9 * node + 9];
                 let yd = Vec3([p[3], p[4], p[5]]);
-                f[j] += 2.0 * w.cross(&yd)[comp] + p[6 + comp];
+                let ey = e.0[comp][0] * p[0] + e.0[comp][1] * p[1] + e.0[comp][2] * p[2];
+                f[j] += ey + 2.0 * w.cross(&yd)[comp] + p[6 + comp];
             }
         }
         _ => {
