@@ -29,6 +29,8 @@ pub struct DenseLu {
     columns: Vec<f64>,
     /// Row swapped with row k at step k.
     pivots: Vec<usize>,
+    /// Scratch: the nonzero columns of the pivot row.
+    nonzero: Vec<usize>,
     factorized: bool,
     /// Solves made with the current factorization.
     solves: usize,
@@ -47,6 +49,7 @@ impl DenseLu {
             lu: vec![0.0; n * n],
             columns: vec![0.0; n * n],
             pivots: vec![0; n],
+            nonzero: Vec::with_capacity(n),
             factorized: false,
             solves: 0,
             inverse: vec![0.0; n * n],
@@ -95,19 +98,34 @@ impl DenseLu {
             let pivot = self.lu[k * n + k];
             let (upper, lower) = self.lu.split_at_mut((k + 1) * n);
             let row_k = &upper[k * n + k + 1..(k + 1) * n];
+            // Multibody Newton matrices are sparse (a quarter of the entries of the slider-crank
+            // with a modal rod, little fill): with a sparse pivot row, only its nonzero columns
+            // are updated.
+            let nonzero = &mut self.nonzero;
+            nonzero.clear();
+            nonzero.extend(row_k.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(j, _)| j));
+            let sparse = 2 * nonzero.len() < row_k.len();
             for row in lower.chunks_exact_mut(n) {
+                if row[k] == 0.0 {
+                    continue;
+                }
                 let l = row[k] / pivot;
                 row[k] = l;
-                if l != 0.0 {
-                    for (a, b) in row[k + 1..].iter_mut().zip(row_k) {
+                let rest = &mut row[k + 1..];
+                if sparse {
+                    for &j in nonzero.iter() {
+                        rest[j] -= l * row_k[j];
+                    }
+                } else {
+                    for (a, b) in rest.iter_mut().zip(row_k) {
                         *a -= l * b;
                     }
                 }
             }
         }
-        for i in 0..n {
-            for j in 0..n {
-                self.columns[j * n + i] = self.lu[i * n + j];
+        for (j, column) in self.columns.chunks_exact_mut(n).enumerate() {
+            for (c, row) in column.iter_mut().zip(self.lu.chunks_exact(n)) {
+                *c = row[j];
             }
         }
         self.factorized = true;
@@ -186,6 +204,61 @@ impl DenseLu {
 mod tests {
     use super::*;
     use crate::solver::sparse::{PatternBuilder, SparseLu};
+
+    #[test]
+    fn dense_lu_of_a_sparse_saddle_point_system_with_pivoting_solves_like_the_sparse_lu() {
+        // 40 coordinates with a sparse coupling pattern and 12 constraint rows, numbered first
+        // (zero diagonal block: rows are swapped), so that both the sparse and the dense row
+        // updates run.
+        let (nq, nc) = (40, 12);
+        let n = nq + nc;
+        let mut seed = 5u64;
+        let mut next = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64) / ((1u64 << 53) as f64)
+        };
+        let mut entries = Vec::new();
+        for i in nc..n {
+            entries.push((i, i, 5.0 + next()));
+            for j in nc..n {
+                if i != j && next() < 0.12 {
+                    entries.push((i, j, next() - 0.5));
+                }
+            }
+        }
+        for c in 0..nc {
+            for j in nc..n {
+                if next() < 0.2 || j == nc + 3 * c {
+                    let v = next() + 0.5;
+                    entries.push((c, j, v));
+                    entries.push((j, c, v));
+                }
+            }
+        }
+        let mut b = PatternBuilder::new(n);
+        for &(r, c, _) in &entries {
+            b.add_entry(r, c);
+        }
+        let p = b.build();
+        let mut values = vec![0.0; p.nnz()];
+        for &(r, c, v) in &entries {
+            values[p.index(r, c)] = v;
+        }
+        let rhs: Vec<f64> = (0..n).map(|k| (k as f64 * 0.37).cos()).collect();
+        let mut expected = rhs.clone();
+        let mut sparse = SparseLu::new(&p).unwrap();
+        sparse.factorize(&values).unwrap();
+        sparse.solve_in_place(&mut expected).unwrap();
+        let mut dense = DenseLu::new(n);
+        dense.factorize(&p, &values).unwrap();
+        assert!((0..n).any(|k| dense.pivots[k] != k), "no row was swapped");
+        let mut x = rhs.clone();
+        dense.solve_in_place(&mut x).unwrap();
+        let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for k in 0..n {
+            assert!((x[k] - expected[k]).abs() < 1e-11 * scale, "{k}: {} vs {}", x[k], expected[k]);
+        }
+    }
 
     #[test]
     fn dense_lu_solves_a_saddle_point_system_like_the_sparse_lu() {
