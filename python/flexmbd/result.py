@@ -66,6 +66,12 @@ class Result:
     def __len__(self) -> int:
         return len(self.time)
 
+    def _record(self, name: str) -> Array:
+        """The record array `name` as :func:`flexmbd.simulate` delivered it (one row per
+        output): the public arrays, and the raw reactions, sensors and energies."""
+        raw = {"reactions": self._reactions, "sensors": self._sensors, "energy": self._energy}
+        return raw[name] if name in raw else getattr(self, name)
+
     def __repr__(self) -> str:
         status = "complete" if self.success else f"stopped: {type(self.error).__name__}"
         if len(self.time) == 0:

@@ -177,19 +177,8 @@ class ResultsWriter:
         """Writes the records of ``result`` not yet in the file, the final statistics and
         events, and the status (complete, failed or interrupted); closes the file."""
         chunk: dict[str, Any] = {
-            name: getattr(result, name)[self.records :]
-            for name in (
-                "time",
-                "coordinates",
-                "velocities",
-                "accelerations",
-                "multipliers",
-                "constraint_violation",
-            )
+            name: result._record(name)[self.records :] for name in _RECORD_FIELDS
         }
-        chunk["reactions"] = result._reactions[self.records :]
-        chunk["sensors"] = result._sensors[self.records :]
-        chunk["energy"] = result._energy[self.records :]
         chunk["statistics"] = result.statistics
         chunk["events"] = result.events
         chunk["redundancy"] = result.redundancy

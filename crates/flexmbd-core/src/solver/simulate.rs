@@ -178,7 +178,7 @@ pub fn simulate(
             };
             let error =
                 dispatch(&reduction.model, settings, &mut expanding, &mut reduced, &mut last_state).err();
-            output = reduction.expand_output(model, reduced, settings.redundancy.handling);
+            output = reduction.expand_output(model, reduced, handling);
             last_state = last_state.map(|s| reduction.expand_state(model, s));
             error
         }
