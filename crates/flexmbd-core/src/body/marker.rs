@@ -193,32 +193,31 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                 }
             }
             if let Some(e) = &marker.elastic {
-                // dr/dq_l = A S_u; d(axis k)/dq_l = A (S_t e_j x c_k); w = ... + A S_t q_l_dot.
-                for j in 0..e.indices.len() {
-                    let su = a.mul_vec(&Vec3([
-                        e.translation.get(0, j),
-                        e.translation.get(1, j),
-                        e.translation.get(2, j),
-                    ]));
-                    let t = Vec3([e.rotation.get(0, j), e.rotation.get(1, j), e.rotation.get(2, j)]);
-                    let st = a.mul_vec(&t);
-                    for i in 0..3 {
-                        out.jac_position.set(i, 7 + j, su[i]);
-                        out.jac_angular.set(i, 7 + j, st[i]);
-                    }
-                    for k in 0..3 {
-                        if marker.axis_jacobians[k] {
-                            // A (t x c), exact also off |p| = 1 (where A(p) is a scaled rotation).
-                            let col = a.mul_vec(&t.cross(&marker.rotation.column(k)));
-                            for i in 0..3 {
-                                out.jac_axes[k].set(i, 7 + j, col[i]);
-                            }
-                        }
+                // dr/dq_l = A S_u; w = ... + A S_t q_l_dot; d(axis k)/dq_l = A (S_t e_j x c_k)
+                // = A (-c_k~) S_t, exact also off |p| = 1 (where A(p) is a scaled rotation).
+                set_product(&a, &e.translation, &mut out.jac_position, 7);
+                set_product(&a, &e.rotation, &mut out.jac_angular, 7);
+                for k in 0..3 {
+                    if marker.axis_jacobians[k] {
+                        let b = a.mul_mat(&marker.rotation.column(k).skew()).scale(-1.0);
+                        set_product(&b, &e.rotation, &mut out.jac_axes[k], 7);
                     }
                 }
             }
             out.velocity = out.jac_position.times(&out.body_velocity);
             out.angular_velocity = out.jac_angular.times(&out.body_velocity);
+        }
+    }
+}
+
+/// Columns `offset..offset + s.n` of `out` = m s (3 x 3 times 3 x n, row by row).
+fn set_product(m: &Mat3, s: &Jacobian3, out: &mut Jacobian3, offset: usize) {
+    let n = s.n;
+    let (r0, r1, r2) = (&s.data[..n], &s.data[n..2 * n], &s.data[2 * n..3 * n]);
+    for (i, mi) in m.0.iter().enumerate() {
+        let start = i * out.n + offset;
+        for (d, ((a, b), c)) in out.data[start..start + n].iter_mut().zip(r0.iter().zip(r1).zip(r2)) {
+            *d = mi[0] * a + mi[1] * b + mi[2] * c;
         }
     }
 }
