@@ -1236,9 +1236,12 @@ pub fn inertia_tangent(
         t.position_coefficients = Mat3::ZERO;
         return;
     }
+    // Coefficients of the elastic block: velocity 2 w~, position alpha~ + w~ w~.
+    let ws = w.skew();
+    let e_mat = alpha.skew() + ws.mul_mat(&ws);
+    t.velocity_coefficients = ws.scale(2.0);
+    t.position_coefficients = e_mat;
     if !reference_elastic {
-        t.velocity_coefficients = w.skew().scale(2.0);
-        t.position_coefficients = alpha.skew() + w.skew().mul_mat(&w.skew());
         return;
     }
 
@@ -1264,7 +1267,6 @@ pub fn inertia_tangent(
     }
 
     // Velocity (R, f) = A 2 w~ I1; (p, f) = 2 L^T 2 (w (sum_k N_kk)^T - [sum_k w_k N_kl]_l).
-    let ws = w.skew();
     let aw = a.mul_mat(&ws);
     for i in 0..3 {
         for c in 0..nf {
@@ -1304,7 +1306,6 @@ pub fn inertia_tangent(
     }
 
     // Position (R, f) = A (alpha~ + w~w~) I1.
-    let e_mat = alpha.skew() + ws.mul_mat(&ws);
     let ae = a.mul_mat(&e_mat);
     for i in 0..3 {
         for c in 0..nf {
@@ -1354,8 +1355,6 @@ pub fn inertia_tangent(
     }
     scratch.rows = jf;
     scratch.rows2 = rows;
-    t.velocity_coefficients = ws.scale(2.0);
-    t.position_coefficients = e_mat;
 }
 
 /// Kinetic energy 1/2 q_dot^T M q_dot.

@@ -428,15 +428,15 @@ impl Block {
         let mut split = Vec::with_capacity(columns.len());
         let mut v = vec![0.0; m];
         for &j in columns {
+            if self.reference.contains(&j) {
+                direct.push(j);
+                continue;
+            }
             v.iter_mut().for_each(|x| *x = 0.0);
             for &(f, k) in &self.column_entries[j] {
                 v[f] = values[k];
             }
             let norm = dot(&v, &v).sqrt();
-            if self.reference.contains(&j) {
-                direct.push(j);
-                continue;
-            }
             let mut c = vec![0.0; self.basis.len() / m];
             for _pass in 0..2 {
                 for (ci, q) in c.iter_mut().zip(self.basis.chunks_exact(m)) {

@@ -203,7 +203,19 @@ impl DenseLu {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::sparse::{PatternBuilder, SparseLu};
+    use crate::solver::sparse::{PatternBuilder, SparseLu, SparsePattern};
+
+    /// The sparse LU solution of the system (pattern `p`, `values`) for `rhs`, and the dense
+    /// LU factorization of the same matrix.
+    fn sparse_solve_and_dense_factor(p: &SparsePattern, values: &[f64], rhs: &[f64]) -> (Vec<f64>, DenseLu) {
+        let mut expected = rhs.to_vec();
+        let mut sparse = SparseLu::new(p).unwrap();
+        sparse.factorize(values).unwrap();
+        sparse.solve_in_place(&mut expected).unwrap();
+        let mut dense = DenseLu::new(p.n);
+        dense.factorize(p, values).unwrap();
+        (expected, dense)
+    }
 
     #[test]
     fn dense_lu_of_a_sparse_saddle_point_system_with_pivoting_solves_like_the_sparse_lu() {
@@ -245,12 +257,7 @@ mod tests {
             values[p.index(r, c)] = v;
         }
         let rhs: Vec<f64> = (0..n).map(|k| (k as f64 * 0.37).cos()).collect();
-        let mut expected = rhs.clone();
-        let mut sparse = SparseLu::new(&p).unwrap();
-        sparse.factorize(&values).unwrap();
-        sparse.solve_in_place(&mut expected).unwrap();
-        let mut dense = DenseLu::new(n);
-        dense.factorize(&p, &values).unwrap();
+        let (expected, mut dense) = sparse_solve_and_dense_factor(&p, &values, &rhs);
         assert!((0..n).any(|k| dense.pivots[k] != k), "no row was swapped");
         let mut x = rhs.clone();
         dense.solve_in_place(&mut x).unwrap();
@@ -282,12 +289,7 @@ mod tests {
             set(i, 6, (i as f64 - 1.5).powi(2));
         }
         let rhs: Vec<f64> = (0..n).map(|k| (k as f64 * 0.7).sin()).collect();
-        let mut expected = rhs.clone();
-        let mut sparse = SparseLu::new(&p).unwrap();
-        sparse.factorize(&values).unwrap();
-        sparse.solve_in_place(&mut expected).unwrap();
-        let mut dense = DenseLu::new(n);
-        dense.factorize(&p, &values).unwrap();
+        let (expected, mut dense) = sparse_solve_and_dense_factor(&p, &values, &rhs);
         // The first solve by substitution, the next ones with the inverse.
         for _ in 0..3 {
             let mut x = rhs.clone();
