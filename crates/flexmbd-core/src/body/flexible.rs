@@ -395,6 +395,10 @@ pub struct FlexibleBody {
     pub condense: Option<bool>,
     /// The scalar mass structure of a body of solids, see [`FlexibleBodyInput`].
     pub scalar_mass: Option<ScalarMass>,
+    /// Bodies of solids: per elastic coordinate j (component c of a node), the entries of I1
+    /// and Ibar that can be nonzero, [I1_c[j], Ibar_0c[j], Ibar_1c[j], Ibar_2c[j]] (S_l has
+    /// no entry at j for l != c); empty otherwise. See [`solid_sums`].
+    solid_rows: Vec<[f64; 4]>,
     /// When every I_kl is stored full (modal bodies): the nine stacked, (9 n_f) x n_f
     /// column-major (column c = the columns c of I_00, I_01, ..., I_22), so that
     /// `i_kl_products` is one matrix-vector product by contiguous column updates.
@@ -570,6 +574,7 @@ impl FlexibleBody {
             node_positions: input.node_positions,
             condense: input.condense,
             scalar_mass: None,
+            solid_rows: Vec::new(),
             stacked_i_kl: None,
             i_kl,
             mass_matrix,
@@ -578,6 +583,7 @@ impl FlexibleBody {
         };
         if let Some(sm) = scalar_mass {
             body.check_scalar_mass(item, &sm)?;
+            body.solid_rows = body.compressed_solid_rows(&sm);
             body.scalar_mass = Some(sm);
         }
         if n > 0 && body.i_kl.iter().all(|m| m.full) {
@@ -626,6 +632,28 @@ impl FlexibleBody {
             }
         }
         Ok(())
+    }
+
+    /// The rows of I1 and Ibar of a body of solids compressed to the entries that can be
+    /// nonzero (see `solid_rows`), or none when another entry is not zero.
+    fn compressed_solid_rows(&self, sm: &ScalarMass) -> Vec<[f64; 4]> {
+        let n = self.elastic_count;
+        let mut rows = Vec::with_capacity(n);
+        for (j, &c) in sm.coordinates.iter().enumerate() {
+            let comp = c % 3;
+            for l in (0..3).filter(|&l| l != comp) {
+                if self.i1[l * n + j] != 0.0 || (0..3).any(|k| self.ibar_row(k, l)[j] != 0.0) {
+                    return Vec::new();
+                }
+            }
+            rows.push([
+                self.i1[comp * n + j],
+                self.ibar_row(0, comp)[j],
+                self.ibar_row(1, comp)[j],
+                self.ibar_row(2, comp)[j],
+            ]);
+        }
+        rows
     }
 
     /// Number of coordinates 7 + n_f.
@@ -861,7 +889,24 @@ fn row(v: &[f64], k: usize, l: usize, n: usize) -> &[f64] {
 /// (see [`ScalarMass`]): it then leaves `scratch.y` and `scratch.n` unset, and the products
 /// M_s [q_f, qf_dot, qf_dd] are in `scratch.nodal`.
 fn nodewise(body: &FlexibleBody, scratch: &FlexibleScratch) -> bool {
-    body.scalar_mass.is_some() && !scratch.nodal.is_empty()
+    body.scalar_mass.is_some() && !body.solid_rows.is_empty() && !scratch.nodal.is_empty()
+}
+
+/// Bodies of solids: the products of I1 and Ibar with three elastic vectors in one pass over
+/// the compressed rows, out[v][c] = [I1_c V_v, Ibar_0c V_v, Ibar_1c V_v, Ibar_2c V_v]
+/// (so I1 V_v = out[v][.][0] and Ibar_kl . V_v = out[v][l][1 + k]).
+fn solid_sums(body: &FlexibleBody, sm: &ScalarMass, vectors: [&[f64]; 3]) -> [[[f64; 4]; 3]; 3] {
+    let mut out = [[[0.0f64; 4]; 3]; 3];
+    for (j, (row, &c)) in body.solid_rows.iter().zip(&sm.coordinates).enumerate() {
+        let comp = c % 3;
+        for (o, v) in out.iter_mut().zip(&vectors) {
+            let x = v[j];
+            for (ov, r) in o[comp].iter_mut().zip(row) {
+                *ov += r * x;
+            }
+        }
+    }
+    out
 }
 
 /// Returns the body quantities. With `with_products` (or for a body without the scalar mass
@@ -901,7 +946,7 @@ fn quantities(
                     }
                 }
             }
-            Some(g)
+            Some((g, solid_sums(body, sm, [qf, qfd, qfdd])))
         }
         _ => {
             body.i_kl_products(qf, &mut scratch.y);
@@ -921,20 +966,24 @@ fn quantities(
             None
         }
     };
-    let s = body.first_moment + body.i1_times(qf);
+    let [i1_qf, i1_qfd, i1_qfdd] = match &node_sums {
+        Some((_, t)) => std::array::from_fn(|v| Vec3(std::array::from_fn(|c| t[v][c][0]))),
+        None => [body.i1_times(qf), body.i1_times(qfd), body.i1_times(qfdd)],
+    };
+    let s = body.first_moment + i1_qf;
     let mut u = Mat3::ZERO;
     let mut pm = Mat3::ZERO;
     let mut n_qfdd = Mat3::ZERO;
     match &node_sums {
-        Some(g) => {
-            let ibar_qf: [[f64; 3]; 3] =
-                std::array::from_fn(|k| std::array::from_fn(|l2| dot(body.ibar_row(k, l2), qf)));
+        Some((g, t)) => {
+            // Ibar_kl . V_v = t[v][l][1 + k].
             for k in 0..3 {
                 for l2 in 0..3 {
-                    u.0[k][l2] = body.second_moment.0[k][l2] + ibar_qf[k][l2] + ibar_qf[l2][k] + g[0][k][l2];
-                    pm.0[k][l2] = dot(body.ibar_row(k, l2), qfd) + g[1][l2][k];
+                    u.0[k][l2] =
+                        body.second_moment.0[k][l2] + t[0][l2][1 + k] + t[0][k][1 + l2] + g[0][k][l2];
+                    pm.0[k][l2] = t[1][l2][1 + k] + g[1][l2][k];
                     if k != l2 {
-                        n_qfdd.0[k][l2] = dot(body.ibar_row(k, l2), qfdd) + g[2][l2][k];
+                        n_qfdd.0[k][l2] = t[2][l2][1 + k] + g[2][l2][k];
                     }
                 }
             }
@@ -963,20 +1012,7 @@ fn quantities(
         let (k, l2) = ((i + 1) % 3, (i + 2) % 3);
         jf_qdd[i] = n_qfdd.0[k][l2] - n_qfdd.0[l2][k];
     }
-    Quantities {
-        p,
-        a,
-        l,
-        w,
-        alpha,
-        acc,
-        s,
-        j,
-        pm,
-        jf_qdd,
-        i1_qfd: body.i1_times(qfd),
-        i1_qfdd: body.i1_times(qfdd),
-    }
+    Quantities { p, a, l, w, alpha, acc, s, j, pm, jf_qdd, i1_qfd, i1_qfdd }
 }
 
 /// Fills `rows` (3 n_f) with the rows of J_f = int rho u~ S: row i = N_jk - N_kj for (i, j, k)
@@ -1039,35 +1075,36 @@ pub fn inertia_force(
     // Elastic: I1^T a + sum_kl E_kl N_lk (E = alpha~ + w~w~) + 2 sum_kl w~_kl I_kl qf_dot
     // + M_ff qf_dd, with sum_kl w~_kl I_kl = -sum_m w_m A_m.
     let f = &mut out[r7..r7 + nf];
-    f.iter_mut().for_each(|x| *x = 0.0);
-    body.add_i1_transpose_times(&k.acc, f);
     let e = alpha.skew() + w.skew().mul_mat(&w.skew());
-    let nodes = nodewise(body, scratch);
-    for kk in 0..3 {
-        for l in 0..3 {
-            let ce = e.0[kk][l];
-            if ce != 0.0 {
-                // N_lk = Ibar_lk + y_kl; y node-wise below for solids.
-                let source = if nodes { body.ibar_row(l, kk) } else { row(&scratch.n, l, kk, nf) };
-                for (fj, nj) in f.iter_mut().zip(source) {
-                    *fj += ce * nj;
-                }
-            }
-        }
-    }
     match &body.scalar_mass {
-        Some(sm) if nodes => {
-            // Node-wise: sum_kl E_kl y_kl + M_s (2 w x U_dot) + M_s U_dd, from the products
-            // of `quantities` (y_kl[j] = delta(comp j, k) Y0[node j][l]).
-            for (j, &c) in sm.coordinates.iter().enumerate() {
+        Some(sm) if nodewise(body, scratch) => {
+            // Node-wise: with the compressed rows (I1_c[j], Ibar_lc[j]) of coordinate j
+            // (component c), I1^T a + sum_kl E_kl Ibar_lk is a_c I1_c[j] + sum_l E_cl
+            // Ibar_lc[j]; then sum_kl E_kl y_kl + M_s (2 w x U_dot) + M_s U_dd from the
+            // products of `quantities` (y_kl[j] = delta(comp j, k) Y0[node j][l]).
+            for ((fj, &c), r) in f.iter_mut().zip(&sm.coordinates).zip(&body.solid_rows) {
                 let (node, comp) = (c / 3, c % 3);
                 let p = &scratch.nodal[9 * node..9 * node + 9];
                 let yd = Vec3([p[3], p[4], p[5]]);
-                let ey = e.0[comp][0] * p[0] + e.0[comp][1] * p[1] + e.0[comp][2] * p[2];
-                f[j] += ey + 2.0 * w.cross(&yd)[comp] + p[6 + comp];
+                let ec = &e.0[comp];
+                let ey = ec[0] * (p[0] + r[1]) + ec[1] * (p[1] + r[2]) + ec[2] * (p[2] + r[3]);
+                *fj = k.acc[comp] * r[0] + ey + 2.0 * w.cross(&yd)[comp] + p[6 + comp];
             }
         }
         _ => {
+            f.iter_mut().for_each(|x| *x = 0.0);
+            body.add_i1_transpose_times(&k.acc, f);
+            for kk in 0..3 {
+                for l in 0..3 {
+                    let ce = e.0[kk][l];
+                    if ce != 0.0 {
+                        // N_lk = Ibar_lk + y_kl.
+                        for (fj, nj) in f.iter_mut().zip(row(&scratch.n, l, kk, nf)) {
+                            *fj += ce * nj;
+                        }
+                    }
+                }
+            }
             let qfd = &qd[r7..r7 + nf];
             for m in 0..3 {
                 if w[m] != 0.0 {
@@ -1833,6 +1870,7 @@ pub(crate) mod tests {
         for k in 0..7 + n {
             assert!(close(a[k], b[k], 1e-12), "{k}: {} vs {}", a[k], b[k]);
         }
+        assert!(!fast.solid_rows.is_empty(), "the compressed rows of a body of solids");
         assert!(solid_body(true, true).is_err());
     }
 
