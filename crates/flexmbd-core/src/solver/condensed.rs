@@ -70,6 +70,10 @@ struct BlockFactor {
     /// A^-1 Q of the first vectors of the block's coupling basis Q (n each, column-major):
     /// solved when a factorization first needs them.
     basis_solved: Vec<f64>,
+    /// The deformation part dJ^T of the rotation coupling at the last solves with it (3 n,
+    /// empty before), and A^-1 dJ^T (see `reference_coupling`).
+    deformation: Vec<f64>,
+    deformation_solved: Vec<f64>,
     /// Scratch of single solves (allocated at the first).
     memory: Option<faer::dyn_stack::MemBuffer>,
 }
@@ -123,6 +127,10 @@ struct Block {
     /// Orthonormal basis Q of the coupling columns N_Fj met so far (other than the reference
     /// coordinates), n each, column-major; see `other_couplings`.
     basis: Vec<f64>,
+    /// The rows of I1 and J_f0 (6 n, see `coupling_rows`), made at the first use.
+    reference_rows: Vec<f64>,
+    /// Scratch of dJ^T (3 n).
+    deformation: Vec<f64>,
 }
 
 /// Largest size of a block's coupling basis (6 per marker on the body would need it).
@@ -131,6 +139,11 @@ const BASIS_LIMIT: usize = 24;
 /// A coupling column is taken from the basis when the part of it outside the basis is at most
 /// this fraction of it (round-off: the columns of a marker coupling lie in the basis exactly).
 const SPAN_TOLERANCE: f64 = 1e-10;
+
+/// A factorization keeps A^-1 dJ^T of the deformation part of the rotation coupling while dJ
+/// differs from the one solved by at most this fraction of the row J_f0 + dJ (see
+/// `reference_coupling`).
+const DEFORMATION_TOLERANCE: f64 = 1e-2;
 
 /// The condensed linear solver of a model (one per kind of matrix kept: Newton iteration
 /// matrix, projection / acceleration matrix).
@@ -271,6 +284,8 @@ impl CondensedSolver {
                 current: 0,
                 reference,
                 basis: Vec::new(),
+                reference_rows: Vec::new(),
+                deformation: Vec::new(),
             });
         }
         Ok(CondensedSolver {
@@ -490,7 +505,11 @@ impl Block {
     /// J_f = J_f0 + dJ(q_f) with dJ_i^T = -(I_jk - I_kj) q_f: the undeformed J_f0 alone errs
     /// by dJ, which is not small where J_f0 is (a slender beam about its own axis), and made
     /// the modified Newton iteration diverge at every step size (a modal beam hinged at a
-    /// node). Its part of Z takes three solves (A^-1 dJ^T, packed), made when q_f != 0.
+    /// node). Its part of Z takes three solves (A^-1 dJ^T, packed) when q_f != 0, which a
+    /// factorization keeps for later refreshes while dJ moves by at most
+    /// `DEFORMATION_TOLERANCE` of J_f (the coupling of an iteration matrix is then as at the
+    /// deformation of the solves, off by that fraction at most: a pendulum bar of solids
+    /// changes dJ by 0.1-0.3 % of J_f between refreshes and needs the solves once).
     fn reference_coupling(&mut self, fb: &FlexibleBody, c: &MatrixCoefficients, qb: &[f64]) -> Result<()> {
         let m = self.n;
         let sm = c.scale * c.mass;
@@ -498,19 +517,38 @@ impl Block {
         let a = crate::math::euler::rotation_matrix(&p);
         let l = crate::math::euler::l_matrix(&p);
         let qf = &qb[REFERENCE_COORDINATES..REFERENCE_COORDINATES + m];
+        if self.reference_rows.is_empty() {
+            self.reference_rows = (0..6).flat_map(|i| coupling_rows(fb, i)).collect();
+        }
         let deformed = sm != 0.0 && qf.iter().any(|&x| x != 0.0);
-        // dJ_i^T (rows) and A^-1 dJ_i^T (solves), each m long, i = 0..3.
-        let (mut delta, mut solved) = (Vec::new(), Vec::new());
+        let factor = &mut self.factors[self.current];
         if deformed {
-            delta = vec![0.0; 3 * m];
-            for (i, d) in delta.chunks_exact_mut(m).enumerate() {
+            // dJ_i^T, i = 0..3, solved again unless the kept one is within the tolerance.
+            self.deformation.resize(3 * m, 0.0);
+            self.deformation.iter_mut().for_each(|x| *x = 0.0);
+            for (i, d) in self.deformation.chunks_exact_mut(m).enumerate() {
                 fb.antisymmetric[i].mul_vec_add(-1.0, qf, d);
             }
-            solved = delta.clone();
-            self.factors[self.current].solve_in_place(&mut solved)?;
+            let rows = &self.reference_rows[3 * m..];
+            let kept = !factor.deformation.is_empty()
+                && (0..3).all(|i| {
+                    let (new, old) =
+                        (&self.deformation[i * m..(i + 1) * m], &factor.deformation[i * m..(i + 1) * m]);
+                    let change: f64 = new.iter().zip(old).map(|(x, y)| (x - y) * (x - y)).sum();
+                    let row: f64 = new.iter().zip(&rows[i * m..]).map(|(x, y)| (x + y) * (x + y)).sum();
+                    change <= DEFORMATION_TOLERANCE * DEFORMATION_TOLERANCE * row
+                });
+            if !kept {
+                let mut solved = self.deformation.clone();
+                factor.solve_in_place(&mut solved)?;
+                factor.deformation.clone_from(&self.deformation);
+                factor.deformation_solved = solved;
+            }
         }
-        let influence = &self.factors[self.current].influence;
-        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c.
+        let (delta, solved) = (&factor.deformation, &factor.deformation_solved);
+        let influence = &factor.influence;
+        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c, with the dJ
+        // of the kept solves in both Z and N_JF.
         for col in 0..7 {
             let weights: [f64; 3] =
                 std::array::from_fn(|i| if col < 3 { a.0[col][i] } else { 2.0 * l[i][col - 3] });
@@ -529,7 +567,7 @@ impl Block {
                 for (zf, v) in z.iter_mut().zip(column) {
                     *zf += w * v;
                 }
-                let rows = coupling_rows(fb, shift + i);
+                let rows = &self.reference_rows[(shift + i) * m..(shift + i + 1) * m];
                 for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
                     *r += w * rows[f];
                 }
@@ -562,6 +600,8 @@ impl Block {
                 diagonal: c.scale * c.identity,
                 influence: Vec::new(),
                 basis_solved: Vec::new(),
+                deformation: Vec::new(),
+                deformation_solved: Vec::new(),
                 memory: None,
             }
         } else {
@@ -598,6 +638,8 @@ impl Block {
                 diagonal: 0.0,
                 influence: Vec::new(),
                 basis_solved: Vec::new(),
+                deformation: Vec::new(),
+                deformation_solved: Vec::new(),
                 memory: None,
             }
         };
@@ -702,6 +744,42 @@ mod tests {
         let expected = direct_solve(&direct, &state, c, &rhs);
         let (x, _) = condensed_solve(&condensed, &state, c, &rhs, true);
         assert_close(&x, &expected);
+    }
+
+    #[test]
+    fn deformation_solves_are_kept_while_the_deformation_coupling_changes_little() {
+        // A factorization at a deformation close to that of the kept solves of dJ reuses them
+        // (its solve is then close to, not equal to, the direct one); a larger change solves
+        // again and is exact (mass part only, as above).
+        let (direct, condensed) = (model(false, false), model(true, false));
+        let c = MatrixCoefficients::ACCELERATION;
+        let rhs = test_rhs(direct.system_size());
+        let mut solver = CondensedSolver::new(&condensed, true).unwrap();
+        let mut ws = Workspace::new(&condensed).unwrap();
+        let offset = direct.bodies[2].offset + REFERENCE_COORDINATES;
+        let mut kept = Vec::new();
+        for (factor, exact) in [(1.0, true), (1.0 + 1e-4, false), (2.0, true)] {
+            let mut state = State::initial(&direct, 0.0);
+            for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
+                *x = 0.05 * factor * (k as f64 - 2.5);
+            }
+            let expected = direct_solve(&direct, &state, c, &rhs);
+            assemble(&condensed, StateView::of(&state), &mut ws, Some(c)).unwrap();
+            solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
+            let mut x = rhs.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            let scale = scale_of(&expected);
+            let worst = x.iter().zip(&expected).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            if exact {
+                assert!(worst < 1e-9 * scale, "factor {factor}: off by {worst} (scale {scale})");
+            } else {
+                assert!(worst > 1e-12 * scale && worst < 1e-3 * scale, "factor {factor}: off by {worst}");
+            }
+            let block = &solver.blocks[0];
+            kept.push(block.factors[block.current].deformation.clone());
+        }
+        assert_eq!(kept[0], kept[1], "the solves of dJ were made again for a small change");
+        assert_ne!(kept[1], kept[2], "the solves of dJ were kept for a large change");
     }
 
     #[test]
