@@ -353,7 +353,7 @@ impl CondensedSolver {
                 let stored = &block.row_values[a];
                 for b in 0..nj {
                     let zb = &block.z[b * m..(b + 1) * m];
-                    let update: f64 = entries.iter().zip(stored).map(|(&(f, _), v)| v * zb[f]).sum();
+                    let update = gather_dot(entries, stored, zb);
                     self.reduced_values[block.schur_entries[a * nj + b]] -= update;
                 }
             }
@@ -382,7 +382,7 @@ impl CondensedSolver {
             block.factors[block.current].solve_in_place(y).map_err(|e| e.to_string())?;
             for (a, entries) in block.row_entries.iter().enumerate() {
                 let stored = &block.row_values[a];
-                let update: f64 = entries.iter().zip(stored).map(|(&(f, _), v)| v * y[f]).sum();
+                let update = gather_dot(entries, stored, y);
                 self.rhs[self.reduced_of[block.coupling[a]]] -= update;
             }
             offset += block.n;
@@ -411,6 +411,20 @@ impl CondensedSolver {
         }
         Ok(())
     }
+}
+
+/// sum_e values[e] x[f_e] over the entries (f_e, _) of a coupling row, with four partial sums
+/// (a single sum is a chain of dependent additions, latency-bound on rows of n_f entries).
+fn gather_dot(entries: &[(usize, usize)], values: &[f64], x: &[f64]) -> f64 {
+    let (e4, v4) = (entries.chunks_exact(4), values.chunks_exact(4));
+    let tail: f64 = e4.remainder().iter().zip(v4.remainder()).map(|(&(f, _), v)| v * x[f]).sum();
+    let mut acc = [0.0f64; 4];
+    for (e, v) in e4.zip(v4) {
+        for k in 0..4 {
+            acc[k] += v[k] * x[e[k].0];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Rows of I1 (i = 0..3) and of J_f0 = int rho u0~ S (i = 3..6: Ibar_jk - Ibar_kj for
