@@ -257,7 +257,8 @@ impl ScalarMass {
     /// Node-wise products Y = M_s [V_0, V_1, V_2] of three elastic vectors (each spread over
     /// the nodes as nodes x 3, zero at the coordinates the reference conditions hold), into
     /// `out` (nodes x 9: per node Y_0, Y_1, Y_2); `gathered` is scratch (nodes x 9).
-    fn products(&self, vectors: [&[f64]; 3], gathered: &mut [f64], out: &mut [f64]) {
+    /// Only the first `W` of the nine entries per node are formed (6: Y_0 and Y_1).
+    fn products<const W: usize>(&self, vectors: [&[f64]; 3], gathered: &mut [f64], out: &mut [f64]) {
         gathered.iter_mut().for_each(|x| *x = 0.0);
         for (v, vector) in vectors.iter().enumerate() {
             for (&c, &x) in self.coordinates.iter().zip(vector.iter()) {
@@ -267,10 +268,10 @@ impl ScalarMass {
         out.iter_mut().for_each(|x| *x = 0.0);
         let m = &self.matrix;
         for col in 0..m.ncols {
-            let source: [f64; 9] = gathered[9 * col..9 * col + 9].try_into().expect("9 entries");
+            let source: [f64; W] = gathered[9 * col..9 * col + W].try_into().expect("W entries");
             for e in m.col_ptr[col]..m.col_ptr[col + 1] {
                 let (row, value) = (m.row_idx[e], m.values[e]);
-                for (o, x) in out[9 * row..9 * row + 9].iter_mut().zip(&source) {
+                for (o, x) in out[9 * row..9 * row + W].iter_mut().zip(&source) {
                     *o += value * x;
                 }
             }
@@ -614,7 +615,7 @@ impl FlexibleBody {
         self.i_kl_products(&v, &mut expected);
         let mut gathered = vec![0.0; 9 * sm.nodes()];
         let mut nodal = vec![0.0; 9 * sm.nodes()];
-        sm.products([&v, &v, &v], &mut gathered, &mut nodal);
+        sm.products::<9>([&v, &v, &v], &mut gathered, &mut nodal);
         let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
         for (j, &c) in sm.coordinates.iter().enumerate() {
             let (node, comp) = (c / 3, c % 3);
@@ -831,6 +832,8 @@ pub struct FlexibleScratch {
     pub nodal: Vec<f64>,
     /// Scratch of the same size.
     pub gathered: Vec<f64>,
+    /// M_ff qf_dd of the last inertia force with [`ElasticMass::Separate`] (n_f).
+    pub mass_term: Vec<f64>,
 }
 
 impl FlexibleScratch {
@@ -855,6 +858,7 @@ impl FlexibleScratch {
             rows2: vec![0.0; 3 * n],
             nodal: Vec::new(),
             gathered: Vec::new(),
+            mass_term: vec![0.0; n],
         }
     }
 }
@@ -932,7 +936,8 @@ fn solid_sums(body: &FlexibleBody, sm: &ScalarMass, vectors: [&[f64]; 3]) -> [[[
 /// Returns the body quantities. With `with_products` (or for a body without the scalar mass
 /// structure), fills y_kl = I_kl q_f and N_kl of `scratch` (and z_kl = I_kl qf_dot with the
 /// products), which the Jacobians need; else, for a body of solids, takes every sum over the
-/// elastic coordinates that involves y node by node (see [`nodewise`]).
+/// elastic coordinates that involves y node by node (see [`nodewise`]), with the node-wise
+/// M_s qf_dd only with `elastic_mass`.
 fn quantities(
     body: &FlexibleBody,
     q: &[f64],
@@ -940,6 +945,7 @@ fn quantities(
     qdd: &[f64],
     scratch: &mut FlexibleScratch,
     with_products: bool,
+    elastic_mass: bool,
 ) -> Quantities {
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
@@ -955,7 +961,11 @@ fn quantities(
     // V = q_f, qf_dot, qf_dd; and N_kl = Ibar_kl + y_lk.
     let node_sums = match &body.scalar_mass {
         Some(sm) if !with_products && nodewise(body, scratch) => {
-            sm.products([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
+            if elastic_mass {
+                sm.products::<9>([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
+            } else {
+                sm.products::<6>([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
+            }
             let mut g = [[[0.0f64; 3]; 3]; 3];
             for (v, y) in scratch.gathered.chunks_exact(9).zip(scratch.nodal.chunks_exact(9)) {
                 for (gv, vv) in g.iter_mut().zip(v.chunks_exact(3)) {
@@ -1079,9 +1089,34 @@ pub fn inertia_force(
     scratch: &mut FlexibleScratch,
     out: &mut [f64],
 ) {
+    inertia_force_parts(body, q, qd, qdd, scratch, out, ElasticMass::Include);
+}
+
+/// Where [`inertia_force_parts`] puts the term M_ff qf_dd of the elastic rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ElasticMass {
+    /// In the force.
+    Include,
+    /// Nowhere (not formed).
+    Skip,
+    /// In `scratch.mass_term`, not in the force.
+    Separate,
+}
+
+/// [`inertia_force`] with the term M_ff qf_dd of the elastic rows where `mass` says (see
+/// [`add_linear_elastic_forces`]).
+pub fn inertia_force_parts(
+    body: &FlexibleBody,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    scratch: &mut FlexibleScratch,
+    out: &mut [f64],
+    mass: ElasticMass,
+) {
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
-    let k = quantities(body, q, qd, qdd, scratch, false);
+    let k = quantities(body, q, qd, qdd, scratch, false, mass != ElasticMass::Skip);
     let (w, alpha, s) = (k.w, k.alpha, k.s);
     // Translation: m R_dd + A (alpha x s + w x (w x s) + 2 w x I1 qf_dot + I1 qf_dd).
     let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
@@ -1102,13 +1137,18 @@ pub fn inertia_force(
             // (component c), I1^T a + sum_kl E_kl Ibar_lk is a_c I1_c[j] + sum_l E_cl
             // Ibar_lc[j]; then sum_kl E_kl y_kl + M_s (2 w x U_dot) + M_s U_dd from the
             // products of `quantities` (y_kl[j] = delta(comp j, k) Y0[node j][l]).
-            for ((fj, &c), r) in f.iter_mut().zip(&sm.coordinates).zip(&body.solid_rows) {
+            for (j, ((fj, &c), r)) in f.iter_mut().zip(&sm.coordinates).zip(&body.solid_rows).enumerate() {
                 let (node, comp) = (c / 3, c % 3);
                 let p = &scratch.nodal[9 * node..9 * node + 9];
                 let yd = Vec3([p[3], p[4], p[5]]);
                 let ec = &e.0[comp];
                 let ey = ec[0] * (p[0] + r[1]) + ec[1] * (p[1] + r[2]) + ec[2] * (p[2] + r[3]);
-                *fj = k.acc[comp] * r[0] + ey + 2.0 * w.cross(&yd)[comp] + p[6 + comp];
+                *fj = k.acc[comp] * r[0] + ey + 2.0 * w.cross(&yd)[comp];
+                match mass {
+                    ElasticMass::Include => *fj += p[6 + comp],
+                    ElasticMass::Separate => scratch.mass_term[j] = p[6 + comp],
+                    ElasticMass::Skip => {}
+                }
             }
         }
         _ => {
@@ -1131,7 +1171,15 @@ pub fn inertia_force(
                     body.antisymmetric[m].mul_vec_add(-2.0 * w[m], qfd, f);
                 }
             }
-            body.mass_matrix.mul_vec_add(1.0, &qdd[r7..r7 + nf], f);
+            let qfdd = &qdd[r7..r7 + nf];
+            match mass {
+                ElasticMass::Include => body.mass_matrix.mul_vec_add(1.0, qfdd, f),
+                ElasticMass::Separate => {
+                    scratch.mass_term.iter_mut().for_each(|x| *x = 0.0);
+                    body.mass_matrix.mul_vec_add(1.0, qfdd, &mut scratch.mass_term);
+                }
+                ElasticMass::Skip => {}
+            }
         }
     }
 }
@@ -1216,7 +1264,7 @@ pub fn inertia_tangent(
     reference_elastic: bool,
 ) {
     let nf = body.elastic_count;
-    let k = quantities(body, q, qd, qdd, scratch, reference_elastic);
+    let k = quantities(body, q, qd, qdd, scratch, reference_elastic, true);
     let (p, a, l, w, alpha, s, j) = (k.p, k.a, k.l, k.w, k.alpha, k.s, k.j);
     let pd = quat(qd);
     let pdd = quat(qdd);
@@ -1419,7 +1467,7 @@ pub fn kinetic_energy(body: &FlexibleBody, q: &[f64], qd: &[f64], scratch: &mut 
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let zero = vec![0.0; q.len()];
-    let k = quantities(body, q, qd, &zero, scratch, true);
+    let k = quantities(body, q, qd, &zero, scratch, true, true);
     let qfd = &qd[r7..r7 + nf];
     let v = Vec3::from_slice(qd);
     let mut jf = std::mem::take(&mut scratch.rows);
@@ -1445,18 +1493,22 @@ pub fn strain_energy(body: &FlexibleBody, q: &[f64]) -> f64 {
     0.5 * dot(qf, &kq) + nonlinear
 }
 
-/// Adds the elastic forces K_ff q_f + D_ff qf_dot (plus the nonlinear beam forces of the
-/// geometric stiffness) to `out` (n_f) and, with `tangent = Some((position, velocity, values))`,
-/// their Jacobians position dF/dq_f + velocity dF/dqf_dot to the elastic pattern values.
+/// Adds the elastic forces K_ff q_f + D_ff qf_dot (only with `linear`; see
+/// [`add_linear_elastic_forces`]) plus the nonlinear beam forces of the geometric stiffness
+/// to `out` (n_f) and, with `tangent = Some((position, velocity, values))`, their Jacobians
+/// position dF/dq_f + velocity dF/dqf_dot to the elastic pattern values.
 pub fn add_elastic_forces(
     body: &FlexibleBody,
     qf: &[f64],
     qfd: &[f64],
     out: &mut [f64],
     tangent: Option<(f64, f64, &mut [f64])>,
+    linear: bool,
 ) {
-    body.stiffness.mul_vec_add(1.0, qf, out);
-    body.damping.mul_vec_add(1.0, qfd, out);
+    if linear {
+        body.stiffness.mul_vec_add(1.0, qf, out);
+        body.damping.mul_vec_add(1.0, qfd, out);
+    }
     match tangent {
         Some((position, velocity, values)) => {
             body.stiffness.add_to_pattern(position, values);
@@ -1467,6 +1519,22 @@ pub fn add_elastic_forces(
             add_stiffening(&body.stiffening, qf, out, None);
         }
     }
+}
+
+/// Adds the terms of the elastic rows that are linear with constant matrices,
+/// M_ff qf_dd + D_ff qf_dot + K_ff q_f, into `out` (n_f): what [`inertia_force_parts`]
+/// (with [`ElasticMass::Separate`], whose `mass_term` is M_ff qf_dd) and
+/// [`add_elastic_forces`] without `linear` leave out.
+pub fn add_linear_elastic_forces(
+    body: &FlexibleBody,
+    qf: &[f64],
+    qfd: &[f64],
+    mass_term: &[f64],
+    out: &mut [f64],
+) {
+    out.iter_mut().zip(mass_term).for_each(|(o, m)| *o += m);
+    body.damping.mul_vec_add(1.0, qfd, out);
+    body.stiffness.mul_vec_add(1.0, qf, out);
 }
 
 /// Adds the generalized gravity force Q = int rho (dr/dq)^T g dV into `out` (7 + n_f):
@@ -1891,6 +1959,23 @@ pub(crate) mod tests {
             assert!(close(a[k], b[k], 1e-12), "{k}: {} vs {}", a[k], b[k]);
         }
         assert!(!fast.solid_rows.is_empty(), "the compressed rows of a body of solids");
+        // The elastic mass term apart: Include = Separate + mass_term, Skip = Separate.
+        for body in [&plain, &fast] {
+            let mut scratch = FlexibleScratch::for_body(body);
+            let mut parts = [vec![0.0; 7 + n], vec![0.0; 7 + n], vec![0.0; 7 + n]];
+            for (out, mass) in
+                parts.iter_mut().zip([ElasticMass::Include, ElasticMass::Skip, ElasticMass::Separate])
+            {
+                inertia_force_parts(body, &q, &qd, &qdd, &mut scratch, out, mass);
+            }
+            let mass_term = scratch.mass_term.clone();
+            assert!(mass_term.iter().any(|&m| m.abs() > 1e-3));
+            for k in 0..7 + n {
+                let separate = parts[2][k] + if k >= 7 { mass_term[k - 7] } else { 0.0 };
+                assert!(close(parts[0][k], separate, 1e-12), "{k}: {} vs {separate}", parts[0][k]);
+                assert_eq!(parts[1][k], parts[2][k], "{k}");
+            }
+        }
         // Gravity (I1 products from the compressed rows).
         let gravity = Vec3([0.3, -9.81, 1.2]);
         let (mut a, mut b) = (vec![0.0; 7 + n], vec![0.0; 7 + n]);

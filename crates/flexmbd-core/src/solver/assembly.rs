@@ -10,7 +10,7 @@
 //! Newton matrix, the acceleration system of seed eq. 26, or the projections onto the
 //! constraint manifold.
 
-use crate::body::flexible::{self, FlexibleBody, REFERENCE_COORDINATES};
+use crate::body::flexible::{self, ElasticMass, FlexibleBody, REFERENCE_COORDINATES};
 use crate::body::marker::{marker_kinematics, MarkerKinematics};
 use crate::body::{point_mass, rigid, Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
@@ -19,8 +19,8 @@ use crate::force::{evaluate_force, ForceEnv};
 use crate::joint::equation::{equation_gradient, equation_hessian, equation_value, MarkerPair};
 use crate::math::Mat3;
 use crate::solver::condensed::is_condensed;
-use crate::system::workspace::FlexibleWork;
 use crate::system::workspace::JointLocal;
+use crate::system::workspace::{ElasticRows, FlexibleWork, LinearSolvers};
 use crate::system::{Model, Workspace};
 
 /// Coefficients of the blocks of the assembled matrix.
@@ -136,6 +136,7 @@ pub fn assemble(
             let blocks = FlexibleBlocks {
                 elastic: ws.assemble_condensed_blocks || !condensed,
                 reference_elastic: !(ws.structured_condensed_coupling && condensed),
+                linear: !(condensed && ws.elastic_rows != ElasticRows::Whole),
             };
             assemble_flexible(
                 fb,
@@ -147,6 +148,7 @@ pub fn assemble(
                 (matrix, &c),
                 bi,
                 blocks,
+                ws.elastic_rows,
             );
             continue;
         }
@@ -290,11 +292,62 @@ pub fn assemble(
         }
     }
 
+    if ws.elastic_rows != ElasticRows::Whole {
+        finish_elastic_rows(model, &s, ws);
+    }
+
     if let Some(k) = ws.residual.iter().position(|x| !x.is_finite()) {
         let item = if k < nq { model.coordinate_name(k) } else { model.constraint_name(k - nq) };
         return Err(FlexmbdError::NonFinite { item: format!("the equation of {item}"), time: s.time });
     }
     Ok(())
+}
+
+/// Completes the elastic rows of the condensed bodies, assembled without their linear part
+/// (see [`ElasticRows`]): adds it (`Keep`, or `Update` without the image of a condensed
+/// solve) or takes the rows from the last condensed solve (`Update`), and keeps the rest of
+/// the rows for the next update.
+fn finish_elastic_rows(model: &Model, s: &StateView, ws: &mut Workspace) {
+    let Workspace { linear, residual, flexible: works, elastic_rows, .. } = ws;
+    let images: Vec<(usize, &[f64])> = match linear {
+        LinearSolvers::Condensed { newton, .. } => newton.coupling_images().map(|(b, _, i)| (b, i)).collect(),
+        _ => Vec::new(),
+    };
+    for (bi, body) in model.bodies.iter().enumerate() {
+        let BodyKind::Flexible(fb) = &body.kind else { continue };
+        if !is_condensed(&body.kind) {
+            continue;
+        }
+        let n = fb.elastic_count;
+        let range = body.offset + REFERENCE_COORDINATES..body.offset + REFERENCE_COORDINATES + n;
+        let rows = &mut residual[range.clone()];
+        let work = works[bi].as_mut().expect("workspace of a flexible body");
+        let image = images.iter().find(|(b, i)| *b == bi && i.len() == n).map(|(_, i)| *i);
+        match (*elastic_rows, image) {
+            (ElasticRows::Update { scale }, Some(image)) if work.rows_kept => {
+                for ((r, kept), w) in rows.iter_mut().zip(work.nonlinear.iter_mut()).zip(image) {
+                    let rest = *r;
+                    *r = rest - *kept - w / scale;
+                    *kept = rest;
+                }
+            }
+            (ElasticRows::Update { .. }, _) => {
+                // No update possible (no image, or no rows kept): M_ff qf_dd was skipped.
+                work.nonlinear.copy_from_slice(rows);
+                let (q, qd, qdd) = (&s.q[range.clone()], &s.qd[range.clone()], &s.qdd[range]);
+                work.scratch.mass_term.iter_mut().for_each(|x| *x = 0.0);
+                fb.mass_matrix.mul_vec_add(1.0, qdd, &mut work.scratch.mass_term);
+                flexible::add_linear_elastic_forces(fb, q, qd, &work.scratch.mass_term, rows);
+                work.rows_kept = true;
+            }
+            _ => {
+                work.nonlinear.copy_from_slice(rows);
+                let (q, qd) = (&s.q[range.clone()], &s.qd[range]);
+                flexible::add_linear_elastic_forces(fb, q, qd, &work.scratch.mass_term, rows);
+                work.rows_kept = true;
+            }
+        }
+    }
 }
 
 /// Which blocks of a deformable body's Newton-matrix entries are assembled (the reference
@@ -306,6 +359,9 @@ struct FlexibleBlocks {
     /// The (reference, f) and (f, reference) blocks (the structured coupling of the condensed
     /// Newton solver replaces them).
     reference_elastic: bool,
+    /// The linear part M_ff qf_dd + D_ff qf_dot + K_ff q_f of the elastic rows of the residual
+    /// (see [`ElasticRows`]).
+    linear: bool,
 }
 
 /// Residual and Newton-matrix entries of a deformable body: the inertia force of seed eq. 15
@@ -321,6 +377,7 @@ fn assemble_flexible(
     (matrix, c): (Option<MatrixCoefficients>, &MatrixCoefficients),
     bi: usize,
     blocks: FlexibleBlocks,
+    elastic_rows: ElasticRows,
 ) {
     let elastic_block = blocks.elastic;
     let o = body.offset;
@@ -328,7 +385,12 @@ fn assemble_flexible(
     let nf = fb.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let (q, qd, qdd) = (&s.q[o..o + nb], &s.qd[o..o + nb], &s.qdd[o..o + nb]);
-    flexible::inertia_force(fb, q, qd, qdd, &mut work.scratch, &mut work.force);
+    let mass = match (blocks.linear, elastic_rows) {
+        (true, _) => ElasticMass::Include,
+        (false, ElasticRows::Update { .. }) => ElasticMass::Skip,
+        (false, _) => ElasticMass::Separate,
+    };
+    flexible::inertia_force_parts(fb, q, qd, qdd, &mut work.scratch, &mut work.force, mass);
     let f = &mut work.force;
     for v in f.iter_mut() {
         *v = -*v;
@@ -342,9 +404,11 @@ fn assemble_flexible(
     if matrix.is_some() && needs_tangent && elastic_block {
         ev.iter_mut().for_each(|x| *x = 0.0);
         let tangent = Some((c.position, c.velocity, &mut ev[..]));
-        flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], &mut residual[o + r7..o + nb], tangent);
+        let rows = &mut residual[o + r7..o + nb];
+        flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], rows, tangent, blocks.linear);
     } else {
-        flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], &mut residual[o + r7..o + nb], None);
+        let rows = &mut residual[o + r7..o + nb];
+        flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], rows, None, blocks.linear);
     }
     let Some(_) = matrix else { return };
     let entries = &model.layout.bodies[bi];

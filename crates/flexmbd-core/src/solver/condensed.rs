@@ -118,6 +118,10 @@ struct Block {
     schur_entries: Vec<usize>,
     /// Z = A^-1 N_FJ, column-major n x |J|.
     z: Vec<f64>,
+    /// W = N_FJ as eliminated (A Z = W), column-major n x |J| (only with `keep_image`).
+    w: Vec<f64>,
+    /// W x_J of the last solve (n; only with `keep_image`).
+    image: Vec<f64>,
     /// Factorizations of A, most recently used first (at most two).
     factors: Vec<BlockFactor>,
     /// Which factor the current Z belongs to.
@@ -166,6 +170,8 @@ pub struct CondensedSolver {
     y: Vec<f64>,
     rhs: Vec<f64>,
     factorized: bool,
+    /// Whether the solves keep W x_J of each block (see `coupling_images`).
+    keep_image: bool,
 }
 
 impl std::fmt::Debug for CondensedSolver {
@@ -187,6 +193,12 @@ impl CondensedSolver {
     /// taken from its mass part without solves (for iteration matrices, see `factorize`);
     /// else as assembled (exact).
     pub fn new(model: &Model, approximate_reference: bool) -> Result<Self> {
+        Self::with_images(model, approximate_reference, false)
+    }
+
+    /// [`CondensedSolver::new`]; with `keep_image`, every solve also keeps W x_J of each block
+    /// (see [`CondensedSolver::coupling_images`]).
+    pub fn with_images(model: &Model, approximate_reference: bool, keep_image: bool) -> Result<Self> {
         let pattern = &model.layout.pattern;
         let n = pattern.n;
         let mut reduced_of = vec![0usize; n];
@@ -275,6 +287,8 @@ impl CondensedSolver {
                 first,
                 n: m,
                 z: vec![0.0; m * coupling.len()],
+                w: if keep_image { vec![0.0; m * coupling.len()] } else { Vec::new() },
+                image: if keep_image { vec![0.0; m] } else { Vec::new() },
                 coupling,
                 column_entries,
                 row_entries,
@@ -299,7 +313,16 @@ impl CondensedSolver {
             lu,
             approximate_reference,
             factorized: false,
+            keep_image,
         })
+    }
+
+    /// Per condensed body (body index, first global index of its elastic coordinates): W x_J
+    /// of the last solve, where W = N_FJ are the coupling columns the factorization
+    /// eliminated with, so that the elastic part x_F of that solve has A x_F = b_F - W x_J
+    /// (b: the right-hand side). Empty slices unless made `with_images`.
+    pub fn coupling_images(&self) -> impl Iterator<Item = (usize, usize, &[f64])> + '_ {
+        self.blocks.iter().map(|b| (b.body, b.first, &b.image[..]))
     }
 
     /// Size of the reduced (Schur complement) system.
@@ -392,15 +415,22 @@ impl CondensedSolver {
             x[g] = r;
         }
         let mut offset = 0;
-        for block in &self.blocks {
+        for block in &mut self.blocks {
             let y = &self.y[offset..offset + block.n];
             let out = &mut x[block.first..block.first + block.n];
             out.copy_from_slice(y);
+            block.image.iter_mut().for_each(|v| *v = 0.0);
             for (j, &g) in block.coupling.iter().enumerate() {
                 let xj = self.rhs[self.reduced_of[g]];
                 if xj != 0.0 {
-                    for (o, zv) in out.iter_mut().zip(&block.z[j * block.n..(j + 1) * block.n]) {
+                    let column = j * block.n..(j + 1) * block.n;
+                    for (o, zv) in out.iter_mut().zip(&block.z[column.clone()]) {
                         *o -= zv * xj;
+                    }
+                    if self.keep_image {
+                        for (o, wv) in block.image.iter_mut().zip(&block.w[column]) {
+                            *o += wv * xj;
+                        }
                     }
                 }
             }
@@ -492,11 +522,20 @@ impl Block {
             factor.solve_in_place(&mut packed)?;
             factor.basis_solved.extend(packed);
         }
+        let keep_image = !self.w.is_empty();
         for (j, c) in split {
             let z = &mut self.z[j * m..(j + 1) * m];
             z.iter_mut().for_each(|x| *x = 0.0);
             for (&ci, w) in c.iter().zip(factor.basis_solved.chunks_exact(m)) {
                 z.iter_mut().zip(w).for_each(|(x, wv)| *x += ci * wv);
+            }
+            if keep_image {
+                // The column as eliminated: Q c_j (A Z_j = Q c_j exactly).
+                let w = &mut self.w[j * m..(j + 1) * m];
+                w.iter_mut().for_each(|x| *x = 0.0);
+                for (&ci, q) in c.iter().zip(self.basis.chunks_exact(m)) {
+                    w.iter_mut().zip(q).for_each(|(x, qv)| *x += ci * qv);
+                }
             }
         }
         if !direct.is_empty() {
@@ -504,6 +543,9 @@ impl Block {
             for (slot, &j) in direct.iter().enumerate() {
                 for &(f, k) in &self.column_entries[j] {
                     packed[slot * m + f] = values[k];
+                }
+                if keep_image {
+                    self.w[j * m..(j + 1) * m].copy_from_slice(&packed[slot * m..(slot + 1) * m]);
                 }
             }
             factor.solve_in_place(&mut packed)?;
@@ -572,6 +614,11 @@ impl Block {
             z.iter_mut().for_each(|x| *x = 0.0);
             let row = &mut self.row_values[j];
             row.iter_mut().for_each(|x| *x = 0.0);
+            // The column as eliminated (the transpose of the row, over all n_f).
+            let mut eliminated = self.w.get_mut(j * m..(j + 1) * m);
+            if let Some(w) = eliminated.as_mut() {
+                w.iter_mut().for_each(|x| *x = 0.0);
+            }
             if sm == 0.0 {
                 continue;
             }
@@ -585,6 +632,9 @@ impl Block {
                 for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
                     *r += w * rows[f];
                 }
+                if let Some(e) = eliminated.as_mut() {
+                    e.iter_mut().zip(rows).for_each(|(x, r)| *x += w * r);
+                }
                 if shift == 3 && deformed {
                     for (zf, v) in z.iter_mut().zip(&solved[i * m..(i + 1) * m]) {
                         *zf += w * v;
@@ -592,6 +642,9 @@ impl Block {
                     let d = &delta[i * m..(i + 1) * m];
                     for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
                         *r += w * d[f];
+                    }
+                    if let Some(e) = eliminated.as_mut() {
+                        e.iter_mut().zip(d).for_each(|(x, r)| *x += w * r);
                     }
                 }
             }
@@ -680,6 +733,7 @@ mod tests {
     use crate::joint::JointKind;
     use crate::math::{Mat3, Vec3};
     use crate::solver::assembly::{assemble, StateView};
+    use crate::system::workspace::{ElasticRows, LinearSolvers};
     use crate::system::{State, SystemBuilder, Workspace};
 
     /// A rigid link hinged to the ground and a deformable body hinged to it (at a reference
@@ -758,6 +812,68 @@ mod tests {
         let expected = direct_solve(&direct, &state, c, &rhs);
         let (x, _) = condensed_solve(&condensed, &state, c, &rhs, true);
         assert_close(&x, &expected);
+    }
+
+    #[test]
+    fn elastic_rows_from_the_solve_equal_the_assembled_rows() {
+        // One Newton iteration as the integrator makes it (rows kept at the first assembly,
+        // structured coupling, update of q, q_dot, q_dd by (1, v, m) dq): the residual at the
+        // new iterate from the solve's coupling image must equal the one assembled whole, in
+        // a moving, deformed state with multipliers (joint at an elastic marker).
+        let model = model(true, true);
+        let mut state = State::initial(&model, 0.0);
+        for (k, v) in state.velocities.iter_mut().enumerate() {
+            *v = 0.3 * ((k * 7 % 5) as f64 - 2.0);
+        }
+        for (k, a) in state.accelerations.iter_mut().enumerate() {
+            *a = 2.0 * ((k * 3 % 7) as f64 - 3.0);
+        }
+        state.multipliers.iter_mut().enumerate().for_each(|(k, l)| *l = 0.4 * k as f64 - 1.1);
+        let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
+        for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
+            *x = 0.02 * (k as f64 - 2.5);
+        }
+        let c =
+            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let (nq, s) = (model.coordinate_count, c.scale);
+        let mut ws = Workspace::new(&model).unwrap();
+        ws.assemble_condensed_blocks = false;
+        ws.structured_condensed_coupling = true;
+        ws.elastic_rows = ElasticRows::Keep;
+        assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
+        let before = scale_of(&ws.residual);
+        let mut x: Vec<f64> =
+            ws.residual.iter().enumerate().map(|(k, r)| if k < nq { -s * r } else { -r }).collect();
+        let LinearSolvers::Condensed { newton, .. } = &mut ws.linear else { panic!("condensed solvers") };
+        newton.factorize(&model, &ws.values, &c, &state.coordinates).unwrap();
+        newton.solve_in_place(&mut x).unwrap();
+        for k in 0..nq {
+            state.coordinates[k] += x[k];
+            state.velocities[k] += c.velocity * x[k];
+            state.accelerations[k] += c.mass * x[k];
+        }
+        for (l, dl) in state.multipliers.iter_mut().zip(&x[nq..]) {
+            *l += dl / s;
+        }
+        ws.structured_condensed_coupling = false;
+        ws.elastic_rows = ElasticRows::Update { scale: s };
+        assemble(&model, StateView::of(&state), &mut ws, None).unwrap();
+        let updated = ws.residual.clone();
+        let mut whole = Workspace::new(&model).unwrap();
+        assemble(&model, StateView::of(&state), &mut whole, None).unwrap();
+        let elastic = offset..offset + 6;
+        let worst = (0..updated.len()).fold(0.0f64, |m, k| m.max((updated[k] - whole.residual[k]).abs()));
+        assert!(worst <= 1e-12 * before, "rows off by {worst} (residual before {before})");
+        // Not trivially equal: the elastic rows are not zero, and the image is not small.
+        let rows = elastic.fold(0.0f64, |m, k| m.max(whole.residual[k].abs()));
+        assert!(rows > 1e-3 * before, "{rows} vs {before}");
+        let image = newton_image(&ws, 2);
+        assert!(image.iter().any(|&v| v.abs() > 1e-3 * before * s), "the coupling image is not needed");
+    }
+
+    fn newton_image(ws: &Workspace, body: usize) -> Vec<f64> {
+        let LinearSolvers::Condensed { newton, .. } = &ws.linear else { panic!("condensed solvers") };
+        newton.coupling_images().find(|(b, _, _)| *b == body).map(|(_, _, i)| i.to_vec()).unwrap()
     }
 
     #[test]

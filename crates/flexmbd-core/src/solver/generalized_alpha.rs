@@ -17,7 +17,7 @@
 use super::assembly::{assemble, MatrixCoefficients, StateView};
 use super::settings::{JacobianUpdate, LinearSolver, NewtonSettings};
 use crate::error::{FlexmbdError, Result};
-use crate::system::workspace::LinearSolvers;
+use crate::system::workspace::{ElasticRows, LinearSolvers};
 use crate::system::{Model, State, Workspace};
 
 /// The four parameters of the method.
@@ -277,6 +277,10 @@ fn iterate(
     let mut previous_norm = f64::INFINITY;
     // Whether the matrix was factorized at the predictor, in the first iteration of this step.
     let mut fresh_at_predictor = false;
+    let condensed_rows = kind != Factorization::Projection
+        && coef.position == 1.0
+        && coef.identity == 0.0
+        && matches!(ws.linear, LinearSolvers::Condensed { .. });
     for iteration in 0..newton.max_iterations {
         // A step shortened by round-off to land on an output time keeps the matrix.
         let same_h = cache.step_size.is_some_and(|c| (c - h).abs() <= 1e-12 * h);
@@ -284,8 +288,16 @@ fn iterate(
         fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
         ws.structured_condensed_coupling = need_matrix && kind != Factorization::Projection;
+        // Elastic rows of condensed bodies from the last condensed solve after the first
+        // iteration (see `ElasticRows`; the update of the coordinates below is the one it
+        // requires).
+        if condensed_rows {
+            ws.elastic_rows =
+                if iteration == 0 { ElasticRows::Keep } else { ElasticRows::Update { scale: s } };
+        }
         let assembled = assemble(model, view, ws, if need_matrix { Some(coef) } else { None });
         ws.structured_condensed_coupling = false;
+        ws.elastic_rows = ElasticRows::Whole;
         assembled?;
         if need_matrix {
             if let Err(detail) = factorize(model, ws, kind, &coef, &next.coordinates) {

@@ -48,6 +48,11 @@ pub struct FlexibleWork {
     pub gravity_pf: Vec<f64>,
     /// See `gravity_pf`.
     pub gravity_fp: Vec<f64>,
+    /// Condensed bodies in Newton iterations: the elastic rows of the residual without their
+    /// linear part at the last assembly (n_f; see [`ElasticRows`]).
+    pub nonlinear: Vec<f64>,
+    /// Whether `nonlinear` holds the rows of an earlier assembly.
+    pub rows_kept: bool,
 }
 
 impl FlexibleWork {
@@ -61,6 +66,8 @@ impl FlexibleWork {
             elastic_values: vec![0.0; body.pattern.nnz()],
             gravity_pf: vec![0.0; 4 * n],
             gravity_fp: vec![0.0; 4 * n],
+            nonlinear: vec![0.0; n],
+            rows_kept: false,
         }
     }
 }
@@ -99,6 +106,27 @@ pub enum LinearSolvers {
     None,
 }
 
+/// How the assembly forms the elastic rows of condensed bodies. Their linear part
+/// L = M_ff qf_dd + D_ff qf_dot + K_ff q_f changes in a Newton iteration that updates
+/// (q, q_dot, q_dd) by (1, v, m) dq by exactly (m M_ff + v D_ff + K_ff) dq_f = A dq_f / s, and
+/// the condensed solve gives A dq_f = b_F - W dq_J (W: the coupling columns it eliminated with,
+/// b_F = -s r_F). So with the rest of the rows N (everything but L) kept from the last
+/// assembly, the rows at the new iterate are N' - N - W dq_J / s: no products with K_ff and
+/// M_ff after the first iteration of a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ElasticRows {
+    /// Assembled whole (every assembly outside the Newton iterations).
+    Whole,
+    /// Assembled whole, and N kept (first iteration of a step).
+    Keep,
+    /// From the last solve of the condensed Newton solver, whose right-hand side had the
+    /// scale `scale` (later iterations; valid only right after such a solve and update).
+    Update {
+        /// s of the Newton matrix.
+        scale: f64,
+    },
+}
+
 /// Workspace of a simulation of one model.
 pub struct Workspace {
     /// Kinematics of every marker (filled by `update_kinematics`).
@@ -119,6 +147,9 @@ pub struct Workspace {
     /// assembly then leaves those blocks out, and with them the inertia products only they
     /// need. Set by the integrator around that assembly; false otherwise.
     pub structured_condensed_coupling: bool,
+    /// How the elastic rows of condensed bodies are assembled; set by the integrator around
+    /// its Newton iterations, `Whole` otherwise.
+    pub elastic_rows: ElasticRows,
     /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
     /// trace of its inertia about the body origin.
     pub normalization_weights: Vec<f64>,
@@ -158,7 +189,7 @@ impl Workspace {
         let size = model.system_size();
         Ok(if has_condensed_bodies(model) {
             LinearSolvers::Condensed {
-                newton: Box::new(CondensedSolver::new(model, true)?),
+                newton: Box::new(CondensedSolver::with_images(model, true, true)?),
                 projection: Box::new(CondensedSolver::new(model, false)?),
             }
         } else if size <= DENSE_SYSTEM_SIZE {
@@ -204,6 +235,7 @@ impl Workspace {
             linear,
             assemble_condensed_blocks: true,
             structured_condensed_coupling: false,
+            elastic_rows: ElasticRows::Whole,
             penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
             normalization_weights,
             rigid: RigidTangent::default(),
