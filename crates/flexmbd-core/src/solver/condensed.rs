@@ -120,8 +120,13 @@ struct Block {
     z: Vec<f64>,
     /// W = N_FJ as eliminated (A Z = W), column-major n x |J| (only with `keep_image`).
     w: Vec<f64>,
-    /// W x_J of the last solve (n; only with `keep_image`).
+    /// W x_J of the last solve (n; only with `keep_image`), formed from `last_x` when asked.
     image: Vec<f64>,
+    /// x_J of the last solve (only with `keep_image`; empty after a factorization).
+    last_x: Vec<f64>,
+    /// Per coupling row: whether its entries are all n_f columns in order (then the products
+    /// with it are plain dot products).
+    dense_rows: Vec<bool>,
     /// Factorizations of A, most recently used first (at most two).
     factors: Vec<BlockFactor>,
     /// Which factor the current Z belongs to.
@@ -289,6 +294,11 @@ impl CondensedSolver {
                 z: vec![0.0; m * coupling.len()],
                 w: if keep_image { vec![0.0; m * coupling.len()] } else { Vec::new() },
                 image: if keep_image { vec![0.0; m] } else { Vec::new() },
+                last_x: Vec::new(),
+                dense_rows: row_entries
+                    .iter()
+                    .map(|e| e.len() == m && e.iter().enumerate().all(|(i, &(f, _))| f == i))
+                    .collect(),
                 coupling,
                 column_entries,
                 row_entries,
@@ -320,8 +330,23 @@ impl CondensedSolver {
     /// Per condensed body (body index, first global index of its elastic coordinates): W x_J
     /// of the last solve, where W = N_FJ are the coupling columns the factorization
     /// eliminated with, so that the elastic part x_F of that solve has A x_F = b_F - W x_J
-    /// (b: the right-hand side). Empty slices unless made `with_images`.
-    pub fn coupling_images(&self) -> impl Iterator<Item = (usize, usize, &[f64])> + '_ {
+    /// (b: the right-hand side). Empty slices unless made `with_images`, and after a
+    /// factorization until the next solve.
+    pub fn coupling_images(&mut self) -> impl Iterator<Item = (usize, usize, &[f64])> + '_ {
+        for block in &mut self.blocks {
+            let m = block.n;
+            if block.last_x.is_empty() {
+                block.image.clear();
+                continue;
+            }
+            block.image.resize(m, 0.0);
+            block.image.iter_mut().for_each(|v| *v = 0.0);
+            for (&xj, w) in block.last_x.iter().zip(block.w.chunks_exact(m)) {
+                if xj != 0.0 {
+                    block.image.iter_mut().zip(w).for_each(|(o, wv)| *o += wv * xj);
+                }
+            }
+        }
         self.blocks.iter().map(|b| (b.body, b.first, &b.image[..]))
     }
 
@@ -352,6 +377,7 @@ impl CondensedSolver {
             *r = if g == usize::MAX { 0.0 } else { values[g] };
         }
         for block in &mut self.blocks {
+            block.last_x.clear();
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
             let (m, nj) = (block.n, block.coupling.len());
@@ -376,7 +402,8 @@ impl CondensedSolver {
                 let stored = &block.row_values[a];
                 for b in 0..nj {
                     let zb = &block.z[b * m..(b + 1) * m];
-                    let update = gather_dot(entries, stored, zb);
+                    let update =
+                        if block.dense_rows[a] { dot(stored, zb) } else { gather_dot(entries, stored, zb) };
                     self.reduced_values[block.schur_entries[a * nj + b]] -= update;
                 }
             }
@@ -405,7 +432,8 @@ impl CondensedSolver {
             block.factors[block.current].solve_in_place(y).map_err(|e| e.to_string())?;
             for (a, entries) in block.row_entries.iter().enumerate() {
                 let stored = &block.row_values[a];
-                let update = gather_dot(entries, stored, y);
+                let update =
+                    if block.dense_rows[a] { dot(stored, y) } else { gather_dot(entries, stored, y) };
                 self.rhs[self.reduced_of[block.coupling[a]]] -= update;
             }
             offset += block.n;
@@ -419,18 +447,15 @@ impl CondensedSolver {
             let y = &self.y[offset..offset + block.n];
             let out = &mut x[block.first..block.first + block.n];
             out.copy_from_slice(y);
-            block.image.iter_mut().for_each(|v| *v = 0.0);
+            if self.keep_image {
+                block.last_x.clear();
+                block.last_x.extend(block.coupling.iter().map(|&g| self.rhs[self.reduced_of[g]]));
+            }
             for (j, &g) in block.coupling.iter().enumerate() {
                 let xj = self.rhs[self.reduced_of[g]];
                 if xj != 0.0 {
-                    let column = j * block.n..(j + 1) * block.n;
-                    for (o, zv) in out.iter_mut().zip(&block.z[column.clone()]) {
+                    for (o, zv) in out.iter_mut().zip(&block.z[j * block.n..(j + 1) * block.n]) {
                         *o -= zv * xj;
-                    }
-                    if self.keep_image {
-                        for (o, wv) in block.image.iter_mut().zip(&block.w[column]) {
-                            *o += wv * xj;
-                        }
                     }
                 }
             }
@@ -867,12 +892,12 @@ mod tests {
         // Not trivially equal: the elastic rows are not zero, and the image is not small.
         let rows = elastic.fold(0.0f64, |m, k| m.max(whole.residual[k].abs()));
         assert!(rows > 1e-3 * before, "{rows} vs {before}");
-        let image = newton_image(&ws, 2);
+        let image = newton_image(&mut ws, 2);
         assert!(image.iter().any(|&v| v.abs() > 1e-3 * before * s), "the coupling image is not needed");
     }
 
-    fn newton_image(ws: &Workspace, body: usize) -> Vec<f64> {
-        let LinearSolvers::Condensed { newton, .. } = &ws.linear else { panic!("condensed solvers") };
+    fn newton_image(ws: &mut Workspace, body: usize) -> Vec<f64> {
+        let LinearSolvers::Condensed { newton, .. } = &mut ws.linear else { panic!("condensed solvers") };
         newton.coupling_images().find(|(b, _, _)| *b == body).map(|(_, _, i)| i.to_vec()).unwrap()
     }
 
