@@ -309,8 +309,10 @@ pub fn assemble(
 /// the rows for the next update.
 fn finish_elastic_rows(model: &Model, s: &StateView, ws: &mut Workspace) {
     let Workspace { linear, residual, flexible: works, elastic_rows, .. } = ws;
-    let images: Vec<(usize, &[f64])> = match linear {
-        LinearSolvers::Condensed { newton, .. } => newton.coupling_images().map(|(b, _, i)| (b, i)).collect(),
+    let images: Vec<(usize, &[f64])> = match (linear, *elastic_rows) {
+        (LinearSolvers::Condensed { newton, .. }, ElasticRows::Update { .. }) => {
+            newton.coupling_images().map(|(b, _, i)| (b, i)).collect()
+        }
         _ => Vec::new(),
     };
     for (bi, body) in model.bodies.iter().enumerate() {
