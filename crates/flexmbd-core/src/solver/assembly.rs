@@ -311,7 +311,7 @@ fn finish_elastic_rows(model: &Model, s: &StateView, ws: &mut Workspace) {
     let Workspace { linear, residual, flexible: works, elastic_rows, .. } = ws;
     let images: Vec<(usize, &[f64])> = match (linear, *elastic_rows) {
         (LinearSolvers::Condensed { newton, .. }, ElasticRows::Update { .. }) => {
-            newton.coupling_images().map(|(b, _, i)| (b, i)).collect()
+            newton.coupling_images().collect()
         }
         _ => Vec::new(),
     };
@@ -333,16 +333,12 @@ fn finish_elastic_rows(model: &Model, s: &StateView, ws: &mut Workspace) {
                     *kept = rest;
                 }
             }
-            (ElasticRows::Update { .. }, _) => {
-                // No update possible (no image, or no rows kept): M_ff qf_dd was skipped.
-                work.nonlinear.copy_from_slice(rows);
-                let (q, qd, qdd) = (&s.q[range.clone()], &s.qd[range.clone()], &s.qdd[range]);
-                work.scratch.mass_term.iter_mut().for_each(|x| *x = 0.0);
-                fb.mass_matrix.mul_vec_add(1.0, qdd, &mut work.scratch.mass_term);
-                flexible::add_linear_elastic_forces(fb, q, qd, &work.scratch.mass_term, rows);
-                work.rows_kept = true;
-            }
-            _ => {
+            (rows_mode, _) => {
+                if let ElasticRows::Update { .. } = rows_mode {
+                    // No update possible (no image, or no rows kept): M_ff qf_dd was skipped.
+                    work.scratch.mass_term.iter_mut().for_each(|x| *x = 0.0);
+                    fb.mass_matrix.mul_vec_add(1.0, &s.qdd[range.clone()], &mut work.scratch.mass_term);
+                }
                 work.nonlinear.copy_from_slice(rows);
                 let (q, qd) = (&s.q[range.clone()], &s.qd[range]);
                 flexible::add_linear_elastic_forces(fb, q, qd, &work.scratch.mass_term, rows);

@@ -327,12 +327,11 @@ impl CondensedSolver {
         })
     }
 
-    /// Per condensed body (body index, first global index of its elastic coordinates): W x_J
-    /// of the last solve, where W = N_FJ are the coupling columns the factorization
+    /// Per condensed body (body index): W x_J of the last solve, where W = N_FJ are the coupling columns the factorization
     /// eliminated with, so that the elastic part x_F of that solve has A x_F = b_F - W x_J
     /// (b: the right-hand side). Empty slices unless made `with_images`, and after a
     /// factorization until the next solve.
-    pub fn coupling_images(&mut self) -> impl Iterator<Item = (usize, usize, &[f64])> + '_ {
+    pub fn coupling_images(&mut self) -> impl Iterator<Item = (usize, &[f64])> + '_ {
         for block in &mut self.blocks {
             let m = block.n;
             if block.last_x.is_empty() {
@@ -347,7 +346,7 @@ impl CondensedSolver {
                 }
             }
         }
-        self.blocks.iter().map(|b| (b.body, b.first, &b.image[..]))
+        self.blocks.iter().map(|b| (b.body, &b.image[..]))
     }
 
     /// Size of the reduced (Schur complement) system.
@@ -846,18 +845,9 @@ mod tests {
         // new iterate from the solve's coupling image must equal the one assembled whole, in
         // a moving, deformed state with multipliers (joint at an elastic marker).
         let model = model(true, true);
-        let mut state = State::initial(&model, 0.0);
-        for (k, v) in state.velocities.iter_mut().enumerate() {
-            *v = 0.3 * ((k * 7 % 5) as f64 - 2.0);
-        }
-        for (k, a) in state.accelerations.iter_mut().enumerate() {
-            *a = 2.0 * ((k * 3 % 7) as f64 - 3.0);
-        }
+        let mut state = moving_deformed_state(&model);
         state.multipliers.iter_mut().enumerate().for_each(|(k, l)| *l = 0.4 * k as f64 - 1.1);
         let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
-        for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
-            *x = 0.02 * (k as f64 - 2.5);
-        }
         let c =
             MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
         let (nq, s) = (model.coordinate_count, c.scale);
@@ -898,7 +888,7 @@ mod tests {
 
     fn newton_image(ws: &mut Workspace, body: usize) -> Vec<f64> {
         let LinearSolvers::Condensed { newton, .. } = &mut ws.linear else { panic!("condensed solvers") };
-        newton.coupling_images().find(|(b, _, _)| *b == body).map(|(_, _, i)| i.to_vec()).unwrap()
+        newton.coupling_images().find(|(b, _)| *b == body).map(|(_, i)| i.to_vec()).unwrap()
     }
 
     #[test]
@@ -985,17 +975,7 @@ mod tests {
         // body (as the integrator does) must give the structured solver the same solves as the
         // whole matrix, in a moving, deformed state.
         let model = model(true, true);
-        let mut state = State::initial(&model, 0.0);
-        for (k, v) in state.velocities.iter_mut().enumerate() {
-            *v = 0.3 * ((k * 7 % 5) as f64 - 2.0);
-        }
-        for (k, a) in state.accelerations.iter_mut().enumerate() {
-            *a = 2.0 * ((k * 3 % 7) as f64 - 3.0);
-        }
-        let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
-        for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
-            *x = 0.02 * (k as f64 - 2.5);
-        }
+        let state = moving_deformed_state(&model);
         let c =
             MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
         let rhs = test_rhs(model.system_size());
@@ -1017,6 +997,23 @@ mod tests {
         for (k, (a, b)) in solves[0].iter().zip(&solves[1]).enumerate() {
             assert!((a - b).abs() <= 1e-12 * scale, "{k}: {a} vs {b}");
         }
+    }
+
+    /// A state of the test model with velocities, accelerations and the deformable
+    /// body's elastic coordinates set.
+    fn moving_deformed_state(model: &Model) -> State {
+        let mut state = State::initial(model, 0.0);
+        for (k, v) in state.velocities.iter_mut().enumerate() {
+            *v = 0.3 * ((k * 7 % 5) as f64 - 2.0);
+        }
+        for (k, a) in state.accelerations.iter_mut().enumerate() {
+            *a = 2.0 * ((k * 3 % 7) as f64 - 3.0);
+        }
+        let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
+        for (k, x) in state.coordinates[offset..offset + 6].iter_mut().enumerate() {
+            *x = 0.02 * (k as f64 - 2.5);
+        }
+        state
     }
 
     fn test_rhs(n: usize) -> Vec<f64> {
