@@ -66,8 +66,12 @@ def test_period_matches_the_elliptic_integral_value(a01):
 
 
 def test_error_based_step_control_adapts_the_step_and_converges_with_the_tolerance():
+    # Tolerances two decades apart and more: at 1e-4 and 1e-5 the error at t = 10 s is about
+    # the same (1.5e-2 to 2.6e-2), and which of the two is larger changes with the round-off
+    # of the linear solver (through which steps are rejected); from 1e-6 on it falls steadily
+    # (5e-3, 7e-4, 1.3e-4 at 1e-6, 1e-7, 1e-8).
     errors = []
-    for tolerance in (1e-4, 1e-6):
+    for tolerance in (1e-4, 1e-7):
         example = fm.examples.pendulum()
         solver = fm.GeneralizedAlpha(
             0.9,
@@ -81,4 +85,4 @@ def test_error_based_step_control_adapts_the_step_and_converges_with_the_toleran
         assert stats["min_step_size"] < 0.5 * stats["max_step_size"]
         errors.append(max(example.check(result).values()))
     # Smaller tolerance, smaller error (global error of a local-error control).
-    assert errors[1] < 0.2 * errors[0] and errors[1] < 1e-2
+    assert errors[1] < 0.2 * errors[0] and errors[1] < 2e-3

@@ -157,31 +157,78 @@ pub fn primitive_gradient(p: &Primitive, ctx: &MarkerPair, w: f64, grad: &mut [f
 
 /// Adds `w * d^2 P / dq^2` to `out` (local coordinates, square).
 pub fn primitive_hessian(p: &Primitive, ctx: &MarkerPair, w: f64, out: &mut DenseMatrix) {
+    let mut sums = MarkerSecondDerivatives::default();
+    add_primitive_hessian(p, ctx, w, out, &mut sums);
+    sums.add_to(ctx, out);
+}
+
+/// The vectors v that the second derivatives d^2 (v . r) / dq^2 of each marker's position r
+/// and d^2 (v . a_k) / dq^2 of its axes a_k are taken with. Those derivatives are linear in v,
+/// so the terms of several primitives and equations on one marker quantity are summed here
+/// and differentiated once (a joint between deformable bodies: one pass over the elastic
+/// coordinates of each marker quantity instead of one per equation).
+#[derive(Clone, Copy, Debug, Default)]
+struct MarkerSecondDerivatives {
+    /// Of the positions of markers i and j.
+    position: [Vec3; 2],
+    /// Of the axes of markers i and j.
+    axes: [[Vec3; 3]; 2],
+}
+
+impl MarkerSecondDerivatives {
+    /// Adds the summed second derivatives to `out`.
+    fn add_to(&self, ctx: &MarkerPair, out: &mut DenseMatrix) {
+        let sides =
+            [(ctx.body_i, ctx.marker_i, ctx.kin_i, 0), (ctx.body_j, ctx.marker_j, ctx.kin_j, ctx.ni())];
+        for (side, (body, marker, kin, offset)) in sides.into_iter().enumerate() {
+            let v = &self.position[side];
+            if *v != Vec3::ZERO {
+                add_position_hessian(body, marker, kin, v, 1.0, out, offset);
+            }
+            for (k, v) in self.axes[side].iter().enumerate() {
+                if *v != Vec3::ZERO {
+                    add_axis_hessian(body, marker, kin, k, v, 1.0, out, offset);
+                }
+            }
+        }
+    }
+}
+
+/// Adds `w * d^2 P / dq^2` to `out`, the parts with the second derivatives of the marker
+/// quantities as their vectors to `sums`.
+fn add_primitive_hessian(
+    p: &Primitive,
+    ctx: &MarkerPair,
+    w: f64,
+    out: &mut DenseMatrix,
+    sums: &mut MarkerSecondDerivatives,
+) {
     let ni = ctx.ni();
     let (ki, kj) = (ctx.kin_i, ctx.kin_j);
-    let (bi, bj, mi, mj) = (ctx.body_i, ctx.body_j, ctx.marker_i, ctx.marker_j);
     let d = ctx.offset();
+    let [position_i, position_j] = &mut sums.position;
+    let [axes_i, axes_j] = &mut sums.axes;
     match *p {
         Primitive::PositionComponent(u) => {
-            add_position_hessian(bi, mi, ki, &u, -w, out, 0);
-            add_position_hessian(bj, mj, kj, &u, w, out, ni);
+            *position_i += u * -w;
+            *position_j += u * w;
         }
         Primitive::AxisDotAxis(k, l) => {
             let (a, b) = (ki.axis(k), kj.axis(l));
-            add_axis_hessian(bi, mi, ki, k, &b, w, out, 0);
-            add_axis_hessian(bj, mj, kj, l, &a, w, out, ni);
+            axes_i[k] += b * w;
+            axes_j[l] += a * w;
             out.add_jt_j(0, ni, w, &ki.jac_axes[k], &kj.jac_axes[l]);
             out.add_jt_j(ni, 0, w, &kj.jac_axes[l], &ki.jac_axes[k]);
         }
         Primitive::AxisDotOffset(k) => {
             let a = ki.axis(k);
-            add_axis_hessian(bi, mi, ki, k, &d, w, out, 0);
-            add_position_hessian(bi, mi, ki, &a, -w, out, 0);
+            axes_i[k] += d * w;
+            *position_i += a * -w;
             out.add_jt_j(0, 0, -w, &ki.jac_axes[k], &ki.jac_position);
             out.add_jt_j(0, 0, -w, &ki.jac_position, &ki.jac_axes[k]);
             out.add_jt_j(0, ni, w, &ki.jac_axes[k], &kj.jac_position);
             out.add_jt_j(ni, 0, w, &kj.jac_position, &ki.jac_axes[k]);
-            add_position_hessian(bj, mj, kj, &a, w, out, ni);
+            *position_j += a * w;
         }
         Primitive::Distance => {
             let rho = d.norm();
@@ -192,8 +239,8 @@ pub fn primitive_hessian(p: &Primitive, ctx: &MarkerPair, w: f64, out: &mut Dens
                 proj.0[k][k] += 1.0 / rho;
             }
             distance_projector_hessian(ctx, &proj, w, out);
-            add_position_hessian(bi, mi, ki, &n, -w, out, 0);
-            add_position_hessian(bj, mj, kj, &n, w, out, ni);
+            *position_i += n * -w;
+            *position_j += n * w;
         }
     }
 }
@@ -243,12 +290,22 @@ pub fn equation_gradient(
     }
 }
 
-/// Adds `w * C_qq` to `out`.
-pub fn equation_hessian(eq: &Equation, ctx: &MarkerPair, f: &[f64; 3], w: f64, out: &mut DenseMatrix) {
-    for (c, p) in &eq.terms {
-        let cv = coefficient(*c, f)[0];
-        if cv != 0.0 {
-            primitive_hessian(p, ctx, w * cv, out);
+/// Adds `sum_e w_e C_e,qq` to `out` for the equations with their weights (the multipliers,
+/// for the Newton matrix; 1 for the Hessian of one equation).
+pub fn equations_hessian<'e>(
+    equations: impl IntoIterator<Item = (&'e Equation, f64)>,
+    ctx: &MarkerPair,
+    f: &[f64; 3],
+    out: &mut DenseMatrix,
+) {
+    let mut sums = MarkerSecondDerivatives::default();
+    for (eq, w) in equations.into_iter().filter(|(_, w)| *w != 0.0) {
+        for (c, p) in &eq.terms {
+            let cv = coefficient(*c, f)[0];
+            if cv != 0.0 {
+                add_primitive_hessian(p, ctx, w * cv, out, &mut sums);
+            }
         }
     }
+    sums.add_to(ctx, out);
 }

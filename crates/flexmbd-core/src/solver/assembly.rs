@@ -16,7 +16,7 @@ use crate::body::{point_mass, rigid, Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
 use crate::force::gravity::{add_gravity_force, gravity_jacobian};
 use crate::force::{evaluate_force, ForceEnv};
-use crate::joint::equation::{equation_gradient, equation_hessian, equation_value, MarkerPair};
+use crate::joint::equation::{equation_gradient, equation_value, equations_hessian, MarkerPair};
 use crate::math::Mat3;
 use crate::solver::condensed::is_condensed;
 use crate::system::workspace::JointLocal;
@@ -238,12 +238,13 @@ pub fn assemble(
         }
         if matrix.is_some() && c.position != 0.0 {
             local.hessian.fill_zero();
-            for (e, eq) in joint.equations.iter().enumerate() {
-                let lambda = s.lambda[joint.row + e];
-                if lambda != 0.0 {
-                    equation_hessian(eq, &pair, &driver, lambda, &mut local.hessian);
-                }
-            }
+            let lambdas = &s.lambda[joint.row..joint.row + joint.equations.len()];
+            equations_hessian(
+                joint.equations.iter().zip(lambdas.iter().copied()),
+                &pair,
+                &driver,
+                &mut local.hessian,
+            );
         }
         for e in 0..ne {
             ws.residual[nq + joint.row + e] = local.values[e];
@@ -492,7 +493,7 @@ pub fn constraint_time_terms(
             ct[joint.row + e] = v[1];
             if let Some(g) = gamma.as_deref_mut() {
                 local.hessian.fill_zero();
-                equation_hessian(eq, &pair, &driver, 1.0, &mut local.hessian);
+                equations_hessian([(eq, 1.0)], &pair, &driver, &mut local.hessian);
                 local.gradient.iter_mut().for_each(|x| *x = 0.0);
                 local.gradient_time.iter_mut().for_each(|x| *x = 0.0);
                 equation_gradient(

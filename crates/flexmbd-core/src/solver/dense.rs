@@ -23,14 +23,19 @@ const INVERSE_AFTER_SOLVES: usize = 2 * DENSE_SYSTEM_SIZE;
 #[derive(Clone, Debug)]
 pub struct DenseLu {
     n: usize,
-    /// Row-major factors: L (unit lower, below the diagonal) and U.
-    lu: Vec<f64>,
-    /// The same factors column-major, for substitutions by column updates (which vectorize).
+    /// The factors column-major: L (unit lower, below the diagonal) and U; column j at
+    /// `columns[j * n..(j + 1) * n]`.
     columns: Vec<f64>,
     /// Row swapped with row k at step k.
     pivots: Vec<usize>,
-    /// Scratch: the nonzero columns of the pivot row.
-    nonzero: Vec<usize>,
+    /// Per column k, the rows of its nonzero entries: of L within k + 1..n (`lower`) and of U
+    /// within 0..k (`upper`), as ranges (the substitutions skip the zeros outside: a quarter
+    /// of the work of U for the slider-crank's matrix).
+    lower: Vec<(usize, usize)>,
+    upper: Vec<usize>,
+    /// Row of the matrix at each row of the factors (P), and its inverse.
+    rows: Vec<usize>,
+    positions: Vec<usize>,
     factorized: bool,
     /// Solves made with the current factorization.
     solves: usize,
@@ -46,10 +51,12 @@ impl DenseLu {
     pub fn new(n: usize) -> Self {
         DenseLu {
             n,
-            lu: vec![0.0; n * n],
             columns: vec![0.0; n * n],
             pivots: vec![0; n],
-            nonzero: Vec::with_capacity(n),
+            lower: vec![(0, 0); n],
+            upper: vec![0; n],
+            rows: Vec::with_capacity(n),
+            positions: Vec::with_capacity(n),
             factorized: false,
             solves: 0,
             inverse: vec![0.0; n * n],
@@ -58,75 +65,71 @@ impl DenseLu {
         }
     }
 
-    /// Factorizes the matrix with `values` on `pattern`.
+    /// Factorizes the matrix with `values` on `pattern`, column by column (left-looking):
+    /// column j of the matrix, in the row order of the pivots so far, is updated by the
+    /// columns k < j of L whose entry U(k, j) is nonzero, then pivoted and scaled. Every
+    /// operation runs along a contiguous column, and the zeros of a sparse Newton matrix
+    /// (three quarters of the entries of the slider-crank with a modal rod, with little fill)
+    /// skip their updates.
     pub fn factorize(&mut self, pattern: &SparsePattern, values: &[f64]) -> std::result::Result<(), String> {
         let n = self.n;
         self.factorized = false;
         self.solves = 0;
         self.has_inverse = false;
-        self.lu.iter_mut().for_each(|x| *x = 0.0);
-        let mut scale = 0.0f64;
-        for c in 0..n {
-            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-                let v = values[k];
-                if !v.is_finite() {
-                    return Err(format!("non-finite matrix entry at position {k}"));
-                }
-                self.lu[pattern.row_idx[k] * n + c] = v;
-                scale = scale.max(v.abs());
-            }
-        }
+        self.rows.clear();
+        self.rows.extend(0..n);
+        self.positions.clear();
+        self.positions.extend(0..n);
+        let scale = largest_magnitude(values)
+            .ok_or_else(|| format!("non-finite matrix entry at position {}", non_finite(values)))?;
         let tiny = 1e-300f64.max(1e-15 * scale);
-        for k in 0..n {
-            // Pivot: the largest entry of column k at or below the diagonal.
-            let (mut p, mut best) = (k, self.lu[k * n + k].abs());
-            for i in k + 1..n {
-                let v = self.lu[i * n + k].abs();
-                if v > best {
-                    (p, best) = (i, v);
+        for j in 0..n {
+            let (done, rest) = self.columns.split_at_mut(j * n);
+            let x = &mut rest[..n];
+            x.iter_mut().for_each(|v| *v = 0.0);
+            for k in pattern.col_ptr[j]..pattern.col_ptr[j + 1] {
+                x[self.positions[pattern.row_idx[k]]] = values[k];
+            }
+            for (k, l) in done.chunks_exact(n).enumerate() {
+                let u = x[k];
+                if u != 0.0 {
+                    for (xi, li) in x[k + 1..].iter_mut().zip(&l[k + 1..]) {
+                        *xi -= u * li;
+                    }
+                }
+            }
+            // Pivot: the largest entry at or below the diagonal.
+            let (mut p, mut best) = (j, x[j].abs());
+            for (i, v) in x.iter().enumerate().skip(j + 1) {
+                if v.abs() > best {
+                    (p, best) = (i, v.abs());
                 }
             }
             if !(best > tiny) {
-                return Err(format!("the matrix is singular (no pivot in column {k})"));
+                return Err(format!("the matrix is singular (no pivot in column {j})"));
             }
-            self.pivots[k] = p;
-            if p != k {
-                for j in 0..n {
-                    self.lu.swap(k * n + j, p * n + j);
+            self.pivots[j] = p;
+            if p != j {
+                x.swap(j, p);
+                for l in done.chunks_exact_mut(n) {
+                    l.swap(j, p);
                 }
+                self.rows.swap(j, p);
+                self.positions[self.rows[j]] = j;
+                self.positions[self.rows[p]] = p;
             }
-            let pivot = self.lu[k * n + k];
-            let (upper, lower) = self.lu.split_at_mut((k + 1) * n);
-            let row_k = &upper[k * n + k + 1..(k + 1) * n];
-            // Multibody Newton matrices are sparse (a quarter of the entries of the slider-crank
-            // with a modal rod, little fill): with a sparse pivot row, only its nonzero columns
-            // are updated.
-            let nonzero = &mut self.nonzero;
-            nonzero.clear();
-            nonzero.extend(row_k.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(j, _)| j));
-            let sparse = 2 * nonzero.len() < row_k.len();
-            for row in lower.chunks_exact_mut(n) {
-                if row[k] == 0.0 {
-                    continue;
-                }
-                let l = row[k] / pivot;
-                row[k] = l;
-                let rest = &mut row[k + 1..];
-                if sparse {
-                    for &j in nonzero.iter() {
-                        rest[j] -= l * row_k[j];
-                    }
-                } else {
-                    for (a, b) in rest.iter_mut().zip(row_k) {
-                        *a -= l * b;
-                    }
-                }
-            }
+            let inverse_pivot = 1.0 / x[j];
+            x[j + 1..].iter_mut().for_each(|v| *v *= inverse_pivot);
         }
-        for (j, column) in self.columns.chunks_exact_mut(n).enumerate() {
-            for (c, row) in column.iter_mut().zip(self.lu.chunks_exact(n)) {
-                *c = row[j];
-            }
+        for (k, column) in self.columns.chunks_exact(n).enumerate() {
+            let below = &column[k + 1..];
+            self.lower[k] = match below.iter().position(|v| *v != 0.0) {
+                Some(first) => {
+                    (k + 1 + first, k + 2 + below.iter().rposition(|v| *v != 0.0).unwrap_or(first))
+                }
+                None => (k + 1, k + 1),
+            };
+            self.upper[k] = column[..k].iter().position(|v| *v != 0.0).unwrap_or(k);
         }
         self.factorized = true;
         Ok(())
@@ -163,21 +166,21 @@ impl DenseLu {
         for k in 0..n {
             rhs.swap(k, self.pivots[k]);
         }
-        for k in 0..n {
+        for (k, column) in self.columns.chunks_exact(n).enumerate() {
             let xk = rhs[k];
+            let (start, end) = self.lower[k];
             if xk != 0.0 {
-                let column = &self.columns[k * n + k + 1..(k + 1) * n];
-                for (x, l) in rhs[k + 1..n].iter_mut().zip(column) {
+                for (x, l) in rhs[start..end].iter_mut().zip(&column[start..end]) {
                     *x -= l * xk;
                 }
             }
         }
-        for k in (0..n).rev() {
-            let column = &self.columns[k * n..k * n + k + 1];
+        for (k, column) in self.columns.chunks_exact(n).enumerate().rev() {
             let xk = rhs[k] / column[k];
             rhs[k] = xk;
+            let start = self.upper[k];
             if xk != 0.0 {
-                for (x, u) in rhs[..k].iter_mut().zip(&column[..k]) {
+                for (x, u) in rhs[start..k].iter_mut().zip(&column[start..k]) {
                     *x -= u * xk;
                 }
             }
@@ -198,6 +201,33 @@ impl DenseLu {
         }
         self.has_inverse = true;
     }
+}
+
+/// The largest |v| of finite `values`, or None if one is not finite. In four lanes without
+/// NaN handling (v * 0 is NaN exactly for a non-finite v): a sequential f64::max is a chain
+/// of dependent, NaN-aware maxima, a fifth of a factorization of the slider-crank's matrix.
+fn largest_magnitude(values: &[f64]) -> Option<f64> {
+    let (mut largest, mut probe) = ([0.0f64; 4], [0.0f64; 4]);
+    let chunks = values.chunks_exact(4);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for i in 0..4 {
+            let a = chunk[i].abs();
+            largest[i] = if a > largest[i] { a } else { largest[i] };
+            probe[i] += chunk[i] * 0.0;
+        }
+    }
+    for &v in rest {
+        largest[0] = if v.abs() > largest[0] { v.abs() } else { largest[0] };
+        probe[0] += v * 0.0;
+    }
+    let finite = probe.iter().sum::<f64>() == 0.0;
+    finite.then(|| largest.iter().fold(0.0f64, |m, &v| if v > m { v } else { m }))
+}
+
+/// Position of the first non-finite value.
+fn non_finite(values: &[f64]) -> usize {
+    values.iter().position(|v| !v.is_finite()).unwrap_or(0)
 }
 
 #[cfg(test)]
@@ -301,5 +331,16 @@ mod tests {
         // A singular matrix is reported, not solved.
         let zeros = vec![0.0; p.nnz()];
         assert!(dense.factorize(&p, &zeros).is_err());
+        // A non-finite entry is reported with its position, wherever it is (in the four lanes
+        // of the scan for the largest entry, or in their remainder).
+        for position in [0, 5, values.len() - 1] {
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut broken = values.clone();
+                broken[position] = bad;
+                let message = dense.factorize(&p, &broken).unwrap_err();
+                assert!(message.contains(&format!("position {position}")), "{message}");
+            }
+        }
+        assert_eq!(largest_magnitude(&[1.0, -7.5, 2.0, 0.0, 3.0, -8.0]), Some(8.0));
     }
 }
