@@ -176,13 +176,13 @@ impl Output {
             let kin = &ws.markers[s.marker.0];
             match s.quantity {
                 SensorQuantity::Position => self.sensors.extend_from_slice(&kin.position.0),
-                SensorQuantity::Velocity => self.sensors.extend_from_slice(&kin.velocity.0),
+                SensorQuantity::Velocity => self.sensors.extend_from_slice(&kin.velocity().0),
                 SensorQuantity::Orientation => {
                     for row in kin.rotation.0 {
                         self.sensors.extend_from_slice(&row);
                     }
                 }
-                SensorQuantity::AngularVelocity => self.sensors.extend_from_slice(&kin.angular_velocity.0),
+                SensorQuantity::AngularVelocity => self.sensors.extend_from_slice(&kin.angular_velocity().0),
                 SensorQuantity::Acceleration | SensorQuantity::AngularAcceleration => {
                     let (acc, ang) = marker_accelerations(body, m, q, qd, qdd);
                     let v = if s.quantity == SensorQuantity::Acceleration { acc } else { ang };

@@ -57,18 +57,17 @@ pub struct Marker {
     pub axis_jacobians: [bool; 3],
 }
 
-/// Position, orientation, velocities and Jacobians of a marker at the current state.
-/// Filled by [`marker_kinematics`]; Jacobians have one column per local coordinate.
+/// Position, orientation and Jacobians of a marker at the current state, and the velocities
+/// of its local coordinates. Filled by [`marker_kinematics`]; Jacobians have one column per
+/// local coordinate. The marker's velocities are formed on demand ([`Self::velocity`],
+/// [`Self::angular_velocity`]): the assemblies of the Newton iterations need them only for
+/// velocity-dependent force elements.
 #[derive(Clone, Debug, Default)]
 pub struct MarkerKinematics {
     /// Global position r (m).
     pub position: Vec3,
     /// Global orientation (columns: marker axes in the global frame).
     pub rotation: Mat3,
-    /// Global velocity of the marker origin (m/s).
-    pub velocity: Vec3,
-    /// Global angular velocity (rad/s).
-    pub angular_velocity: Vec3,
     /// dr/dq (3 x n).
     pub jac_position: Jacobian3,
     /// d(axis k)/dq (3 x n each).
@@ -95,6 +94,16 @@ impl MarkerKinematics {
             body_velocity: vec![0.0; n],
             ..Default::default()
         }
+    }
+
+    /// Global velocity of the marker origin (m/s).
+    pub fn velocity(&self) -> Vec3 {
+        self.jac_position.times(&self.body_velocity)
+    }
+
+    /// Global angular velocity (rad/s).
+    pub fn angular_velocity(&self) -> Vec3 {
+        self.jac_angular.times(&self.body_velocity)
     }
 
     /// Global axis k (column k of the rotation).
@@ -147,16 +156,12 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
             out.rotation = marker.rotation;
             out.local_position = marker.position;
             out.local_axes = marker.rotation;
-            out.velocity = Vec3::ZERO;
-            out.angular_velocity = Vec3::ZERO;
         }
         BodyKind::PointMass { .. } => {
             out.position = Vec3::from_slice(&q[o..]) + marker.position;
             out.rotation = marker.rotation;
             out.local_position = marker.position;
             out.local_axes = marker.rotation;
-            out.velocity = Vec3::from_slice(&qd[o..]);
-            out.angular_velocity = Vec3::ZERO;
             out.jac_position.fill_zero();
             for k in 0..3 {
                 out.jac_position.set(k, k, 1.0);
@@ -204,8 +209,6 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                     }
                 }
             }
-            out.velocity = out.jac_position.times(&out.body_velocity);
-            out.angular_velocity = out.jac_angular.times(&out.body_velocity);
         }
     }
 }
@@ -450,8 +453,8 @@ mod tests {
             ((kp.position - km.position) * (1.0 / (2.0 * dt)), (kp.rotation - km.rotation).scale(0.5 / dt))
         };
         let (fd, _) = vel(&q, &qd);
-        assert!((fd - kin.velocity).norm() < 1e-8);
-        assert!((kin.jac_position.times(&local(&marker, &qd)) - kin.velocity).norm() < 1e-12);
+        assert!((fd - kin.velocity()).norm() < 1e-8);
+        assert!((kin.jac_position.times(&local(&marker, &qd)) - kin.velocity()).norm() < 1e-12);
         let mut q0 = q.clone();
         q0[7..].iter_mut().for_each(|x| *x = 0.0);
         let mut qd0 = qd.clone();
@@ -462,6 +465,6 @@ mod tests {
         let (_, rdot) = vel(&q0, &qd0);
         let wt = rdot.mul_mat(&k0.rotation.transpose());
         let w = Vec3([wt.0[2][1], wt.0[0][2], wt.0[1][0]]);
-        assert!((w - k0.angular_velocity).norm() < 1e-7, "{w:?} vs {:?}", k0.angular_velocity);
+        assert!((w - k0.angular_velocity()).norm() < 1e-7, "{w:?} vs {:?}", k0.angular_velocity());
     }
 }

@@ -31,7 +31,7 @@ pub fn evaluate(
     // Local velocities: relative velocity of the two points projected on the line.
     let d = pair.offset();
     let unit = d * (1.0 / length);
-    let length_rate = unit.dot(&(pair.kin_j.velocity - pair.kin_i.velocity));
+    let length_rate = unit.dot(&(pair.kin_j.velocity() - pair.kin_i.velocity()));
     let tension = k * (length - l0) + c * length_rate + f0;
     for a in 0..n {
         local.generalized[a] = -tension * grad[a];

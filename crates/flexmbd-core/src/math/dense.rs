@@ -93,6 +93,12 @@ impl DenseMatrix {
         }
     }
 
+    /// Entry `col` of `self^T w` (w: rows).
+    #[inline]
+    pub fn column_dot(&self, col: usize, w: &[f64]) -> f64 {
+        w.iter().enumerate().map(|(i, wi)| self.data[i * self.cols + col] * wi).sum()
+    }
+
     /// Quadratic form `x^T self x`.
     pub fn quadratic_form(&self, x: &[f64]) -> f64 {
         let mut s = 0.0;

@@ -246,12 +246,11 @@ pub fn assemble(
                 &mut local.hessian,
             );
         }
-        for e in 0..ne {
-            ws.residual[nq + joint.row + e] = local.values[e];
-            let lambda = s.lambda[joint.row + e];
-            for (a, &d) in joint.dofs.iter().enumerate() {
-                ws.residual[d] += local.jacobian.data[e * nd + a] * lambda;
-            }
+        ws.residual[nq + joint.row..nq + joint.row + ne].copy_from_slice(&local.values[..ne]);
+        // C_q^T lambda, summed over the equations before it is added to each coordinate.
+        let lambdas = &s.lambda[joint.row..joint.row + ne];
+        for (a, &d) in joint.dofs.iter().enumerate() {
+            ws.residual[d] += local.jacobian.column_dot(a, lambdas);
         }
         if matrix.is_some() {
             let entries = &model.layout.joints[j];
@@ -260,7 +259,9 @@ pub fn assemble(
                 ws.values[entries.jacobian_transpose[k]] += v;
             }
             if c.position != 0.0 {
-                for (k, &v) in local.hessian.data.iter().enumerate() {
+                // Rows and columns of translations, and the blocks between the two markers'
+                // rotations, are often structurally zero: they are not added.
+                for (k, &v) in local.hessian.data.iter().enumerate().filter(|(_, v)| **v != 0.0) {
                     ws.values[entries.hessian[k]] += c.scale * c.position * v;
                 }
             }
