@@ -95,10 +95,17 @@ def test_torque_spins_up_a_free_body():
     system = fm.System()
     body = system.add_rigid_body(1.0, (0.5, 0.4, j))
     system.add_torque(system.add_marker(body), (0.0, 0.0, tau))
+    # Sensors on a marker of their own (its Jacobians are set up for the sensors alone).
+    off_center = system.add_marker(body, position=(0.2, 0.0, 0.0))
+    spin = system.add_sensor(off_center, "angular_velocity")
+    speed = system.add_sensor(off_center, "velocity")
     result = fm.simulate(system, 1.0, 1e-3, output_interval=0.1)
+    omega = tau / j * result.time
+    np.testing.assert_allclose(result.angular_velocity(body)[:, 2], omega, rtol=1e-5)
     np.testing.assert_allclose(
-        result.angular_velocity(body)[:, 2], tau / j * result.time, rtol=1e-5
+        result.sensor(spin), np.outer(omega, (0, 0, 1)), rtol=1e-5, atol=1e-12
     )
+    np.testing.assert_allclose(np.linalg.norm(result.sensor(speed), axis=1), 0.2 * omega, rtol=1e-5)
 
 
 def test_callback_force_acts_on_the_listed_coordinates():

@@ -55,6 +55,9 @@ pub struct Marker {
     /// Per axis: whether some joint or force differentiates it (else its Jacobian is not
     /// computed).
     pub axis_jacobians: [bool; 3],
+    /// Whether a torque or an angular-velocity sensor needs the angular-velocity Jacobian
+    /// (else it is not computed, and [`MarkerKinematics::angular_velocity`] is not asked for).
+    pub angular_jacobian: bool,
 }
 
 /// Position, orientation and Jacobians of a marker at the current state, and the velocities
@@ -101,7 +104,7 @@ impl MarkerKinematics {
         self.jac_position.times(&self.body_velocity)
     }
 
-    /// Global angular velocity (rad/s).
+    /// Global angular velocity (rad/s); only for markers with `angular_jacobian`.
     pub fn angular_velocity(&self) -> Vec3 {
         self.jac_angular.times(&self.body_velocity)
     }
@@ -184,7 +187,9 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                 }
                 for j in 0..4 {
                     out.jac_position.set(i, 3 + j, jr[i][j]);
-                    out.jac_angular.set(i, 3 + j, 2.0 * g[i][j]);
+                    if marker.angular_jacobian {
+                        out.jac_angular.set(i, 3 + j, 2.0 * g[i][j]);
+                    }
                 }
             }
             for k in 0..3 {
@@ -201,7 +206,9 @@ pub fn marker_kinematics(body: &Body, marker: &Marker, q: &[f64], qd: &[f64], ou
                 // dr/dq_l = A S_u; w = ... + A S_t q_l_dot; d(axis k)/dq_l = A (S_t e_j x c_k)
                 // = A (-c_k~) S_t, exact also off |p| = 1 (where A(p) is a scaled rotation).
                 set_product(&a, &e.translation, &mut out.jac_position, 7);
-                set_product(&a, &e.rotation, &mut out.jac_angular, 7);
+                if marker.angular_jacobian {
+                    set_product(&a, &e.rotation, &mut out.jac_angular, 7);
+                }
                 for k in 0..3 {
                     if marker.axis_jacobians[k] {
                         let b = a.mul_mat(&marker.rotation.column(k).skew()).scale(-1.0);
@@ -385,6 +392,7 @@ mod tests {
             elastic: Some(MarkerElastic { indices: vec![3, 1], translation, rotation }),
             dofs: vec![0, 1, 2, 3, 4, 5, 6, 10, 8],
             axis_jacobians: [true; 3],
+            angular_jacobian: true,
         };
         let (q, qd, _) = random_state(n, 5);
         (body, marker, q, qd)

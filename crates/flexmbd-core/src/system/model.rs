@@ -18,7 +18,7 @@ use crate::joint::Joint;
 use crate::math::Vec3;
 use crate::solver::sparse::{PatternBuilder, SparsePattern};
 use crate::system::builder::SystemBuilder;
-use crate::system::sensor::Sensor;
+use crate::system::sensor::{Sensor, SensorQuantity};
 
 /// The normalization constraint p.p - 1 = 0 of one rigid body.
 #[derive(Clone, Debug)]
@@ -236,6 +236,7 @@ impl SystemBuilder {
                     elastic: m.elastic.clone(),
                     dofs,
                     axis_jacobians: [false; 3],
+                    angular_jacobian: false,
                 }
             })
             .collect();
@@ -267,6 +268,16 @@ impl SystemBuilder {
                     markers[m.0].axis_jacobians = [true; 3];
                 }
             }
+            if let ForceKind::Torque { .. } = def.kind {
+                for m in def.kind.markers() {
+                    markers[m.0].angular_jacobian = true;
+                }
+            }
+        }
+        // The angular-velocity Jacobian where a torque is applied or an angular velocity is
+        // observed.
+        for s in self.sensors.iter().filter(|s| s.quantity == SensorQuantity::AngularVelocity) {
+            markers[s.marker.0].angular_jacobian = true;
         }
 
         // Constraint rows: normalizations, then joints.
