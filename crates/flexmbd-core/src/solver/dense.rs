@@ -49,9 +49,10 @@ pub struct DenseLu {
     columns: Vec<f64>,
     /// Row swapped with row k at step k.
     pivots: Vec<usize>,
-    /// Per column k, the rows of its nonzero entries: of L within k + 1..n (`lower`) and of U
-    /// within 0..k (`upper`), as ranges (the substitutions skip the zeros outside: a quarter
-    /// of the work of U for the slider-crank's matrix).
+    /// Per column k, the span of rows of its structurally nonzero entries: of L within
+    /// k + 1..n (`lower`) and of U within 0..k (`upper`, from its start to k); the
+    /// substitutions skip the zeros outside (a quarter of the work of U for the
+    /// slider-crank's matrix).
     lower: Vec<(usize, usize)>,
     upper: Vec<usize>,
     /// The nonzero structure of the last factorization with pivot search, kept to refactorize
@@ -65,7 +66,8 @@ pub struct DenseLu {
     factorized: bool,
     /// Solves made with the current factorization.
     solves: usize,
-    /// The inverse, row-major (formed at the second solve of a factorization).
+    /// The inverse, row-major (formed at the `INVERSE_AFTER_SOLVES`-th solve of a
+    /// factorization).
     inverse: Vec<f64>,
     has_inverse: bool,
     /// Scratch vector (n).
