@@ -236,9 +236,9 @@ pub fn assemble(
             let row = &mut local.jacobian.data[e * nd..(e + 1) * nd];
             equation_gradient(eq, &pair, &driver, 1.0, row, None);
         }
+        let lambdas = &s.lambda[joint.row..joint.row + ne];
         if matrix.is_some() && c.position != 0.0 {
             local.hessian.fill_zero();
-            let lambdas = &s.lambda[joint.row..joint.row + joint.equations.len()];
             equations_hessian(
                 joint.equations.iter().zip(lambdas.iter().copied()),
                 &pair,
@@ -248,7 +248,6 @@ pub fn assemble(
         }
         ws.residual[nq + joint.row..nq + joint.row + ne].copy_from_slice(&local.values[..ne]);
         // C_q^T lambda, summed over the equations before it is added to each coordinate.
-        let lambdas = &s.lambda[joint.row..joint.row + ne];
         for (a, &d) in joint.dofs.iter().enumerate() {
             ws.residual[d] += local.jacobian.column_dot(a, lambdas);
         }
