@@ -359,7 +359,10 @@ def test_single_precision_solves_reach_double_precision_residuals(bar):
     k = nodal.stiffness[free][:, free]
     inverse = md.Inverse(k, single=True, dofs=free, nodes=bar.nodes)
     exact = md.Inverse(k, dofs=free, nodes=bar.nodes)
-    assert 2 * inverse.factor_bytes == exact.factor_bytes
+    # Four bytes per entry of the supernodal factor (the double-precision factor of this small
+    # bar is the envelope form, smaller than a supernodal one, see `fem/envelope.rs`).
+    assert inverse.factor_bytes == 4 * inverse.factor.factor_nnz
+    assert exact.factor_bytes == 8 * exact.factor.factor_nnz
     b = np.random.default_rng(2).normal(size=(len(free), 3))
     x = inverse.solve(b)
     assert np.linalg.norm(k @ x - b, axis=0).max() < 1e-10 * np.linalg.norm(b, axis=0).min()

@@ -6,6 +6,7 @@
 pub mod assembly;
 pub mod beam;
 pub mod element;
+pub mod envelope;
 pub mod factor;
 pub mod material;
 pub mod quadrature;
