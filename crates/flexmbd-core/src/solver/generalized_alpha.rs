@@ -209,17 +209,28 @@ fn increment_norm(
     check_multipliers: bool,
 ) -> (f64, usize) {
     let a_scale = state.accelerations.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-    let f_scale = force.iter().fold(1.0f64, |m, x| m.max(x.abs()));
     let acceleration_weight = tol * a_scale / coef.mass;
+    // The largest ratio |dq| / w, dividing only where it may grow (a product compares).
     let mut worst = (0, 0.0f64);
     for (k, (dq, q)) in increment.iter().zip(&state.coordinates).enumerate() {
-        let v = dq.abs() / (acceleration_weight + 1e-14 * q.abs().max(1.0));
-        if v > worst.1 {
-            worst = (k, v);
+        let w = acceleration_weight + 1e-14 * q.abs().max(1.0);
+        if dq.abs() > worst.1 * w {
+            let v = dq.abs() / w;
+            if v > worst.1 {
+                worst = (k, v);
+            }
         }
     }
-    for (k, df) in force_increment.iter().enumerate().filter(|_| check_multipliers) {
-        let v = df.abs() / (tol * f_scale);
+    if check_multipliers {
+        let f_scale = force.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let (k, df) = force_increment.iter().enumerate().fold((0, 0.0f64), |m, (k, df)| {
+            if df.abs() > m.1 {
+                (k, df.abs())
+            } else {
+                m
+            }
+        });
+        let v = df / (tol * f_scale);
         if v > worst.1 {
             worst = (k, v);
         }
@@ -377,10 +388,15 @@ fn iterate(
         // stall at a round-off level amplified by its condition: once the relative position
         // increment is below 1e-10 and no longer decreases, with a current matrix, the
         // iteration has converged as far as it can.
-        let position_increment = ws.solution[..nq]
-            .iter()
-            .zip(&next.coordinates)
-            .fold(0.0f64, |m, (dq, q)| m.max(dq.abs() / q.abs().max(1.0)));
+        let position_increment =
+            ws.solution[..nq].iter().zip(&next.coordinates).fold(0.0f64, |m, (dq, q)| {
+                let d = q.abs().max(1.0);
+                if dq.abs() > m * d {
+                    m.max(dq.abs() / d)
+                } else {
+                    m
+                }
+            });
         let at_roundoff = position_increment <= 1e-10;
         let stalled_at_roundoff = need_matrix && iteration >= 1 && rate >= 0.5 && at_roundoff;
         if norm <= 1.0 || estimated_error_small || stalled_at_roundoff {
