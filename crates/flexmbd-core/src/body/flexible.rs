@@ -265,16 +265,23 @@ impl ScalarMass {
                 gathered[(c / 3) * 9 + 3 * v + c % 3] = x;
             }
         }
-        out.iter_mut().for_each(|x| *x = 0.0);
+        if W < 9 {
+            out.iter_mut().for_each(|x| *x = 0.0);
+        }
+        // M_s is symmetric (a mass matrix; `check_scalar_mass` compares these products with
+        // the I_kl): node i's row of the product is gathered from column i, summed in
+        // registers and stored once, instead of scattered entry by entry.
         let m = &self.matrix;
-        for col in 0..m.ncols {
-            let source: [f64; W] = gathered[9 * col..9 * col + W].try_into().expect("W entries");
+        for (col, node_out) in out.chunks_exact_mut(9).enumerate().take(m.ncols) {
+            let mut sum = [0.0f64; W];
             for e in m.col_ptr[col]..m.col_ptr[col + 1] {
                 let (row, value) = (m.row_idx[e], m.values[e]);
-                for (o, x) in out[9 * row..9 * row + W].iter_mut().zip(&source) {
-                    *o += value * x;
+                let source = &gathered[9 * row..9 * row + W];
+                for (s, x) in sum.iter_mut().zip(source) {
+                    *s += value * x;
                 }
             }
+            node_out[..W].copy_from_slice(&sum);
         }
     }
 }
