@@ -321,11 +321,12 @@ fn iterate(
             cache.age = 0;
             report.factorizations += 1;
         }
-        for k in 0..nq {
-            ws.solution[k] = -s * ws.residual[k];
+        let (coordinate_rows, constraint_rows) = ws.residual[..nq + nc].split_at(nq);
+        for (x, r) in ws.solution[..nq].iter_mut().zip(coordinate_rows) {
+            *x = -s * r;
         }
-        for k in 0..nc {
-            ws.solution[nq + k] = -ws.residual[nq + k];
+        for (x, r) in ws.solution[nq..nq + nc].iter_mut().zip(constraint_rows) {
+            *x = -r;
         }
         if let Err(detail) = solve(model, ws, kind, s) {
             cache.step_size = None;
@@ -350,11 +351,11 @@ fn iterate(
             );
             force_increment[..nq].iter_mut().for_each(|x| *x /= s);
         }
-        for k in 0..nq {
-            let dq = ws.solution[k];
-            next.coordinates[k] += dq;
-            next.velocities[k] += coef.velocity * dq;
-            next.accelerations[k] += coef.mass * dq;
+        let updated = next.coordinates.iter_mut().zip(&mut next.velocities).zip(&mut next.accelerations);
+        for (((q, v), a), &dq) in updated.zip(&ws.solution[..nq]) {
+            *q += dq;
+            *v += coef.velocity * dq;
+            *a += coef.mass * dq;
         }
         for k in 0..nc {
             next.multipliers[k] += ws.solution[nq + k] / s;
