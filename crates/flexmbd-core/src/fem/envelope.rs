@@ -6,10 +6,10 @@
 //! Both triangular solves then run over contiguous rows (a dot product per row forward, an
 //! update of a contiguous span per row backward), without the index lists and the per-block
 //! dispatch of a supernodal solve. For the matrices of small meshes (a thousand unknowns) the
-//! envelope of the reverse Cuthill-McKee order is about the size of the fill of a nested
-//! dissection, and the solve is several times faster; for large meshes the envelope grows
-//! much faster than the fill, and [`super::factor::SymmetricFactor`] keeps its supernodal
-//! factor (see `ENVELOPE_LIMIT` there).
+//! envelope of the reverse Cuthill-McKee order holds fewer entries than the supernodal factor
+//! of a nested dissection, and the solve is up to three times faster (`benchmarks/README.md`);
+//! for large meshes the envelope grows much faster than the fill, and
+//! [`super::factor::SymmetricFactor`] keeps its supernodal factor (see `ENVELOPE_LIMIT` there).
 
 /// Reverse Cuthill-McKee ordering (position -> unknown) of the graph of a symmetric matrix
 /// given by its lower triangle in CSC form (`ptr`, `idx`; diagonal entries may be present).
@@ -192,7 +192,7 @@ pub struct EnvelopeCholesky {
     inverse_diagonal: Vec<f64>,
 }
 
-/// A pivot that is not positive: (position in the order, unknown, pivot value).
+/// A pivot that is not positive: the matrix is not positive definite.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NotPositive {
     /// The unknown whose pivot failed.
