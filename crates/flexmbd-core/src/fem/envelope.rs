@@ -119,6 +119,15 @@ pub fn reverse_cuthill_mckee(n: usize, ptr: &[usize], idx: &[usize]) -> Vec<usiz
     order
 }
 
+/// The inverse of a permutation (unknown -> position for an order position -> unknown).
+fn inverse(order: &[usize]) -> Vec<usize> {
+    let mut position = vec![0usize; order.len()];
+    for (p, &u) in order.iter().enumerate() {
+        position[u] = p;
+    }
+    position
+}
+
 /// Multiply-add: fused (one rounding) in the kernels compiled for FMA, else a product and a
 /// sum (`f64::mul_add` without the instruction would be a library call).
 #[inline(always)]
@@ -202,18 +211,10 @@ pub struct NotPositive {
 }
 
 impl EnvelopeCholesky {
-    /// Number of entries the envelope of `order` stores for the lower triangle (`ptr`, `idx`,
-    /// CSC, diagonal included or not).
-    pub fn envelope_len(n: usize, ptr: &[usize], idx: &[usize], order: &[usize]) -> usize {
-        Self::first_columns(n, ptr, idx, order).1.iter().enumerate().map(|(i, &f)| i + 1 - f).sum()
-    }
-
-    /// (inverse permutation, first column of each permuted row).
-    fn first_columns(n: usize, ptr: &[usize], idx: &[usize], order: &[usize]) -> (Vec<usize>, Vec<usize>) {
-        let mut position = vec![0usize; n];
-        for (p, &u) in order.iter().enumerate() {
-            position[u] = p;
-        }
+    /// First column of each row of the envelope of the lower triangle (`ptr`, `idx`, CSC) in
+    /// `order`.
+    fn first_columns(n: usize, ptr: &[usize], idx: &[usize], order: &[usize]) -> Vec<usize> {
+        let position = inverse(order);
         let mut first: Vec<usize> = (0..n).collect();
         for c in 0..n {
             for &r in &idx[ptr[c]..ptr[c + 1]] {
@@ -222,20 +223,20 @@ impl EnvelopeCholesky {
                 first[row] = first[row].min(col);
             }
         }
-        (position, first)
+        first
     }
 
-    /// The structure of the envelope of the lower triangle (`ptr`, `idx`) in `order`
-    /// (position -> unknown, a permutation); the values are set by [`Self::factorize`].
+    /// The structure of the envelope of the lower triangle (`ptr`, `idx`, CSC, diagonal
+    /// included or not) in `order` (position -> unknown, a permutation). Its values are
+    /// allocated and set by [`Self::factorize`], so that [`Self::len`] can be checked first.
     pub fn new(n: usize, ptr: &[usize], idx: &[usize], order: Vec<usize>) -> Self {
-        let (_, first) = Self::first_columns(n, ptr, idx, &order);
+        let first = Self::first_columns(n, ptr, idx, &order);
         let mut start = Vec::with_capacity(n + 1);
         start.push(0);
         for i in 0..n {
             start.push(start[i] + i + 1 - first[i]);
         }
-        let len = start[n];
-        EnvelopeCholesky { n, order, first, start, values: vec![0.0; len], inverse_diagonal: vec![0.0; n] }
+        EnvelopeCholesky { n, order, first, start, values: Vec::new(), inverse_diagonal: vec![0.0; n] }
     }
 
     /// Order of the matrix.
@@ -243,14 +244,14 @@ impl EnvelopeCholesky {
         self.n
     }
 
-    /// Stored entries of L.
+    /// Entries of L in the envelope.
     pub fn len(&self) -> usize {
-        self.values.len()
+        self.start[self.n]
     }
 
     /// True for the empty matrix.
     pub fn is_empty(&self) -> bool {
-        self.values.is_empty()
+        self.len() == 0
     }
 
     /// Factorizes the matrix whose lower triangle (`ptr`, `idx`, `values`, CSC, the pattern
@@ -268,11 +269,9 @@ impl EnvelopeCholesky {
     /// The matrix entries into the envelope (permuted, lower triangle).
     fn load(&mut self, ptr: &[usize], idx: &[usize], values: &[f64]) {
         let n = self.n;
-        let mut position = vec![0usize; n];
-        for (p, &u) in self.order.iter().enumerate() {
-            position[u] = p;
-        }
-        self.values.iter_mut().for_each(|v| *v = 0.0);
+        let position = inverse(&self.order);
+        self.values.clear();
+        self.values.resize(self.len(), 0.0);
         for c in 0..n {
             for k in ptr[c]..ptr[c + 1] {
                 let (pr, pc) = (position[idx[k]], position[c]);
@@ -530,7 +529,7 @@ mod tests {
         // m again (its envelope at most m+1 entries per row), and is a permutation.
         let m = 12;
         let (n, ptr, idx, _) = grid(m, 0.0, true);
-        let shuffled = EnvelopeCholesky::envelope_len(n, &ptr, &idx, &(0..n).collect::<Vec<_>>());
+        let shuffled = EnvelopeCholesky::new(n, &ptr, &idx, (0..n).collect()).len();
         let order = reverse_cuthill_mckee(n, &ptr, &idx);
         let mut seen = vec![false; n];
         for &u in &order {
@@ -538,7 +537,7 @@ mod tests {
             seen[u] = true;
         }
         assert_eq!(order.len(), n);
-        let rcm = EnvelopeCholesky::envelope_len(n, &ptr, &idx, &order);
+        let rcm = EnvelopeCholesky::new(n, &ptr, &idx, order.clone()).len();
         assert!(rcm <= n * (m + 1), "RCM envelope {rcm}");
         assert!(shuffled > 4 * rcm, "shuffled envelope {shuffled} against {rcm}");
     }

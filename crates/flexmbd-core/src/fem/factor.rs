@@ -223,9 +223,10 @@ impl SymmetricFactor {
         let envelope = match (kind, ordering) {
             (FactorKind::Cholesky, Ordering::Amd | Ordering::NestedDissection { .. }) if n > 0 => {
                 let order = reverse_cuthill_mckee(n, &lower_ptr, &lower_idx);
-                let len = EnvelopeCholesky::envelope_len(n, &lower_ptr, &lower_idx, &order);
+                let envelope = EnvelopeCholesky::new(n, &lower_ptr, &lower_idx, order);
+                let len = envelope.len();
                 (len <= ENVELOPE_LIMIT && len as f64 <= ENVELOPE_RATIO * symbolic.len_val() as f64)
-                    .then(|| EnvelopeCholesky::new(n, &lower_ptr, &lower_idx, order))
+                    .then_some(envelope)
             }
             _ => None,
         };
@@ -416,13 +417,7 @@ impl SymmetricFactor {
             for (i, (x, &v)) in rhs.iter_mut().zip(&single).enumerate() {
                 *x = f64::from(v) * self.scaling[i % n];
             }
-            if rhs.iter().any(|v| !v.is_finite()) {
-                return Err(FlexmbdError::NonFinite {
-                    item: "solution of a factorized system".to_string(),
-                    time: 0.0,
-                });
-            }
-            return Ok(());
+            return finite_solution(rhs);
         }
         let mut memory = self.solve_memory(k)?;
         self.solve_with_memory(rhs, &mut memory)
@@ -538,12 +533,7 @@ impl SymmetricFactor {
                 }
             }
         }
-        if out.iter().any(|v| !v.is_finite()) {
-            return Err(FlexmbdError::NonFinite {
-                item: "solution of a factorized system".to_string(),
-                time: 0.0,
-            });
-        }
+        finite_solution(&out)?;
         Ok(out)
     }
 
