@@ -210,17 +210,12 @@ fn increment_norm(
 ) -> (f64, usize) {
     let a_scale = state.accelerations.iter().fold(1.0f64, |m, x| m.max(x.abs()));
     let acceleration_weight = tol * a_scale / coef.mass;
-    // The largest ratio |dq| / w, dividing only where it may grow (a product compares).
-    let mut worst = (0, 0.0f64);
-    for (k, (dq, q)) in increment.iter().zip(&state.coordinates).enumerate() {
-        let w = acceleration_weight + 1e-14 * q.abs().max(1.0);
-        if dq.abs() > worst.1 * w {
-            let v = dq.abs() / w;
-            if v > worst.1 {
-                worst = (k, v);
-            }
-        }
-    }
+    let mut worst = largest_ratio(
+        increment
+            .iter()
+            .zip(&state.coordinates)
+            .map(|(dq, q)| (dq.abs(), acceleration_weight + 1e-14 * q.abs().max(1.0))),
+    );
     if check_multipliers {
         let f_scale = force.iter().fold(1.0f64, |m, x| m.max(x.abs()));
         let (k, df) = force_increment.iter().enumerate().fold((0, 0.0f64), |m, (k, df)| {
@@ -236,6 +231,21 @@ fn increment_norm(
         }
     }
     (worst.1, worst.0)
+}
+
+/// The largest ratio a_k / b_k (b_k > 0) and its index (the first, 0 and 0.0 when none is
+/// positive), dividing only where the ratio may grow: a product compares.
+fn largest_ratio(pairs: impl Iterator<Item = (f64, f64)>) -> (usize, f64) {
+    let mut worst = (0, 0.0f64);
+    for (k, (a, b)) in pairs.enumerate() {
+        if a > worst.1 * b {
+            let v = a / b;
+            if v > worst.1 {
+                worst = (k, v);
+            }
+        }
+    }
+    worst
 }
 
 /// Sets `next` to the predictor of a step of size h from `current`: q_dd(n+1) and
@@ -389,15 +399,9 @@ fn iterate(
         // stall at a round-off level amplified by its condition: once the relative position
         // increment is below 1e-10 and no longer decreases, with a current matrix, the
         // iteration has converged as far as it can.
-        let position_increment =
-            ws.solution[..nq].iter().zip(&next.coordinates).fold(0.0f64, |m, (dq, q)| {
-                let d = q.abs().max(1.0);
-                if dq.abs() > m * d {
-                    m.max(dq.abs() / d)
-                } else {
-                    m
-                }
-            });
+        let (_, position_increment) = largest_ratio(
+            ws.solution[..nq].iter().zip(&next.coordinates).map(|(dq, q)| (dq.abs(), q.abs().max(1.0))),
+        );
         let at_roundoff = position_increment <= 1e-10;
         let stalled_at_roundoff = need_matrix && iteration >= 1 && rate >= 0.5 && at_roundoff;
         if norm <= 1.0 || estimated_error_small || stalled_at_roundoff {
