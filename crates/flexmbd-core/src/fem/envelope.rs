@@ -226,11 +226,39 @@ impl EnvelopeCholesky {
         first
     }
 
+    /// Pads the rows so that the solves run over whole vectors of four entries: the rows of
+    /// each group i..i + GROUP (i a multiple of GROUP) start at one column m with i - m a
+    /// multiple of four (where the rows are long enough), as does each row after the last
+    /// whole group. The padded entries are zero in A and stay zero in L: a row of L is zero
+    /// before the first nonzero of the row of A (George and Liu, theorem 4.1.1).
+    fn align_groups(first: &mut [usize]) {
+        let aligned = |i: usize, f: usize| {
+            let span = (i - f).div_ceil(4) * 4;
+            if span <= i {
+                i - span
+            } else {
+                f
+            }
+        };
+        let n = first.len();
+        let whole = n - n % GROUP;
+        for group in first[..whole].chunks_exact_mut(GROUP).enumerate().map(|(g, rows)| (g * GROUP, rows)) {
+            let (i, rows) = group;
+            let m = aligned(i, *rows.iter().min().expect("a group has rows"));
+            rows.fill(m);
+        }
+        for (i, f) in first.iter_mut().enumerate().skip(whole) {
+            *f = aligned(i, *f);
+        }
+    }
+
     /// The structure of the envelope of the lower triangle (`ptr`, `idx`, CSC, diagonal
-    /// included or not) in `order` (position -> unknown, a permutation). Its values are
-    /// allocated and set by [`Self::factorize`], so that [`Self::len`] can be checked first.
+    /// included or not) in `order` (position -> unknown, a permutation), rows padded as
+    /// [`Self::align_groups`] says. Its values are allocated and set by [`Self::factorize`],
+    /// so that [`Self::len`] can be checked first.
     pub fn new(n: usize, ptr: &[usize], idx: &[usize], order: Vec<usize>) -> Self {
-        let first = Self::first_columns(n, ptr, idx, &order);
+        let mut first = Self::first_columns(n, ptr, idx, &order);
+        Self::align_groups(&mut first);
         let mut start = Vec::with_capacity(n + 1);
         start.push(0);
         for i in 0..n {
@@ -330,83 +358,57 @@ impl EnvelopeCholesky {
     }
 
     /// The two triangular solves over the rows: a dot product per row forward (L y = P b), an
-    /// update of the row's span backward (L^T z = y, by rows of L). Rows are taken in pairs:
-    /// over the columns both rows hold, one pass over y serves the two (half the loads of y
-    /// forward, half the loads and stores backward).
+    /// update of the row's span backward (L^T z = y, by rows of L). Rows are taken in groups
+    /// of GROUP that start at one column (`align_groups`): one pass over y serves the group
+    /// (a load of y per GROUP entries of L forward, and per GROUP entries a load and a store
+    /// backward), in whole vectors of four; the triangle of the group's own columns apart.
     #[inline(always)]
     fn solve_rows<const FMA: bool>(&self, x: &mut [f64], scratch: &mut [f64]) {
         let n = self.n;
+        let whole = n - n % GROUP;
         let y = &mut scratch[..n];
         for (yi, &u) in y.iter_mut().zip(&self.order) {
             *yi = x[u];
         }
         let row = |i: usize| &self.values[self.start[i]..self.start[i + 1]];
         let inv = &self.inverse_diagonal;
-        let mut i = 0;
-        while i + 1 < n {
-            // Rows i and i + 1 over columns [m, i) together; the heads before m apart.
-            let (fa, fb) = (self.first[i], self.first[i + 1]);
-            let (a, b) = (row(i), row(i + 1));
-            let m = fa.max(fb).min(i);
-            let (mut sa, mut sb) = dot2::<FMA>(&a[m - fa..i - fa], &b[m.max(fb) - fb..], &y[m..i]);
-            if fa < m {
-                sa += dot::<FMA>(&a[..m - fa], &y[fa..m]);
+        for i in (0..whole).step_by(GROUP) {
+            let m = self.first[i];
+            let rows: [&[f64]; GROUP] = std::array::from_fn(|r| row(i + r));
+            let sums = dot_rows::<FMA, GROUP>(rows, &y[m..i]);
+            for (r, (l, mut s)) in rows.iter().zip(sums).enumerate() {
+                for c in 0..r {
+                    s = mul_add::<FMA>(l[i + c - m], y[i + c], s);
+                }
+                y[i + r] = (y[i + r] - s) * inv[i + r];
             }
-            if fb < m {
-                sb += dot::<FMA>(&b[..m - fb], &y[fb..m]);
-            }
-            y[i] = (y[i] - sa) * inv[i];
-            if fb <= i {
-                sb = mul_add::<FMA>(b[i - fb], y[i], sb);
-            }
-            y[i + 1] = (y[i + 1] - sb) * inv[i + 1];
-            i += 2;
         }
-        if i < n {
+        for i in whole..n {
             let fi = self.first[i];
             let s = dot::<FMA>(&row(i)[..i - fi], &y[fi..i]);
             y[i] = (y[i] - s) * inv[i];
         }
-        let mut hi = n;
-        if n % 2 == 1 {
-            // The last row alone (the pairs below are (i, i + 1) from the start).
-            hi -= 1;
-            let fi = self.first[hi];
-            let xi = y[hi] * inv[hi];
-            y[hi] = xi;
-            for (yj, l) in y[fi..hi].iter_mut().zip(&row(hi)[..hi - fi]) {
+        for i in (whole..n).rev() {
+            let fi = self.first[i];
+            let xi = y[i] * inv[i];
+            y[i] = xi;
+            for (yj, l) in y[fi..i].iter_mut().zip(row(i)) {
                 *yj = mul_add::<FMA>(-xi, *l, *yj);
             }
         }
-        while hi >= 2 {
-            let (lo, up) = (hi - 2, hi - 1);
-            let (fl, fu) = (self.first[lo], self.first[up]);
-            let (a, b) = (row(lo), row(up));
-            let xu = y[up] * inv[up];
-            y[up] = xu;
-            if fu <= lo {
-                y[lo] = mul_add::<FMA>(-xu, b[lo - fu], y[lo]);
-            }
-            let xl = y[lo] * inv[lo];
-            y[lo] = xl;
-            // Columns [m, lo) of both rows, in the order of the single-row updates (row up
-            // first); the heads before m apart.
-            let m = fl.max(fu).min(lo);
-            let (ya, yb) = y.split_at_mut(m);
-            for ((yj, lu), ll) in yb[..lo - m].iter_mut().zip(&b[m.max(fu) - fu..]).zip(&a[m - fl..lo - fl]) {
-                *yj = mul_add::<FMA>(-xl, *ll, mul_add::<FMA>(-xu, *lu, *yj));
-            }
-            if fu < m {
-                for (yj, l) in ya[fu..].iter_mut().zip(&b[..m - fu]) {
-                    *yj = mul_add::<FMA>(-xu, *l, *yj);
+        for i in (0..whole).step_by(GROUP).rev() {
+            let m = self.first[i];
+            let rows: [&[f64]; GROUP] = std::array::from_fn(|r| row(i + r));
+            let mut xs = [0.0; GROUP];
+            for r in (0..GROUP).rev() {
+                let xr = y[i + r] * inv[i + r];
+                y[i + r] = xr;
+                xs[r] = xr;
+                for c in 0..r {
+                    y[i + c] = mul_add::<FMA>(-xr, rows[r][i + c - m], y[i + c]);
                 }
             }
-            if fl < m {
-                for (yj, l) in ya[fl..].iter_mut().zip(&a[..m - fl]) {
-                    *yj = mul_add::<FMA>(-xl, *l, *yj);
-                }
-            }
-            hi -= 2;
+            update_rows::<FMA, GROUP>(&mut y[m..i], xs, rows);
         }
         for (yi, &u) in y.iter().zip(&self.order) {
             x[u] = *yi;
@@ -414,27 +416,57 @@ impl EnvelopeCholesky {
     }
 }
 
-/// Two dot products a . y and b . y over the length of y (a and b at least as long), in eight
-/// partial sums each, with one load of y for both.
+/// Rows of the solves taken together (`EnvelopeCholesky::align_groups`).
+const GROUP: usize = 4;
+
+/// The dot products of R rows (each at least as long as y) with y, in eight partial sums
+/// each (a last vector of four into the first four), with one load of y for all.
 #[inline(always)]
-fn dot2<const FMA: bool>(a: &[f64], b: &[f64], y: &[f64]) -> (f64, f64) {
+fn dot_rows<const FMA: bool, const R: usize>(rows: [&[f64]; R], y: &[f64]) -> [f64; R] {
     let n = y.len();
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut sa = [0.0f64; 8];
-    let mut sb = [0.0f64; 8];
-    let (mut ca, mut cb, mut cy) = (a.chunks_exact(8), b.chunks_exact(8), y.chunks_exact(8));
-    for ((xa, xb), xy) in (&mut ca).zip(&mut cb).zip(&mut cy) {
-        for k in 0..8 {
-            sa[k] = mul_add::<FMA>(xa[k], xy[k], sa[k]);
-            sb[k] = mul_add::<FMA>(xb[k], xy[k], sb[k]);
+    let mut s = [[0.0f64; 8]; R];
+    let whole8 = n - n % 8;
+    for j in (0..whole8).step_by(8) {
+        let yv = &y[j..j + 8];
+        for r in 0..R {
+            let l = &rows[r][j..j + 8];
+            for k in 0..8 {
+                s[r][k] = mul_add::<FMA>(l[k], yv[k], s[r][k]);
+            }
         }
     }
-    for ((xa, xb), xy) in ca.remainder().iter().zip(cb.remainder()).zip(cy.remainder()) {
-        sa[0] = mul_add::<FMA>(*xa, *xy, sa[0]);
-        sb[0] = mul_add::<FMA>(*xb, *xy, sb[0]);
+    let mut j = whole8;
+    if n - j >= 4 {
+        let yv = &y[j..j + 4];
+        for r in 0..R {
+            let l = &rows[r][j..j + 4];
+            for k in 0..4 {
+                s[r][k] = mul_add::<FMA>(l[k], yv[k], s[r][k]);
+            }
+        }
+        j += 4;
     }
-    let sum = |s: [f64; 8]| ((s[0] + s[4]) + (s[2] + s[6])) + ((s[1] + s[5]) + (s[3] + s[7]));
-    (sum(sa), sum(sb))
+    for (jj, yj) in y.iter().enumerate().skip(j) {
+        for r in 0..R {
+            s[r][0] = mul_add::<FMA>(rows[r][jj], *yj, s[r][0]);
+        }
+    }
+    s.map(|s| ((s[0] + s[4]) + (s[2] + s[6])) + ((s[1] + s[5]) + (s[3] + s[7])))
+}
+
+/// y -= sum_r x_r rows_r over the length of y (each row at least as long), one load and one
+/// store of y for all R rows.
+#[inline(always)]
+fn update_rows<const FMA: bool, const R: usize>(y: &mut [f64], x: [f64; R], rows: [&[f64]; R]) {
+    let n = y.len();
+    let rows: [&[f64]; R] = rows.map(|l| &l[..n]);
+    for (j, yj) in y.iter_mut().enumerate() {
+        let mut v = *yj;
+        for r in (0..R).rev() {
+            v = mul_add::<FMA>(-x[r], rows[r][j], v);
+        }
+        *yj = v;
+    }
 }
 
 #[cfg(test)]
@@ -493,9 +525,10 @@ mod tests {
 
     #[test]
     fn solves_a_shuffled_grid_laplacian_to_round_off() {
-        // An even and an odd order (the solves take the rows in pairs).
+        // Orders with and without rows after the last whole group of the solves.
         solve_grid(12);
         solve_grid(7);
+        solve_grid(5);
     }
 
     fn solve_grid(m: usize) {
@@ -523,13 +556,56 @@ mod tests {
     }
 
     #[test]
+    fn solves_chains_of_every_length_of_the_last_group() {
+        // Tridiagonal (chain) matrices of orders 1 to 11 with a coupling to the first unknown:
+        // every count of rows after the last whole group of the solves, groups shorter than
+        // a vector, in the portable and the AVX2 kernels.
+        for n in 1..=11usize {
+            let (mut ptr, mut idx, mut val) = (vec![0], Vec::new(), Vec::new());
+            for c in 0..n {
+                idx.push(c);
+                val.push(4.0 + c as f64);
+                if c + 1 < n {
+                    idx.push(c + 1);
+                    val.push(-1.0);
+                }
+                if c == 0 && n > 3 {
+                    idx.push(n - 1);
+                    val.push(0.5);
+                }
+                ptr.push(idx.len());
+            }
+            let order = reverse_cuthill_mckee(n, &ptr, &idx);
+            let mut f = EnvelopeCholesky::new(n, &ptr, &idx, order);
+            f.factorize(&ptr, &idx, &val).expect("positive definite");
+            let b: Vec<f64> = (0..n).map(|i| 1.0 - 0.3 * i as f64).collect();
+            for fma in [false, true] {
+                let mut x = b.clone();
+                if fma {
+                    f.solve(&mut x, &mut vec![0.0; n]);
+                } else {
+                    f.solve_rows::<false>(&mut x, &mut vec![0.0; n]);
+                }
+                let r = multiply(n, &ptr, &idx, &val, &x);
+                let err = r.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+                assert!(err < 1e-13, "order {n}: residual {err}");
+            }
+        }
+    }
+
+    #[test]
     fn reverse_cuthill_mckee_gives_the_band_of_a_grid() {
         // A grid of m x m nodes has a bandwidth of m in its row-by-row numbering; the
         // shuffled labels have a band of the order of n. The RCM order finds a band of about
         // m again (its envelope at most m+1 entries per row), and is a permutation.
         let m = 12;
         let (n, ptr, idx, _) = grid(m, 0.0, true);
-        let shuffled = EnvelopeCholesky::new(n, &ptr, &idx, (0..n).collect()).len();
+        // The profile without the padding of the solves.
+        let profile = |order: &[usize]| -> usize {
+            let first = EnvelopeCholesky::first_columns(n, &ptr, &idx, order);
+            first.iter().enumerate().map(|(i, f)| i + 1 - f).sum()
+        };
+        let shuffled = profile(&(0..n).collect::<Vec<_>>());
         let order = reverse_cuthill_mckee(n, &ptr, &idx);
         let mut seen = vec![false; n];
         for &u in &order {
@@ -537,9 +613,37 @@ mod tests {
             seen[u] = true;
         }
         assert_eq!(order.len(), n);
-        let rcm = EnvelopeCholesky::new(n, &ptr, &idx, order.clone()).len();
+        let rcm = profile(&order);
         assert!(rcm <= n * (m + 1), "RCM envelope {rcm}");
         assert!(shuffled > 4 * rcm, "shuffled envelope {shuffled} against {rcm}");
+    }
+
+    #[test]
+    fn rows_are_padded_in_groups_to_whole_vectors() {
+        // The rows of each group i..i + GROUP start at one column m <= the first nonzero of
+        // each, with i - m a multiple of four wherever the rows are long enough (and m = the
+        // first nonzero before): at most three entries of padding below the group's first
+        // nonzero; the rows after the last whole group alike, each alone.
+        for m in [7, 12] {
+            let (n, ptr, idx, _) = grid(m, 0.0, true);
+            let order = reverse_cuthill_mckee(n, &ptr, &idx);
+            let exact = EnvelopeCholesky::first_columns(n, &ptr, &idx, &order);
+            let f = EnvelopeCholesky::new(n, &ptr, &idx, order);
+            let whole = n - n % GROUP;
+            let groups = (0..whole).step_by(GROUP).map(|i| (i, GROUP)).chain((whole..n).map(|i| (i, 1)));
+            for (i, size) in groups {
+                let low = *exact[i..i + size].iter().min().expect("rows");
+                let padded = f.first[i];
+                assert!(f.first[i..i + size].iter().all(|&c| c == padded), "rows {i}..");
+                assert!(padded <= low, "row {i}: {padded} > {low}");
+                if (i - low).div_ceil(4) * 4 <= i {
+                    assert_eq!((i - padded) % 4, 0, "row {i}");
+                    assert!(low - padded <= 3, "row {i}");
+                } else {
+                    assert_eq!(padded, low);
+                }
+            }
+        }
     }
 
     #[test]
