@@ -182,8 +182,9 @@ fn solve(
     }
 }
 
-/// Weighted norm of the Newton increment (converged at <= 1) and the index of its largest
-/// entry. It has two parts.
+/// Weighted norm of the Newton increment (converged at <= 1), the index of its largest entry,
+/// and the largest position increment relative to max(1, |q_k|) (the round-off test of the
+/// iteration). The norm has two parts.
 ///
 /// Positions: each increment is measured against
 ///   w_k = tol max(1, |q_dd|_inf) / beta' + 1e-14 max(1, |q_k|):
@@ -192,7 +193,7 @@ fn solve(
 /// whose velocity error accumulates), the second the round-off floor of the positions, which
 /// dominates for very small steps.
 ///
-/// Multipliers (only with `check_multipliers`): the generalized constraint force of their
+/// Multipliers (only with `multipliers`): the generalized constraint force of their
 /// increment, |C_q^T dlambda|_inf, against tol max(1, |C_q^T lambda|_inf). In the index-3
 /// form a multiplier error does not show in dq at all (q is held by C(q) = 0), so an
 /// iteration with a matrix reused from an earlier iterate needs this test. A step with a
@@ -204,48 +205,72 @@ fn increment_norm(
     tol: f64,
     state: &State,
     increment: &[f64],
-    force_increment: &[f64],
-    force: &[f64],
-    check_multipliers: bool,
-) -> (f64, usize) {
-    let a_scale = state.accelerations.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-    let acceleration_weight = tol * a_scale / coef.mass;
-    let mut worst = largest_ratio(
-        increment
-            .iter()
-            .zip(&state.coordinates)
-            .map(|(dq, q)| (dq.abs(), acceleration_weight + 1e-14 * q.abs().max(1.0))),
-    );
-    if check_multipliers {
-        let f_scale = force.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-        let (k, df) = force_increment.iter().enumerate().fold((0, 0.0f64), |m, (k, df)| {
-            if df.abs() > m.1 {
-                (k, df.abs())
-            } else {
-                m
-            }
-        });
-        let v = df / (tol * f_scale);
-        if v > worst.1 {
-            worst = (k, v);
-        }
-    }
-    (worst.1, worst.0)
-}
-
-/// The largest ratio a_k / b_k (b_k > 0) and its index (the first, 0 and 0.0 when none is
-/// positive), dividing only where the ratio may grow: a product compares.
-fn largest_ratio(pairs: impl Iterator<Item = (f64, f64)>) -> (usize, f64) {
-    let mut worst = (0, 0.0f64);
-    for (k, (a, b)) in pairs.enumerate() {
+    multipliers: Option<ConstraintForces>,
+) -> IncrementNorm {
+    let acceleration_weight = tol * max_abs(&state.accelerations).max(1.0) / coef.mass;
+    // One pass for the norm and the relative position increment, dividing only where a ratio
+    // may grow (a product compares).
+    let (mut worst, mut position) = ((0, 0.0f64), 0.0f64);
+    for (k, (dq, q)) in increment.iter().zip(&state.coordinates).enumerate() {
+        let (a, size) = (dq.abs(), q.abs().max(1.0));
+        let b = acceleration_weight + 1e-14 * size;
         if a > worst.1 * b {
             let v = a / b;
             if v > worst.1 {
                 worst = (k, v);
             }
         }
+        if a > position * size {
+            position = position.max(a / size);
+        }
     }
-    worst
+    if let Some(ConstraintForces { rows, increment, force, scale }) = multipliers {
+        let f_scale = rows.iter().fold(1.0f64, |m, &d| m.max(force[d].abs()));
+        let (mut k, mut df) = (0, 0.0f64);
+        for &d in rows {
+            let v = (increment[d] / scale).abs();
+            if v > df {
+                (k, df) = (d, v);
+            }
+        }
+        let v = df / (tol * f_scale);
+        if v > worst.1 {
+            worst = (k, v);
+        }
+    }
+    IncrementNorm { norm: worst.1, worst: worst.0, position }
+}
+
+/// The constraint forces of the multipliers' test in [`increment_norm`]: C_q^T dlambda
+/// (`increment`, times `scale`) and C_q^T lambda (`force`), nonzero only at `rows` (the
+/// coordinates of the joints and normalizations).
+struct ConstraintForces<'a> {
+    rows: &'a [usize],
+    increment: &'a [f64],
+    force: &'a [f64],
+    scale: f64,
+}
+
+/// The weighted increment norm, the index of its largest entry, and the largest position
+/// increment relative to max(1, |q_k|).
+struct IncrementNorm {
+    norm: f64,
+    worst: usize,
+    position: f64,
+}
+
+/// max |x_k| (0 for an empty slice; NaN entries are passed over), in four partial maxima
+/// (a single running maximum is a chain of dependent operations).
+fn max_abs(x: &[f64]) -> f64 {
+    let mut m = [0.0f64; 4];
+    let chunks = x.chunks_exact(4);
+    let tail = chunks.remainder().iter().fold(0.0f64, |t, v| t.max(v.abs()));
+    for c in chunks {
+        for k in 0..4 {
+            m[k] = m[k].max(c[k].abs());
+        }
+    }
+    (m[0].max(m[1])).max(m[2].max(m[3])).max(tail)
 }
 
 /// Sets `next` to the predictor of a step of size h from `current`: q_dd(n+1) and
@@ -345,12 +370,14 @@ fn iterate(
         }
         // With a matrix reused from an earlier iterate, the multipliers are tested through the
         // constraint forces C_q^T dlambda of the increment (and C_q^T lambda before it), with
-        // the Jacobians of this iterate.
+        // the Jacobians of this iterate: nonzero only at the constraints' coordinates.
         let check_multipliers = !need_matrix;
         let [force_increment, force, _] = &mut ws.scratch;
         if check_multipliers {
-            force_increment[..nq].iter_mut().for_each(|x| *x = 0.0);
-            force[..nq].iter_mut().for_each(|x| *x = 0.0);
+            for &d in &ws.constraint_coordinates {
+                force_increment[d] = 0.0;
+                force[d] = 0.0;
+            }
             let (q, lambda) = (&next.coordinates, &next.multipliers);
             super::assembly::add_constraint_force_pair(
                 model,
@@ -359,7 +386,6 @@ fn iterate(
                 [&ws.solution[nq..], lambda],
                 [&mut force_increment[..], &mut force[..]],
             );
-            force_increment[..nq].iter_mut().for_each(|x| *x /= s);
         }
         let updated = next.coordinates.iter_mut().zip(&mut next.velocities).zip(&mut next.accelerations);
         for (((q, v), a), &dq) in updated.zip(&ws.solution[..nq]) {
@@ -371,15 +397,14 @@ fn iterate(
             next.multipliers[k] += ws.solution[nq + k] / s;
         }
         report.iterations = iteration + 1;
-        let (norm, worst) = increment_norm(
-            &coef,
-            newton.tolerance,
-            next,
-            &ws.solution[..nq],
-            &ws.scratch[0][..nq],
-            &ws.scratch[1][..nq],
-            check_multipliers,
-        );
+        let multipliers = check_multipliers.then_some(ConstraintForces {
+            rows: &ws.constraint_coordinates,
+            increment: &ws.scratch[0],
+            force: &ws.scratch[1],
+            scale: s,
+        });
+        let IncrementNorm { norm, worst, position: position_increment } =
+            increment_norm(&coef, newton.tolerance, next, &ws.solution[..nq], multipliers);
         report.increment_norm = norm;
         report.worst = worst;
         if !norm.is_finite() {
@@ -399,9 +424,6 @@ fn iterate(
         // stall at a round-off level amplified by its condition: once the relative position
         // increment is below 1e-10 and no longer decreases, with a current matrix, the
         // iteration has converged as far as it can.
-        let (_, position_increment) = largest_ratio(
-            ws.solution[..nq].iter().zip(&next.coordinates).map(|(dq, q)| (dq.abs(), q.abs().max(1.0))),
-        );
         let at_roundoff = position_increment <= 1e-10;
         let stalled_at_roundoff = need_matrix && iteration >= 1 && rate >= 0.5 && at_roundoff;
         if norm <= 1.0 || estimated_error_small || stalled_at_roundoff {

@@ -170,6 +170,9 @@ pub struct Workspace {
     pub solution: Vec<f64>,
     /// Scratch vectors (system size).
     pub scratch: [Vec<f64>; 3],
+    /// The coordinates of the joints and normalizations, sorted: where constraint forces
+    /// C_q^T lambda can be nonzero.
+    pub constraint_coordinates: Vec<usize>,
 }
 
 impl Workspace {
@@ -267,6 +270,20 @@ impl Workspace {
             forces: model.forces.iter().map(|f| ForceLocal::with_size(f.dofs.len())).collect(),
             solution: vec![0.0; n],
             scratch: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            constraint_coordinates: constraint_coordinates(model),
         }
     }
+}
+
+/// The coordinates of the joints and normalizations, sorted, each once.
+fn constraint_coordinates(model: &Model) -> Vec<usize> {
+    let mut rows: Vec<usize> = model
+        .normalizations
+        .iter()
+        .flat_map(|nz| nz.dofs)
+        .chain(model.joints.iter().flat_map(|j| j.dofs.iter().copied()))
+        .collect();
+    rows.sort_unstable();
+    rows.dedup();
+    rows
 }
