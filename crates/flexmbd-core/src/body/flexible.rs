@@ -166,8 +166,27 @@ impl Blocks3 {
         Some(Blocks3 { row_ptr, columns, values })
     }
 
-    /// `out += w * A x`, block row by block row.
+    /// `out += w * A x`, block row by block row (in the AVX2 kernel where the CPU has it).
     fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if crate::math::simd::has_avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA (checked above).
+            return unsafe {
+                crate::math::simd::avx2::blocks3_mul_add(
+                    &self.row_ptr,
+                    &self.columns,
+                    &self.values,
+                    w,
+                    x,
+                    out,
+                )
+            };
+        }
+        self.mul_vec_add_portable(w, x, out);
+    }
+
+    /// `out += w * A x` in portable code.
+    fn mul_vec_add_portable(&self, w: f64, x: &[f64], out: &mut [f64]) {
         let (x, out) = (&x[..3 * (self.row_ptr.len() - 1)], &mut out[..3 * (self.row_ptr.len() - 1)]);
         for (br, o) in out.chunks_exact_mut(3).enumerate() {
             let mut sum = [0.0; 3];
@@ -260,10 +279,10 @@ impl ScalarMass {
     /// Only the first `W` of the nine entries per node are formed (6: Y_0 and Y_1).
     fn products<const W: usize>(&self, vectors: [&[f64]; 3], gathered: &mut [f64], out: &mut [f64]) {
         gathered.iter_mut().for_each(|x| *x = 0.0);
-        for (v, vector) in vectors.iter().enumerate() {
-            for (&c, &x) in self.coordinates.iter().zip(vector.iter()) {
-                gathered[(c / 3) * 9 + 3 * v + c % 3] = x;
-            }
+        let [v0, v1, v2] = vectors;
+        for (((&c, &x0), &x1), &x2) in self.coordinates.iter().zip(v0).zip(v1).zip(v2) {
+            let at = &mut gathered[(c / 3) * 9 + c % 3..][..7];
+            (at[0], at[3], at[6]) = (x0, x1, x2);
         }
         if W < 9 {
             out.iter_mut().for_each(|x| *x = 0.0);
@@ -2028,8 +2047,13 @@ pub(crate) mod tests {
         for (e, p) in expected.iter_mut().zip(&product) {
             *e += -1.5 * p;
         }
+        // The kernel chosen for this CPU (AVX2 where it has it) and the portable one; x and
+        // out exactly 3 n_b long (the last node's entries read through the mask).
+        let mut portable: Vec<f64> = (0..27).map(|k| 0.1 * k as f64).collect();
+        blocked.blocks.as_ref().expect("blocks").mul_vec_add_portable(-1.5, &x, &mut portable);
         for k in 0..27 {
             assert!((got[k] - expected[k]).abs() <= 1e-14, "{k}: {} vs {}", got[k], expected[k]);
+            assert!((portable[k] - expected[k]).abs() <= 1e-14, "{k}: {} vs {}", portable[k], expected[k]);
         }
         // Not made of node blocks (a diagonal): the compressed columns serve.
         let diagonal = Csc::from_dense(30, 30, |r, c| if r == c { 1.0 } else { 0.0 });

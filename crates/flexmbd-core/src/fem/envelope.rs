@@ -11,6 +11,8 @@
 //! for large meshes the envelope grows much faster than the fill, and
 //! [`super::factor::SymmetricFactor`] keeps its supernodal factor (see `ENVELOPE_LIMIT` there).
 
+use crate::math::simd::{group_dot, group_update, has_avx2_fma, mul_add, GROUP};
+
 /// Reverse Cuthill-McKee ordering (position -> unknown) of the graph of a symmetric matrix
 /// given by its lower triangle in CSC form (`ptr`, `idx`; diagonal entries may be present).
 /// Each connected component starts from a pseudo-peripheral node (George and Liu's search),
@@ -128,17 +130,6 @@ fn inverse(order: &[usize]) -> Vec<usize> {
     position
 }
 
-/// Multiply-add: fused (one rounding) in the kernels compiled for FMA, else a product and a
-/// sum (`f64::mul_add` without the instruction would be a library call).
-#[inline(always)]
-fn mul_add<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
-    if FMA {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
-}
-
 /// Dot product in sixteen independent partial sums (four vectors of four with AVX2; a single
 /// running sum would be a chain of dependent additions).
 #[inline(always)]
@@ -169,20 +160,6 @@ fn dot<const FMA: bool>(a: &[f64], b: &[f64]) -> f64 {
         t[k] += (s[k] + s[k + 8]) + (s[k + 4] + s[k + 12]);
     }
     (t[0] + t[2]) + (t[1] + t[3])
-}
-
-/// Whether the kernels compiled for AVX2 and FMA can run here (checked once by the standard
-/// library's cached CPU detection).
-#[inline]
-fn has_avx2_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 /// The envelope Cholesky factor L L^T = P A P^T of a symmetric positive definite matrix.
@@ -413,160 +390,6 @@ impl EnvelopeCholesky {
         for (yi, &u) in y.iter().zip(&self.order) {
             x[u] = *yi;
         }
-    }
-}
-
-/// Rows of the solves taken together (`EnvelopeCholesky::align_groups`).
-const GROUP: usize = 4;
-
-/// The dot products of a group's rows with y: the AVX2 kernel in the FMA build (the
-/// compiler's own vectorization of [`dot_rows`] mixes half-width vectors and shuffles).
-#[inline(always)]
-fn group_dot<const FMA: bool>(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
-    #[cfg(target_arch = "x86_64")]
-    if FMA {
-        // SAFETY: the FMA kernels run only from the entry points that checked AVX2 and FMA.
-        return unsafe { avx2::dot4(rows, y) };
-    }
-    dot_rows::<FMA, GROUP>(rows, y)
-}
-
-/// y -= sum_r x_r rows_r for a group: the AVX2 kernel in the FMA build.
-#[inline(always)]
-fn group_update<const FMA: bool>(y: &mut [f64], x: [f64; GROUP], rows: [&[f64]; GROUP]) {
-    #[cfg(target_arch = "x86_64")]
-    if FMA {
-        // SAFETY: as in `group_dot`.
-        return unsafe { avx2::update4(y, x, rows) };
-    }
-    update_rows::<FMA, GROUP>(y, x, rows)
-}
-
-/// The group kernels of the solves in AVX2 and FMA intrinsics.
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use std::arch::x86_64::{
-        __m256d, _mm256_add_pd, _mm256_fmadd_pd, _mm256_hadd_pd, _mm256_loadu_pd, _mm256_permute2f128_pd,
-        _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd,
-    };
-
-    /// Dot products of four rows (each at least as long as y) with y: two vectors of four
-    /// partial sums per row, one load of y for the four rows. (No closures in these kernels:
-    /// they do not inherit the target features, and were calls, not inlined.)
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    pub(super) unsafe fn dot4(rows: [&[f64]; 4], y: &[f64]) -> [f64; 4] {
-        let n = y.len();
-        let rows = [&rows[0][..n], &rows[1][..n], &rows[2][..n], &rows[3][..n]];
-        let (yp, rp) = (y.as_ptr(), [rows[0].as_ptr(), rows[1].as_ptr(), rows[2].as_ptr(), rows[3].as_ptr()]);
-        let mut acc: [__m256d; 8] = [_mm256_setzero_pd(); 8];
-        let mut j = 0;
-        while j + 8 <= n {
-            let (y0, y1) = (_mm256_loadu_pd(yp.add(j)), _mm256_loadu_pd(yp.add(j + 4)));
-            for r in 0..4 {
-                acc[2 * r] = _mm256_fmadd_pd(_mm256_loadu_pd(rp[r].add(j)), y0, acc[2 * r]);
-                acc[2 * r + 1] = _mm256_fmadd_pd(_mm256_loadu_pd(rp[r].add(j + 4)), y1, acc[2 * r + 1]);
-            }
-            j += 8;
-        }
-        if j + 4 <= n {
-            let y0 = _mm256_loadu_pd(yp.add(j));
-            for r in 0..4 {
-                acc[2 * r] = _mm256_fmadd_pd(_mm256_loadu_pd(rp[r].add(j)), y0, acc[2 * r]);
-            }
-            j += 4;
-        }
-        // [sum acc_0, sum acc_1, sum acc_2, sum acc_3] from the pairs of accumulators.
-        let (s0, s1) = (_mm256_add_pd(acc[0], acc[1]), _mm256_add_pd(acc[2], acc[3]));
-        let (s2, s3) = (_mm256_add_pd(acc[4], acc[5]), _mm256_add_pd(acc[6], acc[7]));
-        let (h01, h23) = (_mm256_hadd_pd(s0, s1), _mm256_hadd_pd(s2, s3));
-        let sums =
-            _mm256_add_pd(_mm256_permute2f128_pd(h01, h23, 0x20), _mm256_permute2f128_pd(h01, h23, 0x31));
-        let mut out = [0.0f64; 4];
-        _mm256_storeu_pd(out.as_mut_ptr(), sums);
-        for (k, yk) in y.iter().enumerate().skip(j) {
-            for r in 0..4 {
-                out[r] = rows[r][k].mul_add(*yk, out[r]);
-            }
-        }
-        out
-    }
-
-    /// y -= sum_r x_r rows_r over the length of y (each row at least as long): one load and
-    /// one store of y per vector of four for the four rows.
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    pub(super) unsafe fn update4(y: &mut [f64], x: [f64; 4], rows: [&[f64]; 4]) {
-        let n = y.len();
-        let rows = [&rows[0][..n], &rows[1][..n], &rows[2][..n], &rows[3][..n]];
-        let rp = [rows[0].as_ptr(), rows[1].as_ptr(), rows[2].as_ptr(), rows[3].as_ptr()];
-        let minus: [__m256d; 4] =
-            [_mm256_set1_pd(-x[0]), _mm256_set1_pd(-x[1]), _mm256_set1_pd(-x[2]), _mm256_set1_pd(-x[3])];
-        let yp = y.as_mut_ptr();
-        let mut j = 0;
-        while j + 4 <= n {
-            let mut v = _mm256_loadu_pd(yp.add(j));
-            for r in (0..4).rev() {
-                v = _mm256_fmadd_pd(minus[r], _mm256_loadu_pd(rp[r].add(j)), v);
-            }
-            _mm256_storeu_pd(yp.add(j), v);
-            j += 4;
-        }
-        for (k, yk) in y.iter_mut().enumerate().skip(j) {
-            for r in (0..4).rev() {
-                *yk = (-x[r]).mul_add(rows[r][k], *yk);
-            }
-        }
-    }
-}
-
-/// The dot products of R rows (each at least as long as y) with y, in eight partial sums
-/// each (a last vector of four into the first four), with one load of y for all.
-#[inline(always)]
-fn dot_rows<const FMA: bool, const R: usize>(rows: [&[f64]; R], y: &[f64]) -> [f64; R] {
-    let n = y.len();
-    let mut s = [[0.0f64; 8]; R];
-    let whole8 = n - n % 8;
-    for j in (0..whole8).step_by(8) {
-        let yv = &y[j..j + 8];
-        for r in 0..R {
-            let l = &rows[r][j..j + 8];
-            for k in 0..8 {
-                s[r][k] = mul_add::<FMA>(l[k], yv[k], s[r][k]);
-            }
-        }
-    }
-    let mut j = whole8;
-    if n - j >= 4 {
-        let yv = &y[j..j + 4];
-        for r in 0..R {
-            let l = &rows[r][j..j + 4];
-            for k in 0..4 {
-                s[r][k] = mul_add::<FMA>(l[k], yv[k], s[r][k]);
-            }
-        }
-        j += 4;
-    }
-    for (jj, yj) in y.iter().enumerate().skip(j) {
-        for r in 0..R {
-            s[r][0] = mul_add::<FMA>(rows[r][jj], *yj, s[r][0]);
-        }
-    }
-    s.map(|s| ((s[0] + s[4]) + (s[2] + s[6])) + ((s[1] + s[5]) + (s[3] + s[7])))
-}
-
-/// y -= sum_r x_r rows_r over the length of y (each row at least as long), one load and one
-/// store of y for all R rows.
-#[inline(always)]
-fn update_rows<const FMA: bool, const R: usize>(y: &mut [f64], x: [f64; R], rows: [&[f64]; R]) {
-    let n = y.len();
-    let rows: [&[f64]; R] = rows.map(|l| &l[..n]);
-    for (j, yj) in y.iter_mut().enumerate() {
-        let mut v = *yj;
-        for r in (0..R).rev() {
-            v = mul_add::<FMA>(-x[r], rows[r][j], v);
-        }
-        *yj = v;
     }
 }
 

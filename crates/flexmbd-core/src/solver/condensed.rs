@@ -24,6 +24,7 @@ use crate::body::flexible::{dot, FlexibleBody, REFERENCE_COORDINATES};
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
+use crate::math::simd::{dot4, update4, GROUP};
 use crate::solver::assembly::MatrixCoefficients;
 use crate::solver::sparse::{PatternBuilder, SparseLu};
 use crate::system::model::Model;
@@ -429,11 +430,27 @@ impl CondensedSolver {
             let y = &mut self.y[offset..offset + block.n];
             y.copy_from_slice(&x[block.first..block.first + block.n]);
             block.factors[block.current].solve_in_place(y).map_err(|e| e.to_string())?;
+            // Dense coupling rows four at a time (one pass over y for four of them).
+            let mut dense = [0usize; GROUP];
+            let mut count = 0;
             for (a, entries) in block.row_entries.iter().enumerate() {
                 let stored = &block.row_values[a];
-                let update =
-                    if block.dense_rows[a] { dot(stored, y) } else { gather_dot(entries, stored, y) };
-                self.rhs[self.reduced_of[block.coupling[a]]] -= update;
+                if !block.dense_rows[a] {
+                    self.rhs[self.reduced_of[block.coupling[a]]] -= gather_dot(entries, stored, y);
+                    continue;
+                }
+                dense[count] = a;
+                count += 1;
+                if count == GROUP {
+                    let rows = dense.map(|a| &block.row_values[a][..]);
+                    for (&a, sum) in dense.iter().zip(dot4(rows, y)) {
+                        self.rhs[self.reduced_of[block.coupling[a]]] -= sum;
+                    }
+                    count = 0;
+                }
+            }
+            for &a in &dense[..count] {
+                self.rhs[self.reduced_of[block.coupling[a]]] -= dot(&block.row_values[a], y);
             }
             offset += block.n;
         }
@@ -450,12 +467,25 @@ impl CondensedSolver {
                 block.last_x.clear();
                 block.last_x.extend(block.coupling.iter().map(|&g| self.rhs[self.reduced_of[g]]));
             }
+            // out -= Z x_J, four columns of Z at a time (one pass over out for four).
+            let n = block.n;
+            let column = |j: usize| &block.z[j * n..(j + 1) * n];
+            let mut group = [(0usize, 0.0f64); GROUP];
+            let mut count = 0;
             for (j, &g) in block.coupling.iter().enumerate() {
                 let xj = self.rhs[self.reduced_of[g]];
                 if xj != 0.0 {
-                    for (o, zv) in out.iter_mut().zip(&block.z[j * block.n..(j + 1) * block.n]) {
-                        *o -= zv * xj;
+                    group[count] = (j, xj);
+                    count += 1;
+                    if count == GROUP {
+                        update4(out, group.map(|(_, x)| x), group.map(|(j, _)| column(j)));
+                        count = 0;
                     }
+                }
+            }
+            for &(j, xj) in &group[..count] {
+                for (o, zv) in out.iter_mut().zip(column(j)) {
+                    *o -= zv * xj;
                 }
             }
             offset += block.n;

@@ -1,0 +1,288 @@
+//! Small kernels over contiguous rows of f64 for the hot loops of the solves: the dot
+//! products of a group of rows with one vector and the update of a vector by a combination of
+//! rows, in AVX2 and FMA intrinsics where the CPU has them (checked at run time) and in
+//! portable code otherwise (tested to agree to round-off).
+
+/// Multiply-add: fused (one rounding) in the kernels compiled for FMA, else a product and a
+/// sum (`f64::mul_add` without the instruction would be a library call).
+#[inline(always)]
+pub(crate) fn mul_add<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// Whether the kernels compiled for AVX2 and FMA can run here (checked once by the standard
+/// library's cached CPU detection).
+#[inline]
+pub(crate) fn has_avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Rows taken together by the group kernels (the envelope solves' groups, see
+/// `EnvelopeCholesky::align_groups`).
+pub(crate) const GROUP: usize = 4;
+
+/// The dot products of a group's rows with y: the AVX2 kernel in the FMA build (the
+/// compiler's own vectorization of [`dot_rows`] mixes half-width vectors and shuffles).
+#[inline(always)]
+pub(crate) fn group_dot<const FMA: bool>(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: the FMA kernels run only from the entry points that checked AVX2 and FMA.
+        return unsafe { avx2::dot4(rows, y) };
+    }
+    dot_rows::<FMA, GROUP>(rows, y)
+}
+
+/// y -= sum_r x_r rows_r for a group: the AVX2 kernel in the FMA build.
+#[inline(always)]
+pub(crate) fn group_update<const FMA: bool>(y: &mut [f64], x: [f64; GROUP], rows: [&[f64]; GROUP]) {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: as in `group_dot`.
+        return unsafe { avx2::update4(y, x, rows) };
+    }
+    update_rows::<FMA, GROUP>(y, x, rows)
+}
+
+/// The group kernels of the solves in AVX2 and FMA intrinsics.
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx2 {
+    use std::arch::x86_64::{
+        __m256d, _mm256_add_pd, _mm256_fmadd_pd, _mm256_hadd_pd, _mm256_loadu_pd, _mm256_maskload_pd,
+        _mm256_permute2f128_pd, _mm256_permute4x64_pd, _mm256_set1_pd, _mm256_setr_epi64x, _mm256_setzero_pd,
+        _mm256_storeu_pd,
+    };
+
+    /// out[3 i + k] += w (sum over the blocks B of block row i of B x_(block column)), for
+    /// 3 x 3 blocks stored row-major: per block, [b0 b1 b2 b3] . [x0 x1 x2 x0] and
+    /// [b4 b5 b6 b7] . [x1 x2 x0 x1] in two vectors and b8 x2 apart, the three sums sorted
+    /// out at the end of the row (x is read through a mask, so that the last node needs no
+    /// fourth entry).
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(crate) unsafe fn blocks3_mul_add(
+        row_ptr: &[usize],
+        columns: &[u32],
+        values: &[[f64; 9]],
+        w: f64,
+        x: &[f64],
+        out: &mut [f64],
+    ) {
+        let rows = row_ptr.len() - 1;
+        let (x, out) = (&x[..3 * rows], &mut out[..3 * rows]);
+        let mask = _mm256_setr_epi64x(-1, -1, -1, 0);
+        for (i, o) in out.chunks_exact_mut(3).enumerate() {
+            let range = row_ptr[i]..row_ptr[i + 1];
+            let (mut a, mut b) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+            let mut c = 0.0f64;
+            for (&col, block) in columns[range.clone()].iter().zip(&values[range]) {
+                let at = 3 * col as usize;
+                let xs = &x[at..at + 3];
+                let v = _mm256_maskload_pd(xs.as_ptr(), mask);
+                a = _mm256_fmadd_pd(
+                    _mm256_loadu_pd(block.as_ptr()),
+                    _mm256_permute4x64_pd(v, 0b00_10_01_00),
+                    a,
+                );
+                b = _mm256_fmadd_pd(
+                    _mm256_loadu_pd(block.as_ptr().add(4)),
+                    _mm256_permute4x64_pd(v, 0b01_00_10_01),
+                    b,
+                );
+                c = block[8].mul_add(xs[2], c);
+            }
+            let (mut sa, mut sb) = ([0.0f64; 4], [0.0f64; 4]);
+            _mm256_storeu_pd(sa.as_mut_ptr(), a);
+            _mm256_storeu_pd(sb.as_mut_ptr(), b);
+            o[0] = w.mul_add((sa[0] + sa[1]) + sa[2], o[0]);
+            o[1] = w.mul_add((sa[3] + sb[0]) + sb[1], o[1]);
+            o[2] = w.mul_add((sb[2] + sb[3]) + c, o[2]);
+        }
+    }
+
+    /// Dot products of four rows (each at least as long as y) with y: two vectors of four
+    /// partial sums per row, one load of y for the four rows. (No closures in these kernels:
+    /// they do not inherit the target features, and were calls, not inlined.)
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(super) unsafe fn dot4(rows: [&[f64]; 4], y: &[f64]) -> [f64; 4] {
+        let n = y.len();
+        let rows = [&rows[0][..n], &rows[1][..n], &rows[2][..n], &rows[3][..n]];
+        let (yp, rp) = (y.as_ptr(), [rows[0].as_ptr(), rows[1].as_ptr(), rows[2].as_ptr(), rows[3].as_ptr()]);
+        let mut acc: [__m256d; 8] = [_mm256_setzero_pd(); 8];
+        let mut j = 0;
+        while j + 8 <= n {
+            let (y0, y1) = (_mm256_loadu_pd(yp.add(j)), _mm256_loadu_pd(yp.add(j + 4)));
+            for r in 0..4 {
+                acc[2 * r] = _mm256_fmadd_pd(_mm256_loadu_pd(rp[r].add(j)), y0, acc[2 * r]);
+                acc[2 * r + 1] = _mm256_fmadd_pd(_mm256_loadu_pd(rp[r].add(j + 4)), y1, acc[2 * r + 1]);
+            }
+            j += 8;
+        }
+        if j + 4 <= n {
+            let y0 = _mm256_loadu_pd(yp.add(j));
+            for r in 0..4 {
+                acc[2 * r] = _mm256_fmadd_pd(_mm256_loadu_pd(rp[r].add(j)), y0, acc[2 * r]);
+            }
+            j += 4;
+        }
+        // [sum acc_0, sum acc_1, sum acc_2, sum acc_3] from the pairs of accumulators.
+        let (s0, s1) = (_mm256_add_pd(acc[0], acc[1]), _mm256_add_pd(acc[2], acc[3]));
+        let (s2, s3) = (_mm256_add_pd(acc[4], acc[5]), _mm256_add_pd(acc[6], acc[7]));
+        let (h01, h23) = (_mm256_hadd_pd(s0, s1), _mm256_hadd_pd(s2, s3));
+        let sums =
+            _mm256_add_pd(_mm256_permute2f128_pd(h01, h23, 0x20), _mm256_permute2f128_pd(h01, h23, 0x31));
+        let mut out = [0.0f64; 4];
+        _mm256_storeu_pd(out.as_mut_ptr(), sums);
+        for (k, yk) in y.iter().enumerate().skip(j) {
+            for r in 0..4 {
+                out[r] = rows[r][k].mul_add(*yk, out[r]);
+            }
+        }
+        out
+    }
+
+    /// y -= sum_r x_r rows_r over the length of y (each row at least as long): one load and
+    /// one store of y per vector of four for the four rows.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(super) unsafe fn update4(y: &mut [f64], x: [f64; 4], rows: [&[f64]; 4]) {
+        let n = y.len();
+        let rows = [&rows[0][..n], &rows[1][..n], &rows[2][..n], &rows[3][..n]];
+        let rp = [rows[0].as_ptr(), rows[1].as_ptr(), rows[2].as_ptr(), rows[3].as_ptr()];
+        let minus: [__m256d; 4] =
+            [_mm256_set1_pd(-x[0]), _mm256_set1_pd(-x[1]), _mm256_set1_pd(-x[2]), _mm256_set1_pd(-x[3])];
+        let yp = y.as_mut_ptr();
+        let mut j = 0;
+        while j + 4 <= n {
+            let mut v = _mm256_loadu_pd(yp.add(j));
+            for r in (0..4).rev() {
+                v = _mm256_fmadd_pd(minus[r], _mm256_loadu_pd(rp[r].add(j)), v);
+            }
+            _mm256_storeu_pd(yp.add(j), v);
+            j += 4;
+        }
+        for (k, yk) in y.iter_mut().enumerate().skip(j) {
+            for r in (0..4).rev() {
+                *yk = (-x[r]).mul_add(rows[r][k], *yk);
+            }
+        }
+    }
+}
+
+/// The dot products of R rows (each at least as long as y) with y, in eight partial sums
+/// each (a last vector of four into the first four), with one load of y for all.
+#[inline(always)]
+fn dot_rows<const FMA: bool, const R: usize>(rows: [&[f64]; R], y: &[f64]) -> [f64; R] {
+    let n = y.len();
+    let mut s = [[0.0f64; 8]; R];
+    let whole8 = n - n % 8;
+    for j in (0..whole8).step_by(8) {
+        let yv = &y[j..j + 8];
+        for r in 0..R {
+            let l = &rows[r][j..j + 8];
+            for k in 0..8 {
+                s[r][k] = mul_add::<FMA>(l[k], yv[k], s[r][k]);
+            }
+        }
+    }
+    let mut j = whole8;
+    if n - j >= 4 {
+        let yv = &y[j..j + 4];
+        for r in 0..R {
+            let l = &rows[r][j..j + 4];
+            for k in 0..4 {
+                s[r][k] = mul_add::<FMA>(l[k], yv[k], s[r][k]);
+            }
+        }
+        j += 4;
+    }
+    for (jj, yj) in y.iter().enumerate().skip(j) {
+        for r in 0..R {
+            s[r][0] = mul_add::<FMA>(rows[r][jj], *yj, s[r][0]);
+        }
+    }
+    s.map(|s| ((s[0] + s[4]) + (s[2] + s[6])) + ((s[1] + s[5]) + (s[3] + s[7])))
+}
+
+/// y -= sum_r x_r rows_r over the length of y (each row at least as long), one load and one
+/// store of y for all R rows.
+#[inline(always)]
+fn update_rows<const FMA: bool, const R: usize>(y: &mut [f64], x: [f64; R], rows: [&[f64]; R]) {
+    let n = y.len();
+    let rows: [&[f64]; R] = rows.map(|l| &l[..n]);
+    for (j, yj) in y.iter_mut().enumerate() {
+        let mut v = *yj;
+        for r in (0..R).rev() {
+            v = mul_add::<FMA>(-x[r], rows[r][j], v);
+        }
+        *yj = v;
+    }
+}
+
+/// The dot products of four rows (each at least as long as y) with y, in the AVX2 kernel
+/// where the CPU has it.
+pub(crate) fn dot4(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        // SAFETY: the CPU supports AVX2 and FMA (checked above).
+        return unsafe { avx2::dot4(rows, y) };
+    }
+    dot_rows::<false, GROUP>(rows, y)
+}
+
+/// y -= sum_r x_r rows_r over the length of y (each row at least as long), in the AVX2
+/// kernel where the CPU has it.
+pub(crate) fn update4(y: &mut [f64], x: [f64; GROUP], rows: [&[f64]; GROUP]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        // SAFETY: the CPU supports AVX2 and FMA (checked above).
+        return unsafe { avx2::update4(y, x, rows) };
+    }
+    update_rows::<false, GROUP>(y, x, rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn group_kernels_agree_with_plain_sums() {
+        // Every length from 0 to 21 (the 8- and 4-wide loops and the scalar tail), rows
+        // longer than y, in the dispatching and the portable kernels.
+        for n in 0..22usize {
+            let rows: Vec<Vec<f64>> =
+                (0..4).map(|r| (0..n + 3).map(|j| ((r * 31 + j * 17) % 13) as f64 - 6.0).collect()).collect();
+            let y: Vec<f64> = (0..n).map(|j| 0.25 * j as f64 - 1.0).collect();
+            let group = [&rows[0][..], &rows[1][..], &rows[2][..], &rows[3][..]];
+            let exact: Vec<f64> = rows.iter().map(|r| r.iter().zip(&y).map(|(a, b)| a * b).sum()).collect();
+            for sums in [dot4(group, &y), dot_rows::<false, GROUP>(group, &y)] {
+                for (s, e) in sums.iter().zip(&exact) {
+                    assert!((s - e).abs() <= 1e-12 * (1.0 + e.abs()), "n = {n}: {s} against {e}");
+                }
+            }
+            let x = [0.5, -1.5, 2.0, 0.25];
+            let expected: Vec<f64> =
+                (0..n).map(|j| y[j] - (0..4).map(|r| x[r] * rows[r][j]).sum::<f64>()).collect();
+            let (mut a, mut b) = (y.clone(), y.clone());
+            update4(&mut a, x, group);
+            update_rows::<false, GROUP>(&mut b, x, group);
+            for v in [&a, &b] {
+                for (s, e) in v.iter().zip(&expected) {
+                    assert!((s - e).abs() <= 1e-12 * (1.0 + e.abs()), "n = {n}: {s} against {e}");
+                }
+            }
+        }
+    }
+}
