@@ -188,6 +188,25 @@ def test_a_killed_run_keeps_every_record_written_before_the_kill(tmp_path, kill)
         )
 
 
+def test_a_text_field_caught_mid_write_reads_as_not_written(tmp_path):
+    # The writer of a running simulation rewrites statistics, events, redundancy and status
+    # with each chunk (resize, then write); a reader in between sees bytes that do not decode.
+    example = EXAMPLES["four-bar-spatial"]()
+    path = tmp_path / "torn.h5"
+    fm.simulate(example.system, 0.05, 1e-3, output_interval=0.01, results_file=path)
+    with h5py.File(path, "r+") as file:
+        torn = np.frombuffer(b'{"steps": 50, "rejec', dtype=np.uint8)
+        file["statistics"].resize((len(torn),))
+        file["statistics"][:] = torn
+        file["status"].resize((3,))
+        file["status"][:] = np.frombuffer(b'{"s', dtype=np.uint8)
+    header = read_results_metadata(path)
+    assert header["statistics"] == {} and header["status"] is None
+    assert header["records"] == 6
+    back = fm.read_results(path)
+    assert len(back) == 6 and not back.success  # no status: a run still going
+
+
 def test_files_that_are_not_results_files_are_refused(tmp_path):
     text = tmp_path / "notes.h5"
     text.write_text("not hdf5")

@@ -222,8 +222,16 @@ def _open(path: Path) -> h5py.File:
 
 
 def _text(file: h5py.File, name: str) -> Any:
+    """A JSON text field, or None when it is absent, empty or torn: the writer of a running
+    simulation rewrites these fields with every chunk (resize, then write), and a reader in
+    between sees a text that does not decode; it reads as not written yet."""
     data = file[name][:] if name in file else np.zeros(0, np.uint8)
-    return json.loads(data.tobytes().decode("utf-8")) if len(data) else None
+    if not len(data):
+        return None
+    try:
+        return json.loads(data.tobytes().decode("utf-8"))
+    except ValueError:  # JSONDecodeError and UnicodeDecodeError
+        return None
 
 
 def read_results_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
