@@ -426,6 +426,10 @@ pub struct FlexibleBody {
     /// and Ibar that can be nonzero, [I1_c[j], Ibar_0c[j], Ibar_1c[j], Ibar_2c[j]] (S_l has
     /// no entry at j for l != c); empty otherwise. See [`solid_sums`].
     solid_rows: Vec<[f64; 4]>,
+    /// Bodies of solids: whether the elastic coordinates are the three components of each
+    /// of their nodes in order (3 a, 3 a + 1, 3 a + 2 together): the node-wise sums then take
+    /// a node at a time.
+    whole_nodes: bool,
     /// When every I_kl is stored full (modal bodies): the nine stacked, (9 n_f) x n_f
     /// column-major (column c = the columns c of I_00, I_01, ..., I_22), so that
     /// `i_kl_products` is one matrix-vector product by contiguous column updates.
@@ -602,6 +606,7 @@ impl FlexibleBody {
             condense: input.condense,
             scalar_mass: None,
             solid_rows: Vec::new(),
+            whole_nodes: false,
             stacked_i_kl: None,
             i_kl,
             mass_matrix,
@@ -611,6 +616,8 @@ impl FlexibleBody {
         if let Some(sm) = scalar_mass {
             body.check_scalar_mass(item, &sm)?;
             body.solid_rows = body.compressed_solid_rows(&sm);
+            body.whole_nodes = sm.coordinates.len() % 3 == 0
+                && sm.coordinates.chunks_exact(3).all(|c| c[0] % 3 == 0 && c[1] == c[0] + 1 && c[2] == c[0] + 2);
             body.scalar_mass = Some(sm);
         }
         if n > 0 && body.i_kl.iter().all(|m| m.full) {
@@ -947,6 +954,20 @@ fn nodewise(body: &FlexibleBody, scratch: &FlexibleScratch) -> bool {
 /// (so I1 V_v = out[v][.][0] and Ibar_kl . V_v = out[v][l][1 + k]).
 fn solid_sums(body: &FlexibleBody, sm: &ScalarMass, vectors: [&[f64]; 3]) -> [[[f64; 4]; 3]; 3] {
     let mut out = [[[0.0f64; 4]; 3]; 3];
+    if body.whole_nodes {
+        // A node at a time (the same sums in the same order).
+        let [v0, v1, v2] = vectors.map(|v| v.chunks_exact(3));
+        for (((rows, x0), x1), x2) in body.solid_rows.chunks_exact(3).zip(v0).zip(v1).zip(v2) {
+            for (o, x) in out.iter_mut().zip([x0, x1, x2]) {
+                for ((oc, row), &xc) in o.iter_mut().zip(rows).zip(x) {
+                    for (ov, r) in oc.iter_mut().zip(row) {
+                        *ov += r * xc;
+                    }
+                }
+            }
+        }
+        return out;
+    }
     for (j, (row, &c)) in body.solid_rows.iter().zip(&sm.coordinates).enumerate() {
         let comp = c % 3;
         for (o, v) in out.iter_mut().zip(&vectors) {
@@ -1163,6 +1184,26 @@ pub fn inertia_force_parts(
             // (component c), I1^T a + sum_kl E_kl Ibar_lk is a_c I1_c[j] + sum_l E_cl
             // Ibar_lc[j]; then sum_kl E_kl y_kl + M_s (2 w x U_dot) + M_s U_dd from the
             // products of `quantities` (y_kl[j] = delta(comp j, k) Y0[node j][l]).
+            if body.whole_nodes {
+                // A node at a time: w x U_dot once per node (the same values).
+                let nodes = f.chunks_exact_mut(3).zip(sm.coordinates.chunks_exact(3)).zip(body.solid_rows.chunks_exact(3));
+                for (t, ((fs, cs), rows)) in nodes.enumerate() {
+                    let node = cs[0] / 3;
+                    let p = &scratch.nodal[9 * node..9 * node + 9];
+                    let wy = w.cross(&Vec3([p[3], p[4], p[5]]));
+                    for (comp, (fj, r)) in fs.iter_mut().zip(rows).enumerate() {
+                        let ec = &e.0[comp];
+                        let ey = ec[0] * (p[0] + r[1]) + ec[1] * (p[1] + r[2]) + ec[2] * (p[2] + r[3]);
+                        *fj = k.acc[comp] * r[0] + ey + 2.0 * wy[comp];
+                        match mass {
+                            ElasticMass::Include => *fj += p[6 + comp],
+                            ElasticMass::Separate => scratch.mass_term[3 * t + comp] = p[6 + comp],
+                            ElasticMass::Skip => {}
+                        }
+                    }
+                }
+                return;
+            }
             for (j, ((fj, &c), r)) in f.iter_mut().zip(&sm.coordinates).zip(&body.solid_rows).enumerate() {
                 let (node, comp) = (c / 3, c % 3);
                 let p = &scratch.nodal[9 * node..9 * node + 9];
