@@ -291,6 +291,14 @@ impl ScalarMass {
         // the I_kl): node i's row of the product is gathered from column i, summed in
         // registers and stored once, instead of scattered entry by entry.
         let m = &self.matrix;
+        #[cfg(target_arch = "x86_64")]
+        if (W == 6 || W == 9) && crate::math::simd::has_avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA (checked above).
+            unsafe {
+                crate::math::simd::avx2::node_products::<W>(&m.col_ptr, &m.row_idx, &m.values, gathered, out)
+            };
+            return;
+        }
         for (col, node_out) in out.chunks_exact_mut(9).enumerate().take(m.ncols) {
             let mut sum = [0.0f64; W];
             for e in m.col_ptr[col]..m.col_ptr[col + 1] {
@@ -617,7 +625,10 @@ impl FlexibleBody {
             body.check_scalar_mass(item, &sm)?;
             body.solid_rows = body.compressed_solid_rows(&sm);
             body.whole_nodes = sm.coordinates.len() % 3 == 0
-                && sm.coordinates.chunks_exact(3).all(|c| c[0] % 3 == 0 && c[1] == c[0] + 1 && c[2] == c[0] + 2);
+                && sm
+                    .coordinates
+                    .chunks_exact(3)
+                    .all(|c| c[0] % 3 == 0 && c[1] == c[0] + 1 && c[2] == c[0] + 2);
             body.scalar_mass = Some(sm);
         }
         if n > 0 && body.i_kl.iter().all(|m| m.full) {
@@ -722,6 +733,14 @@ impl FlexibleBody {
     pub fn i1_times(&self, v: &[f64]) -> Vec3 {
         let n = self.elastic_count;
         let mut out = Vec3::ZERO;
+        if self.whole_nodes {
+            for (rows, x) in self.solid_rows.chunks_exact(3).zip(v.chunks_exact(3)) {
+                for c in 0..3 {
+                    out[c] += rows[c][0] * x[c];
+                }
+            }
+            return out;
+        }
         if let Some(components) = self.solid_components() {
             for ((r, c), x) in self.solid_rows.iter().zip(components).zip(v) {
                 out[c] += r[0] * x;
@@ -737,6 +756,14 @@ impl FlexibleBody {
     /// `out += I1^T c` for a 3-vector c.
     pub fn add_i1_transpose_times(&self, c: &Vec3, out: &mut [f64]) {
         let n = self.elastic_count;
+        if self.whole_nodes {
+            for (rows, o) in self.solid_rows.chunks_exact(3).zip(out.chunks_exact_mut(3)) {
+                for k in 0..3 {
+                    o[k] += c[k] * rows[k][0];
+                }
+            }
+            return;
+        }
         if let Some(components) = self.solid_components() {
             for ((r, k), o) in self.solid_rows.iter().zip(components).zip(out.iter_mut()) {
                 *o += c[k] * r[0];
@@ -1186,7 +1213,10 @@ pub fn inertia_force_parts(
             // products of `quantities` (y_kl[j] = delta(comp j, k) Y0[node j][l]).
             if body.whole_nodes {
                 // A node at a time: w x U_dot once per node (the same values).
-                let nodes = f.chunks_exact_mut(3).zip(sm.coordinates.chunks_exact(3)).zip(body.solid_rows.chunks_exact(3));
+                let nodes = f
+                    .chunks_exact_mut(3)
+                    .zip(sm.coordinates.chunks_exact(3))
+                    .zip(body.solid_rows.chunks_exact(3));
                 for (t, ((fs, cs), rows)) in nodes.enumerate() {
                     let node = cs[0] / 3;
                     let p = &scratch.nodal[9 * node..9 * node + 9];
@@ -2071,6 +2101,57 @@ pub(crate) mod tests {
             col_ptr.push(row_idx.len());
         }
         Csc { nrows: 3 * nodes, ncols: 3 * nodes, col_ptr, row_idx, values }
+    }
+
+    #[test]
+    fn scalar_mass_products_equal_the_dense_sums() {
+        // A symmetric 5 x 5 scalar mass with zeros, node 1 without its y component: the
+        // node-wise products of three vectors (W = 6 and 9; the AVX2 kernel where the CPU has
+        // it) against dense sums.
+        let nodes = 5;
+        let dense = |r: usize, c: usize| {
+            if (r + 2 * c) % 3 == 1 && r != c {
+                0.0
+            } else {
+                1.0 / (1.0 + (r + c) as f64)
+            }
+        };
+        let sm = ScalarMass {
+            matrix: Csc::from_dense(nodes, nodes, |r, c| dense(r.min(c), r.max(c))),
+            coordinates: (0..3 * nodes).filter(|&c| c != 4).collect(),
+        };
+        let n = sm.coordinates.len();
+        let v: Vec<Vec<f64>> =
+            (0..3).map(|k| (0..n).map(|j| ((j * 7 + k * 5) % 11) as f64 - 5.0).collect()).collect();
+        let mut spread = vec![0.0; 9 * nodes];
+        for (j, &c) in sm.coordinates.iter().enumerate() {
+            for k in 0..3 {
+                spread[9 * (c / 3) + 3 * k + c % 3] = v[k][j];
+            }
+        }
+        for w in [6, 9] {
+            let (mut gathered, mut out) = (vec![1.0; 9 * nodes], vec![7.0; 9 * nodes]);
+            if w == 6 {
+                sm.products::<6>([&v[0], &v[1], &v[2]], &mut gathered, &mut out);
+            } else {
+                sm.products::<9>([&v[0], &v[1], &v[2]], &mut gathered, &mut out);
+            }
+            assert_eq!(gathered, spread);
+            for i in 0..nodes {
+                for k in 0..9 {
+                    let expected: f64 = if k < w {
+                        (0..nodes).map(|r| dense(r.min(i), r.max(i)) * spread[9 * r + k]).sum()
+                    } else {
+                        0.0
+                    };
+                    let got = out[9 * i + k];
+                    assert!(
+                        (got - expected).abs() <= 1e-12,
+                        "W = {w}, node {i}, entry {k}: {got} vs {expected}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -64,6 +64,45 @@ pub(crate) mod avx2 {
         _mm256_storeu_pd,
     };
 
+    /// out[9 i + k] = sum over the entries (r, m) of column i of a CSC matrix of
+    /// m gathered[9 r + k], k < W (6 or 9): per entry one or two vectors of four and, for
+    /// W = 9, the ninth entry apart.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(crate) unsafe fn node_products<const W: usize>(
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        values: &[f64],
+        gathered: &[f64],
+        out: &mut [f64],
+    ) {
+        use std::arch::x86_64::{_mm_fmadd_pd, _mm_loadu_pd, _mm_set1_pd, _mm_setzero_pd, _mm_storeu_pd};
+        for (col, node_out) in out.chunks_exact_mut(9).enumerate().take(col_ptr.len() - 1) {
+            let range = col_ptr[col]..col_ptr[col + 1];
+            let (mut a, mut b, mut b2) = (_mm256_setzero_pd(), _mm256_setzero_pd(), _mm_setzero_pd());
+            let mut c = 0.0f64;
+            for (&row, &m) in row_idx[range.clone()].iter().zip(&values[range]) {
+                let source = &gathered[9 * row..9 * row + 9];
+                let p = source.as_ptr();
+                a = _mm256_fmadd_pd(_mm256_set1_pd(m), _mm256_loadu_pd(p), a);
+                if W == 9 {
+                    b = _mm256_fmadd_pd(_mm256_set1_pd(m), _mm256_loadu_pd(p.add(4)), b);
+                    c = m.mul_add(source[8], c);
+                } else {
+                    b2 = _mm_fmadd_pd(_mm_set1_pd(m), _mm_loadu_pd(p.add(4)), b2);
+                }
+            }
+            let o = node_out.as_mut_ptr();
+            _mm256_storeu_pd(o, a);
+            if W == 9 {
+                _mm256_storeu_pd(o.add(4), b);
+                node_out[8] = c;
+            } else {
+                _mm_storeu_pd(o.add(4), b2);
+            }
+        }
+    }
+
     /// out[3 i + k] += w (sum over the blocks B of block row i of B x_(block column)), for
     /// 3 x 3 blocks stored row-major: per block, [b0 b1 b2 b3] . [x0 x1 x2 x0] and
     /// [b4 b5 b6 b7] . [x1 x2 x0 x1] in two vectors and b8 x2 apart, the three sums sorted
