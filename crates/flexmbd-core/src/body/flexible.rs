@@ -290,15 +290,21 @@ impl ScalarMass {
         // M_s is symmetric (a mass matrix; `check_scalar_mass` compares these products with
         // the I_kl): node i's row of the product is gathered from column i, summed in
         // registers and stored once, instead of scattered entry by entry.
-        let m = &self.matrix;
         #[cfg(target_arch = "x86_64")]
         if (W == 6 || W == 9) && crate::math::simd::has_avx2_fma() {
+            let m = &self.matrix;
             // SAFETY: the CPU supports AVX2 and FMA (checked above).
             unsafe {
                 crate::math::simd::avx2::node_products::<W>(&m.col_ptr, &m.row_idx, &m.values, gathered, out)
             };
             return;
         }
+        self.multiply_portable::<W>(gathered, out);
+    }
+
+    /// The products of [`Self::products`] from the gathered vectors, in portable code.
+    fn multiply_portable<const W: usize>(&self, gathered: &[f64], out: &mut [f64]) {
+        let m = &self.matrix;
         for (col, node_out) in out.chunks_exact_mut(9).enumerate().take(m.ncols) {
             let mut sum = [0.0f64; W];
             for e in m.col_ptr[col]..m.col_ptr[col + 1] {
@@ -2137,6 +2143,12 @@ pub(crate) mod tests {
                 sm.products::<9>([&v[0], &v[1], &v[2]], &mut gathered, &mut out);
             }
             assert_eq!(gathered, spread);
+            let mut portable = vec![0.0; 9 * nodes];
+            if w == 6 {
+                sm.multiply_portable::<6>(&gathered, &mut portable);
+            } else {
+                sm.multiply_portable::<9>(&gathered, &mut portable);
+            }
             for i in 0..nodes {
                 for k in 0..9 {
                     let expected: f64 = if k < w {
@@ -2144,11 +2156,12 @@ pub(crate) mod tests {
                     } else {
                         0.0
                     };
-                    let got = out[9 * i + k];
-                    assert!(
-                        (got - expected).abs() <= 1e-12,
-                        "W = {w}, node {i}, entry {k}: {got} vs {expected}"
-                    );
+                    for got in [out[9 * i + k], portable[9 * i + k]] {
+                        assert!(
+                            (got - expected).abs() <= 1e-12,
+                            "W = {w}, node {i}, entry {k}: {got} vs {expected}"
+                        );
+                    }
                 }
             }
         }
