@@ -1,7 +1,8 @@
-//! Small kernels over contiguous rows of f64 for the hot loops of the solves: the dot
-//! products of a group of rows with one vector and the update of a vector by a combination of
-//! rows, in AVX2 and FMA intrinsics where the CPU has them (checked at run time) and in
-//! portable code otherwise (tested to agree to round-off).
+//! Small kernels for the hot loops of a step: the dot products of a group of rows with one
+//! vector and the update of a vector by a combination of rows (the envelope solves, the
+//! condensed solve's coupling), products with 3 x 3 node blocks (K_ff q_f) and the node-wise
+//! products of a scalar mass matrix. AVX2 and FMA intrinsics where the CPU has them (checked at
+//! run time), portable code otherwise (tested to agree to round-off).
 
 /// Multiply-add: fused (one rounding) in the kernels compiled for FMA, else a product and a
 /// sum (`f64::mul_add` without the instruction would be a library call).
@@ -38,7 +39,8 @@ pub(crate) const GROUP: usize = 4;
 pub(crate) fn group_dot<const FMA: bool>(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
     #[cfg(target_arch = "x86_64")]
     if FMA {
-        // SAFETY: the FMA kernels run only from the entry points that checked AVX2 and FMA.
+        // SAFETY: the FMA kernels run only from callers that checked AVX2 and FMA
+        // (`has_avx2_fma`).
         return unsafe { avx2::dot4(rows, y) };
     }
     dot_rows::<FMA, GROUP>(rows, y)
@@ -55,7 +57,7 @@ pub(crate) fn group_update<const FMA: bool>(y: &mut [f64], x: [f64; GROUP], rows
     update_rows::<FMA, GROUP>(y, x, rows)
 }
 
-/// The group kernels of the solves in AVX2 and FMA intrinsics.
+/// The kernels in AVX2 and FMA intrinsics.
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx2 {
     use std::arch::x86_64::{
@@ -273,23 +275,21 @@ fn update_rows<const FMA: bool, const R: usize>(y: &mut [f64], x: [f64; R], rows
 /// The dot products of four rows (each at least as long as y) with y, in the AVX2 kernel
 /// where the CPU has it.
 pub(crate) fn dot4(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
-    #[cfg(target_arch = "x86_64")]
     if has_avx2_fma() {
-        // SAFETY: the CPU supports AVX2 and FMA (checked above).
-        return unsafe { avx2::dot4(rows, y) };
+        group_dot::<true>(rows, y)
+    } else {
+        group_dot::<false>(rows, y)
     }
-    dot_rows::<false, GROUP>(rows, y)
 }
 
 /// y -= sum_r x_r rows_r over the length of y (each row at least as long), in the AVX2
 /// kernel where the CPU has it.
 pub(crate) fn update4(y: &mut [f64], x: [f64; GROUP], rows: [&[f64]; GROUP]) {
-    #[cfg(target_arch = "x86_64")]
     if has_avx2_fma() {
-        // SAFETY: the CPU supports AVX2 and FMA (checked above).
-        return unsafe { avx2::update4(y, x, rows) };
+        group_update::<true>(y, x, rows)
+    } else {
+        group_update::<false>(y, x, rows)
     }
-    update_rows::<false, GROUP>(y, x, rows)
 }
 
 #[cfg(test)]
