@@ -93,6 +93,10 @@ impl ElasticPattern {
     }
 }
 
+/// Sparse matrices up to this size with at least half their entries are multiplied in dense
+/// form (see [`ElasticMatrix::dense`]).
+const DENSE_PRODUCTS_SIZE: usize = 128;
+
 /// A constant sparse n_f x n_f matrix of a body, with the position of each of its entries in
 /// the body's [`ElasticPattern`].
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -104,6 +108,10 @@ pub struct ElasticMatrix {
     /// Every entry is stored (a modal body's matrices): `matrix.values` is the dense matrix in
     /// column-major order, and the products skip the row indices.
     pub full: bool,
+    /// A dense copy (column-major) of a small matrix that is not `full` but has at least half
+    /// its entries (a Craig-Bampton stiffness, whose boundary-internal block is zero): dense
+    /// products in vectors of four beat the indexed ones there.
+    pub dense: Option<Vec<f64>>,
     /// The same matrix in 3 x 3 blocks, when its entries come in such blocks (the stiffness of
     /// solid elements, node by node): the products read one block index per nine entries.
     pub blocks: Option<Blocks3>,
@@ -212,22 +220,30 @@ impl ElasticMatrix {
                 positions.push(pattern.position(matrix.row_idx[k], c));
             }
         }
-        let full = matrix.nrows > 0 && matrix.values.len() == matrix.nrows * matrix.ncols;
-        let blocks = if full { None } else { Blocks3::from_csc(&matrix) };
-        ElasticMatrix { matrix, positions, full, blocks }
+        let n = matrix.nrows;
+        let full = n > 0 && matrix.values.len() == n * matrix.ncols;
+        let dense = (!full && n <= DENSE_PRODUCTS_SIZE && 2 * matrix.values.len() >= n * n).then(|| {
+            let mut dense = vec![0.0; n * n];
+            for c in 0..matrix.ncols {
+                for k in matrix.col_ptr[c]..matrix.col_ptr[c + 1] {
+                    dense[c * n + matrix.row_idx[k]] += matrix.values[k];
+                }
+            }
+            dense
+        });
+        let blocks = if full || dense.is_some() { None } else { Blocks3::from_csc(&matrix) };
+        ElasticMatrix { matrix, positions, full, dense, blocks }
     }
 
     /// `out += w * A x`.
     pub fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
         let m = &self.matrix;
         if self.full {
-            let n = m.nrows;
-            for (c, column) in m.values.chunks_exact(n).enumerate() {
-                let xc = w * x[c];
-                for (o, v) in out[..n].iter_mut().zip(column) {
-                    *o += v * xc;
-                }
-            }
+            crate::math::simd::dense_mul_add(m.nrows, &m.values, w, &x[..m.ncols], out);
+            return;
+        }
+        if let Some(dense) = &self.dense {
+            crate::math::simd::dense_mul_add(m.nrows, dense, w, &x[..m.ncols], out);
             return;
         }
         if let Some(blocks) = &self.blocks {
@@ -275,17 +291,21 @@ impl ScalarMass {
 
     /// Node-wise products Y = M_s [V_0, V_1, V_2] of three elastic vectors (each spread over
     /// the nodes as nodes x 3, zero at the coordinates the reference conditions hold), into
-    /// `out` (nodes x 9: per node Y_0, Y_1, Y_2); `gathered` is scratch (nodes x 9).
-    /// Only the first `W` of the nine entries per node are formed (6: Y_0 and Y_1).
-    fn products<const W: usize>(&self, vectors: [&[f64]; 3], gathered: &mut [f64], out: &mut [f64]) {
-        gathered.iter_mut().for_each(|x| *x = 0.0);
+    /// `out` (nodes x 9: per node Y_0, Y_1, Y_2; only the first `W` of the nine entries per
+    /// node are formed, 6: Y_0 and Y_1, the others are left as they were). `gathered`
+    /// (nodes x 9) receives the spread vectors at the coordinates' entries only: the others
+    /// must be zero (as in [`FlexibleScratch::for_body`]), and stay so. Returns the sums over
+    /// the nodes g[v][k][l] = V_v[node][k] Y_0[node][l].
+    fn products<const W: usize>(
+        &self,
+        vectors: [&[f64]; 3],
+        gathered: &mut [f64],
+        out: &mut [f64],
+    ) -> [[[f64; 3]; 3]; 3] {
         let [v0, v1, v2] = vectors;
         for (((&c, &x0), &x1), &x2) in self.coordinates.iter().zip(v0).zip(v1).zip(v2) {
             let at = &mut gathered[(c / 3) * 9 + c % 3..][..7];
             (at[0], at[3], at[6]) = (x0, x1, x2);
-        }
-        if W < 9 {
-            out.iter_mut().for_each(|x| *x = 0.0);
         }
         // M_s is symmetric (a mass matrix; `check_scalar_mass` compares these products with
         // the I_kl): node i's row of the product is gathered from column i, summed in
@@ -294,17 +314,20 @@ impl ScalarMass {
         if (W == 6 || W == 9) && crate::math::simd::has_avx2_fma() {
             let m = &self.matrix;
             // SAFETY: the CPU supports AVX2 and FMA (checked above).
-            unsafe {
+            let sums = unsafe {
                 crate::math::simd::avx2::node_products::<W>(&m.col_ptr, &m.row_idx, &m.values, gathered, out)
             };
-            return;
+            return std::array::from_fn(|v| {
+                std::array::from_fn(|k| std::array::from_fn(|l| sums[3 * v + k][l]))
+            });
         }
-        self.multiply_portable::<W>(gathered, out);
+        self.multiply_portable::<W>(gathered, out)
     }
 
     /// The products of [`Self::products`] from the gathered vectors, in portable code.
-    fn multiply_portable<const W: usize>(&self, gathered: &[f64], out: &mut [f64]) {
+    fn multiply_portable<const W: usize>(&self, gathered: &[f64], out: &mut [f64]) -> [[[f64; 3]; 3]; 3] {
         let m = &self.matrix;
+        let mut g = [[[0.0f64; 3]; 3]; 3];
         for (col, node_out) in out.chunks_exact_mut(9).enumerate().take(m.ncols) {
             let mut sum = [0.0f64; W];
             for e in m.col_ptr[col]..m.col_ptr[col + 1] {
@@ -315,7 +338,16 @@ impl ScalarMass {
                 }
             }
             node_out[..W].copy_from_slice(&sum);
+            let own = &gathered[9 * col..9 * col + 9];
+            for (gv, vv) in g.iter_mut().zip(own.chunks_exact(3)) {
+                for (row, &x) in gv.iter_mut().zip(vv) {
+                    for (o, &y) in row.iter_mut().zip(&sum[..3]) {
+                        *o += x * y;
+                    }
+                }
+            }
         }
+        g
     }
 }
 
@@ -792,11 +824,7 @@ impl FlexibleBody {
         if let Some(stacked) = &self.stacked_i_kl {
             let out = &mut out[..9 * n];
             out.iter_mut().for_each(|x| *x = 0.0);
-            for (column, &vc) in stacked.chunks_exact(9 * n).zip(v) {
-                for (o, a) in out.iter_mut().zip(column) {
-                    *o += a * vc;
-                }
-            }
+            crate::math::simd::dense_mul_add(9 * n, stacked, 1.0, &v[..n], out);
             return;
         }
         out.iter_mut().for_each(|x| *x = 0.0);
@@ -896,7 +924,8 @@ pub struct FlexibleScratch {
     pub rows2: Vec<f64>,
     /// Bodies of solids: node-wise M_s [q_f, qf_dot, qf_dd] (nodes x 9), see [`ScalarMass`].
     pub nodal: Vec<f64>,
-    /// Scratch of the same size.
+    /// The vectors of those products spread over the nodes (nodes x 9, zero outside the
+    /// coordinates' entries: see [`ScalarMass::products`]).
     pub gathered: Vec<f64>,
     /// M_ff qf_dd of the last inertia force with [`ElasticMass::Separate`] (n_f).
     pub mass_term: Vec<f64>,
@@ -971,6 +1000,15 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
+/// The dot products of the nine rows of length n stacked in `rows` (row 3 k + l at
+/// (3 k + l) n) with v, four rows at a time.
+fn nine_dots(rows: &[f64], n: usize, v: &[f64]) -> [f64; 9] {
+    let r = |i: usize| &rows[i * n..(i + 1) * n];
+    let [a, b, c, d] = crate::math::simd::dot4([r(0), r(1), r(2), r(3)], &v[..n]);
+    let [e, f, g, h] = crate::math::simd::dot4([r(4), r(5), r(6), r(7)], &v[..n]);
+    [a, b, c, d, e, f, g, h, dot(r(8), v)]
+}
+
 fn row(v: &[f64], k: usize, l: usize, n: usize) -> &[f64] {
     &v[(3 * k + l) * n..(3 * k + l + 1) * n]
 }
@@ -986,27 +1024,38 @@ fn nodewise(body: &FlexibleBody, scratch: &FlexibleScratch) -> bool {
 /// the compressed rows, out[v][c] = [I1_c V_v, Ibar_0c V_v, Ibar_1c V_v, Ibar_2c V_v]
 /// (so I1 V_v = out[v][.][0] and Ibar_kl . V_v = out[v][l][1 + k]).
 fn solid_sums(body: &FlexibleBody, sm: &ScalarMass, vectors: [&[f64]; 3]) -> [[[f64; 4]; 3]; 3] {
-    let mut out = [[[0.0f64; 4]; 3]; 3];
     if body.whole_nodes {
-        // A node at a time (the same sums in the same order).
-        let [v0, v1, v2] = vectors.map(|v| v.chunks_exact(3));
-        for (((rows, x0), x1), x2) in body.solid_rows.chunks_exact(3).zip(v0).zip(v1).zip(v2) {
-            for (o, x) in out.iter_mut().zip([x0, x1, x2]) {
-                for ((oc, row), &xc) in o.iter_mut().zip(rows).zip(x) {
-                    for (ov, r) in oc.iter_mut().zip(row) {
-                        *ov += r * xc;
-                    }
-                }
-            }
+        #[cfg(target_arch = "x86_64")]
+        if crate::math::simd::has_avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA (checked above).
+            return unsafe { crate::math::simd::avx2::node_row_sums(&body.solid_rows, vectors) };
         }
-        return out;
+        return node_row_sums_portable(&body.solid_rows, vectors);
     }
+    let mut out = [[[0.0f64; 4]; 3]; 3];
     for (j, (row, &c)) in body.solid_rows.iter().zip(&sm.coordinates).enumerate() {
         let comp = c % 3;
         for (o, v) in out.iter_mut().zip(&vectors) {
             let x = v[j];
             for (ov, r) in o[comp].iter_mut().zip(row) {
                 *ov += r * x;
+            }
+        }
+    }
+    out
+}
+
+/// [`solid_sums`] of a body whose coordinates are whole nodes, a node at a time, in portable
+/// code (the AVX2 kernel `node_row_sums` forms the same sums in the same order).
+fn node_row_sums_portable(rows: &[[f64; 4]], vectors: [&[f64]; 3]) -> [[[f64; 4]; 3]; 3] {
+    let mut out = [[[0.0f64; 4]; 3]; 3];
+    let [v0, v1, v2] = vectors.map(|v| v.chunks_exact(3));
+    for (((rows, x0), x1), x2) in rows.chunks_exact(3).zip(v0).zip(v1).zip(v2) {
+        for (o, x) in out.iter_mut().zip([x0, x1, x2]) {
+            for ((oc, row), &xc) in o.iter_mut().zip(rows).zip(x) {
+                for (ov, r) in oc.iter_mut().zip(row) {
+                    *ov += r * xc;
+                }
             }
         }
     }
@@ -1041,21 +1090,11 @@ fn quantities(
     // V = q_f, qf_dot, qf_dd; and N_kl = Ibar_kl + y_lk.
     let node_sums = match &body.scalar_mass {
         Some(sm) if !with_products && nodewise(body, scratch) => {
-            if elastic_mass {
-                sm.products::<9>([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
+            let g = if elastic_mass {
+                sm.products::<9>([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal)
             } else {
-                sm.products::<6>([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal);
-            }
-            let mut g = [[[0.0f64; 3]; 3]; 3];
-            for (v, y) in scratch.gathered.chunks_exact(9).zip(scratch.nodal.chunks_exact(9)) {
-                for (gv, vv) in g.iter_mut().zip(v.chunks_exact(3)) {
-                    for (row, &x) in gv.iter_mut().zip(vv) {
-                        for (o, &yb) in row.iter_mut().zip(&y[..3]) {
-                            *o += x * yb;
-                        }
-                    }
-                }
-            }
+                sm.products::<6>([qf, qfd, qfdd], &mut scratch.gathered, &mut scratch.nodal)
+            };
             Some((g, solid_sums(body, sm, [qf, qfd, qfdd])))
         }
         _ => {
@@ -1099,15 +1138,17 @@ fn quantities(
             }
         }
         None => {
+            let ibar_qf = nine_dots(&body.ibar, nf, qf);
+            let y_qf = nine_dots(&scratch.y, nf, qf);
+            let n_qfd = nine_dots(&scratch.n, nf, qfd);
+            let n_dd = nine_dots(&scratch.n, nf, qfdd);
             for k in 0..3 {
                 for l2 in 0..3 {
-                    u.0[k][l2] = body.second_moment.0[k][l2]
-                        + dot(body.ibar_row(k, l2), qf)
-                        + dot(body.ibar_row(l2, k), qf)
-                        + dot(qf, row(&scratch.y, k, l2, nf));
-                    pm.0[k][l2] = dot(row(&scratch.n, k, l2, nf), qfd);
+                    let (kl, lk) = (3 * k + l2, 3 * l2 + k);
+                    u.0[k][l2] = body.second_moment.0[k][l2] + ibar_qf[kl] + ibar_qf[lk] + y_qf[kl];
+                    pm.0[k][l2] = n_qfd[kl];
                     if k != l2 {
-                        n_qfdd.0[k][l2] = dot(row(&scratch.n, k, l2, nf), qfdd);
+                        n_qfdd.0[k][l2] = n_dd[kl];
                     }
                 }
             }
@@ -1855,6 +1896,86 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn node_row_sums_agree_with_plain_sums() {
+        // Rows of four per coordinate, three vectors, whole nodes (0 to 7 of them).
+        for nodes in 0..8usize {
+            let n = 3 * nodes;
+            let rows: Vec<[f64; 4]> =
+                (0..n).map(|j| std::array::from_fn(|i| ((5 * j + 3 * i) % 7) as f64 - 3.0)).collect();
+            let v: Vec<Vec<f64>> =
+                (0..3).map(|k| (0..n).map(|j| 0.25 * (j + k) as f64 - 1.0).collect()).collect();
+            let vectors = [&v[0][..], &v[1][..], &v[2][..]];
+            let portable = node_row_sums_portable(&rows, vectors);
+            #[cfg(target_arch = "x86_64")]
+            let fast = if crate::math::simd::has_avx2_fma() {
+                // SAFETY: the CPU supports AVX2 and FMA (checked).
+                unsafe { crate::math::simd::avx2::node_row_sums(&rows, vectors) }
+            } else {
+                portable
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let fast = portable;
+            for vv in 0..3 {
+                for c in 0..3 {
+                    for i in 0..4 {
+                        let exact: f64 = (0..nodes).map(|nd| rows[3 * nd + c][i] * v[vv][3 * nd + c]).sum();
+                        for got in [portable[vv][c][i], fast[vv][c][i]] {
+                            assert!((got - exact).abs() <= 1e-12 * (1.0 + exact.abs()), "{nodes} nodes");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn elastic_matrix_products_agree_in_every_storage() {
+        // Stored whole (full), with three quarters of its entries (dense copy), in 3 x 3 node
+        // blocks, and as a sparse band (indexed): out += w A x against the plain CSC product.
+        let value = |r: usize, c: usize| 1.0 + ((3 * r + 7 * c) % 5) as f64 - 0.25 * c as f64;
+        // (n, entries kept, expected storage: full, dense copy, 3 x 3 blocks)
+        type Case = (usize, fn(usize, usize) -> bool, [bool; 3]);
+        let cases: [Case; 4] = [
+            (10, |_, _| true, [true, false, false]),
+            (18, |r, c| (r + 2 * c) % 4 != 1, [false, true, false]),
+            (12, |r, c| r / 3 == c / 3 || r / 3 + 1 == c / 3, [false, false, true]),
+            (20, |r, c| r.abs_diff(c) <= 1, [false, false, false]),
+        ];
+        for (n, keep, storage) in cases {
+            let mut entries = Csc::from_dense(n, n, value);
+            let (mut row_idx, mut values, mut col_ptr) = (Vec::new(), Vec::new(), vec![0]);
+            for c in 0..n {
+                for k in entries.col_ptr[c]..entries.col_ptr[c + 1] {
+                    if keep(entries.row_idx[k], c) {
+                        row_idx.push(entries.row_idx[k]);
+                        values.push(entries.values[k]);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+            (entries.row_idx, entries.values, entries.col_ptr) = (row_idx, values, col_ptr);
+            let pattern = ElasticPattern::union(n, &[&entries], &[]);
+            let matrix = ElasticMatrix::new(entries.clone(), &pattern);
+            let stored = [matrix.full, matrix.dense.is_some(), matrix.blocks.is_some()];
+            assert_eq!(stored, storage, "n = {n}");
+            let x: Vec<f64> = (0..n).map(|k| 0.3 * k as f64 - 1.0).collect();
+            let start: Vec<f64> = (0..n).map(|k| 0.1 * k as f64).collect();
+            let mut expected = vec![0.0; n];
+            entries.mul_vec_add(&x, &mut expected);
+            let mut out = start.clone();
+            matrix.mul_vec_add(-1.5, &x, &mut out);
+            for k in 0..n {
+                let e = start[k] - 1.5 * expected[k];
+                assert!(
+                    (out[k] - e).abs() <= 1e-12 * (1.0 + e.abs()),
+                    "n = {n}, row {k}: {} against {e}",
+                    out[k]
+                );
+            }
+        }
+    }
+
+    #[test]
     fn tangent_matches_finite_differences() {
         let n = 3;
         let pts = PointBody::random(6, n, 7);
@@ -2136,31 +2257,48 @@ pub(crate) mod tests {
             }
         }
         for w in [6, 9] {
-            let (mut gathered, mut out) = (vec![1.0; 9 * nodes], vec![7.0; 9 * nodes]);
-            if w == 6 {
-                sm.products::<6>([&v[0], &v[1], &v[2]], &mut gathered, &mut out);
+            // Entries past W are left as they were (7); gathered is zero outside the
+            // coordinates' entries before and after.
+            let (mut gathered, mut out) = (vec![0.0; 9 * nodes], vec![7.0; 9 * nodes]);
+            let g = if w == 6 {
+                sm.products::<6>([&v[0], &v[1], &v[2]], &mut gathered, &mut out)
             } else {
-                sm.products::<9>([&v[0], &v[1], &v[2]], &mut gathered, &mut out);
-            }
+                sm.products::<9>([&v[0], &v[1], &v[2]], &mut gathered, &mut out)
+            };
             assert_eq!(gathered, spread);
-            let mut portable = vec![0.0; 9 * nodes];
-            if w == 6 {
-                sm.multiply_portable::<6>(&gathered, &mut portable);
+            let mut portable = vec![7.0; 9 * nodes];
+            let g_portable = if w == 6 {
+                sm.multiply_portable::<6>(&gathered, &mut portable)
             } else {
-                sm.multiply_portable::<9>(&gathered, &mut portable);
-            }
+                sm.multiply_portable::<9>(&gathered, &mut portable)
+            };
             for i in 0..nodes {
                 for k in 0..9 {
                     let expected: f64 = if k < w {
                         (0..nodes).map(|r| dense(r.min(i), r.max(i)) * spread[9 * r + k]).sum()
                     } else {
-                        0.0
+                        7.0
                     };
                     for got in [out[9 * i + k], portable[9 * i + k]] {
                         assert!(
                             (got - expected).abs() <= 1e-12,
                             "W = {w}, node {i}, entry {k}: {got} vs {expected}"
                         );
+                    }
+                }
+            }
+            // g[v][k][l] = sum over the nodes of V_v[node][k] Y_0[node][l].
+            for vv in 0..3 {
+                for k in 0..3 {
+                    for l in 0..3 {
+                        let expected: f64 =
+                            (0..nodes).map(|i| spread[9 * i + 3 * vv + k] * out[9 * i + l]).sum();
+                        for got in [g[vv][k][l], g_portable[vv][k][l]] {
+                            assert!(
+                                (got - expected).abs() <= 1e-10,
+                                "g[{vv}][{k}][{l}]: {got} vs {expected}"
+                            );
+                        }
                     }
                 }
             }

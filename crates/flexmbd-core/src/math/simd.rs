@@ -1,8 +1,9 @@
 //! Small kernels for the hot loops of a step: the dot products of a group of rows with one
 //! vector and the update of a vector by a combination of rows (the envelope solves, the
-//! condensed solve's coupling), products with 3 x 3 node blocks (K_ff q_f) and the node-wise
-//! products of a scalar mass matrix. AVX2 and FMA intrinsics where the CPU has them (checked at
-//! run time), portable code otherwise (tested to agree to round-off).
+//! condensed solve's coupling), products with 3 x 3 node blocks (K_ff q_f), the node-wise
+//! products of a scalar mass matrix and products with dense column-major matrices. AVX2 and
+//! FMA intrinsics where the CPU has them (checked at run time), portable code otherwise
+//! (tested to agree to round-off).
 
 /// Multiply-add: fused (one rounding) in the kernels compiled for FMA, else a product and a
 /// sum (`f64::mul_add` without the instruction would be a library call).
@@ -68,7 +69,8 @@ pub(crate) mod avx2 {
 
     /// out[9 i + k] = sum over the entries (r, m) of column i of a CSC matrix of
     /// m gathered[9 r + k], k < W (6 or 9): per entry one or two vectors of four and, for
-    /// W = 9, the ninth entry apart.
+    /// W = 9, the ninth entry apart. Returns the sums over the columns i of
+    /// gathered[9 i + j] out[9 i + l], j < 9, l < 3 (lane l of entry j; lane 3 is not used).
     #[target_feature(enable = "avx2,fma")]
     #[inline]
     pub(crate) unsafe fn node_products<const W: usize>(
@@ -77,8 +79,9 @@ pub(crate) mod avx2 {
         values: &[f64],
         gathered: &[f64],
         out: &mut [f64],
-    ) {
+    ) -> [[f64; 4]; 9] {
         use std::arch::x86_64::{_mm_fmadd_pd, _mm_loadu_pd, _mm_set1_pd, _mm_setzero_pd, _mm_storeu_pd};
+        let mut moments = [_mm256_setzero_pd(); 9];
         for (col, node_out) in out.chunks_exact_mut(9).enumerate().take(col_ptr.len() - 1) {
             let range = col_ptr[col]..col_ptr[col + 1];
             let (mut a, mut b, mut b2) = (_mm256_setzero_pd(), _mm256_setzero_pd(), _mm_setzero_pd());
@@ -102,7 +105,16 @@ pub(crate) mod avx2 {
             } else {
                 _mm_storeu_pd(o.add(4), b2);
             }
+            let own = &gathered[9 * col..9 * col + 9];
+            for (sum, &v) in moments.iter_mut().zip(own) {
+                *sum = _mm256_fmadd_pd(_mm256_set1_pd(v), a, *sum);
+            }
         }
+        let mut sums = [[0.0f64; 4]; 9];
+        for (s, m) in sums.iter_mut().zip(&moments) {
+            _mm256_storeu_pd(s.as_mut_ptr(), *m);
+        }
+        sums
     }
 
     /// out[3 i + k] += w (sum over the blocks B of block row i of B x_(block column)), for
@@ -149,6 +161,74 @@ pub(crate) mod avx2 {
             o[0] = w.mul_add((sa[0] + sa[1]) + sa[2], o[0]);
             o[1] = w.mul_add((sa[3] + sb[0]) + sb[1], o[1]);
             o[2] = w.mul_add((sb[2] + sb[3]) + c, o[2]);
+        }
+    }
+
+    /// For nodes whose three coordinates are all kept: out[v][c] = sum over the nodes of
+    /// rows[3 node + c] x_v[3 node + c] (rows of four; v < 3, c < 3), in nine vectors of
+    /// sums over the nodes in order.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(crate) unsafe fn node_row_sums(rows: &[[f64; 4]], vectors: [&[f64]; 3]) -> [[[f64; 4]; 3]; 3] {
+        let n = rows.len() - rows.len() % 3;
+        let [x0, x1, x2] = vectors.map(|v| &v[..n]);
+        let mut acc = [_mm256_setzero_pd(); 9];
+        for i in (0..n).step_by(3) {
+            for c in 0..3 {
+                let r = _mm256_loadu_pd(rows[i + c].as_ptr());
+                for (v, x) in [x0, x1, x2].iter().enumerate() {
+                    acc[3 * v + c] = _mm256_fmadd_pd(r, _mm256_set1_pd(x[i + c]), acc[3 * v + c]);
+                }
+            }
+        }
+        let mut out = [[[0.0f64; 4]; 3]; 3];
+        for (k, a) in acc.iter().enumerate() {
+            _mm256_storeu_pd(out[k / 3][k % 3].as_mut_ptr(), *a);
+        }
+        out
+    }
+
+    /// out[..rows] += w A x for A column-major (rows x x.len()): rows in blocks of sixteen
+    /// (four vectors of sums kept in registers over all columns), then of four, then one at a
+    /// time; each sum runs over the columns in order.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    pub(crate) unsafe fn dense_mul_add(rows: usize, a: &[f64], w: f64, x: &[f64], out: &mut [f64]) {
+        let cols = x.len();
+        let (a, out) = (&a[..rows * cols], &mut out[..rows]);
+        let (ap, op) = (a.as_ptr(), out.as_mut_ptr());
+        let mut r = 0;
+        while r + 16 <= rows {
+            let mut acc = [
+                _mm256_loadu_pd(op.add(r)),
+                _mm256_loadu_pd(op.add(r + 4)),
+                _mm256_loadu_pd(op.add(r + 8)),
+                _mm256_loadu_pd(op.add(r + 12)),
+            ];
+            for (c, &xc) in x.iter().enumerate() {
+                let v = _mm256_set1_pd(w * xc);
+                let column = ap.add(c * rows + r);
+                for (k, s) in acc.iter_mut().enumerate() {
+                    *s = _mm256_fmadd_pd(_mm256_loadu_pd(column.add(4 * k)), v, *s);
+                }
+            }
+            for (k, s) in acc.iter().enumerate() {
+                _mm256_storeu_pd(op.add(r + 4 * k), *s);
+            }
+            r += 16;
+        }
+        while r + 4 <= rows {
+            let mut s = _mm256_loadu_pd(op.add(r));
+            for (c, &xc) in x.iter().enumerate() {
+                s = _mm256_fmadd_pd(_mm256_loadu_pd(ap.add(c * rows + r)), _mm256_set1_pd(w * xc), s);
+            }
+            _mm256_storeu_pd(op.add(r), s);
+            r += 4;
+        }
+        for (i, o) in out.iter_mut().enumerate().skip(r) {
+            for (c, &xc) in x.iter().enumerate() {
+                *o = a[c * rows + i].mul_add(w * xc, *o);
+            }
         }
     }
 
@@ -272,6 +352,31 @@ fn update_rows<const FMA: bool, const R: usize>(y: &mut [f64], x: [f64; R], rows
     }
 }
 
+/// out[..rows] += w A x for a dense A stored column-major (rows x x.len()), in the AVX2
+/// kernel where the CPU has it (the constant matrices of modal bodies, the stacked I_kl).
+pub(crate) fn dense_mul_add(rows: usize, a: &[f64], w: f64, x: &[f64], out: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        // SAFETY: the CPU supports AVX2 and FMA (checked above).
+        return unsafe { avx2::dense_mul_add(rows, a, w, x, out) };
+    }
+    dense_mul_add_portable(rows, a, w, x, out);
+}
+
+/// [`dense_mul_add`] in portable code, column by column.
+fn dense_mul_add_portable(rows: usize, a: &[f64], w: f64, x: &[f64], out: &mut [f64]) {
+    if rows == 0 {
+        return;
+    }
+    let out = &mut out[..rows];
+    for (column, &xc) in a.chunks_exact(rows).zip(x) {
+        let v = w * xc;
+        for (o, a) in out.iter_mut().zip(column) {
+            *o += a * v;
+        }
+    }
+}
+
 /// The dot products of four rows (each at least as long as y) with y, in the AVX2 kernel
 /// where the CPU has it.
 pub(crate) fn dot4(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
@@ -295,6 +400,32 @@ pub(crate) fn update4(y: &mut [f64], x: [f64; GROUP], rows: [&[f64]; GROUP]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dense_products_agree_with_plain_sums() {
+        // Row counts through the blocks of sixteen and four and the single rows, column
+        // counts from none on; out starts nonzero and past `rows` stays untouched.
+        for rows in [0usize, 1, 3, 4, 5, 15, 16, 17, 21, 36, 144] {
+            for cols in [0usize, 1, 2, 7, 16] {
+                let a: Vec<f64> = (0..rows * cols).map(|k| ((k * 37) % 11) as f64 - 5.0).collect();
+                let x: Vec<f64> = (0..cols).map(|c| 0.5 * c as f64 - 1.25).collect();
+                let start: Vec<f64> = (0..rows + 2).map(|i| i as f64 * 0.125).collect();
+                let w = -0.75;
+                let exact: Vec<f64> = (0..rows)
+                    .map(|i| start[i] + w * (0..cols).map(|c| a[c * rows + i] * x[c]).sum::<f64>())
+                    .collect();
+                let (mut fast, mut plain) = (start.clone(), start.clone());
+                dense_mul_add(rows, &a, w, &x, &mut fast);
+                dense_mul_add_portable(rows, &a, w, &x, &mut plain);
+                for out in [&fast, &plain] {
+                    for (i, e) in exact.iter().enumerate() {
+                        assert!((out[i] - e).abs() <= 1e-12 * (1.0 + e.abs()), "{rows} x {cols}, row {i}");
+                    }
+                    assert_eq!(&out[rows..], &start[rows..]);
+                }
+            }
+        }
+    }
 
     #[test]
     fn group_kernels_agree_with_plain_sums() {
