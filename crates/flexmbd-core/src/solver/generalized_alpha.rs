@@ -196,8 +196,9 @@ fn solve(
 /// Multipliers (only with `multipliers`): the generalized constraint force of their
 /// increment, |C_q^T dlambda|_inf, against tol max(1, |C_q^T lambda|_inf). In the index-3
 /// form a multiplier error does not show in dq at all (q is held by C(q) = 0), so an
-/// iteration with a matrix reused from an earlier iterate needs this test. A step with a
-/// matrix factorized at the current iterate gives multipliers accurate to second order in dq,
+/// iteration with a matrix reused from an earlier iterate needs this test, and so does one
+/// with the approximate iteration matrix of condensed bodies. A step with the exact matrix
+/// factorized at the current iterate gives multipliers accurate to second order in dq,
 /// and near singular configurations their increments are round-off amplified by the inverse
 /// of the smallest singular value of C_q, which no test could pass: there it is skipped.
 fn increment_norm(
@@ -323,6 +324,8 @@ fn iterate(
     let mut previous_norm = f64::INFINITY;
     // Whether the matrix was factorized at the predictor, in the first iteration of this step.
     let mut fresh_at_predictor = false;
+    let approximate_matrix =
+        kind != Factorization::Projection && matches!(ws.linear, LinearSolvers::Condensed { .. });
     let condensed_rows = kind != Factorization::Projection
         && coef.position == 1.0
         && coef.identity == 0.0
@@ -370,8 +373,11 @@ fn iterate(
         }
         // With a matrix reused from an earlier iterate, the multipliers are tested through the
         // constraint forces C_q^T dlambda of the increment (and C_q^T lambda before it), with
-        // the Jacobians of this iterate: nonzero only at the constraints' coordinates.
-        let check_multipliers = !need_matrix;
+        // the Jacobians of this iterate: nonzero only at the constraints' coordinates. So is
+        // the condensed iteration matrix even when factorized at this iterate: it is not the
+        // exact Jacobian (the constant A, the mass part of the reference coupling), and its
+        // multipliers converge at its rate, not to second order.
+        let check_multipliers = !need_matrix || approximate_matrix;
         let [force_increment, force, _] = &mut ws.scratch;
         if check_multipliers {
             for &d in &ws.constraint_coordinates {
