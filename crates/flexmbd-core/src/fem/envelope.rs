@@ -353,12 +353,16 @@ impl EnvelopeCholesky {
             let m = self.first[i];
             let rows: [&[f64]; GROUP] = std::array::from_fn(|r| row(i + r));
             let sums = group_dot::<FMA>(rows, &y[m..i]);
+            // The group's own triangle with its values in registers (through y in memory,
+            // each row waited for the store and load of the one before).
+            let mut v: [f64; GROUP] = std::array::from_fn(|r| y[i + r]);
             for (r, (l, mut s)) in rows.iter().zip(sums).enumerate() {
-                for c in 0..r {
-                    s = mul_add::<FMA>(l[i + c - m], y[i + c], s);
+                for (c, &lc) in l[i - m..i - m + r].iter().enumerate() {
+                    s = mul_add::<FMA>(lc, v[c], s);
                 }
-                y[i + r] = (y[i + r] - s) * inv[i + r];
+                v[r] = (v[r] - s) * inv[i + r];
             }
+            y[i..i + GROUP].copy_from_slice(&v);
         }
         for i in whole..n {
             let fi = self.first[i];
@@ -376,16 +380,16 @@ impl EnvelopeCholesky {
         for i in (0..whole).step_by(GROUP).rev() {
             let m = self.first[i];
             let rows: [&[f64]; GROUP] = std::array::from_fn(|r| row(i + r));
-            let mut xs = [0.0; GROUP];
+            let mut v: [f64; GROUP] = std::array::from_fn(|r| y[i + r]);
             for r in (0..GROUP).rev() {
-                let xr = y[i + r] * inv[i + r];
-                y[i + r] = xr;
-                xs[r] = xr;
-                for c in 0..r {
-                    y[i + c] = mul_add::<FMA>(-xr, rows[r][i + c - m], y[i + c]);
+                let xr = v[r] * inv[i + r];
+                v[r] = xr;
+                for (c, &lc) in rows[r][i - m..i - m + r].iter().enumerate() {
+                    v[c] = mul_add::<FMA>(-xr, lc, v[c]);
                 }
             }
-            group_update::<FMA>(&mut y[m..i], xs, rows);
+            y[i..i + GROUP].copy_from_slice(&v);
+            group_update::<FMA>(&mut y[m..i], v, rows);
         }
         for (yi, &u) in y.iter().zip(&self.order) {
             x[u] = *yi;
