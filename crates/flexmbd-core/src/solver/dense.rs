@@ -19,7 +19,6 @@
 //! (vectors of four, the same results), taken where the CPU has it.
 
 use super::sparse::SparsePattern;
-use crate::math::simd::has_avx2_fma;
 
 /// Newton systems of at most this many unknowns are factorized densely.
 pub const DENSE_SYSTEM_SIZE: usize = 64;
@@ -222,7 +221,7 @@ impl DenseLu {
     /// entry outside the structure, or if a pivot is too small.
     fn refactorize(&mut self, pattern: &SparsePattern, values: &[f64], tiny: f64) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if has_avx2_fma() {
+        if crate::math::simd::has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 (checked above).
             return unsafe { self.refactorize_avx2(pattern, values, tiny) };
         }
@@ -306,7 +305,7 @@ impl DenseLu {
     /// operations, so the results are the same bit for bit).
     fn substitute(&self, rhs: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
-        if has_avx2_fma() {
+        if crate::math::simd::has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 (checked above).
             return unsafe { self.substitute_avx2(rhs) };
         }
