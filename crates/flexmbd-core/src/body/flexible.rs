@@ -238,11 +238,8 @@ impl ElasticMatrix {
     /// `out += w * A x`.
     pub fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
         let m = &self.matrix;
-        if self.full {
-            crate::math::simd::dense_mul_add(m.nrows, &m.values, w, &x[..m.ncols], out);
-            return;
-        }
-        if let Some(dense) = &self.dense {
+        let dense = if self.full { Some(&m.values[..]) } else { self.dense.as_deref() };
+        if let Some(dense) = dense {
             crate::math::simd::dense_mul_add(m.nrows, dense, w, &x[..m.ncols], out);
             return;
         }

@@ -324,12 +324,10 @@ fn iterate(
     let mut previous_norm = f64::INFINITY;
     // Whether the matrix was factorized at the predictor, in the first iteration of this step.
     let mut fresh_at_predictor = false;
+    // The condensed solver's iteration matrix (not the exact Jacobian, see below).
     let approximate_matrix =
         kind != Factorization::Projection && matches!(ws.linear, LinearSolvers::Condensed { .. });
-    let condensed_rows = kind != Factorization::Projection
-        && coef.position == 1.0
-        && coef.identity == 0.0
-        && matches!(ws.linear, LinearSolvers::Condensed { .. });
+    let condensed_rows = approximate_matrix && coef.position == 1.0 && coef.identity == 0.0;
     for iteration in 0..newton.max_iterations {
         // A step shortened by round-off to land on an output time keeps the matrix.
         let same_h = cache.step_size.is_some_and(|c| (c - h).abs() <= 1e-12 * h);
