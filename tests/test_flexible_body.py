@@ -245,9 +245,10 @@ def test_multipliers_of_condensed_bodies_converge_with_every_jacobian(jacobian):
     assert error < 5e-6, error
 
 
-def test_condensed_iteration_matrices_age_ten_steps():
-    """The Newton matrix is refreshed after serving 5 steps, or 10 with condensed bodies (their
-    elastic block is the exact constant A; only the reference coupling ages)."""
+def test_iteration_matrices_age_five_steps():
+    """The Newton matrix is refreshed after serving 5 steps, with condensed bodies too (their
+    elastic block is the exact constant A; only the reference coupling ages, with the rotation,
+    and a refresh costs less than the iterations an older matrix adds)."""
     data = beam_body()
     refreshes = {}
     for condense in (False, True):
@@ -258,7 +259,7 @@ def test_condensed_iteration_matrices_age_ten_steps():
         result = fm.simulate(system, 0.1, 5e-4, output_interval=0.01)
         assert result.statistics["steps"] == 200
         refreshes[condense] = result.statistics["factorizations"]
-    assert 20 <= refreshes[True] <= 25 < 40 <= refreshes[False], refreshes
+    assert 40 <= refreshes[True] <= 45 and 40 <= refreshes[False], refreshes
 
 
 def test_scalar_mass_products_of_solids_give_the_same_motion(monkeypatch):

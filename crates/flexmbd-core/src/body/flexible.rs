@@ -814,6 +814,37 @@ impl FlexibleBody {
         }
     }
 
+    /// out[i n_f + j] += w (A_i v)[j] for i = 0..3, with the antisymmetric A_i = I_jk - I_kj
+    /// ((i, j, k) cyclic) whose products give the deformation part of the rotation coupling
+    /// (`out`: 3 n_f). A body of solids forms the three from one node-wise product Y = M_s V
+    /// (see [`ScalarMass`]: (A_i v) at node and component c is delta(c, j) Y[node][k] -
+    /// delta(c, k) Y[node][j]), a third of the work of one product with an assembled A_i.
+    pub fn add_antisymmetric_products(&self, w: f64, v: &[f64], out: &mut [f64]) {
+        let n = self.elastic_count;
+        let Some(sm) = &self.scalar_mass else {
+            for (a, o) in self.antisymmetric.iter().zip(out.chunks_exact_mut(n)) {
+                a.mul_vec_add(w, v, o);
+            }
+            return;
+        };
+        let nodes = sm.nodes();
+        let mut spread = vec![0.0; 4 * nodes];
+        for (&c, &x) in sm.coordinates.iter().zip(v) {
+            spread[4 * (c / 3) + c % 3] = x;
+        }
+        let m = &sm.matrix;
+        let mut y = vec![0.0; 4 * nodes];
+        crate::math::simd::node_products4(&m.col_ptr, &m.row_idx, &m.values, &spread, &mut y);
+        for (j, &c) in sm.coordinates.iter().enumerate() {
+            let (node, comp) = (c / 3, c % 3);
+            let yn = &y[4 * node..4 * node + 3];
+            // Component c is the j of A_(c+2) and the k of A_(c+1).
+            let (next, last) = ((comp + 1) % 3, (comp + 2) % 3);
+            out[last * n + j] += w * yn[next];
+            out[next * n + j] -= w * yn[last];
+        }
+    }
+
     /// `out[kl] = I_kl v` for the nine invariants (out: 9 n_f, index (3 k + l) n_f + j), from
     /// six traversals: I_lk = I_kl^T.
     pub fn i_kl_products(&self, v: &[f64], out: &mut [f64]) {
@@ -926,6 +957,8 @@ pub struct FlexibleScratch {
     pub gathered: Vec<f64>,
     /// M_ff qf_dd of the last inertia force with [`ElasticMass::Separate`] (n_f).
     pub mass_term: Vec<f64>,
+    /// The quantities of the last [`inertia_force_parts`] (see [`inertia_tangent_after_force`]).
+    last: Option<Quantities>,
 }
 
 impl FlexibleScratch {
@@ -951,12 +984,14 @@ impl FlexibleScratch {
             nodal: Vec::new(),
             gathered: Vec::new(),
             mass_term: vec![0.0; n],
+            last: None,
         }
     }
 }
 
 /// Configuration-dependent quantities of a body at one state (body frame).
-struct Quantities {
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Quantities {
     p: Quaternion,
     a: Mat3,
     l: Mat34,
@@ -1235,6 +1270,7 @@ pub fn inertia_force_parts(
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let k = quantities(body, q, qd, qdd, scratch, false, mass != ElasticMass::Skip);
+    scratch.last = Some(k);
     let (w, alpha, s) = (k.w, k.alpha, k.s);
     // Translation: m R_dd + A (alpha x s + w x (w x s) + 2 w x I1 qf_dot + I1 qf_dd).
     let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
@@ -1404,8 +1440,39 @@ pub fn inertia_tangent(
     t: &mut FlexibleTangent,
     reference_elastic: bool,
 ) {
-    let nf = body.elastic_count;
     let k = quantities(body, q, qd, qdd, scratch, reference_elastic, true);
+    tangent_from(body, qd, qdd, &k, scratch, t, reference_elastic);
+}
+
+/// [`inertia_tangent`] right after [`inertia_force_parts`] at the same state: without the
+/// (reference, elastic) blocks it needs no other quantities than that force's (which the
+/// scratch keeps), and a body of solids then takes no second pass over its scalar mass matrix.
+pub fn inertia_tangent_after_force(
+    body: &FlexibleBody,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    scratch: &mut FlexibleScratch,
+    t: &mut FlexibleTangent,
+    reference_elastic: bool,
+) {
+    match scratch.last.take() {
+        Some(k) if !reference_elastic => tangent_from(body, qd, qdd, &k, scratch, t, false),
+        _ => inertia_tangent(body, q, qd, qdd, scratch, t, reference_elastic),
+    }
+}
+
+/// [`inertia_tangent`] from the quantities `k` of the state (q, qd, qdd).
+fn tangent_from(
+    body: &FlexibleBody,
+    qd: &[f64],
+    qdd: &[f64],
+    k: &Quantities,
+    scratch: &mut FlexibleScratch,
+    t: &mut FlexibleTangent,
+    reference_elastic: bool,
+) {
+    let nf = body.elastic_count;
     let (p, a, l, w, alpha, s, j) = (k.p, k.a, k.l, k.w, k.alpha, k.s, k.j);
     let pd = quat(qd);
     let pdd = quat(qdd);
@@ -1462,7 +1529,7 @@ pub fn inertia_tangent(
     };
     crate::math::small::add_scaled(&mut k_rp, 1.0, &mat3_times_34(&a, &inner));
     add34(tx, 0, 3, &k_rp, 1.0);
-    let g = rotation_force(&k);
+    let g = rotation_force(k);
     let inner_p = {
         let mut m = mat3_times_34(&s_skew, &dacc_dp);
         crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&j, &dalpha_dp));
@@ -1563,9 +1630,7 @@ pub fn inertia_tangent(
     // A_i qf_dd: row i of d(J_f qf_dd)/dq_f.
     let qfdd = &qdd[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf];
     scratch.x[3 * nf..].iter_mut().for_each(|x| *x = 0.0);
-    for i in 0..3 {
-        body.antisymmetric[i].mul_vec_add(1.0, qfdd, &mut scratch.x[(3 + i) * nf..(4 + i) * nf]);
-    }
+    body.add_antisymmetric_products(1.0, qfdd, &mut scratch.x[3 * nf..]);
     let z_trace: Vec<f64> = (0..nf).map(|c| (0..3).map(|kk| row(&scratch.z, kk, kk, nf)[c]).sum()).collect();
     // d(J v)_i/dq_f = 2 v_i sum_k N_kk - sum_l v_l (N_il + N_li).
     let dj = |v: &Vec3, i: usize, c: usize| -> f64 {
@@ -1696,19 +1761,21 @@ pub fn add_gravity_force(body: &FlexibleBody, q: &[f64], gravity: &Vec3, out: &m
     body.add_i1_transpose_times(&local, &mut out[r7..r7 + nf]);
 }
 
-/// dQ/dq of gravity: the (p, p) block (4 x 4), (p, f) (4 x n_f row-major) and (f, p)
-/// (n_f x 4 row-major).
+/// dQ/dq of gravity: the (p, p) block (4 x 4), and with `coupling` the (p, f) (4 x n_f
+/// row-major) and (f, p) (n_f x 4 row-major) blocks.
 pub fn gravity_jacobian(
     body: &FlexibleBody,
     q: &[f64],
     gravity: &Vec3,
-    pf: &mut [f64],
-    fp: &mut [f64],
+    coupling: Option<(&mut [f64], &mut [f64])>,
 ) -> [[f64; 4]; 4] {
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let p = quat(q);
     let s = body.first_moment + body.i1_times(&q[r7..r7 + nf]);
+    let Some((pf, fp)) = coupling else {
+        return bilinear_hessian(gravity, &s);
+    };
     let rt = rotate_transpose_jacobian(&p, gravity);
     for c in 0..nf {
         for a in 0..4 {
@@ -2018,6 +2085,13 @@ pub(crate) mod tests {
             let (mut whole, mut reference) = (FlexibleTangent::with_size(n), FlexibleTangent::with_size(n));
             inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut whole, true);
             inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut reference, false);
+            // The same from the quantities of the inertia force at that state.
+            let mut after = FlexibleTangent::with_size(n);
+            let mut force = vec![0.0; 7 + n];
+            inertia_force(&body, &q, &qd, &qdd, &mut scratch, &mut force);
+            inertia_tangent_after_force(&body, &q, &qd, &qdd, &mut scratch, &mut after, false);
+            assert_eq!(after.reference, reference.reference);
+            assert!(scratch.last.is_none(), "the kept quantities are taken");
             for b in 0..3 {
                 for r in 0..7 {
                     for c in 0..7 {
@@ -2077,7 +2151,8 @@ pub(crate) mod tests {
         let g = Vec3([0.3, -9.81, 1.2]);
         let mut pf = vec![0.0; 4 * n];
         let mut fp = vec![0.0; 4 * n];
-        let pp = gravity_jacobian(&body, &q, &g, &mut pf, &mut fp);
+        let pp = gravity_jacobian(&body, &q, &g, Some((&mut pf, &mut fp)));
+        assert_eq!(gravity_jacobian(&body, &q, &g, None), pp);
         let h = 1e-6;
         for c in 3..7 + n {
             let eval = |s: f64| {
@@ -2196,6 +2271,14 @@ pub(crate) mod tests {
                 assert!(close(parts[0][k], separate, 1e-12), "{k}: {} vs {separate}", parts[0][k]);
                 assert_eq!(parts[1][k], parts[2][k], "{k}");
             }
+        }
+        // The antisymmetric products from M_s.
+        let (mut a, mut b) = (vec![1.0; 3 * n], vec![1.0; 3 * n]);
+        plain.add_antisymmetric_products(-0.5, &qd[7..], &mut a);
+        fast.add_antisymmetric_products(-0.5, &qd[7..], &mut b);
+        assert!(a.iter().any(|&x| (x - 1.0).abs() > 1e-3));
+        for k in 0..3 * n {
+            assert!(close(a[k], b[k], 1e-12), "antisymmetric {k}: {} vs {}", a[k], b[k]);
         }
         // Gravity (I1 products from the compressed rows).
         let gravity = Vec3([0.3, -9.81, 1.2]);

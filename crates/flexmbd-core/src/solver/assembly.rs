@@ -111,7 +111,7 @@ pub fn assemble(
     update_kinematics(model, s.q, s.qd, ws);
     ws.residual.iter_mut().for_each(|x| *x = 0.0);
     if matrix.is_some() {
-        ws.values.iter_mut().for_each(|x| *x = 0.0);
+        ws.zero_matrix(model);
     }
     let c = matrix.unwrap_or(MatrixCoefficients {
         mass: 0.0,
@@ -413,9 +413,10 @@ fn assemble_flexible(
     let entries = &model.layout.bodies[bi];
     if needs_tangent {
         let t = &mut work.tangent;
-        flexible::inertia_tangent(fb, q, qd, qdd, &mut work.scratch, t, blocks.reference_elastic);
-        let gpp =
-            flexible::gravity_jacobian(fb, q, &model.gravity, &mut work.gravity_pf, &mut work.gravity_fp);
+        flexible::inertia_tangent_after_force(fb, q, qd, qdd, &mut work.scratch, t, blocks.reference_elastic);
+        let coupling =
+            blocks.reference_elastic.then_some((&mut work.gravity_pf[..], &mut work.gravity_fp[..]));
+        let gpp = flexible::gravity_jacobian(fb, q, &model.gravity, coupling);
         let [tm, tv, tx] = &t.reference;
         for a in 0..7 {
             for b in 0..7 {

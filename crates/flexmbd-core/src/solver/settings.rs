@@ -37,10 +37,11 @@ pub struct NewtonSettings {
     pub max_matrix_age: usize,
     /// The same for the iteration matrix of models with condensed deformable bodies
     /// (`solver::condensed`), whose elastic blocks are the exact constant A: only the coupling
-    /// with the reference coordinates ages, a fresh matrix does not make the next step a
-    /// two-iteration one, and a refresh costs solves with A. Nodal 1k / 10k pendulums, ages
-    /// 5, 10, 20: 2.98, 3.13, 3.66 / 2.98, 2.99, 3.24 Newton iterations per step, the time per
-    /// step least at 10 (`benchmarks/README.md`).
+    /// with the reference coordinates ages (with the rotation of the body), and a refresh
+    /// costs the condensed solver's coupling products (about two and a half solves with A of
+    /// the nodal 1k pendulum, in instructions). That pendulum over 3 s, ages 3, 5, 7, 10:
+    /// 2.94, 2.98, 3.07, 3.33 Newton iterations per step; the estimated instructions per step
+    /// least at 4 to 6 (`benchmarks/README.md`).
     pub condensed_matrix_age: usize,
     /// Projection of the velocities onto C_q q_dot + C_t = 0 after every step.
     pub velocity_projection: VelocityProjection,
@@ -95,7 +96,7 @@ impl Default for NewtonSettings {
             jacobian: JacobianUpdate::Modified,
             contraction_limit: 0.25,
             max_matrix_age: 5,
-            condensed_matrix_age: 10,
+            condensed_matrix_age: 5,
             velocity_projection: VelocityProjection::Auto,
             linear_solver: LinearSolver::Auto,
         }
