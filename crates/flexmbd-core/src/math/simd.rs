@@ -63,8 +63,8 @@ pub(crate) fn group_update<const FMA: bool>(y: &mut [f64], x: [f64; GROUP], rows
 pub(crate) mod avx2 {
     use std::arch::x86_64::{
         __m256d, _mm256_add_pd, _mm256_fmadd_pd, _mm256_hadd_pd, _mm256_loadu_pd, _mm256_maskload_pd,
-        _mm256_permute2f128_pd, _mm256_permute4x64_pd, _mm256_set1_pd, _mm256_setr_epi64x, _mm256_setzero_pd,
-        _mm256_storeu_pd,
+        _mm256_maskstore_pd, _mm256_mul_pd, _mm256_permute2f128_pd, _mm256_permute4x64_pd, _mm256_set1_pd,
+        _mm256_setr_epi64x, _mm256_setzero_pd, _mm256_storeu_pd,
     };
 
     /// out[4 i + k] = sum over the entries (r, m) of column i of a CSC matrix of
@@ -143,10 +143,12 @@ pub(crate) mod avx2 {
     /// 3 x 3 blocks stored row-major: per block, [b0 b1 b2 b3] . [x0 x1 x2 x0] and
     /// [b4 b5 b6 b7] . [x1 x2 x0 x1] in two vectors and b8 x2 apart, the three sums sorted
     /// out at the end of the row (x is read through a mask, so that the last node needs no
-    /// fourth entry).
+    /// fourth entry). With `SYMMETRIC`, the blocks are the upper half (block column >= block
+    /// row) of a symmetric matrix, and each off-diagonal block B of row i also adds w B^T x_i
+    /// to the rows of its column (three lanes, read and written through the mask).
     #[target_feature(enable = "avx2,fma")]
     #[inline]
-    pub(crate) unsafe fn blocks3_mul_add(
+    pub(crate) unsafe fn blocks3_mul_add<const SYMMETRIC: bool>(
         row_ptr: &[usize],
         columns: &[u32],
         values: &[[f64; 9]],
@@ -157,29 +159,33 @@ pub(crate) mod avx2 {
         let rows = row_ptr.len() - 1;
         let (x, out) = (&x[..3 * rows], &mut out[..3 * rows]);
         let mask = _mm256_setr_epi64x(-1, -1, -1, 0);
-        for (i, o) in out.chunks_exact_mut(3).enumerate() {
+        for i in 0..rows {
             let range = row_ptr[i]..row_ptr[i + 1];
             let (mut a, mut b) = (_mm256_setzero_pd(), _mm256_setzero_pd());
             let mut c = 0.0f64;
+            let wx = [w * x[3 * i], w * x[3 * i + 1], w * x[3 * i + 2]].map(|v| _mm256_set1_pd(v));
             for (&col, block) in columns[range.clone()].iter().zip(&values[range]) {
                 let at = 3 * col as usize;
                 let xs = &x[at..at + 3];
                 let v = _mm256_maskload_pd(xs.as_ptr(), mask);
-                a = _mm256_fmadd_pd(
-                    _mm256_loadu_pd(block.as_ptr()),
-                    _mm256_permute4x64_pd(v, 0b00_10_01_00),
-                    a,
-                );
-                b = _mm256_fmadd_pd(
-                    _mm256_loadu_pd(block.as_ptr().add(4)),
-                    _mm256_permute4x64_pd(v, 0b01_00_10_01),
-                    b,
-                );
+                let p = block.as_ptr();
+                a = _mm256_fmadd_pd(_mm256_loadu_pd(p), _mm256_permute4x64_pd(v, 0b00_10_01_00), a);
+                b = _mm256_fmadd_pd(_mm256_loadu_pd(p.add(4)), _mm256_permute4x64_pd(v, 0b01_00_10_01), b);
                 c = block[8].mul_add(xs[2], c);
+                if SYMMETRIC && at != 3 * i {
+                    // B^T x_i: the rows of B (the third read through the mask: it ends the
+                    // block) times the entries of x_i; lane 3 is not stored.
+                    let t = _mm256_mul_pd(_mm256_loadu_pd(p), wx[0]);
+                    let t = _mm256_fmadd_pd(_mm256_loadu_pd(p.add(3)), wx[1], t);
+                    let t = _mm256_fmadd_pd(_mm256_maskload_pd(p.add(6), mask), wx[2], t);
+                    let o = out[at..at + 3].as_mut_ptr();
+                    _mm256_maskstore_pd(o, mask, _mm256_add_pd(_mm256_maskload_pd(o, mask), t));
+                }
             }
             let (mut sa, mut sb) = ([0.0f64; 4], [0.0f64; 4]);
             _mm256_storeu_pd(sa.as_mut_ptr(), a);
             _mm256_storeu_pd(sb.as_mut_ptr(), b);
+            let o = &mut out[3 * i..3 * i + 3];
             o[0] = w.mul_add((sa[0] + sa[1]) + sa[2], o[0]);
             o[1] = w.mul_add((sa[3] + sb[0]) + sb[1], o[1]);
             o[2] = w.mul_add((sb[2] + sb[3]) + c, o[2]);
