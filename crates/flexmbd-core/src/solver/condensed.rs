@@ -55,11 +55,10 @@ fn key(c: &MatrixCoefficients) -> Key {
     [c.mass, c.velocity, c.position, c.identity, c.scale]
 }
 
-/// Whether a factorization of A made for the coefficients `kept` serves `wanted`: equal to
-/// round-off (1e-12 relative: a step shortened by round-off to land on an output time has
-/// coefficients a few ulps off, and refactorizing A for it would cost more than many steps).
+/// Whether a factorization of A made for the coefficients `kept` serves `wanted`: each equal
+/// to round-off, as the integrator's step sizes.
 fn same_key(kept: &Key, wanted: &Key) -> bool {
-    kept.iter().zip(wanted).all(|(a, b)| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()))
+    kept.iter().zip(wanted).all(|(&a, &b)| super::equal_to_round_off(a, b))
 }
 
 /// The entries (local f, value index) of one coupling unknown j: N_{f, j}, then N_{j, f}.

@@ -330,7 +330,7 @@ fn iterate(
     let condensed_rows = approximate_matrix && coef.position == 1.0 && coef.identity == 0.0;
     for iteration in 0..newton.max_iterations {
         // A step shortened by round-off to land on an output time keeps the matrix.
-        let same_h = cache.step_size.is_some_and(|c| (c - h).abs() <= 1e-12 * h);
+        let same_h = cache.step_size.is_some_and(|c| super::equal_to_round_off(c, h));
         let need_matrix = !reuse || !same_h || cache.kind != kind;
         fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
