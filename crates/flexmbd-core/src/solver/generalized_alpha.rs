@@ -481,6 +481,9 @@ pub fn step(
         LinearSolver::Auto if reuse => (Factorization::Ldlt, Factorization::Lu),
         LinearSolver::Auto => (Factorization::Lu, Factorization::Lu),
     };
+    if let LinearSolvers::Condensed { newton, .. } = &mut ws.linear {
+        newton.set_angular_velocities(model, &current.coordinates, &current.velocities);
+    }
     predict(method, h, current, next);
     let mut report = iterate(model, coef, newton, reuse, first_kind, h, next, ws, cache)?;
     if !report.converged && reuse && (report.factorizations < report.iterations || first_kind != exact_kind) {
