@@ -975,6 +975,10 @@ mod tests {
     use crate::system::workspace::{ElasticRows, LinearSolvers};
     use crate::system::{State, SystemBuilder, Workspace};
 
+    /// Iteration-matrix coefficients shared by the tests (s m = 1, as for generalized-alpha).
+    const ITERATION: MatrixCoefficients =
+        MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+
     /// A rigid link hinged to the ground and a deformable body hinged to it (at a reference
     /// marker, or at an elastic one), the deformable body condensed or not.
     fn model(condense: bool, elastic_marker: bool) -> Model {
@@ -1063,8 +1067,7 @@ mod tests {
         let mut state = moving_deformed_state(&model);
         state.multipliers.iter_mut().enumerate().for_each(|(k, l)| *l = 0.4 * k as f64 - 1.1);
         let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
-        let c =
-            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let c = ITERATION;
         let (nq, s) = (model.coordinate_count, c.scale);
         let mut ws = Workspace::new(&model).unwrap();
         ws.assemble_condensed_blocks = false;
@@ -1117,8 +1120,7 @@ mod tests {
         let elastic = o + REFERENCE_COORDINATES..o + REFERENCE_COORDINATES + 6;
         state.coordinates[elastic.clone()].iter_mut().for_each(|x| *x = 0.0);
         state.velocities[elastic].iter_mut().for_each(|x| *x = 0.0);
-        let c =
-            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 0.0, identity: 0.0, scale: 2.5e-5 };
+        let c = MatrixCoefficients { position: 0.0, ..ITERATION };
         let mut ws = Workspace::new(&model).unwrap();
         assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
         let mut mass_only = Workspace::new(&model).unwrap();
@@ -1178,8 +1180,7 @@ mod tests {
         // Small reduced systems are factorized dense, large ones sparse: both must solve alike.
         let model = model(true, true);
         let state = moving_deformed_state(&model);
-        let c =
-            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let c = ITERATION;
         let mut ws = Workspace::new(&model).unwrap();
         assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
         let rhs = test_rhs(model.system_size());
@@ -1264,8 +1265,7 @@ mod tests {
         // (no solves) and still reproduce the direct solve (zero velocities and multipliers:
         // the elastic block is constant there).
         let (direct, condensed) = (model(false, true), model(true, true));
-        let c =
-            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let c = ITERATION;
         let rhs = test_rhs(direct.system_size());
         let mut solver = CondensedSolver::new(&condensed, false).unwrap();
         let mut ws = Workspace::new(&condensed).unwrap();
@@ -1306,8 +1306,7 @@ mod tests {
         // whole matrix, in a moving, deformed state.
         let model = model(true, true);
         let state = moving_deformed_state(&model);
-        let c =
-            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+        let c = ITERATION;
         let rhs = test_rhs(model.system_size());
         let solves: Vec<Vec<f64>> = [false, true]
             .into_iter()
@@ -1400,10 +1399,7 @@ mod tests {
         }
         let n = direct.system_size();
         let rhs = test_rhs(n);
-        let coefficients = [
-            MatrixCoefficients::ACCELERATION,
-            MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 },
-        ];
+        let coefficients = [MatrixCoefficients::ACCELERATION, ITERATION];
         for c in coefficients {
             let expected = direct_solve(&direct, &state, c, &rhs);
             let (x, reduced) = condensed_solve(&condensed, &state, c, &rhs, false);
