@@ -900,6 +900,23 @@ impl FlexibleBody {
         }
     }
 
+    /// An upper bound of the 2-norms of the antisymmetric matrices A_i of
+    /// [`Self::add_antisymmetric_products`]: the largest column sum of absolute values (the
+    /// 1-norm; for a symmetric or antisymmetric matrix it equals the infinity norm, and the
+    /// 2-norm is at most their geometric mean). A body of solids bounds them by M_s (A_i is
+    /// M_s times a matrix of norm 1 on each node, restricted to the elastic coordinates).
+    pub fn antisymmetric_norm_bound(&self) -> f64 {
+        let column_sums = |m: &Csc| {
+            (0..m.ncols)
+                .map(|c| m.values[m.col_ptr[c]..m.col_ptr[c + 1]].iter().map(|v| v.abs()).sum::<f64>())
+                .fold(0.0f64, f64::max)
+        };
+        match &self.scalar_mass {
+            Some(sm) => column_sums(&sm.matrix),
+            None => self.antisymmetric.iter().map(|a| column_sums(&a.matrix)).fold(0.0, f64::max),
+        }
+    }
+
     /// `out[kl] = I_kl v` for the nine invariants (out: 9 n_f, index (3 k + l) n_f + j), from
     /// six traversals: I_lk = I_kl^T.
     pub fn i_kl_products(&self, v: &[f64], out: &mut [f64]) {
@@ -2296,6 +2313,34 @@ pub(crate) mod tests {
             input.scalar_mass = Some(ScalarMass { matrix, coordinates });
         }
         FlexibleBody::new("solid", input)
+    }
+
+    #[test]
+    fn antisymmetric_norm_bound_bounds_the_products() {
+        // For either storage (assembled antisymmetric matrices, M_s), |A_i v| <= b |v| for
+        // vectors of several shapes, and b is the same order as the largest ratio met (the
+        // condensed solver keeps its deformation solves on this bound, see `condensed.rs`).
+        let (plain, fast) = (solid_body(false, false).unwrap(), solid_body(true, false).unwrap());
+        let n = plain.elastic_count;
+        let (b_plain, b_fast) = (plain.antisymmetric_norm_bound(), fast.antisymmetric_norm_bound());
+        assert!(b_plain > 0.0 && b_fast > 0.0);
+        let mut largest = 0.0f64;
+        for seed in 0..8u64 {
+            let (q, qd, _) = random_state(n, 60 + seed);
+            for v in [&q[7..], &qd[7..]] {
+                let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                for (body, bound) in [(&plain, b_plain), (&fast, b_fast)] {
+                    let mut out = vec![0.0; 3 * n];
+                    body.add_antisymmetric_products(1.0, v, &mut out);
+                    for row in out.chunks_exact(n) {
+                        let r = row.iter().map(|x| x * x).sum::<f64>().sqrt();
+                        assert!(r <= bound * norm * (1.0 + 1e-12), "{r} > {bound} * {norm}");
+                        largest = largest.max(r / norm);
+                    }
+                }
+            }
+        }
+        assert!(b_plain.max(b_fast) < 50.0 * largest, "bounds {b_plain}, {b_fast} against {largest}");
     }
 
     #[test]

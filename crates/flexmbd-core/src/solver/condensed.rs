@@ -84,6 +84,10 @@ struct BlockFactor {
     /// empty before), and A^-1 dJ^T (see `reference_coupling`).
     deformation: Vec<f64>,
     deformation_solved: Vec<f64>,
+    /// q_f of `deformation`, and the smallest norm of the rows J_f0 + dJ there (the cheap
+    /// test of `reference_coupling`).
+    deformation_at: Vec<f64>,
+    deformation_rows: f64,
     /// Scratch of single solves (allocated at the first).
     memory: Option<faer::dyn_stack::MemBuffer>,
 }
@@ -150,9 +154,8 @@ struct Block {
     reference_rows: Vec<f64>,
     /// Scratch of dJ^T (3 n).
     deformation: Vec<f64>,
-    /// The rows J_f0 + dJ of the rotation coupling (3 n) and A^-1 of them, at the kept dJ.
-    rotation_rows: Vec<f64>,
-    rotation_solved: Vec<f64>,
+    /// Bound of the norms of the body's antisymmetric matrices (made at the first use).
+    antisymmetric_bound: Option<f64>,
     /// Scratch of the velocity part of the rotation rows (3 n, see `reference_coupling`).
     velocity_rows: Vec<f64>,
     /// Body-frame angular velocity of the velocity part of the structured reference coupling
@@ -360,8 +363,7 @@ impl CondensedSolver {
                 basis: Vec::new(),
                 reference_rows: Vec::new(),
                 deformation: Vec::new(),
-                rotation_rows: Vec::new(),
-                rotation_solved: Vec::new(),
+                antisymmetric_bound: None,
                 velocity_rows: Vec::new(),
                 angular_velocity: Vec3::ZERO,
             });
@@ -475,23 +477,19 @@ impl CondensedSolver {
             for (a, entries) in block.row_entries.iter().enumerate() {
                 let stored = &block.row_values[a];
                 let schur = &block.schur_entries[a * nj..(a + 1) * nj];
-                let mut b = 0;
                 if block.dense_rows[a] {
-                    while b + GROUP <= nj {
-                        let sums = dot4(std::array::from_fn(|i| column(b + i)), stored);
-                        for (i, sum) in sums.into_iter().enumerate() {
+                    // Groups of four columns; the last group filled up with its last column.
+                    for b in (0..nj).step_by(GROUP) {
+                        let count = GROUP.min(nj - b);
+                        let sums = dot4(std::array::from_fn(|i| column(b + i.min(count - 1))), stored);
+                        for (i, sum) in sums.into_iter().take(count).enumerate() {
                             self.reduced_values[schur[b + i]] -= sum;
                         }
-                        b += GROUP;
                     }
-                }
-                for b in b..nj {
-                    let update = if block.dense_rows[a] {
-                        dot(stored, column(b))
-                    } else {
-                        gather_dot(entries, stored, column(b))
-                    };
-                    self.reduced_values[schur[b]] -= update;
+                } else {
+                    for b in 0..nj {
+                        self.reduced_values[schur[b]] -= gather_dot(entries, stored, column(b));
+                    }
                 }
             }
         }
@@ -536,8 +534,13 @@ impl CondensedSolver {
                     count = 0;
                 }
             }
-            for &a in &dense[..count] {
-                self.rhs[self.reduced_of[block.coupling[a]]] -= dot(&block.row_values[a], y);
+            if count > 0 {
+                // The last group filled up with its last row.
+                let rows: [&[f64]; GROUP] =
+                    std::array::from_fn(|i| &block.row_values[dense[i.min(count - 1)]][..]);
+                for (&a, sum) in dense[..count].iter().zip(dot4(rows, y)) {
+                    self.rhs[self.reduced_of[block.coupling[a]]] -= sum;
+                }
             }
             offset += block.n;
         }
@@ -581,6 +584,35 @@ impl CondensedSolver {
             return Err("the matrix is singular (the solution is not finite)".to_string());
         }
         Ok(())
+    }
+}
+
+/// The columns `which` (distinct) of the column-major `data` (columns of n).
+fn columns_mut<const J: usize>(data: &mut [f64], n: usize, which: [usize; J]) -> [&mut [f64]; J] {
+    let mut columns: Vec<Option<&mut [f64]>> = data.chunks_exact_mut(n).map(Some).collect();
+    which.map(|j| columns[j].take().expect("distinct columns"))
+}
+
+/// The rows `which` (distinct) of `rows`.
+fn rows_mut<const J: usize>(rows: &mut [Vec<f64>], which: [usize; J]) -> [&mut [f64]; J] {
+    let mut all: Vec<Option<&mut Vec<f64>>> = rows.iter_mut().map(Some).collect();
+    which.map(|j| all[j].take().expect("distinct rows").as_mut_slice())
+}
+
+/// Output `k` of the combination of [`crate::math::simd::combine_outputs`] at the entries
+/// (f, _) of a sparse coupling row, into `row`.
+fn gather_combination<const J: usize>(
+    n: usize,
+    terms: &[(&[f64], &[[f64; J]])],
+    k: usize,
+    entries: &[(usize, usize)],
+    row: &mut [f64],
+) {
+    for (&(f, _), r) in entries.iter().zip(row.iter_mut()) {
+        *r = terms
+            .iter()
+            .map(|(v, c)| c.iter().enumerate().map(|(i, ci)| ci[k] * v[i * n + f]).sum::<f64>())
+            .sum();
     }
 }
 
@@ -784,108 +816,135 @@ impl Block {
         let deformed = sm != 0.0 && qf.iter().any(|&x| x != 0.0);
         let factor = &mut self.factors[self.current];
         if deformed {
-            // dJ_i^T, i = 0..3, solved again unless the kept one is within the tolerance.
-            self.deformation.resize(3 * m, 0.0);
-            self.deformation.iter_mut().for_each(|x| *x = 0.0);
-            fb.add_antisymmetric_products(-1.0, qf, &mut self.deformation);
-            let rows = &self.reference_rows[3 * m..];
-            let kept = !factor.deformation.is_empty()
-                && (0..3).all(|i| {
-                    let (new, old) =
-                        (&self.deformation[i * m..(i + 1) * m], &factor.deformation[i * m..(i + 1) * m]);
-                    let change: f64 = new.iter().zip(old).map(|(x, y)| (x - y) * (x - y)).sum();
-                    let row: f64 = new.iter().zip(&rows[i * m..]).map(|(x, y)| (x + y) * (x + y)).sum();
-                    change <= DEFORMATION_TOLERANCE * DEFORMATION_TOLERANCE * row
-                });
-            if !kept {
-                let mut solved = self.deformation.clone();
-                factor.solve_in_place(&mut solved)?;
-                factor.deformation.clone_from(&self.deformation);
-                factor.deformation_solved = solved;
+            // dJ_i^T, i = 0..3, solved again unless the kept one is within the tolerance. Since
+            // dJ is linear in q_f, |dJ_i(q_f) - dJ_i(q_kept)| <= b |q_f - q_kept| with b a bound
+            // of the norms of the antisymmetric matrices (`FlexibleBody::
+            // antisymmetric_norm_bound`); with r the smallest row norm |J_f0 + dJ| at the kept
+            // deformation, d (1 + tol) <= tol r for d = b |q_f - q_kept| implies the test below
+            // (|J_f0 + dJ(q_f)| >= r - d) without forming dJ(q_f), a product with the mass
+            // matrix (about a third of a refresh of the 1k pendulum bar).
+            if self.antisymmetric_bound.is_none() {
+                self.antisymmetric_bound = Some(fb.antisymmetric_norm_bound());
+            }
+            let bound = self.antisymmetric_bound.unwrap_or(f64::INFINITY);
+            let near = !factor.deformation.is_empty() && {
+                let d2: f64 = qf.iter().zip(&factor.deformation_at).map(|(x, y)| (x - y) * (x - y)).sum();
+                let d = bound * d2.sqrt();
+                d * (1.0 + DEFORMATION_TOLERANCE) <= DEFORMATION_TOLERANCE * factor.deformation_rows
+            };
+            if !near {
+                self.deformation.resize(3 * m, 0.0);
+                self.deformation.iter_mut().for_each(|x| *x = 0.0);
+                fb.add_antisymmetric_products(-1.0, qf, &mut self.deformation);
+                let rows = &self.reference_rows[3 * m..];
+                let row_norm = |d: &[f64], i: usize| -> f64 {
+                    d[i * m..(i + 1) * m]
+                        .iter()
+                        .zip(&rows[i * m..])
+                        .map(|(x, y)| (x + y) * (x + y))
+                        .sum::<f64>()
+                        .sqrt()
+                };
+                let kept = !factor.deformation.is_empty()
+                    && (0..3).all(|i| {
+                        let (new, old) =
+                            (&self.deformation[i * m..(i + 1) * m], &factor.deformation[i * m..(i + 1) * m]);
+                        let change: f64 = new.iter().zip(old).map(|(x, y)| (x - y) * (x - y)).sum();
+                        change.sqrt() <= DEFORMATION_TOLERANCE * row_norm(&self.deformation, i)
+                    });
+                if !kept {
+                    let mut solved = self.deformation.clone();
+                    factor.solve_in_place(&mut solved)?;
+                    factor.deformation.clone_from(&self.deformation);
+                    factor.deformation_solved = solved;
+                    factor.deformation_at.clear();
+                    factor.deformation_at.extend_from_slice(qf);
+                    factor.deformation_rows =
+                        (0..3).map(|i| row_norm(&factor.deformation, i)).fold(f64::INFINITY, f64::min);
+                }
             }
         }
-        // The rotation coupling's rows J_f0 + dJ and their solves, once for its four columns.
-        if deformed {
-            let (delta, solved) = (&factor.deformation, &factor.deformation_solved);
-            self.rotation_rows.clear();
-            self.rotation_rows.extend(self.reference_rows[3 * m..].iter().zip(delta).map(|(r, d)| r + d));
-            self.rotation_solved.clear();
-            self.rotation_solved.extend(factor.influence[3 * m..].iter().zip(solved).map(|(v, d)| v + d));
-        }
-        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c; the rows
-        // N_jF are their transposes, and so are the columns as eliminated (over all n_f).
-        for col in 0..7 {
-            let j = self.reference[col];
-            let z = &mut self.z[j * m..(j + 1) * m];
-            let row = &mut self.row_values[j];
-            let mut eliminated = self.w.get_mut(j * m..(j + 1) * m);
-            if sm == 0.0 {
-                z.iter_mut().for_each(|x| *x = 0.0);
-                row.iter_mut().for_each(|x| *x = 0.0);
-                if let Some(e) = eliminated.as_mut() {
+        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c (J_f = J_f0 +
+        // dJ at the kept dJ); the rows N_jF are their transposes, and so are the columns as
+        // eliminated (over all n_f). Each is a combination of a few kept vectors, formed for
+        // the three translation and the four rotation columns in one pass over the vectors.
+        if sm == 0.0 {
+            for &j in &self.reference {
+                self.z[j * m..(j + 1) * m].iter_mut().for_each(|x| *x = 0.0);
+                self.row_values[j].iter_mut().for_each(|x| *x = 0.0);
+                if let Some(e) = self.w.get_mut(j * m..(j + 1) * m) {
                     e.iter_mut().for_each(|x| *x = 0.0);
                 }
-                continue;
             }
-            let weights: [f64; 3] =
-                std::array::from_fn(|i| sm * if col < 3 { a.0[col][i] } else { 2.0 * l[i][col - 3] });
-            let (rows, solved) = match (col < 3, deformed) {
-                (true, _) => (&self.reference_rows[..3 * m], &factor.influence[..3 * m]),
-                (false, false) => (&self.reference_rows[3 * m..], &factor.influence[3 * m..]),
-                (false, true) => (&self.rotation_rows[..], &self.rotation_solved[..]),
-            };
-            combine3(z, solved, weights);
-            if self.dense_rows[j] {
-                combine3(row, rows, weights);
-                if let Some(e) = eliminated.as_mut() {
-                    e.copy_from_slice(row);
-                }
-            } else {
-                let [w0, w1, w2] = weights;
-                for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
-                    *r = w0 * rows[f] + w1 * rows[m + f] + w2 * rows[2 * m + f];
-                }
-                if let Some(e) = eliminated.as_mut() {
-                    combine3(e, rows, weights);
+            return Ok(());
+        }
+        let reference_rows = &self.reference_rows;
+        // Translation: C[c][k] = s m A_kc on the rows of I1 (and their solves); the rows' velocity
+        // part A 2 w~ I1 adds to these weights.
+        let translation: [[f64; 3]; 3] = std::array::from_fn(|c| std::array::from_fn(|k| sm * a.0[k][c]));
+        let translation_row: [[f64; 3]; 3] =
+            std::array::from_fn(|c| std::array::from_fn(|k| translation[c][k] + translation_rows[k][c]));
+        // Rotation: C[c][k] = s m (2 L)_ck on the rows of J_f0 and dJ, then the centrifugal
+        // part s v sum_m dfw_m (2 L)_mk on the six S_kl (whose solves follow those of J_f0 in
+        // `influence`), and the rows' velocity part (2 L)_ck on the velocity rows.
+        let mut rotation = [[0.0; 4]; 9];
+        for (c, coefficients) in rotation.iter_mut().enumerate().take(3) {
+            *coefficients = std::array::from_fn(|k| sm * two_l[c][k]);
+        }
+        let used = if spinning {
+            for k in 0..4 {
+                for (slot, g) in centrifugal_weights(&w, &two_l, k).into_iter().enumerate() {
+                    rotation[3 + slot][k] = sv * g;
                 }
             }
-            if spinning {
-                // The row's velocity part (see above).
-                let (velocity_rows, vw): (&[f64], [f64; 3]) = if col < 3 {
-                    (&self.reference_rows[..3 * m], translation_rows[col])
-                } else {
-                    (&self.velocity_rows[..], std::array::from_fn(|i| two_l[i][col - 3]))
-                };
-                if self.dense_rows[j] {
-                    let (x0, x1, x2) =
-                        (&velocity_rows[..m], &velocity_rows[m..2 * m], &velocity_rows[2 * m..3 * m]);
-                    for (((r, a), b), c) in row.iter_mut().zip(x0).zip(x1).zip(x2) {
-                        *r += vw[0] * a + vw[1] * b + vw[2] * c;
-                    }
-                } else {
-                    for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
-                        *r += vw[0] * velocity_rows[f]
-                            + vw[1] * velocity_rows[m + f]
-                            + vw[2] * velocity_rows[2 * m + f];
-                    }
-                }
+            9
+        } else {
+            3
+        };
+        let velocity_weights: [[f64; 4]; 3] = two_l;
+        let (mut tz, mut tr, mut te) = (Vec::with_capacity(2), Vec::with_capacity(3), Vec::with_capacity(2));
+        tz.push((&factor.influence[3 * m..(3 + used) * m], &rotation[..used]));
+        tr.push((&reference_rows[3 * m..6 * m], &rotation[..3]));
+        te.push((&reference_rows[3 * m..(3 + used) * m], &rotation[..used]));
+        if deformed {
+            tz.push((&factor.deformation_solved[..], &rotation[..3]));
+            tr.push((&factor.deformation[..], &rotation[..3]));
+            te.push((&factor.deformation[..], &rotation[..3]));
+        }
+        if spinning {
+            tr.push((&self.velocity_rows[..], &velocity_weights[..]));
+        }
+        let [r0, r1, r2, p0, p1, p2, p3] = self.reference;
+        let (translation_columns, rotation_columns) = ([r0, r1, r2], [p0, p1, p2, p3]);
+        crate::math::simd::combine_outputs(
+            m,
+            &[(&factor.influence[..3 * m], &translation[..])],
+            &mut columns_mut(&mut self.z, m, translation_columns),
+        );
+        crate::math::simd::combine_outputs(m, &tz, &mut columns_mut(&mut self.z, m, rotation_columns));
+        if !self.w.is_empty() {
+            crate::math::simd::combine_outputs(
+                m,
+                &[(&reference_rows[..3 * m], &translation[..])],
+                &mut columns_mut(&mut self.w, m, translation_columns),
+            );
+            crate::math::simd::combine_outputs(m, &te, &mut columns_mut(&mut self.w, m, rotation_columns));
+        }
+        let translation_terms = [(&reference_rows[..3 * m], &translation_row[..])];
+        if translation_columns.iter().all(|&j| self.dense_rows[j]) {
+            let mut rows = rows_mut(&mut self.row_values, translation_columns);
+            crate::math::simd::combine_outputs(m, &translation_terms, &mut rows);
+        } else {
+            for (k, &j) in translation_columns.iter().enumerate() {
+                gather_combination(m, &translation_terms, k, &self.row_entries[j], &mut self.row_values[j]);
             }
-            if col >= 3 && spinning {
-                // The column gets s v sum_m dfw_m (2 L)_mc.
-                let g = centrifugal_weights(&w, &two_l, col - 3);
-                let (symmetric, symmetric_solved) =
-                    (&self.reference_rows[6 * m..], &factor.influence[6 * m..]);
-                for (slot, &gs) in g.iter().enumerate() {
-                    if gs == 0.0 {
-                        continue;
-                    }
-                    let weight = sv * gs;
-                    let range = slot * m..(slot + 1) * m;
-                    z.iter_mut().zip(&symmetric_solved[range.clone()]).for_each(|(x, v)| *x += weight * v);
-                    if let Some(e) = eliminated.as_mut() {
-                        e.iter_mut().zip(&symmetric[range]).for_each(|(x, v)| *x += weight * v);
-                    }
-                }
+        }
+        if rotation_columns.iter().all(|&j| self.dense_rows[j]) {
+            let mut rows = rows_mut(&mut self.row_values, rotation_columns);
+            crate::math::simd::combine_outputs(m, &tr, &mut rows);
+        } else {
+            for (k, &j) in rotation_columns.iter().enumerate() {
+                gather_combination(m, &tr, k, &self.row_entries[j], &mut self.row_values[j]);
             }
         }
         Ok(())
@@ -908,6 +967,8 @@ impl Block {
                 basis_solved: Vec::new(),
                 deformation: Vec::new(),
                 deformation_solved: Vec::new(),
+                deformation_at: Vec::new(),
+                deformation_rows: 0.0,
                 memory: None,
             }
         } else {
@@ -946,6 +1007,8 @@ impl Block {
                 basis_solved: Vec::new(),
                 deformation: Vec::new(),
                 deformation_solved: Vec::new(),
+                deformation_at: Vec::new(),
+                deformation_rows: 0.0,
                 memory: None,
             }
         };
