@@ -245,12 +245,13 @@ def test_multipliers_of_condensed_bodies_converge_with_every_jacobian(jacobian):
     assert error < 5e-6, error
 
 
-def test_iteration_matrices_age_five_steps():
-    """The Newton matrix is refreshed after serving 5 steps, with condensed bodies too (their
-    elastic block is the exact constant A; only the reference coupling ages, with the rotation,
-    and a refresh costs less than the iterations an older matrix adds)."""
+def test_iteration_matrices_age_five_steps_or_one_with_small_condensed_bodies():
+    """The Newton matrix is refreshed after serving 5 steps; with condensed bodies of at most
+    8,000 elastic coordinates in all at every step (their elastic block is the exact constant
+    A: only the reference coupling ages, with the rotation, and its refresh costs no solve
+    with A, less than the iteration a matrix of the last step adds)."""
     data = beam_body()
-    refreshes = {}
+    refreshes, iterations = {}, {}
     for condense in (False, True):
         system = fm.System(gravity=(0.0, -9.81, 0.0))
         beam = system.add_flexible_body(data, condense=condense, rayleigh_damping=(0.0, 1e-4))
@@ -259,7 +260,9 @@ def test_iteration_matrices_age_five_steps():
         result = fm.simulate(system, 0.1, 5e-4, output_interval=0.01)
         assert result.statistics["steps"] == 200
         refreshes[condense] = result.statistics["factorizations"]
-    assert 40 <= refreshes[True] <= 45 and 40 <= refreshes[False], refreshes
+        iterations[condense] = result.statistics["newton_iterations"]
+    assert 40 <= refreshes[False] <= 45 and refreshes[True] == 200, refreshes
+    assert iterations[True] < iterations[False], iterations
 
 
 def test_scalar_mass_products_of_solids_give_the_same_motion(monkeypatch):

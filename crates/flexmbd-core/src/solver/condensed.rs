@@ -34,6 +34,36 @@ use crate::system::model::Model;
 /// Deformable bodies with at least this many elastic coordinates are condensed.
 pub const CONDENSATION_THRESHOLD: usize = 300;
 
+/// Condensed bodies with at most this many elastic coordinates in all have their iteration
+/// matrix refreshed at every step (see [`matrix_age`]).
+pub const REFRESH_EVERY_STEP_UP_TO: usize = 8000;
+
+/// Steps after which the iteration matrix of a model with condensed bodies is refreshed
+/// (`NewtonSettings::condensed_matrix_age` None): 1 while the condensed bodies have at most
+/// [`REFRESH_EVERY_STEP_UP_TO`] elastic coordinates in all, else 5. A refresh (the reference
+/// block of the tangent, the coupling columns and rows as combinations of kept vectors, the
+/// reduced factorization) costs a few passes over the coupling vectors and no solve with A,
+/// and a matrix refreshed at the predictor saves most of a Newton iteration (the nodal 1k
+/// pendulum bar: 2.02 against 2.85 iterations per step over 3 s). Larger bodies keep it for 5
+/// steps: their refresh passes push the factor of A out of the cache, and the 10k bar (9,408
+/// coordinates) ran no faster refreshed at every step (`benchmarks/README.md`).
+pub fn matrix_age(model: &Model) -> usize {
+    let condensed: usize = model
+        .bodies
+        .iter()
+        .filter(|b| is_condensed(&b.kind))
+        .map(|b| match &b.kind {
+            BodyKind::Flexible(f) => f.elastic_count,
+            _ => 0,
+        })
+        .sum();
+    if condensed <= REFRESH_EVERY_STEP_UP_TO {
+        1
+    } else {
+        5
+    }
+}
+
 /// Whether a model has bodies to condense.
 pub fn has_condensed_bodies(model: &Model) -> bool {
     model.bodies.iter().any(|b| is_condensed(&b.kind))
@@ -88,6 +118,12 @@ struct BlockFactor {
     /// test of `reference_coupling`).
     deformation_at: Vec<f64>,
     deformation_rows: f64,
+    /// The products G = U^T W of the vectors U whose combinations are the reference rows
+    /// (I1, J_f0, dJ, S_kk, Ibar_kl: 21) with those W whose combinations are the reference
+    /// columns of Z (A^-1 of I1, J_f0, S_kl, dJ: 15), row-major (see `reference_coupling`);
+    /// empty until made, and made again when dJ is solved again. `gram_deformed`: with dJ.
+    gram: Vec<f64>,
+    gram_deformed: bool,
     /// Scratch of single solves (allocated at the first).
     memory: Option<faer::dyn_stack::MemBuffer>,
 }
@@ -156,8 +192,6 @@ struct Block {
     deformation: Vec<f64>,
     /// Bound of the norms of the body's antisymmetric matrices (made at the first use).
     antisymmetric_bound: Option<f64>,
-    /// Scratch of the velocity part of the rotation rows (3 n, see `reference_coupling`).
-    velocity_rows: Vec<f64>,
     /// Body-frame angular velocity of the velocity part of the structured reference coupling
     /// (see `CondensedSolver::set_angular_velocities`; zero until set).
     angular_velocity: Vec3,
@@ -174,6 +208,10 @@ const SPAN_TOLERANCE: f64 = 1e-10;
 /// differs from the one solved by at most this fraction of the row J_f0 + dJ (see
 /// `reference_coupling`).
 const DEFORMATION_TOLERANCE: f64 = 1e-2;
+
+/// The vectors U and W of `BlockFactor::gram`.
+const GRAM_ROWS: usize = 21;
+const GRAM_COLUMNS: usize = 15;
 
 /// The LU factorization of the reduced (Schur complement) system: dense for systems of at
 /// most `DENSE_SYSTEM_SIZE` unknowns (the pendulum bar's is 13 x 13, whose sparse
@@ -364,7 +402,6 @@ impl CondensedSolver {
                 reference_rows: Vec::new(),
                 deformation: Vec::new(),
                 antisymmetric_bound: None,
-                velocity_rows: Vec::new(),
                 angular_velocity: Vec3::ZERO,
             });
         }
@@ -469,25 +506,37 @@ impl CondensedSolver {
                     }
                 }
             }
-            if structured {
-                block.reference_coupling(fb, c, &q[model.bodies[block.body].offset..])?;
-            }
+            let reference_block = if structured {
+                block.reference_coupling(fb, c, &q[model.bodies[block.body].offset..])?
+            } else {
+                None
+            };
             // S_hat(J, J) -= N_JF Z, a dense row against four columns of Z at a time.
             let column = |b: usize| &block.z[b * m..(b + 1) * m];
+            // The reference block, when structured, from `reference_coupling`.
+            let all: Vec<usize> = (0..nj).collect();
+            if let Some(rb) = &reference_block {
+                for (ra, &ja) in block.reference.iter().enumerate() {
+                    for (rc, &jb) in block.reference.iter().enumerate() {
+                        self.reduced_values[block.schur_entries[ja * nj + jb]] -= rb[ra][rc];
+                    }
+                }
+            }
             for (a, entries) in block.row_entries.iter().enumerate() {
                 let stored = &block.row_values[a];
                 let schur = &block.schur_entries[a * nj..(a + 1) * nj];
+                let columns = if reference_block.is_some() && is_reference(a) { &others } else { &all };
                 if block.dense_rows[a] {
                     // Groups of four columns; the last group filled up with its last column.
-                    for b in (0..nj).step_by(GROUP) {
-                        let count = GROUP.min(nj - b);
-                        let sums = dot4(std::array::from_fn(|i| column(b + i.min(count - 1))), stored);
-                        for (i, sum) in sums.into_iter().take(count).enumerate() {
-                            self.reduced_values[schur[b + i]] -= sum;
+                    for group in columns.chunks(GROUP) {
+                        let count = group.len();
+                        let sums = dot4(std::array::from_fn(|i| column(group[i.min(count - 1)])), stored);
+                        for (&b, sum) in group.iter().zip(sums) {
+                            self.reduced_values[schur[b]] -= sum;
                         }
                     }
                 } else {
-                    for b in 0..nj {
+                    for &b in columns {
                         self.reduced_values[schur[b]] -= gather_dot(entries, stored, column(b));
                     }
                 }
@@ -630,15 +679,6 @@ fn gather_dot(entries: &[(usize, usize)], values: &[f64], x: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// out = w_0 x_0 + w_1 x_1 + w_2 x_2 with x_i the i-th stretch of out.len() entries of `x`.
-fn combine3(out: &mut [f64], x: &[f64], w: [f64; 3]) {
-    let m = out.len();
-    let (x0, x1, x2) = (&x[..m], &x[m..2 * m], &x[2 * m..3 * m]);
-    for (((o, a), b), c) in out.iter_mut().zip(x0).zip(x1).zip(x2) {
-        *o = w[0] * a + w[1] * b + w[2] * c;
-    }
-}
-
 /// Rows of I1 (i = 0..3), of J_f0 = int rho u0~ S (i = 3..6: Ibar_jk - Ibar_kj for
 /// (i, j, k) cyclic), and the symmetric S_kl = Ibar_kl + Ibar_lk of the centrifugal coupling
 /// (i = 6..12: the pairs of [`SYMMETRIC_PAIRS`]), each n_f long.
@@ -772,7 +812,12 @@ impl Block {
     /// `DEFORMATION_TOLERANCE` of J_f (the coupling of an iteration matrix is then as at the
     /// deformation of the solves, off by that fraction at most: a pendulum bar of solids
     /// changes dJ by 0.1-0.3 % of J_f between refreshes and needs the solves once).
-    fn reference_coupling(&mut self, fb: &FlexibleBody, c: &MatrixCoefficients, qb: &[f64]) -> Result<()> {
+    fn reference_coupling(
+        &mut self,
+        fb: &FlexibleBody,
+        c: &MatrixCoefficients,
+        qb: &[f64],
+    ) -> Result<Option<[[f64; 7]; 7]>> {
         let m = self.n;
         let sm = c.scale * c.mass;
         let p = [qb[3], qb[4], qb[5], qb[6]];
@@ -800,19 +845,6 @@ impl Block {
         } else {
             [[0.0; 3]; 3]
         };
-        if spinning {
-            // sum_k Ibar_kk = (S_00 + S_11 + S_22) / 2.
-            let ibar = |k: usize, l: usize| &fb.ibar[(3 * k + l) * m..(3 * k + l + 1) * m];
-            let diagonal = &self.reference_rows[6 * m..9 * m];
-            self.velocity_rows.resize(3 * m, 0.0);
-            for (lr, out) in self.velocity_rows.chunks_exact_mut(m).enumerate() {
-                combine3(out, diagonal, [sv * w[lr]; 3]);
-                for k in 0..3 {
-                    let weight = -2.0 * sv * w[k];
-                    out.iter_mut().zip(ibar(k, lr)).for_each(|(o, x)| *o += weight * x);
-                }
-            }
-        }
         let deformed = sm != 0.0 && qf.iter().any(|&x| x != 0.0);
         let factor = &mut self.factors[self.current];
         if deformed {
@@ -861,6 +893,7 @@ impl Block {
                     factor.deformation_at.extend_from_slice(qf);
                     factor.deformation_rows =
                         (0..3).map(|i| row_norm(&factor.deformation, i)).fold(f64::INFINITY, f64::min);
+                    factor.gram.clear();
                 }
             }
         }
@@ -876,7 +909,7 @@ impl Block {
                     e.iter_mut().for_each(|x| *x = 0.0);
                 }
             }
-            return Ok(());
+            return Ok(None);
         }
         let reference_rows = &self.reference_rows;
         // Translation: C[c][k] = s m A_kc on the rows of I1 (and their solves); the rows' velocity
@@ -901,8 +934,20 @@ impl Block {
         } else {
             3
         };
-        let velocity_weights: [[f64; 4]; 3] = two_l;
-        let (mut tz, mut tr, mut te) = (Vec::with_capacity(2), Vec::with_capacity(3), Vec::with_capacity(2));
+        // The rows' velocity part (2 L) r with r_l = s v (w_l (S_00 + S_11 + S_22) - 2 sum_k w_k
+        // Ibar_kl): on the three S_kk and the nine Ibar_kl.
+        let mut diagonal = [[0.0; 4]; 3];
+        let mut ibar = [[0.0; 4]; 9];
+        if spinning {
+            let sum: [f64; 4] = std::array::from_fn(|o| (0..3).map(|lr| two_l[lr][o] * sv * w[lr]).sum());
+            diagonal = [sum; 3];
+            for k in 0..3 {
+                for lr in 0..3 {
+                    ibar[3 * k + lr] = std::array::from_fn(|o| -2.0 * sv * w[k] * two_l[lr][o]);
+                }
+            }
+        }
+        let (mut tz, mut tr, mut te) = (Vec::with_capacity(2), Vec::with_capacity(4), Vec::with_capacity(2));
         tz.push((&factor.influence[3 * m..(3 + used) * m], &rotation[..used]));
         tr.push((&reference_rows[3 * m..6 * m], &rotation[..3]));
         te.push((&reference_rows[3 * m..(3 + used) * m], &rotation[..used]));
@@ -912,7 +957,8 @@ impl Block {
             te.push((&factor.deformation[..], &rotation[..3]));
         }
         if spinning {
-            tr.push((&self.velocity_rows[..], &velocity_weights[..]));
+            tr.push((&reference_rows[6 * m..9 * m], &diagonal[..]));
+            tr.push((&fb.ibar[..9 * m], &ibar[..]));
         }
         let [r0, r1, r2, p0, p1, p2, p3] = self.reference;
         let (translation_columns, rotation_columns) = ([r0, r1, r2], [p0, p1, p2, p3]);
@@ -947,7 +993,80 @@ impl Block {
                 gather_combination(m, &tr, k, &self.row_entries[j], &mut self.row_values[j]);
             }
         }
-        Ok(())
+        if !self.reference.iter().all(|&j| self.dense_rows[j]) {
+            return Ok(None);
+        }
+        // The block N_JF Z of the reference rows and columns, R G C with the coefficients
+        // R (7 x 21) of the rows on U and C (15 x 7) of the columns on W (see `BlockFactor::
+        // gram`): no pass over the n_f-vectors but when G is made.
+        if factor.gram.is_empty() || factor.gram_deformed != deformed {
+            let zero = vec![0.0; m];
+            let u: Vec<&[f64]> = (0..GRAM_ROWS)
+                .map(|k| match k {
+                    0..6 => &reference_rows[k * m..(k + 1) * m],
+                    6..9 if deformed => &factor.deformation[(k - 6) * m..(k - 5) * m],
+                    6..9 => &zero[..],
+                    9..12 => &reference_rows[(k - 3) * m..(k - 2) * m],
+                    _ => &fb.ibar[(k - 12) * m..(k - 11) * m],
+                })
+                .collect();
+            let v: Vec<&[f64]> = (0..GRAM_COLUMNS)
+                .map(|k| match k {
+                    0..12 => &factor.influence[k * m..(k + 1) * m],
+                    _ if deformed => &factor.deformation_solved[(k - 12) * m..(k - 11) * m],
+                    _ => &zero[..],
+                })
+                .collect();
+            let mut gram = vec![0.0; GRAM_ROWS * GRAM_COLUMNS];
+            for (k, uk) in u.iter().enumerate() {
+                for b in (0..GRAM_COLUMNS).step_by(GROUP) {
+                    let count = GROUP.min(GRAM_COLUMNS - b);
+                    let sums = dot4(std::array::from_fn(|i| v[b + i.min(count - 1)]), uk);
+                    gram[k * GRAM_COLUMNS + b..k * GRAM_COLUMNS + b + count].copy_from_slice(&sums[..count]);
+                }
+            }
+            factor.gram = gram;
+            factor.gram_deformed = deformed;
+        }
+        let mut r = [[0.0; GRAM_ROWS]; 7];
+        let mut cz = [[0.0; 7]; GRAM_COLUMNS];
+        for o in 0..3 {
+            for c in 0..3 {
+                r[o][c] = translation_row[c][o];
+                cz[c][o] = translation[c][o];
+            }
+        }
+        for o in 0..4 {
+            for c in 0..3 {
+                r[3 + o][3 + c] = rotation[c][o];
+                if deformed {
+                    r[3 + o][6 + c] = rotation[c][o];
+                    cz[12 + c][3 + o] = rotation[c][o];
+                }
+                r[3 + o][9 + c] = diagonal[c][o];
+            }
+            for (i, coefficients) in ibar.iter().enumerate() {
+                r[3 + o][12 + i] = coefficients[o];
+            }
+            for c in 0..used {
+                cz[3 + c][3 + o] = rotation[c][o];
+            }
+        }
+        // (R G) C, rows of R G first.
+        let mut block = [[0.0; 7]; 7];
+        for (a, ra) in r.iter().enumerate() {
+            let mut rg = [0.0; GRAM_COLUMNS];
+            for (k, &rk) in ra.iter().enumerate() {
+                if rk != 0.0 {
+                    let g = &factor.gram[k * GRAM_COLUMNS..(k + 1) * GRAM_COLUMNS];
+                    rg.iter_mut().zip(g).for_each(|(x, gv)| *x += rk * gv);
+                }
+            }
+            for (b, out) in block[a].iter_mut().enumerate() {
+                *out = rg.iter().zip(&cz).map(|(x, col)| x * col[b]).sum();
+            }
+        }
+        Ok(Some(block))
     }
 
     /// Makes `current` a factorization of A for the coefficients `c`, reusing a kept one.
@@ -969,6 +1088,8 @@ impl Block {
                 deformation_solved: Vec::new(),
                 deformation_at: Vec::new(),
                 deformation_rows: 0.0,
+                gram: Vec::new(),
+                gram_deformed: false,
                 memory: None,
             }
         } else {
@@ -1009,6 +1130,8 @@ impl Block {
                 deformation_solved: Vec::new(),
                 deformation_at: Vec::new(),
                 deformation_rows: 0.0,
+                gram: Vec::new(),
+                gram_deformed: false,
                 memory: None,
             }
         };
@@ -1236,6 +1359,46 @@ mod tests {
         }
         // Not trivially equal: the velocity part is not negligible against the mass part.
         assert!(velocity_part > 1e-4, "velocity part {velocity_part}");
+    }
+
+    #[test]
+    fn reference_schur_block_from_the_small_products_equals_the_dot_products() {
+        // Deformed (dJ solved) and spinning: the block N_JF Z of the reference rows and columns
+        // from R G C (`reference_coupling`) equals the dot products of the rows and columns it
+        // formed, and the factorization subtracted it (the solve test above covers that).
+        let model = model(true, false);
+        let state = moving_deformed_state(&model);
+        let mut ws = Workspace::new(&model).unwrap();
+        assemble(&model, StateView::of(&state), &mut ws, Some(ITERATION)).unwrap();
+        let mut solver = CondensedSolver::with_images(&model, true, true).unwrap();
+        solver.set_angular_velocities(&model, &state.coordinates, &state.velocities);
+        assert!(solver.blocks[0].angular_velocity.0.iter().any(|&x| x.abs() > 0.1), "spinning");
+        solver.factorize(&model, &ws.values, &ITERATION, &state.coordinates).unwrap();
+        let block = &mut solver.blocks[0];
+        let q = &state.coordinates[model.bodies[block.body].offset..];
+        let structured = block.reference_coupling(flexible(&model, block.body), &ITERATION, q).unwrap();
+        let structured = structured.expect("dense reference rows");
+        assert!(!block.factors[block.current].deformation.is_empty(), "dJ solved");
+        let m = block.n;
+        let explicit: Vec<Vec<f64>> = block
+            .reference
+            .iter()
+            .map(|&ja| {
+                block
+                    .reference
+                    .iter()
+                    .map(|&jb| dot(&block.row_values[ja], &block.z[jb * m..(jb + 1) * m]))
+                    .collect()
+            })
+            .collect();
+        let scale = explicit.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
+        assert!(scale > 0.0);
+        for a in 0..7 {
+            for b in 0..7 {
+                let (ours, theirs) = (structured[a][b], explicit[a][b]);
+                assert!((ours - theirs).abs() <= 1e-11 * scale, "({a}, {b}): {ours} vs {theirs}");
+            }
+        }
     }
 
     #[test]

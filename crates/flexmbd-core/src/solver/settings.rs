@@ -37,12 +37,10 @@ pub struct NewtonSettings {
     pub max_matrix_age: usize,
     /// The same for the iteration matrix of models with condensed deformable bodies
     /// (`solver::condensed`), whose elastic blocks are the exact constant A: only the coupling
-    /// with the reference coordinates ages (with the rotation of the body), and a refresh
-    /// costs the condensed solver's coupling products (about two and a half solves with A of
-    /// the nodal 1k pendulum, in instructions). That pendulum over 3 s, ages 3, 5, 7, 10:
-    /// 2.94, 2.98, 3.07, 3.33 Newton iterations per step; the estimated instructions per step
-    /// least at 4 to 6 (`benchmarks/README.md`).
-    pub condensed_matrix_age: usize,
+    /// with the reference coordinates ages (with the rotation of the body). None (the
+    /// default): chosen by the size of the condensed bodies, see
+    /// [`crate::solver::condensed::matrix_age`].
+    pub condensed_matrix_age: Option<usize>,
     /// Projection of the velocities onto C_q q_dot + C_t = 0 after every step.
     pub velocity_projection: VelocityProjection,
     /// Factorization of the Newton matrix.
@@ -96,7 +94,7 @@ impl Default for NewtonSettings {
             jacobian: JacobianUpdate::Modified,
             contraction_limit: 0.25,
             max_matrix_age: 5,
-            condensed_matrix_age: 5,
+            condensed_matrix_age: None,
             velocity_projection: VelocityProjection::Auto,
             linear_solver: LinearSolver::Auto,
         }
