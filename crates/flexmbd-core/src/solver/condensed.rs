@@ -728,6 +728,9 @@ impl Block {
     /// The reference columns of an exact solver (not in a fixed space) and columns met when
     /// Q is full are solved directly.
     fn other_couplings(&mut self, columns: &[usize], values: &[f64]) -> Result<()> {
+        if columns.is_empty() {
+            return Ok(());
+        }
         let m = self.n;
         let mut direct = Vec::new();
         let mut split = Vec::with_capacity(columns.len());
