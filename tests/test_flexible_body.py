@@ -245,11 +245,11 @@ def test_multipliers_of_condensed_bodies_converge_with_every_jacobian(jacobian):
     assert error < 5e-6, error
 
 
-def test_iteration_matrices_age_five_steps_or_one_with_small_condensed_bodies():
-    """The Newton matrix is refreshed after serving 5 steps; with condensed bodies of at most
-    8,000 elastic coordinates in all at every step (their elastic block is the exact constant
-    A: only the reference coupling ages, with the rotation, and its refresh costs no solve
-    with A, less than the iteration a matrix of the last step adds)."""
+def test_iteration_matrices_age_five_steps_or_one_with_condensed_bodies():
+    """The Newton matrix is refreshed after serving 5 steps; with condensed bodies at every
+    step (their elastic block is the exact constant A: only the reference coupling ages, with
+    the rotation, and its refresh costs no solve with A, less than the iteration a matrix of
+    the last step adds)."""
     data = beam_body()
     refreshes, iterations = {}, {}
     for condense in (False, True):

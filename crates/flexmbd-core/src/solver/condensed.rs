@@ -34,36 +34,6 @@ use crate::system::model::Model;
 /// Deformable bodies with at least this many elastic coordinates are condensed.
 pub const CONDENSATION_THRESHOLD: usize = 300;
 
-/// Condensed bodies with at most this many elastic coordinates in all have their iteration
-/// matrix refreshed at every step (see [`matrix_age`]).
-pub const REFRESH_EVERY_STEP_UP_TO: usize = 8000;
-
-/// Steps after which the iteration matrix of a model with condensed bodies is refreshed
-/// (`NewtonSettings::condensed_matrix_age` None): 1 while the condensed bodies have at most
-/// [`REFRESH_EVERY_STEP_UP_TO`] elastic coordinates in all, else 5. A refresh (the reference
-/// block of the tangent, the coupling columns and rows as combinations of kept vectors, the
-/// reduced factorization) costs a few passes over the coupling vectors and no solve with A,
-/// and a matrix refreshed at the predictor saves most of a Newton iteration (the nodal 1k
-/// pendulum bar: 2.02 against 2.85 iterations per step over 3 s). Larger bodies keep it for 5
-/// steps: their refresh passes push the factor of A out of the cache, and the 10k bar (9,408
-/// coordinates) ran no faster refreshed at every step (`benchmarks/README.md`).
-pub fn matrix_age(model: &Model) -> usize {
-    let condensed: usize = model
-        .bodies
-        .iter()
-        .filter(|b| is_condensed(&b.kind))
-        .map(|b| match &b.kind {
-            BodyKind::Flexible(f) => f.elastic_count,
-            _ => 0,
-        })
-        .sum();
-    if condensed <= REFRESH_EVERY_STEP_UP_TO {
-        1
-    } else {
-        5
-    }
-}
-
 /// Whether a model has bodies to condense.
 pub fn has_condensed_bodies(model: &Model) -> bool {
     model.bodies.iter().any(|b| is_condensed(&b.kind))

@@ -500,7 +500,7 @@ pub fn step(
     }
     cache.age += 1;
     let max_age = if matches!(ws.linear, LinearSolvers::Condensed { .. }) {
-        newton.condensed_matrix_age.unwrap_or_else(|| super::condensed::matrix_age(model))
+        newton.condensed_matrix_age
     } else {
         newton.max_matrix_age
     };
