@@ -156,6 +156,14 @@ struct Block {
     /// Orthonormal basis Q of the coupling columns N_Fj met so far (other than the reference
     /// coordinates), n each, column-major; see `other_couplings`.
     basis: Vec<f64>,
+    /// The support of those columns (the union of their entries; the basis vectors, being
+    /// combinations of them, are zero elsewhere), made at the first use, with the position of
+    /// each coordinate in it (usize::MAX outside), and the basis on the support alone: the
+    /// Gram-Schmidt products run over the support (a joint at a face of 16 nodes of the 1k bar:
+    /// 48 of its 960 coordinates).
+    support: Option<Vec<usize>>,
+    support_position: Vec<usize>,
+    basis_compact: Vec<f64>,
     /// The rows of I1 and J_f0 (6 n, see `coupling_rows`), made at the first use.
     reference_rows: Vec<f64>,
     /// Scratch of dJ^T (3 n).
@@ -369,6 +377,9 @@ impl CondensedSolver {
                 current: 0,
                 reference,
                 basis: Vec::new(),
+                support: None,
+                support_position: Vec::new(),
+                basis_compact: Vec::new(),
                 reference_rows: Vec::new(),
                 deformation: Vec::new(),
                 antisymmetric_bound: None,
@@ -693,7 +704,7 @@ impl Block {
     /// marker's kinematics depends on q_f through A(p) times constant body-frame rows of its
     /// Jacobians, so these columns stay in a space of dimension at most 6 per marker: each
     /// column is split over an orthonormal basis Q of the columns met so far (Gram-Schmidt,
-    /// two passes), a part outside it extends Q, and Z_j = (A^-1 Q) c_j with A^-1 Q solved once
+    /// two passes, over the columns' support), a part outside it extends Q, and Z_j = (A^-1 Q) c_j with A^-1 Q solved once
     /// per factorization of A. After the first factorization, these columns need no solves.
     /// The reference columns of an exact solver (not in a fixed space) and columns met when
     /// Q is full are solved directly.
@@ -702,9 +713,25 @@ impl Block {
             return Ok(());
         }
         let m = self.n;
+        if self.support.is_none() {
+            let mut support: Vec<usize> = columns
+                .iter()
+                .filter(|j| !self.reference.contains(j))
+                .flat_map(|&j| self.column_entries[j].iter().map(|e| e.0))
+                .collect();
+            support.sort_unstable();
+            support.dedup();
+            self.support_position = vec![usize::MAX; m];
+            for (i, &f) in support.iter().enumerate() {
+                self.support_position[f] = i;
+            }
+            self.support = Some(support);
+        }
+        let support = self.support.as_deref().unwrap_or(&[]);
+        let ns = support.len();
         let mut direct = Vec::new();
         let mut split = Vec::with_capacity(columns.len());
-        let mut v = vec![0.0; m];
+        let mut v = vec![0.0; ns];
         for &j in columns {
             if self.reference.contains(&j) {
                 direct.push(j);
@@ -712,15 +739,17 @@ impl Block {
             }
             v.iter_mut().for_each(|x| *x = 0.0);
             for &(f, k) in &self.column_entries[j] {
-                v[f] = values[k];
+                v[self.support_position[f]] = values[k];
             }
             let norm = dot(&v, &v).sqrt();
             let mut c = vec![0.0; self.basis.len() / m];
-            for _pass in 0..2 {
-                for (ci, q) in c.iter_mut().zip(self.basis.chunks_exact(m)) {
-                    let d = dot(q, &v);
-                    *ci += d;
-                    v.iter_mut().zip(q).for_each(|(x, qv)| *x -= d * qv);
+            if ns > 0 {
+                for _pass in 0..2 {
+                    for (ci, q) in c.iter_mut().zip(self.basis_compact.chunks_exact(ns)) {
+                        let d = dot(q, &v);
+                        *ci += d;
+                        v.iter_mut().zip(q).for_each(|(x, qv)| *x -= d * qv);
+                    }
                 }
             }
             let outside = dot(&v, &v).sqrt();
@@ -729,7 +758,12 @@ impl Block {
                     direct.push(j);
                     continue;
                 }
-                self.basis.extend(v.iter().map(|x| x / outside));
+                let start = self.basis.len();
+                self.basis.resize(start + m, 0.0);
+                for (&f, x) in support.iter().zip(&v) {
+                    self.basis[start + f] = x / outside;
+                }
+                self.basis_compact.extend(v.iter().map(|x| x / outside));
                 c.push(outside);
             }
             split.push((j, c));
@@ -745,15 +779,13 @@ impl Block {
         for (j, c) in split {
             let z = &mut self.z[j * m..(j + 1) * m];
             z.iter_mut().for_each(|x| *x = 0.0);
-            for (&ci, w) in c.iter().zip(factor.basis_solved.chunks_exact(m)) {
-                z.iter_mut().zip(w).for_each(|(x, wv)| *x += ci * wv);
-            }
+            crate::math::simd::dense_mul_add(m, &factor.basis_solved[..c.len() * m], 1.0, &c, z);
             if keep_image {
-                // The column as eliminated: Q c_j (A Z_j = Q c_j exactly).
+                // The column as eliminated: Q c_j (A Z_j = Q c_j exactly), on the support.
                 let w = &mut self.w[j * m..(j + 1) * m];
                 w.iter_mut().for_each(|x| *x = 0.0);
-                for (&ci, q) in c.iter().zip(self.basis.chunks_exact(m)) {
-                    w.iter_mut().zip(q).for_each(|(x, qv)| *x += ci * qv);
+                for (i, &f) in support.iter().enumerate() {
+                    w[f] = c.iter().enumerate().map(|(k, ck)| ck * self.basis_compact[k * ns + i]).sum();
                 }
             }
         }
