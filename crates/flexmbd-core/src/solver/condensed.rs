@@ -704,8 +704,9 @@ impl Block {
     /// marker's kinematics depends on q_f through A(p) times constant body-frame rows of its
     /// Jacobians, so these columns stay in a space of dimension at most 6 per marker: each
     /// column is split over an orthonormal basis Q of the columns met so far (Gram-Schmidt,
-    /// two passes, over the columns' support), a part outside it extends Q, and Z_j = (A^-1 Q) c_j with A^-1 Q solved once
-    /// per factorization of A. After the first factorization, these columns need no solves.
+    /// two passes, over the columns' support), a part outside it extends Q, and Z_j =
+    /// (A^-1 Q) c_j with A^-1 Q solved once per factorization of A. After the first
+    /// factorization, these columns need no solves.
     /// The reference columns of an exact solver (not in a fixed space) and columns met when
     /// Q is full are solved directly.
     fn other_couplings(&mut self, columns: &[usize], values: &[f64]) -> Result<()> {
