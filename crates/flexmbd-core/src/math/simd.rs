@@ -262,7 +262,7 @@ pub(crate) mod avx2 {
 
     /// outs[o][..rows] = sum over the terms (A, C) of A C[.][o], each A column-major (rows x
     /// C.len()), C[c][o] the coefficient of column c in output o: one pass over the sources
-    /// for all J outputs, rows in blocks of eight, then four, then one at a time.
+    /// for all J outputs, rows in blocks of eight, then one at a time.
     #[target_feature(enable = "avx2,fma")]
     #[inline]
     pub(crate) unsafe fn combine_outputs<const J: usize>(

@@ -492,9 +492,9 @@ impl CondensedSolver {
             } else {
                 None
             };
-            // S_hat(J, J) -= N_JF Z, a dense row against four columns of Z at a time.
+            // S_hat(J, J) -= N_JF Z: the reference block, when structured, from
+            // `reference_coupling`; the rest a dense row against four columns of Z at a time.
             let column = |b: usize| &block.z[b * m..(b + 1) * m];
-            // The reference block, when structured, from `reference_coupling`.
             let all: Vec<usize> = (0..nj).collect();
             if let Some(rb) = &reference_block {
                 for (ra, &ja) in block.reference.iter().enumerate() {
@@ -617,16 +617,39 @@ impl CondensedSolver {
     }
 }
 
-/// The columns `which` (distinct) of the column-major `data` (columns of n).
-fn columns_mut<const J: usize>(data: &mut [f64], n: usize, which: [usize; J]) -> [&mut [f64]; J] {
-    let mut columns: Vec<Option<&mut [f64]>> = data.chunks_exact_mut(n).map(Some).collect();
-    which.map(|j| columns[j].take().expect("distinct columns"))
+/// The items `which` (distinct) of `items`.
+fn pick_mut<'a, const J: usize>(
+    items: impl Iterator<Item = &'a mut [f64]>,
+    which: [usize; J],
+) -> [&'a mut [f64]; J] {
+    let mut all: Vec<Option<&mut [f64]>> = items.map(Some).collect();
+    which.map(|j| all[j].take().expect("distinct items"))
 }
 
-/// The rows `which` (distinct) of `rows`.
-fn rows_mut<const J: usize>(rows: &mut [Vec<f64>], which: [usize; J]) -> [&mut [f64]; J] {
-    let mut all: Vec<Option<&mut Vec<f64>>> = rows.iter_mut().map(Some).collect();
-    which.map(|j| all[j].take().expect("distinct rows").as_mut_slice())
+/// The columns `which` (distinct) of the column-major `data` (columns of n).
+fn columns_mut<const J: usize>(data: &mut [f64], n: usize, which: [usize; J]) -> [&mut [f64]; J] {
+    pick_mut(data.chunks_exact_mut(n), which)
+}
+
+/// The coupling rows `which` (distinct) as the combinations `terms` of
+/// [`crate::math::simd::combine_outputs`]: in one pass when all are dense, else each at its
+/// entries (`dense`, `entries`, `values`: the flags, entries and values of the block's rows).
+fn combine_rows<const J: usize>(
+    n: usize,
+    terms: &[(&[f64], &[[f64; J]])],
+    which: [usize; J],
+    dense: &[bool],
+    entries: &[Vec<(usize, usize)>],
+    values: &mut [Vec<f64>],
+) {
+    if which.iter().all(|&j| dense[j]) {
+        let mut rows = pick_mut(values.iter_mut().map(Vec::as_mut_slice), which);
+        crate::math::simd::combine_outputs(n, terms, &mut rows);
+    } else {
+        for (k, &j) in which.iter().enumerate() {
+            gather_combination(n, terms, k, &entries[j], &mut values[j]);
+        }
+    }
 }
 
 /// Output `k` of the combination of [`crate::math::simd::combine_outputs`] at the entries
@@ -983,22 +1006,15 @@ impl Block {
             crate::math::simd::combine_outputs(m, &te, &mut columns_mut(&mut self.w, m, rotation_columns));
         }
         let translation_terms = [(&reference_rows[..3 * m], &translation_row[..])];
-        if translation_columns.iter().all(|&j| self.dense_rows[j]) {
-            let mut rows = rows_mut(&mut self.row_values, translation_columns);
-            crate::math::simd::combine_outputs(m, &translation_terms, &mut rows);
-        } else {
-            for (k, &j) in translation_columns.iter().enumerate() {
-                gather_combination(m, &translation_terms, k, &self.row_entries[j], &mut self.row_values[j]);
-            }
-        }
-        if rotation_columns.iter().all(|&j| self.dense_rows[j]) {
-            let mut rows = rows_mut(&mut self.row_values, rotation_columns);
-            crate::math::simd::combine_outputs(m, &tr, &mut rows);
-        } else {
-            for (k, &j) in rotation_columns.iter().enumerate() {
-                gather_combination(m, &tr, k, &self.row_entries[j], &mut self.row_values[j]);
-            }
-        }
+        combine_rows(
+            m,
+            &translation_terms,
+            translation_columns,
+            &self.dense_rows,
+            &self.row_entries,
+            &mut self.row_values,
+        );
+        combine_rows(m, &tr, rotation_columns, &self.dense_rows, &self.row_entries, &mut self.row_values);
         if !self.reference.iter().all(|&j| self.dense_rows[j]) {
             return Ok(None);
         }
