@@ -260,60 +260,6 @@ pub(crate) mod avx2 {
         }
     }
 
-    /// outs[o][..rows] = sum over the terms (A, C) of A C[.][o], each A column-major (rows x
-    /// C.len()), C[c][o] the coefficient of column c in output o: one pass over the sources
-    /// for all J outputs, rows in blocks of eight, then one at a time.
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    pub(crate) unsafe fn combine_outputs<const J: usize>(
-        rows: usize,
-        terms: &[(&[f64], &[[f64; J]])],
-        outs: &mut [&mut [f64]; J],
-    ) {
-        for (a, c) in terms {
-            assert!(a.len() >= rows * c.len());
-        }
-        for o in outs.iter() {
-            assert!(o.len() >= rows);
-        }
-        let ops: [*mut f64; J] = std::array::from_fn(|o| outs[o].as_mut_ptr());
-        let mut r = 0;
-        while r + 8 <= rows {
-            let mut acc = [[_mm256_setzero_pd(); 2]; J];
-            for (a, c) in terms {
-                for (k, ck) in c.iter().enumerate() {
-                    let column = a.as_ptr().add(k * rows + r);
-                    let (x0, x1) = (_mm256_loadu_pd(column), _mm256_loadu_pd(column.add(4)));
-                    for o in 0..J {
-                        let v = _mm256_set1_pd(ck[o]);
-                        acc[o][0] = _mm256_fmadd_pd(x0, v, acc[o][0]);
-                        acc[o][1] = _mm256_fmadd_pd(x1, v, acc[o][1]);
-                    }
-                }
-            }
-            for o in 0..J {
-                _mm256_storeu_pd(ops[o].add(r), acc[o][0]);
-                _mm256_storeu_pd(ops[o].add(r + 4), acc[o][1]);
-            }
-            r += 8;
-        }
-        while r < rows {
-            let mut acc = [0.0f64; J];
-            for (a, c) in terms {
-                for (k, ck) in c.iter().enumerate() {
-                    let x = a[k * rows + r];
-                    for o in 0..J {
-                        acc[o] = x.mul_add(ck[o], acc[o]);
-                    }
-                }
-            }
-            for o in 0..J {
-                *ops[o].add(r) = acc[o];
-            }
-            r += 1;
-        }
-    }
-
     /// Dot products of four rows (each at least as long as y) with y: two vectors of four
     /// partial sums per row, one load of y for the four rows. (No closures in these kernels:
     /// they do not inherit the target features, and were calls, not inlined.)
@@ -445,42 +391,6 @@ pub(crate) fn dense_mul_add(rows: usize, a: &[f64], w: f64, x: &[f64], out: &mut
     dense_mul_add_portable(rows, a, w, x, out);
 }
 
-/// outs[o][..rows] = sum over the terms (A, C) of A C[.][o] (A dense column-major, rows x
-/// C.len(); C[c][o] the coefficient of column c in output o): J combinations of the same
-/// vectors in one pass over them, in the AVX2 kernel where the CPU has it.
-pub(crate) fn combine_outputs<const J: usize>(
-    rows: usize,
-    terms: &[(&[f64], &[[f64; J]])],
-    outs: &mut [&mut [f64]; J],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2_fma() {
-        // SAFETY: the CPU supports AVX2 and FMA (checked above).
-        return unsafe { avx2::combine_outputs(rows, terms, outs) };
-    }
-    combine_outputs_portable(rows, terms, outs);
-}
-
-/// [`combine_outputs`] in portable code, output by output.
-fn combine_outputs_portable<const J: usize>(
-    rows: usize,
-    terms: &[(&[f64], &[[f64; J]])],
-    outs: &mut [&mut [f64]; J],
-) {
-    if rows == 0 {
-        return;
-    }
-    for (o, out) in outs.iter_mut().enumerate() {
-        let out = &mut out[..rows];
-        out.iter_mut().for_each(|x| *x = 0.0);
-        for &(a, c) in terms {
-            for (column, ck) in a.chunks_exact(rows).zip(c) {
-                out.iter_mut().zip(column).for_each(|(x, v)| *x = v.mul_add(ck[o], *x));
-            }
-        }
-    }
-}
-
 /// [`dense_mul_add`] in portable code, column by column.
 fn dense_mul_add_portable(rows: usize, a: &[f64], w: f64, x: &[f64], out: &mut [f64]) {
     if rows == 0 {
@@ -574,67 +484,6 @@ mod tests {
                     }
                     assert_eq!(&out[rows..], &start[rows..]);
                 }
-            }
-        }
-    }
-
-    #[test]
-    fn combinations_of_several_outputs_agree_with_plain_sums() {
-        // Row counts through the blocks of eight and the single rows; one to three terms of
-        // none to nine vectors; outputs start as NaN (overwritten) and past `rows` stay as
-        // they were.
-        fn check<const J: usize>(rows: usize, widths: &[usize]) {
-            let vectors: Vec<Vec<f64>> = widths
-                .iter()
-                .enumerate()
-                .map(|(t, &w)| (0..rows * w).map(|k| ((k * 37 + t * 5) % 11) as f64 - 5.0).collect())
-                .collect();
-            let coefficients: Vec<Vec<[f64; J]>> = widths
-                .iter()
-                .enumerate()
-                .map(|(t, &w)| {
-                    (0..w).map(|c| std::array::from_fn(|o| 0.25 * (c + o + t) as f64 - 1.0)).collect()
-                })
-                .collect();
-            let terms: Vec<(&[f64], &[[f64; J]])> =
-                vectors.iter().zip(&coefficients).map(|(v, c)| (&v[..], &c[..])).collect();
-            let exact: Vec<Vec<f64>> = (0..J)
-                .map(|o| {
-                    (0..rows)
-                        .map(|i| {
-                            terms
-                                .iter()
-                                .map(|(v, c)| (0..c.len()).map(|k| v[k * rows + i] * c[k][o]).sum::<f64>())
-                                .sum()
-                        })
-                        .collect()
-                })
-                .collect();
-            for fast in [true, false] {
-                let mut data: Vec<Vec<f64>> = (0..J).map(|_| vec![f64::NAN; rows + 2]).collect();
-                data.iter_mut().for_each(|d| d[rows..].iter_mut().for_each(|x| *x = 7.0));
-                let mut it = data.iter_mut();
-                let mut outs: [&mut [f64]; J] = std::array::from_fn(|_| it.next().unwrap().as_mut_slice());
-                if fast {
-                    combine_outputs(rows, &terms, &mut outs);
-                } else {
-                    combine_outputs_portable(rows, &terms, &mut outs);
-                }
-                for (o, out) in data.iter().enumerate() {
-                    for (i, e) in exact[o].iter().enumerate() {
-                        assert!(
-                            (out[i] - e).abs() <= 1e-12 * (1.0 + e.abs()),
-                            "{rows}, {widths:?}, output {o} row {i}"
-                        );
-                    }
-                    assert_eq!(&out[rows..], &[7.0, 7.0]);
-                }
-            }
-        }
-        for rows in [0usize, 1, 3, 7, 8, 9, 17, 40] {
-            for widths in [&[3usize][..], &[9, 3], &[3, 0, 3], &[1, 2, 9]] {
-                check::<3>(rows, widths);
-                check::<4>(rows, widths);
             }
         }
     }

@@ -81,16 +81,17 @@ struct BlockFactor {
     /// solved when a factorization first needs them.
     basis_solved: Vec<f64>,
     /// The deformation part dJ^T of the rotation coupling at the last solves with it (3 n,
-    /// empty before), and A^-1 dJ^T (see `reference_coupling`).
+    /// empty before), the rows J_f = J_f0 + dJ of the deformed body there and their solves
+    /// A^-1 J_f^T (see `reference_coupling`).
     deformation: Vec<f64>,
-    deformation_solved: Vec<f64>,
+    deformed_rows: Vec<f64>,
+    deformed_solved: Vec<f64>,
     /// q_f of `deformation`, and the smallest norm of the rows J_f0 + dJ there (the cheap
     /// test of `reference_coupling`).
     deformation_at: Vec<f64>,
     deformation_rows: f64,
-    /// The products G = U^T W of the vectors U whose combinations are the reference rows
-    /// (I1, J_f0, dJ, S_kk, Ibar_kl: 21) with those W whose combinations are the reference
-    /// columns of Z (A^-1 of I1, J_f0, S_kl, dJ: 15), row-major (see `reference_coupling`);
+    /// The products G = U^T V of the row vectors U with the column vectors V of the
+    /// structured coupling (`ReferenceCoupling`), ROW_VECTORS x COLUMN_VECTORS row-major;
     /// empty until made, and made again when dJ is solved again. `gram_deformed`: with dJ.
     gram: Vec<f64>,
     gram_deformed: bool,
@@ -164,8 +165,16 @@ struct Block {
     support: Option<Vec<usize>>,
     support_position: Vec<usize>,
     basis_compact: Vec<f64>,
-    /// The rows of I1 and J_f0 (6 n, see `coupling_rows`), made at the first use.
+    /// The rows of `coupling_rows` (12 n: I1, J_f0, S_kl), then T = S_00 + S_11 + S_22 and
+    /// the nine Ibar_kl (10 n), made at the first use (see `ReferenceCoupling`).
     reference_rows: Vec<f64>,
+    /// The coupling with the reference coordinates of the last factorization, applied from
+    /// kept vectors in the solves; None when it was formed in `z`, `w` and `row_values`
+    /// (the exact solver, and reference rows that are not dense).
+    structured: Option<ReferenceCoupling>,
+    /// Whether a structured coupling is applied from the kept vectors (else formed; false
+    /// only in tests, which compare the two).
+    apply_kept: bool,
     /// Scratch of dJ^T (3 n).
     deformation: Vec<f64>,
     /// Bound of the norms of the body's antisymmetric matrices (made at the first use).
@@ -187,9 +196,87 @@ const SPAN_TOLERANCE: f64 = 1e-10;
 /// `reference_coupling`).
 const DEFORMATION_TOLERANCE: f64 = 1e-2;
 
-/// The vectors U and W of `BlockFactor::gram`.
-const GRAM_ROWS: usize = 21;
-const GRAM_COLUMNS: usize = 15;
+/// Numbers of the row and column vectors of [`ReferenceCoupling`].
+const ROW_VECTORS: usize = 16;
+const COLUMN_VECTORS: usize = 12;
+
+/// The structured coupling of a condensed body with its seven reference coordinates
+/// (`Block::reference_coupling`), as combinations of kept vectors of n_f entries whose
+/// coefficients depend on the rotation and angular velocity only:
+/// - the rows N_jF: on the row vectors U = [I1 (3), J_f (3), T, Ibar_kl (9)], with J_f the
+///   rows of J_f0 + dJ (deformed) or J_f0, and T = S_00 + S_11 + S_22;
+/// - the columns as eliminated N_Fj: on [I1 (3), J_f (3), S_kl (6)], and their solves
+///   Z_j = A^-1 N_Fj on the column vectors V = A^-1 of the same.
+///
+/// A solve applies them as they are (U^T y: sixteen dot products, V (C x_ref): twelve vector
+/// updates) instead of forming the seven rows and columns at every refresh of the iteration
+/// matrix (195 multiply-adds per elastic coordinate, more than the solves' extra ones), and
+/// the block N_JF Z of the reference rows and columns is R G C with the kept G = U^T V.
+#[derive(Clone, Copy, Debug)]
+struct ReferenceCoupling {
+    /// R: the coefficients of the rows of the reference coordinates (in the order of
+    /// `Block::reference`) on the row vectors.
+    rows: [[f64; ROW_VECTORS]; 7],
+    /// C: the coefficients of the columns on the column vectors, `columns[v][b]`.
+    columns: [[f64; 7]; COLUMN_VECTORS],
+    /// Whether J_f is that of the deformed body (the factor's `deformed_rows`).
+    deformed: bool,
+    /// The vectors with nonzero coefficients are the first `row_count` and `column_count`
+    /// (6 each without the velocity part).
+    row_count: usize,
+    column_count: usize,
+}
+
+/// Row vector k of [`ReferenceCoupling`] (`rows`: `Block::reference_rows`, m = n_f).
+fn row_vector<'a>(rows: &'a [f64], factor: &'a BlockFactor, deformed: bool, m: usize, k: usize) -> &'a [f64] {
+    match k {
+        3..6 if deformed => &factor.deformed_rows[(k - 3) * m..(k - 2) * m],
+        0..6 => &rows[k * m..(k + 1) * m],
+        _ => &rows[(k + 6) * m..(k + 7) * m],
+    }
+}
+
+/// Column vector v of [`ReferenceCoupling`]: A^-1 of the column as eliminated.
+fn column_vector(factor: &BlockFactor, deformed: bool, m: usize, v: usize) -> &[f64] {
+    match v {
+        3..6 if deformed => &factor.deformed_solved[(v - 3) * m..(v - 2) * m],
+        _ => &factor.influence[v * m..(v + 1) * m],
+    }
+}
+
+/// Column v as eliminated of [`ReferenceCoupling`] (the rows of `coupling_rows`, or J_f0 + dJ).
+fn eliminated_vector<'a>(
+    rows: &'a [f64],
+    factor: &'a BlockFactor,
+    deformed: bool,
+    m: usize,
+    v: usize,
+) -> &'a [f64] {
+    match v {
+        3..6 if deformed => &factor.deformed_rows[(v - 3) * m..(v - 2) * m],
+        _ => &rows[v * m..(v + 1) * m],
+    }
+}
+
+/// The dot products of `y` with the vectors `vector(0..count)`, four at a time.
+fn dots<'a, const N: usize>(count: usize, vector: impl Fn(usize) -> &'a [f64], y: &[f64]) -> [f64; N] {
+    let mut out = [0.0; N];
+    for g in (0..count).step_by(GROUP) {
+        let k = GROUP.min(count - g);
+        let sums = dot4(std::array::from_fn(|i| vector(g + i.min(k - 1))), y);
+        out[g..g + k].copy_from_slice(&sums[..k]);
+    }
+    out
+}
+
+/// out -= sum_v x[v] vector(v) over v < count, four vectors at a time.
+fn subtract_combination<'a>(out: &mut [f64], count: usize, vector: impl Fn(usize) -> &'a [f64], x: &[f64]) {
+    for g in (0..count).step_by(GROUP) {
+        let k = GROUP.min(count - g);
+        let coefficients = std::array::from_fn(|i| if i < k { x[g + i] } else { 0.0 });
+        update4(out, coefficients, std::array::from_fn(|i| vector(g + i.min(k - 1))));
+    }
+}
 
 /// The LU factorization of the reduced (Schur complement) system: dense for systems of at
 /// most `DENSE_SYSTEM_SIZE` unknowns (the pendulum bar's is 13 x 13, whose sparse
@@ -381,6 +468,8 @@ impl CondensedSolver {
                 support_position: Vec::new(),
                 basis_compact: Vec::new(),
                 reference_rows: Vec::new(),
+                structured: None,
+                apply_kept: true,
                 deformation: Vec::new(),
                 antisymmetric_bound: None,
                 angular_velocity: Vec3::ZERO,
@@ -414,8 +503,20 @@ impl CondensedSolver {
             }
             block.image.resize(m, 0.0);
             block.image.iter_mut().for_each(|v| *v = 0.0);
-            for (&xj, w) in block.last_x.iter().zip(block.w.chunks_exact(m)) {
-                if xj != 0.0 {
+            let structured = block.structured;
+            if let Some(rc) = &structured {
+                // The reference columns as eliminated: [I1, J_f, S_kl] (C x_ref).
+                let (rows, factor) = (&block.reference_rows, &block.factors[block.current]);
+                let x_ref = block.reference.map(|a| -block.last_x[a]);
+                subtract_combination(
+                    &mut block.image,
+                    rc.column_count,
+                    |v| eliminated_vector(rows, factor, rc.deformed, m, v),
+                    &rc.combination(&x_ref),
+                );
+            }
+            for (j, (&xj, w)) in block.last_x.iter().zip(block.w.chunks_exact(m)).enumerate() {
+                if xj != 0.0 && !(structured.is_some() && block.reference.contains(&j)) {
                     block.image.iter_mut().zip(w).for_each(|(o, wv)| *o += wv * xj);
                 }
             }
@@ -471,6 +572,7 @@ impl CondensedSolver {
         }
         for block in &mut self.blocks {
             block.last_x.clear();
+            block.structured = None;
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
             let (m, nj) = (block.n, block.coupling.len());
@@ -493,9 +595,12 @@ impl CondensedSolver {
                 None
             };
             // S_hat(J, J) -= N_JF Z: the reference block, when structured, from
-            // `reference_coupling`; the rest a dense row against four columns of Z at a time.
+            // `reference_coupling`, the other rows against the reference columns and the
+            // reference rows against the other columns through the kept vectors; the rest a
+            // dense row against four columns of Z at a time.
             let column = |b: usize| &block.z[b * m..(b + 1) * m];
             let all: Vec<usize> = (0..nj).collect();
+            let structured = block.structured;
             if let Some(rb) = &reference_block {
                 for (ra, &ja) in block.reference.iter().enumerate() {
                     for (rc, &jb) in block.reference.iter().enumerate() {
@@ -503,10 +608,14 @@ impl CondensedSolver {
                     }
                 }
             }
+            let factor = &block.factors[block.current];
             for (a, entries) in block.row_entries.iter().enumerate() {
+                if structured.is_some() && block.reference.contains(&a) {
+                    continue;
+                }
                 let stored = &block.row_values[a];
                 let schur = &block.schur_entries[a * nj..(a + 1) * nj];
-                let columns = if reference_block.is_some() && is_reference(a) { &others } else { &all };
+                let columns = if structured.is_some() { &others } else { &all };
                 if block.dense_rows[a] {
                     // Groups of four columns; the last group filled up with its last column.
                     for group in columns.chunks(GROUP) {
@@ -519,6 +628,39 @@ impl CondensedSolver {
                 } else {
                     for &b in columns {
                         self.reduced_values[schur[b]] -= gather_dot(entries, stored, column(b));
+                    }
+                }
+                if let Some(rc) = &structured {
+                    // N_aF Z_ref = (N_aF V) C.
+                    let vector = |v: usize| column_vector(factor, rc.deformed, m, v);
+                    let products: [f64; COLUMN_VECTORS] = if block.dense_rows[a] {
+                        dots(rc.column_count, vector, stored)
+                    } else {
+                        std::array::from_fn(|v| {
+                            if v < rc.column_count {
+                                gather_dot(entries, stored, vector(v))
+                            } else {
+                                0.0
+                            }
+                        })
+                    };
+                    for (b, &jb) in block.reference.iter().enumerate() {
+                        let sum: f64 = products.iter().zip(&rc.columns).map(|(p, col)| p * col[b]).sum();
+                        self.reduced_values[schur[jb]] -= sum;
+                    }
+                }
+            }
+            if let Some(rc) = &structured {
+                // N_ref,F Z_b = R (U^T Z_b) for the other columns b.
+                for &b in &others {
+                    let products: [f64; ROW_VECTORS] = dots(
+                        rc.row_count,
+                        |k| row_vector(&block.reference_rows, factor, rc.deformed, m, k),
+                        column(b),
+                    );
+                    for (row, &ja) in rc.rows.iter().zip(&block.reference) {
+                        let sum: f64 = products.iter().zip(row).map(|(p, r)| p * r).sum();
+                        self.reduced_values[block.schur_entries[ja * nj + b]] -= sum;
                     }
                 }
             }
@@ -545,13 +687,27 @@ impl CondensedSolver {
             let y = &mut self.y[offset..offset + block.n];
             y.copy_from_slice(&x[block.first..block.first + block.n]);
             block.factors[block.current].solve_in_place(y).map_err(|e| e.to_string())?;
-            // Dense coupling rows four at a time (one pass over y for four of them).
+            let y = &*y;
+            let reduced = |a: usize| self.reduced_of[block.coupling[a]];
+            if let Some(rc) = &block.structured {
+                // The reference rows R (U^T y).
+                let (m, factor) = (block.n, &block.factors[block.current]);
+                let products: [f64; ROW_VECTORS] =
+                    dots(rc.row_count, |k| row_vector(&block.reference_rows, factor, rc.deformed, m, k), y);
+                for (row, &a) in rc.rows.iter().zip(&block.reference) {
+                    self.rhs[reduced(a)] -= products.iter().zip(row).map(|(p, r)| p * r).sum::<f64>();
+                }
+            }
+            // The other rows: dense ones four at a time (one pass over y for four of them).
             let mut dense = [0usize; GROUP];
             let mut count = 0;
             for (a, entries) in block.row_entries.iter().enumerate() {
+                if block.structured.is_some() && block.reference.contains(&a) {
+                    continue;
+                }
                 let stored = &block.row_values[a];
                 if !block.dense_rows[a] {
-                    self.rhs[self.reduced_of[block.coupling[a]]] -= gather_dot(entries, stored, y);
+                    self.rhs[reduced(a)] -= gather_dot(entries, stored, y);
                     continue;
                 }
                 dense[count] = a;
@@ -559,7 +715,7 @@ impl CondensedSolver {
                 if count == GROUP {
                     let rows = dense.map(|a| &block.row_values[a][..]);
                     for (&a, sum) in dense.iter().zip(dot4(rows, y)) {
-                        self.rhs[self.reduced_of[block.coupling[a]]] -= sum;
+                        self.rhs[reduced(a)] -= sum;
                     }
                     count = 0;
                 }
@@ -569,7 +725,7 @@ impl CondensedSolver {
                 let rows: [&[f64]; GROUP] =
                     std::array::from_fn(|i| &block.row_values[dense[i.min(count - 1)]][..]);
                 for (&a, sum) in dense[..count].iter().zip(dot4(rows, y)) {
-                    self.rhs[self.reduced_of[block.coupling[a]]] -= sum;
+                    self.rhs[reduced(a)] -= sum;
                 }
             }
             offset += block.n;
@@ -583,18 +739,31 @@ impl CondensedSolver {
             let y = &self.y[offset..offset + block.n];
             let out = &mut x[block.first..block.first + block.n];
             out.copy_from_slice(y);
+            let x_j = |a: usize| self.rhs[self.reduced_of[block.coupling[a]]];
             if self.keep_image {
                 block.last_x.clear();
-                block.last_x.extend(block.coupling.iter().map(|&g| self.rhs[self.reduced_of[g]]));
+                block.last_x.extend((0..block.coupling.len()).map(x_j));
             }
-            // out -= Z x_J, four columns of Z at a time (one pass over out for four).
+            // out -= Z x_J: the reference columns V (C x_ref), the others four columns of Z at
+            // a time (one pass over out for four).
             let n = block.n;
+            let structured = block.structured;
+            if let Some(rc) = &structured {
+                let factor = &block.factors[block.current];
+                let x_ref = block.reference.map(x_j);
+                subtract_combination(
+                    out,
+                    rc.column_count,
+                    |v| column_vector(factor, rc.deformed, n, v),
+                    &rc.combination(&x_ref),
+                );
+            }
             let column = |j: usize| &block.z[j * n..(j + 1) * n];
             let mut group = [(0usize, 0.0f64); GROUP];
             let mut count = 0;
-            for (j, &g) in block.coupling.iter().enumerate() {
-                let xj = self.rhs[self.reduced_of[g]];
-                if xj != 0.0 {
+            for j in 0..block.coupling.len() {
+                let xj = x_j(j);
+                if xj != 0.0 && !(structured.is_some() && block.reference.contains(&j)) {
                     group[count] = (j, xj);
                     count += 1;
                     if count == GROUP {
@@ -617,55 +786,10 @@ impl CondensedSolver {
     }
 }
 
-/// The items `which` (distinct) of `items`.
-fn pick_mut<'a, const J: usize>(
-    items: impl Iterator<Item = &'a mut [f64]>,
-    which: [usize; J],
-) -> [&'a mut [f64]; J] {
-    let mut all: Vec<Option<&mut [f64]>> = items.map(Some).collect();
-    which.map(|j| all[j].take().expect("distinct items"))
-}
-
-/// The columns `which` (distinct) of the column-major `data` (columns of n).
-fn columns_mut<const J: usize>(data: &mut [f64], n: usize, which: [usize; J]) -> [&mut [f64]; J] {
-    pick_mut(data.chunks_exact_mut(n), which)
-}
-
-/// The coupling rows `which` (distinct) as the combinations `terms` of
-/// [`crate::math::simd::combine_outputs`]: in one pass when all are dense, else each at its
-/// entries (`dense`, `entries`, `values`: the flags, entries and values of the block's rows).
-fn combine_rows<const J: usize>(
-    n: usize,
-    terms: &[(&[f64], &[[f64; J]])],
-    which: [usize; J],
-    dense: &[bool],
-    entries: &[Vec<(usize, usize)>],
-    values: &mut [Vec<f64>],
-) {
-    if which.iter().all(|&j| dense[j]) {
-        let mut rows = pick_mut(values.iter_mut().map(Vec::as_mut_slice), which);
-        crate::math::simd::combine_outputs(n, terms, &mut rows);
-    } else {
-        for (k, &j) in which.iter().enumerate() {
-            gather_combination(n, terms, k, &entries[j], &mut values[j]);
-        }
-    }
-}
-
-/// Output `k` of the combination of [`crate::math::simd::combine_outputs`] at the entries
-/// (f, _) of a sparse coupling row, into `row`.
-fn gather_combination<const J: usize>(
-    n: usize,
-    terms: &[(&[f64], &[[f64; J]])],
-    k: usize,
-    entries: &[(usize, usize)],
-    row: &mut [f64],
-) {
-    for (&(f, _), r) in entries.iter().zip(row.iter_mut()) {
-        *r = terms
-            .iter()
-            .map(|(v, c)| c.iter().enumerate().map(|(i, ci)| ci[k] * v[i * n + f]).sum::<f64>())
-            .sum();
+impl ReferenceCoupling {
+    /// C x: the coefficients on the column vectors of the reference columns' values `x`.
+    fn combination(&self, x: &[f64; 7]) -> [f64; COLUMN_VECTORS] {
+        std::array::from_fn(|v| self.columns[v].iter().zip(x).map(|(c, x)| c * x).sum())
     }
 }
 
@@ -831,12 +955,15 @@ impl Block {
         Ok(())
     }
 
-    /// Z and N_JF of the reference coordinates from their mass part (see `factorize`), at the
-    /// body coordinates `qb`. The rotation coupling is that of the deformed body,
-    /// J_f = J_f0 + dJ(q_f) with dJ_i^T = -(I_jk - I_kj) q_f: the undeformed J_f0 alone errs
-    /// by dJ, which is not small where J_f0 is (a slender beam about its own axis), and made
-    /// the modified Newton iteration diverge at every step size (a modal beam hinged at a
-    /// node). Its part of Z takes three solves (A^-1 dJ^T, packed) when q_f != 0, which a
+    /// The coupling of the reference coordinates from their mass and velocity parts (see
+    /// `factorize`), at the body coordinates `qb`, as the coefficients of a
+    /// [`ReferenceCoupling`] (in `structured`, with its block N_JF Z of the reference rows and
+    /// columns returned), or formed in `z`, `w` and `row_values` when the reference rows are
+    /// not dense (None returned, `structured` None). The rotation coupling is that of the
+    /// deformed body, J_f = J_f0 + dJ(q_f) with dJ_i^T = -(I_jk - I_kj) q_f: the undeformed J_f0
+    /// alone errs by dJ, which is not small where J_f0 is (a slender beam about its own axis),
+    /// and made the modified Newton iteration diverge at every step size (a modal beam hinged
+    /// at a node). Its solves take three solves (A^-1 dJ^T, packed) when q_f != 0, which a
     /// factorization keeps for later refreshes while dJ moves by at most
     /// `DEFORMATION_TOLERANCE` of J_f (the coupling of an iteration matrix is then as at the
     /// deformation of the solves, off by that fraction at most: a pendulum bar of solids
@@ -855,25 +982,17 @@ impl Block {
         let qf = &qb[REFERENCE_COORDINATES..REFERENCE_COORDINATES + m];
         if self.reference_rows.is_empty() {
             self.reference_rows = (0..12).flat_map(|i| coupling_rows(fb, i)).collect();
+            let s_kk = |k: usize| &self.reference_rows[(6 + k) * m..(7 + k) * m];
+            let trace: Vec<f64> = (0..m).map(|f| s_kk(0)[f] + s_kk(1)[f] + s_kk(2)[f]).collect();
+            self.reference_rows.extend(trace);
+            self.reference_rows.extend_from_slice(&fb.ibar[..9 * m]);
         }
         // The velocity part of the rotation columns (the centrifugal coupling of the undeformed
         // body; the Coriolis part from qf_dot and the deformation are left out).
         let sv = c.scale * c.velocity;
         let w = self.angular_velocity;
-        let spinning = sv != 0.0 && (w[0] != 0.0 || w[1] != 0.0 || w[2] != 0.0);
+        let spinning = sm != 0.0 && sv != 0.0 && (w[0] != 0.0 || w[1] != 0.0 || w[2] != 0.0);
         let two_l: [[f64; 4]; 3] = std::array::from_fn(|i| std::array::from_fn(|k| 2.0 * l[i][k]));
-        // The velocity part of the rows: (R, f) = A 2 w~ I1 (weights on the rows of I1), and
-        // (p, f) = 2 L^T r with r_l = 2 (w_l sum_k Ibar_kk - sum_k w_k Ibar_kl) (undeformed).
-        // Without it the error operator of the iteration, though of about the same spectral
-        // radius, is far from normal (the norm of its coordinate block 0.1 against 5.6e-3 with
-        // it: 1k pendulum bar at 5 rad/s, dense matrices), and the first iteration of a step,
-        // from the predictor, contracts that much less.
-        let translation_rows: [[f64; 3]; 3] = if spinning {
-            let aw = a.mul_mat(&w.skew());
-            std::array::from_fn(|i| std::array::from_fn(|k| 2.0 * sv * aw.0[i][k]))
-        } else {
-            [[0.0; 3]; 3]
-        };
         let deformed = sm != 0.0 && qf.iter().any(|&x| x != 0.0);
         let factor = &mut self.factors[self.current];
         if deformed {
@@ -897,7 +1016,7 @@ impl Block {
                 self.deformation.resize(3 * m, 0.0);
                 self.deformation.iter_mut().for_each(|x| *x = 0.0);
                 fb.add_antisymmetric_products(-1.0, qf, &mut self.deformation);
-                let rows = &self.reference_rows[3 * m..];
+                let rows = &self.reference_rows[3 * m..6 * m];
                 let row_norm = |d: &[f64], i: usize| -> f64 {
                     d[i * m..(i + 1) * m]
                         .iter()
@@ -917,7 +1036,9 @@ impl Block {
                     let mut solved = self.deformation.clone();
                     factor.solve_in_place(&mut solved)?;
                     factor.deformation.clone_from(&self.deformation);
-                    factor.deformation_solved = solved;
+                    factor.deformed_rows = rows.iter().zip(&factor.deformation).map(|(x, d)| x + d).collect();
+                    factor.deformed_solved =
+                        factor.influence[3 * m..6 * m].iter().zip(&solved).map(|(x, d)| x + d).collect();
                     factor.deformation_at.clear();
                     factor.deformation_at.extend_from_slice(qf);
                     factor.deformation_rows =
@@ -926,169 +1047,125 @@ impl Block {
                 }
             }
         }
-        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c (J_f = J_f0 +
-        // dJ at the kept dJ); the rows N_jF are their transposes, and so are the columns as
-        // eliminated (over all n_f). Each is a combination of a few kept vectors, formed for
-        // the three translation and the four rotation columns in one pass over the vectors.
-        if sm == 0.0 {
-            for &j in &self.reference {
-                self.z[j * m..(j + 1) * m].iter_mut().for_each(|x| *x = 0.0);
-                self.row_values[j].iter_mut().for_each(|x| *x = 0.0);
-                if let Some(e) = self.w.get_mut(j * m..(j + 1) * m) {
-                    e.iter_mut().for_each(|x| *x = 0.0);
-                }
-            }
-            return Ok(None);
-        }
-        let reference_rows = &self.reference_rows;
-        // Translation: C[c][k] = s m A_kc on the rows of I1 (and their solves); the rows' velocity
-        // part A 2 w~ I1 adds to these weights.
-        let translation: [[f64; 3]; 3] = std::array::from_fn(|c| std::array::from_fn(|k| sm * a.0[k][c]));
-        let translation_row: [[f64; 3]; 3] =
-            std::array::from_fn(|c| std::array::from_fn(|k| translation[c][k] + translation_rows[k][c]));
-        // Rotation: C[c][k] = s m (2 L)_ck on the rows of J_f0 and dJ, then the centrifugal
-        // part s v sum_m dfw_m (2 L)_mk on the six S_kl (whose solves follow those of J_f0 in
-        // `influence`), and the rows' velocity part (2 L)_ck on the velocity rows.
-        let mut rotation = [[0.0; 4]; 9];
-        for (c, coefficients) in rotation.iter_mut().enumerate().take(3) {
-            *coefficients = std::array::from_fn(|k| sm * two_l[c][k]);
-        }
-        let used = if spinning {
-            for k in 0..4 {
-                for (slot, g) in centrifugal_weights(&w, &two_l, k).into_iter().enumerate() {
-                    rotation[3 + slot][k] = sv * g;
-                }
-            }
-            9
-        } else {
-            3
+        // The coefficients, zero without the mass term (then the coupling is left out).
+        let mut coupling = ReferenceCoupling {
+            rows: [[0.0; ROW_VECTORS]; 7],
+            columns: [[0.0; 7]; COLUMN_VECTORS],
+            deformed,
+            row_count: if sm == 0.0 {
+                0
+            } else if spinning {
+                ROW_VECTORS
+            } else {
+                6
+            },
+            column_count: if sm == 0.0 {
+                0
+            } else if spinning {
+                COLUMN_VECTORS
+            } else {
+                6
+            },
         };
-        // The rows' velocity part (2 L) r with r_l = s v (w_l (S_00 + S_11 + S_22) - 2 sum_k w_k
-        // Ibar_kl): on the three S_kk and the nine Ibar_kl.
-        let mut diagonal = [[0.0; 4]; 3];
-        let mut ibar = [[0.0; 4]; 9];
-        if spinning {
-            let sum: [f64; 4] = std::array::from_fn(|o| (0..3).map(|lr| two_l[lr][o] * sv * w[lr]).sum());
-            diagonal = [sum; 3];
-            for k in 0..3 {
-                for lr in 0..3 {
-                    ibar[3 * k + lr] = std::array::from_fn(|o| -2.0 * sv * w[k] * two_l[lr][o]);
+        // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c and the
+        // centrifugal part s v sum_m dfw_m (2 L)_mc on the six S_kl; the rows N_jF are their
+        // transposes, with the velocity parts of the rows: (R, f) = A 2 w~ I1 (on the rows of
+        // I1), and (p, f) = 2 L^T r with r_l = s v (w_l T - 2 sum_k w_k Ibar_kl) (undeformed).
+        // Without the rows' velocity part the error operator of the iteration, though of about
+        // the same spectral radius, is far from normal (the norm of its coordinate block 0.1
+        // against 5.6e-3 with it: 1k pendulum bar at 5 rad/s, dense matrices), and the first
+        // iteration of a step, from the predictor, contracts that much less.
+        if sm != 0.0 {
+            let aw = a.mul_mat(&w.skew());
+            for o in 0..3 {
+                for v in 0..3 {
+                    coupling.columns[v][o] = sm * a.0[o][v];
+                    coupling.rows[o][v] = sm * a.0[o][v] + if spinning { 2.0 * sv * aw.0[o][v] } else { 0.0 };
+                }
+            }
+            for o in 0..4 {
+                for v in 0..3 {
+                    coupling.columns[3 + v][3 + o] = sm * two_l[v][o];
+                    coupling.rows[3 + o][3 + v] = sm * two_l[v][o];
                 }
             }
         }
-        let (mut tz, mut tr, mut te) = (Vec::with_capacity(2), Vec::with_capacity(4), Vec::with_capacity(2));
-        tz.push((&factor.influence[3 * m..(3 + used) * m], &rotation[..used]));
-        tr.push((&reference_rows[3 * m..6 * m], &rotation[..3]));
-        te.push((&reference_rows[3 * m..(3 + used) * m], &rotation[..used]));
-        if deformed {
-            tz.push((&factor.deformation_solved[..], &rotation[..3]));
-            tr.push((&factor.deformation[..], &rotation[..3]));
-            te.push((&factor.deformation[..], &rotation[..3]));
-        }
         if spinning {
-            tr.push((&reference_rows[6 * m..9 * m], &diagonal[..]));
-            tr.push((&fb.ibar[..9 * m], &ibar[..]));
+            for o in 0..4 {
+                for (slot, g) in centrifugal_weights(&w, &two_l, o).into_iter().enumerate() {
+                    coupling.columns[6 + slot][3 + o] = sv * g;
+                }
+                coupling.rows[3 + o][6] = (0..3).map(|k| two_l[k][o] * sv * w[k]).sum();
+                for k in 0..3 {
+                    for lr in 0..3 {
+                        coupling.rows[3 + o][7 + 3 * k + lr] = -2.0 * sv * w[k] * two_l[lr][o];
+                    }
+                }
+            }
         }
-        let [r0, r1, r2, p0, p1, p2, p3] = self.reference;
-        let (translation_columns, rotation_columns) = ([r0, r1, r2], [p0, p1, p2, p3]);
-        crate::math::simd::combine_outputs(
-            m,
-            &[(&factor.influence[..3 * m], &translation[..])],
-            &mut columns_mut(&mut self.z, m, translation_columns),
-        );
-        crate::math::simd::combine_outputs(m, &tz, &mut columns_mut(&mut self.z, m, rotation_columns));
-        if !self.w.is_empty() {
-            crate::math::simd::combine_outputs(
-                m,
-                &[(&reference_rows[..3 * m], &translation[..])],
-                &mut columns_mut(&mut self.w, m, translation_columns),
-            );
-            crate::math::simd::combine_outputs(m, &te, &mut columns_mut(&mut self.w, m, rotation_columns));
-        }
-        let translation_terms = [(&reference_rows[..3 * m], &translation_row[..])];
-        combine_rows(
-            m,
-            &translation_terms,
-            translation_columns,
-            &self.dense_rows,
-            &self.row_entries,
-            &mut self.row_values,
-        );
-        combine_rows(m, &tr, rotation_columns, &self.dense_rows, &self.row_entries, &mut self.row_values);
-        if !self.reference.iter().all(|&j| self.dense_rows[j]) {
+        if !self.apply_kept || !self.reference.iter().all(|&j| self.dense_rows[j]) {
+            self.structured = None;
+            self.form_reference(&coupling);
             return Ok(None);
         }
-        // The block N_JF Z of the reference rows and columns, R G C with the coefficients
-        // R (7 x 21) of the rows on U and C (15 x 7) of the columns on W (see `BlockFactor::
-        // gram`): no pass over the n_f-vectors but when G is made.
+        self.structured = Some(coupling);
+        let factor = &mut self.factors[self.current];
+        // The block N_JF Z of the reference rows and columns, R G C: no pass over the
+        // n_f-vectors but when G is made.
         if factor.gram.is_empty() || factor.gram_deformed != deformed {
-            let zero = vec![0.0; m];
-            let u: Vec<&[f64]> = (0..GRAM_ROWS)
-                .map(|k| match k {
-                    0..6 => &reference_rows[k * m..(k + 1) * m],
-                    6..9 if deformed => &factor.deformation[(k - 6) * m..(k - 5) * m],
-                    6..9 => &zero[..],
-                    9..12 => &reference_rows[(k - 3) * m..(k - 2) * m],
-                    _ => &fb.ibar[(k - 12) * m..(k - 11) * m],
-                })
-                .collect();
-            let v: Vec<&[f64]> = (0..GRAM_COLUMNS)
-                .map(|k| match k {
-                    0..12 => &factor.influence[k * m..(k + 1) * m],
-                    _ if deformed => &factor.deformation_solved[(k - 12) * m..(k - 11) * m],
-                    _ => &zero[..],
-                })
-                .collect();
-            let mut gram = vec![0.0; GRAM_ROWS * GRAM_COLUMNS];
-            for (k, uk) in u.iter().enumerate() {
-                for b in (0..GRAM_COLUMNS).step_by(GROUP) {
-                    let count = GROUP.min(GRAM_COLUMNS - b);
-                    let sums = dot4(std::array::from_fn(|i| v[b + i.min(count - 1)]), uk);
-                    gram[k * GRAM_COLUMNS + b..k * GRAM_COLUMNS + b + count].copy_from_slice(&sums[..count]);
-                }
+            let rows = &self.reference_rows;
+            let mut gram = vec![0.0; ROW_VECTORS * COLUMN_VECTORS];
+            for (k, g) in gram.chunks_exact_mut(COLUMN_VECTORS).enumerate() {
+                let u = row_vector(rows, factor, deformed, m, k);
+                let sums: [f64; COLUMN_VECTORS] =
+                    dots(COLUMN_VECTORS, |v| column_vector(factor, deformed, m, v), u);
+                g.copy_from_slice(&sums);
             }
             factor.gram = gram;
             factor.gram_deformed = deformed;
         }
-        let mut r = [[0.0; GRAM_ROWS]; 7];
-        let mut cz = [[0.0; 7]; GRAM_COLUMNS];
-        for o in 0..3 {
-            for c in 0..3 {
-                r[o][c] = translation_row[c][o];
-                cz[c][o] = translation[c][o];
-            }
-        }
-        for o in 0..4 {
-            for c in 0..3 {
-                r[3 + o][3 + c] = rotation[c][o];
-                if deformed {
-                    r[3 + o][6 + c] = rotation[c][o];
-                    cz[12 + c][3 + o] = rotation[c][o];
-                }
-                r[3 + o][9 + c] = diagonal[c][o];
-            }
-            for (i, coefficients) in ibar.iter().enumerate() {
-                r[3 + o][12 + i] = coefficients[o];
-            }
-            for c in 0..used {
-                cz[3 + c][3 + o] = rotation[c][o];
-            }
-        }
         // (R G) C, rows of R G first.
         let mut block = [[0.0; 7]; 7];
-        for (a, ra) in r.iter().enumerate() {
-            let mut rg = [0.0; GRAM_COLUMNS];
-            for (k, &rk) in ra.iter().enumerate() {
+        for (ra, out) in coupling.rows.iter().zip(block.iter_mut()) {
+            let mut rg = [0.0; COLUMN_VECTORS];
+            for (&rk, g) in ra.iter().zip(factor.gram.chunks_exact(COLUMN_VECTORS)) {
                 if rk != 0.0 {
-                    let g = &factor.gram[k * GRAM_COLUMNS..(k + 1) * GRAM_COLUMNS];
                     rg.iter_mut().zip(g).for_each(|(x, gv)| *x += rk * gv);
                 }
             }
-            for (b, out) in block[a].iter_mut().enumerate() {
-                *out = rg.iter().zip(&cz).map(|(x, col)| x * col[b]).sum();
+            for (b, o) in out.iter_mut().enumerate() {
+                *o = rg.iter().zip(&coupling.columns).map(|(x, col)| x * col[b]).sum();
             }
         }
         Ok(Some(block))
+    }
+
+    /// Forms the columns Z and W (as eliminated, with `keep_image`) and the rows N_jF of the
+    /// reference coordinates from the coefficients of `coupling` (the rows at their entries).
+    fn form_reference(&mut self, coupling: &ReferenceCoupling) {
+        let m = self.n;
+        let (rows, factor, deformed) = (&self.reference_rows, &self.factors[self.current], coupling.deformed);
+        for (b, &j) in self.reference.iter().enumerate() {
+            let z = &mut self.z[j * m..(j + 1) * m];
+            z.iter_mut().for_each(|x| *x = 0.0);
+            let x: [f64; COLUMN_VECTORS] = std::array::from_fn(|v| -coupling.columns[v][b]);
+            subtract_combination(z, coupling.column_count, |v| column_vector(factor, deformed, m, v), &x);
+            if let Some(w) = self.w.get_mut(j * m..(j + 1) * m) {
+                w.iter_mut().for_each(|x| *x = 0.0);
+                subtract_combination(
+                    w,
+                    coupling.column_count,
+                    |v| eliminated_vector(rows, factor, deformed, m, v),
+                    &x,
+                );
+            }
+            let row = &mut self.row_values[j];
+            for (&(f, _), r) in self.row_entries[j].iter().zip(row.iter_mut()) {
+                *r = (0..coupling.row_count)
+                    .map(|k| coupling.rows[b][k] * row_vector(rows, factor, deformed, m, k)[f])
+                    .sum();
+            }
+        }
     }
 
     /// Makes `current` a factorization of A for the coefficients `c`, reusing a kept one.
@@ -1107,7 +1184,8 @@ impl Block {
                 influence: Vec::new(),
                 basis_solved: Vec::new(),
                 deformation: Vec::new(),
-                deformation_solved: Vec::new(),
+                deformed_rows: Vec::new(),
+                deformed_solved: Vec::new(),
                 deformation_at: Vec::new(),
                 deformation_rows: 0.0,
                 gram: Vec::new(),
@@ -1149,7 +1227,8 @@ impl Block {
                 influence: Vec::new(),
                 basis_solved: Vec::new(),
                 deformation: Vec::new(),
-                deformation_solved: Vec::new(),
+                deformed_rows: Vec::new(),
+                deformed_solved: Vec::new(),
                 deformation_at: Vec::new(),
                 deformation_rows: 0.0,
                 gram: Vec::new(),
@@ -1337,7 +1416,9 @@ mod tests {
         let mut solver = CondensedSolver::with_images(&model, true, true).unwrap();
         solver.set_angular_velocities(&model, &state.coordinates, &state.velocities);
         solver.factorize(&model, &ws.values, &c, &state.coordinates).unwrap();
-        let block = &solver.blocks[0];
+        let block = &mut solver.blocks[0];
+        let coupling = block.structured.expect("a structured coupling");
+        block.form_reference(&coupling);
         let m = block.n;
         let mut velocity_part = 0.0f64;
         for col in 0..7 {
@@ -1401,6 +1482,9 @@ mod tests {
         let structured = block.reference_coupling(flexible(&model, block.body), &ITERATION, q).unwrap();
         let structured = structured.expect("dense reference rows");
         assert!(!block.factors[block.current].deformation.is_empty(), "dJ solved");
+        let coupling = block.structured.expect("a structured coupling");
+        assert_eq!((coupling.row_count, coupling.column_count), (ROW_VECTORS, COLUMN_VECTORS));
+        block.form_reference(&coupling);
         let m = block.n;
         let explicit: Vec<Vec<f64>> = block
             .reference
@@ -1419,6 +1503,41 @@ mod tests {
             for b in 0..7 {
                 let (ours, theirs) = (structured[a][b], explicit[a][b]);
                 assert!((ours - theirs).abs() <= 1e-11 * scale, "({a}, {b}): {ours} vs {theirs}");
+            }
+        }
+    }
+
+    #[test]
+    fn reference_coupling_applied_from_kept_vectors_equals_the_formed_one() {
+        // Deformed, spinning, with a joint at an elastic marker (other coupling columns and
+        // rows): the structured coupling applied from its kept vectors (Schur complement,
+        // solves, coupling images) must equal the one formed in Z, W and the rows.
+        let model = model(true, true);
+        let state = moving_deformed_state(&model);
+        let mut ws = Workspace::new(&model).unwrap();
+        assemble(&model, StateView::of(&state), &mut ws, Some(ITERATION)).unwrap();
+        let rhs = test_rhs(model.system_size());
+        let mut results = Vec::new();
+        for apply_kept in [true, false] {
+            let mut solver = CondensedSolver::with_images(&model, true, true).unwrap();
+            solver.blocks[0].apply_kept = apply_kept;
+            solver.set_angular_velocities(&model, &state.coordinates, &state.velocities);
+            solver.factorize(&model, &ws.values, &ITERATION, &state.coordinates).unwrap();
+            assert_eq!(solver.blocks[0].structured.is_some(), apply_kept);
+            let others =
+                (0..solver.blocks[0].coupling.len()).filter(|j| !solver.blocks[0].reference.contains(j));
+            assert!(others.count() > 0, "other coupling columns");
+            let mut x = rhs.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            let image: Vec<f64> = solver.coupling_images().next().unwrap().1.to_vec();
+            results.push((solver.reduced_values.clone(), x, image));
+        }
+        let (kept, formed) = (&results[0], &results[1]);
+        for (ours, theirs) in [(&kept.0, &formed.0), (&kept.1, &formed.1), (&kept.2, &formed.2)] {
+            let scale = scale_of(theirs);
+            assert!(scale > 0.0);
+            for (k, (a, b)) in ours.iter().zip(theirs.iter()).enumerate() {
+                assert!((a - b).abs() <= 1e-12 * scale, "{k}: {a} vs {b} (scale {scale})");
             }
         }
     }
