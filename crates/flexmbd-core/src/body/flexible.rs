@@ -1044,6 +1044,12 @@ impl FlexibleScratch {
         scratch
     }
 
+    /// s = s0 + I1 q_f of the last [`inertia_force_parts`] (until the tangent takes its
+    /// quantities).
+    pub fn last_first_moment(&self) -> Option<Vec3> {
+        self.last.as_ref().map(|k| k.s)
+    }
+
     /// Buffers for a body with `n` elastic coordinates (and no scalar mass structure).
     pub fn with_size(n: usize) -> Self {
         FlexibleScratch {
@@ -1314,7 +1320,7 @@ pub fn inertia_force(
     scratch: &mut FlexibleScratch,
     out: &mut [f64],
 ) {
-    inertia_force_parts(body, q, qd, qdd, scratch, out, ElasticMass::Include);
+    inertia_force_parts(body, q, qd, qdd, scratch, out, ElasticMass::Include, None);
 }
 
 /// Where [`inertia_force_parts`] puts the term M_ff qf_dd of the elastic rows.
@@ -1329,7 +1335,10 @@ pub enum ElasticMass {
 }
 
 /// [`inertia_force`] with the term M_ff qf_dd of the elastic rows where `mass` says (see
-/// [`add_linear_elastic_forces`]).
+/// [`add_linear_elastic_forces`]); with `gravity`, minus the generalized gravity force of
+/// [`add_gravity_force`] (its elastic part I1^T A^T g in the pass of the inertia force's
+/// I1^T a, and s = s0 + I1 q_f from the inertia quantities).
+#[allow(clippy::too_many_arguments)]
 pub fn inertia_force_parts(
     body: &FlexibleBody,
     q: &[f64],
@@ -1338,10 +1347,11 @@ pub fn inertia_force_parts(
     scratch: &mut FlexibleScratch,
     out: &mut [f64],
     mass: ElasticMass,
+    gravity: Option<&Vec3>,
 ) {
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
-    let k = quantities(body, q, qd, qdd, scratch, false, mass != ElasticMass::Skip);
+    let mut k = quantities(body, q, qd, qdd, scratch, false, mass != ElasticMass::Skip);
     scratch.last = Some(k);
     let (w, alpha, s) = (k.w, k.alpha, k.s);
     // Translation: m R_dd + A (alpha x s + w x (w x s) + 2 w x I1 qf_dot + I1 qf_dd).
@@ -1352,6 +1362,18 @@ pub fn inertia_force_parts(
     out[..3].copy_from_slice(&f_r.0);
     for a in 0..4 {
         out[3 + a] = 2.0 * (0..3).map(|i| k.l[i][a] * g[i]).sum::<f64>();
+    }
+    if let Some(gravity) = gravity {
+        // Gravity: m g on R, d(A s)/dp^T g on p, I1^T A^T g on q_f (the last with the inertia
+        // force's I1^T a: a - A^T g).
+        let rt = rotate_transpose_jacobian(&k.p, gravity);
+        for c in 0..3 {
+            out[c] -= body.mass * gravity[c];
+        }
+        for c in 0..4 {
+            out[3 + c] -= (0..3).map(|i| rt[i][c] * s[i]).sum::<f64>();
+        }
+        k.acc -= k.a.tr_mul_vec(gravity);
     }
     // Elastic: I1^T a + sum_kl E_kl N_lk (E = alpha~ + w~w~) + 2 sum_kl w~_kl I_kl qf_dot
     // + M_ff qf_dd, with sum_kl w~_kl I_kl = -sum_m w_m A_m.
@@ -1842,9 +1864,22 @@ pub fn gravity_jacobian(
     coupling: Option<(&mut [f64], &mut [f64])>,
 ) -> [[f64; 4]; 4] {
     let nf = body.elastic_count;
-    let r7 = REFERENCE_COORDINATES;
+    let s = body.first_moment + body.i1_times(&q[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf]);
+    gravity_jacobian_at(body, q, gravity, &s, coupling)
+}
+
+/// [`gravity_jacobian`] with s = s0 + I1 q_f given (that of the inertia quantities, see
+/// [`FlexibleScratch::last_first_moment`]).
+pub fn gravity_jacobian_at(
+    body: &FlexibleBody,
+    q: &[f64],
+    gravity: &Vec3,
+    s: &Vec3,
+    coupling: Option<(&mut [f64], &mut [f64])>,
+) -> [[f64; 4]; 4] {
+    let nf = body.elastic_count;
     let p = quat(q);
-    let s = body.first_moment + body.i1_times(&q[r7..r7 + nf]);
+    let s = *s;
     let Some((pf, fp)) = coupling else {
         return bilinear_hessian(gravity, &s);
     };
@@ -2362,7 +2397,7 @@ pub(crate) mod tests {
             for (out, mass) in
                 parts.iter_mut().zip([ElasticMass::Include, ElasticMass::Skip, ElasticMass::Separate])
             {
-                inertia_force_parts(body, &q, &qd, &qdd, &mut scratch, out, mass);
+                inertia_force_parts(body, &q, &qd, &qdd, &mut scratch, out, mass, None);
             }
             let mass_term = scratch.mass_term.clone();
             assert!(mass_term.iter().any(|&m| m.abs() > 1e-3));
@@ -2387,6 +2422,41 @@ pub(crate) mod tests {
         add_gravity_force(&fast, &q, &gravity, &mut b);
         for k in 0..7 + n {
             assert!(close(a[k], b[k], 1e-12), "gravity {k}: {} vs {}", a[k], b[k]);
+        }
+        // The inertia force minus gravity in one call equals the two apart, and the first
+        // moment kept for the gravity Jacobian is that of the state.
+        for body in [&plain, &fast] {
+            let mut scratch = FlexibleScratch::for_body(body);
+            let (mut apart, mut fused) = (vec![0.0; 7 + n], vec![0.0; 7 + n]);
+            inertia_force_parts(body, &q, &qd, &qdd, &mut scratch, &mut apart, ElasticMass::Include, None);
+            let mut weight = vec![0.0; 7 + n];
+            add_gravity_force(body, &q, &gravity, &mut weight);
+            inertia_force_parts(
+                body,
+                &q,
+                &qd,
+                &qdd,
+                &mut scratch,
+                &mut fused,
+                ElasticMass::Include,
+                Some(&gravity),
+            );
+            for k in 0..7 + n {
+                let expected = apart[k] - weight[k];
+                assert!(
+                    close(fused[k], expected, 1e-12),
+                    "inertia - gravity {k}: {} vs {expected}",
+                    fused[k]
+                );
+            }
+            let s = scratch.last_first_moment().unwrap();
+            let (mut pf, mut fp, mut pf2, mut fp2) =
+                (vec![0.0; 4 * n], vec![0.0; 4 * n], vec![0.0; 4 * n], vec![0.0; 4 * n]);
+            let given = gravity_jacobian_at(body, &q, &gravity, &s, Some((&mut pf, &mut fp)));
+            let formed = gravity_jacobian(body, &q, &gravity, Some((&mut pf2, &mut fp2)));
+            for (a, b) in given.iter().flatten().zip(formed.iter().flatten()).chain(pf.iter().zip(&pf2)) {
+                assert!(close(*a, *b, 1e-12), "gravity Jacobian: {a} vs {b}");
+            }
         }
         assert!(solid_body(true, true).is_err());
     }

@@ -389,15 +389,13 @@ fn assemble_flexible(
         (false, ElasticRows::Update { .. }) => ElasticMass::Skip,
         (false, _) => ElasticMass::Separate,
     };
-    flexible::inertia_force_parts(fb, q, qd, qdd, &mut work.scratch, &mut work.force, mass);
-    let f = &mut work.force;
-    for v in f.iter_mut() {
-        *v = -*v;
+    // The inertia force minus gravity.
+    let gravity = &model.gravity;
+    flexible::inertia_force_parts(fb, q, qd, qdd, &mut work.scratch, &mut work.force, mass, Some(gravity));
+    for (r, f) in residual[o..o + nb].iter_mut().zip(&work.force) {
+        *r += f;
     }
-    flexible::add_gravity_force(fb, q, &model.gravity, f);
-    for k in 0..nb {
-        residual[o + k] -= f[k];
-    }
+    let first_moment = work.scratch.last_first_moment();
     let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
     let ev = &mut work.elastic_values;
     if matrix.is_some() && needs_tangent && elastic_block {
@@ -416,7 +414,10 @@ fn assemble_flexible(
         flexible::inertia_tangent_after_force(fb, q, qd, qdd, &mut work.scratch, t, blocks.reference_elastic);
         let coupling =
             blocks.reference_elastic.then_some((&mut work.gravity_pf[..], &mut work.gravity_fp[..]));
-        let gpp = flexible::gravity_jacobian(fb, q, &model.gravity, coupling);
+        let gpp = match &first_moment {
+            Some(s) => flexible::gravity_jacobian_at(fb, q, gravity, s, coupling),
+            None => flexible::gravity_jacobian(fb, q, gravity, coupling),
+        };
         let [tm, tv, tx] = &t.reference;
         for a in 0..7 {
             for b in 0..7 {

@@ -1223,7 +1223,7 @@ pub fn run(
                 });
             }
         }
-        *last_state = Some(state.clone());
+        state.store_in(last_state);
         output.statistics.function_evaluations = engine.evaluations;
         output.statistics.newton_iterations = engine.newton_iterations;
         if adaptive && h_try >= h * (1.0 - 1e-12) {

@@ -229,8 +229,26 @@ fn run(
         &mut ws,
     )?;
     output.record(model, &state, &mut ws);
-    *last_state = Some(state.clone());
+    // The loop keeps the last accepted state in `state` (also when it fails): no copy per step.
+    let result =
+        time_loop(model, settings, &method, project_velocities, observer, output, &mut state, &mut ws);
+    *last_state = Some(state);
+    result
+}
 
+/// The steps of [`run`] from the consistent initial state `state`, which holds the last
+/// accepted state on return (also on failure).
+#[allow(clippy::too_many_arguments)]
+fn time_loop(
+    model: &Model,
+    settings: &SimulationSettings,
+    method: &GeneralizedAlpha,
+    project_velocities: bool,
+    observer: &mut dyn FnMut(&Progress) -> bool,
+    output: &mut Output,
+    state: &mut State,
+    ws: &mut Workspace,
+) -> Result<()> {
     let mut clock = OutputClock::new(settings);
     let mut h = settings.step_size;
     let mut next = state.clone();
@@ -242,13 +260,13 @@ fn run(
         let h_try = clock.step(state.time, h);
         let report = step(
             model,
-            &method,
+            method,
             &settings.newton,
             project_velocities,
             h_try,
-            &state,
+            state,
             &mut next,
-            &mut ws,
+            ws,
             &mut cache,
         )?;
         let stats = &mut output.statistics;
@@ -259,8 +277,7 @@ fn run(
         if let (true, StepControl::Error { relative_tolerance, absolute_tolerance }) =
             (accepted, settings.step_control)
         {
-            let err =
-                error_norm(model, &method, h_try, &state, &next, relative_tolerance, absolute_tolerance);
+            let err = error_norm(model, method, h_try, state, &next, relative_tolerance, absolute_tolerance);
             factor = (0.9 * err.max(1e-10).powf(-1.0 / 3.0)).clamp(0.2, 2.0);
             accepted = err <= 1.0;
         }
@@ -304,17 +321,16 @@ fn run(
         }
 
         // Accept the step.
-        std::mem::swap(&mut state, &mut next);
-        update_discrete(model, &mut state, &mut ws, false);
+        std::mem::swap(state, &mut next);
+        update_discrete(model, state, ws, false);
         stats.steps += 1;
         stats.min_step_size_used = stats.min_step_size_used.min(h_try);
         stats.max_step_size_used = stats.max_step_size_used.max(h_try);
         if let Some(k) = state.first_non_finite() {
             return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
         }
-        *last_state = Some(state.clone());
         if clock.due(state.time) {
-            output.record(model, &state, &mut ws);
+            output.record(model, state, ws);
         }
         // Next step size.
         match settings.step_control {

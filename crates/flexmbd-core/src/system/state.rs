@@ -47,6 +47,26 @@ impl State {
         }
     }
 
+    /// Copies this state into `slot`, reusing the vectors of a state already there (no
+    /// allocation per step where a loop keeps its last accepted state).
+    pub fn store_in(&self, slot: &mut Option<State>) {
+        match slot {
+            Some(kept) => {
+                kept.time = self.time;
+                kept.coordinates.clone_from(&self.coordinates);
+                kept.velocities.clone_from(&self.velocities);
+                kept.accelerations.clone_from(&self.accelerations);
+                kept.multipliers.clone_from(&self.multipliers);
+                kept.algorithmic_accelerations.clone_from(&self.algorithmic_accelerations);
+                kept.discrete.clone_from(&self.discrete);
+                kept.previous_accelerations.clone_from(&self.previous_accelerations);
+                kept.previous_multipliers.clone_from(&self.previous_multipliers);
+                kept.previous_step_size = self.previous_step_size;
+            }
+            None => *slot = Some(self.clone()),
+        }
+    }
+
     /// Checks that every number is finite; returns the first offending coordinate index.
     pub fn first_non_finite(&self) -> Option<usize> {
         self.coordinates.iter().zip(&self.velocities).position(|(q, v)| !q.is_finite() || !v.is_finite())
