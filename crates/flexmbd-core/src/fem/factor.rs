@@ -595,7 +595,7 @@ impl SymmetricFactor {
 }
 
 fn finite_solution(x: &[f64]) -> Result<()> {
-    if x.iter().any(|v| !v.is_finite()) {
+    if !crate::math::all_finite(x) {
         return Err(FlexmbdError::NonFinite {
             item: "solution of a factorized system".to_string(),
             time: 0.0,

@@ -260,6 +260,54 @@ pub(crate) mod avx2 {
         }
     }
 
+    /// [`super::increment_ratios`]: per lane the best ratio as a fraction (numerator,
+    /// denominator, index), a / b > n / m tested as a m > n b; the lanes and the last
+    /// entries compared at the end by their ratios (the first index of equal ones).
+    #[target_feature(enable = "avx2,fma")]
+    pub(crate) unsafe fn increment_ratios(d: &[f64], q: &[f64], w: f64) -> (f64, usize, f64) {
+        use std::arch::x86_64::{
+            _mm256_andnot_pd, _mm256_blendv_pd, _mm256_cmp_pd, _mm256_max_pd, _mm256_setr_pd, _CMP_GT_OQ,
+        };
+        let n = d.len();
+        let q = &q[..n];
+        let (sign, one, zero) = (_mm256_set1_pd(-0.0), _mm256_set1_pd(1.0), _mm256_setzero_pd());
+        let (tiny, weight, four) = (_mm256_set1_pd(1e-14), _mm256_set1_pd(w), _mm256_set1_pd(4.0));
+        let (mut ratio_n, mut ratio_d, mut ratio_at) = (zero, one, zero);
+        let (mut position_n, mut position_d) = (zero, one);
+        let mut index = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
+        let whole = n - n % 4;
+        for k in (0..whole).step_by(4) {
+            let a = _mm256_andnot_pd(sign, _mm256_loadu_pd(d.as_ptr().add(k)));
+            let size = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_loadu_pd(q.as_ptr().add(k))), one);
+            let b = _mm256_add_pd(weight, _mm256_mul_pd(tiny, size));
+            let better = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(a, ratio_d), _mm256_mul_pd(ratio_n, b));
+            ratio_n = _mm256_blendv_pd(ratio_n, a, better);
+            ratio_d = _mm256_blendv_pd(ratio_d, b, better);
+            ratio_at = _mm256_blendv_pd(ratio_at, index, better);
+            let further =
+                _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(a, position_d), _mm256_mul_pd(position_n, size));
+            position_n = _mm256_blendv_pd(position_n, a, further);
+            position_d = _mm256_blendv_pd(position_d, size, further);
+            index = _mm256_add_pd(index, four);
+        }
+        let lanes = |v: __m256d| {
+            let mut out = [0.0f64; 4];
+            _mm256_storeu_pd(out.as_mut_ptr(), v);
+            out
+        };
+        let (rn, rd, ra, pn, pd) =
+            (lanes(ratio_n), lanes(ratio_d), lanes(ratio_at), lanes(position_n), lanes(position_d));
+        let (mut worst, mut at, mut position) = (0.0f64, 0usize, 0.0f64);
+        for lane in 0..4 {
+            let (v, k) = (rn[lane] / rd[lane], ra[lane] as usize);
+            if v > worst || (v == worst && v > 0.0 && k < at) {
+                (worst, at) = (v, k);
+            }
+            position = position.max(pn[lane] / pd[lane]);
+        }
+        super::increment_ratios_portable(d, q, w, whole, (worst, at, position))
+    }
+
     /// Dot products of four rows (each at least as long as y) with y: two vectors of four
     /// partial sums per row, one load of y for the four rows. (No closures in these kernels:
     /// they do not inherit the target features, and were calls, not inlined.)
@@ -438,6 +486,47 @@ fn node_products4_portable(col_ptr: &[usize], row_idx: &[usize], values: &[f64],
     }
 }
 
+/// The loop of the Newton increment norm (`generalized_alpha::increment_norm`): the largest
+/// ratio |d_k| / (w + 1e-14 max(1, |q_k|)) with its index, and the largest |d_k| / max(1,
+/// |q_k|) (NaN entries are passed over; 0 for none), in the AVX2 kernel where the CPU has it.
+/// Both codes divide only at the entries that may raise a maximum; the kernel keeps each
+/// lane's best ratio as a fraction and compares by products, so that it may take another of
+/// two ratios within a rounding of each other.
+pub(crate) fn increment_ratios(d: &[f64], q: &[f64], w: f64) -> (f64, usize, f64) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        // SAFETY: the CPU supports AVX2 and FMA (checked above).
+        return unsafe { avx2::increment_ratios(d, q, w) };
+    }
+    increment_ratios_portable(d, q, w, 0, (0.0, 0, 0.0))
+}
+
+/// [`increment_ratios`] in portable code, over the entries from `first` on, continuing from
+/// `start` (largest ratio, its index, largest relative increment).
+fn increment_ratios_portable(
+    d: &[f64],
+    q: &[f64],
+    w: f64,
+    first: usize,
+    start: (f64, usize, f64),
+) -> (f64, usize, f64) {
+    let (mut worst, mut at, mut position) = start;
+    for (k, (dq, q)) in d.iter().zip(q).enumerate().skip(first) {
+        let (a, size) = (dq.abs(), q.abs().max(1.0));
+        let b = w + 1e-14 * size;
+        if a > worst * b {
+            let v = a / b;
+            if v > worst {
+                (worst, at) = (v, k);
+            }
+        }
+        if a > position * size {
+            position = position.max(a / size);
+        }
+    }
+    (worst, at, position)
+}
+
 /// The dot products of four rows (each at least as long as y) with y, in the AVX2 kernel
 /// where the CPU has it.
 pub(crate) fn dot4(rows: [&[f64]; GROUP], y: &[f64]) -> [f64; GROUP] {
@@ -483,6 +572,35 @@ mod tests {
                         assert!((out[i] - e).abs() <= 1e-12 * (1.0 + e.abs()), "{rows} x {cols}, row {i}");
                     }
                     assert_eq!(&out[rows..], &start[rows..]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn increment_ratios_agree_with_the_portable_loop() {
+        // Lengths with 0 to 3 entries after the groups of four, the largest ratio and the
+        // largest relative increment anywhere, NaN passed over, an all-zero increment.
+        for n in [0usize, 1, 3, 4, 5, 8, 11, 17] {
+            for at in 0..n.max(1) {
+                let mut d: Vec<f64> = (0..n).map(|k| ((k * 7 % 5) as f64 - 2.0) * 1e-3).collect();
+                let q: Vec<f64> = (0..n).map(|k| ((k * 3 % 7) as f64 - 3.0) * 0.7).collect();
+                if n > 0 {
+                    d[at] = 0.5;
+                    d[(at + 1) % n] = f64::NAN;
+                }
+                for d in [d.clone(), vec![0.0; n]] {
+                    let expected = super::increment_ratios_portable(&d, &q, 2e-6, 0, (0.0, 0, 0.0));
+                    let (worst, k, position) = super::increment_ratios(&d, &q, 2e-6);
+                    assert!(
+                        (worst - expected.0).abs() <= 1e-15 * expected.0,
+                        "{n} {at}: {worst} vs {expected:?}"
+                    );
+                    assert_eq!(k, expected.1, "{n} {at}");
+                    assert!((position - expected.2).abs() <= 1e-15 * expected.2, "{n} {at}");
+                    if n > 1 && d[at] != 0.0 {
+                        assert_eq!(k, at);
+                    }
                 }
             }
         }

@@ -297,7 +297,8 @@ pub fn assemble(
         finish_elastic_rows(model, &s, ws);
     }
 
-    if let Some(k) = ws.residual.iter().position(|x| !x.is_finite()) {
+    if !crate::math::all_finite(&ws.residual) {
+        let k = ws.residual.iter().position(|x| !x.is_finite()).unwrap_or(0);
         let item = if k < nq { model.coordinate_name(k) } else { model.constraint_name(k - nq) };
         return Err(FlexmbdError::NonFinite { item: format!("the equation of {item}"), time: s.time });
     }

@@ -779,7 +779,7 @@ impl CondensedSolver {
             }
             offset += block.n;
         }
-        if x.iter().any(|v| !v.is_finite()) {
+        if !crate::math::all_finite(x) {
             return Err("the matrix is singular (the solution is not finite)".to_string());
         }
         Ok(())

@@ -69,6 +69,9 @@ impl State {
 
     /// Checks that every number is finite; returns the first offending coordinate index.
     pub fn first_non_finite(&self) -> Option<usize> {
+        if crate::math::all_finite(&self.coordinates) && crate::math::all_finite(&self.velocities) {
+            return None;
+        }
         self.coordinates.iter().zip(&self.velocities).position(|(q, v)| !q.is_finite() || !v.is_finite())
     }
 }
