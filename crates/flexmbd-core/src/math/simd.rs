@@ -261,8 +261,10 @@ pub(crate) mod avx2 {
     }
 
     /// [`super::increment_ratios`]: per lane the best ratio as a fraction (numerator,
-    /// denominator, index), a / b > n / m tested as a m > n b; the lanes and the last
-    /// entries compared at the end by their ratios (the first index of equal ones).
+    /// denominator, index), a / b > n / m tested as a m > n b, in two sets of lanes (eight
+    /// entries a round: the test waits for the last round's choice, a chain of dependent
+    /// operations); the lanes and the last entries compared at the end by their ratios (the
+    /// first index of equal ones).
     #[target_feature(enable = "avx2,fma")]
     pub(crate) unsafe fn increment_ratios(d: &[f64], q: &[f64], w: f64) -> (f64, usize, f64) {
         use std::arch::x86_64::{
@@ -271,39 +273,54 @@ pub(crate) mod avx2 {
         let n = d.len();
         let q = &q[..n];
         let (sign, one, zero) = (_mm256_set1_pd(-0.0), _mm256_set1_pd(1.0), _mm256_setzero_pd());
-        let (tiny, weight, four) = (_mm256_set1_pd(1e-14), _mm256_set1_pd(w), _mm256_set1_pd(4.0));
-        let (mut ratio_n, mut ratio_d, mut ratio_at) = (zero, one, zero);
-        let (mut position_n, mut position_d) = (zero, one);
+        let (tiny, weight) = (_mm256_set1_pd(1e-14), _mm256_set1_pd(w));
+        let (four, eight) = (_mm256_set1_pd(4.0), _mm256_set1_pd(8.0));
+        // Per set: ratio numerator, denominator, index; relative increment numerator,
+        // denominator (named, so that they stay in registers).
+        let (mut rn0, mut rd0, mut ra0, mut pn0, mut pd0) = (zero, one, zero, zero, one);
+        let (mut rn1, mut rd1, mut ra1, mut pn1, mut pd1) = (zero, one, zero, zero, one);
         let mut index = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
-        let whole = n - n % 4;
-        for k in (0..whole).step_by(4) {
-            let a = _mm256_andnot_pd(sign, _mm256_loadu_pd(d.as_ptr().add(k)));
-            let size = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_loadu_pd(q.as_ptr().add(k))), one);
-            let b = _mm256_add_pd(weight, _mm256_mul_pd(tiny, size));
-            let better = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(a, ratio_d), _mm256_mul_pd(ratio_n, b));
-            ratio_n = _mm256_blendv_pd(ratio_n, a, better);
-            ratio_d = _mm256_blendv_pd(ratio_d, b, better);
-            ratio_at = _mm256_blendv_pd(ratio_at, index, better);
-            let further =
-                _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(a, position_d), _mm256_mul_pd(position_n, size));
-            position_n = _mm256_blendv_pd(position_n, a, further);
-            position_d = _mm256_blendv_pd(position_d, size, further);
-            index = _mm256_add_pd(index, four);
+        macro_rules! round {
+            ($k:expr, $index:expr, $rn:ident, $rd:ident, $ra:ident, $pn:ident, $pd:ident) => {{
+                let a = _mm256_andnot_pd(sign, _mm256_loadu_pd(d.as_ptr().add($k)));
+                let size = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_loadu_pd(q.as_ptr().add($k))), one);
+                let b = _mm256_add_pd(weight, _mm256_mul_pd(tiny, size));
+                let better = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(a, $rd), _mm256_mul_pd($rn, b));
+                $rn = _mm256_blendv_pd($rn, a, better);
+                $rd = _mm256_blendv_pd($rd, b, better);
+                $ra = _mm256_blendv_pd($ra, $index, better);
+                let further = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(a, $pd), _mm256_mul_pd($pn, size));
+                $pn = _mm256_blendv_pd($pn, a, further);
+                $pd = _mm256_blendv_pd($pd, size, further);
+            }};
         }
+        let whole = n - n % 4;
+        let mut k = 0;
+        while k + 8 <= whole {
+            round!(k, index, rn0, rd0, ra0, pn0, pd0);
+            round!(k + 4, _mm256_add_pd(index, four), rn1, rd1, ra1, pn1, pd1);
+            index = _mm256_add_pd(index, eight);
+            k += 8;
+        }
+        if k < whole {
+            round!(k, index, rn0, rd0, ra0, pn0, pd0);
+        }
+        let best = [[rn0, rd0, ra0, pn0, pd0], [rn1, rd1, ra1, pn1, pd1]];
         let lanes = |v: __m256d| {
             let mut out = [0.0f64; 4];
             _mm256_storeu_pd(out.as_mut_ptr(), v);
             out
         };
-        let (rn, rd, ra, pn, pd) =
-            (lanes(ratio_n), lanes(ratio_d), lanes(ratio_at), lanes(position_n), lanes(position_d));
         let (mut worst, mut at, mut position) = (0.0f64, 0usize, 0.0f64);
-        for lane in 0..4 {
-            let (v, k) = (rn[lane] / rd[lane], ra[lane] as usize);
-            if v > worst || (v == worst && v > 0.0 && k < at) {
-                (worst, at) = (v, k);
+        for set in &best {
+            let [rn, rd, ra, pn, pd] = set.map(lanes);
+            for lane in 0..4 {
+                let (v, k) = (rn[lane] / rd[lane], ra[lane] as usize);
+                if v > worst || (v == worst && v > 0.0 && k < at) {
+                    (worst, at) = (v, k);
+                }
+                position = position.max(pn[lane] / pd[lane]);
             }
-            position = position.max(pn[lane] / pd[lane]);
         }
         super::increment_ratios_portable(d, q, w, whole, (worst, at, position))
     }
