@@ -1408,8 +1408,7 @@ mod tests {
         state.coordinates[elastic.clone()].iter_mut().for_each(|x| *x = 0.0);
         state.velocities[elastic].iter_mut().for_each(|x| *x = 0.0);
         let c = MatrixCoefficients { position: 0.0, ..ITERATION };
-        let mut ws = Workspace::new(&model).unwrap();
-        assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
+        let ws = assembled(&model, &state, c);
         let mut mass_only = Workspace::new(&model).unwrap();
         let mass = MatrixCoefficients { velocity: 0.0, ..c };
         assemble(&model, StateView::of(&state), &mut mass_only, Some(mass)).unwrap();
@@ -1471,8 +1470,7 @@ mod tests {
         // formed, and the factorization subtracted it (the solve test above covers that).
         let model = model(true, false);
         let state = moving_deformed_state(&model);
-        let mut ws = Workspace::new(&model).unwrap();
-        assemble(&model, StateView::of(&state), &mut ws, Some(ITERATION)).unwrap();
+        let ws = assembled(&model, &state, ITERATION);
         let mut solver = CondensedSolver::with_images(&model, true, true).unwrap();
         solver.set_angular_velocities(&model, &state.coordinates, &state.velocities);
         assert!(solver.blocks[0].angular_velocity.0.iter().any(|&x| x.abs() > 0.1), "spinning");
@@ -1514,8 +1512,7 @@ mod tests {
         // solves, coupling images) must equal the one formed in Z, W and the rows.
         let model = model(true, true);
         let state = moving_deformed_state(&model);
-        let mut ws = Workspace::new(&model).unwrap();
-        assemble(&model, StateView::of(&state), &mut ws, Some(ITERATION)).unwrap();
+        let ws = assembled(&model, &state, ITERATION);
         let rhs = test_rhs(model.system_size());
         let mut results = Vec::new();
         for apply_kept in [true, false] {
@@ -1548,8 +1545,7 @@ mod tests {
         let model = model(true, true);
         let state = moving_deformed_state(&model);
         let c = ITERATION;
-        let mut ws = Workspace::new(&model).unwrap();
-        assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
+        let ws = assembled(&model, &state, c);
         let rhs = test_rhs(model.system_size());
         let mut solves = Vec::new();
         for sparse in [false, true] {
@@ -1710,6 +1706,14 @@ mod tests {
             *x = 0.02 * (k as f64 - 2.5);
         }
         state
+    }
+
+    /// A workspace with the residual and Newton matrix of `model` at `state` assembled with
+    /// the coefficients `c`.
+    fn assembled(model: &Model, state: &State, c: MatrixCoefficients) -> Workspace {
+        let mut ws = Workspace::new(model).unwrap();
+        assemble(model, StateView::of(state), &mut ws, Some(c)).unwrap();
+        ws
     }
 
     fn test_rhs(n: usize) -> Vec<f64> {
