@@ -1044,12 +1044,6 @@ impl FlexibleScratch {
         scratch
     }
 
-    /// s = s0 + I1 q_f of the last [`inertia_force_parts`] (until the tangent takes its
-    /// quantities).
-    pub fn last_first_moment(&self) -> Option<Vec3> {
-        self.last.as_ref().map(|k| k.s)
-    }
-
     /// Buffers for a body with `n` elastic coordinates (and no scalar mass structure).
     pub fn with_size(n: usize) -> Self {
         FlexibleScratch {
@@ -1337,7 +1331,8 @@ pub enum ElasticMass {
 /// [`inertia_force`] with the term M_ff qf_dd of the elastic rows where `mass` says (see
 /// [`add_linear_elastic_forces`]); with `gravity`, minus the generalized gravity force of
 /// [`add_gravity_force`] (its elastic part I1^T A^T g in the pass of the inertia force's
-/// I1^T a, and s = s0 + I1 q_f from the inertia quantities).
+/// I1^T a, and s = s0 + I1 q_f from the inertia quantities). Returns that s (for
+/// [`gravity_jacobian_at`]).
 #[allow(clippy::too_many_arguments)]
 pub fn inertia_force_parts(
     body: &FlexibleBody,
@@ -1348,7 +1343,7 @@ pub fn inertia_force_parts(
     out: &mut [f64],
     mass: ElasticMass,
     gravity: Option<&Vec3>,
-) {
+) -> Vec3 {
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let mut k = quantities(body, q, qd, qdd, scratch, false, mass != ElasticMass::Skip);
@@ -1406,7 +1401,7 @@ pub fn inertia_force_parts(
                         }
                     }
                 }
-                return;
+                return s;
             }
             for (j, ((fj, &c), r)) in f.iter_mut().zip(&sm.coordinates).zip(&body.solid_rows).enumerate() {
                 let (node, comp) = (c / 3, c % 3);
@@ -1453,6 +1448,7 @@ pub fn inertia_force_parts(
             }
         }
     }
+    s
 }
 
 /// g = s x a + J alpha + w x J w + 2 (tr(P) w - P^T w) + J_f qf_dd (body frame).
@@ -1865,21 +1861,20 @@ pub fn gravity_jacobian(
 ) -> [[f64; 4]; 4] {
     let nf = body.elastic_count;
     let s = body.first_moment + body.i1_times(&q[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf]);
-    gravity_jacobian_at(body, q, gravity, &s, coupling)
+    gravity_jacobian_at(body, q, gravity, s, coupling)
 }
 
-/// [`gravity_jacobian`] with s = s0 + I1 q_f given (that of the inertia quantities, see
-/// [`FlexibleScratch::last_first_moment`]).
+/// [`gravity_jacobian`] with s = s0 + I1 q_f given (that of the inertia quantities, as
+/// [`inertia_force_parts`] returns it).
 pub fn gravity_jacobian_at(
     body: &FlexibleBody,
     q: &[f64],
     gravity: &Vec3,
-    s: &Vec3,
+    s: Vec3,
     coupling: Option<(&mut [f64], &mut [f64])>,
 ) -> [[f64; 4]; 4] {
     let nf = body.elastic_count;
     let p = quat(q);
-    let s = *s;
     let Some((pf, fp)) = coupling else {
         return bilinear_hessian(gravity, &s);
     };
@@ -2424,14 +2419,14 @@ pub(crate) mod tests {
             assert!(close(a[k], b[k], 1e-12), "gravity {k}: {} vs {}", a[k], b[k]);
         }
         // The inertia force minus gravity in one call equals the two apart, and the first
-        // moment kept for the gravity Jacobian is that of the state.
+        // moment it returns for the gravity Jacobian is that of the state.
         for body in [&plain, &fast] {
             let mut scratch = FlexibleScratch::for_body(body);
             let (mut apart, mut fused) = (vec![0.0; 7 + n], vec![0.0; 7 + n]);
             inertia_force_parts(body, &q, &qd, &qdd, &mut scratch, &mut apart, ElasticMass::Include, None);
             let mut weight = vec![0.0; 7 + n];
             add_gravity_force(body, &q, &gravity, &mut weight);
-            inertia_force_parts(
+            let s = inertia_force_parts(
                 body,
                 &q,
                 &qd,
@@ -2449,10 +2444,9 @@ pub(crate) mod tests {
                     fused[k]
                 );
             }
-            let s = scratch.last_first_moment().unwrap();
             let (mut pf, mut fp, mut pf2, mut fp2) =
                 (vec![0.0; 4 * n], vec![0.0; 4 * n], vec![0.0; 4 * n], vec![0.0; 4 * n]);
-            let given = gravity_jacobian_at(body, &q, &gravity, &s, Some((&mut pf, &mut fp)));
+            let given = gravity_jacobian_at(body, &q, &gravity, s, Some((&mut pf, &mut fp)));
             let formed = gravity_jacobian(body, &q, &gravity, Some((&mut pf2, &mut fp2)));
             for (a, b) in given.iter().flatten().zip(formed.iter().flatten()).chain(pf.iter().zip(&pf2)) {
                 assert!(close(*a, *b, 1e-12), "gravity Jacobian: {a} vs {b}");

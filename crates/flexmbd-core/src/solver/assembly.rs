@@ -392,11 +392,19 @@ fn assemble_flexible(
     };
     // The inertia force minus gravity.
     let gravity = &model.gravity;
-    flexible::inertia_force_parts(fb, q, qd, qdd, &mut work.scratch, &mut work.force, mass, Some(gravity));
+    let first_moment = flexible::inertia_force_parts(
+        fb,
+        q,
+        qd,
+        qdd,
+        &mut work.scratch,
+        &mut work.force,
+        mass,
+        Some(gravity),
+    );
     for (r, f) in residual[o..o + nb].iter_mut().zip(&work.force) {
         *r += f;
     }
-    let first_moment = work.scratch.last_first_moment();
     let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
     let ev = &mut work.elastic_values;
     if matrix.is_some() && needs_tangent && elastic_block {
@@ -415,10 +423,7 @@ fn assemble_flexible(
         flexible::inertia_tangent_after_force(fb, q, qd, qdd, &mut work.scratch, t, blocks.reference_elastic);
         let coupling =
             blocks.reference_elastic.then_some((&mut work.gravity_pf[..], &mut work.gravity_fp[..]));
-        let gpp = match &first_moment {
-            Some(s) => flexible::gravity_jacobian_at(fb, q, gravity, s, coupling),
-            None => flexible::gravity_jacobian(fb, q, gravity, coupling),
-        };
+        let gpp = flexible::gravity_jacobian_at(fb, q, gravity, first_moment, coupling);
         let [tm, tv, tx] = &t.reference;
         for a in 0..7 {
             for b in 0..7 {

@@ -503,8 +503,7 @@ impl CondensedSolver {
             }
             block.image.resize(m, 0.0);
             block.image.iter_mut().for_each(|v| *v = 0.0);
-            let structured = block.structured;
-            if let Some(rc) = &structured {
+            if let Some(rc) = &block.structured {
                 // The reference columns as eliminated: [I1, J_f, S_kl] (C x_ref).
                 let (rows, factor) = (&block.reference_rows, &block.factors[block.current]);
                 let x_ref = block.reference.map(|a| -block.last_x[a]);
@@ -516,7 +515,7 @@ impl CondensedSolver {
                 );
             }
             for (j, (&xj, w)) in block.last_x.iter().zip(block.w.chunks_exact(m)).enumerate() {
-                if xj != 0.0 && !(structured.is_some() && block.reference.contains(&j)) {
+                if xj != 0.0 && !block.applied_from_kept(j) {
                     block.image.iter_mut().zip(w).for_each(|(o, wv)| *o += wv * xj);
                 }
             }
@@ -610,7 +609,7 @@ impl CondensedSolver {
             }
             let factor = &block.factors[block.current];
             for (a, entries) in block.row_entries.iter().enumerate() {
-                if structured.is_some() && block.reference.contains(&a) {
+                if block.applied_from_kept(a) {
                     continue;
                 }
                 let stored = &block.row_values[a];
@@ -702,7 +701,7 @@ impl CondensedSolver {
             let mut dense = [0usize; GROUP];
             let mut count = 0;
             for (a, entries) in block.row_entries.iter().enumerate() {
-                if block.structured.is_some() && block.reference.contains(&a) {
+                if block.applied_from_kept(a) {
                     continue;
                 }
                 let stored = &block.row_values[a];
@@ -747,8 +746,7 @@ impl CondensedSolver {
             // out -= Z x_J: the reference columns V (C x_ref), the others four columns of Z at
             // a time (one pass over out for four).
             let n = block.n;
-            let structured = block.structured;
-            if let Some(rc) = &structured {
+            if let Some(rc) = &block.structured {
                 let factor = &block.factors[block.current];
                 let x_ref = block.reference.map(x_j);
                 subtract_combination(
@@ -763,7 +761,7 @@ impl CondensedSolver {
             let mut count = 0;
             for j in 0..block.coupling.len() {
                 let xj = x_j(j);
-                if xj != 0.0 && !(structured.is_some() && block.reference.contains(&j)) {
+                if xj != 0.0 && !block.applied_from_kept(j) {
                     group[count] = (j, xj);
                     count += 1;
                     if count == GROUP {
@@ -846,6 +844,13 @@ fn centrifugal_weights(w: &Vec3, two_l: &[[f64; 4]; 3], col: usize) -> [f64; 6] 
 }
 
 impl Block {
+    /// Whether coupling unknown `j` is a reference coordinate whose row and column the solves
+    /// apply from the kept vectors of the structured coupling (not from `z`, `w` and
+    /// `row_values`).
+    fn applied_from_kept(&self, j: usize) -> bool {
+        self.structured.is_some() && self.reference.contains(&j)
+    }
+
     /// Z = A^-1 N_Fj of the coupling columns `columns` that are not the body's reference
     /// coordinates (joints and forces at its markers, and through them other bodies). A
     /// marker's kinematics depends on q_f through A(p) times constant body-frame rows of its
@@ -1048,24 +1053,17 @@ impl Block {
             }
         }
         // The coefficients, zero without the mass term (then the coupling is left out).
+        let (row_count, column_count) = match (sm != 0.0, spinning) {
+            (false, _) => (0, 0),
+            (true, false) => (6, 6),
+            (true, true) => (ROW_VECTORS, COLUMN_VECTORS),
+        };
         let mut coupling = ReferenceCoupling {
             rows: [[0.0; ROW_VECTORS]; 7],
             columns: [[0.0; 7]; COLUMN_VECTORS],
             deformed,
-            row_count: if sm == 0.0 {
-                0
-            } else if spinning {
-                ROW_VECTORS
-            } else {
-                6
-            },
-            column_count: if sm == 0.0 {
-                0
-            } else if spinning {
-                COLUMN_VECTORS
-            } else {
-                6
-            },
+            row_count,
+            column_count,
         };
         // Columns R_k: s m A^-1 I1^T A^T e_k; columns p_c: s m A^-1 J_f^T 2L e_c and the
         // centrifugal part s v sum_m dfw_m (2 L)_mc on the six S_kl; the rows N_jF are their

@@ -50,21 +50,33 @@ impl State {
     /// Copies this state into `slot`, reusing the vectors of a state already there (no
     /// allocation per step where a loop keeps its last accepted state).
     pub fn store_in(&self, slot: &mut Option<State>) {
-        match slot {
-            Some(kept) => {
-                kept.time = self.time;
-                kept.coordinates.clone_from(&self.coordinates);
-                kept.velocities.clone_from(&self.velocities);
-                kept.accelerations.clone_from(&self.accelerations);
-                kept.multipliers.clone_from(&self.multipliers);
-                kept.algorithmic_accelerations.clone_from(&self.algorithmic_accelerations);
-                kept.discrete.clone_from(&self.discrete);
-                kept.previous_accelerations.clone_from(&self.previous_accelerations);
-                kept.previous_multipliers.clone_from(&self.previous_multipliers);
-                kept.previous_step_size = self.previous_step_size;
-            }
-            None => *slot = Some(self.clone()),
-        }
+        let Some(kept) = slot else {
+            *slot = Some(self.clone());
+            return;
+        };
+        // Every field by name (a field added to the state does not compile here until copied).
+        let State {
+            time,
+            coordinates,
+            velocities,
+            accelerations,
+            multipliers,
+            algorithmic_accelerations,
+            discrete,
+            previous_accelerations,
+            previous_multipliers,
+            previous_step_size,
+        } = self;
+        kept.time = *time;
+        kept.coordinates.clone_from(coordinates);
+        kept.velocities.clone_from(velocities);
+        kept.accelerations.clone_from(accelerations);
+        kept.multipliers.clone_from(multipliers);
+        kept.algorithmic_accelerations.clone_from(algorithmic_accelerations);
+        kept.discrete.clone_from(discrete);
+        kept.previous_accelerations.clone_from(previous_accelerations);
+        kept.previous_multipliers.clone_from(previous_multipliers);
+        kept.previous_step_size = *previous_step_size;
     }
 
     /// Checks that every number is finite; returns the first offending coordinate index.
