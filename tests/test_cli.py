@@ -243,6 +243,26 @@ def test_preprocess_writes_a_body_file_equal_to_the_python_api(tmp_path, capsys)
     # A node set the mesh does not have: a clear message and exit status 1.
     assert main([*command, "--interfaces", "x0", "tip"]) == 1
     assert "tip" in capsys.readouterr().err
+    # Averaged (RBE3) interfaces weighted by area, as the Python API does, with their
+    # centroids printed (the end faces' centres).
+    averaged = [*command, "--interfaces", "x0", "x1", "--interface-kind", "rbe3"]
+    assert main([*averaged, "--interface-weights", "area"]) == 0
+    printed = capsys.readouterr().out
+    centre = mesh.nodes[mesh.node_sets["x1"]].mean(axis=0)
+    assert f"interface 1 (rbe3): {len(mesh.node_sets['x1'])} nodes" in printed
+    assert "weighted centroid (" + ", ".join(f"{v:.6g}" for v in centre) in printed
+    same = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(2.1e11, 0.3, 7800.0),
+        node_sets=mesh.node_sets,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=4,
+        interfaces=["x0", "x1"],
+        interface_kind="rbe3",
+    )
+    np.testing.assert_allclose(load_body(out).frequencies, same.frequencies, rtol=1e-10)
 
 
 def test_output_cut_short_by_a_closed_pipe_is_no_error():

@@ -15,6 +15,7 @@ from flexmbd._core import Material
 from flexmbd.errors import InvalidModelError, InvalidParameterError
 from flexmbd.fe import shapes
 from flexmbd.fe.body_file import load_body, save_body
+from flexmbd.fe.interface import body_interface, make_interface
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
 
@@ -125,7 +126,7 @@ def test_rigid_interfaces_move_rigidly_and_the_first_one_carries_the_frame(bar, 
     dofs = (x1[:, None] * 3 + np.arange(3)).ravel()
     # The body frame is attached to interface 0: every mode vanishes there.
     assert np.all(full[(x0[:, None] * 3 + np.arange(3)).ravel()] == 0.0)
-    t = md.rigid_interface_map(bar.nodes, x1, 3)
+    t = make_interface(bar.nodes, {}, x1, "uniform").rigid_map(3)
     fit, *_ = np.linalg.lstsq(t, full[dofs], rcond=None)
     misfit = np.abs(t @ fit - full[dofs]).max() / np.abs(full[dofs]).max()
     if kind == "rbe2":
@@ -142,8 +143,9 @@ def test_averaged_interfaces_keep_their_mean_motion_and_deform(bar):
     assert body.modes.shape[1] == 12
     full = full_modes(body)
     n = body.dof_count
-    g0 = md.averaged_interface_rows(bar.nodes, bar.node_sets["x0"], 3, n, "x0")
-    g1 = md.averaged_interface_rows(bar.nodes, bar.node_sets["x1"], 3, n, "x1")
+    # The rows of the weights the modes were built with (area weights of the end faces).
+    g0 = body_interface(body, bar.node_sets["x0"], ids=False).average_rows(3, n)
+    g1 = body_interface(body, bar.node_sets["x1"], ids=False).average_rows(3, n)
     scale = np.abs(full).max()
     # The frame follows the averaged motion of interface 0.
     assert np.abs(g0 @ full).max() < 1e-10 * scale
@@ -152,7 +154,7 @@ def test_averaged_interfaces_keep_their_mean_motion_and_deform(bar):
     # The interface nodes are not rigidly tied: the modes deform the end face.
     x0 = bar.node_sets["x0"]
     dofs = (x0[:, None] * 3 + np.arange(3)).ravel()
-    t = md.rigid_interface_map(bar.nodes, x0, 3)
+    t = make_interface(bar.nodes, {}, x0, "uniform").rigid_map(3)
     fit, *_ = np.linalg.lstsq(t, full[dofs], rcond=None)
     assert np.abs(t @ fit - full[dofs]).max() > 1e-3 * np.abs(full[dofs]).max()
 
@@ -160,7 +162,7 @@ def test_averaged_interfaces_keep_their_mean_motion_and_deform(bar):
 def test_averaged_interface_rows_recover_a_rigid_motion(bar):
     members = bar.node_sets["x1"]
     n = 3 * len(bar.nodes)
-    g = md.averaged_interface_rows(bar.nodes, members, 3, n, "x1")
+    g = make_interface(bar.nodes, {}, members, "uniform").average_rows(3, n)
     r = md.rigid_modes(bar.nodes, 3)
     center = bar.nodes[members].mean(axis=0)
     # Rigid motion (translation v, rotation w about the origin): mean translation at the

@@ -378,6 +378,15 @@ def _print_body(body: Any, title: str, more: str = "") -> None:
         shown = ", ".join(f"{f:.4g}" for f in body.frequencies[:8])
         tail = " ..." if len(body.frequencies) > 8 else ""
         print(f"  frequencies (Hz): {shown}{tail}")
+    import numpy as np
+
+    reference = body.reference or {}
+    weights = reference.get("interface_weights") or []
+    for k, (members, w) in enumerate(zip(reference.get("interfaces") or [], weights, strict=False)):
+        centroid = np.asarray(w) @ body.nodes[np.asarray(members, dtype=np.int64)]
+        at = ", ".join(f"{v:.6g}" for v in centroid)
+        kind = reference.get("interface_kind")
+        print(f"  interface {k} ({kind}): {len(members)} nodes, weighted centroid ({at}) m")
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -449,6 +458,7 @@ def _preprocess(args: argparse.Namespace) -> int:
         "mode_count": args.count,
         "interfaces": args.interfaces,
         "interface_kind": args.interface_kind,
+        "interface_weights": args.interface_weights,
         "precision": args.precision,
     }
     if args.reference_nodes:
@@ -575,7 +585,20 @@ def _main(argv: list[str] | None) -> int:
     )
     pre.add_argument("-n", "--count", type=int, default=0, help="number of eigenmodes")
     pre.add_argument("--interfaces", nargs="+", default=[], help="Craig-Bampton node sets")
-    pre.add_argument("--interface-kind", choices=("rbe2", "rbe3", "nodal"), default="rbe2")
+    pre.add_argument(
+        "--interface-kind",
+        choices=("rbe2", "rbe3", "nodal"),
+        default="rbe2",
+        help="rbe2: each interface moves rigidly; rbe3: its weighted average motion; nodal: "
+        "every node's (default rbe2)",
+    )
+    pre.add_argument(
+        "--interface-weights",
+        choices=("auto", "area", "length", "volume", "uniform"),
+        default="auto",
+        help="weights of the interfaces' nodes (default auto: area on faces, length on edges, "
+        "volume on volumes)",
+    )
     pre.add_argument("--precision", choices=("auto", "double", "single"), default="auto")
     args = parser.parse_args(argv)
     commands = {

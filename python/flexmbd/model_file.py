@@ -172,6 +172,28 @@ Orientation = Annotated[
     ),
 ]
 
+MarkerOrientation = Annotated[
+    Annotated[Matrix, Tag("(matrix)")]
+    | Annotated[AxisRotation, Tag("(mapping)")]
+    | Annotated[list[AxisRotation], Tag("(mappings)")]
+    | Annotated[Literal["principal"], Tag("(name)")],
+    Discriminator(_shape_tag),
+    Field(
+        description="as `orientation` of bodies, or 'principal' on node sets: z the outward "
+        "normal of a face, x its axis of largest extent"
+    ),
+]
+
+Weighting = Literal["auto", "area", "length", "volume", "uniform"]
+WeightSpec = Annotated[
+    Annotated[Weighting, Tag("(name)")] | Annotated[list[float], Tag("(list)")],
+    Discriminator(_shape_tag),
+    Field(
+        description="how the nodes of an interface are weighted: auto (area on faces, length "
+        "on edges, volume on volumes), area, length, volume, uniform, or one weight per node"
+    ),
+]
+
 NodeSelection = Annotated[
     Annotated[Name, Tag("(name)")] | Annotated[list[int], Tag("(list)")],
     Discriminator(_shape_tag),
@@ -352,6 +374,9 @@ class FlexibleBodySpec(_Spec):
         None, description="Craig-Bampton interfaces: node set names or index lists"
     )
     interface_kind: Literal["rbe2", "rbe3", "nodal"] | None = None
+    interface_weights: Weighting | list[WeightSpec] | None = Field(
+        None, description="weights of the interfaces' nodes: one for all, or one per interface"
+    )
     precision: Literal["auto", "double", "single"] | None = None
     # Placement, initial state and damping (add_flexible_body).
     position: Vector | None = Field(None, description="body frame origin (length)")
@@ -386,10 +411,16 @@ class MarkerSpec(_Spec):
     name: Name | None = None
     body: Name = Field(description="a body name, or 'ground'")
     position: Vector | None = Field(None, description="in the body frame (length)")
-    orientation: Orientation | None = None
+    orientation: MarkerOrientation | None = None
     node: int | None = Field(None, description="node id (of the mesh) of a deformable body")
     node_set: NodeSelection | None = Field(
         None, description="node set name or node ids of a deformable body"
+    )
+    weights: WeightSpec | None = Field(None, description="node_set: weights of its nodes")
+    coupling: Literal["rbe3", "rbe2"] | None = Field(
+        None,
+        description="node_set: rbe3 (follows the weighted average motion, default) or rbe2 "
+        "(the nodes follow the marker rigidly)",
     )
 
 
@@ -1099,6 +1130,7 @@ _PREPROCESS_KEYS = (
     "mode_count",
     "interfaces",
     "interface_kind",
+    "interface_weights",
     "precision",
 )
 _SOURCES = ("body_file", "beam", "mesh", "box", "cylinder")
@@ -1421,7 +1453,19 @@ class _Builder:
     def add_marker(self, spec: MarkerSpec, path: Path_) -> _core.MarkerId:
         self.claim("marker", spec.name, path + ("name",))
         body = self.body(spec.body, path + ("body",))
-        orientation = self.orientation(spec.orientation, path + ("orientation",))
+        if spec.node_set is None:
+            for key in ("weights", "coupling"):
+                if getattr(spec, key) is not None:
+                    raise self.fail(path + (key,), f"{key} is for markers on a node_set")
+            if spec.orientation == "principal":
+                raise self.fail(
+                    path + ("orientation",), "orientation 'principal' is for markers on a node_set"
+                )
+        orientation = (
+            "principal"
+            if spec.orientation == "principal"
+            else self.orientation(spec.orientation, path + ("orientation",))
+        )
         on_nodes = [key for key in ("node", "node_set") if getattr(spec, key) is not None]
         if len(on_nodes) == 2 or (on_nodes and spec.position is not None):
             keys = on_nodes + (["position"] if spec.position is not None else [])
@@ -1446,6 +1490,8 @@ class _Builder:
                 body,
                 spec.node_set,
                 orientation=orientation,
+                weights="auto" if spec.weights is None else spec.weights,
+                coupling=spec.coupling or "rbe3",
                 name=spec.name,
             )
         else:

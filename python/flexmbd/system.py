@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import _core
 from .errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .fe.body import FlexibleBodyData
+from .fe.interface import COUPLINGS, Interface, body_interface
 
 
 def _csc_tuple(
@@ -99,6 +100,38 @@ def _scalar_mass(body: FlexibleBodyData, free: NDArray[np.int64]) -> Any:
     if abs(sp.kron(scalar, sp.identity(3), format="csr") - mass).max() > 1e-12 * abs(mass).max():
         return None
     return _csc_tuple(scalar, scalar.shape[0]), np.ascontiguousarray(free, dtype=np.int64)
+
+
+def _check_rigid(
+    body: FlexibleBodyData,
+    basis: sp.csr_matrix,
+    interface: Interface,
+    translation: NDArray[np.float64],
+    rotation: NDArray[np.float64],
+    item: str,
+) -> None:
+    """Raises unless every elastic coordinate moves the interface's nodes rigidly (RBE2)."""
+    d = body.dofs_per_node
+    dofs = (interface.members[:, None] * d + np.arange(3)).ravel()
+    motion = basis[dofs]
+    motion = np.asarray(motion.todense()) if sp.issparse(motion) else np.asarray(motion)
+    rigid = interface.rigid_map(3) @ np.vstack([translation, rotation])
+    size = max(float(np.abs(motion).max(initial=0.0)), 1e-300)
+    deviation = float(np.abs(motion - rigid).max(initial=0.0))
+    if deviation > 1e-8 * size:
+        advice = (
+            "build its modes with this set as an 'rbe2' Craig-Bampton interface "
+            "(build_body(..., interfaces=[...], interface_kind='rbe2'))"
+            if body.modes is not None
+            else "its nodes are elastic coordinates of a nodal body; reduce it with an 'rbe2' "
+            "Craig-Bampton interface on this set"
+        )
+        raise InvalidModelError(
+            f"{item}: coupling 'rbe2' needs the nodes to move rigidly, but the body's elastic "
+            f"coordinates deform the set (relative deviation {deviation / size:.1e}): {advice}, "
+            "or use coupling='rbe3'",
+            item=item,
+        )
 
 
 def _stiffening_elements(
@@ -312,53 +345,53 @@ class System(_core.System):
         body: _core.BodyId,
         nodes: str | Sequence[int],
         *,
-        orientation: ArrayLike | None = None,
+        orientation: str | ArrayLike | None = None,
+        weights: str | ArrayLike = "auto",
+        coupling: str = "rbe3",
         name: str | None = None,
     ) -> _core.MarkerId:
-        """Adds a marker at the centroid of a node set (a name of the body's node sets, or node
-        ids) that follows the set's averaged motion, like an RBE3 element: its origin moves with
-        the mean displacement and its axes turn with the least-squares rotation of the nodes
-        about the centroid. The nodes must not lie on one line."""
+        """Adds a marker on a node set of a deformable body (a name of the body's node sets,
+        or node ids): an interface (see :mod:`flexmbd.fe.interface`).
+
+        The marker's origin is the weighted centroid of the nodes; `weights` is "auto" (the
+        default: area weights on faces, length weights on edges, volume weights on volumes,
+        from the body's elements; the weights of the body's Craig-Bampton modes on one of
+        their interfaces), "area", "length", "volume", "uniform", or one weight per node
+        (positive in sum).
+        With area weights the origin is the centroid of the face, however its mesh is spaced.
+
+        `coupling` "rbe3" (default): the marker follows the weighted average motion of the
+        nodes (its origin the weighted mean displacement, its axes the weighted least-squares
+        rotation about the centroid) and the nodes deform freely. "rbe2": the nodes follow the
+        marker rigidly; the body's elastic coordinates must keep the set rigid (a
+        Craig-Bampton body with an "rbe2" interface on it, or a set held by the reference
+        conditions), else `InvalidModelError` names the set.
+
+        `orientation`: a 3 x 3 matrix (columns: the marker axes in the body frame), None (the
+        body axes), or "principal" (z the outward normal of a face, x its axis of largest
+        extent). Raises `InvalidModelError` naming the set when it is empty, of zero weight
+        or on one line."""
         item = f"marker '{name}'" if name else "node set marker"
         data, basis = self._flexible_data(body, item)
-        if isinstance(nodes, str):
-            if nodes not in data.node_sets:
-                raise UnknownItemError(
-                    f"{item}: the body has no node set {nodes!r}; known: {sorted(data.node_sets)}",
-                    item=item,
-                )
-            indices = np.asarray(data.node_sets[nodes], dtype=np.int64)
-        else:
-            indices = np.array([_node_index(data, int(k), item) for k in nodes], dtype=np.int64)
-        if len(indices) < 3:
-            raise InvalidModelError(f"{item}: a node set marker needs at least 3 nodes", item=item)
-        x = data.nodes[indices]
-        centroid = x.mean(axis=0)
-        r = x - centroid
-        # Least-squares rotation: theta = H^-1 sum r_a x d_a with H = sum (|r|^2 I - r r^T).
-        h = np.einsum("ai,ai->", r, r) * np.eye(3) - r.T @ r
-        if np.linalg.cond(h) > 1e12:
-            raise InvalidModelError(
-                f"{item}: the nodes lie on one line; their rotation about it is undefined",
-                item=item,
+        if coupling not in COUPLINGS:
+            raise InvalidParameterError(
+                f"{item}: coupling must be one of {COUPLINGS}, got {coupling!r}", item=item
             )
-        n_f = basis.shape[1]
-        translation = np.zeros((3, n_f))
-        moment = np.zeros((3, n_f))
-        for a, k in enumerate(indices):
-            t, _ = _node_shapes(data, basis, int(k))
-            translation += t
-            moment += np.cross(r[a][:, None], t, axis=0)
-        translation /= len(indices)
-        rotation = np.linalg.solve(h, moment)
+        label = f"{item} on node set {nodes!r}" if isinstance(nodes, str) else item
+        interface = body_interface(data, nodes, weights, name=label)
+        rows = interface.average_rows(data.dofs_per_node, data.dof_count) @ basis
+        rows = np.asarray(rows.todense()) if sp.issparse(rows) else np.asarray(rows)
+        translation, rotation = rows[:3], rows[3:]
+        if coupling == "rbe2":
+            _check_rigid(data, basis, interface, translation, rotation, label)
         columns, t, rot = _compress(translation, rotation, data.modes is not None)
         return self._add_flexible_marker(
             body,
-            position=centroid,
+            position=interface.centroid,
             indices=columns,
             translation=t,
             rotation=rot,
-            orientation=orientation,
+            orientation=interface.orientation(orientation),
             name=name,
         )
 

@@ -16,7 +16,7 @@ matrix is diagonal.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
 from ..errors import InvalidModelError, InvalidParameterError
+from .interface import Interface, make_interface
 
 #: Below this many coordinates eigenproblems are solved densely.
 DENSE_LIMIT = 300
@@ -517,78 +518,6 @@ def rigid_modes(nodes: NDArray[np.float64], dofs_per_node: int) -> NDArray[np.fl
     return r
 
 
-def _interface_frame(
-    nodes: NDArray[np.float64], members: NDArray[np.int64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centroid of an interface and the arms d_p = x_p - centroid of its nodes."""
-    x = nodes[members]
-    center = x.mean(axis=0)
-    return center, x - center
-
-
-def rigid_interface_map(
-    nodes: NDArray[np.float64], members: NDArray[np.int64], dofs_per_node: int
-) -> NDArray[np.float64]:
-    """The motion of the interface nodes (len(members) * dofs_per_node, 6) when they move as a
-    rigid body with the translation and small rotation of their centroid (RBE2): u_p = u_c +
-    theta x d_p, and theta_p = theta for nodes with rotational coordinates."""
-    _, arms = _interface_frame(nodes, members)
-    d = dofs_per_node
-    t = np.zeros((len(members) * d, 6))
-    for c in range(3):
-        t[c::d, c] = 1.0
-    for k in range(3):
-        w = np.zeros(3)
-        w[k] = 1.0
-        u = np.cross(w, arms)
-        for c in range(3):
-            t[c::d, 3 + k] = u[:, c]
-        if d == 6:
-            t[3 + k :: d, 3 + k] = 1.0
-    return t
-
-
-def averaged_interface_rows(
-    nodes: NDArray[np.float64],
-    members: NDArray[np.int64],
-    dofs_per_node: int,
-    dof_count: int,
-    name: str,
-) -> sp.csr_matrix:
-    """The six rows G (6, dof_count) of an averaged (RBE3) interface: G u = (translation, small
-    rotation) of the rigid motion that best fits the displacements of its nodes in the least
-    squares sense, with equal weights: u_c = mean(u_p), theta = J^-1 sum d_p x u_p with
-    J = sum (|d_p|^2 I - d_p d_p^T). The nodes need not be coplanar but must not be collinear."""
-    _, arms = _interface_frame(nodes, members)
-    count = len(members)
-    j = np.einsum("pi,pi->", arms, arms) * np.eye(3) - arms.T @ arms
-    size = np.sqrt(np.trace(j) / max(count, 1))
-    if count < 3 or np.linalg.eigvalsh(j)[0] < 1e-9 * max(size**2, 1e-300) * count:
-        raise InvalidModelError(
-            f"averaged interface {name} needs at least three non-collinear nodes (got {count})",
-            item=f"interface {name}",
-        )
-    j_inv = np.linalg.inv(j)
-    d = dofs_per_node
-    rows, cols, vals = [], [], []
-    for c in range(3):
-        rows.append(np.full(count, c))
-        cols.append(members * d + c)
-        vals.append(np.full(count, 1.0 / count))
-    # theta_i = sum_p (J^-1)_ij (d_p x u_p)_j = sum_p (J^-1 [d_p x])_ic u_pc
-    for p_index, arm in enumerate(arms):
-        cross = np.array([[0.0, -arm[2], arm[1]], [arm[2], 0.0, -arm[0]], [-arm[1], arm[0], 0.0]])
-        block = j_inv @ cross
-        for i in range(3):
-            rows.append(np.full(3, 3 + i))
-            cols.append(members[p_index] * d + np.arange(3))
-            vals.append(block[i])
-    return sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(6, dof_count),
-    )
-
-
 def _support_dofs(rigid: NDArray[np.float64]) -> NDArray[np.int64]:
     """Six coordinates whose values fix a rigid motion (R restricted to them is invertible and
     well conditioned): a statically determinate support chosen by pivoted QR."""
@@ -599,8 +528,62 @@ def _support_dofs(rigid: NDArray[np.float64]) -> NDArray[np.int64]:
 # Craig-Bampton ---------------------------------------------------------------------------------
 
 
-def _interface_members(interfaces: Sequence[ArrayLike], node_count: int) -> list[NDArray]:
-    members = [np.unique(np.asarray(s, dtype=np.int64)) for s in interfaces]
+def interface_objects(
+    interfaces: Sequence[ArrayLike | Interface],
+    nodes: NDArray[np.float64],
+    elements: Mapping[str, ArrayLike] | None,
+    weights: str | Sequence[str | ArrayLike],
+    *,
+    rotation: bool = True,
+) -> list[Interface]:
+    """The `Interface`s of Craig-Bampton interfaces given as node indices (or already as
+    interfaces), with their members in ascending order (the order of the boundary
+    coordinates). `weights`: one weighting for all or one per interface (arrays in the
+    order given). `rotation`: whether each must define a rotation (at least three
+    non-collinear nodes: averaged interfaces)."""
+    count = len(interfaces)
+    if isinstance(weights, str):
+        per: list[Any] = [weights] * count
+    else:
+        per = list(weights)
+        if len(per) != count:
+            raise InvalidParameterError(
+                f"interface weights: {len(per)} given for {count} interfaces",
+                item="interface weights",
+            )
+    out = []
+    for index, (given, how) in enumerate(zip(interfaces, per, strict=True)):
+        if isinstance(given, Interface):
+            if np.all(np.diff(given.members) > 0):
+                out.append(given)
+                continue
+            given, how = given.members, given.weights
+        members = np.asarray(given, dtype=np.int64).ravel()
+        order = np.argsort(members, kind="stable")
+        if not isinstance(how, str):
+            how = np.asarray(how, dtype=float).ravel()
+            if how.shape == members.shape:
+                how = how[order]
+        out.append(
+            make_interface(
+                nodes,
+                elements or {},
+                members[order],
+                how,
+                name=f"interface {index}",
+                require_rotation=rotation,
+            )
+        )
+    return out
+
+
+def _interface_members(
+    interfaces: Sequence[ArrayLike | Interface], node_count: int
+) -> list[NDArray]:
+    members = [
+        np.unique(np.asarray(s.members if isinstance(s, Interface) else s, dtype=np.int64))
+        for s in interfaces
+    ]
     if not members or any(m.size == 0 for m in members):
         raise InvalidModelError("Craig-Bampton needs at least one non-empty interface node set")
     seen = np.full(node_count, -1)
@@ -638,25 +621,33 @@ def _orthonormal_diagonal(
 def craig_bampton(
     stiffness: sp.spmatrix,
     mass: sp.spmatrix,
-    interfaces: Sequence[ArrayLike],
+    interfaces: Sequence[ArrayLike | Interface],
     count: int,
     *,
     nodes: NDArray[np.float64],
+    elements: Mapping[str, ArrayLike] | None = None,
+    weights: str | Sequence[str | ArrayLike] = "auto",
     dofs_per_node: int = 3,
     kind: str = "rbe2",
     reference: str = "mean-axis",
     precision: str = "auto",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Craig-Bampton basis over all nodal coordinates: `count` fixed-interface normal modes
-    and the static constraint modes of the interfaces (lists of node indices, disjoint).
+    and the static constraint modes of the interfaces (lists of node indices, disjoint, or
+    `Interface`s).
+
+    `weights` (one for all interfaces, or one per interface; see
+    :mod:`flexmbd.fe.interface`, with the body's `elements` for area, length and volume
+    weights) weight the averaged motion of "rbe3" interfaces and place the centroids of
+    "rbe2" ones.
 
     `kind`:
       - "nodal": one static mode per coordinate of every interface node (classic
         Craig-Bampton);
       - "rbe2": each interface moves rigidly with its centroid; six static modes per
         interface (u_c, theta_c); the normal modes hold the interface nodes;
-      - "rbe3": six static modes per interface that prescribe its averaged motion (see
-        `averaged_interface_rows`) with least strain energy; the interface nodes deform
+      - "rbe3": six static modes per interface that prescribe its weighted averaged motion
+        (`Interface.average_rows`) with least strain energy; the interface nodes deform
         freely; the normal modes hold the averaged motions at zero.
 
     `reference`:
@@ -682,12 +673,19 @@ def craig_bampton(
     d = dofs_per_node
     n = stiffness.shape[0]
     members = _interface_members(interfaces, len(nodes))
+    weighted = (
+        []
+        if kind == "nodal"
+        else interface_objects(interfaces, nodes, elements, weights, rotation=kind == "rbe3")
+    )
     k = sp.csc_matrix(stiffness)
     m = sp.csc_matrix(mass)
     if kind == "rbe3":
-        phi, psi = _craig_bampton_averaged(k, m, members, count, nodes, d, reference, precision)
+        phi, psi = _craig_bampton_averaged(k, m, weighted, count, nodes, d, reference, precision)
     else:
-        phi, psi = _craig_bampton_fixed(k, m, members, count, nodes, d, kind, reference, precision)
+        phi, psi = _craig_bampton_fixed(
+            k, m, members, weighted, count, nodes, d, reference, precision
+        )
     basis = np.hstack([phi, psi])
     if reference == "mean-axis":
         r = rigid_modes(nodes, d)
@@ -705,14 +703,15 @@ def _craig_bampton_fixed(
     k: sp.csc_matrix,
     m: sp.csc_matrix,
     members: list[NDArray],
+    rigid: list[Interface],
     count: int,
     nodes: NDArray[np.float64],
     d: int,
-    kind: str,
     reference: str,
     precision: str,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Nodal and rigid (RBE2) interfaces: the interface nodes are the boundary coordinates."""
+    """Nodal and rigid (RBE2) interfaces: the interface nodes are the boundary coordinates.
+    `rigid`: the interfaces (in the order of `members`) of "rbe2", empty for "nodal"."""
     n = k.shape[0]
     boundary_nodes = np.concatenate(members)
     boundary = (boundary_nodes[:, None] * d + np.arange(d)).ravel()
@@ -722,11 +721,7 @@ def _craig_bampton_fixed(
     for index, nodes_of in enumerate(members):
         if reference == "interface" and index == 0:
             continue
-        t = (
-            np.eye(len(nodes_of) * d)
-            if kind == "nodal"
-            else rigid_interface_map(nodes, nodes_of, d)
-        )
+        t = rigid[index].rigid_map(d) if rigid else np.eye(len(nodes_of) * d)
         block = np.zeros((len(boundary), t.shape[1]))
         start = sum(len(members[j]) for j in range(index)) * d
         block[start : start + t.shape[0]] = t
@@ -769,7 +764,7 @@ def _craig_bampton_fixed(
 def _craig_bampton_averaged(
     k: sp.csc_matrix,
     m: sp.csc_matrix,
-    members: list[NDArray],
+    interfaces: list[Interface],
     count: int,
     nodes: NDArray[np.float64],
     d: int,
@@ -785,9 +780,7 @@ def _craig_bampton_averaged(
     if d != 3:
         raise InvalidModelError("averaged (RBE3) interfaces are for solid meshes; use rbe2")
     n = k.shape[0]
-    g = sp.vstack(
-        [averaged_interface_rows(nodes, s, d, n, str(i)) for i, s in enumerate(members)]
-    ).tocsr()
+    g = sp.vstack([s.average_rows(d, n) for s in interfaces]).tocsr()
     r = rigid_modes(nodes, d)
     support = _support_dofs(r)
     rest = np.setdiff1d(np.arange(n), support)

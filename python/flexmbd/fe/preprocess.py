@@ -19,12 +19,14 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _core
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import FlexibleBodyData
+from .interface import Interface
 from .mesh_io import Mesh, matrices_from_arrays, read_mesh, validate_mesh
 from .modal import (
     craig_bampton,
     factorize,
     fixed_interface_modes,
     free_free_modes,
+    interface_objects,
     modal_invariants,
 )
 
@@ -308,6 +310,7 @@ def build_body(
     mode_count: int = 0,
     interfaces: Sequence[str | Sequence[int]] = (),
     interface_kind: str = "rbe2",
+    interface_weights: str | Sequence[str | ArrayLike] = "auto",
     external_modes: ArrayLike | None = None,
     node_ids: ArrayLike | None = None,
     element_ids: Mapping[str, ArrayLike] | None = None,
@@ -330,7 +333,9 @@ def build_body(
     - `modes`: None (nodal elastic coordinates), "fixed-interface" (eigenmodes with the
       reference conditions), "free-free" (elastic free-free modes; mean-axis frame),
       "craig-bampton" (`interfaces`: node sets given by name or indices, `interface_kind`
-      "rbe2", "rbe3" or "nodal", see `modal.craig_bampton`) or "external" (`external_modes`
+      "rbe2", "rbe3" or "nodal", see `modal.craig_bampton`; `interface_weights`, one for all
+      or one per interface, weight their nodes: "auto", "area", "length", "volume",
+      "uniform" or arrays, see `flexmbd.fe.interface`) or "external" (`external_modes`
       over the kept coordinates, e.g. from experimental modal analysis or another FE code).
       `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes).
     - `precision`: of the sparse factorizations of the eigensolvers: "double", "single" (half
@@ -400,6 +405,7 @@ def build_body(
         mode_count=mode_count,
         interfaces=interfaces,
         interface_kind=interface_kind,
+        interface_weights=interface_weights,
         external_modes=external_modes,
         precision=precision,
         clock=clock,
@@ -425,6 +431,7 @@ def _body_from_nodal(
     mode_count: int,
     interfaces: Sequence[str | Sequence[int]],
     interface_kind: str,
+    interface_weights: str | Sequence[str | ArrayLike] = "auto",
     external_modes: ArrayLike | None,
     precision: str,
     clock: _Stages,
@@ -459,6 +466,7 @@ def _body_from_nodal(
         )
     basis = None
     freqs = None
+    weighted: list[Interface] = []
     if modes is None:
         invariants = restrict_invariants(nodal.invariants, free)
         k_ff = nodal.stiffness[free][:, free].tocsc()
@@ -486,10 +494,14 @@ def _body_from_nodal(
                 precision=precision,
             )
         elif modes == "craig-bampton":
+            if interface_kind != "nodal":
+                weighted = interface_objects(
+                    members, nodes, elements, interface_weights, rotation=interface_kind == "rbe3"
+                )
             full, freqs = craig_bampton(
                 nodal.stiffness,
                 nodal.mass,
-                members,
+                weighted or members,
                 mode_count,
                 nodes=nodes,
                 dofs_per_node=d,
@@ -526,8 +538,10 @@ def _body_from_nodal(
         "free_dofs": free,
     }
     if modes == "craig-bampton":
-        reference_data["interfaces"] = members
+        reference_data["interfaces"] = [it.members for it in weighted] if weighted else members
         reference_data["interface_kind"] = interface_kind
+        if weighted:
+            reference_data["interface_weights"] = [it.weights for it in weighted]
     return FlexibleBodyData(
         nodes=nodes,
         node_ids=ids,
@@ -638,6 +652,7 @@ def body_from_matrices(
     mode_count: int = 0,
     interfaces: Sequence[str | Sequence[int]] = (),
     interface_kind: str = "rbe2",
+    interface_weights: str | Sequence[str | ArrayLike] = "auto",
     external_modes: ArrayLike | None = None,
     precision: str = "auto",
     timings: dict[str, float] | None = None,
@@ -720,6 +735,7 @@ def body_from_matrices(
         mode_count=mode_count,
         interfaces=interfaces,
         interface_kind=interface_kind,
+        interface_weights=interface_weights,
         external_modes=external_modes,
         precision=precision,
         clock=clock,

@@ -138,13 +138,16 @@ def gmsh_mesh(
     size: float,
     order: int = 1,
     element: str = "tet",
+    size_field: str | None = None,
 ) -> Mesh:
     """Meshes a geometry with Gmsh's Python API (``pip install gmsh``).
 
     `build(gmsh)` creates the geometry in the current model (e.g. with ``gmsh.model.occ``) and
     may add named physical groups, which become node sets; `size` is the target element size;
     `order` 1 gives tet4, 2 gives tet10 (mid-edge nodes on the curved geometry). `element` "tet"
-    meshes volumes with tetrahedra (the only choice for now)."""
+    meshes volumes with tetrahedra (the only choice for now). `size_field`, a Gmsh MathEval
+    expression in x, y, z (e.g. ``"0.002 + 0.1 * y"``), grades the element size over the
+    geometry instead (`size` then only bounds it from above)."""
     try:
         import gmsh
     except ImportError as error:  # pragma: no cover - depends on the installation
@@ -165,7 +168,18 @@ def gmsh_mesh(
         build(gmsh)
         if gmsh.model.occ.getEntities():
             gmsh.model.occ.synchronize()
-        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        if size_field is None:
+            gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        else:
+            field = gmsh.model.mesh.field.add("MathEval")
+            gmsh.model.mesh.field.setString(field, "F", size_field)
+            gmsh.model.mesh.field.setAsBackgroundMesh(field)
+            for option in (
+                "MeshSizeFromPoints",
+                "MeshSizeFromCurvature",
+                "MeshSizeExtendFromBoundary",
+            ):
+                gmsh.option.setNumber(f"Mesh.{option}", 0)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.model.mesh.generate(3)
         if order == 2:
@@ -235,3 +249,51 @@ def cylinder(
             gmsh.model.addPhysicalGroup(dim, [tag], name=name)
 
     return gmsh_mesh(build, size=size, order=order)
+
+
+def tapered_link(
+    length: float,
+    root: tuple[float, float],
+    tip: tuple[float, float],
+    *,
+    size: float,
+    order: int = 2,
+    tip_offset: tuple[float, float] = (0.0, 0.0),
+    size_field: str | None = None,
+) -> Mesh:
+    """A tetrahedral mesh of a tapered link (Gmsh): a loft along x from the rectangle
+    `root` = (width along y, height along z) centred on the origin at x = 0 to the rectangle
+    `tip` at x = `length`, centred at (y, z) = `tip_offset`. Node sets "root" and "tip" (the
+    end faces) and "sides". `size_field` grades the mesh (see :func:`gmsh_mesh`), so that the
+    end faces can be meshed unevenly."""
+    if not (length > 0 and min(root) > 0 and min(tip) > 0):
+        raise InvalidParameterError(
+            f"a tapered link needs positive length and sections, got {length}, {root}, {tip}"
+        )
+
+    def rectangle(gmsh: Any, x: float, width: float, height: float, y: float, z: float) -> int:
+        corners = [(y - width / 2, z - height / 2), (y + width / 2, z - height / 2)]
+        corners += [(y + width / 2, z + height / 2), (y - width / 2, z + height / 2)]
+        points = [gmsh.model.occ.addPoint(x, a, b) for a, b in corners]
+        lines = [gmsh.model.occ.addLine(points[k], points[(k + 1) % 4]) for k in range(4)]
+        return gmsh.model.occ.addCurveLoop(lines)
+
+    def build(gmsh: Any) -> None:
+        first = rectangle(gmsh, 0.0, root[0], root[1], 0.0, 0.0)
+        last = rectangle(gmsh, length, tip[0], tip[1], *tip_offset)
+        volumes = gmsh.model.occ.addThruSections([first, last], makeSolid=True, makeRuled=True)
+        gmsh.model.occ.synchronize()
+        volume = [tag for dim, tag in volumes if dim == 3]
+        gmsh.model.addPhysicalGroup(3, volume, name="link")
+        sides = []
+        for dim, tag in gmsh.model.getBoundary([(3, v) for v in volume], oriented=False):
+            x = gmsh.model.occ.getCenterOfMass(dim, tag)[0]
+            if abs(x) < 1e-9 * length:
+                gmsh.model.addPhysicalGroup(dim, [tag], name="root")
+            elif abs(x - length) < 1e-9 * length:
+                gmsh.model.addPhysicalGroup(dim, [tag], name="tip")
+            else:
+                sides.append(tag)
+        gmsh.model.addPhysicalGroup(2, sides, name="sides")
+
+    return gmsh_mesh(build, size=size, order=order, size_field=size_field)

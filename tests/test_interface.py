@@ -1,0 +1,250 @@
+"""Interfaces of deformable bodies (flexmbd.fe.interface): weights, centroids, axes, RBE3 and
+RBE2 markers, Craig-Bampton interfaces with the same weights, and the errors of bad sets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+import flexmbd.fe
+from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from flexmbd.fe import Material, build_body, shapes
+from flexmbd.fe.interface import body_interface, interface_weights, make_interface
+
+STEEL = Material(2.1e11, 0.3, 7850.0)
+
+
+def graded_box(element: str):
+    """A 0.3 x 0.04 x 0.02 box whose y spacing grows quadratically (straight-sided tet10
+    from the graded tet4): the node average of its faces x0 and x1 is off their centres."""
+    mesh = shapes.box((0.3, 0.04, 0.02), (6, 4, 3), "tet4" if element == "tet10" else element)
+    mesh.nodes[:, 1] = 0.04 * (mesh.nodes[:, 1] / 0.04) ** 2
+    if element == "tet10":
+        nodes, tets = shapes.quadratic_tetrahedra(mesh.nodes, mesh.elements["tet4"])
+        sets = {"all": np.arange(len(nodes))}
+        for axis, name in enumerate("xyz"):
+            low, high = nodes[:, axis].min(), nodes[:, axis].max()
+            sets[f"{name}0"] = np.flatnonzero(np.abs(nodes[:, axis] - low) < 1e-12)
+            sets[f"{name}1"] = np.flatnonzero(np.abs(nodes[:, axis] - high) < 1e-12)
+        mesh = fm.fe.Mesh(
+            nodes=nodes,
+            node_ids=np.arange(1, len(nodes) + 1),
+            elements={"tet10": tets},
+            element_ids={"tet10": np.arange(1, len(tets) + 1)},
+            node_sets=sets,
+        )
+    return mesh
+
+
+@pytest.fixture(scope="module")
+def link():
+    """An unstructured Gmsh mesh (tet10) of a tapered link, graded in y so that its root face
+    (40 x 20 mm, centred on the x axis) is meshed unevenly."""
+    return shapes.tapered_link(
+        0.3,
+        (0.04, 0.02),
+        (0.02, 0.01),
+        size=0.02,
+        order=2,
+        tip_offset=(0.005, 0.0),
+        size_field="0.006 + 2.0 * (y + 0.02) * (y + 0.02)",
+    )
+
+
+@pytest.mark.parametrize("element", ["hex8", "tet4", "tet10"])
+def test_area_weighted_centroids_are_the_face_centroids_of_structured_meshes(element):
+    mesh = graded_box(element)
+    for name, centre in {
+        "x0": (0.0, 0.02, 0.01),
+        "x1": (0.3, 0.02, 0.01),
+        "z1": (0.15, 0.02, 0.02),
+    }.items():
+        interface = make_interface(mesh.nodes, mesh.elements, mesh.node_sets[name], name=name)
+        assert interface.weighting == "area"
+        np.testing.assert_allclose(interface.centroid, centre, rtol=1e-12, atol=1e-12 * 0.3)
+    face = make_interface(mesh.nodes, mesh.elements, mesh.node_sets["x0"], name="x0")
+    assert face.measure == pytest.approx(0.04 * 0.02, rel=1e-12)
+    # The plain average of the nodes is off the centre (what the marker used to be).
+    assert abs(mesh.nodes[mesh.node_sets["x0"]].mean(axis=0)[1] - 0.02) > 1e-3
+    volume = make_interface(mesh.nodes, mesh.elements, mesh.node_sets["all"], name="all")
+    assert volume.weighting == "volume"
+    assert volume.measure == pytest.approx(0.3 * 0.04 * 0.02, rel=1e-12)
+    np.testing.assert_allclose(volume.centroid, (0.15, 0.02, 0.01), rtol=1e-12)
+
+
+def test_area_weighted_centroids_are_the_face_centroids_of_an_unstructured_gmsh_mesh(link):
+    root = make_interface(link.nodes, link.elements, link.node_sets["root"], name="root")
+    tip = make_interface(link.nodes, link.elements, link.node_sets["tip"], name="tip")
+    assert root.measure == pytest.approx(0.04 * 0.02, rel=1e-12)
+    assert tip.measure == pytest.approx(0.02 * 0.01, rel=1e-12)
+    np.testing.assert_allclose(root.centroid, (0.0, 0.0, 0.0), atol=1e-12 * 0.04)
+    np.testing.assert_allclose(tip.centroid, (0.3, 0.005, 0.0), rtol=1e-12, atol=1e-12 * 0.04)
+    # Quadratic triangles: the corners carry no area, the mid-edge nodes a third of each.
+    weights, kind = interface_weights(link.nodes, link.elements, link.node_sets["root"])
+    assert kind == "area" and weights.min() == 0.0
+    # The node average is well off the centre of this unevenly meshed face.
+    assert np.linalg.norm(link.nodes[link.node_sets["root"]].mean(axis=0)) > 1e-4
+
+
+def test_the_weighted_fit_recovers_rigid_motions_and_its_rows_equal_it():
+    mesh = graded_box("tet10")
+    n = 3 * len(mesh.nodes)
+    interface = make_interface(mesh.nodes, mesh.elements, mesh.node_sets["x1"], name="x1")
+    velocity, spin = np.array([0.1, -0.2, 0.3]), np.array([0.01, -0.02, 0.015])
+    u = velocity + np.cross(spin, mesh.nodes)  # a rigid motion about the origin
+    expected = np.concatenate([velocity + np.cross(spin, interface.centroid), spin])
+    rows = interface.average_rows(3, n)
+    # Round-off: the rotation is a small difference of moments of arms of 1e-2 m about a
+    # centroid 0.3 m from the origin, divided by H ~ 1e-4 m^2.
+    np.testing.assert_allclose(rows @ u.ravel(), expected, rtol=1e-9)
+    mean, rotation = interface.average(u[interface.members])
+    np.testing.assert_allclose(np.concatenate([mean, rotation]), expected, rtol=1e-9)
+    # A deformation: the rows equal the weighted sums they stand for.
+    rng = np.random.default_rng(7)
+    d = rng.standard_normal((len(mesh.nodes), 3))
+    mean, rotation = interface.average(d[interface.members])
+    np.testing.assert_allclose(rows @ d.ravel(), np.concatenate([mean, rotation]), rtol=1e-12)
+    w = interface.weights
+    np.testing.assert_allclose(mean, w @ d[interface.members], rtol=1e-12)
+
+
+def test_principal_axes_are_the_outward_normal_and_the_longest_extent():
+    mesh = graded_box("tet4")
+    expected = {
+        "x0": ((0, 1, 0), (-1, 0, 0)),
+        "x1": ((0, 1, 0), (1, 0, 0)),
+        "y1": ((1, 0, 0), (0, 1, 0)),
+        "z0": ((1, 0, 0), (0, 0, -1)),
+    }
+    for name, (x, z) in expected.items():
+        axes = make_interface(mesh.nodes, mesh.elements, mesh.node_sets[name]).principal_axes
+        np.testing.assert_allclose(axes[:, 0], x, atol=1e-12)
+        np.testing.assert_allclose(axes[:, 2], z, atol=1e-12)
+        np.testing.assert_allclose(axes.T @ axes, np.eye(3), atol=1e-12)
+        assert np.linalg.det(axes) == pytest.approx(1.0)
+
+
+def test_length_weights_on_edges_and_given_or_uniform_weights():
+    mesh = graded_box("hex8")
+    x = mesh.nodes
+    edge = np.flatnonzero((np.abs(x[:, 0]) < 1e-12) & (np.abs(x[:, 2]) < 1e-12))
+    weights, kind = interface_weights(x, mesh.elements, edge)
+    assert kind == "length" and weights.sum() == pytest.approx(0.04, rel=1e-12)
+    face = mesh.node_sets["x0"]
+    uniform = make_interface(x, mesh.elements, face, "uniform")
+    np.testing.assert_allclose(uniform.centroid, x[face].mean(axis=0), rtol=1e-12)
+    given = np.arange(1.0, len(face) + 1.0)
+    weighted = make_interface(x, mesh.elements, face, given)
+    np.testing.assert_allclose(weighted.centroid, given @ x[face] / given.sum(), rtol=1e-12)
+
+
+def test_bad_sets_and_weights_are_typed_errors_naming_the_set():
+    mesh = graded_box("hex8")
+    x, elements = mesh.nodes, mesh.elements
+    with pytest.raises(InvalidModelError, match="'root'.*empty"):
+        make_interface(x, elements, [], name="'root'")
+    edge = np.flatnonzero((np.abs(x[:, 0]) < 1e-12) & (np.abs(x[:, 2]) < 1e-12))
+    with pytest.raises(InvalidModelError, match="edge set.*one line"):
+        make_interface(x, elements, edge, name="edge set")
+    face = mesh.node_sets["x0"]
+    with pytest.raises(InvalidModelError, match="face.*sum to 0"):
+        make_interface(x, elements, face, np.zeros(len(face)), name="face")
+    with pytest.raises(InvalidParameterError, match="face.*one per node"):
+        make_interface(x, elements, face, np.ones(3), name="face")
+    with pytest.raises(InvalidParameterError, match="face.*weights must be"):
+        make_interface(x, elements, face, "mass", name="face")
+    scattered = np.array([0, 40, 77, 101])
+    with pytest.raises(InvalidModelError, match="scattered.*no face, edge or element"):
+        make_interface(x, elements, scattered, name="scattered")
+    with pytest.raises(InvalidModelError, match="face.*no elements"):
+        make_interface(x, elements, face, "volume", name="face")
+
+
+def test_node_set_markers_sit_at_the_weighted_centroid_and_take_principal_axes(link):
+    body = build_body(link.nodes, link.elements, STEEL, node_sets=link.node_sets)
+    system = fm.System()
+    arm = system.add_flexible_body(body, name="arm")
+    system.add_node_set_marker(arm, "root", orientation="principal", name="root")
+    system.add_node_set_marker(arm, "root", weights="uniform", name="plain")
+    frames = {m["name"]: m for m in system.compile().describe()["markers"]}
+    np.testing.assert_allclose(frames["root"]["position"], (0, 0, 0), atol=1e-12 * 0.04)
+    np.testing.assert_allclose(np.asarray(frames["root"]["orientation"])[:, 2], (-1, 0, 0))
+    assert np.linalg.norm(frames["plain"]["position"]) > 1e-4
+    np.testing.assert_allclose(frames["plain"]["orientation"], np.eye(3))
+    interface = body_interface(body, "root")
+    np.testing.assert_allclose(interface.centroid, (0, 0, 0), atol=1e-12 * 0.04)
+    np.testing.assert_allclose(interface.principal_axes[:, 2], (-1, 0, 0), atol=1e-12)
+    with pytest.raises(UnknownItemError, match="no node set 'hub'"):
+        system.add_node_set_marker(arm, "hub")
+    with pytest.raises(InvalidParameterError, match="coupling"):
+        system.add_node_set_marker(arm, "root", coupling="rbe4")
+
+
+def test_rbe2_needs_a_rigid_set_and_craig_bampton_modes_keep_it():
+    mesh = shapes.box((0.3, 0.04, 0.02), (10, 2, 2), "hex8")
+    common = {"node_sets": mesh.node_sets, "modes": "craig-bampton", "mode_count": 4}
+    rigid = build_body(
+        mesh.nodes, mesh.elements, STEEL, reference="interface", interfaces=["x0", "x1"], **common
+    )
+    averaged = build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        reference="interface",
+        interfaces=["x0", "x1"],
+        interface_kind="rbe3",
+        **common,
+    )
+    nodal = build_body(mesh.nodes, mesh.elements, STEEL, node_sets=mesh.node_sets)
+    clamped = build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+    )
+    system = fm.System()
+    ids = {
+        name: system.add_flexible_body(body, name=name)
+        for name, body in {
+            "rigid": rigid,
+            "averaged": averaged,
+            "nodal": nodal,
+            "clamped": clamped,
+        }.items()
+    }
+    system.add_node_set_marker(ids["rigid"], "x1", coupling="rbe2")
+    system.add_node_set_marker(ids["clamped"], "x0", coupling="rbe2")
+    for name in ("averaged", "nodal"):
+        with pytest.raises(InvalidModelError, match="x1.*rbe2.*deform"):
+            system.add_node_set_marker(ids[name], "x1", coupling="rbe2")
+
+
+def test_craig_bampton_averaged_interfaces_use_the_weights_of_the_markers():
+    mesh = graded_box("tet10")
+    body = build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        node_sets=mesh.node_sets,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=4,
+        interfaces=["x0", "x1"],
+        interface_kind="rbe3",
+    )
+    stored = body.reference["interface_weights"]
+    assert len(stored) == 2
+    x0 = body_interface(body, "x0")
+    area = make_interface(mesh.nodes, mesh.elements, mesh.node_sets["x0"])
+    np.testing.assert_allclose(x0.weights, area.weights, rtol=1e-12)
+    # The body frame follows the weighted average motion of x0: every mode leaves it at 0.
+    full = np.zeros((body.dof_count, body.modes.shape[1]))
+    full[body.reference["free_dofs"]] = body.modes
+    rows = x0.average_rows(3, body.dof_count)
+    assert np.abs(rows @ full).max() < 1e-10 * np.abs(full).max()
+    # ... while the uniform average of the same nodes moves.
+    plain = make_interface(mesh.nodes, {}, mesh.node_sets["x0"], "uniform")
+    assert np.abs(plain.average_rows(3, body.dof_count) @ full).max() > 1e-4 * np.abs(full).max()
