@@ -3,6 +3,8 @@ between nodal and modal coordinates, energy, markers on nodes and node sets, and
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -152,8 +154,7 @@ def test_bad_flexible_input_names_the_item():
         system.add_flexible_body(
             data, elastic_coordinates=np.full(data.elastic_coordinate_count, np.nan)
         )
-    stripped = beam_body()
-    stripped.invariants = {}
+    stripped = dataclasses.replace(beam_body(), invariants={})
     with pytest.raises(fm.InvalidModelError, match="invariants"):
         system.add_flexible_body(stripped)
     with pytest.raises(fm.InvalidModelError, match="beam elements"):

@@ -33,11 +33,14 @@ from ._core import (
     UserFunction,
     __version__,
 )
-from .analysis import EquilibriumState, LinearizedSystem, equilibrium, linearize
+from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
 from .errors import (
     CallbackError,
+    EquilibriumError,
     FlexmbdError,
+    FrozenBodyError,
     InitialConditionsError,
+    InitialCorrectionWarning,
     InvalidModelError,
     InvalidParameterError,
     ModelError,
@@ -54,6 +57,7 @@ from .result import Result
 from .results_file import read_results
 from .rotation import euler_parameters_to_matrix, rotation
 from .simulation import simulate
+from .state import EquilibriumState, State
 from .system import System
 
 __all__ = [
@@ -62,12 +66,15 @@ __all__ = [
     "LinearizedSystem",
     "CallbackError",
     "Constant",
+    "EquilibriumError",
     "ExplicitSolver",
     "FlexmbdError",
     "ForceId",
+    "FrozenBodyError",
     "GeneralizedAlpha",
     "Harmonic",
     "InitialConditionsError",
+    "InitialCorrectionWarning",
     "InvalidModelError",
     "InvalidParameterError",
     "JointId",
@@ -84,6 +91,7 @@ __all__ = [
     "SimulationInterrupted",
     "SingularMatrixError",
     "Spline",
+    "State",
     "StepSizeTooSmallError",
     "System",
     "UnknownItemError",
@@ -97,4 +105,5 @@ __all__ = [
     "read_results",
     "rotation",
     "simulate",
+    "steady_rotation",
 ]

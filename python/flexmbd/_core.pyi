@@ -365,6 +365,9 @@ def simulate(
     solver: GeneralizedAlpha | ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
     records: Callable[[dict[str, Any]], object] | None = None,
+    coordinates: NDArray[np.float64] | None = None,
+    velocities: NDArray[np.float64] | None = None,
+    initial_conditions: str = "correct",
 ) -> tuple[dict[str, Any], BaseException | None]: ...
 
 class Material:

@@ -2,6 +2,7 @@
 eigenvalues of the linearized motion (for example the frequencies of a rotating blade).
 
     eq = fm.equilibrium(system)            # static, or steady under prescribed motion
+    result = fm.simulate(system, 1.0, 1e-3, initial_state=eq)   # no start-up transient
     lin = fm.linearize(system, eq)
     lin.frequencies()                      # Hz, damped natural frequencies
 
@@ -20,23 +21,10 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from . import _core
-from .errors import InvalidModelError, NewtonDivergedError
+from .errors import EquilibriumError, InvalidModelError
+from .state import EquilibriumState
 
 Array = NDArray[np.float64]
-
-
-@dataclass
-class EquilibriumState:
-    """A state of equilibrium: coordinates, the velocities and accelerations of the prescribed
-    motion (zero for statics), and the multipliers (constraint forces)."""
-
-    time: float
-    coordinates: Array
-    velocities: Array
-    accelerations: Array
-    multipliers: Array
-    iterations: int = 0
-    residual: float = 0.0
 
 
 def _model(model: _core.Model | _core.System) -> _core.Model:
@@ -78,6 +66,18 @@ def _prescribed_rates(
     return qd, qdd
 
 
+def _residual_bodies(layout: dict[str, Any], residual: Array, count: int = 3) -> list[str]:
+    """Names of the bodies with the largest |residual| entries, largest first."""
+    sizes = []
+    for b in layout["bodies"]:
+        if b["kind"] == "ground" or b["count"] == 0:
+            continue
+        part = residual[b["offset"] : b["offset"] + b["count"]]
+        sizes.append((float(np.max(np.abs(part))), b["name"]))
+    sizes.sort(reverse=True)
+    return [name for size, name in sizes[:count] if size > 0]
+
+
 def equilibrium(
     model: _core.Model | _core.System,
     time: float = 0.0,
@@ -89,14 +89,21 @@ def equilibrium(
     """Static equilibrium, or steady equilibrium under the prescribed motion of the drivers
     at `time`: every elastic coordinate at rest, the other coordinates moving as the drivers
     prescribe (the minimum-norm velocities and accelerations that satisfy the constraints;
-    zero when nothing is driven). For a blade turned at constant speed by an angle driver this
-    is the steadily rotating, centrifugally stretched blade.
+    zero when nothing is driven). Gravity, loads, springs, elastic forces and the drivers'
+    positions at `time` are in balance with the constraint forces; the multipliers of a
+    driver are its static (or steady) effort. For a blade turned at constant speed by an
+    angle driver this is the steadily rotating, centrifugally stretched blade.
+
+    Returns an :class:`EquilibriumState` (a :class:`flexmbd.State`), which
+    :func:`flexmbd.simulate` takes as ``initial_state`` to start without a transient.
 
     Newton's method on [M q_dd - F - Q_e + C_q^T lambda; C] = 0 for q and lambda with the
     matrix [[K, C_q^T], [C_q, 0]] (the dependence of the prescribed velocities on q is left
     out of the matrix, which then converges linearly when the motion is driven). Starts from
     `coordinates` or the model's initial coordinates. Converged when the Newton increment is
-    below `tolerance` (relative to the coordinates, at least 1).
+    below `tolerance` (relative to the coordinates, at least 1). Raises
+    :class:`flexmbd.errors.EquilibriumError` with the residual and the bodies that carry it
+    when it does not converge, `InvalidModelError` when the stiffness matrix is singular.
     """
     model = _model(model)
     layout = model.describe()
@@ -106,12 +113,14 @@ def equilibrium(
     lam = np.zeros(nc)
     scale = max(1.0, float(np.max(np.abs(q))))
     step = np.inf
+    residual = np.zeros(nq + nc)
     for iteration in range(1, max_iterations + 1):
         qd, qdd = _prescribed_rates(model, time, q, rigid)
         ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+        residual = ev["residual"]
         a = _matrix(ev)
         try:
-            delta = spla.spsolve(a.tocsc(), -ev["residual"])
+            delta = spla.spsolve(a.tocsc(), -residual)
         except RuntimeError as exc:  # pragma: no cover - scipy raises on exact singularity
             raise InvalidModelError(f"equilibrium: singular matrix ({exc})") from exc
         if not np.all(np.isfinite(delta)):
@@ -125,12 +134,60 @@ def equilibrium(
         if step <= tolerance:
             qd, qdd = _prescribed_rates(model, time, q, rigid)
             final = model.evaluate(time, q, qd, qdd, lam)["residual"]
-            return EquilibriumState(time, q, qd, qdd, lam, iteration, float(np.max(np.abs(final))))
-    raise NewtonDivergedError(
-        f"equilibrium: no convergence in {max_iterations} iterations "
-        f"(last relative increment {step:.2e})",
+            return EquilibriumState(
+                time,
+                q,
+                qd,
+                qdd,
+                lam,
+                layout=layout,
+                flexible=dict(getattr(model, "_flexible", {})),
+                iterations=iteration,
+                residual=float(np.max(np.abs(final))),
+            )
+    bodies = _residual_bodies(layout, residual[:nq])
+    largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
+    raise EquilibriumError(
+        f"equilibrium: no convergence in {max_iterations} iterations (last relative increment "
+        f"{step:.2e}, residual {largest:.3e}, largest in bodies {', '.join(bodies) or 'none'})",
+        residual=largest,
+        bodies=bodies,
         time=time,
     )
+
+
+def steady_rotation(
+    model: _core.Model | _core.System, time: float = 0.0, **options: Any
+) -> EquilibriumState:
+    """The steady rotation of a rotor at `time`: the drivers turn at their speed at `time`
+    (at least one must turn, none may accelerate), the elastic coordinates are at rest in the
+    centrifugally stretched (and gravity-loaded) state, with the velocities of that spin.
+    This is :func:`equilibrium` with its preconditions checked; `options` are its options.
+    Raises `InvalidModelError` naming the driver that accelerates, or when nothing turns."""
+    model = _model(model)
+    nq, nc = model.coordinate_count, model.constraint_count
+    q = np.array(model.initial_coordinates, dtype=float)
+    zero_q, zero_l = np.zeros(nq), np.zeros(nc)
+    ev = model.evaluate(time, q, zero_q, zero_q, zero_l)
+    layout = model.describe()
+    drivers = [j for j in layout["joints"] if "driver" in j["type"]]
+    rows = {j["name"]: range(j["row"], j["row"] + len(j["equations"])) for j in drivers}
+    turning = [name for name, r in rows.items() if np.any(ev["constraint_rate"][list(r)] != 0)]
+    if not turning:
+        raise InvalidModelError(
+            f"steady rotation: no driver moves at t = {time}; use equilibrium for a static state",
+            item="drivers",
+        )
+    # At rest, gamma of a driver row is its -C_tt: non-zero when the driver accelerates.
+    gamma = ev["gamma"]
+    for name, r in rows.items():
+        if np.any(np.abs(gamma[list(r)]) > 1e-12 * max(1.0, float(np.max(np.abs(gamma))))):
+            raise InvalidModelError(
+                f"steady rotation: driver '{name}' accelerates at t = {time}; a steady rotation "
+                "needs constant driver speeds (start later, or use equilibrium)",
+                item=f"driver '{name}'",
+            )
+    return equilibrium(model, time, **options)
 
 
 @dataclass

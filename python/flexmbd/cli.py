@@ -60,6 +60,8 @@ class _Job:
     source: str = ""
     plots: list[str] | None = None
     outputs: Any = None
+    start_time: float = 0.0
+    start: str = "given"
 
 
 def _job(model: str) -> _Job:
@@ -97,6 +99,8 @@ def _job(model: str) -> _Job:
         source=str(path),
         plots=list(getattr(loaded, "plots", None) or []) or None,
         outputs=loaded.output_values,
+        start_time=loaded.start_time,
+        start=loaded.start,
     )
 
 
@@ -195,11 +199,13 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     print(f"  {model!r}")
     print(f"  simulating to t = {end:g} s with step {step:g} s ({solver!r})")
-    bar = _ProgressBar(0.0, end, enabled=not args.quiet and sys.stderr.isatty())
+    bar = _ProgressBar(job.start_time, end, enabled=not args.quiet and sys.stderr.isatty())
     _stop_on_sigterm()
     metadata = {
         "source": job.source,
         "name": job.name,
+        "start_time": job.start_time,
+        "start": job.start,
         "end_time": end,
         "step_size": step,
         "output_interval": interval,
@@ -211,6 +217,8 @@ def _run(args: argparse.Namespace) -> int:
             model,
             end,
             step,
+            start_time=job.start_time,
+            initial_state=job.start,
             output_interval=interval,
             solver=solver,
             progress=bar,

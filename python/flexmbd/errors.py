@@ -9,6 +9,7 @@ everything computed up to the failure as ``error.result`` (a :class:`flexmbd.Res
 
 from __future__ import annotations
 
+from dataclasses import FrozenInstanceError
 from typing import Any
 
 
@@ -33,6 +34,13 @@ class ModelError(FlexmbdError, ValueError):
 class InvalidParameterError(ModelError):
     """A parameter is out of range: NaN, a non-positive mass, an inertia that is not
     positive definite, a matrix that is not a rotation, ..."""
+
+
+class FrozenBodyError(InvalidParameterError, FrozenInstanceError):
+    """An attempt to change the data of a deformable body after it was built (a field, an
+    array element or a dictionary entry of a :class:`flexmbd.fe.FlexibleBodyData`). Body data
+    is immutable: variants are new bodies made by its ``with_*`` methods. Also a
+    :class:`dataclasses.FrozenInstanceError` (an ``AttributeError``)."""
 
 
 class UnknownItemError(ModelError):
@@ -80,6 +88,20 @@ class NewtonDivergedError(SimulationError):
     """Newton's method did not converge, even at the smallest step size."""
 
 
+class EquilibriumError(NewtonDivergedError):
+    """No equilibrium (static or steady) was found: Newton's method did not converge.
+    ``residual`` is the largest residual of the equations of motion left, ``bodies`` the
+    names of the bodies that carry the largest residuals (largest first)."""
+
+    residual: float
+    bodies: list[str]
+
+    def __init__(self, message: str, *, residual: float, bodies: list[str], time: float):
+        super().__init__(message, item=", ".join(bodies) or None, time=time)
+        self.residual = residual
+        self.bodies = bodies
+
+
 class StepSizeTooSmallError(SimulationError):
     """The step-size control went below the minimum step size."""
 
@@ -102,10 +124,20 @@ class SimulationInterrupted(SimulationError):
     """The run was interrupted (Ctrl-C); ``error.result`` holds what was computed."""
 
 
+class InitialCorrectionWarning(UserWarning):
+    """The consistent initial conditions of a run moved given coordinates or velocities by
+    more than the report tolerance (a joint that does not close, a velocity that does not
+    satisfy a driver). The run's ``events`` name each joint and body; pass
+    ``initial_conditions="strict"`` to :func:`flexmbd.simulate` to refuse instead."""
+
+
 __all__ = [
     "CallbackError",
+    "EquilibriumError",
     "FlexmbdError",
+    "FrozenBodyError",
     "InitialConditionsError",
+    "InitialCorrectionWarning",
     "InvalidModelError",
     "InvalidParameterError",
     "ModelError",

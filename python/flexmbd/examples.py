@@ -341,7 +341,9 @@ def tetrahedral_pendulum(mode_count: int = 6) -> Example:
         interfaces=["x0"],
     )
     system = System(gravity=(0.0, -9.81, 0.0))
-    arm = system.add_flexible_body(data, name="arm")
+    # The body frame at the mesh's origin, the hinge at the centroid (0, 0.015, 0.015) of the
+    # face x0: placed so that the hinge is at the global origin.
+    arm = system.add_flexible_body(data, position=(0.0, -0.015, -0.015), name="arm")
     hinge = system.add_node_set_marker(arm, "x0")
     joint = system.add_revolute_joint(system.add_marker(system.ground), hinge, name="hinge")
 

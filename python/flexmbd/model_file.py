@@ -683,6 +683,12 @@ class SimulationSpec(_Spec):
         None, gt=0, description="time between outputs (default: every step)"
     )
     start_time: float = Field(0.0, description="time")
+    start: Literal["given", "equilibrium", "steady-rotation"] = Field(
+        "given",
+        description="the state at start_time: the given positions and velocities, the static "
+        "(or, under moving drivers, steady) equilibrium, or the steady rotation of rotors "
+        "turned at constant speed by drivers",
+    )
 
 
 class UnitsSpec(_Spec):
@@ -1053,6 +1059,8 @@ class ModelFile:
         system: the :class:`flexmbd.System`.
         solver: a :class:`flexmbd.GeneralizedAlpha` or :class:`flexmbd.ExplicitSolver`.
         end_time, step_size, start_time (s); output_interval (s, or None: every step).
+        start: the state at start_time ("given", "equilibrium" or "steady-rotation", as
+            ``initial_state`` of :func:`flexmbd.simulate`).
         outputs: what to report or plot (:class:`Output`, ``values(result)``).
         bodies, markers, joints, forces, sensors: name -> id of the named items.
         body_data: name -> :class:`flexmbd.fe.FlexibleBodyData` of the deformable bodies.
@@ -1070,6 +1078,7 @@ class ModelFile:
     output_interval: float | None
     start_time: float
     outputs: list[Output]
+    start: str = "given"
     bodies: dict[str, _core.BodyId] = field(default_factory=dict)
     markers: dict[str, _core.MarkerId] = field(default_factory=dict)
     joints: dict[str, _core.JointId] = field(default_factory=dict)
@@ -1399,8 +1408,7 @@ class _Builder:
                 mesh = self.call(where, read_mesh, location)
                 mesh.nodes = mesh.nodes * length
             data = self.call(path, body_from_mesh, mesh, options.pop("material"), **options)
-            data.metadata["source"] = str(location)
-            return data
+            return data.with_metadata(source=str(location))
         if kind == "box":
             box = spec.box
             assert box is not None
@@ -1746,6 +1754,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         if simulation.output_interval is None
         else simulation.output_interval * seconds,
         start_time=simulation.start_time * seconds,
+        start=simulation.start,
         outputs=outputs,
         bodies=bodies,
         markers=builder.markers,
@@ -1777,6 +1786,7 @@ def simulate_model(
         model.end_time if end_time is None else end_time,
         model.step_size if step_size is None else step_size,
         start_time=model.start_time if start_time is None else start_time,
+        initial_state=model.start,
         output_interval=model.output_interval if output_interval is None else output_interval,
         solver=model.solver if solver is None else solver,
         progress=progress,

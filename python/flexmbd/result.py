@@ -30,7 +30,8 @@ class Result:
         statistics: steps, rejected steps, Newton iterations, factorizations, function
             evaluations (explicit solvers), step sizes.
         events: what happened during the run, in order: dicts with ``time``, ``kind``
-            ("redundant constraints", "repartition", "constraint drift") and ``message``.
+            ("initial correction", "redundant constraints", "repartition", "constraint
+            drift") and ``message``.
         redundancy: the redundant constraints found at the start (dict with ``rows``,
             ``rank``, ``removed_rows``, ``groups`` of rows dependent together, ``joints``
             involved and ``message``), or None.
@@ -79,6 +80,24 @@ class Result:
         return (
             f"Result({len(self.time)} records, t = {self.time[0]:g} .. {self.time[-1]:g} s, "
             f"{self.statistics.get('steps', 0)} steps, {status})"
+        )
+
+    def state(self, index: int = -1) -> Any:
+        """The :class:`flexmbd.State` of record `index` (default the last): start another run
+        from it with ``simulate(..., initial_state=result.state())``."""
+        from .errors import InvalidParameterError
+        from .state import State
+
+        if len(self.time) == 0:
+            raise InvalidParameterError("the result has no records", item="result")
+        return State(
+            float(self.time[index]),
+            self.coordinates[index],
+            self.velocities[index],
+            self.accelerations[index],
+            self.multipliers[index],
+            layout=self.layout,
+            flexible=self.flexible,
         )
 
     # Energies -------------------------------------------------------------------------

@@ -2,12 +2,66 @@
 
 from __future__ import annotations
 
+import logging
 import os
+import warnings
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from . import _core
+from .errors import InitialCorrectionWarning, InvalidParameterError
 from .result import Result
+from .state import State
+
+#: How a run may start: the model's given state, static (or steady) equilibrium, or the
+#: steady rotation of a rotor (see :func:`simulate`).
+STARTS = ("given", "equilibrium", "steady-rotation")
+
+logger = logging.getLogger("flexmbd")
+# A library logs only where its user configures logging (the warning is shown anyway).
+logger.addHandler(logging.NullHandler())
+
+
+def _start(
+    model: _core.Model, initial_state: State | str | None, start_time: float | None
+) -> tuple[float, State | None]:
+    """The start time and the state to start from (None: the model's own)."""
+    if initial_state is None or (isinstance(initial_state, str) and initial_state == "given"):
+        return (0.0 if start_time is None else float(start_time)), None
+    if isinstance(initial_state, str):
+        from .analysis import equilibrium, steady_rotation
+
+        if initial_state not in STARTS:
+            raise InvalidParameterError(
+                f"initial_state must be a State or one of {STARTS}, got {initial_state!r}",
+                item="initial_state",
+            )
+        time = 0.0 if start_time is None else float(start_time)
+        solve = equilibrium if initial_state == "equilibrium" else steady_rotation
+        return time, solve(model, time)
+    if not isinstance(initial_state, State):
+        raise InvalidParameterError(
+            f"initial_state must be a State or one of {STARTS}, got {type(initial_state).__name__}",
+            item="initial_state",
+        )
+    if start_time is not None and float(start_time) != initial_state.time:
+        raise InvalidParameterError(
+            f"start_time {start_time} differs from the initial state's time "
+            f"{initial_state.time}; give one of them",
+            item="start_time",
+        )
+    return initial_state.time, initial_state
+
+
+def _report(result: Result) -> None:
+    """Warns (``warnings`` and the "flexmbd" logger) of the initial corrections of a run."""
+    for event in result.events:
+        if event["kind"] == "initial correction":
+            message = f"t = {event['time']:g}: {event['message']}"
+            logger.warning("initial correction: %s", message)
+            warnings.warn(message, InitialCorrectionWarning, stacklevel=3)
 
 
 def simulate(
@@ -15,7 +69,9 @@ def simulate(
     end_time: float,
     step_size: float,
     *,
-    start_time: float = 0.0,
+    start_time: float | None = None,
+    initial_state: State | str | None = None,
+    initial_conditions: str = "correct",
     output_interval: float | None = None,
     solver: _core.GeneralizedAlpha | _core.ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
@@ -23,7 +79,15 @@ def simulate(
     metadata: dict[str, Any] | None = None,
 ) -> Result:
     """Simulates ``model`` (a :class:`Model`, or a :class:`System`, which is compiled first)
-    from ``start_time`` to ``end_time`` (s) with nominal step ``step_size`` (s).
+    from ``start_time`` (default 0, or the time of ``initial_state``) to ``end_time`` (s)
+    with nominal step ``step_size`` (s).
+
+    ``initial_state``: where the run starts. None or "given": the model's initial positions
+    and velocities; a :class:`flexmbd.State` (from :func:`flexmbd.equilibrium`,
+    ``Result.state``, or edited with its ``with_*`` methods); "equilibrium": the static (or,
+    under moving drivers, steady) equilibrium at the start time, so that a driven flexible arm
+    does not drop under gravity first; "steady-rotation": the centrifugally stretched state
+    of rotors turned at constant speed by drivers (:func:`flexmbd.steady_rotation`).
 
     Results are recorded every ``output_interval`` seconds (steps land exactly on these times)
     or, if None, after every step. ``solver`` defaults to ``GeneralizedAlpha()`` (spectral
@@ -43,7 +107,13 @@ def simulate(
     ``Result.redundancy`` and ``Result.events``).
 
     Initial positions and velocities that violate the constraints are corrected first
-    (minimum-norm change); initial accelerations and multipliers come from seed eq. 26.
+    (minimum-norm change); initial accelerations and multipliers come from seed eq. 26. A
+    correction that moves a coordinate or velocity by more than 1e-6 (relative to max(1,
+    |value|)) is not silent: ``result.events`` holds an "initial correction" event for every
+    joint it closes and every body it moves, and Python warns
+    (:class:`flexmbd.errors.InitialCorrectionWarning`, and the "flexmbd" logger).
+    ``initial_conditions="strict"`` refuses such a correction instead
+    (:class:`flexmbd.InitialConditionsError`).
 
     Raises a :class:`flexmbd.SimulationError` subclass if the run fails; its ``result``
     attribute holds everything computed up to the failure. Ctrl-C raises
@@ -51,6 +121,18 @@ def simulate(
     """
     if isinstance(model, _core.System):
         model = model.compile()
+    if initial_conditions not in ("correct", "strict"):
+        raise InvalidParameterError(
+            f"initial_conditions must be 'correct' or 'strict', got {initial_conditions!r}",
+            item="initial_conditions",
+        )
+    start_time, start = _start(model, initial_state, start_time)
+    start_arrays: dict[str, Any] = {}
+    if start is not None:
+        start_arrays = {
+            "coordinates": np.ascontiguousarray(start.coordinates, dtype=float),
+            "velocities": np.ascontiguousarray(start.velocities, dtype=float),
+        }
     writer = None
     if results_file is not None:
         from .results_file import ResultsWriter
@@ -66,6 +148,8 @@ def simulate(
             solver=solver,
             progress=progress,
             records=None if writer is None else writer.append,
+            initial_conditions=initial_conditions,
+            **start_arrays,
         )
         result = Result(
             raw, model.describe(), error=error, flexible=getattr(model, "_flexible", None)
@@ -75,6 +159,7 @@ def simulate(
     finally:
         if writer is not None:
             writer.close()
+    _report(result)
     if error is not None:
         error.result = result
         raise error

@@ -206,7 +206,8 @@ class System(_core.System):
 
         Damping: `rayleigh_damping=(alpha, beta)` gives D_ff = alpha M_ff + beta K_ff;
         `modal_damping=zeta` (modal bodies) the damping ratio zeta in every mode of the
-        reduced body.
+        reduced body. Without either, the body's own damping applies
+        (:meth:`flexmbd.fe.FlexibleBodyData.with_damping`; none by default).
 
         `geometric_stiffness=True` adds the elastic coupling of the beam elements (seed
         section 6): the nonlinear axial strain u' + (v'^2 + w'^2)/2, whose tangent is the
@@ -233,15 +234,16 @@ class System(_core.System):
                 "or load a body file written by it)",
                 item=item,
             )
+        from .fe.body_variants import rayleigh_coefficients
+
         n = body.elastic_coordinate_count
+        # The body's own damping (FlexibleBodyData.with_damping) unless an argument is given.
+        if rayleigh_damping is None and modal_damping is None and body.damping is not None:
+            rayleigh_damping = body.damping.get("rayleigh")
+            modal_damping = body.damping.get("modal")
         damping = sp.csc_matrix((n, n))
         if rayleigh_damping is not None:
-            alpha, beta = (float(v) for v in rayleigh_damping)
-            if not (np.isfinite(alpha) and np.isfinite(beta) and alpha >= 0 and beta >= 0):
-                raise InvalidParameterError(
-                    f"{item}: Rayleigh damping coefficients must be >= 0, got {rayleigh_damping}",
-                    item=item,
-                )
+            alpha, beta = rayleigh_coefficients(rayleigh_damping, item)
             damping = (
                 damping + alpha * sp.csc_matrix(inv["m_ff"]) + beta * sp.csc_matrix(inv["k_ff"])
             )

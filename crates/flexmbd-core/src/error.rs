@@ -48,6 +48,17 @@ pub enum FlexmbdError {
         /// Iterations made.
         iterations: usize,
     },
+    /// Strict initial conditions: the given positions or velocities violate the constraints
+    /// by more than the report tolerance, and correcting them was refused.
+    #[error("initial conditions at t = {time} need a correction of {size:.3e}, refused (strict): {item}")]
+    InitialCorrectionRefused {
+        /// Simulation time of the start.
+        time: f64,
+        /// What the correction would move: joints violated, bodies moved.
+        item: String,
+        /// The largest move of a coordinate or velocity.
+        size: f64,
+    },
     /// The Newton iteration of a time step did not converge, even at the smallest step size.
     #[error(
         "Newton iteration diverged at t = {time} (step size {step_size:.3e}) after {iterations} \

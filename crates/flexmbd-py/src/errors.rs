@@ -34,6 +34,9 @@ fn class_and_data(err: &FlexmbdError) -> (&'static str, Option<String>, Option<f
         InconsistentInitialConditions { time, item, .. } => {
             ("InitialConditionsError", Some(item.clone()), Some(*time))
         }
+        InitialCorrectionRefused { time, item, .. } => {
+            ("InitialConditionsError", Some(item.clone()), Some(*time))
+        }
         NewtonDiverged { time, item, .. } => ("NewtonDivergedError", Some(item.clone()), Some(*time)),
         StepSizeTooSmall { time, .. } => ("StepSizeTooSmallError", None, Some(*time)),
         SingularMatrix { time, context, .. } => ("SingularMatrixError", Some(context.clone()), Some(*time)),

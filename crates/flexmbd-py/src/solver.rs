@@ -9,14 +9,14 @@ use flexmbd_core::output::Output;
 use flexmbd_core::solver::decoupled::TreeFormulation;
 use flexmbd_core::solver::dense_system::Formulation;
 use flexmbd_core::solver::explicit::{ExplicitMethod, ExplicitSettings, Strategy};
-use flexmbd_core::solver::initial::InitialSettings;
+use flexmbd_core::solver::initial::{InitialSettings, StartState};
 use flexmbd_core::solver::partition::PartitionMethod;
 use flexmbd_core::solver::redundancy::{RedundancyHandling, RedundancySettings};
 use flexmbd_core::solver::{
     simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
     StepControl, VelocityProjection,
 };
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -538,10 +538,13 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
 /// on the output times). `progress(time, step_size, newton_iterations)` is called about ten
 /// times a second if given; so is `records(raw_chunk)`, with the records added since its last
 /// call (a dict like the raw results, with the statistics and events so far), for results
-/// written during the run. Returns `(raw_results, error)`; `error` is None on success,
-/// otherwise the exception to raise (the raw results then hold everything up to the failure).
+/// written during the run. `coordinates` and `velocities` (both or neither) replace the
+/// model's initial ones. `initial_conditions` "correct" reports the corrections of the
+/// consistent-initial-condition solve as events, "strict" refuses them. Returns
+/// `(raw_results, error)`; `error` is None on success, otherwise the exception to raise (the
+/// raw results then hold everything up to the failure).
 #[pyfunction]
-#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None))]
+#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, initial_conditions = "correct"))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -553,6 +556,9 @@ pub fn simulate<'py>(
     solver: Option<Bound<'py, PyAny>>,
     progress: Option<Py<PyAny>>,
     records: Option<Py<PyAny>>,
+    coordinates: Option<PyReadonlyArray1<'py, f64>>,
+    velocities: Option<PyReadonlyArray1<'py, f64>>,
+    initial_conditions: &str,
 ) -> PyResult<(Bound<'py, PyDict>, Option<Py<PyAny>>)> {
     let mut settings = match solver {
         None => GeneralizedAlpha::new(
@@ -582,6 +588,23 @@ pub fn simulate<'py>(
     };
     settings.start_time = start_time;
     settings.output_interval = output_interval;
+    settings.start = match (coordinates, velocities) {
+        (None, None) => None,
+        (Some(q), Some(qd)) => {
+            Some(StartState { coordinates: q.as_slice()?.to_vec(), velocities: qd.as_slice()?.to_vec() })
+        }
+        _ => return Err(invalid("simulate", "give both the initial coordinates and velocities, or neither")),
+    };
+    settings.initial.strict = match initial_conditions {
+        "correct" => false,
+        "strict" => true,
+        other => {
+            return Err(invalid(
+                "simulate",
+                format!("initial_conditions must be 'correct' or 'strict', got {other:?}"),
+            ))
+        }
+    };
     let model_ref = model.inner.clone();
     let mut pending: Option<PyErr> = None;
     let outcome = py.detach(|| {

@@ -13,7 +13,8 @@ Root attributes:
 * ``writer``: ``"flexmbd <version>"``, for information only.
 
 Every other field of :class:`FlexibleBodyData` is a member of the root group with the field's
-name. Each member carries an attribute ``type`` that says how it reads back:
+name (``damping``, added later to version 1, may be missing: it then reads as None, undamped).
+Each member carries an attribute ``type`` that says how it reads back:
 
 * ``ndarray``: a dataset with the array's dtype and shape (float64 and int64 for the body
   fields); arrays of at least :data:`COMPRESSION_THRESHOLD_BYTES` are chunked and compressed
@@ -64,6 +65,8 @@ COMPRESSION_THRESHOLD_BYTES = 64 * 1024
 
 # Fields kept as root attributes rather than members.
 _ATTRIBUTE_FIELDS = ("units", "version")
+# Fields added to layout version 1 after its first files: missing ones read as their default.
+_LATER_FIELDS = ("damping",)
 _TYPE = "type"
 _NUMERIC_KINDS = "biufc"
 
@@ -177,6 +180,8 @@ def read_body_group(file: h5py.Group, path: Path) -> FlexibleBodyData:
         if field.name in _ATTRIBUTE_FIELDS:
             continue
         if field.name not in file:
+            if field.name in _LATER_FIELDS:
+                continue  # written by an earlier flexmbd: the field's default
             raise InvalidModelError(f"{path}: the body file has no field '{field.name}'", item=item)
         values[field.name] = reader.read(file[field.name], field.name)
     return FlexibleBodyData(**values)

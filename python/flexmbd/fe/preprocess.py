@@ -345,13 +345,14 @@ def build_body(
       "modes", "invariants").
     """
     clock = _Stages(timings)
-    nodes = np.asarray(nodes, dtype=float)
-    sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
-    elements = {k: np.asarray(v, dtype=np.int64) for k, v in elements.items()}
+    # Copies: the body's arrays are read-only and must not alias the caller's.
+    nodes = np.array(nodes, dtype=float)
+    sets = {name: np.array(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    elements = {k: np.array(v, dtype=np.int64) for k, v in elements.items()}
     ids = (
         np.arange(1, len(nodes) + 1, dtype=np.int64)
         if node_ids is None
-        else np.asarray(node_ids, dtype=np.int64)
+        else np.array(node_ids, dtype=np.int64)
     )
     eids: dict[str, NDArray[np.int64]] = {}
     first = 1
@@ -360,7 +361,7 @@ def build_body(
         eids[kind] = (
             np.arange(first, first + len(conn), dtype=np.int64)
             if given is None
-            else np.asarray(given, dtype=np.int64)
+            else np.array(given, dtype=np.int64)
         )
         first += len(conn)
     if check_mesh:
@@ -540,6 +541,7 @@ def _body_from_nodal(
     if modes == "craig-bampton":
         reference_data["interfaces"] = [it.members for it in weighted] if weighted else members
         reference_data["interface_kind"] = interface_kind
+        reference_data["mode_count"] = mode_count
         if weighted:
             reference_data["interface_weights"] = [it.weights for it in weighted]
     return FlexibleBodyData(
@@ -634,7 +636,7 @@ def body_from_mesh(
         **options,
     )
     if source is not None:
-        body.metadata["source"] = source
+        body = body.with_metadata(source=source)
     return body
 
 
@@ -674,7 +676,7 @@ def body_from_matrices(
     not 3 per node, and `InvalidModelError` for a mass matrix without the structure above
     (naming an offending entry) or a non-positive total mass."""
     clock = _Stages(timings)
-    nodes = np.asarray(nodes, dtype=float)
+    nodes = np.array(nodes, dtype=float)
     if nodes.ndim != 2 or nodes.shape[1] != 3 or not np.all(np.isfinite(nodes)):
         raise InvalidParameterError(
             f"nodes must be a finite (n, 3) array, got shape {nodes.shape}", item="nodes"
@@ -694,22 +696,12 @@ def body_from_matrices(
     ids = (
         np.arange(1, n + 1, dtype=np.int64)
         if node_ids is None
-        else np.asarray(node_ids, dtype=np.int64)
+        else np.array(node_ids, dtype=np.int64)
     )
     if ids.shape != (n,) or len(np.unique(ids)) != n:
         raise InvalidParameterError(f"node_ids must be {n} distinct ids", item="node_ids")
-    sets = {name: np.asarray(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
-    column_sums = np.asarray(scalar.sum(axis=0)).ravel()
-    weighted = np.asarray((scalar @ nodes).T)  # X^T M_s (3, n)
-    eye = np.eye(3)
-    invariants = {
-        "mass": float(column_sums.sum()),
-        "first_moment": column_sums @ nodes,
-        "second_moment": nodes.T @ (scalar @ nodes),
-        "i1": np.einsum("ka,j->kja", eye, column_sums).reshape(3, 3 * n),
-        "ibar": np.einsum("kj,la->klja", weighted, eye).reshape(3, 3, 3 * n),
-        "i_kl": None if modes is not None else solid_i_kl(scalar),
-    }
+    sets = {name: np.array(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    invariants = _matrix_invariants(nodes, scalar, form_i_kl=modes is None)
     if not invariants["mass"] > 0:
         raise InvalidModelError(
             f"the mass matrix gives a total mass of {invariants['mass']:g}", item="mass matrix"
@@ -740,6 +732,25 @@ def body_from_matrices(
         precision=precision,
         clock=clock,
     )
+
+
+def _matrix_invariants(
+    nodes: NDArray[np.float64], scalar: sp.csc_matrix, *, form_i_kl: bool
+) -> dict[str, Any]:
+    """Nodal invariants of a body of 3-coordinate nodes (n, 3) with mass matrix M_s (x) I_3
+    (formulas in `body_from_matrices`); "i_kl" is None unless `form_i_kl`."""
+    n = len(nodes)
+    column_sums = np.asarray(scalar.sum(axis=0)).ravel()
+    weighted = np.asarray((scalar @ nodes).T)  # X^T M_s (3, n)
+    eye = np.eye(3)
+    return {
+        "mass": float(column_sums.sum()),
+        "first_moment": column_sums @ nodes,
+        "second_moment": nodes.T @ (scalar @ nodes),
+        "i1": np.einsum("ka,j->kja", eye, column_sums).reshape(3, 3 * n),
+        "ibar": np.einsum("kj,la->klja", weighted, eye).reshape(3, 3, 3 * n),
+        "i_kl": solid_i_kl(scalar) if form_i_kl else None,
+    }
 
 
 def _scalar_mass(m: sp.csc_matrix) -> sp.csc_matrix:

@@ -20,7 +20,7 @@ use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::{Mat, Side};
 
 use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
-use super::initial::InitialSettings;
+use super::initial::{violated_rows, InitialSettings};
 use super::partition::{minimum_norm_solve, partition_condition, submatrix, Partition};
 use crate::error::{FlexmbdError, Result};
 use crate::system::{Model, State, Workspace};
@@ -359,17 +359,22 @@ const PSEUDO_INVERSE_TOLERANCE: f64 = 1e-10;
 /// Consistent initial positions and velocities with dense minimum-norm corrections (truncated
 /// pseudo-inverse of C_q), which also converge for redundant constraints:
 /// q <- q - C_q^+ C(q) until |C| <= tolerance, then q_dot <- q_dot - C_q^+ (C_q q_dot + C_t).
+/// Returns the constraint rows the given positions violated, with their values.
 pub fn dense_initial_conditions(
     model: &Model,
     ws: &mut Workspace,
     eq: &mut DenseEquations,
     state: &mut State,
     settings: &InitialSettings,
-) -> Result<()> {
+) -> Result<Vec<(usize, f64)>> {
     let t = state.time;
     let mut iterations = 0;
+    let mut violated = None;
     loop {
         eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+        if violated.is_none() {
+            violated = Some(violated_rows(&eq.constraints, settings.tolerance));
+        }
         let (row, violation) = worst(&eq.constraints);
         if violation <= settings.tolerance {
             break;
@@ -408,7 +413,7 @@ pub fn dense_initial_conditions(
             *x -= d;
         }
     }
-    Ok(())
+    Ok(violated.unwrap_or_default())
 }
 
 /// Weight of a constraint row where rows compete (choice of the kept rows of redundant

@@ -27,13 +27,14 @@ use super::decoupled::{TreeAccelerations, TreeFormulation, TreeSolver};
 use super::dense_system::{
     checked_lu, dense_initial_conditions, worst, DenseEquations, Formulation, Level, SINGULAR_VALUE_CUTOFF,
 };
+use super::initial::starting_state;
 use super::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
     PartitionMethod,
 };
 use super::recursive::{tree_joint_accelerations, StructuredState, Tree};
 use super::settings::SimulationSettings;
-use super::simulate::{update_discrete, OutputClock, Progress, Records};
+use super::simulate::{report_initial_correction, update_discrete, OutputClock, Progress, Records};
 use crate::error::{FlexmbdError, Result};
 use crate::output::{Event, Output};
 use crate::system::{Model, State, Workspace};
@@ -938,8 +939,10 @@ pub fn run(
     let n = model.coordinate_count;
     let mut ws = Workspace::for_evaluation(model);
     let mut eq = DenseEquations::new(model);
-    let mut state = State::initial(model, settings.start_time);
-    dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &settings.initial)?;
+    let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
+    let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());
+    let violated = dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &settings.initial)?;
+    report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
     update_discrete(model, &mut state, &mut ws, true);
 
     // The partition at the start.

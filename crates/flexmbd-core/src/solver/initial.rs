@@ -5,10 +5,15 @@
 //! - Velocities: the velocity closest to the given one that satisfies C_q q_dot = -C_t,
 //!   [[I, C_q^T], [C_q, 0]] [q_dot; mu] = [q_dot_given; -C_t].
 //! - Accelerations and multipliers: [[M, C_q^T], [C_q, 0]] [q_dd; lambda] = [Q_e + F; gamma].
+//!
+//! Nothing is corrected silently: [`correction_events`] names every joint the given positions
+//! violate and every body whose coordinates or velocities the correction moves by more than
+//! the report tolerance; with `strict` settings such a correction is refused instead.
 
 use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use super::generalized_alpha::NO_SOLVERS;
 use crate::error::{FlexmbdError, Result};
+use crate::output::Event;
 use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};
 
@@ -23,6 +28,11 @@ pub struct InitialSettings {
     pub correct_positions: bool,
     /// Correct the velocities.
     pub correct_velocities: bool,
+    /// A coordinate or velocity moved by more than this times max(1, |value|) is reported as
+    /// an "initial correction" event (the default Newton tolerance of the integrator).
+    pub report_tolerance: f64,
+    /// Refuse (`InitialCorrectionRefused`) instead of reporting such a correction.
+    pub strict: bool,
 }
 
 impl Default for InitialSettings {
@@ -32,8 +42,144 @@ impl Default for InitialSettings {
             max_iterations: 50,
             correct_positions: true,
             correct_velocities: true,
+            report_tolerance: 1e-6,
+            strict: false,
         }
     }
+}
+
+/// Coordinates and velocities to start a run from (seed eq. 19 need not hold exactly: the
+/// initial-condition solve makes them consistent, and reports what it moved).
+#[derive(Clone, Debug, PartialEq)]
+pub struct StartState {
+    /// q (coordinate_count).
+    pub coordinates: Vec<f64>,
+    /// q_dot (coordinate_count).
+    pub velocities: Vec<f64>,
+}
+
+/// The state a run starts from at `time`: `start`'s coordinates and velocities, or the
+/// model's initial ones. Errors name a wrong length or the first non-finite entry.
+pub fn starting_state(model: &Model, time: f64, start: Option<&StartState>) -> Result<State> {
+    let mut state = State::initial(model, time);
+    let Some(start) = start else {
+        return Ok(state);
+    };
+    let n = model.coordinate_count;
+    for (what, values) in [("coordinates", &start.coordinates), ("velocities", &start.velocities)] {
+        if values.len() != n {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "initial state".to_string(),
+                message: format!("{} {what} given for a model of {n} coordinates", values.len()),
+            });
+        }
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "initial state".to_string(),
+                message: format!("{what}: {} is {}", model.coordinate_name(k), values[k]),
+            });
+        }
+    }
+    state.coordinates.copy_from_slice(&start.coordinates);
+    state.velocities.copy_from_slice(&start.velocities);
+    Ok(state)
+}
+
+/// The constraint rows whose |C| exceeds `tolerance`, with their values: what the given
+/// positions violate before the correction.
+pub(crate) fn violated_rows(constraints: &[f64], tolerance: f64) -> Vec<(usize, f64)> {
+    constraints.iter().enumerate().filter(|(_, c)| c.abs() > tolerance).map(|(r, &c)| (r, c)).collect()
+}
+
+/// The "initial correction" events of a consistent-initial-condition solve that went from the
+/// given coordinates and velocities (`given_q`, `given_qd`) to `state`: one per joint (or
+/// normalization) the given positions violated by more than the report tolerance (`violated`
+/// from the solve), and one per body whose coordinates or velocities moved by more than it.
+/// Returns them with the largest move (0 when there is nothing to report).
+pub fn correction_events(
+    model: &Model,
+    given_q: &[f64],
+    given_qd: &[f64],
+    state: &State,
+    violated: &[(usize, f64)],
+    settings: &InitialSettings,
+) -> (Vec<Event>, f64) {
+    let tol = settings.report_tolerance;
+    let time = state.time;
+    let mut events = Vec::new();
+    let mut largest = 0.0f64;
+    let event = |message: String| Event { time, kind: "initial correction".to_string(), message };
+    // Joints (and Euler-parameter normalizations) violated by the given positions.
+    let mut reported_joint = vec![false; model.joints.len()];
+    for &(row, value) in violated {
+        if value.abs() <= tol {
+            continue;
+        }
+        if let Some(j) = model.joints.iter().position(|j| row >= j.row && row < j.row + j.equations.len()) {
+            if reported_joint[j] {
+                continue;
+            }
+            reported_joint[j] = true;
+            let joint = &model.joints[j];
+            let rows = joint.row..joint.row + joint.equations.len();
+            let (worst_row, worst) = violated
+                .iter()
+                .filter(|(r, _)| rows.contains(r))
+                .fold((row, 0.0f64), |b, &(r, v)| if v.abs() > b.1 { (r, v.abs()) } else { b });
+            events.push(event(format!(
+                "joint '{}' ({}): the given positions violate it by {worst:.3e} (equation '{}')",
+                joint.name,
+                joint.kind.type_name(),
+                joint.equations[worst_row - joint.row].label
+            )));
+        } else {
+            events.push(event(format!(
+                "{}: the given positions violate it by {:.3e}",
+                model.constraint_name(row),
+                value.abs()
+            )));
+        }
+    }
+    // Bodies moved by the correction.
+    for body in &model.bodies {
+        if body.dofs.is_empty() {
+            continue;
+        }
+        let moved = |given: &[f64], now: &[f64], range: std::ops::Range<usize>| -> f64 {
+            body.dofs[range.start.min(body.dofs.len())..range.end.min(body.dofs.len())]
+                .iter()
+                .map(|&k| (now[k] - given[k]).abs() / given[k].abs().max(1.0))
+                .fold(0.0, f64::max)
+        };
+        let n = body.dofs.len();
+        let rigid = n >= 7;
+        let parts: [(&str, f64); 4] = [
+            ("position", moved(given_q, &state.coordinates, 0..3)),
+            (
+                "orientation (Euler parameters)",
+                if rigid { moved(given_q, &state.coordinates, 3..7) } else { 0.0 },
+            ),
+            ("elastic coordinates", if n > 7 { moved(given_q, &state.coordinates, 7..n) } else { 0.0 }),
+            ("velocities", moved(given_qd, &state.velocities, 0..n)),
+        ];
+        let over: Vec<String> = parts
+            .iter()
+            .filter(|(_, size)| *size > tol)
+            .map(|(what, size)| format!("{what} by up to {size:.3e}"))
+            .collect();
+        largest = parts.iter().map(|p| p.1).fold(largest, f64::max);
+        if !over.is_empty() {
+            events.push(event(format!(
+                "body '{}': the consistent initial conditions move its {}",
+                body.name,
+                over.join(", its ")
+            )));
+        }
+    }
+    if events.is_empty() {
+        largest = 0.0;
+    }
+    (events, largest)
 }
 
 /// Factorizes the matrix assembled in `ws.values` with the coefficients `coef`: by LU, or by
@@ -86,20 +232,26 @@ fn worst_constraint(model: &Model, ws: &Workspace) -> (usize, f64) {
         .fold((0, 0.0f64), |best, (k, v)| if v.abs() > best.1 { (k, v.abs()) } else { best })
 }
 
-/// Makes the state's positions and velocities consistent with the constraints.
+/// Makes the state's positions and velocities consistent with the constraints. Returns the
+/// constraint rows the given positions violated (beyond the solve's tolerance), with their
+/// values, for [`correction_events`].
 pub fn solve_initial_positions_and_velocities(
     model: &Model,
     state: &mut State,
     ws: &mut Workspace,
     settings: &InitialSettings,
-) -> Result<()> {
+) -> Result<Vec<(usize, f64)>> {
     let nq = model.coordinate_count;
     let t = state.time;
     state.multipliers.iter_mut().for_each(|x| *x = 0.0);
     // Positions.
     let mut iterations = 0;
+    let mut violated = None;
     loop {
         assemble(model, StateView::of(state), ws, Some(MatrixCoefficients::PROJECTION))?;
+        if violated.is_none() {
+            violated = Some(violated_rows(&ws.residual[nq..], settings.tolerance));
+        }
         let (row, violation) = worst_constraint(model, ws);
         if violation <= settings.tolerance {
             break;
@@ -151,7 +303,7 @@ pub fn solve_initial_positions_and_velocities(
             state.velocities.copy_from_slice(&ws.solution[..nq]);
         }
     }
-    Ok(())
+    Ok(violated.unwrap_or_default())
 }
 
 /// Solves seed eq. 26 for the accelerations and multipliers at the state's q, q_dot.

@@ -18,6 +18,7 @@
 //! analysed (a singular Newton matrix then reports redundant or conflicting constraints).
 
 use super::dense_system::{dense_initial_conditions, row_weight, DenseEquations, Level};
+use super::initial::starting_state;
 use super::partition::{dependent_row_groups, minimum_norm_solve, partition, PartitionMethod};
 use super::settings::SimulationSettings;
 use crate::error::{FlexmbdError, Result};
@@ -107,7 +108,7 @@ pub fn analyse(model: &Model, settings: &SimulationSettings) -> Result<Option<Re
     let tolerance = settings.redundancy.tolerance;
     let mut ws = Workspace::for_evaluation(model);
     let mut eq = DenseEquations::new(model);
-    let mut state = State::initial(model, settings.start_time);
+    let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
     let mut initial = settings.initial.clone();
     initial.correct_velocities = false;
     dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &initial)?;

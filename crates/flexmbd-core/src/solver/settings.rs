@@ -1,7 +1,7 @@
 //! Settings of a simulation: time span, step size and its control, Newton's method, output.
 
 use super::explicit::ExplicitSettings;
-use super::initial::InitialSettings;
+use super::initial::{InitialSettings, StartState};
 use super::redundancy::RedundancySettings;
 use crate::error::{FlexmbdError, Result};
 
@@ -155,6 +155,9 @@ pub struct SimulationSettings {
     pub step_control: StepControl,
     /// Initial conditions.
     pub initial: InitialSettings,
+    /// Coordinates and velocities to start from instead of the model's initial ones (a state
+    /// of equilibrium, or the last state of another run); None: the model's.
+    pub start: Option<StartState>,
     /// The integrator.
     pub integrator: Integrator,
     /// Redundant constraints.
@@ -175,6 +178,7 @@ impl SimulationSettings {
             newton: NewtonSettings::default(),
             step_control: StepControl::Newton,
             initial: InitialSettings::default(),
+            start: None,
             integrator: Integrator::GeneralizedAlpha,
             redundancy: RedundancySettings::default(),
         }

@@ -4,7 +4,9 @@
 
 use super::explicit;
 use super::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
-use super::initial::{solve_accelerations, solve_initial_positions_and_velocities};
+use super::initial::{
+    correction_events, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
+};
 use super::redundancy::{analyse, Reduction, RedundancyHandling};
 use super::settings::{Integrator, SimulationSettings, StepControl};
 use crate::error::{FlexmbdError, Result};
@@ -202,6 +204,27 @@ fn dispatch(
     }
 }
 
+/// Adds the "initial correction" events of the consistent-initial-condition solve that took
+/// the given coordinates and velocities to `state` to `output`, or, with strict settings,
+/// refuses the correction.
+pub(crate) fn report_initial_correction(
+    model: &Model,
+    given_q: &[f64],
+    given_qd: &[f64],
+    state: &State,
+    violated: &[(usize, f64)],
+    settings: &SimulationSettings,
+    output: &mut Output,
+) -> Result<()> {
+    let (events, largest) = correction_events(model, given_q, given_qd, state, violated, &settings.initial);
+    if settings.initial.strict && !events.is_empty() {
+        let item = events.iter().map(|e| e.message.as_str()).collect::<Vec<_>>().join("; ");
+        return Err(FlexmbdError::InitialCorrectionRefused { time: state.time, item, size: largest });
+    }
+    output.events.extend(events);
+    Ok(())
+}
+
 /// The time loop; keeps the last accepted state in `last_state` (also on failure).
 fn run(
     model: &Model,
@@ -216,8 +239,10 @@ fn run(
     let mut ws = Workspace::new(model)?;
     // The condensed solves replace the elastic blocks of condensed bodies: skip them.
     ws.assemble_condensed_blocks = false;
-    let mut state = State::initial(model, settings.start_time);
-    solve_initial_positions_and_velocities(model, &mut state, &mut ws, &settings.initial)?;
+    let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
+    let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());
+    let violated = solve_initial_positions_and_velocities(model, &mut state, &mut ws, &settings.initial)?;
+    report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
     update_discrete(model, &mut state, &mut ws, true);
     solve_accelerations(model, &mut state, &mut ws)?;
     let first_step = settings.step_size.min(settings.end_time - settings.start_time).max(f64::MIN_POSITIVE);

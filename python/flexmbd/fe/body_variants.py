@@ -1,0 +1,354 @@
+"""Variants of a deformable body: new :class:`FlexibleBodyData` with another stiffness,
+material, damping or modal reduction, everything that depends on the change recomputed (the
+``with_*`` methods of the body call these functions; see ``docs/flexible-bodies.md``, "Body
+variants").
+
+- stiffness scale s: K -> s K is the same as E -> s E (every element stiffness is linear in
+  E at a fixed Poisson ratio). The eigenvectors of (s K, M) are those of (K, M) with
+  eigenvalues s w^2, and the static (constraint) modes K_ii^-1 K_ib are unchanged, so the
+  modes stay, the frequencies scale by sqrt(s) and k_ff = B^T K B by s.
+- material: the preprocessor runs again on the kept mesh with the build options recovered
+  from the body (reference conditions, mass kind, beam theory, mode kind and count,
+  interfaces and their weights).
+- modes: the reduction of `preprocess` runs again from the kept nodal K and M and the nodal
+  invariants (assembled again for meshed bodies, from M = M_s (x) I_3 for bodies built from
+  matrices).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InvalidModelError, InvalidParameterError
+from . import preprocess
+from .body import FlexibleBodyData, _replace
+
+_MATERIAL_KEYS = ("young_modulus", "poisson_ratio", "density")
+
+
+def rayleigh_coefficients(value: Any, item: str) -> tuple[float, float]:
+    """(alpha, beta) of a Rayleigh damping D = alpha M + beta K, checked: a pair of finite
+    numbers >= 0 (alpha in 1/s, beta in s). Raises `InvalidParameterError` naming `item`."""
+    try:
+        alpha, beta = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"{item}: Rayleigh damping must be a pair (alpha, beta), got {value!r}", item=item
+        ) from None
+    if not (math.isfinite(alpha) and math.isfinite(beta) and alpha >= 0 and beta >= 0):
+        raise InvalidParameterError(
+            f"{item}: Rayleigh damping coefficients must be >= 0, got {value}", item=item
+        )
+    return alpha, beta
+
+
+def modal_damping_ratio(body: FlexibleBodyData, value: Any, item: str) -> float:
+    """The modal damping ratio zeta (finite, >= 0) of a modal body, checked. Raises
+    `InvalidModelError` for a nodal body, `InvalidParameterError` for a bad ratio, both
+    naming `item`."""
+    if body.modes is None:
+        raise InvalidModelError(
+            f"{item}: modal damping needs a modal body; use Rayleigh damping for nodal bodies",
+            item=item,
+        )
+    try:
+        zeta = float(value)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"{item}: modal damping ratio must be a number, got {value!r}", item=item
+        ) from None
+    if not (math.isfinite(zeta) and zeta >= 0):
+        raise InvalidParameterError(
+            f"{item}: modal damping ratio must be >= 0, got {zeta}", item=item
+        )
+    return zeta
+
+
+def _noted(body: FlexibleBodyData, change: str) -> dict[str, str]:
+    """The body's metadata with `change` appended to the entry "variants"."""
+    metadata = dict(body.metadata)
+    previous = metadata.get("variants")
+    metadata["variants"] = f"{previous}; {change}" if previous else change
+    return metadata
+
+
+def _checked_damping(body: FlexibleBodyData, damping: Mapping[str, Any] | None) -> Any:
+    """The damping specification of `body`, checked against it (modal damping needs
+    modes)."""
+    if damping is None:
+        return None
+    rayleigh, modal = damping.get("rayleigh"), damping.get("modal")
+    return {
+        "rayleigh": None if rayleigh is None else rayleigh_coefficients(rayleigh, "rayleigh"),
+        "modal": None if modal is None else modal_damping_ratio(body, modal, "modal"),
+    }
+
+
+def with_stiffness_scale(body: FlexibleBodyData, scale: float) -> FlexibleBodyData:
+    """See :meth:`FlexibleBodyData.with_stiffness_scale`."""
+    try:
+        s = float(scale)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"scale: the stiffness scale must be a number, got {scale!r}", item="scale"
+        ) from None
+    if not (math.isfinite(s) and s > 0):
+        raise InvalidParameterError(
+            f"scale: the stiffness scale must be finite and > 0, got {scale!r}", item="scale"
+        )
+    invariants = dict(body.invariants)
+    if invariants.get("k_ff") is not None:
+        invariants["k_ff"] = s * invariants["k_ff"]
+    material = dict(body.material)
+    if "young_modulus" in material:
+        material["young_modulus"] = s * float(material["young_modulus"])
+    return _replace(
+        body,
+        stiffness=None if body.stiffness is None else s * body.stiffness,
+        invariants=invariants,
+        material=material,
+        frequencies=None if body.frequencies is None else math.sqrt(s) * body.frequencies,
+        metadata=_noted(body, f"stiffness_scale={s!r}"),
+    )
+
+
+def with_damping(
+    body: FlexibleBodyData, rayleigh: Any = None, modal: Any = None
+) -> FlexibleBodyData:
+    """See :meth:`FlexibleBodyData.with_damping`."""
+    damping = None
+    if rayleigh is not None or modal is not None:
+        damping = _checked_damping(body, {"rayleigh": rayleigh, "modal": modal})
+    described = "none" if damping is None else f"rayleigh={damping['rayleigh']}"
+    if damping is not None:
+        described += f", modal={damping['modal']}"
+    return _replace(body, damping=damping, metadata=_noted(body, f"damping({described})"))
+
+
+def _has_mesh(body: FlexibleBodyData) -> bool:
+    return bool(body.material) and any(len(conn) for conn in body.elements.values())
+
+
+def _material(values: Mapping[str, Any]) -> preprocess.Material:
+    return preprocess.Material(*(float(values[key]) for key in _MATERIAL_KEYS))
+
+
+def _section(body: FlexibleBodyData) -> tuple[preprocess.Section | None, Any, str]:
+    """(section, orientation, beam theory) of a meshed body, as `build_body` takes them."""
+    values = body.section
+    if values is None:
+        return None, None, "euler-bernoulli"
+    section = preprocess.Section(
+        values["area"], values["iy"], values["iz"], values["torsion_constant"]
+    )
+    if values.get("shear_factor") is not None:
+        section = section.with_shear_factor(values["shear_factor"])
+    orientation = values.get("orientation")
+    if orientation is not None:
+        orientation = np.asarray(orientation, dtype=float)
+    return section, orientation, values.get("beam_theory") or "euler-bernoulli"
+
+
+def _eigenmode_count(body: FlexibleBodyData) -> int:
+    """The `mode_count` the body's modes were built with."""
+    if body.modes is None or body.mode_kind == "external":
+        return 0
+    if body.mode_kind != "craig-bampton":
+        return body.modes.shape[1]
+    stored = body.reference.get("mode_count")
+    if stored is not None:
+        return int(stored)
+    # Bodies saved without the count: every mode that is not static. Each interface gives
+    # six static modes (one per coordinate of its nodes for "nodal"); those of the first
+    # interface go with an "interface" frame, six (the rigid motions) with a mean-axis frame.
+    interfaces = body.reference.get("interfaces", ())
+    per_interface = [
+        body.dofs_per_node * len(members) if body.reference.get("interface_kind") == "nodal" else 6
+        for members in interfaces
+    ]
+    dropped = per_interface[0] if body.reference["kind"] == "interface" and interfaces else 6
+    return max(body.modes.shape[1] - max(sum(per_interface) - dropped, 0), 0)
+
+
+def _reduction_options(body: FlexibleBodyData) -> dict[str, Any]:
+    """The `build_body` options of the body's reference conditions and modes."""
+    reference = body.reference
+    weights = reference.get("interface_weights")
+    return {
+        "reference": reference["kind"],
+        "reference_nodes": np.asarray(reference.get("nodes", ()), dtype=np.int64),
+        "modes": body.mode_kind,
+        "mode_count": _eigenmode_count(body),
+        "interfaces": [np.asarray(members) for members in reference.get("interfaces", ())],
+        "interface_kind": reference.get("interface_kind", "rbe2"),
+        "interface_weights": "auto" if weights is None else [np.asarray(w) for w in weights],
+        "external_modes": body.modes if body.mode_kind == "external" else None,
+    }
+
+
+def with_material(
+    body: FlexibleBodyData,
+    material: Any = None,
+    *,
+    young_modulus: float | None = None,
+    poisson_ratio: float | None = None,
+    density: float | None = None,
+) -> FlexibleBodyData:
+    """See :meth:`FlexibleBodyData.with_material`."""
+    if not _has_mesh(body):
+        raise InvalidModelError(
+            "with_material: the body has no mesh and no material (it was built from "
+            "matrices): there is nothing to recompute its matrices from; scale its stiffness "
+            "with with_stiffness_scale(s), or build it again from other matrices",
+            item="material",
+        )
+    if material is None:
+        values = dict(body.material)
+    elif isinstance(material, preprocess.Material):
+        values = {key: getattr(material, key) for key in _MATERIAL_KEYS}
+    elif isinstance(material, Mapping) and all(key in material for key in _MATERIAL_KEYS):
+        values = {key: material[key] for key in _MATERIAL_KEYS}
+    else:
+        raise InvalidParameterError(
+            "material: expected a flexmbd.fe.Material or a mapping with "
+            f"{', '.join(_MATERIAL_KEYS)}, got {material!r}",
+            item="material",
+        )
+    given = {"young_modulus": young_modulus, "poisson_ratio": poisson_ratio, "density": density}
+    values.update({key: value for key, value in given.items() if value is not None})
+    new_material = _material(values)
+    section, orientation, beam_theory = _section(body)
+    rebuilt = preprocess.build_body(
+        body.nodes,
+        body.elements,
+        new_material,
+        section=section,
+        orientation=orientation,
+        mass=body.mass_kind,
+        beam_theory=beam_theory,
+        node_ids=body.node_ids,
+        element_ids=body.element_ids,
+        node_sets=body.node_sets,
+        check_mesh=False,
+        **_reduction_options(body),
+    )
+    change = ", ".join(f"{key}={float(values[key])!r}" for key in _MATERIAL_KEYS)
+    return _replace(
+        rebuilt,
+        units=body.units,
+        damping=_checked_damping(rebuilt, body.damping),
+        metadata=_noted(body, f"material({change})"),
+    )
+
+
+def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalBody:
+    """The nodal matrices (the body's own) and nodal invariants of a body."""
+    n = body.dof_count
+    for name, matrix in (("stiffness", body.stiffness), ("mass", body.mass)):
+        if matrix is None or getattr(matrix, "shape", None) != (n, n):
+            raise InvalidModelError(
+                f"with_modes: the body has no nodal {name} matrix ({n}, {n}) to reduce again "
+                f"(found {None if matrix is None else getattr(matrix, 'shape', type(matrix))})",
+                item=f"field '{name}'",
+            )
+    stiffness = sp.csc_matrix(body.stiffness)
+    mass = sp.csc_matrix(body.mass)
+    if _has_mesh(body):
+        section, orientation, beam_theory = _section(body)
+        assembled = preprocess.assemble(
+            body.nodes,
+            body.elements,
+            _material(body.material),
+            section=section,
+            orientation=orientation,
+            mass=body.mass_kind,
+            beam_theory=beam_theory,
+            node_ids=body.node_ids,
+            element_ids=body.element_ids,
+            form_i_kl=form_i_kl,
+        )
+        invariants, scalar = assembled.invariants, assembled.scalar_mass
+    else:
+        if body.dofs_per_node != 3:
+            raise InvalidModelError(
+                "with_modes: a body without a mesh needs 3 coordinates per node, got "
+                f"{body.dofs_per_node}",
+                item="field 'dofs_per_node'",
+            )
+        scalar = preprocess._scalar_mass(mass)
+        invariants = preprocess._matrix_invariants(body.nodes, scalar, form_i_kl=form_i_kl)
+    return preprocess.NodalBody(
+        dofs_per_node=body.dofs_per_node,
+        stiffness=stiffness,
+        mass=mass,
+        invariants=invariants,
+        scalar_mass=scalar,
+    )
+
+
+def with_modes(
+    body: FlexibleBodyData,
+    kind: str | None,
+    count: int = 0,
+    *,
+    reference: str | None = None,
+    reference_nodes: Any = None,
+    interfaces: Any = None,
+    interface_kind: str | None = None,
+    interface_weights: Any = None,
+    external_modes: Any = None,
+    precision: str = "auto",
+) -> FlexibleBodyData:
+    """See :meth:`FlexibleBodyData.with_modes`."""
+    if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 0:
+        raise InvalidParameterError(
+            f"count: the number of modes must be an integer >= 0, got {count!r}", item="count"
+        )
+    options = _reduction_options(body)
+    if reference is not None:
+        if reference != options["reference"]:
+            options["reference_nodes"] = ()
+        options["reference"] = reference
+    if reference_nodes is not None:
+        options["reference_nodes"] = reference_nodes
+    if interfaces is not None:
+        options["interfaces"] = interfaces
+        options["interface_weights"] = "auto"
+    if interface_kind is not None:
+        options["interface_kind"] = interface_kind
+    if interface_weights is not None:
+        options["interface_weights"] = interface_weights
+    if external_modes is not None or kind != "external":
+        options["external_modes"] = external_modes
+    options["modes"] = kind
+    options["mode_count"] = int(count)
+    nodal = _nodal_body(body, form_i_kl=kind is None)
+    section, orientation, beam_theory = _section(body)
+    reduced = preprocess._body_from_nodal(
+        nodal,
+        body.nodes,
+        body.node_ids,
+        dict(body.elements),
+        dict(body.element_ids),
+        dict(body.node_sets),
+        dict(body.material),
+        section=section,
+        orientation=orientation,
+        beam_theory=beam_theory,
+        mass=body.mass_kind,
+        precision=precision,
+        clock=preprocess._Stages(None),
+        **options,
+    )
+    described = "nodal" if kind is None else f"{kind}, count={int(count)}"
+    return _replace(
+        reduced,
+        units=body.units,
+        damping=_checked_damping(reduced, body.damping),
+        metadata=_noted(body, f"modes({described})"),
+    )

@@ -1,0 +1,225 @@
+"""``State``: a state of a model (time, coordinates, velocities, accelerations, multipliers),
+with accessors by body instead of index arithmetic.
+
+:func:`flexmbd.equilibrium` returns one, :func:`flexmbd.simulate` starts from one
+(``initial_state=``), and ``Result.state(k)`` gives the state of a record::
+
+    eq = fm.equilibrium(system)                 # static equilibrium: an EquilibriumState
+    eq.elastic_coordinates(arm)                 # q_f of the body 'arm'
+    eq.node_displacements(arm, [12])            # (1, 3), body axes
+    result = fm.simulate(system, 1.0, 1e-3, initial_state=eq)
+
+A state is immutable; :meth:`State.with_elastic_coordinates` and friends make changed copies.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import _core
+from .errors import InvalidParameterError
+
+Array = NDArray[np.float64]
+
+
+def _frozen(values: ArrayLike | None) -> Array | None:
+    if values is None:
+        return None
+    array = np.array(values, dtype=float)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True)
+class State:
+    """A state of a model.
+
+    Attributes:
+        time: s.
+        coordinates: q, (coordinate_count,): per body [R (3), Euler parameters (4), q_f].
+        velocities: q_dot, (coordinate_count,).
+        accelerations: q_dd, (coordinate_count,), or None.
+        multipliers: Lagrange multipliers lambda (constraint forces), (constraint_count,), or
+            None.
+        layout: the model's description (``Model.describe()``), which the accessors use.
+        flexible: body index -> the `FlexibleBodyData` of its deformable bodies.
+
+    The accessors take a body as a ``BodyId``, an index or a name, and give the values of
+    ``Result``'s accessors of the same name at this one time (without the time axis).
+    """
+
+    time: float
+    coordinates: Array
+    velocities: Array
+    accelerations: Array | None = None
+    multipliers: Array | None = None
+    layout: dict[str, Any] | None = field(default=None, repr=False, compare=False)
+    flexible: dict[int, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name in ("coordinates", "velocities", "accelerations", "multipliers"):
+            object.__setattr__(self, name, _frozen(getattr(self, name)))
+        object.__setattr__(self, "time", float(self.time))
+        if self.coordinates.shape != self.velocities.shape or self.coordinates.ndim != 1:
+            raise InvalidParameterError(
+                f"a state needs coordinates and velocities of one length, got "
+                f"{self.coordinates.shape} and {self.velocities.shape}",
+                item="state",
+            )
+
+    @classmethod
+    def of_model(cls, model: _core.Model | _core.System, time: float = 0.0) -> State:
+        """The model's initial state as given (before the constraints are enforced)."""
+        if isinstance(model, _core.System):
+            model = model.compile()
+        return cls(
+            time,
+            model.initial_coordinates,
+            model.initial_velocities,
+            layout=model.describe(),
+            flexible=dict(getattr(model, "_flexible", {})),
+        )
+
+    def _view(self) -> Any:
+        """A one-record `Result` of this state (its accessors do the lookups)."""
+        from .result import Result
+
+        if self.layout is None:
+            raise InvalidParameterError(
+                "this state has no model layout: make it with State.of_model, "
+                "flexmbd.equilibrium or Result.state",
+                item="state",
+            )
+        n = len(self.coordinates)
+        zeros = np.zeros((1, 0))
+        raw = {
+            "time": np.array([self.time]),
+            "coordinates": self.coordinates[None, :],
+            "velocities": self.velocities[None, :],
+            "accelerations": (
+                np.zeros((1, n)) if self.accelerations is None else self.accelerations[None, :]
+            ),
+            "multipliers": zeros if self.multipliers is None else self.multipliers[None, :],
+            "constraint_violation": np.zeros(1),
+            "statistics": {},
+            "reactions": zeros,
+            "sensors": zeros,
+            "energy": np.zeros((1, 2)),
+        }
+        return Result(raw, self.layout, flexible=self.flexible)
+
+    # Bodies ----------------------------------------------------------------------------
+    def position(self, body: object) -> Array:
+        """Position of the body frame origin (m, global), (3,)."""
+        return self._view().position(body)[0]
+
+    def velocity(self, body: object) -> Array:
+        """Velocity of the body frame origin (m/s, global), (3,)."""
+        return self._view().velocity(body)[0]
+
+    def euler_parameters(self, body: object) -> Array:
+        """Euler parameters [e0, e1, e2, e3], (4,)."""
+        return self._view().euler_parameters(body)[0]
+
+    def orientation(self, body: object) -> Array:
+        """Rotation matrix of the body frame (columns: body axes in global axes), (3, 3)."""
+        return self._view().orientation(body)[0]
+
+    def angular_velocity(self, body: object) -> Array:
+        """Angular velocity (rad/s, global axes), (3,)."""
+        return self._view().angular_velocity(body)[0]
+
+    def elastic_coordinates(self, body: object) -> Array:
+        """Elastic coordinates q_f of a deformable body, (n_f,)."""
+        return self._view().elastic_coordinates(body)[0]
+
+    def elastic_velocities(self, body: object) -> Array:
+        """Elastic velocities of a deformable body, (n_f,)."""
+        return self._view().elastic_velocities(body)[0]
+
+    def node_displacements(self, body: object, nodes: Any = None) -> Array:
+        """Elastic displacements of nodes (ids; default all) in body axes (m), (nodes, 3)."""
+        return self._view().node_displacements(body, nodes)[0]
+
+    def node_positions(self, body: object, nodes: Any = None) -> Array:
+        """Global positions of the deformed nodes (m), (nodes, 3)."""
+        return self._view().node_positions(body, nodes)[0]
+
+    def stresses(self, body: object) -> Array:
+        """Stresses of a deformable body's solid elements at its nodes (Pa, body axes, Voigt
+        order), (nodes, 6); see ``Result.stresses``."""
+        return self._view().stresses(body, [0])[0]
+
+    def joint_multipliers(self, joint: object) -> Array:
+        """The multipliers of a joint's equations (for a driver: its effort), (equations,)."""
+        if self.multipliers is None:
+            raise InvalidParameterError("this state has no multipliers", item="state")
+        return self._view().joint_multipliers(joint)[0]
+
+    # Changed copies --------------------------------------------------------------------
+    def _slice(self, body: object, part: str) -> slice:
+        b = self._view()._body(body)
+        if b["kind"] in ("ground",):
+            raise InvalidParameterError(f"the ground has no {part}", item=b["name"])
+        o, count = b["offset"], b["count"]
+        spans = {
+            "position": slice(o, o + 3),
+            "euler_parameters": slice(o + 3, o + 7),
+            "elastic_coordinates": slice(o + 7, o + count),
+        }
+        if part != "position" and b["kind"] not in ("rigid", "flexible"):
+            raise InvalidParameterError(f"body {b['name']!r} has no {part}", item=b["name"])
+        if part == "elastic_coordinates" and b["kind"] != "flexible":
+            raise InvalidParameterError(
+                f"body {b['name']!r} is not a deformable body", item=b["name"]
+            )
+        return spans[part]
+
+    def _replaced(self, body: object, part: str, values: ArrayLike, rates: bool) -> State:
+        span = self._slice(body, part)
+        target = np.array(self.velocities if rates else self.coordinates)
+        values = np.asarray(values, dtype=float).ravel()
+        if values.shape != target[span].shape or not np.all(np.isfinite(values)):
+            raise InvalidParameterError(
+                f"{part}: expected {target[span].shape[0]} finite values, got {values.shape}",
+                item=part,
+            )
+        target[span] = values
+        changed = {"velocities" if rates else "coordinates": target}
+        return dataclasses.replace(self, **changed, accelerations=None, multipliers=None)
+
+    def with_elastic_coordinates(self, body: object, values: ArrayLike) -> State:
+        """A copy with the elastic coordinates of a deformable body replaced."""
+        return self._replaced(body, "elastic_coordinates", values, rates=False)
+
+    def with_elastic_velocities(self, body: object, values: ArrayLike) -> State:
+        """A copy with the elastic velocities of a deformable body replaced."""
+        return self._replaced(body, "elastic_coordinates", values, rates=True)
+
+    def with_position(self, body: object, values: ArrayLike) -> State:
+        """A copy with the position of a body frame replaced (m, global)."""
+        return self._replaced(body, "position", values, rates=False)
+
+    def with_velocity(self, body: object, values: ArrayLike) -> State:
+        """A copy with the velocity of a body frame origin replaced (m/s, global)."""
+        return self._replaced(body, "position", values, rates=True)
+
+
+@dataclass(frozen=True)
+class EquilibriumState(State):
+    """A state of equilibrium (:func:`flexmbd.equilibrium`): the elastic coordinates at rest,
+    the other coordinates still or moving as the drivers prescribe; the multipliers are the
+    constraint forces that hold it (for a driver: the static driving effort).
+
+    Attributes (besides those of `State`):
+        iterations: Newton iterations taken.
+        residual: largest |residual| of the equations of motion at the solution.
+    """
+
+    iterations: int = 0
+    residual: float = 0.0

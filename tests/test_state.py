@@ -1,0 +1,289 @@
+"""Starting states: flexmbd.State, runs from equilibrium and from steady rotation, and no
+silent corrections of the initial conditions (events, warnings, strict refusal)."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import warnings
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+import flexmbd as fm
+from flexmbd.errors import (
+    EquilibriumError,
+    InitialConditionsError,
+    InitialCorrectionWarning,
+    InvalidModelError,
+    InvalidParameterError,
+)
+from flexmbd.fe import Material, Section, build_body, shapes, straight_beam
+from flexmbd.fe.stress import recover_stresses
+from flexmbd.model_file import load_model, simulate_model
+
+GRAVITY = np.array([0.0, -9.81, 0.0])
+
+
+@pytest.fixture(scope="module")
+def link():
+    """A tapered aluminium link (Gmsh tet10), its root face 40 x 20 mm centred on the origin
+    and meshed unevenly (the average of its nodes is 2 mm off the centre), clamped to the body
+    frame at that face: the body data and the mesh."""
+    mesh = shapes.tapered_link(
+        0.3,
+        (0.04, 0.02),
+        (0.02, 0.01),
+        size=0.03,
+        order=2,
+        tip_offset=(0.005, 0.0),
+        size_field="0.008 + 2.0 * (y + 0.02) * (y + 0.02)",
+    )
+    body = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(7.0e10, 0.33, 2700.0),
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="root",
+    )
+    return body, mesh
+
+
+def hinged_arm(body, weights="auto"):
+    """The link horizontal along x, hinged about z at the centre of its root face (the global
+    origin), held at angle 0 by an angle driver, under gravity along -y."""
+    system = fm.System(gravity=GRAVITY)
+    arm = system.add_flexible_body(body, name="arm")
+    root = system.add_node_set_marker(arm, "root", weights=weights, name="root")
+    ground = system.add_marker(system.ground)
+    system.add_revolute_joint(ground, root, name="hinge")
+    drive = system.add_angle_driver(ground, root, fm.Constant(0.0), name="drive")
+    return system.compile(), arm, drive
+
+
+def static_solution(body):
+    """The static deflection under gravity by scipy on the same K and M (the reference
+    conditions hold the root face): elastic coordinates, nodal displacements, and the gravity
+    torque about the hinge of the deformed link."""
+    free = body.reference["free_dofs"]
+    load = body.mass @ np.tile(GRAVITY, body.node_count)
+    q = spla.spsolve(body.stiffness[free][:, free].tocsc(), load[free])
+    u = np.zeros(body.dof_count)
+    u[free] = q
+    deformed = body.nodes + u.reshape(-1, 3)
+    scalar = body.mass[0::3, 0::3]  # M = M_s (x) I_3
+    first_moment = np.asarray(scalar.sum(axis=0)).ravel() @ deformed
+    return q, u, np.cross(first_moment, GRAVITY)
+
+
+def test_a_driven_arm_started_from_equilibrium_is_the_static_fe_solution(link):
+    body, _ = link
+    model, arm, drive = hinged_arm(body)
+    q_static, u_static, torque = static_solution(body)
+    eq = fm.equilibrium(model)
+    # Relative to the largest displacement (the z components are round-off of it).
+    scale = np.abs(q_static).max()
+    assert np.abs(eq.elastic_coordinates(arm) - q_static).max() <= 1e-8 * scale
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InitialCorrectionWarning)
+        result = fm.simulate(model, 0.01, 1e-3, initial_state=eq)
+    # The hinge at the true face centre closes without a gap: nothing was corrected.
+    assert result.events == []
+    q0 = result.elastic_coordinates(arm)[0]
+    assert np.abs(q0 - q_static).max() <= 1e-8 * scale
+    # The driving torque at t = 0 is the static torque (the drive holds the link's weight).
+    # (about the hinge axis z; the hinge takes the rest).
+    assert result.reaction_torque(drive)[0][2] == pytest.approx(-torque[2], rel=1e-6)
+    # ... and the stresses are the static stresses.
+    static_stress = recover_stresses(body, u_static)[0]
+    stress = result.stresses(arm, [0])[0]
+    assert np.abs(stress - static_stress).max() <= 1e-8 * np.abs(static_stress).max()
+    # No start-up transient.
+    drift = np.abs(result.elastic_coordinates(arm) - q_static).max(axis=1)
+    assert drift.max() <= 1e-6 * scale
+    # From the given (undeformed) state the arm first drops: no torque at t = 0.
+    dropping = fm.simulate(model, 0.002, 1e-3)
+    assert abs(dropping.reaction_torque(drive)[0][2]) < 1e-6 * abs(torque[2])
+
+
+def test_a_hinge_at_the_node_average_leaves_a_gap_that_is_reported_or_refused(link):
+    body, _ = link
+    model, _, _ = hinged_arm(body, weights="uniform")
+    with pytest.warns(InitialCorrectionWarning, match="joint 'hinge'.*violate it by 2.2"):
+        result = fm.simulate(model, 0.002, 1e-3)
+    messages = [e["message"] for e in result.events if e["kind"] == "initial correction"]
+    assert any("joint 'hinge' (revolute)" in m for m in messages)
+    assert any("body 'arm'" in m and "position by up to 2.2" in m for m in messages)
+    with pytest.raises(InitialConditionsError, match="refused.*joint 'hinge'") as error:
+        fm.simulate(model, 0.002, 1e-3, initial_conditions="strict")
+    assert error.value.result is not None and len(error.value.result.time) == 0
+
+
+def rotating_rod(speed: float, elements: int = 20, length: float = 10.0):
+    """A rod (circular section, r = 5 cm) clamped to its body frame at the hub, turned about z
+    at constant `speed` by an angle driver, with the geometric stiffness of its beams."""
+    nodes, conn = straight_beam(length, elements)
+    body = build_body(
+        nodes,
+        conn,
+        Material(7.0e10, 0.3, 2700.0),
+        section=Section.circle(0.05),
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = fm.System()
+    rod = system.add_flexible_body(body, name="rod", geometric_stiffness=True)
+    hub = system.add_node_marker(rod, int(body.node_ids[0]), name="hub")
+    ground = system.add_marker(system.ground)
+    system.add_revolute_joint(ground, hub, name="hinge")
+    system.add_angle_driver(ground, hub, fm.Polynomial([0.0, speed]), name="drive")
+    return system.compile(), rod, int(body.node_ids[-1])
+
+
+def test_a_steady_rotation_start_has_no_transient_and_is_the_rotating_rod_solution():
+    speed, length = 10.0, 10.0
+    model, rod, tip = rotating_rod(speed, length=length)
+    start = fm.steady_rotation(model)
+    np.testing.assert_allclose(start.angular_velocity(rod), (0, 0, speed), rtol=1e-12)
+    stretch = start.node_displacements(rod, [tip])[0, 0]
+    # R1: u(x) = sin(a x) / (a cos(a L)) - x, a = W sqrt(rho / E).
+    a = speed * np.sqrt(2700.0 / 7.0e10)
+    exact = np.tan(a * length) / a - length
+    assert stretch == pytest.approx(exact, rel=1e-3)
+    result = fm.simulate(model, 1.0, 2.5e-4, initial_state="steady-rotation", output_interval=0.01)
+    assert result.events == []
+    tips = result.node_displacements(rod, [tip])[:, 0, 0]
+    assert np.abs(tips / stretch - 1).max() <= 1e-6
+    # From the given state (unstretched, at rest) the rod overshoots to about twice.
+    with pytest.warns(InitialCorrectionWarning, match="body 'rod'.*velocities"):
+        given = fm.simulate(model, 0.05, 5e-4, output_interval=5e-4)
+    assert given.node_displacements(rod, [tip])[:, 0, 0].max() > 1.5 * stretch
+
+
+def test_steady_rotation_needs_a_turning_driver_at_constant_speed():
+    model, _, _ = rotating_rod(0.0, elements=4)
+    with pytest.raises(InvalidModelError, match="no driver moves"):
+        fm.steady_rotation(model)
+    system = fm.System()
+    body = system.add_rigid_body(1.0, (0.1, 0.1, 0.1), position=(1, 0, 0))
+    ground = system.add_marker(system.ground)
+    hub = system.add_marker(body, position=(-1, 0, 0))
+    system.add_revolute_joint(ground, hub)
+    system.add_angle_driver(ground, hub, fm.Polynomial([0.0, 1.0, 2.0]), name="spin-up")
+    with pytest.raises(InvalidModelError, match="driver 'spin-up' accelerates"):
+        fm.steady_rotation(system)
+
+
+def pendulum(offset: float = 0.01):
+    """A rigid link hinged at the origin, placed `offset` above where the hinge closes."""
+    system = fm.System(gravity=GRAVITY)
+    link = system.add_rigid_body(
+        1.0, (1e-4, 1 / 12, 1 / 12), position=(0.5, offset, 0), name="link"
+    )
+    end = system.add_marker(link, position=(-0.5, 0, 0))
+    system.add_revolute_joint(system.add_marker(system.ground), end, name="hinge")
+    return system, link
+
+
+@pytest.mark.parametrize("solver", [None, fm.ExplicitSolver("rk4")], ids=["alpha", "rk4"])
+def test_initial_corrections_are_events_warnings_and_log_records(solver, caplog):
+    system, _ = pendulum()
+    with caplog.at_level(logging.WARNING, logger="flexmbd"):
+        with pytest.warns(InitialCorrectionWarning) as record:
+            result = fm.simulate(system, 0.01, 1e-3, solver=solver)
+    kinds = {e["kind"] for e in result.events}
+    assert "initial correction" in kinds
+    text = " | ".join(str(w.message) for w in record)
+    assert "joint 'hinge' (revolute): the given positions violate it by 1.000e-2" in text
+    assert "body 'link'" in text and "position by up to 5.000e-3" in text
+    assert any("joint 'hinge'" in r.getMessage() for r in caplog.records)
+    with pytest.raises(InitialConditionsError, match="refused"):
+        fm.simulate(system, 0.01, 1e-3, solver=solver, initial_conditions="strict")
+    # Consistent positions: nothing to report, and strict runs.
+    consistent, _ = pendulum(0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InitialCorrectionWarning)
+        fm.simulate(consistent, 0.01, 1e-3, solver=solver, initial_conditions="strict")
+
+
+def test_states_have_accessors_by_body_make_changed_copies_and_are_immutable(link):
+    body, _ = link
+    model, arm, drive = hinged_arm(body)
+    given = fm.State.of_model(model)
+    assert given.time == 0.0 and np.all(given.elastic_coordinates(arm) == 0)
+    np.testing.assert_allclose(given.orientation(arm), np.eye(3))
+    eq = fm.equilibrium(model)
+    moved = given.with_elastic_coordinates(arm, eq.elastic_coordinates(arm))
+    assert moved.accelerations is None and np.all(moved.velocities == given.velocities)
+    # Starting from the edited state is starting from equilibrium (the same coordinates).
+    a = fm.simulate(model, 0.003, 1e-3, initial_state=moved)
+    b = fm.simulate(model, 0.003, 1e-3, initial_state=eq)
+    np.testing.assert_allclose(a.coordinates, b.coordinates, rtol=0, atol=1e-15)
+    # Node displacements of a state and of a result agree.
+    tip = body.node_ids[np.argmax(body.nodes[:, 0])]
+    np.testing.assert_allclose(
+        eq.node_displacements(arm, [tip]), b.node_displacements(arm, [tip])[0], rtol=1e-9
+    )
+    # A result's last state continues the run.
+    last = b.state()
+    assert last.time == pytest.approx(0.003)
+    c = fm.simulate(model, 0.005, 1e-3, initial_state=last)
+    assert c.time[0] == pytest.approx(0.003) and c.events == []
+    np.testing.assert_allclose(eq.joint_multipliers(drive), b.joint_multipliers(drive)[0])
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        eq.time = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        eq.coordinates[0] = 1.0
+    with pytest.raises(InvalidParameterError, match="expected 3 finite values"):
+        eq.with_position(arm, [0.0, 1.0])
+    with pytest.raises(InvalidParameterError, match="start_time 1.0 differs"):
+        fm.simulate(model, 2.0, 1e-3, initial_state=eq, start_time=1.0)
+    with pytest.raises(InvalidParameterError, match="initial_state must be"):
+        fm.simulate(model, 1.0, 1e-3, initial_state="relaxed")
+    short = dataclasses.replace(eq, coordinates=eq.coordinates[:-1], velocities=eq.velocities[:-1])
+    with pytest.raises(InvalidParameterError, match="coordinates given for a model of"):
+        fm.simulate(model, 0.01, 1e-3, initial_state=short)
+
+
+def test_an_equilibrium_that_does_not_converge_names_its_residual_and_bodies():
+    model, _, _ = rotating_rod(10.0, elements=4)
+    with pytest.raises(EquilibriumError, match="no convergence in 1 iterations") as error:
+        fm.equilibrium(model, max_iterations=1, tolerance=1e-300)
+    assert error.value.residual > 0 and error.value.bodies == ["rod"]
+    assert isinstance(error.value, fm.NewtonDivergedError)
+
+
+def test_model_files_start_from_equilibrium(tmp_path):
+    text = """
+name: held-link
+gravity: [0, -9.81, 0]
+bodies:
+  - name: arm
+    type: flexible
+    box: {lengths: [0.3, 0.02, 0.02], divisions: [6, 1, 1], element: hex8}
+    material: {young_modulus: 7.0e+10, poisson_ratio: 0.33, density: 2700.0}
+    reference: clamped
+    reference_nodes: x0
+    position: [0.0, -0.01, -0.01]
+joints:
+  - {name: hinge, type: revolute, marker1: {body: ground}, marker2: {body: arm, node_set: x0}}
+  - name: drive
+    type: angle-driver
+    marker1: {body: ground}
+    marker2: {body: arm, node_set: x0}
+    angle: {type: constant, value: 0.0}
+simulation: {end_time: 0.002, step_size: 1.0e-3, start: equilibrium}
+outputs:
+  - {joint: drive, quantity: reaction_torque}
+"""
+    path = tmp_path / "held.yaml"
+    path.write_text(text)
+    model = load_model(path)
+    assert model.start == "equilibrium"
+    result = simulate_model(model)
+    arm = model.bodies["arm"]
+    eq = fm.equilibrium(model.system)
+    np.testing.assert_allclose(result.elastic_coordinates(arm)[0], eq.elastic_coordinates(arm))
+    assert np.abs(eq.elastic_coordinates(arm)).max() > 0
