@@ -21,7 +21,7 @@ use faer::{Conj, MatMut, Par, Spec};
 
 use super::envelope::{reverse_cuthill_mckee, EnvelopeCholesky};
 use crate::error::{FlexmbdError, Result};
-use crate::math::Vec3;
+use crate::math::{parallel, Vec3};
 
 /// Largest envelope (entries of L, 16 MiB of values) factorized in envelope form instead of
 /// supernodal form. Measured on tet4 bars and cubes of 960 to 9,408 unknowns (benchmarks/
@@ -100,7 +100,10 @@ pub struct SymmetricFactor {
     /// The envelope factor of a small positive definite matrix, used instead of the
     /// supernodal `factor` (then empty) when it is not much larger (see [`super::envelope`]).
     envelope: Option<EnvelopeCholesky>,
+    /// `Par::rayon(threads)` for more than one thread; its work runs in the process's pool
+    /// ([`crate::math::parallel`]), which survives `fork`.
     par: Par,
+    threads: usize,
 }
 
 impl std::fmt::Debug for SymmetricFactor {
@@ -243,6 +246,7 @@ impl SymmetricFactor {
             symbolic,
             envelope,
             par,
+            threads,
         };
         this.factorize(item)?;
         Ok(this)
@@ -270,6 +274,10 @@ impl SymmetricFactor {
     }
 
     fn factorize(&mut self, item: &str) -> Result<()> {
+        parallel::install(self.threads, || self.factorize_here(item))
+    }
+
+    fn factorize_here(&mut self, item: &str) -> Result<()> {
         let n = self.n;
         let view = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         if self.kind == FactorKind::CholeskySingle {
@@ -391,6 +399,10 @@ impl SymmetricFactor {
     /// Solves A X = B in place for the columns of `rhs` (column-major, n x k) with the factor
     /// (for quasi-definite matrices: with the regularized matrix; see [`Self::solve_refined`]).
     pub fn solve_in_place(&self, rhs: &mut [f64]) -> Result<()> {
+        parallel::install(self.threads, || self.solve_in_place_here(rhs))
+    }
+
+    fn solve_in_place_here(&self, rhs: &mut [f64]) -> Result<()> {
         let n = self.n;
         if n == 0 {
             return Ok(());
@@ -436,6 +448,10 @@ impl SymmetricFactor {
     /// at least as many right-hand sides): no allocation in a loop of solves. Not for
     /// single-precision factors.
     pub fn solve_with_memory(&self, rhs: &mut [f64], memory: &mut MemBuffer) -> Result<()> {
+        parallel::install(self.threads, || self.solve_with_memory_here(rhs, memory))
+    }
+
+    fn solve_with_memory_here(&self, rhs: &mut [f64], memory: &mut MemBuffer) -> Result<()> {
         let n = self.n;
         if n == 0 {
             return Ok(());
@@ -490,6 +506,10 @@ impl SymmetricFactor {
     /// returns the rows of X. Needs less memory than [`Self::solve_in_place`] on a
     /// column-major copy: in single precision only the f32 work block and the result.
     pub fn solve_rows(&self, rows: &[f64], k: usize) -> Result<Vec<f64>> {
+        parallel::install(self.threads, || self.solve_rows_here(rows, k))
+    }
+
+    fn solve_rows_here(&self, rows: &[f64], k: usize) -> Result<Vec<f64>> {
         let n = self.n;
         if rows.len() != n * k {
             return Err(FlexmbdError::InvalidParameter {

@@ -1,9 +1,10 @@
-//! Rotations (Euler parameters), 3-vectors, small dense matrices, time functions, and the
-//! vector kernels of the solves.
+//! Rotations (Euler parameters), 3-vectors, small dense matrices, time functions, the
+//! vector kernels of the solves, and the worker threads of parallel factorizations.
 
 pub mod dense;
 pub mod euler;
 pub mod hyper_dual;
+pub mod parallel;
 pub(crate) mod simd;
 pub mod small;
 pub mod time_function;
