@@ -287,3 +287,21 @@ outputs:
     eq = fm.equilibrium(model.system)
     np.testing.assert_allclose(result.elastic_coordinates(arm)[0], eq.elastic_coordinates(arm))
     assert np.abs(eq.elastic_coordinates(arm)).max() > 0
+
+
+def test_equilibrium_eliminating_large_nodal_bodies_equals_the_direct_solve(link, monkeypatch):
+    # The link's 7,731 elastic coordinates are eliminated through a sparse Cholesky factor of
+    # their block; with the limit raised, the whole Newton matrix goes to scipy's sparse LU.
+    import flexmbd.analysis as analysis
+
+    body, _ = link
+    model, arm, drive = hinged_arm(body)
+    assert body.elastic_coordinate_count >= analysis.ELIMINATE_ABOVE
+    eliminated = fm.equilibrium(model)
+    monkeypatch.setattr(analysis, "ELIMINATE_ABOVE", 10**9)
+    direct = fm.equilibrium(model)
+    scale = np.abs(direct.coordinates).max()
+    assert np.abs(eliminated.coordinates - direct.coordinates).max() <= 1e-12 * scale
+    np.testing.assert_allclose(
+        eliminated.joint_multipliers(drive), direct.joint_multipliers(drive), rtol=1e-10
+    )

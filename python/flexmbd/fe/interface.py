@@ -45,6 +45,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
+from .shapes import HEX8_CORNERS, TET10_EDGES
 
 #: Ways of weighting the nodes of an interface.
 WEIGHTINGS = ("auto", "area", "length", "volume", "uniform")
@@ -103,7 +104,8 @@ _EDGES: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
     ),
 }
 _SOLIDS = ("tet4", "tet10", "hex8")
-_TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
+#: Cells integrated at a time.
+_CHUNK = 16384
 
 
 # Shape functions on reference cells -----------------------------------------------------------
@@ -135,30 +137,22 @@ def _shape(kind: str, xi: Any) -> list[Any]:
         if kind == "tet4":
             return lam
         corners = [v * (2 * v - 1) for v in lam]
-        return corners + [4 * lam[p] * lam[q] for p, q in _TET10_EDGES]
+        return corners + [4 * lam[p] * lam[q] for p, q in TET10_EDGES]
     if kind == "hex8":
         a, b, c = xi
-        corners = [
-            (0, 0, 0),
-            (1, 0, 0),
-            (1, 1, 0),
-            (0, 1, 0),
-            (0, 0, 1),
-            (1, 0, 1),
-            (1, 1, 1),
-            (0, 1, 1),
-        ]
         return [
-            (a if i else 1 - a) * (b if j else 1 - b) * (c if k else 1 - c) for i, j, k in corners
+            (a if i else 1 - a) * (b if j else 1 - b) * (c if k else 1 - c)
+            for i, j, k in HEX8_CORNERS
         ]
     raise InvalidParameterError(f"no shape functions for {kind!r}")  # pragma: no cover
 
 
 def _rule(kind: str) -> tuple[Array, Array]:
-    """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: Gauss-
-    Legendre products, collapsed (Duffy) onto simplices; exact for polynomials of degree 5 or
-    more, which covers N_p times the Jacobian of every straight-sided or flat cell here."""
-    g, w = np.polynomial.legendre.leggauss(4)
+    """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: 3-point
+    Gauss-Legendre products, collapsed (Duffy) onto simplices; exact for the integrals of
+    the shape functions times the Jacobian of every straight-sided or flat cell here (degree
+    2 on simplices, 3 per direction on quadrilaterals and hexahedra)."""
+    g, w = np.polynomial.legendre.leggauss(3)
     g, w = 0.5 * (g + 1.0), 0.5 * w
     dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3}[kind.rstrip("0123456789")]
     grids = np.meshgrid(*([g] * dim), indexing="ij")
@@ -188,18 +182,32 @@ def _integrals(kind: str, cells: NDArray[np.int64], nodes: Array) -> tuple[Array
     for k in range(dim):
         shifted = [points[j] + (1j * step if j == k else 0.0) for j in range(dim)]
         derivatives.append(np.array(_shape(kind, tuple(shifted))).imag / step)
-    x = nodes[cells]  # (ne, npc, 3)
-    tangents = [np.einsum("pq,epc->eqc", d, x) for d in derivatives]  # (ne, nq, 3) each
+    # Per direction c, the coordinates of the cells' nodes (ne, npc): the sums over a cell's
+    # nodes are products with the (npc, nq) tables.
+    x = [nodes[:, c][cells] for c in range(3)]
+    tangents = [[xc @ d for xc in x] for d in derivatives]  # [k][c] (ne, nq)
     if dim == 1:
-        measure = np.linalg.norm(tangents[0], axis=2)
-    elif dim == 2:
-        measure = np.linalg.norm(np.cross(tangents[0], tangents[1]), axis=2)
+        (t,) = tangents
+        measure = np.sqrt(t[0] ** 2 + t[1] ** 2 + t[2] ** 2)
     else:
-        measure = np.abs(np.einsum("eqc,eqc->eq", tangents[0], np.cross(tangents[1], tangents[2])))
-    at_points = np.einsum("pq,epc->eqc", values, x)
-    extended = np.concatenate([np.ones(at_points.shape[:2] + (1,)), at_points], axis=2)
-    moments = np.einsum("eqi,eqj,eq,q->ij", extended, extended, measure, weights)
-    return np.einsum("pq,eq,q->ep", values, measure, weights), moments
+        a, b = tangents[0], tangents[1]
+        normal = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+        if dim == 2:
+            measure = np.sqrt(normal[0] ** 2 + normal[1] ** 2 + normal[2] ** 2)
+        else:
+            t = tangents[2]
+            measure = np.abs(normal[0] * t[0] + normal[1] * t[1] + normal[2] * t[2])
+    weighted = measure * weights  # (ne, nq)
+    at_points = [xc @ values for xc in x]  # (ne, nq) per direction
+    moments = np.empty((4, 4))
+    moments[0, 0] = weighted.sum()
+    for c in range(3):
+        moments[0, 1 + c] = moments[1 + c, 0] = np.vdot(at_points[c], weighted)
+        for e in range(c, 3):
+            moments[1 + c, 1 + e] = moments[1 + e, 1 + c] = np.vdot(
+                at_points[c] * at_points[e], weighted
+            )
+    return weighted @ values.T, moments
 
 
 # Cells of a node set ---------------------------------------------------------------------------
@@ -329,9 +337,12 @@ def _weights(
     out = np.zeros(len(members))
     moments = np.zeros((4, 4))
     for kind, conn in cells.items():
-        integrals, cell_moments = _integrals(kind, conn, nodes)
-        np.add.at(out, position[conn], integrals)
-        moments += cell_moments
+        # In chunks: the quadrature arrays of 600,000 tetrahedra would take gigabytes.
+        for start in range(0, len(conn), _CHUNK):
+            part = conn[start : start + _CHUNK]
+            integrals, cell_moments = _integrals(kind, part, nodes)
+            np.add.at(out, position[part], integrals)
+            moments += cell_moments
     # Weights that vanish analytically (corners of quadratic triangles) to exact zeros.
     out[np.abs(out) <= 1e-13 * np.abs(out).max(initial=0.0)] = 0.0
     return out, weights, moments

@@ -17,8 +17,9 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InvalidParameterError
 from .mesh_io import Mesh
 
-#: Corners of a hexahedron cell (i, j, k) of a structured grid, in hex8 node order.
-_HEX_CORNERS = [
+#: Corners of a hexahedron cell (i, j, k) of a structured grid, in hex8 node order (the
+#: corners of the reference cube [0, 1]^3 of the hex8 shape functions).
+HEX8_CORNERS = [
     (0, 0, 0),
     (1, 0, 0),
     (1, 1, 0),
@@ -90,7 +91,7 @@ def box(
 
     cells = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
     i, j, k = (a.ravel() for a in cells)
-    hexes = np.column_stack([index(i + a, j + b, k + c) for a, b, c in _HEX_CORNERS])
+    hexes = np.column_stack([index(i + a, j + b, k + c) for a, b, c in HEX8_CORNERS])
     hexes = hexes.astype(np.int64)
     if element == "hex8":
         elements = {"hex8": hexes}
