@@ -283,3 +283,41 @@ def test_run_a_model_file_prints_its_outputs(capsys):
     deflection, time_of = float(line.split()[0]), float(line.split("t =")[1].split()[0])
     assert abs(deflection / 4.658e-3 - 1) < 0.03 and abs(time_of - 0.078) < 0.002
     assert "drive reaction_torque: largest |value|" in out
+
+
+GAP = """
+name: gap
+gravity: [0, -9.81, 0]
+bodies:
+  - name: link
+    type: rigid
+    mass: 1.0
+    inertia: [1.0e-4, 0.0833, 0.0833]
+    position: [0.5, 0.01, 0]
+markers:
+  - {name: pivot, body: ground}
+  - {name: end, body: link, position: [-0.5, 0, 0]}
+joints:
+  - {name: hinge, type: revolute, marker1: pivot, marker2: end}
+  - {name: hold, type: angle-driver, marker1: pivot, marker2: end, angle: 0.0}
+simulation: {end_time: 0.01, step_size: 1.0e-3}
+"""
+
+
+def test_run_reports_initial_corrections_and_strict_refuses_them(tmp_path, capsys):
+    model = tmp_path / "gap.yaml"
+    model.write_text(GAP)
+    assert main(["run", str(model), "-o", str(tmp_path / "gap.h5"), *QUIET]) == 0
+    captured = capsys.readouterr()
+    assert "(initial correction): joint 'hinge' (revolute): the given positions violate" in (
+        captured.out
+    )
+    assert "InitialCorrectionWarning" not in captured.err
+    strict = ["run", str(model), "-o", str(tmp_path / "strict.h5"), *QUIET, "--strict"]
+    assert main(strict) == 1
+    assert "refused (strict): joint 'hinge'" in capsys.readouterr().err
+    # From equilibrium (the link held horizontal by the driver): the equilibrium closes the
+    # hinge itself, nothing is left to correct.
+    start = ["run", str(model), "-o", str(tmp_path / "eq.h5"), *QUIET, "--start", "equilibrium"]
+    assert main(start) == 0
+    assert "initial correction" not in capsys.readouterr().out

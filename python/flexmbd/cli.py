@@ -18,12 +18,13 @@ import json
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from . import __version__, _core
-from .errors import FlexmbdError, SimulationInterrupted
+from .errors import FlexmbdError, InitialCorrectionWarning, SimulationInterrupted
 from .examples import EXAMPLES
 from .simulation import simulate
 
@@ -205,7 +206,7 @@ def _run(args: argparse.Namespace) -> int:
         "source": job.source,
         "name": job.name,
         "start_time": job.start_time,
-        "start": job.start,
+        "start": args.start or job.start,
         "end_time": end,
         "step_size": step,
         "output_interval": interval,
@@ -213,18 +214,22 @@ def _run(args: argparse.Namespace) -> int:
     }
     start = time.perf_counter()
     try:
-        result = simulate(
-            model,
-            end,
-            step,
-            start_time=job.start_time,
-            initial_state=job.start,
-            output_interval=interval,
-            solver=solver,
-            progress=bar,
-            results_file=results,
-            metadata=metadata,
-        )
+        with warnings.catch_warnings():
+            # The events are printed below; no Python warning on top of them.
+            warnings.simplefilter("ignore", InitialCorrectionWarning)
+            result = simulate(
+                model,
+                end,
+                step,
+                start_time=job.start_time,
+                initial_state=args.start or job.start,
+                initial_conditions="strict" if args.strict else "correct",
+                output_interval=interval,
+                solver=solver,
+                progress=bar,
+                results_file=results,
+                metadata=metadata,
+            )
     except SimulationInterrupted as error:
         bar.close()
         kept = error.result
@@ -521,6 +526,17 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--end", type=float, help="end time (s)")
     run.add_argument("--step", type=float, help="step size (s)")
     run.add_argument("--output-interval", type=float, help="time between records (s)")
+    run.add_argument(
+        "--start",
+        choices=("given", "equilibrium", "steady-rotation"),
+        help="the state at the start time (default: the model file's `start`, else given)",
+    )
+    run.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse initial positions or velocities that need a correction (default: correct "
+        "them and report each joint and body as an event)",
+    )
     run.add_argument(
         "--solver",
         help="generalized-alpha (default: the model's settings), or an explicit solver "
