@@ -20,6 +20,7 @@ import difflib
 import math
 import os
 import re
+import stat
 import types
 import typing
 from collections.abc import Callable, Sequence
@@ -738,19 +739,119 @@ def model_schema() -> dict[str, Any]:
 
 Path_ = tuple[str | int, ...]
 
-#: Floats of YAML 1.2 that YAML 1.1 reads as strings: 1e-5, 2E3 (no dot).
-_FLOAT_WITHOUT_DOT = re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$")
+#: Largest model file (bytes), checked before it is read: meshes and matrices belong in mesh
+#: and body files, long tables in body files or splines of a few thousand knots.
+MAX_FILE_SIZE = 4 * 1024 * 1024
+
+#: Most items a model file may hold, estimated before YAML reads it as the number of its
+#: commas and line breaks (every list item and key needs one of them, but the first).
+MAX_ITEMS = 100_000
 
 #: Most values a model file may expand to (aliases can multiply a small file).
-_MAX_VALUES = 1_000_000
+MAX_VALUES = 250_000
+
+#: Deepest nesting: the file's mapping is level 1, each list, mapping or value in one is one
+#: more (the examples nest 7 deep).
+MAX_DEPTH = 64
+
+_INT_TAG = "tag:yaml.org,2002:int"
+_FLOAT_TAG = "tag:yaml.org,2002:float"
+
+#: Integers: decimal (leading zeros are decimal, as in YAML 1.2, not octal), 0b binary, 0x
+#: hexadecimal; not YAML 1.1's base 60 (1:30 is a string, not 90).
+_INT = re.compile(r"^(?:[-+]?0b[0-1_]+|[-+]?[0-9][0-9_]*|[-+]?0x[0-9a-fA-F_]+)$")
+
+#: Floats: 1.5, 1.5e-3, 1e-3 (YAML 1.2: no dot needed, exponent sign optional), .5, .inf,
+#: .nan; not YAML 1.1's base 60 (1:30.5 is a string).
+_FLOAT = re.compile(
+    r"""^(?:[-+]?[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+
+    |[-+]?\.[0-9][0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""",
+    re.VERBOSE,
+)
+
+#: What YAML 1.1 reads as a number in base 60 (in messages: such values are strings here).
+_SEXAGESIMAL = re.compile(r"^[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?$")
+
+#: Characters YAML does not allow in a file (its reader's own check).
+_NOT_PRINTABLE = yaml.reader.Reader.NON_PRINTABLE
+
+#: Line breaks of YAML, to count lines as its error marks do.
+_LINE_BREAK = re.compile("\r\n|[\n\r\x85\u2028\u2029]")
+
+#: Names of the ASCII control characters (U+0000 .. U+001F, U+007F).
+_CONTROL_NAMES = (
+    "NUL SOH STX ETX EOT ENQ ACK BEL BS HT LF VT FF CR SO SI "
+    "DLE DC1 DC2 DC3 DC4 NAK SYN ETB CAN EM SUB ESC FS GS RS US"
+).split()
+
+
+class _ReadError(yaml.YAMLError):
+    """A value the loader refuses: at `node` (its key path is then known) or at `mark`."""
+
+    def __init__(self, message: str, node: yaml.Node | None = None, mark: Any = None):
+        super().__init__(message)
+        self.message = message
+        self.node = node
+        self.mark = mark if node is None else node.start_mark
 
 
 class _Loader(yaml.SafeLoader):
-    """The safe loader (plain data only: no Python tags, nothing executed) that also reads
-    ``1e-5`` as a number."""
+    """The safe loader (plain data only: no Python tags, nothing executed) with YAML 1.2
+    numbers (``1e-5`` is a number; ``1:30`` and other base-60 forms are strings), a limit
+    on nesting, and constructor errors reported at their node."""
+
+    def __init__(self, stream: str):
+        super().__init__(stream)
+        self.depth = 0
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        # Nesting deeper than MAX_DEPTH is refused before the recursion of the composer.
+        self.depth += 1
+        try:
+            if self.depth > MAX_DEPTH:
+                mark = self.peek_event().start_mark
+                raise _ReadError(f"nested more than {MAX_DEPTH} levels deep", mark=mark)
+            return super().compose_node(parent, index)
+        finally:
+            self.depth -= 1
+
+    def construct_object(self, node: Any, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep)
+        except yaml.YAMLError:
+            raise
+        except (ValueError, TypeError, KeyError, IndexError, AttributeError, ArithmeticError):
+            tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
+            value = node.value if isinstance(node, yaml.ScalarNode) else f"a {node.id}"
+            raise _ReadError(f"{_value_text(value)} is not a valid {tag} value", node) from None
+
+    def construct_int(self, node: Any) -> int:
+        """An integer: decimal (leading zeros too), 0b binary or 0x hexadecimal."""
+        text = str(self.construct_scalar(node)).replace("_", "")
+        sign = -1 if text.startswith("-") else 1
+        digits = text.lstrip("+-")
+        base = {"0b": 2, "0x": 16}.get(digits[:2], 10)
+        return sign * int(digits[2:] if base != 10 else digits, base)
+
+    def construct_float(self, node: Any) -> float:
+        """A float, not in base 60 (``!!float 1:30`` is refused)."""
+        if ":" in str(node.value):
+            raise ValueError("base-60 numbers are not read")
+        return float(super().construct_yaml_float(node))
 
 
-_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_WITHOUT_DOT, list("-+0123456789"))
+# Only the resolvers of ints and floats change: the others (bool, null, ...) stay YAML 1.1's.
+_Loader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_Loader.add_implicit_resolver(_INT_TAG, _INT, list("-+0123456789"))
+_Loader.add_implicit_resolver(_FLOAT_TAG, _FLOAT, list("-+0123456789."))
+_Loader.add_constructor(_INT_TAG, _Loader.construct_int)
+_Loader.add_constructor(_FLOAT_TAG, _Loader.construct_float)
 
 
 def _key_path(path: Path_) -> str:
@@ -768,6 +869,7 @@ class _Source:
         self.display = display
         self.folder = path.parent
         self.lines: dict[Path_, int] = {}
+        self.paths: dict[int, Path_] = {}
 
     def line(self, path: Path_) -> int | None:
         """The line of `path`, or of its nearest parent that is in the file."""
@@ -784,9 +886,44 @@ class _Source:
         text = f"{where}: {key}: {message}" if key else f"{where}: {message}"
         return ModelFileError(text, file=self.display, line=line, key=key)
 
+    def check(self, text: str) -> None:
+        """Checks the text before YAML reads it: its estimated item count (MAX_ITEMS) and
+        characters YAML does not allow (control characters such as NUL and BEL)."""
+        breaks = sum(text.count(c) for c in "\n\r\x85\u2028\u2029") - text.count("\r\n")
+        items = text.count(",") + breaks
+        if items > MAX_ITEMS:
+            raise ModelFileError(
+                f"{self.display}: the model file holds about {items} items (commas and line "
+                f"breaks), more than the limit of {MAX_ITEMS}: put meshes, matrices and long "
+                "tables in mesh or body files",
+                file=self.display,
+            )
+        found = _NOT_PRINTABLE.search(text)
+        if found is not None:
+            start = found.start()
+            before = list(_LINE_BREAK.finditer(text, 0, start))
+            line = len(before) + 1
+            column = start - (before[-1].end() if before else 0) + 1
+            code = ord(found.group())
+            if code < 0x20:
+                name = f" ({_CONTROL_NAMES[code]})"
+            elif code == 0x7F:
+                name = " (DEL)"
+            else:
+                name = ""
+            kind = "control character" if code < 0x20 or 0x7F <= code < 0xA0 else "character"
+            raise ModelFileError(
+                f"{self.display}: line {line}, column {column}: {kind} U+{code:04X}{name} is "
+                "not allowed in YAML; remove it",
+                file=self.display,
+                line=line,
+            )
+
     def read(self, text: str) -> Any:
         """Parses the YAML text, recording the lines of its keys; one error for syntax errors,
-        duplicate keys and tags that are not plain data."""
+        duplicate keys, tags that are not plain data, values that a tag cannot read and
+        nesting deeper than MAX_DEPTH."""
+        self.check(text)
         loader = _Loader(text)
         try:
             node = loader.get_single_node()
@@ -796,12 +933,28 @@ class _Source:
                 )
             self._walk(node, (), [0])
             return loader.construct_document(node)
+        except _ReadError as error:
+            raise self._read_error(error) from None
         except yaml.MarkedYAMLError as error:
             raise self._yaml_error(error) from None
         except yaml.YAMLError as error:
             raise ModelFileError(f"{self.display}: {error}", file=self.display) from None
         finally:
             loader.dispose()
+
+    def _read_error(self, error: _ReadError) -> ModelFileError:
+        if error.node is not None and id(error.node) in self.paths:
+            path = self.paths[id(error.node)]
+            return self.error(path, error.message, error.node.start_mark.line + 1)
+        mark = error.mark
+        if mark is None:
+            return ModelFileError(f"{self.display}: {error.message}", file=self.display)
+        line = mark.line + 1
+        return ModelFileError(
+            f"{self.display}: line {line}, column {mark.column + 1}: {error.message}",
+            file=self.display,
+            line=line,
+        )
 
     def _yaml_error(self, error: yaml.MarkedYAMLError) -> ModelFileError:
         mark = error.problem_mark or error.context_mark
@@ -826,13 +979,18 @@ class _Source:
 
     def _walk(self, node: yaml.Node, path: Path_, count: list[int]) -> None:
         count[0] += 1
-        if count[0] > _MAX_VALUES:
+        if count[0] > MAX_VALUES:
             raise ModelFileError(
-                f"{self.display}: the model file expands to more than {_MAX_VALUES} values "
+                f"{self.display}: the model file expands to more than {MAX_VALUES} values "
                 "(through aliases?)",
                 file=self.display,
             )
+        if len(path) > MAX_DEPTH:
+            # Only aliases get here (the loader limits the nesting): one inside its own anchor.
+            message = f"nested more than {MAX_DEPTH} levels deep (an alias inside its anchor?)"
+            raise self.error(path[:1], message, node.start_mark.line + 1)
         self.lines.setdefault(path, node.start_mark.line + 1)
+        self.paths.setdefault(id(node), path)
         if isinstance(node, yaml.MappingNode):
             seen: dict[str, int] = {}
             for key_node, value_node in node.value:
@@ -845,6 +1003,7 @@ class _Source:
                     raise self.error(path + (key,), message, line)
                 seen[key] = line
                 self.lines[path + (key,)] = line
+                self.paths.setdefault(id(key_node), path + (key,))
                 self._walk(value_node, path + (key,), count)
         elif isinstance(node, yaml.SequenceNode):
             for index, item in enumerate(node.value):
@@ -969,6 +1128,9 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
     message = error["msg"]
     if "input" in error and kind not in ("model_type", "dict_type"):
         message += f", got {_value_text(error['input'])}"
+    value = error.get("input")
+    if isinstance(value, str) and _SEXAGESIMAL.match(value) and kind in ("float_type", "int_type"):
+        message += " (base-60 numbers such as 1:30 are not read: write 90)"
     return path, message
 
 
@@ -1087,6 +1249,21 @@ class ModelFile:
     body_data: dict[str, Any] = field(default_factory=dict)
     spec: ModelSpec | None = None
 
+    @property
+    def file_stem(self) -> str:
+        """The name as the stem of file names (``flexmbd run`` names its results, plots and
+        animations after it): characters that are not allowed in file names on some system
+        (path separators, control and other invisible characters, ``<>:"|?*``) become ``_``,
+        leading and trailing dots and spaces are dropped, at most 120 bytes of UTF-8 are
+        kept, Windows' reserved names (``CON``, ``NUL``, ...) get a ``_``, and a name that is
+        then empty gives the model file's stem (or ``model``). Never a path: no folder, no
+        ``..``, not hidden."""
+        for name in (self.name, self.path.stem):
+            stem = _file_stem(name)
+            if stem:
+                return stem
+        return "model"
+
     def output_values(self, result: Result) -> dict[str, NDArray[np.float64]]:
         """label -> time history (SI) of every output, in the order of the file."""
         return {output.label: output.values(result) for output in self.outputs}
@@ -1114,6 +1291,39 @@ class ModelFile:
             if name not in names:
                 names.append(name)
         return names
+
+
+#: Characters that some file system does not allow in a file name (Windows: <>:"/\\|?*).
+_NOT_IN_FILE_NAMES = re.compile(r'[<>:"/\\|?*\x00-\x1f\x7f-\x9f]')
+
+#: File names Windows reserves (with any extension).
+_RESERVED_STEMS = {"CON", "PRN", "AUX", "NUL"} | {
+    f"{p}{k}" for p in ("COM", "LPT") for k in range(10)
+}
+
+
+def _file_stem(name: str) -> str:
+    """`name` as a file name stem (see :attr:`ModelFile.file_stem`); empty if nothing is left."""
+    printable = "".join(c if c.isprintable() else "_" for c in name)
+    stem = _NOT_IN_FILE_NAMES.sub("_", printable).strip(" .")
+    stem = stem.encode("utf-8")[:120].decode("utf-8", errors="ignore").rstrip(" .")
+    if stem.split(".")[0].upper() in _RESERVED_STEMS:
+        stem += "_"
+    return stem
+
+
+def _name_problem(name: str) -> str | None:
+    """Why a model `name` cannot be the stem of file names, or None: it is a plain name."""
+    what = "a model name is a plain name (the stem of the results' file names)"
+    if "/" in name or "\\" in name:
+        return f"{what}: no path separators ('/', '\\'), got {_value_text(name)}"
+    hidden = next((c for c in name if not c.isprintable()), None)
+    if hidden is not None:
+        character = f"U+{ord(hidden):04X}"
+        return f"{what}: no control or invisible characters ({character}), got {_value_text(name)}"
+    if name.startswith("."):
+        return f"{what}: it may not start with a dot, got {_value_text(name)}"
+    return None
 
 
 #: Body output quantity -> its plot in `flexmbd.plotting`.
@@ -1162,6 +1372,9 @@ class _Builder:
         self.forces: dict[str, _core.ForceId] = {}
         self.sensors: dict[str, _core.SensorId] = {}
         self.first: dict[tuple[str, str], Path_] = {}
+        # Entry of `functions` -> the function it stands for (not a name) and its key path.
+        self.targets: dict[str, tuple[Any, Path_]] = {}
+        self.check_functions()
 
     def fail(self, path: Path_, message: str) -> ModelFileError:
         return self.source.error(path, message)
@@ -1174,6 +1387,8 @@ class _Builder:
             raise self.fail(path, f"no such file: {error.filename}") from error
         except (FlexmbdError, ValueError) as error:
             raise self.fail(path, str(error)) from error
+        except OverflowError as error:
+            raise self.fail(path, f"a number is too large ({error})") from error
 
     def claim(self, kind: str, name: str | None, path: Path_) -> None:
         """Checks that `name` is new among the items of `kind`."""
@@ -1203,13 +1418,40 @@ class _Builder:
             return matrix
         return np.asarray(spec, dtype=float)
 
+    def check_functions(self) -> None:
+        """Resolves the names in `functions`, used or not, into `self.targets`: every name must
+        name a function, and no chain of names may come back to where it started (a function
+        that names itself, or names one that names it): the error names the cycle."""
+        functions = self.spec.functions
+        for name in functions:
+            # Follow the names from `name` to a function that is not a name (or one resolved).
+            chain: dict[str, None] = {}
+            spec: Any = name
+            while isinstance(spec, str) and spec not in self.targets:
+                if spec not in functions:
+                    known = ", ".join(functions) or "none"
+                    where = ("functions", next(reversed(chain)))
+                    raise self.fail(where, f"unknown function {spec!r} (functions: {known})")
+                if spec in chain:
+                    cycle = list(chain)[list(chain).index(spec) :] + [spec]
+                    raise self.fail(
+                        ("functions", spec),
+                        f"the functions refer to each other in a cycle: {' -> '.join(cycle)}",
+                    )
+                chain[spec] = None
+                path: Path_ = ("functions", spec)
+                spec = functions[spec]
+            target = self.targets[spec] if isinstance(spec, str) else (spec, path)
+            for link in chain:
+                self.targets[link] = target
+
     def time_function(self, spec: Any, scale: float, path: Path_) -> Any:
         """A time function of the core for a quantity whose unit is `scale` SI units."""
         if isinstance(spec, str):
-            if spec not in self.spec.functions:
+            if spec not in self.targets:
                 known = ", ".join(self.spec.functions) or "none"
                 raise self.fail(path, f"unknown function {spec!r} (functions: {known})")
-            return self.time_function(self.spec.functions[spec], scale, ("functions", spec))
+            spec, path = self.targets[spec]
         seconds, angle = self.units.time, self.units.angle
         if isinstance(spec, ConstantFunction):
             return self.call(path, _core.Constant, spec.value * scale)
@@ -1644,8 +1886,20 @@ class _Builder:
         if self.spec.outputs is None:
             return [Output(name, "sensor", name, None) for name in self.sensors]
         outputs = []
+        first: dict[str, Path_] = {}
         for k, spec in enumerate(self.spec.outputs):
-            outputs.append(self.output(spec, ("outputs", k)))
+            path: Path_ = ("outputs", k)
+            output = self.output(spec, path)
+            # Outputs are reported by label: two with one label would lose one of them.
+            if output.label in first:
+                line = self.source.line(first[output.label])
+                raise self.fail(
+                    path + (("name",) if spec.name is not None else ()),
+                    f"duplicate output label {output.label!r} (first at line {line}): give "
+                    "each output its own name",
+                )
+            first[output.label] = path
+            outputs.append(output)
         return outputs
 
     def output(self, spec: OutputSpec, path: Path_) -> Output:
@@ -1682,13 +1936,107 @@ class _Builder:
                 raise self.fail(path + ("body",), f"{item!r} is not a flexible body")
         if quantity == "deflection" and spec.node is None:
             raise self.fail(path, "missing key 'node' (needed by deflection)")
+        for key, users in _NODE_KEYS.items():
+            if getattr(spec, key) is not None and (kind != "body" or quantity not in users):
+                raise self.fail(
+                    path + (key,),
+                    f"{key} is only for {' and '.join(users)} outputs of flexible bodies",
+                )
+        if kind == "body" and item in self.flexible:
+            self.check_output_nodes(spec, self.flexible[str(item)], path)
         label = spec.name or " ".join(str(p) for p in (item, quantity) if p is not None)
         chord = None if spec.chord is None else (spec.chord[0], spec.chord[1])
         return Output(label, kind, item, quantity, spec.nodes, spec.node, chord)
 
+    def check_output_nodes(self, spec: OutputSpec, data: Any, path: Path_) -> None:
+        """Checks what an output of a flexible body needs of it, as :class:`Output` reads it
+        from a result: its node ids, a chord of two distinct places, and the elements and
+        material of stresses and section forces."""
+        ids = {int(k): i for i, k in enumerate(np.asarray(data.node_ids))}
+        given: list[tuple[Path_, int]] = []
+        if spec.nodes is not None:
+            given += [(path + ("nodes", j), node) for j, node in enumerate(spec.nodes)]
+        if spec.node is not None:
+            given.append((path + ("node",), spec.node))
+        if spec.chord is not None:
+            given += [(path + ("chord", j), node) for j, node in enumerate(spec.chord)]
+        for where, node in given:
+            if node not in ids:
+                raise self.fail(
+                    where,
+                    f"body {spec.body!r} has no node with id {node} (its {len(ids)} nodes have "
+                    f"ids {min(ids, default=0)} to {max(ids, default=0)})",
+                )
+        if spec.chord is not None:
+            if spec.chord[0] == spec.chord[1]:
+                raise self.fail(
+                    path + ("chord",), f"a chord needs two different nodes, got {spec.chord}"
+                )
+            first, second = (np.asarray(data.nodes)[ids[k]] for k in spec.chord)
+            if not np.any(first != second):
+                raise self.fail(
+                    path + ("chord",),
+                    f"nodes {spec.chord[0]} and {spec.chord[1]} are at the same place: they "
+                    "span no chord",
+                )
+        elements = {kind for kind, cells in data.elements.items() if len(cells)}
+        if spec.quantity == "stresses" and not elements - {"beam2"}:
+            raise self.fail(
+                path + ("quantity",),
+                f"body {spec.body!r} has no solid elements: stresses are those of solid elements "
+                "(beams have section_forces)",
+            )
+        if spec.quantity == "section_forces" and ("beam2" not in elements or data.section is None):
+            raise self.fail(
+                path + ("quantity",),
+                f"body {spec.body!r} has no beam elements with a section: section_forces are "
+                "those of beams",
+            )
+        if spec.quantity in ("stresses", "section_forces") and not data.material:
+            raise self.fail(
+                path + ("quantity",),
+                f"body {spec.body!r} has no material (built from matrices): no {spec.quantity}",
+            )
+
+
+#: Keys of outputs that name nodes -> the body quantities that use them.
+_NODE_KEYS = {
+    "nodes": ("node_displacements", "node_positions"),
+    "node": ("deflection",),
+    "chord": ("deflection",),
+}
+
 
 # ---------------------------------------------------------------------------------------------
 # Public functions
+
+
+def _read_text(location: Path, display: str) -> str:
+    """The text of a model file (universal newlines), read only if it is a regular file of at
+    most MAX_FILE_SIZE bytes."""
+    try:
+        # A pipe or a device would block or never end: regular files only.
+        status = location.stat()
+        if not stat.S_ISREG(status.st_mode):
+            raise ModelFileError(f"{display}: not a regular file", file=display)
+        with location.open("rb") as stream:
+            raw = stream.read(MAX_FILE_SIZE + 1)
+        if len(raw) > MAX_FILE_SIZE:
+            size = max(status.st_size, len(raw))
+            raise ModelFileError(
+                f"{display}: the model file has {size} bytes, more than the limit of "
+                f"{MAX_FILE_SIZE} ({MAX_FILE_SIZE // 1024**2} MiB): put meshes, matrices and "
+                "long tables in mesh or body files",
+                file=display,
+            )
+        text = raw.decode("utf-8")
+    except FileNotFoundError:
+        raise ModelFileError(f"{display}: no such model file", file=display) from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ModelFileError(
+            f"{display}: cannot read the model file ({error})", file=display
+        ) from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
 def load_model(path: str | os.PathLike[str]) -> ModelFile:
@@ -1703,14 +2051,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     location = Path(path)
     display = str(path)
     source = _Source(location, display)
-    try:
-        text = location.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ModelFileError(f"{display}: no such model file", file=display) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise ModelFileError(
-            f"{display}: cannot read the model file ({error})", file=display
-        ) from None
+    text = _read_text(location, display)
     data = source.read(text)
     if not isinstance(data, dict):
         raise ModelFileError(
@@ -1732,6 +2073,9 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
             f"end_time must be after start_time ({simulation.start_time:g}), "
             f"got {simulation.end_time:g}",
         )
+    problem = None if spec.name is None else _name_problem(spec.name)
+    if problem is not None:
+        raise builder.fail(("name",), problem)
     builder.add_bodies()
     for k, marker in enumerate(spec.markers):
         builder.add_marker(marker, ("markers", k))
@@ -1794,6 +2138,10 @@ def simulate_model(
 
 
 __all__ = [
+    "MAX_DEPTH",
+    "MAX_FILE_SIZE",
+    "MAX_ITEMS",
+    "MAX_VALUES",
     "MODEL_FILE_VERSION",
     "UNITS",
     "ModelFile",
