@@ -321,3 +321,31 @@ def test_run_reports_initial_corrections_and_strict_refuses_them(tmp_path, capsy
     start = ["run", str(model), "-o", str(tmp_path / "eq.h5"), *QUIET, "--start", "equilibrium"]
     assert main(start) == 0
     assert "initial correction" not in capsys.readouterr().out
+
+
+def test_run_outputs_are_checked_before_the_run_and_never_replace_the_model(tmp_path, capsys):
+    model = tmp_path / "gap.yaml"
+    model.write_text(GAP)
+    text = model.read_text()
+    # Regression (issue 28): `run model.yaml -o model.yaml` replaced the model by the results.
+    assert main(["run", str(model), "-o", str(model), *QUIET]) == 1
+    assert "is the model file of the run" in capsys.readouterr().err
+    assert model.read_text() == text
+    for output, message in [
+        (str(tmp_path), "is a folder"),
+        (str(tmp_path / "missing" / "r.h5"), "does not exist"),
+    ]:
+        assert main(["run", str(model), "-o", output, *QUIET]) == 2
+        assert message in capsys.readouterr().err
+    plot = ["run", str(model), "-o", str(tmp_path / "r.h5"), "--plot", "p.xyz", "--no-animation"]
+    started = time.perf_counter()
+    assert main([*plot, "-q"]) == 2
+    assert "unknown plot format '.xyz'" in capsys.readouterr().err
+    assert time.perf_counter() - started < 5 and not (tmp_path / "r.h5").exists()
+    # A model name that looks like a path never becomes one (the name is refused on loading;
+    # the command line writes only the model's file stem in the working folder).
+    escaping = tmp_path / "escaping.yaml"
+    escaping.write_text(GAP.replace("name: gap", "name: ../../escaped"))
+    assert main(["run", str(escaping), *QUIET]) == 2
+    assert "plain name" in capsys.readouterr().err
+    assert not (tmp_path.parent.parent / "escaped.h5").exists()

@@ -2,6 +2,8 @@
 
 import os
 import signal
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -226,7 +228,9 @@ def test_ctrl_c_stops_cleanly_and_keeps_results():
     assert result.constraint_violation.max() < 1e-8
 
 
-def test_progress_callback_is_called_and_can_stop_the_run():
+def test_progress_callback_is_called_and_its_exception_is_a_callback_error():
+    # Regression (issue 28): an exception of the progress function ended the run as
+    # SimulationInterrupted, as if the user had pressed Ctrl-C.
     seen = []
 
     def progress(time, step, iterations):
@@ -235,10 +239,11 @@ def test_progress_callback_is_called_and_can_stop_the_run():
             raise RuntimeError("enough")
 
     example = fm.examples.four_bar(20)
-    with pytest.raises(fm.SimulationInterrupted) as info:
+    with pytest.raises(fm.CallbackError, match="progress function.*RuntimeError: enough") as info:
         fm.simulate(example.system, 100.0, 1e-3, output_interval=0.01, progress=progress)
     assert len(seen) == 2 and seen[0] < seen[1]
     assert isinstance(info.value.__cause__, RuntimeError)
+    assert info.value.time == pytest.approx(seen[1]) and len(info.value.result.time) > 1
 
 
 def test_newton_step_control_recovers_where_a_fixed_step_fails():
@@ -249,3 +254,67 @@ def test_newton_step_control_recovers_where_a_fixed_step_fails():
     stats = result.statistics
     assert result.success and stats["rejected_steps"] > 0
     assert stats["min_step_size"] < 0.05 and result.time[-1] == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (
+            lambda: fm.GeneralizedAlpha(max_iterations=-1),
+            "max_iterations must be an integer >= 1, got -1",
+        ),
+        (lambda: fm.GeneralizedAlpha(max_iterations="12"), "max_iterations .* got '12' \\(str\\)"),
+        (lambda: fm.ExplicitSolver("rk4", max_iterations=0), "max_iterations .* got 0"),
+        (lambda: fm.BodyId(-1), "BodyId index must be an integer >= 0, got -1"),
+        (lambda: fm.JointId(2**70), "JointId index .* got 1180591620717411303424"),
+    ],
+)
+def test_negative_and_mistyped_integers_name_the_parameter(make, match):
+    # Regression (issue 28): OverflowError "can't convert negative int to unsigned" or a
+    # TypeError, without the parameter's name.
+    with pytest.raises(fm.InvalidParameterError, match=match):
+        make()
+
+
+def test_unknown_items_are_named_in_the_singular():
+    result = fm.simulate(pendulum_system(), 0.01, 1e-3)
+    with pytest.raises(fm.UnknownItemError, match=r"^body 5 does not exist \(the model has 2"):
+        result.position(5)
+    with pytest.raises(fm.UnknownItemError, match="no joint named 'hinge'"):
+        result.reaction("hinge")
+
+
+def pendulum_system() -> fm.System:
+    system = fm.System(gravity=(0, -9.81, 0))
+    mass = system.add_point_mass(1.0, position=(1, 0, 0), name="bob")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+    return system
+
+
+FOREVER = """
+import flexmbd as fm
+system = fm.System(gravity=(0, -9.81, 0))
+mass = system.add_point_mass(1.0, position=(1, 0, 0))
+system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+tight = {"relative_tolerance": 1e-300, "absolute_tolerance": 1e-300, "min_step_size": 1e-300}
+solvers = (fm.GeneralizedAlpha(step_control="error", **tight), fm.ExplicitSolver("dopri5", **tight))
+for solver in solvers:
+    try:
+        fm.simulate(system, 1.0, 1e-3, solver=solver)
+    except fm.StepSizeTooSmallError as error:
+        print("stopped:", error)
+"""
+
+
+def test_a_step_below_the_round_off_of_the_time_is_a_step_size_error():
+    # Regression (issue 28): min_step_size 1e-300 with impossible tolerances looped for ever
+    # with steps that no longer advanced t. Run apart, so that a regression cannot hang the
+    # suite.
+    run = subprocess.run(
+        [sys.executable, "-c", FOREVER], capture_output=True, text=True, timeout=120
+    )
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert len(lines) == 2 and all("fell below the minimum 1.421e-14" in line for line in lines)
+    with pytest.raises(fm.InvalidParameterError, match="below the round-off of the times"):
+        fm.simulate(pendulum_system(), 1.0, 1e-300)

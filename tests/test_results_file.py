@@ -240,3 +240,210 @@ def test_tables_for_pandas_and_xarray(tmp_path):
     force = data["reactions"].sel(joint="bearing", component="force y").to_numpy()
     np.testing.assert_array_equal(force, result.reaction_force("bearing")[:, 1])
     assert data["multipliers"].sel(constraint="drive: angle").shape == (len(result),)
+
+
+# Faults (issue 28) ------------------------------------------------------------------------
+
+
+def pendulum() -> fm.System:
+    system = fm.System(gravity=(0, -9.81, 0))
+    mass = system.add_point_mass(1.0, position=(1, 0, 0), name="mass")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+    return system
+
+
+def test_a_results_path_that_is_a_folder_a_missing_folder_or_another_file_is_refused(tmp_path):
+    with pytest.raises(fm.ResultsFileError, match="is a folder"):
+        fm.simulate(pendulum(), 0.01, 1e-3, results_file=tmp_path)
+    with pytest.raises(fm.ResultsFileError, match="its folder .*missing.* does not exist"):
+        fm.simulate(pendulum(), 0.01, 1e-3, results_file=tmp_path / "missing" / "r.h5")
+    # A model file given as the output is never replaced (flexmbd run -o model.yaml).
+    model = tmp_path / "model.yaml"
+    model.write_text("name: x\n")
+    with pytest.raises(fm.ResultsFileError, match="not a flexmbd results file: it is not"):
+        fm.simulate(pendulum(), 0.01, 1e-3, results_file=model)
+    assert model.read_text() == "name: x\n"
+    results = tmp_path / "r.h5"
+    fm.simulate(pendulum(), 0.01, 1e-3, results_file=results)
+    with pytest.raises(fm.ResultsFileError, match="is the model file of the run"):
+        fm.simulate(pendulum(), 0.01, 1e-3, results_file=results, protect=(results,))
+    readonly = tmp_path / "readonly"
+    readonly.mkdir()
+    readonly.chmod(0o555)
+    try:
+        if os.access(readonly, os.W_OK):
+            pytest.skip("running as a user who may write read-only folders")
+        with pytest.raises(fm.ResultsFileError, match="cannot write"):
+            fm.simulate(pendulum(), 0.01, 1e-3, results_file=readonly / "r.h5")
+    finally:
+        readonly.chmod(0o755)
+
+
+def test_a_second_writer_of_the_same_file_is_refused_and_the_first_file_stays_whole(tmp_path):
+    from flexmbd.results_file import ResultsWriter
+
+    path = tmp_path / "same.h5"
+    model = pendulum().compile()
+    first = ResultsWriter(path, model)
+    try:
+        with pytest.raises(
+            fm.ResultsFileError, match=f"being written by another run .*{os.getpid()}"
+        ):
+            fm.simulate(model, 0.01, 1e-3, results_file=path)
+    finally:
+        first.close()
+    # The same in two processes: the second run is refused, the first one's file is whole.
+    script = textwrap.dedent(
+        """
+        import sys, time
+        import numpy as np
+        import flexmbd as fm
+        system = fm.System(gravity=(0, -9.81, 0))
+        mass = system.add_point_mass(1.0, position=(1, 0, 0))
+        system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+        system.add_callback_force([mass], lambda t, q, qd: time.sleep(0.001) or np.zeros(3))
+        fm.simulate(system, 1.0, 1e-3, output_interval=1e-3, results_file=sys.argv[1])
+        """
+    )
+    process = subprocess.Popen([sys.executable, "-c", script, str(path)])
+    try:
+        deadline = time.monotonic() + 60
+        while not path.with_name(f".{path.name}.lock").exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(0.3)
+        with pytest.raises(fm.ResultsFileError, match=f"process {process.pid}"):
+            fm.simulate(pendulum(), 0.01, 1e-3, results_file=path)
+        assert process.wait(timeout=120) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+    back = fm.read_results(path)
+    assert back.success and len(back) == 1001
+
+
+def test_a_failed_rerun_leaves_the_earlier_results_in_place(tmp_path):
+    path = tmp_path / "run.h5"
+    first = fm.simulate(pendulum(), 1.0, 1e-3, output_interval=1e-3, results_file=path)
+    assert len(fm.read_results(path)) == len(first) == 1001
+    failing = pendulum()
+
+    def force(t, q, qd):
+        raise ZeroDivisionError("user bug at the start")
+
+    failing.add_callback_force([fm.BodyId(1)], force, name="bug")
+    with pytest.raises(fm.CallbackError):
+        fm.simulate(failing, 1.0, 1e-3, output_interval=1e-3, results_file=path)
+    # Regression: the earlier 1001 records were replaced by the failed run's one record.
+    back = fm.read_results(path)
+    assert back.success and len(back) == 1001
+    assert_same_records(first, back)
+    assert not (tmp_path / "run.h5.partial").exists()
+    # A re-run that gets going replaces it.
+    fm.simulate(pendulum(), 0.5, 1e-3, output_interval=1e-3, results_file=path)
+    assert len(fm.read_results(path)) == 501
+
+
+def test_records_kept_only_in_the_file_are_the_same_records(tmp_path):
+    example = EXAMPLES["flexible-slider-crank"]()
+    kept = fm.simulate(example.system, 0.05, example.step_size, results_file=tmp_path / "a.h5")
+    lean = fm.simulate(
+        example.system,
+        0.05,
+        example.step_size,
+        results_file=tmp_path / "b.h5",
+        keep_in_memory=False,
+        progress=lambda *args: time.sleep(0.02),  # several deliveries to the file
+    )
+    assert 1 <= len(lean) < len(kept)
+    assert lean.file == tmp_path / "b.h5"
+    np.testing.assert_array_equal(lean.coordinates[-1], kept.coordinates[-1])
+    assert_same_records(kept, fm.read_results(tmp_path / "b.h5"))
+    with pytest.raises(fm.InvalidParameterError, match="results_file"):
+        fm.simulate(example.system, 0.01, example.step_size, keep_in_memory=False)
+
+
+DAMAGED = textwrap.dedent(
+    """
+    import sys, time
+    import flexmbd as fm
+    start = time.perf_counter()
+    try:
+        result = fm.read_results(sys.argv[1])
+        print("read", len(result), type(result.error).__name__)
+    except fm.FlexmbdError as error:
+        print("error", type(error).__name__)
+    print(f"seconds {time.perf_counter() - start:.3f}")
+    """
+)
+
+
+def test_damaged_results_files_are_read_quickly_as_far_as_they_can_be(tmp_path):
+    path = tmp_path / "ok.h5"
+    fm.simulate(pendulum(), 1.0, 1e-3, output_interval=1e-3, results_file=path)
+    data = path.read_bytes()
+    cases = {}
+    for fraction in (0.1, 0.5, 0.9, 0.99):
+        cases[f"truncated {fraction}"] = data[: int(len(data) * fraction)]
+    flipped = bytearray(data)
+    for k in range(4096, len(flipped), 1531):
+        flipped[k] ^= 0x5A
+    cases["bit flips"] = bytes(flipped)
+    for name, content in cases.items():
+        damaged = tmp_path / "damaged.h5"
+        damaged.write_bytes(content)
+        # Regression: a truncated file kept the reader waiting on HDF5's retries > 10 min.
+        run = subprocess.run(
+            [sys.executable, "-c", DAMAGED, str(damaged)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert run.returncode == 0 and "Traceback" not in run.stderr, (name, run.stderr)
+        seconds = float(run.stdout.split("seconds")[1])
+        assert seconds < 5, (name, seconds)
+        assert run.stdout.startswith(("read", "error")), (name, run.stdout)
+        if run.stdout.startswith("read"):
+            assert "ResultsFileError" in run.stdout or "None" in run.stdout, run.stdout
+    # A negative record count is refused, not read as "drop the last records".
+    with h5py.File(path, "r+") as file:
+        file["records"][0] = -5
+    with pytest.raises(fm.ResultsFileError, match="record count of -5"):
+        fm.read_results(path)
+
+
+FULL_DISK = textwrap.dedent(
+    """
+    import resource, sys
+    import flexmbd as fm
+    resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[2]), int(sys.argv[2])))
+    system = fm.System(gravity=(0, -9.81, 0))
+    mass = system.add_point_mass(1.0, position=(1, 0, 0))
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+    try:
+        fm.simulate(system, 200.0, 1e-3, output_interval=1e-3, results_file=sys.argv[1])
+        print("no error")
+    except fm.ResultsFileError as error:
+        print("kept", len(error.result), str(error).split("(")[0])
+    """
+)
+
+
+def test_a_full_disk_is_a_typed_error_and_the_file_keeps_what_was_committed(tmp_path):
+    path = tmp_path / "full.h5"
+    run = subprocess.run(
+        [sys.executable, "-c", FULL_DISK, str(path), str(4 << 20)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    # Regression: OSError tracebacks, then a segmentation fault at exit, and a file left
+    # "running" with 0 records.
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("kept"), run.stdout + run.stderr
+    assert "Traceback" not in run.stderr
+    back = fm.read_results(path)
+    assert 0 < len(back) < 200_001
+    assert isinstance(back.error, fm.ResultsFileError) and "file size limit" in str(back.error)
+    # Every committed record is a valid record of the run.
+    reference = fm.simulate(pendulum(), back.time[-1], 1e-3, output_interval=1e-3)
+    np.testing.assert_allclose(back.coordinates, reference.coordinates, rtol=0, atol=1e-12)

@@ -24,7 +24,12 @@ from pathlib import Path
 from typing import Any
 
 from . import __version__, _core
-from .errors import FlexmbdError, InitialCorrectionWarning, SimulationInterrupted
+from .errors import (
+    FlexmbdError,
+    InitialCorrectionWarning,
+    ResultsFileError,
+    SimulationInterrupted,
+)
 from .examples import EXAMPLES
 from .simulation import simulate
 
@@ -63,6 +68,8 @@ class _Job:
     outputs: Any = None
     start_time: float = 0.0
     start: str = "given"
+    #: The stem of the output files' names (never a path).
+    stem: str = "results"
 
 
 def _job(model: str) -> _Job:
@@ -78,6 +85,7 @@ def _job(model: str) -> _Job:
             example.solver,
             example.check,
             source=f"built-in example {model!r}",
+            stem=example.name,
         )
     path = Path(model)
     if path.suffix.lower() not in (".yaml", ".yml"):
@@ -102,6 +110,7 @@ def _job(model: str) -> _Job:
         outputs=loaded.output_values,
         start_time=loaded.start_time,
         start=loaded.start,
+        stem=loaded.file_stem,
     )
 
 
@@ -132,6 +141,29 @@ class _ProgressBar:
         if self.enabled and self.width:
             sys.stderr.write("\r" + " " * self.width + "\r")
             sys.stderr.flush()
+
+
+def _kept(error: FlexmbdError, results: Path) -> tuple[Path, int, str]:
+    """Where a stopped run's records are, how many, and up to when (from its file)."""
+    from .results_file import read_results_metadata
+
+    kept = getattr(error, "result", None)
+    where = getattr(kept, "file", None) or results
+    try:
+        count = int(read_results_metadata(where)["records"])
+    except (FlexmbdError, OSError):
+        count = 0
+    last = f"t = {kept.time[-1]:.6g} s" if kept is not None and len(kept) else "the start"
+    return Path(where), count, last
+
+
+def _read_back(result: Any) -> Any:
+    """The whole run from its results file, with the statistics and events of the run."""
+    from .results_file import read_results
+
+    full = read_results(result.file)
+    full.statistics, full.events = result.statistics, result.events
+    return full
 
 
 def _print_summary(result: Any, elapsed: float) -> None:
@@ -181,6 +213,24 @@ def _stop_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, interrupt)
 
 
+def _checked_outputs(args: argparse.Namespace, results: Path) -> str | None:
+    """Why the output files of `run` cannot be written, checked before the run (None: they
+    can): the results file's folder, the plot's and the animation's formats."""
+    from .plotting import IMAGE_SUFFIXES
+
+    if results.is_dir():
+        return f"{results} is a folder; give a results file name such as run.h5 with -o"
+    if not results.parent.is_dir():
+        return f"cannot write {results}: its folder {results.parent} does not exist"
+    if args.plot and not args.no_plot and Path(args.plot).suffix.lower() not in IMAGE_SUFFIXES:
+        known = ", ".join(sorted(IMAGE_SUFFIXES))
+        return f"unknown plot format {Path(args.plot).suffix!r} of {args.plot!r}; use {known}"
+    if args.animation and not args.no_animation:
+        if Path(args.animation).suffix.lower() not in (".gif", ".png"):
+            return f"unknown animation format of {args.animation!r}; use .gif or .png"
+    return None
+
+
 def _run(args: argparse.Namespace) -> int:
     try:
         job = _job(args.model)
@@ -191,7 +241,11 @@ def _run(args: argparse.Namespace) -> int:
     end = args.end if args.end is not None else job.end_time
     step = args.step if args.step is not None else job.step_size
     interval = args.output_interval if args.output_interval is not None else job.output_interval
-    results = Path(args.output) if args.output else Path(f"{job.name}.h5")
+    results = Path(args.output) if args.output else Path(f"{job.stem}.h5")
+    problem = _checked_outputs(args, results)
+    if problem is not None:
+        print(f"flexmbd run: {problem}", file=sys.stderr)
+        return 2
     print(f"flexmbd {__version__}: {job.description}")
     try:
         model = job.system.compile()
@@ -229,22 +283,27 @@ def _run(args: argparse.Namespace) -> int:
                 progress=bar,
                 results_file=results,
                 metadata=metadata,
+                keep_in_memory=False,
+                protect=(job.source,) if Path(job.source).is_file() else (),
             )
     except SimulationInterrupted as error:
         bar.close()
-        kept = error.result
-        last = f"t = {kept.time[-1]:.6g} s" if kept is not None and len(kept) else "the start"
-        count = len(kept) if kept is not None else 0
-        print(f"  interrupted: {count} records up to {last} kept in {results}", file=sys.stderr)
+        where, count, last = _kept(error, results)
+        print(f"  interrupted: {count} records up to {last} kept in {where}", file=sys.stderr)
         return 130
+    except ResultsFileError as error:
+        bar.close()
+        print(f"  failed: {error}", file=sys.stderr)
+        return 1
     except FlexmbdError as error:
         bar.close()
-        kept = getattr(error, "result", None)
-        count = len(kept) if kept is not None else 0
+        where, count, last = _kept(error, results)
         print(f"  failed: {error}", file=sys.stderr)
-        print(f"  {count} records kept in {results}", file=sys.stderr)
+        print(f"  {count} records up to {last} kept in {where}", file=sys.stderr)
         return 1
     bar.close()
+    # The records were kept only in the file (memory flat on any run length): read them.
+    result = _read_back(result)
     _print_summary(result, time.perf_counter() - start)
     if job.check is not None:
         for name, value in job.check(result).items():

@@ -76,6 +76,14 @@ class ModelFileError(InvalidModelError):
         self.key = key
 
 
+class ResultsFileError(FlexmbdError, OSError):
+    """A results file cannot be written or read: its folder is missing or read-only, the path
+    is a folder or a file that is not a flexmbd results file (a model file, say), another
+    process is writing it, the disk is full, or the file is damaged. ``item`` names the file.
+    When a run's file fails, the records committed before the fault stay in the file and the
+    run's ``result`` holds what was computed. Also an ``OSError``."""
+
+
 class SimulationError(FlexmbdError, RuntimeError):
     """A simulation failed; ``error.result`` holds the results up to the failure."""
 
@@ -143,6 +151,7 @@ __all__ = [
     "ModelError",
     "ModelFileError",
     "NewtonDivergedError",
+    "ResultsFileError",
     "NonFiniteError",
     "SimulationError",
     "SimulationInterrupted",

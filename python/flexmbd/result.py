@@ -13,6 +13,9 @@ from .rotation import euler_parameters_to_matrix
 
 Array = NDArray[np.float64]
 
+#: The singular of the item lists of a model description, for messages.
+_SINGULAR = {"bodies": "body", "joints": "joint", "sensors": "sensor", "markers": "marker"}
+
 
 class Result:
     """Results of :func:`flexmbd.simulate`.
@@ -63,6 +66,9 @@ class Result:
         self._energy: Array = raw["energy"]
         #: Deformable bodies: body index -> their FlexibleBodyData (for node outputs).
         self.flexible: dict[int, Any] = dict(flexible or {})
+        #: The results file the run wrote (:func:`flexmbd.simulate` with ``results_file``), or
+        #: None.
+        self.file: Any = None
 
     def __len__(self) -> int:
         return len(self.time)
@@ -119,6 +125,7 @@ class Result:
     # Lookups ---------------------------------------------------------------------------
     def _lookup(self, kind: str, item: object, id_type: type) -> tuple[int, dict[str, Any]]:
         entries = self.layout[kind]
+        singular = _SINGULAR.get(kind, kind)
         if isinstance(item, id_type):
             index = item.index  # type: ignore[attr-defined]
         elif isinstance(item, int | np.integer):
@@ -126,14 +133,17 @@ class Result:
         elif isinstance(item, str):
             names = [e["name"] for e in entries]
             if item not in names:
-                raise UnknownItemError(f"no {kind[:-1]} named {item!r}; known: {names}", item=item)
+                raise UnknownItemError(f"no {singular} named {item!r}; known: {names}", item=item)
             index = names.index(item)
         else:
             raise UnknownItemError(
                 f"expected a {id_type.__name__}, an index or a name, got {item!r}"
             )
         if not 0 <= index < len(entries):
-            raise UnknownItemError(f"{kind[:-1]} {index} does not exist", item=str(item))
+            raise UnknownItemError(
+                f"{singular} {index} does not exist (the model has {len(entries)} {kind})",
+                item=str(item),
+            )
         return index, entries[index]
 
     def _body(self, body: object) -> dict[str, Any]:

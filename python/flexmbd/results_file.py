@@ -32,8 +32,12 @@ file is executed or unpickled on reading.
 
 from __future__ import annotations
 
+import ctypes
+import errno
+import fcntl
 import json
 import os
+import resource
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +45,7 @@ import h5py
 import numpy as np
 
 from . import _core, errors
-from .errors import FlexmbdError, InvalidModelError
+from .errors import FlexmbdError, InvalidModelError, ResultsFileError
 from .fe.body_file import read_body_group, write_body_group
 from .result import Result
 
@@ -51,6 +55,10 @@ RESULTS_FILE_FORMAT = "flexmbd-results"
 RESULTS_FILE_VERSION = 1
 #: The units of every value in a results file (root attribute ``units``): SI.
 RESULTS_UNITS = {"length": "m", "mass": "kg", "time": "s", "angle": "rad", "force": "N"}
+
+#: Room left free on the disk (and below the file size limit) beyond what the next records
+#: need, for HDF5's metadata, bytes.
+_SPACE_MARGIN = 1 << 20
 
 #: Record datasets: name -> shape of one record, from the model description.
 _RECORD_FIELDS = (
@@ -96,12 +104,100 @@ def _json(value: Any) -> str:
     return json.dumps(value, default=convert)
 
 
+def _is_results_file(path: Path) -> bool:
+    """Whether `path` is a flexmbd results file (an HDF5 file with the format attribute)."""
+    try:
+        if not h5py.is_hdf5(path):
+            return False
+        with _open(path, check=False) as file:
+            found = file.attrs.get("format")
+    except (OSError, ResultsFileError):
+        return False
+    if isinstance(found, bytes):
+        found = found.decode("utf-8", "replace")
+    return found == RESULTS_FILE_FORMAT
+
+
+def _writable_target(path: Path, protect: tuple[Path, ...]) -> None:
+    """Refuses a results path that is a folder, whose folder is missing, that is one of the
+    `protect`ed files (the model file of the run), or that holds another kind of file."""
+    where = f"file '{path}'"
+    if path.is_dir():
+        raise ResultsFileError(f"{path} is a folder; give a file name such as run.h5", item=where)
+    if not path.parent.is_dir():
+        raise ResultsFileError(
+            f"cannot write {path}: its folder {path.parent} does not exist", item=where
+        )
+    for other in protect:
+        if path.exists() and other.exists() and os.path.samefile(path, other):
+            raise ResultsFileError(
+                f"{path} is the model file of the run; the results need another file name",
+                item=where,
+            )
+    if path.exists() and not _is_results_file(path):
+        raise ResultsFileError(
+            f"{path} exists and is not a flexmbd results file: it is not replaced (give another "
+            "file name, or remove it first)",
+            item=where,
+        )
+
+
+class _Lock:
+    """An exclusive lock on a results path for the time of a run: the file
+    ``.<name>.lock`` beside it, locked with ``flock`` (released by the system when the
+    process ends, also when it is killed) and holding the writer's process id."""
+
+    def __init__(self, path: Path):
+        self.path = path.with_name(f".{path.name}.lock")
+        try:
+            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as error:
+            raise ResultsFileError(
+                f"cannot write {path}: {error.strerror} ({self.path})", item=f"file '{path}'"
+            ) from error
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as error:
+            owner = os.pread(self.fd, 64, 0).decode("ascii", "replace").strip() or "?"
+            os.close(self.fd)
+            raise ResultsFileError(
+                f"{path} is being written by another run (process {owner}); wait for it or give "
+                "another file name",
+                item=f"file '{path}'",
+            ) from error
+        os.ftruncate(self.fd, 0)
+        os.pwrite(self.fd, f"{os.getpid()}\n".encode("ascii"), 0)
+
+    def release(self) -> None:
+        if self.fd < 0:
+            return
+        try:
+            os.unlink(self.path)
+        except OSError:
+            pass
+        os.close(self.fd)
+        self.fd = -1
+
+
 class ResultsWriter:
     """Writes a results file record by record (see the module docstring for the layout).
 
     ``append`` takes the raw record chunks that :func:`flexmbd.simulate` delivers during the
     run; ``finish`` writes the remaining records and the final statistics, events and status.
-    The file is created next to ``path`` under its own name; an existing file is replaced.
+
+    Nothing is lost or replaced by accident:
+
+    - the path may not be a folder, nor in a missing folder, nor one of the `protect`ed
+      files (the run's model file), nor an existing file of another kind;
+    - a lock beside it refuses a second writer of the same path (``ResultsFileError`` naming
+      the process that writes it);
+    - over an earlier results file the records go to ``NAME.partial`` first, which replaces
+      it only once the run has taken its first step (or has completed); a run that fails
+      before leaves the earlier file as it was, and its own records in
+      ``STEM.failed.SUFFIX``;
+    - a write that fails (a full disk, a quota, an I/O error) raises ``ResultsFileError``;
+      the file keeps every record committed before (the record count is raised only after
+      the records reached the file).
     """
 
     def __init__(
@@ -110,12 +206,26 @@ class ResultsWriter:
         model: _core.Model,
         *,
         metadata: dict[str, Any] | None = None,
+        protect: tuple[str | os.PathLike[str], ...] = (),
     ):
         self.path = Path(path)
         self.layout = model.describe()
         self._shapes = _record_shapes(self.layout)
         self.records = 0
-        file = h5py.File(self.path, "w", libver="latest", track_order=True)
+        self.failure: ResultsFileError | None = None
+        _writable_target(self.path, tuple(Path(p) for p in protect))
+        self._lock = _Lock(self.path)
+        self.partial = self.path.with_name(f"{self.path.name}.partial")
+        # With no earlier results at the path there is nothing to keep: write it directly.
+        self.placed = not self.path.exists()
+        try:
+            target = self.path if self.placed else self.partial
+            file = h5py.File(target, "w", libver="latest", track_order=True)
+        except OSError as error:
+            self._lock.release()
+            raise ResultsFileError(
+                f"cannot write {self.path}: {error}", item=f"file '{self.path}'"
+            ) from error
         self._file = file
         try:
             file.attrs["format"] = RESULTS_FILE_FORMAT
@@ -142,8 +252,13 @@ class ResultsWriter:
             self._write_text("status", {"state": "running", "error": None, "message": ""})
             file.swmr_mode = True
             file.flush()
-        except BaseException:
-            file.close()
+        except BaseException as error:
+            self._abandon()
+            self._lock.release()
+            if isinstance(error, OSError):
+                raise ResultsFileError(
+                    f"cannot write {self.path}: {error}", item=f"file '{self.path}'"
+                ) from error
             raise
 
     def _write_text(self, name: str, value: Any) -> None:
@@ -152,9 +267,100 @@ class ResultsWriter:
         dataset.resize((len(data),))
         dataset[:] = data
 
+    def _abandon(self) -> None:
+        """Closes the file after a failure, quietly (what was committed stays)."""
+        try:
+            if self._file.id.valid:
+                self._file.close()
+        except Exception:  # noqa: BLE001 - a file that failed may fail again on closing
+            pass
+
+    def _place(self) -> None:
+        """Moves the partial file into place (the open file follows the rename)."""
+        os.replace(self.partial, self.path)
+        self.placed = True
+
+    def _fail(self, error: OSError, *, before_writing: bool = False) -> ResultsFileError:
+        """Ends the file after a failure (`before_writing`: a write refused before it was
+        tried, which leaves the file sound enough to record the failure in its status) and
+        returns the ResultsFileError to raise."""
+        last = self.records
+        where = self.path if self.placed else self.partial
+        self.failure = ResultsFileError(
+            f"writing the results file {where} failed ({error.strerror or error}); it keeps the "
+            f"{last} records written before",
+            item=f"file '{where}'",
+        )
+        if before_writing:
+            try:
+                status = {
+                    "state": "failed",
+                    "error": "ResultsFileError",
+                    "message": str(self.failure),
+                }
+                self._write_text("status", status)
+                self._file.flush()
+            except OSError:
+                pass
+        self._abandon()
+        if not self.placed and last:
+            # The records of a run that got no further than its start: kept beside.
+            try:
+                os.replace(
+                    self.partial, self.path.with_name(f"{self.path.stem}.failed{self.path.suffix}")
+                )
+            except OSError:
+                pass
+        self._lock.release()
+        return self.failure
+
+    def _room(self, count: int) -> tuple[int, str]:
+        """How many of `count` records the disk and the process's file size limit leave room
+        for (with a margin for HDF5's metadata), and why not more. A full disk must be met
+        before it is full: HDF5 cannot be closed cleanly after a failed write (its library
+        then crashes at exit)."""
+        where = self.path if self.placed else self.partial
+        per_record = 16 * sum(max(1, int(np.prod(shape))) for shape in self._shapes.values())
+        try:
+            size = os.path.getsize(where)
+            disk = os.statvfs(where.parent)
+            free = disk.f_bavail * disk.f_frsize
+            limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        except OSError:
+            return count, ""
+        allowed, reason = free, "the disk"
+        if limit != resource.RLIM_INFINITY and limit - size < free:
+            allowed, reason = limit - size, "the file size limit"
+        fits = max(0, (allowed - _SPACE_MARGIN) // per_record)
+        return min(count, fits), f"{reason} leaves {max(allowed, 0)} bytes"
+
     def append(self, raw: dict[str, Any]) -> None:
         """Appends the records of a raw chunk (the dict of ``_core.simulate``'s ``records``
-        callback), with its statistics and events, and makes them durable."""
+        callback), with its statistics and events, and makes them durable. Where the disk
+        (or the file size limit) has no room for all of them, those that fit are written
+        and the file is ended with a ResultsFileError."""
+        if self.failure is not None:
+            raise self.failure
+        count = len(raw["time"])
+        fits, reason = self._room(count)
+        try:
+            if fits < count:
+                part = {name: raw[name][:fits] for name in _RECORD_FIELDS}
+                self._append({**raw, **part})
+            else:
+                self._append(raw)
+        except OSError as error:
+            raise self._fail(error) from error
+        if fits < count:
+            message = f"{reason}, too little for the next records"
+            raise self._fail(OSError(errno.ENOSPC, message), before_writing=True)
+        if not self.placed and self.records >= 2:
+            try:
+                self._place()
+            except OSError as error:
+                raise self._fail(error) from error
+
+    def _append(self, raw: dict[str, Any]) -> None:
         count = len(raw["time"])
         if count:
             start, end = self.records, self.records + count
@@ -173,31 +379,55 @@ class ResultsWriter:
             self._file["records"][0] = self.records
             self._file.flush()
 
-    def finish(self, result: Result) -> None:
-        """Writes the records of ``result`` not yet in the file, the final statistics and
-        events, and the status (complete, failed or interrupted); closes the file."""
+    def finish(self, result: Result, released: int = 0) -> Path:
+        """Writes the records of ``result`` not yet in the file (``result`` holds the run's
+        records from record `released` on), the final statistics and events, and the status
+        (complete, failed or interrupted); closes the file and returns where it is: the
+        path, or, for a run that failed before its first step while an earlier results file
+        was at the path, ``STEM.failed.SUFFIX`` beside it."""
+        if self.failure is not None:
+            raise self.failure
         chunk: dict[str, Any] = {
-            name: result._record(name)[self.records :] for name in _RECORD_FIELDS
+            name: result._record(name)[self.records - released :] for name in _RECORD_FIELDS
         }
         chunk["statistics"] = result.statistics
         chunk["events"] = result.events
         chunk["redundancy"] = result.redundancy
         self.append(chunk)
-        error = result.error
-        if error is None:
+        run_error = result.error
+        if run_error is None:
             status = {"state": "complete", "error": None, "message": ""}
         else:
-            state = "interrupted" if isinstance(error, errors.SimulationInterrupted) else "failed"
-            status = {"state": state, "error": type(error).__name__, "message": str(error)}
-        self._write_text("status", status)
-        self.close()
+            kind = (
+                "interrupted" if isinstance(run_error, errors.SimulationInterrupted) else "failed"
+            )
+            status = {"state": kind, "error": type(run_error).__name__, "message": str(run_error)}
+        try:
+            self._write_text("status", status)
+            self._file.flush()
+        except OSError as error:
+            raise self._fail(error) from error
+        self._abandon()
+        where = self.path
+        if not self.placed:
+            if run_error is not None and self.path.exists():
+                where = self.path.with_name(f"{self.path.stem}.failed{self.path.suffix}")
+                os.replace(self.partial, where)
+            else:
+                self._place()
+        self._lock.release()
+        return where
 
     def close(self) -> None:
         """Closes the file (what was appended stays; the status stays "running" unless
-        :meth:`finish` wrote it)."""
+        :meth:`finish` wrote it) and releases the lock."""
         if self._file.id.valid:
-            self._file.flush()
-            self._file.close()
+            try:
+                self._file.flush()
+            except OSError:
+                pass
+            self._abandon()
+        self._lock.release()
 
     def __enter__(self) -> ResultsWriter:
         return self
@@ -206,58 +436,142 @@ class ResultsWriter:
         self.close()
 
 
-def _open(path: Path) -> h5py.File:
-    if not path.exists():
+def _hdf5_library() -> Any:
+    """The HDF5 library h5py uses (ctypes), for the settings h5py does not expose; None if it
+    cannot be found."""
+    global _HDF5
+    if _HDF5 is False:
+        try:
+            with open("/proc/self/maps", encoding="utf-8", errors="replace") as maps:
+                paths = {line.split()[-1] for line in maps if "libhdf5" in line}
+            paths = {p for p in paths if "_hl" not in os.path.basename(p)}
+            _HDF5 = ctypes.CDLL(sorted(paths)[0]) if paths else None
+        except (OSError, IndexError):
+            _HDF5 = None
+    return _HDF5
+
+
+_HDF5: Any = False
+
+
+def _open(path: Path, *, check: bool = True) -> h5py.File:
+    """Opens a results file for reading without HDF5's retries of metadata reads (with them
+    a truncated file kept a reader waiting for more than ten minutes): damaged metadata fails
+    at once. A file whose writer was killed is still marked as being written; the
+    single-writer/multiple-reader mode reads it."""
+    if check and not path.exists():
         raise FileNotFoundError(2, "No such results file", str(path))
-    if not h5py.is_hdf5(path):
+    if check and not h5py.is_hdf5(path):
         raise InvalidModelError(
             f"{path} is not a flexmbd results file (not an HDF5 file)", item=f"file '{path}'"
         )
-    try:
-        # A file whose writer was killed is still marked as open for writing; the
-        # single-writer/multiple-reader mode reads it.
-        return h5py.File(path, "r", swmr=True)
-    except OSError:
-        return h5py.File(path, "r")
+    access = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    access.set_libver_bounds(h5py.h5f.LIBVER_LATEST, h5py.h5f.LIBVER_LATEST)
+    library = _hdf5_library()
+    if library is not None:
+        library.H5Pset_metadata_read_attempts(ctypes.c_int64(access.id), ctypes.c_uint(1))
+    name = os.fsencode(path)
+    for flags in (h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, h5py.h5f.ACC_RDONLY):
+        try:
+            return h5py.File(h5py.h5f.open(name, flags, fapl=access))
+        except (OSError, ValueError) as error:
+            failure = error
+    raise ResultsFileError(
+        f"{path} cannot be opened: the file is damaged ({failure})", item=f"file '{path}'"
+    )
 
 
 def _text(file: h5py.File, name: str) -> Any:
-    """A JSON text field, or None when it is absent, empty or torn: the writer of a running
-    simulation rewrites these fields with every chunk (resize, then write), and a reader in
-    between sees a text that does not decode; it reads as not written yet."""
-    data = file[name][:] if name in file else np.zeros(0, np.uint8)
-    if not len(data):
-        return None
+    """A JSON text field, or None when it is absent, empty, torn or damaged: the writer of a
+    running simulation rewrites these fields with every chunk (resize, then write), and a
+    reader in between sees a text that does not decode; it reads as not written yet."""
     try:
-        return json.loads(data.tobytes().decode("utf-8"))
-    except ValueError:  # JSONDecodeError and UnicodeDecodeError
+        data = file[name][:] if name in file else np.zeros(0, np.uint8)
+        if not len(data):
+            return None
+        return json.loads(np.asarray(data, dtype=np.uint8).tobytes().decode("utf-8"))
+    except (OSError, ValueError, TypeError, KeyError):  # damaged, or a JSON/Unicode error
         return None
+
+
+def _attribute(file: h5py.File, name: str, path: Path, default: Any = None) -> Any:
+    """A JSON root attribute; ResultsFileError naming it when it does not decode."""
+    try:
+        text = file.attrs.get(name)
+        if text is None:
+            if default is None:
+                raise KeyError(name)
+            return default
+        if isinstance(text, bytes):
+            text = text.decode("utf-8")
+        return json.loads(str(text))
+    except (OSError, ValueError, TypeError, KeyError) as error:
+        raise ResultsFileError(
+            f"{path}: the attribute '{name}' of the results file is missing or damaged",
+            item=f"file '{path}'",
+        ) from error
+
+
+def _layout(file: h5py.File, path: Path) -> dict[str, Any]:
+    layout = _attribute(file, "layout", path)
+    try:
+        _record_shapes(layout)
+    except (KeyError, TypeError, ValueError, AttributeError) as error:
+        raise ResultsFileError(
+            f"{path}: the model description ('layout') of the results file is damaged",
+            item=f"file '{path}'",
+        ) from error
+    return layout
+
+
+def _record_count(file: h5py.File, path: Path) -> int:
+    try:
+        count = int(np.asarray(file["records"][:1])[0])
+    except (OSError, ValueError, TypeError, IndexError, KeyError) as error:
+        raise ResultsFileError(
+            f"{path}: the record count of the results file is damaged", item=f"file '{path}'"
+        ) from error
+    if count < 0:
+        raise ResultsFileError(
+            f"{path}: the results file gives a record count of {count}", item=f"file '{path}'"
+        )
+    return count
 
 
 def read_results_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The header of a results file without its records: ``layout``, ``metadata``,
     ``records``, ``status``, ``statistics``, ``events``, ``redundancy``, ``flexible`` (body
-    indices) and ``version``."""
+    indices) and ``version``. Raises :class:`flexmbd.ResultsFileError` for a damaged file."""
     path = Path(path)
+    return _guarded(path, lambda: _read_results_metadata(path))
+
+
+def _read_results_metadata(path: Path) -> dict[str, Any]:
     with _open(path) as file:
         _check_header(file, path)
         return {
             "version": int(file.attrs["version"]),
             "writer": str(file.attrs.get("writer", "")),
-            "layout": json.loads(file.attrs["layout"]),
-            "metadata": json.loads(file.attrs["metadata"]),
-            "units": json.loads(file.attrs.get("units", "{}")),
-            "records": int(file["records"][0]),
+            "layout": _layout(file, path),
+            "metadata": _attribute(file, "metadata", path, {}),
+            "units": _attribute(file, "units", path, {}),
+            "records": _record_count(file, path),
             "status": _text(file, "status"),
             "statistics": _text(file, "statistics") or {},
             "events": _text(file, "events") or [],
             "redundancy": _text(file, "redundancy"),
-            "flexible": sorted(int(key) for key in file["flexible"]),
+            "flexible": sorted(int(key) for key in file["flexible"]) if "flexible" in file else [],
         }
 
 
 def _check_header(file: h5py.File, path: Path) -> None:
-    found = file.attrs.get("format")
+    try:
+        found = file.attrs.get("format")
+        version = int(file.attrs.get("version", 0))
+    except (OSError, ValueError, TypeError) as error:
+        raise ResultsFileError(
+            f"{path}: the results file's header is damaged", item=f"file '{path}'"
+        ) from error
     if isinstance(found, bytes):
         found = found.decode("utf-8", "replace")
     if found != RESULTS_FILE_FORMAT:
@@ -266,7 +580,6 @@ def _check_header(file: h5py.File, path: Path) -> None:
             f"{RESULTS_FILE_FORMAT!r})",
             item=f"file '{path}'",
         )
-    version = int(file.attrs.get("version", 0))
     if version > RESULTS_FILE_VERSION:
         raise InvalidModelError(
             f"{path} was written by a newer flexmbd: version {version} > "
@@ -280,28 +593,99 @@ def _check_header(file: h5py.File, path: Path) -> None:
             )
 
 
+def _readable_rows(file: h5py.File, name: str, count: int, shape: tuple[int, ...]) -> np.ndarray:
+    """The first `count` rows of a record dataset, or as many of them as can be read (a
+    damaged chunk ends the readable part; found by halving)."""
+    try:
+        dataset = file[name]
+        if dataset.shape[1:] != shape:
+            return np.zeros((0, *shape))
+        count = min(count, dataset.shape[0])
+        return np.asarray(dataset[:count], dtype=np.float64)
+    except (OSError, ValueError, TypeError, KeyError, RuntimeError):
+        if "dataset" not in locals():
+            return np.zeros((0, *shape))
+    good, bad = 0, count
+    while bad - good > 1:
+        middle = (good + bad) // 2
+        try:
+            dataset[middle - 1 : middle]
+            good = middle
+        except (OSError, ValueError, TypeError):
+            bad = middle
+    try:
+        return np.asarray(dataset[:good], dtype=np.float64)
+    except (OSError, ValueError, TypeError):
+        return np.zeros((0, *shape))
+
+
+_DAMAGE = (OSError, KeyError, ValueError, RuntimeError, TypeError, AttributeError)
+
+
+def _guarded(path: Path, read: Any) -> Any:
+    """`read()`, with the errors of a damaged file (h5py raises OSError, KeyError,
+    ValueError, RuntimeError for broken metadata) as a ResultsFileError naming the file;
+    flexmbd's own errors and a missing file pass through."""
+    try:
+        return read()
+    except FlexmbdError:
+        raise
+    except FileNotFoundError:
+        raise
+    except _DAMAGE as error:
+        raise ResultsFileError(
+            f"{path} cannot be read: the results file is damaged ({error})", item=f"file '{path}'"
+        ) from error
+
+
 def read_results(path: str | os.PathLike[str]) -> Result:
     """Reads a results file into a :class:`flexmbd.Result`: every complete record, the
     statistics and events, and the deformable bodies' data. A run that did not complete
     gives ``success`` False and an ``error`` of the recorded class (a killed run:
-    :class:`flexmbd.SimulationInterrupted` saying so)."""
+    :class:`flexmbd.SimulationInterrupted` saying so). A damaged file (truncated, bit
+    flips) gives the records that can be read, with a :class:`flexmbd.ResultsFileError` as
+    ``error`` saying how many; a file whose header or model description cannot be read
+    raises it. Nothing waits on damaged metadata."""
     path = Path(path)
+    return _guarded(path, lambda: _read_results(path))
+
+
+def _read_results(path: Path) -> Result:
     with _open(path) as file:
         _check_header(file, path)
-        count = int(file["records"][0])
-        raw: dict[str, Any] = {name: file[name][:count] for name in _RECORD_FIELDS}
+        layout = _layout(file, path)
+        shapes = _record_shapes(layout)
+        count = _record_count(file, path)
+        raw: dict[str, Any] = {
+            name: _readable_rows(file, name, count, shapes[name]) for name in _RECORD_FIELDS
+        }
+        readable = min(len(values) for values in raw.values())
+        raw = {name: values[:readable] for name, values in raw.items()}
         raw["statistics"] = _text(file, "statistics") or {}
         raw["events"] = _text(file, "events") or []
         raw["redundancy"] = _text(file, "redundancy")
         status = _text(file, "status") or {"state": "running"}
-        layout = json.loads(file.attrs["layout"])
-        flexible = {
-            int(key): read_body_group(group, path) for key, group in file["flexible"].items()
-        }
+        flexible = {}
+        for key in file["flexible"] if "flexible" in file else []:
+            try:
+                flexible[int(key)] = read_body_group(file["flexible"][key], path)
+            except (OSError, KeyError, ValueError, TypeError) as error:
+                raise ResultsFileError(
+                    f"{path}: the data of deformable body {key} in the results file is damaged "
+                    f"({error})",
+                    item=f"file '{path}'",
+                ) from error
     error: FlexmbdError | None = None
-    if status["state"] != "complete":
-        last = f"{raw['time'][-1]:g} s" if count else "its start"
-        if status["state"] == "running":
+    last = f"{raw['time'][-1]:g} s" if readable else "its start"
+    if readable < count:
+        error = ResultsFileError(
+            f"{path} is damaged: {readable} of its {count} records could be read (up to "
+            f"t = {last})",
+            item=f"file '{path}'",
+        )
+    elif not isinstance(status, dict) or status.get("state") != "complete":
+        state = status.get("state") if isinstance(status, dict) else None
+        if state not in ("failed", "interrupted"):
             error = errors.SimulationInterrupted(
                 f"{path}: the run did not finish (killed or still running); records up to "
                 f"t = {last} are in the file"
@@ -310,5 +694,5 @@ def read_results(path: str | os.PathLike[str]) -> Result:
             kind = getattr(errors, str(status.get("error")), None)
             if not (isinstance(kind, type) and issubclass(kind, FlexmbdError)):
                 kind = errors.SimulationError
-            error = kind(status.get("message", ""))
+            error = kind(str(status.get("message", "")))
     return Result(raw, layout, error=error, flexible=flexible)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from . import _core
-from .errors import InitialCorrectionWarning, InvalidParameterError
+from .errors import InitialCorrectionWarning, InvalidParameterError, ResultsFileError
 from .result import Result
 from .state import State
 
@@ -77,6 +77,8 @@ def simulate(
     progress: Callable[[float, float, int], object] | None = None,
     results_file: str | os.PathLike[str] | None = None,
     metadata: dict[str, Any] | None = None,
+    keep_in_memory: bool = True,
+    protect: tuple[str | os.PathLike[str], ...] = (),
 ) -> Result:
     """Simulates ``model`` (a :class:`Model`, or a :class:`System`, which is compiled first)
     from ``start_time`` (default 0, or the time of ``initial_state``) to ``end_time`` (s)
@@ -101,7 +103,16 @@ def simulate(
     while the run goes on (:mod:`flexmbd.results_file`; ``metadata``, a JSON-compatible dict,
     is stored with them): a run that fails, is interrupted or is killed keeps every record
     up to its last flush, about a tenth of a second before. :func:`flexmbd.read_results`
-    reads the file back.
+    reads the file back. The path may not be a folder or an existing file of another kind,
+    nor one of the files in ``protect`` (the model file of the run); another run writing it
+    is refused; the file replaces an earlier one only once the run has taken its first step
+    (see :class:`flexmbd.results_file.ResultsWriter`). A failed write (a full disk) raises
+    :class:`flexmbd.ResultsFileError` with ``result``, the file keeping what was committed.
+
+    ``keep_in_memory=False`` (with a ``results_file``) keeps the records only in the file:
+    the memory of the run stays flat however many records it writes, and the returned
+    ``Result`` holds only the records written after the last delivery to the file (at
+    least the last one); read the whole run with :func:`flexmbd.read_results`.
 
     Redundant constraints are found by rank before the run and, by default, removed (see
     ``Result.redundancy`` and ``Result.events``).
@@ -133,11 +144,16 @@ def simulate(
             "coordinates": np.ascontiguousarray(start.coordinates, dtype=float),
             "velocities": np.ascontiguousarray(start.velocities, dtype=float),
         }
+    if not keep_in_memory and results_file is None:
+        raise InvalidParameterError(
+            "keep_in_memory=False keeps the records only in a results file: give results_file",
+            item="keep_in_memory",
+        )
     writer = None
     if results_file is not None:
         from .results_file import ResultsWriter
 
-        writer = ResultsWriter(results_file, model, metadata=metadata)
+        writer = ResultsWriter(results_file, model, metadata=metadata, protect=protect)
     try:
         raw, error = _core.simulate(
             model,
@@ -149,13 +165,21 @@ def simulate(
             progress=progress,
             records=None if writer is None else writer.append,
             initial_conditions=initial_conditions,
+            keep_in_memory=keep_in_memory,
             **start_arrays,
         )
         result = Result(
             raw, model.describe(), error=error, flexible=getattr(model, "_flexible", None)
         )
         if writer is not None:
-            writer.finish(result)
+            if writer.failure is not None:
+                # The run stopped because its file could not be written: that is the error.
+                error = writer.failure
+            else:
+                try:
+                    result.file = writer.finish(result, released=int(raw.get("released", 0)))
+                except ResultsFileError as failure:
+                    error = failure
     finally:
         if writer is not None:
             writer.close()

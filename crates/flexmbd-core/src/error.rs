@@ -4,6 +4,28 @@
 
 use thiserror::Error;
 
+/// A time in a message: 9 significant digits without trailing zeros for times from 1e-3 to
+/// 1e6 s (and 0), else 7 significant digits in scientific notation (a time of 1e300 is not
+/// written out in 301 digits).
+#[derive(Clone, Copy, Debug)]
+pub struct Seconds(pub f64);
+
+impl std::fmt::Display for Seconds {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let t = self.0;
+        if t == 0.0 {
+            return write!(f, "0");
+        }
+        if !(t.is_finite() && (1e-3..1e6).contains(&t.abs())) {
+            return write!(f, "{t:.6e}");
+        }
+        let decimals = (8 - t.abs().log10().floor() as i32).clamp(0, 12) as usize;
+        let text = format!("{t:.decimals$}");
+        let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
+        write!(f, "{text}")
+    }
+}
+
 /// Every error the core can report.
 #[derive(Debug, Clone, Error, PartialEq)]
 pub enum FlexmbdError {
@@ -35,9 +57,9 @@ pub enum FlexmbdError {
     },
     /// Newton's method could not make the initial positions or velocities satisfy the constraints.
     #[error(
-        "inconsistent initial conditions at t = {time}: {item} keeps a violation of {residual:.3e} \
+        "inconsistent initial conditions at t = {}: {item} keeps a violation of {residual:.3e} \
          after {iterations} iterations"
-    )]
+    , Seconds(*.time))]
     InconsistentInitialConditions {
         /// Simulation time of the start.
         time: f64,
@@ -50,7 +72,7 @@ pub enum FlexmbdError {
     },
     /// Strict initial conditions: the given positions or velocities violate the constraints
     /// by more than the report tolerance, and correcting them was refused.
-    #[error("initial conditions at t = {time} need a correction of {size:.3e}, refused (strict): {item}")]
+    #[error("initial conditions at t = {} need a correction of {size:.3e}, refused (strict): {item}", Seconds(*.time))]
     InitialCorrectionRefused {
         /// Simulation time of the start.
         time: f64,
@@ -61,9 +83,9 @@ pub enum FlexmbdError {
     },
     /// The Newton iteration of a time step did not converge, even at the smallest step size.
     #[error(
-        "Newton iteration diverged at t = {time} (step size {step_size:.3e}) after {iterations} \
+        "Newton iteration diverged at t = {} (step size {step_size:.3e}) after {iterations} \
          iterations, residual {residual:.3e}; largest residual in {item}"
-    )]
+    , Seconds(*.time))]
     NewtonDiverged {
         /// Start time of the failed step.
         time: f64,
@@ -77,7 +99,7 @@ pub enum FlexmbdError {
         item: String,
     },
     /// The step-size controller went below the minimum step size.
-    #[error("step size {step_size:.3e} fell below the minimum {min_step_size:.3e} at t = {time}")]
+    #[error("step size {step_size:.3e} fell below the minimum {min_step_size:.3e} at t = {}", Seconds(*.time))]
     StepSizeTooSmall {
         /// Time at which it happened.
         time: f64,
@@ -87,7 +109,7 @@ pub enum FlexmbdError {
         min_step_size: f64,
     },
     /// A linear system is singular (redundant constraints, a singular configuration, a zero mass).
-    #[error("singular {context} at t = {time}: {detail}")]
+    #[error("singular {context} at t = {}: {detail}", Seconds(*.time))]
     SingularMatrix {
         /// Time at which it happened.
         time: f64,
@@ -97,7 +119,7 @@ pub enum FlexmbdError {
         detail: String,
     },
     /// A NaN or infinity appeared in the state or in a computed quantity.
-    #[error("non-finite value in {item} at t = {time}")]
+    #[error("non-finite value in {item} at t = {}", Seconds(*.time))]
     NonFinite {
         /// Where it was found.
         item: String,
@@ -105,7 +127,7 @@ pub enum FlexmbdError {
         time: f64,
     },
     /// A user callback (time function, force) failed or returned a wrong shape.
-    #[error("callback of {item} failed at t = {time}: {message}")]
+    #[error("callback of {item} failed at t = {}: {message}", Seconds(*.time))]
     Callback {
         /// The item owning the callback.
         item: String,
@@ -115,7 +137,7 @@ pub enum FlexmbdError {
         message: String,
     },
     /// The run was interrupted by the user (Ctrl-C in Python).
-    #[error("interrupted at t = {time}")]
+    #[error("interrupted at t = {}", Seconds(*.time))]
     Interrupted {
         /// Time reached.
         time: f64,
@@ -134,5 +156,25 @@ pub(crate) fn check_finite(item: &str, what: &str, values: &[f64]) -> Result<()>
             item: item.to_string(),
             message: format!("{what} must be finite, got {values:?}"),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_in_messages_are_short() {
+        let text = |t: f64| Seconds(t).to_string();
+        assert_eq!(text(0.0), "0");
+        assert_eq!(text(0.5), "0.5");
+        assert_eq!(text(0.045), "0.045");
+        assert_eq!(text(0.1 + 0.2), "0.3");
+        assert_eq!(text(6.099768672598418e-5), "6.099769e-5");
+        assert_eq!(text(1234.56789012345), "1234.56789");
+        assert_eq!(text(1e300), "1.000000e300");
+        assert_eq!(text(-2.5), "-2.5");
+        let message = FlexmbdError::Interrupted { time: 1e300 }.to_string();
+        assert!(message.len() < 40, "{message}");
     }
 }

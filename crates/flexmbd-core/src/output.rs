@@ -83,6 +83,9 @@ pub struct Output {
     pub events: Vec<Event>,
     /// The redundant constraints found at the start, if any.
     pub redundancy: Option<crate::solver::redundancy::Redundancy>,
+    /// Records released from the front by [`Output::release_front`] (stored elsewhere by the
+    /// caller during the run): the first record held is record `released` of the run.
+    pub released: usize,
 }
 
 impl Output {
@@ -134,7 +137,32 @@ impl Output {
             statistics: self.statistics.clone(),
             events: self.events.clone(),
             redundancy: self.redundancy.clone(),
+            released: self.released + from,
         }
+    }
+
+    /// Drops the first `count` records held (at most all of them): a caller that stored them
+    /// elsewhere (a results file) keeps the memory of a run flat however long it is.
+    pub fn release_front(&mut self, count: usize) {
+        let count = count.min(self.len());
+        if count == 0 {
+            return;
+        }
+        let width = *self.sensor_offsets.last().unwrap_or(&0);
+        let n = self.coordinate_count;
+        let drop = |data: &mut Vec<f64>, per: usize| {
+            data.drain(..count * per);
+        };
+        drop(&mut self.time, 1);
+        drop(&mut self.coordinates, n);
+        drop(&mut self.velocities, n);
+        drop(&mut self.accelerations, n);
+        drop(&mut self.multipliers, self.constraint_count);
+        drop(&mut self.reactions, self.joint_count * 6);
+        drop(&mut self.sensors, width);
+        drop(&mut self.energy, 2);
+        drop(&mut self.constraint_violation, 1);
+        self.released += count;
     }
 
     /// Appends a record of `state`. Updates the workspace's marker kinematics.

@@ -77,3 +77,21 @@ pub fn invalid(item: &str, message: impl Into<String>) -> PyErr {
         to_exception(py, &FlexmbdError::InvalidParameter { item: item.to_string(), message: message.into() })
     })
 }
+
+/// An integer argument of at least `min` (a count, an index): a negative number, a float or
+/// another type is an `InvalidParameterError` naming the argument (PyO3's own conversion
+/// raises OverflowError or TypeError without the name).
+pub fn integer_argument(value: &Bound<'_, PyAny>, name: &str, min: usize) -> PyResult<usize> {
+    let bad = |got: String| invalid(name, format!("{name} must be an integer >= {min}, got {got}"));
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(bad(value.repr().map(|r| r.to_string()).unwrap_or_default()));
+    }
+    match value.extract::<i128>() {
+        Ok(v) if v >= min as i128 && v <= usize::MAX as i128 => Ok(v as usize),
+        Ok(v) => Err(bad(v.to_string())),
+        Err(_) => {
+            let kind = value.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+            Err(bad(format!("{} ({kind})", value.repr().map(|r| r.to_string()).unwrap_or_default())))
+        }
+    }
+}

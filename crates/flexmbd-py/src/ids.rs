@@ -2,6 +2,8 @@
 
 use pyo3::prelude::*;
 
+use crate::errors::integer_argument;
+
 macro_rules! py_id {
     ($name:ident, $core:ty, $doc:literal) => {
         #[doc = $doc]
@@ -16,8 +18,8 @@ macro_rules! py_id {
         #[pymethods]
         impl $name {
             #[new]
-            fn new(index: usize) -> Self {
-                $name { index }
+            fn new(index: &Bound<'_, PyAny>) -> PyResult<Self> {
+                Ok($name { index: integer_argument(index, concat!(stringify!($name), " index"), 0)? })
             }
 
             fn __repr__(&self) -> String {

@@ -16,11 +16,12 @@ use flexmbd_core::solver::{
     simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
     StepControl, VelocityProjection,
 };
+use flexmbd_core::FlexmbdError;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::errors::{invalid, to_exception};
+use crate::errors::{integer_argument, invalid, stash_callback_error, to_exception};
 use crate::model::Model;
 
 /// Implicit index-3 generalized-alpha integrator (Arnold and Bruls 2007) for the augmented
@@ -86,7 +87,7 @@ pub struct GeneralizedAlpha {
 #[pymethods]
 impl GeneralizedAlpha {
     #[new]
-    #[pyo3(signature = (spectral_radius = 0.9, *, newton_tolerance = 1e-6, max_iterations = 12, jacobian = "modified",
+    #[pyo3(signature = (spectral_radius = 0.9, *, newton_tolerance = 1e-6, max_iterations = None, jacobian = "modified",
                         step_control = "newton", relative_tolerance = 1e-6, absolute_tolerance = 1e-8,
                         min_step_size = None, max_step_size = None, velocity_projection = "auto", linear_solver = "auto",
                         initial_tolerance = 1e-11, correct_initial_positions = true, correct_initial_velocities = true,
@@ -95,7 +96,7 @@ impl GeneralizedAlpha {
     fn new(
         spectral_radius: f64,
         newton_tolerance: f64,
-        max_iterations: usize,
+        max_iterations: Option<&Bound<'_, PyAny>>,
         jacobian: &str,
         step_control: &str,
         relative_tolerance: f64,
@@ -113,7 +114,7 @@ impl GeneralizedAlpha {
         let s = GeneralizedAlpha {
             spectral_radius,
             newton_tolerance,
-            max_iterations,
+            max_iterations: max_iterations.map_or(Ok(12), |v| integer_argument(v, "max_iterations", 1))?,
             jacobian: jacobian.to_string(),
             step_control: step_control.to_string(),
             relative_tolerance,
@@ -335,7 +336,7 @@ impl ExplicitSolver {
     #[new]
     #[pyo3(signature = (method = "dopri5", strategy = "partitioning", *, formulation = "augmented", partition = "lu",
                         independent = None, baumgarte = None, relative_tolerance = 1e-8, absolute_tolerance = 1e-10,
-                        constraint_tolerance = 1e-12, max_iterations = 20, repartition_ratio = 2.0,
+                        constraint_tolerance = 1e-12, max_iterations = None, repartition_ratio = 2.0,
                         drift_threshold = 1e-6, singular_factor = 4.0, min_step_size = None, max_step_size = None, initial_tolerance = 1e-11,
                         correct_initial_positions = true, correct_initial_velocities = true,
                         redundant_constraints = "remove", rank_tolerance = 1e-9, cut_joints = None))]
@@ -350,7 +351,7 @@ impl ExplicitSolver {
         relative_tolerance: f64,
         absolute_tolerance: f64,
         constraint_tolerance: f64,
-        max_iterations: usize,
+        max_iterations: Option<&Bound<'_, PyAny>>,
         repartition_ratio: f64,
         drift_threshold: f64,
         singular_factor: f64,
@@ -374,7 +375,7 @@ impl ExplicitSolver {
             relative_tolerance,
             absolute_tolerance,
             constraint_tolerance,
-            max_iterations,
+            max_iterations: max_iterations.map_or(Ok(20), |v| integer_argument(v, "max_iterations", 1))?,
             repartition_ratio,
             drift_threshold,
             singular_factor,
@@ -496,6 +497,7 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     d.set_item("energy", array2(py, out.energy, n, 2)?)?;
     d.set_item("constraint_violation", PyArray1::from_vec(py, out.constraint_violation))?;
     d.set_item("time", PyArray1::from_vec(py, out.time))?;
+    d.set_item("released", out.released)?;
     let s = PyDict::new(py);
     let st = &out.statistics;
     s.set_item("steps", st.steps)?;
@@ -533,18 +535,26 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     Ok(d)
 }
 
+/// Records held in memory at most before they go to the results file when the run keeps them
+/// only there (`keep_in_memory` False): about 1 MB for a small model.
+const RELEASE_BATCH: usize = 4096;
+
 /// Runs a simulation of `model` from `start_time` to `end_time` with nominal step
 /// `step_size`, recording every `output_interval` seconds (every step if None; steps land
 /// on the output times). `progress(time, step_size, newton_iterations)` is called about ten
 /// times a second if given; so is `records(raw_chunk)`, with the records added since its last
 /// call (a dict like the raw results, with the statistics and events so far), for results
-/// written during the run. `coordinates` and `velocities` (both or neither) replace the
+/// written during the run; with `keep_in_memory` False the records delivered to `records` are
+/// dropped from memory (the raw results then hold only the later ones, and "released" says
+/// how many came before them). An exception of `progress` or `records` stops the run with a
+/// `CallbackError` (its `__cause__` the exception), Ctrl-C with `SimulationInterrupted`.
+/// `coordinates` and `velocities` (both or neither) replace the
 /// model's initial ones. `initial_conditions` "correct" reports the corrections of the
 /// consistent-initial-condition solve as events, "strict" refuses them. Returns
 /// `(raw_results, error)`; `error` is None on success, otherwise the exception to raise (the
 /// raw results then hold everything up to the failure).
 #[pyfunction]
-#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, initial_conditions = "correct"))]
+#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, initial_conditions = "correct", keep_in_memory = true))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -559,10 +569,11 @@ pub fn simulate<'py>(
     coordinates: Option<PyReadonlyArray1<'py, f64>>,
     velocities: Option<PyReadonlyArray1<'py, f64>>,
     initial_conditions: &str,
+    keep_in_memory: bool,
 ) -> PyResult<(Bound<'py, PyDict>, Option<Py<PyAny>>)> {
     let mut settings = match solver {
         None => GeneralizedAlpha::new(
-            0.9, 1e-6, 12, "modified", "newton", 1e-6, 1e-8, None, None, "auto", "auto", 1e-11, true, true,
+            0.9, 1e-6, None, "modified", "newton", 1e-6, 1e-8, None, None, "auto", "auto", 1e-11, true, true,
             "remove", 1e-9,
         )?
         .settings(end_time, step_size)?,
@@ -605,34 +616,46 @@ pub fn simulate<'py>(
             ))
         }
     };
+    if !keep_in_memory && records.is_none() {
+        return Err(invalid("simulate", "keep_in_memory=False needs a records callback (a results file)"));
+    }
     let model_ref = model.inner.clone();
-    let mut pending: Option<PyErr> = None;
+    // The Python exception that stopped the run, and the callback it came from (None: a
+    // signal, Ctrl-C).
+    let mut pending: Option<(PyErr, Option<&str>)> = None;
     let outcome = py.detach(|| {
         let mut last_check = Instant::now();
         let mut delivered = 0;
         let mut observer = |p: &flexmbd_core::solver::Progress| -> bool {
-            if last_check.elapsed() < Duration::from_millis(100) {
+            // About ten calls a second; records kept only in the file also go to it in
+            // batches of at most RELEASE_BATCH, so that memory stays bounded on fast runs.
+            let batch_full = !keep_in_memory && p.records.len() >= RELEASE_BATCH;
+            if !batch_full && last_check.elapsed() < Duration::from_millis(100) {
                 return true;
             }
             last_check = Instant::now();
             Python::attach(|py| {
                 if let Err(e) = py.check_signals() {
-                    pending = Some(e);
+                    pending = Some((e, None));
                     return false;
                 }
                 if let Some(cb) = &progress {
                     if let Err(e) = cb.call1(py, (p.time, p.step_size, p.newton_iterations)) {
-                        pending = Some(e);
+                        pending = Some((e, Some("the progress function")));
                         return false;
                     }
                 }
                 if let Some(cb) = &records {
                     if p.records.len() > delivered {
                         let chunk = p.records.since(delivered);
-                        delivered = p.records.len();
                         if let Err(e) = output_dict(py, chunk).and_then(|d| cb.call1(py, (d,))) {
-                            pending = Some(e);
+                            pending = Some((e, Some("the results writer")));
                             return false;
+                        }
+                        if keep_in_memory {
+                            delivered = p.records.len();
+                        } else {
+                            p.release.set(p.records.len());
                         }
                     }
                 }
@@ -645,8 +668,16 @@ pub fn simulate<'py>(
     let error = match outcome.error {
         None => None,
         Some(e) => {
-            let exc = to_exception(py, &e);
-            if let Some(cause) = pending.take() {
+            let (error, cause) = match (e, pending.take()) {
+                (FlexmbdError::Interrupted { time }, Some((cause, Some(item)))) => {
+                    // Chained as the CallbackError's __cause__ by to_exception.
+                    let message = stash_callback_error(py, cause);
+                    (FlexmbdError::Callback { item: item.to_string(), time, message }, None)
+                }
+                (e, pending) => (e, pending.map(|(cause, _)| cause)),
+            };
+            let exc = to_exception(py, &error);
+            if let Some(cause) = cause {
                 exc.value(py).setattr("__cause__", cause.value(py))?;
             }
             Some(exc.value(py).clone().into_any().unbind())

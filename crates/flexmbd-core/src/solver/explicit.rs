@@ -1059,6 +1059,7 @@ pub fn run(
     let mut first_derivative_valid = false;
     let mut drift_reported = false;
     output.statistics.min_step_size_used = f64::INFINITY;
+    let release = std::cell::Cell::new(0);
 
     let mut near_singular = false;
     while clock.running(state.time) {
@@ -1100,7 +1101,7 @@ pub fn run(
                     first_derivative_valid = false;
                     continue;
                 }
-                if !adaptive || h_try * 0.25 < settings.min_step_size {
+                if !adaptive || h_try * 0.25 < settings.step_floor() {
                     return Err(e);
                 }
                 (false, 0.25)
@@ -1113,11 +1114,11 @@ pub fn run(
                 return Err(FlexmbdError::NonFinite { item: "the Runge-Kutta step".to_string(), time: t });
             }
             h = h_try * factor.min(1.0);
-            if h < settings.min_step_size {
+            if h < settings.step_floor() {
                 return Err(FlexmbdError::StepSizeTooSmall {
                     time: t,
                     step_size: h,
-                    min_step_size: settings.min_step_size,
+                    min_step_size: settings.step_floor(),
                 });
             }
             continue;
@@ -1238,10 +1239,12 @@ pub fn run(
             newton_iterations: 0,
             steps: output.statistics.steps,
             records: Records::new(output),
+            release: &release,
         };
         if !observer(&progress) {
             return Err(FlexmbdError::Interrupted { time: state.time });
         }
+        output.release_front(release.take());
     }
     output.statistics.function_evaluations = engine.evaluations;
     output.statistics.newton_iterations = engine.newton_iterations;

@@ -184,6 +184,14 @@ impl SimulationSettings {
         }
     }
 
+    /// The smallest step the time loops take: the minimum step size, and at least 64
+    /// round-offs of the times of the run (a smaller step would not advance the time, and a
+    /// loop of them would never end).
+    pub fn step_floor(&self) -> f64 {
+        let scale = self.start_time.abs().max(self.end_time.abs()).max(self.end_time - self.start_time);
+        self.min_step_size.max(64.0 * f64::EPSILON * scale)
+    }
+
     /// Checks the settings.
     pub fn validate(&self) -> Result<()> {
         let bad = |message: String| {
@@ -200,6 +208,14 @@ impl SimulationSettings {
             return bad(format!(
                 "step size must be positive and at least the minimum step size (step {}, minimum {})",
                 self.step_size, self.min_step_size
+            ));
+        }
+        if self.step_size < 64.0 * f64::EPSILON * self.start_time.abs().max(self.end_time.abs()) {
+            return bad(format!(
+                "step size {:e} is below the round-off of the times of the run (t up to {:e}): \
+                 a step would not advance the time",
+                self.step_size,
+                self.start_time.abs().max(self.end_time.abs())
             ));
         }
         if self.max_step_size < self.step_size {

@@ -2,6 +2,8 @@
 //! control, landing exactly on output times, recording. A failure returns everything recorded
 //! up to it together with the error.
 
+use std::cell::Cell;
+
 use super::explicit;
 use super::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
 use super::initial::{
@@ -29,6 +31,9 @@ pub struct Progress<'a> {
     pub steps: usize,
     /// The records so far, for results written during the run.
     pub records: Records<'a>,
+    /// Set by the observer to the number of records (from the first one held) it stored
+    /// elsewhere and that the run may drop ([`Output::release_front`]); 0 keeps them all.
+    pub release: &'a Cell<usize>,
 }
 
 /// The records of a run in progress, as they will be in its final output.
@@ -278,6 +283,7 @@ fn time_loop(
     let mut h = settings.step_size;
     let mut next = state.clone();
     let mut cache = JacobianCache::default();
+    let release = Cell::new(0);
     output.statistics.min_step_size_used = f64::INFINITY;
 
     while clock.running(state.time) {
@@ -331,12 +337,12 @@ fn time_loop(
                 StepControl::Error { .. } if report.converged => h_try * factor,
                 _ => h_try * 0.25,
             };
-            if h < settings.min_step_size {
+            if h < settings.step_floor() {
                 return Err(if report.converged {
                     FlexmbdError::StepSizeTooSmall {
                         time: state.time,
                         step_size: h,
-                        min_step_size: settings.min_step_size,
+                        min_step_size: settings.step_floor(),
                     }
                 } else {
                     diverged()
@@ -378,10 +384,12 @@ fn time_loop(
             newton_iterations: report.iterations,
             steps: output.statistics.steps,
             records: Records::new(output),
+            release: &release,
         };
         if !observer(&progress) {
             return Err(FlexmbdError::Interrupted { time: state.time });
         }
+        output.release_front(release.take());
     }
     Ok(())
 }
