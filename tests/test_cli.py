@@ -349,3 +349,19 @@ def test_run_outputs_are_checked_before_the_run_and_never_replace_the_model(tmp_
     assert main(["run", str(escaping), *QUIET]) == 2
     assert "plain name" in capsys.readouterr().err
     assert not (tmp_path.parent.parent / "escaped.h5").exists()
+
+
+def test_preprocess_checks_its_output_before_preprocessing(tmp_path, capsys):
+    # Regression (issue 28): `preprocess -o .` and a missing folder failed only after the
+    # preprocessing, with a raw error.
+    mesh = tmp_path / "bar.inp"
+    _write_abaqus_box(mesh)
+    material = ["-E", "2.1e11", "--poisson-ratio", "0.3", "--density", "7800"]
+    for output, message in [
+        (str(tmp_path), "is a folder"),
+        (str(tmp_path / "missing" / "bar.h5"), "does not exist"),
+        (str(mesh), "is the mesh file"),
+    ]:
+        assert main(["preprocess", str(mesh), "-o", output, *material]) == 2
+        assert message in capsys.readouterr().err
+    assert mesh.read_text().startswith("*")

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 import warnings
@@ -536,6 +537,20 @@ def _preprocess(args: argparse.Namespace) -> int:
     if args.reference_nodes:
         nodes = args.reference_nodes
         options["reference_nodes"] = nodes[0] if len(nodes) == 1 else [int(n) for n in nodes]
+    output = Path(args.output)
+    # The body file's path, checked before the (long) preprocessing.
+    problem = None
+    if output.is_dir():
+        problem = f"{output} is a folder; give a body file name such as body.h5 with -o"
+    elif not output.parent.is_dir():
+        problem = f"cannot write {output}: its folder {output.parent} does not exist"
+    elif output.exists() and output.resolve() == Path(args.mesh).resolve():
+        problem = f"{output} is the mesh file; the body file needs another name"
+    elif not os.access(output.parent, os.W_OK):
+        problem = f"cannot write {output}: its folder {output.parent} is not writable"
+    if problem is not None:
+        print(f"flexmbd preprocess: {problem}", file=sys.stderr)
+        return 2
     timings: dict[str, float] = {}
     start = time.perf_counter()
     try:
@@ -547,8 +562,12 @@ def _preprocess(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     _print_body(body, f"flexmbd {__version__}: {args.mesh}:", f", reference {args.reference}")
     print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in timings.items()) + f"; {elapsed:.2f} s")
-    save_body(body, args.output)
-    print(f"  written to {args.output}")
+    try:
+        save_body(body, output)
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd preprocess: cannot write {output}: {error}", file=sys.stderr)
+        return 1
+    print(f"  written to {output}")
     return 0
 
 
