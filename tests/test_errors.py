@@ -318,3 +318,42 @@ def test_a_step_below_the_round_off_of_the_time_is_a_step_size_error():
     assert len(lines) == 2 and all("fell below the minimum 1.421e-14" in line for line in lines)
     with pytest.raises(fm.InvalidParameterError, match="below the round-off of the times"):
         fm.simulate(pendulum_system(), 1.0, 1e-300)
+
+
+def test_malformed_low_level_body_data_is_a_typed_error_not_a_panic():
+    # Regression (issue 28): column pointers out of range and node positions of two columns
+    # made the Rust binding panic ("range end index 5 out of range", "index out of bounds").
+    from flexmbd import _core
+
+    def csc(data, indices, pointers, n):
+        return (
+            np.asarray(data, float),
+            np.asarray(indices, np.int64),
+            np.asarray(pointers, np.int64),
+            n,
+        )
+
+    good = csc([1.0] * 3, [0, 1, 2], [0, 1, 2, 3], 3)
+    base = {
+        "mass": 1.0,
+        "first_moment": (0, 0, 0),
+        "second_moment": np.eye(3),
+        "i1": np.zeros((3, 3)),
+        "ibar": np.zeros((9, 3)),
+        "i_kl": [good] * 9,
+        "stiffness": good,
+        "damping": good,
+    }
+    cases = {
+        "inconsistent sparse storage": {"stiffness": csc([1.0] * 3, [0, 1, 2], [0, 1, 5, 3], 3)},
+        "3 column pointers for 3 columns": {"damping": csc([1.0] * 3, [0, 1, 2], [0, 1, 3], 3)},
+        r"node positions must be \(n, 3\)": {
+            "dof_nodes": np.array([0, 1, 2]),
+            "node_positions": np.zeros((3, 2)),
+        },
+    }
+    for match, changes in cases.items():
+        with pytest.raises(fm.InvalidParameterError, match=match):
+            _core.System()._add_flexible_body(**{**base, **changes})
+    with pytest.raises(fm.InvalidParameterError, match="inconsistent CSC arrays"):
+        _core.SymmetricFactor(3, np.array([0, 2, 1, 3]), np.array([0, 1, 2]), np.ones(3))

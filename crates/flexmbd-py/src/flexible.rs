@@ -161,8 +161,16 @@ impl System {
                 ),
                 None => None,
             },
-            node_positions: node_positions
-                .map(|p| p.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect()),
+            node_positions: match node_positions {
+                Some(p) if p.as_array().ncols() != 3 => {
+                    return Err(invalid(
+                        &item,
+                        format!("node positions must be (n, 3), got {:?}", p.as_array().shape()),
+                    ))
+                }
+                Some(p) => Some(p.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect()),
+                None => None,
+            },
             condense,
             scalar_mass: match scalar_mass {
                 Some((matrix, coordinates)) => Some(ScalarMass {

@@ -536,11 +536,24 @@ pub struct FlexibleBody {
 
 fn check_square(item: &str, what: &str, m: &Csc, n: usize) -> Result<()> {
     let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
-    if m.nrows != n || m.ncols != n || m.col_ptr.len() != n + 1 {
+    if m.nrows != n || m.ncols != n {
         return Err(bad(format!("{what} must be {n} x {n}, got {} x {}", m.nrows, m.ncols)));
     }
-    if m.row_idx.len() != m.values.len() || m.col_ptr[n] != m.values.len() {
-        return Err(bad(format!("{what}: inconsistent sparse storage")));
+    if m.col_ptr.len() != n + 1 {
+        return Err(bad(format!(
+            "{what}: {} column pointers for {n} columns (expected {})",
+            m.col_ptr.len(),
+            n + 1
+        )));
+    }
+    if m.row_idx.len() != m.values.len()
+        || m.col_ptr[0] != 0
+        || m.col_ptr[n] != m.values.len()
+        || m.col_ptr.windows(2).any(|w| w[0] > w[1])
+    {
+        return Err(bad(format!(
+            "{what}: inconsistent sparse storage (column pointers, row indices, values)"
+        )));
     }
     for c in 0..n {
         let rows = &m.row_idx[m.col_ptr[c]..m.col_ptr[c + 1]];

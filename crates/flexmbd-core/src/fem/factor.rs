@@ -129,7 +129,12 @@ impl SymmetricFactor {
         threads: usize,
     ) -> Result<Self> {
         let CscRef { n, col_ptr, row_idx, values } = matrix;
-        if col_ptr.len() != n + 1 || row_idx.len() != values.len() || col_ptr[n] != values.len() {
+        if col_ptr.len() != n + 1
+            || row_idx.len() != values.len()
+            || col_ptr[0] != 0
+            || col_ptr[n] != values.len()
+            || col_ptr.windows(2).any(|w| w[0] > w[1])
+        {
             return Err(FlexmbdError::InvalidParameter {
                 item: item.to_string(),
                 message: format!("inconsistent CSC arrays for n = {n}"),
