@@ -26,15 +26,19 @@
 //!
 //! Units are SI by convention; the core itself is unit-agnostic.
 
+pub mod assembly;
 pub mod body;
 pub mod error;
 pub mod fem;
 pub mod force;
+pub mod formulation;
 pub mod ids;
+pub mod integrator;
 pub mod joint;
+pub mod linalg;
+pub mod linear_system;
 pub mod math;
 pub mod output;
-pub mod solver;
 pub mod system;
 
 pub use error::{FlexmbdError, Result};

@@ -4,9 +4,9 @@
 
 mod common;
 
+use flexmbd_core::integrator::{simulate, SimulationSettings, StepControl};
 use flexmbd_core::joint::JointKind;
 use flexmbd_core::math::{Mat3, Vec3};
-use flexmbd_core::solver::{simulate, SimulationSettings, StepControl};
 use flexmbd_core::system::sensor::SensorQuantity;
 use flexmbd_core::{Model, SystemBuilder};
 

@@ -9,16 +9,16 @@ mod common;
 use std::sync::Arc;
 
 use common::{close, Rng};
+use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
-use flexmbd_core::fem::assembly::Csc;
 use flexmbd_core::force::{ForceCallback, ForceKind, Frame};
 use flexmbd_core::joint::JointKind;
+use flexmbd_core::linalg::csc::Csc;
 use flexmbd_core::math::dense::Jacobian3;
 use flexmbd_core::math::time_function::TimeFunction;
 use flexmbd_core::math::{Mat3, Vec3};
-use flexmbd_core::solver::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use flexmbd_core::{Model, State, SystemBuilder, Workspace};
 
 struct Drag;

@@ -2,6 +2,7 @@
 //! (stiffness, mass and invariants of motion), returned as arrays for NumPy and SciPy.
 
 use flexmbd_core::fem::{self, Element, ElementType, Ikl, Mesh};
+use flexmbd_core::linalg;
 use flexmbd_core::math::Vec3;
 use numpy::{
     IntoPyArray, PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
@@ -137,7 +138,7 @@ impl Section {
     }
 }
 
-fn csc_tuple<'py>(py: Python<'py>, m: fem::Csc) -> PyResult<Bound<'py, PyTuple>> {
+fn csc_tuple<'py>(py: Python<'py>, m: linalg::Csc) -> PyResult<Bound<'py, PyTuple>> {
     let to_i64 = |v: Vec<usize>| v.into_iter().map(|x| x as i64).collect::<Vec<i64>>();
     PyTuple::new(
         py,
@@ -406,7 +407,7 @@ pub fn body_mass_points<'py>(
 /// parallel.
 #[pyclass(module = "flexmbd._core", frozen)]
 pub struct SymmetricFactor {
-    inner: fem::SymmetricFactor,
+    inner: linalg::SymmetricFactor,
 }
 
 #[pymethods]
@@ -445,21 +446,21 @@ impl SymmetricFactor {
             None => None,
         };
         let kind = match (positive, single) {
-            (Some(p), false) => fem::FactorKind::QuasiDefinite { positive: p },
-            (None, false) => fem::FactorKind::Cholesky,
-            (None, true) => fem::FactorKind::CholeskySingle,
+            (Some(p), false) => linalg::FactorKind::QuasiDefinite { positive: p },
+            (None, false) => linalg::FactorKind::Cholesky,
+            (None, true) => linalg::FactorKind::CholeskySingle,
             (Some(_), true) => {
                 return Err(invalid(&name, "single precision is for positive definite matrices only"))
             }
         };
         let result = py.detach(|| {
             let ordering = match (&given, &nodes, &coordinates) {
-                (Some(g), _, _) => fem::Ordering::Given(g),
-                (None, Some(d), Some(x)) => fem::Ordering::NestedDissection { dof_nodes: d, positions: x },
-                _ => fem::Ordering::Amd,
+                (Some(g), _, _) => linalg::Ordering::Given(g),
+                (None, Some(d), Some(x)) => linalg::Ordering::NestedDissection { dof_nodes: d, positions: x },
+                _ => linalg::Ordering::Amd,
             };
-            let matrix = fem::CscRef { n, col_ptr: &col_ptr, row_idx: &row_idx, values: &values };
-            fem::SymmetricFactor::new(&name, matrix, ordering, kind, threads.max(1))
+            let matrix = linalg::CscRef { n, col_ptr: &col_ptr, row_idx: &row_idx, values: &values };
+            linalg::SymmetricFactor::new(&name, matrix, ordering, kind, threads.max(1))
         });
         Ok(SymmetricFactor { inner: check(result)? })
     }

@@ -5,7 +5,7 @@
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput, ScalarMass};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
-use flexmbd_core::fem::assembly::Csc;
+use flexmbd_core::linalg::csc::Csc;
 use flexmbd_core::math::dense::Jacobian3;
 use flexmbd_core::math::{Mat3, Vec3};
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};

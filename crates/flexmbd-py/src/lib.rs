@@ -18,7 +18,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // faer's dense decompositions (redundancy analysis, partitioning, the SVD of joint
     // coordinates) on the calling thread: they are small, and rayon's global pool would hang
     // a process forked after them (Python's multiprocessing). The large sparse
-    // factorizations run in flexmbd's own per-process pool (`math::parallel`).
+    // factorizations run in flexmbd's own per-process pool (`linalg::parallel`).
     faer::set_global_parallelism(faer::Par::Seq);
     m.add_class::<system::System>()?;
     m.add_class::<model::Model>()?;

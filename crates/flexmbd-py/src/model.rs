@@ -2,8 +2,8 @@
 
 use std::sync::{Arc, Mutex};
 
+use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use flexmbd_core::body::BodyKind;
-use flexmbd_core::solver::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use flexmbd_core::Workspace;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;

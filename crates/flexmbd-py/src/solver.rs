@@ -5,17 +5,17 @@
 use std::time::{Duration, Instant};
 
 use crate::ids::JointId;
-use flexmbd_core::output::Output;
-use flexmbd_core::solver::decoupled::TreeFormulation;
-use flexmbd_core::solver::dense_system::Formulation;
-use flexmbd_core::solver::explicit::{ExplicitMethod, ExplicitSettings, Strategy};
-use flexmbd_core::solver::initial::{InitialSettings, StartState};
-use flexmbd_core::solver::partition::PartitionMethod;
-use flexmbd_core::solver::redundancy::{RedundancyHandling, RedundancySettings};
-use flexmbd_core::solver::{
+use flexmbd_core::formulation::augmented::Formulation;
+use flexmbd_core::formulation::decoupled::TreeFormulation;
+use flexmbd_core::integrator::explicit::{ExplicitMethod, ExplicitSettings, Strategy};
+use flexmbd_core::integrator::initial::{InitialSettings, StartState};
+use flexmbd_core::integrator::redundancy::{RedundancyHandling, RedundancySettings};
+use flexmbd_core::integrator::{
     simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
     StepControl, VelocityProjection,
 };
+use flexmbd_core::linalg::partition::PartitionMethod;
+use flexmbd_core::output::Output;
 use flexmbd_core::FlexmbdError;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -626,7 +626,7 @@ pub fn simulate<'py>(
     let outcome = py.detach(|| {
         let mut last_check = Instant::now();
         let mut delivered = 0;
-        let mut observer = |p: &flexmbd_core::solver::Progress| -> bool {
+        let mut observer = |p: &flexmbd_core::integrator::Progress| -> bool {
             // About ten calls a second; records kept only in the file also go to it in
             // batches of at most RELEASE_BATCH, so that memory stays bounded on fast runs.
             let batch_full = !keep_in_memory && p.records.len() >= RELEASE_BATCH;

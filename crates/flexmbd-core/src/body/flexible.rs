@@ -33,9 +33,9 @@
 //! coefficient matrices, so that large nodal bodies keep the sparsity of their mass matrix.
 //! Elastic forces -K_ff q_f - D_ff qf_dot and gravity (by virtual work) complete the body.
 
-use super::stiffening::{add_stiffening, StiffeningElement};
+use crate::body::stiffening::{add_stiffening, StiffeningElement};
 use crate::error::{FlexmbdError, Result};
-use crate::fem::assembly::Csc;
+use crate::linalg::csc::Csc;
 use crate::math::euler::{
     self, bilinear_hessian, l_jacobian, l_matrix, lt_jacobian, rotate_jacobian, rotate_transpose_jacobian,
     Mat34, Quaternion,
@@ -219,14 +219,14 @@ impl Blocks3 {
     /// `out += w * A x`, block row by block row (in the AVX2 kernel where the CPU has it).
     fn mul_vec_add(&self, w: f64, x: &[f64], out: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
-        if crate::math::simd::has_avx2_fma() {
+        if crate::linalg::simd::has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 and FMA (checked above).
             let (r, c, v) = (&self.row_ptr, &self.columns, &self.values);
             return unsafe {
                 if self.symmetric {
-                    crate::math::simd::avx2::blocks3_mul_add::<true>(r, c, v, w, x, out)
+                    crate::linalg::simd::avx2::blocks3_mul_add::<true>(r, c, v, w, x, out)
                 } else {
-                    crate::math::simd::avx2::blocks3_mul_add::<false>(r, c, v, w, x, out)
+                    crate::linalg::simd::avx2::blocks3_mul_add::<false>(r, c, v, w, x, out)
                 }
             };
         }
@@ -295,7 +295,7 @@ impl ElasticMatrix {
         let m = &self.matrix;
         let dense = if self.full { Some(&m.values[..]) } else { self.dense.as_deref() };
         if let Some(dense) = dense {
-            crate::math::simd::dense_mul_add(m.nrows, dense, w, &x[..m.ncols], out);
+            crate::linalg::simd::dense_mul_add(m.nrows, dense, w, &x[..m.ncols], out);
             return;
         }
         if let Some(blocks) = &self.blocks {
@@ -363,11 +363,13 @@ impl ScalarMass {
         // the I_kl): node i's row of the product is gathered from column i, summed in
         // registers and stored once, instead of scattered entry by entry.
         #[cfg(target_arch = "x86_64")]
-        if (W == 6 || W == 9) && crate::math::simd::has_avx2_fma() {
+        if (W == 6 || W == 9) && crate::linalg::simd::has_avx2_fma() {
             let m = &self.matrix;
             // SAFETY: the CPU supports AVX2 and FMA (checked above).
             let sums = unsafe {
-                crate::math::simd::avx2::node_products::<W>(&m.col_ptr, &m.row_idx, &m.values, gathered, out)
+                crate::linalg::simd::avx2::node_products::<W>(
+                    &m.col_ptr, &m.row_idx, &m.values, gathered, out,
+                )
             };
             return std::array::from_fn(|v| {
                 std::array::from_fn(|k| std::array::from_fn(|l| sums[3 * v + k][l]))
@@ -902,7 +904,7 @@ impl FlexibleBody {
         }
         let m = &sm.matrix;
         let mut y = vec![0.0; 4 * nodes];
-        crate::math::simd::node_products4(&m.col_ptr, &m.row_idx, &m.values, &spread, &mut y);
+        crate::linalg::simd::node_products4(&m.col_ptr, &m.row_idx, &m.values, &spread, &mut y);
         for (j, &c) in sm.coordinates.iter().enumerate() {
             let (node, comp) = (c / 3, c % 3);
             let yn = &y[4 * node..4 * node + 3];
@@ -937,7 +939,7 @@ impl FlexibleBody {
         if let Some(stacked) = &self.stacked_i_kl {
             let out = &mut out[..9 * n];
             out.iter_mut().for_each(|x| *x = 0.0);
-            crate::math::simd::dense_mul_add(9 * n, stacked, 1.0, &v[..n], out);
+            crate::linalg::simd::dense_mul_add(9 * n, stacked, 1.0, &v[..n], out);
             return;
         }
         out.iter_mut().for_each(|x| *x = 0.0);
@@ -1121,8 +1123,8 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// (3 k + l) n) with v, four rows at a time.
 fn nine_dots(rows: &[f64], n: usize, v: &[f64]) -> [f64; 9] {
     let r = |i: usize| &rows[i * n..(i + 1) * n];
-    let [a, b, c, d] = crate::math::simd::dot4([r(0), r(1), r(2), r(3)], &v[..n]);
-    let [e, f, g, h] = crate::math::simd::dot4([r(4), r(5), r(6), r(7)], &v[..n]);
+    let [a, b, c, d] = crate::linalg::simd::dot4([r(0), r(1), r(2), r(3)], &v[..n]);
+    let [e, f, g, h] = crate::linalg::simd::dot4([r(4), r(5), r(6), r(7)], &v[..n]);
     [a, b, c, d, e, f, g, h, dot(r(8), v)]
 }
 
@@ -1143,9 +1145,9 @@ fn nodewise(body: &FlexibleBody, scratch: &FlexibleScratch) -> bool {
 fn solid_sums(body: &FlexibleBody, sm: &ScalarMass, vectors: [&[f64]; 3]) -> [[[f64; 4]; 3]; 3] {
     if body.whole_nodes {
         #[cfg(target_arch = "x86_64")]
-        if crate::math::simd::has_avx2_fma() {
+        if crate::linalg::simd::has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 and FMA (checked above).
-            return unsafe { crate::math::simd::avx2::node_row_sums(&body.solid_rows, vectors) };
+            return unsafe { crate::linalg::simd::avx2::node_row_sums(&body.solid_rows, vectors) };
         }
         return node_row_sums_portable(&body.solid_rows, vectors);
     }
@@ -2086,9 +2088,9 @@ pub(crate) mod tests {
             let vectors = [&v[0][..], &v[1][..], &v[2][..]];
             let portable = node_row_sums_portable(&rows, vectors);
             #[cfg(target_arch = "x86_64")]
-            let fast = if crate::math::simd::has_avx2_fma() {
+            let fast = if crate::linalg::simd::has_avx2_fma() {
                 // SAFETY: the CPU supports AVX2 and FMA (checked).
-                unsafe { crate::math::simd::avx2::node_row_sums(&rows, vectors) }
+                unsafe { crate::linalg::simd::avx2::node_row_sums(&rows, vectors) }
             } else {
                 portable
             };

@@ -26,9 +26,9 @@
 use crate::math::dense::DenseMatrix;
 use crate::math::{Mat3, Vec3};
 
-use super::element::{mass_matrix, ElementError, ElementKernel, ElementResult, MassPoint};
-use super::material::Material;
-use super::section::Section;
+use crate::fem::element::{mass_matrix, ElementError, ElementKernel, ElementResult, MassPoint};
+use crate::fem::material::Material;
+use crate::fem::section::Section;
 
 /// A two-node Euler-Bernoulli beam element.
 #[derive(Clone, Copy, Debug, PartialEq)]

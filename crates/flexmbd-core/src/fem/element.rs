@@ -16,7 +16,7 @@
 use crate::math::dense::DenseMatrix;
 use crate::math::Vec3;
 
-use super::material::Material;
+use crate::fem::material::Material;
 
 /// A quadrature point of an element's mass distribution.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -6,17 +6,14 @@
 pub mod assembly;
 pub mod beam;
 pub mod element;
-pub mod envelope;
-pub mod factor;
 pub mod material;
 pub mod quadrature;
 pub mod section;
 pub mod solid;
 
-pub use assembly::{AssembledBody, Csc, Element, ElementType, Ikl, Mesh, NodalInvariants};
+pub use assembly::{AssembledBody, Element, ElementType, Ikl, Mesh, NodalInvariants};
 pub use beam::Beam;
 pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
-pub use factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
 pub use material::Material;
 pub use section::Section;
 pub use solid::{Hex8, Tet10, Tet4};

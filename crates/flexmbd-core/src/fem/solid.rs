@@ -31,9 +31,9 @@
 //! determinant at a quadrature point of the rule in use, or at a node, is not above
 //! 1e-12 h^3, with h the diagonal of the bounding box of the nodes.
 
-use super::element::{ElementError, ElementKernel, ElementResult, MassPoint};
-use super::material::Material;
-use super::quadrature::{
+use crate::fem::element::{ElementError, ElementKernel, ElementResult, MassPoint};
+use crate::fem::material::Material;
+use crate::fem::quadrature::{
     QuadraturePoint, HEXAHEDRON_GAUSS_2, HEXAHEDRON_GAUSS_3, TETRAHEDRON_DEGREE_1, TETRAHEDRON_DEGREE_2,
     TETRAHEDRON_DEGREE_5,
 };

@@ -4,9 +4,9 @@
 //! c_d theta_dot + t0 gives Q = -t dtheta/dq, with theta_dot = (dtheta/dq) q_dot.
 //! dtheta = (c ds - s dc) / (s^2 + c^2), and its derivative follows from the Hessians of s, c.
 
-use super::spring_damper::local_velocities;
-use super::ForceLocal;
 use crate::error::Result;
+use crate::force::spring_damper::local_velocities;
+use crate::force::ForceLocal;
 use crate::joint::equation::{primitive_gradient, primitive_hessian, primitive_value, MarkerPair, Primitive};
 use crate::math::dense::DenseMatrix;
 

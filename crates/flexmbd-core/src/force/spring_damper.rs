@@ -3,8 +3,8 @@
 //! gives Q = -f dl/dq. Then -dQ/dq = dl/dq^T (k dl/dq + c (d2l/dq2 q_dot)^T) + f d2l/dq2 and
 //! -dQ/dq_dot = c dl/dq^T dl/dq.
 
-use super::ForceLocal;
 use crate::error::{FlexmbdError, Result};
+use crate::force::ForceLocal;
 use crate::joint::equation::{primitive_gradient, primitive_hessian, MarkerPair, Primitive};
 
 /// Evaluates the element; `parameters` = [stiffness, damping, rest length, preload].

@@ -3,7 +3,7 @@
 //! (d . x_i = 0, d . y_i = 0 with d = r_j - r_i). The dot-product form replaces the cross
 //! products h_i x h_j and h_i x s_ij and stays regular even when d = 0.
 
-use super::equation::{Equation, Primitive};
+use crate::joint::equation::{Equation, Primitive};
 
 /// Four equations: two for the offset, two for the axis.
 pub(crate) fn equations() -> Vec<Equation> {

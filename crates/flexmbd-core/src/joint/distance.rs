@@ -2,13 +2,13 @@
 //! Written with the norm, not its square, so that the multiplier is the force in the link (N).
 //! Requires L > 0: at L = 0 the gradient of the norm is undefined.
 
-use super::equation::{Equation, Offset, Primitive};
+use crate::joint::equation::{Equation, Offset, Primitive};
 
 /// One equation.
 pub(crate) fn equations(distance: f64) -> Vec<Equation> {
     vec![Equation {
         label: "distance",
-        terms: vec![(super::equation::Coefficient::One, Primitive::Distance)],
+        terms: vec![(crate::joint::equation::Coefficient::One, Primitive::Distance)],
         offset: Offset::Constant(-distance),
     }]
 }

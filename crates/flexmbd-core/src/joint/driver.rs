@@ -6,7 +6,7 @@
 //!   = 0, smooth for any number of turns and regular wherever theta = f (dC/dtheta = 1).
 //! - Translation driver: the offset along the z axis of marker i, d . z_i - f(t) = 0.
 
-use super::equation::{Coefficient, Equation, Offset, Primitive};
+use crate::joint::equation::{Coefficient, Equation, Offset, Primitive};
 
 /// The angle equation.
 pub(crate) fn angle_equations() -> Vec<Equation> {

@@ -3,7 +3,7 @@
 //! It closes planar loops in 3D without redundant equations (a planar four-bar needs only
 //! the two in-plane position equations at its last pivot).
 
-use super::equation::{Equation, Primitive};
+use crate::joint::equation::{Equation, Primitive};
 
 /// Two equations.
 pub(crate) fn equations() -> Vec<Equation> {

@@ -2,7 +2,7 @@
 //! the z axes stay parallel (z_j . x_i = 0, z_j . y_i = 0). Free: two translations in the
 //! plane and the rotation about the normal.
 
-use super::equation::{Equation, Primitive};
+use crate::joint::equation::{Equation, Primitive};
 
 /// Three equations.
 pub(crate) fn equations() -> Vec<Equation> {

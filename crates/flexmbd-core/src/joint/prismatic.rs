@@ -2,11 +2,11 @@
 //! relative rotation about the axis is locked by n_i . n_j = 0 with n_i = x_i, n_j = y_j
 //! (vectors perpendicular to the axis on each body).
 
-use super::equation::{Equation, Primitive};
+use crate::joint::equation::{Equation, Primitive};
 
 /// Cylindrical equations plus x_i . y_j = 0.
 pub(crate) fn equations() -> Vec<Equation> {
-    let mut eqs = super::cylindrical::equations();
+    let mut eqs = crate::joint::cylindrical::equations();
     eqs.push(Equation::simple("twist", Primitive::AxisDotAxis(0, 1)));
     eqs
 }

@@ -8,9 +8,9 @@
 //! ground the values come from body i by action and reaction (the constraints depend only on
 //! the relative configuration of the two bodies, so the joint forces balance).
 
-use super::equation::{equation_gradient, MarkerPair};
-use super::Joint;
 use crate::body::{Body, BodyKind};
+use crate::joint::equation::{equation_gradient, MarkerPair};
+use crate::joint::Joint;
 use crate::math::euler;
 use crate::math::Vec3;
 

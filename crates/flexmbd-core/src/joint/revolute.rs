@@ -3,11 +3,11 @@
 //! two dot products z_j . x_i = 0 and z_j . y_i = 0, which are independent in every
 //! configuration (no singular configurations, no selection of components needed).
 
-use super::equation::{Equation, Primitive};
+use crate::joint::equation::{Equation, Primitive};
 
 /// Spherical equations plus the two axis-alignment equations.
 pub(crate) fn equations() -> Vec<Equation> {
-    let mut eqs = super::spherical::equations();
+    let mut eqs = crate::joint::spherical::equations();
     eqs.push(Equation::simple("axis x", Primitive::AxisDotAxis(0, 2)));
     eqs.push(Equation::simple("axis y", Primitive::AxisDotAxis(1, 2)));
     eqs

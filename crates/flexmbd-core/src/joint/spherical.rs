@@ -2,7 +2,7 @@
 //! R_i + A_i u_i - R_j - A_j u_j = 0, written as its three global components. Three relative
 //! rotations are free.
 
-use super::equation::{Equation, Primitive};
+use crate::joint::equation::{Equation, Primitive};
 use crate::math::Vec3;
 
 /// The three equations x, y, z of d = r_j - r_i = 0.

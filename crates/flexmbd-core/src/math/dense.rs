@@ -1,7 +1,7 @@
 //! Small dynamically sized dense matrices for element-level (local) Jacobians and Hessians.
 
-use super::euler::Mat44;
-use super::vec3::Vec3;
+use crate::math::euler::Mat44;
+use crate::math::vec3::Vec3;
 
 /// Row-major dense matrix.
 #[derive(Clone, Debug, Default)]
@@ -63,7 +63,7 @@ impl DenseMatrix {
         c0: usize,
         w: f64,
         a: &Jacobian3,
-        m: &super::Mat3,
+        m: &crate::math::Mat3,
         b: &Jacobian3,
     ) {
         for i in 0..a.n {

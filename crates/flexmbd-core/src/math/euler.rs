@@ -10,8 +10,8 @@
 //! w = 2 G(p) p_dot, with L = [-e, -e~ + e0 I] and G = [-e, e~ + e0 I]. Because L(p_dot) p_dot = 0,
 //! the body angular acceleration is exactly 2 L(p) p_ddot.
 
-use super::small::matvec;
-use super::vec3::{Mat3, Vec3};
+use crate::math::small::matvec;
+use crate::math::vec3::{Mat3, Vec3};
 
 /// Euler parameters [e0, e1, e2, e3].
 pub type Quaternion = [f64; 4];

@@ -1,11 +1,9 @@
-//! Rotations (Euler parameters), 3-vectors, small dense matrices, time functions, the
-//! vector kernels of the solves, and the worker threads of parallel factorizations.
+//! Rotations (Euler parameters), 3-vectors, small dense matrices, hyper-dual numbers and
+//! functions of time.
 
 pub mod dense;
 pub mod euler;
 pub mod hyper_dual;
-pub mod parallel;
-pub(crate) mod simd;
 pub mod small;
 pub mod time_function;
 pub mod vec3;
@@ -24,13 +22,13 @@ mod tests {
     #[test]
     fn all_finite_finds_every_kind_of_non_finite_entry_anywhere() {
         let finite = [0.0, -0.0, 1.0, -3.5e300, f64::MAX, f64::MIN_POSITIVE, 5e-324, -7.25];
-        assert!(super::all_finite(&finite));
-        assert!(super::all_finite(&[]));
+        assert!(crate::math::all_finite(&finite));
+        assert!(crate::math::all_finite(&[]));
         for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -f64::NAN] {
             for at in 0..finite.len() {
                 let mut x = finite.to_vec();
                 x[at] = bad;
-                assert!(!super::all_finite(&x), "{bad} at {at}");
+                assert!(!crate::math::all_finite(&x), "{bad} at {at}");
             }
         }
     }

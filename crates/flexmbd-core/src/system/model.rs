@@ -15,8 +15,8 @@ use crate::force::{ForceElement, ForceKind, Frame};
 use crate::ids::{BodyId, MarkerId};
 use crate::joint::equation::Primitive;
 use crate::joint::Joint;
+use crate::linalg::sparse::{PatternBuilder, SparsePattern};
 use crate::math::Vec3;
-use crate::solver::sparse::{PatternBuilder, SparsePattern};
 use crate::system::builder::SystemBuilder;
 use crate::system::sensor::{Sensor, SensorQuantity};
 

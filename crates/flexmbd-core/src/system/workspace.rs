@@ -8,10 +8,10 @@ use crate::body::rigid::RigidTangent;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::force::ForceLocal;
+use crate::linalg::dense::{DenseLu, DENSE_SYSTEM_SIZE};
+use crate::linalg::sparse::{SparseLdlt, SparseLu};
+use crate::linear_system::condensed::{has_condensed_bodies, is_condensed, CondensedSolver};
 use crate::math::dense::DenseMatrix;
-use crate::solver::condensed::{has_condensed_bodies, is_condensed, CondensedSolver};
-use crate::solver::dense::{DenseLu, DENSE_SYSTEM_SIZE};
-use crate::solver::sparse::{SparseLdlt, SparseLu};
 use crate::system::model::Model;
 
 /// Buffers of one joint (local coordinates = body i's, then body j's).

@@ -23,19 +23,21 @@
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 
-use super::decoupled::{TreeAccelerations, TreeFormulation, TreeSolver};
-use super::dense_system::{
+use crate::error::{FlexmbdError, Result};
+use crate::formulation::augmented::{
     checked_lu, dense_initial_conditions, worst, DenseEquations, Formulation, Level, SINGULAR_VALUE_CUTOFF,
 };
-use super::initial::starting_state;
-use super::partition::{
+use crate::formulation::decoupled::{TreeAccelerations, TreeFormulation, TreeSolver};
+use crate::formulation::recursive::{tree_joint_accelerations, StructuredState, Tree};
+use crate::integrator::initial::starting_state;
+use crate::integrator::settings::SimulationSettings;
+use crate::integrator::time_loop::{
+    report_initial_correction, update_discrete, OutputClock, Progress, Records,
+};
+use crate::linalg::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
     PartitionMethod,
 };
-use super::recursive::{tree_joint_accelerations, StructuredState, Tree};
-use super::settings::SimulationSettings;
-use super::simulate::{report_initial_correction, update_discrete, OutputClock, Progress, Records};
-use crate::error::{FlexmbdError, Result};
 use crate::output::{Event, Output};
 use crate::system::{Model, State, Workspace};
 
@@ -144,7 +146,7 @@ impl Default for ExplicitSettings {
             constraint_tolerance: 1e-12,
             max_iterations: 20,
             repartition_ratio: 2.0,
-            rank_tolerance: super::partition::DEFAULT_RANK_TOLERANCE,
+            rank_tolerance: crate::linalg::partition::DEFAULT_RANK_TOLERANCE,
             singular_factor: 4.0,
             drift_threshold: 1e-6,
         }

@@ -18,7 +18,7 @@
 //! solves do not. The substitutions and refactorizations are compiled a second time for AVX2
 //! (vectors of four, the same results), taken where the CPU has it.
 
-use super::sparse::SparsePattern;
+use crate::linalg::sparse::SparsePattern;
 
 /// Newton systems of at most this many unknowns are factorized densely.
 pub const DENSE_SYSTEM_SIZE: usize = 64;
@@ -221,7 +221,7 @@ impl DenseLu {
     /// entry outside the structure, or if a pivot is too small.
     fn refactorize(&mut self, pattern: &SparsePattern, values: &[f64], tiny: f64) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if crate::math::simd::has_avx2_fma() {
+        if crate::linalg::simd::has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 (checked above).
             return unsafe { self.refactorize_avx2(pattern, values, tiny) };
         }
@@ -305,7 +305,7 @@ impl DenseLu {
     /// operations, so the results are the same bit for bit).
     fn substitute(&self, rhs: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
-        if crate::math::simd::has_avx2_fma() {
+        if crate::linalg::simd::has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 (checked above).
             return unsafe { self.substitute_avx2(rhs) };
         }
@@ -391,7 +391,7 @@ fn non_finite(values: &[f64]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::sparse::{PatternBuilder, SparseLu, SparsePattern};
+    use crate::linalg::sparse::{PatternBuilder, SparseLu, SparsePattern};
 
     /// The sparse LU solution of the system (pattern `p`, `values`) for `rhs`, and the dense
     /// LU factorization of the same matrix.

@@ -9,9 +9,9 @@
 //! envelope of the reverse Cuthill-McKee order holds fewer entries than the supernodal factor
 //! of a nested dissection, and the solve is up to three times faster (`benchmarks/README.md`);
 //! for large meshes the envelope grows much faster than the fill, and
-//! [`super::factor::SymmetricFactor`] keeps its supernodal factor (see `ENVELOPE_LIMIT` there).
+//! [`crate::linalg::symmetric::SymmetricFactor`] keeps its supernodal factor (see `ENVELOPE_LIMIT` there).
 
-use crate::math::simd::{group_dot, group_update, has_avx2_fma, mul_add, GROUP};
+use crate::linalg::simd::{group_dot, group_update, has_avx2_fma, mul_add, GROUP};
 
 /// Reverse Cuthill-McKee ordering (position -> unknown) of the graph of a symmetric matrix
 /// given by its lower triangle in CSC form (`ptr`, `idx`; diagonal entries may be present).

@@ -19,10 +19,10 @@
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::{Mat, Side};
 
-use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
-use super::initial::{violated_rows, InitialSettings};
-use super::partition::{minimum_norm_solve, partition_condition, submatrix, Partition};
+use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use crate::error::{FlexmbdError, Result};
+use crate::integrator::initial::{violated_rows, InitialSettings};
+use crate::linalg::partition::{minimum_norm_solve, partition_condition, submatrix, Partition};
 use crate::system::{Model, State, Workspace};
 
 /// How the accelerations are solved for.
@@ -507,10 +507,10 @@ pub fn worst(values: &[f64]) -> (usize, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator::test_models::{ground_joint, unit_body};
     use crate::joint::JointKind;
+    use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
     use crate::math::{Mat3, Vec3};
-    use crate::solver::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
-    use crate::solver::test_models::{ground_joint, unit_body};
     use crate::SystemBuilder;
 
     fn rot_z(angle: f64) -> Mat3 {

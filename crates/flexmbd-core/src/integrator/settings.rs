@@ -1,9 +1,9 @@
 //! Settings of a simulation: time span, step size and its control, Newton's method, output.
 
-use super::explicit::ExplicitSettings;
-use super::initial::{InitialSettings, StartState};
-use super::redundancy::RedundancySettings;
 use crate::error::{FlexmbdError, Result};
+use crate::integrator::explicit::ExplicitSettings;
+use crate::integrator::initial::{InitialSettings, StartState};
+use crate::integrator::redundancy::RedundancySettings;
 
 /// When the Newton matrix is recomputed and refactorized.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -54,10 +54,10 @@
 
 use faer::Mat;
 
-use super::dense_system::{null_space_solve, DenseEquations};
 use crate::body::marker::MarkerElastic;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
+use crate::formulation::augmented::{null_space_solve, DenseEquations};
 use crate::joint::JointKind;
 use crate::math::euler::rotation_matrix;
 use crate::math::hyper_dual::{
@@ -862,7 +862,7 @@ impl Tree {
                 *value -= (0..6).map(|c| d[(i, c)] * rate[c]).sum::<f64>();
             }
         }
-        let joints = super::partition::minimum_norm_solve(st.joint_influence.as_ref(), &rhs, 1e-12);
+        let joints = crate::linalg::partition::minimum_norm_solve(st.joint_influence.as_ref(), &rhs, 1e-12);
         pd[..nj].copy_from_slice(&joints);
         Ok(pd)
     }
@@ -1258,11 +1258,11 @@ pub fn tree_joint_accelerations(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::formulation::augmented::{dense_initial_conditions, Formulation, Level};
+    use crate::integrator::initial::InitialSettings;
+    use crate::integrator::test_models::{ground_joint, unit_body};
+    use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
     use crate::math::time_function::TimeFunction;
-    use crate::solver::dense_system::{dense_initial_conditions, Formulation, Level};
-    use crate::solver::initial::InitialSettings;
-    use crate::solver::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
-    use crate::solver::test_models::{ground_joint, unit_body};
     use crate::system::{State, Workspace};
     use crate::SystemBuilder;
 
@@ -1705,7 +1705,7 @@ mod tests {
 
     #[test]
     fn decoupled_and_coupled_systems_equal_the_joint_space_one() {
-        use crate::solver::decoupled::{TreeFormulation, TreeSolver};
+        use crate::formulation::decoupled::{TreeFormulation, TreeSolver};
         let models = [
             flexible_tree_model(false),
             flexible_tree_model(true),

@@ -17,14 +17,14 @@
 //! The analysis is dense: models where it would cost more than about `ANALYSIS_FLOPS` are not
 //! analysed (a singular Newton matrix then reports redundant or conflicting constraints).
 
-use super::dense_system::{dense_initial_conditions, row_weight, DenseEquations, Level};
-use super::initial::starting_state;
-use super::partition::{dependent_row_groups, minimum_norm_solve, partition, PartitionMethod};
-use super::settings::SimulationSettings;
+use crate::assembly::{joint_pair, update_kinematics};
 use crate::error::{FlexmbdError, Result};
+use crate::formulation::augmented::{dense_initial_conditions, row_weight, DenseEquations, Level};
+use crate::integrator::initial::starting_state;
+use crate::integrator::settings::SimulationSettings;
 use crate::joint::reaction::joint_reaction;
+use crate::linalg::partition::{dependent_row_groups, minimum_norm_solve, partition, PartitionMethod};
 use crate::output::{Event, Output};
-use crate::solver::assembly::{joint_pair, update_kinematics};
 use crate::system::{Model, State, Workspace};
 
 /// Largest m n min(m, n) of C_q for which the analysis runs.
@@ -266,9 +266,9 @@ impl Reduction {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator::test_models::{ground_joint, unit_body};
     use crate::joint::JointKind;
     use crate::math::{Mat3, Vec3};
-    use crate::solver::test_models::{ground_joint, unit_body};
     use crate::SystemBuilder;
 
     /// A body on two revolute joints with the same axis (5 of their 10 equations redundant)
@@ -350,7 +350,7 @@ mod tests {
             settings.redundancy.handling = handling;
             let mut delivered = Output::default();
             let mut calls = 0;
-            let outcome = crate::solver::simulate(&model, &settings, &mut |p| {
+            let outcome = crate::integrator::simulate(&model, &settings, &mut |p| {
                 if calls % 7 == 0 {
                     let chunk = p.records.since(delivered.len());
                     delivered.time.extend(chunk.time);

@@ -14,9 +14,9 @@
 //! the Newton matrix well conditioned for small h:
 //!   [[s (beta' M + gamma' D + K), C_q^T], [C_q, 0]] [dq; s dlambda] = -[s r; C].
 
-use super::assembly::{assemble, MatrixCoefficients, StateView};
-use super::settings::{JacobianUpdate, LinearSolver, NewtonSettings};
+use crate::assembly::{assemble, MatrixCoefficients, StateView};
 use crate::error::{FlexmbdError, Result};
+use crate::integrator::settings::{JacobianUpdate, LinearSolver, NewtonSettings};
 use crate::system::workspace::{ElasticRows, LinearSolvers};
 use crate::system::{Model, State, Workspace};
 
@@ -213,7 +213,7 @@ fn increment_norm(
     // One pass for the norm and the relative position increment, dividing only where a ratio
     // may grow (a product compares).
     let (largest, at, position) =
-        crate::math::simd::increment_ratios(increment, &state.coordinates, acceleration_weight);
+        crate::linalg::simd::increment_ratios(increment, &state.coordinates, acceleration_weight);
     let mut worst = (at, largest);
     if let Some(ConstraintForces { rows, increment, force, scale }) = multipliers {
         let f_scale = rows.iter().fold(1.0f64, |m, &d| m.max(force[d].abs()));
@@ -330,7 +330,7 @@ fn iterate(
     let condensed_rows = approximate_matrix && coef.position == 1.0 && coef.identity == 0.0;
     for iteration in 0..newton.max_iterations {
         // A step shortened by round-off to land on an output time keeps the matrix.
-        let same_h = cache.step_size.is_some_and(|c| super::equal_to_round_off(c, h));
+        let same_h = cache.step_size.is_some_and(|c| crate::integrator::equal_to_round_off(c, h));
         let need_matrix = !reuse || !same_h || cache.kind != kind;
         fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
@@ -383,7 +383,7 @@ fn iterate(
                 force[d] = 0.0;
             }
             let (q, lambda) = (&next.coordinates, &next.multipliers);
-            super::assembly::add_constraint_force_pair(
+            crate::assembly::add_constraint_force_pair(
                 model,
                 q,
                 &ws.joints,
@@ -533,7 +533,7 @@ pub fn step(
         }
         report.factorizations += 1;
         let mut violation = std::mem::take(&mut ws.scratch[1]);
-        super::assembly::velocity_violation(model, &next.velocities, ws, &mut violation[..nc]);
+        crate::assembly::velocity_violation(model, &next.velocities, ws, &mut violation[..nc]);
         ws.solution[..nq].iter_mut().for_each(|x| *x = 0.0);
         for k in 0..nc {
             ws.solution[nq + k] = -violation[k];
@@ -558,7 +558,7 @@ pub fn step(
         let mut gamma = std::mem::take(&mut ws.scratch[1]);
         let mut ct = std::mem::take(&mut ws.scratch[0]);
         let terms =
-            super::assembly::constraint_time_terms(model, view, ws, &mut ct[..nc], Some(&mut gamma[..nc]));
+            crate::assembly::constraint_time_terms(model, view, ws, &mut ct[..nc], Some(&mut gamma[..nc]));
         for k in 0..nq {
             ws.solution[k] = -ws.residual[k];
         }

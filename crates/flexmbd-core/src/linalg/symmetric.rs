@@ -19,9 +19,10 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Spec};
 
-use super::envelope::{reverse_cuthill_mckee, EnvelopeCholesky};
 use crate::error::{FlexmbdError, Result};
-use crate::math::{parallel, Vec3};
+use crate::linalg::envelope::{reverse_cuthill_mckee, EnvelopeCholesky};
+use crate::linalg::parallel;
+use crate::math::Vec3;
 
 /// Largest envelope (entries of L, 16 MiB of values) factorized in envelope form instead of
 /// supernodal form. Measured on tet4 bars and cubes of 960 to 9,408 unknowns (benchmarks/
@@ -98,10 +99,10 @@ pub struct SymmetricFactor {
     factor32: Vec<f32>,
     scaling: Vec<f64>,
     /// The envelope factor of a small positive definite matrix, used instead of the
-    /// supernodal `factor` (then empty) when it is not much larger (see [`super::envelope`]).
+    /// supernodal `factor` (then empty) when it is not much larger (see [`crate::linalg::envelope`]).
     envelope: Option<EnvelopeCholesky>,
     /// `Par::rayon(threads)` for more than one thread; its work runs in the process's pool
-    /// ([`crate::math::parallel`]), which survives `fork`.
+    /// ([`crate::linalg::parallel`]), which survives `fork`.
     par: Par,
     threads: usize,
 }
@@ -273,7 +274,7 @@ impl SymmetricFactor {
     }
 
     /// True when the factor is stored in envelope form (small matrices, see
-    /// [`super::envelope`]), false for the supernodal form.
+    /// [`crate::linalg::envelope`]), false for the supernodal form.
     pub fn is_envelope(&self) -> bool {
         self.envelope.is_some()
     }

@@ -10,9 +10,9 @@
 //! violate and every body whose coordinates or velocities the correction moves by more than
 //! the report tolerance; with `strict` settings such a correction is refused instead.
 
-use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
-use super::generalized_alpha::NO_SOLVERS;
+use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use crate::error::{FlexmbdError, Result};
+use crate::integrator::generalized_alpha::NO_SOLVERS;
 use crate::output::Event;
 use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};

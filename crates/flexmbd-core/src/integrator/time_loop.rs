@@ -4,18 +4,18 @@
 
 use std::cell::Cell;
 
-use super::explicit;
-use super::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
-use super::initial::{
-    correction_events, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
-};
-use super::redundancy::{analyse, Reduction, RedundancyHandling};
-use super::settings::{Integrator, SimulationSettings, StepControl};
+use crate::assembly::update_kinematics;
 use crate::error::{FlexmbdError, Result};
 use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
 use crate::force::{ForceEnv, ForceKind};
+use crate::integrator::explicit;
+use crate::integrator::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
+use crate::integrator::initial::{
+    correction_events, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
+};
+use crate::integrator::redundancy::{analyse, Reduction, RedundancyHandling};
+use crate::integrator::settings::{Integrator, SimulationSettings, StepControl};
 use crate::output::Output;
-use crate::solver::assembly::update_kinematics;
 use crate::system::{Model, State, Workspace};
 
 /// Progress reported to the observer after every accepted step.

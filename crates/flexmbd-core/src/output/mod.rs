@@ -2,13 +2,13 @@
 //! ask for (joint reactions, sensors, energies, constraint violation), stored as flat
 //! time-major arrays (`[output index][item]`).
 
+use crate::assembly::{joint_pair, update_kinematics};
 use crate::body::marker::marker_accelerations;
 use crate::body::{flexible, point_mass, rigid, BodyKind};
 use crate::force::gravity::gravity_potential;
 use crate::force::{force_potential, ForceEnv};
 use crate::joint::equation::equation_value;
 use crate::joint::reaction::joint_reaction;
-use crate::solver::assembly::{joint_pair, update_kinematics};
 use crate::system::sensor::SensorQuantity;
 use crate::system::{Model, State, Workspace};
 
@@ -82,7 +82,7 @@ pub struct Output {
     /// Events, in order.
     pub events: Vec<Event>,
     /// The redundant constraints found at the start, if any.
-    pub redundancy: Option<crate::solver::redundancy::Redundancy>,
+    pub redundancy: Option<crate::integrator::redundancy::Redundancy>,
     /// Records released from the front by [`Output::release_front`] (stored elsewhere by the
     /// caller during the run): the first record held is record `released` of the run.
     pub released: usize,

@@ -37,15 +37,15 @@
 
 use faer::Mat;
 
-use super::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
-use super::dense_system::{checked_lu_with, SINGULAR_VALUE_CUTOFF};
-use super::partition::minimum_norm_solve;
-use super::recursive::{StructuredState, Tree};
-use super::sparse::{PatternBuilder, SparseLu, SparsePattern};
+use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use crate::body::marker::MarkerElastic;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
-use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
+use crate::formulation::augmented::{checked_lu_with, SINGULAR_VALUE_CUTOFF};
+use crate::formulation::recursive::{StructuredState, Tree};
+use crate::linalg::partition::minimum_norm_solve;
+use crate::linalg::sparse::{PatternBuilder, SparseLu, SparsePattern};
+use crate::linalg::symmetric::{CscRef, FactorKind, Ordering, SymmetricFactor};
 use crate::system::{Model, Workspace};
 
 /// Smallest ratio of LU pivots of the tree block of eq. 41 taken as regular.

@@ -20,15 +20,15 @@
 //! solve with A per body, the small LU solve and a dense product with Z:
 //!   y = A^-1 r_F,   S_hat x_S = r_S - N_SF y,   x_F = y - Z x_J.
 
+use crate::assembly::MatrixCoefficients;
 use crate::body::flexible::{dot, FlexibleBody, REFERENCE_COORDINATES};
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
-use crate::fem::factor::{CscRef, FactorKind, Ordering, SymmetricFactor};
-use crate::math::simd::{dot4, update4, GROUP};
+use crate::linalg::dense::{DenseLu, DENSE_SYSTEM_SIZE};
+use crate::linalg::simd::{dot4, update4, GROUP};
+use crate::linalg::sparse::{PatternBuilder, SparseLu, SparsePattern};
+use crate::linalg::symmetric::{CscRef, FactorKind, Ordering, SymmetricFactor};
 use crate::math::Vec3;
-use crate::solver::assembly::MatrixCoefficients;
-use crate::solver::dense::{DenseLu, DENSE_SYSTEM_SIZE};
-use crate::solver::sparse::{PatternBuilder, SparseLu, SparsePattern};
 use crate::system::model::Model;
 
 /// Deformable bodies with at least this many elastic coordinates are condensed.
@@ -60,7 +60,7 @@ fn key(c: &MatrixCoefficients) -> Key {
 /// Whether a factorization of A made for the coefficients `kept` serves `wanted`: each equal
 /// to round-off, as the integrator's step sizes.
 fn same_key(kept: &Key, wanted: &Key) -> bool {
-    kept.iter().zip(wanted).all(|(&a, &b)| super::equal_to_round_off(a, b))
+    kept.iter().zip(wanted).all(|(&a, &b)| crate::integrator::equal_to_round_off(a, b))
 }
 
 /// The entries (local f, value index) of one coupling unknown j: N_{f, j}, then N_{j, f}.
@@ -932,7 +932,7 @@ impl Block {
         for (j, c) in split {
             let z = &mut self.z[j * m..(j + 1) * m];
             z.iter_mut().for_each(|x| *x = 0.0);
-            crate::math::simd::dense_mul_add(m, &factor.basis_solved[..c.len() * m], 1.0, &c, z);
+            crate::linalg::simd::dense_mul_add(m, &factor.basis_solved[..c.len() * m], 1.0, &c, z);
             if keep_image {
                 // The column as eliminated: Q c_j (A Z_j = Q c_j exactly), on the support.
                 let w = &mut self.w[j * m..(j + 1) * m];
@@ -1252,11 +1252,11 @@ impl Block {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::assembly::{assemble, StateView};
     use crate::body::flexible::tests::PointBody;
     use crate::body::marker::MarkerElastic;
     use crate::joint::JointKind;
     use crate::math::{Mat3, Vec3};
-    use crate::solver::assembly::{assemble, StateView};
     use crate::system::workspace::{ElasticRows, LinearSolvers};
     use crate::system::{State, SystemBuilder, Workspace};
 
@@ -1573,7 +1573,8 @@ mod tests {
         let mut solver = CondensedSolver::new(&condensed, true).unwrap();
         let mut ws = Workspace::new(&condensed).unwrap();
         let state = State::initial(&condensed, 0.0);
-        let method = crate::solver::generalized_alpha::GeneralizedAlpha::from_spectral_radius(0.9).unwrap();
+        let method =
+            crate::integrator::generalized_alpha::GeneralizedAlpha::from_spectral_radius(0.9).unwrap();
         let h = 1e-3;
         for (step, factors) in [(h, 1), (h * (1.0 - 4.0 * f64::EPSILON), 1), (h * (1.0 - 1e-9), 2)] {
             let c = method.coefficients(step);

@@ -1,27 +1,20 @@
-//! Solvers: assembly of the augmented equations, sparse linear algebra, consistent initial
-//! conditions and the acceleration system (seed eq. 26), the generalized-alpha integrator and
-//! the time loop.
+//! Integration in time: the settings of a run, consistent initial conditions and the
+//! acceleration system (seed eq. 26), the redundancy analysis, the index-3 generalized-alpha
+//! integrator, the explicit Runge-Kutta integrators with the seed's strategies, and the time
+//! loop.
 
-pub mod assembly;
-pub mod condensed;
-pub mod decoupled;
-pub mod dense;
-pub mod dense_system;
 pub mod explicit;
 pub mod generalized_alpha;
 pub mod initial;
-pub mod partition;
-pub mod recursive;
 pub mod redundancy;
 pub mod settings;
-pub mod simulate;
-pub mod sparse;
+pub mod time_loop;
 
 pub use settings::{
     Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
     VelocityProjection,
 };
-pub use simulate::{simulate, Progress, Records, SimulationOutcome};
+pub use time_loop::{simulate, Progress, Records, SimulationOutcome};
 
 /// Whether a step size or an iteration-matrix coefficient `kept` with a factorization serves
 /// `wanted`: equal to 1e-12 of `wanted` (a step shortened by round-off to land on an output
