@@ -7,9 +7,10 @@ use std::time::{Duration, Instant};
 use crate::ids::JointId;
 use flexmbd_core::formulation::augmented::Formulation;
 use flexmbd_core::formulation::decoupled::TreeFormulation;
-use flexmbd_core::integrator::explicit::{ExplicitMethod, ExplicitSettings, Strategy};
-use flexmbd_core::integrator::initial::{InitialSettings, StartState};
-use flexmbd_core::integrator::redundancy::{RedundancyHandling, RedundancySettings};
+use flexmbd_core::integrator::settings::{
+    ExplicitMethod, ExplicitSettings, InitialSettings, RedundancyHandling, RedundancySettings, StartState,
+    Strategy,
+};
 use flexmbd_core::integrator::{
     simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
     StepControl, VelocityProjection,

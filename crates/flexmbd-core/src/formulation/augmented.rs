@@ -20,10 +20,9 @@ use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::{Mat, Side};
 
 use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
-use crate::error::{FlexmbdError, Result};
-use crate::integrator::initial::{violated_rows, InitialSettings};
+use crate::error::Result;
 use crate::linalg::partition::{minimum_norm_solve, partition_condition, submatrix, Partition};
-use crate::system::{Model, State, Workspace};
+use crate::system::{Model, Workspace};
 
 /// How the accelerations are solved for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -353,69 +352,6 @@ impl DenseEquations {
     }
 }
 
-/// Relative singular-value cut-off of the minimum-norm corrections.
-const PSEUDO_INVERSE_TOLERANCE: f64 = 1e-10;
-
-/// Consistent initial positions and velocities with dense minimum-norm corrections (truncated
-/// pseudo-inverse of C_q), which also converge for redundant constraints:
-/// q <- q - C_q^+ C(q) until |C| <= tolerance, then q_dot <- q_dot - C_q^+ (C_q q_dot + C_t).
-/// Returns the constraint rows the given positions violated, with their values.
-pub fn dense_initial_conditions(
-    model: &Model,
-    ws: &mut Workspace,
-    eq: &mut DenseEquations,
-    state: &mut State,
-    settings: &InitialSettings,
-) -> Result<Vec<(usize, f64)>> {
-    let t = state.time;
-    let mut iterations = 0;
-    let mut violated = None;
-    loop {
-        eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
-        if violated.is_none() {
-            violated = Some(violated_rows(&eq.constraints, settings.tolerance));
-        }
-        let (row, violation) = worst(&eq.constraints);
-        if violation <= settings.tolerance {
-            break;
-        }
-        if !settings.correct_positions || iterations >= settings.max_iterations || !violation.is_finite() {
-            return Err(FlexmbdError::InconsistentInitialConditions {
-                time: t,
-                item: violated_constraints(model, row, &eq.constraints, settings.tolerance),
-                residual: violation,
-                iterations,
-            });
-        }
-        // Weighted rows: where the constraints cannot all be met, the least-squares compromise
-        // keeps the normalizations and drivers and leaves the violation on the joints.
-        let mut jacobian = eq.jacobian.clone();
-        let mut residual = eq.constraints.clone();
-        for (r, value) in residual.iter_mut().enumerate() {
-            let w = row_weight(model, r);
-            *value *= w;
-            for c in 0..model.coordinate_count {
-                jacobian[(r, c)] *= w;
-            }
-        }
-        let dq = minimum_norm_solve(jacobian.as_ref(), &residual, PSEUDO_INVERSE_TOLERANCE);
-        for (x, d) in state.coordinates.iter_mut().zip(&dq) {
-            *x -= d;
-        }
-        iterations += 1;
-    }
-    if model.constraint_count > 0 && settings.correct_velocities {
-        eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Velocity)?;
-        let violation: Vec<f64> =
-            (0..model.constraint_count).map(|k| eq.velocity_violation(k, &state.velocities)).collect();
-        let dv = minimum_norm_solve(eq.jacobian.as_ref(), &violation, PSEUDO_INVERSE_TOLERANCE);
-        for (x, d) in state.velocities.iter_mut().zip(&dv) {
-            *x -= d;
-        }
-    }
-    Ok(violated.unwrap_or_default())
-}
-
 /// Weight of a constraint row where rows compete (choice of the kept rows of redundant
 /// constraints, least-squares initial projection): Euler-parameter normalizations first, then
 /// drivers, then joints.
@@ -471,28 +407,6 @@ pub fn null_space_solve(
     Ok(x)
 }
 
-/// The worst violated row, and the other joints left violated with it (when constraints
-/// conflict, the least-squares compromise spreads the violation over all joints involved).
-fn violated_constraints(model: &Model, worst_row: usize, constraints: &[f64], tolerance: f64) -> String {
-    let mut item = model.constraint_name(worst_row);
-    let threshold = tolerance.max(1e-6 * constraints[worst_row].abs());
-    let mut others: Vec<String> = Vec::new();
-    for j in &model.joints {
-        let violated = (j.row..j.row + j.equations.len()).any(|r| constraints[r].abs() > threshold);
-        let name = format!("'{}'", j.name);
-        if violated
-            && !(worst_row >= j.row && worst_row < j.row + j.equations.len())
-            && !others.contains(&name)
-        {
-            others.push(name);
-        }
-    }
-    if !others.is_empty() {
-        item.push_str(&format!(" (also violated: joint {})", others.join(", ")));
-    }
-    item
-}
-
 /// Index and magnitude of the largest entry.
 pub fn worst(values: &[f64]) -> (usize, f64) {
     values.iter().enumerate().fold((0, 0.0f64), |best, (k, v)| {
@@ -507,10 +421,13 @@ pub fn worst(values: &[f64]) -> (usize, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator::initial::dense_initial_conditions;
+    use crate::integrator::settings::InitialSettings;
     use crate::integrator::test_models::{ground_joint, unit_body};
     use crate::joint::JointKind;
     use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
     use crate::math::{Mat3, Vec3};
+    use crate::system::State;
     use crate::SystemBuilder;
 
     fn rot_z(angle: f64) -> Mat3 {

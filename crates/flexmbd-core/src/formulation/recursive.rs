@@ -1258,8 +1258,9 @@ pub fn tree_joint_accelerations(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formulation::augmented::{dense_initial_conditions, Formulation, Level};
-    use crate::integrator::initial::InitialSettings;
+    use crate::formulation::augmented::{Formulation, Level};
+    use crate::integrator::initial::dense_initial_conditions;
+    use crate::integrator::settings::InitialSettings;
     use crate::integrator::test_models::{ground_joint, unit_body};
     use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
     use crate::math::time_function::TimeFunction;

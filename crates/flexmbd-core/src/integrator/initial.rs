@@ -12,51 +12,13 @@
 
 use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
 use crate::error::{FlexmbdError, Result};
+use crate::formulation::augmented::{row_weight, worst, DenseEquations, Level};
 use crate::integrator::generalized_alpha::NO_SOLVERS;
-use crate::output::Event;
+use crate::integrator::settings::{InitialSettings, SimulationSettings, StartState};
+use crate::linalg::partition::minimum_norm_solve;
+use crate::output::{Event, Output};
 use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};
-
-/// Settings of the initial-condition solve.
-#[derive(Clone, Debug)]
-pub struct InitialSettings {
-    /// Largest constraint violation accepted (m or dimensionless).
-    pub tolerance: f64,
-    /// Newton iterations for the positions.
-    pub max_iterations: usize,
-    /// Correct the positions (else they must already satisfy the constraints).
-    pub correct_positions: bool,
-    /// Correct the velocities.
-    pub correct_velocities: bool,
-    /// A coordinate or velocity moved by more than this times max(1, |value|) is reported as
-    /// an "initial correction" event (the default Newton tolerance of the integrator).
-    pub report_tolerance: f64,
-    /// Refuse (`InitialCorrectionRefused`) instead of reporting such a correction.
-    pub strict: bool,
-}
-
-impl Default for InitialSettings {
-    fn default() -> Self {
-        InitialSettings {
-            tolerance: 1e-11,
-            max_iterations: 50,
-            correct_positions: true,
-            correct_velocities: true,
-            report_tolerance: 1e-6,
-            strict: false,
-        }
-    }
-}
-
-/// Coordinates and velocities to start a run from (seed eq. 19 need not hold exactly: the
-/// initial-condition solve makes them consistent, and reports what it moved).
-#[derive(Clone, Debug, PartialEq)]
-pub struct StartState {
-    /// q (coordinate_count).
-    pub coordinates: Vec<f64>,
-    /// q_dot (coordinate_count).
-    pub velocities: Vec<f64>,
-}
 
 /// The state a run starts from at `time`: `start`'s coordinates and velocities, or the
 /// model's initial ones. Errors name a wrong length or the first non-finite entry.
@@ -331,5 +293,111 @@ pub fn solve_accelerations(model: &Model, state: &mut State, ws: &mut Workspace)
     solve(ws, t, "acceleration system (seed eq. 26)")?;
     state.accelerations.copy_from_slice(&ws.solution[..nq]);
     state.multipliers.copy_from_slice(&ws.solution[nq..]);
+    Ok(())
+}
+
+/// Relative singular-value cut-off of the minimum-norm corrections.
+const PSEUDO_INVERSE_TOLERANCE: f64 = 1e-10;
+
+/// Consistent initial positions and velocities with dense minimum-norm corrections (truncated
+/// pseudo-inverse of C_q), which also converge for redundant constraints:
+/// q <- q - C_q^+ C(q) until |C| <= tolerance, then q_dot <- q_dot - C_q^+ (C_q q_dot + C_t).
+/// Returns the constraint rows the given positions violated, with their values.
+pub fn dense_initial_conditions(
+    model: &Model,
+    ws: &mut Workspace,
+    eq: &mut DenseEquations,
+    state: &mut State,
+    settings: &InitialSettings,
+) -> Result<Vec<(usize, f64)>> {
+    let t = state.time;
+    let mut iterations = 0;
+    let mut violated = None;
+    loop {
+        eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+        if violated.is_none() {
+            violated = Some(violated_rows(&eq.constraints, settings.tolerance));
+        }
+        let (row, violation) = worst(&eq.constraints);
+        if violation <= settings.tolerance {
+            break;
+        }
+        if !settings.correct_positions || iterations >= settings.max_iterations || !violation.is_finite() {
+            return Err(FlexmbdError::InconsistentInitialConditions {
+                time: t,
+                item: violated_constraints(model, row, &eq.constraints, settings.tolerance),
+                residual: violation,
+                iterations,
+            });
+        }
+        // Weighted rows: where the constraints cannot all be met, the least-squares compromise
+        // keeps the normalizations and drivers and leaves the violation on the joints.
+        let mut jacobian = eq.jacobian.clone();
+        let mut residual = eq.constraints.clone();
+        for (r, value) in residual.iter_mut().enumerate() {
+            let w = row_weight(model, r);
+            *value *= w;
+            for c in 0..model.coordinate_count {
+                jacobian[(r, c)] *= w;
+            }
+        }
+        let dq = minimum_norm_solve(jacobian.as_ref(), &residual, PSEUDO_INVERSE_TOLERANCE);
+        for (x, d) in state.coordinates.iter_mut().zip(&dq) {
+            *x -= d;
+        }
+        iterations += 1;
+    }
+    if model.constraint_count > 0 && settings.correct_velocities {
+        eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Velocity)?;
+        let violation: Vec<f64> =
+            (0..model.constraint_count).map(|k| eq.velocity_violation(k, &state.velocities)).collect();
+        let dv = minimum_norm_solve(eq.jacobian.as_ref(), &violation, PSEUDO_INVERSE_TOLERANCE);
+        for (x, d) in state.velocities.iter_mut().zip(&dv) {
+            *x -= d;
+        }
+    }
+    Ok(violated.unwrap_or_default())
+}
+
+/// The worst violated row, and the other joints left violated with it (when constraints
+/// conflict, the least-squares compromise spreads the violation over all joints involved).
+fn violated_constraints(model: &Model, worst_row: usize, constraints: &[f64], tolerance: f64) -> String {
+    let mut item = model.constraint_name(worst_row);
+    let threshold = tolerance.max(1e-6 * constraints[worst_row].abs());
+    let mut others: Vec<String> = Vec::new();
+    for j in &model.joints {
+        let violated = (j.row..j.row + j.equations.len()).any(|r| constraints[r].abs() > threshold);
+        let name = format!("'{}'", j.name);
+        if violated
+            && !(worst_row >= j.row && worst_row < j.row + j.equations.len())
+            && !others.contains(&name)
+        {
+            others.push(name);
+        }
+    }
+    if !others.is_empty() {
+        item.push_str(&format!(" (also violated: joint {})", others.join(", ")));
+    }
+    item
+}
+
+/// Adds the "initial correction" events of the consistent-initial-condition solve that took
+/// the given coordinates and velocities to `state` to `output`, or, with strict settings,
+/// refuses the correction.
+pub(crate) fn report_initial_correction(
+    model: &Model,
+    given_q: &[f64],
+    given_qd: &[f64],
+    state: &State,
+    violated: &[(usize, f64)],
+    settings: &SimulationSettings,
+    output: &mut Output,
+) -> Result<()> {
+    let (events, largest) = correction_events(model, given_q, given_qd, state, violated, &settings.initial);
+    if settings.initial.strict && !events.is_empty() {
+        let item = events.iter().map(|e| e.message.as_str()).collect::<Vec<_>>().join("; ");
+        return Err(FlexmbdError::InitialCorrectionRefused { time: state.time, item, size: largest });
+    }
+    output.events.extend(events);
     Ok(())
 }

@@ -3,18 +3,22 @@
 //! integrator, the explicit Runge-Kutta integrators with the seed's strategies, and the time
 //! loop.
 
+pub mod clock;
+pub mod discrete;
 pub mod explicit;
 pub mod generalized_alpha;
 pub mod initial;
+pub mod progress;
 pub mod redundancy;
 pub mod settings;
 pub mod time_loop;
 
+pub use progress::{Progress, Records};
 pub use settings::{
     Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
     VelocityProjection,
 };
-pub use time_loop::{simulate, Progress, Records, SimulationOutcome};
+pub use time_loop::{simulate, SimulationOutcome};
 
 /// Whether a step size or an iteration-matrix coefficient `kept` with a factorization serves
 /// `wanted`: equal to 1e-12 of `wanted` (a step shortened by round-off to land on an output

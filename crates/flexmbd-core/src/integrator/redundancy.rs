@@ -19,72 +19,16 @@
 
 use crate::assembly::{joint_pair, update_kinematics};
 use crate::error::{FlexmbdError, Result};
-use crate::formulation::augmented::{dense_initial_conditions, row_weight, DenseEquations, Level};
-use crate::integrator::initial::starting_state;
-use crate::integrator::settings::SimulationSettings;
+use crate::formulation::augmented::{row_weight, DenseEquations, Level};
+use crate::integrator::initial::{dense_initial_conditions, starting_state};
+use crate::integrator::settings::{RedundancyHandling, SimulationSettings};
 use crate::joint::reaction::joint_reaction;
 use crate::linalg::partition::{dependent_row_groups, minimum_norm_solve, partition, PartitionMethod};
-use crate::output::{Event, Output};
+use crate::output::{Event, Output, Redundancy};
 use crate::system::{Model, State, Workspace};
 
 /// Largest m n min(m, n) of C_q for which the analysis runs.
 pub const ANALYSIS_FLOPS: f64 = 2e9;
-
-/// What is done with redundant constraints.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RedundancyHandling {
-    /// Remove them; their multipliers are zero.
-    Remove,
-    /// Remove them for the integration; report the minimum-norm multipliers of all rows.
-    MinimumNorm,
-    /// Stop with an error that lists them.
-    Error,
-}
-
-impl RedundancyHandling {
-    /// Name in settings.
-    pub fn name(self) -> &'static str {
-        match self {
-            RedundancyHandling::Remove => "remove",
-            RedundancyHandling::MinimumNorm => "minimum-norm",
-            RedundancyHandling::Error => "error",
-        }
-    }
-}
-
-/// Settings of the redundancy analysis.
-#[derive(Clone, Copy, Debug)]
-pub struct RedundancySettings {
-    /// Handling.
-    pub handling: RedundancyHandling,
-    /// Relative tolerance of the rank decision.
-    pub tolerance: f64,
-}
-
-impl Default for RedundancySettings {
-    fn default() -> Self {
-        RedundancySettings { handling: RedundancyHandling::Remove, tolerance: 1e-9 }
-    }
-}
-
-/// The result of the analysis of a redundant model.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Redundancy {
-    /// Time of the analysis (the start).
-    pub time: f64,
-    /// Number of constraint rows.
-    pub rows: usize,
-    /// Rank of C_q.
-    pub rank: usize,
-    /// Removed rows.
-    pub removed_rows: Vec<usize>,
-    /// Groups of rows that are linearly dependent together (one per null vector of C_q^T).
-    pub groups: Vec<Vec<usize>>,
-    /// Joints with rows in a group.
-    pub joints: Vec<usize>,
-    /// Human-readable summary.
-    pub message: String,
-}
 
 /// A model with its redundant rows removed.
 pub struct Reduction {

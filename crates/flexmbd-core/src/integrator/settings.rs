@@ -1,9 +1,10 @@
 //! Settings of a simulation: time span, step size and its control, Newton's method, output.
 
 use crate::error::{FlexmbdError, Result};
-use crate::integrator::explicit::ExplicitSettings;
-use crate::integrator::initial::{InitialSettings, StartState};
-use crate::integrator::redundancy::RedundancySettings;
+use crate::formulation::augmented::Formulation;
+use crate::formulation::decoupled::TreeFormulation;
+use crate::linalg::partition::PartitionMethod;
+use crate::system::Model;
 
 /// When the Newton matrix is recomputed and refactorized.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -241,5 +242,269 @@ impl SimulationSettings {
             }
         }
         Ok(())
+    }
+}
+
+// Explicit solvers -----------------------------------------------------------------------
+
+/// Largest number of coordinates the (dense) explicit solvers accept.
+pub const EXPLICIT_COORDINATE_LIMIT: usize = 2000;
+
+/// The explicit integration method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExplicitMethod {
+    /// Classical Runge-Kutta of order 4, fixed step.
+    Rk4,
+    /// Dormand-Prince 5(4), error-controlled step.
+    Dopri5,
+}
+
+impl ExplicitMethod {
+    /// Name in settings and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExplicitMethod::Rk4 => "rk4",
+            ExplicitMethod::Dopri5 => "dopri5",
+        }
+    }
+}
+
+/// The seed's strategies for the constrained equations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategy {
+    /// (1) Integrate all accelerations, dependent and independent.
+    IntegrateAll,
+    /// (2) Wehage's generalized coordinate partitioning.
+    CoordinatePartitioning,
+    /// (3) Integrate all, then project onto the position and velocity constraints.
+    Projection,
+    /// Joint coordinates (seed section 5): integrate the joint coordinates of an open tree;
+    /// the body coordinates follow from them and satisfy the joints exactly.
+    JointCoordinates,
+}
+
+impl Strategy {
+    /// Name in settings and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::IntegrateAll => "integrate-all",
+            Strategy::CoordinatePartitioning => "partitioning",
+            Strategy::Projection => "projection",
+            Strategy::JointCoordinates => "joint-coordinates",
+        }
+    }
+}
+
+/// Settings of the explicit solvers.
+#[derive(Clone, Debug)]
+pub struct ExplicitSettings {
+    /// Integration method.
+    pub method: ExplicitMethod,
+    /// Strategy for the constraints.
+    pub strategy: Strategy,
+    /// How the accelerations are solved for.
+    pub formulation: Formulation,
+    /// Joint coordinates: which system gives the accelerations (B^T M B, seed eq. 40 or 41).
+    pub tree_formulation: TreeFormulation,
+    /// Joint coordinates: the joints to cut (indices); None cuts every loop closure and
+    /// every joint of a type the tree does not take.
+    pub cut_joints: Option<Vec<usize>>,
+    /// Decomposition that chooses the partition.
+    pub partition: PartitionMethod,
+    /// Independent coordinates given by the user (indices); None: chosen by `partition`.
+    pub independent: Option<Vec<usize>>,
+    /// Baumgarte stabilization (alpha, beta) of strategy (1).
+    pub baumgarte: Option<(f64, f64)>,
+    /// Relative tolerance of the Dormand-Prince error control.
+    pub relative_tolerance: f64,
+    /// Absolute tolerance of the Dormand-Prince error control.
+    pub absolute_tolerance: f64,
+    /// Tolerance on |C| of the dependent-coordinate Newton iteration and of the projection.
+    pub constraint_tolerance: f64,
+    /// Iterations of those Newton iterations.
+    pub max_iterations: usize,
+    /// After every step the decomposition proposes a partition at the new state; it replaces
+    /// the current one when its condition (`Partition::condition`) is this factor smaller.
+    pub repartition_ratio: f64,
+    /// Relative tolerance of rank decisions.
+    pub rank_tolerance: f64,
+    /// A configuration counts as singular where even the best partition's condition exceeds
+    /// this factor times the condition of the partition at the start: there the embedding
+    /// uses an SVD null-space basis, coordinate partitioning takes projection steps.
+    pub singular_factor: f64,
+    /// Constraint violation at which the drift of strategy (1) is reported as an event.
+    pub drift_threshold: f64,
+}
+
+impl Default for ExplicitSettings {
+    fn default() -> Self {
+        ExplicitSettings {
+            method: ExplicitMethod::Dopri5,
+            strategy: Strategy::CoordinatePartitioning,
+            formulation: Formulation::Augmented,
+            tree_formulation: TreeFormulation::JointSpace,
+            cut_joints: None,
+            partition: PartitionMethod::Lu,
+            independent: None,
+            baumgarte: None,
+            relative_tolerance: 1e-8,
+            absolute_tolerance: 1e-10,
+            constraint_tolerance: 1e-12,
+            max_iterations: 20,
+            repartition_ratio: 2.0,
+            rank_tolerance: crate::linalg::partition::DEFAULT_RANK_TOLERANCE,
+            singular_factor: 4.0,
+            drift_threshold: 1e-6,
+        }
+    }
+}
+
+impl ExplicitSettings {
+    /// Checks the settings against the model.
+    pub fn validate(&self, model: &Model) -> Result<()> {
+        let bad = |message: String| {
+            Err(FlexmbdError::InvalidParameter { item: "explicit solver settings".to_string(), message })
+        };
+        let structured = self.strategy == Strategy::JointCoordinates
+            && self.tree_formulation != TreeFormulation::JointSpace;
+        if self.tree_formulation != TreeFormulation::JointSpace && self.strategy != Strategy::JointCoordinates
+        {
+            return bad(format!(
+                "the '{}' formulation is one of the joint-coordinate strategy, not of '{}'",
+                self.tree_formulation.name(),
+                self.strategy.name()
+            ));
+        }
+        if model.coordinate_count > EXPLICIT_COORDINATE_LIMIT && !structured {
+            let largest = model.bodies.iter().max_by_key(|b| b.dofs.len()).map(|b| b.name.clone());
+            return bad(format!(
+                "the explicit solvers use dense linear algebra and support models of up to \
+                 {EXPLICIT_COORDINATE_LIMIT} coordinates; this model has {} (largest body '{}'). \
+                 Use generalized-alpha, whose sparse and condensed solves handle large deformable bodies, \
+                 or joint coordinates with the 'coupled' or 'decoupled' formulation (trees)",
+                model.coordinate_count,
+                largest.unwrap_or_default()
+            ));
+        }
+        if self.baumgarte.is_some() && self.strategy != Strategy::IntegrateAll {
+            return bad(format!(
+                "Baumgarte stabilization applies to strategy 'integrate-all', not '{}' (which keeps \
+                 the constraints by Newton iterations or projections)",
+                self.strategy.name()
+            ));
+        }
+        if let Some((alpha, beta)) = self.baumgarte {
+            if !(alpha >= 0.0 && beta >= 0.0 && alpha.is_finite() && beta.is_finite()) {
+                return bad(format!(
+                    "Baumgarte parameters must be finite and non-negative, got ({alpha}, {beta})"
+                ));
+            }
+        }
+        let positive = [
+            self.relative_tolerance,
+            self.absolute_tolerance,
+            self.constraint_tolerance,
+            self.repartition_ratio - 1.0,
+            self.rank_tolerance,
+            self.drift_threshold,
+            self.singular_factor - 1.0,
+        ];
+        if !positive.iter().all(|x| *x > 0.0 && x.is_finite()) {
+            return bad(
+                "tolerances and thresholds must be positive, the repartition ratio above 1".to_string()
+            );
+        }
+        if self.max_iterations == 0 {
+            return bad("at least one Newton iteration is needed".to_string());
+        }
+        Ok(())
+    }
+
+    /// Whether the run uses the partition's coordinates (not only its rows).
+    pub(crate) fn uses_coordinates(&self) -> bool {
+        self.strategy == Strategy::CoordinatePartitioning
+            || (self.formulation == Formulation::Embedding && self.strategy != Strategy::JointCoordinates)
+    }
+}
+
+// Initial conditions ----------------------------------------------------------------------
+
+/// Settings of the initial-condition solve.
+#[derive(Clone, Debug)]
+pub struct InitialSettings {
+    /// Largest constraint violation accepted (m or dimensionless).
+    pub tolerance: f64,
+    /// Newton iterations for the positions.
+    pub max_iterations: usize,
+    /// Correct the positions (else they must already satisfy the constraints).
+    pub correct_positions: bool,
+    /// Correct the velocities.
+    pub correct_velocities: bool,
+    /// A coordinate or velocity moved by more than this times max(1, |value|) is reported as
+    /// an "initial correction" event (the default Newton tolerance of the integrator).
+    pub report_tolerance: f64,
+    /// Refuse (`InitialCorrectionRefused`) instead of reporting such a correction.
+    pub strict: bool,
+}
+
+impl Default for InitialSettings {
+    fn default() -> Self {
+        InitialSettings {
+            tolerance: 1e-11,
+            max_iterations: 50,
+            correct_positions: true,
+            correct_velocities: true,
+            report_tolerance: 1e-6,
+            strict: false,
+        }
+    }
+}
+
+/// Coordinates and velocities to start a run from (seed eq. 19 need not hold exactly: the
+/// initial-condition solve makes them consistent, and reports what it moved).
+#[derive(Clone, Debug, PartialEq)]
+pub struct StartState {
+    /// q (coordinate_count).
+    pub coordinates: Vec<f64>,
+    /// q_dot (coordinate_count).
+    pub velocities: Vec<f64>,
+}
+
+// Redundant constraints -------------------------------------------------------------------
+
+/// What is done with redundant constraints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RedundancyHandling {
+    /// Remove them; their multipliers are zero.
+    Remove,
+    /// Remove them for the integration; report the minimum-norm multipliers of all rows.
+    MinimumNorm,
+    /// Stop with an error that lists them.
+    Error,
+}
+
+impl RedundancyHandling {
+    /// Name in settings.
+    pub fn name(self) -> &'static str {
+        match self {
+            RedundancyHandling::Remove => "remove",
+            RedundancyHandling::MinimumNorm => "minimum-norm",
+            RedundancyHandling::Error => "error",
+        }
+    }
+}
+
+/// Settings of the redundancy analysis.
+#[derive(Clone, Copy, Debug)]
+pub struct RedundancySettings {
+    /// Handling.
+    pub handling: RedundancyHandling,
+    /// Relative tolerance of the rank decision.
+    pub tolerance: f64,
+}
+
+impl Default for RedundancySettings {
+    fn default() -> Self {
+        RedundancySettings { handling: RedundancyHandling::Remove, tolerance: 1e-9 }
     }
 }

@@ -4,70 +4,19 @@
 
 use std::cell::Cell;
 
-use crate::assembly::update_kinematics;
 use crate::error::{FlexmbdError, Result};
-use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
-use crate::force::{ForceEnv, ForceKind};
+use crate::integrator::clock::OutputClock;
+use crate::integrator::discrete::update_discrete;
 use crate::integrator::explicit;
 use crate::integrator::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
 use crate::integrator::initial::{
-    correction_events, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
+    report_initial_correction, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
 };
-use crate::integrator::redundancy::{analyse, Reduction, RedundancyHandling};
+use crate::integrator::progress::{Progress, Records};
+use crate::integrator::redundancy::analyse;
 use crate::integrator::settings::{Integrator, SimulationSettings, StepControl};
 use crate::output::Output;
 use crate::system::{Model, State, Workspace};
-
-/// Progress reported to the observer after every accepted step.
-#[derive(Clone, Copy)]
-pub struct Progress<'a> {
-    /// Time reached (s).
-    pub time: f64,
-    /// Last step size (s).
-    pub step_size: f64,
-    /// Newton iterations of the last step.
-    pub newton_iterations: usize,
-    /// Accepted steps so far.
-    pub steps: usize,
-    /// The records so far, for results written during the run.
-    pub records: Records<'a>,
-    /// Set by the observer to the number of records (from the first one held) it stored
-    /// elsewhere and that the run may drop ([`Output::release_front`]); 0 keeps them all.
-    pub release: &'a Cell<usize>,
-}
-
-/// The records of a run in progress, as they will be in its final output.
-#[derive(Clone, Copy)]
-pub struct Records<'a> {
-    output: &'a Output,
-    /// The model of the run, the reduction to expand the records with, and its handling.
-    reduction: Option<(&'a Model, &'a Reduction, RedundancyHandling)>,
-}
-
-impl<'a> Records<'a> {
-    pub(crate) fn new(output: &'a Output) -> Self {
-        Records { output, reduction: None }
-    }
-
-    /// Number of records so far.
-    pub fn len(&self) -> usize {
-        self.output.len()
-    }
-
-    /// True if nothing was recorded yet.
-    pub fn is_empty(&self) -> bool {
-        self.output.is_empty()
-    }
-
-    /// The records from index `from` on, with the statistics and events so far, in the layout
-    /// of the final output (the multipliers of removed redundant rows restored).
-    pub fn since(&self, from: usize) -> Output {
-        match self.reduction {
-            None => self.output.since(from),
-            Some((model, reduction, handling)) => reduction.expand_since(model, self.output, from, handling),
-        }
-    }
-}
 
 /// The result of `simulate`: what was recorded, and the error that stopped the run, if any.
 #[derive(Debug)]
@@ -78,35 +27,6 @@ pub struct SimulationOutcome {
     pub final_state: Option<State>,
     /// The error that stopped the run.
     pub error: Option<FlexmbdError>,
-}
-
-/// Sets or advances the discrete variables (unwrapped spring angles) from the state.
-pub(crate) fn update_discrete(model: &Model, state: &mut State, ws: &mut Workspace, initialize: bool) {
-    if model.discrete_count == 0 {
-        return;
-    }
-    update_kinematics(model, &state.coordinates, &state.velocities, ws);
-    let env = ForceEnv {
-        bodies: &model.bodies,
-        markers: &model.markers,
-        kinematics: &ws.markers,
-        q: &state.coordinates,
-        qd: &state.velocities,
-        time: state.time,
-        discrete: &state.discrete,
-    };
-    let mut updates = Vec::new();
-    for f in &model.forces {
-        if let (ForceKind::RotationalSpringDamper { markers, .. }, Some(k)) = (&f.kind, f.discrete) {
-            let pair = env.pair(markers);
-            let angle =
-                if initialize { wrapped_angle(&pair) } else { unwrapped_angle(&pair, state.discrete[k]) };
-            updates.push((k, angle));
-        }
-    }
-    for (k, angle) in updates {
-        state.discrete[k] = angle;
-    }
 }
 
 /// Starting value of the generalized-alpha auxiliary accelerations (Arnold and Bruls 2007,
@@ -179,8 +99,7 @@ pub fn simulate(
             let mut reduced = Output::new(&reduction.model);
             let handling = settings.redundancy.handling;
             let mut expanding = |p: &Progress| {
-                let records =
-                    Records { output: p.records.output, reduction: Some((model, &reduction, handling)) };
+                let records = p.records.expanded(model, &reduction, handling);
                 observer(&Progress { records, ..*p })
             };
             let error =
@@ -207,27 +126,6 @@ fn dispatch(
             explicit::run(model, settings, explicit, observer, output, last_state)
         }
     }
-}
-
-/// Adds the "initial correction" events of the consistent-initial-condition solve that took
-/// the given coordinates and velocities to `state` to `output`, or, with strict settings,
-/// refuses the correction.
-pub(crate) fn report_initial_correction(
-    model: &Model,
-    given_q: &[f64],
-    given_qd: &[f64],
-    state: &State,
-    violated: &[(usize, f64)],
-    settings: &SimulationSettings,
-    output: &mut Output,
-) -> Result<()> {
-    let (events, largest) = correction_events(model, given_q, given_qd, state, violated, &settings.initial);
-    if settings.initial.strict && !events.is_empty() {
-        let item = events.iter().map(|e| e.message.as_str()).collect::<Vec<_>>().join("; ");
-        return Err(FlexmbdError::InitialCorrectionRefused { time: state.time, item, size: largest });
-    }
-    output.events.extend(events);
-    Ok(())
 }
 
 /// The time loop; keeps the last accepted state in `last_state` (also on failure).
@@ -392,62 +290,4 @@ fn time_loop(
         output.release_front(release.take());
     }
     Ok(())
-}
-
-/// The end time and the output times of a run: steps are shortened to land on them, and
-/// `due` says whether an accepted step ended on one (and moves on to the next).
-pub(crate) struct OutputClock {
-    start: f64,
-    interval: Option<f64>,
-    index: usize,
-    next: Option<f64>,
-    /// End time of the run.
-    pub end: f64,
-    /// Time tolerance of "landed on".
-    pub eps: f64,
-}
-
-impl OutputClock {
-    pub(crate) fn new(settings: &SimulationSettings) -> Self {
-        OutputClock {
-            start: settings.start_time,
-            interval: settings.output_interval,
-            index: 1,
-            next: settings.output_interval.map(|dt| settings.start_time + dt),
-            end: settings.end_time,
-            eps: 1e-12 * (1.0 + settings.end_time.abs()),
-        }
-    }
-
-    /// Whether the run has not reached its end at `time`.
-    pub(crate) fn running(&self, time: f64) -> bool {
-        time < self.end - self.eps
-    }
-
-    /// The step from `time` of at most `h` that lands exactly on the end and the next output.
-    pub(crate) fn step(&self, time: f64, h: f64) -> f64 {
-        let mut h_try = h.min(self.end - time);
-        if let Some(t_out) = self.next {
-            if t_out - time < h_try + self.eps {
-                h_try = t_out - time;
-            }
-        }
-        h_try
-    }
-
-    /// Whether a step that ended at `time` is to be recorded; advances to the next output.
-    pub(crate) fn due(&mut self, time: f64) -> bool {
-        let at_end = time >= self.end - self.eps;
-        let at_output = match self.next {
-            None => true,
-            Some(t_out) => (time - t_out).abs() <= self.eps || at_end,
-        };
-        if at_output {
-            if let Some(dt) = self.interval {
-                self.index += 1;
-                self.next = if at_end { None } else { Some(self.start + dt * self.index as f64) };
-            }
-        }
-        at_output
-    }
 }

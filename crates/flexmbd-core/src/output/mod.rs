@@ -47,6 +47,25 @@ pub struct Event {
     pub message: String,
 }
 
+/// The result of the analysis of a redundant model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Redundancy {
+    /// Time of the analysis (the start).
+    pub time: f64,
+    /// Number of constraint rows.
+    pub rows: usize,
+    /// Rank of C_q.
+    pub rank: usize,
+    /// Removed rows.
+    pub removed_rows: Vec<usize>,
+    /// Groups of rows that are linearly dependent together (one per null vector of C_q^T).
+    pub groups: Vec<Vec<usize>>,
+    /// Joints with rows in a group.
+    pub joints: Vec<usize>,
+    /// Human-readable summary.
+    pub message: String,
+}
+
 /// Recorded results.
 #[derive(Clone, Debug, Default)]
 pub struct Output {
@@ -82,7 +101,7 @@ pub struct Output {
     /// Events, in order.
     pub events: Vec<Event>,
     /// The redundant constraints found at the start, if any.
-    pub redundancy: Option<crate::integrator::redundancy::Redundancy>,
+    pub redundancy: Option<Redundancy>,
     /// Records released from the front by [`Output::release_front`] (stored elsewhere by the
     /// caller during the run): the first record held is record `released` of the run.
     pub released: usize,
