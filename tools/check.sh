@@ -6,6 +6,8 @@ cd "$(dirname "$0")/.."
 
 echo "== rustfmt"
 cargo fmt --all -- --check
+echo "== import cycles of the core"
+python tools/check_imports.py
 echo "== clippy"
 cargo clippy --workspace --all-targets --release -- -D warnings
 echo "== ruff"

@@ -9,7 +9,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{close, Rng};
-use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
@@ -266,7 +266,7 @@ fn newton_matrix_blocks_match_finite_differences() {
         let (model, state) = random_model(seed);
         let nq = model.coordinate_count;
         let n = model.system_size();
-        let mut ws = Workspace::new(&model).unwrap();
+        let mut ws = Workspace::new(&model);
         let h = 1e-6;
         // which = 0: dr/dq (and C_q), 1: dr/dq_dot, 2: dr/dq_dd.
         for which in 0..3 {
@@ -281,7 +281,7 @@ fn newton_matrix_blocks_match_finite_differences() {
                     MatrixCoefficients { mass: 1.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
                 }
             };
-            assemble(&model, StateView::of(&state), &mut ws, Some(coef)).unwrap();
+            assemble(&model, StateView::of(&state), &mut ws, &Request::matrix(coef)).unwrap();
             let analytic = dense(&model, &ws.values);
             for col in 0..nq {
                 let mut plus = state.clone();
@@ -293,9 +293,9 @@ fn newton_matrix_blocks_match_finite_differences() {
                 };
                 *p += h;
                 *m -= h;
-                assemble(&model, StateView::of(&plus), &mut ws, None).unwrap();
+                assemble(&model, StateView::of(&plus), &mut ws, &Request::residual()).unwrap();
                 let rp = ws.residual.clone();
-                assemble(&model, StateView::of(&minus), &mut ws, None).unwrap();
+                assemble(&model, StateView::of(&minus), &mut ws, &Request::residual()).unwrap();
                 let rm = ws.residual.clone();
                 let rows = if which == 0 { n } else { nq };
                 for row in 0..rows {
@@ -325,7 +325,7 @@ fn gamma_matches_second_time_derivative_of_constraints() {
         let (model, state) = random_model(seed);
         let nq = model.coordinate_count;
         let nc = model.constraint_count;
-        let mut ws = Workspace::new(&model).unwrap();
+        let mut ws = Workspace::new(&model);
         let eval = |tau: f64, ws: &mut Workspace| {
             let mut s = state.clone();
             s.time += tau;
@@ -333,14 +333,15 @@ fn gamma_matches_second_time_derivative_of_constraints() {
                 s.coordinates[k] += tau * state.velocities[k] + 0.5 * tau * tau * state.accelerations[k];
                 s.velocities[k] += tau * state.accelerations[k];
             }
-            assemble(&model, StateView::of(&s), ws, None).unwrap();
+            assemble(&model, StateView::of(&s), ws, &Request::residual()).unwrap();
             ws.residual[nq..].to_vec()
         };
         let h = 1e-4;
         let cp = eval(h, &mut ws);
         let cm = eval(-h, &mut ws);
         let c0 = eval(0.0, &mut ws);
-        assemble(&model, StateView::of(&state), &mut ws, Some(MatrixCoefficients::ACCELERATION)).unwrap();
+        assemble(&model, StateView::of(&state), &mut ws, &Request::matrix(MatrixCoefficients::ACCELERATION))
+            .unwrap();
         let values = ws.values.clone();
         let mut ct = vec![0.0; nc];
         let mut gamma = vec![0.0; nc];

@@ -2,7 +2,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use flexmbd_core::body::BodyKind;
 use flexmbd_core::Workspace;
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -67,13 +67,13 @@ impl Model {
         let discrete = vec![0.0; m.discrete_count];
         let mut guard = self.workspace.lock().map_err(|_| invalid("model", "workspace poisoned"))?;
         if guard.is_none() {
-            *guard = Some(check(Workspace::new(m))?);
+            *guard = Some(Workspace::new(m));
         }
         let ws = guard.as_mut().expect("workspace");
         let view = StateView { time, q: &q, qd: &qd, qdd: &qdd, lambda: &lambda, discrete: &discrete };
         let with_matrix = mass != 0.0 || velocity != 0.0 || position != 0.0;
         let coefficients = MatrixCoefficients { mass, velocity, position, identity: 0.0, scale: 1.0 };
-        check(assemble(m, view, ws, if with_matrix { Some(coefficients) } else { None }))?;
+        check(assemble(m, view, ws, &Request::with(with_matrix.then_some(coefficients))))?;
         let d = PyDict::new(py);
         d.set_item("residual", PyArray1::from_slice(py, &ws.residual))?;
         if with_matrix {

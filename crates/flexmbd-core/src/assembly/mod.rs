@@ -11,16 +11,16 @@
 //! constraint manifold.
 
 use crate::body::flexible::{self, ElasticMass, FlexibleBody, REFERENCE_COORDINATES};
+use crate::body::is_condensed;
 use crate::body::marker::{marker_kinematics, MarkerKinematics};
 use crate::body::{point_mass, rigid, Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
 use crate::force::gravity::{add_gravity_force, gravity_jacobian};
 use crate::force::{evaluate_force, ForceEnv};
 use crate::joint::equation::{equation_gradient, equation_value, equations_hessian, MarkerPair};
-use crate::linear_system::condensed::is_condensed;
 use crate::math::Mat3;
+use crate::system::workspace::FlexibleWork;
 use crate::system::workspace::JointLocal;
-use crate::system::workspace::{ElasticRows, FlexibleWork, LinearSolvers};
 use crate::system::{Model, Workspace};
 
 /// Coefficients of the blocks of the assembled matrix.
@@ -45,6 +45,80 @@ impl MatrixCoefficients {
     /// [[I, C_q^T], [C_q, 0]] of the minimum-norm projections.
     pub const PROJECTION: MatrixCoefficients =
         MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 0.0, identity: 1.0, scale: 1.0 };
+}
+
+/// What an assembly forms besides the residual, and how (house style 6: the integrator's
+/// requests are arguments, never workspace flags). `Request::residual()` and
+/// `Request::matrix(c)` assemble everything, as analyses need; the integrator of a model with
+/// condensed bodies leaves out the blocks their condensed solves replace.
+#[derive(Clone, Copy, Debug)]
+pub struct Request<'a> {
+    /// The Newton matrix with these coefficients into `ws.values`, or only the residual.
+    pub matrix: Option<MatrixCoefficients>,
+    /// Whether the elastic blocks of condensed bodies are written into the Newton matrix
+    /// (their condensed solves never read them).
+    pub condensed_blocks: bool,
+    /// Whether the matrix is the Newton iteration matrix of a model with condensed bodies,
+    /// whose solver takes the coupling of each condensed body with its own reference
+    /// coordinates from its structured mass part (`CondensedSolver::factorize`): those blocks,
+    /// and the inertia products only they need, are left out.
+    pub structured_coupling: bool,
+    /// How the elastic rows of condensed bodies are formed.
+    pub elastic_rows: ElasticRows,
+    /// For `ElasticRows::Update`: the images of the coupling columns of the last condensed
+    /// solve, by body ([`crate::linear_system::LinearSolvers::coupling_images`]).
+    pub images: &'a [(usize, &'a [f64])],
+}
+
+impl Request<'static> {
+    /// The residual of every equation.
+    pub fn residual() -> Self {
+        Request {
+            matrix: None,
+            condensed_blocks: true,
+            structured_coupling: false,
+            elastic_rows: ElasticRows::Whole,
+            images: &[],
+        }
+    }
+
+    /// The residual and the whole Newton matrix with the coefficients `c`.
+    pub fn matrix(c: MatrixCoefficients) -> Self {
+        Request { matrix: Some(c), ..Self::residual() }
+    }
+
+    /// The residual, and the matrix with `c` if given.
+    pub fn with(matrix: Option<MatrixCoefficients>) -> Self {
+        Request { matrix, ..Self::residual() }
+    }
+
+    /// What the integrator's linear solvers read: the residual, and the matrix with `c` if
+    /// given, without the elastic blocks of condensed bodies, which their condensed solves
+    /// replace.
+    pub fn solving(matrix: Option<MatrixCoefficients>) -> Self {
+        Request { condensed_blocks: false, ..Self::with(matrix) }
+    }
+}
+
+/// How the assembly forms the elastic rows of condensed bodies. Their linear part
+/// L = M_ff qf_dd + D_ff qf_dot + K_ff q_f changes in a Newton iteration that updates
+/// (q, q_dot, q_dd) by (1, v, m) dq by exactly (m M_ff + v D_ff + K_ff) dq_f = A dq_f / s, and
+/// the condensed solve gives A dq_f = b_F - W dq_J (W: the coupling columns it eliminated with,
+/// b_F = -s r_F). So with the rest of the rows N (everything but L) kept from the last
+/// assembly, the rows at the new iterate are N' - N - W dq_J / s: no products with K_ff and
+/// M_ff after the first iteration of a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ElasticRows {
+    /// Assembled whole (every assembly outside the Newton iterations).
+    Whole,
+    /// Assembled whole, and N kept (first iteration of a step).
+    Keep,
+    /// From the last solve of the condensed Newton solver, whose right-hand side had the
+    /// scale `scale` (later iterations; valid only right after such a solve and update).
+    Update {
+        /// s of the Newton matrix.
+        scale: f64,
+    },
 }
 
 /// The marker pair of joint `j`.
@@ -99,19 +173,15 @@ impl<'a> StateView<'a> {
     }
 }
 
-/// Assembles the residual into `ws.residual` and, if `matrix` is given, the Newton matrix into
-/// `ws.values`. Updates the marker kinematics first.
-pub fn assemble(
-    model: &Model,
-    s: StateView,
-    ws: &mut Workspace,
-    matrix: Option<MatrixCoefficients>,
-) -> Result<()> {
+/// Assembles the residual into `ws.residual` and, if the request asks for it, the Newton
+/// matrix into `ws.values`. Updates the marker kinematics first.
+pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Request) -> Result<()> {
     let nq = model.coordinate_count;
+    let matrix = request.matrix;
     update_kinematics(model, s.q, s.qd, ws);
     ws.residual.iter_mut().for_each(|x| *x = 0.0);
     if matrix.is_some() {
-        ws.zero_matrix(model);
+        ws.zero_matrix(model, request.condensed_blocks, request.structured_coupling);
     }
     let c = matrix.unwrap_or(MatrixCoefficients {
         mass: 0.0,
@@ -134,9 +204,9 @@ pub fn assemble(
             let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
             let condensed = is_condensed(&body.kind);
             let blocks = FlexibleBlocks {
-                elastic: ws.assemble_condensed_blocks || !condensed,
-                reference_elastic: !(ws.structured_condensed_coupling && condensed),
-                linear: !(condensed && ws.elastic_rows != ElasticRows::Whole),
+                elastic: request.condensed_blocks || !condensed,
+                reference_elastic: !(request.structured_coupling && condensed),
+                linear: !(condensed && request.elastic_rows != ElasticRows::Whole),
             };
             assemble_flexible(
                 fb,
@@ -148,7 +218,7 @@ pub fn assemble(
                 (matrix, &c),
                 bi,
                 blocks,
-                ws.elastic_rows,
+                request.elastic_rows,
             );
             continue;
         }
@@ -293,8 +363,8 @@ pub fn assemble(
         }
     }
 
-    if ws.elastic_rows != ElasticRows::Whole {
-        finish_elastic_rows(model, &s, ws);
+    if request.elastic_rows != ElasticRows::Whole {
+        finish_elastic_rows(model, &s, ws, request.elastic_rows, request.images);
     }
 
     if !crate::math::all_finite(&ws.residual) {
@@ -309,14 +379,14 @@ pub fn assemble(
 /// (see [`ElasticRows`]): adds it (`Keep`, or `Update` without the image of a condensed
 /// solve) or takes the rows from the last condensed solve (`Update`), and keeps the rest of
 /// the rows for the next update.
-fn finish_elastic_rows(model: &Model, s: &StateView, ws: &mut Workspace) {
-    let Workspace { linear, residual, flexible: works, elastic_rows, .. } = ws;
-    let images: Vec<(usize, &[f64])> = match (linear, *elastic_rows) {
-        (LinearSolvers::Condensed { newton, .. }, ElasticRows::Update { .. }) => {
-            newton.coupling_images().collect()
-        }
-        _ => Vec::new(),
-    };
+fn finish_elastic_rows(
+    model: &Model,
+    s: &StateView,
+    ws: &mut Workspace,
+    elastic_rows: ElasticRows,
+    images: &[(usize, &[f64])],
+) {
+    let Workspace { residual, flexible: works, .. } = ws;
     for (bi, body) in model.bodies.iter().enumerate() {
         let BodyKind::Flexible(fb) = &body.kind else { continue };
         if !is_condensed(&body.kind) {
@@ -327,7 +397,7 @@ fn finish_elastic_rows(model: &Model, s: &StateView, ws: &mut Workspace) {
         let rows = &mut residual[range.clone()];
         let work = works[bi].as_mut().expect("workspace of a flexible body");
         let image = images.iter().find(|(b, i)| *b == bi && i.len() == n).map(|(_, i)| *i);
-        match (*elastic_rows, image) {
+        match (elastic_rows, image) {
             (ElasticRows::Update { scale }, Some(image)) if work.rows_kept => {
                 for ((r, kept), w) in rows.iter_mut().zip(work.nonlinear.iter_mut()).zip(image) {
                     let rest = *r;

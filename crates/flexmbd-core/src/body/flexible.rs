@@ -427,13 +427,13 @@ pub struct FlexibleBodyInput {
     /// Beam elements of the geometric stiffness (elastic coupling); empty: linear elasticity.
     pub stiffening: Vec<StiffeningElement>,
     /// Node of each elastic coordinate (nodal bodies), for the fill-reducing ordering of
-    /// the factorizations of large bodies (`solver::condensed`); None: minimum degree.
+    /// the factorizations of large bodies (`linear_system::condensed`); None: minimum degree.
     pub dof_nodes: Option<Vec<usize>>,
     /// Node positions that `dof_nodes` refer to.
     pub node_positions: Option<Vec<Vec3>>,
     /// Whether the linear solves condense the elastic coordinates out through a constant
-    /// factorized matrix (`solver::condensed`); None: when n_f is at least
-    /// `solver::condensed::CONDENSATION_THRESHOLD`.
+    /// factorized matrix (`linear_system::condensed`); None: when n_f is at least
+    /// `body::CONDENSATION_THRESHOLD`.
     pub condense: Option<bool>,
     /// Bodies of solids in nodal coordinates: the scalar mass matrix behind the I_kl
     /// (checked against them when the body is built).

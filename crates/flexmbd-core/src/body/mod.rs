@@ -70,3 +70,17 @@ pub struct Body {
     /// Global coordinate indices of this body (empty for the ground).
     pub dofs: Vec<usize>,
 }
+
+/// Deformable bodies with at least this many elastic coordinates are condensed.
+pub const CONDENSATION_THRESHOLD: usize = 300;
+
+/// Whether a body is condensed: as its `condense` option says, else when it has at least
+/// [`CONDENSATION_THRESHOLD`] elastic coordinates.
+pub fn is_condensed(kind: &BodyKind) -> bool {
+    match kind {
+        BodyKind::Flexible(f) => {
+            f.elastic_count > 0 && f.condense.unwrap_or(f.elastic_count >= CONDENSATION_THRESHOLD)
+        }
+        _ => false,
+    }
+}

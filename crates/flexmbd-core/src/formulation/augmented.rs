@@ -4,7 +4,7 @@
 //!   M(q) q_dd + C_q^T lambda = f(q, q_dot, t) = F + Q_e,   C_q q_dd = gamma,
 //!
 //! with M, f, C, C_q, C_t and gamma taken from the sparse assembly at q_dd = 0, lambda = 0.
-//! On a partition (`solver::partition`) of the constraints and coordinates the accelerations
+//! On a partition (`linalg::partition`) of the constraints and coordinates the accelerations
 //! come from either
 //!
 //! - the augmented system [[M, C_r^T], [C_r, 0]] [q_dd; lambda_r] = [f; gamma_r] over the
@@ -19,7 +19,7 @@
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::{Mat, Side};
 
-use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use crate::error::Result;
 use crate::linalg::partition::{minimum_norm_solve, partition_condition, submatrix, Partition};
 use crate::system::{Model, Workspace};
@@ -133,7 +133,7 @@ impl DenseEquations {
     }
 
     /// Evaluates the equations at (time, q, q_dot) up to `level`. `ws` must assemble the
-    /// elastic blocks of every body (`Workspace::for_evaluation`).
+    /// elastic blocks of every body (an assembly of `Request::matrix`).
     #[allow(clippy::too_many_arguments)]
     pub fn evaluate(
         &mut self,
@@ -153,7 +153,7 @@ impl DenseEquations {
         } else {
             MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
         };
-        assemble(model, view, ws, Some(coefficients))?;
+        assemble(model, view, ws, &Request::matrix(coefficients))?;
         let pattern = &model.layout.pattern;
         self.jacobian.fill(0.0);
         if level == Level::Acceleration {
@@ -473,7 +473,7 @@ mod tests {
         let c = sys.add_marker("", second, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
         sys.add_joint("ball", JointKind::Spherical, [b, c]).unwrap();
         let model = sys.compile().unwrap();
-        let mut ws = Workspace::for_evaluation(&model);
+        let mut ws = Workspace::new(&model);
         let mut eq = DenseEquations::new(&model);
         let mut state = State::initial(&model, 0.0);
         dense_initial_conditions(&model, &mut ws, &mut eq, &mut state, &InitialSettings::default()).unwrap();
@@ -481,7 +481,7 @@ mod tests {
     }
 
     fn evaluated(model: &Model, state: &State) -> DenseEquations {
-        let mut ws = Workspace::for_evaluation(model);
+        let mut ws = Workspace::new(model);
         let mut eq = DenseEquations::new(model);
         eq.evaluate(
             model,
@@ -577,7 +577,7 @@ mod tests {
             Vec3([1.0, 0.0, 0.0]),
         );
         let model = sys.compile().unwrap();
-        let mut ws = Workspace::for_evaluation(&model);
+        let mut ws = Workspace::new(&model);
         let mut eq = DenseEquations::new(&model);
         let mut state = State::initial(&model, 0.0);
         let error =

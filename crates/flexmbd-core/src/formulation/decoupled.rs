@@ -37,7 +37,7 @@
 
 use faer::Mat;
 
-use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use crate::body::marker::MarkerElastic;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
@@ -327,7 +327,7 @@ impl TreeSolver {
             lambda: &self.zero_lambda,
             discrete,
         };
-        assemble(model, view, ws, Some(MatrixCoefficients::ACCELERATION))?;
+        assemble(model, view, ws, &Request::matrix(MatrixCoefficients::ACCELERATION))?;
         let nc = self.cut_rows.len();
         let mut gamma_c = vec![0.0; nc];
         if nc > 0 {

@@ -1583,7 +1583,7 @@ mod tests {
     }
 
     fn consistent(model: &Model) -> Vec<f64> {
-        let mut ws = Workspace::for_evaluation(model);
+        let mut ws = Workspace::new(model);
         let mut eq = DenseEquations::new(model);
         let mut state = State::initial(model, 0.0);
         dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &InitialSettings::default()).unwrap();
@@ -1674,7 +1674,7 @@ mod tests {
                 let pd = perturbed(&tree, &vec![0.0; nf], 29 + seed, 6.0);
                 let state = tree.evaluate(&model, time, &p, &pd).unwrap();
                 let (q, qd) = (&state.coordinates, &state.velocities);
-                let mut ws = Workspace::for_evaluation(&model);
+                let mut ws = Workspace::new(&model);
                 let mut eq = DenseEquations::new(&model);
                 eq.evaluate(&model, &mut ws, time, q, qd, &[], Level::Acceleration).unwrap();
                 // The tree state satisfies every tree joint and driver, at position and velocity
@@ -1719,7 +1719,7 @@ mod tests {
             let nf = tree.free_count();
             let mut coupled = TreeSolver::new(model, &tree, TreeFormulation::Coupled).unwrap();
             let mut decoupled = TreeSolver::new(model, &tree, TreeFormulation::Decoupled).unwrap();
-            let mut ws = Workspace::for_evaluation(model);
+            let mut ws = Workspace::new(model);
             for seed in 0..3 {
                 let time = 0.2 + 0.3 * seed as f64;
                 let p = perturbed(&tree, &p0, 41 + seed, 2.0);
@@ -1810,7 +1810,7 @@ mod tests {
         // The same state, hence the same accelerations (gamma_B and B differ: they belong to
         // the parametrization).
         let n = model.coordinate_count;
-        let mut ws = Workspace::for_evaluation(&model);
+        let mut ws = Workspace::new(&model);
         let mut accelerations = |state: &TreeState| {
             let mut eq = DenseEquations::new(&model);
             eq.evaluate(

@@ -756,7 +756,7 @@ pub fn run(
     settings.validate()?;
     explicit.validate(model)?;
     let n = model.coordinate_count;
-    let mut ws = Workspace::for_evaluation(model);
+    let mut ws = Workspace::new(model);
     let mut eq = DenseEquations::new(model);
     let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
     let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());

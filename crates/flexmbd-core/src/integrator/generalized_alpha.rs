@@ -15,9 +15,10 @@
 //!   [[s (beta' M + gamma' D + K), C_q^T], [C_q, 0]] [dq; s dlambda] = -[s r; C].
 
 use crate::assembly::{assemble, MatrixCoefficients, StateView};
+use crate::assembly::{ElasticRows, Request};
 use crate::error::{FlexmbdError, Result};
 use crate::integrator::settings::{JacobianUpdate, LinearSolver, NewtonSettings};
-use crate::system::workspace::{ElasticRows, LinearSolvers};
+use crate::linear_system::{LinearSolvers, NO_SOLVERS};
 use crate::system::{Model, State, Workspace};
 
 /// The four parameters of the method.
@@ -108,19 +109,17 @@ pub struct JacobianCache {
 /// s kappa (2p)(2p)^T: adding s kappa C_n^T C_n to the coordinate block leaves dq unchanged
 /// (C_n dq is fixed by the constraint rows) and only shifts dmu_n by s kappa C_n dq, which
 /// `solve` takes back. Models with condensed deformable bodies factorize their Schur
-/// complement instead (`solver::condensed`; LU of the reduced system, whatever `kind`).
-/// Message of a solve attempted with an evaluation-only workspace.
-pub(crate) const NO_SOLVERS: &str = "the workspace has no linear solvers (evaluation only)";
-
+/// complement instead (`linear_system::condensed`; LU of the reduced system, whatever `kind`).
 fn factorize(
     model: &Model,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
     kind: Factorization,
     coef: &MatrixCoefficients,
     q: &[f64],
 ) -> std::result::Result<(), String> {
     let scale = coef.scale;
-    match &mut ws.linear {
+    match solvers {
         LinearSolvers::Dense { newton, projection } => {
             let target = if kind == Factorization::Projection { projection } else { newton };
             target.factorize(&model.layout.pattern, &ws.values)
@@ -150,10 +149,11 @@ fn factorize(
 fn solve(
     model: &Model,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
     kind: Factorization,
     scale: f64,
 ) -> std::result::Result<(), String> {
-    match &mut ws.linear {
+    match solvers {
         LinearSolvers::Dense { newton, projection } => {
             let target = if kind == Factorization::Projection { projection } else { newton };
             target.solve_in_place(&mut ws.solution)
@@ -315,6 +315,7 @@ fn iterate(
     h: f64,
     next: &mut State,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
     cache: &mut JacobianCache,
 ) -> Result<StepReport> {
     let nq = model.coordinate_count;
@@ -325,29 +326,39 @@ fn iterate(
     // Whether the matrix was factorized at the predictor, in the first iteration of this step.
     let mut fresh_at_predictor = false;
     // The condensed solver's iteration matrix (not the exact Jacobian, see below).
-    let approximate_matrix =
-        kind != Factorization::Projection && matches!(ws.linear, LinearSolvers::Condensed { .. });
+    let approximate_matrix = kind != Factorization::Projection && solvers.is_condensed();
     let condensed_rows = approximate_matrix && coef.position == 1.0 && coef.identity == 0.0;
     for iteration in 0..newton.max_iterations {
         // A step shortened by round-off to land on an output time keeps the matrix.
-        let same_h = cache.step_size.is_some_and(|c| crate::integrator::equal_to_round_off(c, h));
+        let same_h = cache.step_size.is_some_and(|c| crate::math::equal_to_round_off(c, h));
         let need_matrix = !reuse || !same_h || cache.kind != kind;
         fresh_at_predictor |= iteration == 0 && need_matrix;
         let view = StateView::of(next);
-        ws.structured_condensed_coupling = need_matrix && kind != Factorization::Projection;
         // Elastic rows of condensed bodies from the last condensed solve after the first
         // iteration (see `ElasticRows`; the update of the coordinates below is the one it
         // requires).
-        if condensed_rows {
-            ws.elastic_rows =
-                if iteration == 0 { ElasticRows::Keep } else { ElasticRows::Update { scale: s } };
-        }
-        let assembled = assemble(model, view, ws, if need_matrix { Some(coef) } else { None });
-        ws.structured_condensed_coupling = false;
-        ws.elastic_rows = ElasticRows::Whole;
+        let elastic_rows = match (condensed_rows, iteration) {
+            (false, _) => ElasticRows::Whole,
+            (true, 0) => ElasticRows::Keep,
+            (true, _) => ElasticRows::Update { scale: s },
+        };
+        let images = if matches!(elastic_rows, ElasticRows::Update { .. }) {
+            solvers.coupling_images()
+        } else {
+            Vec::new()
+        };
+        let request = Request {
+            matrix: need_matrix.then_some(coef),
+            condensed_blocks: false,
+            structured_coupling: need_matrix && kind != Factorization::Projection,
+            elastic_rows,
+            images: &images,
+        };
+        let assembled = assemble(model, view, ws, &request);
+        drop(images);
         assembled?;
         if need_matrix {
-            if let Err(detail) = factorize(model, ws, kind, &coef, &next.coordinates) {
+            if let Err(detail) = factorize(model, ws, solvers, kind, &coef, &next.coordinates) {
                 cache.step_size = None;
                 report.failure = Some(format!("singular Newton matrix: {detail}"));
                 return Ok(report);
@@ -364,7 +375,7 @@ fn iterate(
         for (x, r) in ws.solution[nq..nq + nc].iter_mut().zip(constraint_rows) {
             *x = -r;
         }
-        if let Err(detail) = solve(model, ws, kind, s) {
+        if let Err(detail) = solve(model, ws, solvers, kind, s) {
             cache.step_size = None;
             report.failure = Some(format!("singular Newton matrix: {detail}"));
             return Ok(report);
@@ -462,6 +473,7 @@ pub fn step(
     current: &State,
     next: &mut State,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
     cache: &mut JacobianCache,
 ) -> Result<StepReport> {
     let nq = model.coordinate_count;
@@ -482,16 +494,16 @@ pub fn step(
         LinearSolver::Auto if reuse => (Factorization::Ldlt, Factorization::Lu),
         LinearSolver::Auto => (Factorization::Lu, Factorization::Lu),
     };
-    if let LinearSolvers::Condensed { newton, .. } = &mut ws.linear {
+    if let LinearSolvers::Condensed { newton, .. } = solvers {
         newton.set_angular_velocities(model, &current.coordinates, &current.velocities);
     }
     predict(method, h, current, next);
-    let mut report = iterate(model, coef, newton, reuse, first_kind, h, next, ws, cache)?;
+    let mut report = iterate(model, coef, newton, reuse, first_kind, h, next, ws, solvers, cache)?;
     if !report.converged && reuse && (report.factorizations < report.iterations || first_kind != exact_kind) {
         let first = report.clone();
         predict(method, h, current, next);
         cache.step_size = None;
-        let second = iterate(model, coef, newton, false, exact_kind, h, next, ws, cache)?;
+        let second = iterate(model, coef, newton, false, exact_kind, h, next, ws, solvers, cache)?;
         report = second;
         report.iterations += first.iterations;
         report.factorizations += first.factorizations;
@@ -500,11 +512,7 @@ pub fn step(
         return Ok(report);
     }
     cache.age += 1;
-    let max_age = if matches!(ws.linear, LinearSolvers::Condensed { .. }) {
-        newton.condensed_matrix_age
-    } else {
-        newton.max_matrix_age
-    };
+    let max_age = if solvers.is_condensed() { newton.condensed_matrix_age } else { newton.max_matrix_age };
     if cache.age >= max_age {
         cache.step_size = None;
     }
@@ -519,10 +527,11 @@ pub fn step(
     // penalties), so that the next step may reuse the Newton matrix.
     if project_velocities && nc > 0 {
         let view = StateView::of(next);
-        assemble(model, view, ws, Some(MatrixCoefficients::ACCELERATION))?;
+        assemble(model, view, ws, &Request::solving(Some(MatrixCoefficients::ACCELERATION)))?;
         if let Err(detail) = factorize(
             model,
             ws,
+            solvers,
             Factorization::Projection,
             &MatrixCoefficients::ACCELERATION,
             &next.coordinates,
@@ -539,7 +548,7 @@ pub fn step(
             ws.solution[nq + k] = -violation[k];
         }
         ws.scratch[1] = violation;
-        if let Err(detail) = solve(model, ws, Factorization::Projection, 1.0) {
+        if let Err(detail) = solve(model, ws, solvers, Factorization::Projection, 1.0) {
             report.converged = false;
             report.failure = Some(format!("velocity projection: {detail}"));
             return Ok(report);
@@ -554,7 +563,7 @@ pub fn step(
         next.accelerations.iter_mut().for_each(|x| *x = 0.0);
         next.multipliers.iter_mut().for_each(|x| *x = 0.0);
         let view = StateView::of(next);
-        assemble(model, view, ws, None)?;
+        assemble(model, view, ws, &Request::solving(None))?;
         let mut gamma = std::mem::take(&mut ws.scratch[1]);
         let mut ct = std::mem::take(&mut ws.scratch[0]);
         let terms =
@@ -566,7 +575,7 @@ pub fn step(
         ws.scratch[0] = ct;
         ws.scratch[1] = gamma;
         terms?;
-        if let Err(detail) = solve(model, ws, Factorization::Projection, 1.0) {
+        if let Err(detail) = solve(model, ws, solvers, Factorization::Projection, 1.0) {
             report.converged = false;
             report.failure = Some(format!("consistent accelerations after the projection: {detail}"));
             return Ok(report);

@@ -10,14 +10,13 @@
 //! violate and every body whose coordinates or velocities the correction moves by more than
 //! the report tolerance; with `strict` settings such a correction is refused instead.
 
-use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, StateView};
+use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{row_weight, worst, DenseEquations, Level};
-use crate::integrator::generalized_alpha::NO_SOLVERS;
 use crate::integrator::settings::{InitialSettings, SimulationSettings, StartState};
 use crate::linalg::partition::minimum_norm_solve;
+use crate::linear_system::{LinearSolvers, NO_SOLVERS};
 use crate::output::{Event, Output};
-use crate::system::workspace::LinearSolvers;
 use crate::system::{Model, State, Workspace};
 
 /// The state a run starts from at `time`: `start`'s coordinates and velocities, or the
@@ -149,12 +148,13 @@ pub fn correction_events(
 fn factorize(
     model: &Model,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
     coef: &MatrixCoefficients,
     q: &[f64],
     time: f64,
     context: &str,
 ) -> Result<()> {
-    let result = match &mut ws.linear {
+    let result = match solvers {
         LinearSolvers::Direct { lu, .. } => lu.factorize(&ws.values),
         LinearSolvers::Dense { projection, .. } => projection.factorize(&model.layout.pattern, &ws.values),
         LinearSolvers::Condensed { projection, .. } => {
@@ -169,9 +169,9 @@ fn factorize(
     })
 }
 
-fn solve(ws: &mut Workspace, time: f64, context: &str) -> Result<()> {
+fn solve(ws: &mut Workspace, solvers: &mut LinearSolvers, time: f64, context: &str) -> Result<()> {
     let mut x = std::mem::take(&mut ws.solution);
-    let r = match &mut ws.linear {
+    let r = match solvers {
         LinearSolvers::Direct { lu, .. } => lu.solve_in_place(&mut x),
         LinearSolvers::Dense { projection, .. } => projection.solve_in_place(&mut x),
         LinearSolvers::Condensed { projection, .. } => projection.solve_in_place(&mut x),
@@ -201,6 +201,7 @@ pub fn solve_initial_positions_and_velocities(
     model: &Model,
     state: &mut State,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
     settings: &InitialSettings,
 ) -> Result<Vec<(usize, f64)>> {
     let nq = model.coordinate_count;
@@ -210,7 +211,7 @@ pub fn solve_initial_positions_and_velocities(
     let mut iterations = 0;
     let mut violated = None;
     loop {
-        assemble(model, StateView::of(state), ws, Some(MatrixCoefficients::PROJECTION))?;
+        assemble(model, StateView::of(state), ws, &Request::solving(Some(MatrixCoefficients::PROJECTION)))?;
         if violated.is_none() {
             violated = Some(violated_rows(&ws.residual[nq..], settings.tolerance));
         }
@@ -229,6 +230,7 @@ pub fn solve_initial_positions_and_velocities(
         factorize(
             model,
             ws,
+            solvers,
             &MatrixCoefficients::PROJECTION,
             &state.coordinates,
             t,
@@ -238,7 +240,7 @@ pub fn solve_initial_positions_and_velocities(
         for k in 0..model.constraint_count {
             ws.solution[nq + k] = -ws.residual[nq + k];
         }
-        solve(ws, t, "initial position correction")?;
+        solve(ws, solvers, t, "initial position correction")?;
         for k in 0..nq {
             state.coordinates[k] += ws.solution[k];
         }
@@ -252,6 +254,7 @@ pub fn solve_initial_positions_and_velocities(
             factorize(
                 model,
                 ws,
+                solvers,
                 &MatrixCoefficients::PROJECTION,
                 &state.coordinates,
                 t,
@@ -261,7 +264,7 @@ pub fn solve_initial_positions_and_velocities(
             for k in 0..model.constraint_count {
                 ws.solution[nq + k] = -ct[k];
             }
-            solve(ws, t, "initial velocity correction")?;
+            solve(ws, solvers, t, "initial velocity correction")?;
             state.velocities.copy_from_slice(&ws.solution[..nq]);
         }
     }
@@ -269,18 +272,24 @@ pub fn solve_initial_positions_and_velocities(
 }
 
 /// Solves seed eq. 26 for the accelerations and multipliers at the state's q, q_dot.
-pub fn solve_accelerations(model: &Model, state: &mut State, ws: &mut Workspace) -> Result<()> {
+pub fn solve_accelerations(
+    model: &Model,
+    state: &mut State,
+    ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
+) -> Result<()> {
     let nq = model.coordinate_count;
     let t = state.time;
     state.accelerations.iter_mut().for_each(|x| *x = 0.0);
     state.multipliers.iter_mut().for_each(|x| *x = 0.0);
-    assemble(model, StateView::of(state), ws, Some(MatrixCoefficients::ACCELERATION))?;
+    assemble(model, StateView::of(state), ws, &Request::solving(Some(MatrixCoefficients::ACCELERATION)))?;
     let mut gamma = vec![0.0; model.constraint_count];
     let mut ct = vec![0.0; model.constraint_count];
     constraint_time_terms(model, StateView::of(state), ws, &mut ct, Some(&mut gamma))?;
     factorize(
         model,
         ws,
+        solvers,
         &MatrixCoefficients::ACCELERATION,
         &state.coordinates,
         t,
@@ -290,7 +299,7 @@ pub fn solve_accelerations(model: &Model, state: &mut State, ws: &mut Workspace)
         ws.solution[k] = -ws.residual[k];
     }
     ws.solution[nq..].copy_from_slice(&gamma);
-    solve(ws, t, "acceleration system (seed eq. 26)")?;
+    solve(ws, solvers, t, "acceleration system (seed eq. 26)")?;
     state.accelerations.copy_from_slice(&ws.solution[..nq]);
     state.multipliers.copy_from_slice(&ws.solution[nq..]);
     Ok(())

@@ -20,13 +20,6 @@ pub use settings::{
 };
 pub use time_loop::{simulate, SimulationOutcome};
 
-/// Whether a step size or an iteration-matrix coefficient `kept` with a factorization serves
-/// `wanted`: equal to 1e-12 of `wanted` (a step shortened by round-off to land on an output
-/// time differs in its last bits, and refactorizing for it would cost more than many steps).
-pub(crate) fn equal_to_round_off(kept: f64, wanted: f64) -> bool {
-    (kept - wanted).abs() <= 1e-12 * wanted.abs()
-}
-
 /// Small models shared by the solver tests.
 #[cfg(test)]
 pub(crate) mod test_models {

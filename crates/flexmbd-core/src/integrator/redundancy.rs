@@ -50,7 +50,7 @@ pub fn analyse(model: &Model, settings: &SimulationSettings) -> Result<Option<Re
         return Ok(None);
     }
     let tolerance = settings.redundancy.tolerance;
-    let mut ws = Workspace::for_evaluation(model);
+    let mut ws = Workspace::new(model);
     let mut eq = DenseEquations::new(model);
     let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
     let mut initial = settings.initial.clone();
@@ -153,7 +153,7 @@ impl Reduction {
         let records = out.len();
         let mr = self.model.constraint_count;
         let mut multipliers = vec![0.0; records * m];
-        let mut ws = Workspace::for_evaluation(original);
+        let mut ws = Workspace::new(original);
         let mut eq = DenseEquations::new(original);
         let no_discrete = vec![0.0; original.discrete_count];
         for k in 0..records {

@@ -37,7 +37,7 @@ pub struct NewtonSettings {
     /// slider-crank, 3.87 -> 2.98 on a nodal solid body).
     pub max_matrix_age: usize,
     /// The same for the iteration matrix of models with condensed deformable bodies
-    /// (`solver::condensed`), whose elastic blocks are the exact constant A: only the coupling
+    /// (`linear_system::condensed`), whose elastic blocks are the exact constant A: only the coupling
     /// with the reference coordinates ages (with the rotation of the body). Its refresh takes
     /// no solve with A and costs less than a Newton iteration, and a matrix refreshed at the
     /// predictor saves most of one, so the default is every step: the nodal pendulum bars of

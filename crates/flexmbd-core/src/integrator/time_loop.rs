@@ -15,6 +15,7 @@ use crate::integrator::initial::{
 use crate::integrator::progress::{Progress, Records};
 use crate::integrator::redundancy::analyse;
 use crate::integrator::settings::{Integrator, SimulationSettings, StepControl};
+use crate::linear_system::LinearSolvers;
 use crate::output::Output;
 use crate::system::{Model, State, Workspace};
 
@@ -40,6 +41,7 @@ fn start_algorithmic_accelerations(
     h: f64,
     state: &mut State,
     ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
 ) -> Result<()> {
     let weight = (method.alpha_m - method.alpha_f) * h;
     if weight == 0.0 {
@@ -53,7 +55,7 @@ fn start_algorithmic_accelerations(
         later.coordinates[k] += delta * state.velocities[k] + 0.5 * delta * delta * state.accelerations[k];
         later.velocities[k] += delta * state.accelerations[k];
     }
-    solve_accelerations(model, &mut later, ws)?;
+    solve_accelerations(model, &mut later, ws, solvers)?;
     for k in 0..model.coordinate_count {
         let jerk = (later.accelerations[k] - state.accelerations[k]) / delta;
         state.algorithmic_accelerations[k] = state.accelerations[k] + weight * jerk;
@@ -139,15 +141,15 @@ fn run(
     settings.validate()?;
     let method = GeneralizedAlpha::from_spectral_radius(settings.spectral_radius)?;
     let project_velocities = settings.newton.velocity_projection.enabled(settings.spectral_radius);
-    let mut ws = Workspace::new(model)?;
-    // The condensed solves replace the elastic blocks of condensed bodies: skip them.
-    ws.assemble_condensed_blocks = false;
+    let mut ws = Workspace::new(model);
+    let mut solvers = LinearSolvers::new(model)?;
     let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
     let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());
-    let violated = solve_initial_positions_and_velocities(model, &mut state, &mut ws, &settings.initial)?;
+    let violated =
+        solve_initial_positions_and_velocities(model, &mut state, &mut ws, &mut solvers, &settings.initial)?;
     report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
     update_discrete(model, &mut state, &mut ws, true);
-    solve_accelerations(model, &mut state, &mut ws)?;
+    solve_accelerations(model, &mut state, &mut ws, &mut solvers)?;
     let first_step = settings.step_size.min(settings.end_time - settings.start_time).max(f64::MIN_POSITIVE);
     start_algorithmic_accelerations(
         model,
@@ -155,28 +157,36 @@ fn run(
         first_step.min(settings.output_interval.unwrap_or(first_step)),
         &mut state,
         &mut ws,
+        &mut solvers,
     )?;
     output.record(model, &state, &mut ws);
     // The loop keeps the last accepted state in `state` (also when it fails): no copy per step.
-    let result =
-        time_loop(model, settings, &method, project_velocities, observer, output, &mut state, &mut ws);
+    let solving = Solving { method: &method, project_velocities, ws: &mut ws, solvers: &mut solvers };
+    let result = time_loop(model, settings, solving, observer, output, &mut state);
     *last_state = Some(state);
     result
 }
 
+/// What the generalized-alpha steps of a run work with: the method, whether velocities are
+/// projected, the workspace and the linear solvers.
+struct Solving<'a> {
+    method: &'a GeneralizedAlpha,
+    project_velocities: bool,
+    ws: &'a mut Workspace,
+    solvers: &'a mut LinearSolvers,
+}
+
 /// The steps of [`run`] from the consistent initial state `state`, which holds the last
 /// accepted state on return (also on failure).
-#[allow(clippy::too_many_arguments)]
 fn time_loop(
     model: &Model,
     settings: &SimulationSettings,
-    method: &GeneralizedAlpha,
-    project_velocities: bool,
+    solving: Solving,
     observer: &mut dyn FnMut(&Progress) -> bool,
     output: &mut Output,
     state: &mut State,
-    ws: &mut Workspace,
 ) -> Result<()> {
+    let Solving { method, project_velocities, ws, solvers } = solving;
     let mut clock = OutputClock::new(settings);
     let mut h = settings.step_size;
     let mut next = state.clone();
@@ -196,6 +206,7 @@ fn time_loop(
             state,
             &mut next,
             ws,
+            solvers,
             &mut cache,
         )?;
         let stats = &mut output.statistics;

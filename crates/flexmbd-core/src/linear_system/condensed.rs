@@ -22,7 +22,7 @@
 
 use crate::assembly::MatrixCoefficients;
 use crate::body::flexible::{dot, FlexibleBody, REFERENCE_COORDINATES};
-use crate::body::BodyKind;
+use crate::body::{is_condensed, BodyKind};
 use crate::error::{FlexmbdError, Result};
 use crate::linalg::dense::{DenseLu, DENSE_SYSTEM_SIZE};
 use crate::linalg::simd::{dot4, update4, GROUP};
@@ -30,25 +30,6 @@ use crate::linalg::sparse::{PatternBuilder, SparseLu, SparsePattern};
 use crate::linalg::symmetric::{CscRef, FactorKind, Ordering, SymmetricFactor};
 use crate::math::Vec3;
 use crate::system::model::Model;
-
-/// Deformable bodies with at least this many elastic coordinates are condensed.
-pub const CONDENSATION_THRESHOLD: usize = 300;
-
-/// Whether a model has bodies to condense.
-pub fn has_condensed_bodies(model: &Model) -> bool {
-    model.bodies.iter().any(|b| is_condensed(&b.kind))
-}
-
-/// Whether a body is condensed: as its `condense` option says, else when it has at least
-/// [`CONDENSATION_THRESHOLD`] elastic coordinates.
-pub fn is_condensed(kind: &BodyKind) -> bool {
-    match kind {
-        BodyKind::Flexible(f) => {
-            f.elastic_count > 0 && f.condense.unwrap_or(f.elastic_count >= CONDENSATION_THRESHOLD)
-        }
-        _ => false,
-    }
-}
 
 /// The coefficients that define A (m, v, p, i, s).
 type Key = [f64; 5];
@@ -60,7 +41,7 @@ fn key(c: &MatrixCoefficients) -> Key {
 /// Whether a factorization of A made for the coefficients `kept` serves `wanted`: each equal
 /// to round-off, as the integrator's step sizes.
 fn same_key(kept: &Key, wanted: &Key) -> bool {
-    kept.iter().zip(wanted).all(|(&a, &b)| crate::integrator::equal_to_round_off(a, b))
+    kept.iter().zip(wanted).all(|(&a, &b)| crate::math::equal_to_round_off(a, b))
 }
 
 /// The entries (local f, value index) of one coupling unknown j: N_{f, j}, then N_{j, f}.
@@ -1252,12 +1233,12 @@ impl Block {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::assembly::{assemble, StateView};
+    use crate::assembly::{assemble, ElasticRows, Request, StateView};
     use crate::body::flexible::tests::PointBody;
     use crate::body::marker::MarkerElastic;
     use crate::joint::JointKind;
+    use crate::linear_system::LinearSolvers;
     use crate::math::{Mat3, Vec3};
-    use crate::system::workspace::{ElasticRows, LinearSolvers};
     use crate::system::{State, SystemBuilder, Workspace};
 
     /// Iteration-matrix coefficients shared by the tests (s m = 1, as for generalized-alpha).
@@ -1354,15 +1335,18 @@ mod tests {
         let offset = model.bodies[2].offset + REFERENCE_COORDINATES;
         let c = ITERATION;
         let (nq, s) = (model.coordinate_count, c.scale);
-        let mut ws = Workspace::new(&model).unwrap();
-        ws.assemble_condensed_blocks = false;
-        ws.structured_condensed_coupling = true;
-        ws.elastic_rows = ElasticRows::Keep;
-        assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
+        let mut ws = Workspace::new(&model);
+        let mut solvers = LinearSolvers::new(&model).unwrap();
+        let keep = Request {
+            structured_coupling: true,
+            elastic_rows: ElasticRows::Keep,
+            ..Request::solving(Some(c))
+        };
+        assemble(&model, StateView::of(&state), &mut ws, &keep).unwrap();
         let before = scale_of(&ws.residual);
         let mut x: Vec<f64> =
             ws.residual.iter().enumerate().map(|(k, r)| if k < nq { -s * r } else { -r }).collect();
-        let LinearSolvers::Condensed { newton, .. } = &mut ws.linear else { panic!("condensed solvers") };
+        let LinearSolvers::Condensed { newton, .. } = &mut solvers else { panic!("condensed solvers") };
         newton.factorize(&model, &ws.values, &c, &state.coordinates).unwrap();
         newton.solve_in_place(&mut x).unwrap();
         for k in 0..nq {
@@ -1373,19 +1357,24 @@ mod tests {
         for (l, dl) in state.multipliers.iter_mut().zip(&x[nq..]) {
             *l += dl / s;
         }
-        ws.structured_condensed_coupling = false;
-        ws.elastic_rows = ElasticRows::Update { scale: s };
-        assemble(&model, StateView::of(&state), &mut ws, None).unwrap();
+        let images = solvers.coupling_images();
+        let update = Request {
+            elastic_rows: ElasticRows::Update { scale: s },
+            images: &images,
+            ..Request::solving(None)
+        };
+        assemble(&model, StateView::of(&state), &mut ws, &update).unwrap();
+        drop(images);
         let updated = ws.residual.clone();
-        let mut whole = Workspace::new(&model).unwrap();
-        assemble(&model, StateView::of(&state), &mut whole, None).unwrap();
+        let mut whole = Workspace::new(&model);
+        assemble(&model, StateView::of(&state), &mut whole, &Request::residual()).unwrap();
         let elastic = offset..offset + 6;
         let worst = (0..updated.len()).fold(0.0f64, |m, k| m.max((updated[k] - whole.residual[k]).abs()));
         assert!(worst <= 1e-12 * before, "rows off by {worst} (residual before {before})");
         // Not trivially equal: the elastic rows are not zero, and the image is not small.
         let rows = elastic.fold(0.0f64, |m, k| m.max(whole.residual[k].abs()));
         assert!(rows > 1e-3 * before, "{rows} vs {before}");
-        let image = newton_image(&mut ws, 2);
+        let image = newton_image(&mut solvers, 2);
         assert!(image.iter().any(|&v| v.abs() > 1e-3 * before * s), "the coupling image is not needed");
     }
 
@@ -1407,9 +1396,9 @@ mod tests {
         state.velocities[elastic].iter_mut().for_each(|x| *x = 0.0);
         let c = MatrixCoefficients { position: 0.0, ..ITERATION };
         let ws = assembled(&model, &state, c);
-        let mut mass_only = Workspace::new(&model).unwrap();
+        let mut mass_only = Workspace::new(&model);
         let mass = MatrixCoefficients { velocity: 0.0, ..c };
-        assemble(&model, StateView::of(&state), &mut mass_only, Some(mass)).unwrap();
+        assemble(&model, StateView::of(&state), &mut mass_only, &Request::matrix(mass)).unwrap();
         let mut solver = CondensedSolver::with_images(&model, true, true).unwrap();
         solver.set_angular_velocities(&model, &state.coordinates, &state.velocities);
         solver.factorize(&model, &ws.values, &c, &state.coordinates).unwrap();
@@ -1560,8 +1549,8 @@ mod tests {
         assert_close(&solves[1], &solves[0]);
     }
 
-    fn newton_image(ws: &mut Workspace, body: usize) -> Vec<f64> {
-        let LinearSolvers::Condensed { newton, .. } = &mut ws.linear else { panic!("condensed solvers") };
+    fn newton_image(solvers: &mut LinearSolvers, body: usize) -> Vec<f64> {
+        let LinearSolvers::Condensed { newton, .. } = solvers else { panic!("condensed solvers") };
         newton.coupling_images().find(|(b, _)| *b == body).map(|(_, i)| i.to_vec()).unwrap()
     }
 
@@ -1571,14 +1560,14 @@ mod tests {
         // other coefficients get their own (at most two are kept).
         let condensed = model(true, false);
         let mut solver = CondensedSolver::new(&condensed, true).unwrap();
-        let mut ws = Workspace::new(&condensed).unwrap();
+        let mut ws = Workspace::new(&condensed);
         let state = State::initial(&condensed, 0.0);
         let method =
             crate::integrator::generalized_alpha::GeneralizedAlpha::from_spectral_radius(0.9).unwrap();
         let h = 1e-3;
         for (step, factors) in [(h, 1), (h * (1.0 - 4.0 * f64::EPSILON), 1), (h * (1.0 - 1e-9), 2)] {
             let c = method.coefficients(step);
-            assemble(&condensed, StateView::of(&state), &mut ws, Some(c)).unwrap();
+            assemble(&condensed, StateView::of(&state), &mut ws, &Request::matrix(c)).unwrap();
             solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
             assert_eq!(solver.blocks[0].factors.len(), factors, "step {step:e}");
         }
@@ -1593,7 +1582,7 @@ mod tests {
         let c = MatrixCoefficients::ACCELERATION;
         let rhs = test_rhs(direct.system_size());
         let mut solver = CondensedSolver::new(&condensed, true).unwrap();
-        let mut ws = Workspace::new(&condensed).unwrap();
+        let mut ws = Workspace::new(&condensed);
         let offset = direct.bodies[2].offset + REFERENCE_COORDINATES;
         let mut kept = Vec::new();
         for (factor, exact) in [(1.0, true), (1.0 + 1e-4, false), (2.0, true)] {
@@ -1602,7 +1591,7 @@ mod tests {
                 *x = 0.05 * factor * (k as f64 - 2.5);
             }
             let expected = direct_solve(&direct, &state, c, &rhs);
-            assemble(&condensed, StateView::of(&state), &mut ws, Some(c)).unwrap();
+            assemble(&condensed, StateView::of(&state), &mut ws, &Request::matrix(c)).unwrap();
             solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
             let mut x = rhs.clone();
             solver.solve_in_place(&mut x).unwrap();
@@ -1630,7 +1619,7 @@ mod tests {
         let c = ITERATION;
         let rhs = test_rhs(direct.system_size());
         let mut solver = CondensedSolver::new(&condensed, false).unwrap();
-        let mut ws = Workspace::new(&condensed).unwrap();
+        let mut ws = Workspace::new(&condensed);
         let axis = Vec3([0.3, -0.5, 0.8]) * (1.0 / Vec3([0.3, -0.5, 0.8]).norm());
         let mut sizes = Vec::new();
         for angle in [0.0f64, 0.4, 1.3, -2.0] {
@@ -1646,7 +1635,7 @@ mod tests {
                 ]);
             }
             let expected = direct_solve(&direct, &state, c, &rhs);
-            assemble(&condensed, StateView::of(&state), &mut ws, Some(c)).unwrap();
+            assemble(&condensed, StateView::of(&state), &mut ws, &Request::matrix(c)).unwrap();
             solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
             let mut x = rhs.clone();
             solver.solve_in_place(&mut x).unwrap();
@@ -1673,10 +1662,9 @@ mod tests {
         let solves: Vec<Vec<f64>> = [false, true]
             .into_iter()
             .map(|structured| {
-                let mut ws = Workspace::new(&model).unwrap();
-                ws.assemble_condensed_blocks = false;
-                ws.structured_condensed_coupling = structured;
-                assemble(&model, StateView::of(&state), &mut ws, Some(c)).unwrap();
+                let mut ws = Workspace::new(&model);
+                let request = Request { structured_coupling: structured, ..Request::solving(Some(c)) };
+                assemble(&model, StateView::of(&state), &mut ws, &request).unwrap();
                 let mut solver = CondensedSolver::new(&model, true).unwrap();
                 solver.factorize(&model, &ws.values, &c, &state.coordinates).unwrap();
                 let mut x = rhs.clone();
@@ -1710,8 +1698,8 @@ mod tests {
     /// A workspace with the residual and Newton matrix of `model` at `state` assembled with
     /// the coefficients `c`.
     fn assembled(model: &Model, state: &State, c: MatrixCoefficients) -> Workspace {
-        let mut ws = Workspace::new(model).unwrap();
-        assemble(model, StateView::of(state), &mut ws, Some(c)).unwrap();
+        let mut ws = Workspace::new(model);
+        assemble(model, StateView::of(state), &mut ws, &Request::matrix(c)).unwrap();
         ws
     }
 
@@ -1721,8 +1709,8 @@ mod tests {
 
     /// The sparse LU solve of the assembled Newton matrix of `model` with coefficients `c`.
     fn direct_solve(model: &Model, state: &State, c: MatrixCoefficients, rhs: &[f64]) -> Vec<f64> {
-        let mut ws = Workspace::new(model).unwrap();
-        assemble(model, StateView::of(state), &mut ws, Some(c)).unwrap();
+        let mut ws = Workspace::new(model);
+        assemble(model, StateView::of(state), &mut ws, &Request::matrix(c)).unwrap();
         let mut lu = SparseLu::new(&model.layout.pattern).unwrap();
         lu.factorize(&ws.values).unwrap();
         let mut x = rhs.to_vec();
@@ -1738,8 +1726,8 @@ mod tests {
         rhs: &[f64],
         approximate_reference: bool,
     ) -> (Vec<f64>, usize) {
-        let mut ws = Workspace::new(model).unwrap();
-        assemble(model, StateView::of(state), &mut ws, Some(c)).unwrap();
+        let mut ws = Workspace::new(model);
+        assemble(model, StateView::of(state), &mut ws, &Request::matrix(c)).unwrap();
         let mut solver = CondensedSolver::new(model, approximate_reference).unwrap();
         solver.factorize(model, &ws.values, &c, &state.coordinates).unwrap();
         let mut x = rhs.to_vec();
@@ -1760,7 +1748,7 @@ mod tests {
 
     fn compare_solves(elastic_marker: bool) {
         let (direct, condensed) = (model(false, elastic_marker), model(true, elastic_marker));
-        assert!(!has_condensed_bodies(&direct) && has_condensed_bodies(&condensed));
+        assert!(!direct.has_condensed_bodies() && condensed.has_condensed_bodies());
         let mut state = State::initial(&direct, 0.0);
         // Multipliers of joints at elastic markers enter N_FF through the constraint Hessian,
         // which A leaves out: zero there for an exact comparison.

@@ -1,7 +1,7 @@
 //! Hyper-dual numbers x = a + b e1 + c e2 + d e1 e2 (e1^2 = e2^2 = 0), with 3-vectors and 3x3
 //! matrices of them: a function evaluated at a + v e1 + v e2 + w e1 e2 carries its value, its
 //! derivative along v (e1 and e2 parts) and v^T f'' v + f' w (e1 e2 part) exactly, without
-//! truncation error. The joint-coordinate kinematics (`solver::recursive`) use them for the
+//! truncation error. The joint-coordinate kinematics (`formulation::recursive`) use them for the
 //! body velocities q_dot = B p_dot, the velocity-quadratic accelerations gamma_B = B_dot
 //! p_dot (plus the prescribed accelerations) and the columns of B, from one definition of
 //! q(p).

@@ -17,6 +17,13 @@ pub fn all_finite(x: &[f64]) -> bool {
     x.iter().fold(0u64, |bits, v| bits | ((v * 0.0).to_bits() << 1)) == 0
 }
 
+/// Whether a step size or an iteration-matrix coefficient `kept` with a factorization serves
+/// `wanted`: equal to 1e-12 of `wanted` (a step shortened by round-off to land on an output
+/// time differs in its last bits, and refactorizing for it would cost more than many steps).
+pub fn equal_to_round_off(kept: f64, wanted: f64) -> bool {
+    (kept - wanted).abs() <= 1e-12 * wanted.abs()
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

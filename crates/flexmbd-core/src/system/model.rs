@@ -105,6 +105,12 @@ pub struct Model {
 }
 
 impl Model {
+    /// Whether the model has deformable bodies whose elastic coordinates the linear solves
+    /// condense ([`crate::body::is_condensed`]).
+    pub fn has_condensed_bodies(&self) -> bool {
+        self.bodies.iter().any(|b| crate::body::is_condensed(&b.kind))
+    }
+
     /// Dimension of the Newton matrix.
     pub fn system_size(&self) -> usize {
         self.coordinate_count + self.constraint_count

@@ -3,14 +3,11 @@
 //! the hot path does not allocate.
 
 use crate::body::flexible::{FlexibleBody, FlexibleScratch, FlexibleTangent, REFERENCE_COORDINATES};
+use crate::body::is_condensed;
 use crate::body::marker::MarkerKinematics;
 use crate::body::rigid::RigidTangent;
 use crate::body::BodyKind;
-use crate::error::{FlexmbdError, Result};
 use crate::force::ForceLocal;
-use crate::linalg::dense::{DenseLu, DENSE_SYSTEM_SIZE};
-use crate::linalg::sparse::{SparseLdlt, SparseLu};
-use crate::linear_system::condensed::{has_condensed_bodies, is_condensed, CondensedSolver};
 use crate::math::dense::DenseMatrix;
 use crate::system::model::Model;
 
@@ -72,61 +69,6 @@ impl FlexibleWork {
     }
 }
 
-/// The factorizations a simulation keeps.
-pub enum LinearSolvers {
-    /// Models without condensed bodies: factorizations of the whole Newton matrix.
-    Direct {
-        /// Sparse LU of the last factorized matrix (exact Newton steps, initial conditions).
-        lu: Box<SparseLu>,
-        /// Symmetric quasi-definite LDL^T of the last factorized iteration matrix (modified
-        /// Newton).
-        ldlt: Box<SparseLdlt>,
-        /// LDL^T of [[M, C_q^T], [C_q, 0]] for the velocity projection (kept apart so that
-        /// the Newton matrix can be reused by the next step).
-        projection: Box<SparseLdlt>,
-    },
-    /// Small models (at most `solver::dense::DENSE_SYSTEM_SIZE` unknowns): dense LU.
-    Dense {
-        /// Newton iteration matrix (modified and exact Newton).
-        newton: Box<DenseLu>,
-        /// Projection, acceleration and initial-condition systems.
-        projection: Box<DenseLu>,
-    },
-    /// Models with large deformable bodies: their elastic coordinates condensed out
-    /// (`solver::condensed`), one solver for the Newton matrix, one for the projection and
-    /// acceleration systems.
-    Condensed {
-        /// Newton iteration matrix.
-        newton: Box<CondensedSolver>,
-        /// Projection, acceleration and initial-condition systems.
-        projection: Box<CondensedSolver>,
-    },
-    /// No factorizations: a workspace for evaluating the equations only
-    /// (`Workspace::for_evaluation`).
-    None,
-}
-
-/// How the assembly forms the elastic rows of condensed bodies. Their linear part
-/// L = M_ff qf_dd + D_ff qf_dot + K_ff q_f changes in a Newton iteration that updates
-/// (q, q_dot, q_dd) by (1, v, m) dq by exactly (m M_ff + v D_ff + K_ff) dq_f = A dq_f / s, and
-/// the condensed solve gives A dq_f = b_F - W dq_J (W: the coupling columns it eliminated with,
-/// b_F = -s r_F). So with the rest of the rows N (everything but L) kept from the last
-/// assembly, the rows at the new iterate are N' - N - W dq_J / s: no products with K_ff and
-/// M_ff after the first iteration of a step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ElasticRows {
-    /// Assembled whole (every assembly outside the Newton iterations).
-    Whole,
-    /// Assembled whole, and N kept (first iteration of a step).
-    Keep,
-    /// From the last solve of the condensed Newton solver, whose right-hand side had the
-    /// scale `scale` (later iterations; valid only right after such a solve and update).
-    Update {
-        /// s of the Newton matrix.
-        scale: f64,
-    },
-}
-
 /// Workspace of a simulation of one model.
 pub struct Workspace {
     /// Kinematics of every marker (filled by `update_kinematics`).
@@ -135,21 +77,6 @@ pub struct Workspace {
     pub residual: Vec<f64>,
     /// Values of the Newton matrix on the model's pattern (nnz); filled by `assemble`.
     pub values: Vec<f64>,
-    /// The factorizations of the linear solves.
-    pub linear: LinearSolvers,
-    /// Whether the assembly writes the elastic blocks of condensed bodies into the Newton
-    /// matrix (their condensed solves never read them; analyses that need the whole matrix
-    /// keep the default, true).
-    pub assemble_condensed_blocks: bool,
-    /// Whether the matrix being assembled is the Newton iteration matrix of a model with
-    /// condensed bodies, whose solver takes the coupling of each condensed body with its own
-    /// reference coordinates from its structured mass part (`CondensedSolver::factorize`): the
-    /// assembly then leaves those blocks out, and with them the inertia products only they
-    /// need. Set by the integrator around that assembly; false otherwise.
-    pub structured_condensed_coupling: bool,
-    /// How the elastic rows of condensed bodies are assembled; set by the integrator around
-    /// its Newton iterations, `Whole` otherwise.
-    pub elastic_rows: ElasticRows,
     /// Weight kappa of the normalization penalty of each rigid body (kg m^2): a third of the
     /// trace of its inertia about the body origin.
     pub normalization_weights: Vec<f64>,
@@ -181,13 +108,13 @@ pub struct Workspace {
 impl Workspace {
     /// Zeroes `values` for a matrix assembly: every entry but the blocks of condensed bodies
     /// that the assembly leaves out and that no solver then reads (their elastic blocks
-    /// without `assemble_condensed_blocks`, their reference-elastic coupling with
-    /// `structured_condensed_coupling`). A condensed body's elastic pattern holds most of the
+    /// without `condensed_blocks`, their reference-elastic coupling with
+    /// `structured_coupling`; see [`crate::assembly::Request`]). A condensed body's elastic pattern holds most of the
     /// matrix's entries (about 43,000 of the 45,085 with a body of 960 elastic coordinates):
     /// zeroing it at every refresh of the iteration matrix cost more than the rest of its
     /// assembly.
-    pub fn zero_matrix(&mut self, model: &Model) {
-        let slot = match (self.assemble_condensed_blocks, self.structured_condensed_coupling) {
+    pub fn zero_matrix(&mut self, model: &Model, condensed_blocks: bool, structured_coupling: bool) {
+        let slot = match (condensed_blocks, structured_coupling) {
             (true, false) => {
                 self.values.iter_mut().for_each(|x| *x = 0.0);
                 return;
@@ -233,51 +160,9 @@ impl Workspace {
         }
     }
 
-    /// Allocates every buffer for `model` and performs the symbolic factorization.
-    pub fn new(model: &Model) -> Result<Self> {
-        let linear = Self::linear_solvers(model)?;
-        Ok(Self::with_linear_solvers(model, linear))
-    }
-
-    /// A workspace that evaluates the equations (assembly) but has no sparse factorizations:
-    /// for the dense solvers and analyses.
-    pub fn for_evaluation(model: &Model) -> Self {
-        Self::with_linear_solvers(model, LinearSolvers::None)
-    }
-
-    fn linear_solvers(model: &Model) -> Result<LinearSolvers> {
-        let size = model.system_size();
-        Ok(if has_condensed_bodies(model) {
-            LinearSolvers::Condensed {
-                newton: Box::new(CondensedSolver::with_images(model, true, true)?),
-                projection: Box::new(CondensedSolver::new(model, false)?),
-            }
-        } else if size <= DENSE_SYSTEM_SIZE {
-            LinearSolvers::Dense {
-                newton: Box::new(DenseLu::new(size)),
-                projection: Box::new(DenseLu::new(size)),
-            }
-        } else {
-            let lu = SparseLu::new(&model.layout.pattern).map_err(|detail| FlexmbdError::SingularMatrix {
-                time: 0.0,
-                context: "symbolic analysis of the Newton matrix".to_string(),
-                detail,
-            })?;
-            let blocks: Vec<[usize; 4]> = model.normalizations.iter().map(|nz| nz.dofs).collect();
-            let symmetric = |context: &str| {
-                SparseLdlt::new(&model.layout.pattern, model.coordinate_count, &blocks).map_err(|detail| {
-                    FlexmbdError::SingularMatrix { time: 0.0, context: context.to_string(), detail }
-                })
-            };
-            LinearSolvers::Direct {
-                lu: Box::new(lu),
-                ldlt: Box::new(symmetric("symbolic analysis of the iteration matrix")?),
-                projection: Box::new(symmetric("symbolic analysis of the projection matrix")?),
-            }
-        })
-    }
-
-    fn with_linear_solvers(model: &Model, linear: LinearSolvers) -> Self {
+    /// Allocates every buffer for `model` (the linear solvers are apart:
+    /// [`crate::linear_system::LinearSolvers`]).
+    pub fn new(model: &Model) -> Self {
         let n = model.system_size();
         let normalization_weights = model
             .normalizations
@@ -292,10 +177,6 @@ impl Workspace {
             markers: model.markers.iter().map(|m| MarkerKinematics::with_size(m.dofs.len())).collect(),
             residual: vec![0.0; n],
             values: vec![0.0; model.layout.pattern.nnz()],
-            linear,
-            assemble_condensed_blocks: true,
-            structured_condensed_coupling: false,
-            elastic_rows: ElasticRows::Whole,
             penalties: vec![(0.0, [0.0; 4]); model.normalizations.len()],
             normalization_weights,
             rigid: RigidTangent::default(),
