@@ -5,8 +5,8 @@ lines and paths in code alike; comments, where documentation links live, are lef
 each to the module (file) it names, and looks for cycles in the graph of
 module dependencies: file-level (one file needs another that needs the first, directly or
 through others) and folder-level (the stages of a step: a lower folder never needs a higher
-one). Test modules (`#[cfg(test)]` blocks at the end of a file) are left out: tests may use
-anything.
+one). Test modules (`#[cfg(test)]` blocks at the end of a file, and files declared as
+`#[cfg(test)] mod name;`) are left out: tests may use anything.
 
     python tools/check_imports.py            # prints the cycles, exit status 1 if any
     python tools/check_imports.py --graph    # also prints the folder-level graph
@@ -23,23 +23,42 @@ SOURCE = Path(__file__).resolve().parents[1] / "crates" / "flexmbd-core" / "src"
 PATH = re.compile(r"\b(crate|super)((?:::\w+)+)")
 
 
-def module_of(path: Path) -> tuple[str, ...]:
-    parts = list(path.relative_to(SOURCE).with_suffix("").parts)
+def module_of(path: Path, source: Path) -> tuple[str, ...]:
+    parts = list(path.relative_to(source).with_suffix("").parts)
     if parts[-1] in ("mod", "lib"):
         parts.pop()
     return tuple(parts)
 
 
+TEST_MODULE = r"^#\[cfg\(test\)\]\s*\n\s*(?:pub(?:\(crate\))?\s+)?mod\s+(\w+)\s*"
+
+
 def strip_tests(text: str) -> str:
-    """The file without its `#[cfg(test)]` module (the tests at its end)."""
-    match = re.search(r"^#\[cfg\(test\)\]\s*\n\s*(pub(\(crate\))?\s+)?mod\s+\w+", text, re.M)
+    """The file without its inline `#[cfg(test)] mod name { ... }` (the tests at its end)."""
+    match = re.search(TEST_MODULE + r"\{", text, re.M)
     return text if match is None else text[: match.start()]
 
 
-def dependencies(modules: set[tuple[str, ...]]) -> dict[tuple[str, ...], set[tuple[str, ...]]]:
-    graph: dict[tuple[str, ...], set[tuple[str, ...]]] = {m: set() for m in modules}
-    for path in SOURCE.rglob("*.rs"):
-        here = module_of(path)
+def test_files(source: Path) -> set[tuple[str, ...]]:
+    """Modules declared as `#[cfg(test)] mod name;`: files that hold only tests."""
+    found = set()
+    for path in source.rglob("*.rs"):
+        here = module_of(path, source)
+        # `mod name;` in a/b.rs or a/b/mod.rs names the file a/b/name.rs: module a::b::name.
+        for name in re.findall(TEST_MODULE + ";", path.read_text(), re.M):
+            found.add(here + (name,))
+    return found
+
+
+def dependencies(source: Path) -> dict[tuple[str, ...], set[tuple[str, ...]]]:
+    """Module -> the modules its code (tests left out) names, for every file under `source`."""
+    tests = test_files(source)
+    modules = {module_of(p, source) for p in source.rglob("*.rs")}
+    graph: dict[tuple[str, ...], set[tuple[str, ...]]] = {m: set() for m in modules - tests}
+    for path in source.rglob("*.rs"):
+        here = module_of(path, source)
+        if here in tests:
+            continue
         is_mod_file = path.stem in ("mod", "lib")
         # Code only: paths in comments (documentation links) are no dependencies.
         text = re.sub(r"//[^\n]*", "", strip_tests(path.read_text()))
@@ -97,12 +116,8 @@ def cycles(graph: dict[tuple[str, ...], set[tuple[str, ...]]]) -> list[list[tupl
     return found
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--graph", action="store_true", help="print the folder-level graph")
-    args = parser.parse_args()
-    modules = {module_of(p) for p in SOURCE.rglob("*.rs")}
-    files = dependencies(modules)
+def folder_graph(files: dict[tuple[str, ...], set[tuple[str, ...]]]) -> dict:
+    """The top-level folders' graph: folder -> the other folders its files use."""
     folders: dict[tuple[str, ...], set[tuple[str, ...]]] = {}
     for node, targets in files.items():
         top = node[:1]
@@ -110,6 +125,16 @@ def main() -> int:
         for target in targets:
             if target[:1] != top:
                 folders[top].add(target[:1])
+    return folders
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--graph", action="store_true", help="print the folder-level graph")
+    parser.add_argument("--source", type=Path, default=SOURCE, help="the crate's src folder")
+    args = parser.parse_args()
+    files = dependencies(args.source)
+    folders = folder_graph(files)
     if args.graph:
         for node in sorted(folders):
             names = ", ".join("::".join(t) for t in sorted(folders[node])) or "-"
