@@ -5,6 +5,8 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -65,7 +67,8 @@ def make_body(modal: bool = True) -> FlexibleBodyData:
         invariants={
             "mass": 1.2345678901234567,
             "first_moment": rng.normal(size=3),
-            "second_moment": rng.normal(size=(3, 3)),
+            # A second moment of mass is symmetric positive semi-definite (load_body checks).
+            "second_moment": (lambda a: a @ a.T)(rng.normal(size=(3, 3))),
             "i1": rng.normal(size=(3, n_f)),
             "i_kl": i_kl,
             "ibar": rng.normal(size=(3, 3, n_f)),
@@ -182,18 +185,24 @@ def test_sparse_formats_and_scalars_round_trip(tmp_path):
 def test_large_arrays_are_compressed(tmp_path, compression):
     small = make_body()
     n_free, n_modes = 60_000, 8
+    # Fields that fit each other (load_body checks): 20,000 nodes, no nodal matrices.
     body = dataclasses.replace(
         small,
+        nodes=np.linspace(0.0, 1.0, n_free).reshape(-1, 3),
+        node_ids=np.arange(1, n_free // 3 + 1, dtype=np.int64),
+        stiffness=None,
+        mass=None,
         # Smooth mode shapes compress well.
         modes=np.sin(np.outer(np.linspace(0.0, 10.0, n_free), np.arange(1, n_modes + 1))),
         reference={**small.reference, "free_dofs": np.arange(n_free, dtype=np.int64)},
+        invariants={"mass": small.invariants["mass"]},
     )
     path = tmp_path / "big.h5"
     save_body(body, path, compression=compression)
     with h5py.File(path, "r") as file:
         assert file["modes"].compression == compression
         assert file["reference/free_dofs"].compression == compression
-        assert file["nodes"].compression is None  # small arrays stay contiguous
+        assert file["elements/tet4"].compression is None  # small arrays stay contiguous
     assert path.stat().st_size < 0.8 * (body.modes.nbytes + n_free * 8)
     assert_identical(body, load_body(path))
 
@@ -272,3 +281,165 @@ def test_bad_arguments(tmp_path):
         save_body({"nodes": []}, tmp_path / "x.h5")
     with pytest.raises(InvalidParameterError, match="compression"):
         save_body(make_body(), tmp_path / "x.h5", compression="zstd")
+
+
+# Issue 28: damaged body files and values that do not make a body. Each case raised a raw
+# OSError, KeyError, RuntimeError or scipy error, or loaded silently; each must now be an
+# InvalidModelError whose message names the file and the field.
+
+
+def damaged(path, member: str, value=None, *, kind: str | None = None, delete: bool = False):
+    """Replace (or delete) a member of a body file; the new dataset keeps the old ``type``
+    unless `kind` is given."""
+    with h5py.File(path, "r+") as file:
+        old_kind = file[member].attrs.get("type")
+        del file[member]
+        if not delete:
+            dataset = file.create_dataset(member, data=value)
+            if (kind or old_kind) is not None:
+                dataset.attrs["type"] = kind or old_kind
+
+
+STRUCTURAL_DAMAGE = {
+    "deleted list item": (dict(member="invariants/i_kl/1/0", delete=True), "i_kl/1/0"),
+    "deleted dict entry": (
+        dict(member="reference/free_dofs", delete=True),
+        "'reference' has no entry 'free_dofs'",
+    ),
+    "string for a number": (
+        dict(member="dofs_per_node", value="three", kind="str"),
+        "'dofs_per_node' must be 3 or 6",
+    ),
+    "bytes for a float": (
+        dict(member="invariants/mass", value=np.bytes_(b"1.5")),
+        "invariants/mass' should hold a number",
+    ),
+    "text array for nodes": (dict(member="nodes", value=np.array([b"a", b"b"])), "'nodes'"),
+    "nodes of two columns": (dict(member="nodes", value=np.zeros((5, 2))), r"\(5, 2\)"),
+    "float free dofs": (
+        dict(member="reference/free_dofs", value=np.arange(6.0)),
+        r"reference\[\"free_dofs\"\]' must be an integer array",
+    ),
+    "free dofs out of range": (
+        dict(member="reference/free_dofs", value=np.arange(20, 26)),
+        "coordinate index 20",
+    ),
+    "element out of range": (
+        dict(member="elements/tet4", value=np.array([[0, 1, 2, 3], [1, 2, 3, 99]])),
+        "node index 99",
+    ),
+    "modes of the wrong shape": (dict(member="modes", value=np.zeros((4, 3))), "'modes'"),
+    "invariant of the wrong shape": (
+        dict(member="invariants/i1", value=np.zeros((3, 2))),
+        r"invariants\[\"i1\"\]' has shape \(3, 2\)",
+    ),
+    "sparse index out of range": (
+        dict(member="stiffness/indices", value=np.full(1, 10**6, dtype=np.int32)),
+        "'stiffness'",
+    ),
+    "sparse shape of three entries": (
+        dict(member="stiffness/shape", value=np.array([15, 15, 15])),
+        "'stiffness' has an invalid shape",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(STRUCTURAL_DAMAGE))
+def test_damaged_body_files_name_the_file_and_field(tmp_path, case):
+    change, match = STRUCTURAL_DAMAGE[case]
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    if case == "sparse index out of range":
+        # Same length as before, one index far outside the 15 x 15 matrix: scipy's products
+        # would read outside the arrays (a segmentation fault, not an error).
+        with h5py.File(path, "r") as file:
+            indices = file["stiffness/indices"][...]
+        indices[-1] = 10**6
+        change = dict(change, value=indices)
+    damaged(path, **change)
+    with pytest.raises(InvalidModelError, match=match) as info:
+        load_body(path)
+    assert str(path) in str(info.value)
+    assert info.value.item == f"file '{path}'"
+
+
+@pytest.mark.parametrize(
+    "member, value, match",
+    [
+        ("nodes", np.full((5, 3), np.nan), "'nodes': node 101 has non-finite coordinates"),
+        ("modes", np.full((6, 3), np.nan), "'modes' has non-finite entries"),
+        ("invariants/mass", -1.0, r"'invariants\[\"mass\"\]': the mass must be finite and > 0"),
+        ("invariants/second_moment", -np.eye(3), "positive semi-definite"),
+        ("invariants/second_moment", np.diag([1.0, 1.0, -0.5]), "positive semi-definite"),
+        ("invariants/second_moment", np.triu(np.ones((3, 3))), "symmetric"),
+        ("invariants/first_moment", np.array([0.0, np.inf, 0.0]), "non-finite"),
+    ],
+    ids=[
+        "nan nodes",
+        "nan modes",
+        "negative mass",
+        "negative J0",
+        "indefinite J0",
+        "asymmetric J0",
+        "infinite s0",
+    ],
+)
+def test_values_that_do_not_make_a_body_are_refused_on_load(tmp_path, member, value, match):
+    # Issue 28: NaN nodes, NaN modes and a second moment of mass that is not positive
+    # semi-definite were loaded without a word.
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    damaged(path, member, value)
+    with pytest.raises(InvalidModelError, match=match) as info:
+        load_body(path)
+    assert str(path) in str(info.value)
+
+
+def test_truncated_body_files_fail_fast(tmp_path):
+    # A truncated file must fail at once (no SWMR retries of the metadata reads): the load
+    # runs in a child process that is killed after 20 s, and must take well under 5 s.
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    size = path.stat().st_size
+    for keep in (size // 2, size - 64):
+        cut = tmp_path / f"cut{keep}.h5"
+        cut.write_bytes(path.read_bytes()[:keep])
+        code = (
+            "import sys, time\n"
+            "from flexmbd.errors import InvalidModelError\n"
+            "from flexmbd.fe import load_body\n"
+            "start = time.perf_counter()\n"
+            "try:\n"
+            "    load_body(sys.argv[1])\n"
+            "except InvalidModelError as error:\n"
+            "    print(time.perf_counter() - start, error)\n"
+        )
+        done = subprocess.run(
+            [sys.executable, "-c", code, str(cut)], capture_output=True, text=True, timeout=20
+        )
+        assert done.returncode == 0, done.stderr
+        seconds, message = done.stdout.split(" ", 1)
+        assert float(seconds) < 5.0
+        assert str(cut) in message and "truncated or damaged" in message
+
+
+def test_bit_flips_give_a_body_or_a_typed_error(tmp_path):
+    # Every byte of the file's metadata flipped in turn (the first 4 kB hold the superblock,
+    # the root group and the first object headers; data flips just change numbers): each
+    # load gives a body or an InvalidModelError naming the file, never another exception.
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    original = path.read_bytes()
+    flipped = tmp_path / "flipped.h5"
+    outcomes = {"body": 0, "error": 0}
+    for offset in range(0, 4096, 19):
+        data = bytearray(original)
+        data[offset] ^= 0xFF
+        flipped.write_bytes(bytes(data))
+        try:
+            load_body(flipped)
+            outcomes["body"] += 1
+        except InvalidModelError as error:
+            assert str(flipped) in str(error)
+            outcomes["error"] += 1
+    assert outcomes["error"] > 0

@@ -167,6 +167,53 @@ def test_bad_flexible_input_names_the_item():
         system.add_flexible_body(data, modal_damping=0.01)
 
 
+def test_body_data_in_other_units_is_refused():
+    # Issue 28: a body in millimetres was taken as metres by System.add_flexible_body (only the
+    # model-file path checked the units).
+    data = beam_body(modes="fixed-interface", mode_count=3)
+    millimetres = dataclasses.replace(data, units={"length": "mm", "mass": "kg", "time": "s"})
+    system = fm.System()
+    with pytest.raises(fm.InvalidModelError, match="body 'rod'.*'length': 'mm'.*not SI") as info:
+        system.add_flexible_body(millimetres, name="rod")
+    assert info.value.item == "body 'rod'"
+    system.add_flexible_body(data, name="rod")
+
+
+def test_body_data_of_the_wrong_shapes_is_refused_before_the_core():
+    # Issue 28: nodes of shape (n, 2) reached the binding and panicked ("index out of
+    # bounds"); every array passed to the core is now checked, naming the field.
+    data = beam_body(modes="fixed-interface", mode_count=3)
+    with pytest.raises(fm.InvalidModelError, match=r"field 'nodes' .*\(7, 2\)"):
+        dataclasses.replace(data, nodes=data.nodes[:, :2])
+    # The same data forced past the constructor: the system checks it again.
+    flat = dataclasses.replace(data)
+    object.__setattr__(flat, "nodes", data.nodes[:, :2])
+    with pytest.raises(fm.InvalidModelError, match=r"body 'rod': field 'nodes'") as info:
+        fm.System().add_flexible_body(flat, name="rod")
+    assert info.value.item == "field 'nodes'"
+
+    def with_invariant(key, value):
+        return dataclasses.replace(data, invariants={**data.invariants, key: value})
+
+    cases = [
+        (with_invariant("i1", np.zeros((3, 2))), fm.InvalidModelError, r"'invariants\[\"i1\"\]'"),
+        (with_invariant("ibar", np.zeros((3, 3))), fm.InvalidModelError, "ibar"),
+        (with_invariant("first_moment", np.zeros(2)), fm.InvalidModelError, "first_moment"),
+        (with_invariant("i_kl", [[np.eye(3)] * 3] * 2), fm.InvalidModelError, "3 lists of 3"),
+        (with_invariant("mass", float("nan")), fm.InvalidParameterError, "mass must be finite"),
+        (with_invariant("mass", 0.0), fm.InvalidParameterError, "mass must be finite and > 0"),
+        (with_invariant("second_moment", -np.eye(3)), fm.InvalidParameterError, "semi-definite"),
+        (
+            with_invariant("i1", np.full((3, 3), np.inf)),
+            fm.InvalidParameterError,
+            "non-finite",
+        ),
+    ]
+    for body, error, match in cases:
+        with pytest.raises(error, match=match):
+            fm.System().add_flexible_body(body, name="rod")
+
+
 def test_pendulum_of_a_tetrahedral_mesh_conserves_energy():
     """The built-in tetrahedral pendulum (Craig-Bampton, frame on the hinged end face) swings
     without damping: at spectral radius 1 the energy stays constant to 1e-5 of the energy

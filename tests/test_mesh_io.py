@@ -443,6 +443,107 @@ def test_abaqus_two_node_blocks(tmp_path):
     assert str(path) in str(info.value)
 
 
+# Issue 28: GENERATE with step 0 looped or raised ZeroDivisionError, a range of 10^12 labels
+# exhausted memory, labels of 2^70 overflowed int64 (OverflowError), and *INCLUDE followed
+# absolute paths and looked in the working folder before the input's folder.
+
+TWO_TETS_INP = ABAQUS_INP.split("*ELEMENT, TYPE=S3")[0]
+
+
+@pytest.mark.parametrize(
+    "lines, error, match",
+    [
+        ("*NSET, NSET=A, GENERATE\n101, 105, 0", InvalidModelError, "step 0: the step must be"),
+        ("*NSET, NSET=A, GENERATE\n101, 105, -1", InvalidModelError, "step -1"),
+        ("*NSET, NSET=A, GENERATE\n105, 101", InvalidModelError, "first label must not exceed"),
+        ("*NSET, NSET=A, GENERATE\n0, 5", InvalidModelError, "label 0 is out of range"),
+        ("*NSET, NSET=A, GENERATE\n1, 1000000000000, 1", UnknownItemError, "1000000000000 labels"),
+        ("*ELSET, ELSET=E, GENERATE\n1, 1000000000000", UnknownItemError, "element set 'E'"),
+        (f"*NSET, NSET=A\n101, {2**70}", InvalidModelError, f"label {2**70} is out of range"),
+        ("*NSET, NSET=A\n-3", InvalidModelError, "label -3 is out of range"),
+    ],
+    ids=[
+        "step 0",
+        "negative step",
+        "reversed",
+        "label 0",
+        "huge nodes",
+        "huge elements",
+        "2^70",
+        "negative label",
+    ],
+)
+def test_abaqus_bad_labels_and_generate_lines(tmp_path, lines, error, match):
+    path = tmp_path / "bad.inp"
+    path.write_text(TWO_TETS_INP + lines + "\n")
+    with pytest.raises(error, match=match) as info:
+        read_mesh(path)
+    assert str(path) in str(info.value)
+
+
+def test_abaqus_node_label_of_2_to_the_70(tmp_path):
+    path = tmp_path / "bad.inp"
+    path.write_text(TWO_TETS_INP.replace("105, 1.0", f"{2**70}, 1.0"))
+    with pytest.raises(InvalidModelError, match="line 9: label .* is out of range"):
+        read_mesh(path)
+    # The checks keep valid ranges: every other node.
+    path.write_text(TWO_TETS_INP + "*NSET, NSET=Odd, GENERATE\n101, 105, 2\n")
+    np.testing.assert_array_equal(read_mesh(path).node_sets["Odd"], [0, 2, 4])
+
+
+def test_abaqus_include_is_relative_to_the_including_file_only(tmp_path, monkeypatch):
+    nodes_and_elements = TWO_TETS_INP.replace("*NODE, NSET=AllNodes", "*NODE")
+    (tmp_path / "model" / "parts").mkdir(parents=True)
+    (tmp_path / "model" / "parts" / "mesh.inp").write_text(nodes_and_elements)
+    # A nested include reaching back up, but inside the input's folder.
+    (tmp_path / "model" / "parts" / "sets.inp").write_text(
+        "*INCLUDE, INPUT=../common.inp\n*NSET, NSET=Tip\n104, 105\n"
+    )
+    (tmp_path / "model" / "common.inp").write_text("*NSET, NSET=Origin\n101\n")
+    main = tmp_path / "model" / "main.inp"
+    main.write_text(
+        '*INCLUDE, INPUT="parts/mesh.inp"\n*INCLUDE, INPUT=parts/sets.inp\n'
+        "*NSET, NSET=Both\nTip, Origin\n"
+    )
+    # A decoy of the same relative name in the working folder must not be read.
+    decoy = tmp_path / "work"
+    (decoy / "parts").mkdir(parents=True)
+    (decoy / "parts" / "mesh.inp").write_text("*NODE\n1, 9.0, 9.0, 9.0\n")
+    monkeypatch.chdir(decoy)
+    mesh = read_mesh(main)
+    np.testing.assert_array_equal(mesh.nodes, TWO_TETS_NODES)
+    np.testing.assert_array_equal(mesh.elements["tet4"], TWO_TETS)
+    np.testing.assert_array_equal(mesh.node_sets["Tip"], [3, 4])
+    np.testing.assert_array_equal(mesh.node_sets["Both"], [0, 3, 4])
+
+
+@pytest.mark.parametrize(
+    "target, match",
+    [
+        ("ABSOLUTE", "absolute path .* is refused"),
+        ("../outside.inp", "leaves the folder of the input file"),
+        ("link/outside.inp", "leaves the folder of the input file"),
+        ("missing.inp", "'missing.inp' not found"),
+        ("main.inp", "cycle"),
+        ("other.inp", "cycle .*main.inp -> .*other.inp -> .*main.inp"),
+    ],
+    ids=["absolute", "parent folder", "symbolic link", "missing", "itself", "loop"],
+)
+def test_abaqus_includes_outside_the_input_folder_and_cycles_are_refused(tmp_path, target, match):
+    outside = tmp_path / "outside.inp"
+    outside.write_text(TWO_TETS_INP)
+    folder = tmp_path / "model"
+    folder.mkdir()
+    (folder / "link").symlink_to(tmp_path, target_is_directory=True)
+    (folder / "other.inp").write_text("*INCLUDE, INPUT=main.inp\n")
+    main = folder / "main.inp"
+    target = str(outside) if target == "ABSOLUTE" else target
+    main.write_text(f"*INCLUDE, INPUT={target}\n")
+    with pytest.raises(InvalidModelError, match=match) as info:
+        read_mesh(main)
+    assert "line 1" in str(info.value)
+
+
 def test_unknown_suffix_and_missing_file(tmp_path):
     path = tmp_path / "mesh.stl"
     path.write_text("solid\nendsolid\n")

@@ -407,3 +407,82 @@ def test_block_davidson_with_an_approximate_inverse_finds_the_exact_eigenpairs(b
     z = sla.solve(k.toarray(), k @ vectors - (m @ vectors) * values)
     assert np.sqrt(np.einsum("ij,ij->j", z, m @ z)).max() < 3e-8
     assert np.allclose(vectors.T @ (m @ vectors), np.eye(6), atol=1e-12)
+
+
+def two_blocks(shared_corner: bool = False):
+    """Two tet4 blocks 1 x 0.2 x 0.2 m side by side along x: 0.5 m apart (disconnected), or
+    (``shared_corner``) joined at a single node, the far corner of the first block, which is a
+    hinge: three extra rigid motions (rotations of one block about that node)."""
+    block = shapes.box((1.0, 0.2, 0.2), (3, 1, 1), "tet4")
+    count = len(block.nodes)
+    if not shared_corner:
+        nodes = np.vstack([block.nodes, block.nodes + [1.5, 0.0, 0.0]])
+        return nodes, np.vstack([block.elements["tet4"], block.elements["tet4"] + count])
+    corner = int(np.argmax(block.nodes.sum(axis=1)))
+    second = np.empty(count, dtype=np.int64)
+    second[0], second[1:] = corner, count + np.arange(count - 1)
+    nodes = np.vstack([block.nodes, (block.nodes + block.nodes[corner])[1:]])
+    return nodes, np.vstack([block.elements["tet4"], second[block.elements["tet4"]]])
+
+
+@pytest.mark.parametrize("count", [4, 8])
+def test_disconnected_parts_are_refused_with_their_description(count):
+    # Issue 28: two disconnected blocks gave free-free frequencies [0, 0, 0, 0] (the second
+    # block's rigid motions taken as elastic modes) with 4 modes and "the body is not free"
+    # with 8; the parts are now named before any eigenproblem.
+    nodes, tets = two_blocks()
+    half = len(nodes) // 2
+    with pytest.raises(InvalidModelError, match="2 disconnected parts") as info:
+        pp.build_body(
+            nodes, {"tet4": tets}, STEEL, reference="mean-axis", modes="free-free", mode_count=count
+        )
+    message = str(info.value)
+    assert f"part 1: {half} nodes, {len(tets) // 2} elements, node 1" in message
+    assert f"part 2: {half} nodes, {len(tets) // 2} elements, node {half + 1}" in message
+    assert "none of them is clamped" in message
+
+
+def test_a_body_clamped_in_one_part_only_is_refused_and_clamped_in_each_is_accepted():
+    nodes, tets = two_blocks()
+    half = len(nodes) // 2
+    first_face = np.flatnonzero(np.isclose(nodes[:, 0], 0.0))
+    second_face = np.flatnonzero(np.isclose(nodes[:, 0], 1.5))
+    for modes in (None, "fixed-interface"):
+        with pytest.raises(InvalidModelError, match="part 2 is not clamped") as info:
+            pp.build_body(
+                nodes,
+                {"tet4": tets},
+                STEEL,
+                reference="clamped",
+                reference_nodes=first_face,
+                modes=modes,
+                mode_count=4,
+            )
+        assert info.value.item == f"node {half + 1}"
+    # Each block clamped at its x = 0 face: two cantilevers on one frame, the same modes.
+    both = pp.build_body(
+        nodes,
+        {"tet4": tets},
+        STEEL,
+        reference="clamped",
+        reference_nodes=np.concatenate([first_face, second_face]),
+        modes="fixed-interface",
+        mode_count=4,
+    )
+    assert np.allclose(both.frequencies[0::2], both.frequencies[1::2], rtol=1e-8)
+
+
+def test_free_free_modes_of_a_mechanism_are_refused():
+    # Two blocks joined at one node are connected, but can turn about that node: a seventh
+    # zero eigenvalue, which free-free modes would take as an elastic mode.
+    nodes, tets = two_blocks(shared_corner=True)
+    with pytest.raises(InvalidModelError, match="more than 6 rigid-body motions"):
+        pp.build_body(
+            nodes, {"tet4": tets}, STEEL, reference="mean-axis", modes="free-free", mode_count=4
+        )
+    # One block of both lengths (connected along faces) has six.
+    bar = shapes.box((2.0, 0.2, 0.2), (6, 1, 1), "tet4")
+    body = pp.build_body(
+        bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free", mode_count=4
+    )
+    assert body.frequencies[0] > 10.0

@@ -16,9 +16,12 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from .errors import InvalidModelError, InvalidParameterError, UnknownItemError
-from .fe.body import FlexibleBodyData
+from .errors import InvalidModelError, InvalidParameterError, ModelError, UnknownItemError
+from .fe.body import FlexibleBodyData, check_body
 from .fe.interface import COUPLINGS, Interface, body_interface
+
+#: The units of the numbers of a deformable body that `System.add_flexible_body` takes.
+SI_UNITS = {"length": "m", "mass": "kg", "time": "s"}
 
 
 def _csc_tuple(
@@ -219,6 +222,12 @@ class System(_core.System):
         solves of the integrator eliminate the elastic coordinates through the constant
         factorized matrix beta' M_ff + gamma' D_ff + K_ff (see ``docs/solvers.md``): one
         sparse Cholesky factorization for the whole run instead of refactorizing the body.
+
+        Raises `InvalidModelError` for body data without invariants of motion, not in SI
+        units (``body.units`` must be m, kg, s) or with fields that do not fit each other, and
+        `InvalidParameterError` for non-finite values, a non-positive mass or a second moment
+        of mass that is not positive semi-definite (see :func:`flexmbd.fe.body.check_body`);
+        the message names the body and the field.
         """
         item = f"body '{name}'" if name else "flexible body"
         if not isinstance(body, FlexibleBodyData):
@@ -234,6 +243,19 @@ class System(_core.System):
                 "or load a body file written by it)",
                 item=item,
             )
+        # The core computes in SI units and takes the body's numbers as they are.
+        units = {key: body.units.get(key) for key in SI_UNITS}
+        if units != SI_UNITS:
+            raise InvalidModelError(
+                f"{item}: the body data is in units {units}, not SI {SI_UNITS}: rebuild it from "
+                "a mesh in metres with a material in SI units",
+                item=item,
+            )
+        # Shapes, finiteness and the physics of the invariants, before the core sees them.
+        try:
+            check_body(body)
+        except ModelError as error:
+            raise type(error)(f"{item}: {error}", item=error.item) from None
         from .fe.body_variants import rayleigh_coefficients
 
         n = body.elastic_coordinate_count

@@ -7,6 +7,8 @@ depends on the change (see :mod:`flexmbd.fe.body_variants`)."""
 from __future__ import annotations
 
 import copy
+import math
+import numbers
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -15,7 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from ..errors import FrozenBodyError, InvalidModelError
+from ..errors import FrozenBodyError, InvalidModelError, InvalidParameterError
 
 if TYPE_CHECKING:
     from .preprocess import Material
@@ -222,6 +224,7 @@ class FlexibleBodyData:
     def __post_init__(self) -> None:
         for item in fields(self):
             object.__setattr__(self, item.name, _freeze(getattr(self, item.name), item.name))
+        _check_node_array(self.nodes)
         _check_reduced_matrices(self)
 
     def __reduce__(self) -> tuple[Any, ...]:
@@ -424,13 +427,15 @@ def _check_reduced_matrices(body: FlexibleBodyData) -> None:
             continue
         probe = np.cos(1.2345 * np.arange(count) + 0.5)
         displacement = np.zeros(n_dofs)
-        displacement[free] = probe if body.modes is None else body.modes @ probe
-        expected = np.asarray(nodal @ displacement).ravel()[free]
-        if body.modes is not None:
-            expected = body.modes.T @ expected
-        actual = np.asarray(reduced @ probe).ravel()
-        size = max(float(np.linalg.norm(expected)), float(np.linalg.norm(actual)))
-        deviation = float(np.linalg.norm(actual - expected))
+        # Huge or non-finite entries make the deviation non-finite: refused below, silently.
+        with np.errstate(over="ignore", invalid="ignore"):
+            displacement[free] = probe if body.modes is None else body.modes @ probe
+            expected = np.asarray(nodal @ displacement).ravel()[free]
+            if body.modes is not None:
+                expected = body.modes.T @ expected
+            actual = np.asarray(reduced @ probe).ravel()
+            size = max(float(np.linalg.norm(expected)), float(np.linalg.norm(actual)))
+            deviation = float(np.linalg.norm(actual - expected))
         if not deviation <= _CONSISTENCY_TOLERANCE * size:
             raise InvalidModelError(
                 f"{item} does not equal the nodal {field_name} reduced to the elastic "
@@ -438,3 +443,227 @@ def _check_reduced_matrices(body: FlexibleBodyData) -> None:
                 f"the body changed with dataclasses.replace? {_HOW_TO_CHANGE}",
                 item=item,
             )
+
+
+# Checks of the fields ---------------------------------------------------------------------------
+
+#: Relative tolerance of the checks that invariants["second_moment"] is symmetric and positive
+#: semi-definite (times its trace).
+SECOND_MOMENT_TOLERANCE = 1e-9
+
+
+def _field(path: str) -> str:
+    return f"field {path!r}"
+
+
+def _bad_shape(path: str, detail: str) -> InvalidModelError:
+    return InvalidModelError(f"{_field(path)} {detail}", item=_field(path))
+
+
+def _all_finite(values: Any) -> bool:
+    """Whether every entry of a numeric array is finite (a sum first: no temporary array
+    unless the sum overflows or is not finite)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(np.sum(values)):
+            return True
+    return bool(np.isfinite(values).all())
+
+
+def _numeric_array(value: Any, path: str, kinds: str = "fiu") -> np.ndarray:
+    """`value` as a NumPy array of one of the dtype `kinds`, else `InvalidModelError`."""
+    if not isinstance(value, np.ndarray | list | tuple):
+        raise _bad_shape(path, f"must be an array, got {type(value).__name__}")
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError) as error:
+        raise _bad_shape(path, f"is not an array ({error})") from None
+    if array.dtype.kind not in kinds:
+        wanted = "an integer" if kinds == "iu" else "a numeric"
+        raise _bad_shape(path, f"must be {wanted} array, got dtype {array.dtype}")
+    return array
+
+
+def _index_array(value: Any, path: str, bound: int, what: str) -> np.ndarray:
+    """A 1-D integer array of indices in 0 .. `bound` - 1."""
+    array = _numeric_array(value, path, "iu")
+    if array.ndim != 1:
+        raise _bad_shape(path, f"must be a 1-D array of {what} indices, got shape {array.shape}")
+    if array.size and (array.min() < 0 or array.max() >= bound):
+        wrong = array[(array < 0) | (array >= bound)][0]
+        raise _bad_shape(path, f"holds {what} index {wrong}, outside 0 .. {bound - 1}")
+    return array
+
+
+def _check_matrix(value: Any, path: str, size: int) -> None:
+    """A dense or sparse (size, size) matrix of finite numbers."""
+    if sp.issparse(value):
+        shape, data = value.shape, value.data
+        if data.dtype.kind not in "fiu":
+            raise _bad_shape(path, f"must hold numbers, got dtype {data.dtype}")
+    else:
+        data = _numeric_array(value, path)
+        shape = data.shape
+    if shape != (size, size):
+        raise _bad_shape(path, f"has shape {shape}, expected ({size}, {size})")
+    if not _all_finite(data):
+        raise InvalidParameterError(f"{_field(path)} has non-finite entries", item=_field(path))
+
+
+def _check_dense(value: Any, path: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A dense array of `shape` with finite numbers."""
+    array = _numeric_array(value, path)
+    if array.shape != shape:
+        raise _bad_shape(path, f"has shape {array.shape}, expected {shape}")
+    if not _all_finite(array):
+        raise InvalidParameterError(f"{_field(path)} has non-finite entries", item=_field(path))
+    return array
+
+
+def _check_node_array(nodes: Any) -> None:
+    """Node positions must be an (n, 3) array (the construction's cheap check; `check_body`
+    also checks that they are finite)."""
+    if nodes is None:
+        return
+    array = _numeric_array(nodes, "nodes")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise _bad_shape("nodes", f"must be an (n, 3) array of positions, got shape {array.shape}")
+
+
+def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
+    """Checks the fields of a deformable body (a :class:`FlexibleBodyData` or a mapping of its
+    fields) against each other before they reach the core or a file: node positions (n, 3)
+    and finite; ``dofs_per_node`` 3 or 6; node ids, elements, node sets and reference
+    conditions that index existing nodes and coordinates; nodal stiffness and mass (n_dofs,
+    n_dofs) (or None); modes (n_free_dofs, m) and frequencies finite; and the invariants of
+    motion that are present, in the elastic coordinates n_f: "mass" a finite number > 0,
+    "first_moment" (3,), "second_moment" J0 = int rho u0 u0^T dV (3, 3), symmetric positive
+    semi-definite with a positive trace, "i1" (3, n_f), "ibar" (3, 3, n_f), "i_kl" 3 x 3
+    matrices (n_f, n_f), "k_ff" and "m_ff" (n_f, n_f), all finite.
+
+    Raises `InvalidModelError` for a field of the wrong type or shape, `InvalidParameterError`
+    for non-finite values, a non-positive mass or a second moment that is not positive
+    semi-definite; the item and the message name the field (``field 'nodes'``, ``field
+    'invariants["second_moment"]'``)."""
+    values = (
+        body
+        if isinstance(body, Mapping)
+        else {item.name: getattr(body, item.name) for item in fields(body)}
+    )
+    nodes = _numeric_array(values.get("nodes"), "nodes")
+    if nodes.ndim != 2 or nodes.shape[1] != 3:
+        raise _bad_shape("nodes", f"must be an (n, 3) array of positions, got shape {nodes.shape}")
+    count = len(nodes)
+    node_ids = _numeric_array(values.get("node_ids"), "node_ids", "iu")
+    if node_ids.shape != (count,):
+        raise _bad_shape("node_ids", f"has shape {node_ids.shape}, expected ({count},)")
+    bad = np.flatnonzero(~np.isfinite(nodes).all(axis=1)) if not _all_finite(nodes) else []
+    if len(bad):
+        raise InvalidParameterError(
+            f"{_field('nodes')}: node {node_ids[bad[0]]} has non-finite coordinates "
+            f"{nodes[bad[0]].tolist()}",
+            item=_field("nodes"),
+        )
+    dofs_per_node = values.get("dofs_per_node")
+    if isinstance(dofs_per_node, bool) or dofs_per_node not in (3, 6):
+        raise _bad_shape("dofs_per_node", f"must be 3 or 6, got {dofs_per_node!r}")
+    n_dofs = count * int(dofs_per_node)
+
+    for name in ("elements", "element_ids", "node_sets", "reference", "invariants"):
+        if not isinstance(values.get(name), Mapping):
+            raise _bad_shape(name, f"must be a dict, got {type(values.get(name)).__name__}")
+    for kind, connectivity in values["elements"].items():
+        path = f'elements["{kind}"]'
+        if kind not in ELEMENT_NODES:
+            raise _bad_shape(path, f"has an unknown element type (known: {list(ELEMENT_NODES)})")
+        array = _numeric_array(connectivity, path, "iu")
+        if array.ndim != 2 or array.shape[1] != ELEMENT_NODES[kind]:
+            raise _bad_shape(path, f"has shape {array.shape}, expected (n, {ELEMENT_NODES[kind]})")
+        _index_array(array.ravel(), path, count, "node")
+        ids = values["element_ids"].get(kind)
+        if ids is not None and np.shape(ids) != (len(array),):
+            raise _bad_shape(
+                f'element_ids["{kind}"]', f"has shape {np.shape(ids)}, expected ({len(array)},)"
+            )
+    for name, indices in values["node_sets"].items():
+        _index_array(indices, f'node_sets["{name}"]', count, "node")
+
+    for name in ("stiffness", "mass"):
+        if values.get(name) is not None:
+            _check_matrix(values[name], name, n_dofs)
+    reference = values["reference"]
+    if "free_dofs" not in reference:
+        raise _bad_shape("reference", "has no entry 'free_dofs'")
+    free = _index_array(reference["free_dofs"], 'reference["free_dofs"]', n_dofs, "coordinate")
+    if len(np.unique(free)) != len(free):
+        raise _bad_shape('reference["free_dofs"]', "repeats a coordinate")
+    if reference.get("nodes") is not None:
+        _index_array(reference["nodes"], 'reference["nodes"]', count, "node")
+    modes = values.get("modes")
+    elastic = len(free)
+    if modes is not None:
+        array = _numeric_array(modes, "modes")
+        if array.ndim != 2 or array.shape[0] != len(free):
+            raise _bad_shape(
+                "modes",
+                f"has shape {array.shape}, expected ({len(free)}, m): one row per kept coordinate",
+            )
+        if not _all_finite(array):
+            raise InvalidParameterError(
+                f"{_field('modes')} has non-finite entries", item=_field("modes")
+            )
+        elastic = array.shape[1]
+    if values.get("frequencies") is not None:
+        array = _numeric_array(values["frequencies"], "frequencies")
+        if array.ndim != 1 or not _all_finite(array):
+            raise InvalidParameterError(
+                f"{_field('frequencies')} must be a 1-D array of finite numbers",
+                item=_field("frequencies"),
+            )
+    _check_invariants(values["invariants"], elastic)
+
+
+def _check_invariants(invariants: Mapping[str, Any], n_f: int) -> None:
+    """The invariants of motion that are present, for `n_f` elastic coordinates."""
+    if invariants.get("mass") is not None:
+        mass = invariants["mass"]
+        path = 'invariants["mass"]'
+        if isinstance(mass, bool) or not isinstance(mass, numbers.Real):
+            raise _bad_shape(path, f"must be a number, got {type(mass).__name__}")
+        if not (math.isfinite(mass) and mass > 0):
+            raise InvalidParameterError(
+                f"{_field(path)}: the mass must be finite and > 0, got {mass}", item=_field(path)
+            )
+    if invariants.get("first_moment") is not None:
+        _check_dense(invariants["first_moment"], 'invariants["first_moment"]', (3,))
+    if invariants.get("second_moment") is not None:
+        path = 'invariants["second_moment"]'
+        j0 = _check_dense(invariants["second_moment"], path, (3, 3)).astype(float)
+        trace = float(np.trace(j0))
+        tolerance = SECOND_MOMENT_TOLERANCE * abs(trace)
+        asymmetry = float(np.abs(j0 - j0.T).max())
+        eigenvalues = np.linalg.eigvalsh(0.5 * (j0 + j0.T))
+        if not trace > 0 or asymmetry > tolerance or eigenvalues[0] < -tolerance:
+            raise InvalidParameterError(
+                f"{_field(path)}: the second moment of mass J0 = int rho u0 u0^T dV must be "
+                f"symmetric positive semi-definite with a positive trace, got trace {trace:.6g}, "
+                f"asymmetry {asymmetry:.3g}, eigenvalues {eigenvalues.tolist()}",
+                item=_field(path),
+            )
+    for key, shape in (("i1", (3, n_f)), ("ibar", (3, 3, n_f))):
+        if invariants.get(key) is not None:
+            _check_dense(invariants[key], f"invariants[{key!r}]".replace("'", '"'), shape)
+    if invariants.get("i_kl") is not None:
+        i_kl = invariants["i_kl"]
+        rows = list(i_kl) if isinstance(i_kl, list | tuple) else None
+        if (
+            rows is None
+            or len(rows) != 3
+            or any(not isinstance(row, list | tuple) or len(row) != 3 for row in rows)
+        ):
+            raise _bad_shape('invariants["i_kl"]', "must be 3 lists of 3 matrices")
+        for k in range(3):
+            for j in range(3):
+                _check_matrix(rows[k][j], f'invariants["i_kl"][{k}][{j}]', n_f)
+    for key in ("k_ff", "m_ff"):
+        if invariants.get(key) is not None:
+            _check_matrix(invariants[key], f'invariants["{key}"]', n_f)

@@ -44,7 +44,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import mmap
 import os
+import struct
 import threading
 from pathlib import Path
 from typing import Any
@@ -54,8 +56,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._core import __version__
-from ..errors import InvalidModelError, InvalidParameterError
-from .body import BODY_DATA_VERSION, FlexibleBodyData
+from ..errors import FlexmbdError, InvalidModelError, InvalidParameterError, ModelError
+from .body import BODY_DATA_VERSION, FlexibleBodyData, check_body
 
 #: Value of the root attribute ``format`` of a body file.
 BODY_FILE_FORMAT = "flexmbd-body"
@@ -69,6 +71,10 @@ _ATTRIBUTE_FIELDS = ("units", "version")
 _LATER_FIELDS = ("damping",)
 _TYPE = "type"
 _NUMERIC_KINDS = "biufc"
+# A dataset may declare more bytes than the file stores (compression) by at most this factor
+# (deflate's limit is about 1032) plus _UNCHECKED_BYTES: a larger one is damaged.
+_MAX_COMPRESSION = 2048
+_UNCHECKED_BYTES = 1 << 20
 
 
 def save_body(
@@ -122,21 +128,82 @@ def save_body(
 def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
     """Read a body file written by :func:`save_body`.
 
+    The body read is checked (:func:`flexmbd.fe.body.check_body`): shapes that fit each other,
+    finite nodes, modes and invariants, a positive mass and a positive semi-definite second
+    moment of mass. The file is opened without SWMR, so that a truncated file fails at once;
+    its global heaps (variable-length strings) and the datatypes of its string attributes are
+    checked before HDF5 reads them, as HDF5 loops or crashes on damaged ones.
+
     Raises:
         FileNotFoundError: ``path`` does not exist.
         InvalidModelError: ``path`` is not a flexmbd body file (not HDF5, or the ``format``
             attribute is missing or different), was written by a newer flexmbd (version
-            greater than :data:`BODY_DATA_VERSION`), or is damaged (a field is missing or has
-            an unknown ``type``); the message names the file and the field.
+            greater than :data:`BODY_DATA_VERSION`), is damaged (truncated, a field missing,
+            of an unknown ``type``, of the wrong dtype or shape, unreadable) or holds values
+            that do not make a body (NaN nodes or modes, a non-positive mass, ...); the
+            message names the file and the field.
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(2, "No such body file", str(path))
     item = f"file '{path}'"
-    if not h5py.is_hdf5(path):
+    try:
+        is_hdf5 = path.is_file() and h5py.is_hdf5(path)
+    except OSError as error:
+        raise InvalidModelError(f"{path}: cannot read the body file ({error})", item=item) from None
+    if not is_hdf5:
         raise InvalidModelError(f"{path} is not a flexmbd body file (not an HDF5 file)", item=item)
-    with h5py.File(path, "r") as file:
+    _check_global_heaps(path)
+    try:
+        file = h5py.File(path, "r")
+    except OSError as error:
+        raise InvalidModelError(
+            f"{path}: cannot open the body file, it is truncated or damaged ({error})", item=item
+        ) from None
+    with file:
         return read_body_group(file, path)
+
+
+def _check_global_heaps(path: Path) -> None:
+    """Raises `InvalidModelError` when a global heap collection of the HDF5 file `path` (where
+    HDF5 keeps variable-length strings: the ``type`` attributes, string fields) has a size or
+    an object size beyond its bounds. HDF5 itself does not check them: reading such a string
+    loops for ever or crashes. Collections are found by their signature; files with another
+    size of lengths than 8 bytes (not written by h5py's defaults) are not checked."""
+    item = f"file '{path}'"
+    with open(path, "rb") as file, mmap.mmap(file.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        version = data[8] if len(data) > 16 else -1
+        lengths = data[14] if version in (0, 1) else data[10] if version in (2, 3) else 0
+        if data[:8] != b"\x89HDF\r\n\x1a\n" or lengths != 8:
+            return
+        start = data.find(b"GCOL\x01\x00\x00\x00")
+        while start >= 0:
+            (size,) = struct.unpack_from("<Q", data, start + 8)
+            end = start + size
+            if size < 16 or size % 8 or end > len(data):
+                raise InvalidModelError(
+                    f"{path}: a global heap collection at byte {start} is damaged (size {size} "
+                    f"in a file of {len(data)} bytes)",
+                    item=item,
+                )
+            # Objects (16-byte header, data padded to 8 bytes) up to the free space (index 0)
+            # that ends exactly at the end of the collection, or a tail shorter than a header.
+            position = start + 16
+            while position + 16 <= end:
+                index, _, _, object_size = struct.unpack_from("<HHIQ", data, position)
+                if index == 0:
+                    intact = position + object_size == end
+                    break
+                position += 16 + (object_size + 7) // 8 * 8
+            else:
+                intact = 0 <= end - position < 16
+            if not intact:
+                raise InvalidModelError(
+                    f"{path}: the objects of the global heap collection at byte {start} do not "
+                    "fit it (damaged sizes)",
+                    item=item,
+                )
+            start = data.find(b"GCOL\x01\x00\x00\x00", end)
 
 
 def write_body_group(
@@ -163,7 +230,20 @@ def _write_body(
 
 def read_body_group(file: h5py.Group, path: Path) -> FlexibleBodyData:
     """Read a body from an open HDF5 group written like a body file (``path`` names the file
-    in error messages)."""
+    in error messages) and check it (see :func:`load_body`)."""
+    item = f"file '{path}'"
+    try:
+        return _read_body_group(file, path)
+    except InvalidModelError:
+        raise
+    except (FlexmbdError, OSError, KeyError, RuntimeError, ValueError, TypeError) as error:
+        # What the field readers do not catch: HDF5 errors on the root group itself, ...
+        raise InvalidModelError(
+            f"{path}: the body file is damaged ({type(error).__name__}: {error})", item=item
+        ) from None
+
+
+def _read_body_group(file: h5py.Group, path: Path) -> FlexibleBodyData:
     item = f"file '{path}'"
     version = _check_header(file, path)
     reader = _Reader(path)
@@ -183,8 +263,17 @@ def read_body_group(file: h5py.Group, path: Path) -> FlexibleBodyData:
             if field.name in _LATER_FIELDS:
                 continue  # written by an earlier flexmbd: the field's default
             raise InvalidModelError(f"{path}: the body file has no field '{field.name}'", item=item)
-        values[field.name] = reader.read(file[field.name], field.name)
-    return FlexibleBodyData(**values)
+        values[field.name] = reader.read_member(file, field.name, field.name)
+    # The values are checked before they become a body (whose construction computes with them).
+    try:
+        check_body(values)
+        return FlexibleBodyData(**values)
+    except ModelError as error:
+        raise InvalidModelError(f"{path}: {error}", item=item) from None
+    except (ValueError, TypeError, IndexError, ArithmeticError) as error:
+        raise InvalidModelError(
+            f"{path}: the fields do not make a body ({type(error).__name__}: {error})", item=item
+        ) from None
 
 
 def _check_units(units: Any) -> dict[str, str]:
@@ -200,11 +289,11 @@ def _check_units(units: Any) -> dict[str, str]:
 def _check_header(file: h5py.File, path: Path) -> int:
     """Check the ``format`` and ``version`` root attributes; return the version."""
     item = f"file '{path}'"
-    if "format" not in file.attrs:
+    if _attribute(file, "format", path) is None:
         raise InvalidModelError(
             f"{path} is not a flexmbd body file (no 'format' attribute)", item=item
         )
-    found = file.attrs["format"]
+    found = _attribute(file, "format", path)
     if isinstance(found, bytes):
         found = found.decode("utf-8", "replace")
     if found != BODY_FILE_FORMAT:
@@ -212,7 +301,7 @@ def _check_header(file: h5py.File, path: Path) -> int:
             f"{path} is not a flexmbd body file (format {found!r}, expected {BODY_FILE_FORMAT!r})",
             item=item,
         )
-    version = file.attrs.get("version")
+    version = _attribute(file, "version", path)
     if (
         version is None
         or np.ndim(version) != 0
@@ -231,8 +320,37 @@ def _check_header(file: h5py.File, path: Path) -> int:
     return version
 
 
+def _attribute(node: h5py.HLObject, name: str, path: Path, where: str = "") -> Any:
+    """Attribute `name` of `node` (None when missing), read only after a check that it is a
+    scalar number or string: HDF5 crashes (segmentation fault) reading a variable-length
+    string attribute whose datatype is damaged."""
+    place = f"field '{where}'" if where else "the root group"
+    try:
+        if name not in node.attrs:
+            return None
+        attribute = h5py.h5a.open(node.id, name.encode())
+        dtype, shape = attribute.dtype, attribute.shape
+    except (OSError, KeyError, RuntimeError, ValueError, TypeError) as error:
+        raise InvalidModelError(
+            f"{path}: attribute '{name}' of {place} cannot be read ({error})",
+            item=f"file '{path}'",
+        ) from None
+    if shape != () or (dtype.kind not in "biuf" and h5py.check_string_dtype(dtype) is None):
+        raise InvalidModelError(
+            f"{path}: attribute '{name}' of {place} is damaged (dtype {dtype}, shape {shape})",
+            item=f"file '{path}'",
+        )
+    try:
+        return node.attrs[name]
+    except (OSError, KeyError, RuntimeError, ValueError, TypeError) as error:
+        raise InvalidModelError(
+            f"{path}: attribute '{name}' of {place} cannot be read ({error})",
+            item=f"file '{path}'",
+        ) from None
+
+
 def _read_string_attribute(file: h5py.File, name: str, path: Path) -> str:
-    value = file.attrs.get(name)
+    value = _attribute(file, name, path)
     if isinstance(value, bytes):
         value = value.decode("utf-8")
     if not isinstance(value, str):
@@ -353,7 +471,10 @@ class _Writer:
 
 
 class _Reader:
-    """Reads a member written by :class:`_Writer`."""
+    """Reads a member written by :class:`_Writer`; anything unexpected (a missing member, an
+    HDF5 read error, a dtype or shape that does not fit the ``type``, sparse indices out of
+    range, a size the file cannot hold) is an `InvalidModelError` naming the file and the
+    member."""
 
     def __init__(self, path: Path):
         self.path = path
@@ -363,19 +484,53 @@ class _Reader:
             f"{self.path}: field '{where}' {detail}", item=f"file '{self.path}'"
         )
 
-    def read(self, node: h5py.Group | h5py.Dataset, where: str) -> Any:
-        kind = node.attrs.get(_TYPE)
+    def read_member(self, group: h5py.Group, name: str, where: str, raw: str = "") -> Any:
+        """The value of member `name` of `group`; with `raw` (dtype kinds), the data of a
+        dataset without a ``type`` (the arrays of a sparse matrix)."""
+        try:
+            node = group[name]
+        except (KeyError, OSError, RuntimeError, ValueError, TypeError) as error:
+            raise self._damaged(where, f"cannot be opened ({error})") from None
+        if raw and not isinstance(node, h5py.Dataset):
+            raise self._damaged(where, "should be a dataset, got a group")
+        return self.read(node, where, raw)
+
+    def read(self, node: h5py.Group | h5py.Dataset, where: str, raw: str = "") -> Any:
+        try:
+            if raw:
+                return self._read_array(node, where, raw, "numbers")
+            return self._read(node, where)
+        except InvalidModelError:
+            raise
+        except (
+            OSError,
+            KeyError,
+            RuntimeError,
+            ValueError,
+            TypeError,
+            IndexError,
+            ArithmeticError,
+            MemoryError,
+        ) as error:
+            raise self._damaged(
+                where, f"cannot be read ({type(error).__name__}: {error})"
+            ) from None
+
+    def _read(self, node: h5py.Group | h5py.Dataset, where: str) -> Any:
+        kind = _attribute(node, _TYPE, self.path, where)
         if isinstance(kind, bytes):
             kind = kind.decode("utf-8")
         if kind in ("dict", "list", "tuple", "sparse") and not isinstance(node, h5py.Group):
             raise self._damaged(where, f"has type {kind!r} but is not a group")
         if kind == "dict":
             return {
-                _decode_name(name): self.read(node[name], f"{where}/{_decode_name(name)}")
+                _decode_name(name): self.read_member(node, name, f"{where}/{_decode_name(name)}")
                 for name in node
             }
         if kind in ("list", "tuple"):
-            items = [self.read(node[str(index)], f"{where}/{index}") for index in range(len(node))]
+            items = [
+                self.read_member(node, str(index), f"{where}/{index}") for index in range(len(node))
+            ]
             return items if kind == "list" else tuple(items)
         if kind == "sparse":
             return self._read_sparse(node, where)
@@ -386,34 +541,91 @@ class _Reader:
         if node.shape is None:
             raise self._damaged(where, "is empty but not marked as None")
         if kind == "ndarray":
-            return node[...]
-        if kind == "scalar":
-            return node[()]
-        if kind == "float":
-            return float(node[()])
-        if kind == "int":
-            return int(node[()])
-        if kind == "bool":
-            return bool(node[()])
+            return self._read_array(node, where, _NUMERIC_KINDS, "numbers")
         if kind == "str":
+            if node.shape != () or h5py.check_string_dtype(node.dtype) is None:
+                raise self._damaged(
+                    where, f"should be a string, got dtype {node.dtype} of shape {node.shape}"
+                )
             return node.asstr()[()]
-        raise self._damaged(where, f"has an unknown type {kind!r}")
+        kinds, what = {
+            "scalar": (_NUMERIC_KINDS, "a number"),
+            "float": ("fiu", "a number"),
+            "int": ("iu", "an integer"),
+            "bool": ("b", "a bool"),
+        }.get(kind, (None, ""))
+        if kinds is None:
+            raise self._damaged(where, f"has an unknown type {kind!r}")
+        if node.shape != ():
+            raise self._damaged(where, f"should hold {what}, got shape {node.shape}")
+        value = self._read_array(node, where, kinds, what)[()]
+        if kind == "scalar":
+            return value
+        return {"float": float, "int": int, "bool": bool}[kind](value)
+
+    def _read_array(self, dataset: h5py.Dataset, where: str, kinds: str, what: str) -> Any:
+        """The data of `dataset`, of one of the dtype `kinds`, after a check that the size it
+        declares is stored in the file (a damaged shape would otherwise allocate it)."""
+        if dataset.dtype.kind not in kinds:
+            raise self._damaged(where, f"should hold {what}, got dtype {dataset.dtype}")
+        declared = dataset.size * dataset.dtype.itemsize
+        if declared > _UNCHECKED_BYTES:
+            stored = dataset.id.get_storage_size()
+            if declared > _MAX_COMPRESSION * stored + _UNCHECKED_BYTES:
+                raise self._damaged(
+                    where,
+                    f"declares shape {dataset.shape} ({declared} bytes) but the file stores "
+                    f"{stored} bytes of it",
+                )
+        return dataset[...]
 
     def _read_sparse(self, group: h5py.Group, where: str) -> Any:
-        fmt = group.attrs.get("format")
-        container = group.attrs.get("container")
+        fmt = _attribute(group, "format", self.path, where)
+        container = _attribute(group, "container", self.path, where)
+        matrix_class = {
+            "matrix": {"csr": sp.csr_matrix, "coo": sp.coo_matrix, "csc": sp.csc_matrix},
+            "array": {"csr": sp.csr_array, "coo": sp.coo_array, "csc": sp.csc_array},
+        }.get(container if isinstance(container, str) else "")
+        if matrix_class is None:
+            raise self._damaged(where, f"has an unknown sparse container {container!r}")
+        if not isinstance(fmt, str):
+            raise self._damaged(where, f"has an unknown sparse format {fmt!r}")
         names = ("row", "col", "data") if fmt == "coo" else ("data", "indices", "indptr")
         for name in (*names, "shape"):
             if name not in group:
                 raise self._damaged(where, f"is a sparse matrix without '{name}'")
-        shape = tuple(int(size) for size in group["shape"][...])
-        arrays = [group[name][...] for name in names]
-        matrix_class = {
-            "matrix": {"csr": sp.csr_matrix, "coo": sp.coo_matrix, "csc": sp.csc_matrix},
-            "array": {"csr": sp.csr_array, "coo": sp.coo_array, "csc": sp.csc_array},
-        }.get(container)
-        if matrix_class is None or not isinstance(fmt, str):
-            raise self._damaged(where, f"has an unknown sparse container {container!r}")
+        shape = self.read_member(group, "shape", f"{where}/shape", raw="iu")
+        if (
+            not isinstance(shape, np.ndarray)
+            or shape.shape != (2,)
+            or shape.dtype.kind not in "iu"
+            or shape.min() < 0
+        ):
+            described = shape.tolist() if isinstance(shape, np.ndarray) else shape
+            raise self._damaged(where, f"has an invalid shape {described!r}")
+        shape = (int(shape[0]), int(shape[1]))
+        arrays = []
+        for name in names:
+            index = name != "data"
+            array = self.read_member(group, name, f"{where}/{name}", raw=_NUMERIC_KINDS)
+            if (
+                not isinstance(array, np.ndarray)
+                or array.ndim != 1
+                or array.dtype.kind not in ("iu" if index else "fiu")
+            ):
+                described = (
+                    f"dtype {array.dtype}, shape {array.shape}"
+                    if isinstance(array, np.ndarray)
+                    else type(array).__name__
+                )
+                raise self._damaged(
+                    f"{where}/{name}",
+                    f"should be a 1-D {'integer' if index else 'numeric'} array, got {described}",
+                )
+            arrays.append(array)
+        # The constructors check the index arrays against the shape (COO fully, CSC and CSR
+        # with `check_format(full_check=True)`): damaged indices would make products read
+        # outside the arrays.
         if fmt == "coo":
             row, col, data = arrays
             matrix = matrix_class["coo"]((data, (row, col)), shape=shape)
@@ -423,6 +635,7 @@ class _Reader:
         data, indices, indptr = arrays
         stored = fmt if fmt in ("csr", "csc") else "csc"
         matrix = matrix_class[stored]((data, indices, indptr), shape=shape)
+        matrix.check_format(full_check=True)
         matrix.data, matrix.indices, matrix.indptr = data, indices, indptr
         if stored != fmt:
             try:

@@ -24,8 +24,10 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
 
 from __future__ import annotations
 
+import io
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +36,7 @@ import meshio
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
@@ -59,6 +62,12 @@ DUPLICATE_NODE_TOLERANCE = 1e-12
 
 #: Relative asymmetry allowed in :func:`matrices_from_arrays`.
 SYMMETRY_TOLERANCE = 1e-10
+
+#: Largest node or element label of an Abaqus input file (labels are positive int64).
+ABAQUS_LABEL_MAX = 2**63 - 1
+
+#: Deepest nesting of Abaqus ``*INCLUDE`` files.
+ABAQUS_INCLUDE_DEPTH = 16
 
 
 @dataclass
@@ -126,7 +135,13 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
       its elements. A node set and an element set with the same name (as Abaqus/CAE writes
       them) give one node set, the union. Abaqus names are case-insensitive: the spelling of
       the first definition is kept. Only flat input files are understood: meshio reads one
-      ``*NODE`` block and ignores ``*PART``/``*INSTANCE`` structure.
+      ``*NODE`` block and ignores ``*PART``/``*INSTANCE`` structure. Labels are integers from
+      1 to :data:`ABAQUS_LABEL_MAX`; ``GENERATE`` needs 1 <= first <= last, step >= 1, and
+      no more labels than the input defines nodes (elements).
+    * Abaqus ``*INCLUDE, INPUT=file``: relative to the folder of the including file only, and
+      inside the folder of `path` (absolute paths, paths leaving it, also through symbolic
+      links, and include cycles are refused); the included lines are read in place of the
+      ``*INCLUDE`` line, by meshio too.
     * VTK: none (VTK files carry no sets).
 
     The mesh is not checked: call :func:`validate_mesh`.
@@ -135,9 +150,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         FileNotFoundError: ``path`` does not exist.
         InvalidParameterError: the suffix is not one of the formats above.
         InvalidModelError: meshio cannot read the file, or the file is not consistent
-            (several ``*NODE`` blocks in one Abaqus file, ...).
+            (several ``*NODE`` blocks in one Abaqus input, a label out of range, a bad
+            ``GENERATE`` line, a refused or cyclic ``*INCLUDE``, ...).
         UnknownItemError: a set or element of an Abaqus file refers to a node, element or
-            set that is not defined.
+            set that is not defined (also a ``GENERATE`` range of more labels than defined).
     """
     path = Path(path)
     if not path.exists():
@@ -156,7 +172,12 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     # The format's own reader: meshio.read() prints and exits the interpreter on a ReadError.
     reader = {"gmsh": meshio.gmsh, "abaqus": meshio.abaqus, "vtu": meshio.vtu, "vtk": meshio.vtk}
     try:
-        raw = reader[file_format].read(str(path))
+        if abaqus is not None:
+            # The input with its *INCLUDE files inlined: meshio would look for them in the
+            # working folder first and follow absolute paths.
+            raw = meshio.abaqus._abaqus.read_buffer(io.StringIO("\n".join(abaqus.lines) + "\n"))
+        else:
+            raw = reader[file_format].read(str(path))
     except KeyError as error:
         node = error.args[0] if error.args else None
         if abaqus is None or not isinstance(node, int | np.integer):
@@ -350,6 +371,15 @@ class _AbaqusScan:
     # Upper-case name -> set.
     node_sets: dict[str, _AbaqusSet] = field(default_factory=dict)
     element_sets: dict[str, _AbaqusSet] = field(default_factory=dict)
+    # The lines of the input with every *INCLUDE replaced by the lines of its file: what
+    # meshio reads (so that it reads exactly the files checked here).
+    lines: list[str] = field(default_factory=list)
+    # *NSET / *ELSET, GENERATE ranges (set, "NSET" or "ELSET", where, range), expanded once the
+    # whole input is scanned and their sizes are checked against the labels it defines.
+    generated: list[tuple[_AbaqusSet, str, str, range]] = field(default_factory=list)
+    node_blocks: int = 0
+    # The folder of the input file: *INCLUDE files must be inside it (see `_include_target`).
+    root: Path = field(default_factory=Path)
 
     def ids(
         self, path: Path, node_count: int, blocks: list[tuple[str, NDArray[np.int64]]]
@@ -493,40 +523,116 @@ def _abaqus_parameters(line: str) -> tuple[str, dict[str, str | None]]:
     return keyword, parameters
 
 
-def _abaqus_integers(path: Path, rows: list[tuple[int, str]]) -> list[int]:
-    """The comma-separated integers of data lines given as (line number, text)."""
+def _abaqus_label(path: Path, line_number: int, value: int) -> int:
+    """`value` checked as an Abaqus node or element label: positive and within int64."""
+    if not 1 <= value <= ABAQUS_LABEL_MAX:
+        raise InvalidModelError(
+            f"{path}, line {line_number}: label {value} is out of range (labels are integers "
+            f"from 1 to {ABAQUS_LABEL_MAX})",
+            item=f"line {line_number} of '{path}'",
+        )
+    return value
+
+
+def _abaqus_integers(path: Path, rows: list[tuple[int, str]], *, labels: bool = True) -> list[int]:
+    """The comma-separated integers of data lines given as (line number, text), checked as
+    labels (positive, within int64) unless `labels` is False."""
     values = []
     for line_number, text in rows:
         for token in text.split(","):
             if token.strip():
                 try:
-                    values.append(int(token))
+                    value = int(token)
                 except ValueError:
                     raise InvalidModelError(
                         f"{path}, line {line_number}: expected integers, got {text!r}",
                         item=f"line {line_number} of '{path}'",
                     ) from None
+                values.append(_abaqus_label(path, line_number, value) if labels else value)
     return values
 
 
 def _scan_abaqus(path: Path) -> _AbaqusScan:
-    scan = _AbaqusScan()
-    _scan_abaqus_file(path, scan, depth=0)
+    scan = _AbaqusScan(root=path.resolve().parent)
+    _scan_abaqus_file(path, scan, (path.resolve(),))
+    _expand_generated(scan)
     return scan
 
 
-def _scan_abaqus_file(path: Path, scan: _AbaqusScan, depth: int) -> None:
+def _expand_generated(scan: _AbaqusScan) -> None:
+    """Expand the GENERATE ranges of the sets. A range of more labels than the input defines
+    nodes (*NSET) or can define elements (*ELSET: each element takes a label and at least one
+    node label) must name one that does not exist: it is refused before it takes memory (and
+    before meshio, which expands it too, reads the input)."""
+    node_count = len(scan.node_ids)
+    element_bound = sum(len(values) for values, _ in scan.element_blocks) // 2
+    for entry, keyword, where, labels in scan.generated:
+        if keyword == "NSET":
+            defined, what = node_count, f"the {node_count} nodes"
+        else:
+            defined, what = element_bound, f"the at most {element_bound} elements"
+        if len(labels) > defined:
+            kind = "node set" if keyword == "NSET" else "element set"
+            raise UnknownItemError(
+                f"{where}: GENERATE of {kind} {entry.name!r} makes {len(labels)} labels "
+                f"(from {labels.start} in steps of {labels.step}), more than {what} that the "
+                "input defines: it names labels that do not exist",
+                item=f"{kind} '{entry.name}'",
+            )
+    for entry, _, _, labels in scan.generated:
+        entry.ids.extend(labels)
+
+
+def _include_target(
+    path: Path, parameters: dict[str, str | None], line: int, scan: _AbaqusScan
+) -> Path:
+    """The file of an ``*INCLUDE, INPUT=...`` line of `path`: relative to the folder of
+    `path` only, and inside the folder of the top input file (absolute paths and paths that
+    leave that folder, also through symbolic links, are refused)."""
+    item = f"line {line} of '{path}'"
+    name = parameters.get("INPUT")
+    if not name:
+        raise InvalidModelError(f"{path}, line {line}: *INCLUDE without INPUT=", item=item)
+    relative = Path(name)
+    if relative.is_absolute():
+        raise InvalidModelError(
+            f"{path}, line {line}: *INCLUDE of the absolute path {name!r} is refused: give it "
+            "relative to the folder of the including file",
+            item=item,
+        )
+    target = (path.parent / relative).resolve()
+    if not target.is_relative_to(scan.root):
+        raise InvalidModelError(
+            f"{path}, line {line}: *INCLUDE {name!r} leaves the folder of the input file "
+            f"({scan.root}): included files must be in that folder or below it",
+            item=item,
+        )
+    if not target.is_file():
+        raise InvalidModelError(
+            f"{path}, line {line}: *INCLUDE file {name!r} not found (looked for {target})",
+            item=item,
+        )
+    return target
+
+
+def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) -> None:
+    """Scan `path` (reached through the *INCLUDE files `chain`, itself last) into `scan`."""
     item = f"file '{path}'"
-    if depth > 16:
-        raise InvalidModelError(f"{path}: *INCLUDE nested more than 16 deep", item=item)
-    with open(path, encoding="utf-8", errors="replace") as file:
-        lines = file.read().splitlines()
-    node_blocks = 0
+    if len(chain) > ABAQUS_INCLUDE_DEPTH + 1:
+        raise InvalidModelError(
+            f"{path}: *INCLUDE nested more than {ABAQUS_INCLUDE_DEPTH} deep", item=item
+        )
+    try:
+        with open(path, encoding="utf-8", errors="replace") as file:
+            lines = file.read().splitlines()
+    except OSError as error:
+        raise InvalidModelError(f"{path}: cannot read the file ({error})", item=item) from None
     number = 0
     while number < len(lines):
         line = lines[number]
         number += 1
         if not line.startswith("*") or line.startswith("**"):
+            scan.lines.append(line)
             continue
         keyword, parameters = _abaqus_parameters(line)
         # Data lines end at the next line starting with "*" (also a comment), as in meshio.
@@ -534,10 +640,12 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, depth: int) -> None:
         while number < len(lines) and not lines[number].startswith("*"):
             number += 1
         data = [(first + k + 1, text) for k, text in enumerate(lines[first:number]) if text.strip()]
+        if keyword != "INCLUDE":
+            scan.lines.extend(lines[first - 1 : number])
 
         if keyword == "NODE":
-            node_blocks += 1
-            if node_blocks > 1:
+            scan.node_blocks += 1
+            if scan.node_blocks > 1:
                 raise InvalidModelError(
                     f"{path}, line {first}: a second *NODE block; meshio's Abaqus reader keeps "
                     "only the last one, so merge the *NODE blocks into one",
@@ -562,30 +670,46 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, depth: int) -> None:
                 entry.element_set_names.append(parameters["ELSET"])
             if "GENERATE" in parameters:
                 for line_number, text in data:
-                    triple = _abaqus_integers(path, [(line_number, text)])
+                    where = f"{path}, line {line_number}"
+                    triple = _abaqus_integers(path, [(line_number, text)], labels=False)
                     if len(triple) not in (2, 3):
                         raise InvalidModelError(
-                            f"{path}, line {line_number}: GENERATE expects first, last[, step]",
+                            f"{where}: GENERATE expects first, last[, step]",
                             item=f"line {line_number} of '{path}'",
                         )
                     start, stop, step = (*triple, 1)[:3]
-                    entry.ids.extend(range(start, stop + 1, step))
+                    _abaqus_label(path, line_number, start)
+                    _abaqus_label(path, line_number, stop)
+                    if step < 1:
+                        raise InvalidModelError(
+                            f"{where}: GENERATE step {step}: the step must be a positive integer",
+                            item=f"line {line_number} of '{path}'",
+                        )
+                    if start > stop:
+                        raise InvalidModelError(
+                            f"{where}: GENERATE from {start} to {stop}: the first label must "
+                            "not exceed the last",
+                            item=f"line {line_number} of '{path}'",
+                        )
+                    scan.generated.append((entry, keyword, where, range(start, stop + 1, step)))
             else:
-                for _, text in data:
+                for line_number, text in data:
                     for token in (t.strip() for t in text.split(",")):
                         if not token:
                             continue
                         if token.lstrip("-").isdigit():
-                            entry.ids.append(int(token))
+                            entry.ids.append(_abaqus_label(path, line_number, int(token)))
                         else:
                             entry.set_names.append(token.strip('"'))
         elif keyword == "INCLUDE":
-            target = Path(line.split("=")[-1].strip().strip('"'))
-            if not target.exists():
-                target = path.parent / target
-            if not target.exists():
-                raise InvalidModelError(f"{path}: *INCLUDE file {target} not found", item=item)
-            _scan_abaqus_file(target, scan, depth + 1)
+            target = _include_target(path, parameters, first, scan)
+            if target in chain:
+                cycle = " -> ".join(str(p) for p in (*chain[chain.index(target) :], target))
+                raise InvalidModelError(
+                    f"{path}, line {first}: *INCLUDE cycle {cycle}",
+                    item=f"line {first} of '{path}'",
+                )
+            _scan_abaqus_file(target, scan, (*chain, target))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -675,6 +799,41 @@ def validate_mesh(mesh: Mesh) -> None:
         raise InvalidModelError(
             f"unconnected node {node}: no element uses it{suffix}", item=f"node {node}"
         )
+
+
+def mesh_parts(
+    node_count: int, elements: Mapping[str, Any], stiffness: Any = None, dofs_per_node: int = 3
+) -> tuple[int, NDArray[np.int64]]:
+    """The connected parts of a body: (number of parts, the part of each node, 0-based, parts
+    numbered in the order of their first node). Two nodes are in one part when a chain of
+    elements joins them; without elements, when a chain of nonzero entries of the nodal
+    `stiffness` matrix (``dofs_per_node`` coordinates per node) couples them. A node of no
+    element is a part of its own."""
+    rows: list[NDArray[np.int64]] = []
+    columns: list[NDArray[np.int64]] = []
+    for connectivity in elements.values():
+        connectivity = np.asarray(connectivity, dtype=np.int64)
+        if connectivity.ndim == 2 and connectivity.size:
+            # Each element's nodes joined to its first node: a spanning star of the element.
+            first = np.repeat(connectivity[:, :1], connectivity.shape[1] - 1, axis=1)
+            rows.append(first.ravel())
+            columns.append(connectivity[:, 1:].ravel())
+    if not rows and stiffness is not None:
+        coupling = sp.coo_matrix(stiffness)
+        nonzero = coupling.data != 0
+        rows.append(coupling.row[nonzero].astype(np.int64) // dofs_per_node)
+        columns.append(coupling.col[nonzero].astype(np.int64) // dofs_per_node)
+    index = np.int32 if node_count < 2**31 else np.int64  # half the memory of large meshes
+    row = np.concatenate(rows).astype(index) if rows else np.zeros(0, dtype=index)
+    column = np.concatenate(columns).astype(index) if columns else np.zeros(0, dtype=index)
+    graph = sp.coo_matrix(
+        (np.ones(len(row), dtype=np.int8), (row, column)), shape=(node_count, node_count)
+    )
+    count, labels = connected_components(graph, directed=False)
+    # Renumber in the order of each part's first node.
+    _, first_nodes = np.unique(labels, return_index=True)
+    ranks = np.argsort(np.argsort(first_nodes))
+    return int(count), ranks[labels].astype(np.int64)
 
 
 def _check_unique(ids: NDArray[Any], what: str) -> None:

@@ -471,8 +471,9 @@ def free_free_modes(
     """The first `count` elastic free-free modes (the `rigid` rigid-body modes removed) and
     their frequencies (Hz). Being mass-orthogonal to the rigid motions, they satisfy the mean
     axis (Tisserand) conditions. Raises if the body is not free (fewer than `rigid` near-zero
-    frequencies). The shift of the shift-invert iteration is slightly negative, so that
-    K - shift M is positive definite although K is singular."""
+    frequencies) or has more rigid motions than `rigid` (a mechanism or disconnected parts).
+    The shift of the shift-invert iteration is slightly negative, so that K - shift M is
+    positive definite although K is singular."""
     n = stiffness.shape[0]
     scale = _scale(stiffness, mass)
     shift = -1e-6 * scale
@@ -488,6 +489,17 @@ def free_free_modes(
         solve = inverse.precondition
     values, vectors = eigenpairs(stiffness, mass, count + rigid, shift=shift, solve=solve)
     elastic = values[rigid:]
+    # A vanishing "elastic" eigenvalue is one rigid motion too many (the bound of
+    # `_check_fixed`, which a clamped body's lowest eigenvalue, lower still, passes).
+    if elastic[0] < 1e-10 * scale:
+        raise InvalidModelError(
+            f"the body has more than {rigid} rigid-body motions: eigenvalue {rigid + 1} of "
+            f"K x = w^2 M x is {elastic[0]:.3e}, zero at the scale {scale:.3e} of the body "
+            f"(n = {n}); free-free modes would take the extra motions as elastic modes of "
+            "frequency 0. The mesh has a mechanism (parts joined at a single node or edge) "
+            "or disconnected parts",
+            item="free-free modes",
+        )
     if rigid and values[rigid - 1] > 1e-6 * max(elastic[0], 1e-300):
         raise InvalidModelError(
             f"the body is not free: its {rigid} lowest eigenvalues should vanish, "

@@ -20,7 +20,7 @@ from .. import _core
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import FlexibleBodyData
 from .interface import Interface
-from .mesh_io import Mesh, matrices_from_arrays, read_mesh, validate_mesh
+from .mesh_io import Mesh, matrices_from_arrays, mesh_parts, read_mesh, validate_mesh
 from .modal import (
     craig_bampton,
     factorize,
@@ -457,6 +457,7 @@ def _body_from_nodal(
         raise InvalidModelError("reference='interface' is for Craig-Bampton modes")
     members = [_node_indices(s, sets, f"interface {i}") for i, s in enumerate(interfaces)]
     ref_nodes = _node_indices(reference_nodes, sets, "reference nodes")
+    kind = reference
     if reference == "interface":
         ref_nodes = members[0] if members else ref_nodes
         kind = "clamped" if interface_kind in ("rbe2", "nodal") else "none"
@@ -465,6 +466,8 @@ def _body_from_nodal(
         free = reference_dofs(
             "none" if reference == "mean-axis" else reference, len(nodes), d, ref_nodes
         )
+    held = ref_nodes if kind == "clamped" else np.zeros(0, dtype=np.int64)
+    _check_parts(nodes, ids, elements, nodal, reference, held)
     basis = None
     freqs = None
     weighted: list[Interface] = []
@@ -573,6 +576,61 @@ def _body_from_nodal(
         frequencies=freqs,
         mode_kind=modes,
         invariants=invariants,
+    )
+
+
+#: Parts listed by name in the error for a body of several disconnected parts.
+_PARTS_LISTED = 5
+
+
+def _check_parts(
+    nodes: NDArray[np.float64],
+    ids: NDArray[np.int64],
+    elements: Mapping[str, NDArray[np.int64]],
+    nodal: NodalBody,
+    reference: str,
+    held: NDArray[np.int64],
+) -> None:
+    """Raises `InvalidModelError` for a body made of several disconnected parts (connected
+    components of its elements, or of its stiffness matrix without elements) unless the
+    reference conditions clamp every part (`held`: the clamped nodes): a part that is not
+    held can move rigidly, and free-free or mean-axis modes would take those motions as
+    elastic modes of frequency 0. The message names each part by its node and element counts
+    and one of its node ids."""
+    count, part = mesh_parts(len(nodes), elements, nodal.stiffness, nodal.dofs_per_node)
+    if count <= 1:
+        return
+    held = np.asarray(held, dtype=np.int64)
+    loose = np.setdiff1d(np.arange(count), part[held] if len(held) else [])
+    if len(loose) == 0:
+        return
+    node_counts = np.bincount(part, minlength=count)
+    element_counts = np.zeros(count, dtype=np.int64)
+    for connectivity in elements.values():
+        if len(connectivity):
+            element_counts += np.bincount(part[connectivity[:, 0]], minlength=count)
+    first_nodes = np.unique(part, return_index=True)[1]
+    described = [
+        f"part {p + 1}: {node_counts[p]} nodes, {element_counts[p]} elements, node "
+        f"{ids[first_nodes[p]]}"
+        for p in range(min(count, _PARTS_LISTED))
+    ]
+    if count > _PARTS_LISTED:
+        described.append(f"... {count - _PARTS_LISTED} more")
+    if len(loose) == count:
+        which = "none of them is clamped by the reference conditions"
+    else:
+        names = ", ".join(str(p + 1) for p in loose[:_PARTS_LISTED])
+        verb = "parts {} are" if len(loose) > 1 else "part {} is"
+        which = f"{verb.format(names)} not clamped by the reference conditions"
+    raise InvalidModelError(
+        f"the body is made of {count} disconnected parts ({'; '.join(described)}) and {which} "
+        f"(reference={reference!r}): a free part moves rigidly without elastic forces, and "
+        "free-free or mean-axis modes would take its rigid motions as elastic modes of "
+        "frequency 0. Make each part a body of its own and join them with joints, connect the "
+        "parts (shared nodes), or clamp every part (reference='clamped' with reference nodes "
+        "in each)",
+        item=f"node {ids[first_nodes[loose[0]]]}",
     )
 
 

@@ -8,6 +8,7 @@ positively oriented and in the node order of the element kernels (Gmsh's, see
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -34,6 +35,45 @@ HEX8_CORNERS = [
 _KUHN = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
 #: Vertices joined by the mid-edge nodes 4..9 of a tet10 (Gmsh order).
 TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
+
+#: Meshes estimated at more elements than this are refused before they are made (the
+#: `max_elements` keyword of :func:`box`, :func:`gmsh_mesh`, :func:`cylinder` and
+#: :func:`tapered_link` moves the limit): 10 million elements take about 3 GB to make with
+#: :func:`box` and 15 GB or more in Gmsh, and many times that in the preprocessor.
+MAX_MESH_ELEMENTS = 10_000_000
+
+#: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
+#: Gmsh for tetrahedra of order 1 and 2.
+_BYTES_PER_ELEMENT = {"hex8": 220, "tet4": 280, "tet10": 640, "gmsh1": 1500, "gmsh2": 3500}
+
+#: Tetrahedra that Gmsh makes per size^3 of volume (about 4.7 measured on cylinders and
+#: boxes; the estimate rounds up).
+_GMSH_TETRAHEDRA_PER_CUBE = 6.0
+
+
+def _check_mesh_size(
+    elements: float, nodes: float, kind: str, max_elements: float, how: str, advice: str
+) -> None:
+    """Raises `InvalidParameterError` when a mesh is estimated at more than `max_elements`
+    elements; the message gives the estimate (elements, nodes when known, memory)."""
+    if not max_elements > 0:
+        raise InvalidParameterError(
+            f"max_elements must be > 0, got {max_elements!r}", item="max_elements"
+        )
+    if elements <= max_elements:
+        return
+
+    def count(value: float) -> str:
+        return f"{value:.0f}" if value < 1e6 else f"{value:.3g}"
+
+    gigabytes = elements * _BYTES_PER_ELEMENT[kind] / 1e9
+    counted = f"{count(elements)} elements" + (f" and {count(nodes)} nodes" if nodes else "")
+    raise InvalidParameterError(
+        f"the mesh would have about {counted} ({how}) and take about {gigabytes:.3g} GB to "
+        f"make, more than the limit of {count(max_elements)} elements: {advice}, or pass "
+        "max_elements=... to allow it",
+        item="mesh size",
+    )
 
 
 def _signed_volumes(nodes: NDArray[np.float64], tets: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -68,19 +108,54 @@ def box(
     element: str = "hex8",
     *,
     origin: ArrayLike = (0.0, 0.0, 0.0),
+    max_elements: float = MAX_MESH_ELEMENTS,
 ) -> Mesh:
     """A structured mesh of the box origin + [0, a] x [0, b] x [0, c].
 
     `divisions` = (n_x, n_y, n_z) cells; `element` "hex8", "tet4" (six tetrahedra per cell)
-    or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all"."""
+    or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
+
+    Raises `InvalidParameterError` for lengths that are not positive and finite, divisions
+    that are not positive integers, and meshes of more than `max_elements` elements
+    (default :data:`MAX_MESH_ELEMENTS`; the message gives the node and element counts and
+    the memory)."""
     lengths = np.asarray(lengths, dtype=float)
-    nx, ny, nz = (int(n) for n in divisions)
-    if lengths.shape != (3,) or not np.all(lengths > 0) or min(nx, ny, nz) < 1:
+    try:
+        nx, ny, nz = (
+            int(n) if isinstance(n, float) and n.is_integer() else operator.index(n)
+            for n in divisions
+        )
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"a box needs three integer divisions, got {divisions!r}", item="divisions"
+        ) from None
+    if (
+        lengths.shape != (3,)
+        or not np.all(np.isfinite(lengths) & (lengths > 0))
+        or min(nx, ny, nz) < 1
+    ):
         raise InvalidParameterError(
             f"a box needs three positive lengths and divisions, got {lengths}, {divisions}"
         )
     if element not in ("hex8", "tet4", "tet10"):
         raise InvalidParameterError(f"box elements are hex8, tet4 or tet10, got {element!r}")
+    # Sizes from the counts alone (Python integers: no overflow) before any array is made.
+    cells = nx * ny * nz
+    node_count = (nx + 1) * (ny + 1) * (nz + 1)
+    if element == "tet10":
+        # Mid-edge nodes: the grid's edges, one diagonal per face and one per cell.
+        node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
+        node_count += (nx + 1) * (ny + 1) * nz + (nx + 1) * ny * nz + nx * (ny + 1) * nz
+        node_count += nx * ny * (nz + 1) + cells
+    element_count = cells if element == "hex8" else 6 * cells
+    _check_mesh_size(
+        element_count,
+        node_count,
+        element,
+        max_elements,
+        f"divisions {nx} x {ny} x {nz}",
+        "use fewer divisions",
+    )
     counts = (nx, ny, nz)
     axes = [np.linspace(0.0, lengths[a], counts[a] + 1) for a in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
@@ -140,6 +215,7 @@ def gmsh_mesh(
     order: int = 1,
     element: str = "tet",
     size_field: str | None = None,
+    max_elements: float = MAX_MESH_ELEMENTS,
 ) -> Mesh:
     """Meshes a geometry with Gmsh's Python API (``pip install gmsh``).
 
@@ -148,7 +224,12 @@ def gmsh_mesh(
     `order` 1 gives tet4, 2 gives tet10 (mid-edge nodes on the curved geometry). `element` "tet"
     meshes volumes with tetrahedra (the only choice for now). `size_field`, a Gmsh MathEval
     expression in x, y, z (e.g. ``"0.002 + 0.1 * y"``), grades the element size over the
-    geometry instead (`size` then only bounds it from above)."""
+    geometry instead (`size` then only bounds it from above).
+
+    Before meshing, the number of tetrahedra is estimated from the bounding boxes of the
+    volumes, about 6 per `size`^3 (a graded `size_field` can make more); above
+    `max_elements` (default :data:`MAX_MESH_ELEMENTS`) `InvalidParameterError` gives the
+    estimate, before Gmsh runs out of memory."""
     try:
         import gmsh
     except ImportError as error:  # pragma: no cover - depends on the installation
@@ -169,6 +250,18 @@ def gmsh_mesh(
         build(gmsh)
         if gmsh.model.occ.getEntities():
             gmsh.model.occ.synchronize()
+        volume = 0.0
+        for _, tag in gmsh.model.getEntities(3):
+            low, high = np.split(np.asarray(gmsh.model.getBoundingBox(3, tag), dtype=float), 2)
+            volume += float(np.prod(np.clip(high - low, 0.0, None)))
+        _check_mesh_size(
+            _GMSH_TETRAHEDRA_PER_CUBE * volume / size**3,
+            0,
+            f"gmsh{order}",
+            max_elements,
+            f"bounding boxes of volume {volume:.3g} at size {size:g}",
+            "use a larger size",
+        )
         if size_field is None:
             gmsh.option.setNumber("Mesh.MeshSizeMin", size)
         else:
@@ -231,9 +324,11 @@ def cylinder(
     size: float,
     order: int = 2,
     axis: ArrayLike = (1.0, 0.0, 0.0),
+    max_elements: float = MAX_MESH_ELEMENTS,
 ) -> Mesh:
     """A tetrahedral mesh of a solid circular cylinder from the origin along `axis` (Gmsh).
-    Node sets "base" (the end face at the origin), "end" (the other one) and "mantle"."""
+    Node sets "base" (the end face at the origin), "end" (the other one) and "mantle".
+    `max_elements`: see :func:`gmsh_mesh`."""
     if not (radius > 0 and length > 0):
         raise InvalidParameterError(f"a cylinder needs radius, length > 0, got {radius}, {length}")
     direction = np.asarray(axis, dtype=float)
@@ -249,7 +344,7 @@ def cylinder(
             name = "base" if abs(s) < 1e-9 else "end" if abs(s - 1) < 1e-9 else "mantle"
             gmsh.model.addPhysicalGroup(dim, [tag], name=name)
 
-    return gmsh_mesh(build, size=size, order=order)
+    return gmsh_mesh(build, size=size, order=order, max_elements=max_elements)
 
 
 def tapered_link(
@@ -261,12 +356,13 @@ def tapered_link(
     order: int = 2,
     tip_offset: tuple[float, float] = (0.0, 0.0),
     size_field: str | None = None,
+    max_elements: float = MAX_MESH_ELEMENTS,
 ) -> Mesh:
     """A tetrahedral mesh of a tapered link (Gmsh): a loft along x from the rectangle
     `root` = (width along y, height along z) centred on the origin at x = 0 to the rectangle
     `tip` at x = `length`, centred at (y, z) = `tip_offset`. Node sets "root" and "tip" (the
     end faces) and "sides". `size_field` grades the mesh (see :func:`gmsh_mesh`), so that the
-    end faces can be meshed unevenly."""
+    end faces can be meshed unevenly. `max_elements`: see :func:`gmsh_mesh`."""
     if not (length > 0 and min(root) > 0 and min(tip) > 0):
         raise InvalidParameterError(
             f"a tapered link needs positive length and sections, got {length}, {root}, {tip}"
@@ -297,4 +393,6 @@ def tapered_link(
                 sides.append(tag)
         gmsh.model.addPhysicalGroup(2, sides, name="sides")
 
-    return gmsh_mesh(build, size=size, order=order, size_field=size_field)
+    return gmsh_mesh(
+        build, size=size, order=order, size_field=size_field, max_elements=max_elements
+    )

@@ -1,0 +1,68 @@
+"""Input limits checked before the work (issue 28): mesh sizes are estimated before any array
+is made or Gmsh meshes, and refused above a limit with the estimate in the message."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from flexmbd.errors import InvalidParameterError
+from flexmbd.fe import shapes
+
+
+@pytest.mark.parametrize(
+    "element, elements, nodes",
+    [
+        ("tet4", "3.84e+08", "6.45e+07"),
+        ("hex8", "6.4e+07", "6.45e+07"),
+        ("tet10", "3.84e+08", "5.1"),
+    ],
+)
+def test_a_box_of_too_many_elements_is_refused_before_it_is_made(element, elements, nodes):
+    # Issue 28: divisions [400, 400, 400] ran out of memory (numpy MemoryError) after minutes.
+    start = time.perf_counter()
+    with pytest.raises(InvalidParameterError, match="max_elements") as info:
+        shapes.box((1.0, 1.0, 1.0), (400, 400, 400), element)
+    assert time.perf_counter() - start < 1.0
+    message = str(info.value)
+    assert f"about {elements} elements and {nodes}" in message
+    assert "GB" in message and "divisions 400 x 400 x 400" in message
+    assert info.value.item == "mesh size"
+
+
+def test_the_box_estimate_is_exact_and_the_limit_can_be_moved():
+    for element in ("hex8", "tet4", "tet10"):
+        mesh = shapes.box((1.0, 0.5, 0.2), (4, 3, 2), element)
+        count = len(mesh.elements[element])
+        shapes.box((1.0, 0.5, 0.2), (4, 3, 2), element, max_elements=count)
+        with pytest.raises(
+            InvalidParameterError, match=f"about {count} elements and {len(mesh.nodes)} nodes"
+        ):
+            shapes.box((1.0, 0.5, 0.2), (4, 3, 2), element, max_elements=count - 1)
+
+
+def test_bad_box_divisions_are_typed_errors():
+    for divisions in [(2.5, 1, 1), ("a", 1, 1), (1, 1, 0)]:
+        with pytest.raises(InvalidParameterError):
+            shapes.box((1.0, 1.0, 1.0), divisions)
+    with pytest.raises(InvalidParameterError):
+        shapes.box((1.0, float("inf"), 1.0), (1, 1, 1))
+
+
+def test_gmsh_meshes_far_finer_than_the_geometry_are_refused_before_meshing():
+    # Issue 28: a size far below the geometry made Gmsh abort the process (out of memory).
+    pytest.importorskip("gmsh")
+    start = time.perf_counter()
+    with pytest.raises(InvalidParameterError, match=r"about 6e\+12 elements .*size 0.0001"):
+        shapes.cylinder(0.5, 1.0, size=1e-4)
+    with pytest.raises(InvalidParameterError, match="max_elements"):
+        shapes.tapered_link(1.0, (0.1, 0.1), (0.05, 0.05), size=1e-5)
+    assert time.perf_counter() - start < 2.0
+    # The estimate (6 per size^3 of the bounding boxes) is above what Gmsh makes: a mesh
+    # allowed by it is made.
+    estimate = 6 * 0.1 * 0.1 * 0.2 / 0.02**3
+    mesh = shapes.cylinder(0.05, 0.2, size=0.02, order=1, max_elements=1.01 * estimate)
+    assert 0 < len(mesh.elements["tet4"]) <= estimate
+    with pytest.raises(InvalidParameterError, match="about 150. elements .* limit of 100 "):
+        shapes.cylinder(0.05, 0.2, size=0.02, order=1, max_elements=100)
