@@ -357,3 +357,76 @@ def test_malformed_low_level_body_data_is_a_typed_error_not_a_panic():
             _core.System()._add_flexible_body(**{**base, **changes})
     with pytest.raises(fm.InvalidParameterError, match="inconsistent CSC arrays"):
         _core.SymmetricFactor(3, np.array([0, 2, 1, 3]), np.array([0, 1, 2]), np.ones(3))
+
+
+@pytest.mark.parametrize(
+    "arguments, match",
+    [
+        ({"end_time": "1"}, r"end_time must be a number, got '1' \(str\)"),
+        ({"end_time": float("nan")}, "end_time must be finite, got nan"),
+        ({"step_size": [1e-3, 2e-3]}, r"step_size must be a number, got \[0.001, 0.002\]"),
+        ({"step_size": np.array(["a"])}, "step_size must be a number"),
+        ({"start_time": fm.BodyId(0)}, "start_time must be a number"),
+        ({"start_time": 1e308}, "end time 0.01 is before start time 1e[+]308"),
+        ({"output_interval": "0.1"}, "output_interval must be a number"),
+        ({"initial_conditions": np.array(["correct", "strict"])}, "initial_conditions must be"),
+        ({"keep_in_memory": 1.0}, "keep_in_memory must be True or False"),
+        ({"results_file": 3.5}, "results_file must be a path"),
+        ({"results_file": "r.h5", "protect": float("nan")}, "protect must be a tuple of paths"),
+    ],
+)
+def test_simulate_names_the_argument_of_the_wrong_type(arguments, match, tmp_path):
+    # Regression (fuzz suite): TypeError or ValueError from the binding or pathlib without the
+    # parameter's name; a start time of 1e308 printed with 309 digits.
+    arguments = {"end_time": 0.01, "step_size": 1e-3, **arguments}
+    if "results_file" in arguments and isinstance(arguments["results_file"], str):
+        arguments["results_file"] = tmp_path / arguments["results_file"]
+    with pytest.raises(fm.InvalidParameterError, match=match) as caught:
+        fm.simulate(pendulum_system(), **arguments)
+    assert len(str(caught.value)) < 200
+
+
+def test_result_and_state_accessors_name_the_argument_of_the_wrong_type():
+    # Regression (fuzz suite): IndexError, OverflowError, ValueError and TypeError from NumPy.
+    result = fm.simulate(pendulum_system(), 0.003, 1e-3)
+    with pytest.raises(fm.InvalidParameterError, match="record index 1180591620717411303424"):
+        result.state(2**70)
+    with pytest.raises(fm.InvalidParameterError, match=r"index must be an integer, got nan"):
+        result.state(float("nan"))
+    state = result.state()
+    with pytest.raises(fm.InvalidParameterError, match="position must be numbers"):
+        state.with_position("bob", ["a", "b", "c"])
+    with pytest.raises(fm.InvalidParameterError, match="time must be a number"):
+        fm.State([1.0], state.coordinates, state.velocities)
+    with pytest.raises(fm.InvalidParameterError, match="coordinates must be numbers"):
+        fm.State(0.0, np.array(["a"] * 4), state.velocities)
+    with pytest.raises(fm.InvalidParameterError, match="time must be a number"):
+        fm.equilibrium(pendulum_system(), lambda t: t)
+
+
+def test_node_ids_of_the_wrong_type_or_size_are_named():
+    # Regression (fuzz suite): a node id of 2**70 raised OverflowError, "a" ValueError, a
+    # float or a nested list TypeError.
+    from flexmbd import fe
+
+    nodes, elements = fe.straight_beam(0.5, 2)
+    beam = fe.build_body(
+        nodes,
+        elements,
+        fe.Material(7e10, 0.33, 2700.0),
+        section=fe.Section.circle(0.01),
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = fm.System()
+    body = system.add_flexible_body(beam, name="beam")
+    result = fm.simulate(system, 0.002, 1e-3)
+    with pytest.raises(fm.UnknownItemError, match=r"no nodes with ids \[1180591620717411303424\]"):
+        result.node_displacements(body, [2**70])
+    for nodes, match in (("a", "nodes must be an integer"), ([1.5], "nodes must be an integer")):
+        with pytest.raises(fm.InvalidParameterError, match=match):
+            result.node_positions(body, nodes)
+    with pytest.raises(fm.InvalidParameterError, match="nodes must be a node id or a list"):
+        result.node_displacements(body, [[1, 2]])
+    with pytest.raises(fm.InvalidParameterError, match="node must be an integer"):
+        result.deflection(body, [2])

@@ -505,3 +505,47 @@ def test_a_folder_or_a_pipe_is_not_read(tmp_path):
         # Opening a pipe blocks until something writes to it: refused without opening it.
         os.mkfifo(tmp_path / "pipe.yaml")
         assert "not a regular file" in str(refused(tmp_path / "pipe.yaml"))
+
+
+# 7. Messages stay short; step bounds are checked on loading ------------------------------------
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        ("marker2: hinge", "marker2: " + "h" * 1_000_000),
+        ("type: angle-driver", "type: " + "a" * 1_000_000),
+        ("- {name: arm,", "- {name: " + "b" * 1_000_000 + ","),
+        ("angle: swing}", "angle: " + "s" * 100_000 + "}"),
+    ],
+)
+def test_a_long_name_is_shortened_in_the_message(old, new, tmp_path):
+    # Regression (fuzz suite): an unknown marker, type or function of a megabyte was echoed
+    # whole, with the list of known names, in a message of megabytes.
+    error = refused(write(tmp_path, edited(old, new)))
+    assert len(str(error)) < 1000, len(str(error))
+
+
+def test_many_known_names_are_listed_up_to_a_limit(tmp_path):
+    markers = "".join(f"  - {{name: m{k}, body: arm}}\n" for k in range(500))
+    text = edited("markers:\n", "markers:\n" + markers, "marker2: hinge", "marker2: nothing")
+    error = refused(write(tmp_path, text))
+    assert "... (482 more)" in str(error) and len(str(error)) < 1000
+
+
+@pytest.mark.parametrize(
+    "solver, key, words",
+    [
+        ("{type: generalized-alpha, min_step_size: 1.0e+300}", "min_step_size", "larger"),
+        ("{type: explicit, max_step_size: 1.0e-6}", "max_step_size", "smaller"),
+    ],
+)
+def test_step_bounds_that_do_not_fit_the_step_size_are_refused_on_loading(
+    solver, key, words, tmp_path
+):
+    # Regression (fuzz suite): refused only by the run, with a message that named neither
+    # key and printed 1e300 with 301 digits.
+    error = refused(write(tmp_path, BASE + f"solver: {solver}\n"))
+    assert error.key == f"solver.{key}"
+    assert f"{words} than simulation.step_size 0.001" in str(error)
+    assert len(str(error)) < 300

@@ -447,3 +447,114 @@ def test_a_full_disk_is_a_typed_error_and_the_file_keeps_what_was_committed(tmp_
     # Every committed record is a valid record of the run.
     reference = fm.simulate(pendulum(), back.time[-1], 1e-3, output_interval=1e-3)
     np.testing.assert_allclose(back.coordinates, reference.coordinates, rtol=0, atol=1e-12)
+
+
+DAMAGED_HEADER = textwrap.dedent(
+    """
+    import sys, time
+    import flexmbd as fm
+    from flexmbd.results_file import read_results_metadata
+    for read in (read_results_metadata, fm.read_results):
+        start = time.perf_counter()
+        try:
+            read(sys.argv[1])
+            print("read", end=" ")
+        except fm.ResultsFileError as error:
+            print("error", "global heap" in str(error), end=" ")
+        print(f"{time.perf_counter() - start:.3f}")
+    """
+)
+
+
+def test_a_file_cut_in_its_string_heap_is_refused_at_once(tmp_path):
+    # Regression (fuzz suite): a results file cut inside the global heap of its string
+    # attributes made HDF5 loop for ever in read_results_metadata (and a flipped byte there
+    # can crash the process): the heap is checked before HDF5 reads it.
+    path = tmp_path / "r.h5"
+    fm.simulate(pendulum(), 0.01, 1e-3, results_file=path)
+    data = path.read_bytes()
+    heap = data.index(b"GCOL\x01\x00\x00\x00")
+    damaged = tmp_path / "cut.h5"
+    damaged.write_bytes(data[: heap + 64])
+    run = subprocess.run(
+        [sys.executable, "-c", DAMAGED_HEADER, str(damaged)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert run.returncode == 0, run.stderr
+    for line in run.stdout.splitlines():
+        outcome, named, seconds = line.split()
+        assert (outcome, named) == ("error", "True") and float(seconds) < 5, run.stdout
+
+
+def damage(path, change) -> None:
+    with h5py.File(path, "r+") as file:
+        change(file)
+
+
+def test_record_times_that_are_not_finite_or_decrease_end_the_readable_records(tmp_path):
+    # Regression (fuzz suite): a NaN or a decreasing time was read as a record like any other.
+    path = tmp_path / "r.h5"
+    fm.simulate(pendulum(), 0.01, 1e-3, results_file=path)
+    good = fm.read_results(path)
+
+    def nan_at_4(file):
+        file["time"][4] = np.nan
+
+    damage(path, nan_at_4)
+    result = fm.read_results(path)
+    assert len(result) == 4 and isinstance(result.error, fm.ResultsFileError)
+    assert "4 of its 11 records" in str(result.error) and "record 4 has the time nan" in str(
+        result.error
+    )
+    assert_same_records(good, result, 4)
+
+    def back_in_time(file):
+        file["time"][4] = file["time"][2]
+
+    damage(path, back_in_time)
+    result = fm.read_results(path)
+    assert len(result) == 4 and "before the one of record 3" in str(result.error)
+
+
+def test_damaged_sizes_and_shapes_of_datasets_are_read_as_damage(tmp_path):
+    # Regression (fuzz suite): a record dataset replaced by a scalar raised IndexError; a
+    # text field declared of 1 TiB made the reader allocate it (MemoryError); a record count
+    # and dataset sizes beyond what the file holds were read as zeros.
+    path = tmp_path / "r.h5"
+    fm.simulate(pendulum(), 0.01, 1e-3, results_file=path)
+
+    def scalar_velocities(file):
+        del file["velocities"]
+        file["velocities"] = 2.5
+
+    damage(path, scalar_velocities)
+    result = fm.read_results(path)
+    assert len(result) == 0 and "0 of its 11 records" in str(result.error)
+
+    path = tmp_path / "s.h5"
+    fm.simulate(pendulum(), 0.01, 1e-3, results_file=path)
+
+    def huge(file):
+        del file["statistics"]
+        file.create_dataset("statistics", shape=(2**20, 2**20), dtype="u1", chunks=(64, 64))
+        del file["time"]
+        file.create_dataset("time", shape=(2**40,), dtype="f8", chunks=(1024,))
+        file["records"][0] = 2**40
+
+    damage(path, huge)
+    result = fm.read_results(path)
+    assert result.statistics == {} and isinstance(result.error, fm.ResultsFileError)
+    assert len(result) <= path.stat().st_size // 8
+
+
+@pytest.mark.parametrize(
+    "name, match",
+    [("r\x00.h5", "NUL character"), ("r" * 300 + ".h5", "name too long")],
+)
+def test_a_results_path_the_system_refuses_is_a_results_file_error(name, match, tmp_path):
+    # Regression (fuzz suite): a NUL raised ValueError and a long name OSError from pathlib.
+    with pytest.raises(fm.ResultsFileError, match=match):
+        fm.simulate(pendulum(), 0.01, 1e-3, results_file=f"{tmp_path}/{name}")
+    assert list(tmp_path.iterdir()) == []

@@ -21,6 +21,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from . import _core
+from ._checks import number
 from .errors import EquilibriumError, InvalidModelError
 from .state import EquilibriumState
 
@@ -198,6 +199,7 @@ def equilibrium(
     when it does not converge, `InvalidModelError` when the stiffness matrix is singular.
     """
     model = _model(model)
+    time = number(time, "time")
     layout = model.describe()
     flexible = dict(getattr(model, "_flexible", {}))
     nq, nc = model.coordinate_count, model.constraint_count
@@ -255,6 +257,7 @@ def steady_rotation(
     This is :func:`equilibrium` with its preconditions checked; `options` are its options.
     Raises `InvalidModelError` naming the driver that accelerates, or when nothing turns."""
     model = _model(model)
+    time = number(time, "time")
     nq, nc = model.coordinate_count, model.constraint_count
     q = np.array(model.initial_coordinates, dtype=float)
     zero_q, zero_l = np.zeros(nq), np.zeros(nc)

@@ -857,7 +857,8 @@ _Loader.add_constructor(_FLOAT_TAG, _Loader.construct_float)
 def _key_path(path: Path_) -> str:
     text = ""
     for part in path:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+        name = _short(part, 60)
+        text += f"[{part}]" if isinstance(part, int) else (f".{name}" if text else name)
     return text
 
 
@@ -999,7 +1000,7 @@ class _Source:
                 key = str(key_node.value)
                 line = key_node.start_mark.line + 1
                 if key in seen and isinstance(key_node, yaml.ScalarNode):
-                    message = f"duplicate key {key!r} (first at line {seen[key]})"
+                    message = f"duplicate key {_value_text(key)} (first at line {seen[key]})"
                     raise self.error(path + (key,), message, line)
                 seen[key] = line
                 self.lines[path + (key,)] = line
@@ -1081,8 +1082,29 @@ _SHAPES = {
 
 
 def _value_text(value: Any) -> str:
+    """A value for a message: its repr, at most 60 characters."""
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _short(name: Any, limit: int = 40) -> str:
+    """A name for a message, at most `limit` characters."""
+    text = str(name)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: Most names a message lists (known bodies, markers, ...).
+_LISTED = 20
+
+
+def _listing(names: Any) -> str:
+    """Names for a message ("none" if there are none): each shortened, at most _LISTED (a
+    model file may name an item with a string of megabytes, or have thousands of items)."""
+    items = [_short(name) for name in names]
+    if not items:
+        return "none"
+    more = len(items) - _LISTED
+    return ", ".join(items[:_LISTED]) + (f", ... ({more} more)" if more > 0 else "")
 
 
 def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
@@ -1092,16 +1114,16 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
     loc = error["loc"]
     path, _ = _locate(loc)
     if kind == "missing":
-        return path[:-1], f"missing key {loc[-1]!r}"
+        return path[:-1], f"missing key {_value_text(loc[-1])}"
     if kind == "extra_forbidden":
         key = str(loc[-1])
         _, model = _locate(loc[:-1])
         if model is None:
-            return path, f"unknown key {key!r}"
+            return path, f"unknown key {_value_text(key)}"
         allowed = list(model.model_fields)
         close = difflib.get_close_matches(key, allowed, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
-        return path, f"unknown key {key!r} (allowed: {', '.join(allowed)}){hint}"
+        return path, f"unknown key {_value_text(key)} (allowed: {', '.join(allowed)}){hint}"
     if kind == "union_tag_not_found" and isinstance(error.get("input"), dict):
         value = error["input"]
         if "type" in value:
@@ -1114,7 +1136,9 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
         if isinstance(value, dict) and named:
             if "type" not in value:
                 return path, "missing key 'type'"
-            return path + ("type",), f"unknown type {value['type']!r} (one of: {', '.join(named)})"
+            return path + (
+                "type",
+            ), f"unknown type {_value_text(value['type'])} (one of: {', '.join(named)})"
         kinds = [_SHAPES[t] for t in tags if t in _SHAPES]
         if named:
             kinds.append(f"a mapping with type {', '.join(named)}")
@@ -1399,7 +1423,9 @@ class _Builder:
         first = self.first.get((kind, name))
         if first is not None:
             line = self.source.line(first)
-            raise self.fail(path, f"duplicate {kind} name {name!r} (first at line {line})")
+            raise self.fail(
+                path, f"duplicate {kind} name {_value_text(name)} (first at line {line})"
+            )
         self.first[(kind, name)] = path
 
     # Values --------------------------------------------------------------------------------
@@ -1429,14 +1455,17 @@ class _Builder:
             spec: Any = name
             while isinstance(spec, str) and spec not in self.targets:
                 if spec not in functions:
-                    known = ", ".join(functions) or "none"
+                    known = _listing(functions)
                     where = ("functions", next(reversed(chain)))
-                    raise self.fail(where, f"unknown function {spec!r} (functions: {known})")
+                    raise self.fail(
+                        where, f"unknown function {_value_text(spec)} (functions: {known})"
+                    )
                 if spec in chain:
                     cycle = list(chain)[list(chain).index(spec) :] + [spec]
                     raise self.fail(
                         ("functions", spec),
-                        f"the functions refer to each other in a cycle: {' -> '.join(cycle)}",
+                        "the functions refer to each other in a cycle: "
+                        + " -> ".join(_short(c) for c in cycle),
                     )
                 chain[spec] = None
                 path: Path_ = ("functions", spec)
@@ -1449,8 +1478,8 @@ class _Builder:
         """A time function of the core for a quantity whose unit is `scale` SI units."""
         if isinstance(spec, str):
             if spec not in self.targets:
-                known = ", ".join(self.spec.functions) or "none"
-                raise self.fail(path, f"unknown function {spec!r} (functions: {known})")
+                known = _listing(self.spec.functions)
+                raise self.fail(path, f"unknown function {_value_text(spec)} (functions: {known})")
             spec, path = self.targets[spec]
         seconds, angle = self.units.time, self.units.angle
         if isinstance(spec, ConstantFunction):
@@ -1480,8 +1509,8 @@ class _Builder:
         name = None
         if isinstance(spec, str):
             if spec not in self.spec.materials:
-                known = ", ".join(self.spec.materials) or "none"
-                raise self.fail(path, f"unknown material {spec!r} (materials: {known})")
+                known = _listing(self.spec.materials)
+                raise self.fail(path, f"unknown material {_value_text(spec)} (materials: {known})")
             name, spec = spec, self.spec.materials[spec]
         pressure = self.units.scale(length=-1, mass=1, time=-2)
         density = self.units.scale(length=-3, mass=1)
@@ -1523,7 +1552,9 @@ class _Builder:
         if not location.is_absolute():
             location = self.source.folder / location
         if not location.is_file():
-            raise self.fail(path, f"no such file: {name!r} (looked for {location.absolute()})")
+            raise self.fail(
+                path, f"no such file: {_value_text(name)} (looked for {location.absolute()})"
+            )
         return location
 
     # Bodies --------------------------------------------------------------------------------
@@ -1696,8 +1727,8 @@ class _Builder:
 
     def body(self, name: str, path: Path_) -> _core.BodyId:
         if name not in self.bodies:
-            known = ", ".join(self.bodies)
-            raise self.fail(path, f"unknown body {name!r} (bodies: {known})")
+            known = _listing(self.bodies)
+            raise self.fail(path, f"unknown body {_value_text(name)} (bodies: {known})")
         return self.bodies[name]
 
     def add_marker(self, spec: MarkerSpec, path: Path_) -> _core.MarkerId:
@@ -1722,7 +1753,8 @@ class _Builder:
             raise self.fail(path, f"give one of position, node, node_set (got {', '.join(keys)})")
         if on_nodes and spec.body not in self.flexible:
             raise self.fail(
-                path + (on_nodes[0],), f"body {spec.body!r} is not a flexible body: it has no nodes"
+                path + (on_nodes[0],),
+                f"body {_value_text(spec.body)} is not a flexible body: it has no nodes",
             )
         if spec.node is not None:
             marker = self.call(
@@ -1762,8 +1794,8 @@ class _Builder:
         if isinstance(spec, MarkerSpec):
             return self.add_marker(spec, path)
         if spec not in self.markers:
-            known = ", ".join(self.markers) or "none"
-            raise self.fail(path, f"unknown marker {spec!r} (markers: {known})")
+            known = _listing(self.markers)
+            raise self.fail(path, f"unknown marker {_value_text(spec)} (markers: {known})")
         return self.markers[spec]
 
     # Joints, forces, sensors ---------------------------------------------------------------
@@ -1874,13 +1906,31 @@ class _Builder:
             cut = []
             for j, name in enumerate(options["cut_joints"]):
                 if name not in self.joints:
-                    known = ", ".join(self.joints) or "none"
+                    known = _listing(self.joints)
                     raise self.fail(
-                        path + ("cut_joints", j), f"unknown joint {name!r} (joints: {known})"
+                        path + ("cut_joints", j),
+                        f"unknown joint {_value_text(name)} (joints: {known})",
                     )
                 cut.append(self.joints[name])
             options["cut_joints"] = cut
         return self.call(path, _core.ExplicitSolver, **options)
+
+    def check_step_bounds(self) -> None:
+        """The solver's step bounds fit the step size: checked here, before a run, so that the
+        error names the keys (the run refuses them too, naming neither)."""
+        spec, step = self.spec.solver, self.spec.simulation.step_size
+        smallest = getattr(spec, "min_step_size", None)
+        if smallest is not None and smallest > step:
+            raise self.fail(
+                ("solver", "min_step_size"),
+                f"the minimum step size {smallest:g} is larger than simulation.step_size {step:g}",
+            )
+        largest = getattr(spec, "max_step_size", None)
+        if largest is not None and largest < step:
+            raise self.fail(
+                ("solver", "max_step_size"),
+                f"the maximum step size {largest:g} is smaller than simulation.step_size {step:g}",
+            )
 
     def outputs(self) -> list[Output]:
         if self.spec.outputs is None:
@@ -1895,8 +1945,8 @@ class _Builder:
                 line = self.source.line(first[output.label])
                 raise self.fail(
                     path + (("name",) if spec.name is not None else ()),
-                    f"duplicate output label {output.label!r} (first at line {line}): give "
-                    "each output its own name",
+                    f"duplicate output label {_value_text(output.label)} (first at line {line}): "
+                    "give each output its own name",
                 )
             first[output.label] = path
             outputs.append(output)
@@ -1919,13 +1969,15 @@ class _Builder:
             options = ", ".join(str(q) for q in allowed)
             raise self.fail(
                 path + ("quantity",),
-                what or f"the quantity of a {kind} output is one of: {options} (got {quantity!r})",
+                what
+                or f"the quantity of a {kind} output is one of: {options} "
+                f"(got {_value_text(quantity)})",
             )
         item = getattr(spec, kind) if kind != "system" else None
         known = {"sensor": self.sensors, "body": self.bodies, "joint": self.joints}.get(kind)
         if known is not None and item not in known:
             raise self.fail(
-                path + (kind,), f"unknown {kind} {item!r} ({kind}s: {', '.join(known) or 'none'})"
+                path + (kind,), f"unknown {kind} {_value_text(item)} ({kind}s: {_listing(known)})"
             )
         node_quantities = ("node_displacements", "node_positions", "deflection", "stresses")
         if kind == "body" and (
@@ -1933,7 +1985,7 @@ class _Builder:
             or quantity == "elastic_velocities"
         ):
             if item not in self.flexible:
-                raise self.fail(path + ("body",), f"{item!r} is not a flexible body")
+                raise self.fail(path + ("body",), f"{_value_text(item)} is not a flexible body")
         if quantity == "deflection" and spec.node is None:
             raise self.fail(path, "missing key 'node' (needed by deflection)")
         for key, users in _NODE_KEYS.items():
@@ -1964,8 +2016,8 @@ class _Builder:
             if node not in ids:
                 raise self.fail(
                     where,
-                    f"body {spec.body!r} has no node with id {node} (its {len(ids)} nodes have "
-                    f"ids {min(ids, default=0)} to {max(ids, default=0)})",
+                    f"body {_value_text(spec.body)} has no node with id {node} (its {len(ids)} "
+                    f"nodes have ids {min(ids, default=0)} to {max(ids, default=0)})",
                 )
         if spec.chord is not None:
             if spec.chord[0] == spec.chord[1]:
@@ -1983,19 +2035,20 @@ class _Builder:
         if spec.quantity == "stresses" and not elements - {"beam2"}:
             raise self.fail(
                 path + ("quantity",),
-                f"body {spec.body!r} has no solid elements: stresses are those of solid elements "
-                "(beams have section_forces)",
+                f"body {_value_text(spec.body)} has no solid elements: stresses are those of "
+                "solid elements (beams have section_forces)",
             )
         if spec.quantity == "section_forces" and ("beam2" not in elements or data.section is None):
             raise self.fail(
                 path + ("quantity",),
-                f"body {spec.body!r} has no beam elements with a section: section_forces are "
-                "those of beams",
+                f"body {_value_text(spec.body)} has no beam elements with a section: "
+                "section_forces are those of beams",
             )
         if spec.quantity in ("stresses", "section_forces") and not data.material:
             raise self.fail(
                 path + ("quantity",),
-                f"body {spec.body!r} has no material (built from matrices): no {spec.quantity}",
+                f"body {_value_text(spec.body)} has no material (built from matrices): "
+                f"no {spec.quantity}",
             )
 
 
@@ -2083,6 +2136,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     builder.add_forces()
     builder.add_sensors()
     solver = builder.solver()
+    builder.check_step_bounds()
     outputs = builder.outputs()
     bodies = {name: body for name, body in builder.bodies.items() if name != GROUND}
     return ModelFile(

@@ -8,7 +8,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _core
-from .errors import UnknownItemError
+from ._checks import integer
+from .errors import InvalidParameterError, UnknownItemError
 from .rotation import euler_parameters_to_matrix
 
 Array = NDArray[np.float64]
@@ -91,11 +92,16 @@ class Result:
     def state(self, index: int = -1) -> Any:
         """The :class:`flexmbd.State` of record `index` (default the last): start another run
         from it with ``simulate(..., initial_state=result.state())``."""
-        from .errors import InvalidParameterError
         from .state import State
 
         if len(self.time) == 0:
             raise InvalidParameterError("the result has no records", item="result")
+        index = integer(index, "index")
+        if not -len(self.time) <= index < len(self.time):
+            raise InvalidParameterError(
+                f"record index {index} is out of range (the result has {len(self.time)} records)",
+                item="index",
+            )
         return State(
             float(self.time[index]),
             self.coordinates[index],
@@ -260,6 +266,7 @@ class Result:
         its distance vector from the straight line through the deformed nodes a and b (the
         deflection from the chord, exact for large deformations)."""
         _, data = self._flexible(body)
+        node = integer(node, "node")
         if chord is None:
             return self.node_displacements(body, [node])[:, 0]
         ids = [chord[0], chord[1], node]
@@ -275,9 +282,16 @@ class Result:
         if nodes is None:
             return np.arange(len(data.nodes))
         ids = np.asarray(data.node_ids)
-        wanted = np.atleast_1d(np.asarray(nodes, dtype=np.int64))
+        given = np.atleast_1d(np.asarray(nodes, dtype=object))
+        if given.ndim != 1:
+            raise InvalidParameterError(
+                f"nodes must be a node id or a list of node ids, got an array of shape "
+                f"{given.shape}",
+                item="nodes",
+            )
+        wanted = [integer(k, "nodes") for k in given]
         lookup = {int(k): i for i, k in enumerate(ids)}
-        missing = [int(k) for k in wanted if int(k) not in lookup]
+        missing = [k for k in wanted if k not in lookup]
         if missing:
             raise UnknownItemError(f"no nodes with ids {missing} in the body", item=str(missing))
         return np.array([lookup[int(k)] for k in wanted], dtype=np.int64)

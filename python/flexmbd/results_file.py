@@ -36,8 +36,10 @@ import ctypes
 import errno
 import fcntl
 import json
+import mmap
 import os
 import resource
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -107,7 +109,7 @@ def _json(value: Any) -> str:
 def _is_results_file(path: Path) -> bool:
     """Whether `path` is a flexmbd results file (an HDF5 file with the format attribute)."""
     try:
-        if not h5py.is_hdf5(path):
+        if not path.is_file() or not h5py.is_hdf5(path):
             return False
         with _open(path, check=False) as file:
             found = file.attrs.get("format")
@@ -120,8 +122,24 @@ def _is_results_file(path: Path) -> bool:
 
 def _writable_target(path: Path, protect: tuple[Path, ...]) -> None:
     """Refuses a results path that is a folder, whose folder is missing, that is one of the
-    `protect`ed files (the model file of the run), or that holds another kind of file."""
+    `protect`ed files (the model file of the run), that holds another kind of file, or that
+    the system refuses (a NUL character, a name too long, a folder that cannot be read)."""
     where = f"file '{path}'"
+    if "\x00" in str(path):
+        raise ResultsFileError(
+            f"cannot write {str(path)!r}: a file name cannot hold a NUL character", item=where
+        )
+    try:
+        _check_target(path, protect, where)
+    except ResultsFileError:
+        raise
+    except OSError as error:
+        raise ResultsFileError(
+            f"cannot write {path}: {error.strerror or error}", item=where
+        ) from error
+
+
+def _check_target(path: Path, protect: tuple[Path, ...], where: str) -> None:
     if path.is_dir():
         raise ResultsFileError(f"{path} is a folder; give a file name such as run.h5", item=where)
     if not path.parent.is_dir():
@@ -461,9 +479,20 @@ def _open(path: Path, *, check: bool = True) -> h5py.File:
     single-writer/multiple-reader mode reads it."""
     if check and not path.exists():
         raise FileNotFoundError(2, "No such results file", str(path))
+    if check and not path.is_file():
+        # A folder, a FIFO (whose reading would wait for a writer) or a device.
+        raise InvalidModelError(
+            f"{path} is not a flexmbd results file (not a regular file)", item=f"file '{path}'"
+        )
     if check and not h5py.is_hdf5(path):
         raise InvalidModelError(
             f"{path} is not a flexmbd results file (not an HDF5 file)", item=f"file '{path}'"
+        )
+    damage = _global_heap_damage(path)
+    if damage is not None:
+        raise ResultsFileError(
+            f"{path} cannot be read: the file is truncated or damaged ({damage})",
+            item=f"file '{path}'",
         )
     access = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
     access.set_libver_bounds(h5py.h5f.LIBVER_LATEST, h5py.h5f.LIBVER_LATEST)
@@ -481,16 +510,80 @@ def _open(path: Path, *, check: bool = True) -> h5py.File:
     )
 
 
+_HEAP_SIGNATURE = b"GCOL\x01\x00\x00\x00"
+
+
+def _global_heap_damage(path: Path) -> str | None:
+    """What is wrong with a global heap collection of the HDF5 file `path`, or None.
+
+    HDF5 keeps variable-length strings (the root attributes of a results file, the ``type``
+    attributes of its deformable bodies) in global heap collections, which have no checksum
+    and which HDF5 does not check: reading a string from a collection whose size runs past
+    the end of the file (a truncated file) or whose objects do not fit it (a flipped byte)
+    loops for ever or crashes the process. So they are checked first, found by their
+    signature: the collection must lie in the file, and its objects (16-byte headers, data
+    padded to 8 bytes) must end at its free space (object 0) or leave a tail shorter than a
+    header. Files with a size of lengths other than 8 bytes (not written by h5py's defaults)
+    are not checked."""
+    try:
+        with open(path, "rb") as file, mmap.mmap(file.fileno(), 0, access=mmap.ACCESS_READ) as data:
+            version = data[8] if len(data) > 16 else -1
+            lengths = data[14] if version in (0, 1) else data[10] if version in (2, 3) else 0
+            if lengths != 8:
+                return None
+            start = data.find(_HEAP_SIGNATURE)
+            while start >= 0:
+                (size,) = (
+                    struct.unpack_from("<Q", data, start + 8) if start + 16 <= len(data) else (0,)
+                )
+                end = start + size
+                if size < 16 or size % 8 or end > len(data):
+                    return (
+                        f"a global heap collection at byte {start} has the size {size}; the file "
+                        f"has {len(data)} bytes"
+                    )
+                position = start + 16
+                while position + 16 <= end:
+                    index, _, _, object_size = struct.unpack_from("<HHIQ", data, position)
+                    if index == 0:
+                        intact = position + object_size == end
+                        break
+                    position += 16 + (object_size + 7) // 8 * 8
+                else:
+                    intact = 0 <= end - position < 16
+                if not intact:
+                    return (
+                        f"the objects of the global heap collection at byte {start} do not fit it"
+                    )
+                start = data.find(_HEAP_SIGNATURE, end)
+    except (OSError, ValueError) as error:
+        return f"it cannot be read: {error}"
+    return None
+
+
+#: Largest JSON text field read, bytes (the texts of a run take kilobytes).
+_TEXT_LIMIT = 64 << 20
+
+
 def _text(file: h5py.File, name: str) -> Any:
     """A JSON text field, or None when it is absent, empty, torn or damaged: the writer of a
     running simulation rewrites these fields with every chunk (resize, then write), and a
-    reader in between sees a text that does not decode; it reads as not written yet."""
+    reader in between sees a text that does not decode; it reads as not written yet. A
+    field that is not a short one-dimensional byte array (a damaged size) is damaged too."""
     try:
-        data = file[name][:] if name in file else np.zeros(0, np.uint8)
+        if name not in file:
+            return None
+        dataset = file[name]
+        if not isinstance(dataset, h5py.Dataset) or dataset.ndim != 1:
+            return None
+        if dataset.size * dataset.dtype.itemsize > _TEXT_LIMIT:
+            return None
+        data = dataset[:]
         if not len(data):
             return None
         return json.loads(np.asarray(data, dtype=np.uint8).tobytes().decode("utf-8"))
-    except (OSError, ValueError, TypeError, KeyError):  # damaged, or a JSON/Unicode error
+    except (OSError, ValueError, TypeError, KeyError, RecursionError):
+        # Damaged, a JSON or Unicode error, or JSON nested too deep to decode.
         return None
 
 
@@ -593,18 +686,26 @@ def _check_header(file: h5py.File, path: Path) -> None:
             )
 
 
-def _readable_rows(file: h5py.File, name: str, count: int, shape: tuple[int, ...]) -> np.ndarray:
+def _readable_rows(
+    file: h5py.File, name: str, count: int, shape: tuple[int, ...], size: int
+) -> np.ndarray:
     """The first `count` rows of a record dataset, or as many of them as can be read (a
-    damaged chunk ends the readable part; found by halving)."""
+    damaged chunk ends the readable part; found by halving). No more rows are read than a
+    file of `size` bytes can hold (the records are stored uncompressed): a damaged count or
+    dataset size does not make the reader allocate what the file cannot hold."""
+    empty = np.zeros((0, *shape))
+    row_bytes = 8 * int(np.prod(shape))
     try:
         dataset = file[name]
-        if dataset.shape[1:] != shape:
-            return np.zeros((0, *shape))
+        if not isinstance(dataset, h5py.Dataset) or dataset.shape[1:] != shape:
+            return empty
         count = min(count, dataset.shape[0])
+        if row_bytes:
+            count = min(count, size // row_bytes)
         return np.asarray(dataset[:count], dtype=np.float64)
-    except (OSError, ValueError, TypeError, KeyError, RuntimeError):
-        if "dataset" not in locals():
-            return np.zeros((0, *shape))
+    except (OSError, ValueError, TypeError, KeyError, RuntimeError, IndexError):
+        if "dataset" not in locals() or not isinstance(dataset, h5py.Dataset):
+            return empty
     good, bad = 0, count
     while bad - good > 1:
         middle = (good + bad) // 2
@@ -616,7 +717,23 @@ def _readable_rows(file: h5py.File, name: str, count: int, shape: tuple[int, ...
     try:
         return np.asarray(dataset[:good], dtype=np.float64)
     except (OSError, ValueError, TypeError):
-        return np.zeros((0, *shape))
+        return empty
+
+
+def _ordered(time: np.ndarray) -> tuple[int, str]:
+    """How many leading records have finite times that do not decrease, and what is wrong
+    with the next one ("" if all are in order): times that are not are damage."""
+    wrong = ~np.isfinite(time)
+    wrong[1:] |= time[1:] < time[:-1]
+    if not wrong.any():
+        return len(time), ""
+    first = int(np.argmax(wrong))
+    if not np.isfinite(time[first]):
+        return first, f"record {first} has the time {time[first]}"
+    return (
+        first,
+        f"record {first} has the time {time[first]:g}, before the one of record {first - 1}",
+    )
 
 
 _DAMAGE = (OSError, KeyError, ValueError, RuntimeError, TypeError, AttributeError)
@@ -656,10 +773,12 @@ def _read_results(path: Path) -> Result:
         layout = _layout(file, path)
         shapes = _record_shapes(layout)
         count = _record_count(file, path)
+        size = path.stat().st_size
         raw: dict[str, Any] = {
-            name: _readable_rows(file, name, count, shapes[name]) for name in _RECORD_FIELDS
+            name: _readable_rows(file, name, count, shapes[name], size) for name in _RECORD_FIELDS
         }
         readable = min(len(values) for values in raw.values())
+        readable, disorder = _ordered(raw["time"][:readable])
         raw = {name: values[:readable] for name, values in raw.items()}
         raw["statistics"] = _text(file, "statistics") or {}
         raw["events"] = _text(file, "events") or []
@@ -678,9 +797,10 @@ def _read_results(path: Path) -> Result:
     error: FlexmbdError | None = None
     last = f"{raw['time'][-1]:g} s" if readable else "its start"
     if readable < count:
+        why = f"; {disorder}" if disorder else ""
         error = ResultsFileError(
             f"{path} is damaged: {readable} of its {count} records could be read (up to "
-            f"t = {last})",
+            f"t = {last}){why}",
             item=f"file '{path}'",
         )
     elif not isinstance(status, dict) or status.get("state") != "complete":

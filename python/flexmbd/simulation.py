@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from . import _core
+from ._checks import number
 from .errors import InitialCorrectionWarning, InvalidParameterError, ResultsFileError
 from .result import Result
 from .state import State
@@ -28,8 +29,10 @@ def _start(
     model: _core.Model, initial_state: State | str | None, start_time: float | None
 ) -> tuple[float, State | None]:
     """The start time and the state to start from (None: the model's own)."""
+    if start_time is not None:
+        start_time = number(start_time, "start_time")
     if initial_state is None or (isinstance(initial_state, str) and initial_state == "given"):
-        return (0.0 if start_time is None else float(start_time)), None
+        return (0.0 if start_time is None else start_time), None
     if isinstance(initial_state, str):
         from .analysis import equilibrium, steady_rotation
 
@@ -38,7 +41,7 @@ def _start(
                 f"initial_state must be a State or one of {STARTS}, got {initial_state!r}",
                 item="initial_state",
             )
-        time = 0.0 if start_time is None else float(start_time)
+        time = 0.0 if start_time is None else start_time
         solve = equilibrium if initial_state == "equilibrium" else steady_rotation
         return time, solve(model, time)
     if not isinstance(initial_state, State):
@@ -46,13 +49,28 @@ def _start(
             f"initial_state must be a State or one of {STARTS}, got {type(initial_state).__name__}",
             item="initial_state",
         )
-    if start_time is not None and float(start_time) != initial_state.time:
+    if start_time is not None and start_time != initial_state.time:
         raise InvalidParameterError(
             f"start_time {start_time} differs from the initial state's time "
             f"{initial_state.time}; give one of them",
             item="start_time",
         )
     return initial_state.time, initial_state
+
+
+def _check_paths(results_file: Any, protect: Any) -> None:
+    """`results_file` is None or a path; `protect` a sequence of paths."""
+    if results_file is not None and not isinstance(results_file, str | os.PathLike):
+        raise InvalidParameterError(
+            f"results_file must be a path (a str or os.PathLike), got "
+            f"{type(results_file).__name__}",
+            item="results_file",
+        )
+    paths = protect if isinstance(protect, tuple | list) else None
+    if paths is None or not all(isinstance(p, str | os.PathLike) for p in paths):
+        raise InvalidParameterError(
+            f"protect must be a tuple of paths, got {protect!r}"[:200], item="protect"
+        )
 
 
 def _report(result: Result) -> None:
@@ -132,12 +150,25 @@ def simulate(
     """
     if isinstance(model, _core.System):
         model = model.compile()
-    if initial_conditions not in ("correct", "strict"):
+    end_time = number(end_time, "end_time")
+    step_size = number(step_size, "step_size")
+    if output_interval is not None:
+        output_interval = number(output_interval, "output_interval")
+    if not (isinstance(initial_conditions, str) and initial_conditions in ("correct", "strict")):
         raise InvalidParameterError(
             f"initial_conditions must be 'correct' or 'strict', got {initial_conditions!r}",
             item="initial_conditions",
         )
+    if not isinstance(keep_in_memory, bool | np.bool_):
+        raise InvalidParameterError(
+            f"keep_in_memory must be True or False, got {keep_in_memory!r}", item="keep_in_memory"
+        )
+    _check_paths(results_file, protect)
     start_time, start = _start(model, initial_state, start_time)
+    if end_time < start_time:
+        raise InvalidParameterError(
+            f"end time {end_time:g} is before start time {start_time:g}", item="end_time"
+        )
     start_arrays: dict[str, Any] = {}
     if start is not None:
         start_arrays = {

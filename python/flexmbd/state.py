@@ -22,15 +22,27 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
+from ._checks import number
 from .errors import InvalidParameterError
 
 Array = NDArray[np.float64]
 
 
-def _frozen(values: ArrayLike | None) -> Array | None:
+def _floats(values: ArrayLike, name: str) -> Array:
+    """`values` as a new float array; InvalidParameterError naming `name` if they are not
+    numbers."""
+    try:
+        return np.array(values, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise InvalidParameterError(
+            f"{name} must be numbers, got {type(values).__name__} ({error})", item=name
+        ) from None
+
+
+def _frozen(values: ArrayLike | None, name: str) -> Array | None:
     if values is None:
         return None
-    array = np.array(values, dtype=float)
+    array = _floats(values, name)
     array.setflags(write=False)
     return array
 
@@ -63,8 +75,8 @@ class State:
 
     def __post_init__(self) -> None:
         for name in ("coordinates", "velocities", "accelerations", "multipliers"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
-        object.__setattr__(self, "time", float(self.time))
+            object.__setattr__(self, name, _frozen(getattr(self, name), name))
+        object.__setattr__(self, "time", number(self.time, "time"))
         if self.coordinates.shape != self.velocities.shape or self.coordinates.ndim != 1:
             raise InvalidParameterError(
                 f"a state needs coordinates and velocities of one length, got "
@@ -183,7 +195,7 @@ class State:
     def _replaced(self, body: object, part: str, values: ArrayLike, rates: bool) -> State:
         span = self._slice(body, part)
         target = np.array(self.velocities if rates else self.coordinates)
-        values = np.asarray(values, dtype=float).ravel()
+        values = _floats(values, part).ravel()
         if values.shape != target[span].shape or not np.all(np.isfinite(values)):
             raise InvalidParameterError(
                 f"{part}: expected {target[span].shape[0]} finite values, got {values.shape}",
