@@ -276,6 +276,69 @@ def test_negative_and_mistyped_integers_name_the_parameter(make, match):
         make()
 
 
+@pytest.mark.parametrize(
+    "make, match, item",
+    [
+        (lambda s, m: s.add_spherical_joint(1.5, m), "add_spherical_joint.*'marker1'", "marker1"),
+        (lambda s, m: s.add_marker(fm.BodyId(1), name=3), "add_marker.*'name'", "name"),
+        (lambda s, m: s.add_rigid_body(mass="1", inertia=(1, 1, 1)), "'mass'", "mass"),
+        (lambda s, m: fm.fe.Material("steel", 0.3, 7850.0), "Material.*'young_modulus'", None),
+        (lambda s, m: fm.Harmonic(1.0, "fast"), "Harmonic.*'frequency'", "frequency"),
+        (lambda s, m: fm.GeneralizedAlpha(relative_tolerance=[1e-6]), "relative_tolerance", None),
+        (lambda s, m: fm.fe.Section.rectangle("b", 0.1), "Section.rectangle.*'b'", "b"),
+        (lambda s, m: s.add_sensor(m, quantity=3), "add_sensor.*'quantity'", "quantity"),
+    ],
+)
+def test_arguments_of_the_wrong_type_name_the_call_and_the_parameter(system, make, match, item):
+    # Regression (issue 28): PyO3's TypeError ("'float' object is not an instance of
+    # 'MarkerId'", "must be real number, not str") named no parameter.
+    s, body = system
+    marker = s.add_marker(body)
+    with pytest.raises(fm.ArgumentTypeError, match=match) as raised:
+        make(s, marker)
+    assert isinstance(raised.value, TypeError) and isinstance(
+        raised.value, fm.InvalidParameterError
+    )
+    if item is not None:
+        assert raised.value.item == item
+
+
+def test_a_field_of_the_wrong_type_is_named_and_a_bad_value_refused_at_simulate(system):
+    settings = fm.GeneralizedAlpha()
+    with pytest.raises(fm.ArgumentTypeError, match="newton_tolerance"):
+        settings.newton_tolerance = "tight"
+    settings.max_step_size = float("nan")
+    with pytest.raises(fm.InvalidParameterError, match="max_step_size must be a finite number"):
+        fm.simulate(system[0], 0.01, 1e-3, solver=settings)
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: fm.GeneralizedAlpha(newton_tolerance=0.0), "newton_tolerance .* got 0"),
+        (lambda: fm.GeneralizedAlpha(relative_tolerance=float("nan")), "relative_tolerance"),
+        (lambda: fm.GeneralizedAlpha(max_step_size=-1.0), "max_step_size .* got -1"),
+        (lambda: fm.GeneralizedAlpha(min_step_size=1e-2, max_step_size=1e-3), "min_step_size"),
+        (lambda: fm.ExplicitSolver(absolute_tolerance=float("inf")), "absolute_tolerance"),
+        (lambda: fm.ExplicitSolver(repartition_ratio=1.0), "repartition_ratio .* > 1, got 1"),
+        (lambda: fm.ExplicitSolver(singular_factor=0.5), "singular_factor"),
+        (lambda: fm.ExplicitSolver(drift_threshold=-1e-6), "drift_threshold"),
+    ],
+)
+def test_solver_settings_out_of_range_name_the_setting(make, match):
+    # Regression (issue 28): NaN, infinite and negative tolerances and step bounds were
+    # accepted, refused later without a name, or ignored (max_step_size NaN or -1).
+    with pytest.raises(fm.InvalidParameterError, match=match):
+        make()
+
+
+def test_huge_settings_are_shown_in_scientific_notation(system):
+    solver = fm.GeneralizedAlpha(min_step_size=1e300)
+    with pytest.raises(fm.InvalidParameterError) as raised:
+        fm.simulate(system[0], 0.01, 1e-3, solver=solver)
+    assert "1e300" in str(raised.value) and "0" * 25 not in str(raised.value)
+
+
 def test_unknown_items_are_named_in_the_singular():
     result = fm.simulate(pendulum_system(), 0.01, 1e-3)
     with pytest.raises(fm.UnknownItemError, match=r"^body 5 does not exist \(the model has 2"):

@@ -17,24 +17,19 @@ Units are SI by convention. See ``docs/`` for the theory and the solver choices.
 from __future__ import annotations
 
 from . import errors, examples
-from ._core import (
-    BodyId,
+from ._boundary import (
     Constant,
     ExplicitSolver,
-    ForceId,
     GeneralizedAlpha,
     Harmonic,
-    JointId,
-    MarkerId,
-    Model,
     Polynomial,
-    SensorId,
     Spline,
     UserFunction,
-    __version__,
 )
+from ._core import BodyId, ForceId, JointId, MarkerId, Model, SensorId, __version__
 from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
 from .errors import (
+    ArgumentTypeError,
     CallbackError,
     EquilibriumError,
     FlexmbdError,
@@ -62,6 +57,7 @@ from .state import EquilibriumState, State
 from .system import System
 
 __all__ = [
+    "ArgumentTypeError",
     "BodyId",
     "EquilibriumState",
     "LinearizedSystem",

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from . import __version__, _core
+from . import __version__, _boundary
 from .errors import (
     FlexmbdError,
     InitialCorrectionWarning,
@@ -41,7 +41,7 @@ def _solver(text: str | None, default: Any) -> Any:
     if text is None:
         return default
     if text == "generalized-alpha":
-        return _core.GeneralizedAlpha()
+        return _boundary.GeneralizedAlpha()
     parts = text.split(":")
     if not 2 <= len(parts) <= 3:
         raise argparse.ArgumentTypeError(
@@ -49,7 +49,7 @@ def _solver(text: str | None, default: Any) -> Any:
         )
     default = "joint-space" if parts[1] == "joint-coordinates" else "augmented"
     formulation = parts[2] if len(parts) == 3 else default
-    return _core.ExplicitSolver(parts[0], parts[1], formulation=formulation)
+    return _boundary.ExplicitSolver(parts[0], parts[1], formulation=formulation)
 
 
 @dataclass

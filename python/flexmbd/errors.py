@@ -36,6 +36,12 @@ class InvalidParameterError(ModelError):
     positive definite, a matrix that is not a rotation, ..."""
 
 
+class ArgumentTypeError(InvalidParameterError, TypeError):
+    """An argument of the wrong type (a string where a number is expected, a float where a
+    marker id is): an :class:`InvalidParameterError` whose ``item`` is the parameter's name,
+    and also a :class:`TypeError`."""
+
+
 class FrozenBodyError(InvalidParameterError, FrozenInstanceError):
     """An attempt to change the data of a deformable body after it was built (a field, an
     array element or a dictionary entry of a :class:`flexmbd.fe.FlexibleBodyData`). Body data

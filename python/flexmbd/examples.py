@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _core
+from . import _boundary, _core
 from .rotation import rotation
 
 
@@ -26,7 +26,7 @@ class Example:
     system: _core.System
     end_time: float
     step_size: float
-    solver: _core.GeneralizedAlpha
+    solver: _boundary.GeneralizedAlpha
     output_interval: float
     items: dict[str, Any] = field(default_factory=dict)
     reference: dict[str, Any] = field(default_factory=dict)
@@ -64,7 +64,7 @@ def pendulum() -> Example:
         system=system,
         end_time=10.0,
         step_size=5e-5,
-        solver=_core.GeneralizedAlpha(1.0),
+        solver=_boundary.GeneralizedAlpha(1.0),
         output_interval=0.01,
         items={"mass": mass, "link": link, "bob": sensor},
         reference=reference,
@@ -153,7 +153,7 @@ def four_bar(n: int = 2) -> Example:
         system=system,
         end_time=10.0,
         step_size=2e-4,
-        solver=_core.GeneralizedAlpha(0.9),
+        solver=_boundary.GeneralizedAlpha(0.9),
         output_interval=0.01,
         items={
             "cranks": cranks,
@@ -209,7 +209,9 @@ def flexible_slider_crank(elements: int = 8, geometric_stiffness: bool = True) -
     )
     pivot, crank_root = system.add_marker(system.ground), system.add_marker(crank)
     system.add_revolute_joint(pivot, crank_root, name="bearing")
-    drive = system.add_angle_driver(pivot, crank_root, _core.Polynomial([0.0, omega]), name="drive")
+    drive = system.add_angle_driver(
+        pivot, crank_root, _boundary.Polynomial([0.0, omega]), name="drive"
+    )
     crank_pin = system.add_revolute_joint(
         system.add_marker(crank, position=(crank_length, 0, 0)),
         system.add_node_marker(rod, 1),
@@ -240,7 +242,7 @@ def flexible_slider_crank(elements: int = 8, geometric_stiffness: bool = True) -
         system=system,
         end_time=2 * 2 * np.pi / omega,
         step_size=2e-5,
-        solver=_core.GeneralizedAlpha(0.9),
+        solver=_boundary.GeneralizedAlpha(0.9),
         output_interval=1e-4,
         items={
             "crank": crank,
@@ -290,7 +292,7 @@ def spin_up(geometric_stiffness: bool = True, elements: int = 10) -> Example:
     hub, root = system.add_marker(system.ground), system.add_node_marker(beam, 1)
     system.add_revolute_joint(hub, root, name="hub")
     drive = system.add_angle_driver(
-        hub, root, _core.UserFunction(hub_angle, derivatives=True), name="drive"
+        hub, root, _boundary.UserFunction(hub_angle, derivatives=True), name="drive"
     )
     tip = elements + 1
     reference = {"min v_tip (m)": -0.5737, "t of min (s)": 6.75, "v_tip(5 s)": -0.4684}
@@ -312,7 +314,7 @@ def spin_up(geometric_stiffness: bool = True, elements: int = 10) -> Example:
         system=system,
         end_time=10.0,
         step_size=5e-3,
-        solver=_core.GeneralizedAlpha(0.9),
+        solver=_boundary.GeneralizedAlpha(0.9),
         output_interval=0.05,
         items={"beam": beam, "tip node": tip, "drive": drive},
         reference=reference,
@@ -358,7 +360,7 @@ def tetrahedral_pendulum(mode_count: int = 6) -> Example:
         system=system,
         end_time=1.0,
         step_size=5e-4,
-        solver=_core.GeneralizedAlpha(1.0),
+        solver=_boundary.GeneralizedAlpha(1.0),
         output_interval=0.01,
         items={"arm": arm, "hinge": joint, "body data": data},
         check=check,
@@ -406,7 +408,7 @@ def rotating_blade_flap_frequencies(
     blade = system.add_flexible_body(data, geometric_stiffness=geometric_stiffness)
     hub, root = system.add_marker(system.ground), system.add_node_marker(blade, 1)
     system.add_revolute_joint(hub, root)
-    system.add_angle_driver(hub, root, _core.Polynomial([0.0, g / scale]))
+    system.add_angle_driver(hub, root, _boundary.Polynomial([0.0, g / scale]))
     frequencies, shapes = linearize(system, equilibrium(system)).modes()
     rows = np.concatenate([7 + 6 * k + np.arange(3) for k in range(elements)])
     moved = shapes[rows].reshape(elements, 3, -1)
@@ -478,7 +480,7 @@ def flexible_double_pendulum(elements: int = 4, mode_count: int = 0) -> Example:
         system=system,
         end_time=2.0,
         step_size=1e-3,
-        solver=_core.GeneralizedAlpha(1.0),
+        solver=_boundary.GeneralizedAlpha(1.0),
         output_interval=0.01,
         items={
             "upper link": upper,
@@ -531,7 +533,7 @@ def flexible_robot_arm(elements: int = 4, mode_count: int = 0) -> Example:
         )
     angle = 0.8
     drive = system.add_angle_driver(
-        *base, _core.Polynomial([0.0, 0.0, 3 * angle, -2 * angle]), name="drive"
+        *base, _boundary.Polynomial([0.0, 0.0, 3 * angle, -2 * angle]), name="drive"
     )
 
     def check(result: Any) -> dict[str, float]:
@@ -549,7 +551,7 @@ def flexible_robot_arm(elements: int = 4, mode_count: int = 0) -> Example:
         system=system,
         end_time=1.0,
         step_size=1e-3,
-        solver=_core.GeneralizedAlpha(1.0),
+        solver=_boundary.GeneralizedAlpha(1.0),
         output_interval=0.005,
         items={"links": links, "tip node": tip, "joints": joints, "drive": drive},
         reference={"energy balance error / max kinetic energy": 0.0},
@@ -709,7 +711,7 @@ def andrews() -> Example:
         system=system,
         end_time=0.03,
         step_size=2e-6,
-        solver=_core.GeneralizedAlpha(0.9, newton_tolerance=1e-10),
+        solver=_boundary.GeneralizedAlpha(0.9, newton_tolerance=1e-10),
         output_interval=1e-5,
         items={
             "bodies": bodies,
@@ -775,7 +777,7 @@ def four_bar_spatial() -> Example:
         system=system,
         end_time=10.0,
         step_size=2e-4,
-        solver=_core.GeneralizedAlpha(0.9),
+        solver=_boundary.GeneralizedAlpha(0.9),
         output_interval=0.01,
         items={
             "cranks": cranks,
@@ -870,7 +872,7 @@ def bricard() -> Example:
         system=system,
         end_time=10.0,
         step_size=1e-3,
-        solver=_core.GeneralizedAlpha(1.0),
+        solver=_boundary.GeneralizedAlpha(1.0),
         output_interval=0.01,
         items={"links": links, "joints": joints, "P3 position": tracked, "redundant equations": 1},
         check=check,

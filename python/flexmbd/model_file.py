@@ -33,7 +33,7 @@ import yaml
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError
 
-from . import _core
+from . import _boundary, _core
 from .errors import FlexmbdError, ModelFileError
 from .result import Result
 from .rotation import rotation
@@ -1258,7 +1258,7 @@ class ModelFile:
     description: str
     units: dict[str, str]
     system: System
-    solver: _core.GeneralizedAlpha | _core.ExplicitSolver
+    solver: _boundary.GeneralizedAlpha | _boundary.ExplicitSolver
     end_time: float
     step_size: float
     output_interval: float | None
@@ -1483,14 +1483,14 @@ class _Builder:
             spec, path = self.targets[spec]
         seconds, angle = self.units.time, self.units.angle
         if isinstance(spec, ConstantFunction):
-            return self.call(path, _core.Constant, spec.value * scale)
+            return self.call(path, _boundary.Constant, spec.value * scale)
         if isinstance(spec, PolynomialFunction):
             coefficients = [c * scale / seconds**k for k, c in enumerate(spec.coefficients)]
-            return self.call(path, _core.Polynomial, coefficients)
+            return self.call(path, _boundary.Polynomial, coefficients)
         if isinstance(spec, HarmonicFunction):
             return self.call(
                 path,
-                _core.Harmonic,
+                _boundary.Harmonic,
                 spec.amplitude * scale,
                 spec.frequency * angle / seconds,
                 spec.phase * angle,
@@ -1500,7 +1500,7 @@ class _Builder:
             if len(spec.times) != len(spec.values):
                 raise self.fail(path, "a spline needs as many values as times")
             times = [t * seconds for t in spec.times]
-            return self.call(path, _core.Spline, times, [v * scale for v in spec.values])
+            return self.call(path, _boundary.Spline, times, [v * scale for v in spec.values])
         return float(spec) * scale
 
     def material(self, spec: Any, path: Path_) -> Any:
@@ -1888,17 +1888,17 @@ class _Builder:
 
     # Solver, simulation, outputs -----------------------------------------------------------
 
-    def solver(self) -> _core.GeneralizedAlpha | _core.ExplicitSolver:
+    def solver(self) -> _boundary.GeneralizedAlpha | _boundary.ExplicitSolver:
         spec = self.spec.solver
         if spec is None:
-            return _core.GeneralizedAlpha()
+            return _boundary.GeneralizedAlpha()
         path: Path_ = ("solver",)
         options = spec.model_dump(exclude_none=True, exclude={"type"})
         for key in ("min_step_size", "max_step_size"):
             if key in options:
                 options[key] *= self.units.time
         if isinstance(spec, GeneralizedAlphaSpec):
-            return self.call(path, _core.GeneralizedAlpha, **options)
+            return self.call(path, _boundary.GeneralizedAlpha, **options)
         if "baumgarte" in options:
             alpha, beta = options["baumgarte"]
             options["baumgarte"] = (alpha / self.units.time, beta / self.units.time)
@@ -1913,7 +1913,7 @@ class _Builder:
                     )
                 cut.append(self.joints[name])
             options["cut_joints"] = cut
-        return self.call(path, _core.ExplicitSolver, **options)
+        return self.call(path, _boundary.ExplicitSolver, **options)
 
     def check_step_bounds(self) -> None:
         """The solver's step bounds fit the step size: checked here, before a run, so that the
@@ -2171,7 +2171,7 @@ def simulate_model(
     step_size: float | None = None,
     output_interval: float | None = None,
     start_time: float | None = None,
-    solver: _core.GeneralizedAlpha | _core.ExplicitSolver | None = None,
+    solver: _boundary.GeneralizedAlpha | _boundary.ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
 ) -> Result:
     """Simulates a model file (a :class:`ModelFile` or a path, loaded first) with

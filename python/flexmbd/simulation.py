@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _core
+from . import _boundary, _core
 from ._checks import number
 from .errors import InitialCorrectionWarning, InvalidParameterError, ResultsFileError
 from .result import Result
@@ -91,7 +91,7 @@ def simulate(
     initial_state: State | str | None = None,
     initial_conditions: str = "correct",
     output_interval: float | None = None,
-    solver: _core.GeneralizedAlpha | _core.ExplicitSolver | None = None,
+    solver: _boundary.GeneralizedAlpha | _boundary.ExplicitSolver | None = None,
     progress: Callable[[float, float, int], object] | None = None,
     results_file: str | os.PathLike[str] | None = None,
     metadata: dict[str, Any] | None = None,

@@ -139,26 +139,6 @@ class Known:
 #: ``system.py``): the test marks them xfail with the reason. Each names where to fix it.
 KNOWN_FAILURES: list[Known] = [
     Known(
-        "binding (crates/flexmbd-py): an argument of the wrong type (a str, list, None, "
-        "array or id where a number, a name, a bool or a MarkerId is expected) raises a bare "
-        "TypeError from pyo3's extraction ('must be real number, not str', \"'int' object is "
-        "not an instance of 'MarkerId'\") that does not name the parameter, not an "
-        "InvalidParameterError",
-        family="api",
-        message=r"^builtins\.TypeError: .*corpus\.py:\d+ operate\]$",
-    ),
-    Known(
-        "binding/core (crates/flexmbd-py/src/solver.rs, integrator/settings.rs): "
-        "GeneralizedAlpha and ExplicitSolver accept NaN, infinite, zero and negative "
-        "tolerances and step bounds; simulate() refuses some with messages that name no "
-        "parameter ('times and step sizes must be finite', 'tolerances and thresholds must "
-        "be positive', a 301-digit 'minimum 1e300') and ignores others (max_step_size NaN or "
-        "-1, relative_tolerance NaN of GeneralizedAlpha)",
-        family="api",
-        kind=r"^api/(GeneralizedAlpha|ExplicitSolver)/",
-        outcomes=("wrong", "unnamed", "garbled"),
-    ),
-    Known(
         "system.py (System.add_flexible_body): elastic_coordinates, modal_damping and "
         "condense of the wrong type raise a bare TypeError (float() argument ..., 'float' "
         "object is not an instance of 'bool')",

@@ -78,6 +78,26 @@ pub fn invalid(item: &str, message: impl Into<String>) -> PyErr {
     })
 }
 
+/// A number for a message: plain when short, in scientific notation when its plain form would
+/// run to dozens of digits (1e300 is "1e300", not 301 digits).
+pub fn shown(value: f64) -> String {
+    if value != 0.0 && value.is_finite() && !(1e-4..1e15).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
+    }
+}
+
+/// Checks that the setting `name` of `item` is a finite number above `floor`: NaN, an
+/// infinity or a value at or below the floor is an `InvalidParameterError` naming it.
+pub fn above(item: &str, name: &str, value: f64, floor: f64) -> PyResult<()> {
+    if value.is_finite() && value > floor {
+        Ok(())
+    } else {
+        Err(invalid(item, format!("{name} must be a finite number > {}, got {}", shown(floor), shown(value))))
+    }
+}
+
 /// An integer argument of at least `min` (a count, an index): a negative number, a float or
 /// another type is an `InvalidParameterError` naming the argument (PyO3's own conversion
 /// raises OverflowError or TypeError without the name).

@@ -13,7 +13,7 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 use crate::errors::{check, invalid};
 
 /// Isotropic linear elastic material: Young's modulus (Pa), Poisson's ratio, density (kg/m^3).
-#[pyclass(module = "flexmbd._core", frozen, from_py_object)]
+#[pyclass(module = "flexmbd._core", frozen, subclass, from_py_object)]
 #[derive(Clone)]
 pub struct Material {
     pub(crate) inner: fem::Material,

@@ -22,7 +22,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::errors::{integer_argument, invalid, stash_callback_error, to_exception};
+use crate::errors::{above, integer_argument, invalid, shown, stash_callback_error, to_exception};
 use crate::model::Model;
 
 /// Implicit index-3 generalized-alpha integrator (Arnold and Bruls 2007) for the augmented
@@ -48,7 +48,7 @@ use crate::model::Model;
 ///   exact matrix for full Newton and for retrying a failed step), "lu" or "ldlt".
 /// - `initial_tolerance`, `correct_initial_positions`, `correct_initial_velocities`: the
 ///   consistent initial conditions (minimum-norm corrections onto the constraints).
-#[pyclass(module = "flexmbd._core", get_all, set_all, from_py_object)]
+#[pyclass(module = "flexmbd._core", subclass, get_all, set_all, from_py_object)]
 #[derive(Clone)]
 pub struct GeneralizedAlpha {
     /// Spectral radius at infinite frequency.
@@ -148,9 +148,14 @@ impl GeneralizedAlpha {
         if !(0.0..=1.0).contains(&self.spectral_radius) {
             return Err(invalid(
                 item,
-                format!("spectral_radius must be in [0, 1], got {}", self.spectral_radius),
+                format!("spectral_radius must be in [0, 1], got {}", shown(self.spectral_radius)),
             ));
         }
+        above(item, "newton_tolerance", self.newton_tolerance, 0.0)?;
+        above(item, "relative_tolerance", self.relative_tolerance, 0.0)?;
+        above(item, "absolute_tolerance", self.absolute_tolerance, 0.0)?;
+        above(item, "initial_tolerance", self.initial_tolerance, 0.0)?;
+        step_bounds(item, self.min_step_size, self.max_step_size)?;
         let jacobian = match self.jacobian.as_str() {
             "modified" => JacobianUpdate::Modified,
             "step" => JacobianUpdate::EveryStep,
@@ -220,6 +225,26 @@ impl GeneralizedAlpha {
     }
 }
 
+/// The optional smallest and largest step sizes: each finite and positive, the smallest not
+/// above the largest.
+fn step_bounds(item: &str, min_step_size: Option<f64>, max_step_size: Option<f64>) -> PyResult<()> {
+    if let Some(h) = min_step_size {
+        above(item, "min_step_size", h, 0.0)?;
+    }
+    if let Some(h) = max_step_size {
+        above(item, "max_step_size", h, 0.0)?;
+    }
+    if let (Some(low), Some(high)) = (min_step_size, max_step_size) {
+        if low > high {
+            return Err(invalid(
+                item,
+                format!("min_step_size {} is above max_step_size {}", shown(low), shown(high)),
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn initial_settings(tolerance: f64, positions: bool, velocities: bool) -> InitialSettings {
     InitialSettings {
         tolerance,
@@ -242,7 +267,7 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
         }
     };
     if !(tolerance > 0.0 && tolerance < 1.0) {
-        return Err(invalid(item, format!("rank_tolerance must be in (0, 1), got {tolerance}")));
+        return Err(invalid(item, format!("rank_tolerance must be in (0, 1), got {}", shown(tolerance))));
     }
     Ok(RedundancySettings { handling, tolerance })
 }
@@ -285,7 +310,7 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   coordinates and of the projection.
 /// - `redundant_constraints`, `rank_tolerance`, `initial_tolerance`,
 ///   `correct_initial_positions`, `correct_initial_velocities`: as for `GeneralizedAlpha`.
-#[pyclass(module = "flexmbd._core", get_all, set_all, from_py_object)]
+#[pyclass(module = "flexmbd._core", subclass, get_all, set_all, from_py_object)]
 #[derive(Clone)]
 pub struct ExplicitSolver {
     /// "dopri5" or "rk4".
@@ -403,6 +428,14 @@ impl ExplicitSolver {
 impl ExplicitSolver {
     fn settings(&self, end_time: f64, step_size: f64) -> PyResult<SimulationSettings> {
         let item = "ExplicitSolver";
+        above(item, "relative_tolerance", self.relative_tolerance, 0.0)?;
+        above(item, "absolute_tolerance", self.absolute_tolerance, 0.0)?;
+        above(item, "constraint_tolerance", self.constraint_tolerance, 0.0)?;
+        above(item, "drift_threshold", self.drift_threshold, 0.0)?;
+        above(item, "repartition_ratio", self.repartition_ratio, 1.0)?;
+        above(item, "singular_factor", self.singular_factor, 1.0)?;
+        above(item, "initial_tolerance", self.initial_tolerance, 0.0)?;
+        step_bounds(item, self.min_step_size, self.max_step_size)?;
         let choice = |name: &str, value: &str, options: &[&str]| -> PyResult<usize> {
             options.iter().position(|o| *o == value).ok_or_else(|| {
                 let list: Vec<String> = options.iter().map(|o| format!("'{o}'")).collect();

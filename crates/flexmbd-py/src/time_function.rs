@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use crate::errors::{invalid, stash_callback_error};
 
 /// f(t) = value.
-#[pyclass(module = "flexmbd._core", frozen)]
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
 #[derive(Clone)]
 pub struct Constant {
     /// The value.
@@ -18,7 +18,7 @@ pub struct Constant {
 }
 
 /// f(t) = c0 + c1 t + c2 t^2 + ... (coefficients in increasing order).
-#[pyclass(module = "flexmbd._core", frozen)]
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
 #[derive(Clone)]
 pub struct Polynomial {
     /// Coefficients c0, c1, ...
@@ -27,7 +27,7 @@ pub struct Polynomial {
 }
 
 /// f(t) = offset + amplitude sin(frequency t + phase); frequency in rad/s.
-#[pyclass(module = "flexmbd._core", frozen)]
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
 #[derive(Clone)]
 pub struct Harmonic {
     /// Amplitude.
@@ -45,7 +45,7 @@ pub struct Harmonic {
 }
 
 /// Natural cubic spline through (times, values); constant outside the range of times.
-#[pyclass(module = "flexmbd._core", frozen)]
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
 #[derive(Clone)]
 pub struct Spline {
     /// Knot times (strictly increasing).
@@ -59,7 +59,7 @@ pub struct Spline {
 
 /// A Python function of time. With `derivatives=True` it must return (f, f', f''); otherwise
 /// it returns f and the derivatives are taken by central finite differences.
-#[pyclass(module = "flexmbd._core", frozen)]
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
 pub struct UserFunction {
     /// The callable.
     #[pyo3(get)]

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from .. import _core
+from .. import _boundary, _core
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import FlexibleBodyData
 from .interface import Interface
@@ -30,7 +30,7 @@ from .modal import (
     modal_invariants,
 )
 
-Material = _core.Material
+Material = _boundary.Material
 Section = _core.Section
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import _core
+from .. import _boundary, _core
 from ..errors import InvalidParameterError
 from .body import FlexibleBodyData
 
@@ -43,7 +43,7 @@ def recover_stresses(
             np.ascontiguousarray(conn, dtype=np.int64),
             np.ascontiguousarray(body.element_ids[kind], dtype=np.int64),
         )
-    material = _core.Material(
+    material = _boundary.Material(
         body.material["young_modulus"], body.material["poisson_ratio"], body.material["density"]
     )
     section = None

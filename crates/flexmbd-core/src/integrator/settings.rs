@@ -198,16 +198,23 @@ impl SimulationSettings {
         let bad = |message: String| {
             Err(FlexmbdError::InvalidParameter { item: "simulation settings".to_string(), message })
         };
-        let finite = [self.start_time, self.end_time, self.step_size, self.min_step_size, self.max_step_size];
-        if !finite.iter().all(|x| x.is_finite()) {
-            return bad("times and step sizes must be finite".to_string());
+        let item = "simulation settings";
+        let finite = [
+            ("start time", self.start_time),
+            ("end time", self.end_time),
+            ("step size", self.step_size),
+            ("minimum step size", self.min_step_size),
+            ("maximum step size", self.max_step_size),
+        ];
+        if let Some((name, value)) = finite.iter().find(|(_, x)| !x.is_finite()) {
+            return bad(format!("{name} must be finite, got {value}"));
         }
         if self.end_time < self.start_time {
-            return bad(format!("end time {} is before start time {}", self.end_time, self.start_time));
+            return bad(format!("end time {:e} is before start time {:e}", self.end_time, self.start_time));
         }
         if !(self.step_size > 0.0) || !(self.min_step_size > 0.0) || self.min_step_size > self.step_size {
             return bad(format!(
-                "step size must be positive and at least the minimum step size (step {}, minimum {})",
+                "step size must be positive and at least the minimum step size (step {:e}, minimum {:e})",
                 self.step_size, self.min_step_size
             ));
         }
@@ -221,7 +228,7 @@ impl SimulationSettings {
         }
         if self.max_step_size < self.step_size {
             return bad(format!(
-                "maximum step size {} is below the step size {}",
+                "maximum step size {:e} is below the step size {:e}",
                 self.max_step_size, self.step_size
             ));
         }
@@ -230,19 +237,30 @@ impl SimulationSettings {
                 return bad(format!("output interval must be positive, got {dt}"));
             }
         }
-        if self.newton.max_iterations == 0 || !(self.newton.tolerance > 0.0) {
-            return bad("Newton needs at least one iteration and a positive tolerance".to_string());
+        if self.newton.max_iterations == 0 {
+            return bad("Newton needs at least one iteration (max_iterations 0)".to_string());
         }
+        positive(item, "newton tolerance", self.newton.tolerance, 0.0)?;
         if !(self.redundancy.tolerance > 0.0 && self.redundancy.tolerance < 1.0) {
-            return bad(format!("rank tolerance must be in (0, 1), got {}", self.redundancy.tolerance));
+            return bad(format!("rank tolerance must be in (0, 1), got {:e}", self.redundancy.tolerance));
         }
         if let StepControl::Error { relative_tolerance, absolute_tolerance } = self.step_control {
-            if !(relative_tolerance > 0.0 && absolute_tolerance > 0.0) {
-                return bad("error tolerances must be positive".to_string());
-            }
+            positive(item, "relative tolerance", relative_tolerance, 0.0)?;
+            positive(item, "absolute tolerance", absolute_tolerance, 0.0)?;
         }
         Ok(())
     }
+}
+
+/// Checks that the setting `name` of `item` is a finite number above `floor`.
+fn positive(item: &str, name: &str, value: f64, floor: f64) -> Result<()> {
+    if value.is_finite() && value > floor {
+        return Ok(());
+    }
+    Err(FlexmbdError::InvalidParameter {
+        item: item.to_string(),
+        message: format!("{name} must be a finite number > {floor}, got {value:e}"),
+    })
 }
 
 // Explicit solvers -----------------------------------------------------------------------
@@ -400,20 +418,14 @@ impl ExplicitSettings {
                 ));
             }
         }
-        let positive = [
-            self.relative_tolerance,
-            self.absolute_tolerance,
-            self.constraint_tolerance,
-            self.repartition_ratio - 1.0,
-            self.rank_tolerance,
-            self.drift_threshold,
-            self.singular_factor - 1.0,
-        ];
-        if !positive.iter().all(|x| *x > 0.0 && x.is_finite()) {
-            return bad(
-                "tolerances and thresholds must be positive, the repartition ratio above 1".to_string()
-            );
-        }
+        let item = "explicit solver settings";
+        positive(item, "relative tolerance", self.relative_tolerance, 0.0)?;
+        positive(item, "absolute tolerance", self.absolute_tolerance, 0.0)?;
+        positive(item, "constraint tolerance", self.constraint_tolerance, 0.0)?;
+        positive(item, "repartition ratio", self.repartition_ratio, 1.0)?;
+        positive(item, "rank tolerance", self.rank_tolerance, 0.0)?;
+        positive(item, "drift threshold", self.drift_threshold, 0.0)?;
+        positive(item, "singular factor", self.singular_factor, 1.0)?;
         if self.max_iterations == 0 {
             return bad("at least one Newton iteration is needed".to_string());
         }

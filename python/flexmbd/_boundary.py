@@ -1,0 +1,120 @@
+"""The Python boundary of the Rust core: an argument of the wrong type or out of range for its
+Rust type is an :class:`~flexmbd.errors.ArgumentTypeError` naming the call and the parameter.
+
+PyO3 converts the arguments of a call before the Rust code runs; a failed conversion raises a
+``TypeError`` ("must be real number, not str") or an ``OverflowError`` (a negative number for
+an unsigned one) whose message does not name the parameter: PyO3 adds the name as a note
+("while processing 'mass'"). :func:`converted` reads that note. The core's methods are wrapped
+in place (:func:`wrap_methods`); its value classes (materials, time functions, solver
+settings) cannot have their constructor replaced, so flexmbd exports subclasses of them
+(:func:`boundary_class`) that convert the errors of construction and of setting a field.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import re
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from . import _core
+from .errors import ArgumentTypeError
+
+_NOTE = re.compile(r"^while processing '(\w+)'$")
+
+T = TypeVar("T", bound=type)
+
+
+def converted(error: BaseException, owner: str) -> ArgumentTypeError | None:
+    """The ArgumentTypeError for PyO3's conversion error `error` of a call to `owner`, or
+    None when `error` is not one (an error of the Rust code itself is left as it is)."""
+    if not isinstance(error, (TypeError, OverflowError)) or isinstance(error, ArgumentTypeError):
+        return None
+    names = [m.group(1) for note in getattr(error, "__notes__", ()) if (m := _NOTE.match(note))]
+    if not names:
+        return None
+    detail = str(error)
+    if isinstance(error, OverflowError):
+        detail = f"out of range ({detail})"
+    return ArgumentTypeError(f"{owner}: argument {names[0]!r}: {detail}", item=names[0])
+
+
+def _wrapped(function: Callable[..., Any], owner: str) -> Callable[..., Any]:
+    @functools.wraps(function)
+    def call(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return function(*args, **kwargs)
+        except (TypeError, OverflowError) as error:
+            typed = converted(error, owner)
+            if typed is None:
+                raise
+            raise typed from error
+
+    return call
+
+
+def wrap_methods(cls: type) -> None:
+    """Wraps the public methods and static methods of the Rust class `cls` in place."""
+    for name, member in list(vars(cls).items()):
+        if name.startswith("_"):
+            continue
+        owner = f"{cls.__name__}.{name}"
+        if isinstance(member, staticmethod):
+            setattr(cls, name, staticmethod(_wrapped(member.__func__, owner)))
+        elif type(member).__name__ == "method_descriptor":
+            setattr(cls, name, _wrapped(member, owner))
+
+
+def boundary_class(base: T, module: str) -> T:
+    """A subclass of the Rust value class `base` (same name, fields and methods) whose
+    construction and field assignment raise ArgumentTypeError for arguments of the wrong
+    type."""
+    name = base.__name__
+
+    def __new__(cls: type, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return base.__new__(cls, *args, **kwargs)
+        except (TypeError, OverflowError) as error:
+            typed = converted(error, name)
+            if typed is None:
+                raise
+            raise typed from error
+
+    def __setattr__(self: Any, field: str, value: Any) -> None:
+        try:
+            base.__setattr__(self, field, value)
+        except (TypeError, OverflowError) as error:
+            typed = converted(error, name)
+            if typed is None:
+                raise
+            raise typed from error
+
+    namespace = {
+        "__new__": __new__,
+        "__setattr__": __setattr__,
+        "__doc__": base.__doc__,
+        "__module__": module,
+        "__qualname__": name,
+        "__slots__": (),
+    }
+    try:  # help() and inspect show the Rust constructor's parameters, not (*args, **kwargs)
+        namespace["__signature__"] = inspect.signature(base)
+    except (TypeError, ValueError):
+        pass
+    return type(name, (base,), namespace)  # type: ignore[return-value]
+
+
+for _cls in (_core.System, _core.Model, _core.Section, _core.SymmetricFactor):
+    wrap_methods(_cls)
+for _cls in (_core.Constant, _core.Polynomial, _core.Harmonic, _core.Spline, _core.UserFunction):
+    wrap_methods(_cls)
+
+Constant = boundary_class(_core.Constant, "flexmbd")
+Polynomial = boundary_class(_core.Polynomial, "flexmbd")
+Harmonic = boundary_class(_core.Harmonic, "flexmbd")
+Spline = boundary_class(_core.Spline, "flexmbd")
+UserFunction = boundary_class(_core.UserFunction, "flexmbd")
+GeneralizedAlpha = boundary_class(_core.GeneralizedAlpha, "flexmbd")
+ExplicitSolver = boundary_class(_core.ExplicitSolver, "flexmbd")
+Material = boundary_class(_core.Material, "flexmbd.fe")
