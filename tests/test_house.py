@@ -66,3 +66,21 @@ def test_test_files_and_inline_test_modules_are_left_out(tmp_path, check_imports
     (source / "low" / "mod.rs").write_text("use crate::high::run;\n")
     folders = check_imports.folder_graph(check_imports.dependencies(source))
     assert check_imports.cycles(folders) == [[("high",), ("low",)]]
+
+
+def test_the_compiled_model_carries_its_deformable_bodies_as_a_declared_field():
+    # Issue 29: no attributes attached to Rust objects from Python (System.compile used to
+    # set model._flexible, read back with getattr).
+    import flexmbd as fm
+
+    example = fm.examples.EXAMPLES["spin-up"]()
+    model = example.system.compile()
+    bodies = model.flexible_bodies
+    assert list(bodies) == [1] and isinstance(bodies[1], fm.fe.FlexibleBodyData)
+    bodies.clear()  # a copy: the model's own stays whole
+    assert list(model.flexible_bodies) == [1]
+    with pytest.raises(AttributeError):
+        model._flexible = {}
+    rigid = fm.System()
+    rigid.add_point_mass(1.0)
+    assert rigid.compile().flexible_bodies == {}

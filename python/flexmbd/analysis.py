@@ -201,7 +201,7 @@ def equilibrium(
     model = _model(model)
     time = number(time, "time")
     layout = model.describe()
-    flexible = dict(getattr(model, "_flexible", {}))
+    flexible = model.flexible_bodies
     nq, nc = model.coordinate_count, model.constraint_count
     rigid = ~_elastic_mask(layout)
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)

@@ -265,7 +265,7 @@ class ResultsWriter:
             for name in _TEXT_FIELDS:
                 file.create_dataset(name, shape=(0,), maxshape=(None,), dtype="u1", chunks=(4096,))
             flexible = file.create_group("flexible")
-            for index, body in sorted(getattr(model, "_flexible", {}).items()):
+            for index, body in sorted(model.flexible_bodies.items()):
                 write_body_group(flexible.create_group(str(index)), body)
             self._write_text("status", {"state": "running", "error": None, "message": ""})
             file.swmr_mode = True

@@ -199,9 +199,7 @@ def simulate(
             keep_in_memory=keep_in_memory,
             **start_arrays,
         )
-        result = Result(
-            raw, model.describe(), error=error, flexible=getattr(model, "_flexible", None)
-        )
+        result = Result(raw, model.describe(), error=error, flexible=model.flexible_bodies)
         if writer is not None:
             if writer.failure is not None:
                 # The run stopped because its file could not be written: that is the error.

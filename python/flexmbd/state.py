@@ -94,7 +94,7 @@ class State:
             model.initial_coordinates,
             model.initial_velocities,
             layout=model.describe(),
-            flexible=dict(getattr(model, "_flexible", {})),
+            flexible=model.flexible_bodies,
         )
 
     def _view(self) -> Any:

@@ -421,6 +421,4 @@ class System(_core.System):
 
     def compile(self) -> _core.Model:
         """Checks the whole system and compiles the immutable :class:`Model`."""
-        model = super().compile()
-        model._flexible = dict(self._flexible)  # type: ignore[attr-defined]
-        return model
+        return super().compile(flexible_bodies=self._flexible)

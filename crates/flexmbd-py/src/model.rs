@@ -12,17 +12,20 @@ use pyo3::types::{PyDict, PyList};
 use crate::errors::{check, invalid};
 
 /// A compiled model (from `System.compile()`); immutable, shareable between simulations.
-#[pyclass(module = "flexmbd._core", frozen, dict)]
+#[pyclass(module = "flexmbd._core", frozen)]
 pub struct Model {
     pub(crate) inner: Arc<flexmbd_core::Model>,
+    /// The data of the deformable bodies (body index -> `flexmbd.fe.FlexibleBodyData`), which
+    /// stresses, results files and analyses need beside the compiled model.
+    flexible_bodies: Py<PyDict>,
     /// Workspace of `evaluate`, made at its first call.
     workspace: Mutex<Option<Workspace>>,
 }
 
 impl Model {
-    /// Wraps a compiled model.
-    pub fn new(model: flexmbd_core::Model) -> Self {
-        Model { inner: Arc::new(model), workspace: Mutex::new(None) }
+    /// Wraps a compiled model with the data of its deformable bodies.
+    pub fn new(model: flexmbd_core::Model, flexible_bodies: Py<PyDict>) -> Self {
+        Model { inner: Arc::new(model), flexible_bodies, workspace: Mutex::new(None) }
     }
 }
 
@@ -36,6 +39,13 @@ fn vector(a: &PyReadonlyArray1<f64>, n: usize, what: &str) -> PyResult<Vec<f64>>
 
 #[pymethods]
 impl Model {
+    /// The data of the deformable bodies, body index -> `flexmbd.fe.FlexibleBodyData` (a new
+    /// dict at each call; the bodies' data is immutable).
+    #[getter]
+    fn flexible_bodies<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.flexible_bodies.bind(py).copy()
+    }
+
     /// Evaluates the augmented equations (seed eqs. 20, 25, 26) at a state, for analyses
     /// (statics, steady states, linearization). Returns a dict with
     ///

@@ -10,6 +10,7 @@ use flexmbd_core::system::sensor::SensorQuantity;
 use flexmbd_core::SystemBuilder;
 use numpy::PyArray1;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::errors::{check, invalid, stash_callback_error};
 use crate::ids::{BodyId, ForceId, JointId, MarkerId, SensorId};
@@ -480,9 +481,16 @@ impl System {
         Ok(SensorId { index: id.0 })
     }
 
-    /// Checks the whole system and returns the compiled, immutable model.
-    fn compile(&self) -> PyResult<Model> {
-        Ok(Model::new(check(self.inner.compile())?))
+    /// Checks the whole system and returns the compiled, immutable model; `flexible_bodies`
+    /// (body index -> `flexmbd.fe.FlexibleBodyData`) is kept in it for stresses, results
+    /// files and analyses.
+    #[pyo3(signature = (*, flexible_bodies = None))]
+    fn compile(&self, py: Python<'_>, flexible_bodies: Option<Bound<'_, PyDict>>) -> PyResult<Model> {
+        let bodies = match flexible_bodies {
+            Some(d) => d.copy()?.unbind(),
+            None => PyDict::new(py).unbind(),
+        };
+        Ok(Model::new(check(self.inner.compile())?, bodies))
     }
 
     fn __repr__(&self) -> String {
