@@ -111,7 +111,7 @@ def test_a_long_list_is_refused_before_yaml_reads_it(tmp_path, monkeypatch):
     text = edited("functions:\n", f"functions:\n  table: [{items}]\n")
     path = write(tmp_path, text)
     assert path.stat().st_size > 2_400_000
-    monkeypatch.setattr(model_file, "_Loader", _NoYaml)
+    monkeypatch.setattr(model_file.reading, "_Loader", _NoYaml)
     error = refused(path)
     assert re.search(r"about 12000\d\d items .* more than the limit of 100000", str(error))
     assert error.line is None
@@ -119,12 +119,12 @@ def test_a_long_list_is_refused_before_yaml_reads_it(tmp_path, monkeypatch):
 
 def test_the_item_estimate_counts_commas_and_line_breaks(tmp_path, monkeypatch):
     items = BASE.count(",") + BASE.count("\n")
-    monkeypatch.setattr(model_file, "MAX_ITEMS", items + 10)
+    monkeypatch.setattr(model_file.reading, "MAX_ITEMS", items + 10)
     # Ten more line breaks (CRLF counts once) or ten more commas: at the limit, read.
     assert load_model(write(tmp_path, (BASE + "#\n" * 10).replace("\n", "\r\n")))
     assert load_model(write(tmp_path, BASE + "#" + "," * 9 + "\n"))
     # One more: refused before YAML reads the file, with the estimate and the limit.
-    monkeypatch.setattr(model_file, "_Loader", _NoYaml)
+    monkeypatch.setattr(model_file.reading, "_Loader", _NoYaml)
     error = refused(write(tmp_path, BASE + "#\n" * 11))
     assert (
         f"holds about {items + 11} items (commas and line breaks), more than the limit of "
@@ -138,7 +138,7 @@ def test_the_item_estimate_counts_commas_and_line_breaks(tmp_path, monkeypatch):
 def test_a_file_over_the_size_limit_is_refused_before_yaml_reads_it(tmp_path, monkeypatch):
     text = BASE + "# " + "x" * model_file.MAX_FILE_SIZE + "\n"
     path = write(tmp_path, text)
-    monkeypatch.setattr(model_file, "_Loader", _NoYaml)
+    monkeypatch.setattr(model_file.reading, "_Loader", _NoYaml)
     error = refused(path)
     assert f"has {path.stat().st_size} bytes, more than the limit of 4194304 (4 MiB)" in str(error)
 

@@ -1,0 +1,170 @@
+"""Model files: a whole simulation (bodies, markers, joints, drivers, forces, sensors, solver,
+simulation settings and outputs) described in YAML and checked against pydantic models.
+
+    from flexmbd.model_file import load_model, simulate_model
+    model = load_model("pendulum.yaml")      # a ModelFile: .system, .solver, .end_time, ...
+    result = simulate_model(model)           # a flexmbd.Result
+
+Items refer to each other by name; the keys follow the Python API (``type: revolute`` is
+:meth:`System.add_revolute_joint`). Values are in the units of the file's ``units`` (SI by
+default) and are converted to SI on loading. Nothing in a model file is executed: it is read
+with a safe YAML loader (plain data only) and Python callables have no model-file form. Every
+error is one :class:`flexmbd.errors.ModelFileError` that names the file, the line and the key
+path. The reference of every key is ``docs/model-files.md``; :func:`model_schema` gives the
+JSON schema.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from .. import _boundary
+from ..errors import ModelFileError
+from ..result import Result
+from ..simulation import simulate
+from .building import ModelFile, Output, _Builder, _name_problem
+from .reading import (
+    MAX_DEPTH,
+    MAX_FILE_SIZE,
+    MAX_ITEMS,
+    MAX_VALUES,
+    _read_text,
+    _Source,
+    _validation_error,
+)
+from .schema import (
+    GROUND,
+    MODEL_FILE_VERSION,
+    UNITS,
+    ExplicitSolverSpec,
+    FlexibleBodySpec,
+    GeneralizedAlphaSpec,
+    JointSpec,
+    ModelSpec,
+    SensorSpec,
+    model_schema,
+)
+
+
+def load_model(path: str | os.PathLike[str]) -> ModelFile:
+    """Reads a model file (YAML) and builds its system.
+
+    Relative file names in it (body files, meshes) are relative to the model file's folder.
+    Values are converted from the file's ``units`` to SI. Raises one
+    :class:`flexmbd.errors.ModelFileError` naming the file, the line and the key path for
+    anything wrong: a missing or unreadable file, a YAML syntax error, a tag that is not
+    plain data, an unknown key, a value of the wrong type or out of range, an unknown or
+    duplicate name, or an error of the Python API while building an item."""
+    location = Path(path)
+    display = str(path)
+    source = _Source(location, display)
+    text = _read_text(location, display)
+    data = source.read(text)
+    if not isinstance(data, dict):
+        raise ModelFileError(
+            f"{display}: line 1: a model file is a mapping of keys (bodies, joints, ...), "
+            f"got a {type(data).__name__}",
+            file=display,
+            line=1,
+        )
+    try:
+        spec = ModelSpec.model_validate(data)
+    except ValidationError as error:
+        raise _validation_error(source, error) from None
+    builder = _Builder(spec, source)
+    simulation = spec.simulation
+    seconds = builder.units.time
+    if not simulation.end_time > simulation.start_time:
+        raise builder.fail(
+            ("simulation", "end_time"),
+            f"end_time must be after start_time ({simulation.start_time:g}), "
+            f"got {simulation.end_time:g}",
+        )
+    problem = None if spec.name is None else _name_problem(spec.name)
+    if problem is not None:
+        raise builder.fail(("name",), problem)
+    builder.add_bodies()
+    for k, marker in enumerate(spec.markers):
+        builder.add_marker(marker, ("markers", k))
+    builder.add_joints()
+    builder.add_forces()
+    builder.add_sensors()
+    solver = builder.solver()
+    builder.check_step_bounds()
+    outputs = builder.outputs()
+    bodies = {name: body for name, body in builder.bodies.items() if name != GROUND}
+    return ModelFile(
+        path=location,
+        name=spec.name or location.stem,
+        description=spec.description or "",
+        units=builder.units.names,
+        system=builder.system,
+        solver=solver,
+        end_time=simulation.end_time * seconds,
+        step_size=simulation.step_size * seconds,
+        output_interval=None
+        if simulation.output_interval is None
+        else simulation.output_interval * seconds,
+        start_time=simulation.start_time * seconds,
+        start=simulation.start,
+        outputs=outputs,
+        bodies=bodies,
+        markers=builder.markers,
+        joints=builder.joints,
+        forces=builder.forces,
+        sensors=builder.sensors,
+        body_data=builder.flexible,
+        spec=spec,
+    )
+
+
+def simulate_model(
+    model: ModelFile | str | os.PathLike[str],
+    *,
+    end_time: float | None = None,
+    step_size: float | None = None,
+    output_interval: float | None = None,
+    start_time: float | None = None,
+    solver: _boundary.GeneralizedAlpha | _boundary.ExplicitSolver | None = None,
+    progress: Callable[[float, float, int], object] | None = None,
+) -> Result:
+    """Simulates a model file (a :class:`ModelFile` or a path, loaded first) with
+    :func:`flexmbd.simulate`. Keyword arguments given replace the file's settings; they are
+    in SI (s), whatever the file's units. Raises what :func:`flexmbd.simulate` raises."""
+    if not isinstance(model, ModelFile):
+        model = load_model(model)
+    return simulate(
+        model.system,
+        model.end_time if end_time is None else end_time,
+        model.step_size if step_size is None else step_size,
+        start_time=model.start_time if start_time is None else start_time,
+        initial_state=model.start,
+        output_interval=model.output_interval if output_interval is None else output_interval,
+        solver=model.solver if solver is None else solver,
+        progress=progress,
+    )
+
+
+__all__ = [
+    "ExplicitSolverSpec",
+    "FlexibleBodySpec",
+    "GeneralizedAlphaSpec",
+    "JointSpec",
+    "SensorSpec",
+    "MAX_DEPTH",
+    "MAX_FILE_SIZE",
+    "MAX_ITEMS",
+    "MAX_VALUES",
+    "MODEL_FILE_VERSION",
+    "UNITS",
+    "ModelFile",
+    "ModelSpec",
+    "Output",
+    "load_model",
+    "model_schema",
+    "simulate_model",
+]

@@ -1,0 +1,702 @@
+"""The schema of model files: pydantic models of every section (the reference of every key
+is ``docs/model-files.md``; :func:`model_schema` gives the JSON schema)."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag
+
+#: Version of the model file format (the optional top-level key ``version``).
+MODEL_FILE_VERSION = 1
+
+#: Units a model file may use: name -> size in SI (m, kg, s, rad).
+UNITS: dict[str, dict[str, float]] = {
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "mass": {"kg": 1.0, "g": 1e-3, "t": 1e3},
+    "time": {"s": 1.0, "ms": 1e-3},
+    "angle": {"rad": 1.0, "deg": math.pi / 180.0},
+}
+
+#: Name of the fixed body in model files (``system.ground``).
+GROUND = "ground"
+
+
+# ---------------------------------------------------------------------------------------------
+# The schema: pydantic models of every section
+
+
+class _Spec(BaseModel):
+    """Base of the schema models: unknown keys are errors; numbers must be numbers (no
+    strings, no booleans), finite."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+Vector = Annotated[list[float], Field(min_length=3, max_length=3)]
+Matrix = Annotated[list[Vector], Field(min_length=3, max_length=3)]
+Name = Annotated[str, Field(min_length=1)]
+
+
+def _shape_tag(value: Any) -> str | None:
+    """Tag of a value for the unions over its YAML shape: "(name)" for a string, "(number)"
+    for a number, "(list)" and "(matrix)" for a list of numbers and of lists, "(mappings)"
+    for a list of mappings, "(mapping)" for a mapping without a ``type`` and the ``type`` of
+    a mapping that has one."""
+    if isinstance(value, str):
+        return "(name)"
+    if isinstance(value, bool | int | float):
+        return "(number)"
+    if isinstance(value, dict):
+        tag = value.get("type", "(mapping)")
+        return tag if isinstance(tag, str) else None
+    if isinstance(value, list):
+        if value and isinstance(value[0], list):
+            return "(matrix)"
+        if value and isinstance(value[0], dict):
+            return "(mappings)"
+        return "(list)"
+    return None
+
+
+# Time functions --------------------------------------------------------------------------------
+
+
+class ConstantFunction(_Spec):
+    """f(t) = value."""
+
+    type: Literal["constant"]
+    value: float = Field(description="the value (unit of the quantity it gives)")
+
+
+class PolynomialFunction(_Spec):
+    """f(t) = c0 + c1 t + c2 t^2 + ... (:class:`flexmbd.Polynomial`)."""
+
+    type: Literal["polynomial"]
+    coefficients: list[float] = Field(
+        min_length=1,
+        description="c0, c1, ... in increasing order; c_k in (unit of the quantity) / time^k",
+    )
+
+
+class HarmonicFunction(_Spec):
+    """f(t) = offset + amplitude sin(frequency t + phase) (:class:`flexmbd.Harmonic`)."""
+
+    type: Literal["harmonic"]
+    amplitude: float = Field(description="unit of the quantity")
+    frequency: float = Field(description="angular frequency, angle / time (rad/s in SI)")
+    phase: float = Field(0.0, description="angle (rad in SI)")
+    offset: float = Field(0.0, description="unit of the quantity")
+
+
+class SplineFunction(_Spec):
+    """Natural cubic spline through (times, values), constant outside (:class:`flexmbd.Spline`)."""
+
+    type: Literal["spline"]
+    times: list[float] = Field(min_length=2, description="strictly increasing knot times (time)")
+    values: list[float] = Field(min_length=2, description="values at the knots")
+
+
+TimeFunction = Annotated[
+    Annotated[float, Tag("(number)")]
+    | Annotated[Name, Tag("(name)")]
+    | Annotated[ConstantFunction, Tag("constant")]
+    | Annotated[PolynomialFunction, Tag("polynomial")]
+    | Annotated[HarmonicFunction, Tag("harmonic")]
+    | Annotated[SplineFunction, Tag("spline")],
+    Discriminator(_shape_tag),
+    Field(
+        description="a number (constant), the name of an entry of `functions`, or a mapping "
+        "with `type` constant, polynomial, harmonic or spline"
+    ),
+]
+TimeVector = Annotated[list[TimeFunction], Field(min_length=3, max_length=3)]
+
+
+# Orientations ----------------------------------------------------------------------------------
+
+Axis = Annotated[
+    Annotated[Literal["x", "y", "z"], Tag("(name)")] | Annotated[Vector, Tag("(list)")],
+    Discriminator(_shape_tag),
+]
+
+
+class AxisRotation(_Spec):
+    """A rotation by `angle` about `axis` (Rodrigues' formula, :func:`flexmbd.rotation`)."""
+
+    axis: Axis = Field(description="'x', 'y', 'z' or a non-zero 3-vector")
+    angle: float = Field(description="angle (rad in SI)")
+
+
+Orientation = Annotated[
+    Annotated[Matrix, Tag("(matrix)")]
+    | Annotated[AxisRotation, Tag("(mapping)")]
+    | Annotated[list[AxisRotation], Tag("(mappings)")],
+    Discriminator(_shape_tag),
+    Field(
+        description="a 3 x 3 rotation matrix (rows; its columns are the local axes in the "
+        "parent frame), a rotation {axis, angle}, or a list of them applied in turn "
+        "(R = R1 R2 ...)"
+    ),
+]
+
+MarkerOrientation = Annotated[
+    Annotated[Matrix, Tag("(matrix)")]
+    | Annotated[AxisRotation, Tag("(mapping)")]
+    | Annotated[list[AxisRotation], Tag("(mappings)")]
+    | Annotated[Literal["principal"], Tag("(name)")],
+    Discriminator(_shape_tag),
+    Field(
+        description="as `orientation` of bodies, or 'principal' on node sets: z the outward "
+        "normal of a face, x its axis of largest extent"
+    ),
+]
+
+Weighting = Literal["auto", "area", "length", "volume", "uniform"]
+WeightSpec = Annotated[
+    Annotated[Weighting, Tag("(name)")] | Annotated[list[float], Tag("(list)")],
+    Discriminator(_shape_tag),
+    Field(
+        description="how the nodes of an interface are weighted: auto (area on faces, length "
+        "on edges, volume on volumes), area, length, volume, uniform, or one weight per node"
+    ),
+]
+
+NodeSelection = Annotated[
+    Annotated[Name, Tag("(name)")] | Annotated[list[int], Tag("(list)")],
+    Discriminator(_shape_tag),
+]
+
+
+# Materials and sections ------------------------------------------------------------------------
+
+
+class MaterialSpec(_Spec):
+    """A linear elastic isotropic material (:class:`flexmbd.fe.Material`)."""
+
+    young_modulus: float = Field(gt=0, description="Young's modulus (Pa in SI)")
+    poisson_ratio: float = Field(gt=-1.0, lt=0.5, description="Poisson's ratio (-)")
+    density: float = Field(gt=0, description="density (kg/m^3 in SI)")
+
+
+MaterialRef = Annotated[
+    Annotated[Name, Tag("(name)")] | Annotated[MaterialSpec, Tag("(mapping)")],
+    Discriminator(_shape_tag),
+    Field(description="a material, or the name of an entry of `materials`"),
+]
+
+
+class CircleSection(_Spec):
+    """Solid circle (:meth:`flexmbd.fe.Section.circle`)."""
+
+    type: Literal["circle"]
+    radius: float = Field(gt=0, description="length")
+    shear_factor: float | None = Field(None, gt=0, description="Timoshenko shear factor (-)")
+
+
+class RectangleSection(_Spec):
+    """Solid rectangle (:meth:`flexmbd.fe.Section.rectangle`)."""
+
+    type: Literal["rectangle"]
+    width: float = Field(gt=0, description="along the section's y axis (length)")
+    height: float = Field(gt=0, description="along the section's z axis (length)")
+    shear_factor: float | None = Field(None, gt=0, description="Timoshenko shear factor (-)")
+
+
+class TubeSection(_Spec):
+    """Circular tube (:meth:`flexmbd.fe.Section.tube`)."""
+
+    type: Literal["tube"]
+    outer: float = Field(gt=0, description="outer radius (length)")
+    inner: float = Field(ge=0, description="inner radius (length), < outer")
+    shear_factor: float | None = Field(None, gt=0, description="Timoshenko shear factor (-)")
+
+
+class GeneralSection(_Spec):
+    """Section properties given directly (:class:`flexmbd.fe.Section`)."""
+
+    type: Literal["general"]
+    area: float = Field(gt=0, description="length^2")
+    iy: float = Field(gt=0, description="second moment about the section's y axis (length^4)")
+    iz: float = Field(gt=0, description="second moment about the section's z axis (length^4)")
+    torsion_constant: float = Field(gt=0, description="length^4")
+    shear_factor: float | None = Field(None, gt=0, description="Timoshenko shear factor (-)")
+
+
+SectionSpec = Annotated[
+    CircleSection | RectangleSection | TubeSection | GeneralSection,
+    Field(discriminator="type"),
+]
+
+
+# Bodies ----------------------------------------------------------------------------------------
+
+Inertia = Annotated[
+    Annotated[Vector, Tag("(list)")] | Annotated[Matrix, Tag("(matrix)")],
+    Discriminator(_shape_tag),
+    Field(
+        description="about the centre of mass in body axes: the three principal moments or a "
+        "3 x 3 matrix (mass length^2)"
+    ),
+]
+
+
+class RigidBodySpec(_Spec):
+    """A rigid body (:meth:`System.add_rigid_body`)."""
+
+    type: Literal["rigid"]
+    name: Name
+    mass: float = Field(gt=0, description="mass")
+    inertia: Inertia
+    center_of_mass: Vector | None = Field(None, description="in the body frame (length)")
+    position: Vector | None = Field(None, description="body frame origin (length)")
+    orientation: Orientation | None = None
+    velocity: Vector | None = Field(None, description="of the body origin, global (length/time)")
+    angular_velocity: Vector | None = Field(None, description="global (angle/time)")
+
+
+class PointMassSpec(_Spec):
+    """A point mass: translation only (:meth:`System.add_point_mass`)."""
+
+    type: Literal["point-mass"]
+    name: Name
+    mass: float = Field(gt=0, description="mass")
+    position: Vector | None = Field(None, description="length")
+    velocity: Vector | None = Field(None, description="length/time")
+
+
+class BeamSpec(_Spec):
+    """A built-in straight beam of equal elements (:func:`flexmbd.fe.straight_beam`): node ids
+    1 .. elements + 1 from `start`, node indices 0 .. elements."""
+
+    length: float = Field(gt=0, description="length")
+    elements: int = Field(ge=1, description="number of beam elements")
+    start: Vector | None = Field(None, description="first node, body frame (length)")
+    direction: Vector | None = Field(None, description="axis of the beam (default x)")
+
+
+class BoxSpec(_Spec):
+    """A built-in structured mesh of a box (:func:`flexmbd.fe.shapes.box`); node sets x0, x1,
+    y0, y1, z0, z1 (the faces) and all."""
+
+    lengths: Vector = Field(description="edge lengths along x, y, z (length)")
+    divisions: Annotated[list[int], Field(min_length=3, max_length=3)] = Field(
+        description="cells along x, y, z"
+    )
+    element: Literal["hex8", "tet4", "tet10"] = "hex8"
+    origin: Vector | None = Field(None, description="corner of the box (length)")
+
+
+class CylinderSpec(_Spec):
+    """A tetrahedral mesh of a solid cylinder made by Gmsh (:func:`flexmbd.fe.shapes.cylinder`,
+    needs the gmsh package); node sets base, end and mantle."""
+
+    radius: float = Field(gt=0, description="length")
+    length: float = Field(gt=0, description="length")
+    size: float = Field(gt=0, description="target element size (length)")
+    order: Literal[1, 2] = Field(2, description="1: tet4, 2: tet10")
+    axis: Vector | None = Field(None, description="from the origin (default x)")
+
+
+class FlexibleBodySpec(_Spec):
+    """A deformable body in the floating frame of reference (:meth:`System.add_flexible_body`)
+    from exactly one of `body_file`, `beam`, `mesh`, `box` or `cylinder`. All but `body_file`
+    run the preprocessor (:func:`flexmbd.fe.build_body`) with `material` and the options
+    below."""
+
+    type: Literal["flexible"]
+    name: Name
+    # Where the body comes from.
+    body_file: str | None = Field(
+        None, description="HDF5 body file (relative to the model file), SI units"
+    )
+    beam: BeamSpec | None = None
+    mesh: str | None = Field(
+        None,
+        description="mesh file (Gmsh .msh, Abaqus .inp, VTK; relative to the model file), "
+        "coordinates in the file's length unit",
+    )
+    box: BoxSpec | None = None
+    cylinder: CylinderSpec | None = None
+    # Preprocessor options (build_body).
+    material: MaterialRef | None = None
+    section: SectionSpec | None = Field(None, description="beam section (beams only)")
+    section_orientation: Vector | None = Field(
+        None, description="the section's y axis, across the beam (build_body `orientation`)"
+    )
+    mass_matrix: Literal["consistent", "lumped"] | None = Field(
+        None, description="build_body `mass` (default consistent)"
+    )
+    beam_theory: Literal["euler-bernoulli", "timoshenko"] | None = None
+    reference: (
+        Literal["none", "clamped", "3-2-1", "simply-supported", "mean-axis", "interface"] | None
+    ) = Field(None, description="reference conditions: the body frame (default none)")
+    reference_nodes: NodeSelection | None = Field(
+        None, description="node indices (0-based) or a node set name"
+    )
+    modes: Literal["fixed-interface", "free-free", "craig-bampton"] | None = Field(
+        None, description="modal reduction (default: nodal elastic coordinates)"
+    )
+    mode_count: int | None = Field(None, ge=0, description="eigenmodes kept")
+    interfaces: list[NodeSelection] | None = Field(
+        None, description="Craig-Bampton interfaces: node set names or index lists"
+    )
+    interface_kind: Literal["rbe2", "rbe3", "nodal"] | None = None
+    interface_weights: Weighting | list[WeightSpec] | None = Field(
+        None, description="weights of the interfaces' nodes: one for all, or one per interface"
+    )
+    precision: Literal["auto", "double", "single"] | None = None
+    # Placement, initial state and damping (add_flexible_body).
+    position: Vector | None = Field(None, description="body frame origin (length)")
+    orientation: Orientation | None = None
+    velocity: Vector | None = Field(None, description="of the body origin, global (length/time)")
+    angular_velocity: Vector | None = Field(None, description="global (angle/time)")
+    elastic_coordinates: list[float] | None = Field(
+        None, description="initial q_f (SI only: not converted)"
+    )
+    elastic_velocities: list[float] | None = Field(
+        None, description="initial dq_f/dt (SI only: not converted)"
+    )
+    rayleigh_damping: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[alpha (1/time), beta (time)]: D = alpha M_ff + beta K_ff"
+    )
+    modal_damping: float | None = Field(None, ge=0, description="damping ratio of every mode")
+    geometric_stiffness: bool = Field(False, description="stiffening of beams (seed section 6)")
+    condense: bool | None = Field(None, description="condense the elastic coordinates")
+
+
+BodySpec = Annotated[RigidBodySpec | PointMassSpec | FlexibleBodySpec, Field(discriminator="type")]
+
+
+# Markers ---------------------------------------------------------------------------------------
+
+
+class MarkerSpec(_Spec):
+    """A frame on a body (:meth:`System.add_marker`); with `node`, on a node of a deformable
+    body (:meth:`System.add_node_marker`); with `node_set`, at the centroid of a node set
+    (:meth:`System.add_node_set_marker`)."""
+
+    name: Name | None = None
+    body: Name = Field(description="a body name, or 'ground'")
+    position: Vector | None = Field(None, description="in the body frame (length)")
+    orientation: MarkerOrientation | None = None
+    node: int | None = Field(None, description="node id (of the mesh) of a deformable body")
+    node_set: NodeSelection | None = Field(
+        None, description="node set name or node ids of a deformable body"
+    )
+    weights: WeightSpec | None = Field(None, description="node_set: weights of its nodes")
+    coupling: Literal["rbe3", "rbe2"] | None = Field(
+        None,
+        description="node_set: rbe3 (follows the weighted average motion, default) or rbe2 "
+        "(the nodes follow the marker rigidly)",
+    )
+
+
+class NamedMarkerSpec(MarkerSpec):
+    """An entry of `markers`: a marker with a name."""
+
+    name: Name
+
+
+MarkerRef = Annotated[
+    Annotated[Name, Tag("(name)")] | Annotated[MarkerSpec, Tag("(mapping)")],
+    Discriminator(_shape_tag),
+    Field(description="a marker name, or a marker defined in place"),
+]
+
+
+# Joints and drivers ----------------------------------------------------------------------------
+
+
+class JointSpec(_Spec):
+    """A joint between two markers (:meth:`System.add_<type>_joint`)."""
+
+    type: Literal[
+        "spherical",
+        "revolute",
+        "cylindrical",
+        "prismatic",
+        "fixed",
+        "universal",
+        "planar",
+        "inline",
+    ]
+    name: Name | None = None
+    marker1: MarkerRef
+    marker2: MarkerRef
+
+
+class DistanceJointSpec(_Spec):
+    """A distance constraint between the marker origins (:meth:`System.add_distance_joint`)."""
+
+    type: Literal["distance"]
+    name: Name | None = None
+    marker1: MarkerRef
+    marker2: MarkerRef
+    distance: float | None = Field(None, gt=0, description="length (default: initial)")
+
+
+class AngleDriverSpec(_Spec):
+    """Prescribed rotation of marker2's x axis from marker1's about marker1's z axis
+    (:meth:`System.add_angle_driver`)."""
+
+    type: Literal["angle-driver"]
+    name: Name | None = None
+    marker1: MarkerRef
+    marker2: MarkerRef
+    angle: TimeFunction = Field(description="angle (rad in SI) as a function of time")
+
+
+class TranslationDriverSpec(_Spec):
+    """Prescribed offset of marker2's origin along marker1's z axis
+    (:meth:`System.add_translation_driver`)."""
+
+    type: Literal["translation-driver"]
+    name: Name | None = None
+    marker1: MarkerRef
+    marker2: MarkerRef
+    displacement: TimeFunction = Field(description="length as a function of time")
+
+
+AnyJointSpec = Annotated[
+    JointSpec | DistanceJointSpec | AngleDriverSpec | TranslationDriverSpec,
+    Field(discriminator="type"),
+]
+
+
+# Forces ----------------------------------------------------------------------------------------
+
+
+class PointForceSpec(_Spec):
+    """A force at a marker's origin (:meth:`System.add_point_force`)."""
+
+    type: Literal["point-force"]
+    name: Name | None = None
+    marker: MarkerRef
+    force: TimeVector = Field(description="three components (force: N in SI)")
+    frame: Literal["global", "marker"] = "global"
+
+
+class TorqueSpec(_Spec):
+    """A torque on a marker's body (:meth:`System.add_torque`)."""
+
+    type: Literal["torque"]
+    name: Name | None = None
+    marker: MarkerRef
+    torque: TimeVector = Field(description="three components (force length: N m in SI)")
+    frame: Literal["global", "marker"] = "global"
+
+
+class SpringDamperSpec(_Spec):
+    """A linear spring-damper between marker origins (:meth:`System.add_spring_damper`)."""
+
+    type: Literal["spring-damper"]
+    name: Name | None = None
+    marker1: MarkerRef
+    marker2: MarkerRef
+    stiffness: float = Field(ge=0, description="force/length (N/m in SI)")
+    damping: float = Field(0.0, ge=0, description="force time/length (N s/m in SI)")
+    rest_length: float | None = Field(None, ge=0, description="length (default: initial)")
+    preload: float = Field(0.0, description="force")
+
+
+class RotationalSpringDamperSpec(_Spec):
+    """A torsional spring-damper about marker1's z axis
+    (:meth:`System.add_rotational_spring_damper`)."""
+
+    type: Literal["rotational-spring-damper"]
+    name: Name | None = None
+    marker1: MarkerRef
+    marker2: MarkerRef
+    stiffness: float = Field(ge=0, description="torque/angle (N m/rad in SI)")
+    damping: float = Field(0.0, ge=0, description="torque time/angle (N m s/rad in SI)")
+    rest_angle: float = Field(0.0, description="angle")
+    preload: float = Field(0.0, description="torque (N m in SI)")
+
+
+ForceSpec = Annotated[
+    PointForceSpec | TorqueSpec | SpringDamperSpec | RotationalSpringDamperSpec,
+    Field(discriminator="type"),
+]
+
+
+# Sensors and outputs ---------------------------------------------------------------------------
+
+
+class SensorSpec(_Spec):
+    """Records a quantity of a marker at every output, in global axes
+    (:meth:`System.add_sensor`)."""
+
+    name: Name | None = None
+    marker: MarkerRef
+    quantity: Literal[
+        "position",
+        "velocity",
+        "acceleration",
+        "orientation",
+        "angular_velocity",
+        "angular_acceleration",
+    ]
+
+
+BODY_QUANTITIES = (
+    "position",
+    "velocity",
+    "orientation",
+    "euler_parameters",
+    "angular_velocity",
+    "elastic_coordinates",
+    "elastic_velocities",
+    "node_displacements",
+    "node_positions",
+    "deflection",
+    "stresses",
+    "section_forces",
+)
+JOINT_QUANTITIES = ("reaction_force", "reaction_torque", "multipliers")
+SYSTEM_QUANTITIES = ("kinetic_energy", "potential_energy", "total_energy", "constraint_violation")
+
+
+class OutputSpec(_Spec):
+    """A time history to report or plot: a sensor, a quantity of a body or joint (the
+    :class:`flexmbd.Result` method of that name), or of the whole system. Values are in SI."""
+
+    name: Name | None = Field(None, description="label (default: item and quantity)")
+    sensor: Name | None = None
+    body: Name | None = None
+    joint: Name | None = None
+    quantity: Literal[BODY_QUANTITIES + JOINT_QUANTITIES + SYSTEM_QUANTITIES] | None = None  # type: ignore[valid-type]
+    nodes: list[int] | None = Field(
+        None, description="node ids (node_displacements, node_positions)"
+    )
+    node: int | None = Field(None, description="node id (deflection)")
+    chord: Annotated[list[int], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="two node ids: deflection from their chord"
+    )
+
+
+# Solvers and the simulation --------------------------------------------------------------------
+
+RedundantConstraints = Literal["remove", "minimum-norm", "error"]
+
+
+class GeneralizedAlphaSpec(_Spec):
+    """The implicit index-3 generalized-alpha integrator (:class:`flexmbd.GeneralizedAlpha`).
+    Options left out take the solver's defaults."""
+
+    type: Literal["generalized-alpha"]
+    spectral_radius: float | None = Field(None, ge=0, le=1, description="rho_inf (-)")
+    newton_tolerance: float | None = Field(None, gt=0)
+    max_iterations: int | None = Field(None, ge=1)
+    jacobian: Literal["modified", "step", "full"] | None = None
+    step_control: Literal["newton", "fixed", "error"] | None = None
+    relative_tolerance: float | None = Field(None, gt=0)
+    absolute_tolerance: float | None = Field(None, gt=0)
+    min_step_size: float | None = Field(None, gt=0, description="time")
+    max_step_size: float | None = Field(None, gt=0, description="time")
+    velocity_projection: Literal["auto", "always", "never"] | None = None
+    linear_solver: Literal["auto", "lu", "ldlt"] | None = None
+    initial_tolerance: float | None = Field(None, gt=0)
+    correct_initial_positions: bool | None = None
+    correct_initial_velocities: bool | None = None
+    redundant_constraints: RedundantConstraints | None = None
+    rank_tolerance: float | None = Field(None, gt=0, lt=1)
+
+
+class ExplicitSolverSpec(_Spec):
+    """Explicit Runge-Kutta 4 or Dormand-Prince 5(4) with one of the seed's strategies
+    (:class:`flexmbd.ExplicitSolver`). Options left out take the solver's defaults."""
+
+    type: Literal["explicit"]
+    method: Literal["rk4", "dopri5"] | None = None
+    strategy: Literal["integrate-all", "partitioning", "projection", "joint-coordinates"] | None = (
+        None
+    )
+    formulation: Literal["augmented", "embedding", "joint-space", "coupled", "decoupled"] | None = (
+        None
+    )
+    partition: Literal["lu", "qr", "svd"] | None = None
+    independent: list[Annotated[int, Field(ge=0)]] | None = Field(
+        None, description="indices of the independent coordinates"
+    )
+    baumgarte: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[alpha, beta] (1/time each)"
+    )
+    relative_tolerance: float | None = Field(None, gt=0)
+    absolute_tolerance: float | None = Field(None, gt=0)
+    constraint_tolerance: float | None = Field(None, gt=0)
+    max_iterations: int | None = Field(None, ge=1)
+    repartition_ratio: float | None = Field(None, gt=0)
+    drift_threshold: float | None = Field(None, gt=0)
+    singular_factor: float | None = Field(None, gt=0)
+    min_step_size: float | None = Field(None, gt=0, description="time")
+    max_step_size: float | None = Field(None, gt=0, description="time")
+    initial_tolerance: float | None = Field(None, gt=0)
+    correct_initial_positions: bool | None = None
+    correct_initial_velocities: bool | None = None
+    redundant_constraints: RedundantConstraints | None = None
+    rank_tolerance: float | None = Field(None, gt=0, lt=1)
+    cut_joints: list[Name] | None = Field(None, description="joint names (joint-coordinates)")
+
+
+SolverSpec = Annotated[GeneralizedAlphaSpec | ExplicitSolverSpec, Field(discriminator="type")]
+
+
+class SimulationSpec(_Spec):
+    """The time span and steps of :func:`flexmbd.simulate`."""
+
+    end_time: float = Field(description="time")
+    step_size: float = Field(gt=0, description="nominal step (time)")
+    output_interval: float | None = Field(
+        None, gt=0, description="time between outputs (default: every step)"
+    )
+    start_time: float = Field(0.0, description="time")
+    start: Literal["given", "equilibrium", "steady-rotation"] = Field(
+        "given",
+        description="the state at start_time: the given positions and velocities, the static "
+        "(or, under moving drivers, steady) equilibrium, or the steady rotation of rotors "
+        "turned at constant speed by drivers",
+    )
+
+
+class UnitsSpec(_Spec):
+    """Units of the numbers in the file; everything is converted to SI on loading."""
+
+    length: Literal["m", "cm", "mm"] = "m"
+    mass: Literal["kg", "g", "t"] = "kg"
+    time: Literal["s", "ms"] = "s"
+    angle: Literal["rad", "deg"] = "rad"
+
+
+class ModelSpec(_Spec):
+    """A flexmbd model file."""
+
+    model_config = ConfigDict(title="flexmbd model file")
+
+    version: Literal[1] = Field(MODEL_FILE_VERSION, description="model file format version")
+    name: str | None = None
+    description: str | None = None
+    units: UnitsSpec = Field(default_factory=UnitsSpec)
+    gravity: Vector | None = Field(None, description="length/time^2 (default: none)")
+    functions: dict[Name, TimeFunction] = Field(
+        default_factory=dict, description="named time functions"
+    )
+    materials: dict[Name, MaterialSpec] = Field(default_factory=dict, description="named materials")
+    bodies: list[BodySpec] = Field(default_factory=list)
+    markers: list[NamedMarkerSpec] = Field(default_factory=list)
+    joints: list[AnyJointSpec] = Field(
+        default_factory=list, description="joints and drivers, in the order of their equations"
+    )
+    forces: list[ForceSpec] = Field(default_factory=list)
+    sensors: list[SensorSpec] = Field(default_factory=list)
+    solver: SolverSpec | None = Field(None, description="default: generalized-alpha")
+    simulation: SimulationSpec
+    outputs: list[OutputSpec] | None = Field(None, description="default: every sensor")
+
+
+def model_schema() -> dict[str, Any]:
+    """The JSON schema (draft 2020-12) of model files, generated from the pydantic models."""
+    schema = ModelSpec.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    return schema
