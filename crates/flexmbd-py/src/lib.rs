@@ -5,8 +5,8 @@ mod errors;
 mod fem;
 mod flexible;
 mod ids;
+mod integrator;
 mod model;
-mod solver;
 mod system;
 mod time_function;
 
@@ -32,9 +32,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<time_function::Harmonic>()?;
     m.add_class::<time_function::Spline>()?;
     m.add_class::<time_function::UserFunction>()?;
-    m.add_class::<solver::GeneralizedAlpha>()?;
-    m.add_class::<solver::ExplicitSolver>()?;
-    m.add_function(wrap_pyfunction!(solver::simulate, m)?)?;
+    m.add_class::<integrator::GeneralizedAlpha>()?;
+    m.add_class::<integrator::ExplicitSolver>()?;
+    m.add_function(wrap_pyfunction!(integrator::simulate, m)?)?;
     m.add_class::<fem::Material>()?;
     m.add_class::<fem::Section>()?;
     m.add_function(wrap_pyfunction!(fem::assemble_body, m)?)?;
