@@ -66,6 +66,27 @@ def wrap_methods(cls: type) -> None:
             setattr(cls, name, _wrapped(member, owner))
 
 
+def _signature(base: type) -> inspect.Signature | None:
+    """The Rust constructor's parameters (not ``*args, **kwargs``), for help() and inspect.
+    Settings whose default is None in the binding take the core's default there (the
+    binding fills them in), so they are shown with the value a default instance holds."""
+    try:
+        signature = inspect.signature(base)
+    except (TypeError, ValueError):
+        return None
+    try:
+        defaults = base()
+    except (TypeError, ValueError):  # no constructor without arguments: defaults as they are
+        return signature
+    parameters = [
+        p.replace(default=getattr(defaults, p.name))
+        if p.default is None and getattr(defaults, p.name, None) is not None
+        else p
+        for p in signature.parameters.values()
+    ]
+    return signature.replace(parameters=parameters)
+
+
 def boundary_class(base: T, module: str) -> T:
     """A subclass of the Rust value class `base` (same name, fields and methods) whose
     construction and field assignment raise ArgumentTypeError for arguments of the wrong
@@ -98,10 +119,9 @@ def boundary_class(base: T, module: str) -> T:
         "__qualname__": name,
         "__slots__": (),
     }
-    try:  # help() and inspect show the Rust constructor's parameters, not (*args, **kwargs)
-        namespace["__signature__"] = inspect.signature(base)
-    except (TypeError, ValueError):
-        pass
+    signature = _signature(base)
+    if signature is not None:
+        namespace["__signature__"] = signature
     return type(name, (base,), namespace)  # type: ignore[return-value]
 
 

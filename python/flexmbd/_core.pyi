@@ -290,24 +290,26 @@ class GeneralizedAlpha:
     rank_tolerance: float
     def __init__(
         self,
-        spectral_radius: float = 0.9,
+        spectral_radius: float | None = None,
         *,
-        newton_tolerance: float = 1e-6,
+        newton_tolerance: float | None = None,
         max_iterations: int | None = None,
-        jacobian: str = "modified",
-        step_control: str = "newton",
-        relative_tolerance: float = 1e-6,
-        absolute_tolerance: float = 1e-8,
+        jacobian: str | None = None,
+        step_control: str | None = None,
+        relative_tolerance: float | None = None,
+        absolute_tolerance: float | None = None,
         min_step_size: float | None = None,
         max_step_size: float | None = None,
-        velocity_projection: str = "auto",
-        linear_solver: str = "auto",
-        initial_tolerance: float = 1e-11,
-        correct_initial_positions: bool = True,
-        correct_initial_velocities: bool = True,
-        redundant_constraints: str = "remove",
-        rank_tolerance: float = 1e-9,
+        velocity_projection: str | None = None,
+        linear_solver: str | None = None,
+        initial_tolerance: float | None = None,
+        correct_initial_positions: bool | None = None,
+        correct_initial_velocities: bool | None = None,
+        redundant_constraints: str | None = None,
+        rank_tolerance: float | None = None,
     ) -> None: ...
+    @staticmethod
+    def choices() -> dict[str, list[str]]: ...
 
 class ExplicitSolver:
     method: str
@@ -333,29 +335,31 @@ class ExplicitSolver:
     cut_joints: list[JointId] | None
     def __init__(
         self,
-        method: str = "dopri5",
-        strategy: str = "partitioning",
+        method: str | None = None,
+        strategy: str | None = None,
         *,
-        formulation: str = "augmented",
-        partition: str = "lu",
+        formulation: str | None = None,
+        partition: str | None = None,
         independent: Sequence[int] | None = None,
         baumgarte: tuple[float, float] | None = None,
-        relative_tolerance: float = 1e-8,
-        absolute_tolerance: float = 1e-10,
-        constraint_tolerance: float = 1e-12,
+        relative_tolerance: float | None = None,
+        absolute_tolerance: float | None = None,
+        constraint_tolerance: float | None = None,
         max_iterations: int | None = None,
-        repartition_ratio: float = 2.0,
-        drift_threshold: float = 1e-6,
-        singular_factor: float = 4.0,
+        repartition_ratio: float | None = None,
+        drift_threshold: float | None = None,
+        singular_factor: float | None = None,
         min_step_size: float | None = None,
         max_step_size: float | None = None,
-        initial_tolerance: float = 1e-11,
-        correct_initial_positions: bool = True,
-        correct_initial_velocities: bool = True,
-        redundant_constraints: str = "remove",
-        rank_tolerance: float = 1e-9,
+        initial_tolerance: float | None = None,
+        correct_initial_positions: bool | None = None,
+        correct_initial_velocities: bool | None = None,
+        redundant_constraints: str | None = None,
+        rank_tolerance: float | None = None,
         cut_joints: list[JointId] | None = None,
     ) -> None: ...
+    @staticmethod
+    def choices() -> dict[str, list[str]]: ...
 
 def simulate(
     model: Model,

@@ -45,6 +45,7 @@ pub mod joint;
 pub mod linalg;
 pub mod linear_system;
 pub mod math;
+pub mod names;
 pub mod output;
 pub mod system;
 

@@ -9,7 +9,7 @@ use flexmbd_core::formulation::augmented::Formulation;
 use flexmbd_core::formulation::decoupled::TreeFormulation;
 use flexmbd_core::integrator::settings::{
     ExplicitMethod, ExplicitSettings, InitialSettings, RedundancyHandling, RedundancySettings, StartState,
-    Strategy,
+    Strategy, STEP_CONTROL_NAMES,
 };
 use flexmbd_core::integrator::{
     simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
@@ -87,51 +87,67 @@ pub struct GeneralizedAlpha {
 
 #[pymethods]
 impl GeneralizedAlpha {
+    /// Every setting left out (or None) takes the core's default (`GeneralizedAlpha()` shows
+    /// them all).
     #[new]
-    #[pyo3(signature = (spectral_radius = 0.9, *, newton_tolerance = 1e-6, max_iterations = None, jacobian = "modified",
-                        step_control = "newton", relative_tolerance = 1e-6, absolute_tolerance = 1e-8,
-                        min_step_size = None, max_step_size = None, velocity_projection = "auto", linear_solver = "auto",
-                        initial_tolerance = 1e-11, correct_initial_positions = true, correct_initial_velocities = true,
-                        redundant_constraints = "remove", rank_tolerance = 1e-9))]
+    #[pyo3(signature = (spectral_radius = None, *, newton_tolerance = None, max_iterations = None, jacobian = None,
+                        step_control = None, relative_tolerance = None, absolute_tolerance = None,
+                        min_step_size = None, max_step_size = None, velocity_projection = None, linear_solver = None,
+                        initial_tolerance = None, correct_initial_positions = None, correct_initial_velocities = None,
+                        redundant_constraints = None, rank_tolerance = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        spectral_radius: f64,
-        newton_tolerance: f64,
+        spectral_radius: Option<f64>,
+        newton_tolerance: Option<f64>,
         max_iterations: Option<&Bound<'_, PyAny>>,
-        jacobian: &str,
-        step_control: &str,
-        relative_tolerance: f64,
-        absolute_tolerance: f64,
+        jacobian: Option<String>,
+        step_control: Option<String>,
+        relative_tolerance: Option<f64>,
+        absolute_tolerance: Option<f64>,
         min_step_size: Option<f64>,
         max_step_size: Option<f64>,
-        velocity_projection: &str,
-        linear_solver: &str,
-        initial_tolerance: f64,
-        correct_initial_positions: bool,
-        correct_initial_velocities: bool,
-        redundant_constraints: &str,
-        rank_tolerance: f64,
+        velocity_projection: Option<String>,
+        linear_solver: Option<String>,
+        initial_tolerance: Option<f64>,
+        correct_initial_positions: Option<bool>,
+        correct_initial_velocities: Option<bool>,
+        redundant_constraints: Option<String>,
+        rank_tolerance: Option<f64>,
     ) -> PyResult<Self> {
+        let d = GeneralizedAlpha::default();
         let s = GeneralizedAlpha {
-            spectral_radius,
-            newton_tolerance,
-            max_iterations: max_iterations.map_or(Ok(12), |v| integer_argument(v, "max_iterations", 1))?,
-            jacobian: jacobian.to_string(),
-            step_control: step_control.to_string(),
-            relative_tolerance,
-            absolute_tolerance,
+            spectral_radius: spectral_radius.unwrap_or(d.spectral_radius),
+            newton_tolerance: newton_tolerance.unwrap_or(d.newton_tolerance),
+            max_iterations: max_iterations
+                .map_or(Ok(d.max_iterations), |v| integer_argument(v, "max_iterations", 1))?,
+            jacobian: jacobian.unwrap_or(d.jacobian),
+            step_control: step_control.unwrap_or(d.step_control),
+            relative_tolerance: relative_tolerance.unwrap_or(d.relative_tolerance),
+            absolute_tolerance: absolute_tolerance.unwrap_or(d.absolute_tolerance),
             min_step_size,
             max_step_size,
-            velocity_projection: velocity_projection.to_string(),
-            linear_solver: linear_solver.to_string(),
-            initial_tolerance,
-            correct_initial_positions,
-            correct_initial_velocities,
-            redundant_constraints: redundant_constraints.to_string(),
-            rank_tolerance,
+            velocity_projection: velocity_projection.unwrap_or(d.velocity_projection),
+            linear_solver: linear_solver.unwrap_or(d.linear_solver),
+            initial_tolerance: initial_tolerance.unwrap_or(d.initial_tolerance),
+            correct_initial_positions: correct_initial_positions.unwrap_or(d.correct_initial_positions),
+            correct_initial_velocities: correct_initial_velocities.unwrap_or(d.correct_initial_velocities),
+            redundant_constraints: redundant_constraints.unwrap_or(d.redundant_constraints),
+            rank_tolerance: rank_tolerance.unwrap_or(d.rank_tolerance),
         };
         s.settings(1.0, 1e-3)?;
         Ok(s)
+    }
+
+    /// The names each choice setting takes (`jacobian`, `step_control`, ...), from the core.
+    #[staticmethod]
+    fn choices<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("jacobian", names(JacobianUpdate::NAMES))?;
+        d.set_item("step_control", STEP_CONTROL_NAMES.to_vec())?;
+        d.set_item("velocity_projection", names(VelocityProjection::NAMES))?;
+        d.set_item("linear_solver", names(LinearSolver::NAMES))?;
+        d.set_item("redundant_constraints", names(RedundancyHandling::NAMES))?;
+        Ok(d)
     }
 
     fn __repr__(&self) -> String {
@@ -139,6 +155,32 @@ impl GeneralizedAlpha {
             "GeneralizedAlpha(spectral_radius={}, newton_tolerance={:e}, jacobian='{}', step_control='{}')",
             self.spectral_radius, self.newton_tolerance, self.jacobian, self.step_control
         )
+    }
+}
+
+impl Default for GeneralizedAlpha {
+    /// The core's defaults (`SimulationSettings::new`).
+    fn default() -> Self {
+        let s = SimulationSettings::new(1.0, 1.0);
+        let (relative_tolerance, absolute_tolerance) = StepControl::DEFAULT_ERROR_TOLERANCES;
+        GeneralizedAlpha {
+            spectral_radius: s.spectral_radius,
+            newton_tolerance: s.newton.tolerance,
+            max_iterations: s.newton.max_iterations,
+            jacobian: s.newton.jacobian.name().to_string(),
+            step_control: s.step_control.name().to_string(),
+            relative_tolerance,
+            absolute_tolerance,
+            min_step_size: None,
+            max_step_size: None,
+            velocity_projection: s.newton.velocity_projection.name().to_string(),
+            linear_solver: s.newton.linear_solver.name().to_string(),
+            initial_tolerance: s.initial.tolerance,
+            correct_initial_positions: s.initial.correct_positions,
+            correct_initial_velocities: s.initial.correct_velocities,
+            redundant_constraints: s.redundancy.handling.name().to_string(),
+            rank_tolerance: s.redundancy.tolerance,
+        }
     }
 }
 
@@ -156,36 +198,10 @@ impl GeneralizedAlpha {
         above(item, "absolute_tolerance", self.absolute_tolerance, 0.0)?;
         above(item, "initial_tolerance", self.initial_tolerance, 0.0)?;
         step_bounds(item, self.min_step_size, self.max_step_size)?;
-        let jacobian = match self.jacobian.as_str() {
-            "modified" => JacobianUpdate::Modified,
-            "step" => JacobianUpdate::EveryStep,
-            "full" => JacobianUpdate::EveryIteration,
-            o => {
-                return Err(invalid(
-                    item,
-                    format!("jacobian must be 'modified', 'step' or 'full', got '{o}'"),
-                ))
-            }
-        };
-        let velocity_projection = match self.velocity_projection.as_str() {
-            "auto" => VelocityProjection::Auto,
-            "always" => VelocityProjection::Always,
-            "never" => VelocityProjection::Never,
-            o => {
-                return Err(invalid(
-                    item,
-                    format!("velocity_projection must be 'auto', 'always' or 'never', got '{o}'"),
-                ))
-            }
-        };
-        let linear_solver = match self.linear_solver.as_str() {
-            "auto" => LinearSolver::Auto,
-            "lu" => LinearSolver::Lu,
-            "ldlt" => LinearSolver::Ldlt,
-            o => {
-                return Err(invalid(item, format!("linear_solver must be 'auto', 'lu' or 'ldlt', got '{o}'")))
-            }
-        };
+        let jacobian = choice(item, "jacobian", &self.jacobian, JacobianUpdate::NAMES)?;
+        let velocity_projection =
+            choice(item, "velocity_projection", &self.velocity_projection, VelocityProjection::NAMES)?;
+        let linear_solver = choice(item, "linear_solver", &self.linear_solver, LinearSolver::NAMES)?;
         let step_control = match self.step_control.as_str() {
             "newton" => StepControl::Newton,
             "fixed" => StepControl::Fixed,
@@ -193,12 +209,7 @@ impl GeneralizedAlpha {
                 relative_tolerance: self.relative_tolerance,
                 absolute_tolerance: self.absolute_tolerance,
             },
-            o => {
-                return Err(invalid(
-                    item,
-                    format!("step_control must be 'newton', 'fixed' or 'error', got '{o}'"),
-                ))
-            }
+            other => return Err(unknown_choice(item, "step_control", other, &STEP_CONTROL_NAMES)),
         };
         let mut s = SimulationSettings::new(end_time, step_size);
         s.spectral_radius = self.spectral_radius;
@@ -254,18 +265,33 @@ fn initial_settings(tolerance: f64, positions: bool, velocities: bool) -> Initia
     }
 }
 
+/// The value named `value` of the setting `name` (its table of names declared in the core).
+fn choice<T: Copy>(item: &str, name: &str, value: &str, names: &[(&str, T)]) -> PyResult<T> {
+    let names_only: Vec<&str> = names.iter().map(|(n, _)| *n).collect();
+    names
+        .iter()
+        .find(|(n, _)| *n == value)
+        .map(|(_, v)| *v)
+        .ok_or_else(|| unknown_choice(item, name, value, &names_only))
+}
+
+/// The names of a table of the core.
+fn names<T>(table: &[(&'static str, T)]) -> Vec<&'static str> {
+    table.iter().map(|(n, _)| *n).collect()
+}
+
+/// The names of `ExplicitSolver.formulation`: the dense formulations, then the tree ones.
+fn formulation_names() -> Vec<&'static str> {
+    [names(Formulation::NAMES), names(TreeFormulation::NAMES)].concat()
+}
+
+fn unknown_choice(item: &str, name: &str, value: &str, names: &[&str]) -> PyErr {
+    let list: Vec<String> = names.iter().map(|o| format!("'{o}'")).collect();
+    invalid(item, format!("{name} must be one of {}, got '{value}'", list.join(", ")))
+}
+
 fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<RedundancySettings> {
-    let handling = match handling {
-        "remove" => RedundancyHandling::Remove,
-        "minimum-norm" => RedundancyHandling::MinimumNorm,
-        "error" => RedundancyHandling::Error,
-        o => {
-            return Err(invalid(
-                item,
-                format!("redundant_constraints must be 'remove', 'minimum-norm' or 'error', got '{o}'"),
-            ))
-        }
-    };
+    let handling = choice(item, "redundant_constraints", handling, RedundancyHandling::NAMES)?;
     if !(tolerance > 0.0 && tolerance < 1.0) {
         return Err(invalid(item, format!("rank_tolerance must be in (0, 1), got {}", shown(tolerance))));
     }
@@ -359,62 +385,80 @@ pub struct ExplicitSolver {
 
 #[pymethods]
 impl ExplicitSolver {
+    /// Every setting left out (or None) takes the core's default (`ExplicitSolver()` shows
+    /// them all); `independent`, `baumgarte`, the step bounds and `cut_joints` are off by
+    /// default.
     #[new]
-    #[pyo3(signature = (method = "dopri5", strategy = "partitioning", *, formulation = "augmented", partition = "lu",
-                        independent = None, baumgarte = None, relative_tolerance = 1e-8, absolute_tolerance = 1e-10,
-                        constraint_tolerance = 1e-12, max_iterations = None, repartition_ratio = 2.0,
-                        drift_threshold = 1e-6, singular_factor = 4.0, min_step_size = None, max_step_size = None, initial_tolerance = 1e-11,
-                        correct_initial_positions = true, correct_initial_velocities = true,
-                        redundant_constraints = "remove", rank_tolerance = 1e-9, cut_joints = None))]
+    #[pyo3(signature = (method = None, strategy = None, *, formulation = None, partition = None,
+                        independent = None, baumgarte = None, relative_tolerance = None, absolute_tolerance = None,
+                        constraint_tolerance = None, max_iterations = None, repartition_ratio = None,
+                        drift_threshold = None, singular_factor = None, min_step_size = None, max_step_size = None,
+                        initial_tolerance = None, correct_initial_positions = None, correct_initial_velocities = None,
+                        redundant_constraints = None, rank_tolerance = None, cut_joints = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        method: &str,
-        strategy: &str,
-        formulation: &str,
-        partition: &str,
+        method: Option<String>,
+        strategy: Option<String>,
+        formulation: Option<String>,
+        partition: Option<String>,
         independent: Option<Vec<usize>>,
         baumgarte: Option<(f64, f64)>,
-        relative_tolerance: f64,
-        absolute_tolerance: f64,
-        constraint_tolerance: f64,
+        relative_tolerance: Option<f64>,
+        absolute_tolerance: Option<f64>,
+        constraint_tolerance: Option<f64>,
         max_iterations: Option<&Bound<'_, PyAny>>,
-        repartition_ratio: f64,
-        drift_threshold: f64,
-        singular_factor: f64,
+        repartition_ratio: Option<f64>,
+        drift_threshold: Option<f64>,
+        singular_factor: Option<f64>,
         min_step_size: Option<f64>,
         max_step_size: Option<f64>,
-        initial_tolerance: f64,
-        correct_initial_positions: bool,
-        correct_initial_velocities: bool,
-        redundant_constraints: &str,
-        rank_tolerance: f64,
+        initial_tolerance: Option<f64>,
+        correct_initial_positions: Option<bool>,
+        correct_initial_velocities: Option<bool>,
+        redundant_constraints: Option<String>,
+        rank_tolerance: Option<f64>,
         cut_joints: Option<Vec<JointId>>,
     ) -> PyResult<Self> {
+        let d = ExplicitSolver::default();
         let s = ExplicitSolver {
             cut_joints,
-            method: method.to_string(),
-            strategy: strategy.to_string(),
-            formulation: formulation.to_string(),
-            partition: partition.to_string(),
+            method: method.unwrap_or(d.method),
+            strategy: strategy.unwrap_or(d.strategy),
+            formulation: formulation.unwrap_or(d.formulation),
+            partition: partition.unwrap_or(d.partition),
             independent,
             baumgarte,
-            relative_tolerance,
-            absolute_tolerance,
-            constraint_tolerance,
-            max_iterations: max_iterations.map_or(Ok(20), |v| integer_argument(v, "max_iterations", 1))?,
-            repartition_ratio,
-            drift_threshold,
-            singular_factor,
+            relative_tolerance: relative_tolerance.unwrap_or(d.relative_tolerance),
+            absolute_tolerance: absolute_tolerance.unwrap_or(d.absolute_tolerance),
+            constraint_tolerance: constraint_tolerance.unwrap_or(d.constraint_tolerance),
+            max_iterations: max_iterations
+                .map_or(Ok(d.max_iterations), |v| integer_argument(v, "max_iterations", 1))?,
+            repartition_ratio: repartition_ratio.unwrap_or(d.repartition_ratio),
+            drift_threshold: drift_threshold.unwrap_or(d.drift_threshold),
+            singular_factor: singular_factor.unwrap_or(d.singular_factor),
             min_step_size,
             max_step_size,
-            initial_tolerance,
-            correct_initial_positions,
-            correct_initial_velocities,
-            redundant_constraints: redundant_constraints.to_string(),
-            rank_tolerance,
+            initial_tolerance: initial_tolerance.unwrap_or(d.initial_tolerance),
+            correct_initial_positions: correct_initial_positions.unwrap_or(d.correct_initial_positions),
+            correct_initial_velocities: correct_initial_velocities.unwrap_or(d.correct_initial_velocities),
+            redundant_constraints: redundant_constraints.unwrap_or(d.redundant_constraints),
+            rank_tolerance: rank_tolerance.unwrap_or(d.rank_tolerance),
         };
         s.settings(1.0, 1e-3)?;
         Ok(s)
+    }
+
+    /// The names each choice setting takes (`method`, `strategy`, `formulation`, ...), from
+    /// the core.
+    #[staticmethod]
+    fn choices<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("method", names(ExplicitMethod::NAMES))?;
+        d.set_item("strategy", names(Strategy::NAMES))?;
+        d.set_item("formulation", formulation_names())?;
+        d.set_item("partition", names(PartitionMethod::NAMES))?;
+        d.set_item("redundant_constraints", names(RedundancyHandling::NAMES))?;
+        Ok(d)
     }
 
     fn __repr__(&self) -> String {
@@ -422,6 +466,37 @@ impl ExplicitSolver {
             "ExplicitSolver(method='{}', strategy='{}', formulation='{}', partition='{}')",
             self.method, self.strategy, self.formulation, self.partition
         )
+    }
+}
+
+impl Default for ExplicitSolver {
+    /// The core's defaults (`ExplicitSettings::default`, `InitialSettings::default`).
+    fn default() -> Self {
+        let e = ExplicitSettings::default();
+        let initial = InitialSettings::default();
+        ExplicitSolver {
+            method: e.method.name().to_string(),
+            strategy: e.strategy.name().to_string(),
+            formulation: e.formulation.name().to_string(),
+            partition: e.partition.name().to_string(),
+            independent: None,
+            baumgarte: None,
+            relative_tolerance: e.relative_tolerance,
+            absolute_tolerance: e.absolute_tolerance,
+            constraint_tolerance: e.constraint_tolerance,
+            max_iterations: e.max_iterations,
+            repartition_ratio: e.repartition_ratio,
+            drift_threshold: e.drift_threshold,
+            singular_factor: e.singular_factor,
+            min_step_size: None,
+            max_step_size: None,
+            initial_tolerance: initial.tolerance,
+            correct_initial_positions: initial.correct_positions,
+            correct_initial_velocities: initial.correct_velocities,
+            redundant_constraints: RedundancySettings::default().handling.name().to_string(),
+            rank_tolerance: e.rank_tolerance,
+            cut_joints: None,
+        }
     }
 }
 
@@ -436,39 +511,23 @@ impl ExplicitSolver {
         above(item, "singular_factor", self.singular_factor, 1.0)?;
         above(item, "initial_tolerance", self.initial_tolerance, 0.0)?;
         step_bounds(item, self.min_step_size, self.max_step_size)?;
-        let choice = |name: &str, value: &str, options: &[&str]| -> PyResult<usize> {
-            options.iter().position(|o| *o == value).ok_or_else(|| {
-                let list: Vec<String> = options.iter().map(|o| format!("'{o}'")).collect();
-                invalid(item, format!("{name} must be one of {}, got '{value}'", list.join(", ")))
-            })
+        let method = choice(item, "method", &self.method, ExplicitMethod::NAMES)?;
+        let strategy = choice(item, "strategy", &self.strategy, Strategy::NAMES)?;
+        let (formulation, tree_formulation) = match (
+            Formulation::from_name(&self.formulation),
+            TreeFormulation::from_name(&self.formulation),
+        ) {
+            (Some(formulation), _) => (formulation, TreeFormulation::JointSpace),
+            (None, Some(tree)) => (Formulation::Augmented, tree),
+            (None, None) => {
+                return Err(unknown_choice(item, "formulation", &self.formulation, &formulation_names()))
+            }
         };
-        let method = [ExplicitMethod::Dopri5, ExplicitMethod::Rk4]
-            [choice("method", &self.method, &["dopri5", "rk4"])?];
-        let strategy = [
-            Strategy::IntegrateAll,
-            Strategy::CoordinatePartitioning,
-            Strategy::Projection,
-            Strategy::JointCoordinates,
-        ][choice(
-            "strategy",
-            &self.strategy,
-            &["integrate-all", "partitioning", "projection", "joint-coordinates"],
-        )?];
-        let index = choice(
-            "formulation",
-            &self.formulation,
-            &["augmented", "embedding", "joint-space", "coupled", "decoupled"],
-        )?;
-        let formulation = if index == 1 { Formulation::Embedding } else { Formulation::Augmented };
-        let tree_formulation = match index {
-            3 => TreeFormulation::Coupled,
-            4 => TreeFormulation::Decoupled,
-            _ => TreeFormulation::JointSpace,
-        };
+        let tree_named = Formulation::from_name(&self.formulation).is_none();
         if self.cut_joints.is_some() && strategy != Strategy::JointCoordinates {
             return Err(invalid(item, "cut_joints belong to strategy 'joint-coordinates'".to_string()));
         }
-        if index >= 2 && strategy != Strategy::JointCoordinates {
+        if tree_named && strategy != Strategy::JointCoordinates {
             return Err(invalid(
                 item,
                 format!(
@@ -477,8 +536,7 @@ impl ExplicitSolver {
                 ),
             ));
         }
-        let partition = [PartitionMethod::Lu, PartitionMethod::Qr, PartitionMethod::Svd]
-            [choice("partition", &self.partition, &["lu", "qr", "svd"])?];
+        let partition = choice(item, "partition", &self.partition, PartitionMethod::NAMES)?;
         let explicit = ExplicitSettings {
             method,
             strategy,
@@ -606,11 +664,7 @@ pub fn simulate<'py>(
     keep_in_memory: bool,
 ) -> PyResult<(Bound<'py, PyDict>, Option<Py<PyAny>>)> {
     let mut settings = match solver {
-        None => GeneralizedAlpha::new(
-            0.9, 1e-6, None, "modified", "newton", 1e-6, 1e-8, None, None, "auto", "auto", 1e-11, true, true,
-            "remove", 1e-9,
-        )?
-        .settings(end_time, step_size)?,
+        None => GeneralizedAlpha::default().settings(end_time, step_size)?,
         Some(s) => {
             if let Ok(g) = s.extract::<GeneralizedAlpha>() {
                 let mut settings = g.settings(end_time, step_size)?;

@@ -8,6 +8,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag
 
+from .. import _core
+
 #: Version of the model file format (the optional top-level key ``version``).
 MODEL_FILE_VERSION = 1
 
@@ -578,7 +580,18 @@ class OutputSpec(_Spec):
 
 # Solvers and the simulation --------------------------------------------------------------------
 
-RedundantConstraints = Literal["remove", "minimum-norm", "error"]
+# The names of the solvers' choices, declared once in the core (`named!` beside each enum).
+_IMPLICIT = _core.GeneralizedAlpha.choices()
+_EXPLICIT = _core.ExplicitSolver.choices()
+RedundantConstraints = Literal[tuple(_IMPLICIT["redundant_constraints"])]  # type: ignore[valid-type]
+Jacobian = Literal[tuple(_IMPLICIT["jacobian"])]  # type: ignore[valid-type]
+StepControl = Literal[tuple(_IMPLICIT["step_control"])]  # type: ignore[valid-type]
+VelocityProjection = Literal[tuple(_IMPLICIT["velocity_projection"])]  # type: ignore[valid-type]
+LinearSolver = Literal[tuple(_IMPLICIT["linear_solver"])]  # type: ignore[valid-type]
+ExplicitMethod = Literal[tuple(_EXPLICIT["method"])]  # type: ignore[valid-type]
+Strategy = Literal[tuple(_EXPLICIT["strategy"])]  # type: ignore[valid-type]
+ExplicitFormulation = Literal[tuple(_EXPLICIT["formulation"])]  # type: ignore[valid-type]
+Partition = Literal[tuple(_EXPLICIT["partition"])]  # type: ignore[valid-type]
 
 
 class GeneralizedAlphaSpec(_Spec):
@@ -589,14 +602,14 @@ class GeneralizedAlphaSpec(_Spec):
     spectral_radius: float | None = Field(None, ge=0, le=1, description="rho_inf (-)")
     newton_tolerance: float | None = Field(None, gt=0)
     max_iterations: int | None = Field(None, ge=1)
-    jacobian: Literal["modified", "step", "full"] | None = None
-    step_control: Literal["newton", "fixed", "error"] | None = None
+    jacobian: Jacobian | None = None
+    step_control: StepControl | None = None
     relative_tolerance: float | None = Field(None, gt=0)
     absolute_tolerance: float | None = Field(None, gt=0)
     min_step_size: float | None = Field(None, gt=0, description="time")
     max_step_size: float | None = Field(None, gt=0, description="time")
-    velocity_projection: Literal["auto", "always", "never"] | None = None
-    linear_solver: Literal["auto", "lu", "ldlt"] | None = None
+    velocity_projection: VelocityProjection | None = None
+    linear_solver: LinearSolver | None = None
     initial_tolerance: float | None = Field(None, gt=0)
     correct_initial_positions: bool | None = None
     correct_initial_velocities: bool | None = None
@@ -609,14 +622,10 @@ class ExplicitSolverSpec(_Spec):
     (:class:`flexmbd.ExplicitSolver`). Options left out take the solver's defaults."""
 
     type: Literal["explicit"]
-    method: Literal["rk4", "dopri5"] | None = None
-    strategy: Literal["integrate-all", "partitioning", "projection", "joint-coordinates"] | None = (
-        None
-    )
-    formulation: Literal["augmented", "embedding", "joint-space", "coupled", "decoupled"] | None = (
-        None
-    )
-    partition: Literal["lu", "qr", "svd"] | None = None
+    method: ExplicitMethod | None = None
+    strategy: Strategy | None = None
+    formulation: ExplicitFormulation | None = None
+    partition: Partition | None = None
     independent: list[Annotated[int, Field(ge=0)]] | None = Field(
         None, description="indices of the independent coordinates"
     )

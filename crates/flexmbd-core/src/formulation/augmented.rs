@@ -33,15 +33,7 @@ pub enum Formulation {
     Embedding,
 }
 
-impl Formulation {
-    /// Name in settings and messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Formulation::Augmented => "augmented",
-            Formulation::Embedding => "embedding",
-        }
-    }
-}
+crate::named!(Formulation { Augmented => "augmented", Embedding => "embedding" });
 
 /// What `DenseEquations::evaluate` computes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

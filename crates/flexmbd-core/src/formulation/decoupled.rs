@@ -64,16 +64,7 @@ pub enum TreeFormulation {
     Decoupled,
 }
 
-impl TreeFormulation {
-    /// Name in settings and messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            TreeFormulation::JointSpace => "joint-space",
-            TreeFormulation::Coupled => "coupled",
-            TreeFormulation::Decoupled => "decoupled",
-        }
-    }
-}
+crate::named!(TreeFormulation { JointSpace => "joint-space", Coupled => "coupled", Decoupled => "decoupled" });
 
 /// Accelerations and reactions from eq. 40 or 41.
 #[derive(Clone, Debug, Default)]

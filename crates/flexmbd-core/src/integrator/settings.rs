@@ -19,6 +19,8 @@ pub enum JacobianUpdate {
     EveryStep,
 }
 
+crate::named!(JacobianUpdate { Modified => "modified", EveryStep => "step", EveryIteration => "full" });
+
 /// Newton's method of the implicit integrator.
 #[derive(Clone, Debug)]
 pub struct NewtonSettings {
@@ -63,6 +65,8 @@ pub enum LinearSolver {
     Ldlt,
 }
 
+crate::named!(LinearSolver { Auto => "auto", Lu => "lu", Ldlt => "ldlt" });
+
 /// Whether velocities are projected onto the velocity constraints (in the metric of the mass
 /// matrix) and the accelerations and multipliers recomputed from seed eq. 26 after each step:
 /// one more factorization and three solves per step. Needed at spectral radius 1, where the
@@ -78,6 +82,8 @@ pub enum VelocityProjection {
     /// Never project.
     Never,
 }
+
+crate::named!(VelocityProjection { Auto => "auto", Always => "always", Never => "never" });
 
 impl VelocityProjection {
     /// Resolves `Auto` for a spectral radius.
@@ -105,6 +111,9 @@ impl Default for NewtonSettings {
     }
 }
 
+/// Names of the step-size controls: "newton" ([`StepControl::Newton`]), "fixed" and "error".
+pub const STEP_CONTROL_NAMES: [&str; 3] = ["newton", "fixed", "error"];
+
 /// Step-size control.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StepControl {
@@ -121,6 +130,20 @@ pub enum StepControl {
         /// Absolute tolerance.
         absolute_tolerance: f64,
     },
+}
+
+impl StepControl {
+    /// Default (relative, absolute) tolerances of the error-based control.
+    pub const DEFAULT_ERROR_TOLERANCES: (f64, f64) = (1e-6, 1e-8);
+
+    /// Name in settings ([`STEP_CONTROL_NAMES`]).
+    pub fn name(&self) -> &'static str {
+        match self {
+            StepControl::Newton => "newton",
+            StepControl::Fixed => "fixed",
+            StepControl::Error { .. } => "error",
+        }
+    }
 }
 
 /// The time integrator.
@@ -277,15 +300,7 @@ pub enum ExplicitMethod {
     Dopri5,
 }
 
-impl ExplicitMethod {
-    /// Name in settings and messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            ExplicitMethod::Rk4 => "rk4",
-            ExplicitMethod::Dopri5 => "dopri5",
-        }
-    }
-}
+crate::named!(ExplicitMethod { Dopri5 => "dopri5", Rk4 => "rk4" });
 
 /// The seed's strategies for the constrained equations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -301,17 +316,12 @@ pub enum Strategy {
     JointCoordinates,
 }
 
-impl Strategy {
-    /// Name in settings and messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Strategy::IntegrateAll => "integrate-all",
-            Strategy::CoordinatePartitioning => "partitioning",
-            Strategy::Projection => "projection",
-            Strategy::JointCoordinates => "joint-coordinates",
-        }
-    }
-}
+crate::named!(Strategy {
+    IntegrateAll => "integrate-all",
+    CoordinatePartitioning => "partitioning",
+    Projection => "projection",
+    JointCoordinates => "joint-coordinates",
+});
 
 /// Settings of the explicit solvers.
 #[derive(Clone, Debug)]
@@ -495,16 +505,7 @@ pub enum RedundancyHandling {
     Error,
 }
 
-impl RedundancyHandling {
-    /// Name in settings.
-    pub fn name(self) -> &'static str {
-        match self {
-            RedundancyHandling::Remove => "remove",
-            RedundancyHandling::MinimumNorm => "minimum-norm",
-            RedundancyHandling::Error => "error",
-        }
-    }
-}
+crate::named!(RedundancyHandling { Remove => "remove", MinimumNorm => "minimum-norm", Error => "error" });
 
 /// Settings of the redundancy analysis.
 #[derive(Clone, Copy, Debug)]

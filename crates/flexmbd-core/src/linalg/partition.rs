@@ -34,16 +34,7 @@ pub enum PartitionMethod {
     Svd,
 }
 
-impl PartitionMethod {
-    /// Name used in messages and settings: "lu", "qr" or "svd".
-    pub fn name(self) -> &'static str {
-        match self {
-            PartitionMethod::Lu => "lu",
-            PartitionMethod::Qr => "qr",
-            PartitionMethod::Svd => "svd",
-        }
-    }
-}
+crate::named!(PartitionMethod { Lu => "lu", Qr => "qr", Svd => "svd" });
 
 /// A partition of the constraint rows and of the coordinates.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,0 +1,63 @@
+"""Solver settings are declared once, in the core: the names of every choice and the defaults
+reach the Python classes and the model-file schema from there (issue 29)."""
+
+from __future__ import annotations
+
+import inspect
+import typing
+
+import pytest
+
+import flexmbd as fm
+from flexmbd.model_file import ExplicitSolverSpec, GeneralizedAlphaSpec
+
+SOLVERS = [(fm.GeneralizedAlpha, GeneralizedAlphaSpec), (fm.ExplicitSolver, ExplicitSolverSpec)]
+
+
+def literal_names(spec: type, field: str) -> list[str]:
+    (literal, _none) = typing.get_args(spec.model_fields[field].annotation)
+    return list(typing.get_args(literal))
+
+
+@pytest.mark.parametrize("solver, spec", SOLVERS)
+def test_the_schema_offers_exactly_the_names_the_solver_takes(solver, spec):
+    for field, names in solver.choices().items():
+        assert literal_names(spec, field) == names, field
+        for name in names:
+            if field == "formulation":
+                continue  # each belongs to its strategy: checked below
+            assert getattr(solver(**{field: name}), field) == name
+        with pytest.raises(fm.InvalidParameterError) as raised:
+            solver(**{field: "no-such-choice"})
+        listed = ", ".join(f"'{n}'" for n in names)
+        assert f"{field} must be one of {listed}, got 'no-such-choice'" in str(raised.value)
+
+
+def test_every_formulation_name_is_taken_by_its_strategy():
+    for name in fm.ExplicitSolver.choices()["formulation"]:
+        dense = name in ("augmented", "embedding")
+        strategy = "partitioning" if dense else "joint-coordinates"
+        assert fm.ExplicitSolver("rk4", strategy, formulation=name).formulation == name
+
+
+@pytest.mark.parametrize("solver, spec", SOLVERS)
+def test_defaults_are_the_cores_and_none_means_the_default(solver, spec):
+    default = solver()
+    signature = inspect.signature(solver)
+    for name, parameter in signature.parameters.items():
+        value = getattr(default, name)
+        assert parameter.default == value, name  # help() shows the core's default
+        assert getattr(solver(**{name: None}), name) == value, name
+    # A few values of the core spelled out, so that a changed default is a visible change.
+    if solver is fm.GeneralizedAlpha:
+        assert (default.spectral_radius, default.newton_tolerance, default.max_iterations) == (
+            0.9,
+            1e-6,
+            12,
+        )
+    else:
+        assert (default.method, default.strategy, default.max_iterations) == (
+            "dopri5",
+            "partitioning",
+            20,
+        )
