@@ -176,6 +176,25 @@ def test_steady_rotation_needs_a_turning_driver_at_constant_speed():
         fm.steady_rotation(system)
 
 
+def test_equilibrium_far_from_where_the_drivers_are_names_the_driver():
+    # Found on the spin-up (issue 30): at t = 20 s the hub is 75 rad on; from the model's
+    # initial coordinates Newton diverged (relative increment 3e6) and steady_rotation said
+    # the driver "accelerates" (it evaluated C_tt at the inconsistent start).
+    example = fm.examples.spin_up(elements=4)
+    model = example.system.compile()
+    for analysis in (fm.equilibrium, fm.steady_rotation):
+        with pytest.raises(InvalidModelError, match="violate driver 'drive' by") as raised:
+            analysis(model, 20.0)
+        assert raised.value.item == "driver 'drive'"
+    # Started with the hub's angle at that time, the steady rotation is found.
+    time = 20.0
+    angle = 6.0 * (time - 7.5)
+    q = np.array(model.initial_coordinates)
+    q[3:7] = [np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)]
+    state = fm.steady_rotation(model, time, coordinates=q)
+    assert state.angular_velocity(example.items["beam"])[2] == pytest.approx(6.0, rel=1e-9)
+
+
 def pendulum(offset: float = 0.01):
     """A rigid link hinged at the origin, placed `offset` above where the hinge closes."""
     system = fm.System(gravity=GRAVITY)

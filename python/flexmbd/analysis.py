@@ -67,6 +67,35 @@ def _prescribed_rates(
     return qd, qdd
 
 
+#: Largest violation of a driver's equations at the start of `equilibrium` (rad or m): beyond
+#: it the drivers have moved far from the starting coordinates, where Newton's method
+#: diverges or finds another branch (an angle driver is met by the angle plus pi too).
+DRIVER_START_LIMIT = 0.1
+
+
+def _check_drivers_at_start(model: _core.Model, time: float, q: Array, layout: dict) -> None:
+    """InvalidModelError naming the driver when the starting coordinates are far from where
+    the drivers put the model at `time` (a steady rotation asked for at t = 20 s from the
+    model's initial coordinates, with the hub 75 rad on)."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    zero_q = np.zeros(nq)
+    violation = model.evaluate(time, q, zero_q, zero_q, np.zeros(nc))["residual"][nq:]
+    for joint in layout["joints"]:
+        if "driver" not in joint["type"]:
+            continue
+        rows = slice(joint["row"], joint["row"] + len(joint["equations"]))
+        worst = float(np.max(np.abs(violation[rows]), initial=0.0))
+        if worst > DRIVER_START_LIMIT:
+            raise InvalidModelError(
+                f"equilibrium at t = {time:g}: the starting coordinates violate driver "
+                f"'{joint['name']}' by {worst:.3g} (its motion has moved on since the initial "
+                "configuration); pass coordinates= of a configuration at that time, for "
+                "example result.state(k).coordinates of a run, or the initial coordinates "
+                "turned to the drivers' angles",
+                item=f"driver '{joint['name']}'",
+            )
+
+
 #: Nodal deformable bodies with at least this many elastic coordinates are eliminated from
 #: the Newton solves of `equilibrium` through a sparse Cholesky factor of their elastic
 #: block (nested dissection of their mesh): a general sparse LU of the whole matrix of a
@@ -205,6 +234,7 @@ def equilibrium(
     nq, nc = model.coordinate_count, model.constraint_count
     rigid = ~_elastic_mask(layout)
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
+    _check_drivers_at_start(model, time, q, layout)
     lam = np.zeros(nc)
     scale = max(1.0, float(np.max(np.abs(q))))
     step = np.inf
@@ -259,10 +289,11 @@ def steady_rotation(
     model = _model(model)
     time = number(time, "time")
     nq, nc = model.coordinate_count, model.constraint_count
-    q = np.array(model.initial_coordinates, dtype=float)
+    q = np.array(options.get("coordinates", model.initial_coordinates), dtype=float)
     zero_q, zero_l = np.zeros(nq), np.zeros(nc)
-    ev = model.evaluate(time, q, zero_q, zero_q, zero_l)
     layout = model.describe()
+    _check_drivers_at_start(model, time, q, layout)
+    ev = model.evaluate(time, q, zero_q, zero_q, zero_l)
     drivers = [j for j in layout["joints"] if "driver" in j["type"]]
     rows = {j["name"]: range(j["row"], j["row"] + len(j["equations"])) for j in drivers}
     turning = [name for name, r in rows.items() if np.any(ev["constraint_rate"][list(r)] != 0)]
