@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+import flexmbd as fm
 from flexmbd.errors import InvalidModelError, InvalidParameterError
+from flexmbd.fe import Material, Section, build_body, straight_beam
 from flexmbd.fe.body import BODY_DATA_VERSION, FlexibleBodyData
 from flexmbd.fe.body_file import BODY_FILE_FORMAT, load_body, save_body
 
@@ -443,3 +445,52 @@ def test_bit_flips_give_a_body_or_a_typed_error(tmp_path):
             assert str(flipped) in str(error)
             outcomes["error"] += 1
     assert outcomes["error"] > 0
+
+
+DATA_INDICES_INDPTR = ("data", "indices", "indptr")
+
+
+def test_sparse_matrices_with_unsorted_or_duplicate_indices_load_canonical(tmp_path):
+    # Issue 28 (fuzz): a body file whose sparse matrix had unsorted indices loaded as it was,
+    # and System.add_flexible_body then sorted the body's read-only arrays in place
+    # (ValueError 'WRITEBACKIFCOPY base is read-only'). A matrix stored with unsorted or
+    # duplicate indices (which add up) reads back as the same matrix in canonical form.
+    nodes, elements = straight_beam(0.5, 3)
+    body = build_body(
+        nodes,
+        elements,
+        Material(2.1e11, 0.3, 7800.0),
+        section=Section.circle(0.01),
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    original = body.invariants["i_kl"][1][1]
+    assert sp.isspmatrix_csc(original) and original.has_canonical_format
+    path = tmp_path / "body.h5"
+    save_body(body, path)
+    member = "invariants/i_kl/1/1"
+    with h5py.File(path, "r") as file:
+        data, indices, indptr = (file[f"{member}/{name}"][...] for name in DATA_INDICES_INDPTR)
+    # Each column in reverse order, and its first entry split into two halves.
+    order = np.concatenate(
+        [np.arange(start, end)[::-1] for start, end in zip(indptr[:-1], indptr[1:], strict=True)]
+    )
+    assert np.diff(indptr)[0] >= 2
+    data, indices = data[order], indices[order]
+    data = np.concatenate([[data[0] / 2, data[0] / 2], data[1:]])
+    indices = np.concatenate([[indices[0]], indices]).astype(indices.dtype)
+    indptr = indptr.copy()
+    indptr[1:] += 1
+    for name, value in zip(DATA_INDICES_INDPTR, (data, indices, indptr), strict=True):
+        damaged(path, f"{member}/{name}", value)
+
+    loaded = load_body(path)
+    matrix = loaded.invariants["i_kl"][1][1]
+    assert matrix.has_canonical_format
+    for name in DATA_INDICES_INDPTR:
+        np.testing.assert_array_equal(getattr(matrix, name), getattr(original, name))
+    assert matrix.indices.dtype == indices.dtype
+    assert not matrix.indices.flags.writeable
+    system = fm.System()
+    system.add_flexible_body(loaded, name="beam")
+    np.testing.assert_array_equal(loaded.invariants["i_kl"][1][1].indices, original.indices)

@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import flexmbd as fm
 from flexmbd.fe import Material, Section, build_body, shapes, straight_beam
@@ -165,6 +166,73 @@ def test_bad_flexible_input_names_the_item():
         system.add_flexible_body(solid, geometric_stiffness=True)
     with pytest.raises(fm.InvalidModelError, match="modal body"):
         system.add_flexible_body(data, modal_damping=0.01)
+
+
+@pytest.mark.parametrize(
+    "parameter, value",
+    [
+        ("elastic_coordinates", fm.BodyId(99)),
+        ("elastic_coordinates", "abc"),
+        ("elastic_velocities", [object()] * 3),
+        ("modal_damping", [0.0, float("inf"), 0.0]),
+        ("modal_damping", "0.01"),
+        ("condense", fm.BodyId(99)),
+        ("condense", float("inf")),
+        ("condense", 1),
+        ("geometric_stiffness", "no"),
+        ("geometric_stiffness", np.ones((2, 2))),
+    ],
+    ids=lambda value: value if isinstance(value, str) else type(value).__name__,
+)
+def test_arguments_of_the_wrong_type_name_the_parameter(parameter, value):
+    # Issue 28 (fuzz): an id as elastic_coordinates, a list as modal_damping or a float as
+    # condense raised a bare TypeError (float() argument ..., 'float' object is not an
+    # instance of 'bool'); a string or an array as geometric_stiffness was taken for its
+    # truth value.
+    data = beam_body(modes="fixed-interface", mode_count=3)
+    system = fm.System()
+    with pytest.raises(fm.InvalidParameterError, match=f"body 'rod': {parameter} must be") as info:
+        system.add_flexible_body(data, name="rod", **{parameter: value})
+    assert info.value.item == parameter
+    assert isinstance(info.value, fm.ArgumentTypeError)
+    # NumPy's bools are bools.
+    system.add_flexible_body(data, condense=np.True_, geometric_stiffness=np.False_)
+
+
+def with_columns_reversed(matrix) -> sp.csc_matrix:
+    """The same matrix in CSC with the entries of each column in reverse order (unsorted
+    indices, as a body file or another code may give them)."""
+    c = sp.csc_matrix(matrix)
+    c.sort_indices()
+    order = np.concatenate(
+        [
+            np.arange(start, end)[::-1]
+            for start, end in zip(c.indptr[:-1], c.indptr[1:], strict=True)
+        ]
+    )
+    return sp.csc_matrix((c.data[order], c.indices[order], c.indptr.copy()), shape=c.shape)
+
+
+def test_unsorted_sparse_matrices_are_taken_without_changing_the_body():
+    # Issue 28 (fuzz): add_flexible_body sorted the indices of the body's matrices in place,
+    # and a body's arrays are read-only: ValueError 'WRITEBACKIFCOPY base is read-only'.
+    data = beam_body()
+    invariants = dict(data.invariants)
+    invariants["k_ff"] = with_columns_reversed(invariants["k_ff"])
+    invariants["i_kl"] = [
+        [with_columns_reversed(m) for m in row] for row in data.invariants["i_kl"]
+    ]
+    unsorted = dataclasses.replace(data, invariants=invariants)
+    stiffness = unsorted.invariants["k_ff"]
+    assert not stiffness.has_sorted_indices and not stiffness.indices.flags.writeable
+    before = stiffness.indices.copy()
+    results = []
+    for body in (data, unsorted):
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        system.add_flexible_body(body, rayleigh_damping=(0.0, 1e-4))
+        results.append(fm.simulate(system, 0.01, 1e-3))
+    np.testing.assert_array_equal(unsorted.invariants["k_ff"].indices, before)
+    np.testing.assert_allclose(results[1].coordinates, results[0].coordinates, atol=1e-12)
 
 
 def test_body_data_in_other_units_is_refused():

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 
+import flexmbd as fm
 from flexmbd.errors import InvalidParameterError
 from flexmbd.fe import shapes
 
@@ -48,6 +50,29 @@ def test_bad_box_divisions_are_typed_errors():
             shapes.box((1.0, 1.0, 1.0), divisions)
     with pytest.raises(InvalidParameterError):
         shapes.box((1.0, float("inf"), 1.0), (1, 1, 1))
+
+
+@pytest.mark.parametrize(
+    "arguments, parameter, match",
+    [
+        ({"lengths": fm.MarkerId(99)}, "lengths", "lengths must be numbers, got MarkerId"),
+        ({"lengths": "abc"}, "lengths", "lengths must be numbers"),
+        ({"lengths": (1.0, 2.0)}, "lengths", "lengths must be three finite numbers"),
+        ({"lengths": (1.0, -1.0, 1.0)}, "lengths", "three positive lengths"),
+        ({"origin": fm.BodyId(1)}, "origin", "origin must be numbers"),
+        ({"origin": (0.0, float("nan"), 0.0)}, "origin", "origin must be three finite"),
+        ({"divisions": (1, 1, 0)}, "divisions", "three positive divisions"),
+        ({"element": np.array(["hex8", "tet4"])}, "element", "hex8, tet4 or tet10"),
+    ],
+    ids=["id", "string", "two", "negative", "id origin", "nan origin", "zero", "array"],
+)
+def test_box_arguments_of_the_wrong_type_name_the_parameter(arguments, parameter, match):
+    # Issue 28 (fuzz): box(lengths=<an id>) raised a bare TypeError (float() argument must be
+    # a string or a real number), an array as element a bare ValueError (truth value).
+    call = {"lengths": (1.0, 0.1, 0.1), "divisions": (2, 1, 1), **arguments}
+    with pytest.raises(InvalidParameterError, match=match) as info:
+        shapes.box(**call)
+    assert info.value.item == parameter
 
 
 def test_gmsh_meshes_far_finer_than_the_geometry_are_refused_before_meshing():

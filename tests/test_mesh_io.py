@@ -8,6 +8,9 @@ order are checked against the geometry (volumes, mid-edge positions), not agains
 from __future__ import annotations
 
 import itertools
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import meshio
@@ -17,6 +20,7 @@ import scipy.sparse as sp
 
 from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from flexmbd.fe.mesh_io import (
+    MAX_NODE_COORDINATE,
     Mesh,
     matrices_from_arrays,
     read_abaqus_matrix,
@@ -561,6 +565,49 @@ def test_unreadable_file(tmp_path):
     assert info.value.item == f"file '{path}'"
 
 
+@pytest.mark.parametrize("kind", ["fifo", "dev-zero", "folder"])
+def test_a_mesh_path_that_is_not_a_regular_file_is_refused(tmp_path, kind):
+    # Issue 28 (fuzz): a FIFO or a link to /dev/zero blocked read_mesh for ever (meshio, or
+    # the scan of an Abaqus input, read it). The read runs in a child process, limited to
+    # 2 GB of memory (/dev/zero is endless) and killed after 30 s.
+    path = tmp_path / ("mesh.inp" if kind == "dev-zero" else "mesh.msh")
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "dev-zero":
+        path.symlink_to("/dev/zero")
+    else:
+        path.mkdir()
+    code = (
+        "import resource, sys\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))\n"
+        "from flexmbd.errors import InvalidModelError\n"
+        "from flexmbd.fe.mesh_io import read_mesh\n"
+        "try:\n"
+        "    read_mesh(sys.argv[1])\n"
+        "except InvalidModelError as error:\n"
+        "    print(error.item, error, sep='|')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=30
+    )
+    assert done.returncode == 0, done.stderr
+    item, message = done.stdout.strip().split("|", 1)
+    assert item == f"file '{path}'"
+    assert message == f"{path}: the mesh file is not a regular file (a folder, a FIFO or a device)"
+
+
+def test_an_include_that_is_not_a_regular_file_is_refused(tmp_path):
+    # A FIFO as *INCLUDE file was reported as not found; it is there, but cannot be read.
+    os.mkfifo(tmp_path / "nodes.inp")
+    main = tmp_path / "main.inp"
+    main.write_text("*INCLUDE, INPUT=nodes.inp\n")
+    with pytest.raises(
+        InvalidModelError, match="line 1: the \\*INCLUDE file .* not a regular"
+    ) as info:
+        read_mesh(main)
+    assert info.value.item == f"file '{tmp_path / 'nodes.inp'}'"
+
+
 # ---------------------------------------------------------------------------------------------
 # validate_mesh
 
@@ -650,6 +697,28 @@ def test_non_finite_coordinates():
     nodes[3, 1] = np.nan
     with pytest.raises(InvalidParameterError, match="node 14 has non-finite coordinates"):
         validate_mesh(two_tets(nodes=nodes))
+
+
+def test_huge_coordinates_are_refused_before_the_duplicate_node_search(tmp_path):
+    # Issue 28 (fuzz): a node coordinate of 1e308 made scipy's cKDTree.query_pairs raise
+    # ValueError 'Encountering floating point overflow'.
+    nodes = TWO_TETS_NODES.copy()
+    nodes[3, 1] = 1e308
+    with pytest.raises(
+        InvalidModelError, match=r"node 14 has coordinates \[0.0, 1e\+308, 1.0\]"
+    ) as info:
+        validate_mesh(two_tets(nodes=nodes))
+    assert info.value.item == "node 14"
+    nodes[3, 1] = -1.0001 * MAX_NODE_COORDINATE
+    with pytest.raises(InvalidModelError, match="node 14 .* beyond 1e\\+100"):
+        validate_mesh(two_tets(nodes=nodes))
+    # Large but not absurd: a mesh scaled to the limit is checked as usual.
+    validate_mesh(two_tets(nodes=TWO_TETS_NODES * MAX_NODE_COORDINATE))
+    # The same from a file, read and then checked.
+    path = tmp_path / "huge.inp"
+    path.write_text(TWO_TETS_INP.replace("104, 0.0, 0.0, 1.0", "104, 0.0, 1e308, 1.0"))
+    with pytest.raises(InvalidModelError, match="node 104 has coordinates"):
+        validate_mesh(read_mesh(path))
 
 
 # ---------------------------------------------------------------------------------------------

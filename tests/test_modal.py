@@ -320,6 +320,22 @@ def test_bad_modal_requests_are_explained(bar):
         pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free")
 
 
+@pytest.mark.parametrize("mode_count", [[], [1.0, 2.0], "3", 3.0, None, -1])
+def test_a_mode_count_that_is_not_an_integer_names_it(bar, mode_count):
+    # Issue 28 (fuzz): build_body(mode_count=[...]) raised a bare TypeError ('<' not
+    # supported between instances of 'list' and 'int').
+    with pytest.raises(InvalidParameterError, match="mode_count must be") as info:
+        pp.build_body(
+            bar.nodes,
+            bar.elements,
+            STEEL,
+            reference="mean-axis",
+            modes="free-free",
+            mode_count=mode_count,
+        )
+    assert info.value.item == "mode_count"
+
+
 @pytest.mark.parametrize("kind", ["rbe2", "rbe3"])
 def test_single_precision_factors_give_the_same_modes(bar, kind):
     double = cb_body(bar, kind, "interface", count=8)

@@ -9,7 +9,10 @@ import numbers
 import operator
 from typing import Any
 
-from .errors import InvalidParameterError
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import ArgumentTypeError, InvalidParameterError
 
 
 def _shown(value: Any) -> str:
@@ -38,3 +41,28 @@ def integer(value: Any, name: str) -> int:
         raise InvalidParameterError(
             f"{name} must be an integer, got {_shown(value)}", item=name
         ) from None
+
+
+def numbers_array(value: Any, name: str, item: str | None = None) -> NDArray[np.float64]:
+    """`value` as an array of floats (its shape kept), else an `ArgumentTypeError` naming the
+    parameter: strings, bools, complex numbers, ids and other objects are not numbers.
+    `item` (a body, ...) starts the message when given."""
+    try:
+        array = np.asarray(value)
+        if array.dtype.kind == "O":
+            array = array.astype(float)
+    except (TypeError, ValueError, OverflowError):
+        array = None
+    if array is None or array.dtype.kind not in "fiu":
+        where = f"{item}: " if item else ""
+        raise ArgumentTypeError(f"{where}{name} must be numbers, got {_shown(value)}", item=name)
+    return array.astype(float)
+
+
+def flag(value: Any, name: str, item: str | None = None) -> bool:
+    """The bool parameter `name`: True or False (also NumPy's), else an `ArgumentTypeError`
+    naming it (a number, a string or a list is not taken for a truth value)."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    where = f"{item}: " if item else ""
+    raise ArgumentTypeError(f"{where}{name} must be True or False, got {_shown(value)}", item=name)

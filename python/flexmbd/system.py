@@ -16,7 +16,14 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from .errors import InvalidModelError, InvalidParameterError, ModelError, UnknownItemError
+from ._checks import flag, number, numbers_array
+from .errors import (
+    ArgumentTypeError,
+    InvalidModelError,
+    InvalidParameterError,
+    ModelError,
+    UnknownItemError,
+)
 from .fe.body import FlexibleBodyData, check_body
 from .fe.interface import COUPLINGS, Interface, body_interface
 
@@ -27,12 +34,16 @@ SI_UNITS = {"length": "m", "mass": "kg", "time": "s"}
 def _csc_tuple(
     m: Any, n: int
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
-    """(data, indices, indptr, n) of a square matrix (dense or sparse), indices sorted."""
+    """(data, indices, indptr, n) of a square matrix (dense or sparse), indices sorted and
+    without duplicates. `m` is not changed: a body's matrices are read-only (and a CSC matrix
+    of floats shares its arrays with `c`), so a matrix that is not canonical is sorted in a
+    copy."""
     c = sp.csc_matrix(m, dtype=float)
     if c.shape != (n, n):
         raise InvalidParameterError(f"matrix of shape {c.shape}, expected ({n}, {n})")
-    c.sum_duplicates()
-    c.sort_indices()
+    if not c.has_canonical_format:
+        c = c.copy()
+        c.sum_duplicates()
     return (
         np.ascontiguousarray(c.data, dtype=float),
         np.ascontiguousarray(c.indices, dtype=np.int64),
@@ -227,13 +238,32 @@ class System(_core.System):
         units (``body.units`` must be m, kg, s) or with fields that do not fit each other, and
         `InvalidParameterError` for non-finite values, a non-positive mass or a second moment
         of mass that is not positive semi-definite (see :func:`flexmbd.fe.body.check_body`);
-        the message names the body and the field.
+        the message names the body and the field. Raises `ArgumentTypeError` (an
+        `InvalidParameterError`) naming the parameter for an argument of the wrong type:
+        `elastic_coordinates` and `elastic_velocities` that are not numbers, a
+        `modal_damping` that is not a number, `geometric_stiffness` or `condense` that are
+        not True or False.
         """
         item = f"body '{name}'" if name else "flexible body"
         if not isinstance(body, FlexibleBodyData):
             raise InvalidParameterError(
                 f"{item}: expected a FlexibleBodyData (from flexmbd.fe), got {type(body).__name__}"
             )
+        if elastic_coordinates is not None:
+            elastic_coordinates = np.ascontiguousarray(
+                numbers_array(elastic_coordinates, "elastic_coordinates", item).ravel()
+            )
+        if elastic_velocities is not None:
+            elastic_velocities = np.ascontiguousarray(
+                numbers_array(elastic_velocities, "elastic_velocities", item).ravel()
+            )
+        geometric_stiffness = flag(geometric_stiffness, "geometric_stiffness", item)
+        condense = None if condense is None else flag(condense, "condense", item)
+        if modal_damping is not None:
+            try:
+                modal_damping = number(modal_damping, "modal_damping", finite=False)
+            except InvalidParameterError as error:
+                raise ArgumentTypeError(f"{item}: {error}", item=error.item) from None
         inv = body.invariants
         needed = ("mass", "first_moment", "second_moment", "i1", "i_kl", "ibar", "k_ff", "m_ff")
         missing = [k for k in needed if inv.get(k) is None]
@@ -270,7 +300,7 @@ class System(_core.System):
                 damping + alpha * sp.csc_matrix(inv["m_ff"]) + beta * sp.csc_matrix(inv["k_ff"])
             )
         if modal_damping is not None:
-            damping = damping + sp.csc_matrix(self._modal_damping(body, float(modal_damping), item))
+            damping = damping + sp.csc_matrix(self._modal_damping(body, modal_damping, item))
         i_kl = [_csc_tuple(inv["i_kl"][k][j], n) for k in range(3) for j in range(3)]
         basis = elastic_basis(body)
         stiffening = _stiffening_elements(body, basis, item) if geometric_stiffness else None
@@ -295,12 +325,8 @@ class System(_core.System):
             orientation=orientation,
             velocity=velocity,
             angular_velocity=angular_velocity,
-            elastic_coordinates=None
-            if elastic_coordinates is None
-            else np.ascontiguousarray(elastic_coordinates, dtype=float).ravel(),
-            elastic_velocities=None
-            if elastic_velocities is None
-            else np.ascontiguousarray(elastic_velocities, dtype=float).ravel(),
+            elastic_coordinates=elastic_coordinates,
+            elastic_velocities=elastic_velocities,
             stiffening=stiffening,
             dof_nodes=dof_nodes,
             node_positions=node_positions,

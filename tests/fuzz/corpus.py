@@ -137,45 +137,7 @@ class Known:
 
 #: Failures in code this suite may not change (the Rust core and binding, ``fe/*`` and
 #: ``system.py``): the test marks them xfail with the reason. Each names where to fix it.
-KNOWN_FAILURES: list[Known] = [
-    Known(
-        "system.py (System.add_flexible_body): elastic_coordinates, modal_damping and "
-        "condense of the wrong type raise a bare TypeError (float() argument ..., 'float' "
-        "object is not an instance of 'bool')",
-        family="api",
-        kind=r"^api/add_flexible_body/",
-        message=r"system\.py:\d+ add_flexible_body\]$",
-    ),
-    Known(
-        "fe/shapes.py, fe/preprocess.py: box(lengths=<an id>) and build_body(mode_count=[...]) "
-        "raise a bare TypeError",
-        family="api",
-        kind=r"^api/other/(box|build_body)",
-        message=r"(shapes|preprocess)\.py:\d+ (box|build_body)\]$",
-    ),
-    Known(
-        "system.py (_csc_tuple) with fe/body_file.py: a body file whose sparse matrix has "
-        "unsorted indices (a zeroed block in i_kl) loads, and add_flexible_body then sorts "
-        "the body's read-only arrays in place: ValueError 'WRITEBACKIFCOPY base is "
-        "read-only' (load_body should refuse or sort them; _csc_tuple should copy)",
-        family="body-files",
-        message=r"WRITEBACKIFCOPY base is read-only",
-    ),
-    Known(
-        "fe/mesh_io.py (validate_mesh, _check_duplicate_nodes): a node coordinate of 1e308 "
-        "makes scipy's cKDTree.query_pairs raise ValueError 'Encountering floating point "
-        "overflow' (not an InvalidModelError naming the node)",
-        family="meshes",
-        message=r"query_pairs",
-    ),
-    Known(
-        "fe/mesh_io.py (read_mesh): a mesh path that is a FIFO or a link to /dev/zero blocks "
-        "for ever (meshio reads it without a check that it is a regular file)",
-        family="meshes",
-        kind=r"^meshes/path/(fifo|dev-zero)$",
-        outcomes=("hang",),
-    ),
-]
+KNOWN_FAILURES: list[Known] = []
 
 
 def known_failure(case: Case, outcome: str, message: str) -> Known | None:

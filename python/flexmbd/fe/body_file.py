@@ -37,7 +37,9 @@ the key ``"."`` written ``%2E``. Nothing in the file is executed or unpickled on
 
 A round trip is exact: arrays bit-identical with their dtype and shape (C order), sparse
 matrices with the same format, index arrays, values and shape, dictionary keys in order, and
-``None`` kept.
+``None`` kept. CSC and CSR matrices read back canonical (indices sorted, no duplicates): one
+stored otherwise (unsorted indices, duplicate entries, which add up) reads back as the same
+matrix with its entries sorted and its duplicates summed.
 """
 
 from __future__ import annotations
@@ -637,6 +639,11 @@ class _Reader:
         matrix = matrix_class[stored]((data, indices, indptr), shape=shape)
         matrix.check_format(full_check=True)
         matrix.data, matrix.indices, matrix.indptr = data, indices, indptr
+        # Canonical (indices sorted in each column or row, no duplicates: the same matrix): the
+        # body makes its arrays read-only, and the code that needs sorted indices would
+        # otherwise sort them in place. The arrays were just read: they are this matrix's own.
+        if not matrix.has_canonical_format:
+            matrix.sum_duplicates()
         if stored != fmt:
             try:
                 matrix = matrix.asformat(fmt)

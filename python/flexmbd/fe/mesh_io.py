@@ -60,6 +60,12 @@ MESH_FORMATS = {".msh": "gmsh", ".inp": "abaqus", ".vtu": "vtu", ".vtk": "vtk"}
 #: Relative distance under which two nodes count as duplicates (times the mesh size).
 DUPLICATE_NODE_TOLERANCE = 1e-12
 
+#: Largest magnitude of a node coordinate (in the units of the mesh) that
+#: :func:`validate_mesh` accepts: the preprocessor multiplies three lengths (volumes, masses)
+#: and the duplicate-node search squares distances, and (2 x 1e100)^3 is still far below the
+#: largest float (1.8e308). No real mesh comes near it (the observable universe is 1e27 m).
+MAX_NODE_COORDINATE = 1e100
+
 #: Relative asymmetry allowed in :func:`matrices_from_arrays`.
 SYMMETRY_TOLERANCE = 1e-10
 
@@ -149,7 +155,9 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     Raises:
         FileNotFoundError: ``path`` does not exist.
         InvalidParameterError: the suffix is not one of the formats above.
-        InvalidModelError: meshio cannot read the file, or the file is not consistent
+        InvalidModelError: ``path`` (or an ``*INCLUDE`` file) is not a regular file once its
+            links are followed (a folder, a FIFO, a device such as ``/dev/zero``, which would
+            block the reader), meshio cannot read the file, or the file is not consistent
             (several ``*NODE`` blocks in one Abaqus input, a label out of range, a bad
             ``GENERATE`` line, a refused or cyclic ``*INCLUDE``, ...).
         UnknownItemError: a set or element of an Abaqus file refers to a node, element or
@@ -158,6 +166,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(2, "No such mesh file", str(path))
+    _check_regular_file(path, "mesh file")
     item = f"file '{path}'"
     file_format = MESH_FORMATS.get(path.suffix.lower())
     if file_format is None:
@@ -230,6 +239,24 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         element_ids={kind: np.concatenate(parts) for kind, parts in element_ids.items()},
         node_sets=node_sets,
     )
+
+
+def _check_regular_file(path: Path, what: str, where: str = "") -> None:
+    """Raises `InvalidModelError` naming `path` when it exists but is not a regular file once
+    its links are followed: a folder, a FIFO or a device (a link to ``/dev/zero``), which
+    meshio or a read of the text would fail on or wait on for ever. `where` (a line of an
+    including file) starts the message."""
+    named = f"{where}: the {what} {path}" if where else f"{path}: the {what}"
+    try:
+        regular = path.is_file()
+    except OSError as error:
+        raise InvalidModelError(
+            f"{named} cannot be read ({error})", item=f"file '{path}'"
+        ) from None
+    if not regular:
+        raise InvalidModelError(
+            f"{named} is not a regular file (a folder, a FIFO or a device)", item=f"file '{path}'"
+        )
 
 
 def _split(flat: NDArray[np.int64], blocks: list[tuple[str, NDArray[np.int64]]]) -> list:
@@ -607,11 +634,12 @@ def _include_target(
             f"({scan.root}): included files must be in that folder or below it",
             item=item,
         )
-    if not target.is_file():
+    if not target.exists():
         raise InvalidModelError(
             f"{path}, line {line}: *INCLUDE file {name!r} not found (looked for {target})",
             item=item,
         )
+    _check_regular_file(target, "*INCLUDE file", f"{path}, line {line}")
     return target
 
 
@@ -719,17 +747,18 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
 def validate_mesh(mesh: Mesh) -> None:
     """Check a mesh before it becomes a body.
 
-    Checks, in this order: array shapes, unique node ids, finite coordinates, known element
-    types, element node indices in range, elements with a repeated node, unique element ids,
-    node set indices in range, duplicate nodes (two nodes closer than
-    :data:`DUPLICATE_NODE_TOLERANCE` times the mesh size, the diagonal of its bounding box)
-    and nodes used by no element. Element volumes and orientation are checked by the element
-    kernels.
+    Checks, in this order: array shapes, unique node ids, finite coordinates no larger than
+    :data:`MAX_NODE_COORDINATE` in magnitude, known element types, element node indices in
+    range, elements with a repeated node, unique element ids, node set indices in range,
+    duplicate nodes (two nodes closer than :data:`DUPLICATE_NODE_TOLERANCE` times the mesh
+    size, the diagonal of its bounding box) and nodes used by no element. Element volumes and
+    orientation are checked by the element kernels.
 
     Raises:
         InvalidModelError: a structural error; the message names the node or element by its
             id ("unconnected node 17", "nodes 4 and 9 are at the same position", "element 3
-            (tet4) uses node 12 more than once").
+            (tet4) uses node 12 more than once"); also a node coordinate beyond
+            :data:`MAX_NODE_COORDINATE` in magnitude.
         InvalidParameterError: non-finite node coordinates (naming the node).
         UnknownItemError: an element or node set refers to a node index that does not exist,
             or an element type is unknown.
@@ -751,6 +780,15 @@ def validate_mesh(mesh: Mesh) -> None:
         node = node_ids[bad[0]]
         raise InvalidParameterError(
             f"node {node} has non-finite coordinates {nodes[bad[0]].tolist()}", item=f"node {node}"
+        )
+    # Before the search for duplicate nodes, whose squared distances would overflow.
+    huge = np.flatnonzero((np.abs(nodes) > MAX_NODE_COORDINATE).any(axis=1))
+    if len(huge):
+        node = node_ids[huge[0]]
+        raise InvalidModelError(
+            f"node {node} has coordinates {nodes[huge[0]].tolist()} beyond "
+            f"{MAX_NODE_COORDINATE:g} in magnitude (the largest a mesh may have)",
+            item=f"node {node}",
         )
 
     if sum(len(connectivity) for connectivity in mesh.elements.values()) == 0:
@@ -942,6 +980,8 @@ def read_abaqus_matrix(
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
+        InvalidModelError: ``path`` is not a regular file once its links are followed (a
+            folder, a FIFO, a device).
         InvalidParameterError: a bad line (wrong number of fields, a node or dof that is not a
             positive integer (negative labels are Abaqus internal nodes, which a mesh does
             not have), a dof above ``dofs_per_node``, a non-finite value), an entry given twice,
@@ -958,6 +998,8 @@ def read_abaqus_matrix(
             f"dofs_per_node must be a positive integer, got {dofs_per_node!r}",
             item="dofs_per_node",
         )
+    if path.exists():
+        _check_regular_file(path, "matrix file")
     with open(path, encoding="utf-8", errors="replace") as file:
         text = file.read()
 

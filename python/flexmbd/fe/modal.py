@@ -40,11 +40,14 @@ INTERFACE_KINDS = ("nodal", "rbe2", "rbe3")
 
 def lower_triangle(matrix: sp.spmatrix) -> sp.csc_matrix:
     """The lower triangle (diagonal included) of a sparse matrix, CSC with sorted indices; a
-    matrix that is already lower triangular CSC is returned as it is (no copy)."""
+    matrix that is already lower triangular CSC with sorted indices is returned as it is (no
+    copy), one with unsorted indices is sorted in a copy (a body's matrices are read-only)."""
     if sp.isspmatrix_csc(matrix) or isinstance(matrix, sp.csc_array):
         columns = np.repeat(np.arange(matrix.shape[1]), np.diff(matrix.indptr))
         if np.all(matrix.indices >= columns):
-            matrix.sort_indices()
+            if not matrix.has_sorted_indices:
+                matrix = matrix.copy()
+                matrix.sort_indices()
             return matrix
     lower = sp.tril(matrix, format="csc")
     lower.sort_indices()

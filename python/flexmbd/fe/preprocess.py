@@ -17,6 +17,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
+from .._checks import integer
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import FlexibleBodyData
 from .interface import Interface
@@ -337,7 +338,8 @@ def build_body(
       or one per interface, weight their nodes: "auto", "area", "length", "volume",
       "uniform" or arrays, see `flexmbd.fe.interface`) or "external" (`external_modes`
       over the kept coordinates, e.g. from experimental modal analysis or another FE code).
-      `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes).
+      `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes); a `mode_count`
+      that is not an integer >= 0 is an `InvalidParameterError` naming it.
     - `precision`: of the sparse factorizations of the eigensolvers: "double", "single" (half
       the memory: a single-precision Cholesky factor preconditions conjugate gradients), or
       "auto" (single above `modal.SINGLE_PRECISION_ABOVE` coordinates).
@@ -345,6 +347,9 @@ def build_body(
       "modes", "invariants").
     """
     clock = _Stages(timings)
+    mode_count = integer(mode_count, "mode_count")
+    if mode_count < 0:
+        raise InvalidParameterError(f"mode_count must be >= 0, got {mode_count}", item="mode_count")
     # Copies: the body's arrays are read-only and must not alias the caller's.
     nodes = np.array(nodes, dtype=float)
     sets = {name: np.array(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
@@ -369,8 +374,6 @@ def build_body(
             Mesh(nodes=nodes, node_ids=ids, elements=elements, element_ids=eids, node_sets=sets)
         )
     clock.lap("check")
-    if mode_count < 0:
-        raise InvalidParameterError(f"mode_count must be >= 0, got {mode_count}")
     nodal = assemble(
         nodes,
         elements,

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import numbers_array
 from ..errors import InvalidParameterError
 from .mesh_io import Mesh
 
@@ -76,6 +77,17 @@ def _check_mesh_size(
     )
 
 
+def _three_numbers(value: Any, name: str) -> NDArray[np.float64]:
+    """`value` as an array of three finite floats, else an `InvalidParameterError` naming the
+    parameter `name` (an `ArgumentTypeError` when it is not numbers: a string, an id, ...)."""
+    array = numbers_array(value, name)
+    if array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise InvalidParameterError(
+            f"{name} must be three finite numbers, got {array.tolist()!r:.80}", item=name
+        )
+    return array
+
+
 def _signed_volumes(nodes: NDArray[np.float64], tets: NDArray[np.int64]) -> NDArray[np.float64]:
     x0 = nodes[tets[:, 0]]
     a, b, c = (nodes[tets[:, k]] - x0 for k in (1, 2, 3))
@@ -115,11 +127,13 @@ def box(
     `divisions` = (n_x, n_y, n_z) cells; `element` "hex8", "tet4" (six tetrahedra per cell)
     or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
 
-    Raises `InvalidParameterError` for lengths that are not positive and finite, divisions
-    that are not positive integers, and meshes of more than `max_elements` elements
-    (default :data:`MAX_MESH_ELEMENTS`; the message gives the node and element counts and
-    the memory)."""
-    lengths = np.asarray(lengths, dtype=float)
+    Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
+    divisions that are not positive integers, an origin that is not three finite numbers, an
+    unknown element, and meshes of more than `max_elements` elements (default
+    :data:`MAX_MESH_ELEMENTS`; the message gives the node and element counts and the
+    memory); the message names the parameter."""
+    lengths = _three_numbers(lengths, "lengths")
+    origin = _three_numbers(origin, "origin")
     try:
         nx, ny, nz = (
             int(n) if isinstance(n, float) and n.is_integer() else operator.index(n)
@@ -129,16 +143,18 @@ def box(
         raise InvalidParameterError(
             f"a box needs three integer divisions, got {divisions!r}", item="divisions"
         ) from None
-    if (
-        lengths.shape != (3,)
-        or not np.all(np.isfinite(lengths) & (lengths > 0))
-        or min(nx, ny, nz) < 1
-    ):
+    if not np.all(lengths > 0):
         raise InvalidParameterError(
-            f"a box needs three positive lengths and divisions, got {lengths}, {divisions}"
+            f"a box needs three positive lengths, got {lengths.tolist()}", item="lengths"
         )
-    if element not in ("hex8", "tet4", "tet10"):
-        raise InvalidParameterError(f"box elements are hex8, tet4 or tet10, got {element!r}")
+    if min(nx, ny, nz) < 1:
+        raise InvalidParameterError(
+            f"a box needs three positive divisions, got {divisions}", item="divisions"
+        )
+    if not isinstance(element, str) or element not in ("hex8", "tet4", "tet10"):
+        raise InvalidParameterError(
+            f"box elements are hex8, tet4 or tet10, got {element!r:.60}", item="element"
+        )
     # Sizes from the counts alone (Python integers: no overflow) before any array is made.
     cells = nx * ny * nz
     node_count = (nx + 1) * (ny + 1) * (nz + 1)
@@ -159,7 +175,7 @@ def box(
     counts = (nx, ny, nz)
     axes = [np.linspace(0.0, lengths[a], counts[a] + 1) for a in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    nodes = grid + np.asarray(origin, dtype=float)
+    nodes = grid + origin
 
     def index(i, j, k):
         return (i * (ny + 1) + j) * (nz + 1) + k
@@ -178,7 +194,7 @@ def box(
             elements = {"tet10": tets}
         else:
             elements = {"tet4": tets}
-    return _with_face_sets(nodes, elements, np.asarray(origin, dtype=float), lengths)
+    return _with_face_sets(nodes, elements, origin, lengths)
 
 
 def _with_face_sets(
