@@ -2,10 +2,40 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 import flexmbd as fm
+
+
+def check_close(
+    actual: Any, expected: Any, *, rel: float = 0.0, abs: float = 0.0, what: str = "value"
+) -> None:
+    """The one tolerance helper of the tests: every entry of `actual` (a number or an array,
+    broadcast against `expected`) within abs + rel |expected| of `expected` (NaN never is);
+    a failure names what was compared, the worst entry, both values and the tolerance."""
+    a = np.asarray(actual, dtype=float)
+    e = np.broadcast_to(np.asarray(expected, dtype=float), a.shape)
+    tolerance = abs + rel * np.abs(e)
+    excess = np.where(np.isnan(a) | np.isnan(e), np.inf, np.abs(a - e) - tolerance)
+    if excess.size == 0 or np.max(excess) <= 0.0:
+        return
+    k = np.unravel_index(int(np.argmax(excess)), excess.shape) if excess.ndim else ()
+    where = f"{what}[{', '.join(map(str, k))}]" if k else what
+    pytest.fail(
+        f"{where}: {a[k]:.17g} against {e[k]:.17g}: |difference| {np.abs(a[k] - e[k]):.3e} > "
+        f"{abs:.1e} + {rel:.1e} |expected| = {tolerance[k]:.3e}",
+        pytrace=False,
+    )
+
+
+@pytest.fixture
+def assert_close():
+    """:func:`check_close` as a fixture: ``assert_close(actual, expected, rel=..., abs=...)``."""
+    return check_close
 
 
 def relative_drift(energy: np.ndarray) -> float:

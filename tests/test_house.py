@@ -84,3 +84,12 @@ def test_the_compiled_model_carries_its_deformable_bodies_as_a_declared_field():
     rigid = fm.System()
     rigid.add_point_mass(1.0)
     assert rigid.compile().flexible_bodies == {}
+
+
+def test_the_tolerance_helper_passes_close_values_and_names_the_worst_entry(assert_close):
+    assert_close(1.0 + 1e-10, 1.0, rel=1e-9)
+    assert_close([1e-13, 2.0], [0.0, 2.0], abs=1e-12, rel=1e-12)
+    with pytest.raises(pytest.fail.Exception, match=r"tip\[1\]: 2.5 against 2: "):
+        assert_close([1.0, 2.5, 3.1], [1.0, 2.0, 3.0], rel=0.05, what="tip")
+    with pytest.raises(pytest.fail.Exception, match="nan against 1"):
+        assert_close(float("nan"), 1.0, rel=1.0, abs=1.0)

@@ -48,6 +48,8 @@ pub mod math;
 pub mod names;
 pub mod output;
 pub mod system;
+#[doc(hidden)]
+pub mod testing;
 
 pub use error::{FlexmbdError, Result};
 pub use ids::{BodyId, ForceId, JointId, MarkerId, SensorId};
