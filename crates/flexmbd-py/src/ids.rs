@@ -29,6 +29,11 @@ macro_rules! py_id {
             fn __int__(&self) -> usize {
                 self.index
             }
+
+            /// Pickling and copying: the id is its index.
+            fn __getnewargs__(&self) -> (usize,) {
+                (self.index,)
+            }
         }
 
         impl From<$name> for $core {

@@ -286,3 +286,40 @@ pub fn to_vector_function(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<[TimeF
         to_time_function(&parts[2], item)?,
     ])
 }
+
+// Pickling and copying: each function is made again from its arguments (a `UserFunction`
+// pickles its callable by reference, as pickle does; a lambda or a local function cannot be).
+#[pymethods]
+impl Constant {
+    fn __getnewargs__(&self) -> (f64,) {
+        (self.value,)
+    }
+}
+
+#[pymethods]
+impl Polynomial {
+    fn __getnewargs__(&self) -> (Vec<f64>,) {
+        (self.coefficients.clone(),)
+    }
+}
+
+#[pymethods]
+impl Harmonic {
+    fn __getnewargs__(&self) -> (f64, f64, f64, f64) {
+        (self.amplitude, self.frequency, self.phase, self.offset)
+    }
+}
+
+#[pymethods]
+impl Spline {
+    fn __getnewargs__(&self) -> (Vec<f64>, Vec<f64>) {
+        (self.times.clone(), self.values.clone())
+    }
+}
+
+#[pymethods]
+impl UserFunction {
+    fn __getnewargs__(&self, py: Python<'_>) -> (Py<PyAny>, bool) {
+        (self.function.clone_ref(py), self.derivatives)
+    }
+}
