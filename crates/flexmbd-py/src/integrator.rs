@@ -163,22 +163,22 @@ impl GeneralizedAlpha {
     /// Pickling and copying: made again from all its settings, as keywords.
     fn __getnewargs_ex__<'py>(&self, py: Python<'py>) -> PyResult<((), Bound<'py, PyDict>)> {
         let d = PyDict::new(py);
-        d.set_item("spectral_radius", self.spectral_radius.clone())?;
-        d.set_item("newton_tolerance", self.newton_tolerance.clone())?;
-        d.set_item("max_iterations", self.max_iterations.clone())?;
+        d.set_item("spectral_radius", self.spectral_radius)?;
+        d.set_item("newton_tolerance", self.newton_tolerance)?;
+        d.set_item("max_iterations", self.max_iterations)?;
         d.set_item("jacobian", self.jacobian.clone())?;
         d.set_item("step_control", self.step_control.clone())?;
-        d.set_item("relative_tolerance", self.relative_tolerance.clone())?;
-        d.set_item("absolute_tolerance", self.absolute_tolerance.clone())?;
-        d.set_item("min_step_size", self.min_step_size.clone())?;
-        d.set_item("max_step_size", self.max_step_size.clone())?;
+        d.set_item("relative_tolerance", self.relative_tolerance)?;
+        d.set_item("absolute_tolerance", self.absolute_tolerance)?;
+        d.set_item("min_step_size", self.min_step_size)?;
+        d.set_item("max_step_size", self.max_step_size)?;
         d.set_item("velocity_projection", self.velocity_projection.clone())?;
         d.set_item("linear_solver", self.linear_solver.clone())?;
-        d.set_item("initial_tolerance", self.initial_tolerance.clone())?;
-        d.set_item("correct_initial_positions", self.correct_initial_positions.clone())?;
-        d.set_item("correct_initial_velocities", self.correct_initial_velocities.clone())?;
+        d.set_item("initial_tolerance", self.initial_tolerance)?;
+        d.set_item("correct_initial_positions", self.correct_initial_positions)?;
+        d.set_item("correct_initial_velocities", self.correct_initial_velocities)?;
         d.set_item("redundant_constraints", self.redundant_constraints.clone())?;
-        d.set_item("rank_tolerance", self.rank_tolerance.clone())?;
+        d.set_item("rank_tolerance", self.rank_tolerance)?;
         Ok(((), d))
     }
 }
@@ -504,21 +504,21 @@ impl ExplicitSolver {
         d.set_item("formulation", self.formulation.clone())?;
         d.set_item("partition", self.partition.clone())?;
         d.set_item("independent", self.independent.clone())?;
-        d.set_item("baumgarte", self.baumgarte.clone())?;
-        d.set_item("relative_tolerance", self.relative_tolerance.clone())?;
-        d.set_item("absolute_tolerance", self.absolute_tolerance.clone())?;
-        d.set_item("constraint_tolerance", self.constraint_tolerance.clone())?;
-        d.set_item("max_iterations", self.max_iterations.clone())?;
-        d.set_item("repartition_ratio", self.repartition_ratio.clone())?;
-        d.set_item("drift_threshold", self.drift_threshold.clone())?;
-        d.set_item("singular_factor", self.singular_factor.clone())?;
-        d.set_item("min_step_size", self.min_step_size.clone())?;
-        d.set_item("max_step_size", self.max_step_size.clone())?;
-        d.set_item("initial_tolerance", self.initial_tolerance.clone())?;
-        d.set_item("correct_initial_positions", self.correct_initial_positions.clone())?;
-        d.set_item("correct_initial_velocities", self.correct_initial_velocities.clone())?;
+        d.set_item("baumgarte", self.baumgarte)?;
+        d.set_item("relative_tolerance", self.relative_tolerance)?;
+        d.set_item("absolute_tolerance", self.absolute_tolerance)?;
+        d.set_item("constraint_tolerance", self.constraint_tolerance)?;
+        d.set_item("max_iterations", self.max_iterations)?;
+        d.set_item("repartition_ratio", self.repartition_ratio)?;
+        d.set_item("drift_threshold", self.drift_threshold)?;
+        d.set_item("singular_factor", self.singular_factor)?;
+        d.set_item("min_step_size", self.min_step_size)?;
+        d.set_item("max_step_size", self.max_step_size)?;
+        d.set_item("initial_tolerance", self.initial_tolerance)?;
+        d.set_item("correct_initial_positions", self.correct_initial_positions)?;
+        d.set_item("correct_initial_velocities", self.correct_initial_velocities)?;
         d.set_item("redundant_constraints", self.redundant_constraints.clone())?;
-        d.set_item("rank_tolerance", self.rank_tolerance.clone())?;
+        d.set_item("rank_tolerance", self.rank_tolerance)?;
         d.set_item("cut_joints", self.cut_joints.clone())?;
         Ok(((), d))
     }
