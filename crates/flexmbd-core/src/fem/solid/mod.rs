@@ -1,0 +1,142 @@
+//! Solid elements: 4-node and 10-node tetrahedra, 8-node hexahedra.
+//!
+//! Isoparametric, small-strain, linear elastic. Element coordinates are node-major with the 3
+//! displacements of every node in body axes (see `element.rs`), so an element with n nodes has
+//! n_e = 3 n coordinates and its shape matrix is S = [N_1 I, N_2 I, ..., N_n I] (3 x n_e).
+//!
+//! Node orderings (those of Gmsh's `.msh` format):
+//! - [`Tet4`]: vertices 0, 1, 2, 3 (reference (0,0,0), (1,0,0), (0,1,0), (0,0,1)), positively
+//!   oriented: (x1 - x0) . ((x2 - x0) x (x3 - x0)) > 0. VTK and meshio use the same order.
+//! - [`Tet10`]: vertices 0..3 as for `Tet4`, then the mid-edge nodes 4..9 on the edges
+//!   (0,1), (1,2), (0,2), (0,3), (2,3), (1,3) ([`TET10_EDGES`]). VTK's quadratic tetrahedron,
+//!   and therefore meshio, lists the last two the other way round ((1,3), then (2,3)):
+//!   permute a meshio/VTK cell with [`TET10_FROM_VTK_ORDER`] before using it here.
+//! - [`Hex8`]: bottom face 0, 1, 2, 3 counter-clockwise seen from +z (from above), top face
+//!   4, 5, 6, 7 above them (reference corners (-1,-1,-1), (1,-1,-1), (1,1,-1), (-1,1,-1), then
+//!   the same with zeta = +1). VTK and meshio use the same order.
+//!
+//! Quadrature: stiffness K = int B^T D B dV with the 1-point rule (`Tet4`, exact), the 4-point
+//! degree-2 rule (`Tet10`, exact for straight edges) and 2 x 2 x 2 Gauss (`Hex8`, full
+//! integration, no hourglass modes). Mass points (consistent mass, invariants of motion, volume)
+//! use a rule that makes every integrand of `element.rs` exact: the 4-point degree-2 rule for
+//! `Tet4`, the 15-point degree-5 rule for `Tet10` (exact for straight edges; an approximation
+//! when mid-edge nodes are off the edge midpoints) and 3 x 3 x 3 Gauss for `Hex8` (exact for
+//! every trilinear hexahedron: with a non-constant Jacobian determinant the integrands
+//! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss).
+//! Lumped masses are HRZ (Hinton, Rock, Zienkiewicz, "A note on mass lumping and related
+//! processes in the finite element method", Earthquake Eng. Struct. Dyn. 4 (1976) 245-249):
+//! the diagonal of the consistent mass matrix scaled so that its sum is the element mass.
+//!
+//! An element is degenerate or inverted (`ElementError::Degenerate`) when the Jacobian
+//! determinant at a quadrature point of the rule in use, or at a node, is not above
+//! 1e-12 h^3, with h the diagonal of the bounding box of the nodes.
+//!
+//! Files: `tetrahedra` and `hexahedron` (nodes, rules and shape functions of each element),
+//! `geometry` (the isoparametric map: Jacobian, physical gradients), `validation` (node count,
+//! positions, degenerate and inverted elements), `matrices` (stiffness and nodal stresses),
+//! `mass` (mass points, HRZ lumped masses, volume).
+
+use crate::fem::element::{ElementKernel, ElementResult, MassPoint};
+use crate::fem::material::Material;
+use crate::fem::quadrature::QuadraturePoint;
+use crate::math::dense::DenseMatrix;
+use crate::math::Vec3;
+
+mod geometry;
+mod hexahedron;
+mod mass;
+mod matrices;
+#[cfg(test)]
+mod tests;
+mod tetrahedra;
+mod validation;
+
+/// Linear 4-node tetrahedron (constant strain).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Tet4;
+
+/// Quadratic 10-node tetrahedron (node order in the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Tet10;
+
+/// Trilinear 8-node hexahedron (node order in the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Hex8;
+
+/// Vertices joined by the edge of each mid-edge node 4..9 of a [`Tet10`] (Gmsh order).
+pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [2, 3], [1, 3]];
+
+/// Node permutation from the VTK/meshio quadratic tetrahedron to [`Tet10`]:
+/// `tet10_nodes[i] = vtk_nodes[TET10_FROM_VTK_ORDER[i]]` (it is its own inverse).
+pub const TET10_FROM_VTK_ORDER: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
+
+/// Shape functions of an isoparametric solid element with `N` nodes.
+trait Isoparametric<const N: usize> {
+    /// Element name for error messages.
+    const NAME: &'static str;
+    /// Reference coordinates of the nodes.
+    const NODES: [[f64; 3]; N];
+    /// Rule of the stiffness matrix.
+    const STIFFNESS_RULE: &'static [QuadraturePoint];
+    /// Rule of the mass points, the lumped masses and the volume.
+    const MASS_RULE: &'static [QuadraturePoint];
+    /// Shape functions N_a at reference coordinates `xi`.
+    fn shape_functions(xi: [f64; 3]) -> [f64; N];
+    /// Reference gradients dN_a / dxi at reference coordinates `xi`.
+    fn reference_gradients(xi: [f64; 3]) -> [[f64; 3]; N];
+}
+
+// The element kernels delegate to the generic isoparametric routines of `matrices` and `mass`.
+macro_rules! solid_element_kernel {
+    ($element:ty, $nodes:literal) => {
+        impl ElementKernel for $element {
+            fn node_count(&self) -> usize {
+                $nodes
+            }
+
+            fn dofs_per_node(&self) -> usize {
+                3
+            }
+
+            fn stiffness(&self, material: &Material, x: &[Vec3], out: &mut DenseMatrix) -> ElementResult<()> {
+                matrices::stiffness::<$element, $nodes>(material, x, out)
+            }
+
+            fn mass_points(
+                &self,
+                material: &Material,
+                x: &[Vec3],
+                out: &mut Vec<MassPoint>,
+            ) -> ElementResult<()> {
+                mass::mass_points::<$element, $nodes>(material, x, out)
+            }
+
+            fn lumped_mass_points(
+                &self,
+                material: &Material,
+                x: &[Vec3],
+                out: &mut Vec<MassPoint>,
+            ) -> ElementResult<()> {
+                mass::lumped_mass_points::<$element, $nodes>(material, x, out)
+            }
+
+            fn volume(&self, x: &[Vec3]) -> ElementResult<f64> {
+                mass::volume::<$element, $nodes>(x)
+            }
+
+            fn nodal_stresses(
+                &self,
+                material: &Material,
+                x: &[Vec3],
+                u: &[f64],
+                out: &mut [[f64; 6]],
+            ) -> ElementResult<()> {
+                matrices::nodal_stresses::<$element, $nodes>(material, x, u, out)
+            }
+        }
+    };
+}
+
+solid_element_kernel!(Tet4, 4);
+solid_element_kernel!(Tet10, 10);
+solid_element_kernel!(Hex8, 8);

@@ -1,0 +1,383 @@
+//! Tests of the solid elements against independent results: exact moments of tetrahedra and
+//! of trilinear hexahedra (by the divergence theorem), closed-form mass fractions, rigid-body
+//! modes, patch tests, and the degenerate and invalid elements they must refuse. This file
+//! holds the test elements and helpers, and the tests of the shape functions.
+
+use super::geometry::physical_gradients;
+use super::matrices::strain_displacement;
+use super::*;
+use crate::fem::element::{mass_matrix, ElementError};
+use crate::fem::quadrature::GAUSS_LEGENDRE_3;
+use crate::math::Mat3;
+
+mod mass;
+mod stiffness;
+mod validation;
+
+const RELATIVE: f64 = 1e-12;
+
+fn steel() -> Material {
+    Material::new("steel", 2.1e11, 0.3, 7850.0).unwrap()
+}
+
+fn v(x: f64, y: f64, z: f64) -> Vec3 {
+    Vec3::new(x, y, z)
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Tet4,
+    Tet10,
+    Hex8,
+}
+
+fn element(kind: Kind) -> &'static dyn ElementKernel {
+    match kind {
+        Kind::Tet4 => &Tet4,
+        Kind::Tet10 => &Tet10,
+        Kind::Hex8 => &Hex8,
+    }
+}
+
+/// Volume, first moment int x dV and second moment int x x^T dV of a region.
+#[derive(Clone, Copy, Debug)]
+struct Moments {
+    volume: f64,
+    first: Vec3,
+    second: [[f64; 3]; 3],
+}
+
+struct Case {
+    name: &'static str,
+    kind: Kind,
+    nodes: Vec<Vec3>,
+    /// Exact moments, from formulas independent of the element (None: not known).
+    moments: Option<Moments>,
+    /// Closed-form int N_a dV / V (consistent-mass row sums) and HRZ fractions m_a / m.
+    fractions: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+fn unit_tet() -> Vec<Vec3> {
+    vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, 0.0, 1.0)]
+}
+
+fn distorted_tet() -> Vec<Vec3> {
+    let offset = v(2.0, -1.0, 0.5);
+    [v(0.1, -0.2, 0.05), v(1.3, 0.1, -0.1), v(0.2, 0.9, 0.3), v(-0.1, 0.25, 1.2)]
+        .into_iter()
+        .map(|p| p + offset)
+        .collect()
+}
+
+/// A straight-sided Tet10: the vertices and the midpoints of the edges.
+fn tet10_from(vertices: &[Vec3]) -> Vec<Vec3> {
+    let mut nodes = vertices.to_vec();
+    for [p, q] in TET10_EDGES {
+        nodes.push(0.5 * (vertices[p] + vertices[q]));
+    }
+    nodes
+}
+
+fn curved_tet10() -> Vec<Vec3> {
+    let mut nodes = tet10_from(&distorted_tet());
+    nodes[4] += v(0.03, -0.02, 0.04);
+    nodes[8] += v(-0.02, 0.03, 0.01);
+    nodes[9] += v(0.01, 0.02, -0.03);
+    nodes
+}
+
+/// Hexahedron origin + i e1 + j e2 + k e3 over the corners (i, j, k) in Gmsh order.
+fn parallelepiped(origin: Vec3, e1: Vec3, e2: Vec3, e3: Vec3) -> Vec<Vec3> {
+    Hex8::NODES
+        .iter()
+        .map(|s| origin + (0.5 * (s[0] + 1.0)) * e1 + (0.5 * (s[1] + 1.0)) * e2 + (0.5 * (s[2] + 1.0)) * e3)
+        .collect()
+}
+
+fn box_hex(origin: Vec3, a: f64, b: f64, c: f64) -> Vec<Vec3> {
+    parallelepiped(origin, v(a, 0.0, 0.0), v(0.0, b, 0.0), v(0.0, 0.0, c))
+}
+
+fn distorted_hex() -> Vec<Vec3> {
+    let perturbations = [
+        v(0.1, -0.05, 0.08),
+        v(-0.12, 0.07, -0.03),
+        v(0.15, 0.1, 0.05),
+        v(-0.06, -0.11, 0.09),
+        v(0.08, 0.12, -0.1),
+        v(-0.1, -0.04, 0.13),
+        v(0.05, -0.09, -0.07),
+        v(-0.14, 0.06, 0.02),
+    ];
+    box_hex(v(0.5, -0.3, 0.2), 2.0, 1.0, 1.5).into_iter().zip(perturbations).map(|(p, d)| p + d).collect()
+}
+
+/// Exact moments of a tetrahedron from its vertices: V = triple product / 6,
+/// int x = V centroid, int x x^T = V/20 (sum x_i x_i^T + (sum x_i)(sum x_i)^T).
+fn tetrahedron_moments(x: &[Vec3]) -> Moments {
+    let volume = (x[1] - x[0]).dot(&(x[2] - x[0]).cross(&(x[3] - x[0]))) / 6.0;
+    let sum = x[0] + x[1] + x[2] + x[3];
+    let mut second = [[0.0; 3]; 3];
+    for k in 0..3 {
+        for l in 0..3 {
+            let own: f64 = x[..4].iter().map(|p| p[k] * p[l]).sum();
+            second[k][l] = volume / 20.0 * (own + sum[k] * sum[l]);
+        }
+    }
+    Moments { volume, first: (volume / 4.0) * sum, second }
+}
+
+// Faces of a Hex8, each counter-clockwise seen from outside, and the corners of the
+// bilinear face map at (s, t) = (-1,-1), (1,-1), (1,1), (-1,1).
+const HEX_FACES: [[usize; 4]; 6] =
+    [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]];
+const FACE_CORNERS: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+
+/// Calls `f(face nodes, face shape functions, point, weighted outward area vector)` at the
+/// 3 x 3 Gauss points of every (bilinear) face of a hexahedron.
+fn hex_surface_quadrature(x: &[Vec3], mut f: impl FnMut(&[usize; 4], [f64; 4], Vec3, Vec3)) {
+    for face in &HEX_FACES {
+        for &(s, ws) in &GAUSS_LEGENDRE_3 {
+            for &(t, wt) in &GAUSS_LEGENDRE_3 {
+                let (mut n, mut p, mut ds, mut dt) = ([0.0; 4], Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+                for (i, c) in FACE_CORNERS.iter().enumerate() {
+                    let xi = x[face[i]];
+                    n[i] = 0.25 * (1.0 + s * c[0]) * (1.0 + t * c[1]);
+                    p += n[i] * xi;
+                    ds += (0.25 * c[0] * (1.0 + t * c[1])) * xi;
+                    dt += (0.25 * c[1] * (1.0 + s * c[0])) * xi;
+                }
+                f(face, n, p, (ws * wt) * ds.cross(&dt));
+            }
+        }
+    }
+}
+
+/// Exact moments of a trilinear hexahedron by the divergence theorem: for a homogeneous
+/// polynomial p of degree k, int p dV = 1/(3 + k) int p (x . n) dA (exact face quadrature).
+fn hexahedron_moments(x: &[Vec3]) -> Moments {
+    let mut m = Moments { volume: 0.0, first: Vec3::ZERO, second: [[0.0; 3]; 3] };
+    hex_surface_quadrature(x, |_, _, p, da| {
+        let flux = p.dot(&da);
+        m.volume += flux / 3.0;
+        m.first += (flux / 4.0) * p;
+        for k in 0..3 {
+            for l in 0..3 {
+                m.second[k][l] += flux / 5.0 * p[k] * p[l];
+            }
+        }
+    });
+    m
+}
+
+fn cases() -> Vec<Case> {
+    let tet4_fractions = (vec![0.25; 4], vec![0.25; 4]);
+    let mut tet10_row_sums = vec![-1.0 / 20.0; 4];
+    tet10_row_sums.extend([0.2; 6]);
+    let mut tet10_lumped = vec![1.0 / 36.0; 4];
+    tet10_lumped.extend([4.0 / 27.0; 6]);
+    let tet10_fractions = (tet10_row_sums, tet10_lumped);
+    let hex_fractions = (vec![0.125; 8], vec![0.125; 8]);
+    let tet = |name, kind, nodes: Vec<Vec3>, fractions| {
+        let moments = Some(tetrahedron_moments(&nodes));
+        Case { name, kind, nodes, moments, fractions }
+    };
+    let hex = |name, nodes: Vec<Vec3>, fractions| {
+        let moments = Some(hexahedron_moments(&nodes));
+        Case { name, kind: Kind::Hex8, nodes, moments, fractions }
+    };
+    vec![
+        tet("unit Tet4", Kind::Tet4, unit_tet(), Some(tet4_fractions.clone())),
+        tet("distorted Tet4", Kind::Tet4, distorted_tet(), Some(tet4_fractions)),
+        tet("unit Tet10", Kind::Tet10, tet10_from(&unit_tet()), Some(tet10_fractions.clone())),
+        tet("distorted Tet10", Kind::Tet10, tet10_from(&distorted_tet()), Some(tet10_fractions)),
+        Case {
+            name: "curved Tet10",
+            kind: Kind::Tet10,
+            nodes: curved_tet10(),
+            moments: None,
+            fractions: None,
+        },
+        hex("unit cube Hex8", box_hex(Vec3::ZERO, 1.0, 1.0, 1.0), Some(hex_fractions.clone())),
+        hex("box Hex8", box_hex(v(0.5, -0.3, 0.2), 2.0, 1.0, 0.5), Some(hex_fractions.clone())),
+        hex(
+            "parallelepiped Hex8",
+            parallelepiped(v(-1.0, 0.5, 2.0), v(1.5, 0.2, 0.1), v(0.3, 1.0, -0.2), v(0.2, 0.3, 0.8)),
+            Some(hex_fractions),
+        ),
+        hex("distorted Hex8", distorted_hex(), None),
+    ]
+}
+
+fn stiffness_of(case: &Case) -> DenseMatrix {
+    let mut k = DenseMatrix::default();
+    element(case.kind).stiffness(&steel(), &case.nodes, &mut k).unwrap();
+    k
+}
+
+fn mass_points_of(case: &Case) -> Vec<MassPoint> {
+    let mut points = Vec::new();
+    element(case.kind).mass_points(&steel(), &case.nodes, &mut points).unwrap();
+    points
+}
+
+fn lumped_points_of(case: &Case) -> Vec<MassPoint> {
+    let mut points = Vec::new();
+    element(case.kind).lumped_mass_points(&steel(), &case.nodes, &mut points).unwrap();
+    points
+}
+
+fn max_abs(values: &[f64]) -> f64 {
+    values.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+fn times(k: &DenseMatrix, u: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; k.rows];
+    k.mul_vec_add(1.0, u, &mut y);
+    y
+}
+
+/// Nodal field u_a = f(x_a), node-major.
+fn nodal_field(x: &[Vec3], f: impl Fn(Vec3) -> Vec3) -> Vec<f64> {
+    x.iter().flat_map(|p| f(*p).0).collect()
+}
+
+/// Displacement S q at a mass point.
+fn displacement(point: &MassPoint, q: &[f64]) -> Vec3 {
+    let n = q.len();
+    let mut u = Vec3::ZERO;
+    for r in 0..3 {
+        u[r] = (0..n).map(|c| point.shape[r * n + c] * q[c]).sum();
+    }
+    u
+}
+
+/// Eigenvalues of a symmetric matrix by cyclic Jacobi rotations, ascending.
+fn symmetric_eigenvalues(m: &DenseMatrix) -> Vec<f64> {
+    let n = m.rows;
+    let mut a = m.data.clone();
+    for _ in 0..100 {
+        let total: f64 = a.iter().map(|x| x * x).sum();
+        let off: f64 = (0..n)
+            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[i * n + j] * a[i * n + j])
+            .sum();
+        if off <= 1e-32 * total {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = a[p * n + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                // Rotation in the (p, q) plane that zeroes a_pq.
+                let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..n {
+                    let (akp, akq) = (a[k * n + p], a[k * n + q]);
+                    a[k * n + p] = c * akp - s * akq;
+                    a[k * n + q] = s * akp + c * akq;
+                }
+                for k in 0..n {
+                    let (apk, aqk) = (a[p * n + k], a[q * n + k]);
+                    a[p * n + k] = c * apk - s * aqk;
+                    a[q * n + k] = s * apk + c * aqk;
+                }
+            }
+        }
+    }
+    let mut eigenvalues: Vec<f64> = (0..n).map(|i| a[i * n + i]).collect();
+    eigenvalues.sort_by(f64::total_cmp);
+    eigenvalues
+}
+
+/// True if the Cholesky factorization of a symmetric matrix has positive pivots only.
+fn is_positive_definite(m: &DenseMatrix) -> bool {
+    let n = m.rows;
+    let mut l = vec![0.0; n * n];
+    for j in 0..n {
+        let pivot = m.get(j, j) - (0..j).map(|k| l[j * n + k] * l[j * n + k]).sum::<f64>();
+        if !(pivot > 0.0) {
+            return false;
+        }
+        l[j * n + j] = pivot.sqrt();
+        for i in j + 1..n {
+            let s = m.get(i, j) - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
+            l[i * n + j] = s / l[j * n + j];
+        }
+    }
+    true
+}
+
+#[test]
+fn kernels_report_their_layout() {
+    assert_eq!((Tet4.node_count(), Tet4.dofs_per_node()), (4, 3));
+    assert_eq!((Tet10.node_count(), Tet10.dofs_per_node()), (10, 3));
+    assert_eq!((Hex8.node_count(), Hex8.dofs_per_node()), (8, 3));
+}
+
+#[test]
+fn shape_functions_interpolate_the_nodes() {
+    fn check<E: Isoparametric<N>, const N: usize>() {
+        for (a, node) in E::NODES.iter().enumerate() {
+            let n = E::shape_functions(*node);
+            for (b, nb) in n.iter().enumerate() {
+                let expected = if a == b { 1.0 } else { 0.0 };
+                assert!((nb - expected).abs() < 1e-15, "{} N_{b} at node {a}: {nb}", E::NAME);
+            }
+        }
+        // Reference gradients against central differences of the shape functions.
+        let xi = [0.21, 0.17, 0.33];
+        let g = E::reference_gradients(xi);
+        for j in 0..3 {
+            let h = 1e-6;
+            let (mut plus, mut minus) = (xi, xi);
+            plus[j] += h;
+            minus[j] -= h;
+            let (np, nm) = (E::shape_functions(plus), E::shape_functions(minus));
+            for a in 0..N {
+                let fd = (np[a] - nm[a]) / (2.0 * h);
+                assert!((g[a][j] - fd).abs() < 1e-8, "{} dN_{a}/dxi_{j}: {} vs {fd}", E::NAME, g[a][j]);
+            }
+        }
+    }
+    check::<Tet4, 4>();
+    check::<Tet10, 10>();
+    check::<Hex8, 8>();
+}
+
+#[test]
+fn tet10_mid_edge_nodes_follow_the_gmsh_edges() {
+    for (e, [p, q]) in TET10_EDGES.iter().enumerate() {
+        let mid: Vec<f64> = (0..3).map(|j| 0.5 * (Tet10::NODES[*p][j] + Tet10::NODES[*q][j])).collect();
+        assert_eq!(mid, Tet10::NODES[4 + e].to_vec());
+    }
+    // The VTK permutation swaps the nodes on edges (2,3) and (1,3) and is an involution.
+    for i in 0..10 {
+        assert_eq!(TET10_FROM_VTK_ORDER[TET10_FROM_VTK_ORDER[i]], i);
+    }
+    assert_eq!(TET10_EDGES[TET10_FROM_VTK_ORDER[8] - 4], [1, 3]);
+}
+
+#[test]
+fn rigid_translations_are_reproduced() {
+    for case in cases() {
+        let k = stiffness_of(&case);
+        let scale = max_abs(&k.data);
+        for direction in 0..3 {
+            let t = Vec3::unit(direction);
+            let q = nodal_field(&case.nodes, |_| t);
+            // Every mass point moves with the translation (seed eq. 4).
+            for point in mass_points_of(&case).iter().chain(&lumped_points_of(&case)) {
+                let u = displacement(point, &q);
+                assert!((u - t).norm() < 1e-14, "{}: S t = {:?}", case.name, u);
+            }
+            // A translation stores no strain energy.
+            let force = times(&k, &q);
+            assert!(max_abs(&force) < RELATIVE * scale, "{}: K t = {:?}", case.name, force);
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! Tests of the stiffness matrices and nodal stresses: symmetry and exactly six rigid-body
+//! modes, patch tests (constant strain and the nodal forces of a constant stress from the
+//! faces), exact stresses of affine fields.
+
+use super::*;
+
+#[test]
+fn affine_displacements_give_their_exact_stress_at_every_node() {
+    // u = E x + t: strain (E + E^T)/2 everywhere, stress D eps at every node, for every
+    // element shape (curved and distorted ones included: the fields are in their spaces).
+    let e = [[1e-3, 2e-4, -5e-4], [-3e-4, 7e-4, 1e-4], [4e-4, -2e-4, -6e-4]];
+    let eps = [e[0][0], e[1][1], e[2][2], e[1][2] + e[2][1], e[0][2] + e[2][0], e[0][1] + e[1][0]];
+    let d = steel().elasticity();
+    let sigma: Vec<f64> = (0..6).map(|r| (0..6).map(|c| d[r][c] * eps[c]).sum()).collect();
+    for case in cases() {
+        let u = nodal_field(&case.nodes, |p| {
+            Vec3(std::array::from_fn(|i| (0..3).map(|j| e[i][j] * p[j]).sum::<f64>() + 0.01 * i as f64))
+        });
+        let mut out = vec![[0.0; 6]; case.nodes.len()];
+        element(case.kind).nodal_stresses(&steel(), &case.nodes, &u, &mut out).unwrap();
+        for node in &out {
+            for r in 0..6 {
+                assert!((node[r] - sigma[r]).abs() < 1e-9 * max_abs(&sigma), "{}: {node:?}", case.name);
+            }
+        }
+    }
+}
+
+#[test]
+fn stiffness_is_symmetric_with_exactly_six_rigid_body_modes() {
+    for case in cases() {
+        let k = stiffness_of(&case);
+        let n = k.rows;
+        assert_eq!(n, 3 * case.nodes.len());
+        for i in 0..n {
+            for j in 0..n {
+                assert_eq!(k.get(i, j), k.get(j, i), "{}: K not symmetric at ({i}, {j})", case.name);
+            }
+        }
+        // Infinitesimal rotations u = w x X are strain-free.
+        let scale = max_abs(&k.data);
+        for axis in 0..3 {
+            let w = Vec3::unit(axis);
+            let q = nodal_field(&case.nodes, |p| w.cross(&p));
+            let force = times(&k, &q);
+            assert!(max_abs(&force) < RELATIVE * scale * max_abs(&q), "{}: K (w x X) = {force:?}", case.name);
+        }
+        // Six zero eigenvalues, every other one positive.
+        let eigenvalues = symmetric_eigenvalues(&k);
+        let largest = eigenvalues[n - 1];
+        let zero = eigenvalues.iter().filter(|l| l.abs() < 1e-10 * largest).count();
+        assert_eq!(zero, 6, "{}: eigenvalues {eigenvalues:?}", case.name);
+        assert!(eigenvalues[6] > 1e-6 * largest, "{}: eigenvalues {eigenvalues:?}", case.name);
+    }
+}
+
+/// Physical strains (Voigt, engineering shear) at the stiffness points for nodal
+/// displacements `u`.
+fn strains_at_stiffness_points<E: Isoparametric<N>, const N: usize>(x: &[Vec3], u: &[f64]) -> Vec<[f64; 6]> {
+    E::STIFFNESS_RULE
+        .iter()
+        .map(|point| {
+            let (g, _) = physical_gradients::<E, N>(x, point.coordinates);
+            let mut strain = [0.0; 6];
+            for a in 0..N {
+                let b = strain_displacement(g[a]);
+                for r in 0..6 {
+                    strain[r] += (0..3).map(|j| b[r][j] * u[3 * a + j]).sum::<f64>();
+                }
+            }
+            strain
+        })
+        .collect()
+}
+
+/// int B^T sigma dV with the element's own stiffness rule.
+fn stress_forces_by_quadrature<E: Isoparametric<N>, const N: usize>(
+    x: &[Vec3],
+    sigma: &[[f64; 3]; 3],
+) -> Vec<f64> {
+    let mut f = vec![0.0; 3 * N];
+    for point in E::STIFFNESS_RULE {
+        let (g, determinant) = physical_gradients::<E, N>(x, point.coordinates);
+        for a in 0..N {
+            for i in 0..3 {
+                f[3 * a + i] +=
+                    point.weight * determinant * (0..3).map(|j| sigma[i][j] * g[a][j]).sum::<f64>();
+            }
+        }
+    }
+    f
+}
+
+/// Outward area vector of the face of a tetrahedron opposite vertex `a`, and its vertices.
+fn tetrahedron_face(x: &[Vec3], a: usize) -> ([usize; 3], Vec3) {
+    let mut f = [0; 3];
+    for (slot, i) in (0..4).filter(|&i| i != a).enumerate() {
+        f[slot] = i;
+    }
+    let area = 0.5 * (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]]));
+    let outward = if area.dot(&(x[a] - x[f[0]])) > 0.0 { -area } else { area };
+    (f, outward)
+}
+
+/// Nodal forces int B_a^T sigma dV = sigma int grad N_a dV = sigma (surface integral of
+/// N_a n dA) of a constant stress, from the faces alone (None for a curved Tet10).
+fn stress_forces_from_faces(case: &Case, sigma: &[[f64; 3]; 3]) -> Option<Vec<f64>> {
+    let x = &case.nodes;
+    let mut f = vec![0.0; 3 * x.len()];
+    let mut add = |node: usize, area: Vec3| {
+        for i in 0..3 {
+            f[3 * node + i] += (0..3).map(|j| sigma[i][j] * area[j]).sum::<f64>();
+        }
+    };
+    match case.kind {
+        // Linear triangle: int N_a dA = A / 3 on each face through the node.
+        Kind::Tet4 => {
+            for a in 0..4 {
+                let (face, area) = tetrahedron_face(x, a);
+                face.iter().for_each(|&b| add(b, area * (1.0 / 3.0)));
+            }
+        }
+        // Quadratic triangle: int N dA = 0 at the corners and A / 3 at the mid-edge nodes.
+        Kind::Tet10 => {
+            case.moments?;
+            for a in 0..4 {
+                let (face, area) = tetrahedron_face(x, a);
+                for (p, q) in [(face[0], face[1]), (face[1], face[2]), (face[0], face[2])] {
+                    let e = TET10_EDGES.iter().position(|edge| *edge == [p, q] || *edge == [q, p]).unwrap();
+                    add(4 + e, area * (1.0 / 3.0));
+                }
+            }
+        }
+        Kind::Hex8 => hex_surface_quadrature(x, |face, n, _, area| {
+            for (i, node) in face.iter().enumerate() {
+                add(*node, n[i] * area);
+            }
+        }),
+    }
+    Some(f)
+}
+
+#[test]
+fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
+    let a = [[1.0e-3, 2.0e-4, -3.0e-4], [5.0e-4, -2.0e-4, 1.0e-4], [-1.0e-4, 3.0e-4, 4.0e-4]];
+    let shift = v(1.0e-3, -2.0e-3, 5.0e-4);
+    let strain = [a[0][0], a[1][1], a[2][2], a[1][2] + a[2][1], a[0][2] + a[2][0], a[0][1] + a[1][0]];
+    let d = steel().elasticity();
+    let s: Vec<f64> = (0..6).map(|r| (0..6).map(|c| d[r][c] * strain[c]).sum()).collect();
+    let sigma = [[s[0], s[5], s[4]], [s[5], s[1], s[3]], [s[4], s[3], s[2]]];
+    for case in cases() {
+        let x = &case.nodes;
+        let u = nodal_field(x, |p| Mat3(a).mul_vec(&p) + shift);
+        // The strain is the constant one at every stiffness point.
+        let strains = match case.kind {
+            Kind::Tet4 => strains_at_stiffness_points::<Tet4, 4>(x, &u),
+            Kind::Tet10 => strains_at_stiffness_points::<Tet10, 10>(x, &u),
+            Kind::Hex8 => strains_at_stiffness_points::<Hex8, 8>(x, &u),
+        };
+        for e in &strains {
+            for r in 0..6 {
+                assert!(
+                    (e[r] - strain[r]).abs() < RELATIVE * max_abs(&strain),
+                    "{}: strain {e:?}",
+                    case.name
+                );
+            }
+        }
+        // Internal forces K u are the nodal forces of the constant stress.
+        let k = stiffness_of(&case);
+        let internal = times(&k, &u);
+        let expected = stress_forces_from_faces(&case, &sigma).unwrap_or_else(|| match case.kind {
+            Kind::Tet4 => stress_forces_by_quadrature::<Tet4, 4>(x, &sigma),
+            Kind::Tet10 => stress_forces_by_quadrature::<Tet10, 10>(x, &sigma),
+            Kind::Hex8 => stress_forces_by_quadrature::<Hex8, 8>(x, &sigma),
+        });
+        let scale = max_abs(&k.data) * max_abs(&u);
+        for (i, (fi, ei)) in internal.iter().zip(&expected).enumerate() {
+            assert!(
+                (fi - ei).abs() < RELATIVE * scale,
+                "{}: coordinate {i}: K u = {fi}, expected {ei}",
+                case.name
+            );
+        }
+    }
+}
+
+#[test]
+fn stiffness_output_is_resized_and_overwritten() {
+    let case = &cases()[1];
+    let fresh = stiffness_of(case);
+    let mut reused = DenseMatrix::zeros(12, 12);
+    reused.data.iter_mut().for_each(|x| *x = 1.0);
+    Tet4.stiffness(&steel(), &case.nodes, &mut reused).unwrap();
+    assert_eq!(reused.data, fresh.data);
+    let mut wrong_size = DenseMatrix::zeros(3, 5);
+    Tet4.stiffness(&steel(), &case.nodes, &mut wrong_size).unwrap();
+    assert_eq!((wrong_size.rows, wrong_size.cols), (12, 12));
+    assert_eq!(wrong_size.data, fresh.data);
+}
