@@ -494,3 +494,29 @@ def test_sparse_matrices_with_unsorted_or_duplicate_indices_load_canonical(tmp_p
     system = fm.System()
     system.add_flexible_body(loaded, name="beam")
     np.testing.assert_array_equal(loaded.invariants["i_kl"][1][1].indices, original.indices)
+
+
+def test_a_damaged_global_heap_is_refused_by_the_check_shared_with_results_files(tmp_path):
+    # The HDF5 global heap scan is one function (flexmbd._hdf5) used by the readers of body
+    # and results files: a collection whose size runs past the end of the file is refused
+    # before HDF5 reads it (HDF5 would loop for ever or crash).
+    import struct
+
+    from flexmbd import _hdf5, results_file
+    from flexmbd.fe import body_file
+
+    assert body_file.global_heap_damage is results_file.global_heap_damage
+    assert body_file.global_heap_damage is _hdf5.global_heap_damage
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    assert _hdf5.global_heap_damage(path) is None
+    data = bytearray(path.read_bytes())
+    heap = data.index(_hdf5.HEAP_SIGNATURE)
+    data[heap + 8 : heap + 16] = struct.pack("<Q", 1 << 40)
+    damaged = tmp_path / "damaged.h5"
+    damaged.write_bytes(bytes(data))
+    assert "global heap collection at byte" in _hdf5.global_heap_damage(damaged)
+    with pytest.raises(InvalidModelError, match="global heap collection") as info:
+        load_body(damaged)
+    assert str(damaged) in str(info.value) and "truncated or damaged" in str(info.value)
+    assert info.value.item == f"file '{damaged}'"

@@ -199,6 +199,24 @@ def test_arguments_of_the_wrong_type_name_the_parameter(parameter, value):
     system.add_flexible_body(data, condense=np.True_, geometric_stiffness=np.False_)
 
 
+@pytest.mark.parametrize("parameter", ["elastic_coordinates", "elastic_velocities"])
+@pytest.mark.parametrize("length", [0, 2, 4])
+def test_elastic_arrays_of_the_wrong_length_name_the_parameter_and_the_lengths(parameter, length):
+    # Issue 28 (fuzz): elastic_coordinates=[] was taken by the core for "undeformed" (None):
+    # an array of another length than the body's elastic coordinates is refused in Python.
+    data = beam_body(modes="fixed-interface", mode_count=3)
+    system = fm.System()
+    with pytest.raises(
+        fm.InvalidParameterError, match=f"body 'rod': {parameter} must have 3 "
+    ) as info:
+        system.add_flexible_body(data, name="rod", **{parameter: np.zeros(length)})
+    assert f"got {length}" in str(info.value)
+    assert info.value.item == parameter
+    # The right length and None (undeformed, at rest) are taken.
+    system.add_flexible_body(data, **{parameter: [0.0, 0.0, 0.0]})
+    system.add_flexible_body(data, **{parameter: None})
+
+
 def with_columns_reversed(matrix) -> sp.csc_matrix:
     """The same matrix in CSC with the entries of each column in reverse order (unsorted
     indices, as a body file or another code may give them)."""

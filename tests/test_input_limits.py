@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import flexmbd as fm
-from flexmbd.errors import InvalidParameterError
+from flexmbd.errors import ArgumentTypeError, InvalidParameterError
 from flexmbd.fe import shapes
 
 
@@ -73,6 +73,32 @@ def test_box_arguments_of_the_wrong_type_name_the_parameter(arguments, parameter
     with pytest.raises(InvalidParameterError, match=match) as info:
         shapes.box(**call)
     assert info.value.item == parameter
+
+
+@pytest.mark.parametrize(
+    "divisions",
+    [b"abc", "abc", "2", bytearray(b"\x02\x01\x01"), (True, 1, 1), (2.5, 1, 1), None, [[2, 1, 1]]],
+    ids=["bytes", "str", "digit", "bytearray", "bool", "fraction", "none", "nested"],
+)
+def test_box_divisions_that_are_not_integers_are_argument_type_errors(divisions):
+    # Issue 28 (fuzz): divisions=b"abc" made a box of 97 x 98 x 99 cells (the bytes' codes).
+    with pytest.raises(ArgumentTypeError, match="integer divisions") as info:
+        shapes.box((1.0, 0.1, 0.1), divisions)
+    assert info.value.item == "divisions"
+
+
+def test_box_divisions_are_three_or_one_positive_integers():
+    for divisions in [(1, 1), (1, 1, 1, 1)]:
+        with pytest.raises(InvalidParameterError, match="three divisions") as info:
+            shapes.box((1.0, 0.1, 0.1), divisions)
+        assert info.value.item == "divisions"
+    one = shapes.box((1.0, 0.1, 0.1), 2)
+    assert len(one.elements["hex8"]) == 8
+    assert len(shapes.box((1.0, 0.1, 0.1), [2]).nodes) == len(one.nodes)
+    assert len(shapes.box((1.0, 0.1, 0.1), np.array([3, 1, 1])).elements["hex8"]) == 3
+    assert len(shapes.box((1.0, 0.1, 0.1), (3.0, 1, 1)).elements["hex8"]) == 3
+    with pytest.raises(InvalidParameterError, match="three positive divisions"):
+        shapes.box((1.0, 0.1, 0.1), -1)
 
 
 def test_gmsh_meshes_far_finer_than_the_geometry_are_refused_before_meshing():

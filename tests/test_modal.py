@@ -12,7 +12,7 @@ from scipy.sparse import diags as sp_diags
 import flexmbd.fe.modal as md
 import flexmbd.fe.preprocess as pp
 from flexmbd._core import Material
-from flexmbd.errors import InvalidModelError, InvalidParameterError
+from flexmbd.errors import ArgumentTypeError, InvalidModelError, InvalidParameterError
 from flexmbd.fe import shapes
 from flexmbd.fe.body_file import load_body, save_body
 from flexmbd.fe.interface import body_interface, make_interface
@@ -334,6 +334,118 @@ def test_a_mode_count_that_is_not_an_integer_names_it(bar, mode_count):
             mode_count=mode_count,
         )
     assert info.value.item == "mode_count"
+
+
+SMALL_BAR = shapes.box((1.0, 0.1, 0.1), (2, 1, 1), "hex8")
+
+#: Node index lists that are not integer node indices, and the error each must be.
+BAD_NODE_LISTS = [
+    (None, ArgumentTypeError),
+    ([float("nan")], ArgumentTypeError),
+    ([2**70], InvalidParameterError),
+    (["a"], ArgumentTypeError),
+    (["0"], ArgumentTypeError),
+    ([0.5], ArgumentTypeError),
+    ([1.0], ArgumentTypeError),
+    ([True], ArgumentTypeError),
+    (b"ab", ArgumentTypeError),
+    ([[0, 1], [2]], ArgumentTypeError),
+    (object(), ArgumentTypeError),
+    (np.array([2**64 - 1], dtype=np.uint64), InvalidParameterError),
+]
+BAD_NODE_LIST_IDS = [
+    "none", "nan", "2**70", "str", "digit", "fraction", "float", "bool", "bytes", "ragged",
+    "object", "uint64-max",
+]  # fmt: skip
+
+
+def small_body(**options):
+    return pp.build_body(
+        SMALL_BAR.nodes,
+        SMALL_BAR.elements,
+        STEEL,
+        node_sets=SMALL_BAR.node_sets,
+        **options,
+    )
+
+
+@pytest.mark.parametrize("nodes, error", BAD_NODE_LISTS, ids=BAD_NODE_LIST_IDS)
+def test_reference_nodes_that_are_not_node_indices_name_the_parameter(nodes, error):
+    # Issue 28 (fuzz): reference_nodes=None, [nan], [2**70], ["a"] raised a bare TypeError,
+    # ValueError or OverflowError from NumPy; floats and bools were taken as indices.
+    with pytest.raises(error, match="reference_nodes must be integers") as info:
+        small_body(reference="clamped", reference_nodes=nodes)
+    assert info.value.item == "reference_nodes"
+
+
+@pytest.mark.parametrize("nodes, error", BAD_NODE_LISTS, ids=BAD_NODE_LIST_IDS)
+def test_interfaces_that_are_not_node_indices_name_the_interface(nodes, error):
+    with pytest.raises(error, match=r"interfaces\[1\] must be integers") as info:
+        small_body(
+            reference="mean-axis", modes="craig-bampton", mode_count=2, interfaces=["x0", nodes]
+        )
+    assert info.value.item == "interfaces[1]"
+
+
+@pytest.mark.parametrize(
+    "interfaces",
+    [None, 3, 2.5, "x0", b"x0", {"x0": 1}],
+    ids=["none", "int", "float", "str", "bytes", "dict"],
+)
+def test_interfaces_that_are_not_a_list_name_the_parameter(interfaces):
+    # Issue 28 (fuzz): interfaces=None or 3 raised a bare TypeError (not iterable); a string
+    # was read as one node set per character.
+    with pytest.raises(ArgumentTypeError, match="interfaces must be a list") as info:
+        small_body(
+            reference="mean-axis", modes="craig-bampton", mode_count=2, interfaces=interfaces
+        )
+    assert info.value.item == "interfaces"
+
+
+def test_out_of_range_and_named_node_selections_still_work():
+    with pytest.raises(InvalidModelError, match="reference_nodes: node index 99") as info:
+        small_body(reference="clamped", reference_nodes=[99])
+    assert info.value.item == "reference_nodes"
+    with pytest.raises(ArgumentTypeError, match=r"node_sets\['bad'\] must be integers"):
+        pp.build_body(
+            SMALL_BAR.nodes, SMALL_BAR.elements, STEEL, node_sets={"bad": [0.5, float("nan")]}
+        )
+    by_name = small_body(reference="clamped", reference_nodes="x0")
+    by_index = small_body(reference="clamped", reference_nodes=SMALL_BAR.node_sets["x0"])
+    by_numpy = small_body(
+        reference="clamped", reference_nodes=[np.int32(i) for i in SMALL_BAR.node_sets["x0"]]
+    )
+    np.testing.assert_array_equal(by_name.reference["free_dofs"], by_index.reference["free_dofs"])
+    np.testing.assert_array_equal(by_name.reference["free_dofs"], by_numpy.reference["free_dofs"])
+
+
+@pytest.mark.parametrize(
+    "parameter", ["mass", "beam_theory", "reference", "modes", "interface_kind", "precision"]
+)
+@pytest.mark.parametrize(
+    "value",
+    [np.array(["consistent", "lumped"]), np.array([1, 2]), 1, ["none"]],
+    ids=["str-array", "int-array", "int", "list"],
+)
+def test_str_options_of_the_wrong_type_name_the_parameter(parameter, value):
+    # Issue 28 (fuzz): build_body(mass=<an array>) raised a bare ValueError (the truth value
+    # of an array is ambiguous).
+    with pytest.raises(ArgumentTypeError, match=f"{parameter}.* must be ") as info:
+        small_body(**{parameter: value})
+    assert info.value.item == parameter
+
+
+def test_str_options_of_unknown_values_name_the_parameter():
+    for parameter in ("mass", "beam_theory", "reference", "modes", "interface_kind", "precision"):
+        with pytest.raises(InvalidParameterError, match=f"{parameter}.* must be ") as info:
+            small_body(**{parameter: "unknown"})
+        assert info.value.item == parameter
+    nodal = pp.assemble(SMALL_BAR.nodes, SMALL_BAR.elements, STEEL)
+    with pytest.raises(ArgumentTypeError, match="mass_kind must be") as info:
+        pp.body_from_matrices(
+            SMALL_BAR.nodes, nodal.stiffness, nodal.mass, mass_kind=np.array(["lumped", "x"])
+        )
+    assert info.value.item == "mass_kind"
 
 
 @pytest.mark.parametrize("kind", ["rbe2", "rbe3"])

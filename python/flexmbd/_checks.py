@@ -66,3 +66,75 @@ def flag(value: Any, name: str, item: str | None = None) -> bool:
         return bool(value)
     where = f"{item}: " if item else ""
     raise ArgumentTypeError(f"{where}{name} must be True or False, got {_shown(value)}", item=name)
+
+
+_INT64 = np.iinfo(np.int64)
+
+
+def integers_array(value: Any, name: str, item: str | None = None) -> NDArray[np.int64]:
+    """`value` as an array of int64 (its shape kept): node indices, ids, ... Integers only
+    (Python or NumPy): strings, bytes, bools, floats (also 1.0 and NaN), None and other
+    objects are an `ArgumentTypeError` naming the parameter, integers beyond int64 an
+    `InvalidParameterError`. An empty list is an empty array. `item` (a body, ...) starts the
+    message when given."""
+    where = f"{item}: " if item else ""
+
+    def wrong() -> ArgumentTypeError:
+        return ArgumentTypeError(f"{where}{name} must be integers, got {_shown(value)}", item=name)
+
+    if isinstance(value, str | bytes | bytearray | memoryview):
+        raise wrong()
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError, OverflowError):
+        raise wrong() from None
+    if array.size == 0 and array.dtype.kind in "fiuO":
+        return np.zeros(array.shape, dtype=np.int64)
+    if array.dtype.kind == "O":
+        flat = array.ravel()
+        if any(isinstance(v, bool | np.bool_) for v in flat):
+            raise wrong()
+        try:
+            entries = [operator.index(v) for v in flat]
+        except TypeError:
+            raise wrong() from None
+        outside = [v for v in entries if not _INT64.min <= v <= _INT64.max]
+        if outside:
+            raise InvalidParameterError(
+                f"{where}{name} must be integers within int64, got an integer of "
+                f"{outside[0].bit_length()} bits{' (negative)' if outside[0] < 0 else ''}",
+                item=name,
+            )
+        return np.array(entries, dtype=np.int64).reshape(array.shape)
+    if array.dtype.kind not in "iu":
+        raise wrong()
+    if array.dtype.kind == "u" and array.dtype.itemsize >= 8 and array.max() > _INT64.max:
+        raise InvalidParameterError(
+            f"{where}{name} must be integers within int64, got {int(array.max())} (uint64)",
+            item=name,
+        )
+    return array.astype(np.int64)
+
+
+def choice(
+    value: Any,
+    name: str,
+    options: tuple[str, ...],
+    item: str | None = None,
+    *,
+    what: str | None = None,
+) -> str:
+    """The str parameter `name`, one of `options`: a value that is not a string (an array, a
+    number, None) is an `ArgumentTypeError`, another string an `InvalidParameterError`, both
+    naming the parameter (as `what`, when given, in the message) and the options. `item` (a
+    body, ...) starts the message when given."""
+    where = f"{item}: " if item else ""
+    called = what or name
+    listed = ", ".join(repr(o) for o in options[:-1]) + f" or {options[-1]!r}"
+    if not isinstance(value, str):
+        raise ArgumentTypeError(f"{where}{called} must be {listed}, got {_shown(value)}", item=name)
+    if value not in options:
+        text = repr(value)
+        text = text if len(text) <= 60 else text[:57] + "..."
+        raise InvalidParameterError(f"{where}{called} must be {listed}, got {text}", item=name)
+    return str(value)

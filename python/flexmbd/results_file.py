@@ -36,10 +36,8 @@ import ctypes
 import errno
 import fcntl
 import json
-import mmap
 import os
 import resource
-import struct
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +45,7 @@ import h5py
 import numpy as np
 
 from . import _core, errors
+from ._hdf5 import global_heap_damage
 from .errors import FlexmbdError, InvalidModelError, ResultsFileError
 from .fe.body_file import read_body_group, write_body_group
 from .result import Result
@@ -488,7 +487,7 @@ def _open(path: Path, *, check: bool = True) -> h5py.File:
         raise InvalidModelError(
             f"{path} is not a flexmbd results file (not an HDF5 file)", item=f"file '{path}'"
         )
-    damage = _global_heap_damage(path)
+    damage = global_heap_damage(path)
     if damage is not None:
         raise ResultsFileError(
             f"{path} cannot be read: the file is truncated or damaged ({damage})",
@@ -508,57 +507,6 @@ def _open(path: Path, *, check: bool = True) -> h5py.File:
     raise ResultsFileError(
         f"{path} cannot be opened: the file is damaged ({failure})", item=f"file '{path}'"
     )
-
-
-_HEAP_SIGNATURE = b"GCOL\x01\x00\x00\x00"
-
-
-def _global_heap_damage(path: Path) -> str | None:
-    """What is wrong with a global heap collection of the HDF5 file `path`, or None.
-
-    HDF5 keeps variable-length strings (the root attributes of a results file, the ``type``
-    attributes of its deformable bodies) in global heap collections, which have no checksum
-    and which HDF5 does not check: reading a string from a collection whose size runs past
-    the end of the file (a truncated file) or whose objects do not fit it (a flipped byte)
-    loops for ever or crashes the process. So they are checked first, found by their
-    signature: the collection must lie in the file, and its objects (16-byte headers, data
-    padded to 8 bytes) must end at its free space (object 0) or leave a tail shorter than a
-    header. Files with a size of lengths other than 8 bytes (not written by h5py's defaults)
-    are not checked."""
-    try:
-        with open(path, "rb") as file, mmap.mmap(file.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            version = data[8] if len(data) > 16 else -1
-            lengths = data[14] if version in (0, 1) else data[10] if version in (2, 3) else 0
-            if lengths != 8:
-                return None
-            start = data.find(_HEAP_SIGNATURE)
-            while start >= 0:
-                (size,) = (
-                    struct.unpack_from("<Q", data, start + 8) if start + 16 <= len(data) else (0,)
-                )
-                end = start + size
-                if size < 16 or size % 8 or end > len(data):
-                    return (
-                        f"a global heap collection at byte {start} has the size {size}; the file "
-                        f"has {len(data)} bytes"
-                    )
-                position = start + 16
-                while position + 16 <= end:
-                    index, _, _, object_size = struct.unpack_from("<HHIQ", data, position)
-                    if index == 0:
-                        intact = position + object_size == end
-                        break
-                    position += 16 + (object_size + 7) // 8 * 8
-                else:
-                    intact = 0 <= end - position < 16
-                if not intact:
-                    return (
-                        f"the objects of the global heap collection at byte {start} do not fit it"
-                    )
-                start = data.find(_HEAP_SIGNATURE, end)
-    except (OSError, ValueError) as error:
-        return f"it cannot be read: {error}"
-    return None
 
 
 #: Largest JSON text field read, bytes (the texts of a run take kilobytes).

@@ -216,7 +216,8 @@ class System(_core.System):
         :func:`flexmbd.fe.load_body`, ...); its node coordinates are in the body frame, which
         `position` and `orientation` place. `velocity` (of the body origin) and
         `angular_velocity` are global. `elastic_coordinates` and `elastic_velocities` (n_f)
-        start the body deformed (default: undeformed, at rest).
+        start the body deformed (default, None: undeformed, at rest); an array of another
+        length (also an empty one) is an `InvalidParameterError` naming the parameter.
 
         Damping: `rayleigh_damping=(alpha, beta)` gives D_ff = alpha M_ff + beta K_ff;
         `modal_damping=zeta` (modal bodies) the damping ratio zeta in every mode of the
@@ -289,6 +290,18 @@ class System(_core.System):
         from .fe.body_variants import rayleigh_coefficients
 
         n = body.elastic_coordinate_count
+        # An empty or short array is not "undeformed": only None is (the core reads an empty
+        # array as None).
+        for parameter, values in (
+            ("elastic_coordinates", elastic_coordinates),
+            ("elastic_velocities", elastic_velocities),
+        ):
+            if values is not None and len(values) != n:
+                raise InvalidParameterError(
+                    f"{item}: {parameter} must have {n} entries (the body has {n} elastic "
+                    f"coordinates), got {len(values)}",
+                    item=parameter,
+                )
         # The body's own damping (FlexibleBodyData.with_damping) unless an argument is given.
         if rayleigh_damping is None and modal_damping is None and body.damping is not None:
             rayleigh_damping = body.damping.get("rayleigh")

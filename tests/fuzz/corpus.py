@@ -23,7 +23,9 @@ or runs them (``operate``). Families:
 * ``api``: one argument of a valid call replaced by a hostile value (negative, zero, NaN,
   huge, wrong type, None, wrong shape) in ``System.add_*``, ``GeneralizedAlpha``,
   ``ExplicitSolver``, ``simulate``, time functions, ``Result`` and ``State`` accessors,
-  ids, materials and box meshes; what is accepted is run for three steps.
+  ids, materials and box meshes; what is accepted is run for three steps. Then fixed cases
+  (no draws) of node index lists, str options, box divisions and elastic arrays that must
+  be refused (:data:`_FIXED_OTHER_VALUES`, :data:`_FIXED_ELASTIC_VALUES`).
 
 What each case may do is checked by ``worker.py``: a typed error (``FlexmbdError``, or a
 ``ValueError`` subclass of flexmbd) whose message names the item, or a right result
@@ -2519,6 +2521,53 @@ def _other_call(what: str, make_value: Callable[[], Any]) -> Callable[[Path], No
     return operate
 
 
+#: Fixed hostile values of the parameters whose bare NumPy errors issue 28 turned into typed
+#: ones (node index lists given None, NaN, 2**70, strings, floats, bools or non-lists; str
+#: options given arrays; box divisions of bytes): (what, label, value), run by
+#: `_other_call`. Each is wrong input: it must fail with a typed error naming the parameter.
+#: They draw nothing from the seed's generator: the cases drawn before them stay the same.
+_FIXED_OTHER_VALUES: list[tuple[str, str, Callable[[], Any]]] = [
+    ("build_body.reference_nodes", "none", lambda: None),
+    ("build_body.reference_nodes", "nan-list", lambda: [math.nan]),
+    ("build_body.reference_nodes", "int-2-70-list", lambda: [2**70]),
+    ("build_body.reference_nodes", "str-list", lambda: ["0"]),
+    ("build_body.reference_nodes", "float-list", lambda: [0.5]),
+    ("build_body.reference_nodes", "bool-list", lambda: [True]),
+    ("build_body.reference_nodes", "bytes", lambda: b"ab"),
+    ("build_body.reference_nodes", "object", lambda: object()),
+    ("build_body.interfaces", "none", lambda: None),
+    ("build_body.interfaces", "int", lambda: 3),
+    ("build_body.interfaces", "str", lambda: "x0"),
+    ("build_body.interfaces", "nan-node", lambda: [[math.nan]]),
+    ("build_body.interfaces", "int-2-70-node", lambda: [[2**70]]),
+    ("build_body.interfaces", "float-node", lambda: ["x0", [1.5]]),
+    ("build_body.interfaces", "none-node", lambda: ["x0", None]),
+    ("build_body.interfaces", "str-node", lambda: [["a"]]),
+    ("build_body.node_sets", "float-set", lambda: {"x0": [0.5]}),
+    ("build_body.node_sets", "list", lambda: [[0, 1]]),
+    ("build_body.mass", "str-array", lambda: np.array(["consistent", "lumped"])),
+    ("build_body.modes", "str-array", lambda: np.array(["free-free", "external"])),
+    ("build_body.reference", "str-array", lambda: np.array(["none", "clamped"])),
+    ("build_body.beam_theory", "int-array", lambda: np.array([1, 2])),
+    ("build_body.interface_kind", "str-array", lambda: np.array(["rbe2", "rbe3"])),
+    ("build_body.precision", "int", lambda: 64),
+    ("box.divisions", "bytes", lambda: b"abc"),
+    ("box.divisions", "str", lambda: "abc"),
+    ("box.divisions", "bools", lambda: (True, True, True)),
+    ("box.divisions", "two", lambda: (2, 1)),
+    ("box.divisions", "fraction", lambda: (1.5, 1, 1)),
+]
+
+#: Elastic arrays of another length than the beam's 12 elastic coordinates (issue 28: an
+#: empty one was taken for "undeformed"): `System.add_flexible_body` must refuse them.
+_FIXED_ELASTIC_VALUES: list[tuple[str, str, Callable[[], Any]]] = [
+    ("elastic_coordinates", "empty-list", lambda: []),
+    ("elastic_coordinates", "three", lambda: [0.0, 0.0, 0.0]),
+    ("elastic_velocities", "empty-array", lambda: np.zeros(0)),
+    ("elastic_velocities", "thirteen", lambda: np.zeros(13)),
+]
+
+
 def _api_cases(rng: random.Random) -> list[Case]:
     cases: list[Case] = []
     counter = {"n": 0}
@@ -2670,6 +2719,22 @@ def _api_cases(rng: random.Random) -> list[Case]:
                 (parameter, what.split(".")[0], "index", "time"),
                 label in _BAD_NUMBERS and what.startswith(("Material", "gravity")),
             )
+    for what, label, make in _FIXED_OTHER_VALUES:
+        add(
+            "other",
+            f"{what}={label}",
+            _other_call(what, make),
+            (what.split(".")[-1], what.split(".")[0]),
+            must_fail=True,
+        )
+    for parameter, label, make in _FIXED_ELASTIC_VALUES:
+        add(
+            "add_flexible_body",
+            f"{parameter}={label}",
+            _system_call("add_flexible_body", parameter, make),
+            (parameter,),
+            must_fail=True,
+        )
     return cases
 
 

@@ -46,9 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import mmap
 import os
-import struct
 import threading
 from pathlib import Path
 from typing import Any
@@ -58,6 +56,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._core import __version__
+from .._hdf5 import global_heap_damage
 from ..errors import FlexmbdError, InvalidModelError, InvalidParameterError, ModelError
 from .body import BODY_DATA_VERSION, FlexibleBodyData, check_body
 
@@ -155,7 +154,11 @@ def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
         raise InvalidModelError(f"{path}: cannot read the body file ({error})", item=item) from None
     if not is_hdf5:
         raise InvalidModelError(f"{path} is not a flexmbd body file (not an HDF5 file)", item=item)
-    _check_global_heaps(path)
+    damage = global_heap_damage(path)
+    if damage is not None:
+        raise InvalidModelError(
+            f"{path}: cannot read the body file, it is truncated or damaged ({damage})", item=item
+        )
     try:
         file = h5py.File(path, "r")
     except OSError as error:
@@ -164,48 +167,6 @@ def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
         ) from None
     with file:
         return read_body_group(file, path)
-
-
-def _check_global_heaps(path: Path) -> None:
-    """Raises `InvalidModelError` when a global heap collection of the HDF5 file `path` (where
-    HDF5 keeps variable-length strings: the ``type`` attributes, string fields) has a size or
-    an object size beyond its bounds. HDF5 itself does not check them: reading such a string
-    loops for ever or crashes. Collections are found by their signature; files with another
-    size of lengths than 8 bytes (not written by h5py's defaults) are not checked."""
-    item = f"file '{path}'"
-    with open(path, "rb") as file, mmap.mmap(file.fileno(), 0, access=mmap.ACCESS_READ) as data:
-        version = data[8] if len(data) > 16 else -1
-        lengths = data[14] if version in (0, 1) else data[10] if version in (2, 3) else 0
-        if data[:8] != b"\x89HDF\r\n\x1a\n" or lengths != 8:
-            return
-        start = data.find(b"GCOL\x01\x00\x00\x00")
-        while start >= 0:
-            (size,) = struct.unpack_from("<Q", data, start + 8)
-            end = start + size
-            if size < 16 or size % 8 or end > len(data):
-                raise InvalidModelError(
-                    f"{path}: a global heap collection at byte {start} is damaged (size {size} "
-                    f"in a file of {len(data)} bytes)",
-                    item=item,
-                )
-            # Objects (16-byte header, data padded to 8 bytes) up to the free space (index 0)
-            # that ends exactly at the end of the collection, or a tail shorter than a header.
-            position = start + 16
-            while position + 16 <= end:
-                index, _, _, object_size = struct.unpack_from("<HHIQ", data, position)
-                if index == 0:
-                    intact = position + object_size == end
-                    break
-                position += 16 + (object_size + 7) // 8 * 8
-            else:
-                intact = 0 <= end - position < 16
-            if not intact:
-                raise InvalidModelError(
-                    f"{path}: the objects of the global heap collection at byte {start} do not "
-                    "fit it (damaged sizes)",
-                    item=item,
-                )
-            start = data.find(b"GCOL\x01\x00\x00\x00", end)
 
 
 def write_body_group(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,12 +17,18 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
-from .._checks import integer
-from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from .._checks import choice, integer, integers_array
+from ..errors import (
+    ArgumentTypeError,
+    InvalidModelError,
+    InvalidParameterError,
+    UnknownItemError,
+)
 from .body import FlexibleBodyData
 from .interface import Interface
 from .mesh_io import Mesh, matrices_from_arrays, mesh_parts, read_mesh, validate_mesh
 from .modal import (
+    INTERFACE_KINDS,
     craig_bampton,
     factorize,
     fixed_interface_modes,
@@ -35,12 +41,40 @@ Material = _boundary.Material
 Section = _core.Section
 
 
+#: The values of the str options of `build_body`.
+MASS_KINDS = ("consistent", "lumped")
+BEAM_THEORIES = ("euler-bernoulli", "timoshenko")
+REFERENCE_KINDS = ("none", "clamped", "3-2-1", "simply-supported", "mean-axis", "interface")
+MODE_KINDS = ("fixed-interface", "free-free", "craig-bampton", "external")
+PRECISIONS = ("double", "single", "auto")
+
+
 def _beam_theory(name: str) -> bool:
-    if name not in ("euler-bernoulli", "timoshenko"):
-        raise InvalidParameterError(
-            f"beam_theory must be 'euler-bernoulli' or 'timoshenko', got {name!r}"
-        )
-    return name == "timoshenko"
+    return choice(name, "beam_theory", BEAM_THEORIES) == "timoshenko"
+
+
+def _options(
+    *,
+    reference: Any,
+    modes: Any,
+    interface_kind: Any,
+    precision: Any,
+    mass: Any = None,
+    beam_theory: Any = None,
+) -> None:
+    """Refuses str options of `build_body` of the wrong type (an array, a number, ...: an
+    `ArgumentTypeError`) or value (an `InvalidParameterError`), naming the parameter."""
+    choice(reference, "reference", REFERENCE_KINDS)
+    if modes is not None:
+        choice(modes, "modes", MODE_KINDS)
+    choice(
+        interface_kind, "interface_kind", INTERFACE_KINDS, what="interface kind (interface_kind)"
+    )
+    choice(precision, "precision", PRECISIONS)
+    if mass is not None:
+        choice(mass, "mass", MASS_KINDS)
+    if beam_theory is not None:
+        _beam_theory(beam_theory)
 
 
 def _csc(parts: tuple) -> sp.csc_matrix:
@@ -111,8 +145,7 @@ def assemble(
     solid elements the nine I_kl are the scalar mass matrix M_s spread over the coordinates;
     with `form_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants
     need only M_s), which saves memory of the size of M."""
-    if mass not in ("consistent", "lumped"):
-        raise InvalidParameterError(f"mass must be 'consistent' or 'lumped', got {mass!r}")
+    choice(mass, "mass", MASS_KINDS)
     shear = _beam_theory(beam_theory)
     nodes = np.ascontiguousarray(nodes, dtype=float)
     ids = np.arange(1, len(nodes) + 1) if node_ids is None else np.asarray(node_ids)
@@ -222,20 +255,28 @@ def reference_dofs(
     """
     d = dofs_per_node
     all_dofs = np.arange(node_count * d, dtype=np.int64)
-    nodes = [int(n) for n in nodes]
+    nodes = [int(n) for n in integers_array(nodes, "reference_nodes").ravel()]
     for n in nodes:
         if not 0 <= n < node_count:
-            raise InvalidModelError(f"reference node index {n} out of range 0..{node_count - 1}")
+            raise InvalidModelError(
+                f"reference_nodes: node index {n} out of range 0..{node_count - 1}",
+                item="reference_nodes",
+            )
     if kind in ("none", "mean-axis"):
         return all_dofs
     if kind == "clamped":
         if not nodes:
-            raise InvalidModelError("clamped reference conditions need at least one node")
+            raise InvalidModelError(
+                "clamped reference conditions need at least one node (reference_nodes)",
+                item="reference_nodes",
+            )
         removed = {d * n + c for n in nodes for c in range(d)}
     elif kind == "3-2-1":
         if len(nodes) != 3 or len(set(nodes)) != 3:
             raise InvalidModelError(
-                f"3-2-1 reference conditions need three distinct nodes, got {nodes}"
+                f"3-2-1 reference conditions need three distinct nodes (reference_nodes), got "
+                f"{nodes}",
+                item="reference_nodes",
             )
         a, b, c = nodes
         removed = {d * a, d * a + 1, d * a + 2, d * b + 1, d * b + 2, d * c + 2}
@@ -243,7 +284,8 @@ def reference_dofs(
         if d != 6 or len(nodes) != 2 or len(set(nodes)) != 2:
             raise InvalidModelError(
                 "simply-supported reference conditions are for beams and need two distinct "
-                f"nodes, got {nodes}"
+                f"nodes (reference_nodes), got {nodes}",
+                item="reference_nodes",
             )
         a, b = nodes
         removed = {d * a, d * a + 1, d * a + 2, d * a + 3, d * b + 1, d * b + 2}
@@ -268,18 +310,50 @@ def restrict_invariants(nodal: dict[str, Any], free_dofs: NDArray[np.int64]) -> 
     }
 
 
+def _node_sets(node_sets: Any) -> dict[str, NDArray[np.int64]]:
+    """The `node_sets` option (name -> node indices) as int64 arrays (copies): a set that is
+    not integers is an `ArgumentTypeError` naming it."""
+    if node_sets is None:
+        return {}
+    if not isinstance(node_sets, Mapping):
+        raise ArgumentTypeError(
+            f"node_sets must be a mapping of names to node indices, got {node_sets!r:.60} "
+            f"({type(node_sets).__name__})",
+            item="node_sets",
+        )
+    return {
+        name: np.array(integers_array(v, f"node_sets[{name!r}]")) for name, v in node_sets.items()
+    }
+
+
 def _node_indices(
     selection: str | ArrayLike, node_sets: Mapping[str, ArrayLike], what: str
 ) -> NDArray[np.int64]:
-    """Node indices of a selection given as a node set name or as indices."""
+    """Node indices of a selection given as a node set name or as indices (integers: a
+    float, a string of digits, None, ... is an `ArgumentTypeError` naming `what`, the
+    parameter)."""
     if isinstance(selection, str):
         if selection not in node_sets:
             raise UnknownItemError(
                 f"{what}: unknown node set {selection!r} (known: {sorted(node_sets)})",
                 item=f"node set '{selection}'",
             )
-        return np.asarray(node_sets[selection], dtype=np.int64)
-    return np.asarray(selection, dtype=np.int64).ravel()
+        return integers_array(node_sets[selection], f"node set {selection!r}").ravel()
+    return integers_array(selection, what).ravel()
+
+
+def _interface_selections(interfaces: Any) -> list[Any]:
+    """The `interfaces` option as a list (one node set name or index list per interface):
+    a string, None or a number is an `ArgumentTypeError` naming it."""
+    if isinstance(interfaces, str | bytes | bytearray | Mapping) or not isinstance(
+        interfaces, Iterable
+    ):
+        raise ArgumentTypeError(
+            "interfaces must be a list of node set names or node index lists (one per "
+            f"interface), got {interfaces!r:.60} ({type(interfaces).__name__})",
+            item="interfaces",
+        )
+    return list(interfaces)
 
 
 class _Stages:
@@ -340,6 +414,12 @@ def build_body(
       over the kept coordinates, e.g. from experimental modal analysis or another FE code).
       `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes); a `mode_count`
       that is not an integer >= 0 is an `InvalidParameterError` naming it.
+    - Bad options are an `InvalidParameterError` naming the parameter (an `ArgumentTypeError`
+      for a value of the wrong type): a `mass`, `beam_theory`, `reference`, `modes`,
+      `interface_kind` or `precision` that is not one of its strings (an array, a number,
+      ...); `reference_nodes`, each of the `interfaces` and each of the `node_sets` that is
+      not a node set name or integer node indices (None, floats, NaN, strings, bools,
+      integers beyond int64); `interfaces` that is not a list (a string, None, a number).
     - `precision`: of the sparse factorizations of the eigensolvers: "double", "single" (half
       the memory: a single-precision Cholesky factor preconditions conjugate gradients), or
       "auto" (single above `modal.SINGLE_PRECISION_ABOVE` coordinates).
@@ -350,9 +430,17 @@ def build_body(
     mode_count = integer(mode_count, "mode_count")
     if mode_count < 0:
         raise InvalidParameterError(f"mode_count must be >= 0, got {mode_count}", item="mode_count")
+    _options(
+        reference=reference,
+        modes=modes,
+        interface_kind=interface_kind,
+        precision=precision,
+        mass=mass,
+        beam_theory=beam_theory,
+    )
     # Copies: the body's arrays are read-only and must not alias the caller's.
     nodes = np.array(nodes, dtype=float)
-    sets = {name: np.array(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    sets = _node_sets(node_sets)
     elements = {k: np.array(v, dtype=np.int64) for k, v in elements.items()}
     ids = (
         np.arange(1, len(nodes) + 1, dtype=np.int64)
@@ -442,6 +530,10 @@ def _body_from_nodal(
 ) -> FlexibleBodyData:
     """Reference conditions, modes and invariants of a body from its nodal matrices and
     invariants (the part of `build_body` after the assembly)."""
+    mode_count = integer(mode_count, "mode_count")
+    if mode_count < 0:
+        raise InvalidParameterError(f"mode_count must be >= 0, got {mode_count}", item="mode_count")
+    _options(reference=reference, modes=modes, interface_kind=interface_kind, precision=precision)
     d = nodal.dofs_per_node
     mean_axis_modes = ("free-free", "craig-bampton")
     if reference == "mean-axis" and modes not in mean_axis_modes:
@@ -458,8 +550,11 @@ def _body_from_nodal(
         )
     if reference == "interface" and modes != "craig-bampton":
         raise InvalidModelError("reference='interface' is for Craig-Bampton modes")
-    members = [_node_indices(s, sets, f"interface {i}") for i, s in enumerate(interfaces)]
-    ref_nodes = _node_indices(reference_nodes, sets, "reference nodes")
+    members = [
+        _node_indices(s, sets, f"interfaces[{i}]")
+        for i, s in enumerate(_interface_selections(interfaces))
+    ]
+    ref_nodes = _node_indices(reference_nodes, sets, "reference_nodes")
     kind = reference
     if reference == "interface":
         ref_nodes = members[0] if members else ref_nodes
@@ -749,10 +844,7 @@ def body_from_matrices(
             f"matrices of shape {k.shape} for {n} nodes: expected 3 coordinates per node ({3 * n})",
             item="stiffness matrix",
         )
-    if mass_kind not in ("consistent", "lumped"):
-        raise InvalidParameterError(
-            f"mass_kind must be 'consistent' or 'lumped', got {mass_kind!r}", item="mass_kind"
-        )
+    choice(mass_kind, "mass_kind", MASS_KINDS)
     scalar = _scalar_mass(m)
     ids = (
         np.arange(1, n + 1, dtype=np.int64)
@@ -761,7 +853,7 @@ def body_from_matrices(
     )
     if ids.shape != (n,) or len(np.unique(ids)) != n:
         raise InvalidParameterError(f"node_ids must be {n} distinct ids", item="node_ids")
-    sets = {name: np.array(v, dtype=np.int64) for name, v in (node_sets or {}).items()}
+    sets = _node_sets(node_sets)
     invariants = _matrix_invariants(nodes, scalar, form_i_kl=modes is None)
     if not invariants["mass"] > 0:
         raise InvalidModelError(

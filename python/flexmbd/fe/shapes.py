@@ -8,15 +8,16 @@ positively oriented and in the node order of the element kernels (Gmsh's, see
 
 from __future__ import annotations
 
+import itertools
 import operator
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import numbers_array
-from ..errors import InvalidParameterError
+from ..errors import ArgumentTypeError, InvalidParameterError
 from .mesh_io import Mesh
 
 #: Corners of a hexahedron cell (i, j, k) of a structured grid, in hex8 node order (the
@@ -88,6 +89,48 @@ def _three_numbers(value: Any, name: str) -> NDArray[np.float64]:
     return array
 
 
+def _divisions(divisions: Any) -> tuple[int, int, int]:
+    """The divisions of a box: three integers, or one for all three directions (floats
+    without a fraction are taken). Strings and bytes (whose items would read as character
+    codes), bools, other floats and other objects are an `ArgumentTypeError`, another count
+    than one or three an `InvalidParameterError`, both naming the parameter."""
+    text = repr(divisions)
+    shown = f"{text if len(text) <= 60 else text[:57] + '...'} ({type(divisions).__name__})"
+    wrong = ArgumentTypeError(
+        f"a box needs three integer divisions (or one for all three), got {shown}",
+        item="divisions",
+    )
+
+    def count(n: Any) -> int:
+        if isinstance(n, bool | np.bool_):
+            raise wrong
+        if isinstance(n, float) and n.is_integer():
+            return int(n)
+        try:
+            return operator.index(n)
+        except TypeError:
+            raise wrong from None
+
+    if isinstance(divisions, str | bytes | bytearray | memoryview | Mapping):
+        raise wrong
+    if not isinstance(divisions, Iterable) or (
+        isinstance(divisions, np.ndarray) and divisions.ndim == 0
+    ):
+        n = count(divisions)
+        return n, n, n
+    # At most four (an endless iterator is not read for ever).
+    items = [count(n) for n in itertools.islice(divisions, 4)]
+    if len(items) == 1:
+        return items[0], items[0], items[0]
+    if len(items) != 3:
+        raise InvalidParameterError(
+            f"a box needs three divisions (or one for all three), got "
+            f"{len(items) if len(items) < 4 else 'more than three'}: {shown}",
+            item="divisions",
+        )
+    return items[0], items[1], items[2]
+
+
 def _signed_volumes(nodes: NDArray[np.float64], tets: NDArray[np.int64]) -> NDArray[np.float64]:
     x0 = nodes[tets[:, 0]]
     a, b, c = (nodes[tets[:, k]] - x0 for k in (1, 2, 3))
@@ -124,32 +167,26 @@ def box(
 ) -> Mesh:
     """A structured mesh of the box origin + [0, a] x [0, b] x [0, c].
 
-    `divisions` = (n_x, n_y, n_z) cells; `element` "hex8", "tet4" (six tetrahedra per cell)
-    or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
+    `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
+    "hex8", "tet4" (six tetrahedra per cell) or "tet10". Node sets: "x0", "x1", "y0", "y1",
+    "z0", "z1" (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
-    divisions that are not positive integers, an origin that is not three finite numbers, an
-    unknown element, and meshes of more than `max_elements` elements (default
-    :data:`MAX_MESH_ELEMENTS`; the message gives the node and element counts and the
-    memory); the message names the parameter."""
+    divisions that are not three (or one) positive integers (an `ArgumentTypeError` for
+    divisions that are not integers: strings, bytes, bools, floats with a fraction), an
+    origin that is not three finite numbers, an unknown element, and meshes of more than
+    `max_elements` elements (default :data:`MAX_MESH_ELEMENTS`; the message gives the node
+    and element counts and the memory); the message names the parameter."""
     lengths = _three_numbers(lengths, "lengths")
     origin = _three_numbers(origin, "origin")
-    try:
-        nx, ny, nz = (
-            int(n) if isinstance(n, float) and n.is_integer() else operator.index(n)
-            for n in divisions
-        )
-    except (TypeError, ValueError):
-        raise InvalidParameterError(
-            f"a box needs three integer divisions, got {divisions!r}", item="divisions"
-        ) from None
+    nx, ny, nz = _divisions(divisions)
     if not np.all(lengths > 0):
         raise InvalidParameterError(
             f"a box needs three positive lengths, got {lengths.tolist()}", item="lengths"
         )
     if min(nx, ny, nz) < 1:
         raise InvalidParameterError(
-            f"a box needs three positive divisions, got {divisions}", item="divisions"
+            f"a box needs three positive divisions, got {[nx, ny, nz]}", item="divisions"
         )
     if not isinstance(element, str) or element not in ("hex8", "tet4", "tet10"):
         raise InvalidParameterError(
