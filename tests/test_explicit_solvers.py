@@ -125,7 +125,7 @@ def test_baumgarte_stabilization_bounds_the_drift(a02):
 
 
 @pytest.mark.parametrize("partition", ["lu", "qr", "svd"])
-def test_partition_methods_agree(a02, partition):
+def test_partition_methods_agree(a02, partition, assert_close):
     # Wehage's LU with full pivoting, QR with column pivoting and the SVD choose their
     # dependent coordinates differently; the motion is the same. 1.5 s crosses the first
     # singular configurations.
@@ -138,11 +138,11 @@ def test_partition_methods_agree(a02, partition):
         output_interval=0.01,
         solver=fm.GeneralizedAlpha(1.0, newton_tolerance=1e-10),
     )
-    assert np.abs(result.coordinates - reference.coordinates).max() < 1e-6
+    assert_close(result.coordinates, reference.coordinates, abs=1e-6, what="coordinates")
     assert result.constraint_violation.max() < 1e-10
 
 
-def test_embedding_and_augmented_multipliers_agree(a02):
+def test_embedding_and_augmented_multipliers_agree(a02, assert_close):
     # The embedding formulation recovers the multipliers afterwards from C_qd^T lambda =
     # (Q - M q_ddot)_d (seed eq. 30); the augmented one solves for them with the
     # accelerations (eq. 26).
@@ -153,8 +153,8 @@ def test_embedding_and_augmented_multipliers_agree(a02):
         for formulation in FORMULATIONS
     ]
     scale = np.abs(runs[0].multipliers).max()
-    assert np.abs(runs[0].multipliers - runs[1].multipliers).max() < 1e-6 * scale
-    assert np.abs(runs[0].accelerations - runs[1].accelerations).max() < 1e-6
+    assert_close(runs[0].multipliers, runs[1].multipliers, abs=1e-6 * scale, what="multipliers")
+    assert_close(runs[0].accelerations, runs[1].accelerations, abs=1e-6, what="accelerations")
 
 
 def test_given_independent_coordinates_are_used_and_checked(a01):

@@ -29,11 +29,12 @@ def case(request):
     return model, redundant
 
 
-def test_initial_state_is_consistent(case):
+def test_initial_state_is_consistent(case, assert_close):
     model, _ = case
     violation, jacobian = constraint_parts(model, model.initial_coordinates)
-    assert np.abs(violation).max() < 1e-12
-    assert np.abs(jacobian @ model.initial_velocities).max() < 1e-12
+    assert_close(violation, 0.0, abs=1e-12, what="constraint violation")
+    velocity_violation = jacobian @ model.initial_velocities
+    assert_close(velocity_violation, 0.0, abs=1e-12, what="velocity constraint violation")
 
 
 def test_constraint_jacobian_has_the_expected_rank_deficiency(case):
@@ -44,7 +45,7 @@ def test_constraint_jacobian_has_the_expected_rank_deficiency(case):
     assert model.coordinate_count - rank == 1
 
 
-def test_mechanism_moves_along_the_null_space(case):
+def test_mechanism_moves_along_the_null_space(case, assert_close):
     # A finite motion, not only an infinitesimal one: step s along the null space of C_q,
     # return to C(q) = 0 by Gauss-Newton with the least-squares (pseudo-inverse) increment.
     # The projection is orthogonal to the step to first order, so the point stays about s
@@ -61,8 +62,8 @@ def test_mechanism_moves_along_the_null_space(case):
             break
         q = q - np.linalg.lstsq(jacobian, violation, rcond=1e-9)[0]
     violation, jacobian = constraint_parts(model, q)
-    assert np.abs(violation).max() < 1e-12
-    assert abs(np.linalg.norm(q - start) / s - 1.0) < 1e-2
+    assert_close(violation, 0.0, abs=1e-12, what="constraint violation")
+    assert_close(np.linalg.norm(q - start), s, rel=1e-2, what="distance from the start")
     assert numerical_rank(jacobian) == model.constraint_count - redundant
 
 
@@ -125,7 +126,7 @@ def test_generalized_alpha_with_the_redundant_rows_removed():
     assert result.constraint_violation.max() < 1e-10
 
 
-def test_minimum_norm_multipliers_give_the_same_constraint_forces():
+def test_minimum_norm_multipliers_give_the_same_constraint_forces(assert_close):
     # With redundant rows the multipliers are not unique; C_q^T lambda is. "remove" sets the
     # removed rows' multipliers to zero, "minimum-norm" spreads them over all rows.
     example = fm.examples.four_bar_spatial()
@@ -145,7 +146,7 @@ def test_minimum_norm_multipliers_give_the_same_constraint_forces():
             _, jacobian = constraint_parts(model, result.coordinates[k])
             forces.append(jacobian.T @ result.multipliers[k])
         scale = np.abs(forces[0]).max()
-        assert np.abs(forces[0] - forces[1]).max() < 1e-8 * scale
+        assert_close(forces[0], forces[1], abs=1e-8 * scale, what="constraint forces")
         assert np.linalg.norm(runs["minimum-norm"].multipliers[k]) <= np.linalg.norm(
             runs["remove"].multipliers[k]
         ) * (1 + 1e-12)

@@ -112,7 +112,7 @@ def test_records_reach_the_file_while_the_run_goes_on(tmp_path, solver, end):
     assert_same_records(result, fm.read_results(path))
 
 
-def test_a_failed_run_keeps_its_records_and_says_why(tmp_path):
+def test_a_failed_run_keeps_its_records_and_says_why(tmp_path, assert_close):
     system = fm.System()
     body = system.add_point_mass(1.0, name="mass")
 
@@ -128,7 +128,7 @@ def test_a_failed_run_keeps_its_records_and_says_why(tmp_path):
     back = fm.read_results(path)
     assert not back.success and isinstance(back.error, fm.CallbackError)
     assert "user bug" in str(back.error)
-    assert back.time[-1] == pytest.approx(0.05)
+    assert_close(back.time[-1], 0.05, rel=1e-6, abs=1e-12, what="last time")
     assert_same_records(info.value.result, back)
     assert read_results_metadata(path)["status"]["state"] == "failed"
 
@@ -147,7 +147,7 @@ KILLED_RUN = textwrap.dedent(
 
 
 @pytest.mark.parametrize("kill", [signal.SIGKILL, signal.SIGINT])
-def test_a_killed_run_keeps_every_record_written_before_the_kill(tmp_path, kill):
+def test_a_killed_run_keeps_every_record_written_before_the_kill(tmp_path, kill, assert_close):
     path = tmp_path / "killed.h5"
     process = subprocess.Popen([sys.executable, "-c", KILLED_RUN, str(path)])
     try:
@@ -180,12 +180,10 @@ def test_a_killed_run_keeps_every_record_written_before_the_kill(tmp_path, kill)
         example.system, back.time[-1], example.step_size, output_interval=example.output_interval
     )
     assert len(reference) == count
-    np.testing.assert_allclose(back.time, reference.time, rtol=0, atol=1e-15)
+    assert_close(back.time, reference.time, abs=1e-15, what="time")
     for name in ("coordinates", "velocities", "multipliers"):
         scale = np.abs(getattr(reference, name)).max()
-        np.testing.assert_allclose(
-            getattr(back, name), getattr(reference, name), rtol=0, atol=1e-9 * scale
-        )
+        assert_close(getattr(back, name), getattr(reference, name), abs=1e-9 * scale, what=name)
 
 
 def test_a_text_field_caught_mid_write_reads_as_not_written(tmp_path):
@@ -428,7 +426,7 @@ FULL_DISK = textwrap.dedent(
 )
 
 
-def test_a_full_disk_is_a_typed_error_and_the_file_keeps_what_was_committed(tmp_path):
+def test_a_full_disk_is_a_typed_error_and_the_file_keeps_what_was_committed(tmp_path, assert_close):
     path = tmp_path / "full.h5"
     run = subprocess.run(
         [sys.executable, "-c", FULL_DISK, str(path), str(4 << 20)],
@@ -446,7 +444,7 @@ def test_a_full_disk_is_a_typed_error_and_the_file_keeps_what_was_committed(tmp_
     assert isinstance(back.error, fm.ResultsFileError) and "file size limit" in str(back.error)
     # Every committed record is a valid record of the run.
     reference = fm.simulate(pendulum(), back.time[-1], 1e-3, output_interval=1e-3)
-    np.testing.assert_allclose(back.coordinates, reference.coordinates, rtol=0, atol=1e-12)
+    assert_close(back.coordinates, reference.coordinates, abs=1e-12, what="coordinates")
 
 
 DAMAGED_HEADER = textwrap.dedent(

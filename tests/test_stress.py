@@ -27,7 +27,7 @@ def cantilever(elements=5, length=2.0, **kwargs):
 
 
 @pytest.mark.parametrize("beam_theory", ["euler-bernoulli", "timoshenko"])
-def test_beam_section_resultants_of_a_tip_load_are_those_of_statics(beam_theory):
+def test_beam_section_resultants_of_a_tip_load_are_those_of_statics(beam_theory, assert_close):
     body = cantilever(beam_theory=beam_theory)
     p, axial, twist = 150.0, 400.0, 7.0
     f = np.zeros(body.dof_count)
@@ -38,16 +38,16 @@ def test_beam_section_resultants_of_a_tip_load_are_those_of_statics(beam_theory)
     _, beams = recover_stresses(body, static_displacements(body, f))
     x = body.nodes[body.elements["beam2"], 0]  # (elements, 2) end coordinates
     n, vy, vz, t, my, mz = (beams[..., k] for k in range(6))
-    np.testing.assert_allclose(n, axial, rtol=1e-9)
-    np.testing.assert_allclose(t, twist, rtol=1e-9)
-    np.testing.assert_allclose(vz, p, rtol=1e-9)
-    np.testing.assert_allclose(vy, 0.0, atol=1e-9 * p)
-    np.testing.assert_allclose(mz, 0.0, atol=1e-9 * p)
+    assert_close(n, axial, rel=1e-9, what="N")
+    assert_close(t, twist, rel=1e-9, what="T")
+    assert_close(vz, p, rel=1e-9, what="V_z")
+    assert_close(vy, 0.0, abs=1e-9 * p, what="V_y")
+    assert_close(mz, 0.0, abs=1e-9 * p, what="M_z")
     # Bending about y: |M_y(x)| = P (L - x), zero at the tip.
-    np.testing.assert_allclose(np.abs(my), p * (2.0 - x), rtol=1e-9, atol=1e-9 * p)
+    assert_close(np.abs(my), p * (2.0 - x), rel=1e-9, abs=1e-9 * p, what="|M_y|")
 
 
-def test_solid_bar_in_tension_has_the_uniform_stress():
+def test_solid_bar_in_tension_has_the_uniform_stress(assert_close):
     mesh = shapes.box((1.0, 0.1, 0.1), (10, 2, 2), "hex8")
 
     def at(point):
@@ -71,12 +71,13 @@ def test_solid_bar_in_tension_has_the_uniform_stress():
     nodal, _ = recover_stresses(body, static_displacements(body, f.ravel()))
     middle = np.abs(body.nodes[:, 0] - 0.5) < 0.11
     sigma = force / 0.01
-    np.testing.assert_allclose(nodal[middle, 0], sigma, rtol=0.02)
-    assert np.max(np.abs(nodal[middle, 1:])) < 0.02 * sigma
-    assert fm.fe.von_mises(nodal[middle]).mean() == pytest.approx(sigma, rel=0.02)
+    assert_close(nodal[middle, 0], sigma, rel=0.02, what="sigma_xx")
+    assert_close(nodal[middle, 1:], 0.0, abs=0.02 * sigma, what="other stress components")
+    von_mises = fm.fe.von_mises(nodal[middle]).mean()
+    assert_close(von_mises, sigma, rel=0.02, what="mean von Mises stress")
 
 
-def test_section_forces_and_chord_deflection_from_a_simulation():
+def test_section_forces_and_chord_deflection_from_a_simulation(assert_close):
     body = cantilever(elements=6, length=1.0)
     system = fm.System(gravity=(0.0, 0.0, -9.81))
     beam = system.add_flexible_body(body, rayleigh_damping=(40.0, 0.0))
@@ -87,7 +88,8 @@ def test_section_forces_and_chord_deflection_from_a_simulation():
     # Root bending moment of the weight w L^2 / 2, less the fixed-end moment w l^2 / 12 of the
     # load on the root element (l = L / 6) that end forces from K u do not see.
     w = 7800.0 * 0.04 * 0.02 * 9.81
-    assert abs(forces[-1, 0, 0, 4]) == pytest.approx(w / 2 - w / 6**2 / 12, rel=1e-4)
+    root_moment = abs(forces[-1, 0, 0, 4])
+    assert_close(root_moment, w / 2 - w / 6**2 / 12, rel=1e-4, what="root bending moment")
     stresses = result.stresses(beam, records=[-1])
     assert stresses.shape == (1, 7, 6) and not np.any(stresses)  # no solid elements
     # The chord from the root to the tip: the middle node's deflection is perpendicular to it.
