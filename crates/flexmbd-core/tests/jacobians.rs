@@ -19,7 +19,7 @@ use flexmbd_core::linalg::csc::Csc;
 use flexmbd_core::math::dense::Jacobian3;
 use flexmbd_core::math::time_function::TimeFunction;
 use flexmbd_core::math::{Mat3, Vec3};
-use flexmbd_core::{Model, State, SystemBuilder, Workspace};
+use flexmbd_core::{BodyId, MarkerId, Model, State, SystemBuilder, Workspace};
 
 struct Drag;
 impl ForceCallback for Drag {
@@ -35,11 +35,24 @@ fn harmonic(a: f64, w: f64) -> TimeFunction {
     TimeFunction::Harmonic { amplitude: a, frequency: w, phase: 0.3, offset: 0.1 }
 }
 
-/// A system with every joint type, driver and force element between random bodies.
+/// A system with every joint type, driver and force element between random bodies, in a
+/// random (inconsistent) state.
 fn random_model(seed: u64) -> (Model, State) {
     let mut rng = Rng(seed);
     let mut sys = SystemBuilder::new();
     sys.set_gravity(Vec3([0.3, -9.81, 1.2])).unwrap();
+    let bodies = add_bodies(&mut sys, &mut rng);
+    add_joints(&mut sys, &mut rng, &bodies);
+    add_forces(&mut sys, &mut rng, &bodies);
+    let model = sys.compile().unwrap();
+    let state = random_state(&model, &mut rng);
+    (model, state)
+}
+
+/// The ground, six rigid bodies, a point mass (index 7) and two deformable bodies of random
+/// mass points, deformed and moving (indices 8 and 9; the second with a beam element of
+/// geometric stiffness).
+fn add_bodies(sys: &mut SystemBuilder, rng: &mut Rng) -> Vec<BodyId> {
     let mut bodies = vec![sys.ground()];
     for k in 0..6 {
         let inertia = Mat3::diagonal(Vec3([0.2 + 0.1 * k as f64, 0.3, 0.25]));
@@ -58,32 +71,8 @@ fn random_model(seed: u64) -> (Model, State) {
         bodies.push(b);
     }
     bodies.push(sys.add_point_mass("particle", 0.7, rng.vec3(1.0), rng.vec3(1.0)).unwrap());
-    // Two deformable bodies of random mass points, deformed and moving; the second with a
-    // beam element of geometric stiffness.
     for (k, n) in [(0usize, 4usize), (1, 5)] {
-        let points = 6;
-        let masses: Vec<f64> = (0..points).map(|_| 1.0 + 0.3 * rng.uniform()).collect();
-        let positions: Vec<Vec3> = (0..points).map(|_| rng.vec3(0.6)).collect();
-        let shapes: Vec<Vec<f64>> =
-            (0..points).map(|_| (0..3 * n).map(|_| 0.2 * rng.uniform()).collect()).collect();
-        let stiffness =
-            Csc::from_dense(
-                n,
-                n,
-                |r, c| if r == c { 50.0 + 10.0 * r as f64 } else { 3.0 / (1.0 + (r + c) as f64) },
-            );
-        let damping = Csc::from_dense(n, n, |r, c| if r == c { 0.5 } else { 0.05 });
-        let mut input = FlexibleBodyInput::from_mass_points(&masses, &positions, &shapes, stiffness, damping);
-        if k == 1 {
-            input.stiffening = vec![StiffeningElement {
-                indices: vec![0, 2, 3],
-                map: (0..36).map(|_| rng.uniform()).collect(),
-                length: 0.7,
-                axial_stiffness: 400.0,
-                positions: vec![],
-            }];
-        }
-        let body = FlexibleBody::new("flexible", input).unwrap();
+        let body = random_deformable_body(rng, n, k == 1);
         let qf: Vec<f64> = (0..n).map(|_| 0.1 * rng.uniform()).collect();
         let qfd: Vec<f64> = (0..n).map(|_| rng.uniform()).collect();
         let id = sys
@@ -91,25 +80,62 @@ fn random_model(seed: u64) -> (Model, State) {
             .unwrap();
         bodies.push(id);
     }
-    let marker = |sys: &mut SystemBuilder, rng: &mut Rng, body| {
-        if body == bodies[8] || body == bodies[9] {
-            // An elastic marker on some of the body's elastic coordinates.
-            let indices = if body == bodies[8] { vec![0, 2, 3] } else { vec![4, 1] };
-            let nl = indices.len();
-            let mut translation = Jacobian3::zeros(nl);
-            let mut rotation = Jacobian3::zeros(nl);
-            for r in 0..3 {
-                for c in 0..nl {
-                    translation.set(r, c, 0.3 * rng.uniform());
-                    rotation.set(r, c, 0.3 * rng.uniform());
-                }
+    bodies
+}
+
+/// A deformable body of six random mass points with `n` elastic coordinates, with a beam
+/// element of geometric stiffness if `stiffening`.
+fn random_deformable_body(rng: &mut Rng, n: usize, stiffening: bool) -> FlexibleBody {
+    let points = 6;
+    let masses: Vec<f64> = (0..points).map(|_| 1.0 + 0.3 * rng.uniform()).collect();
+    let positions: Vec<Vec3> = (0..points).map(|_| rng.vec3(0.6)).collect();
+    let shapes: Vec<Vec<f64>> =
+        (0..points).map(|_| (0..3 * n).map(|_| 0.2 * rng.uniform()).collect()).collect();
+    let stiffness =
+        Csc::from_dense(
+            n,
+            n,
+            |r, c| if r == c { 50.0 + 10.0 * r as f64 } else { 3.0 / (1.0 + (r + c) as f64) },
+        );
+    let damping = Csc::from_dense(n, n, |r, c| if r == c { 0.5 } else { 0.05 });
+    let mut input = FlexibleBodyInput::from_mass_points(&masses, &positions, &shapes, stiffness, damping);
+    if stiffening {
+        input.stiffening = vec![StiffeningElement {
+            indices: vec![0, 2, 3],
+            map: (0..36).map(|_| rng.uniform()).collect(),
+            length: 0.7,
+            axial_stiffness: 400.0,
+            positions: vec![],
+        }];
+    }
+    FlexibleBody::new("flexible", input).unwrap()
+}
+
+/// A random marker on `body` (of `bodies`, as [`add_bodies`] makes them): on the deformable
+/// bodies an elastic marker on some of the elastic coordinates, on the point mass at its
+/// position.
+fn add_marker(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId], body: BodyId) -> MarkerId {
+    if body == bodies[8] || body == bodies[9] {
+        // An elastic marker on some of the body's elastic coordinates.
+        let indices = if body == bodies[8] { vec![0, 2, 3] } else { vec![4, 1] };
+        let nl = indices.len();
+        let mut translation = Jacobian3::zeros(nl);
+        let mut rotation = Jacobian3::zeros(nl);
+        for r in 0..3 {
+            for c in 0..nl {
+                translation.set(r, c, 0.3 * rng.uniform());
+                rotation.set(r, c, 0.3 * rng.uniform());
             }
-            let elastic = MarkerElastic { indices, translation, rotation };
-            return sys.add_flexible_marker("", body, rng.vec3(0.5), rng.rotation(), elastic).unwrap();
         }
-        let pos = if body == bodies[7] { Vec3::ZERO } else { rng.vec3(0.5) };
-        sys.add_marker("", body, pos, rng.rotation()).unwrap()
-    };
+        let elastic = MarkerElastic { indices, translation, rotation };
+        return sys.add_flexible_marker("", body, rng.vec3(0.5), rng.rotation(), elastic).unwrap();
+    }
+    let pos = if body == bodies[7] { Vec3::ZERO } else { rng.vec3(0.5) };
+    sys.add_marker("", body, pos, rng.rotation()).unwrap()
+}
+
+/// Every joint type and driver between the `bodies`, on random markers.
+fn add_joints(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId]) {
     let kinds = vec![
         JointKind::Spherical,
         JointKind::Revolute,
@@ -153,23 +179,33 @@ fn random_model(seed: u64) -> (Model, State) {
         (8, 7),
     ];
     for (kind, (a, b)) in kinds.into_iter().zip(pairs) {
-        let mi = marker(&mut sys, &mut rng, bodies[a]);
-        let mj = marker(&mut sys, &mut rng, bodies[b]);
+        let mi = add_marker(sys, rng, bodies, bodies[a]);
+        let mj = add_marker(sys, rng, bodies, bodies[b]);
         sys.add_joint("", kind, [mi, mj]).unwrap();
     }
-    let m1 = marker(&mut sys, &mut rng, bodies[2]);
-    let m2 = marker(&mut sys, &mut rng, bodies[5]);
-    let m3 = marker(&mut sys, &mut rng, bodies[3]);
-    let m4 = marker(&mut sys, &mut rng, bodies[7]);
-    let m5 = marker(&mut sys, &mut rng, bodies[0]);
-    let comps =
-        || [harmonic(1.0, 1.0), TimeFunction::Constant(-2.0), TimeFunction::Polynomial(vec![0.5, 1.0])];
-    sys.add_force("", ForceKind::PointForce { marker: m1, components: comps(), frame: Frame::Global })
+}
+
+/// Three components of a force or torque as functions of time.
+fn components() -> [TimeFunction; 3] {
+    [harmonic(1.0, 1.0), TimeFunction::Constant(-2.0), TimeFunction::Polynomial(vec![0.5, 1.0])]
+}
+
+/// Every force element on the rigid bodies and the point mass, then loads on the deformable
+/// bodies (a moment on a deformable body is not a free vector).
+fn add_forces(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId]) {
+    let m1 = add_marker(sys, rng, bodies, bodies[2]);
+    let m2 = add_marker(sys, rng, bodies, bodies[5]);
+    let m3 = add_marker(sys, rng, bodies, bodies[3]);
+    let m4 = add_marker(sys, rng, bodies, bodies[7]);
+    let m5 = add_marker(sys, rng, bodies, bodies[0]);
+    sys.add_force("", ForceKind::PointForce { marker: m1, components: components(), frame: Frame::Global })
         .unwrap();
-    sys.add_force("", ForceKind::PointForce { marker: m2, components: comps(), frame: Frame::Marker })
+    sys.add_force("", ForceKind::PointForce { marker: m2, components: components(), frame: Frame::Marker })
         .unwrap();
-    sys.add_force("", ForceKind::Torque { marker: m1, components: comps(), frame: Frame::Global }).unwrap();
-    sys.add_force("", ForceKind::Torque { marker: m3, components: comps(), frame: Frame::Marker }).unwrap();
+    sys.add_force("", ForceKind::Torque { marker: m1, components: components(), frame: Frame::Global })
+        .unwrap();
+    sys.add_force("", ForceKind::Torque { marker: m3, components: components(), frame: Frame::Marker })
+        .unwrap();
     sys.add_force(
         "",
         ForceKind::SpringDamper {
@@ -205,14 +241,20 @@ fn random_model(seed: u64) -> (Model, State) {
     .unwrap();
     sys.add_force("", ForceKind::Callback { bodies: vec![bodies[4], bodies[7]], callback: Arc::new(Drag) })
         .unwrap();
-    // Loads on the deformable bodies: a moment on a deformable body is not a free vector.
-    let f1 = marker(&mut sys, &mut rng, bodies[8]);
-    let f2 = marker(&mut sys, &mut rng, bodies[9]);
-    let r1 = marker(&mut sys, &mut rng, bodies[1]);
-    sys.add_force("", ForceKind::PointForce { marker: f1, components: comps(), frame: Frame::Marker })
+    add_deformable_body_loads(sys, rng, bodies);
+}
+
+/// Point forces, torques and springs on the deformable bodies.
+fn add_deformable_body_loads(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId]) {
+    let f1 = add_marker(sys, rng, bodies, bodies[8]);
+    let f2 = add_marker(sys, rng, bodies, bodies[9]);
+    let r1 = add_marker(sys, rng, bodies, bodies[1]);
+    sys.add_force("", ForceKind::PointForce { marker: f1, components: components(), frame: Frame::Marker })
         .unwrap();
-    sys.add_force("", ForceKind::Torque { marker: f2, components: comps(), frame: Frame::Marker }).unwrap();
-    sys.add_force("", ForceKind::Torque { marker: f1, components: comps(), frame: Frame::Global }).unwrap();
+    sys.add_force("", ForceKind::Torque { marker: f2, components: components(), frame: Frame::Marker })
+        .unwrap();
+    sys.add_force("", ForceKind::Torque { marker: f1, components: components(), frame: Frame::Global })
+        .unwrap();
     sys.add_force(
         "",
         ForceKind::SpringDamper {
@@ -235,8 +277,11 @@ fn random_model(seed: u64) -> (Model, State) {
         },
     )
     .unwrap();
-    let model = sys.compile().unwrap();
-    let mut state = State::initial(&model, 0.37);
+}
+
+/// The model's initial state at t = 0.37 with random accelerations and multipliers.
+fn random_state(model: &Model, rng: &mut Rng) -> State {
+    let mut state = State::initial(model, 0.37);
     for v in state.accelerations.iter_mut() {
         *v = rng.uniform() * 3.0;
     }
@@ -245,7 +290,7 @@ fn random_model(seed: u64) -> (Model, State) {
     }
     // Reference angles of the rotational springs near their current angles.
     state.discrete.iter_mut().for_each(|x| *x = 0.0);
-    (model, state)
+    state
 }
 
 fn dense(model: &Model, values: &[f64]) -> Vec<Vec<f64>> {

@@ -13,12 +13,13 @@
 use crate::body::flexible::{self, ElasticMass, FlexibleBody, REFERENCE_COORDINATES};
 use crate::body::is_condensed;
 use crate::body::marker::{marker_kinematics, MarkerKinematics};
-use crate::body::{point_mass, rigid, Body, BodyKind};
+use crate::body::{point_mass, rigid, BodyKind};
 use crate::error::{FlexmbdError, Result};
 use crate::force::gravity::{add_gravity_force, gravity_jacobian};
 use crate::force::{evaluate_force, ForceEnv};
 use crate::joint::equation::{equation_gradient, equation_value, equations_hessian, MarkerPair};
 use crate::math::Mat3;
+use crate::system::model::BodyEntries;
 use crate::system::workspace::FlexibleWork;
 use crate::system::workspace::JointLocal;
 use crate::system::{Model, Workspace};
@@ -176,103 +177,131 @@ impl<'a> StateView<'a> {
 /// Assembles the residual into `ws.residual` and, if the request asks for it, the Newton
 /// matrix into `ws.values`. Updates the marker kinematics first.
 pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Request) -> Result<()> {
-    let nq = model.coordinate_count;
-    let matrix = request.matrix;
     update_kinematics(model, s.q, s.qd, ws);
     ws.residual.iter_mut().for_each(|x| *x = 0.0);
-    if matrix.is_some() {
+    if request.matrix.is_some() {
         ws.zero_matrix(model, request.condensed_blocks, request.structured_coupling);
     }
-    let c = matrix.unwrap_or(MatrixCoefficients {
+    let c = request.matrix.unwrap_or(MatrixCoefficients {
         mass: 0.0,
         velocity: 0.0,
         position: 0.0,
         identity: 0.0,
         scale: 0.0,
     });
-    let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
+    assemble_bodies(model, &s, ws, request, &c);
+    assemble_normalizations(model, &s, ws, request.matrix.is_some(), &c);
+    assemble_joints(model, &s, ws, request.matrix.is_some(), &c)?;
+    assemble_forces(model, &s, ws, request.matrix.is_some(), &c)?;
+    if request.elastic_rows != ElasticRows::Whole {
+        finish_elastic_rows(model, &s, ws, request.elastic_rows, request.images);
+    }
+    check_finite_residual(model, ws, s.time)
+}
 
-    // Bodies: inertia forces minus gravity (plus the elastic forces of deformable bodies), and
-    // their Jacobians.
+impl MatrixCoefficients {
+    /// Whether the matrix has a mass, velocity or position Jacobian term.
+    fn needs_tangent(&self) -> bool {
+        self.mass != 0.0 || self.velocity != 0.0 || self.position != 0.0
+    }
+}
+
+/// Bodies: inertia forces minus gravity (plus the elastic forces of deformable bodies), and
+/// their Jacobians when `request` asks for the matrix (coefficients `c`).
+fn assemble_bodies(
+    model: &Model,
+    s: &StateView,
+    ws: &mut Workspace,
+    request: &Request,
+    c: &MatrixCoefficients,
+) {
     for (bi, body) in model.bodies.iter().enumerate() {
-        let nb = body.dofs.len();
-        if nb == 0 {
+        if body.dofs.is_empty() {
             continue;
         }
-        let o = body.offset;
-        if let BodyKind::Flexible(fb) = &body.kind {
+        if let BodyKind::Flexible(_) = &body.kind {
             let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
-            let condensed = is_condensed(&body.kind);
-            let blocks = FlexibleBlocks {
-                elastic: request.condensed_blocks || !condensed,
-                reference_elastic: !(request.structured_coupling && condensed),
-                linear: !(condensed && request.elastic_rows != ElasticRows::Whole),
-            };
-            assemble_flexible(
-                fb,
-                body,
-                model,
-                &s,
-                work,
-                (&mut ws.residual, &mut ws.values),
-                (matrix, &c),
-                bi,
-                blocks,
-                request.elastic_rows,
-            );
-            continue;
-        }
-        let f = &mut ws.body_force[..nb];
-        match &body.kind {
-            BodyKind::Rigid(rb) => rigid::inertia_force(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], f),
-            BodyKind::PointMass { mass } => point_mass::inertia_force(*mass, &s.qdd[o..], f),
-            BodyKind::Ground | BodyKind::Flexible(_) => {}
-        }
-        for v in f.iter_mut() {
-            *v = -*v;
-        }
-        add_gravity_force(body, s.q, &model.gravity, f);
-        for k in 0..nb {
-            ws.residual[o + k] -= f[k];
-        }
-        if matrix.is_some() {
-            let entries = &model.layout.bodies[bi];
-            let idx = &entries.block;
-            if needs_tangent {
-                match &body.kind {
-                    BodyKind::Rigid(rb) => {
-                        rigid::inertia_tangent(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], &mut ws.rigid);
-                        let g = gravity_jacobian(body, &model.gravity).expect("rigid body");
-                        for a in 0..7 {
-                            for b in 0..7 {
-                                let mut k = ws.rigid.position[a][b];
-                                if a >= 3 && b >= 3 {
-                                    k -= g[a - 3][b - 3];
-                                }
-                                ws.values[idx[a * 7 + b]] += c.scale
-                                    * (c.mass * ws.rigid.mass[a][b]
-                                        + c.velocity * ws.rigid.velocity[a][b]
-                                        + c.position * k);
-                            }
-                        }
-                    }
-                    BodyKind::PointMass { mass } => {
-                        for a in 0..3 {
-                            ws.values[idx[a * 3 + a]] += c.scale * c.mass * mass;
-                        }
-                    }
-                    BodyKind::Ground | BodyKind::Flexible(_) => {}
-                }
-            }
-            if c.identity != 0.0 {
-                for &d in &entries.diagonal {
-                    ws.values[d] += c.scale * c.identity;
-                }
-            }
+            assemble_flexible(model, bi, s, work, (&mut ws.residual, &mut ws.values), request, c);
+        } else {
+            assemble_rigid(model, bi, s, ws, request.matrix.is_some(), c);
         }
     }
+}
 
-    // Euler-parameter normalization p.p - 1 = 0.
+/// Residual and Newton-matrix entries (if `matrix`) of rigid body or point mass `bi`: its
+/// inertia force minus gravity.
+fn assemble_rigid(
+    model: &Model,
+    bi: usize,
+    s: &StateView,
+    ws: &mut Workspace,
+    matrix: bool,
+    c: &MatrixCoefficients,
+) {
+    let body = &model.bodies[bi];
+    let nb = body.dofs.len();
+    let o = body.offset;
+    let f = &mut ws.body_force[..nb];
+    match &body.kind {
+        BodyKind::Rigid(rb) => rigid::inertia_force(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], f),
+        BodyKind::PointMass { mass } => point_mass::inertia_force(*mass, &s.qdd[o..], f),
+        BodyKind::Ground | BodyKind::Flexible(_) => {}
+    }
+    for v in f.iter_mut() {
+        *v = -*v;
+    }
+    add_gravity_force(body, s.q, &model.gravity, f);
+    for k in 0..nb {
+        ws.residual[o + k] -= f[k];
+    }
+    if !matrix {
+        return;
+    }
+    let entries = &model.layout.bodies[bi];
+    let idx = &entries.block;
+    if c.needs_tangent() {
+        match &body.kind {
+            BodyKind::Rigid(rb) => {
+                rigid::inertia_tangent(rb, &s.q[o..], &s.qd[o..], &s.qdd[o..], &mut ws.rigid);
+                let g = gravity_jacobian(body, &model.gravity).expect("rigid body");
+                for a in 0..7 {
+                    for b in 0..7 {
+                        let mut k = ws.rigid.position[a][b];
+                        if a >= 3 && b >= 3 {
+                            k -= g[a - 3][b - 3];
+                        }
+                        ws.values[idx[a * 7 + b]] += c.scale
+                            * (c.mass * ws.rigid.mass[a][b]
+                                + c.velocity * ws.rigid.velocity[a][b]
+                                + c.position * k);
+                    }
+                }
+            }
+            BodyKind::PointMass { mass } => {
+                for a in 0..3 {
+                    ws.values[idx[a * 3 + a]] += c.scale * c.mass * mass;
+                }
+            }
+            BodyKind::Ground | BodyKind::Flexible(_) => {}
+        }
+    }
+    if c.identity != 0.0 {
+        for &d in &entries.diagonal {
+            ws.values[d] += c.scale * c.identity;
+        }
+    }
+}
+
+/// Euler-parameter normalization p.p - 1 = 0: its rows, its multiplier's terms in the
+/// parameters' rows, and their Jacobians (if `matrix`).
+fn assemble_normalizations(
+    model: &Model,
+    s: &StateView,
+    ws: &mut Workspace,
+    matrix: bool,
+    c: &MatrixCoefficients,
+) {
+    let nq = model.coordinate_count;
     for (k, nz) in model.normalizations.iter().enumerate() {
         let lambda = s.lambda[nz.row];
         let mut pp = 0.0;
@@ -280,7 +309,7 @@ pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Reque
             let p = s.q[d];
             pp += p * p;
             ws.residual[d] += 2.0 * p * lambda;
-            if matrix.is_some() {
+            if matrix {
                 let e = &model.layout.normalizations[k];
                 ws.values[e[a]] += 2.0 * p;
                 ws.values[e[4 + a]] += 2.0 * p;
@@ -290,8 +319,17 @@ pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Reque
         }
         ws.residual[nq + nz.row] = pp - 1.0;
     }
+}
 
-    // Joints: C, C_q^T lambda, C_q and the Hessian term.
+/// Joints: C, C_q^T lambda, and (if `matrix`) C_q and the Hessian term.
+fn assemble_joints(
+    model: &Model,
+    s: &StateView,
+    ws: &mut Workspace,
+    matrix: bool,
+    c: &MatrixCoefficients,
+) -> Result<()> {
+    let nq = model.coordinate_count;
     for j in 0..model.joints.len() {
         let joint = &model.joints[j];
         let driver = joint.driver_values(s.time)?;
@@ -307,7 +345,7 @@ pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Reque
             equation_gradient(eq, &pair, &driver, 1.0, row, None);
         }
         let lambdas = &s.lambda[joint.row..joint.row + ne];
-        if matrix.is_some() && c.position != 0.0 {
+        if matrix && c.position != 0.0 {
             local.hessian.fill_zero();
             equations_hessian(
                 joint.equations.iter().zip(lambdas.iter().copied()),
@@ -321,7 +359,7 @@ pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Reque
         for (a, &d) in joint.dofs.iter().enumerate() {
             ws.residual[d] += local.jacobian.column_dot(a, lambdas);
         }
-        if matrix.is_some() {
+        if matrix {
             let entries = &model.layout.joints[j];
             for (k, &v) in local.jacobian.data.iter().enumerate() {
                 ws.values[entries.jacobian[k]] += v;
@@ -336,43 +374,56 @@ pub fn assemble(model: &Model, s: StateView, ws: &mut Workspace, request: &Reque
             }
         }
     }
+    Ok(())
+}
 
-    // Applied force elements.
-    if !model.forces.is_empty() {
-        let env = ForceEnv {
-            bodies: &model.bodies,
-            markers: &model.markers,
-            kinematics: &ws.markers,
-            q: s.q,
-            qd: s.qd,
-            time: s.time,
-            discrete: s.discrete,
-        };
-        for (k, force) in model.forces.iter().enumerate() {
-            let local = &mut ws.forces[k];
-            evaluate_force(force, &env, local, needs_tangent && matrix.is_some())?;
-            for (a, &d) in force.dofs.iter().enumerate() {
-                ws.residual[d] -= local.generalized[a];
-            }
-            if matrix.is_some() && needs_tangent {
-                let idx = &model.layout.forces[k];
-                for (m, (&kv, &dv)) in local.stiffness.data.iter().zip(&local.damping.data).enumerate() {
-                    ws.values[idx[m]] += c.scale * (c.position * kv + c.velocity * dv);
-                }
+/// Applied force elements: their generalized forces, and (if `matrix`) their stiffness and
+/// damping.
+fn assemble_forces(
+    model: &Model,
+    s: &StateView,
+    ws: &mut Workspace,
+    matrix: bool,
+    c: &MatrixCoefficients,
+) -> Result<()> {
+    if model.forces.is_empty() {
+        return Ok(());
+    }
+    let needs_tangent = c.needs_tangent();
+    let env = ForceEnv {
+        bodies: &model.bodies,
+        markers: &model.markers,
+        kinematics: &ws.markers,
+        q: s.q,
+        qd: s.qd,
+        time: s.time,
+        discrete: s.discrete,
+    };
+    for (k, force) in model.forces.iter().enumerate() {
+        let local = &mut ws.forces[k];
+        evaluate_force(force, &env, local, needs_tangent && matrix)?;
+        for (a, &d) in force.dofs.iter().enumerate() {
+            ws.residual[d] -= local.generalized[a];
+        }
+        if matrix && needs_tangent {
+            let idx = &model.layout.forces[k];
+            for (m, (&kv, &dv)) in local.stiffness.data.iter().zip(&local.damping.data).enumerate() {
+                ws.values[idx[m]] += c.scale * (c.position * kv + c.velocity * dv);
             }
         }
     }
-
-    if request.elastic_rows != ElasticRows::Whole {
-        finish_elastic_rows(model, &s, ws, request.elastic_rows, request.images);
-    }
-
-    if !crate::math::all_finite(&ws.residual) {
-        let k = ws.residual.iter().position(|x| !x.is_finite()).unwrap_or(0);
-        let item = if k < nq { model.coordinate_name(k) } else { model.constraint_name(k - nq) };
-        return Err(FlexmbdError::NonFinite { item: format!("the equation of {item}"), time: s.time });
-    }
     Ok(())
+}
+
+/// A typed error naming the first equation whose residual is not finite.
+fn check_finite_residual(model: &Model, ws: &Workspace, time: f64) -> Result<()> {
+    if crate::math::all_finite(&ws.residual) {
+        return Ok(());
+    }
+    let nq = model.coordinate_count;
+    let k = ws.residual.iter().position(|x| !x.is_finite()).unwrap_or(0);
+    let item = if k < nq { model.coordinate_name(k) } else { model.constraint_name(k - nq) };
+    Err(FlexmbdError::NonFinite { item: format!("the equation of {item}"), time })
 }
 
 /// Completes the elastic rows of the condensed bodies, assembled without their linear part
@@ -434,28 +485,37 @@ struct FlexibleBlocks {
     linear: bool,
 }
 
-/// Residual and Newton-matrix entries of a deformable body: the inertia force of seed eq. 15
-/// minus gravity plus the elastic forces K_ff q_f + D_ff qf_dot.
-#[allow(clippy::too_many_arguments)]
+impl FlexibleBlocks {
+    /// The blocks `request` asks for of a deformable body, `condensed` or not.
+    fn new(request: &Request, condensed: bool) -> Self {
+        FlexibleBlocks {
+            elastic: request.condensed_blocks || !condensed,
+            reference_elastic: !(request.structured_coupling && condensed),
+            linear: !(condensed && request.elastic_rows != ElasticRows::Whole),
+        }
+    }
+}
+
+/// Residual and Newton-matrix entries of deformable body `bi`: the inertia force of seed
+/// eq. 15 minus gravity plus the elastic forces K_ff q_f + D_ff qf_dot, and their Jacobians
+/// when `request` asks for the matrix (coefficients `c`).
 fn assemble_flexible(
-    fb: &FlexibleBody,
-    body: &Body,
     model: &Model,
+    bi: usize,
     s: &StateView,
     work: &mut FlexibleWork,
     (residual, values): (&mut [f64], &mut [f64]),
-    (matrix, c): (Option<MatrixCoefficients>, &MatrixCoefficients),
-    bi: usize,
-    blocks: FlexibleBlocks,
-    elastic_rows: ElasticRows,
+    request: &Request,
+    c: &MatrixCoefficients,
 ) {
-    let elastic_block = blocks.elastic;
+    let body = &model.bodies[bi];
+    let BodyKind::Flexible(fb) = &body.kind else { unreachable!("a deformable body") };
+    let blocks = FlexibleBlocks::new(request, is_condensed(&body.kind));
     let o = body.offset;
     let nb = body.dofs.len();
-    let nf = fb.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let (q, qd, qdd) = (&s.q[o..o + nb], &s.qd[o..o + nb], &s.qdd[o..o + nb]);
-    let mass = match (blocks.linear, elastic_rows) {
+    let mass = match (blocks.linear, request.elastic_rows) {
         (true, _) => ElasticMass::Include,
         (false, ElasticRows::Update { .. }) => ElasticMass::Skip,
         (false, _) => ElasticMass::Separate,
@@ -475,69 +535,110 @@ fn assemble_flexible(
     for (r, f) in residual[o..o + nb].iter_mut().zip(&work.force) {
         *r += f;
     }
-    let needs_tangent = c.mass != 0.0 || c.velocity != 0.0 || c.position != 0.0;
-    let ev = &mut work.elastic_values;
-    if matrix.is_some() && needs_tangent && elastic_block {
+    // The elastic forces, with their Jacobians into the elastic values if the matrix needs
+    // the (f, f) block.
+    let rows = &mut residual[o + r7..o + nb];
+    if request.matrix.is_some() && c.needs_tangent() && blocks.elastic {
+        let ev = &mut work.elastic_values;
         ev.iter_mut().for_each(|x| *x = 0.0);
         let tangent = Some((c.position, c.velocity, &mut ev[..]));
-        let rows = &mut residual[o + r7..o + nb];
         flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], rows, tangent, blocks.linear);
     } else {
-        let rows = &mut residual[o + r7..o + nb];
         flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], rows, None, blocks.linear);
     }
-    let Some(_) = matrix else { return };
+    if request.matrix.is_none() {
+        return;
+    }
     let entries = &model.layout.bodies[bi];
-    if needs_tangent {
-        let t = &mut work.tangent;
-        flexible::inertia_tangent_after_force(fb, q, qd, qdd, &mut work.scratch, t, blocks.reference_elastic);
+    if c.needs_tangent() {
+        let (scratch, t) = (&mut work.scratch, &mut work.tangent);
+        flexible::inertia_tangent_after_force(fb, q, qd, qdd, scratch, t, blocks.reference_elastic);
         let coupling =
             blocks.reference_elastic.then_some((&mut work.gravity_pf[..], &mut work.gravity_fp[..]));
         let gpp = flexible::gravity_jacobian_at(fb, q, gravity, first_moment, coupling);
-        let [tm, tv, tx] = &t.reference;
-        for a in 0..7 {
-            for b in 0..7 {
-                let mut k = tx[a][b];
-                if a >= 3 && b >= 3 {
-                    k -= gpp[a - 3][b - 3];
-                }
-                values[entries.block[a * 7 + b]] +=
-                    c.scale * (c.mass * tm[a][b] + c.velocity * tv[a][b] + c.position * k);
-            }
+        add_reference_block(&work.tangent.reference, &gpp, entries, c, values);
+        if blocks.reference_elastic {
+            add_reference_elastic_blocks(fb.elastic_count, work, entries, c, values);
         }
-        let [rm, rv, rx] = &t.reference_elastic;
-        let [fm, fv, fx] = &t.elastic_reference;
-        for a in (0..7).filter(|_| blocks.reference_elastic) {
-            for j in 0..nf {
-                let (re, er) = (a * nf + j, j * 7 + a);
-                let (mut k_re, mut k_er) = (rx[re], fx[er]);
-                if a >= 3 {
-                    k_re -= work.gravity_pf[(a - 3) * nf + j];
-                    k_er -= work.gravity_fp[j * 4 + a - 3];
-                }
-                values[entries.reference_elastic[re]] +=
-                    c.scale * (c.mass * rm[re] + c.velocity * rv[re] + c.position * k_re);
-                values[entries.elastic_reference[er]] +=
-                    c.scale * (c.mass * fm[er] + c.velocity * fv[er] + c.position * k_er);
-            }
-        }
-        // (f, f): sum_kl (m I + v 2 w~ + p (alpha~ + w~ w~))_kl I_kl, added to the elastic
-        // force Jacobians v D_ff + p (K_ff + geometric stiffness) already in the values.
-        if elastic_block {
-            let ev = &mut work.elastic_values;
-            let coefficients = Mat3::IDENTITY.scale(c.mass)
-                + t.velocity_coefficients.scale(c.velocity)
-                + t.position_coefficients.scale(c.position);
-            fb.add_i_kl_to_pattern(&coefficients, ev);
-            for (&e, &v) in entries.elastic.iter().zip(ev.iter()) {
-                values[e] += c.scale * v;
-            }
+        if blocks.elastic {
+            add_elastic_block(fb, work, entries, c, values);
         }
     }
     if c.identity != 0.0 {
         for &d in &entries.diagonal {
             values[d] += c.scale * c.identity;
         }
+    }
+}
+
+/// The (reference, reference) block of a deformable body: its inertia tangent
+/// `reference` (mass, velocity, position) with the gravity Jacobian `gpp` over the Euler
+/// parameters.
+fn add_reference_block(
+    reference: &[[[f64; 7]; 7]; 3],
+    gpp: &[[f64; 4]; 4],
+    entries: &BodyEntries,
+    c: &MatrixCoefficients,
+    values: &mut [f64],
+) {
+    let [tm, tv, tx] = reference;
+    for a in 0..7 {
+        for b in 0..7 {
+            let mut k = tx[a][b];
+            if a >= 3 && b >= 3 {
+                k -= gpp[a - 3][b - 3];
+            }
+            values[entries.block[a * 7 + b]] +=
+                c.scale * (c.mass * tm[a][b] + c.velocity * tv[a][b] + c.position * k);
+        }
+    }
+}
+
+/// The (reference, f) and (f, reference) blocks of a deformable body with `nf` elastic
+/// coordinates, from the tangent and the gravity Jacobian blocks in `work`.
+fn add_reference_elastic_blocks(
+    nf: usize,
+    work: &FlexibleWork,
+    entries: &BodyEntries,
+    c: &MatrixCoefficients,
+    values: &mut [f64],
+) {
+    let t = &work.tangent;
+    let [rm, rv, rx] = &t.reference_elastic;
+    let [fm, fv, fx] = &t.elastic_reference;
+    for a in 0..7 {
+        for j in 0..nf {
+            let (re, er) = (a * nf + j, j * 7 + a);
+            let (mut k_re, mut k_er) = (rx[re], fx[er]);
+            if a >= 3 {
+                k_re -= work.gravity_pf[(a - 3) * nf + j];
+                k_er -= work.gravity_fp[j * 4 + a - 3];
+            }
+            values[entries.reference_elastic[re]] +=
+                c.scale * (c.mass * rm[re] + c.velocity * rv[re] + c.position * k_re);
+            values[entries.elastic_reference[er]] +=
+                c.scale * (c.mass * fm[er] + c.velocity * fv[er] + c.position * k_er);
+        }
+    }
+}
+
+/// (f, f): sum_kl (m I + v 2 w~ + p (alpha~ + w~ w~))_kl I_kl, added to the elastic force
+/// Jacobians v D_ff + p (K_ff + geometric stiffness) already in `work.elastic_values`.
+fn add_elastic_block(
+    fb: &FlexibleBody,
+    work: &mut FlexibleWork,
+    entries: &BodyEntries,
+    c: &MatrixCoefficients,
+    values: &mut [f64],
+) {
+    let t = &work.tangent;
+    let ev = &mut work.elastic_values;
+    let coefficients = Mat3::IDENTITY.scale(c.mass)
+        + t.velocity_coefficients.scale(c.velocity)
+        + t.position_coefficients.scale(c.position);
+    fb.add_i_kl_to_pattern(&coefficients, ev);
+    for (&e, &v) in entries.elastic.iter().zip(ev.iter()) {
+        values[e] += c.scale * v;
     }
 }
 

@@ -97,6 +97,71 @@ struct ElasticBody {
     couplings: Vec<[[f64; 6]; 6]>,
 }
 
+impl ElasticBody {
+    /// Deformable body `body` of `model` with `n` elastic coordinates, the first at
+    /// `free_first` among the free coordinates and its reference coordinates at `reference`
+    /// among the reference rows: its factorized M_ff and the products with the shapes of
+    /// its `deformed` joint markers (all of the tree's: (body, shape)).
+    fn new(
+        model: &Model,
+        body: usize,
+        free_first: usize,
+        n: usize,
+        reference: usize,
+        deformed: &[(usize, &MarkerElastic)],
+    ) -> Result<ElasticBody> {
+        let BodyKind::Flexible(fb) = &model.bodies[body].kind else {
+            unreachable!("elastic blocks are flexible")
+        };
+        let m = &fb.mass_matrix.matrix;
+        let matrix = CscRef { n, col_ptr: &m.col_ptr, row_idx: &m.row_idx, values: &m.values };
+        let ordering = match (&fb.dof_nodes, &fb.node_positions) {
+            (Some(nodes), Some(positions)) => Ordering::NestedDissection { dof_nodes: nodes, positions },
+            _ => Ordering::Amd,
+        };
+        let item = format!("mass matrix M_ff of body '{}'", model.bodies[body].name);
+        let factor = SymmetricFactor::new(&item, matrix, ordering, FactorKind::Cholesky, 1)?;
+        let mut markers = Vec::new();
+        for (k, &(b, shape)) in deformed.iter().enumerate() {
+            if b != body {
+                continue;
+            }
+            // W_m = M_ff^-1 S_m^T.
+            let mut w = vec![0.0; 6 * n];
+            for (j, &idx) in shape.indices.iter().enumerate() {
+                for c in 0..3 {
+                    w[c * n + idx] = shape.translation.get(c, j);
+                    w[(3 + c) * n + idx] = shape.rotation.get(c, j);
+                }
+            }
+            factor.solve_in_place(&mut w)?;
+            markers.push((k, w, shape.clone()));
+        }
+        let couplings = marker_couplings(&markers, n);
+        let first = model.bodies[body].offset + 7;
+        Ok(ElasticBody { first, free_first, n, reference, factor, markers, couplings })
+    }
+}
+
+/// S_m W_m' (6 x 6, row-major) for each pair (m, m') of a body's `markers` (row-major over
+/// the pairs), `n` the body's elastic coordinates.
+fn marker_couplings(markers: &[(usize, Vec<f64>, MarkerElastic)], n: usize) -> Vec<[[f64; 6]; 6]> {
+    let mut couplings = Vec::new();
+    for (_, _, shape) in markers {
+        for (_, w, _) in markers {
+            let mut g = [[0.0; 6]; 6];
+            for c in 0..6 {
+                let s = shape_times(shape, &w[c * n..(c + 1) * n]);
+                for r in 0..6 {
+                    g[r][c] = s[r];
+                }
+            }
+            couplings.push(g);
+        }
+    }
+    couplings
+}
+
 /// S_m x for a column x over the body's elastic coordinates: 6 values.
 fn shape_times(shape: &MarkerElastic, x: &[f64]) -> [f64; 6] {
     let mut out = [0.0; 6];
@@ -118,15 +183,51 @@ pub struct TreeSolver {
     row_of: Vec<usize>,
     free_joints: usize,
     cut_rows: Vec<usize>,
-    /// Eq. 40: pattern and LU (symbolic analysis once).
-    sparse: Option<(SparsePattern, SparseLu, Vec<f64>)>,
-    /// Eq. 40: the unknown of each model coordinate (a reference or elastic acceleration;
-    /// usize::MAX for the other coordinates), and the position among the cut rows of each
-    /// constraint row (usize::MAX if not cut).
-    unknown_of: Vec<usize>,
-    cut_of: Vec<usize>,
+    /// Eq. 40: its sparse system (None for eq. 41).
+    coupled: Option<CoupledSystem>,
     zero_q: Vec<f64>,
     zero_lambda: Vec<f64>,
+}
+
+/// The sparse system of eq. 40: where the model's coordinates and constraint rows go, the
+/// pattern, its LU (symbolic analysis once) and the values of the current matrix.
+struct CoupledSystem {
+    /// The unknown of each model coordinate (a reference or elastic acceleration; usize::MAX
+    /// for the other coordinates).
+    unknown_of: Vec<usize>,
+    /// The position among the cut rows of each constraint row (usize::MAX if not cut).
+    cut_of: Vec<usize>,
+    pattern: SparsePattern,
+    lu: SparseLu,
+    /// The matrix's values on `pattern` (nnz), filled by [`TreeSolver::coupled`].
+    values: Vec<f64>,
+}
+
+/// Where the blocks of unknowns of eq. 40 start: [q_dd_r, q_dd_f, -F_r, p_dd, mu].
+struct CoupledLayout {
+    /// q_dd_f of each deformable body.
+    elastic: Vec<usize>,
+    /// -F_r.
+    y0: usize,
+    /// p_dd.
+    p0: usize,
+    /// mu.
+    c0: usize,
+}
+
+/// The dense system of eq. 41, a z = rhs with z = [q_dd_r, -F_r, p_dd, mu], as it is formed.
+struct ReducedSystem {
+    a: Mat<f64>,
+    rhs: Vec<f64>,
+}
+
+/// What eliminating a deformable body's elastic accelerations from eq. 40 leaves to recover
+/// them (eq. 38b).
+struct Elimination {
+    /// X = M_ff^-1 [M_fr | Q_f] (n x 8, column-major).
+    x: Vec<f64>,
+    /// M_ff^-1 C_f^T per cut row (n values; empty where the row does not reach the body).
+    cut_solves: Vec<Vec<f64>>,
 }
 
 impl std::fmt::Debug for TreeSolver {
@@ -149,71 +250,14 @@ impl TreeSolver {
             row_of[r] = i;
         }
         let deformed = tree.deformed_markers();
-        let mut bodies = Vec::new();
-        for (body, free_first, n) in tree.elastic_blocks() {
-            let BodyKind::Flexible(fb) = &model.bodies[body].kind else {
-                unreachable!("elastic blocks are flexible")
-            };
-            let m = &fb.mass_matrix.matrix;
-            let matrix = CscRef { n, col_ptr: &m.col_ptr, row_idx: &m.row_idx, values: &m.values };
-            let ordering = match (&fb.dof_nodes, &fb.node_positions) {
-                (Some(nodes), Some(positions)) => Ordering::NestedDissection { dof_nodes: nodes, positions },
-                _ => Ordering::Amd,
-            };
-            let item = format!("mass matrix M_ff of body '{}'", model.bodies[body].name);
-            let factor = SymmetricFactor::new(&item, matrix, ordering, FactorKind::Cholesky, 1)?;
-            let mut markers = Vec::new();
-            for (k, &(b, shape)) in deformed.iter().enumerate() {
-                if b != body {
-                    continue;
-                }
-                // W_m = M_ff^-1 S_m^T.
-                let mut w = vec![0.0; 6 * n];
-                for (j, &idx) in shape.indices.iter().enumerate() {
-                    for c in 0..3 {
-                        w[c * n + idx] = shape.translation.get(c, j);
-                        w[(3 + c) * n + idx] = shape.rotation.get(c, j);
-                    }
-                }
-                factor.solve_in_place(&mut w)?;
-                markers.push((k, w, shape.clone()));
-            }
-            let mut couplings = Vec::new();
-            for (_, _, shape) in &markers {
-                for (_, w, _) in &markers {
-                    let mut g = [[0.0; 6]; 6];
-                    for c in 0..6 {
-                        let s = shape_times(shape, &w[c * n..(c + 1) * n]);
-                        for r in 0..6 {
-                            g[r][c] = s[r];
-                        }
-                    }
-                    couplings.push(g);
-                }
-            }
-            let o = model.bodies[body].offset;
-            bodies.push(ElasticBody {
-                first: o + 7,
-                free_first,
-                n,
-                reference: row_of[o],
-                factor,
-                markers,
-                couplings,
-            });
-        }
-        let mut unknown_of = row_of.clone();
-        let mut offset = rows.len();
-        for b in &bodies {
-            for (i, u) in unknown_of[b.first..b.first + b.n].iter_mut().enumerate() {
-                *u = offset + i;
-            }
-            offset += b.n;
-        }
-        let mut cut_of = vec![usize::MAX; model.constraint_count];
-        for (a, &r) in tree.cut_rows.iter().enumerate() {
-            cut_of[r] = a;
-        }
+        let bodies = tree
+            .elastic_blocks()
+            .into_iter()
+            .map(|(body, free_first, n)| {
+                let reference = row_of[model.bodies[body].offset];
+                ElasticBody::new(model, body, free_first, n, reference, &deformed)
+            })
+            .collect::<Result<Vec<_>>>()?;
         let mut solver = TreeSolver {
             formulation,
             bodies,
@@ -221,17 +265,12 @@ impl TreeSolver {
             row_of,
             free_joints: tree.free_joint_count(),
             cut_rows: tree.cut_rows.clone(),
-            sparse: None,
-            unknown_of,
-            cut_of,
+            coupled: None,
             zero_q: vec![0.0; model.coordinate_count],
             zero_lambda: vec![0.0; model.constraint_count],
         };
         if formulation == TreeFormulation::Coupled {
-            let pattern = solver.coupled_pattern(model);
-            let lu = SparseLu::new(&pattern).map_err(|e| singular("eq. 40 (symbolic analysis)", e))?;
-            let values = vec![0.0; pattern.nnz()];
-            solver.sparse = Some((pattern, lu, values));
+            solver.coupled = Some(CoupledSystem::new(model, &solver)?);
         }
         Ok(solver)
     }
@@ -246,57 +285,18 @@ impl TreeSolver {
         }
     }
 
-    /// Position of the elastic unknowns of body `k` in eq. 40 (after q_dd_r).
-    fn elastic_offset(&self, k: usize) -> usize {
-        self.rows.len() + self.bodies[..k].iter().map(|b| b.n).sum::<usize>()
-    }
-
-    /// The sparsity pattern of eq. 40 (structural: every entry that can be non-zero).
-    fn coupled_pattern(&self, model: &Model) -> SparsePattern {
+    /// Where the blocks of unknowns of eq. 40 start.
+    fn coupled_layout(&self) -> CoupledLayout {
         let nr = self.rows.len();
-        let nf: usize = self.bodies.iter().map(|b| b.n).sum();
+        let mut elastic = Vec::with_capacity(self.bodies.len());
+        let mut offset = nr;
+        for b in &self.bodies {
+            elastic.push(offset);
+            offset += b.n;
+        }
+        let nf = offset - nr;
         let (y0, p0) = (nr + nf, 2 * nr + nf);
-        let c0 = p0 + self.free_joints;
-        let mut pb = PatternBuilder::new(c0 + self.cut_rows.len());
-        // Mass blocks: the pattern of M restricted to each body.
-        let pattern = &model.layout.pattern;
-        let nq = model.coordinate_count;
-        for c in 0..nq {
-            let uc = self.unknown_of[c];
-            if uc == usize::MAX {
-                continue;
-            }
-            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-                let r = pattern.row_idx[k];
-                if r < nq {
-                    if self.unknown_of[r] != usize::MAX {
-                        pb.add_entry(self.unknown_of[r], uc);
-                    }
-                } else if self.cut_of[r - nq] != usize::MAX {
-                    let a = self.cut_of[r - nq];
-                    pb.add_entry(c0 + a, uc);
-                    pb.add_entry(uc, c0 + a);
-                }
-            }
-        }
-        for i in 0..nr {
-            pb.add_entry(i, y0 + i);
-            pb.add_entry(y0 + i, i);
-        }
-        // H_pp (dense over the reference rows) and H_pf (the rows the markers move, the
-        // columns of their shapes).
-        let joints: Vec<usize> = (p0..p0 + self.free_joints).collect();
-        let y_rows: Vec<usize> = (y0..y0 + nr).collect();
-        pb.add_block(&y_rows, &joints);
-        pb.add_block(&joints, &y_rows);
-        for (k, b) in self.bodies.iter().enumerate() {
-            for (_, _, shape) in &b.markers {
-                let cols: Vec<usize> = shape.indices.iter().map(|&i| self.elastic_offset(k) + i).collect();
-                pb.add_block(&y_rows, &cols);
-                pb.add_block(&cols, &y_rows);
-            }
-        }
-        pb.build()
+        CoupledLayout { elastic, y0, p0, c0: p0 + self.free_joints }
     }
 
     /// The accelerations at (time, q, q_dot) of the tree state `st`, with `ws` a workspace
@@ -387,7 +387,8 @@ impl TreeSolver {
         (m_rr, m_fr, cut)
     }
 
-    /// Eq. 41.
+    /// Eq. 41: every body's elastic accelerations eliminated with its constant M_ff, the
+    /// reduced system solved, and the elastic accelerations recovered (eq. 38b).
     fn decoupled(
         &mut self,
         model: &Model,
@@ -396,12 +397,36 @@ impl TreeSolver {
         force: &[f64],
         gamma_c: &[f64],
     ) -> Result<TreeAccelerations> {
+        let (m_rr, m_fr, cut) = self.blocks(model, ws);
+        let mut system = self.tree_system(&m_rr, &cut, st, force, gamma_c);
+        let mut eliminated = Vec::with_capacity(self.bodies.len());
+        for (b, m_fr) in self.bodies.iter().zip(&m_fr) {
+            eliminated.push(self.eliminate_elastic(b, m_fr, force, st, &cut, &mut system)?);
+        }
+        let z = Self::solve_with_cut_rows(&system.a, &system.rhs, self.cut_start())?;
+        Ok(self.decoupled_accelerations(st, &z, &eliminated))
+    }
+
+    /// Where the cut rows (mu) start in eq. 41: after q_dd_r, -F_r and p_dd.
+    fn cut_start(&self) -> usize {
+        2 * self.rows.len() + self.free_joints
+    }
+
+    /// Eq. 41 before the elastic accelerations are eliminated: M_rr, the identities and
+    /// -H_pp between q_dd_r, -F_r and p_dd, the cut rows' C_r, and the right-hand side
+    /// [Q_r; gamma_r; 0; gamma_c].
+    fn tree_system(
+        &self,
+        m_rr: &Mat<f64>,
+        cut: &[Vec<(usize, f64)>],
+        st: &StructuredState,
+        force: &[f64],
+        gamma_c: &[f64],
+    ) -> ReducedSystem {
         let nr = self.rows.len();
         let np = self.free_joints;
-        let nc = self.cut_rows.len();
-        let (y0, p0, c0) = (nr, 2 * nr, 2 * nr + np);
-        let size = c0 + nc;
-        let (m_rr, m_fr, cut) = self.blocks(model, ws);
+        let (y0, p0, c0) = (nr, 2 * nr, self.cut_start());
+        let size = c0 + self.cut_rows.len();
         let mut a = Mat::<f64>::zeros(size, size);
         let mut rhs = vec![0.0; size];
         for i in 0..nr {
@@ -430,162 +455,211 @@ impl TreeSolver {
             }
             rhs[c0 + c] = gamma_c[c];
         }
-        // Per deformable body: X = M_ff^-1 [M_fr | Q_f] and the cut rows' V = C_f X.
-        let mut xs = Vec::with_capacity(self.bodies.len());
-        let mut cut_solves = Vec::with_capacity(self.bodies.len());
-        for (bk, b) in self.bodies.iter().enumerate() {
-            let n = b.n;
-            let mut x = vec![0.0; 8 * n];
-            x[..7 * n].copy_from_slice(&m_fr[bk]);
-            x[7 * n..].copy_from_slice(&force[b.first..b.first + n]);
-            b.factor.solve_in_place(&mut x)?;
-            let r0 = b.reference;
-            // Rows of the body's reference coordinates: M_rr - M_rf X, Q_r - M_rf M_ff^-1 Q_f.
+        ReducedSystem { a, rhs }
+    }
+
+    /// Eliminates the elastic accelerations of body `b` (its M_fr `m_fr`, n x 7 column-major)
+    /// from eq. 40 into `system`: X = M_ff^-1 [M_fr | Q_f], then the Schur complement's terms
+    /// in the body's reference rows, in the -F_r rows through its markers and in the cut rows
+    /// `cut` (entries per cut row, model coordinates).
+    fn eliminate_elastic(
+        &self,
+        b: &ElasticBody,
+        m_fr: &[f64],
+        force: &[f64],
+        st: &StructuredState,
+        cut: &[Vec<(usize, f64)>],
+        system: &mut ReducedSystem,
+    ) -> Result<Elimination> {
+        let n = b.n;
+        let mut x = vec![0.0; 8 * n];
+        x[..7 * n].copy_from_slice(m_fr);
+        x[7 * n..].copy_from_slice(&force[b.first..b.first + n]);
+        b.factor.solve_in_place(&mut x)?;
+        subtract_reference_coupling(b, m_fr, &x, system);
+        self.add_marker_terms(b, &x, st, system);
+        let cut_solves =
+            if cut.is_empty() { Vec::new() } else { self.add_cut_terms(b, &x, st, cut, system)? };
+        Ok(Elimination { x, cut_solves })
+    }
+
+    /// The terms of body `b`'s markers in eq. 41 (X of the body: `x`): M_rf M_ff^-1 H_pf^T
+    /// and its transpose, H_pf M_ff^-1 Q_f, and -H_pf M_ff^-1 H_pf^T over the pairs of its
+    /// markers.
+    fn add_marker_terms(&self, b: &ElasticBody, x: &[f64], st: &StructuredState, system: &mut ReducedSystem) {
+        let (n, nr, r0) = (b.n, self.rows.len(), b.reference);
+        let y0 = nr;
+        let ReducedSystem { a, rhs } = system;
+        // Markers: E_m = S_m X (6 x 8).
+        for (mk, (index, _, shape)) in b.markers.iter().enumerate() {
+            let d = &st.markers[*index];
+            let e: Vec<[f64; 6]> = (0..8).map(|j| shape_times(shape, &x[j * n..(j + 1) * n])).collect();
+            // M_rf M_ff^-1 H_pf^T (rows of the body) = E[:, :7]^T D^T, and its transpose.
             for i in 0..7 {
-                let mi = &m_fr[bk][i * n..(i + 1) * n];
-                for j in 0..8 {
-                    let xj = &x[j * n..(j + 1) * n];
-                    let v: f64 = mi.iter().zip(xj).map(|(p, q)| p * q).sum();
-                    if j < 7 {
-                        a[(r0 + i, r0 + j)] -= v;
-                    } else {
-                        rhs[r0 + i] -= v;
-                    }
-                }
-            }
-            // Markers: E_m = S_m X (6 x 8).
-            for (mk, (index, _, shape)) in b.markers.iter().enumerate() {
-                let d = &st.markers[*index];
-                let e: Vec<[f64; 6]> = (0..8).map(|j| shape_times(shape, &x[j * n..(j + 1) * n])).collect();
-                // M_rf M_ff^-1 H_pf^T (rows of the body) = E[:, :7]^T D^T, and its transpose.
-                for i in 0..7 {
-                    for r in 0..nr {
-                        let v: f64 = (0..6).map(|c| e[i][c] * d[(r, c)]).sum();
-                        a[(r0 + i, y0 + r)] += v;
-                        a[(y0 + r, r0 + i)] += v;
-                    }
-                }
-                // H_pf M_ff^-1 Q_f.
                 for r in 0..nr {
-                    rhs[y0 + r] += (0..6).map(|c| d[(r, c)] * e[7][c]).sum::<f64>();
+                    let v: f64 = (0..6).map(|c| e[i][c] * d[(r, c)]).sum();
+                    a[(r0 + i, y0 + r)] += v;
+                    a[(y0 + r, r0 + i)] += v;
                 }
-                // -H_pf M_ff^-1 H_pf^T over the pairs of the body's markers.
-                for (mk2, (index2, _, _)) in b.markers.iter().enumerate() {
-                    let d2 = &st.markers[*index2];
-                    let g = &b.couplings[mk * b.markers.len() + mk2];
-                    for r in 0..nr {
-                        let dg: [f64; 6] =
-                            std::array::from_fn(|c2| (0..6).map(|c| d[(r, c)] * g[c][c2]).sum());
-                        for s in 0..nr {
-                            a[(y0 + r, y0 + s)] -= (0..6).map(|c2| dg[c2] * d2[(s, c2)]).sum::<f64>();
-                        }
+            }
+            // H_pf M_ff^-1 Q_f.
+            for r in 0..nr {
+                rhs[y0 + r] += (0..6).map(|c| d[(r, c)] * e[7][c]).sum::<f64>();
+            }
+            // -H_pf M_ff^-1 H_pf^T over the pairs of the body's markers.
+            for (mk2, (index2, _, _)) in b.markers.iter().enumerate() {
+                let d2 = &st.markers[*index2];
+                let g = &b.couplings[mk * b.markers.len() + mk2];
+                for r in 0..nr {
+                    let dg: [f64; 6] = std::array::from_fn(|c2| (0..6).map(|c| d[(r, c)] * g[c][c2]).sum());
+                    for s in 0..nr {
+                        a[(y0 + r, y0 + s)] -= (0..6).map(|c2| dg[c2] * d2[(s, c2)]).sum::<f64>();
                     }
                 }
             }
-            // Cut rows through the elastic coordinates: C_f M_ff^-1 [.] terms.
-            let mut cf_solves: Vec<Vec<f64>> = Vec::new();
-            if nc > 0 {
-                let columns: Vec<Vec<(usize, f64)>> = cut
-                    .iter()
-                    .map(|e| {
-                        e.iter()
-                            .filter(|(q, _)| (b.first..b.first + n).contains(q))
-                            .map(|&(q, v)| (q - b.first, v))
-                            .collect()
-                    })
-                    .collect();
-                for (c, col) in columns.iter().enumerate() {
-                    if col.is_empty() {
-                        cf_solves.push(Vec::new());
-                        continue;
-                    }
-                    // V = C_f X (row c): 8 values.
-                    let v: Vec<f64> =
-                        (0..8).map(|j| col.iter().map(|&(f, w)| w * x[j * n + f]).sum::<f64>()).collect();
-                    for i in 0..7 {
-                        a[(c0 + c, r0 + i)] -= v[i];
-                        a[(r0 + i, c0 + c)] -= v[i];
-                    }
-                    rhs[c0 + c] -= v[7];
-                    // C_f W_m D_m^T (the y columns) and its transpose.
-                    for (index, w, _) in &b.markers {
-                        let d = &st.markers[*index];
-                        let cw: Vec<f64> = (0..6)
-                            .map(|k| col.iter().map(|&(f, wv)| wv * w[k * n + f]).sum::<f64>())
-                            .collect();
-                        for r in 0..nr {
-                            let val: f64 = (0..6).map(|k| cw[k] * d[(r, k)]).sum();
-                            a[(c0 + c, y0 + r)] += val;
-                            a[(y0 + r, c0 + c)] += val;
-                        }
-                    }
-                    // M_ff^-1 C_f^T (column c).
-                    let mut z = vec![0.0; n];
-                    for &(f, w) in col {
-                        z[f] += w;
-                    }
-                    b.factor.solve_in_place(&mut z)?;
-                    cf_solves.push(z);
-                }
-                // -C_f M_ff^-1 C_f^T.
-                for (c, z) in cf_solves.iter().enumerate() {
-                    if z.is_empty() {
-                        continue;
-                    }
-                    for (c2, col) in columns.iter().enumerate() {
-                        a[(c0 + c2, c0 + c)] -= col.iter().map(|&(f, w)| w * z[f]).sum::<f64>();
-                    }
-                }
-            }
-            xs.push(x);
-            cut_solves.push(cf_solves);
         }
-        let z = Self::solve_with_cut_rows(&a, &rhs, c0)?;
-        // Elastic accelerations (eq. 38b).
+    }
+
+    /// The terms of the cut rows through body `b`'s elastic coordinates in eq. 41 (X of the
+    /// body: `x`): -C_f X in the body's reference rows and the right-hand side, C_f W_m D_m^T
+    /// in the -F_r columns, and -C_f M_ff^-1 C_f^T. Returns M_ff^-1 C_f^T per cut row (empty
+    /// where the row does not reach the body).
+    fn add_cut_terms(
+        &self,
+        b: &ElasticBody,
+        x: &[f64],
+        st: &StructuredState,
+        cut: &[Vec<(usize, f64)>],
+        system: &mut ReducedSystem,
+    ) -> Result<Vec<Vec<f64>>> {
+        let (n, nr, r0) = (b.n, self.rows.len(), b.reference);
+        let (y0, c0) = (nr, self.cut_start());
+        let ReducedSystem { a, rhs } = system;
+        let mut cf_solves: Vec<Vec<f64>> = Vec::new();
+        // C_f: the cut rows' entries on the body's elastic coordinates (body indices).
+        let columns: Vec<Vec<(usize, f64)>> = cut
+            .iter()
+            .map(|e| {
+                e.iter()
+                    .filter(|(q, _)| (b.first..b.first + n).contains(q))
+                    .map(|&(q, v)| (q - b.first, v))
+                    .collect()
+            })
+            .collect();
+        for (c, col) in columns.iter().enumerate() {
+            if col.is_empty() {
+                cf_solves.push(Vec::new());
+                continue;
+            }
+            // V = C_f X (row c): 8 values.
+            let v: Vec<f64> =
+                (0..8).map(|j| col.iter().map(|&(f, w)| w * x[j * n + f]).sum::<f64>()).collect();
+            for i in 0..7 {
+                a[(c0 + c, r0 + i)] -= v[i];
+                a[(r0 + i, c0 + c)] -= v[i];
+            }
+            rhs[c0 + c] -= v[7];
+            // C_f W_m D_m^T (the y columns) and its transpose.
+            for (index, w, _) in &b.markers {
+                let d = &st.markers[*index];
+                let cw: Vec<f64> =
+                    (0..6).map(|k| col.iter().map(|&(f, wv)| wv * w[k * n + f]).sum::<f64>()).collect();
+                for r in 0..nr {
+                    let val: f64 = (0..6).map(|k| cw[k] * d[(r, k)]).sum();
+                    a[(c0 + c, y0 + r)] += val;
+                    a[(y0 + r, c0 + c)] += val;
+                }
+            }
+            // M_ff^-1 C_f^T (column c).
+            let mut z = vec![0.0; n];
+            for &(f, w) in col {
+                z[f] += w;
+            }
+            b.factor.solve_in_place(&mut z)?;
+            cf_solves.push(z);
+        }
+        // -C_f M_ff^-1 C_f^T.
+        for (c, z) in cf_solves.iter().enumerate() {
+            if z.is_empty() {
+                continue;
+            }
+            for (c2, col) in columns.iter().enumerate() {
+                a[(c0 + c2, c0 + c)] -= col.iter().map(|&(f, w)| w * z[f]).sum::<f64>();
+            }
+        }
+        Ok(cf_solves)
+    }
+
+    /// The accelerations from the solution `z` of eq. 41: q_dd_r, p_dd, -F_r and mu read
+    /// off, the elastic accelerations of each body recovered from its `eliminated` solves
+    /// (eq. 38b).
+    fn decoupled_accelerations(
+        &self,
+        st: &StructuredState,
+        z: &[f64],
+        eliminated: &[Elimination],
+    ) -> TreeAccelerations {
+        let nr = self.rows.len();
+        let np = self.free_joints;
+        let (y0, p0, c0) = (nr, 2 * nr, self.cut_start());
+        let nc = self.cut_rows.len();
         let mut qdd = st.gamma.clone();
         let mut free = vec![0.0; np + self.bodies.iter().map(|b| b.n).sum::<usize>()];
         free[..np].copy_from_slice(&z[p0..p0 + np]);
         for i in 0..nr {
             qdd[self.rows[i]] = z[i];
         }
-        for (bk, b) in self.bodies.iter().enumerate() {
-            let n = b.n;
-            let x = &xs[bk];
-            let r0 = b.reference;
-            let mut f = x[7 * n..].to_vec();
-            for j in 0..7 {
-                let s = z[r0 + j];
-                for (fi, xj) in f.iter_mut().zip(&x[j * n..(j + 1) * n]) {
-                    *fi -= xj * s;
-                }
-            }
-            for (index, w, _) in &b.markers {
-                let d = &st.markers[*index];
-                for k in 0..6 {
-                    let s: f64 = (0..nr).map(|r| d[(r, k)] * z[y0 + r]).sum();
-                    for (fi, wk) in f.iter_mut().zip(&w[k * n..(k + 1) * n]) {
-                        *fi += wk * s;
-                    }
-                }
-            }
-            for (c, zc) in cut_solves[bk].iter().enumerate() {
-                if zc.is_empty() {
-                    continue;
-                }
-                let mu = z[c0 + c];
-                for (fi, v) in f.iter_mut().zip(zc) {
-                    *fi -= v * mu;
-                }
-            }
-            qdd[b.first..b.first + n].copy_from_slice(&f);
-            free[b.free_first..b.free_first + n].copy_from_slice(&f);
+        for (b, elimination) in self.bodies.iter().zip(eliminated) {
+            let f = self.elastic_accelerations(b, elimination, st, z);
+            qdd[b.first..b.first + b.n].copy_from_slice(&f);
+            free[b.free_first..b.free_first + b.n].copy_from_slice(&f);
         }
-        Ok(TreeAccelerations {
+        TreeAccelerations {
             accelerations: qdd,
             free_accelerations: free,
             reactions: z[y0..y0 + nr].to_vec(),
             cut_multipliers: z[c0..c0 + nc].to_vec(),
-        })
+        }
+    }
+
+    /// Eq. 38b for body `b`: q_dd_f = M_ff^-1 (Q_f - M_fr q_dd_r + H_pf^T (-F_r) - C_f^T mu)
+    /// from the solution `z` of eq. 41 and the body's `elimination` solves.
+    fn elastic_accelerations(
+        &self,
+        b: &ElasticBody,
+        elimination: &Elimination,
+        st: &StructuredState,
+        z: &[f64],
+    ) -> Vec<f64> {
+        let (n, nr, r0) = (b.n, self.rows.len(), b.reference);
+        let (y0, c0) = (nr, self.cut_start());
+        let x = &elimination.x;
+        let mut f = x[7 * n..].to_vec();
+        for j in 0..7 {
+            let s = z[r0 + j];
+            for (fi, xj) in f.iter_mut().zip(&x[j * n..(j + 1) * n]) {
+                *fi -= xj * s;
+            }
+        }
+        for (index, w, _) in &b.markers {
+            let d = &st.markers[*index];
+            for k in 0..6 {
+                let s: f64 = (0..nr).map(|r| d[(r, k)] * z[y0 + r]).sum();
+                for (fi, wk) in f.iter_mut().zip(&w[k * n..(k + 1) * n]) {
+                    *fi += wk * s;
+                }
+            }
+        }
+        for (c, zc) in elimination.cut_solves.iter().enumerate() {
+            if zc.is_empty() {
+                continue;
+            }
+            let mu = z[c0 + c];
+            for (fi, v) in f.iter_mut().zip(zc) {
+                *fi -= v * mu;
+            }
+        }
+        f
     }
 
     /// Solves the reduced system `a z = rhs` whose rows from `c0` on are the cut rows: LU of
@@ -639,7 +713,8 @@ impl TreeSolver {
         Ok(z)
     }
 
-    /// Eq. 40 (sparse LU).
+    /// Eq. 40 (sparse LU): the matrix filled on its pattern, solved with equilibration, and
+    /// the accelerations read off.
     fn coupled(
         &mut self,
         model: &Model,
@@ -648,19 +723,95 @@ impl TreeSolver {
         force: &[f64],
         gamma_c: &[f64],
     ) -> Result<TreeAccelerations> {
-        let nq = model.coordinate_count;
-        let nr = self.rows.len();
-        let nf: usize = self.bodies.iter().map(|b| b.n).sum();
-        let (y0, p0) = (nr + nf, 2 * nr + nf);
-        let np = self.free_joints;
-        let c0 = p0 + np;
+        let layout = self.coupled_layout();
         let nc = self.cut_rows.len();
-        let offsets: Vec<usize> = (0..self.bodies.len()).map(|k| self.elastic_offset(k)).collect();
-        let mut rhs = vec![0.0; c0 + nc];
-        let (pattern, lu, values) = self.sparse.as_mut().expect("eq. 40 pattern");
-        values.iter_mut().for_each(|v| *v = 0.0);
+        let mut rhs = vec![0.0; layout.c0 + nc];
+        let system = self.coupled.as_mut().expect("eq. 40 system");
+        system.values.iter_mut().for_each(|v| *v = 0.0);
+        system.add_model_blocks(model, ws, force, layout.c0, &mut rhs);
+        system.add_tree_blocks(&self.rows, self.free_joints, st, &layout, &mut rhs);
+        system.add_elastic_influence(&self.bodies, self.rows.len(), st, &layout);
+        rhs[layout.c0..layout.c0 + nc].copy_from_slice(gamma_c);
+        system.solve_equilibrated(&mut rhs)?;
+        Ok(self.coupled_accelerations(st, &rhs, &layout))
+    }
+
+    /// The accelerations from the solution `z` of eq. 40 (unknowns at `layout`).
+    fn coupled_accelerations(
+        &self,
+        st: &StructuredState,
+        z: &[f64],
+        layout: &CoupledLayout,
+    ) -> TreeAccelerations {
+        let nr = self.rows.len();
+        let np = self.free_joints;
+        let nf: usize = self.bodies.iter().map(|b| b.n).sum();
+        let (y0, p0, c0) = (layout.y0, layout.p0, layout.c0);
+        let nc = self.cut_rows.len();
+        let mut qdd = st.gamma.clone();
+        let mut free = vec![0.0; np + nf];
+        free[..np].copy_from_slice(&z[p0..p0 + np]);
+        for i in 0..nr {
+            qdd[self.rows[i]] = z[i];
+        }
+        for (b, &o) in self.bodies.iter().zip(&layout.elastic) {
+            qdd[b.first..b.first + b.n].copy_from_slice(&z[o..o + b.n]);
+            free[b.free_first..b.free_first + b.n].copy_from_slice(&z[o..o + b.n]);
+        }
+        TreeAccelerations {
+            accelerations: qdd,
+            free_accelerations: free,
+            reactions: z[y0..y0 + nr].to_vec(),
+            cut_multipliers: z[c0..c0 + nc].to_vec(),
+        }
+    }
+}
+
+/// Rows of body `b`'s reference coordinates in eq. 41 (its M_fr `m_fr` and X `x`): M_rr -
+/// M_rf X and Q_r - M_rf M_ff^-1 Q_f.
+fn subtract_reference_coupling(b: &ElasticBody, m_fr: &[f64], x: &[f64], system: &mut ReducedSystem) {
+    let (n, r0) = (b.n, b.reference);
+    for i in 0..7 {
+        let mi = &m_fr[i * n..(i + 1) * n];
+        for j in 0..8 {
+            let xj = &x[j * n..(j + 1) * n];
+            let v: f64 = mi.iter().zip(xj).map(|(p, q)| p * q).sum();
+            if j < 7 {
+                system.a[(r0 + i, r0 + j)] -= v;
+            } else {
+                system.rhs[r0 + i] -= v;
+            }
+        }
+    }
+}
+
+impl CoupledSystem {
+    /// The unknowns, pattern and symbolic LU of eq. 40 for `solver`'s tree of `model`.
+    fn new(model: &Model, solver: &TreeSolver) -> Result<CoupledSystem> {
+        let mut unknown_of = solver.row_of.clone();
+        let mut offset = solver.rows.len();
+        for b in &solver.bodies {
+            for (i, u) in unknown_of[b.first..b.first + b.n].iter_mut().enumerate() {
+                *u = offset + i;
+            }
+            offset += b.n;
+        }
+        let mut cut_of = vec![usize::MAX; model.constraint_count];
+        for (a, &r) in solver.cut_rows.iter().enumerate() {
+            cut_of[r] = a;
+        }
+        let pattern = coupled_pattern(model, solver, &unknown_of, &cut_of);
+        let lu = SparseLu::new(&pattern).map_err(|e| singular("eq. 40 (symbolic analysis)", e))?;
+        let values = vec![0.0; pattern.nnz()];
+        Ok(CoupledSystem { unknown_of, cut_of, pattern, lu, values })
+    }
+
+    /// The bodies' mass blocks (M restricted to each body) and the cut rows' Jacobian and its
+    /// transpose (rows from `c0`) from the assembled values of `ws`; Q into `rhs`.
+    fn add_model_blocks(&mut self, model: &Model, ws: &Workspace, force: &[f64], c0: usize, rhs: &mut [f64]) {
+        let nq = model.coordinate_count;
         let mp = &model.layout.pattern;
-        let (unknown_of, cut_of) = (&self.unknown_of, &self.cut_of);
+        let CoupledSystem { unknown_of, cut_of, pattern, values, .. } = self;
         for c in 0..nq {
             let uc = unknown_of[c];
             if uc == usize::MAX {
@@ -681,18 +832,44 @@ impl TreeSolver {
                 }
             }
         }
-        for i in 0..nr {
+    }
+
+    /// The identities between q_dd_r and -F_r, -H_pp and its transpose (`free_joints`
+    /// columns of `st.joint_influence`), and gamma_r into `rhs`; `rows`: the reference rows.
+    fn add_tree_blocks(
+        &mut self,
+        rows: &[usize],
+        free_joints: usize,
+        st: &StructuredState,
+        layout: &CoupledLayout,
+        rhs: &mut [f64],
+    ) {
+        let (y0, p0) = (layout.y0, layout.p0);
+        let CoupledSystem { pattern, values, .. } = self;
+        for i in 0..rows.len() {
             values[pattern.index(i, y0 + i)] += 1.0;
             values[pattern.index(y0 + i, i)] += 1.0;
-            rhs[y0 + i] = st.gamma[self.rows[i]];
-            for k in 0..np {
+            rhs[y0 + i] = st.gamma[rows[i]];
+            for k in 0..free_joints {
                 let h = st.joint_influence[(i, k)];
                 values[pattern.index(y0 + i, p0 + k)] -= h;
                 values[pattern.index(p0 + k, y0 + i)] -= h;
             }
         }
-        // -H_pf = -sum D_m S_m in the y rows, and its transpose.
-        for (b, &o) in self.bodies.iter().zip(&offsets) {
+    }
+
+    /// -H_pf = -sum D_m S_m over the `bodies`' markers in the -F_r rows (`nr` of them), and
+    /// its transpose.
+    fn add_elastic_influence(
+        &mut self,
+        bodies: &[ElasticBody],
+        nr: usize,
+        st: &StructuredState,
+        layout: &CoupledLayout,
+    ) {
+        let y0 = layout.y0;
+        let CoupledSystem { pattern, values, .. } = self;
+        for (b, &o) in bodies.iter().zip(&layout.elastic) {
             for (index, _, shape) in &b.markers {
                 let d = &st.markers[*index];
                 for (j, &idx) in shape.indices.iter().enumerate() {
@@ -712,7 +889,11 @@ impl TreeSolver {
                 }
             }
         }
-        rhs[c0..c0 + nc].copy_from_slice(gamma_c);
+    }
+
+    /// Solves the filled system in place of `rhs` by the sparse LU of its symmetric
+    /// equilibration D A D, D_ii = max_j |A_ij|^-1/2 (the values are left scaled).
+    fn solve_equilibrated(&mut self, rhs: &mut [f64]) -> Result<()> {
         let context = "the loosely coupled joint-elastic system (seed eq. 40)";
         // Symmetric equilibration, D A D with D_ii = max_j |A_ij|^-1/2: the system mixes
         // nodal masses, identities and influence coefficients over many decades, and the
@@ -720,6 +901,7 @@ impl TreeSolver {
         // to the sparse augmented solution at 3000 elastic coordinates per link; 1.3e-9
         // scaled, where iterative refinement does not help further: the residual is at
         // round-off and the rest is the system's condition, which grows with the mesh).
+        let CoupledSystem { pattern, lu, values, .. } = self;
         let size = rhs.len();
         let mut scale = vec![0.0f64; size];
         for c in 0..size {
@@ -737,23 +919,61 @@ impl TreeSolver {
         }
         rhs.iter_mut().zip(&scale).for_each(|(x, d)| *x *= d);
         lu.factorize(values).map_err(|e| singular(context, e))?;
-        lu.solve_in_place(&mut rhs).map_err(|e| singular(context, e))?;
+        lu.solve_in_place(rhs).map_err(|e| singular(context, e))?;
         rhs.iter_mut().zip(&scale).for_each(|(x, d)| *x *= d);
-        let mut qdd = st.gamma.clone();
-        let mut free = vec![0.0; np + nf];
-        free[..np].copy_from_slice(&rhs[p0..p0 + np]);
-        for i in 0..nr {
-            qdd[self.rows[i]] = rhs[i];
-        }
-        for (b, &o) in self.bodies.iter().zip(&offsets) {
-            qdd[b.first..b.first + b.n].copy_from_slice(&rhs[o..o + b.n]);
-            free[b.free_first..b.free_first + b.n].copy_from_slice(&rhs[o..o + b.n]);
-        }
-        Ok(TreeAccelerations {
-            accelerations: qdd,
-            free_accelerations: free,
-            reactions: rhs[y0..y0 + nr].to_vec(),
-            cut_multipliers: rhs[c0..c0 + nc].to_vec(),
-        })
+        Ok(())
     }
+}
+
+/// The sparsity pattern of eq. 40 for `solver`'s tree of `model`, with the unknown of each
+/// model coordinate `unknown_of` and the position of each constraint row among the cut rows
+/// `cut_of` (structural: every entry that can be non-zero).
+fn coupled_pattern(
+    model: &Model,
+    solver: &TreeSolver,
+    unknown_of: &[usize],
+    cut_of: &[usize],
+) -> SparsePattern {
+    let nr = solver.rows.len();
+    let CoupledLayout { elastic, y0, p0, c0 } = solver.coupled_layout();
+    let mut pb = PatternBuilder::new(c0 + solver.cut_rows.len());
+    // Mass blocks: the pattern of M restricted to each body.
+    let pattern = &model.layout.pattern;
+    let nq = model.coordinate_count;
+    for c in 0..nq {
+        let uc = unknown_of[c];
+        if uc == usize::MAX {
+            continue;
+        }
+        for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+            let r = pattern.row_idx[k];
+            if r < nq {
+                if unknown_of[r] != usize::MAX {
+                    pb.add_entry(unknown_of[r], uc);
+                }
+            } else if cut_of[r - nq] != usize::MAX {
+                let a = cut_of[r - nq];
+                pb.add_entry(c0 + a, uc);
+                pb.add_entry(uc, c0 + a);
+            }
+        }
+    }
+    for i in 0..nr {
+        pb.add_entry(i, y0 + i);
+        pb.add_entry(y0 + i, i);
+    }
+    // H_pp (dense over the reference rows) and H_pf (the rows the markers move, the
+    // columns of their shapes).
+    let joints: Vec<usize> = (p0..p0 + solver.free_joints).collect();
+    let y_rows: Vec<usize> = (y0..y0 + nr).collect();
+    pb.add_block(&y_rows, &joints);
+    pb.add_block(&joints, &y_rows);
+    for (b, &offset) in solver.bodies.iter().zip(&elastic) {
+        for (_, _, shape) in &b.markers {
+            let cols: Vec<usize> = shape.indices.iter().map(|&i| offset + i).collect();
+            pb.add_block(&y_rows, &cols);
+            pb.add_block(&cols, &y_rows);
+        }
+    }
+    pb.build()
 }

@@ -200,7 +200,40 @@ impl Model {
 impl SystemBuilder {
     /// Checks the whole system and compiles the immutable [`Model`].
     pub fn compile(&self) -> Result<Model> {
-        // Coordinates: bodies in order.
+        let (bodies, initial_coordinates, initial_velocities) = self.compiled_bodies()?;
+        let coordinate_count = initial_coordinates.len();
+        let markers = self.compiled_markers(&bodies);
+        // Constraint rows: normalizations, then joints.
+        let normalizations = normalizations(&bodies);
+        let (joints, constraint_count) = self.compiled_joints(&markers, normalizations.len());
+        let (forces, discrete_count) = self.compiled_forces(&bodies, &markers);
+        let sensors = self
+            .sensors
+            .iter()
+            .map(|s| Sensor { name: s.name.clone(), marker: s.marker, quantity: s.quantity })
+            .collect();
+        let layout =
+            matrix_layout(&bodies, &normalizations, &joints, &forces, coordinate_count, constraint_count);
+        Ok(Model {
+            gravity: self.gravity,
+            bodies,
+            markers,
+            joints,
+            forces,
+            sensors,
+            coordinate_count,
+            constraint_count,
+            normalizations,
+            discrete_count,
+            initial_coordinates,
+            initial_velocities,
+            layout,
+        })
+    }
+
+    /// The bodies with their coordinates (bodies in order), and the initial coordinates and
+    /// velocities. A system without moving bodies is an error.
+    fn compiled_bodies(&self) -> Result<(Vec<Body>, Vec<f64>, Vec<f64>)> {
         let mut bodies = Vec::with_capacity(self.bodies.len());
         let mut initial_coordinates = Vec::new();
         let mut initial_velocities = Vec::new();
@@ -212,13 +245,19 @@ impl SystemBuilder {
             initial_velocities.extend(qd);
             bodies.push(Body { name: def.name.clone(), kind: def.kind.clone(), offset, dofs });
         }
-        let coordinate_count = initial_coordinates.len();
-        if coordinate_count == 0 {
+        if initial_coordinates.is_empty() {
             return Err(FlexmbdError::InvalidModel {
                 item: "system".to_string(),
                 message: "the system has no moving bodies".to_string(),
             });
         }
+        Ok((bodies, initial_coordinates, initial_velocities))
+    }
+
+    /// The markers with the coordinates they depend on (a marker on a deformable body: the
+    /// reference coordinates and the elastic ones of its shape), and the Jacobians of their
+    /// axes and angular velocity where something differentiates them.
+    fn compiled_markers(&self, bodies: &[Body]) -> Vec<Marker> {
         let mut markers: Vec<Marker> = self
             .markers
             .iter()
@@ -246,7 +285,14 @@ impl SystemBuilder {
                 }
             })
             .collect();
-        // Axis Jacobians only where an equation or force differentiates the axes.
+        self.mark_differentiated_axes(&mut markers);
+        markers
+    }
+
+    /// Sets the axis Jacobians of `markers` only where an equation or force differentiates
+    /// the axes, and the angular-velocity Jacobian where a torque is applied or an angular
+    /// velocity is observed.
+    fn mark_differentiated_axes(&self, markers: &mut [Marker]) {
         for def in &self.joints {
             for eq in def.kind.equations() {
                 for (_, primitive) in &eq.terms {
@@ -280,25 +326,15 @@ impl SystemBuilder {
                 }
             }
         }
-        // The angular-velocity Jacobian where a torque is applied or an angular velocity is
-        // observed.
         for s in self.sensors.iter().filter(|s| s.quantity == SensorQuantity::AngularVelocity) {
             markers[s.marker.0].angular_jacobian = true;
         }
+    }
 
-        // Constraint rows: normalizations, then joints.
-        let mut normalizations = Vec::new();
-        for (k, b) in bodies.iter().enumerate() {
-            if b.kind.has_euler_parameters() {
-                let o = b.offset;
-                normalizations.push(Normalization {
-                    body: BodyId(k),
-                    row: normalizations.len(),
-                    dofs: [o + 3, o + 4, o + 5, o + 6],
-                });
-            }
-        }
-        let mut row = normalizations.len();
+    /// The joints with their equations, coordinates and first constraint row (from
+    /// `first_row` on, in order), and the number of constraint rows in all.
+    fn compiled_joints(&self, markers: &[Marker], first_row: usize) -> (Vec<Joint>, usize) {
+        let mut row = first_row;
         let mut joints = Vec::with_capacity(self.joints.len());
         for def in &self.joints {
             let mi = &markers[def.markers[0].0];
@@ -318,9 +354,12 @@ impl SystemBuilder {
             });
             row += count;
         }
-        let constraint_count = row;
+        (joints, row)
+    }
 
-        // Force elements.
+    /// The force elements with the coordinates they act on and their discrete variables,
+    /// and the number of discrete variables.
+    fn compiled_forces(&self, bodies: &[Body], markers: &[Marker]) -> (Vec<ForceElement>, usize) {
         let mut discrete_count = 0;
         let mut forces = Vec::with_capacity(self.forces.len());
         for def in &self.forces {
@@ -347,32 +386,25 @@ impl SystemBuilder {
             };
             forces.push(ForceElement { name: def.name.clone(), kind: def.kind.clone(), dofs, n_i, discrete });
         }
-
-        let sensors = self
-            .sensors
-            .iter()
-            .map(|s| Sensor { name: s.name.clone(), marker: s.marker, quantity: s.quantity })
-            .collect();
-
-        let layout =
-            matrix_layout(&bodies, &normalizations, &joints, &forces, coordinate_count, constraint_count);
-
-        Ok(Model {
-            gravity: self.gravity,
-            bodies,
-            markers,
-            joints,
-            forces,
-            sensors,
-            coordinate_count,
-            constraint_count,
-            normalizations,
-            discrete_count,
-            initial_coordinates,
-            initial_velocities,
-            layout,
-        })
+        (forces, discrete_count)
     }
+}
+
+/// The Euler-parameter normalizations of the `bodies` that have Euler parameters, their
+/// constraint rows first.
+fn normalizations(bodies: &[Body]) -> Vec<Normalization> {
+    let mut normalizations = Vec::new();
+    for (k, b) in bodies.iter().enumerate() {
+        if b.kind.has_euler_parameters() {
+            let o = b.offset;
+            normalizations.push(Normalization {
+                body: BodyId(k),
+                row: normalizations.len(),
+                dofs: [o + 3, o + 4, o + 5, o + 6],
+            });
+        }
+    }
+    normalizations
 }
 
 /// The sparse pattern of the Newton matrix [[S, C_q^T], [C_q, 0]] and where each element

@@ -241,47 +241,71 @@ pub(crate) fn transpose_mismatch(a: &Csc, b: &Csc) -> f64 {
     worst / scale
 }
 
-impl FlexibleBody {
-    /// Checks the data (positive mass, finite values, shapes, I_kl^T = I_lk, symmetric K_ff and
-    /// D_ff) and lays out the elastic pattern.
-    pub fn new(item: &str, input: FlexibleBodyInput) -> Result<Self> {
+impl FlexibleBodyInput {
+    /// Checks the data of body `item` (positive mass, finite values, shapes, I_kl^T = I_lk,
+    /// symmetric K_ff and D_ff, stiffening elements) and returns its number of elastic
+    /// coordinates n_f. The scalar mass is checked against the I_kl once they are laid out
+    /// ([`FlexibleBody::check_scalar_mass`]).
+    fn validate(&self, item: &str) -> Result<usize> {
+        let n = self.check_invariants(item)?;
+        self.check_elastic_matrices(item, n)?;
+        self.check_symmetry(item)?;
+        self.check_stiffening(item, n)?;
+        Ok(n)
+    }
+
+    /// Mass and moments, and the sizes and entries of the invariants; returns n_f.
+    fn check_invariants(&self, item: &str) -> Result<usize> {
         let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
-        if !(input.mass.is_finite() && input.mass > 0.0) {
-            return Err(bad(format!("mass must be positive and finite, got {}", input.mass)));
+        if !(self.mass.is_finite() && self.mass > 0.0) {
+            return Err(bad(format!("mass must be positive and finite, got {}", self.mass)));
         }
-        if !input.first_moment.is_finite() || !input.second_moment.is_finite() {
+        if !self.first_moment.is_finite() || !self.second_moment.is_finite() {
             return Err(bad("first and second moments must be finite".to_string()));
         }
-        let n = input.i1.len() / 3;
-        if input.i1.len() != 3 * n || input.ibar.len() != 9 * n || input.i_kl.len() != 9 {
+        let n = self.i1.len() / 3;
+        if self.i1.len() != 3 * n || self.ibar.len() != 9 * n || self.i_kl.len() != 9 {
             return Err(bad(format!(
                 "invariants of inconsistent size: I1 has {} entries, Ibar {}, {} matrices I_kl \
                  (expected 3 n_f, 9 n_f and 9)",
-                input.i1.len(),
-                input.ibar.len(),
-                input.i_kl.len()
+                self.i1.len(),
+                self.ibar.len(),
+                self.i_kl.len()
             )));
         }
-        if input.i1.iter().chain(&input.ibar).any(|v| !v.is_finite()) {
+        if self.i1.iter().chain(&self.ibar).any(|v| !v.is_finite()) {
             return Err(bad("invariants I1 and Ibar must be finite".to_string()));
         }
-        for (kl, m) in input.i_kl.iter().enumerate() {
+        for (kl, m) in self.i_kl.iter().enumerate() {
             check_square(item, &format!("invariant I_{}{}", kl / 3 + 1, kl % 3 + 1), m, n)?;
         }
-        check_square(item, "stiffness matrix", &input.stiffness, n)?;
-        match (&input.dof_nodes, &input.node_positions) {
+        Ok(n)
+    }
+
+    /// K_ff and D_ff n_f x n_f, and a node for every elastic coordinate when nodes are given.
+    fn check_elastic_matrices(&self, item: &str, n: usize) -> Result<()> {
+        check_square(item, "stiffness matrix", &self.stiffness, n)?;
+        match (&self.dof_nodes, &self.node_positions) {
             (None, None) => {}
             (Some(d), Some(p)) if d.len() == n && d.iter().all(|&k| k < p.len()) => {}
             _ => {
-                return Err(bad(format!(
+                return Err(FlexmbdError::InvalidParameter {
+                    item: item.to_string(),
+                    message: format!(
                     "dof_nodes must give a node (of node_positions) for each of the {n} elastic coordinates"
-                )))
+                ),
+                })
             }
         }
-        check_square(item, "damping matrix", &input.damping, n)?;
+        check_square(item, "damping matrix", &self.damping, n)
+    }
+
+    /// I_kl^T = I_lk, and symmetric K_ff and D_ff (to 1e-9 of the largest entry).
+    fn check_symmetry(&self, item: &str) -> Result<()> {
+        let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
         for k in 0..3 {
             for l in k..3 {
-                let mismatch = transpose_mismatch(&input.i_kl[3 * k + l], &input.i_kl[3 * l + k]);
+                let mismatch = transpose_mismatch(&self.i_kl[3 * k + l], &self.i_kl[3 * l + k]);
                 if mismatch > 1e-9 {
                     return Err(bad(format!(
                         "invariants I_{}{} and I_{}{} must be transposes of each other (mismatch {mismatch:.1e})",
@@ -293,13 +317,19 @@ impl FlexibleBody {
                 }
             }
         }
-        for (what, m) in [("stiffness matrix", &input.stiffness), ("damping matrix", &input.damping)] {
+        for (what, m) in [("stiffness matrix", &self.stiffness), ("damping matrix", &self.damping)] {
             let mismatch = transpose_mismatch(m, m);
             if mismatch > 1e-9 {
                 return Err(bad(format!("{what} must be symmetric (mismatch {mismatch:.1e})")));
             }
         }
-        for (k, el) in input.stiffening.iter().enumerate() {
+        Ok(())
+    }
+
+    /// Stiffening elements: a 12 x n_l map over existing elastic coordinates, a positive
+    /// length and axial stiffness.
+    fn check_stiffening(&self, item: &str, n: usize) -> Result<()> {
+        for (k, el) in self.stiffening.iter().enumerate() {
             let nl = el.indices.len();
             let ok = el.map.len() == 12 * nl
                 && el.indices.iter().all(|&i| i < n)
@@ -309,53 +339,76 @@ impl FlexibleBody {
                 && el.axial_stiffness.is_finite()
                 && el.axial_stiffness > 0.0;
             if !ok {
-                return Err(bad(format!(
-                    "stiffening element {k}: needs a 12 x n_l map over existing elastic coordinates, \
-                     a positive length and a positive axial stiffness"
-                )));
+                return Err(FlexmbdError::InvalidParameter {
+                    item: item.to_string(),
+                    message: format!(
+                        "stiffening element {k}: needs a 12 x n_l map over existing elastic coordinates, \
+                         a positive length and a positive axial stiffness"
+                    ),
+                });
             }
         }
+        Ok(())
+    }
+}
+
+/// The stiffening elements with the positions of their (row, column) pairs in `pattern`.
+fn placed_stiffening(
+    mut stiffening: Vec<StiffeningElement>,
+    pattern: &ElasticPattern,
+) -> Vec<StiffeningElement> {
+    for el in stiffening.iter_mut() {
+        el.positions = el
+            .indices
+            .iter()
+            .flat_map(|&r| el.indices.iter().map(move |&c| (r, c)))
+            .map(|(r, c)| pattern.position(r, c))
+            .collect();
+    }
+    stiffening
+}
+
+/// sum w I_kl over the `terms` (w, 3 k + l) of the invariants `i_kl`, on `pattern` (n_f x
+/// n_f).
+fn i_kl_combination(i_kl: &[Csc], pattern: &ElasticPattern, terms: &[(f64, usize)]) -> Csc {
+    let n = pattern.n;
+    let mut values = vec![0.0; pattern.nnz()];
+    for &(w, kl) in terms {
+        let m = &i_kl[kl];
+        for c in 0..n {
+            for k in m.col_ptr[c]..m.col_ptr[c + 1] {
+                values[pattern.position(m.row_idx[k], c)] += w * m.values[k];
+            }
+        }
+    }
+    Csc { nrows: n, ncols: n, col_ptr: pattern.col_ptr.clone(), row_idx: pattern.row_idx.clone(), values }
+}
+
+impl FlexibleBody {
+    /// Checks the data (positive mass, finite values, shapes, I_kl^T = I_lk, symmetric K_ff and
+    /// D_ff) and lays out the elastic pattern.
+    pub fn new(item: &str, input: FlexibleBodyInput) -> Result<Self> {
+        let n = input.validate(item)?;
+        // One pattern for every (f, f) matrix: the I_kl, K_ff, D_ff and the stiffening blocks.
         let mut all: Vec<&Csc> = input.i_kl.iter().collect();
         all.push(&input.stiffness);
         all.push(&input.damping);
         let blocks: Vec<&[usize]> = input.stiffening.iter().map(|e| e.indices.as_slice()).collect();
         let pattern = ElasticPattern::union(n, &all, &blocks);
-        let mut stiffening = input.stiffening;
-        for el in stiffening.iter_mut() {
-            el.positions = el
-                .indices
-                .iter()
-                .flat_map(|&r| el.indices.iter().map(move |&c| (r, c)))
-                .map(|(r, c)| pattern.position(r, c))
-                .collect();
-        }
-        let combination = |terms: &[(f64, usize)]| -> Csc {
-            let mut values = vec![0.0; pattern.nnz()];
-            for &(w, kl) in terms {
-                let m = &input.i_kl[kl];
-                for c in 0..n {
-                    for k in m.col_ptr[c]..m.col_ptr[c + 1] {
-                        values[pattern.position(m.row_idx[k], c)] += w * m.values[k];
-                    }
-                }
-            }
-            Csc {
-                nrows: n,
-                ncols: n,
-                col_ptr: pattern.col_ptr.clone(),
-                row_idx: pattern.row_idx.clone(),
-                values,
-            }
-        };
-        let mass_matrix = ElasticMatrix::new(combination(&[(1.0, 0), (1.0, 4), (1.0, 8)]), &pattern);
+        let stiffening = placed_stiffening(input.stiffening, &pattern);
+        // M_ff = sum_k I_kk and A_m = I_{m+1,m+2} - I_{m+2,m+1}.
+        let mass_matrix = ElasticMatrix::new(
+            i_kl_combination(&input.i_kl, &pattern, &[(1.0, 0), (1.0, 4), (1.0, 8)]),
+            &pattern,
+        );
         let antisymmetric = (0..3)
             .map(|m| {
                 let (a, b) = ((m + 1) % 3, (m + 2) % 3);
-                ElasticMatrix::new(combination(&[(1.0, 3 * a + b), (-1.0, 3 * b + a)]), &pattern)
+                let terms = [(1.0, 3 * a + b), (-1.0, 3 * b + a)];
+                ElasticMatrix::new(i_kl_combination(&input.i_kl, &pattern, &terms), &pattern)
             })
             .collect();
         let i_kl = input.i_kl.into_iter().map(|m| ElasticMatrix::new(m, &pattern)).collect();
-        let scalar_mass = input.scalar_mass;
         let mut body = FlexibleBody {
             mass: input.mass,
             first_moment: input.first_moment,
@@ -378,26 +431,38 @@ impl FlexibleBody {
             antisymmetric,
             pattern,
         };
-        if let Some(sm) = scalar_mass {
-            body.check_scalar_mass(item, &sm)?;
-            body.solid_rows = body.compressed_solid_rows(&sm);
-            body.whole_nodes = sm.coordinates.len() % 3 == 0
-                && sm
-                    .coordinates
-                    .chunks_exact(3)
-                    .all(|c| c[0] % 3 == 0 && c[1] == c[0] + 1 && c[2] == c[0] + 2);
-            body.scalar_mass = Some(sm);
+        if let Some(sm) = input.scalar_mass {
+            body.attach_scalar_mass(item, sm)?;
         }
-        if n > 0 && body.i_kl.iter().all(|m| m.full) {
-            let mut stacked = vec![0.0; 9 * n * n];
-            for (kl, m) in body.i_kl.iter().enumerate() {
-                for (c, column) in m.matrix.values.chunks_exact(n).enumerate() {
-                    stacked[c * 9 * n + kl * n..c * 9 * n + (kl + 1) * n].copy_from_slice(column);
-                }
-            }
-            body.stacked_i_kl = Some(stacked);
-        }
+        body.stacked_i_kl = body.stacked_full_i_kl();
         Ok(body)
+    }
+
+    /// Checks the scalar mass structure `sm` of a body of solids against the I_kl and keeps it
+    /// with the rows and node grouping its sums use.
+    fn attach_scalar_mass(&mut self, item: &str, sm: ScalarMass) -> Result<()> {
+        self.check_scalar_mass(item, &sm)?;
+        self.solid_rows = self.compressed_solid_rows(&sm);
+        self.whole_nodes = sm.coordinates.len() % 3 == 0
+            && sm.coordinates.chunks_exact(3).all(|c| c[0] % 3 == 0 && c[1] == c[0] + 1 && c[2] == c[0] + 2);
+        self.scalar_mass = Some(sm);
+        Ok(())
+    }
+
+    /// The nine I_kl stacked (see `stacked_i_kl`) when every one is stored full; None
+    /// otherwise.
+    fn stacked_full_i_kl(&self) -> Option<Vec<f64>> {
+        let n = self.elastic_count;
+        if n == 0 || !self.i_kl.iter().all(|m| m.full) {
+            return None;
+        }
+        let mut stacked = vec![0.0; 9 * n * n];
+        for (kl, m) in self.i_kl.iter().enumerate() {
+            for (c, column) in m.matrix.values.chunks_exact(n).enumerate() {
+                stacked[c * 9 * n + kl * n..c * 9 * n + (kl + 1) * n].copy_from_slice(column);
+            }
+        }
+        Some(stacked)
     }
 
     /// Checks that the scalar mass matrix gives the body's I_kl (products with a test vector).

@@ -104,16 +104,7 @@ pub(crate) fn tangent_from(
     reference_elastic: bool,
 ) {
     let nf = body.elastic_count;
-    let (p, a, l, w, alpha, s, j) = (k.p, k.a, k.l, k.w, k.alpha, k.s, k.j);
-    let pd = quat(qd);
-    let pdd = quat(qdd);
-    let r_dd = Vec3::from_slice(qdd);
-    let two_l = crate::math::small::scaled(&l, 2.0);
-    let dw_dp = crate::math::small::scaled(&l_jacobian(&pd), 2.0);
-    let dalpha_dp = crate::math::small::scaled(&l_jacobian(&pdd), 2.0);
-    let dacc_dp = rotate_transpose_jacobian(&p, &r_dd);
-    let s_skew = s.skew();
-    let jw = j.mul_vec(&w);
+    let d = RotationDerivatives::new(k, qd, qdd);
     if reference_elastic {
         t.clear();
     } else {
@@ -121,59 +112,9 @@ pub(crate) fn tangent_from(
     }
     t.n = nf;
     let [tm, tv, tx] = &mut t.reference;
-
-    // (R, R), (R, p), (p, R), (p, p) of the mass matrix.
-    let m_rp = mat3_times_34(&a.mul_mat(&s_skew), &two_l);
-    for i in 0..3 {
-        tm[i][i] = body.mass;
-        for c in 0..4 {
-            tm[i][3 + c] = -m_rp[i][c];
-            tm[3 + c][i] = -m_rp[i][c];
-        }
-    }
-    let m_pp = crate::math::small::tr_matmul(&two_l, &mat3_times_34(&j, &two_l));
-    for r in 0..4 {
-        for c in 0..4 {
-            tm[3 + r][3 + c] = m_pp[r][c];
-        }
-    }
-
-    // Velocity: f_R through w (and qf_dot), g through w (and qf_dot).
-    let dh_dw = centripetal_jacobian(&w, &s) - k.i1_qfd.skew().scale(2.0);
-    add34(tv, 0, 3, &mat3_times_34(&a.mul_mat(&dh_dw), &two_l), 1.0);
-    let mut dg_dw = w.skew().mul_mat(&j) - jw.skew();
-    dg_dw = dg_dw + Mat3::IDENTITY.scale(2.0 * k.pm.trace()) - k.pm.transpose().scale(2.0);
-    let v_pp = crate::math::small::tr_matmul(&two_l, &mat3_times_34(&dg_dw, &two_l));
-    for r in 0..4 {
-        for c in 0..4 {
-            tv[3 + r][3 + c] = v_pp[r][c];
-        }
-    }
-
-    // Position: rotation of A, L and p inside w, alpha and a = A^T R_dd.
-    let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
-    let mut k_rp = rotate_jacobian(&p, &h_r);
-    let inner = {
-        let mut m = mat3_times_34(&dh_dw, &dw_dp);
-        crate::math::small::add_scaled(&mut m, -1.0, &mat3_times_34(&s_skew, &dalpha_dp));
-        m
-    };
-    crate::math::small::add_scaled(&mut k_rp, 1.0, &mat3_times_34(&a, &inner));
-    add34(tx, 0, 3, &k_rp, 1.0);
-    let g = rotation_force(k);
-    let inner_p = {
-        let mut m = mat3_times_34(&s_skew, &dacc_dp);
-        crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&j, &dalpha_dp));
-        crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&dg_dw, &dw_dp));
-        m
-    };
-    let k_pp_a = lt_jacobian(&g);
-    let k_pp_b = crate::math::small::tr_matmul(&two_l, &inner_p);
-    for r in 0..4 {
-        for c in 0..4 {
-            tx[3 + r][3 + c] = 2.0 * k_pp_a[r][c] + k_pp_b[r][c];
-        }
-    }
+    reference_mass_block(body, k, &d, tm);
+    reference_velocity_block(k, &d, tv);
+    reference_position_block(k, &d, tx);
 
     if nf == 0 {
         t.velocity_coefficients = Mat3::ZERO;
@@ -181,14 +122,128 @@ pub(crate) fn tangent_from(
         return;
     }
     // Coefficients of the elastic block: velocity 2 w~, position alpha~ + w~ w~.
-    let ws = w.skew();
-    let e_mat = alpha.skew() + ws.mul_mat(&ws);
+    let ws = k.w.skew();
     t.velocity_coefficients = ws.scale(2.0);
-    t.position_coefficients = e_mat;
-    if !reference_elastic {
-        return;
+    t.position_coefficients = k.alpha.skew() + ws.mul_mat(&ws);
+    if reference_elastic {
+        reference_elastic_blocks(body, qdd, k, &d, scratch, t);
     }
+}
 
+/// Derivatives of the rotational kinematics that the blocks of the tangent share.
+struct RotationDerivatives {
+    /// 2 L (w = 2 L p_dot).
+    two_l: Mat34,
+    /// dw/dp = 2 d(L p_dot)/dp.
+    dw_dp: Mat34,
+    /// dalpha/dp = 2 d(L p_dd)/dp.
+    dalpha_dp: Mat34,
+    /// d(A^T R_dd)/dp.
+    dacc_dp: Mat34,
+    /// s~.
+    s_skew: Mat3,
+    /// dh/dw for h = w x (w x s) + 2 w x (I1 qf_dot), the velocity terms of the translational
+    /// force in the body frame.
+    dh_dw: Mat3,
+    /// dg/dw, g the rotational force.
+    dg_dw: Mat3,
+}
+
+impl RotationDerivatives {
+    fn new(k: &Quantities, qd: &[f64], qdd: &[f64]) -> Self {
+        let (w, s, j) = (k.w, k.s, k.j);
+        let pd = quat(qd);
+        let pdd = quat(qdd);
+        let r_dd = Vec3::from_slice(qdd);
+        let two_l = crate::math::small::scaled(&k.l, 2.0);
+        let dw_dp = crate::math::small::scaled(&l_jacobian(&pd), 2.0);
+        let dalpha_dp = crate::math::small::scaled(&l_jacobian(&pdd), 2.0);
+        let dacc_dp = rotate_transpose_jacobian(&k.p, &r_dd);
+        let s_skew = s.skew();
+        let jw = j.mul_vec(&w);
+        let dh_dw = centripetal_jacobian(&w, &s) - k.i1_qfd.skew().scale(2.0);
+        let mut dg_dw = w.skew().mul_mat(&j) - jw.skew();
+        dg_dw = dg_dw + Mat3::IDENTITY.scale(2.0 * k.pm.trace()) - k.pm.transpose().scale(2.0);
+        RotationDerivatives { two_l, dw_dp, dalpha_dp, dacc_dp, s_skew, dh_dw, dg_dw }
+    }
+}
+
+/// (R, R), (R, p), (p, R), (p, p) of the mass matrix into `tm`.
+fn reference_mass_block(
+    body: &FlexibleBody,
+    k: &Quantities,
+    d: &RotationDerivatives,
+    tm: &mut [[f64; 7]; 7],
+) {
+    let m_rp = mat3_times_34(&k.a.mul_mat(&d.s_skew), &d.two_l);
+    for i in 0..3 {
+        tm[i][i] = body.mass;
+        for c in 0..4 {
+            tm[i][3 + c] = -m_rp[i][c];
+            tm[3 + c][i] = -m_rp[i][c];
+        }
+    }
+    let m_pp = crate::math::small::tr_matmul(&d.two_l, &mat3_times_34(&k.j, &d.two_l));
+    for r in 0..4 {
+        for c in 0..4 {
+            tm[3 + r][3 + c] = m_pp[r][c];
+        }
+    }
+}
+
+/// Velocity Jacobian's reference block into `tv`: f_R through w (and qf_dot), g through w
+/// (and qf_dot).
+fn reference_velocity_block(k: &Quantities, d: &RotationDerivatives, tv: &mut [[f64; 7]; 7]) {
+    add34(tv, 0, 3, &mat3_times_34(&k.a.mul_mat(&d.dh_dw), &d.two_l), 1.0);
+    let v_pp = crate::math::small::tr_matmul(&d.two_l, &mat3_times_34(&d.dg_dw, &d.two_l));
+    for r in 0..4 {
+        for c in 0..4 {
+            tv[3 + r][3 + c] = v_pp[r][c];
+        }
+    }
+}
+
+/// Position Jacobian's reference block into `tx`: rotation of A, L and p inside w, alpha and
+/// a = A^T R_dd.
+fn reference_position_block(k: &Quantities, d: &RotationDerivatives, tx: &mut [[f64; 7]; 7]) {
+    let (w, alpha, s) = (k.w, k.alpha, k.s);
+    let h_r = alpha.cross(&s) + w.cross(&w.cross(&s)) + w.cross(&k.i1_qfd) * 2.0 + k.i1_qfdd;
+    let mut k_rp = rotate_jacobian(&k.p, &h_r);
+    let inner = {
+        let mut m = mat3_times_34(&d.dh_dw, &d.dw_dp);
+        crate::math::small::add_scaled(&mut m, -1.0, &mat3_times_34(&d.s_skew, &d.dalpha_dp));
+        m
+    };
+    crate::math::small::add_scaled(&mut k_rp, 1.0, &mat3_times_34(&k.a, &inner));
+    add34(tx, 0, 3, &k_rp, 1.0);
+    let g = rotation_force(k);
+    let inner_p = {
+        let mut m = mat3_times_34(&d.s_skew, &d.dacc_dp);
+        crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&k.j, &d.dalpha_dp));
+        crate::math::small::add_scaled(&mut m, 1.0, &mat3_times_34(&d.dg_dw, &d.dw_dp));
+        m
+    };
+    let k_pp_a = lt_jacobian(&g);
+    let k_pp_b = crate::math::small::tr_matmul(&d.two_l, &inner_p);
+    for r in 0..4 {
+        for c in 0..4 {
+            tx[3 + r][3 + c] = 2.0 * k_pp_a[r][c] + k_pp_b[r][c];
+        }
+    }
+}
+
+/// The (reference, f) and (f, reference) blocks of the mass, velocity and position
+/// Jacobians into `t` (a body with elastic coordinates).
+fn reference_elastic_blocks(
+    body: &FlexibleBody,
+    qdd: &[f64],
+    k: &Quantities,
+    d: &RotationDerivatives,
+    scratch: &mut FlexibleScratch,
+    t: &mut FlexibleTangent,
+) {
+    let nf = body.elastic_count;
+    let (a, l, w) = (k.a, k.l, k.w);
     // Rows of J_f and sum_k N_kk.
     let mut jf = std::mem::take(&mut scratch.rows);
     jf_rows(scratch, nf, &mut jf);
@@ -198,11 +253,7 @@ pub(crate) fn tangent_from(
     let [fm, fv, fx] = &mut t.elastic_reference;
 
     // Mass: (R, f) = A I1, (p, f) = 2 L^T J_f; the (f, R), (f, p) blocks are their transposes.
-    for i in 0..3 {
-        for c in 0..nf {
-            rm[i * nf + c] = (0..3).map(|kk| a.0[i][kk] * body.i1[kk * nf + c]).sum();
-        }
-    }
+    rotated_i1(body, &a, 1.0, rm);
     map_rows_2lt(&l, &jf, nf, rm, 3, nf, 0);
     for r in 0..7 {
         for c in 0..nf {
@@ -211,12 +262,7 @@ pub(crate) fn tangent_from(
     }
 
     // Velocity (R, f) = A 2 w~ I1; (p, f) = 2 L^T 2 (w (sum_k N_kk)^T - [sum_k w_k N_kl]_l).
-    let aw = a.mul_mat(&ws);
-    for i in 0..3 {
-        for c in 0..nf {
-            rv[i * nf + c] = (0..3).map(|m| aw.0[i][m] * 2.0 * body.i1[m * nf + c]).sum();
-        }
-    }
+    rotated_i1(body, &a.mul_mat(&w.skew()), 2.0, rv);
     for lrow in 0..3 {
         for c in 0..nf {
             let wn: f64 = (0..3).map(|kk| w[kk] * row(&scratch.n, kk, lrow, nf)[c]).sum();
@@ -224,9 +270,50 @@ pub(crate) fn tangent_from(
         }
     }
     map_rows_2lt(&l, &rows, nf, rv, 3, nf, 0);
+    // Velocity (f, p): the derivative in w times 2L.
+    let dfw = elastic_force_rotation_rate(&w, scratch, &n_trace, nf);
+    for c in 0..nf {
+        for col in 0..4 {
+            fv[c * 7 + 3 + col] = (0..3).map(|m| dfw[m * nf + c] * d.two_l[m][col]).sum();
+        }
+    }
 
-    // Velocity (f, p): d/dw of int rho S^T w~w~ u and of 2 sum w~_kl z_kl, times 2L.
-    // Columns m: sum_l w_l N_lm + sum_k w_k N_mk - 2 w_m sum_k N_kk - 2 sum_kl eps_klm z_kl.
+    // Position (R, f) = A (alpha~ + w~w~) I1; (p, f) = 2 L^T dg/dq_f.
+    rotated_i1(body, &a.mul_mat(&t.position_coefficients), 1.0, rx);
+    rotation_force_elastic_rows(body, qdd, k, scratch, &n_trace, &mut rows);
+    map_rows_2lt(&l, &rows, nf, rx, 3, nf, 0);
+
+    // Position (f, p) = I1^T d(a)/dp + J_f^T dalpha/dp + (dfw) dw/dp.
+    for c in 0..nf {
+        for col in 0..4 {
+            let mut v = 0.0;
+            for m in 0..3 {
+                v += body.i1[m * nf + c] * d.dacc_dp[m][col]
+                    + jf[m * nf + c] * d.dalpha_dp[m][col]
+                    + dfw[m * nf + c] * d.dw_dp[m][col];
+            }
+            fx[c * 7 + 3 + col] = v;
+        }
+    }
+    scratch.rows = jf;
+    scratch.rows2 = rows;
+}
+
+/// The first three rows of a (reference, f) block: (`m` `factor`) I1 (3 x n_f, row-major)
+/// into `out`.
+fn rotated_i1(body: &FlexibleBody, m: &Mat3, factor: f64, out: &mut [f64]) {
+    let nf = body.elastic_count;
+    for i in 0..3 {
+        for c in 0..nf {
+            out[i * nf + c] = (0..3).map(|kk| m.0[i][kk] * factor * body.i1[kk * nf + c]).sum();
+        }
+    }
+}
+
+/// d/dw of the elastic force's rotational terms, int rho S^T w~w~ u and 2 sum w~_kl z_kl
+/// (3 x n_f, row-major): column m is sum_l w_l N_lm + sum_k w_k N_mk - 2 w_m sum_k N_kk -
+/// 2 sum_kl eps_klm z_kl.
+fn elastic_force_rotation_rate(w: &Vec3, scratch: &FlexibleScratch, n_trace: &[f64], nf: usize) -> Vec<f64> {
     let mut dfw = vec![0.0; 3 * nf];
     for m in 0..3 {
         for c in 0..nf {
@@ -243,20 +330,21 @@ pub(crate) fn tangent_from(
             dfw[m * nf + c] = v;
         }
     }
-    for c in 0..nf {
-        for col in 0..4 {
-            fv[c * 7 + 3 + col] = (0..3).map(|m| dfw[m * nf + c] * two_l[m][col]).sum();
-        }
-    }
+    dfw
+}
 
-    // Position (R, f) = A (alpha~ + w~w~) I1.
-    let ae = a.mul_mat(&e_mat);
-    for i in 0..3 {
-        for c in 0..nf {
-            rx[i * nf + c] = (0..3).map(|m| ae.0[i][m] * body.i1[m * nf + c]).sum();
-        }
-    }
-    // Position (p, f) = 2 L^T dg/dq_f.
+/// dg/dq_f, the rotational force's derivative in the elastic coordinates (3 x n_f,
+/// row-major), into `rows`; `n_trace`: sum_k N_kk.
+fn rotation_force_elastic_rows(
+    body: &FlexibleBody,
+    qdd: &[f64],
+    k: &Quantities,
+    scratch: &mut FlexibleScratch,
+    n_trace: &[f64],
+    rows: &mut [f64],
+) {
+    let nf = body.elastic_count;
+    let (w, alpha) = (k.w, k.alpha);
     let acc_skew = k.acc.skew();
     // A_i qf_dd: row i of d(J_f qf_dd)/dq_f.
     let qfdd = &qdd[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf];
@@ -281,20 +369,4 @@ pub(crate) fn tangent_from(
             rows[i * nf + c] = -sa[i] + dj(&alpha, i, c) + w_djw[i] + 2.0 * (w[i] * z_trace[c] - wz) + jfx;
         }
     }
-    map_rows_2lt(&l, &rows, nf, rx, 3, nf, 0);
-
-    // Position (f, p) = I1^T d(a)/dp + J_f^T dalpha/dp + (dfw) dw/dp.
-    for c in 0..nf {
-        for col in 0..4 {
-            let mut v = 0.0;
-            for m in 0..3 {
-                v += body.i1[m * nf + c] * dacc_dp[m][col]
-                    + jf[m * nf + c] * dalpha_dp[m][col]
-                    + dfw[m * nf + c] * dw_dp[m][col];
-            }
-            fx[c * 7 + 3 + col] = v;
-        }
-    }
-    scratch.rows = jf;
-    scratch.rows2 = rows;
 }

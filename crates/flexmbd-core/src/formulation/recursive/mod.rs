@@ -211,6 +211,7 @@ pub struct Tree {
 
 mod frames;
 mod kinematics;
+mod placement;
 #[cfg(test)]
 mod tests;
 mod topology;
