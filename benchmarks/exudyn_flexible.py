@@ -12,7 +12,7 @@ Models (all in a new ``SystemContainer``, generalized-alpha with index-3 constra
     ``exudyn.FEM.FEMinterface`` filled directly: ``nodes = {"Position": body.nodes}``,
     ``massMatrix`` / ``stiffnessMatrix`` = flexmbd's nodal CSR matrices, ``modeBasis =
     {"matrix": full, "type": "HCBmodes"}`` with ``full`` the (3n x 16) basis that is flexmbd's
-    ``body.modes`` on ``reference["free_dofs"]`` and zero elsewhere (the rows of face x0, which is
+    ``body.modes`` on ``reference.free_dofs`` and zero elsewhere (the rows of face x0, which is
     rigidly attached to the frame), ``eigenValues = (2 pi body.frequencies)^2`` (informative only;
     nothing in the simulation reads them). ``ObjectFFRFreducedOrderInterface(fem,
     rigidBodyNodeType)`` computes the reduced matrices and the inertia terms from these data and
@@ -237,7 +237,7 @@ def parse_flexible_config(config: str) -> FlexibleConfig:
 
 def full_mode_basis(body) -> np.ndarray:
     """flexmbd's modes expanded to all 3n nodal dofs (zero rows for the dofs of the reference)."""
-    free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+    free = np.asarray(body.reference.free_dofs, dtype=np.int64)
     full = np.zeros((3 * len(body.nodes), body.modes.shape[1]))
     full[free] = body.modes
     return full
@@ -265,10 +265,10 @@ def reduced_body_checks(cms, body) -> dict:
     freq = np.sqrt(np.abs(eig)) / (2.0 * np.pi)
     ref = np.asarray(body.frequencies)
     # flexmbd's second moment S = int rho x x^T; Exudyn's inertia about the frame origin
-    second = np.asarray(inv["second_moment"])
+    second = np.asarray(inv.second_moment)
     inertia = np.trace(second) * np.eye(3) - second
     # int rho x~ Psi_k: Exudyn's mXRefTildePsi = xRefTilde^T M Psi = -int rho x~ Psi
-    ibar = np.asarray(inv["ibar"])  # (3, 3, n_f): int rho x_a Psi_bk
+    ibar = np.asarray(inv.ibar)  # (3, 3, n_f): int rho x_a Psi_bk
     cross = np.stack(
         [ibar[1, 2] - ibar[2, 1], ibar[2, 0] - ibar[0, 2], ibar[0, 1] - ibar[1, 0]]
     )  # int rho (x cross Psi_k)
@@ -277,14 +277,14 @@ def reduced_body_checks(cms, body) -> dict:
         "flexmbd_frequencies_hz": ref.tolist(),
         "frequency_max_rel_diff": float(np.max(np.abs(freq - ref) / ref)),
         "exudyn_mass": float(cms.totalMass),
-        "flexmbd_mass": float(inv["mass"]),
+        "flexmbd_mass": float(inv.mass),
         "center_of_mass": np.asarray(cms.chiU).tolist(),
         "inertia_max_diff": float(np.max(np.abs(cms.inertiaLocal - inertia))),
-        "i1_max_diff": float(np.max(np.abs(cms.mPhitTPsi - np.asarray(inv["i1"])))),
+        "i1_max_diff": float(np.max(np.abs(cms.mPhitTPsi - np.asarray(inv.i1)))),
         "ibar_cross_max_diff": float(np.max(np.abs(-cms.mXRefTildePsi - cross))),
-        "m_ff_max_diff": float(np.max(np.abs(cms.massMatrixReduced - np.asarray(inv["m_ff"])))),
+        "m_ff_max_diff": float(np.max(np.abs(cms.massMatrixReduced - np.asarray(inv.m_ff)))),
         "k_ff_max_rel_diff": float(
-            np.max(np.abs(cms.stiffnessMatrixReduced - np.asarray(inv["k_ff"])))
+            np.max(np.abs(cms.stiffnessMatrixReduced - np.asarray(inv.k_ff)))
             / np.max(np.abs(cms.stiffnessMatrixReduced))
         ),
     }
@@ -435,7 +435,7 @@ def build_slider_crank(exu, cfg: FlexibleConfig):
     body = model.body
     x0 = flexible_models.nodes_of(model, "x0")
     x1 = flexible_models.nodes_of(model, "x1")
-    rod_mass = float(body.invariants["mass"])
+    rod_mass = float(body.invariants.mass)
     cms = reduced_order_interface(body, _rigid_node_type(exu, cfg))
 
     sc = exu.SystemContainer()
@@ -655,12 +655,12 @@ def build_nodal(exu, cfg: FlexibleConfig, size: str):
     checks = {
         "nodes": len(nodes),
         "nodal_coordinates": 3 * len(nodes),
-        "elastic_coordinates": len(body.reference["free_dofs"]),
+        "elastic_coordinates": len(body.reference.free_dofs),
         "clamped_coordinates": 3 * len(x0),
         "ode2_coordinates": len(mbs.systemData.GetODE2Coordinates()),
         "algebraic_coordinates": len(mbs.systemData.GetAECoordinates()),
         "mass": total,
-        "flexmbd_mass": float(body.invariants["mass"]),
+        "flexmbd_mass": float(body.invariants.mass),
         "dense_memory_estimate_gib": memory_estimate / 2**30,
     }
     return sc, mbs, recorder, checks, []

@@ -78,7 +78,7 @@ def build_slider_crank(model: models.FlexibleModel) -> tuple[fm.System, dict]:
         name="rod",
     )
     slider = system.add_point_mass(
-        model.body.invariants["mass"] / 2, position=(crank_length + models.ROD, 0, 0), name="slider"
+        model.body.invariants.mass / 2, position=(crank_length + models.ROD, 0, 0), name="slider"
     )
     pivot, root = system.add_marker(system.ground), system.add_marker(crank)
     system.add_revolute_joint(pivot, root, name="bearing")
@@ -157,10 +157,10 @@ def solve_timer(size: str, spectral_radius: float = 0.9, count: int = 50) -> Cal
     alpha_m, alpha_f = (2 * rho - 1) / (rho + 1), rho / (rho + 1)
     beta = 0.25 * (0.5 + alpha_f - alpha_m + 0.5) ** 2
     step = RUNS["nodal"][0]
-    matrix = sp.csc_matrix(body.invariants["k_ff"]) + sp.csc_matrix(body.invariants["m_ff"]) * (
+    matrix = sp.csc_matrix(body.invariants.k_ff) + sp.csc_matrix(body.invariants.m_ff) * (
         (1 - alpha_m) / ((1 - alpha_f) * beta * step**2)
     )
-    free = body.reference["free_dofs"]
+    free = body.reference.free_dofs
     factor = factorize(matrix, dofs=free, nodes=body.nodes, dofs_per_node=3, threads=1)
     rhs = np.random.default_rng(1).standard_normal(matrix.shape[0])
     factor.solve(rhs)

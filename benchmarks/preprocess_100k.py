@@ -81,8 +81,8 @@ def flexmbd_worker(divisions: tuple, lengths: tuple, precision: str) -> dict:
     )
     total = time.perf_counter() - start
     peak = _peak_mib()
-    k_ff = body.invariants["k_ff"]
-    m_ff = body.invariants["m_ff"]
+    k_ff = body.invariants.k_ff
+    m_ff = body.invariants.m_ff
     values = sla.eigh(0.5 * (k_ff + k_ff.T), 0.5 * (m_ff + m_ff.T), eigvals_only=True)
     reduced = np.sqrt(np.clip(values, 0.0, None)) / (2.0 * np.pi)
     return {
@@ -94,7 +94,7 @@ def flexmbd_worker(divisions: tuple, lengths: tuple, precision: str) -> dict:
         "baseline_rss_mib": baseline,
         "reduced_frequencies_hz": reduced[:5].tolist(),
         "mode_count": int(body.modes.shape[1]),
-        "mass": float(body.invariants["mass"]),
+        "mass": float(body.invariants.mass),
         "variant": f"build_body(precision={precision!r}), flexmbd {flexmbd.__version__}",
     }
 

@@ -63,7 +63,7 @@ def main(folder: Path) -> int:
     )
     print(
         f"{mesh_file.name}: {data.node_count} nodes, {len(data.elements['tet4'])} tetrahedra, "
-        f"mass {data.invariants['mass']:.4f} kg; {data.elastic_coordinate_count} modes, first "
+        f"mass {data.invariants.mass:.4f} kg; {data.elastic_coordinate_count} modes, first "
         f"frequencies {np.round(data.frequencies[:3], 1)} Hz"
     )
     system = fm.System(gravity=(0.0, -9.81, 0.0))
@@ -86,9 +86,7 @@ def main(folder: Path) -> int:
     drift = np.max(np.abs(result.total_energy - result.total_energy[0])) / exchanged
     print(f"energy drift relative to the energy exchanged: {drift:.1e}")
     force = np.linalg.norm(result.reaction_force(hinge), axis=1)
-    print(
-        f"largest hinge force {force.max():.2f} N (weight {9.81 * data.invariants['mass']:.2f} N)"
-    )
+    print(f"largest hinge force {force.max():.2f} N (weight {9.81 * data.invariants.mass:.2f} N)")
     stress = von_mises(result.stresses(arm))
     print(f"largest von Mises stress {stress.max() / 1e6:.3f} MPa")
     back = fm.read_results(results)

@@ -61,7 +61,7 @@ def build() -> tuple[fm.System, object, dict]:
     average = mesh.nodes[mesh.node_sets["root"]].mean(axis=0)
     print(
         f"link: {data.node_count} nodes, {len(data.elements['tet10'])} tet10, mass "
-        f"{data.invariants['mass']:.4f} kg, {data.elastic_coordinate_count} Craig-Bampton "
+        f"{data.invariants.mass:.4f} kg, {data.elastic_coordinate_count} Craig-Bampton "
         f"modes, first frequencies {np.round(data.frequencies[:3], 1)} Hz"
     )
     print(
@@ -84,13 +84,13 @@ def build() -> tuple[fm.System, object, dict]:
 def static_reference(data, tip) -> tuple[np.ndarray, float]:
     """The static deflection of the reduced body under the weights (modal coordinates) and
     the static torque about the hinge, from the nodal mass matrix and the interface rows."""
-    free = data.reference["free_dofs"]
+    free = data.reference.free_dofs
     modes = np.zeros((data.dof_count, data.elastic_coordinate_count))
     modes[free] = data.modes
     weight = data.mass @ np.tile(GRAVITY, data.node_count)
     rows = tip.average_rows(3, data.dof_count)  # the payload's weight spread by RBE3
     payload = rows.T @ np.concatenate([PAYLOAD * GRAVITY, np.zeros(3)])
-    q = np.linalg.solve(np.asarray(data.invariants["k_ff"]), modes.T @ (weight + payload))
+    q = np.linalg.solve(np.asarray(data.invariants.k_ff), modes.T @ (weight + payload))
     u = modes @ q
     deformed = data.nodes + u.reshape(-1, 3)
     scalar = data.mass[0::3, 0::3]  # M = M_s (x) I_3

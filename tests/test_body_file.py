@@ -15,8 +15,8 @@ import scipy.sparse as sp
 
 import flexmbd as fm
 from flexmbd.errors import InvalidModelError, InvalidParameterError
-from flexmbd.fe import Material, Section, build_body, straight_beam
-from flexmbd.fe.body import BODY_DATA_VERSION, FlexibleBodyData
+from flexmbd.fe import Material, Section, build_body, shapes, straight_beam
+from flexmbd.fe.body import BODY_DATA_VERSION, FlexibleBodyData, Invariants, ReferenceConditions
 from flexmbd.fe.body_file import BODY_FILE_FORMAT, load_body, save_body
 
 
@@ -28,7 +28,8 @@ def spd_sparse(n: int, seed: int, fmt: str = "csc") -> sp.spmatrix:
 
 def make_body(modal: bool = True) -> FlexibleBodyData:
     """Two tetrahedra clamped at three nodes; with ``modal`` three modes and dense invariants
-    (some of them sparse), else nodal coordinates and None for the modal fields."""
+    (some of them sparse), else nodal coordinates and None for the modal fields. The reference
+    conditions and invariants are given as dicts (the constructor converts them)."""
     rng = np.random.default_rng(3)
     nodes = np.array(
         [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]]
@@ -44,6 +45,12 @@ def make_body(modal: bool = True) -> FlexibleBodyData:
         ]
         for row in range(3)
     ]
+    stiffness, mass = spd_sparse(15, 1), spd_sparse(15, 2)
+    modes = rng.normal(size=(n_free, n_f)) if modal else None
+    # K_ff and M_ff must be the nodal matrices reduced to the elastic coordinates.
+    k_ff, m_ff = (matrix[free_dofs][:, free_dofs].tocsc() for matrix in (stiffness, mass))
+    if modal:
+        k_ff, m_ff = (modes.T @ (matrix @ modes) for matrix in (k_ff, m_ff))
     return FlexibleBodyData(
         nodes=nodes,
         node_ids=np.array([101, 102, 103, 104, 105], dtype=np.int64),
@@ -59,11 +66,11 @@ def make_body(modal: bool = True) -> FlexibleBodyData:
         material={"young_modulus": 2.1e11, "poisson_ratio": 0.3, "density": 7850.0},
         section=None,
         dofs_per_node=3,
-        stiffness=spd_sparse(15, 1),
-        mass=spd_sparse(15, 2),
+        stiffness=stiffness,
+        mass=mass,
         mass_kind="consistent",
         reference={"kind": "clamped", "nodes": np.array([0, 1, 2]), "free_dofs": free_dofs},
-        modes=rng.normal(size=(n_free, n_f)) if modal else None,
+        modes=modes,
         frequencies=np.array([12.5, 40.25, 77.0]) if modal else None,
         mode_kind="free-free" if modal else None,
         invariants={
@@ -74,6 +81,8 @@ def make_body(modal: bool = True) -> FlexibleBodyData:
             "i1": rng.normal(size=(3, n_f)),
             "i_kl": i_kl,
             "ibar": rng.normal(size=(3, 3, n_f)),
+            "k_ff": k_ff,
+            "m_ff": m_ff,
         },
         units={"length": "mm", "mass": "t", "time": "s"},
         metadata={"source": "two_tets.inp", "created": "2024-05-01T12:00:00", "note": "héllo"},
@@ -83,9 +92,11 @@ def make_body(modal: bool = True) -> FlexibleBodyData:
 def assert_identical(a, b, where: str = "body") -> None:
     """Exact equality: same types, dtypes, shapes, bit-identical values, same key order."""
     assert type(a) is type(b), f"{where}: {type(a)} != {type(b)}"
-    if isinstance(a, FlexibleBodyData):
-        for name in a.__dataclass_fields__:
-            assert_identical(getattr(a, name), getattr(b, name), f"{where}.{name}")
+    if isinstance(a, FlexibleBodyData | Invariants | ReferenceConditions):
+        for field in dataclasses.fields(a):
+            assert_identical(
+                getattr(a, field.name), getattr(b, field.name), f"{where}.{field.name}"
+            )
     elif sp.issparse(a):
         assert a.format == b.format and a.shape == b.shape and a.dtype == b.dtype, where
         assert (a != b).nnz == 0, where
@@ -120,7 +131,7 @@ def test_round_trip_is_exact(tmp_path, modal):
     assert_identical(body, original)  # saving does not touch the data
     assert loaded.version == BODY_DATA_VERSION
     assert loaded.elastic_coordinate_count == (3 if modal else 6)
-    i_kl = loaded.invariants["i_kl"]
+    i_kl = loaded.invariants.i_kl
     assert sp.issparse(i_kl[0][0]) and isinstance(i_kl[0][1], np.ndarray)
     assert not list(tmp_path.glob(".*tmp"))  # the temporary file is gone
 
@@ -145,9 +156,26 @@ def test_file_layout(tmp_path):
         assert file["invariants/i_kl"].attrs["type"] == "list"
         assert file["invariants/i_kl/0/0"].attrs["type"] == "sparse"
         assert file["invariants/i_kl/0/1"].attrs["type"] == "ndarray"
+        # The typed reference conditions and invariants are stored as the dicts they were.
+        assert file["reference"].attrs["type"] == "dict"
+        assert list(file["reference"]) == ["kind", "nodes", "free_dofs"]
+        assert file["invariants"].attrs["type"] == "dict"
+        assert list(file["invariants"]) == [
+            "mass",
+            "first_moment",
+            "second_moment",
+            "i1",
+            "ibar",
+            "i_kl",
+            "k_ff",
+            "m_ff",
+        ]
+        assert file["invariants/mass"].attrs["type"] == "float"
 
 
 def test_sparse_formats_and_scalars_round_trip(tmp_path):
+    # Values of every kind in a free-form dictionary field (``section``, which nothing reads
+    # on loading).
     dense = np.arange(12.0).reshape(3, 4)
     int64_indices = sp.csc_matrix(
         (np.ones(2), np.array([0, 1], dtype=np.int64), np.array([0, 1, 2], dtype=np.int64)),
@@ -155,7 +183,7 @@ def test_sparse_formats_and_scalars_round_trip(tmp_path):
     )
     int64_indices.indices = np.array([0, 1], dtype=np.int64)
     int64_indices.indptr = np.array([0, 1, 2], dtype=np.int64)
-    invariants = {
+    values = {
         "csr": sp.csr_matrix(dense),
         "coo": sp.coo_matrix(dense),
         "csc_array": sp.csc_array(dense),
@@ -174,13 +202,13 @@ def test_sparse_formats_and_scalars_round_trip(tmp_path):
         "tuple": (1, "two", None),
         "nested": {"deeper": {"x": -0.0}},
     }
-    body = dataclasses.replace(make_body(), invariants=invariants)
+    body = dataclasses.replace(make_body(), section=values)
     path = tmp_path / "body.h5"
     save_body(body, path)
     loaded = load_body(path)
-    assert_identical(body.invariants, loaded.invariants)
-    assert loaded.invariants["int64 indices"].indices.dtype == np.int64
-    assert math.copysign(1.0, loaded.invariants["nested"]["deeper"]["x"]) == -1.0
+    assert_identical(body.section, loaded.section)
+    assert loaded.section["int64 indices"].indices.dtype == np.int64
+    assert math.copysign(1.0, loaded.section["nested"]["deeper"]["x"]) == -1.0
 
 
 @pytest.mark.parametrize("compression", ["gzip", "lzf"])
@@ -196,8 +224,15 @@ def test_large_arrays_are_compressed(tmp_path, compression):
         mass=None,
         # Smooth mode shapes compress well.
         modes=np.sin(np.outer(np.linspace(0.0, 10.0, n_free), np.arange(1, n_modes + 1))),
-        reference={**small.reference, "free_dofs": np.arange(n_free, dtype=np.int64)},
-        invariants={"mass": small.invariants["mass"]},
+        reference=dataclasses.replace(small.reference, free_dofs=np.arange(n_free, dtype=np.int64)),
+        invariants=dataclasses.replace(
+            small.invariants,
+            i1=np.zeros((3, n_modes)),
+            ibar=np.zeros((3, 3, n_modes)),
+            i_kl=[[np.eye(n_modes)] * 3] * 3,
+            k_ff=np.eye(n_modes),
+            m_ff=np.eye(n_modes),
+        ),
     )
     path = tmp_path / "big.h5"
     save_body(body, path, compression=compression)
@@ -263,8 +298,8 @@ def test_overwrite_existing_file(tmp_path):
     [
         ({"metadata": {3: "x"}}, "dictionary keys must be strings"),
         ({"metadata": {"": "x"}}, "empty dictionary key"),
-        ({"invariants": {"obj": np.array([{}])}}, "invariants/obj.*dtype object"),
-        ({"invariants": {"set": {1, 2}}}, "invariants/set.*type set"),
+        ({"section": {"obj": np.array([{}])}}, "section/obj.*dtype object"),
+        ({"section": {"set": {1, 2}}}, "section/set.*type set"),
         ({"version": BODY_DATA_VERSION + 1}, "layout version"),
         ({"units": {"length": 1}}, "units must be a dict of str"),
     ],
@@ -276,6 +311,52 @@ def test_values_that_cannot_be_stored(tmp_path, change, match):
         save_body(body, path)
     assert not path.exists()
     assert not list(tmp_path.iterdir())  # no temporary file left behind
+
+
+def test_craig_bampton_reference_conditions_keep_their_layout(tmp_path):
+    # The optional entries of the reference conditions are members of the "reference" group
+    # (in the order of the dict they were) when set, and absent when None.
+    mesh = shapes.box((0.4, 0.05, 0.05), (4, 1, 1), "hex8")
+    body = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(2.1e11, 0.3, 7800.0),
+        node_sets=mesh.node_sets,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=3,
+        interfaces=["x0", "x1"],
+        interface_kind="rbe3",
+    )
+    path = tmp_path / "body.h5"
+    save_body(body, path)
+    with h5py.File(path, "r") as file:
+        assert list(file["reference"]) == [
+            "kind",
+            "nodes",
+            "free_dofs",
+            "interfaces",
+            "interface_kind",
+            "mode_count",
+            "interface_weights",
+        ]
+        assert file["reference/interfaces"].attrs["type"] == "list"
+        assert file["reference/mode_count"].attrs["type"] == "int"
+    loaded = load_body(path)
+    assert_identical(body, loaded)
+    assert loaded.reference.interface_kind == "rbe3" and loaded.reference.mode_count == 3
+    assert len(loaded.reference.interface_weights) == 2
+
+
+def test_unknown_entries_in_the_file_name_the_entry(tmp_path):
+    path = tmp_path / "body.h5"
+    save_body(make_body(), path)
+    with h5py.File(path, "r+") as file:
+        file.create_dataset("invariants/extra", data=1.0).attrs["type"] = "float"
+    with pytest.raises(InvalidModelError, match="'invariants' has unknown entry 'extra'") as info:
+        load_body(path)
+    assert str(path) in str(info.value)
+    assert info.value.item == f"file '{path}'"
 
 
 def test_bad_arguments(tmp_path):
@@ -307,6 +388,14 @@ STRUCTURAL_DAMAGE = {
     "deleted dict entry": (
         dict(member="reference/free_dofs", delete=True),
         "'reference' has no entry 'free_dofs'",
+    ),
+    "deleted invariant": (
+        dict(member="invariants/k_ff", delete=True),
+        "'invariants' has no entry 'k_ff'",
+    ),
+    "deleted reference kind": (
+        dict(member="reference/kind", delete=True),
+        "'reference' has no entry 'kind'",
     ),
     "string for a number": (
         dict(member="dofs_per_node", value="three", kind="str"),
@@ -464,7 +553,7 @@ def test_sparse_matrices_with_unsorted_or_duplicate_indices_load_canonical(tmp_p
         reference="clamped",
         reference_nodes=[0],
     )
-    original = body.invariants["i_kl"][1][1]
+    original = body.invariants.i_kl[1][1]
     assert sp.isspmatrix_csc(original) and original.has_canonical_format
     path = tmp_path / "body.h5"
     save_body(body, path)
@@ -485,7 +574,7 @@ def test_sparse_matrices_with_unsorted_or_duplicate_indices_load_canonical(tmp_p
         damaged(path, f"{member}/{name}", value)
 
     loaded = load_body(path)
-    matrix = loaded.invariants["i_kl"][1][1]
+    matrix = loaded.invariants.i_kl[1][1]
     assert matrix.has_canonical_format
     for name in DATA_INDICES_INDPTR:
         np.testing.assert_array_equal(getattr(matrix, name), getattr(original, name))
@@ -493,7 +582,7 @@ def test_sparse_matrices_with_unsorted_or_duplicate_indices_load_canonical(tmp_p
     assert not matrix.indices.flags.writeable
     system = fm.System()
     system.add_flexible_body(loaded, name="beam")
-    np.testing.assert_array_equal(loaded.invariants["i_kl"][1][1].indices, original.indices)
+    np.testing.assert_array_equal(loaded.invariants.i_kl[1][1].indices, original.indices)
 
 
 def test_a_damaged_global_heap_is_refused_by_the_check_shared_with_results_files(tmp_path):

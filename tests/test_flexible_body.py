@@ -25,9 +25,9 @@ def beam_body(elements: int = 6, length: float = 1.0, **kwargs):
 def rigid_inertia(data):
     """Mass, centre of mass and inertia about it of the undeformed body, from its invariants."""
     inv = data.invariants
-    m = inv["mass"]
-    c = np.asarray(inv["first_moment"]) / m
-    j0 = np.asarray(inv["second_moment"])
+    m = inv.mass
+    c = np.asarray(inv.first_moment) / m
+    j0 = np.asarray(inv.second_moment)
     about_origin = np.trace(j0) * np.eye(3) - j0
     about_center = about_origin - m * (c @ c * np.eye(3) - np.outer(c, c))
     return m, c, about_center
@@ -155,8 +155,13 @@ def test_bad_flexible_input_names_the_item():
         system.add_flexible_body(
             data, elastic_coordinates=np.full(data.elastic_coordinate_count, np.nan)
         )
-    stripped = dataclasses.replace(beam_body(), invariants={})
-    with pytest.raises(fm.InvalidModelError, match="invariants"):
+    # Body data without invariants of motion is refused when it is made.
+    with pytest.raises(fm.InvalidModelError, match="'invariants' has no entries 'mass'"):
+        dataclasses.replace(beam_body(), invariants={})
+    # ... and by the system if forced past the constructor.
+    stripped = beam_body()
+    object.__setattr__(stripped, "invariants", {})
+    with pytest.raises(fm.InvalidModelError, match="no invariants"):
         system.add_flexible_body(stripped)
     with pytest.raises(fm.InvalidModelError, match="beam elements"):
         mesh = shapes.box((0.4, 0.05, 0.05), (2, 1, 1), "hex8")
@@ -235,13 +240,13 @@ def test_unsorted_sparse_matrices_are_taken_without_changing_the_body():
     # Issue 28 (fuzz): add_flexible_body sorted the indices of the body's matrices in place,
     # and a body's arrays are read-only: ValueError 'WRITEBACKIFCOPY base is read-only'.
     data = beam_body()
-    invariants = dict(data.invariants)
-    invariants["k_ff"] = with_columns_reversed(invariants["k_ff"])
-    invariants["i_kl"] = [
-        [with_columns_reversed(m) for m in row] for row in data.invariants["i_kl"]
-    ]
+    invariants = dataclasses.replace(
+        data.invariants,
+        k_ff=with_columns_reversed(data.invariants.k_ff),
+        i_kl=[[with_columns_reversed(m) for m in row] for row in data.invariants.i_kl],
+    )
     unsorted = dataclasses.replace(data, invariants=invariants)
-    stiffness = unsorted.invariants["k_ff"]
+    stiffness = unsorted.invariants.k_ff
     assert not stiffness.has_sorted_indices and not stiffness.indices.flags.writeable
     before = stiffness.indices.copy()
     results = []
@@ -249,7 +254,7 @@ def test_unsorted_sparse_matrices_are_taken_without_changing_the_body():
         system = fm.System(gravity=(0.0, -9.81, 0.0))
         system.add_flexible_body(body, rayleigh_damping=(0.0, 1e-4))
         results.append(fm.simulate(system, 0.01, 1e-3))
-    np.testing.assert_array_equal(unsorted.invariants["k_ff"].indices, before)
+    np.testing.assert_array_equal(unsorted.invariants.k_ff.indices, before)
     np.testing.assert_allclose(results[1].coordinates, results[0].coordinates, atol=1e-12)
 
 
@@ -279,7 +284,9 @@ def test_body_data_of_the_wrong_shapes_is_refused_before_the_core():
     assert info.value.item == "field 'nodes'"
 
     def with_invariant(key, value):
-        return dataclasses.replace(data, invariants={**data.invariants, key: value})
+        return dataclasses.replace(
+            data, invariants=dataclasses.replace(data.invariants, **{key: value})
+        )
 
     cases = [
         (with_invariant("i1", np.zeros((3, 2))), fm.InvalidModelError, r"'invariants\[\"i1\"\]'"),
@@ -413,7 +420,7 @@ def test_scalar_mass_products_of_solids_give_the_same_motion(monkeypatch):
         reference="clamped",
         reference_nodes="x0",
     )
-    assert flexmbd.system._scalar_mass(data, data.reference["free_dofs"]) is not None
+    assert flexmbd.system._scalar_mass(data, data.reference.free_dofs) is not None
     tips = []
     for fast in (True, False):
         if not fast:
@@ -454,12 +461,241 @@ def test_free_flying_deformable_body_keeps_its_momentum_and_energy():
     )
     result = fm.simulate(system, 1.0, 1e-4, output_interval=0.01, solver=fm.GeneralizedAlpha(1.0))
     inv = data.invariants
-    s = np.asarray(inv["first_moment"])[None, :] + np.einsum(
-        "kj,tj->tk", np.asarray(inv["i1"]), result.elastic_coordinates(body)
+    s = np.asarray(inv.first_moment)[None, :] + np.einsum(
+        "kj,tj->tk", np.asarray(inv.i1), result.elastic_coordinates(body)
     )
-    com = result.position(body) + np.einsum("tij,tj->ti", result.orientation(body), s) / inv["mass"]
+    com = result.position(body) + np.einsum("tij,tj->ti", result.orientation(body), s) / inv.mass
     v_com = np.gradient(com, result.time, axis=0)[1:-1]
     assert np.max(np.abs(v_com - v_com[0])) < 1e-6
     energy = result.total_energy
     assert np.max(np.abs(energy - energy[0])) < 1e-6 * energy[0]
     assert 1e-5 < np.max(np.abs(result.elastic_coordinates(body))) < 1e-2
+
+
+# Typed invariants and reference conditions (issue 29) ------------------------------------------
+
+INVARIANT_FIELDS = ("mass", "first_moment", "second_moment", "i1", "ibar", "i_kl", "k_ff", "m_ff")
+REFERENCE_FIELDS = ("kind", "nodes", "free_dofs")
+INTERFACE_FIELDS = ("interfaces", "interface_kind", "mode_count", "interface_weights")
+
+
+def craig_bampton_body():
+    mesh = shapes.box((0.4, 0.05, 0.05), (4, 1, 1), "hex8")
+    return build_body(
+        mesh.nodes,
+        mesh.elements,
+        STEEL,
+        node_sets=mesh.node_sets,
+        reference="interface",
+        modes="craig-bampton",
+        mode_count=3,
+        interfaces=["x0", "x1"],
+        interface_kind="rbe3",
+    )
+
+
+def test_invariants_and_reference_conditions_are_typed_fields():
+    from flexmbd.fe import Invariants, ReferenceConditions
+    from flexmbd.fe.body import FrozenList
+
+    for data in (beam_body(), beam_body(modes="fixed-interface", mode_count=3)):
+        inv, reference = data.invariants, data.reference
+        assert isinstance(inv, Invariants) and isinstance(reference, ReferenceConditions)
+        assert dataclasses.is_dataclass(inv) and dataclasses.is_dataclass(reference)
+        assert tuple(f.name for f in dataclasses.fields(inv)) == INVARIANT_FIELDS
+        assert tuple(f.name for f in dataclasses.fields(reference)) == (
+            *REFERENCE_FIELDS,
+            *INTERFACE_FIELDS,
+        )
+        n_f = data.elastic_coordinate_count
+        assert isinstance(inv.mass, float) and inv.mass == pytest.approx(7800 * 0.02 * 0.01)
+        assert inv.first_moment.shape == (3,) and inv.second_moment.shape == (3, 3)
+        assert inv.i1.shape == (3, n_f) and inv.ibar.shape == (3, 3, n_f)
+        assert inv.k_ff.shape == inv.m_ff.shape == (n_f, n_f)
+        assert isinstance(inv.i_kl, FrozenList) and len(inv.i_kl) == 3
+        assert all(isinstance(row, FrozenList) and len(row) == 3 for row in inv.i_kl)
+        assert all(matrix.shape == (n_f, n_f) for row in inv.i_kl for matrix in row)
+        assert reference.kind == "clamped"
+        np.testing.assert_array_equal(reference.nodes, [0])
+        assert reference.free_dofs.dtype == np.int64 and reference.free_dofs[0] == 6
+        assert all(getattr(reference, name) is None for name in INTERFACE_FIELDS)
+    reference = craig_bampton_body().reference
+    assert reference.kind == "interface" and reference.interface_kind == "rbe3"
+    assert reference.mode_count == 3
+    assert len(reference.interfaces) == len(reference.interface_weights) == 2
+    for members, weights in zip(reference.interfaces, reference.interface_weights, strict=True):
+        assert members.shape == weights.shape and weights.sum() == pytest.approx(1.0)
+
+
+def test_typed_invariants_and_reference_conditions_are_immutable():
+    data = craig_bampton_body()
+    inv, reference = data.invariants, data.reference
+    with pytest.raises(fm.FrozenBodyError, match="invariants.k_ff") as info:
+        inv.k_ff = 2.0 * inv.k_ff
+    assert isinstance(info.value, dataclasses.FrozenInstanceError)
+    assert info.value.item == "invariants.k_ff"
+    with pytest.raises(AttributeError):
+        reference.kind = "none"
+    with pytest.raises(fm.FrozenBodyError, match="reference.free_dofs"):
+        del reference.free_dofs
+    with pytest.raises(fm.FrozenBodyError, match="invariants of a FlexibleBodyData"):
+        inv["mass"] = 1.0
+    with pytest.raises(fm.FrozenBodyError, match="reference of a FlexibleBodyData"):
+        del reference["kind"]
+    for change in (
+        lambda: inv.update(mass=1.0),
+        lambda: inv.pop("mass"),
+        lambda: reference.setdefault("extra", 1),
+        lambda: reference.clear(),
+        lambda: inv.i_kl.append([]),
+        lambda: inv.i_kl[0].__setitem__(0, None),
+        lambda: reference.interfaces.append(np.zeros(1, dtype=np.int64)),
+    ):
+        with pytest.raises(fm.FrozenBodyError):
+            change()
+    for array in (inv.first_moment, inv.second_moment, inv.i1, inv.ibar, inv.k_ff, inv.i_kl[1][2]):
+        assert not array.flags.writeable
+    for array in (reference.nodes, reference.free_dofs, *reference.interface_weights):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0
+    # Mutable copies stay possible and leave the body as it is.
+    copy = dict(inv)
+    copy["mass"] = 1.0
+    assert inv.mass == data.invariants["mass"] != 1.0
+
+
+def test_typed_parts_read_as_the_old_dictionaries():
+    from collections.abc import Mapping
+
+    data = beam_body()
+    inv, reference = data.invariants, data.reference
+    assert isinstance(inv, Mapping) and isinstance(reference, Mapping)
+    assert list(inv) == list(inv.keys()) == list(INVARIANT_FIELDS) and len(inv) == 8
+    assert all(inv[name] is getattr(inv, name) for name in INVARIANT_FIELDS)
+    assert dict(inv.items())["k_ff"] is inv.k_ff
+    assert inv.get("k_ff") is inv.k_ff and "k_ff" in inv and inv.get("nothing") is None
+    assert {**inv}["i1"] is inv.i1
+    with pytest.raises(KeyError):
+        inv["nothing"]
+    with pytest.raises(KeyError):
+        inv[0]
+    # Optional entries that are None are not keys, as in the old dictionaries.
+    assert list(reference) == list(REFERENCE_FIELDS) and len(reference) == 3
+    assert "interfaces" not in reference and reference.get("interfaces") is None
+    assert reference.get("interfaces", ()) == ()
+    with pytest.raises(KeyError):
+        reference["interfaces"]
+    np.testing.assert_array_equal(reference["free_dofs"], reference.free_dofs)
+    cb = craig_bampton_body().reference
+    assert list(cb) == [*REFERENCE_FIELDS, *INTERFACE_FIELDS]
+    assert cb["interface_kind"] == "rbe3" and cb.get("mode_count") == 3
+    assert dict(cb)["interface_weights"] is cb.interface_weights
+
+
+def test_body_data_made_from_dicts_gets_the_typed_parts():
+    from flexmbd.fe import Invariants, ReferenceConditions
+
+    data = craig_bampton_body()
+    # The dict form of older code: plain dicts, the arrays writable copies.
+    invariants = {name: value for name, value in data.invariants.items()}
+    invariants["i1"] = np.array(data.invariants.i1)
+    reference = {"kind": "interface", "nodes": np.array(data.reference.nodes)}
+    reference["free_dofs"] = np.array(data.reference.free_dofs)
+    reference["interfaces"] = [np.array(members) for members in data.reference.interfaces]
+    made = dataclasses.replace(data, invariants=invariants, reference=reference)
+    assert isinstance(made.invariants, Invariants)
+    assert isinstance(made.reference, ReferenceConditions)
+    assert made.invariants.k_ff is data.invariants.k_ff  # read-only already: not copied
+    assert not made.invariants.i1.flags.writeable and invariants["i1"].flags.writeable
+    assert not made.reference.free_dofs.flags.writeable
+    assert made.reference.interface_kind is None and made.reference.mode_count is None
+    assert made.elastic_coordinate_count == data.elastic_coordinate_count
+    # The typed objects are made from dicts directly too, and by keywords.
+    assert Invariants.from_mapping(invariants).k_ff is data.invariants.k_ff
+    assert Invariants.from_mapping(data.invariants) is data.invariants
+    direct = ReferenceConditions(kind="none", nodes=np.zeros(0, dtype=np.int64), free_dofs=[1])
+    assert direct.free_dofs == [1] and direct.interfaces is None
+    with pytest.raises(fm.FrozenBodyError):
+        direct.free_dofs.append(2)
+
+
+@pytest.mark.parametrize(
+    "field, change, match",
+    [
+        ("invariants", {"k_ff": None}, "'invariants' has no entry 'k_ff'"),
+        ("invariants", {"mass": None, "i_kl": None}, "'invariants' has no entries 'mass', 'i_kl'"),
+        ("invariants", {"stiffness": 1.0}, "'invariants' has unknown entry 'stiffness'"),
+        ("reference", {"free_dofs": None}, "'reference' has no entry 'free_dofs'"),
+        ("reference", {"kind": None}, "'reference' has no entry 'kind'"),
+        ("reference", {"interface": [0]}, "'reference' has unknown entry 'interface'"),
+    ],
+)
+def test_dicts_with_missing_or_unknown_entries_are_refused_naming_them(field, change, match):
+    data = beam_body()
+    values = dict(getattr(data, field))
+    for key, value in change.items():
+        if value is None:
+            del values[key]
+        else:
+            values[key] = value
+    with pytest.raises(fm.InvalidModelError, match=match) as info:
+        dataclasses.replace(data, **{field: values})
+    assert info.value.item == f"field '{field}'"
+    # A value None is as missing; the message lists what is needed.
+    if None in change.values():
+        values = dict(getattr(data, field), **change)
+        with pytest.raises(fm.InvalidModelError, match=match) as info:
+            dataclasses.replace(data, **{field: values})
+        assert "needs 'mass'" in str(info.value) or "needs 'kind'" in str(info.value)
+
+
+def test_body_data_parts_of_the_wrong_type_are_refused():
+    from flexmbd.fe import Invariants, ReferenceConditions
+
+    data = beam_body()
+    for field, value in (("invariants", None), ("invariants", [1, 2]), ("reference", "clamped")):
+        with pytest.raises(fm.InvalidModelError, match=f"field '{field}' must be") as info:
+            dataclasses.replace(data, **{field: value})
+        assert info.value.item == f"field '{field}'"
+    with pytest.raises(fm.InvalidModelError, match="'invariants' has no entry 'm_ff'"):
+        dataclasses.replace(data.invariants, m_ff=None)
+    with pytest.raises(TypeError):
+        Invariants(1.0)  # keywords only
+    with pytest.raises(TypeError):
+        ReferenceConditions(kind="none", nodes=[])  # free_dofs is required
+
+
+def test_replaced_invariants_are_still_checked_against_the_nodal_matrices():
+    data = beam_body(modes="fixed-interface", mode_count=3)
+    softer = dataclasses.replace(data.invariants, k_ff=0.5 * data.invariants.k_ff)
+    with pytest.raises(fm.InvalidModelError, match="with_stiffness_scale") as info:
+        dataclasses.replace(data, invariants=softer)
+    assert info.value.item == "invariants['k_ff']"
+    with pytest.raises(fm.InvalidModelError, match="m_ff"):
+        dataclasses.replace(
+            data, invariants={**data.invariants, "m_ff": 2.0 * data.invariants.m_ff}
+        )
+    scaled = data.with_stiffness_scale(2.0)
+    np.testing.assert_allclose(scaled.invariants.k_ff, 2.0 * data.invariants.k_ff, rtol=1e-15)
+    assert scaled.invariants.m_ff is data.invariants.m_ff
+
+
+def test_typed_parts_pickle_and_copy_frozen():
+    import copy
+    import pickle
+
+    from flexmbd.fe import Invariants, ReferenceConditions
+
+    data = craig_bampton_body()
+    for part in (data.invariants, data.reference):
+        for other in (pickle.loads(pickle.dumps(part)), copy.deepcopy(part), copy.copy(part)):
+            assert type(other) is type(part) and list(other) == list(part)
+            with pytest.raises(fm.FrozenBodyError):
+                other["kind" if isinstance(part, ReferenceConditions) else "mass"] = 1
+    for other in (pickle.loads(pickle.dumps(data)), copy.deepcopy(data)):
+        assert isinstance(other.invariants, Invariants)
+        assert isinstance(other.reference, ReferenceConditions)
+        assert not other.invariants.i1.flags.writeable
+        assert not other.reference.interface_weights[0].flags.writeable
+        np.testing.assert_array_equal(other.invariants.k_ff, data.invariants.k_ff)
+        assert other.reference.mode_count == 3

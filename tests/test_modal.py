@@ -59,7 +59,7 @@ def cb_body(bar, kind, reference, count=12, interfaces=("x0", "x1")):
 
 def full_modes(body):
     full = np.zeros((body.dof_count, body.modes.shape[1]))
-    full[body.reference["free_dofs"]] = body.modes
+    full[body.reference.free_dofs] = body.modes
     return full
 
 
@@ -79,7 +79,7 @@ def test_modal_matrices_are_orthonormal_and_diagonal(bar, modes):
         mode_count=8,
         **options,
     )
-    m_ff, k_ff = body.invariants["m_ff"], body.invariants["k_ff"]
+    m_ff, k_ff = body.invariants.m_ff, body.invariants.k_ff
     count = body.modes.shape[1]
     np.testing.assert_allclose(m_ff, np.eye(count), atol=1e-10)
     omega2 = (2 * np.pi * body.frequencies) ** 2
@@ -224,7 +224,9 @@ def test_external_modes_give_the_same_body_as_computed_modes(bar):
         external_modes=computed.modes,
     )
     for key in ("i1", "ibar", "k_ff", "m_ff"):
-        np.testing.assert_allclose(external.invariants[key], computed.invariants[key], atol=1e-12)
+        np.testing.assert_allclose(
+            getattr(external.invariants, key), getattr(computed.invariants, key), atol=1e-12
+        )
     with pytest.raises(InvalidParameterError, match="over the kept coordinates"):
         pp.build_body(
             bar.nodes,
@@ -257,11 +259,9 @@ def test_bodies_from_mesh_files_and_body_files_round_trip(tmp_path, bar):
     assert (loaded.stiffness != body.stiffness).nnz == 0
     for k in range(3):
         for j in range(3):
-            np.testing.assert_array_equal(
-                loaded.invariants["i_kl"][k][j], body.invariants["i_kl"][k][j]
-            )
-    np.testing.assert_array_equal(loaded.reference["interfaces"][1], x1)
-    assert loaded.reference["interface_kind"] == "rbe2"
+            np.testing.assert_array_equal(loaded.invariants.i_kl[k][j], body.invariants.i_kl[k][j])
+    np.testing.assert_array_equal(loaded.reference.interfaces[1], x1)
+    assert loaded.reference.interface_kind == "rbe2"
 
 
 def test_bad_modal_requests_are_explained(bar):
@@ -415,8 +415,8 @@ def test_out_of_range_and_named_node_selections_still_work():
     by_numpy = small_body(
         reference="clamped", reference_nodes=[np.int32(i) for i in SMALL_BAR.node_sets["x0"]]
     )
-    np.testing.assert_array_equal(by_name.reference["free_dofs"], by_index.reference["free_dofs"])
-    np.testing.assert_array_equal(by_name.reference["free_dofs"], by_numpy.reference["free_dofs"])
+    np.testing.assert_array_equal(by_name.reference.free_dofs, by_index.reference.free_dofs)
+    np.testing.assert_array_equal(by_name.reference.free_dofs, by_numpy.reference.free_dofs)
 
 
 @pytest.mark.parametrize(
@@ -465,9 +465,9 @@ def test_single_precision_factors_give_the_same_modes(bar, kind):
     )
     np.testing.assert_allclose(single.frequencies, double.frequencies, rtol=1e-9)
     # The same subspace: the single-precision modes are combinations of the double ones.
-    m = single.invariants["m_ff"]
+    m = single.invariants.m_ff
     overlap = single.modes.T @ (
-        double.mass[single.reference["free_dofs"]][:, single.reference["free_dofs"]] @ double.modes
+        double.mass[single.reference.free_dofs][:, single.reference.free_dofs] @ double.modes
     )
     np.testing.assert_allclose(np.abs(np.linalg.det(overlap)), 1.0, rtol=1e-8)
     np.testing.assert_allclose(m, np.eye(len(m)), atol=1e-10)

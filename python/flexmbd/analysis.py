@@ -143,7 +143,7 @@ def _newton_solve(
         try:
             factor = factorize(
                 block.tocsc(),
-                dofs=np.asarray(data.reference["free_dofs"], dtype=np.int64),
+                dofs=np.asarray(data.reference.free_dofs, dtype=np.int64),
                 nodes=data.nodes,
                 dofs_per_node=data.dofs_per_node,
                 name="elastic block of the equilibrium",

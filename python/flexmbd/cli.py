@@ -444,7 +444,7 @@ def _print_body(body: Any, title: str, more: str = "") -> None:
     elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
     print(f"{title} {body.node_count} nodes, {elements}")
     print(
-        f"  mass {body.invariants['mass']:.6g} kg, {body.elastic_coordinate_count} elastic "
+        f"  mass {body.invariants.mass:.6g} kg, {body.elastic_coordinate_count} elastic "
         f"coordinates ({body.mode_kind or 'nodal'}){more}"
     )
     if body.frequencies is not None:
@@ -453,12 +453,12 @@ def _print_body(body: Any, title: str, more: str = "") -> None:
         print(f"  frequencies (Hz): {shown}{tail}")
     import numpy as np
 
-    reference = body.reference or {}
-    weights = reference.get("interface_weights") or []
-    for k, (members, w) in enumerate(zip(reference.get("interfaces") or [], weights, strict=False)):
+    reference = body.reference
+    weights = reference.interface_weights or []
+    for k, (members, w) in enumerate(zip(reference.interfaces or [], weights, strict=False)):
         centroid = np.asarray(w) @ body.nodes[np.asarray(members, dtype=np.int64)]
         at = ", ".join(f"{v:.6g}" for v in centroid)
-        kind = reference.get("interface_kind")
+        kind = reference.interface_kind
         print(f"  interface {k} ({kind}): {len(members)} nodes, weighted centroid ({at}) m")
 
 

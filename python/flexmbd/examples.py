@@ -206,7 +206,7 @@ def flexible_slider_crank(elements: int = 8, geometric_stiffness: bool = True) -
         name="rod",
     )
     slider = system.add_point_mass(
-        rod_data.invariants["mass"] / 2, position=(crank_length + rod_length, 0, 0), name="slider"
+        rod_data.invariants.mass / 2, position=(crank_length + rod_length, 0, 0), name="slider"
     )
     pivot, crank_root = system.add_marker(system.ground), system.add_marker(crank)
     system.add_revolute_joint(pivot, crank_root, name="bearing")

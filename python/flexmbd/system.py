@@ -8,6 +8,7 @@ joint frames of seed Figure 4).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -24,7 +25,7 @@ from .errors import (
     ModelError,
     UnknownItemError,
 )
-from .fe.body import FlexibleBodyData, check_body
+from .fe.body import FlexibleBodyData, Invariants, check_body
 from .fe.interface import COUPLINGS, Interface, body_interface
 
 #: The units of the numbers of a deformable body that `System.add_flexible_body` takes.
@@ -56,7 +57,7 @@ def elastic_basis(body: FlexibleBodyData) -> sp.csr_matrix:
     """The matrix (n_nodal_dofs, n_f) that maps the elastic coordinates of `body` to its nodal
     displacements (zero at the dofs held by the reference conditions): the selection of the
     kept dofs for nodal bodies, the modal matrix B_m of seed eq. 18 for modal ones."""
-    free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+    free = np.asarray(body.reference.free_dofs, dtype=np.int64)
     n_dofs = body.dof_count
     if body.modes is None:
         return sp.csr_matrix(
@@ -266,8 +267,13 @@ class System(_core.System):
             except InvalidParameterError as error:
                 raise ArgumentTypeError(f"{item}: {error}", item=error.item) from None
         inv = body.invariants
-        needed = ("mass", "first_moment", "second_moment", "i1", "i_kl", "ibar", "k_ff", "m_ff")
-        missing = [k for k in needed if inv.get(k) is None]
+        # A body has all its invariants (its constructor checks); not one changed past it
+        # (object.__setattr__).
+        missing = [
+            entry.name
+            for entry in dataclasses.fields(Invariants)
+            if getattr(inv, entry.name, None) is None
+        ]
         if missing:
             raise InvalidModelError(
                 f"{item}: the body data has no invariants {missing} (run the preprocessor, "
@@ -309,30 +315,28 @@ class System(_core.System):
         damping = sp.csc_matrix((n, n))
         if rayleigh_damping is not None:
             alpha, beta = rayleigh_coefficients(rayleigh_damping, item)
-            damping = (
-                damping + alpha * sp.csc_matrix(inv["m_ff"]) + beta * sp.csc_matrix(inv["k_ff"])
-            )
+            damping = damping + alpha * sp.csc_matrix(inv.m_ff) + beta * sp.csc_matrix(inv.k_ff)
         if modal_damping is not None:
             damping = damping + sp.csc_matrix(self._modal_damping(body, modal_damping, item))
-        i_kl = [_csc_tuple(inv["i_kl"][k][j], n) for k in range(3) for j in range(3)]
+        i_kl = [_csc_tuple(inv.i_kl[k][j], n) for k in range(3) for j in range(3)]
         basis = elastic_basis(body)
         stiffening = _stiffening_elements(body, basis, item) if geometric_stiffness else None
         # Nodes of the elastic coordinates of nodal bodies: the geometric nested-dissection
         # ordering of their factorizations.
         dof_nodes = node_positions = scalar_mass = None
         if body.modes is None:
-            free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+            free = np.asarray(body.reference.free_dofs, dtype=np.int64)
             dof_nodes = np.ascontiguousarray(free // body.dofs_per_node, dtype=np.int64)
             node_positions = np.ascontiguousarray(body.nodes, dtype=float)
             scalar_mass = _scalar_mass(body, free)
         body_id = self._add_flexible_body(
-            mass=float(inv["mass"]),
-            first_moment=np.asarray(inv["first_moment"], dtype=float),
-            second_moment=np.asarray(inv["second_moment"], dtype=float),
-            i1=np.ascontiguousarray(np.asarray(inv["i1"], dtype=float).reshape(3, n)),
-            ibar=np.ascontiguousarray(np.asarray(inv["ibar"], dtype=float).reshape(9, n)),
+            mass=float(inv.mass),
+            first_moment=np.asarray(inv.first_moment, dtype=float),
+            second_moment=np.asarray(inv.second_moment, dtype=float),
+            i1=np.ascontiguousarray(np.asarray(inv.i1, dtype=float).reshape(3, n)),
+            ibar=np.ascontiguousarray(np.asarray(inv.ibar, dtype=float).reshape(9, n)),
             i_kl=i_kl,
-            stiffness=_csc_tuple(inv["k_ff"], n),
+            stiffness=_csc_tuple(inv.k_ff, n),
             damping=_csc_tuple(damping, n),
             position=position,
             orientation=orientation,
@@ -360,8 +364,8 @@ class System(_core.System):
             )
         if not (np.isfinite(zeta) and zeta >= 0):
             raise InvalidParameterError(f"{item}: modal damping ratio must be >= 0, got {zeta}")
-        k = np.asarray(sp.csc_matrix(body.invariants["k_ff"]).toarray())
-        m = np.asarray(sp.csc_matrix(body.invariants["m_ff"]).toarray())
+        k = np.asarray(sp.csc_matrix(body.invariants.k_ff).toarray())
+        m = np.asarray(sp.csc_matrix(body.invariants.m_ff).toarray())
         import scipy.linalg as sla
 
         w2, phi = sla.eigh(k, m)

@@ -6,7 +6,7 @@ invariants of motion, reference conditions, modal reduction, and body files.
 See ``docs/preprocessor.md``."""
 
 from . import shapes
-from .body import FlexibleBodyData
+from .body import FlexibleBodyData, Invariants, ReferenceConditions
 from .body_file import load_body, save_body
 from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
 from .preprocess import (
@@ -22,8 +22,10 @@ from .stress import recover_stresses, von_mises
 
 __all__ = [
     "FlexibleBodyData",
+    "Invariants",
     "Material",
     "Mesh",
+    "ReferenceConditions",
     "Section",
     "assemble",
     "body_from_matrices",

@@ -9,9 +9,9 @@ from __future__ import annotations
 import copy
 import math
 import numbers
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn, Self
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,7 +34,7 @@ _HOW_TO_CHANGE = (
     "change), and add metadata with with_metadata"
 )
 
-#: Relative tolerance of the check that invariants["k_ff"] and ["m_ff"] match the nodal
+#: Relative tolerance of the check that invariants.k_ff and .m_ff match the nodal
 #: stiffness and mass (round-off is ~1e-15; a changed matrix is off by its change).
 _CONSISTENCY_TOLERANCE = 1e-6
 
@@ -65,7 +65,7 @@ class FrozenDict(dict):
 
 class FrozenList(list):
     """A ``list`` that refuses changes (``FrozenBodyError``): the lists of a
-    :class:`FlexibleBodyData` (for example ``invariants["i_kl"]``). ``list(frozen)`` is a
+    :class:`FlexibleBodyData` (for example ``invariants.i_kl``). ``list(frozen)`` is a
     mutable copy."""
 
     __slots__ = ("_where",)
@@ -133,6 +133,218 @@ def _freeze(value: Any, where: str) -> Any:
     return value
 
 
+class _Entries(Mapping[str, Any]):
+    """Base of :class:`Invariants` and :class:`ReferenceConditions`: a frozen dataclass whose
+    fields are also readable as a read-only mapping, the dictionary form these parts of a
+    :class:`FlexibleBodyData` had before (``obj["k_ff"]``, ``obj.get("interfaces")``, ``"k_ff"
+    in obj``, ``keys()``, ``items()``, iteration over the keys). The mapping holds the fields
+    that are set: an optional field that is None is not one of its keys, as in the old
+    dictionaries. ``dict(obj)`` is a mutable (shallow) copy."""
+
+    #: The field this object is in a FlexibleBodyData (error messages).
+    _FIELD = ""
+    #: Fields that must be given (not None), then the optional ones (None when absent), in
+    #: the order of the dataclass fields (and of the members of a body file; a test checks
+    #: that the two agree).
+    _REQUIRED: tuple[str, ...] = ()
+    _OPTIONAL: tuple[str, ...] = ()
+    #: What the message for a missing field advises.
+    _ADVICE = ""
+
+    def __post_init__(self) -> None:
+        missing = [name for name in self._REQUIRED if getattr(self, name) is None]
+        if missing:
+            raise self._missing(missing)
+        for name in (*self._REQUIRED, *self._OPTIONAL):
+            where = f"{self._FIELD}[{name!r}]"
+            object.__setattr__(self, name, _freeze(getattr(self, name), where))
+
+    @classmethod
+    def _item(cls) -> str:
+        return f"field '{cls._FIELD}'"
+
+    @classmethod
+    def _missing(cls, names: list[str]) -> InvalidModelError:
+        entries = "entry" if len(names) == 1 else "entries"
+        return InvalidModelError(
+            f"{cls._item()} has no {entries} {', '.join(repr(n) for n in names)} "
+            f"({cls.__name__} needs {', '.join(repr(n) for n in cls._REQUIRED)}): {cls._ADVICE}",
+            item=cls._item(),
+        )
+
+    @classmethod
+    def from_mapping(cls, values: Any) -> Self:
+        """`values` itself when it is of this type, else a new object of its entries (a
+        ``dict``, or any mapping, of field names to values, the form of older code and of the
+        members of a body file). Raises `InvalidModelError` naming the missing or unknown
+        keys, or for a value that is not a mapping."""
+        if isinstance(values, cls):
+            return values
+        if not isinstance(values, Mapping):
+            raise InvalidModelError(
+                f"{cls._item()} must be {_article(cls.__name__)} {cls.__name__} or a dict of its "
+                f"entries, got {type(values).__name__}: {cls._ADVICE}",
+                item=cls._item(),
+            )
+        known = (*cls._REQUIRED, *cls._OPTIONAL)
+        unknown = [key for key in values if key not in known]
+        if unknown:
+            entries = "entry" if len(unknown) == 1 else "entries"
+            raise InvalidModelError(
+                f"{cls._item()} has unknown {entries} {', '.join(repr(k) for k in unknown)} "
+                f"(the entries of {cls.__name__}: {', '.join(repr(k) for k in known)})",
+                item=cls._item(),
+            )
+        missing = [name for name in cls._REQUIRED if values.get(name) is None]
+        if missing:
+            raise cls._missing(missing)
+        return cls(**values)
+
+    # The read-only mapping (the old dictionary form) -----------------------------------------
+
+    def _keys(self) -> tuple[str, ...]:
+        return self._REQUIRED + tuple(n for n in self._OPTIONAL if getattr(self, n) is not None)
+
+    def __getitem__(self, key: str) -> Any:
+        if isinstance(key, str) and (
+            key in self._REQUIRED or (key in self._OPTIONAL and getattr(self, key) is not None)
+        ):
+            return getattr(self, key)
+        raise KeyError(key)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        return len(self._keys())
+
+    def _refuse(self, *args: Any, **kwargs: Any) -> NoReturn:
+        raise FrozenBodyError(
+            f"{self._FIELD} of a FlexibleBodyData cannot be changed: {_HOW_TO_CHANGE}",
+            item=self._FIELD,
+        )
+
+    __setitem__ = __delitem__ = __ior__ = _refuse
+    clear = pop = popitem = setdefault = update = _refuse
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Through the constructor, which freezes the values again.
+        values = {name: getattr(self, name) for name in (*self._REQUIRED, *self._OPTIONAL)}
+        return (_rebuild_entries, (type(self), values))
+
+
+def _article(name: str) -> str:
+    return "an" if name[:1] in "AEIOU" else "a"
+
+
+def _rebuild_entries(cls: type[_Entries], values: dict[str, Any]) -> _Entries:
+    return cls(**values)
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Invariants(_Entries):
+    """The invariants of motion of a deformable body in its elastic coordinates q_f (n_f of
+    them: the kept nodal coordinates, or the modal coordinates; see ``DESIGN.md`` and
+    ``docs/preprocessor.md``), the ``invariants`` of a :class:`FlexibleBodyData`, with its
+    reduced stiffness and mass. Immutable: arrays read-only, ``i_kl`` a
+    frozen nested list (:class:`FrozenList`); changing a field or an entry raises
+    :class:`flexmbd.FrozenBodyError`.
+
+    Fields (all required):
+        mass: total mass m (float), kg.
+        first_moment: int rho u0 dV, (3,).
+        second_moment: J0 = int rho u0 u0^T dV, (3, 3), symmetric positive semi-definite.
+        i1: I1, (3, n_f).
+        ibar: Ibar_kl, (3, 3, n_f).
+        i_kl: I_kl, 3 x 3 nested list of (n_f, n_f) matrices (sparse for nodal bodies, dense
+            for modal ones).
+        k_ff: reduced stiffness K_ff, (n_f, n_f).
+        m_ff: reduced mass M_ff, (n_f, n_f).
+
+    Built with keywords (``Invariants(mass=..., ...)``) or from a dict of the same entries
+    (:meth:`from_mapping`, which the :class:`FlexibleBodyData` constructor applies to a dict).
+    The old dictionary form reads too: ``invariants["k_ff"]``, ``"k_ff" in invariants``,
+    ``invariants.keys()``, ``items()``, iteration over the entry names; ``dict(invariants)``
+    is a mutable copy. Variants: ``dataclasses.replace(invariants, k_ff=...)``, checked when
+    it becomes part of a body."""
+
+    mass: float
+    first_moment: NDArray[np.float64]
+    second_moment: NDArray[np.float64]
+    i1: NDArray[np.float64]
+    ibar: NDArray[np.float64]
+    i_kl: list[list[Any]]
+    k_ff: Any
+    m_ff: Any
+
+    _FIELD = "invariants"
+    _REQUIRED = ("mass", "first_moment", "second_moment", "i1", "ibar", "i_kl", "k_ff", "m_ff")
+    _ADVICE = (
+        "bodies get their invariants of motion from the preprocessor (flexmbd.fe.build_body, "
+        "body_from_mesh, body_from_matrices) or from a body file written by it"
+    )
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class ReferenceConditions(_Entries):
+    """The reference conditions of a deformable body (which nodal coordinates are kept as
+    elastic coordinates) and, for Craig-Bampton modes, their interfaces: the ``reference`` of
+    a :class:`FlexibleBodyData`. Immutable like it (arrays read-only, lists frozen).
+
+    Fields:
+        kind: "none", "clamped", "3-2-1", "simply-supported", "mean-axis" or "interface".
+        nodes: indices of the reference nodes, (k,) int64.
+        free_dofs: indices of the kept nodal coordinates, (n_free,) int64.
+        interfaces: Craig-Bampton modes only, else None: the node indices of each interface.
+        interface_kind: Craig-Bampton modes only, else None: "rbe2", "rbe3" or "nodal".
+        mode_count: Craig-Bampton modes only, else None: the eigenmodes asked for (None too
+            for bodies saved before it was recorded).
+        interface_weights: weighted (RBE2, RBE3) interfaces only, else None: the weight of
+            each node of each interface.
+
+    Built with keywords or from a dict of the same entries (:meth:`from_mapping`; the optional
+    ones may be left out). The old dictionary form reads too: ``reference["free_dofs"]``,
+    ``reference.get("interfaces", ())``, ``"interfaces" in reference`` (False when None),
+    ``keys()``, ``items()``, iteration over the names of the entries that are set."""
+
+    kind: str
+    nodes: NDArray[np.int64]
+    free_dofs: NDArray[np.int64]
+    interfaces: list[NDArray[np.int64]] | None = None
+    interface_kind: str | None = None
+    mode_count: int | None = None
+    interface_weights: list[NDArray[np.float64]] | None = None
+
+    _FIELD = "reference"
+    _REQUIRED = ("kind", "nodes", "free_dofs")
+    _OPTIONAL = ("interfaces", "interface_kind", "mode_count", "interface_weights")
+    _ADVICE = (
+        "bodies get their reference conditions from the preprocessor (flexmbd.fe.build_body, "
+        "body_from_mesh, body_from_matrices) or from a body file written by it"
+    )
+
+
+def _refuse_entry_assignment(self: _Entries, name: str, value: Any = None) -> NoReturn:
+    raise FrozenBodyError(
+        f"cannot assign to {self._FIELD}.{name} of a FlexibleBodyData: {_HOW_TO_CHANGE}",
+        item=f"{self._FIELD}.{name}",
+    )
+
+
+def _refuse_entry_deletion(self: _Entries, name: str) -> NoReturn:
+    raise FrozenBodyError(
+        f"cannot delete {self._FIELD}.{name} of a FlexibleBodyData: {_HOW_TO_CHANGE}",
+        item=f"{self._FIELD}.{name}",
+    )
+
+
+for _cls in (Invariants, ReferenceConditions):
+    # The frozen dataclass's own methods raise a FrozenInstanceError without advice.
+    _cls.__setattr__ = _refuse_entry_assignment  # type: ignore[method-assign,assignment]
+    _cls.__delattr__ = _refuse_entry_deletion  # type: ignore[method-assign,assignment]
+del _cls
+
+
 def _rebuild(values: dict[str, Any]) -> FlexibleBodyData:
     """Unpickling and copying go through the constructor (which freezes and checks)."""
     return FlexibleBodyData(**values)
@@ -144,7 +356,7 @@ class FlexibleBodyData:
 
     Coordinates are "nodal" (``dofs_per_node`` per node, node-major: [u_x, u_y, u_z] and, for
     beams, [theta_x, theta_y, theta_z] after them) before reference conditions. The reference
-    conditions keep the dofs listed in ``reference["free_dofs"]``; the elastic coordinates of
+    conditions keep the dofs listed in ``reference.free_dofs``; the elastic coordinates of
     the body are those free dofs, or, with modes, the modal coordinates q_f with
     u_free = modes @ q_f (the modal matrix B_m of seed eq. 18).
 
@@ -155,11 +367,17 @@ class FlexibleBodyData:
     everything that depends on the change: :meth:`with_stiffness_scale`,
     :meth:`with_material`, :meth:`with_damping`, :meth:`with_modes` (and
     :meth:`with_metadata` for notes). ``dataclasses.replace`` builds a new body without
-    recomputing anything; the constructor then checks that ``invariants["k_ff"]`` and
-    ``invariants["m_ff"]`` still equal ``stiffness`` and ``mass`` reduced to the elastic
+    recomputing anything; the constructor then checks that ``invariants.k_ff`` and
+    ``invariants.m_ff`` still equal ``stiffness`` and ``mass`` reduced to the elastic
     coordinates (one product with a probe vector each, cheap for large bodies) and raises
     ``InvalidModelError`` if not, but it cannot check the other invariants, the modes or the
     frequencies: use the ``with_*`` methods.
+
+    ``reference`` and ``invariants`` are typed objects, :class:`ReferenceConditions` and
+    :class:`Invariants` (``body.reference.free_dofs``, ``body.invariants.k_ff``). The
+    constructor also takes them as dicts of their entries (the form of older code) and
+    converts them, raising `InvalidModelError` for a missing or unknown entry; and they still
+    read as read-only mappings (``body.invariants["k_ff"]``, the old form).
 
     Attributes:
         nodes: undeformed node positions in the body frame, (n_nodes, 3), m.
@@ -175,19 +393,20 @@ class FlexibleBodyData:
         stiffness: K_ff, sparse (n_dofs, n_dofs), nodal.
         mass: M_ff, sparse (n_dofs, n_dofs), nodal.
         mass_kind: "consistent" or "lumped".
-        reference: {"kind": "none" | "clamped" | "3-2-1" | "simply-supported" | "mean-axis" |
-            "interface", "nodes": indices, "free_dofs": indices of the kept nodal dofs}; for
-            Craig-Bampton modes also "interfaces" (node indices of each), "interface_kind",
-            "mode_count" (the eigenmodes asked for) and, for weighted interfaces,
-            "interface_weights".
+        reference: the reference conditions, a :class:`ReferenceConditions`: ``kind``
+            ("none" | "clamped" | "3-2-1" | "simply-supported" | "mean-axis" | "interface"),
+            ``nodes`` (indices), ``free_dofs`` (indices of the kept nodal dofs); for
+            Craig-Bampton modes also ``interfaces`` (node indices of each),
+            ``interface_kind``, ``mode_count`` (the eigenmodes asked for) and, for weighted
+            interfaces, ``interface_weights`` (None otherwise).
         modes: modal matrix (n_free_dofs, n_modes) or None (nodal coordinates).
         frequencies: natural frequencies of the modes (Hz) or None.
         mode_kind: "free-free", "fixed-interface", "craig-bampton", "external" or None.
         invariants: invariants of motion in the elastic coordinates of the body (see
-            ``DESIGN.md``): "mass" (float), "first_moment" (3,), "second_moment" (3, 3),
-            "i1" (3, n_f), "i_kl" (3, 3) nested list of (n_f, n_f) matrices (sparse for nodal,
-            dense for modal), "ibar" (3, 3, n_f), and the reduced stiffness and mass "k_ff"
-            and "m_ff" (n_f, n_f).
+            ``DESIGN.md``), an :class:`Invariants`: ``mass`` (float), ``first_moment``
+            (3,), ``second_moment`` (3, 3), ``i1`` (3, n_f), ``i_kl`` (3, 3) nested list of
+            (n_f, n_f) matrices (sparse for nodal, dense for modal), ``ibar`` (3, 3, n_f), and
+            the reduced stiffness and mass ``k_ff`` and ``m_ff`` (n_f, n_f).
         damping: the body's damping, used by :meth:`flexmbd.System.add_flexible_body` when
             it is given neither `rayleigh_damping` nor `modal_damping`: None (undamped), or
             {"rayleigh": (alpha 1/s, beta s) or None, "modal": damping ratio or None} (see
@@ -209,11 +428,13 @@ class FlexibleBodyData:
     stiffness: sp.csc_matrix
     mass: sp.csc_matrix
     mass_kind: str
-    reference: dict[str, Any]
+    reference: ReferenceConditions
     modes: NDArray[np.float64] | None = None
     frequencies: NDArray[np.float64] | None = None
     mode_kind: str | None = None
-    invariants: dict[str, Any] = field(default_factory=dict)
+    # Required (the constructor refuses None); a default only because the fields before it
+    # have one.
+    invariants: Invariants = None  # type: ignore[assignment]
     damping: dict[str, Any] | None = None
     units: dict[str, str] = field(
         default_factory=lambda: {"length": "m", "mass": "kg", "time": "s"}
@@ -222,6 +443,9 @@ class FlexibleBodyData:
     version: int = BODY_DATA_VERSION
 
     def __post_init__(self) -> None:
+        # Dicts (older code, body files) become the typed parts; they are frozen already.
+        object.__setattr__(self, "invariants", Invariants.from_mapping(self.invariants))
+        object.__setattr__(self, "reference", ReferenceConditions.from_mapping(self.reference))
         for item in fields(self):
             object.__setattr__(self, item.name, _freeze(getattr(self, item.name), item.name))
         _check_node_array(self.nodes)
@@ -244,13 +468,13 @@ class FlexibleBodyData:
         """Number of elastic coordinates q_f of the body."""
         if self.modes is not None:
             return self.modes.shape[1]
-        return len(self.reference["free_dofs"])
+        return len(self.reference.free_dofs)
 
     # Variants ----------------------------------------------------------------------------
 
     def with_stiffness_scale(self, scale: float) -> FlexibleBodyData:
         """A new body with its stiffness multiplied by `scale` (finite, > 0): the nodal K,
-        ``invariants["k_ff"]`` and the Young's modulus of the material (so that stresses and
+        ``invariants.k_ff`` and the Young's modulus of the material (so that stresses and
         the geometric stiffness of beams agree) times `scale`; mode shapes unchanged (K and
         s K have the same eigenvectors and static modes), frequencies times sqrt(`scale`).
         Works for every body, also those built from matrices.
@@ -390,22 +614,18 @@ FlexibleBodyData.__delattr__ = _refuse_deletion  # type: ignore[method-assign,as
 
 
 def _check_reduced_matrices(body: FlexibleBodyData) -> None:
-    """Raises `InvalidModelError` unless ``invariants["k_ff"]`` and ``["m_ff"]`` equal the
-    nodal stiffness and mass reduced to the elastic coordinates, B^T K B with B the selection
-    of the free dofs or the modes, tested on one probe vector (O(nonzeros) work). Bodies
-    without these entries or without nodal matrices are not checked."""
-    reference = body.reference
-    free = reference.get("free_dofs") if isinstance(reference, Mapping) else None
-    invariants = body.invariants if isinstance(body.invariants, Mapping) else {}
-    if free is None or body.nodes is None:
+    """Raises `InvalidModelError` unless ``invariants.k_ff`` and ``.m_ff`` equal the nodal
+    stiffness and mass reduced to the elastic coordinates, B^T K B with B the selection of
+    the free dofs or the modes, tested on one probe vector (O(nonzeros) work). Bodies without
+    nodal matrices are not checked."""
+    if body.nodes is None:
         return
-    free = np.asarray(free, dtype=np.int64)
-    for key, nodal, field_name in (
-        ("k_ff", body.stiffness, "stiffness"),
-        ("m_ff", body.mass, "mass"),
+    free = np.asarray(body.reference.free_dofs, dtype=np.int64)
+    for key, reduced, nodal, field_name in (
+        ("k_ff", body.invariants.k_ff, body.stiffness, "stiffness"),
+        ("m_ff", body.invariants.m_ff, body.mass, "mass"),
     ):
-        reduced = invariants.get(key)
-        if reduced is None or nodal is None:
+        if nodal is None:
             continue
         item = f"invariants['{key}']"
         n_dofs = body.dof_count
@@ -447,7 +667,7 @@ def _check_reduced_matrices(body: FlexibleBodyData) -> None:
 
 # Checks of the fields ---------------------------------------------------------------------------
 
-#: Relative tolerance of the checks that invariants["second_moment"] is symmetric and positive
+#: Relative tolerance of the checks that invariants.second_moment is symmetric and positive
 #: semi-definite (times its trace).
 SECOND_MOMENT_TOLERANCE = 1e-9
 
@@ -590,6 +810,7 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
     for name in ("stiffness", "mass"):
         if values.get(name) is not None:
             _check_matrix(values[name], name, n_dofs)
+    # A ReferenceConditions, or the dict read from a body file (read as mappings).
     reference = values["reference"]
     if "free_dofs" not in reference:
         raise _bad_shape("reference", "has no entry 'free_dofs'")
@@ -619,6 +840,8 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
                 f"{_field('frequencies')} must be a 1-D array of finite numbers",
                 item=_field("frequencies"),
             )
+    # Read as mappings: the typed Invariants of a body, or the dict read from a body file
+    # before it becomes one.
     _check_invariants(values["invariants"], elastic)
 
 

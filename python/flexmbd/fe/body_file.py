@@ -14,6 +14,10 @@ Root attributes:
 
 Every other field of :class:`FlexibleBodyData` is a member of the root group with the field's
 name (``damping``, added later to version 1, may be missing: it then reads as None, undamped).
+``reference`` (a :class:`~flexmbd.fe.body.ReferenceConditions`) and ``invariants`` (an
+:class:`~flexmbd.fe.body.Invariants`) are stored as ``dict`` groups of their entries, one member
+per field in field order (the optional fields of the reference conditions that are None are
+left out), and read back as dicts that the body's constructor turns into the typed objects.
 Each member carries an attribute ``type`` that says how it reads back:
 
 * ``ndarray``: a dataset with the array's dtype and shape (float64 and int64 for the body
@@ -26,7 +30,7 @@ Each member carries an attribute ``type`` that says how it reads back:
   converted back on reading.
 * ``none``: an empty dataset (null dataspace): the value is ``None``.
 * ``dict``: a group, one member per key, in key order (HDF5 link creation order).
-* ``list``, ``tuple``: a group with the members ``"0"``, ``"1"``, ... (``invariants["i_kl"]``
+* ``list``, ``tuple``: a group with the members ``"0"``, ``"1"``, ... (``invariants/i_kl``
   is a list of 3 lists of 3 matrices, each an ``ndarray`` or ``sparse`` member).
 * ``float``, ``int``, ``bool``, ``str``: a scalar dataset (float64, int64, bool, UTF-8
   string) that reads back as the Python type.
@@ -58,7 +62,13 @@ import scipy.sparse as sp
 from .._core import __version__
 from .._hdf5 import global_heap_damage
 from ..errors import FlexmbdError, InvalidModelError, InvalidParameterError, ModelError
-from .body import BODY_DATA_VERSION, FlexibleBodyData, check_body
+from .body import (
+    BODY_DATA_VERSION,
+    FlexibleBodyData,
+    Invariants,
+    ReferenceConditions,
+    check_body,
+)
 
 #: Value of the root attribute ``format`` of a body file.
 BODY_FILE_FORMAT = "flexmbd-body"
@@ -374,6 +384,9 @@ class _Writer:
         elif isinstance(value, str):
             dataset = group.create_dataset(name, data=value, dtype=h5py.string_dtype("utf-8"))
             dataset.attrs[_TYPE] = "str"
+        elif isinstance(value, Invariants | ReferenceConditions):
+            # The layout of the dicts these were: their entries that are set, in field order.
+            self.write(group, name, dict(value.items()), where)
         elif isinstance(value, dict):
             subgroup = group.create_group(name, track_order=True)
             subgroup.attrs[_TYPE] = "dict"

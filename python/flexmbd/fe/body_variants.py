@@ -17,6 +17,7 @@ variants").
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
@@ -101,9 +102,7 @@ def with_stiffness_scale(body: FlexibleBodyData, scale: float) -> FlexibleBodyDa
         raise InvalidParameterError(
             f"scale: the stiffness scale must be finite and > 0, got {scale!r}", item="scale"
         )
-    invariants = dict(body.invariants)
-    if invariants.get("k_ff") is not None:
-        invariants["k_ff"] = s * invariants["k_ff"]
+    invariants = dataclasses.replace(body.invariants, k_ff=s * body.invariants.k_ff)
     material = dict(body.material)
     if "young_modulus" in material:
         material["young_modulus"] = s * float(material["young_modulus"])
@@ -160,32 +159,32 @@ def _eigenmode_count(body: FlexibleBodyData) -> int:
         return 0
     if body.mode_kind != "craig-bampton":
         return body.modes.shape[1]
-    stored = body.reference.get("mode_count")
-    if stored is not None:
-        return int(stored)
+    reference = body.reference
+    if reference.mode_count is not None:
+        return int(reference.mode_count)
     # Bodies saved without the count: every mode that is not static. Each interface gives
     # six static modes (one per coordinate of its nodes for "nodal"); those of the first
     # interface go with an "interface" frame, six (the rigid motions) with a mean-axis frame.
-    interfaces = body.reference.get("interfaces", ())
+    interfaces = reference.interfaces or ()
     per_interface = [
-        body.dofs_per_node * len(members) if body.reference.get("interface_kind") == "nodal" else 6
+        body.dofs_per_node * len(members) if reference.interface_kind == "nodal" else 6
         for members in interfaces
     ]
-    dropped = per_interface[0] if body.reference["kind"] == "interface" and interfaces else 6
+    dropped = per_interface[0] if reference.kind == "interface" and interfaces else 6
     return max(body.modes.shape[1] - max(sum(per_interface) - dropped, 0), 0)
 
 
 def _reduction_options(body: FlexibleBodyData) -> dict[str, Any]:
     """The `build_body` options of the body's reference conditions and modes."""
     reference = body.reference
-    weights = reference.get("interface_weights")
+    weights = reference.interface_weights
     return {
-        "reference": reference["kind"],
-        "reference_nodes": np.asarray(reference.get("nodes", ()), dtype=np.int64),
+        "reference": reference.kind,
+        "reference_nodes": np.asarray(reference.nodes, dtype=np.int64),
         "modes": body.mode_kind,
         "mode_count": _eigenmode_count(body),
-        "interfaces": [np.asarray(members) for members in reference.get("interfaces", ())],
-        "interface_kind": reference.get("interface_kind", "rbe2"),
+        "interfaces": [np.asarray(members) for members in reference.interfaces or ()],
+        "interface_kind": reference.interface_kind or "rbe2",
         "interface_weights": "auto" if weights is None else [np.asarray(w) for w in weights],
         "external_modes": body.modes if body.mode_kind == "external" else None,
     }

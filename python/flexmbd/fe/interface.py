@@ -612,9 +612,8 @@ def body_interface(
 def _stored_weights(body: Any, members: NDArray[np.int64]) -> Array | None:
     """The weights of the Craig-Bampton interface of the body with exactly these members, in
     the order of `members`."""
-    reference = body.reference or {}
-    sets = reference.get("interfaces") or []
-    stored = reference.get("interface_weights") or []
+    sets = body.reference.interfaces or []
+    stored = body.reference.interface_weights or []
     for s, w in zip(sets, stored, strict=False):
         s = np.asarray(s, dtype=np.int64)
         if len(s) == len(members) and np.array_equal(np.sort(s), np.sort(members)):

@@ -24,7 +24,7 @@ from ..errors import (
     InvalidParameterError,
     UnknownItemError,
 )
-from .body import FlexibleBodyData
+from .body import FlexibleBodyData, Invariants, ReferenceConditions
 from .interface import Interface
 from .mesh_io import Mesh, matrices_from_arrays, mesh_parts, read_mesh, validate_mesh
 from .modal import (
@@ -570,7 +570,7 @@ def _body_from_nodal(
     freqs = None
     weighted: list[Interface] = []
     if modes is None:
-        invariants = restrict_invariants(nodal.invariants, free)
+        nodal_invariants = restrict_invariants(nodal.invariants, free)
         k_ff = nodal.stiffness[free][:, free].tocsc()
         m_ff = nodal.mass[free][:, free].tocsc()
     else:
@@ -628,23 +628,21 @@ def _body_from_nodal(
         clock.lap("modes")
         full = np.zeros((len(nodes) * d, basis.shape[1]))
         full[free] = basis
-        invariants = modal_invariants(nodal.invariants, full, nodal.scalar_mass)
+        nodal_invariants = modal_invariants(nodal.invariants, full, nodal.scalar_mass)
         k_ff = basis.T @ (nodal.stiffness[free][:, free] @ basis)
         m_ff = basis.T @ (nodal.mass[free][:, free] @ basis)
-    invariants["k_ff"] = k_ff
-    invariants["m_ff"] = m_ff
+    invariants = Invariants(**nodal_invariants, k_ff=k_ff, m_ff=m_ff)
     clock.lap("invariants")
-    reference_data: dict[str, Any] = {
-        "kind": reference,
-        "nodes": np.asarray(ref_nodes, dtype=np.int64),
-        "free_dofs": free,
-    }
-    if modes == "craig-bampton":
-        reference_data["interfaces"] = [it.members for it in weighted] if weighted else members
-        reference_data["interface_kind"] = interface_kind
-        reference_data["mode_count"] = mode_count
-        if weighted:
-            reference_data["interface_weights"] = [it.weights for it in weighted]
+    cb = modes == "craig-bampton"
+    reference_data = ReferenceConditions(
+        kind=reference,
+        nodes=np.asarray(ref_nodes, dtype=np.int64),
+        free_dofs=free,
+        interfaces=(([it.members for it in weighted] if weighted else members) if cb else None),
+        interface_kind=interface_kind if cb else None,
+        mode_count=mode_count if cb else None,
+        interface_weights=[it.weights for it in weighted] if cb and weighted else None,
+    )
     return FlexibleBodyData(
         nodes=nodes,
         node_ids=ids,
@@ -746,7 +744,7 @@ def static_displacements(body: FlexibleBodyData, forces: ArrayLike) -> NDArray[n
             f"got {f.shape}",
             item="forces",
         )
-    free = np.asarray(body.reference["free_dofs"], dtype=np.int64)
+    free = np.asarray(body.reference.free_dofs, dtype=np.int64)
     u = np.zeros_like(f)
     try:
         if body.modes is None:
@@ -760,12 +758,12 @@ def static_displacements(body: FlexibleBodyData, forces: ArrayLike) -> NDArray[n
             )
             u[free] = factor.solve(f[free])
         else:
-            modal = np.linalg.cholesky(np.asarray(body.invariants["k_ff"]))
+            modal = np.linalg.cholesky(np.asarray(body.invariants.k_ff))
             q = np.linalg.solve(modal.T, np.linalg.solve(modal, body.modes.T @ f[free]))
             u[free] = body.modes @ q
     except (InvalidModelError, np.linalg.LinAlgError) as error:
         raise InvalidModelError(
-            f"no static solution: the reference conditions ({body.reference['kind']!r}) leave "
+            f"no static solution: the reference conditions ({body.reference.kind!r}) leave "
             f"the body free to move rigidly ({error})",
             item="reference conditions",
         ) from error
