@@ -12,7 +12,8 @@ use crate::formulation::decoupled::{TreeAccelerations, TreeSolver};
 use crate::formulation::recursive::{tree_joint_accelerations, StructuredState, Tree};
 use crate::integrator::settings::{ExplicitSettings, Strategy};
 use crate::linalg::partition::{minimum_norm_solve, Partition};
-use crate::system::{Model, Workspace};
+use crate::output::Output;
+use crate::system::{Model, State, Workspace};
 
 /// Evaluation of the right-hand sides, with its buffers and counters.
 pub(super) struct Engine<'a> {
@@ -68,6 +69,51 @@ pub(super) struct Engine<'a> {
 }
 
 impl<'a> Engine<'a> {
+    /// The engine at the consistent initial `state`, with the start's `partition`.
+    pub(super) fn new(
+        model: &'a Model,
+        settings: &'a ExplicitSettings,
+        ws: Workspace,
+        eq: DenseEquations,
+        partition: Partition,
+        state: &State,
+    ) -> Self {
+        let n = model.coordinate_count;
+        Engine {
+            model,
+            settings,
+            ws,
+            eq,
+            partition,
+            q: state.coordinates.clone(),
+            qd: state.velocities.clone(),
+            qdd: vec![0.0; n],
+            accepted_q: state.coordinates.clone(),
+            accepted_qd: state.velocities.clone(),
+            accepted_qdd: vec![0.0; n],
+            last_time: f64::NAN,
+            check_branch: false,
+            accepted_time: state.time,
+            gamma: vec![0.0; model.constraint_count],
+            discrete: state.discrete.clone(),
+            evaluations: 0,
+            newton_iterations: 0,
+            singular_evaluations: 0,
+            mode: settings.strategy,
+            singular_limit: 0.0,
+            last_condition: f64::INFINITY,
+            tree: None,
+            p: Vec::new(),
+            pd: Vec::new(),
+            pdd: Vec::new(),
+            gamma_b: vec![0.0; n],
+            influence: Mat::zeros(0, 0),
+            tree_solver: None,
+            structured: None,
+            tree_reactions: TreeAccelerations::default(),
+        }
+    }
+
     /// The error of a singular acceleration system (or dependent block) at `time`.
     pub(super) fn singular(&self, time: f64, detail: String) -> FlexmbdError {
         FlexmbdError::SingularMatrix {
@@ -258,6 +304,19 @@ impl<'a> Engine<'a> {
                 dy[n..].copy_from_slice(&self.qdd);
             }
         }
+        Ok(())
+    }
+
+    /// Records `state` (at an output time) with the accelerations and multipliers of this
+    /// engine at it.
+    pub(super) fn record(&mut self, state: &mut State, output: &mut Output) -> Result<()> {
+        self.q.copy_from_slice(&state.coordinates);
+        self.qd.copy_from_slice(&state.velocities);
+        self.discrete.copy_from_slice(&state.discrete);
+        self.accelerations(state.time)?;
+        state.accelerations.copy_from_slice(&self.qdd);
+        self.multipliers(state.time, &mut state.multipliers)?;
+        output.record(self.model, state, &mut self.ws);
         Ok(())
     }
 

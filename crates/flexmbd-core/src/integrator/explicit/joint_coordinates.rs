@@ -1,19 +1,58 @@
-//! Joint coordinates (seed section 5): the body state from the joint coordinates (with the
-//! dense influence coefficients or the structured state of seed eqs. 40-41) and the projection
-//! onto cut joints after each step.
+//! Joint coordinates (seed section 5): the tree of the model and its joint coordinates at the
+//! start, the body state from the joint coordinates (with the dense influence coefficients or
+//! the structured state of seed eqs. 40-41), the projection onto cut joints after each step,
+//! and the rebasing of Cardan angles before their singularity.
 
 use faer::Mat;
 
 use super::engine::{converged, Engine};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{worst, Level, SINGULAR_VALUE_CUTOFF};
+use crate::formulation::decoupled::{TreeFormulation, TreeSolver};
+use crate::formulation::recursive::Tree;
 use crate::linalg::partition::minimum_norm_solve;
+use crate::output::{Event, Output};
+use crate::system::State;
 
 /// Joint coordinates: the middle Cardan angle (rad) beyond which a spherical or free joint's
 /// angles are rebased (their singularity is at 90 degrees).
-pub(super) const CARDAN_REBASE_ANGLE: f64 = 1.0;
+const CARDAN_REBASE_ANGLE: f64 = 1.0;
 
 impl Engine<'_> {
+    /// The tree and the joint coordinates of the consistent initial `state`; the body state is
+    /// then recomputed from them (it satisfies the joints exactly) and written to `state`.
+    pub(super) fn start_joint_coordinates(&mut self, state: &mut State, output: &mut Output) -> Result<()> {
+        let (model, explicit) = (self.model, self.settings);
+        let t0 = state.time;
+        let (tree, p0) = Tree::new(model, &state.coordinates, explicit.cut_joints.as_deref())?;
+        let mut p0 = p0;
+        let mut pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
+        let mut tree = tree;
+        let rebased = tree.rebase(model, &mut p0, &mut pd0, CARDAN_REBASE_ANGLE);
+        if !rebased.is_empty() {
+            output.events.push(Event {
+                time: t0,
+                kind: "joint coordinates rebased".to_string(),
+                message: format!("Cardan angles started at zero: {}", rebased.join(", ")),
+            });
+        }
+        if explicit.tree_formulation != TreeFormulation::JointSpace {
+            self.tree_solver = Some(TreeSolver::new(model, &tree, explicit.tree_formulation)?);
+        }
+        self.pdd = vec![0.0; p0.len()];
+        self.p = p0;
+        self.pd = pd0;
+        output.statistics.reduced_system_size = match &self.tree_solver {
+            Some(solver) => solver.reduced_size(),
+            None => tree.free_count() + tree.cut_rows.len(),
+        };
+        self.tree = Some(tree);
+        self.update_bodies(t0)?;
+        state.coordinates.copy_from_slice(&self.q);
+        state.velocities.copy_from_slice(&self.qd);
+        Ok(())
+    }
+
     /// Joint coordinates: the body state (q, q_dot, gamma_B and B) from self.p and self.pd.
     pub(super) fn update_bodies(&mut self, time: f64) -> Result<()> {
         if let (Some(tree), Some(_)) = (&self.tree, &self.tree_solver) {
@@ -81,5 +120,25 @@ impl Engine<'_> {
             iterations += 1;
             self.newton_iterations += 1;
         }
+    }
+
+    /// After an accepted step at `time`: Cardan angles of spherical and free joints restart at
+    /// zero before their singularity, and the body state follows. Returns the event.
+    pub(super) fn rebase_joint_coordinates(&mut self, time: f64) -> Result<Option<Event>> {
+        let Some(tree) = self.tree.as_mut() else { return Ok(None) };
+        let rebased = tree.rebase(self.model, &mut self.p, &mut self.pd, CARDAN_REBASE_ANGLE);
+        if rebased.is_empty() {
+            return Ok(None);
+        }
+        self.update_bodies(time)?;
+        Ok(Some(Event {
+            time,
+            kind: "joint coordinates rebased".to_string(),
+            message: format!(
+                "Cardan angles restarted at zero (the middle angle passed {:.0} degrees): {}",
+                CARDAN_REBASE_ANGLE.to_degrees(),
+                rebased.join(", ")
+            ),
+        }))
     }
 }

@@ -25,7 +25,7 @@
 //!
 //! The folder: `engine` (the right-hand sides of every strategy), `partitioning` (2),
 //! `projection` (3), `joint_coordinates`, `runge_kutta` (the methods, their stages and error
-//! estimate) and `run` (the start of a run and its time loop).
+//! estimate) and `run` (the start of a run and the step attempts of the time loop).
 
 mod engine;
 mod joint_coordinates;

@@ -1,4 +1,5 @@
-//! Strategy (2), Wehage and Haug's generalized coordinate partitioning: the dependent coordinates and velocities from the independent ones at every
+//! Strategy (2), Wehage and Haug's generalized coordinate partitioning: the partition at the
+//! start, the dependent coordinates and velocities from the independent ones at every
 //! evaluation (with the check that they stay on their solution branch), and the partition
 //! chosen anew when its dependent block becomes ill-conditioned, when a step fails, or when a
 //! singular configuration is passed by projection steps.
@@ -9,11 +10,51 @@ use faer::Mat;
 use super::engine::{converged, Engine};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{checked_lu, worst, DenseEquations, Level, SINGULAR_VALUE_CUTOFF};
-use crate::integrator::settings::Strategy;
+use crate::integrator::settings::{ExplicitSettings, Strategy};
 use crate::linalg::partition::{
     minimum_norm_solve, partition, partition_condition, partition_with_independent, submatrix, Partition,
 };
 use crate::output::Event;
+use crate::system::{Model, State, Workspace};
+
+/// The partition at the consistent initial `state`: of the given independent coordinates, or
+/// the one the decomposition chooses.
+pub(super) fn first_partition(
+    model: &Model,
+    explicit: &ExplicitSettings,
+    ws: &mut Workspace,
+    eq: &mut DenseEquations,
+    state: &State,
+) -> Result<Partition> {
+    let n = model.coordinate_count;
+    let t0 = state.time;
+    eq.evaluate(model, ws, t0, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+    Ok(match &explicit.independent {
+        Some(list) => partition_with_independent(eq.jacobian.as_ref(), list, explicit.rank_tolerance)
+            .map_err(|m| {
+                let names: Vec<String> =
+                    list.iter().filter(|&&c| c < n).map(|&c| model.coordinate_name(c)).collect();
+                FlexmbdError::InvalidParameter {
+                    item: format!("independent coordinates [{}]", names.join(", ")),
+                    message: m,
+                }
+            })?,
+        None => partition(eq.jacobian.as_ref(), explicit.partition, explicit.rank_tolerance),
+    })
+}
+
+/// The event that reports the rows of the partition without multipliers, if any.
+pub(super) fn redundant_rows_event(model: &Model, partition: &Partition, time: f64) -> Option<Event> {
+    if partition.redundant_rows.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = partition.redundant_rows.iter().map(|&r| model.constraint_name(r)).collect();
+    Some(Event {
+        time,
+        kind: "redundant constraints".to_string(),
+        message: format!("rows without multipliers (dependent on the others): {}", names.join("; ")),
+    })
+}
 
 impl Engine<'_> {
     /// Wehage: the full q and q_dot from the independent ones `y` = [q_i; qd_i] at `time`.

@@ -14,11 +14,16 @@
 //! the Newton matrix well conditioned for small h:
 //!   [[s (beta' M + gamma' D + K), C_q^T], [C_q, 0]] [dq; s dlambda] = -[s r; C].
 //!
-//! A step (`step`) is the predictor and Newton's method (`newton`), then the projection of the
-//! velocities in the metric of the mass matrix (`projection`) where it is on.
+//! A run (`run`) starts from consistent initial conditions with the auxiliary accelerations of
+//! Arnold and Bruls, and makes its step attempts through the time loop (`time_loop`): the
+//! predictor and Newton's method (`newton`), then the projection of the velocities in the
+//! metric of the mass matrix (`projection`) where it is on.
 
 mod newton;
 mod projection;
+mod run;
+
+pub(crate) use run::run;
 
 use crate::assembly::MatrixCoefficients;
 use crate::error::{FlexmbdError, Result};
