@@ -15,21 +15,26 @@ use crate::linalg::partition::{minimum_norm_solve, Partition};
 use crate::output::Output;
 use crate::system::{Model, State, Workspace};
 
-/// Evaluation of the right-hand sides, with its buffers and counters.
+/// Evaluation of the right-hand sides, with its buffers and counters. n: coordinates, nc:
+/// constraint rows, np: joint coordinates of the tree (joint-coordinate strategy only).
 pub(super) struct Engine<'a> {
     pub(super) model: &'a Model,
     pub(super) settings: &'a ExplicitSettings,
+    /// Buffers of the assembly (kinematics, the Jacobian values the tree multipliers read).
     pub(super) ws: Workspace,
+    /// The dense equations (M, f, C, C_q, gamma) of the last evaluation, filled by `evaluate`.
     pub(super) eq: DenseEquations,
+    /// The partition of the coordinates into dependent and independent ones.
     pub(super) partition: Partition,
-    /// Full coordinates, velocities and accelerations of the last evaluation.
+    /// Full coordinates, velocities and accelerations of the last evaluation (n each).
     pub(super) q: Vec<f64>,
     pub(super) qd: Vec<f64>,
     pub(super) qdd: Vec<f64>,
-    /// The accepted full state (start of the step): guesses for the dependent coordinates.
+    /// The accepted full state (start of the step): guesses for the dependent coordinates
+    /// (n each).
     pub(super) accepted_q: Vec<f64>,
     pub(super) accepted_qd: Vec<f64>,
-    /// Accelerations at the accepted state (for the dependent coordinates' predictor).
+    /// Accelerations at the accepted state (for the dependent coordinates' predictor; n).
     pub(super) accepted_qdd: Vec<f64>,
     /// Time and accelerations of the last evaluation (first same as last: they become the
     /// accepted ones when that evaluation was at the accepted state).
@@ -37,10 +42,16 @@ pub(super) struct Engine<'a> {
     /// Whether `reconstruct` checks for a jump to another solution branch (only at the end
     /// of a step: the Runge-Kutta stages are not points of the trajectory).
     pub(super) check_branch: bool,
+    /// Time of the accepted state (s).
     pub(super) accepted_time: f64,
+    /// gamma of the acceleration constraints with Baumgarte's terms (nc), filled by
+    /// `accelerations`.
     pub(super) gamma: Vec<f64>,
+    /// The discrete variables of the accepted state (unwrapped spring angles).
     pub(super) discrete: Vec<f64>,
+    /// Evaluations of the accelerations so far (`Statistics::function_evaluations`).
     pub(super) evaluations: usize,
+    /// Newton iterations of the dependent coordinates and the projections so far.
     pub(super) newton_iterations: usize,
     /// Evaluations near a singular configuration (truncated-SVD accelerations).
     pub(super) singular_evaluations: usize,
@@ -52,8 +63,8 @@ pub(super) struct Engine<'a> {
     /// Condition of the partition after the previous accepted step (its growth rate predicts
     /// the next step's, see `repartition`).
     pub(super) last_condition: f64,
-    /// Joint coordinates: the tree, the joint coordinates, rates and accelerations, and the
-    /// velocity-quadratic accelerations gamma_B of the body coordinates.
+    /// Joint coordinates: the tree, the joint coordinates, rates and accelerations (np each),
+    /// and the velocity-quadratic accelerations gamma_B of the body coordinates (n).
     pub(super) tree: Option<Tree>,
     pub(super) p: Vec<f64>,
     pub(super) pd: Vec<f64>,
@@ -64,7 +75,8 @@ pub(super) struct Engine<'a> {
     pub(super) tree_solver: Option<TreeSolver>,
     pub(super) structured: Option<StructuredState>,
     pub(super) tree_reactions: TreeAccelerations,
-    /// Velocity influence coefficients of the free joint coordinates at p.
+    /// Velocity influence coefficients B = dq/dp of the free joint coordinates at p (n x np),
+    /// filled by `update_bodies_with_influence`.
     pub(super) influence: Mat<f64>,
 }
 
