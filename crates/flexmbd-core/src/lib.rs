@@ -29,7 +29,7 @@
 //!    33-41).
 //! 10. [`output`]: records, reactions, sensors, energies, events.
 //! 11. [`integrator`]: settings, consistent initial conditions, redundancy, index-3
-//!     generalized-alpha, explicit Runge-Kutta with the seed's strategies, the time loops.
+//!     generalized-alpha, explicit Runge-Kutta with the seed's strategies, the one time loop.
 //!
 //! Units are SI by convention; the core itself is unit-agnostic.
 

@@ -1,7 +1,7 @@
 //! Integration in time: the settings of a run, consistent initial conditions and the
 //! acceleration system (seed eq. 26), the redundancy analysis, the index-3 generalized-alpha
-//! integrator, the explicit Runge-Kutta integrators with the seed's strategies, and the time
-//! loop.
+//! integrator, the explicit Runge-Kutta integrators with the seed's strategies, and the one
+//! time loop both make their steps in.
 
 pub mod clock;
 pub mod discrete;
@@ -11,6 +11,7 @@ pub mod initial;
 pub mod progress;
 pub mod redundancy;
 pub mod settings;
+pub mod simulation;
 pub mod time_loop;
 
 pub use progress::{Progress, Records};
@@ -18,7 +19,7 @@ pub use settings::{
     Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings, StepControl,
     VelocityProjection,
 };
-pub use time_loop::{simulate, SimulationOutcome};
+pub use simulation::{simulate, SimulationOutcome};
 
 /// Small models shared by the solver tests.
 #[cfg(test)]

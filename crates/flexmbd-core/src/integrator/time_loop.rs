@@ -1,296 +1,123 @@
-//! The time loop: consistent initial conditions, generalized-alpha steps with step-size
-//! control, landing exactly on output times, recording. A failure returns everything recorded
-//! up to it together with the error.
+//! The one time loop of every integrator. From the consistent initial state to the end time it
+//! lands each step exactly on the output times and the end (`clock`), asks the integrator for a
+//! step attempt, accepts or rejects it (counting rejections, shortening the step down to the
+//! step floor), records at the output times, reports `Progress` to the observer (which may stop
+//! the run) and releases the records the observer stored. A failure returns its error; what was
+//! recorded up to it stays in the output.
+//!
+//! An integrator takes part through [`Stepper`]: generalized-alpha with its Newton step
+//! (`generalized_alpha::run`), the explicit Runge-Kutta methods with their strategies
+//! (`explicit::run`).
 
 use std::cell::Cell;
 
 use crate::error::{FlexmbdError, Result};
 use crate::integrator::clock::OutputClock;
-use crate::integrator::discrete::update_discrete;
-use crate::integrator::explicit;
-use crate::integrator::generalized_alpha::{step, GeneralizedAlpha, JacobianCache};
-use crate::integrator::initial::{
-    report_initial_correction, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
-};
 use crate::integrator::progress::{Progress, Records};
-use crate::integrator::redundancy::analyse;
-use crate::integrator::settings::{Integrator, SimulationSettings, StepControl};
-use crate::linear_system::LinearSolvers;
-use crate::output::Output;
-use crate::system::{Model, State, Workspace};
+use crate::integrator::settings::SimulationSettings;
+use crate::output::{Output, Statistics};
+use crate::system::{Model, State};
 
-/// The result of `simulate`: what was recorded, and the error that stopped the run, if any.
-#[derive(Debug)]
-pub struct SimulationOutcome {
-    /// Records up to the end or to the failure.
-    pub output: Output,
-    /// The state at the end (or at the last accepted step before a failure).
-    pub final_state: Option<State>,
-    /// The error that stopped the run.
-    pub error: Option<FlexmbdError>,
+/// An integrator's part in the time loop: one step attempt from the last accepted state, the
+/// acceptance of a step that passed, and the recording of an accepted state.
+pub(crate) trait Stepper {
+    /// Attempts a step of size `step_size` from the accepted `state` (left unchanged). The
+    /// attempt adds its statistics (Newton iterations, factorizations) and events to `output`.
+    /// `Err`: the run fails with it, without a rejected step counted.
+    fn attempt(&mut self, state: &State, step_size: f64, output: &mut Output) -> Result<Attempt>;
+
+    /// Moves `state` to the end of the attempt of size `step_size` that passed, with its
+    /// discrete variables advanced; events of the acceptance go to `output`.
+    fn accept(&mut self, state: &mut State, step_size: f64, output: &mut Output) -> Result<()>;
+
+    /// Records the accepted `state` at an output time (completing it first where the
+    /// integrator leaves its accelerations and multipliers out between records).
+    fn record(&mut self, state: &mut State, output: &mut Output) -> Result<()>;
+
+    /// After an accepted step was checked and recorded, before the observer sees it: the
+    /// statistics the integrator keeps by itself, and the state kept for a failure later.
+    fn completed(&mut self, state: &State, output: &mut Output);
 }
 
-/// Starting value of the generalized-alpha auxiliary accelerations (Arnold and Bruls 2007,
-/// section 4): a(0) = q_dd(0) + (alpha_m - alpha_f) h q_ddd(0). With a(0) = q_dd(0) the method
-/// is only first-order accurate in the accelerations and multipliers over an initial layer of
-/// about 1/(1 - spectral radius) steps. The jerk q_ddd(0) is the difference quotient of two
-/// solutions of seed eq. 26, at the start and at a Taylor-extrapolated state a short time later.
-fn start_algorithmic_accelerations(
-    model: &Model,
-    method: &GeneralizedAlpha,
-    h: f64,
-    state: &mut State,
-    ws: &mut Workspace,
-    solvers: &mut LinearSolvers,
-) -> Result<()> {
-    let weight = (method.alpha_m - method.alpha_f) * h;
-    if weight == 0.0 {
-        state.algorithmic_accelerations.copy_from_slice(&state.accelerations);
-        return Ok(());
-    }
-    let delta = 1e-3 * h;
-    let mut later = state.clone();
-    later.time += delta;
-    for k in 0..model.coordinate_count {
-        later.coordinates[k] += delta * state.velocities[k] + 0.5 * delta * delta * state.accelerations[k];
-        later.velocities[k] += delta * state.accelerations[k];
-    }
-    solve_accelerations(model, &mut later, ws, solvers)?;
-    for k in 0..model.coordinate_count {
-        let jerk = (later.accelerations[k] - state.accelerations[k]) / delta;
-        state.algorithmic_accelerations[k] = state.accelerations[k] + weight * jerk;
-    }
-    Ok(())
+/// What a step attempt gives the loop.
+pub(crate) enum Attempt {
+    /// The step passed and is accepted.
+    Passed {
+        /// How the step size changes for the next step.
+        growth: Growth,
+        /// Newton iterations of the step, for the observer (0 for explicit steps).
+        newton_iterations: usize,
+    },
+    /// The step failed: a rejected step is counted, then the loop does what it says.
+    Rejected(Retry),
 }
 
-/// Weighted RMS norm of the generalized-alpha local error estimate.
-fn error_norm(
-    model: &Model,
-    method: &GeneralizedAlpha,
-    h: f64,
-    current: &State,
-    next: &State,
-    rtol: f64,
-    atol: f64,
-) -> f64 {
-    let c = h * h * (method.beta - 1.0 / 6.0).abs().max(1.0 / 12.0);
-    let n = model.coordinate_count;
-    let sum: f64 = (0..n)
-        .map(|k| {
-            let e = c * (next.accelerations[k] - current.accelerations[k]);
-            let w = atol + rtol * current.coordinates[k].abs().max(next.coordinates[k].abs());
-            (e / w).powi(2)
-        })
-        .sum();
-    (sum / n as f64).sqrt()
+/// How the step size changes after an accepted step.
+pub(crate) enum Growth {
+    /// Kept (fixed steps, or a Newton step that needed many iterations).
+    Kept,
+    /// Doubled, up to the step size of the settings, if below it (a Newton step that
+    /// converged in few iterations).
+    Doubled,
+    /// The step size of the step times the error controller's factor, at most the largest step
+    /// size; kept if the step was shortened to land on an output time.
+    Scaled(f64),
 }
 
-/// Runs a simulation of `model`. `observer` is called after every accepted step; returning
-/// false stops the run with an `Interrupted` error (results so far are kept).
-pub fn simulate(
+/// What the loop does after a rejected step attempt.
+pub(crate) enum Retry {
+    /// Attempts again from the same state with `step_size`; below the step floor the run fails
+    /// with `cause` (the failure of the attempt), or `StepSizeTooSmall` without one.
+    Shorter { step_size: f64, cause: Option<FlexmbdError> },
+    /// Attempts again with the same step size (the attempt changed what the next one works
+    /// with: a new partition of the coordinates).
+    Again,
+    /// The run fails with the error (fixed steps have no smaller step to try).
+    Fail(FlexmbdError),
+}
+
+/// The steps of a run from the consistent, recorded initial `state` to the end time; `state`
+/// holds the last accepted state on return (also on failure).
+pub(crate) fn time_loop(
     model: &Model,
     settings: &SimulationSettings,
-    observer: &mut dyn FnMut(&Progress) -> bool,
-) -> SimulationOutcome {
-    let mut output = Output::new(model);
-    let mut last_state = None;
-    let error = match settings.validate().and_then(|_| analyse(model, settings)) {
-        Err(e) => Some(e),
-        Ok(None) => dispatch(model, settings, observer, &mut output, &mut last_state).err(),
-        Ok(Some(reduction)) => {
-            let mut reduced = Output::new(&reduction.model);
-            let handling = settings.redundancy.handling;
-            let mut expanding = |p: &Progress| {
-                let records = p.records.expanded(model, &reduction, handling);
-                observer(&Progress { records, ..*p })
-            };
-            let error =
-                dispatch(&reduction.model, settings, &mut expanding, &mut reduced, &mut last_state).err();
-            output = reduction.expand_output(model, reduced, handling);
-            last_state = last_state.map(|s| reduction.expand_state(model, s));
-            error
-        }
-    };
-    SimulationOutcome { output, final_state: last_state, error }
-}
-
-/// Runs the integrator of the settings.
-fn dispatch(
-    model: &Model,
-    settings: &SimulationSettings,
-    observer: &mut dyn FnMut(&Progress) -> bool,
-    output: &mut Output,
-    last_state: &mut Option<State>,
-) -> Result<()> {
-    match &settings.integrator {
-        Integrator::GeneralizedAlpha => run(model, settings, observer, output, last_state),
-        Integrator::Explicit(explicit) => {
-            explicit::run(model, settings, explicit, observer, output, last_state)
-        }
-    }
-}
-
-/// The time loop; keeps the last accepted state in `last_state` (also on failure).
-fn run(
-    model: &Model,
-    settings: &SimulationSettings,
-    observer: &mut dyn FnMut(&Progress) -> bool,
-    output: &mut Output,
-    last_state: &mut Option<State>,
-) -> Result<()> {
-    settings.validate()?;
-    let method = GeneralizedAlpha::from_spectral_radius(settings.spectral_radius)?;
-    let project_velocities = settings.newton.velocity_projection.enabled(settings.spectral_radius);
-    let mut ws = Workspace::new(model);
-    let mut solvers = LinearSolvers::new(model)?;
-    let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
-    let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());
-    let violated =
-        solve_initial_positions_and_velocities(model, &mut state, &mut ws, &mut solvers, &settings.initial)?;
-    report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
-    update_discrete(model, &mut state, &mut ws, true);
-    solve_accelerations(model, &mut state, &mut ws, &mut solvers)?;
-    let first_step = settings.step_size.min(settings.end_time - settings.start_time).max(f64::MIN_POSITIVE);
-    start_algorithmic_accelerations(
-        model,
-        &method,
-        first_step.min(settings.output_interval.unwrap_or(first_step)),
-        &mut state,
-        &mut ws,
-        &mut solvers,
-    )?;
-    output.record(model, &state, &mut ws);
-    // The loop keeps the last accepted state in `state` (also when it fails): no copy per step.
-    let solving = Solving { method: &method, project_velocities, ws: &mut ws, solvers: &mut solvers };
-    let result = time_loop(model, settings, solving, observer, output, &mut state);
-    *last_state = Some(state);
-    result
-}
-
-/// What the generalized-alpha steps of a run work with: the method, whether velocities are
-/// projected, the workspace and the linear solvers.
-struct Solving<'a> {
-    method: &'a GeneralizedAlpha,
-    project_velocities: bool,
-    ws: &'a mut Workspace,
-    solvers: &'a mut LinearSolvers,
-}
-
-/// The steps of [`run`] from the consistent initial state `state`, which holds the last
-/// accepted state on return (also on failure).
-fn time_loop(
-    model: &Model,
-    settings: &SimulationSettings,
-    solving: Solving,
+    stepper: &mut impl Stepper,
     observer: &mut dyn FnMut(&Progress) -> bool,
     output: &mut Output,
     state: &mut State,
 ) -> Result<()> {
-    let Solving { method, project_velocities, ws, solvers } = solving;
     let mut clock = OutputClock::new(settings);
     let mut h = settings.step_size;
-    let mut next = state.clone();
-    let mut cache = JacobianCache::default();
     let release = Cell::new(0);
     output.statistics.min_step_size_used = f64::INFINITY;
 
     while clock.running(state.time) {
         // Land exactly on the end and on output times.
         let h_try = clock.step(state.time, h);
-        let report = step(
-            model,
-            method,
-            &settings.newton,
-            project_velocities,
-            h_try,
-            state,
-            &mut next,
-            ws,
-            solvers,
-            &mut cache,
-        )?;
-        let stats = &mut output.statistics;
-        stats.newton_iterations += report.iterations;
-        stats.factorizations += report.factorizations;
-        let mut accepted = report.converged;
-        let mut factor = 1.0;
-        if let (true, StepControl::Error { relative_tolerance, absolute_tolerance }) =
-            (accepted, settings.step_control)
-        {
-            let err = error_norm(model, method, h_try, state, &next, relative_tolerance, absolute_tolerance);
-            factor = (0.9 * err.max(1e-10).powf(-1.0 / 3.0)).clamp(0.2, 2.0);
-            accepted = err <= 1.0;
-        }
-        if !accepted {
-            stats.rejected_steps += 1;
-            let diverged = || {
-                let nq = model.coordinate_count;
-                let item = if report.worst < nq {
-                    model.coordinate_name(report.worst)
-                } else {
-                    model.constraint_name(report.worst - nq)
-                };
-                FlexmbdError::NewtonDiverged {
-                    time: state.time,
-                    step_size: h_try,
-                    iterations: report.iterations,
-                    residual: report.increment_norm,
-                    item: format!(
-                        "{item}; {}",
-                        report.failure.clone().unwrap_or_else(|| "error test".into())
-                    ),
-                }
-            };
-            h = match settings.step_control {
-                StepControl::Fixed => return Err(diverged()),
-                StepControl::Error { .. } if report.converged => h_try * factor,
-                _ => h_try * 0.25,
-            };
-            if h < settings.step_floor() {
-                return Err(if report.converged {
-                    FlexmbdError::StepSizeTooSmall {
-                        time: state.time,
-                        step_size: h,
-                        min_step_size: settings.step_floor(),
-                    }
-                } else {
-                    diverged()
-                });
+        let (growth, newton_iterations) = match stepper.attempt(state, h_try, output)? {
+            Attempt::Passed { growth, newton_iterations } => (growth, newton_iterations),
+            Attempt::Rejected(retry) => {
+                output.statistics.rejected_steps += 1;
+                h = step_size_after_rejection(retry, h, state.time, settings)?;
+                continue;
             }
-            continue;
-        }
+        };
 
         // Accept the step.
-        std::mem::swap(state, &mut next);
-        update_discrete(model, state, ws, false);
-        stats.steps += 1;
-        stats.min_step_size_used = stats.min_step_size_used.min(h_try);
-        stats.max_step_size_used = stats.max_step_size_used.max(h_try);
+        stepper.accept(state, h_try, output)?;
+        count_step(&mut output.statistics, h_try);
         if let Some(k) = state.first_non_finite() {
             return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
         }
         if clock.due(state.time) {
-            output.record(model, state, ws);
+            stepper.record(state, output)?;
         }
-        // Next step size.
-        match settings.step_control {
-            StepControl::Fixed => {}
-            StepControl::Newton => {
-                if report.iterations <= 4 && h < settings.step_size {
-                    h = (2.0 * h).min(settings.step_size);
-                }
-            }
-            StepControl::Error { .. } => {
-                // Steps shortened to land on an output time do not shrink the step size.
-                if h_try >= h * (1.0 - 1e-12) {
-                    h = (h_try * factor).min(settings.max_step_size);
-                }
-            }
-        }
+        stepper.completed(state, output);
+        h = step_size_after_acceptance(growth, h, h_try, settings);
         let progress = Progress {
             time: state.time,
             step_size: h_try,
-            newton_iterations: report.iterations,
+            newton_iterations,
             steps: output.statistics.steps,
             records: Records::new(output),
             release: &release,
@@ -301,4 +128,43 @@ fn time_loop(
         output.release_front(release.take());
     }
     Ok(())
+}
+
+/// The step size of the next attempt after a rejected one at `time` with step size `h`, or the
+/// error that ends the run.
+fn step_size_after_rejection(retry: Retry, h: f64, time: f64, settings: &SimulationSettings) -> Result<f64> {
+    match retry {
+        Retry::Again => Ok(h),
+        Retry::Fail(error) => Err(error),
+        Retry::Shorter { step_size, cause } => {
+            let floor = settings.step_floor();
+            if step_size < floor {
+                return Err(cause.unwrap_or(FlexmbdError::StepSizeTooSmall {
+                    time,
+                    step_size,
+                    min_step_size: floor,
+                }));
+            }
+            Ok(step_size)
+        }
+    }
+}
+
+/// The step size after an accepted step of size `h_try` taken with the step size `h`.
+fn step_size_after_acceptance(growth: Growth, h: f64, h_try: f64, settings: &SimulationSettings) -> f64 {
+    match growth {
+        Growth::Kept => h,
+        Growth::Doubled if h < settings.step_size => (2.0 * h).min(settings.step_size),
+        Growth::Doubled => h,
+        // Steps shortened to land on an output time do not shrink the step size.
+        Growth::Scaled(factor) if h_try >= h * (1.0 - 1e-12) => (h_try * factor).min(settings.max_step_size),
+        Growth::Scaled(_) => h,
+    }
+}
+
+/// Counts an accepted step of size `h` in the statistics.
+fn count_step(statistics: &mut Statistics, h: f64) {
+    statistics.steps += 1;
+    statistics.min_step_size_used = statistics.min_step_size_used.min(h);
+    statistics.max_step_size_used = statistics.max_step_size_used.max(h);
 }

@@ -1,0 +1,144 @@
+//! Joint coordinates (seed section 5): the tree of the model and its joint coordinates at the
+//! start, the body state from the joint coordinates (with the dense influence coefficients or
+//! the structured state of seed eqs. 40-41), the projection onto cut joints after each step,
+//! and the rebasing of Cardan angles before their singularity.
+
+use faer::Mat;
+
+use super::engine::{converged, Engine};
+use crate::error::{FlexmbdError, Result};
+use crate::formulation::augmented::{worst, Level, SINGULAR_VALUE_CUTOFF};
+use crate::formulation::decoupled::{TreeFormulation, TreeSolver};
+use crate::formulation::recursive::Tree;
+use crate::linalg::partition::minimum_norm_solve;
+use crate::output::{Event, Output};
+use crate::system::State;
+
+/// Joint coordinates: the middle Cardan angle (rad) beyond which a spherical or free joint's
+/// angles are rebased (their singularity is at 90 degrees).
+const CARDAN_REBASE_ANGLE: f64 = 1.0;
+
+impl Engine<'_> {
+    /// The tree and the joint coordinates of the consistent initial `state`; the body state is
+    /// then recomputed from them (it satisfies the joints exactly) and written to `state`.
+    pub(super) fn start_joint_coordinates(&mut self, state: &mut State, output: &mut Output) -> Result<()> {
+        let (model, explicit) = (self.model, self.settings);
+        let t0 = state.time;
+        let (tree, p0) = Tree::new(model, &state.coordinates, explicit.cut_joints.as_deref())?;
+        let mut p0 = p0;
+        let mut pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
+        let mut tree = tree;
+        let rebased = tree.rebase(model, &mut p0, &mut pd0, CARDAN_REBASE_ANGLE);
+        if !rebased.is_empty() {
+            output.events.push(Event {
+                time: t0,
+                kind: "joint coordinates rebased".to_string(),
+                message: format!("Cardan angles started at zero: {}", rebased.join(", ")),
+            });
+        }
+        if explicit.tree_formulation != TreeFormulation::JointSpace {
+            self.tree_solver = Some(TreeSolver::new(model, &tree, explicit.tree_formulation)?);
+        }
+        self.pdd = vec![0.0; p0.len()];
+        self.p = p0;
+        self.pd = pd0;
+        output.statistics.reduced_system_size = match &self.tree_solver {
+            Some(solver) => solver.reduced_size(),
+            None => tree.free_count() + tree.cut_rows.len(),
+        };
+        self.tree = Some(tree);
+        self.update_bodies(t0)?;
+        state.coordinates.copy_from_slice(&self.q);
+        state.velocities.copy_from_slice(&self.qd);
+        Ok(())
+    }
+
+    /// Joint coordinates: the body state (q, q_dot, gamma_B and B) from self.p and self.pd.
+    pub(super) fn update_bodies(&mut self, time: f64) -> Result<()> {
+        if let (Some(tree), Some(_)) = (&self.tree, &self.tree_solver) {
+            let st = tree.structured(self.model, time, &self.p, &self.pd)?;
+            self.q.copy_from_slice(&st.coordinates);
+            self.qd.copy_from_slice(&st.velocities);
+            self.gamma_b.copy_from_slice(&st.gamma);
+            self.structured = Some(st);
+            return Ok(());
+        }
+        self.update_bodies_with_influence(time)
+    }
+
+    /// Joint coordinates: the body state with the dense influence coefficients B.
+    fn update_bodies_with_influence(&mut self, time: f64) -> Result<()> {
+        if let Some(tree) = &self.tree {
+            let state = tree.evaluate(self.model, time, &self.p, &self.pd)?;
+            self.q = state.coordinates;
+            self.qd = state.velocities;
+            self.gamma_b = state.gamma;
+            self.influence = state.influence;
+        }
+        Ok(())
+    }
+
+    /// Joint coordinates with cut joints: projects p onto C_cut(q(p), t) = 0 (Newton with
+    /// minimum-norm steps) and p_dot onto the cut joints' velocity constraints.
+    pub(super) fn project_joint_coordinates(&mut self, time: f64) -> Result<()> {
+        let Some(rows) = self.tree.as_ref().map(|t| t.cut_rows.clone()) else { return Ok(()) };
+        let n = self.q.len();
+        let mut iterations = 0;
+        let mut previous = f64::INFINITY;
+        loop {
+            self.update_bodies_with_influence(time)?;
+            self.evaluate(time, Level::Velocity)?;
+            let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
+            let (k, violation) = worst(&residual);
+            let c_hat = Mat::from_fn(rows.len(), n, |a, j| self.eq.jacobian[(rows[a], j)]) * &self.influence;
+            if converged(violation, previous, self.settings.constraint_tolerance) {
+                // Velocities: C_cut (B p_dot + v_prescribed) + C_t = 0.
+                let rate: Vec<f64> = rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect();
+                let dv = minimum_norm_solve(c_hat.as_ref(), &rate, SINGULAR_VALUE_CUTOFF);
+                for (x, d) in self.pd.iter_mut().zip(&dv) {
+                    *x -= d;
+                }
+                return self.update_bodies(time);
+            }
+            previous = violation;
+            if iterations >= self.settings.max_iterations || !violation.is_finite() {
+                return Err(FlexmbdError::NewtonDiverged {
+                    time,
+                    step_size: 0.0,
+                    iterations,
+                    residual: violation,
+                    item: format!(
+                        "{}; joint coordinates onto the cut joints",
+                        self.model.constraint_name(rows[k])
+                    ),
+                });
+            }
+            let dp = minimum_norm_solve(c_hat.as_ref(), &residual, SINGULAR_VALUE_CUTOFF);
+            for (x, d) in self.p.iter_mut().zip(&dp) {
+                *x -= d;
+            }
+            iterations += 1;
+            self.newton_iterations += 1;
+        }
+    }
+
+    /// After an accepted step at `time`: Cardan angles of spherical and free joints restart at
+    /// zero before their singularity, and the body state follows. Returns the event.
+    pub(super) fn rebase_joint_coordinates(&mut self, time: f64) -> Result<Option<Event>> {
+        let Some(tree) = self.tree.as_mut() else { return Ok(None) };
+        let rebased = tree.rebase(self.model, &mut self.p, &mut self.pd, CARDAN_REBASE_ANGLE);
+        if rebased.is_empty() {
+            return Ok(None);
+        }
+        self.update_bodies(time)?;
+        Ok(Some(Event {
+            time,
+            kind: "joint coordinates rebased".to_string(),
+            message: format!(
+                "Cardan angles restarted at zero (the middle angle passed {:.0} degrees): {}",
+                CARDAN_REBASE_ANGLE.to_degrees(),
+                rebased.join(", ")
+            ),
+        }))
+    }
+}

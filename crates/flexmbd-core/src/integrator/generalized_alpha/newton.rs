@@ -1,0 +1,457 @@
+//! Newton's method of a generalized-alpha step (the increment equation of the module
+//! documentation): the iterations with their matrix reuse and convergence tests, the
+//! factorizations and solves of the Newton and projection matrices, the weighted increment
+//! norm, and the update of the state by an increment.
+
+use super::{Factorization, JacobianCache, StepReport};
+use crate::assembly::{assemble, ElasticRows, MatrixCoefficients, Request, StateView};
+use crate::error::Result;
+use crate::integrator::settings::NewtonSettings;
+use crate::linear_system::{LinearSolvers, NO_SOLVERS};
+use crate::system::{Model, State, Workspace};
+
+/// Factorizes the assembled Newton matrix in `ws.values` (assembled with the coefficients
+/// `coef`) with `kind`. For LDL^T the normalization constraints get the penalty
+/// s kappa (2p)(2p)^T: adding s kappa C_n^T C_n to the coordinate block leaves dq unchanged
+/// (C_n dq is fixed by the constraint rows) and only shifts dmu_n by s kappa C_n dq, which
+/// `solve` takes back. Models with condensed deformable bodies factorize their Schur
+/// complement instead (`linear_system::condensed`; LU of the reduced system, whatever `kind`).
+pub(super) fn factorize(
+    model: &Model,
+    ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
+    kind: Factorization,
+    coef: &MatrixCoefficients,
+    q: &[f64],
+) -> std::result::Result<(), String> {
+    let scale = coef.scale;
+    match solvers {
+        LinearSolvers::Dense { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.factorize(&model.layout.pattern, &ws.values)
+        }
+        LinearSolvers::Condensed { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.factorize(model, &ws.values, coef, q).map_err(|e| e.to_string())
+        }
+        LinearSolvers::Direct { lu, ldlt, projection } => match kind {
+            Factorization::Lu => lu.factorize(&ws.values),
+            Factorization::Ldlt | Factorization::Projection => {
+                for (k, nz) in model.normalizations.iter().enumerate() {
+                    ws.penalties[k] = (
+                        scale * ws.normalization_weights[k],
+                        [q[nz.dofs[0]], q[nz.dofs[1]], q[nz.dofs[2]], q[nz.dofs[3]]],
+                    );
+                }
+                let target = if kind == Factorization::Ldlt { ldlt } else { projection };
+                target.factorize(&ws.values, &ws.penalties)
+            }
+        },
+        LinearSolvers::None => Err(NO_SOLVERS.to_string()),
+    }
+}
+
+/// Solves with the factorization `kind` in place in `ws.solution`.
+pub(super) fn solve(
+    model: &Model,
+    ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
+    kind: Factorization,
+    scale: f64,
+) -> std::result::Result<(), String> {
+    match solvers {
+        LinearSolvers::Dense { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.solve_in_place(&mut ws.solution)
+        }
+        LinearSolvers::Condensed { newton, projection } => {
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.solve_in_place(&mut ws.solution)
+        }
+        LinearSolvers::Direct { lu, ldlt, projection } => match kind {
+            Factorization::Lu => lu.solve_in_place(&mut ws.solution),
+            Factorization::Ldlt | Factorization::Projection => {
+                let nq = model.coordinate_count;
+                // C_n dq equals the right-hand side of the normalization rows.
+                for (k, nz) in model.normalizations.iter().enumerate() {
+                    ws.scratch[2][k] = ws.solution[nq + nz.row];
+                }
+                let target = if kind == Factorization::Ldlt { ldlt } else { projection };
+                target.solve_in_place(&mut ws.solution)?;
+                for (k, nz) in model.normalizations.iter().enumerate() {
+                    ws.solution[nq + nz.row] += scale * ws.normalization_weights[k] * ws.scratch[2][k];
+                }
+                Ok(())
+            }
+        },
+        LinearSolvers::None => Err(NO_SOLVERS.to_string()),
+    }
+}
+
+/// Weighted norm of the Newton increment (converged at <= 1), the index of its largest entry,
+/// and the largest position increment relative to max(1, |q_k|) (the round-off test of the
+/// iteration). The norm has two parts.
+///
+/// Positions: each increment is measured against
+///   w_k = tol max(1, |q_dd|_inf) / beta' + 1e-14 max(1, |q_k|):
+/// the first term is the tolerance on the accelerations (dq_dd = beta' dq; a tolerance on
+/// positions alone would let an equation-of-motion residual of order tol/(beta h^2) pass,
+/// whose velocity error accumulates), the second the round-off floor of the positions, which
+/// dominates for very small steps.
+///
+/// Multipliers (only with `multipliers`): the generalized constraint force of their
+/// increment, |C_q^T dlambda|_inf, against tol max(1, |C_q^T lambda|_inf). In the index-3
+/// form a multiplier error does not show in dq at all (q is held by C(q) = 0), so an
+/// iteration with a matrix reused from an earlier iterate needs this test, and so does one
+/// with the approximate iteration matrix of condensed bodies. A step with the exact matrix
+/// factorized at the current iterate gives multipliers accurate to second order in dq,
+/// and near singular configurations their increments are round-off amplified by the inverse
+/// of the smallest singular value of C_q, which no test could pass: there it is skipped.
+fn increment_norm(
+    coef: &MatrixCoefficients,
+    tol: f64,
+    largest_acceleration: f64,
+    state: &State,
+    increment: &[f64],
+    multipliers: Option<ConstraintForces>,
+) -> IncrementNorm {
+    let acceleration_weight = tol * largest_acceleration.max(1.0) / coef.mass;
+    // One pass for the norm and the relative position increment, dividing only where a ratio
+    // may grow (a product compares).
+    let (largest, at, position) =
+        crate::linalg::simd::increment_ratios(increment, &state.coordinates, acceleration_weight);
+    let mut worst = (at, largest);
+    if let Some(ConstraintForces { rows, increment, force, scale }) = multipliers {
+        let f_scale = rows.iter().fold(1.0f64, |m, &d| m.max(force[d].abs()));
+        let (mut k, mut df) = (0, 0.0f64);
+        for &d in rows {
+            let v = (increment[d] / scale).abs();
+            if v > df {
+                (k, df) = (d, v);
+            }
+        }
+        let v = df / (tol * f_scale);
+        if v > worst.1 {
+            worst = (k, v);
+        }
+    }
+    IncrementNorm { norm: worst.1, worst: worst.0, position }
+}
+
+/// The constraint forces of the multipliers' test in [`increment_norm`]: C_q^T dlambda
+/// (`increment`, times `scale`) and C_q^T lambda (`force`), nonzero only at `rows` (the
+/// coordinates of the joints and normalizations).
+struct ConstraintForces<'a> {
+    rows: &'a [usize],
+    increment: &'a [f64],
+    force: &'a [f64],
+    scale: f64,
+}
+
+/// The weighted increment norm, the index of its largest entry, and the largest position
+/// increment relative to max(1, |q_k|).
+struct IncrementNorm {
+    norm: f64,
+    worst: usize,
+    position: f64,
+}
+
+/// The Newton update of the coordinates, velocities and accelerations of `state` by
+/// (1, gamma', beta') dq; returns max |q_dd| after it (0 for none; NaN entries are passed
+/// over), in the same pass: four partial maxima (a single running maximum is a chain of
+/// dependent operations), by comparisons the compiler vectorizes.
+fn update_state(state: &mut State, dq: &[f64], coef: &MatrixCoefficients) -> f64 {
+    let (v, m) = (coef.velocity, coef.mass);
+    let n = dq.len();
+    let (q, qd, qdd) =
+        (&mut state.coordinates[..n], &mut state.velocities[..n], &mut state.accelerations[..n]);
+    let mut largest = [0.0f64; 4];
+    let groups = q.chunks_mut(4).zip(qd.chunks_mut(4)).zip(qdd.chunks_mut(4)).zip(dq.chunks(4));
+    for (((q, qd), qdd), dq) in groups {
+        for (i, top) in largest.iter_mut().enumerate().take(dq.len()) {
+            let d = dq[i];
+            q[i] += d;
+            qd[i] += v * d;
+            qdd[i] += m * d;
+            let a = qdd[i].abs();
+            *top = if a > *top { a } else { *top };
+        }
+    }
+    largest.into_iter().fold(0.0, |t, a| if a > t { a } else { t })
+}
+/// Newton iterations from the state in `next`. With `reuse`, a factorization cached for this
+/// step size is used as long as it contracts well (and refreshed when it does not); without,
+/// the matrix is refactorized every iteration.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn iterate(
+    model: &Model,
+    coef: MatrixCoefficients,
+    newton: &NewtonSettings,
+    reuse: bool,
+    kind: Factorization,
+    h: f64,
+    next: &mut State,
+    ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
+    cache: &mut JacobianCache,
+) -> Result<StepReport> {
+    let nq = model.coordinate_count;
+    let s = coef.scale;
+    let mut report = StepReport::default();
+    let mut previous_norm = f64::INFINITY;
+    // Whether the matrix was factorized at the predictor, in the first iteration of this step.
+    let mut fresh_at_predictor = false;
+    // The condensed solver's iteration matrix (not the exact Jacobian, see below).
+    let approximate_matrix = kind != Factorization::Projection && solvers.is_condensed();
+    let condensed_rows = approximate_matrix && coef.position == 1.0 && coef.identity == 0.0;
+    for iteration in 0..newton.max_iterations {
+        // A step shortened by round-off to land on an output time keeps the matrix.
+        let same_h = cache.step_size.is_some_and(|c| crate::math::equal_to_round_off(c, h));
+        let need_matrix = !reuse || !same_h || cache.kind != kind;
+        fresh_at_predictor |= iteration == 0 && need_matrix;
+        // Elastic rows of condensed bodies from the last condensed solve after the first
+        // iteration (see `ElasticRows`; the update of the coordinates below is the one it
+        // requires).
+        let elastic_rows = match (condensed_rows, iteration) {
+            (false, _) => ElasticRows::Whole,
+            (true, 0) => ElasticRows::Keep,
+            (true, _) => ElasticRows::Update { scale: s },
+        };
+        let structured_coupling = need_matrix && kind != Factorization::Projection;
+        let matrix = need_matrix.then_some(coef);
+        assemble_iterate(model, next, ws, solvers, matrix, structured_coupling, elastic_rows)?;
+        if need_matrix {
+            if let Err(detail) = factorize(model, ws, solvers, kind, &coef, &next.coordinates) {
+                return Ok(abandon(report, cache, format!("singular Newton matrix: {detail}")));
+            }
+            *cache = JacobianCache { step_size: Some(h), kind, age: 0 };
+            report.factorizations += 1;
+        }
+        if let Err(detail) = solve_increment(model, ws, solvers, kind, s) {
+            return Ok(abandon(report, cache, format!("singular Newton matrix: {detail}")));
+        }
+        // With a matrix reused from an earlier iterate, the multipliers are tested through the
+        // constraint forces C_q^T dlambda of the increment (and C_q^T lambda before it), with
+        // the Jacobians of this iterate: nonzero only at the constraints' coordinates. So is
+        // the condensed iteration matrix even when factorized at this iterate: it is not the
+        // exact Jacobian (the constant A, the mass part of the reference coupling), and its
+        // multipliers converge at its rate, not to second order.
+        let check_multipliers = !need_matrix || approximate_matrix;
+        if check_multipliers {
+            constraint_forces_of_increment(model, next, ws);
+        }
+        let largest_acceleration = apply_increment(model, next, &ws.solution, &coef);
+        report.iterations = iteration + 1;
+        let multipliers = check_multipliers.then_some(ConstraintForces {
+            rows: &ws.constraint_coordinates,
+            increment: &ws.scratch[0],
+            force: &ws.scratch[1],
+            scale: s,
+        });
+        let increment = &ws.solution[..nq];
+        let norm =
+            increment_norm(&coef, newton.tolerance, largest_acceleration, next, increment, multipliers);
+        report.increment_norm = norm.norm;
+        report.worst = norm.worst;
+        if !norm.norm.is_finite() {
+            return Ok(abandon(report, cache, "non-finite increment".to_string()));
+        }
+        let current_matrix = need_matrix || fresh_at_predictor;
+        match convergence(&norm, previous_norm, iteration, need_matrix, current_matrix) {
+            Convergence::Converged => {
+                report.converged = true;
+                return Ok(report);
+            }
+            Convergence::Diverging { rate } => {
+                report.failure = Some(format!("increments grow (contraction rate {rate:.2})"));
+                return Ok(report);
+            }
+            Convergence::Continuing { rate } => {
+                if reuse && rate > newton.contraction_limit && iteration > 0 {
+                    // Slow contraction: refresh the matrix at the current iterate.
+                    cache.step_size = None;
+                }
+            }
+        }
+        previous_norm = norm.norm;
+    }
+    report.failure = Some(format!("no convergence in {} iterations", newton.max_iterations));
+    Ok(report)
+}
+
+/// `report` of iterations that end with `failure`; the cached factorization is dropped.
+fn abandon(mut report: StepReport, cache: &mut JacobianCache, failure: String) -> StepReport {
+    cache.step_size = None;
+    report.failure = Some(failure);
+    report
+}
+
+/// Assembles the residual of the iterate `next` (and the Newton matrix with the coefficients
+/// `matrix`, if given) into `ws`; `structured_coupling` and `elastic_rows` as in [`Request`].
+fn assemble_iterate(
+    model: &Model,
+    next: &State,
+    ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
+    matrix: Option<MatrixCoefficients>,
+    structured_coupling: bool,
+    elastic_rows: ElasticRows,
+) -> Result<()> {
+    let images = if matches!(elastic_rows, ElasticRows::Update { .. }) {
+        solvers.coupling_images()
+    } else {
+        Vec::new()
+    };
+    let request =
+        Request { matrix, condensed_blocks: false, structured_coupling, elastic_rows, images: &images };
+    let assembled = assemble(model, StateView::of(next), ws, &request);
+    drop(images);
+    assembled
+}
+
+/// The Newton increment [dq; s dlambda] into `ws.solution`: the right-hand side -[s r; C]
+/// from `ws.residual`, solved with the factorization `kind` (s = `scale`).
+fn solve_increment(
+    model: &Model,
+    ws: &mut Workspace,
+    solvers: &mut LinearSolvers,
+    kind: Factorization,
+    scale: f64,
+) -> std::result::Result<(), String> {
+    let nq = model.coordinate_count;
+    let nc = model.constraint_count;
+    let (coordinate_rows, constraint_rows) = ws.residual[..nq + nc].split_at(nq);
+    for (x, r) in ws.solution[..nq].iter_mut().zip(coordinate_rows) {
+        *x = -scale * r;
+    }
+    for (x, r) in ws.solution[nq..nq + nc].iter_mut().zip(constraint_rows) {
+        *x = -r;
+    }
+    solve(model, ws, solvers, kind, scale)
+}
+
+/// The constraint forces of the multipliers' test at the iterate `next`, before its update:
+/// C_q^T dlambda of the increment in `ws.solution` into `ws.scratch[0]` and C_q^T lambda into
+/// `ws.scratch[1]` (both at `ws.constraint_coordinates`, where they are nonzero).
+fn constraint_forces_of_increment(model: &Model, next: &State, ws: &mut Workspace) {
+    let nq = model.coordinate_count;
+    let [force_increment, force, _] = &mut ws.scratch;
+    for &d in &ws.constraint_coordinates {
+        force_increment[d] = 0.0;
+        force[d] = 0.0;
+    }
+    let (q, lambda) = (&next.coordinates, &next.multipliers);
+    crate::assembly::add_constraint_force_pair(
+        model,
+        q,
+        &ws.joints,
+        [&ws.solution[nq..], lambda],
+        [&mut force_increment[..], &mut force[..]],
+    );
+}
+
+/// Updates `next` by the increment [dq; s dlambda] in `solution`; returns max |q_dd| after it
+/// (see [`update_state`]).
+fn apply_increment(model: &Model, next: &mut State, solution: &[f64], coef: &MatrixCoefficients) -> f64 {
+    let nq = model.coordinate_count;
+    let largest_acceleration = update_state(next, &solution[..nq], coef);
+    for k in 0..model.constraint_count {
+        next.multipliers[k] += solution[nq + k] / coef.scale;
+    }
+    largest_acceleration
+}
+
+/// What the Newton iteration does after an increment.
+enum Convergence {
+    Converged,
+    /// The increments grow: the iteration stops.
+    Diverging {
+        rate: f64,
+    },
+    /// Another iteration; `rate` is the contraction rate of the last one.
+    Continuing {
+        rate: f64,
+    },
+}
+
+/// The convergence tests after the increment of `iteration` with weighted norm `norm`
+/// (`previous_norm` before it). `fresh_matrix`: the matrix was factorized at this iterate;
+/// `current_matrix`: it was factorized at this iterate or at this step's predictor.
+fn convergence(
+    norm: &IncrementNorm,
+    previous_norm: f64,
+    iteration: usize,
+    fresh_matrix: bool,
+    current_matrix: bool,
+) -> Convergence {
+    let rate = norm.norm / previous_norm;
+    // Remaining error estimated from the contraction rate (Hairer and Wanner). With a
+    // matrix reused from an earlier step, the first rate (measured from the predictor,
+    // whose error is of another order) is not trusted; with a matrix factorized at the
+    // predictor, the first increment was a Newton step and the rate after it measures the
+    // contraction of the iterations that follow.
+    let rate_trusted = iteration > 1 || (iteration == 1 && current_matrix);
+    let estimated_error_small = rate_trusted && rate < 1.0 && rate / (1.0 - rate) * norm.norm <= 1.0;
+    // Near singular configurations the Newton matrix is ill-conditioned and the increments
+    // stall at a round-off level amplified by its condition: once the relative position
+    // increment is below 1e-10 and no longer decreases, with a current matrix, the
+    // iteration has converged as far as it can.
+    let at_roundoff = norm.position <= 1e-10;
+    let stalled_at_roundoff = fresh_matrix && iteration >= 1 && rate >= 0.5 && at_roundoff;
+    if norm.norm <= 1.0 || estimated_error_small || stalled_at_roundoff {
+        Convergence::Converged
+    } else if iteration >= 2 && rate > 1.0 && !at_roundoff {
+        Convergence::Diverging { rate }
+    } else {
+        Convergence::Continuing { rate }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn state_update_returns_the_largest_acceleration_after_it() {
+        // Lengths that leave 0 to 3 entries after the groups of four, the largest entry in
+        // each position, a NaN passed over.
+        for n in [1usize, 4, 6, 9, 11] {
+            for at in 0..n {
+                let f = |k: usize, s: f64| s * ((k * 7 % 5) as f64 - 2.0);
+                let vector = |s: f64| (0..n).map(|k| f(k, s)).collect::<Vec<f64>>();
+                let mut state = State {
+                    time: 0.0,
+                    coordinates: vector(1.0),
+                    velocities: vector(0.5),
+                    accelerations: vector(-2.0),
+                    multipliers: Vec::new(),
+                    algorithmic_accelerations: vec![0.0; n],
+                    discrete: Vec::new(),
+                    previous_accelerations: vec![0.0; n],
+                    previous_multipliers: Vec::new(),
+                    previous_step_size: 0.0,
+                };
+                let mut dq = vector(0.1);
+                dq[at] = -40.0;
+                let coef =
+                    MatrixCoefficients { mass: 3.0, velocity: 2.0, position: 1.0, identity: 0.0, scale: 1.0 };
+                let before = state.clone();
+                let largest = update_state(&mut state, &dq, &coef);
+                for k in 0..n {
+                    assert_eq!(state.coordinates[k], before.coordinates[k] + dq[k]);
+                    assert_eq!(state.velocities[k], before.velocities[k] + 2.0 * dq[k]);
+                    assert_eq!(state.accelerations[k], before.accelerations[k] + 3.0 * dq[k]);
+                }
+                let expected = state.accelerations.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+                assert_eq!(largest, expected, "n {n}, at {at}");
+                assert_eq!(largest, state.accelerations[at].abs());
+                if n > 1 {
+                    state.accelerations[(at + 1) % n] = f64::NAN;
+                    let mut again = state.clone();
+                    let zero = vec![0.0; n];
+                    assert_eq!(update_state(&mut again, &zero, &coef), expected, "NaN passed over");
+                }
+            }
+        }
+    }
+}
