@@ -503,7 +503,7 @@ fn node_products4_portable(col_ptr: &[usize], row_idx: &[usize], values: &[f64],
     }
 }
 
-/// The loop of the Newton increment norm (`generalized_alpha::increment_norm`): the largest
+/// The loop of the Newton increment norm (`generalized_alpha::newton::increment_norm`): the largest
 /// ratio |d_k| / (w + 1e-14 max(1, |q_k|)) with its index, and the largest |d_k| / max(1,
 /// |q_k|) (NaN entries are passed over; 0 for none), in the AVX2 kernel where the CPU has it.
 /// Both codes divide only at the entries that may raise a maximum; the kernel keeps each
