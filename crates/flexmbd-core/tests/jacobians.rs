@@ -8,7 +8,7 @@ mod common;
 
 use std::sync::Arc;
 
-use common::{close, Rng};
+use common::{assert_close, Rng};
 use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
 use flexmbd_core::body::marker::MarkerElastic;
@@ -346,11 +346,20 @@ fn newton_matrix_blocks_match_finite_differences() {
                 for row in 0..rows {
                     let fd = (rp[row] - rm[row]) / (2.0 * h);
                     let an = analytic[row][col];
-                    assert!(
-                        close(fd, an, 1e-5, 1e-6),
-                        "seed {seed}, block {which}: d residual[{row}] ({}) / d {} : fd {fd} analytic {an}",
-                        if row < nq { model.coordinate_name(row) } else { model.constraint_name(row - nq) },
-                        model.coordinate_name(col)
+                    assert_close(
+                        fd,
+                        an,
+                        1e-5,
+                        1e-6,
+                        format_args!(
+                            "seed {seed}, block {which}: d residual[{row}] ({}) / d {}: fd against analytic",
+                            if row < nq {
+                                model.coordinate_name(row)
+                            } else {
+                                model.constraint_name(row - nq)
+                            },
+                            model.coordinate_name(col)
+                        ),
                     );
                 }
             }
@@ -397,18 +406,9 @@ fn gamma_matches_second_time_derivative_of_constraints() {
             let cq_qdd: f64 = (0..nq).map(|k| jac[nq + r][k] * state.accelerations[k]).sum();
             let c_d = (cp[r] - cm[r]) / (2.0 * h);
             let cq_qd: f64 = (0..nq).map(|k| jac[nq + r][k] * state.velocities[k]).sum();
-            assert!(
-                close(c_dd, cq_qdd - gamma[r], 1e-5, 1e-5),
-                "gamma of {}: {c_dd} vs {}",
-                model.constraint_name(r),
-                cq_qdd - gamma[r]
-            );
-            assert!(
-                close(c_d, cq_qd + ct[r], 1e-6, 1e-6),
-                "C_t of {}: {c_d} vs {}",
-                model.constraint_name(r),
-                cq_qd + ct[r]
-            );
+            let name = model.constraint_name(r);
+            assert_close(c_dd, cq_qdd - gamma[r], 1e-5, 1e-5, format_args!("gamma of {name}: C_dd"));
+            assert_close(c_d, cq_qd + ct[r], 1e-6, 1e-6, format_args!("C_t of {name}: C_d"));
         }
     }
 }

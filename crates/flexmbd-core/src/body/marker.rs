@@ -365,6 +365,7 @@ mod tests {
     use super::*;
     use crate::body::flexible::tests::{random_state, PointBody};
     use crate::body::flexible::FlexibleBody;
+    use crate::testing::{assert_all_close, assert_close};
 
     fn setup() -> (Body, Marker, Vec<f64>, Vec<f64>) {
         let n = 4;
@@ -431,9 +432,8 @@ mod tests {
                 let value = |kk: &MarkerKinematics| if which == 0 { kk.position } else { kk.axis(k) };
                 let fd = (value(&kp) - value(&km)) * (1.0 / (2.0 * h));
                 let jac = if which == 0 { &kin.jac_position } else { &kin.jac_axes[k] };
-                for i in 0..3 {
-                    assert!((fd[i] - jac.get(i, c)).abs() < 1e-8, "jacobian {which}/{k} ({i}, {c})");
-                }
+                let column: [f64; 3] = std::array::from_fn(|i| jac.get(i, c));
+                assert_all_close(&fd.0, &column, 0.0, 1e-8, format_args!("jacobian {which}/{k}, column {c}"));
                 // Hessian column c: d/dq_c of the gradient v^T J.
                 let grad = |kk: &MarkerKinematics| {
                     let j = if which == 0 { &kk.jac_position } else { &kk.jac_axes[k] };
@@ -442,14 +442,9 @@ mod tests {
                     g
                 };
                 let (gp, gm) = (grad(&kp), grad(&km));
-                for r in 0..nl {
-                    let fd = (gp[r] - gm[r]) / (2.0 * h);
-                    assert!(
-                        (fd - hess.get(r, c)).abs() < 1e-7,
-                        "hessian {which}/{k} ({r}, {c}): {fd} vs {}",
-                        hess.get(r, c)
-                    );
-                }
+                let fd: Vec<f64> = (0..nl).map(|r| (gp[r] - gm[r]) / (2.0 * h)).collect();
+                let column: Vec<f64> = (0..nl).map(|r| hess.get(r, c)).collect();
+                assert_all_close(&fd, &column, 0.0, 1e-7, format_args!("hessian {which}/{k}, column {c}"));
             }
         }
         // Velocity and angular velocity, in an undeformed configuration (there the marker frame
@@ -461,8 +456,9 @@ mod tests {
             ((kp.position - km.position) * (1.0 / (2.0 * dt)), (kp.rotation - km.rotation).scale(0.5 / dt))
         };
         let (fd, _) = vel(&q, &qd);
-        assert!((fd - kin.velocity()).norm() < 1e-8);
-        assert!((kin.jac_position.times(&local(&marker, &qd)) - kin.velocity()).norm() < 1e-12);
+        assert_close((fd - kin.velocity()).norm(), 0.0, 0.0, 1e-8, "|fd velocity - velocity|");
+        let jq = kin.jac_position.times(&local(&marker, &qd));
+        assert_close((jq - kin.velocity()).norm(), 0.0, 0.0, 1e-12, "|J q_dot - velocity|");
         let mut q0 = q.clone();
         q0[7..].iter_mut().for_each(|x| *x = 0.0);
         let mut qd0 = qd.clone();
@@ -473,6 +469,7 @@ mod tests {
         let (_, rdot) = vel(&q0, &qd0);
         let wt = rdot.mul_mat(&k0.rotation.transpose());
         let w = Vec3([wt.0[2][1], wt.0[0][2], wt.0[1][0]]);
-        assert!((w - k0.angular_velocity()).norm() < 1e-7, "{w:?} vs {:?}", k0.angular_velocity());
+        let what = format!("|{w:?} - {:?}|", k0.angular_velocity());
+        assert_close((w - k0.angular_velocity()).norm(), 0.0, 0.0, 1e-7, what);
     }
 }

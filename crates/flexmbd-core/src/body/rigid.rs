@@ -209,6 +209,7 @@ pub fn kinetic_energy(body: &RigidBody, q: &[f64], qd: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{assert_all_close, assert_close};
 
     fn body() -> RigidBody {
         let inertia = Mat3([[0.3, 0.02, -0.01], [0.02, 0.5, 0.03], [-0.01, 0.03, 0.4]]);
@@ -251,14 +252,15 @@ mod tests {
                     1 => &t.velocity,
                     _ => &t.position,
                 };
-                for i in 0..7 {
-                    let fd = (fp[i] - fm[i]) / (2.0 * h);
-                    assert!(
-                        (fd - analytic[i][k]).abs() < 1e-7 * (1.0 + fd.abs()),
-                        "block {which} ({i},{k}): fd {fd} vs {}",
-                        analytic[i][k]
-                    );
-                }
+                let fd: [f64; 7] = std::array::from_fn(|i| (fp[i] - fm[i]) / (2.0 * h));
+                let column = analytic.map(|row| row[k]);
+                assert_all_close(
+                    &column,
+                    &fd,
+                    1e-7,
+                    1e-7,
+                    format_args!("block {which}, column {k}: analytic against fd"),
+                );
             }
         }
     }
@@ -273,19 +275,19 @@ mod tests {
         let mut f0 = [0.0; 7];
         inertia_force(&b, &q, &qd, &qdd, &mut f);
         inertia_force(&b, &q, &qd, &[0.0; 7], &mut f0);
-        for i in 0..7 {
-            let mq: f64 = (0..7).map(|k| t.mass[i][k] * qdd[k]).sum();
-            assert!((f[i] - f0[i] - mq).abs() < 1e-12);
-        }
+        let difference: [f64; 7] = std::array::from_fn(|i| f[i] - f0[i]);
+        let mq: [f64; 7] = std::array::from_fn(|i| (0..7).map(|k| t.mass[i][k] * qdd[k]).sum());
+        assert_all_close(&difference, &mq, 0.0, 1e-12, "f(q_dd) - f(0) against M q_dd");
         // Symmetry of the mass matrix and kinetic energy = 1/2 qd^T M qd.
+        let transposed: [[f64; 7]; 7] = std::array::from_fn(|i| std::array::from_fn(|k| t.mass[k][i]));
+        assert_all_close(t.mass.as_flattened(), transposed.as_flattened(), 0.0, 1e-13, "M against M^T");
         let mut e = 0.0;
         for i in 0..7 {
             for k in 0..7 {
-                assert!((t.mass[i][k] - t.mass[k][i]).abs() < 1e-13);
                 e += 0.5 * qd[i] * t.mass[i][k] * qd[k];
             }
         }
-        assert!((e - kinetic_energy(&b, &q, &qd)).abs() < 1e-12);
+        assert_close(e, kinetic_energy(&b, &q, &qd), 0.0, 1e-12, "kinetic energy from M");
     }
 
     #[test]

@@ -153,6 +153,7 @@ pub fn add_stiffening(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{assert_all_close, assert_close};
 
     fn element() -> StiffeningElement {
         StiffeningElement {
@@ -180,15 +181,9 @@ mod tests {
             let up = element_terms(&el, &ep, &mut fp, None);
             let um = element_terms(&el, &em, &mut fm, None);
             let fd = (up - um) / (2.0 * h);
-            assert!((fd - f[j]).abs() < 1e-6 * (1.0 + f[j].abs()), "force {j}: {fd} vs {}", f[j]);
-            for i in 0..12 {
-                let kd = (fp[i] - fm[i]) / (2.0 * h);
-                assert!(
-                    (kd - k[i][j]).abs() < 1e-5 * (1.0 + k[i][j].abs()),
-                    "tangent ({i}, {j}): {kd} vs {}",
-                    k[i][j]
-                );
-            }
+            assert_close(fd, f[j], 1e-6, 1e-6, format_args!("force {j}"));
+            let kd: [f64; 12] = std::array::from_fn(|i| (fp[i] - fm[i]) / (2.0 * h));
+            assert_all_close(&kd, &k.map(|row| row[j]), 1e-5, 1e-5, format_args!("tangent column {j}"));
         }
     }
 
@@ -207,10 +202,10 @@ mod tests {
         let mut f = [0.0; 12];
         let nonlinear = element_terms(&el, &e, &mut f, None);
         let linear = 0.5 * el.axial_stiffness * l * (e[6] / l).powi(2);
-        assert!((nonlinear + linear).abs() < 1e-12 * linear, "{nonlinear} + {linear}");
+        assert_close(nonlinear, -linear, 1e-12, 0.0, "nonlinear against minus linear axial energy");
         // And no axial force: the internal force has no axial components left.
         let axial = f[6] + el.axial_stiffness * e[6] / l;
-        assert!(axial.abs() < 1e-9 * el.axial_stiffness * mean_half_slope_squared);
+        assert_close(axial, 0.0, 0.0, 1e-9 * el.axial_stiffness * mean_half_slope_squared, "axial force");
     }
 
     #[test]
@@ -232,6 +227,6 @@ mod tests {
         d[11] = theta;
         let quad: f64 = (0..12).map(|i| (0..12).map(|j| d[i] * k[i][j] * d[j]).sum::<f64>()).sum();
         let expected = el.axial_stiffness * eps0 * el.length * theta * theta;
-        assert!((quad - expected).abs() < 1e-9 * expected.abs(), "{quad} vs {expected}");
+        assert_close(quad, expected, 1e-9, 0.0, "Rayleigh quotient");
     }
 }

@@ -362,6 +362,7 @@ impl ElementKernel for Beam {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{assert_all_close, assert_close};
 
     fn beam() -> (Beam, Material, [Vec3; 2]) {
         let section = Section::rectangle("test", 0.02, 0.05).unwrap();
@@ -380,16 +381,14 @@ mod tests {
         q[..3].copy_from_slice(&t.0);
         q[6..9].copy_from_slice(&t.0);
         for p in &points {
-            for row in 0..3 {
-                let u: f64 = (0..12).map(|k| p.shape[row * 12 + k] * q[k]).sum();
-                assert!((u - t[row]).abs() < 1e-14);
-            }
+            let u: [f64; 3] = std::array::from_fn(|row| (0..12).map(|k| p.shape[row * 12 + k] * q[k]).sum());
+            assert_all_close(&u, &t.0, 0.0, 1e-14, "S t at a mass point");
         }
         let mut k = DenseMatrix::zeros(12, 12);
         b.stiffness(&m, &x, &mut k).unwrap();
         let mut f = vec![0.0; 12];
         k.mul_vec_add(1.0, &q, &mut f);
-        assert!(f.iter().all(|v| v.abs() < 1e-6 * 2.1e11 * 1e-3));
+        assert_all_close(&f, &[0.0; 12], 0.0, 1e-6 * 2.1e11 * 1e-3, "K t");
         // Infinitesimal rigid rotations w: u = w x X at the nodes, theta = w.
         for axis in 0..3 {
             let w = Vec3::unit(axis);
@@ -400,7 +399,13 @@ mod tests {
             }
             let mut f = vec![0.0; 12];
             k.mul_vec_add(1.0, &q, &mut f);
-            assert!(f.iter().all(|v| v.abs() < 1e-9 * 2.1e11 * 1e-4), "{f:?}");
+            assert_all_close(
+                &f,
+                &[0.0; 12],
+                0.0,
+                1e-9 * 2.1e11 * 1e-4,
+                format_args!("K q, rotation about {axis}"),
+            );
         }
     }
 
@@ -454,8 +459,8 @@ mod tests {
         let v = k22[1][1] * p / det;
         let th = -k22[1][0] * p / det;
         let ei = 7e10 * 3e-7;
-        assert!((v - p * l.powi(3) / (3.0 * ei)).abs() < 1e-12 * v.abs());
-        assert!((th - p * l * l / (2.0 * ei)).abs() < 1e-12 * th.abs());
+        assert_close(v, p * l.powi(3) / (3.0 * ei), 0.0, 1e-12 * v.abs(), "tip deflection");
+        assert_close(th, p * l * l / (2.0 * ei), 0.0, 1e-12 * th.abs(), "tip slope");
     }
 
     #[test]
@@ -495,7 +500,7 @@ mod tests {
             }
             let expected = l.powi(3) / (3.0 * m.young_modulus * inertia)
                 + l / (section.shear_factor * m.shear_modulus() * section.area);
-            assert!((u[plane - 6] - expected).abs() < 1e-12 * expected, "{} vs {expected}", u[plane - 6]);
+            assert_close(u[plane - 6], expected, 1e-12, 0.0, format_args!("tip deflection along {plane}"));
         }
     }
 
@@ -506,9 +511,8 @@ mod tests {
             let h = 1e-6;
             let (vp, _) = Beam::bending_rows(1.7, xi + h, 0.0);
             let (vm, _) = Beam::bending_rows(1.7, xi - h, 0.0);
-            for k in 0..4 {
-                assert!(((vp[k] - vm[k]) / (2.0 * h * 1.7) - t[k]).abs() < 1e-8);
-            }
+            let slope: [f64; 4] = std::array::from_fn(|k| (vp[k] - vm[k]) / (2.0 * h * 1.7));
+            assert_all_close(&slope, &t, 0.0, 1e-8, format_args!("rotation rows at {xi}"));
             let _ = v;
         }
     }
@@ -521,34 +525,38 @@ mod tests {
         let length = (x[1] - x[0]).norm();
         let mass = m.density * b.section.area * length;
         let total: f64 = points.iter().map(|p| p.weight).sum();
-        assert!((total - mass).abs() < 1e-12 * mass);
+        assert_close(total, mass, 1e-12, 0.0, "total mass");
         let centroid = points.iter().fold(Vec3::ZERO, |s, p| s + p.position * p.weight) * (1.0 / total);
         let mid = (x[0] + x[1]) * 0.5;
-        assert!((centroid - mid).norm() < 1e-12);
+        assert_close((centroid - mid).norm(), 0.0, 0.0, 1e-12, "centroid distance from the midpoint");
         // Second moment about the centroid along the axis: m L^2 / 12 + section terms.
         let (_, r) = b.frame(&x).unwrap();
         let ex = Vec3(r.0[0]);
         let along: f64 = points.iter().map(|p| p.weight * (p.position - mid).dot(&ex).powi(2)).sum();
-        assert!((along - mass * length * length / 12.0).abs() < 1e-12 * along);
+        assert_close(
+            along,
+            mass * length * length / 12.0,
+            0.0,
+            1e-12 * along,
+            "second moment along the axis",
+        );
         let ey = Vec3(r.0[1]);
         let across: f64 = points.iter().map(|p| p.weight * (p.position - mid).dot(&ey).powi(2)).sum();
         let expected = m.density * length * b.section.iz;
-        assert!((across - expected).abs() < 1e-10 * expected);
+        assert_close(across, expected, 1e-10, 0.0, "second moment across the axis");
         // Consistent mass matrix: symmetric positive definite, translational mass per direction.
         let mut mm = DenseMatrix::zeros(12, 12);
         mass_matrix(&points, 12, &mut mm);
         let mut sum_x = 0.0;
-        for i in 0..12 {
-            for j in 0..12 {
-                assert!((mm.get(i, j) - mm.get(j, i)).abs() < 1e-12 * mass);
-            }
-        }
+        let entries: Vec<f64> = (0..144).map(|k| mm.get(k / 12, k % 12)).collect();
+        let transposed: Vec<f64> = (0..144).map(|k| mm.get(k % 12, k / 12)).collect();
+        assert_all_close(&entries, &transposed, 0.0, 1e-12 * mass, "M against M^T");
         for i in [0, 6] {
             for j in [0, 6] {
                 sum_x += mm.get(i, j);
             }
         }
-        assert!((sum_x - mass).abs() < 1e-12 * mass);
+        assert_close(sum_x, mass, 1e-12, 0.0, "translational mass along x");
     }
 
     #[test]
@@ -558,7 +566,7 @@ mod tests {
         b.lumped_mass_points(&m, &x, &mut points).unwrap();
         let mass = m.density * b.section.area * (x[1] - x[0]).norm();
         let total: f64 = points.iter().map(|p| p.weight).sum();
-        assert!((total - mass).abs() < 1e-12 * mass);
+        assert_close(total, mass, 1e-12, 0.0, "lumped total mass");
         let mut mm = DenseMatrix::zeros(12, 12);
         mass_matrix(&points, 12, &mut mm);
         for i in 0..12 {

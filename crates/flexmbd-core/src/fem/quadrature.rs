@@ -326,6 +326,7 @@ pub fn hexahedron_rule(points_per_direction: usize) -> Option<&'static [Quadratu
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::assert_close;
 
     fn factorial(n: u32) -> f64 {
         (1..=n).map(f64::from).product()
@@ -378,7 +379,7 @@ mod tests {
     fn tetrahedron_rules_are_exact_up_to_their_degree() {
         for (rule, degree) in TETRAHEDRON_RULES {
             let total: f64 = rule.iter().map(|p| p.weight).sum();
-            assert!((total - 1.0 / 6.0).abs() < 1e-15, "degree {degree}: weights sum to {total}");
+            assert_close(total, 1.0 / 6.0, 0.0, 1e-15, format_args!("degree {degree}: sum of weights"));
             for d in 0..=degree {
                 let error = worst_error_at_degree(rule, d);
                 assert!(error < 1e-12, "degree {degree} rule at degree {d}: relative error {error}");
@@ -420,7 +421,7 @@ mod tests {
             assert_eq!(rule.len(), n);
             for a in 0..=(2 * n as u32 - 1) {
                 let q: f64 = rule.iter().map(|&(x, w)| w * x.powi(a as i32)).sum();
-                assert!((q - interval_monomial(a)).abs() < 1e-14, "{n} points, x^{a}: {q}");
+                assert_close(q, interval_monomial(a), 0.0, 1e-14, format_args!("{n} points, x^{a}"));
             }
             let a = 2 * n as u32;
             let q: f64 = rule.iter().map(|&(x, w)| w * x.powi(a as i32)).sum();
@@ -435,7 +436,7 @@ mod tests {
             let rule = hexahedron_rule(n).unwrap();
             assert_eq!(rule.len(), n * n * n);
             let total: f64 = rule.iter().map(|p| p.weight).sum();
-            assert!((total - 8.0).abs() < 1e-14, "{n} points per direction: weights sum to {total}");
+            assert_close(total, 8.0, 0.0, 1e-14, format_args!("{n} points per direction: sum of weights"));
             let top = 2 * n as u32 - 1;
             for a in 0..=top {
                 for b in 0..=top {
@@ -443,7 +444,13 @@ mod tests {
                         let exact = interval_monomial(a) * interval_monomial(b) * interval_monomial(c);
                         let q = apply(rule, a, b, c);
                         let scale = exact.abs().max(1.0);
-                        assert!((q - exact).abs() < 1e-12 * scale, "{n} points: x^{a} y^{b} z^{c}: {q}");
+                        assert_close(
+                            q,
+                            exact,
+                            0.0,
+                            1e-12 * scale,
+                            format_args!("{n} points: x^{a} y^{b} z^{c}"),
+                        );
                     }
                 }
             }
@@ -452,7 +459,13 @@ mod tests {
             for (index, p) in rule.iter().enumerate() {
                 let (i, j, k) = (index % n, (index / n) % n, index / (n * n));
                 assert_eq!(p.coordinates, [line[i].0, line[j].0, line[k].0]);
-                assert!((p.weight - line[i].1 * line[j].1 * line[k].1).abs() < 1e-15);
+                assert_close(
+                    p.weight,
+                    line[i].1 * line[j].1 * line[k].1,
+                    0.0,
+                    1e-15,
+                    format_args!("weight {index}"),
+                );
             }
         }
         assert!(hexahedron_rule(0).is_none());

@@ -420,6 +420,7 @@ mod tests {
     use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
     use crate::math::{Mat3, Vec3};
     use crate::system::State;
+    use crate::testing::assert_all_close;
     use crate::SystemBuilder;
 
     fn rot_z(angle: f64) -> Mat3 {
@@ -510,28 +511,31 @@ mod tests {
             results.push(qdd);
         }
         let scale = results[0].iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        for qdd in &results[1..] {
-            for (a, b) in results[0].iter().zip(qdd) {
-                assert!((a - b).abs() < 1e-10 * scale, "{a} vs {b}");
-            }
+        for (k, qdd) in results.iter().enumerate().skip(1) {
+            assert_all_close(
+                qdd,
+                &results[0],
+                0.0,
+                1e-10 * scale,
+                format_args!("q_dd of solve {k} against solve 0"),
+            );
         }
         // Seed eq. 26 by residuals: C_q q_dd = gamma, and M q_dd + C_q^T lambda = f with the
         // multipliers recovered from the dependent rows (seed eq. 30).
         let qdd = &results[0];
-        for r in 0..m {
-            let lhs: f64 = (0..n).map(|j| eq.jacobian[(r, j)] * qdd[j]).sum();
-            assert!((lhs - eq.gamma[r]).abs() < 1e-10 * scale.max(1.0));
-        }
+        let lhs: Vec<f64> = (0..m).map(|r| (0..n).map(|j| eq.jacobian[(r, j)] * qdd[j]).sum()).collect();
+        assert_all_close(&lhs, &eq.gamma, 0.0, 1e-10 * scale.max(1.0), "C_q q_dd against gamma");
         let p = partition(eq.jacobian.as_ref(), PartitionMethod::Lu, DEFAULT_RANK_TOLERANCE);
         let mut lambda = vec![0.0; m];
         eq.multipliers(&p, qdd, &mut lambda).unwrap();
         let force_scale = eq.force.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-        for i in 0..n {
-            let residual: f64 = (0..n).map(|j| eq.mass[(i, j)] * qdd[j]).sum::<f64>()
-                + (0..m).map(|r| eq.jacobian[(r, i)] * lambda[r]).sum::<f64>()
-                - eq.force[i];
-            assert!(residual.abs() < 1e-9 * force_scale, "row {i}: {residual}");
-        }
+        let lhs: Vec<f64> = (0..n)
+            .map(|i| {
+                (0..n).map(|j| eq.mass[(i, j)] * qdd[j]).sum::<f64>()
+                    + (0..m).map(|r| eq.jacobian[(r, i)] * lambda[r]).sum::<f64>()
+            })
+            .collect();
+        assert_all_close(&lhs, &eq.force, 0.0, 1e-9 * force_scale, "M q_dd + C_q^T lambda against f");
     }
 
     #[test]
@@ -546,10 +550,14 @@ mod tests {
         for formulation in [Formulation::Augmented, Formulation::Embedding] {
             let mut qdd = vec![0.0; n];
             eq.accelerations(&p, formulation, &shifted, f64::INFINITY, &mut qdd).unwrap();
-            for r in 0..m {
-                let lhs: f64 = (0..n).map(|j| eq.jacobian[(r, j)] * qdd[j]).sum();
-                assert!((lhs - shifted[r]).abs() < 1e-9, "{formulation:?} row {r}");
-            }
+            let lhs: Vec<f64> = (0..m).map(|r| (0..n).map(|j| eq.jacobian[(r, j)] * qdd[j]).sum()).collect();
+            assert_all_close(
+                &lhs,
+                &shifted,
+                0.0,
+                1e-9,
+                format_args!("{formulation:?}: C_q q_dd against gamma + delta"),
+            );
         }
     }
 

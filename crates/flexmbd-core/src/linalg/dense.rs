@@ -392,6 +392,7 @@ fn non_finite(values: &[f64]) -> usize {
 mod tests {
     use super::*;
     use crate::linalg::sparse::{PatternBuilder, SparseLu, SparsePattern};
+    use crate::testing::assert_all_close;
 
     /// The sparse LU solution of the system (pattern `p`, `values`) for `rhs`, and the dense
     /// LU factorization of the same matrix.
@@ -450,9 +451,7 @@ mod tests {
         let mut x = rhs.clone();
         dense.solve_in_place(&mut x).unwrap();
         let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for k in 0..n {
-            assert!((x[k] - expected[k]).abs() < 1e-11 * scale, "{k}: {} vs {}", x[k], expected[k]);
-        }
+        assert_all_close(&x, &expected, 0.0, 1e-11 * scale, "dense against sparse solution");
         // The matrix changed by up to 2 %: refactorized with the pivots of the first
         // factorization (no new search), and solved as accurately.
         let changed: Vec<f64> = values.iter().map(|v| v * (1.0 + 0.02 * (next() - 0.5))).collect();
@@ -463,9 +462,7 @@ mod tests {
         dense.solve_in_place(&mut x).unwrap();
         let (expected, _) = sparse_solve_and_dense_factor(&p, &changed, &rhs);
         let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for k in 0..n {
-            assert!((x[k] - expected[k]).abs() < 1e-11 * scale, "{k}: {} vs {}", x[k], expected[k]);
-        }
+        assert_all_close(&x, &expected, 0.0, 1e-11 * scale, "refactorized against sparse solution");
         // The portable refactorization and substitution (the ones above ran compiled for AVX2
         // where the CPU has it) give the same solution, bit for bit.
         assert!(portable.refactorize_portable(&p, &changed, 1e-300));
@@ -486,9 +483,7 @@ mod tests {
                 ax[p.row_idx[k]] += values[k] * x[c];
             }
         }
-        for r in 0..p.n {
-            assert!((ax[r] - rhs[r]).abs() < 1e-13, "row {r}: {} vs {}", ax[r], rhs[r]);
-        }
+        assert_all_close(&ax, rhs, 0.0, 1e-13, "A x against rhs");
         dense.pivot_searches
     }
 
@@ -553,9 +548,7 @@ mod tests {
         for _ in 0..3 {
             let mut x = rhs.clone();
             dense.solve_in_place(&mut x).unwrap();
-            for k in 0..n {
-                assert!((x[k] - expected[k]).abs() < 1e-12, "{k}: {} vs {}", x[k], expected[k]);
-            }
+            assert_all_close(&x, &expected, 0.0, 1e-12, "dense against sparse solution");
         }
         // A singular matrix is reported, not solved.
         let zeros = vec![0.0; p.nnz()];

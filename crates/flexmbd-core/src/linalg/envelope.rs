@@ -400,6 +400,7 @@ impl EnvelopeCholesky {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::assert_all_close;
 
     /// Lower triangle (CSC) of the 5-point Laplacian of an m x m grid plus shift I, numbered
     /// row by row, then relabelled by `shuffle` (so that the natural order is a bad one).
@@ -475,12 +476,10 @@ mod tests {
         let mut portable = f.clone();
         portable.load(&ptr, &idx, &val);
         portable.factor_rows::<false>().expect("positive definite");
-        let lmax = f.values.iter().zip(&portable.values).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        assert!(lmax < 1e-14, "factors differ by {lmax}");
+        assert_all_close(&f.values, &portable.values, 0.0, 1e-14, "portable factor");
         let mut y = b.clone();
         portable.solve_rows::<false>(&mut y, &mut vec![0.0; n]);
-        let diff = x.iter().zip(&y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        assert!(diff < 1e-13, "solutions differ by {diff}");
+        assert_all_close(&y, &x, 0.0, 1e-13, "portable solution");
     }
 
     #[test]
@@ -595,7 +594,7 @@ mod tests {
         let mut x = b.clone();
         f.solve(&mut x, &mut vec![0.0; n]);
         let r = multiply(n, &ptr, &idx, &val, &x);
-        assert!(r.iter().all(|v| (v - 1.0).abs() < 1e-12));
+        assert_all_close(&r, &b, 0.0, 1e-12, "A x against b = 1");
         // Shift the second grid's diagonal down by 8.1: its smallest eigenvalue becomes
         // negative and a pivot fails, named by an unknown of that grid.
         for c in n1..n {

@@ -567,6 +567,7 @@ pub(crate) fn update4(y: &mut [f64], x: [f64; GROUP], rows: [&[f64]; GROUP]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{assert_all_close, assert_close};
 
     #[test]
     fn dense_products_agree_with_plain_sums() {
@@ -585,9 +586,13 @@ mod tests {
                 dense_mul_add(rows, &a, w, &x, &mut fast);
                 dense_mul_add_portable(rows, &a, w, &x, &mut plain);
                 for out in [&fast, &plain] {
-                    for (i, e) in exact.iter().enumerate() {
-                        assert!((out[i] - e).abs() <= 1e-12 * (1.0 + e.abs()), "{rows} x {cols}, row {i}");
-                    }
+                    assert_all_close(
+                        &out[..rows],
+                        &exact,
+                        1e-12,
+                        1e-12,
+                        format_args!("{rows} x {cols}, row"),
+                    );
                     assert_eq!(&out[rows..], &start[rows..]);
                 }
             }
@@ -609,12 +614,9 @@ mod tests {
                 for d in [d.clone(), vec![0.0; n]] {
                     let expected = super::increment_ratios_portable(&d, &q, 2e-6, 0, (0.0, 0, 0.0));
                     let (worst, k, position) = super::increment_ratios(&d, &q, 2e-6);
-                    assert!(
-                        (worst - expected.0).abs() <= 1e-15 * expected.0,
-                        "{n} {at}: {worst} vs {expected:?}"
-                    );
+                    assert_close(worst, expected.0, 1e-15, 0.0, format_args!("{n} {at}: worst ratio"));
                     assert_eq!(k, expected.1, "{n} {at}");
-                    assert!((position - expected.2).abs() <= 1e-15 * expected.2, "{n} {at}");
+                    assert_close(position, expected.2, 1e-15, 0.0, format_args!("{n} {at}: position"));
                     if n > 1 && d[at] != 0.0 {
                         assert_eq!(k, at);
                     }
@@ -641,9 +643,7 @@ mod tests {
         for kernel in [node_products4, node_products4_portable] {
             let mut out = vec![f64::NAN; 20];
             kernel(&col_ptr, &row_idx, &values, &x, &mut out);
-            for (k, (a, b)) in out.iter().zip(&plain).enumerate() {
-                assert!((a - b).abs() <= 1e-14 * (1.0 + b.abs()), "{k}: {a} vs {b}");
-            }
+            assert_all_close(&out, &plain, 1e-14, 1e-14, "node products");
         }
     }
 
@@ -658,9 +658,7 @@ mod tests {
             let group = [&rows[0][..], &rows[1][..], &rows[2][..], &rows[3][..]];
             let exact: Vec<f64> = rows.iter().map(|r| r.iter().zip(&y).map(|(a, b)| a * b).sum()).collect();
             for sums in [dot4(group, &y), dot_rows::<false, GROUP>(group, &y)] {
-                for (s, e) in sums.iter().zip(&exact) {
-                    assert!((s - e).abs() <= 1e-12 * (1.0 + e.abs()), "n = {n}: {s} against {e}");
-                }
+                assert_all_close(&sums, &exact, 1e-12, 1e-12, format_args!("n = {n}: dot"));
             }
             let x = [0.5, -1.5, 2.0, 0.25];
             let expected: Vec<f64> =
@@ -669,9 +667,7 @@ mod tests {
             update4(&mut a, x, group);
             update_rows::<false, GROUP>(&mut b, x, group);
             for v in [&a, &b] {
-                for (s, e) in v.iter().zip(&expected) {
-                    assert!((s - e).abs() <= 1e-12 * (1.0 + e.abs()), "n = {n}: {s} against {e}");
-                }
+                assert_all_close(v, &expected, 1e-12, 1e-12, format_args!("n = {n}: update"));
             }
         }
     }

@@ -404,6 +404,7 @@ impl SparseLdlt {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::assert_all_close;
 
     #[test]
     fn factorizes_and_solves_an_indefinite_saddle_point_system() {
@@ -423,9 +424,7 @@ mod tests {
         let mut rhs = vec![0.0; 3];
         p.mul_vec(&values, &x_true, &mut rhs);
         lu.solve_in_place(&mut rhs).unwrap();
-        for k in 0..3 {
-            assert!((rhs[k] - x_true[k]).abs() < 1e-14);
-        }
+        assert_all_close(&rhs, &x_true, 0.0, 1e-14, "LU solution");
     }
 
     #[test]
@@ -468,8 +467,6 @@ mod tests {
         x[4] += weight * rhs[4];
         // Accurate to the regularization (1e-8 relative); a wrong penalty correction would be
         // off by order one.
-        for k in 0..n {
-            assert!((x[k] - exact[k]).abs() < 1e-6, "{k}: {} vs {}", x[k], exact[k]);
-        }
+        assert_all_close(&x, &exact, 0.0, 1e-6, "LDL^T solution with penalty");
     }
 }

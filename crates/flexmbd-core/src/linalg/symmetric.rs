@@ -776,6 +776,7 @@ pub fn nested_dissection(positions: &[Vec3], adj_ptr: &[usize], adj: &[usize]) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::assert_all_close;
 
     /// The 3D Laplacian (7-point) on an m^3 grid plus `shift` on the diagonal, lower CSC.
     fn laplacian(m: usize, shift: f64) -> (usize, Vec<usize>, Vec<usize>, Vec<f64>, Vec<Vec3>) {
@@ -943,12 +944,18 @@ mod tests {
                 b.iter().chain(b.iter().map(|x| -x).collect::<Vec<_>>().iter()).copied().collect();
             let mut memory = f.solve_memory(2).unwrap();
             f.solve_with_memory(&mut two, &mut memory).unwrap();
-            assert!(two[..n].iter().zip(&x).all(|(a, b)| (a - b).abs() < 1e-14 * 8.0));
-            assert!(two[n..].iter().zip(&x).all(|(a, b)| (a + b).abs() < 1e-14 * 8.0));
+            let minus_x: Vec<f64> = x.iter().map(|v| -v).collect();
+            assert_all_close(&two[..n], &x, 0.0, 1e-14 * 8.0, format_args!("{ordering:?}: first of two"));
+            assert_all_close(
+                &two[n..],
+                &minus_x,
+                0.0,
+                1e-14 * 8.0,
+                format_args!("{ordering:?}: second of two"),
+            );
             solutions.push(x);
         }
-        let diff = solutions[0].iter().zip(&solutions[2]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        assert!(diff < 1e-12, "envelope and supernodal solutions differ by {diff}");
+        assert_all_close(&solutions[0], &solutions[2], 0.0, 1e-12, "envelope against supernodal solution");
         // A matrix that is not positive definite names the failing unknown.
         let shifted: Vec<f64> = (0..n)
             .flat_map(|c| (cp[c]..cp[c + 1]).map(move |k| (c, k)))
@@ -982,12 +989,9 @@ mod tests {
                 dense[c * n + row_idx[e]] = values[e];
             }
         }
-        for r in 0..n {
-            for j in 0..k {
-                let expected: f64 = (0..n).map(|c| dense[r * n + c] * x[c * k + j]).sum();
-                assert!((y[r * k + j] - expected).abs() < 1e-12 * (1.0 + expected.abs()));
-            }
-        }
+        let expected: Vec<f64> =
+            (0..n * k).map(|i| (0..n).map(|c| dense[i / k * n + c] * x[c * k + i % k]).sum()).collect();
+        assert_all_close(&y, &expected, 1e-12, 1e-12, "A x, row-major");
         assert!(f.multiply(&x[1..], k).is_err());
     }
 
@@ -1010,14 +1014,8 @@ mod tests {
             let x = f.solve_rows(&rows, k).expect("solves");
             let mut expected = columns.clone();
             f.solve_in_place(&mut expected).expect("solves");
-            for r in 0..n {
-                for j in 0..k {
-                    assert!(
-                        (x[r * k + j] - expected[j * n + r]).abs()
-                            <= 1e-14 * (1.0 + expected[j * n + r].abs())
-                    );
-                }
-            }
+            let expected_rows: Vec<f64> = (0..n * k).map(|i| expected[i % k * n + i / k]).collect();
+            assert_all_close(&x, &expected_rows, 1e-14, 1e-14, format_args!("{kind:?}: row-major solution"));
             assert!(f.solve_rows(&rows[1..], k).is_err());
         }
     }

@@ -215,6 +215,7 @@ pub fn l_jacobian(w: &Quaternion) -> Mat34 {
 mod tests {
     use super::*;
     use crate::math::small::{matmul, tr_matmul};
+    use crate::testing::{assert_all_close, assert_close};
 
     fn random_unit(seed: u64) -> Quaternion {
         let mut s = seed;
@@ -227,25 +228,34 @@ mod tests {
         p.map(|x| x / n)
     }
 
+    /// Central difference (f(p + h e_k) - f(p - h e_k)) / 2h from `pp` = p + h e_k, `pm` = p - h e_k.
+    fn central<const N: usize>(
+        f: impl Fn(&Quaternion) -> [f64; N],
+        pp: &Quaternion,
+        pm: &Quaternion,
+        h: f64,
+    ) -> [f64; N] {
+        let (fp, fm) = (f(pp), f(pm));
+        std::array::from_fn(|i| (fp[i] - fm[i]) / (2.0 * h))
+    }
+
     #[test]
     fn rotation_is_orthonormal_and_matches_standard_form() {
         for seed in 1..20 {
             let p = random_unit(seed);
             let a = rotation_matrix(&p);
             let ata = a.transpose().mul_mat(&a);
-            assert!(ata.max_abs_diff(&Mat3::IDENTITY) < 1e-14);
-            assert!((a.determinant() - 1.0).abs() < 1e-14);
+            assert_all_close(ata.0.as_flattened(), Mat3::IDENTITY.0.as_flattened(), 0.0, 1e-14, "A^T A");
+            assert_close(a.determinant(), 1.0, 0.0, 1e-14, "det A");
             let e = Vec3([p[1], p[2], p[3]]);
             let mut std = e.outer(&e).scale(2.0) + e.skew().scale(2.0 * p[0]);
             for k in 0..3 {
                 std.0[k][k] += 2.0 * p[0] * p[0] - 1.0;
             }
-            assert!(a.max_abs_diff(&std) < 1e-14);
+            assert_all_close(a.0.as_flattened(), std.0.as_flattened(), 0.0, 1e-14, "A, standard form");
             let back = from_rotation_matrix(&a);
             let sign = if back[0] * p[0] < 0.0 { -1.0 } else { 1.0 };
-            for k in 0..4 {
-                assert!((back[k] - sign * p[k]).abs() < 1e-12);
-            }
+            assert_all_close(&back, &p.map(|x| sign * x), 0.0, 1e-12, "p from A");
         }
     }
 
@@ -264,18 +274,10 @@ mod tests {
             }
             t
         });
-        for i in 0..3 {
-            for j in 0..3 {
-                assert!((llt[i][j] - if i == j { 1.0 } else { 0.0 }).abs() < 1e-14);
-            }
-        }
+        assert_all_close(llt.as_flattened(), Mat3::IDENTITY.0.as_flattened(), 0.0, 1e-14, "L L^T");
         let al = matmul(&rotation_matrix(&p).0, &l);
-        for i in 0..3 {
-            for j in 0..4 {
-                assert!((al[i][j] - g[i][j]).abs() < 1e-14);
-            }
-        }
-        assert!(matvec(&l, &p).iter().all(|x| x.abs() < 1e-15));
+        assert_all_close(al.as_flattened(), g.as_flattened(), 0.0, 1e-14, "A L");
+        assert_all_close(&matvec(&l, &p), &[0.0; 3], 0.0, 1e-15, "L p");
         let _ = tr_matmul(&l, &l);
     }
 
@@ -288,10 +290,8 @@ mod tests {
         for k in 0..3 {
             let row = matvec(&bilinear_hessian(&Vec3::unit(k), &a), &p);
             let row_t = matvec(&bilinear_hessian(&a, &Vec3::unit(k)), &p);
-            for m in 0..4 {
-                assert!((row[m] - j[k][m]).abs() < 1e-14);
-                assert!((row_t[m] - jt[k][m]).abs() < 1e-14);
-            }
+            assert_all_close(&row, &j[k], 0.0, 1e-14, format_args!("rotate_jacobian row {k}"));
+            assert_all_close(&row_t, &jt[k], 0.0, 1e-14, format_args!("rotate_transpose_jacobian row {k}"));
         }
     }
 
@@ -318,26 +318,46 @@ mod tests {
             let lt = |q: &Quaternion| crate::math::small::tr_matvec(&l_matrix(q), &v.0);
             let gt = |q: &Quaternion| crate::math::small::tr_matvec(&g_matrix(q), &v.0);
             let lw = |q: &Quaternion| matvec(&l_matrix(q), &w);
-            for i in 0..3 {
-                assert!((d_rot[i] - jr[i][k]).abs() < 1e-8);
-                assert!((d_rott[i] - jrt[i][k]).abs() < 1e-8);
-                assert!(((lw(&pp)[i] - lw(&pm)[i]) / (2.0 * h) - jl[i][k]).abs() < 1e-8);
-            }
-            for i in 0..4 {
-                assert!(((lt(&pp)[i] - lt(&pm)[i]) / (2.0 * h) - jlt[i][k]).abs() < 1e-8);
-                assert!(((gt(&pp)[i] - gt(&pm)[i]) / (2.0 * h) - jgt[i][k]).abs() < 1e-8);
-            }
+            let column = |m: &[[f64; 4]; 3]| m.map(|row| row[k]);
+            let column4 = |m: &[[f64; 4]; 4]| m.map(|row| row[k]);
+            assert_all_close(&d_rot.0, &column(&jr), 0.0, 1e-8, format_args!("d(A a)/dp{k}"));
+            assert_all_close(&d_rott.0, &column(&jrt), 0.0, 1e-8, format_args!("d(A^T v)/dp{k}"));
+            assert_all_close(
+                &central(lw, &pp, &pm, h),
+                &column(&jl),
+                0.0,
+                1e-8,
+                format_args!("d(L w)/dp{k}"),
+            );
+            assert_all_close(
+                &central(lt, &pp, &pm, h),
+                &column4(&jlt),
+                0.0,
+                1e-8,
+                format_args!("d(L^T v)/dp{k}"),
+            );
+            assert_all_close(
+                &central(gt, &pp, &pm, h),
+                &column4(&jgt),
+                0.0,
+                1e-8,
+                format_args!("d(G^T v)/dp{k}"),
+            );
             // Hessian of v . A a is the derivative of its gradient 2 H p.
             let hess = bilinear_hessian(&v, &a);
             let grad = |q: &Quaternion| matvec(&bilinear_hessian(&v, &a), q);
-            for i in 0..4 {
-                assert!(((grad(&pp)[i] - grad(&pm)[i]) / (2.0 * h) - hess[i][k]).abs() < 1e-8);
-            }
+            assert_all_close(
+                &central(grad, &pp, &pm, h),
+                &column4(&hess),
+                0.0,
+                1e-8,
+                format_args!("d(2 H p)/dp{k}"),
+            );
         }
         // v . A a = p^T H p / 2 * 2: value check.
         let val = v.dot(&rotation_matrix(&p).mul_vec(&a));
         let hp = matvec(&bilinear_hessian(&v, &a), &p);
         let quad: f64 = (0..4).map(|i| p[i] * hp[i]).sum::<f64>() * 0.5;
-        assert!((val - quad).abs() < 1e-14);
+        assert_close(val, quad, 0.0, 1e-14, "v . A a");
     }
 }

@@ -235,6 +235,7 @@ pub fn euler_parameters(a: &HMat, reference: &[f64; 4]) -> [HyperDual; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{assert_all_close, assert_close};
 
     /// f(x) = sqrt(1 + x^2) sin(x) / (2 + cos x) along x(t) = x0 + v t + w t^2 / 2: value,
     /// first and second time derivatives against central differences.
@@ -248,9 +249,10 @@ mod tests {
         let h = 1e-4;
         let d1 = (g(h) - g(-h)) / (2.0 * h);
         let d2 = (g(h) - 2.0 * g(0.0) + g(-h)) / (h * h);
-        assert!((y.v - g(0.0)).abs() < 1e-15);
-        assert!((y.e1 - d1).abs() < 1e-8 && y.e1 == y.e2, "{} vs {d1}", y.e1);
-        assert!((y.e12 - d2).abs() < 1e-6, "{} vs {d2}", y.e12);
+        assert_close(y.v, g(0.0), 0.0, 1e-15, "value");
+        assert_close(y.e1, d1, 0.0, 1e-8, "first derivative");
+        assert_eq!(y.e1, y.e2, "first derivative along e1 and e2");
+        assert_close(y.e12, d2, 0.0, 1e-6, "second derivative");
     }
 
     #[test]
@@ -262,9 +264,7 @@ mod tests {
             let n = p.iter().map(|x: &f64| x * x).sum::<f64>().sqrt();
             let p = p.map(|x| x / n);
             let e = euler_parameters(&hmat(rotation_matrix(&p).0), &p);
-            for c in 0..4 {
-                assert!((e[c].v - p[c]).abs() < 1e-14, "{p:?}");
-            }
+            assert_all_close(&e.map(|c| c.v), &p, 0.0, 1e-14, format_args!("{p:?}"));
         }
     }
 }

@@ -185,14 +185,15 @@ impl CubicSpline {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::assert_close;
 
     fn fd_check(f: &TimeFunction, t: f64) {
         let h = 1e-5;
         let v = f.evaluate(t).unwrap();
         let p = f.evaluate(t + h).unwrap();
         let m = f.evaluate(t - h).unwrap();
-        assert!(((p[0] - m[0]) / (2.0 * h) - v[1]).abs() < 1e-6 * (1.0 + v[1].abs()));
-        assert!(((p[1] - m[1]) / (2.0 * h) - v[2]).abs() < 1e-5 * (1.0 + v[2].abs()));
+        assert_close((p[0] - m[0]) / (2.0 * h), v[1], 1e-6, 1e-6, format_args!("velocity at {t}"));
+        assert_close((p[1] - m[1]) / (2.0 * h), v[2], 1e-5, 1e-5, format_args!("acceleration at {t}"));
     }
 
     #[test]
@@ -209,11 +210,13 @@ mod tests {
         let values: Vec<f64> = times.iter().map(|t| 2.0 * t - 1.0).collect();
         let s = CubicSpline::new(times.clone(), values.clone()).unwrap();
         for (t, v) in times.iter().zip(values.iter()) {
-            assert!((s.evaluate(*t)[0] - v).abs() < 1e-14);
+            assert_close(s.evaluate(*t)[0], *v, 0.0, 1e-14, format_args!("spline at {t}"));
         }
         // A straight line is reproduced exactly by a natural spline.
         let e = s.evaluate(1.3);
-        assert!((e[0] - 1.6).abs() < 1e-13 && (e[1] - 2.0).abs() < 1e-12 && e[2].abs() < 1e-12);
+        assert_close(e[0], 1.6, 0.0, 1e-13, "line value");
+        assert_close(e[1], 2.0, 0.0, 1e-12, "line slope");
+        assert_close(e[2], 0.0, 0.0, 1e-12, "line curvature");
         assert!(CubicSpline::new(vec![0.0, 0.0], vec![1.0, 2.0]).is_err());
     }
 }

@@ -1,8 +1,12 @@
-//! Shared helpers of the integration tests: a seeded generator and random rotations.
+//! Shared helpers of the integration tests: a seeded generator, random rotations, and the
+//! core's tolerance helper.
 #![allow(dead_code)]
 
 use flexmbd_core::math::euler;
 use flexmbd_core::math::{Mat3, Vec3};
+// Each test crate uses what it needs of the helper.
+#[allow(unused_imports)]
+pub use flexmbd_core::testing::{assert_all_close, assert_close};
 
 /// Small deterministic generator (PCG-like LCG), uniform in [-1, 1).
 pub struct Rng(pub u64);
@@ -23,9 +27,4 @@ impl Rng {
         p.iter_mut().for_each(|x| *x /= n);
         euler::rotation_matrix(&p)
     }
-}
-
-/// Relative comparison with an absolute floor.
-pub fn close(a: f64, b: f64, rel: f64, abs: f64) -> bool {
-    (a - b).abs() <= abs + rel * a.abs().max(b.abs())
 }

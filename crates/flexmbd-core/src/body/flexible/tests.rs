@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::math::dense::DenseMatrix;
+use crate::testing::{assert_all_close, assert_close};
 
 /// A body of mass points: point i has mass m_i, undeformed position u0_i and shape rows
 /// S_i (3 x n_f, row-major): u_i = u0_i + S_i q_f.
@@ -138,10 +139,6 @@ pub fn dense_tangent(body: &FlexibleBody, t: &FlexibleTangent) -> [DenseMatrix; 
     })
 }
 
-fn close(a: f64, b: f64, tol: f64) -> bool {
-    (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
-}
-
 #[test]
 fn inertia_force_equals_brute_force_sum_over_mass_points() {
     for (n, seed) in [(0, 1), (1, 2), (4, 3)] {
@@ -152,11 +149,9 @@ fn inertia_force_equals_brute_force_sum_over_mass_points() {
         let mut f = vec![0.0; 7 + n];
         inertia_force(&body, &q, &qd, &qdd, &mut scratch, &mut f);
         let brute = pts.inertia_force(&q, &qd, &qdd);
-        for i in 0..7 + n {
-            assert!(close(f[i], brute[i], 1e-12), "n = {n}, entry {i}: {} vs {}", f[i], brute[i]);
-        }
+        assert_all_close(&f, &brute, 1e-12, 1e-12, format_args!("n = {n}: inertia force"));
         let e = kinetic_energy(&body, &q, &qd, &mut scratch);
-        assert!(close(e, pts.kinetic_energy(&q, &qd), 1e-12));
+        assert_close(e, pts.kinetic_energy(&q, &qd), 1e-12, 1e-12, format_args!("n = {n}: kinetic energy"));
     }
 }
 
@@ -182,11 +177,17 @@ fn node_row_sums_agree_with_plain_sums() {
         let fast = portable;
         for vv in 0..3 {
             for c in 0..3 {
-                for i in 0..4 {
-                    let exact: f64 = (0..nodes).map(|nd| rows[3 * nd + c][i] * v[vv][3 * nd + c]).sum();
-                    for got in [portable[vv][c][i], fast[vv][c][i]] {
-                        assert!((got - exact).abs() <= 1e-12 * (1.0 + exact.abs()), "{nodes} nodes");
-                    }
+                let exact: [f64; 4] = std::array::from_fn(|i| {
+                    (0..nodes).map(|nd| rows[3 * nd + c][i] * v[vv][3 * nd + c]).sum()
+                });
+                for got in [portable[vv][c], fast[vv][c]] {
+                    assert_all_close(
+                        &got,
+                        &exact,
+                        1e-12,
+                        1e-12,
+                        format_args!("{nodes} nodes, v{vv}, c = {c}"),
+                    );
                 }
             }
         }
@@ -229,14 +230,8 @@ fn elastic_matrix_products_agree_in_every_storage() {
         entries.mul_vec_add(&x, &mut expected);
         let mut out = start.clone();
         matrix.mul_vec_add(-1.5, &x, &mut out);
-        for k in 0..n {
-            let e = start[k] - 1.5 * expected[k];
-            assert!(
-                (out[k] - e).abs() <= 1e-12 * (1.0 + e.abs()),
-                "n = {n}, row {k}: {} against {e}",
-                out[k]
-            );
-        }
+        let e: Vec<f64> = (0..n).map(|k| start[k] - 1.5 * expected[k]).collect();
+        assert_all_close(&out, &e, 1e-12, 1e-12, format_args!("n = {n}, row"));
     }
 }
 
@@ -265,11 +260,15 @@ fn tangent_matches_finite_differences() {
                 f
             };
             let (fp, fm) = (eval(h), eval(-h));
-            for r in 0..7 + n {
-                let fd = (fp[r] - fm[r]) / (2.0 * h);
-                let an = dense[which].get(r, c);
-                assert!(close(fd, an, 1e-7), "block {which} ({r}, {c}): fd {fd} vs analytic {an}");
-            }
+            let fd: Vec<f64> = (0..7 + n).map(|r| (fp[r] - fm[r]) / (2.0 * h)).collect();
+            let an: Vec<f64> = (0..7 + n).map(|r| dense[which].get(r, c)).collect();
+            assert_all_close(
+                &fd,
+                &an,
+                1e-7,
+                1e-7,
+                format_args!("block {which}, column {c}: fd against analytic, row"),
+            );
         }
     }
 }
@@ -294,22 +293,14 @@ fn reference_only_tangent_equals_the_reference_block_of_the_whole() {
         assert_eq!(after.reference, reference.reference);
         assert!(scratch.last.is_none(), "the kept quantities are taken");
         for b in 0..3 {
-            for r in 0..7 {
-                for c in 0..7 {
-                    let (x, y) = (whole.reference[b][r][c], reference.reference[b][r][c]);
-                    assert!(close(x, y, 1e-12), "block {b} ({r}, {c}): {x} vs {y}");
-                }
-            }
+            let (x, y) = (whole.reference[b].as_flattened(), reference.reference[b].as_flattened());
+            assert_all_close(x, y, 1e-12, 1e-12, format_args!("block {b}, 7 r + c"));
         }
-        for (x, y) in [
-            (whole.velocity_coefficients, reference.velocity_coefficients),
-            (whole.position_coefficients, reference.position_coefficients),
+        for (x, y, what) in [
+            (whole.velocity_coefficients, reference.velocity_coefficients, "velocity coefficients"),
+            (whole.position_coefficients, reference.position_coefficients, "position coefficients"),
         ] {
-            for r in 0..3 {
-                for c in 0..3 {
-                    assert!(close(x.0[r][c], y.0[r][c], 1e-12));
-                }
-            }
+            assert_all_close(x.0.as_flattened(), y.0.as_flattened(), 1e-12, 1e-12, what);
         }
         assert!(reference.reference_elastic.iter().all(|b| b.iter().all(|&x| x == 0.0)));
     }
@@ -325,11 +316,10 @@ fn mass_matrix_is_symmetric_and_gives_the_kinetic_energy() {
     let mut t = FlexibleTangent::with_size(n);
     inertia_tangent(&body, &q, &qd, &qdd, &mut scratch, &mut t, true);
     let m = &dense_tangent(&body, &t)[0];
-    for r in 0..7 + n {
-        for c in 0..7 + n {
-            assert!(close(m.get(r, c), m.get(c, r), 1e-13));
-        }
-    }
+    let size = 7 + n;
+    let entries: Vec<f64> = (0..size * size).map(|k| m.get(k / size, k % size)).collect();
+    let transposed: Vec<f64> = (0..size * size).map(|k| m.get(k % size, k / size)).collect();
+    assert_all_close(&entries, &transposed, 1e-13, 1e-13, "M against M^T");
     // f(q, q_dot, q_dd) - f(q, q_dot, 0) = M q_dd.
     let mut f = vec![0.0; 7 + n];
     let mut f0 = vec![0.0; 7 + n];
@@ -337,10 +327,10 @@ fn mass_matrix_is_symmetric_and_gives_the_kinetic_energy() {
     inertia_force(&body, &q, &qd, &vec![0.0; 7 + n], &mut scratch, &mut f0);
     let mut mq = vec![0.0; 7 + n];
     m.mul_vec_add(1.0, &qdd, &mut mq);
-    for r in 0..7 + n {
-        assert!(close(f[r] - f0[r], mq[r], 1e-12));
-    }
-    assert!(close(0.5 * m.quadratic_form(&qd), kinetic_energy(&body, &q, &qd, &mut scratch), 1e-12));
+    let difference: Vec<f64> = f.iter().zip(&f0).map(|(a, b)| a - b).collect();
+    assert_all_close(&difference, &mq, 1e-12, 1e-12, "f(q_dd) - f(0) against M q_dd");
+    let energy = kinetic_energy(&body, &q, &qd, &mut scratch);
+    assert_close(0.5 * m.quadratic_form(&qd), energy, 1e-12, 1e-12, "kinetic energy from M");
 }
 
 #[test]
@@ -364,20 +354,20 @@ fn gravity_jacobian_matches_finite_differences_and_potential() {
             (out, gravity_potential(&body, &a, &g))
         };
         let ((fp1, v1), (fm1, v2)) = (eval(h), eval(-h));
-        for r in 3..7 + n {
-            let fd = (fp1[r] - fm1[r]) / (2.0 * h);
-            let an = match (r < 7, c < 7) {
+        let fd: Vec<f64> = (3..7 + n).map(|r| (fp1[r] - fm1[r]) / (2.0 * h)).collect();
+        let an: Vec<f64> = (3..7 + n)
+            .map(|r| match (r < 7, c < 7) {
                 (true, true) => pp[r - 3][c - 3],
                 (true, false) => pf[(r - 3) * n + c - 7],
                 (false, true) => fp[(r - 7) * 4 + c - 3],
                 (false, false) => 0.0,
-            };
-            assert!(close(fd, an, 1e-7), "({r}, {c}): {fd} vs {an}");
-        }
+            })
+            .collect();
+        assert_all_close(&fd, &an, 1e-7, 1e-7, format_args!("column {c}: fd against analytic, row 3 +"));
         // Q = -dV/dq.
         let mut out = vec![0.0; 7 + n];
         add_gravity_force(&body, &q, &g, &mut out);
-        assert!(close(-(v1 - v2) / (2.0 * h), out[c], 1e-7));
+        assert_close(-(v1 - v2) / (2.0 * h), out[c], 1e-7, 1e-7, format_args!("-dV/dq{c}"));
     }
 }
 
@@ -476,9 +466,7 @@ fn scalar_mass_products_equal_the_invariant_products() {
     let (mut a, mut b) = (vec![0.0; 7 + n], vec![0.0; 7 + n]);
     inertia_force(&plain, &q, &qd, &qdd, &mut FlexibleScratch::for_body(&plain), &mut a);
     inertia_force(&fast, &q, &qd, &qdd, &mut FlexibleScratch::for_body(&fast), &mut b);
-    for k in 0..7 + n {
-        assert!(close(a[k], b[k], 1e-12), "{k}: {} vs {}", a[k], b[k]);
-    }
+    assert_all_close(&a, &b, 1e-12, 1e-12, "inertia force");
     assert!(!fast.solid_rows.is_empty(), "the compressed rows of a body of solids");
     // The elastic mass term apart: Include = Separate + mass_term, Skip = Separate.
     for body in [&plain, &fast] {
@@ -491,28 +479,23 @@ fn scalar_mass_products_equal_the_invariant_products() {
         }
         let mass_term = scratch.mass_term.clone();
         assert!(mass_term.iter().any(|&m| m.abs() > 1e-3));
-        for k in 0..7 + n {
-            let separate = parts[2][k] + if k >= 7 { mass_term[k - 7] } else { 0.0 };
-            assert!(close(parts[0][k], separate, 1e-12), "{k}: {} vs {separate}", parts[0][k]);
-            assert_eq!(parts[1][k], parts[2][k], "{k}");
-        }
+        let separate: Vec<f64> =
+            (0..7 + n).map(|k| parts[2][k] + if k >= 7 { mass_term[k - 7] } else { 0.0 }).collect();
+        assert_all_close(&parts[0], &separate, 1e-12, 1e-12, "Include against Separate + mass term");
+        assert_eq!(parts[1], parts[2], "Skip against Separate");
     }
     // The antisymmetric products from M_s.
     let (mut a, mut b) = (vec![1.0; 3 * n], vec![1.0; 3 * n]);
     plain.add_antisymmetric_products(-0.5, &qd[7..], &mut a);
     fast.add_antisymmetric_products(-0.5, &qd[7..], &mut b);
     assert!(a.iter().any(|&x| (x - 1.0).abs() > 1e-3));
-    for k in 0..3 * n {
-        assert!(close(a[k], b[k], 1e-12), "antisymmetric {k}: {} vs {}", a[k], b[k]);
-    }
+    assert_all_close(&a, &b, 1e-12, 1e-12, "antisymmetric");
     // Gravity (I1 products from the compressed rows).
     let gravity = Vec3([0.3, -9.81, 1.2]);
     let (mut a, mut b) = (vec![0.0; 7 + n], vec![0.0; 7 + n]);
     add_gravity_force(&plain, &q, &gravity, &mut a);
     add_gravity_force(&fast, &q, &gravity, &mut b);
-    for k in 0..7 + n {
-        assert!(close(a[k], b[k], 1e-12), "gravity {k}: {} vs {}", a[k], b[k]);
-    }
+    assert_all_close(&a, &b, 1e-12, 1e-12, "gravity");
     // The inertia force minus gravity in one call equals the two apart, and the first
     // moment it returns for the gravity Jacobian is that of the state.
     for body in [&plain, &fast] {
@@ -531,17 +514,15 @@ fn scalar_mass_products_equal_the_invariant_products() {
             ElasticMass::Include,
             Some(&gravity),
         );
-        for k in 0..7 + n {
-            let expected = apart[k] - weight[k];
-            assert!(close(fused[k], expected, 1e-12), "inertia - gravity {k}: {} vs {expected}", fused[k]);
-        }
+        let expected: Vec<f64> = apart.iter().zip(&weight).map(|(a, w)| a - w).collect();
+        assert_all_close(&fused, &expected, 1e-12, 1e-12, "inertia - gravity");
         let (mut pf, mut fp, mut pf2, mut fp2) =
             (vec![0.0; 4 * n], vec![0.0; 4 * n], vec![0.0; 4 * n], vec![0.0; 4 * n]);
         let given = gravity_jacobian_at(body, &q, &gravity, s, Some((&mut pf, &mut fp)));
         let formed = gravity_jacobian(body, &q, &gravity, Some((&mut pf2, &mut fp2)));
-        for (a, b) in given.iter().flatten().zip(formed.iter().flatten()).chain(pf.iter().zip(&pf2)) {
-            assert!(close(*a, *b, 1e-12), "gravity Jacobian: {a} vs {b}");
-        }
+        let given: Vec<f64> = given.as_flattened().iter().chain(&pf).copied().collect();
+        let formed: Vec<f64> = formed.as_flattened().iter().chain(&pf2).copied().collect();
+        assert_all_close(&given, &formed, 1e-12, 1e-12, "gravity Jacobian, then its coupling");
     }
     assert!(solid_body(true, true).is_err());
 }
@@ -607,31 +588,39 @@ fn scalar_mass_products_equal_the_dense_sums() {
         } else {
             sm.multiply_portable::<9>(&gathered, &mut portable)
         };
-        for i in 0..nodes {
-            for k in 0..9 {
-                let expected: f64 = if k < w {
+        let expected: Vec<f64> = (0..9 * nodes)
+            .map(|e| {
+                let (i, k) = (e / 9, e % 9);
+                if k < w {
                     (0..nodes).map(|r| dense(r.min(i), r.max(i)) * spread[9 * r + k]).sum()
                 } else {
                     7.0
-                };
-                for got in [out[9 * i + k], portable[9 * i + k]] {
-                    assert!(
-                        (got - expected).abs() <= 1e-12,
-                        "W = {w}, node {i}, entry {k}: {got} vs {expected}"
-                    );
                 }
-            }
-        }
+            })
+            .collect();
+        assert_all_close(&out, &expected, 0.0, 1e-12, format_args!("W = {w}, 9 node + entry"));
+        assert_all_close(
+            &portable,
+            &expected,
+            0.0,
+            1e-12,
+            format_args!("W = {w} (portable), 9 node + entry"),
+        );
         // g[v][k][l] = sum over the nodes of V_v[node][k] Y_0[node][l].
-        for vv in 0..3 {
-            for k in 0..3 {
-                for l in 0..3 {
-                    let expected: f64 = (0..nodes).map(|i| spread[9 * i + 3 * vv + k] * out[9 * i + l]).sum();
-                    for got in [g[vv][k][l], g_portable[vv][k][l]] {
-                        assert!((got - expected).abs() <= 1e-10, "g[{vv}][{k}][{l}]: {got} vs {expected}");
-                    }
-                }
-            }
+        let expected: [[[f64; 3]; 3]; 3] = std::array::from_fn(|vv| {
+            std::array::from_fn(|k| {
+                std::array::from_fn(|l| (0..nodes).map(|i| spread[9 * i + 3 * vv + k] * out[9 * i + l]).sum())
+            })
+        });
+        let expected = expected.as_flattened().as_flattened();
+        for got in [g, g_portable] {
+            assert_all_close(
+                got.as_flattened().as_flattened(),
+                expected,
+                0.0,
+                1e-10,
+                format_args!("W = {w}: g, 9 v + 3 k + l"),
+            );
         }
     }
 }
@@ -695,10 +684,8 @@ fn node_block_products_equal_the_compressed_column_products() {
         // and out exactly 3 n_b long (the last node's entries read through the mask).
         let mut portable: Vec<f64> = (0..27).map(|k| 0.1 * k as f64).collect();
         blocks.mul_vec_add_portable(-1.5, &x, &mut portable);
-        for k in 0..27 {
-            assert!((got[k] - expected[k]).abs() <= 1e-14, "{k}: {} vs {}", got[k], expected[k]);
-            assert!((portable[k] - expected[k]).abs() <= 1e-14, "{k}: {} vs {}", portable[k], expected[k]);
-        }
+        assert_all_close(&got, &expected, 0.0, 1e-14, "node block product");
+        assert_all_close(&portable, &expected, 0.0, 1e-14, "node block product (portable)");
     }
     // Not made of node blocks (a diagonal): the compressed columns serve.
     let diagonal = Csc::from_dense(30, 30, |r, c| if r == c { 1.0 } else { 0.0 });

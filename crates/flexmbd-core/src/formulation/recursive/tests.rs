@@ -8,6 +8,7 @@ use crate::integrator::test_models::{ground_joint, unit_body};
 use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
 use crate::math::time_function::TimeFunction;
 use crate::system::{State, Workspace};
+use crate::testing::{assert_all_close, assert_close};
 use crate::SystemBuilder;
 
 fn rot_x(angle: f64) -> Mat3 {
@@ -372,10 +373,9 @@ fn influence_check(model: &Model, count: usize) {
         minus[k] -= eps;
         let (qp, _, _) = tree.state(n, &plus, &pd);
         let (qm, _, _) = tree.state(n, &minus, &pd);
-        for i in 0..n {
-            let fd = (qp[i] - qm[i]) / (2.0 * eps);
-            assert!((fd - b[(i, k)]).abs() < 1e-7, "dq{i}/dp{k}: {fd} vs {}", b[(i, k)]);
-        }
+        let fd: Vec<f64> = (0..n).map(|i| (qp[i] - qm[i]) / (2.0 * eps)).collect();
+        let column: Vec<f64> = (0..n).map(|i| b[(i, k)]).collect();
+        assert_all_close(&fd, &column, 0.0, 1e-7, format_args!("dq/dp{k}"));
     }
     // gamma_B = d(B p_dot)/dt at p_dd = 0.
     let (_, qd, gamma) = tree.state(n, &p, &pd);
@@ -383,12 +383,10 @@ fn influence_check(model: &Model, count: usize) {
     let minus: Vec<f64> = p.iter().zip(&pd).map(|(a, v)| a - eps * v).collect();
     let (_, qd_plus, _) = tree.state(n, &plus, &pd);
     let (_, qd_minus, _) = tree.state(n, &minus, &pd);
-    for i in 0..n {
-        let fd = (qd_plus[i] - qd_minus[i]) / (2.0 * eps);
-        assert!((fd - gamma[i]).abs() < 1e-5 * (1.0 + fd.abs()), "gamma {i}: {fd} vs {}", gamma[i]);
-        let bpd: f64 = (0..np).map(|k| b[(i, k)] * pd[k]).sum();
-        assert!((bpd - qd[i]).abs() < 1e-12);
-    }
+    let fd: Vec<f64> = (0..n).map(|i| (qd_plus[i] - qd_minus[i]) / (2.0 * eps)).collect();
+    assert_all_close(&gamma[..n], &fd, 1e-5, 1e-5, "gamma against fd");
+    let bpd: Vec<f64> = (0..n).map(|i| (0..np).map(|k| b[(i, k)] * pd[k]).sum()).collect();
+    assert_all_close(&bpd, &qd[..n], 0.0, 1e-12, "B p_dot against q_dot");
 }
 
 #[test]
@@ -417,8 +415,14 @@ fn joint_coordinate_accelerations_equal_the_augmented_ones() {
             // The tree state satisfies every tree joint and driver, at position and velocity
             // level (the cut ones constrain the accelerations below).
             for r in (0..model.constraint_count).filter(|r| !tree.cut_rows.contains(r)) {
-                assert!(eq.constraints[r].abs() < 1e-12, "row {r}: {}", eq.constraints[r]);
-                assert!(eq.velocity_violation(r, qd).abs() < 1e-11, "row {r}");
+                assert_close(eq.constraints[r], 0.0, 0.0, 1e-12, format_args!("row {r}: constraint"));
+                assert_close(
+                    eq.velocity_violation(r, qd),
+                    0.0,
+                    0.0,
+                    1e-11,
+                    format_args!("row {r}: velocity"),
+                );
             }
             let b = &state.influence;
             let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
@@ -428,14 +432,13 @@ fn joint_coordinate_accelerations_equal_the_augmented_ones() {
             let mut qdd = vec![0.0; n];
             eq.accelerations(&part, Formulation::Augmented, &eq.gamma, f64::INFINITY, &mut qdd).unwrap();
             let scale = qdd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-            for i in 0..n {
-                assert!(
-                    (qdd[i] - qdd_tree[i]).abs() < 1e-10 * scale,
-                    "case {case} seed {seed} q_dd[{i}]: {} vs {}",
-                    qdd[i],
-                    qdd_tree[i]
-                );
-            }
+            assert_all_close(
+                &qdd_tree,
+                &qdd,
+                0.0,
+                1e-10 * scale,
+                format_args!("case {case} seed {seed}: q_dd"),
+            );
         }
     }
 }
@@ -476,30 +479,20 @@ fn decoupled_and_coupled_systems_equal_the_joint_space_one() {
             let b = &state.influence;
             let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
             let st = tree.structured(model, time, &p, &pd).unwrap();
-            assert!(st.coordinates.iter().zip(&state.coordinates).all(|(a, b)| (a - b).abs() < 1e-14));
+            assert_all_close(&st.coordinates, &state.coordinates, 0.0, 1e-14, "structured coordinates");
             let r40 = coupled.accelerations(model, &mut ws, &st, time, &[]).unwrap();
             let r41 = decoupled.accelerations(model, &mut ws, &st, time, &[]).unwrap();
             let scale = pdd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-            for k in 0..nf {
-                for (name, r) in [("eq. 40", &r40), ("eq. 41", &r41)] {
-                    assert!(
-                        (r.free_accelerations[k] - pdd[k]).abs() < 1e-10 * scale,
-                        "case {case} seed {seed} {name} p_dd[{k}]: {} vs {}",
-                        r.free_accelerations[k],
-                        pdd[k]
-                    );
-                }
+            for (name, r) in [("eq. 40", &r40), ("eq. 41", &r41)] {
+                let what = format!("case {case} seed {seed} {name}: p_dd");
+                assert_all_close(&r.free_accelerations[..nf], &pdd[..nf], 0.0, 1e-10 * scale, what);
             }
             // The same reactions -F_r and cut multipliers from both.
             let rscale = r40.reactions.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-            for (a, b) in r40
-                .reactions
-                .iter()
-                .zip(&r41.reactions)
-                .chain(r40.cut_multipliers.iter().zip(&r41.cut_multipliers))
-            {
-                assert!((a - b).abs() < 1e-10 * rscale, "case {case}: reactions {a} vs {b}");
-            }
+            let what = format!("case {case}: reactions, then cut multipliers");
+            let r40_all = [&r40.reactions[..], &r40.cut_multipliers[..]].concat();
+            let r41_all = [&r41.reactions[..], &r41.cut_multipliers[..]].concat();
+            assert_all_close(&r41_all, &r40_all, 0.0, 1e-10 * rscale, what);
             // F_r = -y balances M q_dd - Q on the reference rows with the cut rows' C^T mu:
             // M_r q_dd + y + C_r^T mu = Q_r.
             let mq: Vec<f64> =
@@ -511,8 +504,9 @@ fn decoupled_and_coupled_systems_equal_the_joint_space_one() {
                     .enumerate()
                     .map(|(a, &r)| eq.jacobian[(r, row)] * r41.cut_multipliers[a])
                     .sum();
-                let residual = mq[row] + r41.reactions[k] + cmu - eq.force[row];
-                assert!(residual.abs() < 1e-9 * rscale, "case {case} row {row}: {residual}");
+                let lhs = mq[row] + r41.reactions[k] + cmu;
+                let what = format!("case {case} row {row}: M_r q_dd + y + C_r^T mu against Q_r");
+                assert_close(lhs, eq.force[row], 0.0, 1e-9 * rscale, what);
             }
         }
     }
@@ -558,19 +552,18 @@ fn rebasing_cardan_angles_keeps_the_body_state() {
             .collect::<Vec<f64>>()
     };
     let (qdd_before, qdd_after) = (accelerations(&before), accelerations(&after));
-    for i in 0..n {
-        assert!((before.velocities[i] - after.velocities[i]).abs() < 1e-12, "q_dot[{i}]");
-        assert!((qdd_before[i] - qdd_after[i]).abs() < 1e-9 * (1.0 + qdd_before[i].abs()), "q_dd[{i}]");
-    }
-    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+    assert_all_close(&after.velocities[..n], &before.velocities[..n], 0.0, 1e-12, "q_dot");
+    assert_all_close(&qdd_after, &qdd_before, 1e-9, 1e-9, "q_dd");
     for (b, body) in model.bodies.iter().enumerate().skip(1) {
         let o = body.offset;
         let (qa, qb) = (&before.coordinates[o..o + 3], &after.coordinates[o..o + 3]);
-        assert!(same(qa, qb), "body {b}");
+        assert_all_close(qb, qa, 0.0, 1e-12, format_args!("body {b}: position"));
         if !matches!(body.kind, BodyKind::PointMass { .. }) {
+            // Euler parameters p and -p are the same rotation.
             let (ea, eb) = (&before.coordinates[o + 3..o + 7], &after.coordinates[o + 3..o + 7]);
-            let flipped: Vec<f64> = eb.iter().map(|x| -x).collect();
-            assert!(same(ea, eb) || same(ea, &flipped), "body {b}");
+            let sign = if ea.iter().zip(eb).map(|(x, y)| x * y).sum::<f64>() < 0.0 { -1.0 } else { 1.0 };
+            let eb: Vec<f64> = eb.iter().map(|x| sign * x).collect();
+            assert_all_close(&eb, ea, 0.0, 1e-12, format_args!("body {b}: Euler parameters up to sign"));
         }
     }
 }

@@ -16,6 +16,7 @@ use crate::linear_system::LinearSolvers;
 use crate::math::{Mat3, Vec3};
 use crate::system::model::Model;
 use crate::system::{State, SystemBuilder, Workspace};
+use crate::testing::assert_all_close;
 
 /// Iteration-matrix coefficients shared by the tests (s m = 1, as for generalized-alpha).
 const ITERATION: MatrixCoefficients =
@@ -95,7 +96,7 @@ fn approximate_reference_coupling_is_exact_in_its_mass_part_for_a_deformed_body(
     let c = MatrixCoefficients::ACCELERATION;
     let expected = direct_solve(&direct, &state, c, &rhs);
     let (x, _) = condensed_solve(&condensed, &state, c, &rhs, true);
-    assert_close(&x, &expected);
+    assert_all_close(&x, &expected, 0.0, 1e-9 * scale_of(&expected), "condensed against direct solve");
 }
 
 #[test]
@@ -138,8 +139,8 @@ fn elastic_rows_from_the_solve_equal_the_assembled_rows() {
     let mut whole = Workspace::new(&model);
     assemble(&model, StateView::of(&state), &mut whole, &Request::residual()).unwrap();
     let elastic = offset..offset + 6;
-    let worst = (0..updated.len()).fold(0.0f64, |m, k| m.max((updated[k] - whole.residual[k]).abs()));
-    assert!(worst <= 1e-12 * before, "rows off by {worst} (residual before {before})");
+    let what = format!("updated rows against the whole residual (before {before})");
+    assert_all_close(&updated, &whole.residual, 0.0, 1e-12 * before, what);
     // Not trivially equal: the elastic rows are not zero, and the image is not small.
     let rows = elastic.fold(0.0f64, |m, k| m.max(whole.residual[k].abs()));
     assert!(rows > 1e-3 * before, "{rows} vs {before}");
@@ -187,15 +188,7 @@ fn structured_reference_coupling_has_the_velocity_part_of_a_spinning_body() {
             block.column_entries[j].iter().find(|e| e.0 == f).map_or(0.0, |&(_, k)| mass_only.values[k])
         };
         let scale = scale_of(&assembled);
-        for f in 0..m {
-            assert!(
-                (eliminated[f] - assembled[f]).abs() <= 1e-12 * scale,
-                "column {col}, row {f}: {} vs {} (mass part {})",
-                eliminated[f],
-                assembled[f],
-                block.row_values[j][f]
-            );
-        }
+        assert_all_close(eliminated, &assembled, 0.0, 1e-12 * scale, format_args!("column {col}, row"));
         if col >= 3 {
             let mass_only: f64 = (0..m).map(|f| (eliminated[f] - mass_column(f)).abs()).fold(0.0, f64::max);
             velocity_part = velocity_part.max(mass_only / scale);
@@ -206,10 +199,9 @@ fn structured_reference_coupling_has_the_velocity_part_of_a_spinning_body() {
             assembled_row[f] = ws.values[k];
         }
         let row_scale = scale_of(&assembled_row);
-        for (f, &(g, _)) in block.row_entries[j].iter().enumerate() {
-            let (ours, theirs) = (block.row_values[j][f], assembled_row[g]);
-            assert!((ours - theirs).abs() <= 1e-12 * row_scale, "row {col}, column {g}: {ours} vs {theirs}");
-        }
+        let theirs: Vec<f64> = block.row_entries[j].iter().map(|&(g, _)| assembled_row[g]).collect();
+        let tolerance = 1e-12 * row_scale;
+        assert_all_close(&block.row_values[j], &theirs, 0.0, tolerance, format_args!("row {col}, entry"));
     }
     // Not trivially equal: the velocity part is not negligible against the mass part.
     assert!(velocity_part > 1e-4, "velocity part {velocity_part}");
@@ -249,12 +241,8 @@ fn reference_schur_block_from_the_small_products_equals_the_dot_products() {
         .collect();
     let scale = explicit.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
     assert!(scale > 0.0);
-    for a in 0..7 {
-        for b in 0..7 {
-            let (ours, theirs) = (structured[a][b], explicit[a][b]);
-            assert!((ours - theirs).abs() <= 1e-11 * scale, "({a}, {b}): {ours} vs {theirs}");
-        }
-    }
+    let explicit = explicit.concat();
+    assert_all_close(structured.as_flattened(), &explicit, 0.0, 1e-11 * scale, "N_JF Z, 7 a + b");
 }
 
 #[test]
@@ -281,12 +269,14 @@ fn reference_coupling_applied_from_kept_vectors_equals_the_formed_one() {
         results.push((solver.reduced_values.clone(), x, image));
     }
     let (kept, formed) = (&results[0], &results[1]);
-    for (ours, theirs) in [(&kept.0, &formed.0), (&kept.1, &formed.1), (&kept.2, &formed.2)] {
+    for (ours, theirs, what) in [
+        (&kept.0, &formed.0, "reduced values"),
+        (&kept.1, &formed.1, "solve"),
+        (&kept.2, &formed.2, "coupling image"),
+    ] {
         let scale = scale_of(theirs);
         assert!(scale > 0.0);
-        for (k, (a, b)) in ours.iter().zip(theirs.iter()).enumerate() {
-            assert!((a - b).abs() <= 1e-12 * scale, "{k}: {a} vs {b} (scale {scale})");
-        }
+        assert_all_close(ours, theirs, 0.0, 1e-12 * scale, format_args!("kept against formed: {what}"));
     }
 }
 
@@ -310,7 +300,8 @@ fn dense_and_sparse_reduced_factorizations_give_the_same_solves() {
         solver.solve_in_place(&mut x).unwrap();
         solves.push(x);
     }
-    assert_close(&solves[1], &solves[0]);
+    let what = "sparse against dense reduced solve";
+    assert_all_close(&solves[1], &solves[0], 0.0, 1e-9 * scale_of(&solves[0]), what);
 }
 
 fn newton_image(solvers: &mut LinearSolvers, body: usize) -> Vec<f64> {
@@ -359,10 +350,10 @@ fn deformation_solves_are_kept_while_the_deformation_coupling_changes_little() {
         let mut x = rhs.clone();
         solver.solve_in_place(&mut x).unwrap();
         let scale = scale_of(&expected);
-        let worst = x.iter().zip(&expected).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
         if exact {
-            assert!(worst < 1e-9 * scale, "factor {factor}: off by {worst} (scale {scale})");
+            assert_all_close(&x, &expected, 0.0, 1e-9 * scale, format_args!("factor {factor}"));
         } else {
+            let worst = x.iter().zip(&expected).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(worst > 1e-12 * scale && worst < 1e-3 * scale, "factor {factor}: off by {worst}");
         }
         let block = &solver.blocks[0];
@@ -402,7 +393,7 @@ fn marker_couplings_of_later_factorizations_come_from_the_coupling_basis() {
         solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
         let mut x = rhs.clone();
         solver.solve_in_place(&mut x).unwrap();
-        assert_close(&x, &expected);
+        assert_all_close(&x, &expected, 0.0, 1e-9 * scale_of(&expected), "condensed against direct solve");
         let block = &solver.blocks[0];
         sizes.push((block.basis.len() / block.n, block.factors[block.current].basis_solved.len() / block.n));
     }
@@ -433,9 +424,7 @@ fn structured_solver_reads_no_assembled_reference_elastic_blocks() {
         })
         .collect();
     let scale = scale_of(&solves[0]);
-    for (k, (a, b)) in solves[0].iter().zip(&solves[1]).enumerate() {
-        assert!((a - b).abs() <= 1e-12 * scale, "{k}: {a} vs {b}");
-    }
+    assert_all_close(&solves[1], &solves[0], 0.0, 1e-12 * scale, "structured against assembled coupling");
 }
 
 /// A state of the test model with velocities, accelerations and the deformable
@@ -499,13 +488,6 @@ fn scale_of(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
 }
 
-fn assert_close(x: &[f64], expected: &[f64]) {
-    let scale = scale_of(expected);
-    for (k, (a, b)) in x.iter().zip(expected).enumerate() {
-        assert!((a - b).abs() < 1e-9 * scale, "{k}: {a} vs {b}");
-    }
-}
-
 fn compare_solves(elastic_marker: bool) {
     let (direct, condensed) = (model(false, elastic_marker), model(true, elastic_marker));
     assert!(!direct.has_condensed_bodies() && condensed.has_condensed_bodies());
@@ -522,11 +504,10 @@ fn compare_solves(elastic_marker: bool) {
         let expected = direct_solve(&direct, &state, c, &rhs);
         let (x, reduced) = condensed_solve(&condensed, &state, c, &rhs, false);
         assert_eq!(reduced, n - 6);
-        assert_close(&x, &expected);
+        let scale = scale_of(&expected);
+        assert_all_close(&x, &expected, 0.0, 1e-9 * scale, "condensed against direct solve");
         // The approximate reference coupling is an iteration matrix: its solve is close.
         let (y, _) = condensed_solve(&condensed, &state, c, &rhs, true);
-        let scale = scale_of(&expected);
-        let worst = (0..n).fold(0.0f64, |m, k| m.max((y[k] - expected[k]).abs()));
-        assert!(worst < 0.2 * scale, "approximate solve off by {worst} (scale {scale})");
+        assert_all_close(&y, &expected, 0.0, 0.2 * scale, "approximate solve");
     }
 }

@@ -35,24 +35,28 @@ fn mass_points_integrate_volume_and_moments_exactly() {
         let points = mass_points_of(&case);
         let got = mass_moments(&points);
         let volume = element(case.kind).volume(&case.nodes).unwrap();
-        assert!((got.volume - rho * volume).abs() < RELATIVE * rho * volume, "{}", case.name);
+        assert_close(got.volume, rho * volume, RELATIVE, 0.0, format_args!("{}: m", case.name));
         let Some(exact) = case.moments else { continue };
         let (mass, length) = (rho * exact.volume, largest_node_distance(&case.nodes) + case.nodes[0].norm());
-        assert!((volume - exact.volume).abs() < RELATIVE * exact.volume, "{}: V = {volume}", case.name);
-        assert!((got.volume - mass).abs() < RELATIVE * mass, "{}: m = {}", case.name, got.volume);
+        assert_close(volume, exact.volume, RELATIVE, 0.0, format_args!("{}: V", case.name));
+        assert_close(got.volume, mass, RELATIVE, 0.0, format_args!("{}: m against exact", case.name));
         let first_error = (got.first - rho * exact.first).norm();
-        assert!(first_error < RELATIVE * mass * length, "{}: s0 = {:?}", case.name, got.first);
-        for k in 0..3 {
-            for l in 0..3 {
-                let error = (got.second[k][l] - rho * exact.second[k][l]).abs();
-                assert!(
-                    error < RELATIVE * mass * length * length,
-                    "{}: J0[{k}][{l}] = {}",
-                    case.name,
-                    got.second[k][l]
-                );
-            }
-        }
+        assert_close(
+            first_error,
+            0.0,
+            0.0,
+            RELATIVE * mass * length,
+            format_args!("{}: |s0 error|", case.name),
+        );
+        let second = exact.second.map(|row| row.map(|x| rho * x));
+        let tolerance = RELATIVE * mass * length * length;
+        assert_all_close(
+            got.second.as_flattened(),
+            second.as_flattened(),
+            0.0,
+            tolerance,
+            format_args!("{}: J0", case.name),
+        );
     }
 }
 
@@ -62,22 +66,25 @@ fn analytic_volumes_and_second_moments() {
     let check = |kind: Kind, nodes: Vec<Vec3>, volume: f64, centroid: Vec3, second: [[f64; 3]; 3]| {
         let case = Case { name: "analytic", kind, nodes, moments: None, fractions: None };
         let got = mass_moments(&mass_points_of(&case));
-        assert!((element(kind).volume(&case.nodes).unwrap() - volume).abs() < RELATIVE * volume);
-        assert!((got.volume - rho * volume).abs() < RELATIVE * rho * volume, "{kind:?}: m = {}", got.volume);
-        assert!(
-            (got.first - (rho * volume) * centroid).norm()
-                < RELATIVE * rho * volume * (1.0 + centroid.norm())
+        assert_close(
+            element(kind).volume(&case.nodes).unwrap(),
+            volume,
+            RELATIVE,
+            0.0,
+            format_args!("{kind:?}: V"),
         );
-        for k in 0..3 {
-            for l in 0..3 {
-                let error = (got.second[k][l] - rho * second[k][l]).abs();
-                assert!(
-                    error < RELATIVE * rho * second[k][l].abs(),
-                    "{kind:?}: J0[{k}][{l}] = {}",
-                    got.second[k][l]
-                );
-            }
-        }
+        assert_close(got.volume, rho * volume, RELATIVE, 0.0, format_args!("{kind:?}: m"));
+        let first_error = (got.first - (rho * volume) * centroid).norm();
+        let tolerance = RELATIVE * rho * volume * (1.0 + centroid.norm());
+        assert_close(first_error, 0.0, 0.0, tolerance, format_args!("{kind:?}: |s0 error|"));
+        let second = second.map(|row| row.map(|x| rho * x));
+        assert_all_close(
+            got.second.as_flattened(),
+            second.as_flattened(),
+            RELATIVE,
+            0.0,
+            format_args!("{kind:?}: J0"),
+        );
     };
     // Unit tetrahedron: V = 1/6, int x^2 = 1/60, int x y = 1/120.
     let tet_second = [
@@ -110,7 +117,14 @@ fn mass_points_reproduce_the_undeformed_geometry() {
         let q0: Vec<f64> = case.nodes.iter().flat_map(|p| p.0).collect();
         for point in mass_points_of(&case).iter().chain(&lumped_points_of(&case)) {
             let error = (displacement(point, &q0) - point.position).norm();
-            assert!(error < 1e-14 * (1.0 + point.position.norm()), "{}: {:?}", case.name, point.position);
+            let tolerance = 1e-14 * (1.0 + point.position.norm());
+            assert_close(
+                error,
+                0.0,
+                0.0,
+                tolerance,
+                format_args!("{}: |S q0 - x| at {:?}", case.name, point.position),
+            );
             assert_eq!(point.shape.len(), 3 * 3 * case.nodes.len());
         }
     }
@@ -134,25 +148,31 @@ fn consistent_mass_matrix_is_symmetric_positive_definite_with_the_element_mass()
         for i in 0..3 {
             let ti = nodal_field(&case.nodes, |_| Vec3::unit(i));
             let mt = times(&m, &ti);
-            for j in 0..3 {
+            let values: [f64; 3] = std::array::from_fn(|j| {
                 let tj = nodal_field(&case.nodes, |_| Vec3::unit(j));
-                let value: f64 = mt.iter().zip(&tj).map(|(a, b)| a * b).sum();
-                let expected = if i == j { mass } else { 0.0 };
-                assert!((value - expected).abs() < RELATIVE * mass, "{}: t{i} M t{j} = {value}", case.name);
-            }
+                mt.iter().zip(&tj).map(|(a, b)| a * b).sum()
+            });
+            let expected: [f64; 3] = std::array::from_fn(|j| if i == j { mass } else { 0.0 });
+            assert_all_close(
+                &values,
+                &expected,
+                0.0,
+                RELATIVE * mass,
+                format_args!("{}: t{i} M t_j", case.name),
+            );
             // Row sums of the x-, y-, z-blocks: int rho N_a dV (closed form when known).
             if let Some((row_sums, _)) = &case.fractions {
-                for (a, fraction) in row_sums.iter().enumerate() {
-                    for r in 0..3 {
-                        let expected = if r == i { fraction * mass } else { 0.0 };
-                        let value = mt[3 * a + r];
-                        assert!(
-                            (value - expected).abs() < RELATIVE * mass,
-                            "{}: row {a}/{r}: {value}",
-                            case.name
-                        );
-                    }
-                }
+                let expected: Vec<f64> = row_sums
+                    .iter()
+                    .flat_map(|fraction| (0..3).map(move |r| if r == i { fraction * mass } else { 0.0 }))
+                    .collect();
+                assert_all_close(
+                    &mt,
+                    &expected,
+                    0.0,
+                    RELATIVE * mass,
+                    format_args!("{}: M t{i}, node/row", case.name),
+                );
             }
         }
     }
@@ -166,7 +186,7 @@ fn lumped_masses_are_hrz_positive_and_sum_to_the_element_mass() {
         let lumped = lumped_points_of(&case);
         assert_eq!(lumped.len(), case.nodes.len());
         let total: f64 = lumped.iter().map(|p| p.weight).sum();
-        assert!((total - mass).abs() < RELATIVE * mass, "{}: lumped total {total} vs {mass}", case.name);
+        assert_close(total, mass, RELATIVE, 0.0, format_args!("{}: lumped total", case.name));
         let n = 3 * case.nodes.len();
         for (a, point) in lumped.iter().enumerate() {
             assert!(point.weight > 0.0, "{}: node {a} mass {}", case.name, point.weight);
@@ -182,23 +202,27 @@ fn lumped_masses_are_hrz_positive_and_sum_to_the_element_mass() {
         let mut m = DenseMatrix::default();
         mass_matrix(&consistent, n, &mut m);
         let diagonal_sum: f64 = (0..case.nodes.len()).map(|a| m.get(3 * a, 3 * a)).sum();
-        for (a, point) in lumped.iter().enumerate() {
-            let expected = mass * m.get(3 * a, 3 * a) / diagonal_sum;
-            assert!((point.weight - expected).abs() < RELATIVE * mass, "{}: node {a}", case.name);
-        }
+        let weights: Vec<f64> = lumped.iter().map(|p| p.weight).collect();
+        let expected: Vec<f64> =
+            (0..lumped.len()).map(|a| mass * m.get(3 * a, 3 * a) / diagonal_sum).collect();
+        assert_all_close(
+            &weights,
+            &expected,
+            0.0,
+            RELATIVE * mass,
+            format_args!("{}: HRZ node masses", case.name),
+        );
         // Closed forms: rho V / 4 (Tet4), rho V / 8 (parallelepiped Hex8), m / 36 at the
         // vertices and 4 m / 27 at the mid-edge nodes (straight Tet10).
         if let Some((_, fractions)) = &case.fractions {
-            for (a, (point, fraction)) in lumped.iter().zip(fractions).enumerate() {
-                let error = (point.weight - fraction * mass).abs();
-                assert!(
-                    error < RELATIVE * mass,
-                    "{}: node {a}: {} vs {}",
-                    case.name,
-                    point.weight,
-                    fraction * mass
-                );
-            }
+            let expected: Vec<f64> = fractions.iter().map(|fraction| fraction * mass).collect();
+            assert_all_close(
+                &weights,
+                &expected,
+                0.0,
+                RELATIVE * mass,
+                format_args!("{}: closed-form node masses", case.name),
+            );
         }
     }
 }

@@ -9,6 +9,7 @@ use super::*;
 use crate::fem::element::{mass_matrix, ElementError};
 use crate::fem::quadrature::GAUSS_LEGENDRE_3;
 use crate::math::Mat3;
+use crate::testing::{assert_all_close, assert_close};
 
 mod mass;
 mod stiffness;
@@ -324,10 +325,8 @@ fn shape_functions_interpolate_the_nodes() {
     fn check<E: Isoparametric<N>, const N: usize>() {
         for (a, node) in E::NODES.iter().enumerate() {
             let n = E::shape_functions(*node);
-            for (b, nb) in n.iter().enumerate() {
-                let expected = if a == b { 1.0 } else { 0.0 };
-                assert!((nb - expected).abs() < 1e-15, "{} N_{b} at node {a}: {nb}", E::NAME);
-            }
+            let expected: [f64; N] = std::array::from_fn(|b| if a == b { 1.0 } else { 0.0 });
+            assert_all_close(&n, &expected, 0.0, 1e-15, format_args!("{} N at node {a}", E::NAME));
         }
         // Reference gradients against central differences of the shape functions.
         let xi = [0.21, 0.17, 0.33];
@@ -338,10 +337,8 @@ fn shape_functions_interpolate_the_nodes() {
             plus[j] += h;
             minus[j] -= h;
             let (np, nm) = (E::shape_functions(plus), E::shape_functions(minus));
-            for a in 0..N {
-                let fd = (np[a] - nm[a]) / (2.0 * h);
-                assert!((g[a][j] - fd).abs() < 1e-8, "{} dN_{a}/dxi_{j}: {} vs {fd}", E::NAME, g[a][j]);
-            }
+            let fd: [f64; N] = std::array::from_fn(|a| (np[a] - nm[a]) / (2.0 * h));
+            assert_all_close(&g.map(|row| row[j]), &fd, 0.0, 1e-8, format_args!("{} dN/dxi_{j}", E::NAME));
         }
     }
     check::<Tet4, 4>();
@@ -373,11 +370,12 @@ fn rigid_translations_are_reproduced() {
             // Every mass point moves with the translation (seed eq. 4).
             for point in mass_points_of(&case).iter().chain(&lumped_points_of(&case)) {
                 let u = displacement(point, &q);
-                assert!((u - t).norm() < 1e-14, "{}: S t = {:?}", case.name, u);
+                assert_close((u - t).norm(), 0.0, 0.0, 1e-14, format_args!("{}: |S t - t|", case.name));
             }
             // A translation stores no strain energy.
             let force = times(&k, &q);
-            assert!(max_abs(&force) < RELATIVE * scale, "{}: K t = {:?}", case.name, force);
+            let zero = vec![0.0; force.len()];
+            assert_all_close(&force, &zero, 0.0, RELATIVE * scale, format_args!("{}: K t", case.name));
         }
     }
 }

@@ -18,10 +18,14 @@ fn affine_displacements_give_their_exact_stress_at_every_node() {
         });
         let mut out = vec![[0.0; 6]; case.nodes.len()];
         element(case.kind).nodal_stresses(&steel(), &case.nodes, &u, &mut out).unwrap();
-        for node in &out {
-            for r in 0..6 {
-                assert!((node[r] - sigma[r]).abs() < 1e-9 * max_abs(&sigma), "{}: {node:?}", case.name);
-            }
+        for (a, node) in out.iter().enumerate() {
+            assert_all_close(
+                node,
+                &sigma,
+                0.0,
+                1e-9 * max_abs(&sigma),
+                format_args!("{}: stress at node {a}", case.name),
+            );
         }
     }
 }
@@ -43,7 +47,15 @@ fn stiffness_is_symmetric_with_exactly_six_rigid_body_modes() {
             let w = Vec3::unit(axis);
             let q = nodal_field(&case.nodes, |p| w.cross(&p));
             let force = times(&k, &q);
-            assert!(max_abs(&force) < RELATIVE * scale * max_abs(&q), "{}: K (w x X) = {force:?}", case.name);
+            let zero = vec![0.0; force.len()];
+            let tolerance = RELATIVE * scale * max_abs(&q);
+            assert_all_close(
+                &force,
+                &zero,
+                0.0,
+                tolerance,
+                format_args!("{}: K (w x X), axis {axis}", case.name),
+            );
         }
         // Six zero eigenvalues, every other one positive.
         let eigenvalues = symmetric_eigenvalues(&k);
@@ -157,14 +169,14 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Tet10 => strains_at_stiffness_points::<Tet10, 10>(x, &u),
             Kind::Hex8 => strains_at_stiffness_points::<Hex8, 8>(x, &u),
         };
-        for e in &strains {
-            for r in 0..6 {
-                assert!(
-                    (e[r] - strain[r]).abs() < RELATIVE * max_abs(&strain),
-                    "{}: strain {e:?}",
-                    case.name
-                );
-            }
+        for (p, e) in strains.iter().enumerate() {
+            assert_all_close(
+                e,
+                &strain,
+                0.0,
+                RELATIVE * max_abs(&strain),
+                format_args!("{}: strain at point {p}", case.name),
+            );
         }
         // Internal forces K u are the nodal forces of the constant stress.
         let k = stiffness_of(&case);
@@ -175,13 +187,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex8 => stress_forces_by_quadrature::<Hex8, 8>(x, &sigma),
         });
         let scale = max_abs(&k.data) * max_abs(&u);
-        for (i, (fi, ei)) in internal.iter().zip(&expected).enumerate() {
-            assert!(
-                (fi - ei).abs() < RELATIVE * scale,
-                "{}: coordinate {i}: K u = {fi}, expected {ei}",
-                case.name
-            );
-        }
+        assert_all_close(&internal, &expected, 0.0, RELATIVE * scale, format_args!("{}: K u", case.name));
     }
 }
 
