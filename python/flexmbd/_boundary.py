@@ -93,27 +93,9 @@ def boundary_class(base: T, module: str) -> T:
     type."""
     name = base.__name__
 
-    def __new__(cls: type, *args: Any, **kwargs: Any) -> Any:
-        try:
-            return base.__new__(cls, *args, **kwargs)
-        except (TypeError, OverflowError) as error:
-            typed = converted(error, name)
-            if typed is None:
-                raise
-            raise typed from error
-
-    def __setattr__(self: Any, field: str, value: Any) -> None:
-        try:
-            base.__setattr__(self, field, value)
-        except (TypeError, OverflowError) as error:
-            typed = converted(error, name)
-            if typed is None:
-                raise
-            raise typed from error
-
     namespace = {
-        "__new__": __new__,
-        "__setattr__": __setattr__,
+        "__new__": _wrapped(base.__new__, name),
+        "__setattr__": _wrapped(base.__setattr__, name),
         "__doc__": base.__doc__,
         "__module__": module,
         "__qualname__": name,
