@@ -825,7 +825,7 @@ def four_bar_spatial() -> Example:
     )
 
 
-def bricard() -> Example:
+def bricard(marker_twists: Any = None) -> Example:
     """A redundant model: Bricard's mechanism, IFToMM benchmark A04. Five uniform 1 kg, 1 m rods
     (square section 0.1 m) and the ground form a closed loop of six revolute joints along the
     edges of a unit cube, P0 = (0, 0, 0) -> (1, 0, 0) -> (1, -1, 0) -> (1, -1, 1) -> (0, -1, 1)
@@ -839,7 +839,14 @@ def bricard() -> Example:
     mbsbenchmark, Gonzalez et al. 2006) as implemented in the public models of
     MBSbenchmarksInOpenSim (A04), simEngine3D and Exudyn (bricardMechanism), which agree;
     the benchmark's own specification text was not available. ``check`` returns the drift of
-    the total energy (conserved: no dissipation, spectral radius 1)."""
+    the total energy (conserved: no dissipation, spectral radius 1).
+
+    ``marker_twists``: the same mechanism with other marker frames: each joint's two markers
+    turned about the joint axis, by angles (rad) in an array of shape (6, 2) (joint k, marker of
+    the lower / higher link), or one angle for all. Which equation is redundant, and which rows
+    a solver keeps, depends on these frames; the motion does not."""
+    given = 0.0 if marker_twists is None else marker_twists
+    twists = np.broadcast_to(np.asarray(given, dtype=float), (6, 2))
     system = _core.System(gravity=(0.0, -9.81, 0.0))
     corners = np.array(
         [[0, 0, 0], [1, 0, 0], [1, -1, 0], [1, -1, 1], [0, -1, 1], [0, 0, 1]], dtype=float
@@ -869,11 +876,12 @@ def bricard() -> Example:
         )
         frames.append(orientation)
 
-    def joint_marker(k: int, corner: int) -> _core.MarkerId:
+    def joint_marker(k: int, corner: int, twist: float = 0.0) -> _core.MarkerId:
         """Marker at `corner` on link k (1-based; 0 is the ground): z along the corner's joint
-        axis, x along the link that leaves the corner (perpendicular to that axis)."""
+        axis, x along the link that leaves the corner (perpendicular to that axis) turned by
+        `twist` about the joint axis."""
         leaving = corners[(corner + 1) % 6] - corners[corner]
-        global_frame = frame(leaving, axes[corner])
+        global_frame = rotation(axes[corner], twist) @ frame(leaving, axes[corner])
         if k == 0:
             return system.add_marker(
                 system.ground, position=corners[corner], orientation=global_frame
@@ -886,12 +894,15 @@ def bricard() -> Example:
             orientation=to_local @ global_frame,
         )
 
-    joints = [system.add_revolute_joint(joint_marker(0, 0), joint_marker(1, 0), name="joint 0")]
-    for k in range(1, 5):
-        joints.append(
-            system.add_revolute_joint(joint_marker(k, k), joint_marker(k + 1, k), name=f"joint {k}")
+    def joint(lower: int, higher: int, corner: int) -> _core.JointId:
+        """The revolute joint at `corner` between links `lower` and `higher` (0: ground)."""
+        return system.add_revolute_joint(
+            joint_marker(lower, corner, twists[corner, 0]),
+            joint_marker(higher, corner, twists[corner, 1]),
+            name=f"joint {corner}",
         )
-    joints.append(system.add_revolute_joint(joint_marker(5, 5), joint_marker(0, 5), name="joint 5"))
+
+    joints = [joint(0, 1, 0)] + [joint(k, k + 1, k) for k in range(1, 5)] + [joint(5, 0, 5)]
     # The point the benchmark implementations record (between links 2 and 3).
     tracked = system.add_sensor(joint_marker(2, 2), "position", name="P3 position")
 

@@ -133,7 +133,8 @@ def simulate(
     least the last one); read the whole run with :func:`flexmbd.read_results`.
 
     Redundant constraints are found by rank before the run and, by default, removed (see
-    ``Result.redundancy`` and ``Result.events``).
+    ``Result.redundancy`` and ``Result.events``); where the rows kept become ill-conditioned
+    during the motion they are chosen again (a "redundancy re-selected" event).
 
     Initial positions and velocities that violate the constraints are corrected first
     (minimum-norm change); initial accelerations and multipliers come from seed eq. 26. A

@@ -744,9 +744,12 @@ pub fn simulate<'py>(
     settings.output_interval = output_interval;
     settings.start = match (coordinates, velocities) {
         (None, None) => None,
-        (Some(q), Some(qd)) => {
-            Some(StartState { coordinates: q.as_slice()?.to_vec(), velocities: qd.as_slice()?.to_vec() })
-        }
+        (Some(q), Some(qd)) => Some(StartState {
+            coordinates: q.as_slice()?.to_vec(),
+            velocities: qd.as_slice()?.to_vec(),
+            time: None,
+            discrete: None,
+        }),
         _ => return Err(invalid("simulate", "give both the initial coordinates and velocities, or neither")),
     };
     settings.initial.strict = match initial_conditions {

@@ -16,14 +16,26 @@ pub(crate) struct OutputClock {
 }
 
 impl OutputClock {
-    pub(crate) fn new(settings: &SimulationSettings) -> Self {
+    /// The clock of a run from `from` (the start time, or later when the run continues
+    /// another): the output times stay on the grid from the start time.
+    pub(crate) fn new(settings: &SimulationSettings, from: f64) -> Self {
+        let start = settings.start_time;
+        let eps = 1e-12 * (1.0 + settings.end_time.abs());
+        let mut index = 1;
+        if let Some(dt) = settings.output_interval {
+            // The first output time after `from`.
+            index = (((from - start) / dt).floor() as usize).max(1);
+            while start + dt * index as f64 <= from + eps {
+                index += 1;
+            }
+        }
         OutputClock {
-            start: settings.start_time,
+            start,
             interval: settings.output_interval,
-            index: 1,
-            next: settings.output_interval.map(|dt| settings.start_time + dt),
+            index,
+            next: settings.output_interval.map(|dt| start + dt * index as f64),
             end: settings.end_time,
-            eps: 1e-12 * (1.0 + settings.end_time.abs()),
+            eps,
         }
     }
 
@@ -57,5 +69,31 @@ impl OutputClock {
             }
         }
         at_output
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_continued_run_keeps_the_output_times_of_the_start_time() {
+        let mut settings = SimulationSettings::new(1.0, 1e-3);
+        settings.start_time = 0.25;
+        settings.output_interval = Some(0.1);
+        // From the start: 0.35, 0.45, ...
+        let clock = OutputClock::new(&settings, 0.25);
+        assert_eq!(clock.next, Some(0.25 + 0.1));
+        // From between two output times, and from (within round-off of) one: the next one.
+        for (from, index) in [(0.5731, 4), (0.65, 5), (0.65 - 1e-15, 5), (0.65 + 1e-15, 5), (0.9, 7)] {
+            let clock = OutputClock::new(&settings, from);
+            assert_eq!(clock.index, index, "from {from}");
+            assert_eq!(clock.next, Some(0.25 + 0.1 * index as f64));
+            assert!(clock.step(from, 1.0) > 0.0);
+        }
+        // Without an output interval every step is recorded.
+        settings.output_interval = None;
+        let mut clock = OutputClock::new(&settings, 0.5731);
+        assert!(clock.due(0.6));
     }
 }

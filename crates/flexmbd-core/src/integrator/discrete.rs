@@ -4,7 +4,20 @@
 use crate::assembly::update_kinematics;
 use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
 use crate::force::{ForceEnv, ForceKind};
+use crate::integrator::settings::SimulationSettings;
 use crate::system::{Model, State, Workspace};
+
+/// Sets the discrete variables of the starting `state` from its coordinates, unless the run
+/// continues another whose discrete variables the start state carries: those are advanced.
+pub(crate) fn start_discrete(
+    model: &Model,
+    state: &mut State,
+    ws: &mut Workspace,
+    settings: &SimulationSettings,
+) {
+    let continued = settings.start.as_ref().is_some_and(|s| s.discrete.is_some());
+    update_discrete(model, state, ws, !continued);
+}
 
 /// Sets or advances the discrete variables (unwrapped spring angles) from the state.
 pub(crate) fn update_discrete(model: &Model, state: &mut State, ws: &mut Workspace, initialize: bool) {

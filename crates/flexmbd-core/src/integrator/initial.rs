@@ -43,6 +43,28 @@ pub fn starting_state(model: &Model, time: f64, start: Option<&StartState>) -> R
     }
     state.coordinates.copy_from_slice(&start.coordinates);
     state.velocities.copy_from_slice(&start.velocities);
+    if let Some(t) = start.time {
+        if !(t >= time) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "initial state".to_string(),
+                message: format!("its time {t:e} is before the start time {time:e}"),
+            });
+        }
+        state.time = t;
+    }
+    if let Some(discrete) = &start.discrete {
+        if discrete.len() != model.discrete_count {
+            return Err(FlexmbdError::InvalidParameter {
+                item: "initial state".to_string(),
+                message: format!(
+                    "{} discrete variables given for a model of {}",
+                    discrete.len(),
+                    model.discrete_count
+                ),
+            });
+        }
+        state.discrete.copy_from_slice(discrete);
+    }
     Ok(state)
 }
 

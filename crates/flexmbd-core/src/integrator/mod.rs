@@ -10,6 +10,7 @@ pub mod generalized_alpha;
 pub mod initial;
 pub mod progress;
 pub mod redundancy;
+pub mod reselection;
 pub mod settings;
 pub mod simulation;
 pub mod time_loop;

@@ -23,7 +23,9 @@ use crate::formulation::augmented::{row_weight, DenseEquations, Level};
 use crate::integrator::initial::{dense_initial_conditions, starting_state};
 use crate::integrator::settings::{RedundancyHandling, SimulationSettings};
 use crate::joint::reaction::joint_reaction;
-use crate::linalg::partition::{dependent_row_groups, minimum_norm_solve, partition, PartitionMethod};
+use crate::linalg::partition::{
+    dependent_row_groups, leading_rows, minimum_norm_solve, partition, PartitionMethod,
+};
 use crate::output::{Event, Output, Redundancy};
 use crate::system::{Model, State, Workspace};
 
@@ -40,6 +42,9 @@ pub struct Reduction {
     pub report: Redundancy,
     /// Relative tolerance of the rank decisions.
     pub tolerance: f64,
+    /// Kind of the event that reports it: "redundant constraints" at the start,
+    /// "redundancy re-selected" during the run.
+    pub event: &'static str,
 }
 
 /// Analyses the model at its initial configuration. Ok(None) if the constraints are
@@ -49,15 +54,38 @@ pub fn analyse(model: &Model, settings: &SimulationSettings) -> Result<Option<Re
     if m == 0 || (m as f64) * (n as f64) * (m.min(n) as f64) > ANALYSIS_FLOPS {
         return Ok(None);
     }
-    let tolerance = settings.redundancy.tolerance;
     let mut ws = Workspace::new(model);
     let mut eq = DenseEquations::new(model);
     let mut state = starting_state(model, settings.start_time, settings.start.as_ref())?;
     let mut initial = settings.initial.clone();
     initial.correct_velocities = false;
     dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &initial)?;
+    let reduction = select(model, &mut ws, &mut eq, &state, settings.redundancy.tolerance, None)?;
+    if let Some(reduction) = &reduction {
+        if settings.redundancy.handling == RedundancyHandling::Error {
+            let message = reduction.report.message.clone();
+            return Err(FlexmbdError::InvalidModel { item: "constraints".to_string(), message });
+        }
+    }
+    Ok(reduction)
+}
+
+/// The rows of `model`'s constraint Jacobian kept at `state` (on the constraints): the
+/// independent ones, chosen by QR with column pivoting of the weighted C_q^T (see
+/// `row_weight`). None if all rows are independent. `again`: when the rows are chosen again
+/// during the run, why, and how many are kept: the rank found at the start (the mechanism's;
+/// a rank decided again at a singular configuration passed would drop an independent row).
+pub(crate) fn select(
+    model: &Model,
+    ws: &mut Workspace,
+    eq: &mut DenseEquations,
+    state: &State,
+    tolerance: f64,
+    again: Option<(&str, usize)>,
+) -> Result<Option<Reduction>> {
+    let (n, m) = (model.coordinate_count, model.constraint_count);
     let t = state.time;
-    eq.evaluate(model, &mut ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
+    eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Position)?;
     let mut weighted = eq.jacobian.clone();
     for r in 0..m {
         let w = row_weight(model, r);
@@ -65,8 +93,17 @@ pub fn analyse(model: &Model, settings: &SimulationSettings) -> Result<Option<Re
             weighted[(r, c)] *= w;
         }
     }
-    let p = partition(weighted.as_ref(), PartitionMethod::Qr, tolerance);
-    if p.redundant_rows.is_empty() {
+    let (rank, redundant_rows) = match again {
+        None => {
+            let p = partition(weighted.as_ref(), PartitionMethod::Qr, tolerance);
+            (p.rank, p.redundant_rows)
+        }
+        Some((_, rank)) => {
+            let kept = leading_rows(weighted.as_ref(), rank);
+            (rank, (0..m).filter(|r| kept.binary_search(r).is_err()).collect())
+        }
+    };
+    if redundant_rows.is_empty() {
         return Ok(None);
     }
     let groups = dependent_row_groups(eq.jacobian.as_ref(), tolerance);
@@ -78,30 +115,24 @@ pub fn analyse(model: &Model, settings: &SimulationSettings) -> Result<Option<Re
     joints.sort_unstable();
     joints.dedup();
     let joint_names: Vec<String> = joints.iter().map(|&j| format!("'{}'", model.joints[j].name)).collect();
-    let removed: Vec<String> = p.redundant_rows.iter().map(|&r| model.constraint_name(r)).collect();
-    let message = format!(
+    let removed: Vec<String> = redundant_rows.iter().map(|&r| model.constraint_name(r)).collect();
+    let mut message = format!(
         "{} of {m} constraint equations are redundant (rank of C_q {} at t = {t}); they involve joints {}; \
          removed: {}",
-        p.redundant_rows.len(),
-        p.rank,
+        redundant_rows.len(),
+        rank,
         joint_names.join(", "),
         removed.join("; ")
     );
-    let report = Redundancy {
-        time: t,
-        rows: m,
-        rank: p.rank,
-        removed_rows: p.redundant_rows.clone(),
-        groups,
-        joints,
-        message,
-    };
-    if settings.redundancy.handling == RedundancyHandling::Error {
-        return Err(FlexmbdError::InvalidModel { item: "constraints".to_string(), message: report.message });
+    if let Some((reason, _)) = again {
+        message = format!("{reason}; {message}");
     }
-    let (mut reduced, row_map) = model.without_constraint_rows(&p.redundant_rows)?;
-    reduced.initial_coordinates = state.coordinates;
-    Ok(Some(Reduction { model: reduced, row_map, report, tolerance }))
+    let report =
+        Redundancy { time: t, rows: m, rank, removed_rows: redundant_rows.clone(), groups, joints, message };
+    let (mut reduced, row_map) = model.without_constraint_rows(&redundant_rows)?;
+    reduced.initial_coordinates.copy_from_slice(&state.coordinates);
+    let event = if again.is_some() { "redundancy re-selected" } else { "redundant constraints" };
+    Ok(Some(Reduction { model: reduced, row_map, report, tolerance, event }))
 }
 
 impl Reduction {
@@ -199,7 +230,7 @@ impl Reduction {
             0,
             Event {
                 time: self.report.time,
-                kind: "redundant constraints".to_string(),
+                kind: self.event.to_string(),
                 message: self.report.message.clone(),
             },
         );

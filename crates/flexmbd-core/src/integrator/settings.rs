@@ -208,6 +208,12 @@ impl SimulationSettings {
         }
     }
 
+    /// Whether the run continues another from its last state (the start state has a time):
+    /// that state was recorded by the other run and is not recorded again.
+    pub fn continues(&self) -> bool {
+        self.start.as_ref().is_some_and(|s| s.time.is_some())
+    }
+
     /// The smallest step the time loops take: the minimum step size, and at least 64
     /// round-offs of the times of the run (a smaller step would not advance the time, and a
     /// loop of them would never end).
@@ -490,6 +496,12 @@ pub struct StartState {
     pub coordinates: Vec<f64>,
     /// q_dot (coordinate_count).
     pub velocities: Vec<f64>,
+    /// Time of the state, if later than the start time: the run continues another from
+    /// there, on the output times of the start time's grid. None: the start time.
+    pub time: Option<f64>,
+    /// Discrete variables (the unwrapped spring angles) of a continued run; None: set from
+    /// the coordinates.
+    pub discrete: Option<Vec<f64>>,
 }
 
 // Redundant constraints -------------------------------------------------------------------

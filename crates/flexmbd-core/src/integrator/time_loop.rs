@@ -86,7 +86,7 @@ pub(crate) fn time_loop(
     output: &mut Output,
     state: &mut State,
 ) -> Result<()> {
-    let mut clock = OutputClock::new(settings);
+    let mut clock = OutputClock::new(settings, state.time);
     let mut h = settings.step_size;
     let release = Cell::new(0);
     output.statistics.min_step_size_used = f64::INFINITY;
@@ -119,6 +119,7 @@ pub(crate) fn time_loop(
             step_size: h_try,
             newton_iterations,
             steps: output.statistics.steps,
+            state,
             records: Records::new(output),
             release: &release,
         };

@@ -251,6 +251,30 @@ pub fn dependent_row_groups(a: MatRef<'_, f64>, tolerance: f64) -> Vec<Vec<usize
         .collect()
 }
 
+/// The `count` rows of `a` that QR with column pivoting of a^T takes first (the best
+/// conditioned choice it finds), ascending.
+pub fn leading_rows(a: MatRef<'_, f64>, count: usize) -> Vec<usize> {
+    let (order, _) = column_pivots(a.transpose());
+    sorted(order[..count.min(order.len())].to_vec())
+}
+
+/// The conditioning of the rows `rows` of `a`: their smallest singular value over their
+/// largest (1 for no rows, 0 if they are dependent or the decomposition fails).
+pub fn row_conditioning(a: MatRef<'_, f64>, rows: &[usize]) -> f64 {
+    if rows.is_empty() {
+        return 1.0;
+    }
+    let kept = Mat::from_fn(rows.len(), a.ncols(), |i, j| a[(rows[i], j)]);
+    let Ok(s) = kept.singular_values() else { return 0.0 };
+    let largest = s.iter().copied().fold(0.0, f64::max);
+    let smallest = if rows.len() > a.ncols() { 0.0 } else { s.iter().copied().fold(f64::INFINITY, f64::min) };
+    if largest > 0.0 {
+        smallest / largest
+    } else {
+        0.0
+    }
+}
+
 /// Minimum-norm least-squares solution x of `a x = b` (m x n), singular values below
 /// `tolerance` times the largest treated as zero (truncated pseudo-inverse).
 pub fn minimum_norm_solve(a: MatRef<'_, f64>, b: &[f64], tolerance: f64) -> Vec<f64> {

@@ -160,6 +160,34 @@ impl Output {
         }
     }
 
+    /// Appends the records of `later` (a run continued from this one's end), its events and
+    /// its counts; the redundancy report stays this one's if it has one. Records `later`
+    /// released were released after all of this one's (which then holds none).
+    pub fn append(&mut self, later: Output) {
+        debug_assert!(later.released == 0 || self.is_empty());
+        self.released += later.released;
+        self.time.extend(later.time);
+        self.coordinates.extend(later.coordinates);
+        self.velocities.extend(later.velocities);
+        self.accelerations.extend(later.accelerations);
+        self.multipliers.extend(later.multipliers);
+        self.reactions.extend(later.reactions);
+        self.sensors.extend(later.sensors);
+        self.energy.extend(later.energy);
+        self.constraint_violation.extend(later.constraint_violation);
+        self.events.extend(later.events);
+        self.redundancy = self.redundancy.take().or(later.redundancy);
+        let (s, l) = (&mut self.statistics, later.statistics);
+        s.steps += l.steps;
+        s.rejected_steps += l.rejected_steps;
+        s.newton_iterations += l.newton_iterations;
+        s.factorizations += l.factorizations;
+        s.function_evaluations += l.function_evaluations;
+        s.min_step_size_used = s.min_step_size_used.min(l.min_step_size_used);
+        s.max_step_size_used = s.max_step_size_used.max(l.max_step_size_used);
+        s.reduced_system_size = s.reduced_system_size.max(l.reduced_system_size);
+    }
+
     /// Drops the first `count` records held (at most all of them): a caller that stored them
     /// elsewhere (a results file) keeps the memory of a run flat however long it is.
     pub fn release_front(&mut self, count: usize) {

@@ -322,14 +322,19 @@ impl<'a> Engine<'a> {
     /// Records `state` (at an output time) with the accelerations and multipliers of this
     /// engine at it.
     pub(super) fn record(&mut self, state: &mut State, output: &mut Output) -> Result<()> {
+        self.complete(state)?;
+        output.record(self.model, state, &mut self.ws);
+        Ok(())
+    }
+
+    /// Sets the accelerations and multipliers of `state` from its coordinates and velocities.
+    pub(super) fn complete(&mut self, state: &mut State) -> Result<()> {
         self.q.copy_from_slice(&state.coordinates);
         self.qd.copy_from_slice(&state.velocities);
         self.discrete.copy_from_slice(&state.discrete);
         self.accelerations(state.time)?;
         state.accelerations.copy_from_slice(&self.qdd);
-        self.multipliers(state.time, &mut state.multipliers)?;
-        output.record(self.model, state, &mut self.ws);
-        Ok(())
+        self.multipliers(state.time, &mut state.multipliers)
     }
 
     /// The names of `coordinates`, for messages.

@@ -9,7 +9,7 @@ use super::partitioning::{first_partition, redundant_rows_event};
 use super::runge_kutta::{self, Stages};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::DenseEquations;
-use crate::integrator::discrete::update_discrete;
+use crate::integrator::discrete::{start_discrete, update_discrete};
 use crate::integrator::initial::{dense_initial_conditions, report_initial_correction, starting_state};
 use crate::integrator::progress::Progress;
 use crate::integrator::settings::{ExplicitMethod, ExplicitSettings, SimulationSettings, Strategy};
@@ -35,7 +35,7 @@ pub fn run(
     let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());
     let violated = dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &settings.initial)?;
     report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
-    update_discrete(model, &mut state, &mut ws, true);
+    start_discrete(model, &mut state, &mut ws, settings);
 
     let partition = first_partition(model, explicit, &mut ws, &mut eq, &state)?;
     let mut engine = Engine::new(model, explicit, ws, eq, partition, &state);
@@ -44,7 +44,11 @@ pub fn run(
     }
     engine.singular_limit = explicit.singular_factor * engine.partition.condition.max(1.0);
     output.events.extend(redundant_rows_event(model, &engine.partition, state.time));
-    engine.record(&mut state, output)?;
+    if settings.continues() {
+        engine.complete(&mut state)?;
+    } else {
+        engine.record(&mut state, output)?;
+    }
     *last_state = Some(state.clone());
 
     let mut y = Vec::new();

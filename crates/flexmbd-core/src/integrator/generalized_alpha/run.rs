@@ -4,7 +4,7 @@
 
 use super::{step, GeneralizedAlpha, JacobianCache};
 use crate::error::{FlexmbdError, Result};
-use crate::integrator::discrete::update_discrete;
+use crate::integrator::discrete::{start_discrete, update_discrete};
 use crate::integrator::initial::{
     report_initial_correction, solve_accelerations, solve_initial_positions_and_velocities, starting_state,
 };
@@ -33,9 +33,9 @@ pub(crate) fn run(
     let violated =
         solve_initial_positions_and_velocities(model, &mut state, &mut ws, &mut solvers, &settings.initial)?;
     report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
-    update_discrete(model, &mut state, &mut ws, true);
+    start_discrete(model, &mut state, &mut ws, settings);
     solve_accelerations(model, &mut state, &mut ws, &mut solvers)?;
-    let first_step = settings.step_size.min(settings.end_time - settings.start_time).max(f64::MIN_POSITIVE);
+    let first_step = settings.step_size.min(settings.end_time - state.time).max(f64::MIN_POSITIVE);
     start_algorithmic_accelerations(
         model,
         &method,
@@ -44,7 +44,9 @@ pub(crate) fn run(
         &mut ws,
         &mut solvers,
     )?;
-    output.record(model, &state, &mut ws);
+    if !settings.continues() {
+        output.record(model, &state, &mut ws);
+    }
     let mut steps = GeneralizedAlphaSteps {
         model,
         settings,
