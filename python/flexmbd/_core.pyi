@@ -269,7 +269,9 @@ class System:
     def add_sensor(
         self, marker: MarkerId, quantity: str, *, name: str | None = None
     ) -> SensorId: ...
-    def compile(self, *, flexible_bodies: dict[int, Any] | None = None) -> Model: ...
+    def compile(
+        self, *, flexible_bodies: dict[int, Any] | None = None, source: Any = None
+    ) -> Model: ...
 
 class GeneralizedAlpha:
     spectral_radius: float

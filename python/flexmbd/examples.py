@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from . import _boundary, _core
 from .rotation import rotation
+from .system import System
 
 
 @dataclass
@@ -24,7 +25,7 @@ class Example:
 
     name: str
     description: str
-    system: _core.System
+    system: System
     end_time: float
     step_size: float
     solver: _boundary.GeneralizedAlpha
@@ -37,7 +38,7 @@ class Example:
 def pendulum() -> Example:
     """IFToMM A01: a 1 kg point mass on a massless 1 m link (a distance constraint), released at
     rest from x = +1 m, gravity 9.81 m/s^2 along -y. Exact positions at t = 0.5, 1, 5, 10 s."""
-    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    system = System(gravity=(0.0, -9.81, 0.0))
     mass = system.add_point_mass(1.0, position=(1.0, 0.0, 0.0), name="mass")
     pivot = system.add_marker(system.ground, name="pivot")
     bob = system.add_marker(mass, name="bob")
@@ -78,7 +79,7 @@ def pendulum() -> Example:
 FOUR_BAR_ROD = (5e-5, 1.0 / 12.0, 1.0 / 12.0)
 
 
-def _four_bar_cranks(system: _core.System, count: int) -> tuple[list, list, list]:
+def _four_bar_cranks(system: System, count: int) -> tuple[list, list, list]:
     """The vertical cranks of the four-bars at x = 0 .. count - 1, pivoted on the ground about
     z at y = 0, turning at -1 rad/s (B0 moves at 1 m/s along +x): bodies, top markers B<k> (axes
     parallel to the global ones) and pivot joints."""
@@ -114,7 +115,7 @@ def four_bar(n: int = 2) -> Example:
     configurations (cranks horizontal) twice per turn. Exact B0 at t = 10 s for N = 2."""
     if n < 1:
         raise ValueError(f"n must be at least 1, got {n}")
-    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    system = System(gravity=(0.0, -9.81, 0.0))
     inertia = FOUR_BAR_ROD
     cranks, tops, pivots = _four_bar_cranks(system, n + 1)
     couplers = []
@@ -176,7 +177,6 @@ def flexible_slider_crank(elements: int = 8, geometric_stiffness: bool = True) -
     simply supported (body frame on the chord), so its elastic transverse displacement at the
     middle node is the deflection from the chord: max |v_mid| = 4.658e-3 m near t = 0.078 s."""
     from .fe import Material, Section, build_body, straight_beam
-    from .system import System
 
     crank_length, rod_length, omega = 0.15, 0.30, 150.0
     nodes, conn = straight_beam(rod_length, elements)
@@ -260,6 +260,17 @@ def flexible_slider_crank(elements: int = 8, geometric_stiffness: bool = True) -
     )
 
 
+def _spin_up_hub_angle(t: float) -> tuple[float, float, float]:
+    """The spin-up's hub angle, speed and acceleration: to 6 rad/s in 15 s (Simo and Vu-Quoc),
+    a module function so that the model pickles."""
+    ts, ws = 15.0, 6.0
+    if t <= ts:
+        c = ts / (2 * np.pi)
+        theta = ws / ts * (t**2 / 2 + c**2 * (np.cos(t / c) - 1))
+        return theta, ws / ts * (t - c * np.sin(t / c)), ws / ts * (1 - np.cos(t / c))
+    return ws * (t - ts / 2), ws, 0.0
+
+
 def spin_up(geometric_stiffness: bool = True, elements: int = 10, bodies: int = 1) -> Example:
     """Reference R3 (Kane, Ryan and Banerjee 1987): a 10 m beam (EA = 2.8e7 N,
     EI = 1.4e4 N m^2, rho A = 1.2 kg/m) clamped to a hub whose angle is prescribed,
@@ -273,17 +284,8 @@ def spin_up(geometric_stiffness: bool = True, elements: int = 10, bodies: int = 
     of its second-order strain (-0.5759 m, 0.38 % more flexible than R3), several bodies to R3
     (8 bodies of 5 elements: -0.5736 m; ``benchmarks/spin_up_refinement.py``)."""
     from .fe import Material, Section, build_body, straight_beam
-    from .system import System
 
-    ts, ws = 15.0, 6.0
-
-    def hub_angle(t: float) -> tuple[float, float, float]:
-        if t <= ts:
-            c = ts / (2 * np.pi)
-            theta = ws / ts * (t**2 / 2 + c**2 * (np.cos(t / c) - 1))
-            return theta, ws / ts * (t - c * np.sin(t / c)), ws / ts * (1 - np.cos(t / c))
-        return ws * (t - ts / 2), ws, 0.0
-
+    hub_angle = _spin_up_hub_angle
     if bodies < 1 or elements % bodies:
         raise ValueError(f"elements ({elements}) must be a multiple of bodies ({bodies})")
     per_body = elements // bodies
@@ -362,7 +364,6 @@ def tetrahedral_pendulum(mode_count: int = 6) -> Example:
     (9.81 m/s^2 along -y) about a revolute joint at the centroid of that face, released
     horizontally. Without damping, at spectral radius 1, its energy is conserved."""
     from .fe import Material, build_body, shapes
-    from .system import System
 
     mesh = shapes.box((0.5, 0.03, 0.03), (20, 2, 2), "tet4")
     data = build_body(
@@ -421,7 +422,6 @@ def rotating_blade_flap_frequencies(
         raise ValueError(f"direction must be 'flap' or 'lag', got {direction!r}")
     from .analysis import equilibrium, linearize
     from .fe import Material, Section, build_body, straight_beam
-    from .system import System
 
     width, height = (0.01, 0.002) if direction == "flap" else (0.002, 0.002)
     material = Material(7.0e10, 0.3, 2700.0)
@@ -490,8 +490,6 @@ def flexible_double_pendulum(elements: int = 4, mode_count: int = 0) -> Example:
     the total (kinetic, strain and gravity) energy is conserved. A model for the
     joint-coordinate formulation with deformable bodies (seed section 5), which integrates the
     two hinge angles and the elastic coordinates."""
-    from .system import System
-
     system = System(gravity=(0, -9.81, 0))
     data = _beam_link(1.0, elements, mode_count)
     upper = system.add_flexible_body(data, name="upper link")
@@ -537,8 +535,6 @@ def flexible_robot_arm(elements: int = 4, mode_count: int = 0) -> Example:
     total energy. `mode_count` > 0: that many clamped modes per link instead of the nodal
     coordinates. A model for the joint-coordinate formulation with deformable bodies (seed
     section 5)."""
-    from .system import System
-
     system = System(gravity=(0, -9.81, 0))
     lengths = (0.6, 0.5, 0.4)
     links, x = [], 0.0
@@ -676,7 +672,7 @@ def andrews() -> Example:
     # Body frames: origin on the pivot, axes turned by the absolute angle.
     origins = (np.zeros(3), point_f, point_b, point_g, point_a, point_h, point_a)
     centres = ((ra, 0), (-da, 0), (sa, sb), (0, -(e - ea)), (ta, tb), (zf - fa, 0), (ua, ub))
-    system = _core.System()
+    system = System()
     bodies = [
         system.add_rigid_body(
             masses[k - 1],
@@ -772,7 +768,7 @@ def four_bar_spatial() -> Example:
     The motion has one degree of freedom: the cranks stay parallel at the angle theta from the
     vertical and the coupler translates, (5/3) theta'' = 2 g sin(theta), theta(0) = 0,
     theta'(0) = 1 rad/s. ``check`` compares B0 with that equation, solved by SciPy."""
-    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    system = System(gravity=(0.0, -9.81, 0.0))
     inertia = FOUR_BAR_ROD
     cranks, tops, pivots = _four_bar_cranks(system, 2)
     coupler = system.add_rigid_body(
@@ -847,7 +843,7 @@ def bricard(marker_twists: Any = None) -> Example:
     a solver keeps, depends on these frames; the motion does not."""
     given = 0.0 if marker_twists is None else marker_twists
     twists = np.broadcast_to(np.asarray(given, dtype=float), (6, 2))
-    system = _core.System(gravity=(0.0, -9.81, 0.0))
+    system = System(gravity=(0.0, -9.81, 0.0))
     corners = np.array(
         [[0, 0, 0], [1, 0, 0], [1, -1, 0], [1, -1, 1], [0, -1, 1], [0, 0, 1]], dtype=float
     )

@@ -4,6 +4,12 @@ The Rust class ``flexmbd._core.System`` builds rigid bodies, markers, joints and
 subclass adds deformable bodies (a :class:`flexmbd.fe.FlexibleBodyData` in the floating frame
 of reference, seed section 3) and markers on their nodes and node sets (the intermediate
 joint frames of seed Figure 4).
+
+It also records the calls that built it (``System.building_calls``): a pickled or copied
+system, and a pickled model, is built again by the same calls, which gives the same model
+bit for bit. Python callables in it (user time functions, callback forces) pickle with
+:mod:`pickle` if they are importable functions and with ``cloudpickle`` (which Dask uses)
+if they are lambdas or closures.
 """
 
 from __future__ import annotations
@@ -194,6 +200,28 @@ class System(_core.System):
     def __init__(self, gravity: ArrayLike | None = None):
         self._flexible: dict[int, FlexibleBodyData] = {}
         self._bases: dict[int, sp.csr_matrix] = {}
+        self._calls: list[_Call] = [("gravity", (_kept(gravity),), {})]
+        self._depth = 0
+
+    @property
+    def building_calls(self) -> tuple[_Call, ...]:
+        """The calls that built this system, in order: (method name, positional arguments,
+        keyword arguments), the first setting the gravity. Arrays are copies, taken at the
+        call."""
+        return tuple(self._calls)
+
+    @property
+    def gravity(self) -> tuple[float, float, float]:
+        """Gravitational acceleration (m/s^2, global axes)."""
+        return _core.System.gravity.__get__(self)
+
+    @gravity.setter
+    def gravity(self, value: ArrayLike) -> None:
+        _core.System.gravity.__set__(self, value)
+        self._calls.append(("gravity", (_kept(value),), {}))
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuilt, (type(self), tuple(self._calls)))
 
     def add_flexible_body(
         self,
@@ -464,4 +492,64 @@ class System(_core.System):
 
     def compile(self) -> _core.Model:
         """Checks the whole system and compiles the immutable :class:`Model`."""
-        return super().compile(flexible_bodies=self._flexible)
+        source = (type(self), tuple(self._calls))
+        return super().compile(flexible_bodies=self._flexible, source=source)
+
+
+#: A building call: (method name, positional arguments, keyword arguments).
+_Call = tuple[str, tuple[Any, ...], dict[str, Any]]
+
+
+def _kept(value: Any) -> Any:
+    """`value` as a building call keeps it: arrays (also inside lists, tuples and dicts)
+    copied, so that changing the caller's array later does not change the record."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, (list, tuple)):
+        return type(value)(_kept(v) for v in value)
+    if isinstance(value, dict):
+        return {k: _kept(v) for k, v in value.items()}
+    return value
+
+
+def _recorded(name: str, method: Any) -> Any:
+    """`method` of `System` recording its call (the outermost one: calls it makes itself are
+    made again by it)."""
+
+    def call(self: System, *args: Any, **kwargs: Any) -> Any:
+        self._depth += 1
+        try:
+            value = method(self, *args, **kwargs)
+        finally:
+            self._depth -= 1
+        if self._depth == 0:
+            self._calls.append((name, _kept(args), _kept(kwargs)))
+        return value
+
+    call.__name__ = name
+    call.__qualname__ = f"System.{name}"
+    call.__doc__ = method.__doc__
+    call.__wrapped__ = method  # type: ignore[attr-defined]
+    return call
+
+
+for _name in dir(System):
+    if _name.startswith("add_"):
+        setattr(System, _name, _recorded(_name, getattr(System, _name)))
+
+
+def _rebuilt(cls: type[System], calls: tuple[_Call, ...]) -> System:
+    """The system `cls` built by `calls` (`System.building_calls`)."""
+    (_, (gravity,), _), *rest = calls
+    system = cls(gravity=gravity)
+    for name, args, kwargs in rest:
+        if name == "gravity":
+            system.gravity = args[0]
+        else:
+            getattr(system, name)(*args, **kwargs)
+    return system
+
+
+def _compiled(source: tuple[type[System], tuple[_Call, ...]]) -> _core.Model:
+    """The model compiled from `source` (a pickled model)."""
+    return _rebuilt(*source).compile()

@@ -18,14 +18,17 @@ pub struct Model {
     /// The data of the deformable bodies (body index -> `flexmbd.fe.FlexibleBodyData`), which
     /// stresses, results files and analyses need beside the compiled model.
     flexible_bodies: Py<PyDict>,
+    /// How the model was built (`flexmbd.System`'s record of its building calls), from which
+    /// a pickled model is built again; None for a model of a bare `flexmbd._core.System`.
+    source: Option<Py<PyAny>>,
     /// Workspace of `evaluate`, made at its first call.
     workspace: Mutex<Option<Workspace>>,
 }
 
 impl Model {
-    /// Wraps a compiled model with the data of its deformable bodies.
-    pub fn new(model: flexmbd_core::Model, flexible_bodies: Py<PyDict>) -> Self {
-        Model { inner: Arc::new(model), flexible_bodies, workspace: Mutex::new(None) }
+    /// Wraps a compiled model with the data of its deformable bodies and its source.
+    pub fn new(model: flexmbd_core::Model, flexible_bodies: Py<PyDict>, source: Option<Py<PyAny>>) -> Self {
+        Model { inner: Arc::new(model), flexible_bodies, source, workspace: Mutex::new(None) }
     }
 }
 
@@ -213,6 +216,28 @@ impl Model {
         }
         d.set_item("sensors", sensors)?;
         Ok(d)
+    }
+
+    /// Pickling: the model is compiled again from the record of the calls that built its
+    /// system (`flexmbd.System`), which gives the same model bit for bit.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (Py<PyAny>,))> {
+        let Some(source) = &self.source else {
+            return Err(pyo3::exceptions::PyTypeError::new_err(
+                "cannot pickle a Model compiled from a bare flexmbd._core.System: build it with \
+                 flexmbd.System, which records how it was built",
+            ));
+        };
+        Ok((py.import("flexmbd.system")?.getattr("_compiled")?, (source.clone_ref(py),)))
+    }
+
+    /// The model itself: it is immutable.
+    fn __copy__(slf: Py<Self>) -> Py<Self> {
+        slf
+    }
+
+    /// The model itself: it is immutable.
+    fn __deepcopy__(slf: Py<Self>, _memo: &Bound<'_, PyAny>) -> Py<Self> {
+        slf
     }
 
     fn __repr__(&self) -> String {

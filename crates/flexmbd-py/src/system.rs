@@ -483,14 +483,19 @@ impl System {
 
     /// Checks the whole system and returns the compiled, immutable model; `flexible_bodies`
     /// (body index -> `flexmbd.fe.FlexibleBodyData`) is kept in it for stresses, results
-    /// files and analyses.
-    #[pyo3(signature = (*, flexible_bodies = None))]
-    fn compile(&self, py: Python<'_>, flexible_bodies: Option<Bound<'_, PyDict>>) -> PyResult<Model> {
+    /// files and analyses, `source` (how the system was built) for pickling.
+    #[pyo3(signature = (*, flexible_bodies = None, source = None))]
+    fn compile(
+        &self,
+        py: Python<'_>,
+        flexible_bodies: Option<Bound<'_, PyDict>>,
+        source: Option<Py<PyAny>>,
+    ) -> PyResult<Model> {
         let bodies = match flexible_bodies {
             Some(d) => d.copy()?.unbind(),
             None => PyDict::new(py).unbind(),
         };
-        Ok(Model::new(check(self.inner.compile())?, bodies))
+        Ok(Model::new(check(self.inner.compile())?, bodies, source))
     }
 
     fn __repr__(&self) -> String {
