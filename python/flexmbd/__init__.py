@@ -54,6 +54,7 @@ from .results_file import read_results
 from .rotation import euler_parameters_to_matrix, rotation
 from .simulation import simulate
 from .state import EquilibriumState, State
+from .study import Study, load_study
 from .system import System
 
 __all__ = [
@@ -91,6 +92,7 @@ __all__ = [
     "Spline",
     "State",
     "StepSizeTooSmallError",
+    "Study",
     "System",
     "UnknownItemError",
     "UserFunction",
@@ -104,4 +106,5 @@ __all__ = [
     "rotation",
     "simulate",
     "steady_rotation",
+    "load_study",
 ]

@@ -169,22 +169,30 @@ def four_bar(n: int = 2) -> Example:
     )
 
 
-def flexible_slider_crank(elements: int = 8, geometric_stiffness: bool = True) -> Example:
+def flexible_slider_crank(
+    elements: int = 8,
+    geometric_stiffness: bool = True,
+    rod_diameter: float = 6e-3,
+    crank_speed: float = 150.0,
+) -> Example:
     """Reference R4 (Jonker / Simeon data set): a rigid crank (0.15 m) driven at constant
     150 rad/s, an elastic connecting rod (0.30 m, steel, solid circular section d = 6 mm) of
     `elements` beam elements in the floating frame of reference, a slider of half the rod mass
     on the x axis; no gravity, no damping; two crank turns. The rod's reference conditions are
     simply supported (body frame on the chord), so its elastic transverse displacement at the
-    middle node is the deflection from the chord: max |v_mid| = 4.658e-3 m near t = 0.078 s."""
+    middle node is the deflection from the chord: max |v_mid| = 4.658e-3 m near t = 0.078 s.
+
+    `rod_diameter` (m) and `crank_speed` (rad/s) vary the model for design studies (the
+    reference holds for the defaults)."""
     from .fe import Material, Section, build_body, straight_beam
 
-    crank_length, rod_length, omega = 0.15, 0.30, 150.0
+    crank_length, rod_length, omega = 0.15, 0.30, crank_speed
     nodes, conn = straight_beam(rod_length, elements)
     rod_data = build_body(
         nodes,
         conn,
         Material(2.0e11, 0.3, 7870.0),
-        section=Section.circle(0.003),
+        section=Section.circle(rod_diameter / 2),
         reference="simply-supported",
         reference_nodes=[0, elements],
     )

@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import InvalidParameterError, UnknownItemError
+from .quantities import resolve_item
 
 Array = NDArray[np.float64]
 
@@ -356,19 +357,6 @@ def plot_sensor(result: Any, sensor: object, ax: Any = None) -> Any:
 
 
 # Quantity names --------------------------------------------------------------------------------
-def _resolve_item(result: Any, kind: str, text: str) -> object:
-    """A body, joint or sensor given by name, or else by index; UnknownItemError naming the
-    known items otherwise."""
-    entries = result.layout[kind]
-    names = [e["name"] for e in entries]
-    if text in names:
-        return text
-    if re.fullmatch(r"\d+", text) and int(text) < len(entries):
-        return int(text)
-    singular = {"bodies": "body", "joints": "joint", "sensors": "sensor"}[kind]
-    raise UnknownItemError(f"no {singular} named {text!r}; known: {names}", item=text)
-
-
 def _flexible_names(result: Any) -> list[str]:
     return [
         b["name"]
@@ -429,7 +417,7 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
             f"quantity {kind!r} needs an item, as in {kind + ':NAME'!r}", item=quantity
         )
     if kind in BODY_QUANTITIES:
-        body = _resolve_item(result, "bodies", rest)
+        body = resolve_item(result, "bodies", rest)
         if kind == "elastic":
             _deformable(result, body)
         return [lambda ax: plot_body(result, body, kind, ax)]
@@ -439,23 +427,23 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
         head, _, tail = rest.rpartition(":")
         if rest not in names and head and re.fullmatch(r"-?\d+", tail.strip()):
             rest, node = head.strip(), int(tail)
-        body = _resolve_item(result, "bodies", rest)
+        body = resolve_item(result, "bodies", rest)
         _, _, data = _deformable(result, body)
         if node is not None:
             _node_of(data, node)
         return [lambda ax: plot_deflections(result, body, node, ax)]
     if kind == "stress":
-        body = _resolve_item(result, "bodies", rest)
+        body = resolve_item(result, "bodies", rest)
         _, _, data = _deformable(result, body)
         kinds = ("von-mises",) if _has_solids(data) else ("axial", "bending")
         return [lambda ax, k=k: _plot_stress_panel(result, body, k, ax) for k in kinds]
     if kind == "reaction":
-        joint = _resolve_item(result, "joints", rest)
+        joint = resolve_item(result, "joints", rest)
         return [
             lambda ax: plot_reaction(result, joint, "force", ax),
             lambda ax: plot_reaction(result, joint, "torque", ax),
         ]
-    sensor = _resolve_item(result, "sensors", rest)
+    sensor = resolve_item(result, "sensors", rest)
     return [lambda ax: plot_sensor(result, sensor, ax)]
 
 

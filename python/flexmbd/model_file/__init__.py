@@ -17,8 +17,9 @@ JSON schema.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 from pydantic import ValidationError
 
@@ -50,8 +51,17 @@ from .schema import (
 )
 
 
-def load_model(path: str | os.PathLike[str]) -> ModelFile:
+def load_model(
+    path: str | os.PathLike[str], overrides: Mapping[str, Any] | None = None
+) -> ModelFile:
     """Reads a model file (YAML) and builds its system.
+
+    `overrides` replaces values of the file before it is checked: key path -> value, the key
+    path in dots through mappings and lists, a list item by its ``name`` or its index
+    (``bodies.rod.material.youngs_modulus``, ``simulation.end_time``, ``joints.0.name``).
+    Values are in the file's units. A path that does not lead into the file is a
+    :class:`flexmbd.errors.ModelFileError` naming it; a value the file may not hold is
+    refused as it would be in the file.
 
     Relative file names in it (body files, meshes) are relative to the model file's folder.
     Values are converted from the file's ``units`` to SI. Raises one
@@ -59,22 +69,8 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     anything wrong: a missing or unreadable file, a YAML syntax error, a tag that is not
     plain data, an unknown key, a value of the wrong type or out of range, an unknown or
     duplicate name, or an error of the Python API while building an item."""
-    location = Path(path)
-    display = str(path)
-    source = _Source(location, display)
-    text = _read_text(location, display)
-    data = source.read(text)
-    if not isinstance(data, dict):
-        raise ModelFileError(
-            f"{display}: line 1: a model file is a mapping of keys (bodies, joints, ...), "
-            f"got a {type(data).__name__}",
-            file=display,
-            line=1,
-        )
-    try:
-        spec = ModelSpec.model_validate(data)
-    except ValidationError as error:
-        raise _validation_error(source, error) from None
+    source, spec = _checked(path, overrides)
+    location = source.path
     builder = _Builder(spec, source)
     simulation = spec.simulation
     seconds = builder.units.time
@@ -122,6 +118,82 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     )
 
 
+def check_model(
+    path: str | os.PathLike[str], overrides: Mapping[str, Any] | None = None
+) -> ModelSpec:
+    """Reads and checks a model file with `overrides` (as :func:`load_model`) without
+    building its system: the checked description. Raises what :func:`load_model` raises for
+    the file's text, its keys and values."""
+    return _checked(path, overrides)[1]
+
+
+def _checked(
+    path: str | os.PathLike[str], overrides: Mapping[str, Any] | None
+) -> tuple[_Source, ModelSpec]:
+    """The source and the checked description of a model file with `overrides`."""
+    location = Path(path)
+    display = str(path)
+    source = _Source(location, display)
+    text = _read_text(location, display)
+    data = source.read(text)
+    if not isinstance(data, dict):
+        raise ModelFileError(
+            f"{display}: line 1: a model file is a mapping of keys (bodies, joints, ...), "
+            f"got a {type(data).__name__}",
+            file=display,
+            line=1,
+        )
+    for key_path, value in (overrides or {}).items():
+        _override(data, key_path, value, source)
+    try:
+        spec = ModelSpec.model_validate(data)
+    except ValidationError as error:
+        raise _validation_error(source, error) from None
+    return source, spec
+
+
+def _override(data: dict[str, Any], key_path: str, value: Any, source: _Source) -> None:
+    """Sets `key_path` of the model file's `data` to `value`; ModelFileError naming the path
+    where it does not lead into the file."""
+    parts = key_path.split(".")
+    node: Any = data
+    walked: list[str | int] = []
+    for k, part in enumerate(parts):
+        last = k == len(parts) - 1
+        if isinstance(node, list):
+            names = [item.get("name") for item in node if isinstance(item, dict)]
+            if part in names:
+                index = names.index(part)
+            elif part.isdigit() and int(part) < len(node):
+                index = int(part)
+            else:
+                raise source.error(
+                    tuple(walked),
+                    f"key path {key_path!r}: no item {part!r} here; items: "
+                    f"{[n for n in names if n is not None] or list(range(len(node)))}",
+                )
+            walked.append(index)
+            if last:
+                node[index] = value
+            else:
+                node = node[index]
+        elif isinstance(node, dict):
+            walked.append(part)
+            if last:
+                node[part] = value
+            elif part in node:
+                node = node[part]
+            else:
+                raise source.error(
+                    tuple(walked),
+                    f"key path {key_path!r}: the file has no {part!r} here; keys: {sorted(node)}",
+                )
+        else:
+            raise source.error(
+                tuple(walked), f"key path {key_path!r}: {parts[k - 1]!r} holds a value, not keys"
+            )
+
+
 def simulate_model(
     model: ModelFile | str | os.PathLike[str],
     *,
@@ -164,6 +236,7 @@ __all__ = [
     "ModelFile",
     "ModelSpec",
     "Output",
+    "check_model",
     "load_model",
     "model_schema",
     "simulate_model",

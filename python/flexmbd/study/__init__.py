@@ -1,0 +1,296 @@
+"""Design studies: many runs of one model with parameters varied, on Dask.
+
+    study = fm.Study(
+        fm.examples.flexible_slider_crank,                 # a build function, or a model file
+        {"rod_diameter": [4e-3, 6e-3, 8e-3], "crank_speed": [100.0, 150.0]},
+        outputs={"deflection": "max-abs(deflection:rod:5[y])"},
+        folder="crank-study",
+    )
+    data = study.run(workers=2)                            # an xarray.Dataset, one row a case
+
+The cases (:mod:`flexmbd.study.sampling`: a grid, a list, random or Latin-hypercube samples)
+are checked before anything runs (parameter names, key paths and values, outputs). Each case
+runs as a task on a ``dask.distributed`` cluster: by default a ``LocalCluster`` of worker
+processes on this machine (``workers=N``), or the scheduler of an existing cluster
+(``scheduler="tcp://host:8786"``), the same code path in both. A case writes its own results
+file (HDF5) and a summary into the study folder; a case that fails is recorded with its error
+class and message, keeps its partial results and does not stop the others. The study gathers
+the summaries into one dataset (a ``case`` dimension with the parameters as coordinates, a
+``time`` dimension for ``series`` outputs), saved as ``study.nc``. Running the study again
+skips the cases done (keyed by a hash of the model, the parameters and the run settings).
+Dask, distributed and xarray are the optional extra ``flexmbd[dask]``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidParameterError
+from ..quantities import parse_output
+from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, run_case
+from .sampling import SAMPLINGS, make_cases
+
+__all__ = ["SAMPLINGS", "Study", "load_study"]
+
+#: The file of a study's description in its folder.
+DESCRIPTION = "study.json"
+#: The file of the gathered dataset.
+DATASET = "study.nc"
+
+
+class Study:
+    """A set of cases of one model (see the module).
+
+    `model`: a build function (called with the parameters as keyword arguments, plus the
+    fixed `arguments`; returning a System, a Model, an Example or a ModelFile) or the path of a
+    model file (parameters are key paths into it, such as
+    ``bodies.rod.section.radius``). `parameters` and `sampling`, `samples`, `seed`: see
+    :func:`flexmbd.study.sampling.make_cases`. `outputs`: name -> output specification
+    (:mod:`flexmbd.quantities`, e.g. ``"max-abs(deflection:rod:5[y])"``), or a list of
+    specifications named by themselves. `end_time`, `step_size`, `output_interval`, `solver`
+    replace the model's (an Example's or a model file's) settings.
+    """
+
+    def __init__(
+        self,
+        model: Callable[..., Any] | str | os.PathLike[str],
+        parameters: Mapping[str, Any] | Sequence[Mapping[str, Any]],
+        *,
+        folder: str | os.PathLike[str],
+        outputs: Mapping[str, str] | Sequence[str] = (),
+        sampling: str = "grid",
+        samples: int | None = None,
+        seed: int = 0,
+        arguments: Mapping[str, Any] | None = None,
+        end_time: float | None = None,
+        step_size: float | None = None,
+        output_interval: float | None = None,
+        solver: Any = None,
+    ):
+        if callable(model):
+            self.source = ModelSource(build=model, arguments=dict(arguments or {}))
+        else:
+            if arguments:
+                raise InvalidParameterError("arguments are for build functions, not model files")
+            path = Path(model)
+            if not path.is_file():
+                raise InvalidParameterError(f"model file {str(model)!r} does not exist")
+            self.source = ModelSource(path=str(path.resolve()))
+        self.folder = Path(folder)
+        self.outputs = (
+            dict(outputs) if isinstance(outputs, Mapping) else {spec: spec for spec in outputs}
+        )
+        for spec in self.outputs.values():
+            parse_output(spec)
+        given = {
+            "end_time": end_time,
+            "step_size": step_size,
+            "output_interval": output_interval,
+            "solver": solver,
+        }
+        self.settings = {k: v for k, v in given.items() if v is not None}
+        self.cases = make_cases(parameters, sampling, samples, seed)
+        self.parameter_names = list(self.cases[0]) if self.cases else []
+        self.source.check_names(self.parameter_names)
+        identity = self.source.identity()
+        self.keys = [case_key(identity, case, self.settings) for case in self.cases]
+
+    def __repr__(self) -> str:
+        names, folder = self.parameter_names, str(self.folder)
+        return f"Study({len(self.cases)} cases of {names}, folder {folder!r})"
+
+    def check(self) -> None:
+        """Checks every case's values against the model (key paths and values of a model file;
+        a build function builds each case): the first one refused raises, naming the case and
+        the parameter or key path."""
+        for k, case in enumerate(self.cases):
+            try:
+                self.source.check(case)
+            except Exception as error:
+                raise type(error)(f"case {k} {case}: {error}") from error
+
+    def pending(self) -> list[int]:
+        """Indices of the cases not done yet (no summary in the folder)."""
+        return [k for k, key in enumerate(self.keys) if not self._summary(key).exists()]
+
+    def _summary(self, key: str) -> Path:
+        return self.folder / "cases" / f"case-{key}.json"
+
+    def run(
+        self,
+        workers: int | None = None,
+        scheduler: str | None = None,
+        progress: bool = True,
+    ) -> Any:
+        """Runs the cases not done yet and returns the gathered dataset (also saved as
+        ``study.nc`` in the folder). `workers`: worker processes of the local cluster (default:
+        the number of CPUs); `scheduler`: the address of an existing Dask scheduler instead.
+        Every case is checked first; nothing runs if one is refused."""
+        self.check()
+        (self.folder / "cases").mkdir(parents=True, exist_ok=True)
+        self._write_description()
+        todo = self.pending()
+        if todo:
+            tasks = [
+                CaseTask(
+                    index=k,
+                    key=self.keys[k],
+                    parameters=self.cases[k],
+                    source=self.source,
+                    settings=self.settings,
+                    outputs=self.outputs,
+                    folder=str((self.folder / "cases").resolve()),
+                )
+                for k in todo
+            ]
+            _run_on_dask(tasks, workers, scheduler, progress, len(self.cases))
+        return self.gather()
+
+    def _write_description(self) -> None:
+        description = {
+            "model": self.source.path
+            or f"{getattr(self.source.build, '__module__', '')}."
+            f"{getattr(self.source.build, '__qualname__', '')}",
+            "parameters": self.parameter_names,
+            "cases": [
+                {"index": k, "key": key, "parameters": case}
+                for k, (key, case) in enumerate(zip(self.keys, self.cases, strict=True))
+            ],
+            "outputs": self.outputs,
+            "settings": {k: repr(v) for k, v in self.settings.items()},
+        }
+        (self.folder / DESCRIPTION).write_text(json.dumps(description, indent=1))
+
+    def gather(self) -> Any:
+        """The dataset of the cases done so far (cases not run: status "pending")."""
+        summaries = []
+        for key in self.keys:
+            path = self._summary(key)
+            summaries.append(json.loads(path.read_text()) if path.exists() else None)
+        data = _dataset(self.cases, self.parameter_names, self.outputs, summaries)
+        data.to_netcdf(self.folder / DATASET, engine="scipy")
+        return data
+
+
+def _run_on_dask(
+    tasks: list[CaseTask], workers: int | None, scheduler: str | None, progress: bool, total: int
+) -> None:
+    """Runs `tasks` on a Dask cluster (a local one of `workers` processes, or `scheduler`'s)
+    and reports cases done, failed and the time left."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        count = workers or os.cpu_count() or 1
+        cluster = LocalCluster(
+            n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None
+        )
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        futures = [
+            client.submit(run_case, task, key=f"flexmbd-case-{task.key}", pure=False)
+            for task in tasks
+        ]
+        done = total - len(tasks)
+        failed = 0
+        started = time.perf_counter()
+        for finished, future in enumerate(as_completed(futures), start=1):
+            summary = future.result()
+            done += 1
+            failed += summary["status"] != "complete"
+            if progress:
+                elapsed = time.perf_counter() - started
+                left = elapsed / finished * (len(tasks) - finished)
+                bar = "#" * (20 * done // total)
+                sys.stderr.write(
+                    f"\r[{bar:<20}] {done}/{total} cases, {failed} failed, ~{left:.0f} s left "
+                )
+                sys.stderr.flush()
+        if progress:
+            sys.stderr.write("\n")
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _dataset(
+    cases: list[dict[str, Any]],
+    names: list[str],
+    outputs: Mapping[str, str],
+    summaries: list[dict[str, Any] | None],
+) -> Any:
+    """One xarray Dataset of the cases: parameters as coordinates of ``case``, scalar outputs
+    per case, ``series`` outputs over ``time`` (NaN past a failed case's last record)."""
+    import xarray as xr
+
+    n = len(cases)
+    times: list[float] = []
+    for summary in summaries:
+        if summary and summary.get("time") and len(summary["time"]) > len(times):
+            times = summary["time"]
+    coords: dict[str, Any] = {"case": np.arange(n)}
+    for name in names:
+        coords[name] = ("case", _column([case[name] for case in cases]))
+    variables: dict[str, Any] = {}
+    for name in outputs:
+        values = [None if s is None else s["outputs"].get(name) for s in summaries]
+        if any(isinstance(v, list) for v in values):
+            table = np.full((n, len(times)), np.nan)
+            for k, v in enumerate(values):
+                if isinstance(v, list):
+                    row = np.array([np.nan if x is None else x for x in v], dtype=float)
+                    table[k, : len(row)] = row[: len(times)]
+            variables[name] = (("case", "time"), table)
+        else:
+            variables[name] = ("case", np.array([np.nan if v is None else v for v in values]))
+    if any(isinstance(v, tuple) and "time" in v[0] for v in variables.values()):
+        coords["time"] = np.asarray(times, dtype=float)
+    status = ["pending" if s is None else s["status"] for s in summaries]
+    variables["status"] = ("case", np.array(status, dtype=str))
+    errors = [None if s is None else s["error"] for s in summaries]
+    variables["error"] = (
+        "case",
+        np.array(["" if e is None else f"{e['class']}: {e['message']}" for e in errors], dtype=str),
+    )
+    variables["elapsed"] = (
+        "case",
+        np.array([np.nan if s is None else s["elapsed"] for s in summaries], dtype=float),
+    )
+    data = xr.Dataset(variables, coords=coords)
+    data.attrs["outputs"] = json.dumps(dict(outputs))
+    return data
+
+
+def _column(values: list[Any]) -> np.ndarray:
+    """Parameter values as an array: numbers as floats, anything else as text."""
+    try:
+        return np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        return np.array([str(v) for v in values], dtype=str)
+
+
+def load_study(folder: str | os.PathLike[str]) -> Any:
+    """The dataset of a study folder (``study.nc``) and its description (``study.json``):
+    (xarray.Dataset, dict)."""
+    import xarray as xr
+
+    folder = Path(folder)
+    if not (folder / DESCRIPTION).is_file():
+        raise InvalidParameterError(f"{str(folder)!r} is not a study folder (no {DESCRIPTION})")
+    description = json.loads((folder / DESCRIPTION).read_text())
+    with xr.open_dataset(folder / DATASET, engine="scipy") as data:
+        return data.load(), description
+
+
+__all__ += ["DATASET", "DESCRIPTION", "RUN_SETTINGS"]

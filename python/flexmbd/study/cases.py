@@ -1,0 +1,218 @@
+"""One case of a study: the model it builds (from a build function or a model file with values
+replaced by key path), its key (a hash of the model and the parameters), and its run on a
+worker, which writes the results file and a summary next to it."""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import math
+import os
+import time
+import traceback
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import FlexmbdError, InvalidParameterError, SimulationError
+
+#: Settings of a run a study may give (they replace the model's).
+RUN_SETTINGS = ("end_time", "step_size", "output_interval", "solver")
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """Where the cases' models come from: `build` (a function of the parameters returning a
+    System, a Model, an Example or a ModelFile; `arguments` are passed to every call) or
+    `path` (a model file whose values the parameters replace by key path)."""
+
+    build: Callable[..., Any] | None = None
+    path: str | None = None
+    arguments: Mapping[str, Any] = field(default_factory=dict)
+
+    def identity(self) -> str:
+        """What the cases' keys hash for the model: the model file's bytes, or the build
+        function's name and source text and its fixed arguments."""
+        if self.path is not None:
+            digest = hashlib.sha256(Path(self.path).read_bytes()).hexdigest()
+            return f"file {Path(self.path).name} {digest}"
+        assert self.build is not None
+        name = f"{getattr(self.build, '__module__', '')}.{getattr(self.build, '__qualname__', '')}"
+        try:
+            text = inspect.getsource(self.build)
+        except (OSError, TypeError):
+            text = ""
+        digest = hashlib.sha256(text.encode()).hexdigest()
+        return f"function {name} {digest} {_canonical(self.arguments)}"
+
+    def check_names(self, names: list[str]) -> None:
+        """Refuses parameter names a build function does not take (model files check their
+        key paths with the values)."""
+        if self.build is None:
+            return
+        try:
+            signature = inspect.signature(self.build)
+        except (TypeError, ValueError):
+            return
+        accepted = signature.parameters
+        if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in accepted.values()):
+            return
+        for name in names:
+            if name not in accepted:
+                raise InvalidParameterError(
+                    f"parameter {name!r}: {getattr(self.build, '__name__', 'the build function')}"
+                    f" takes {list(accepted)}",
+                    item=name,
+                )
+
+    def check(self, parameters: Mapping[str, Any]) -> None:
+        """Refuses values the model does not take, naming the key path: a model file is read
+        and checked with them; a build function builds the model."""
+        if self.path is not None:
+            from ..model_file import check_model
+
+            check_model(self.path, parameters)
+        else:
+            self.load(parameters)
+
+    def load(self, parameters: Mapping[str, Any]) -> tuple[Any, dict[str, Any]]:
+        """The model of a case, and the run settings it comes with (a model file's or an
+        Example's)."""
+        if self.path is not None:
+            from ..model_file import load_model
+
+            model_file = load_model(self.path, parameters)
+            return model_file.system, _settings_of(model_file)
+        assert self.build is not None
+        built = self.build(**self.arguments, **parameters)
+        system = getattr(built, "system", built)
+        return system, _settings_of(built)
+
+
+def _settings_of(built: Any) -> dict[str, Any]:
+    """The run settings an Example or a ModelFile carries."""
+    settings = {}
+    for name in RUN_SETTINGS:
+        value = getattr(built, name, None)
+        if value is not None:
+            settings[name] = value
+    for name in ("start_time",):
+        if getattr(built, name, None) is not None:
+            settings[name] = getattr(built, name)
+    start = getattr(built, "start", None)
+    if start is not None:
+        settings["initial_state"] = start
+    return settings
+
+
+def _canonical(value: Any) -> str:
+    """A stable text of parameter values and settings for hashing."""
+    return json.dumps(value, sort_keys=True, default=repr)
+
+
+def case_key(identity: str, parameters: Mapping[str, Any], settings: Mapping[str, Any]) -> str:
+    """The key of a case: a hash of the model, its parameter values and the run settings."""
+    text = _canonical([identity, dict(parameters), {k: repr(v) for k, v in settings.items()}])
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class CaseTask:
+    """What a worker needs to run a case."""
+
+    index: int
+    key: str
+    parameters: dict[str, Any]
+    source: ModelSource
+    settings: dict[str, Any]
+    outputs: dict[str, str]
+    folder: str
+
+    @property
+    def results_path(self) -> Path:
+        return Path(self.folder) / f"case-{self.key}.h5"
+
+    @property
+    def summary_path(self) -> Path:
+        return Path(self.folder) / f"case-{self.key}.json"
+
+
+def run_case(task: CaseTask) -> dict[str, Any]:
+    """Builds and simulates a case, writing its results file, then its outputs and status to
+    the summary file (written last, by rename: a case is done when it exists). A case that
+    fails keeps its partial results and records the error's class and message."""
+    from ..quantities import output_value
+    from ..simulation import simulate
+
+    started = time.perf_counter()
+    error: BaseException | None = None
+    result = None
+    try:
+        model, defaults = task.source.load(task.parameters)
+        run = {**defaults, **task.settings}
+        missing = [name for name in ("end_time", "step_size") if name not in run]
+        if missing:
+            raise InvalidParameterError(
+                f"the study gives no {' and '.join(missing)} and the model has none"
+            )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = simulate(
+                model,
+                run.pop("end_time"),
+                run.pop("step_size"),
+                results_file=task.results_path,
+                metadata={"study case": task.index, "parameters": task.parameters},
+                **run,
+            )
+    except SimulationError as failure:
+        error, result = failure, getattr(failure, "result", None)
+    except Exception as failure:  # noqa: BLE001 - any error of a case is recorded, not raised
+        error = failure
+    outputs: dict[str, Any] = {}
+    series_time = None
+    if result is not None:
+        for name, spec in task.outputs.items():
+            try:
+                value = output_value(result, spec)
+            except FlexmbdError as failure:
+                outputs[name] = None
+                error = error or failure
+                continue
+            if isinstance(value, np.ndarray):
+                outputs[name] = [_json_number(v) for v in value]
+                series_time = [float(t) for t in result.time]
+            else:
+                outputs[name] = _json_number(value)
+    summary = {
+        "index": task.index,
+        "key": task.key,
+        "parameters": task.parameters,
+        "status": "complete" if error is None else "failed",
+        "error": None
+        if error is None
+        else {
+            "class": type(error).__name__,
+            "message": str(error),
+            "traceback": "".join(traceback.format_exception(error))[-4000:],
+        },
+        "outputs": outputs,
+        "time": series_time,
+        "records": 0 if result is None else len(result.time),
+        "elapsed": time.perf_counter() - started,
+        "worker_pid": os.getpid(),
+    }
+    partial = task.summary_path.with_suffix(".json.partial")
+    partial.write_text(json.dumps(summary, indent=1))
+    os.replace(partial, task.summary_path)
+    return summary
+
+
+def _json_number(value: Any) -> float | None:
+    number = float(value)
+    return number if math.isfinite(number) else None

@@ -1,0 +1,204 @@
+"""Design studies (issue 31): cases from grids, lists and samples; outputs by name; the runs
+on a real dask.distributed LocalCluster of two worker processes; failures recorded without
+stopping the others; re-runs that do no work; refusals before anything runs."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+from flexmbd.quantities import output_value, parse_output
+from flexmbd.study.sampling import make_cases
+
+HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))
+from study_models.arm import swinging_arm  # noqa: E402
+
+PENDULUM_FILE = HERE.parent / "examples" / "models" / "pendulum.yaml"
+
+
+@pytest.fixture
+def worker_path(monkeypatch):
+    """The worker processes import the test models (spawned, they inherit the environment)."""
+    paths = [str(HERE), os.environ.get("PYTHONPATH", "")]
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in paths if p))
+
+
+# Sampling --------------------------------------------------------------------------------------
+def test_a_grid_is_every_combination_the_first_key_slowest():
+    cases = make_cases({"a": [1, 2], "b": ["x", "y", "z"]})
+    assert cases == [{"a": a, "b": b} for a in (1, 2) for b in ("x", "y", "z")]
+    assert make_cases({"a": np.array([1.5, 2.5])}) == [{"a": 1.5}, {"a": 2.5}]
+
+
+@pytest.mark.parametrize("sampling", ["random", "lhs"])
+def test_samples_are_reproducible_with_the_seed_and_in_range(sampling):
+    ranges = {"a": (0.0, 1.0), "b": (10.0, 20.0)}
+    first = make_cases(ranges, sampling, samples=32, seed=7)
+    assert first == make_cases(ranges, sampling, samples=32, seed=7)
+    assert first != make_cases(ranges, sampling, samples=32, seed=8)
+    b = np.array([case["b"] for case in first])
+    assert np.all((b >= 10.0) & (b <= 20.0))
+
+
+def test_latin_hypercube_puts_one_case_in_each_stratum():
+    cases = make_cases({"a": (0.0, 1.0), "b": (-1.0, 1.0)}, "lhs", samples=50, seed=3)
+    for key, (low, high) in {"a": (0.0, 1.0), "b": (-1.0, 1.0)}.items():
+        strata = np.floor((np.array([c[key] for c in cases]) - low) / (high - low) * 50)
+        assert sorted(strata) == list(range(50))
+
+
+def test_bad_parameters_are_refused_naming_them():
+    with pytest.raises(fm.InvalidParameterError, match="'a'.*empty"):
+        make_cases({"a": (1.0, 1.0)}, "lhs", samples=4)
+    with pytest.raises(fm.InvalidParameterError, match="samples"):
+        make_cases({"a": (0.0, 1.0)}, "random")
+    with pytest.raises(fm.InvalidParameterError, match="case 1"):
+        make_cases([{"a": 1}, {"b": 2}], "list")
+    with pytest.raises(fm.InvalidParameterError, match="sampling"):
+        make_cases({"a": [1]}, "sobol")
+
+
+# Outputs ---------------------------------------------------------------------------------------
+def test_outputs_are_the_plot_quantities_reduced_over_time(assert_close):
+    system = swinging_arm(length=1.0)
+    result = fm.simulate(system, 0.5, 1e-3, output_interval=0.01)
+    tip = result.sensor("tip")
+    assert_close(output_value(result, "min(sensor:tip[y])"), tip[:, 1].min(), rel=0.0)
+    assert_close(output_value(result, "max-abs(sensor:tip[1])"), np.abs(tip[:, 1]).max(), rel=0)
+    assert_close(output_value(result, "final(position:arm[x])"), result.position("arm")[-1, 0])
+    assert_close(output_value(result, "series(energy[total])"), result.total_energy, rel=0.0)
+    force = result.reaction_force("hinge")
+    rms = np.sqrt(np.mean(force[:, 1] ** 2))
+    assert_close(output_value(result, "rms(reaction:hinge[fy])"), rms)
+    assert_close(output_value(result, "max(violation)"), result.constraint_violation.max())
+
+
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ("max(sensor:tip)", "choose one"),
+        ("largest(sensor:tip[y])", "unknown reduction"),
+        ("max(speed:arm[x])", "unknown quantity"),
+        ("max(sensor:tip[w])", "no component 'w'"),
+        ("max(sensor:nose[y])", "no sensor named 'nose'"),
+    ],
+)
+def test_bad_outputs_name_what_is_wrong(spec, message):
+    result = fm.simulate(swinging_arm(), 0.01, 1e-3)
+    with pytest.raises((fm.InvalidParameterError, fm.UnknownItemError), match=message):
+        parse_output(spec)
+        output_value(result, spec)
+
+
+# Refusals before any case runs -----------------------------------------------------------------
+def test_unknown_key_paths_and_bad_values_are_refused_before_any_case_runs(tmp_path):
+    for parameters, message in [
+        ({"bodies.bob.mass": [1.0, 2.0]}, r"bodies.*no item 'bob'.*\['mass'\]"),
+        ({"bodies.mass.weight": [1.0]}, r"bodies\[0\]\.weight"),
+        ({"bodies.mass.mass": [1.0, -2.0]}, r"case 1 .*bodies\[0\]\.mass"),
+        ({"simulation.stop.at": [1.0]}, "no 'stop' here"),
+    ]:
+        study = fm.Study(PENDULUM_FILE, parameters, folder=tmp_path / "s", end_time=0.1)
+        with pytest.raises(fm.ModelFileError, match=message):
+            study.run(workers=1)
+        assert not (tmp_path / "s" / "cases").exists()
+    with pytest.raises(fm.InvalidParameterError, match="'width'.*takes"):
+        fm.Study(swinging_arm, {"width": [1.0]}, folder=tmp_path / "t")
+    with pytest.raises(fm.InvalidParameterError, match="unknown reduction"):
+        fm.Study(swinging_arm, {"length": [1.0]}, folder=tmp_path / "t", outputs=["top(x)"])
+    study = fm.Study(swinging_arm, {"mass": [1.0, -1.0]}, folder=tmp_path / "u", end_time=0.1)
+    with pytest.raises(fm.InvalidParameterError, match=r"case 1 \{'mass': -1.0\}"):
+        study.run(workers=1)
+    assert not (tmp_path / "u" / "cases").exists()
+
+
+# Runs on a LocalCluster ------------------------------------------------------------------------
+def test_a_sixteen_case_study_on_two_worker_processes(tmp_path, worker_path, assert_close):
+    lengths = [0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 2.25]
+    cases = [{"length": L, "mass": m, "fail_at": None} for L in lengths for m in (1.0, 2.0)]
+    cases[5]["fail_at"] = 0.2  # one case fails deliberately at t = 0.2 s
+    outputs = {
+        "lowest tip": "min(sensor:tip[y])",
+        "hinge force": "max-abs(reaction:hinge[fy])",
+        "tip height": "series(sensor:tip[y])",
+    }
+    study = fm.Study(
+        swinging_arm,
+        cases,
+        sampling="list",
+        outputs=outputs,
+        folder=tmp_path / "arm",
+        end_time=0.5,
+        step_size=1e-3,
+        output_interval=0.01,
+    )
+    started = time.perf_counter()
+    data = study.run(workers=2, progress=False)
+    first_run = time.perf_counter() - started
+    status = list(data["status"].values)
+    assert status.count("complete") == 15 and status[5] == "failed"
+    assert "CallbackError" in str(data["error"].values[5]) and "deliberate" in str(
+        data["error"].values[5]
+    )
+    # The failed case kept its partial results (file and outputs up to t = 0.2 s).
+    cases_folder = tmp_path / "arm" / "cases"
+    summary = json.loads((cases_folder / f"case-{study.keys[5]}.json").read_text())
+    assert 15 < summary["records"] < 25
+    partial = fm.read_results(tmp_path / "arm" / "cases" / f"case-{study.keys[5]}.h5")
+    assert 0.15 < partial.time[-1] < 0.25
+    series = data["tip height"].values
+    assert np.isnan(series[5, -1]) and not np.isnan(series[5, 10])
+    # Two worker processes ran the cases.
+    pids = {
+        json.loads(p.read_text())["worker_pid"] for p in (tmp_path / "arm" / "cases").glob("*.json")
+    }
+    assert len(pids) == 2 and os.getpid() not in pids
+    # Each case's outputs are those of the same run made here.
+    for k in (0, 9):
+        system = swinging_arm(**{**cases[k], "fail_at": None})
+        result = fm.simulate(system, 0.5, 1e-3, output_interval=0.01)
+        assert_close(data["lowest tip"].values[k], result.sensor("tip")[:, 1].min(), rel=1e-12)
+        assert_close(data["tip height"].values[k], result.sensor("tip")[:, 1], rel=1e-12)
+    assert list(data["length"].values) == [c["length"] for c in cases]
+    # The dataset was saved with the study, and a re-run does no work.
+    saved, description = fm.load_study(tmp_path / "arm")
+    assert list(saved["status"].values) == status and description["parameters"] == [
+        "length",
+        "mass",
+        "fail_at",
+    ]
+    stamps = {p: p.stat().st_mtime_ns for p in (tmp_path / "arm" / "cases").iterdir()}
+    assert study.pending() == []
+    started = time.perf_counter()
+    again = fm.Study(
+        swinging_arm,
+        cases,
+        sampling="list",
+        outputs=outputs,
+        folder=tmp_path / "arm",
+        end_time=0.5,
+        step_size=1e-3,
+        output_interval=0.01,
+    ).run(workers=2, progress=False)
+    assert time.perf_counter() - started < 0.5 * first_run
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "arm" / "cases").iterdir()} == stamps
+    assert list(again["status"].values) == status
+    # A model file study on the same kind of cluster: the key path replaces the value.
+    files = fm.Study(
+        PENDULUM_FILE,
+        {"joints.link.distance": [0.5, 2.0]},
+        folder=tmp_path / "file",
+        outputs={"period proxy": "min(sensor:bob position[y])"},
+        end_time=0.3,
+    ).run(workers=2, progress=False)
+    assert list(files["status"].values) == ["complete", "complete"]
+    shutil.rmtree(tmp_path / "arm")
