@@ -202,3 +202,59 @@ def test_a_sixteen_case_study_on_two_worker_processes(tmp_path, worker_path, ass
     ).run(workers=2, progress=False)
     assert list(files["status"].values) == ["complete", "complete"]
     shutil.rmtree(tmp_path / "arm")
+
+
+def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
+    from flexmbd.cli import main
+
+    folder = tmp_path / "pendulum-study"
+    code = main(
+        [
+            "sweep",
+            str(PENDULUM_FILE),
+            "--set",
+            "joints.link.distance=0.5,1.0,2.0",
+            "--output",
+            "lowest=min(sensor:bob position[y])",
+            "--end",
+            "0.3",
+            "--workers",
+            "1",
+            "-o",
+            str(folder),
+            "-q",
+        ]
+    )
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "3 cases, 3 complete, 0 failed" in out
+    assert main(["info", str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "parameter joints.link.distance: 0.5, 1.0, 2.0" in out and "output lowest:" in out
+    image = tmp_path / "lowest.png"
+    assert (
+        main(["plot", str(folder), "lowest", "--against", "joints.link.distance", "-o", str(image)])
+        == 0
+    )
+    assert image.stat().st_size > 1000
+    # The lowest point of the bob: about -distance for a pendulum released horizontally.
+    data, _ = fm.load_study(folder)
+    assert np.all(data["lowest"].values < 0.0)
+    # Bad requests are refused with exit code 2, naming what is wrong.
+    assert (
+        main(
+            [
+                "sweep",
+                str(PENDULUM_FILE),
+                "--set",
+                "joints.hinge.distance=1",
+                "-o",
+                str(tmp_path / "x"),
+                "-q",
+            ]
+        )
+        == 2
+    )
+    assert "no item 'hinge'" in capsys.readouterr().err
+    assert main(["plot", str(folder), "highest", "--against", "joints.link.distance"]) == 2
+    assert "no output 'highest'" in capsys.readouterr().err

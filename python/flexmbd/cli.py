@@ -28,11 +28,13 @@ from . import __version__, _boundary
 from .errors import (
     FlexmbdError,
     InitialCorrectionWarning,
+    InvalidParameterError,
     ResultsFileError,
     SimulationInterrupted,
 )
 from .examples import EXAMPLES
 from .simulation import simulate
+from .study.command import add_sweep_parser, sweep
 
 
 def _solver(text: str | None, default: Any) -> Any:
@@ -334,6 +336,10 @@ def _run(args: argparse.Namespace) -> int:
 def _info(args: argparse.Namespace) -> int:
     target = args.file
     try:
+        if Path(target).is_dir():
+            from .study.command import info_study
+
+            return info_study(Path(target))
         if target in EXAMPLES or Path(target).suffix.lower() in (".yaml", ".yml"):
             job = _job(target)
             model = job.system.compile()
@@ -467,9 +473,18 @@ def _plot(args: argparse.Namespace) -> int:
     from .results_file import read_results
 
     try:
-        result = read_results(args.results)
-        output = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
-        written = plot_result(result, output, quantities=args.quantity or None)
+        if Path(args.results).is_dir():
+            from .study.command import plot_study
+
+            if len(args.quantity) != 1:
+                raise InvalidParameterError("a study folder: give one OUTPUT to plot")
+            written = plot_study(Path(args.results), args.quantity[0], args.against, args.output)
+        else:
+            if args.against is not None:
+                raise InvalidParameterError("--against is for study folders")
+            result = read_results(args.results)
+            output = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
+            written = plot_result(result, output, quantities=args.quantity or None)
     except BrokenPipeError:
         raise
     except (FlexmbdError, OSError) as error:
@@ -627,17 +642,20 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--no-plot", action="store_true", help="write no plot")
     run.add_argument("--no-animation", action="store_true", help="write no animation")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    info = sub.add_parser("info", help="summarize a model, body or results file")
-    info.add_argument("file", help="model file (.yaml), body or results file (.h5), or example")
-    plot = sub.add_parser("plot", help="plot a results file")
-    plot.add_argument("results", help="results file (.h5)")
+    info = sub.add_parser("info", help="summarize a model, body or results file, or a study")
+    info.add_argument(
+        "file", help="model file (.yaml), body or results file (.h5), example, or study folder"
+    )
+    plot = sub.add_parser("plot", help="plot a results file, or an output of a study")
+    plot.add_argument("results", help="results file (.h5) or study folder")
     plot.add_argument("-o", "--output", help="image file (.png or .svg; default: RESULTS.png)")
     plot.add_argument(
         "quantity",
         nargs="*",
         help="what to plot, e.g. energy violation position:crank reaction:guide "
-        "deflection:rod (default: an overview)",
+        "deflection:rod (default: an overview); for a study folder, one output",
     )
+    plot.add_argument("--against", metavar="KEY", help="study folder: the parameter of the x axis")
     animate = sub.add_parser(
         "animate", help="render an animation and write a ParaView series of a results file"
     )
@@ -702,8 +720,10 @@ def _main(argv: list[str] | None) -> int:
         "volume on volumes)",
     )
     pre.add_argument("--precision", choices=("auto", "double", "single"), default="auto")
+    add_sweep_parser(sub)
     args = parser.parse_args(argv)
     commands = {
+        "sweep": sweep,
         "preprocess": _preprocess,
         "info": _info,
         "plot": _plot,

@@ -27,6 +27,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -176,7 +177,10 @@ class Study:
             path = self._summary(key)
             summaries.append(json.loads(path.read_text()) if path.exists() else None)
         data = _dataset(self.cases, self.parameter_names, self.outputs, summaries)
-        data.to_netcdf(self.folder / DATASET, engine="scipy")
+        with warnings.catch_warnings():
+            # netCDF keeps names with spaces as variables; load_study makes them coordinates.
+            warnings.simplefilter("ignore")
+            data.to_netcdf(self.folder / DATASET, engine="scipy")
         return data
 
 
@@ -273,11 +277,11 @@ def _dataset(
 
 
 def _column(values: list[Any]) -> np.ndarray:
-    """Parameter values as an array: numbers as floats, anything else as text."""
-    try:
+    """Parameter values as an array: numbers as floats, anything else (text, lists) as
+    text."""
+    if all(isinstance(v, (int, float)) for v in values):
         return np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        return np.array([str(v) for v in values], dtype=str)
+    return np.array([str(v) for v in values], dtype=str)
 
 
 def load_study(folder: str | os.PathLike[str]) -> Any:
@@ -290,7 +294,9 @@ def load_study(folder: str | os.PathLike[str]) -> Any:
         raise InvalidParameterError(f"{str(folder)!r} is not a study folder (no {DESCRIPTION})")
     description = json.loads((folder / DESCRIPTION).read_text())
     with xr.open_dataset(folder / DATASET, engine="scipy") as data:
-        return data.load(), description
+        data = data.load()
+    parameters = [n for n in description["parameters"] if n in data.data_vars]
+    return data.set_coords(parameters), description
 
 
 __all__ += ["DATASET", "DESCRIPTION", "RUN_SETTINGS"]

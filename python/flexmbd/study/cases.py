@@ -9,6 +9,7 @@ import inspect
 import json
 import math
 import os
+import sys
 import time
 import traceback
 import warnings
@@ -206,11 +207,22 @@ def run_case(task: CaseTask) -> dict[str, Any]:
         "records": 0 if result is None else len(result.time),
         "elapsed": time.perf_counter() - started,
         "worker_pid": os.getpid(),
+        "worker_peak_memory": _peak_memory(),
     }
     partial = task.summary_path.with_suffix(".json.partial")
     partial.write_text(json.dumps(summary, indent=1))
     os.replace(partial, task.summary_path)
     return summary
+
+
+def _peak_memory() -> int | None:
+    """The peak resident memory of this process (bytes), where the system tells it."""
+    try:
+        import resource
+    except ImportError:
+        return None
+    scale = 1 if sys.platform == "darwin" else 1024  # bytes on macOS, kilobytes elsewhere
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * scale
 
 
 def _json_number(value: Any) -> float | None:

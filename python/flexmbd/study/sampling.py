@@ -61,7 +61,10 @@ def make_cases(
     if sampling == "grid":
         values = []
         for key, options in parameters.items():
-            options = list(np.atleast_1d(options)) if np.ndim(options) else [options]
+            if isinstance(options, (list, tuple)):
+                options = list(options)
+            else:
+                options = list(np.atleast_1d(options)) if np.ndim(options) else [options]
             if not options:
                 raise InvalidParameterError(f"parameter {key!r}: no values", item=key)
             values.append([_plain(v) for v in options])
@@ -97,5 +100,6 @@ def make_cases(
 
 
 def _plain(value: Any) -> Any:
-    """A numpy scalar as the Python number it holds (JSON and hashes take those)."""
-    return value.item() if isinstance(value, np.generic) else value
+    """A numpy scalar or array as the Python number or list it holds (JSON and hashes take
+    those)."""
+    return value.tolist() if isinstance(value, (np.generic, np.ndarray)) else value

@@ -1,0 +1,112 @@
+"""A 64-case study of the flexible slider-crank (rod diameter x crank speed, 8 x 8, one crank
+turn each) on a Dask LocalCluster of 1 and of 2 worker processes: the wall time, the speed-up,
+the overhead per case over the bare simulation (the same 64 runs in this process, without
+results files), the cluster's start and the peak memory of a worker.
+
+    python benchmarks/study_sweep.py [--cases-per-side 8] [--folder /tmp/flexmbd-study-bench]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+import flexmbd as fm
+
+
+def parameters(side: int) -> dict[str, list[float]]:
+    return {
+        "rod_diameter": list(np.linspace(5e-3, 8e-3, side)),
+        "crank_speed": list(np.linspace(100.0, 150.0, side)),
+    }
+
+
+def bare(side: int, end_time: float) -> float:
+    """The sum of the simulations' times, run here one after the other."""
+    total = 0.0
+    for d in parameters(side)["rod_diameter"]:
+        for w in parameters(side)["crank_speed"]:
+            example = fm.examples.flexible_slider_crank(rod_diameter=d, crank_speed=w)
+            model = example.system.compile()
+            started = time.perf_counter()
+            fm.simulate(
+                model,
+                end_time,
+                example.step_size,
+                output_interval=example.output_interval,
+                solver=example.solver,
+            )
+            total += time.perf_counter() - started
+    return total
+
+
+def study_run(side: int, end_time: float, workers: int, folder: Path) -> dict[str, float]:
+    shutil.rmtree(folder, ignore_errors=True)
+    study = fm.Study(
+        fm.examples.flexible_slider_crank,
+        parameters(side),
+        outputs={"deflection": "max-abs(deflection:rod:5[y])"},
+        folder=folder,
+        end_time=end_time,
+    )
+    started = time.perf_counter()
+    data = study.run(workers=workers, progress=False)
+    wall = time.perf_counter() - started
+    summaries = [json.loads(p.read_text()) for p in (folder / "cases").glob("*.json")]
+    assert all(s["status"] == "complete" for s in summaries), "a case failed"
+    return {
+        "wall": wall,
+        "case_time": float(np.sum(data["elapsed"].values)),
+        "peak_memory_mb": max(s["worker_peak_memory"] for s in summaries) / 2**20,
+    }
+
+
+def cluster_start(workers: int) -> float:
+    from dask.distributed import Client, LocalCluster
+
+    started = time.perf_counter()
+    with (
+        LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        Client(cluster),
+    ):
+        ready = time.perf_counter() - started
+    return ready
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--cases-per-side", type=int, default=8)
+    parser.add_argument("--folder", default="/tmp/flexmbd-study-bench")
+    args = parser.parse_args()
+    side = args.cases_per_side
+    cases = side * side
+    end_time = 2 * np.pi / 150.0  # one turn at the highest speed
+    folder = Path(args.folder)
+    simulations = bare(side, end_time)
+    print(
+        f"{cases} cases, {end_time:.4f} s each; bare simulations: {simulations:.2f} s in all, "
+        f"{1e3 * simulations / cases:.1f} ms per case"
+    )
+    runs = {}
+    for workers in (1, 2):
+        start = cluster_start(workers)
+        runs[workers] = run = study_run(side, end_time, workers, folder / f"w{workers}")
+        overhead = (run["wall"] - start) * workers / cases - simulations / cases
+        print(
+            f"{workers} worker(s): wall {run['wall']:.2f} s (cluster start {start:.2f} s), "
+            f"case time {run['case_time']:.2f} s, overhead per case over the bare simulation "
+            f"{1e3 * overhead:.1f} ms, worker peak memory {run['peak_memory_mb']:.0f} MB"
+        )
+    print(f"speed-up 2 workers over 1: {runs[1]['wall'] / runs[2]['wall']:.2f}")
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

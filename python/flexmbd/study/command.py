@@ -1,0 +1,242 @@
+"""The study commands of ``flexmbd``: ``sweep`` runs a study of a model file or a built-in
+example, ``info DIR`` summarizes a study folder, ``plot DIR OUTPUT --against KEY`` draws an
+output against a parameter."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..errors import FlexmbdError, InvalidParameterError
+
+DEFAULT_OUTPUTS = {"largest violation": "max(violation)", "final energy": "final(energy[total])"}
+
+
+def add_sweep_parser(sub: Any) -> None:
+    """The ``sweep`` subcommand's arguments."""
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a parameter study of a model file or a built-in example on Dask",
+        description="Runs a study: every combination of the --set values (a grid), or "
+        "--sample random:N / lhs:N cases in the --set ranges; each case's results file and the "
+        "gathered dataset (study.nc) go to the folder -o. Cases done are not run again.",
+    )
+    sweep.add_argument("model", help="model file (.yaml) or built-in example name")
+    sweep.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUES",
+        help="a parameter: KEY=V1,V2,... (grid) or KEY=LOW:HIGH (with --sample); KEY is a "
+        "model-file key path (bodies.rod.section.radius) or an example's argument",
+    )
+    sweep.add_argument("--sample", metavar="KIND:N", help="random:N or lhs:N samples")
+    sweep.add_argument("--seed", type=int, default=0, help="seed of the samples (default 0)")
+    sweep.add_argument(
+        "--output",
+        action="append",
+        default=[],
+        metavar="[NAME=]SPEC",
+        help="an output, e.g. 'deflection=max-abs(deflection:rod:5[y])' (default: the largest "
+        "constraint violation and the final energy)",
+    )
+    sweep.add_argument("--workers", type=int, help="worker processes (default: CPUs)")
+    sweep.add_argument("--scheduler", help="address of an existing Dask scheduler")
+    sweep.add_argument("-o", "--folder", required=True, help="study folder")
+    sweep.add_argument("--end", type=float, help="end time (s)")
+    sweep.add_argument("--step", type=float, help="step size (s)")
+    sweep.add_argument("--output-interval", type=float, help="time between records (s)")
+    sweep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def _value(text: str) -> Any:
+    """A value of --set as YAML reads it (numbers, booleans, text, [lists])."""
+    try:
+        return yaml.safe_load(text) if text.strip() else text
+    except yaml.YAMLError as error:
+        raise InvalidParameterError(f"--set value {text!r} is not a value: {error}") from None
+
+
+def _split(values: str) -> list[str]:
+    """The comma-separated values of --set, commas inside brackets kept ("[0, 1],[0, 2]")."""
+    parts, depth, start = [], 0, 0
+    for k, c in enumerate(values):
+        depth += (c in "[{") - (c in "]}")
+        if c == "," and depth == 0:
+            parts.append(values[start:k])
+            start = k + 1
+    parts.append(values[start:])
+    return parts
+
+
+def _parameters(settings: list[str], sampling: str) -> dict[str, Any]:
+    parameters: dict[str, Any] = {}
+    for item in settings:
+        key, sep, values = item.partition("=")
+        if not sep or not key.strip() or not values.strip():
+            raise InvalidParameterError(f"--set {item!r}: expected KEY=V1,V2,... or KEY=LOW:HIGH")
+        key = key.strip()
+        if sampling == "grid":
+            parameters[key] = [_value(v) for v in _split(values)]
+        else:
+            low, sep, high = values.partition(":")
+            if not sep:
+                raise InvalidParameterError(f"--set {item!r}: --sample needs a range LOW:HIGH")
+            parameters[key] = (_value(low), _value(high))
+    if not parameters:
+        raise InvalidParameterError("no parameter: give at least one --set KEY=VALUES")
+    return parameters
+
+
+def sweep(args: argparse.Namespace) -> int:
+    """``flexmbd sweep``."""
+    from ..examples import EXAMPLES
+    from . import Study
+
+    try:
+        sampling, samples = "grid", None
+        if args.sample:
+            kind, _, count = args.sample.partition(":")
+            if not count.isdigit():
+                raise InvalidParameterError(f"--sample {args.sample!r}: expected random:N or lhs:N")
+            sampling, samples = kind, int(count)
+        outputs = {}
+        for item in args.output:
+            name, sep, spec = item.partition("=")
+            outputs[name.strip() if sep else item] = spec.strip() if sep else item
+        model: Any = EXAMPLES[args.model] if args.model in EXAMPLES else args.model
+        if model is args.model and not Path(model).is_file():
+            known = ", ".join(sorted(EXAMPLES))
+            raise InvalidParameterError(f"no model file or example {model!r} (examples: {known})")
+        study = Study(
+            model,
+            _parameters(args.set, sampling),
+            sampling=sampling,
+            samples=samples,
+            seed=args.seed,
+            outputs=outputs or DEFAULT_OUTPUTS,
+            folder=args.folder,
+            end_time=args.end,
+            step_size=args.step,
+            output_interval=args.output_interval,
+        )
+        print(f"{study!r}: {len(study.pending())} to run")
+        data = study.run(workers=args.workers, scheduler=args.scheduler, progress=not args.quiet)
+    except FlexmbdError as error:
+        print(f"flexmbd sweep: {error}", file=sys.stderr)
+        return 2
+    _print_study(data, {"model": args.model})
+    return 0 if all(s == "complete" for s in data["status"].values) else 1
+
+
+def _print_study(data: Any, description: dict[str, Any]) -> None:
+    status = [str(s) for s in data["status"].values]
+    print(
+        f"{description.get('model')}: {len(status)} cases, {status.count('complete')} complete, "
+        f"{status.count('failed')} failed, {status.count('pending')} pending"
+    )
+    for name in data.coords:
+        if name in ("case", "time"):
+            continue
+        values = data.coords[name].values
+        shown = np.unique(values)
+        text = (
+            f"{len(shown)} values from {shown.min():g} to {shown.max():g}"
+            if shown.dtype.kind == "f" and len(shown) > 4
+            else ", ".join(str(v) for v in shown)
+        )
+        print(f"  parameter {name}: {text}")
+    complete = np.array(status) == "complete"
+    for name, variable in data.data_vars.items():
+        if name in ("status", "error", "elapsed") or "time" in variable.dims:
+            continue
+        if not np.issubdtype(variable.dtype, np.number):
+            continue
+        values = variable.values[complete]
+        values = values[np.isfinite(values)]
+        if len(values):
+            print(f"  output {name}: {values.min():.6g} .. {values.max():.6g}")
+    for k in np.flatnonzero(np.array(status) == "failed"):
+        print(f"  case {k} failed: {data['error'].values[k]}")
+
+
+def info_study(folder: Path) -> int:
+    """``flexmbd info DIR`` of a study folder."""
+    from . import load_study
+
+    data, description = load_study(folder)
+    _print_study(data, description)
+    elapsed = data["elapsed"].values
+    if np.any(np.isfinite(elapsed)):
+        print(f"  run time per case: {np.nanmean(elapsed):.3g} s (mean)")
+    return 0
+
+
+def _scalar(value: Any) -> Any:
+    """A numpy scalar as the Python value it holds; anything else as it is."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def plot_study(folder: Path, output: str, against: str | None, image: str | None) -> list[Path]:
+    """Draws `output` of a study against the parameter `against` (one line per combination of
+    the other parameters, failed cases crossed); returns the image written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from . import load_study
+
+    data, description = load_study(folder)
+    names = [n for n in description["parameters"]]
+    if against is None:
+        if len(names) != 1:
+            raise InvalidParameterError(f"--against: one of the parameters {names}")
+        against = names[0]
+    if against not in names:
+        raise InvalidParameterError(f"--against {against!r}: the parameters are {names}")
+    if output not in data.data_vars or output in ("status", "error", "elapsed"):
+        outputs = [n for n in data.data_vars if n not in ("status", "error", "elapsed")]
+        raise InvalidParameterError(f"no output {output!r}; outputs: {outputs}")
+    variable = data[output]
+    if "time" in variable.dims:
+        raise InvalidParameterError(f"{output!r} is a time series: plot a reduced output")
+    others = [n for n in names if n != against]
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for k in range(data.sizes["case"]):
+        key = tuple(_scalar(data[n].values[k]) for n in others)
+        groups.setdefault(key, []).append(k)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    x_all = data[against].values
+    status = data["status"].values
+    for group, cases in groups.items():
+        cases = sorted(cases, key=lambda k: x_all[k])
+        ok = [k for k in cases if status[k] == "complete"]
+        label = (
+            ", ".join(
+                f"{n} = {v:g}" if isinstance(v, float) else f"{n} = {v}"
+                for n, v in zip(others, group, strict=True)
+            )
+            or None
+        )
+        ax.plot(x_all[ok], variable.values[ok], "o-", label=label)
+        bad = [k for k in cases if status[k] == "failed"]
+        if bad:
+            mark = "failed" if label is None else None
+            ax.plot(x_all[bad], variable.values[bad], "kx", label=mark)
+    ax.set_xlabel(against)
+    ax.set_ylabel(output)
+    ax.set_title(f"{output} against {against} ({len(x_all)} cases)")
+    ax.grid(True, alpha=0.3)
+    if len(groups) > 1 or any(status != "complete"):
+        ax.legend(fontsize=8)
+    path = Path(image) if image else Path(folder) / f"{output.replace(' ', '_')}_{against}.png"
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return [path]
