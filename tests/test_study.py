@@ -258,3 +258,15 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
     assert "no item 'hinge'" in capsys.readouterr().err
     assert main(["plot", str(folder), "highest", "--against", "joints.link.distance"]) == 2
     assert "no output 'highest'" in capsys.readouterr().err
+
+
+def test_set_values_are_numbers_text_and_lists():
+    from flexmbd.study.command import _parameters
+
+    grid = _parameters(["a=5e-3,2,x", "f.coefficients=[0, 100],[0,150]"], "grid")
+    assert grid == {"a": [5e-3, 2, "x"], "f.coefficients": [[0, 100], [0, 150]]}
+    assert _parameters(["a=1e-3:2e-3"], "lhs") == {"a": (1e-3, 2e-3)}
+    with pytest.raises(fm.InvalidParameterError, match="LOW:HIGH"):
+        _parameters(["a=1,2"], "lhs")
+    with pytest.raises(fm.InvalidParameterError, match="KEY=V1"):
+        _parameters(["a"], "grid")

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidParameterError
+from ..errors import InvalidParameterError, ModelFileError
 from ..quantities import parse_output
 from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, run_case
 from .sampling import SAMPLINGS, make_cases
@@ -115,8 +115,13 @@ class Study:
         for k, case in enumerate(self.cases):
             try:
                 self.source.check(case)
+            except ModelFileError as error:
+                where = {"file": error.file, "line": error.line, "key": error.key}
+                raise ModelFileError(f"case {k} {case}: {error}", **where) from error
             except Exception as error:
-                raise type(error)(f"case {k} {case}: {error}") from error
+                raise InvalidParameterError(
+                    f"case {k} {case}: {type(error).__name__}: {error}"
+                ) from error
 
     def pending(self) -> list[int]:
         """Indices of the cases not done yet (no summary in the folder)."""

@@ -55,7 +55,13 @@ def add_sweep_parser(sub: Any) -> None:
 
 
 def _value(text: str) -> Any:
-    """A value of --set as YAML reads it (numbers, booleans, text, [lists])."""
+    """A value of --set: a number (also 5e-3, which YAML 1.1 reads as text), else as YAML
+    reads it (booleans, text, [lists])."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
     try:
         return yaml.safe_load(text) if text.strip() else text
     except yaml.YAMLError as error:
