@@ -15,10 +15,14 @@ from numpy.typing import NDArray
 from .errors import ArgumentTypeError, InvalidParameterError
 
 
-def _shown(value: Any) -> str:
+def value_text(value: Any) -> str:
+    """A value for a message: its repr, at most 60 characters."""
     text = repr(value)
-    text = text if len(text) <= 60 else text[:57] + "..."
-    return f"{text} ({type(value).__name__})"
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _shown(value: Any) -> str:
+    return f"{value_text(value)} ({type(value).__name__})"
 
 
 def number(value: Any, name: str, *, finite: bool = True) -> float:

@@ -13,11 +13,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _boundary, _core
+from .._checks import value_text
 from ..errors import FlexmbdError, ModelFileError
 from ..result import Result
 from ..rotation import rotation
 from ..system import System
-from .reading import Path_, _listing, _short, _Source, _value_text
+from .reading import Path_, _listing, _short, _Source
 from .schema import (
     BODY_QUANTITIES,
     GROUND,
@@ -219,13 +220,13 @@ def _name_problem(name: str) -> str | None:
     """Why a model `name` cannot be the stem of file names, or None: it is a plain name."""
     what = "a model name is a plain name (the stem of the results' file names)"
     if "/" in name or "\\" in name:
-        return f"{what}: no path separators ('/', '\\'), got {_value_text(name)}"
+        return f"{what}: no path separators ('/', '\\'), got {value_text(name)}"
     hidden = next((c for c in name if not c.isprintable()), None)
     if hidden is not None:
         character = f"U+{ord(hidden):04X}"
-        return f"{what}: no control or invisible characters ({character}), got {_value_text(name)}"
+        return f"{what}: no control or invisible characters ({character}), got {value_text(name)}"
     if name.startswith("."):
-        return f"{what}: it may not start with a dot, got {_value_text(name)}"
+        return f"{what}: it may not start with a dot, got {value_text(name)}"
     return None
 
 
@@ -303,7 +304,7 @@ class _Builder:
         if first is not None:
             line = self.source.line(first)
             raise self.fail(
-                path, f"duplicate {kind} name {_value_text(name)} (first at line {line})"
+                path, f"duplicate {kind} name {value_text(name)} (first at line {line})"
             )
         self.first[(kind, name)] = path
 
@@ -337,7 +338,7 @@ class _Builder:
                     known = _listing(functions)
                     where = ("functions", next(reversed(chain)))
                     raise self.fail(
-                        where, f"unknown function {_value_text(spec)} (functions: {known})"
+                        where, f"unknown function {value_text(spec)} (functions: {known})"
                     )
                 if spec in chain:
                     cycle = list(chain)[list(chain).index(spec) :] + [spec]
@@ -358,7 +359,7 @@ class _Builder:
         if isinstance(spec, str):
             if spec not in self.targets:
                 known = _listing(self.spec.functions)
-                raise self.fail(path, f"unknown function {_value_text(spec)} (functions: {known})")
+                raise self.fail(path, f"unknown function {value_text(spec)} (functions: {known})")
             spec, path = self.targets[spec]
         seconds, angle = self.units.time, self.units.angle
         if isinstance(spec, ConstantFunction):
@@ -389,7 +390,7 @@ class _Builder:
         if isinstance(spec, str):
             if spec not in self.spec.materials:
                 known = _listing(self.spec.materials)
-                raise self.fail(path, f"unknown material {_value_text(spec)} (materials: {known})")
+                raise self.fail(path, f"unknown material {value_text(spec)} (materials: {known})")
             name, spec = spec, self.spec.materials[spec]
         pressure = self.units.scale(length=-1, mass=1, time=-2)
         density = self.units.scale(length=-3, mass=1)
@@ -432,7 +433,7 @@ class _Builder:
             location = self.source.folder / location
         if not location.is_file():
             raise self.fail(
-                path, f"no such file: {_value_text(name)} (looked for {location.absolute()})"
+                path, f"no such file: {value_text(name)} (looked for {location.absolute()})"
             )
         return location
 
@@ -607,7 +608,7 @@ class _Builder:
     def body(self, name: str, path: Path_) -> _core.BodyId:
         if name not in self.bodies:
             known = _listing(self.bodies)
-            raise self.fail(path, f"unknown body {_value_text(name)} (bodies: {known})")
+            raise self.fail(path, f"unknown body {value_text(name)} (bodies: {known})")
         return self.bodies[name]
 
     def add_marker(self, spec: MarkerSpec, path: Path_) -> _core.MarkerId:
@@ -633,7 +634,7 @@ class _Builder:
         if on_nodes and spec.body not in self.flexible:
             raise self.fail(
                 path + (on_nodes[0],),
-                f"body {_value_text(spec.body)} is not a flexible body: it has no nodes",
+                f"body {value_text(spec.body)} is not a flexible body: it has no nodes",
             )
         if spec.node is not None:
             marker = self.call(
@@ -674,7 +675,7 @@ class _Builder:
             return self.add_marker(spec, path)
         if spec not in self.markers:
             known = _listing(self.markers)
-            raise self.fail(path, f"unknown marker {_value_text(spec)} (markers: {known})")
+            raise self.fail(path, f"unknown marker {value_text(spec)} (markers: {known})")
         return self.markers[spec]
 
     # Joints, forces, sensors ---------------------------------------------------------------
@@ -788,7 +789,7 @@ class _Builder:
                     known = _listing(self.joints)
                     raise self.fail(
                         path + ("cut_joints", j),
-                        f"unknown joint {_value_text(name)} (joints: {known})",
+                        f"unknown joint {value_text(name)} (joints: {known})",
                     )
                 cut.append(self.joints[name])
             options["cut_joints"] = cut
@@ -824,7 +825,7 @@ class _Builder:
                 line = self.source.line(first[output.label])
                 raise self.fail(
                     path + (("name",) if spec.name is not None else ()),
-                    f"duplicate output label {_value_text(output.label)} (first at line {line}): "
+                    f"duplicate output label {value_text(output.label)} (first at line {line}): "
                     "give each output its own name",
                 )
             first[output.label] = path
@@ -850,13 +851,13 @@ class _Builder:
                 path + ("quantity",),
                 what
                 or f"the quantity of a {kind} output is one of: {options} "
-                f"(got {_value_text(quantity)})",
+                f"(got {value_text(quantity)})",
             )
         item = getattr(spec, kind) if kind != "system" else None
         known = {"sensor": self.sensors, "body": self.bodies, "joint": self.joints}.get(kind)
         if known is not None and item not in known:
             raise self.fail(
-                path + (kind,), f"unknown {kind} {_value_text(item)} ({kind}s: {_listing(known)})"
+                path + (kind,), f"unknown {kind} {value_text(item)} ({kind}s: {_listing(known)})"
             )
         node_quantities = ("node_displacements", "node_positions", "deflection", "stresses")
         if kind == "body" and (
@@ -864,7 +865,7 @@ class _Builder:
             or quantity == "elastic_velocities"
         ):
             if item not in self.flexible:
-                raise self.fail(path + ("body",), f"{_value_text(item)} is not a flexible body")
+                raise self.fail(path + ("body",), f"{value_text(item)} is not a flexible body")
         if quantity == "deflection" and spec.node is None:
             raise self.fail(path, "missing key 'node' (needed by deflection)")
         for key, users in _NODE_KEYS.items():
@@ -895,7 +896,7 @@ class _Builder:
             if node not in ids:
                 raise self.fail(
                     where,
-                    f"body {_value_text(spec.body)} has no node with id {node} (its {len(ids)} "
+                    f"body {value_text(spec.body)} has no node with id {node} (its {len(ids)} "
                     f"nodes have ids {min(ids, default=0)} to {max(ids, default=0)})",
                 )
         if spec.chord is not None:
@@ -914,19 +915,19 @@ class _Builder:
         if spec.quantity == "stresses" and not elements - {"beam2"}:
             raise self.fail(
                 path + ("quantity",),
-                f"body {_value_text(spec.body)} has no solid elements: stresses are those of "
+                f"body {value_text(spec.body)} has no solid elements: stresses are those of "
                 "solid elements (beams have section_forces)",
             )
         if spec.quantity == "section_forces" and ("beam2" not in elements or data.section is None):
             raise self.fail(
                 path + ("quantity",),
-                f"body {_value_text(spec.body)} has no beam elements with a section: "
+                f"body {value_text(spec.body)} has no beam elements with a section: "
                 "section_forces are those of beams",
             )
         if spec.quantity in ("stresses", "section_forces") and not data.material:
             raise self.fail(
                 path + ("quantity",),
-                f"body {_value_text(spec.body)} has no material (built from matrices): "
+                f"body {value_text(spec.body)} has no material (built from matrices): "
                 f"no {spec.quantity}",
             )
 

@@ -16,6 +16,7 @@ from typing import Annotated, Any, Union
 import yaml
 from pydantic import BaseModel, Tag, ValidationError
 
+from .._checks import value_text
 from ..errors import ModelFileError
 from .schema import ModelSpec
 
@@ -111,7 +112,7 @@ class _Loader(yaml.SafeLoader):
         except (ValueError, TypeError, KeyError, IndexError, AttributeError, ArithmeticError):
             tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
             value = node.value if isinstance(node, yaml.ScalarNode) else f"a {node.id}"
-            raise _ReadError(f"{_value_text(value)} is not a valid {tag} value", node) from None
+            raise _ReadError(f"{value_text(value)} is not a valid {tag} value", node) from None
 
     def construct_int(self, node: Any) -> int:
         """An integer: decimal (leading zeros too), 0b binary or 0x hexadecimal."""
@@ -285,7 +286,7 @@ class _Source:
                 key = str(key_node.value)
                 line = key_node.start_mark.line + 1
                 if key in seen and isinstance(key_node, yaml.ScalarNode):
-                    message = f"duplicate key {_value_text(key)} (first at line {seen[key]})"
+                    message = f"duplicate key {value_text(key)} (first at line {seen[key]})"
                     raise self.error(path + (key,), message, line)
                 seen[key] = line
                 self.lines[path + (key,)] = line
@@ -366,12 +367,6 @@ _SHAPES = {
 }
 
 
-def _value_text(value: Any) -> str:
-    """A value for a message: its repr, at most 60 characters."""
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
 def _short(name: Any, limit: int = 40) -> str:
     """A name for a message, at most `limit` characters."""
     text = str(name)
@@ -399,20 +394,20 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
     loc = error["loc"]
     path, _ = _locate(loc)
     if kind == "missing":
-        return path[:-1], f"missing key {_value_text(loc[-1])}"
+        return path[:-1], f"missing key {value_text(loc[-1])}"
     if kind == "extra_forbidden":
         key = str(loc[-1])
         _, model = _locate(loc[:-1])
         if model is None:
-            return path, f"unknown key {_value_text(key)}"
+            return path, f"unknown key {value_text(key)}"
         allowed = list(model.model_fields)
         close = difflib.get_close_matches(key, allowed, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
-        return path, f"unknown key {_value_text(key)} (allowed: {', '.join(allowed)}){hint}"
+        return path, f"unknown key {value_text(key)} (allowed: {', '.join(allowed)}){hint}"
     if kind == "union_tag_not_found" and isinstance(error.get("input"), dict):
         value = error["input"]
         if "type" in value:
-            return path + ("type",), f"type must be a name, got {_value_text(value['type'])}"
+            return path + ("type",), f"type must be a name, got {value_text(value['type'])}"
         return path, "missing key 'type'"
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         value = error.get("input")
@@ -423,12 +418,12 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
                 return path, "missing key 'type'"
             return path + (
                 "type",
-            ), f"unknown type {_value_text(value['type'])} (one of: {', '.join(named)})"
+            ), f"unknown type {value_text(value['type'])} (one of: {', '.join(named)})"
         kinds = [_SHAPES[t] for t in tags if t in _SHAPES]
         if named:
             kinds.append(f"a mapping with type {', '.join(named)}")
         expected = ", ".join(kinds) if kinds else "another kind of value"
-        return path, f"expected {expected}; got {_value_text(value)}"
+        return path, f"expected {expected}; got {value_text(value)}"
     if kind in ("too_short", "too_long"):
         count = ctx.get("actual_length")
         bound = ctx.get("min_length" if kind == "too_short" else "max_length")
@@ -436,7 +431,7 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
         return path, f"expected {more} {bound} items, got {count}"
     message = error["msg"]
     if "input" in error and kind not in ("model_type", "dict_type"):
-        message += f", got {_value_text(error['input'])}"
+        message += f", got {value_text(error['input'])}"
     value = error.get("input")
     if isinstance(value, str) and _SEXAGESIMAL.match(value) and kind in ("float_type", "int_type"):
         message += " (base-60 numbers such as 1:30 are not read: write 90)"
