@@ -230,11 +230,23 @@ def equilibrium(
     model = _model(model)
     time = number(time, "time")
     layout = model.describe()
+    q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
+    _check_drivers_at_start(model, time, q, layout)
+    return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations)
+
+
+def _solve_equilibrium(
+    model: _core.Model,
+    time: float,
+    q: Array,
+    layout: dict[str, Any],
+    tolerance: float = 1e-10,
+    max_iterations: int = 100,
+) -> EquilibriumState:
+    """Newton's method of :func:`equilibrium` from `q` (the drivers checked at `time`)."""
     flexible = model.flexible_bodies
     nq, nc = model.coordinate_count, model.constraint_count
     rigid = ~_elastic_mask(layout)
-    q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
-    _check_drivers_at_start(model, time, q, layout)
     lam = np.zeros(nc)
     scale = max(1.0, float(np.max(np.abs(q))))
     step = np.inf
@@ -289,7 +301,8 @@ def steady_rotation(
     model = _model(model)
     time = number(time, "time")
     nq, nc = model.coordinate_count, model.constraint_count
-    q = np.array(options.get("coordinates", model.initial_coordinates), dtype=float)
+    options = dict(options)
+    q = np.array(options.pop("coordinates", model.initial_coordinates), dtype=float)
     zero_q, zero_l = np.zeros(nq), np.zeros(nc)
     layout = model.describe()
     _check_drivers_at_start(model, time, q, layout)
@@ -311,7 +324,7 @@ def steady_rotation(
                 "needs constant driver speeds (start later, or use equilibrium)",
                 item=f"driver '{name}'",
             )
-    return equilibrium(model, time, **options)
+    return _solve_equilibrium(model, time, q, layout, **options)
 
 
 @dataclass
