@@ -28,6 +28,7 @@ from ._boundary import (
 )
 from ._core import BodyId, ForceId, JointId, MarkerId, Model, SensorId, __version__
 from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
+from .campbell import CampbellDiagram, campbell, plot_campbell
 from .errors import (
     ArgumentTypeError,
     CallbackError,
@@ -107,4 +108,7 @@ __all__ = [
     "simulate",
     "steady_rotation",
     "load_study",
+    "CampbellDiagram",
+    "campbell",
+    "plot_campbell",
 ]

@@ -523,6 +523,46 @@ def _animate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _speeds(text: str) -> Any:
+    """--speeds START:STOP:COUNT (rad/s) or a comma-separated list."""
+    import numpy as np
+
+    parts = text.split(":")
+    try:
+        if len(parts) == 3:
+            return np.linspace(float(parts[0]), float(parts[1]), int(parts[2]))
+        return np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        raise InvalidParameterError(
+            f"--speeds {text!r}: expected START:STOP:COUNT or V1,V2,... (rad/s)"
+        ) from None
+
+
+def _campbell(args: argparse.Namespace) -> int:
+    from .campbell import campbell, plot_campbell
+
+    try:
+        job = _job(args.model)
+        diagram = campbell(job.system, args.driver, _speeds(args.speeds), modes=args.modes)
+        stem = Path(args.output) if args.output else Path(Path(args.model).stem + "_campbell")
+        plot_campbell(diagram, stem.with_suffix(".png"), orders=args.orders)
+        diagram.to_xarray().to_netcdf(stem.with_suffix(".nc"), engine="scipy")
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd campbell: {error}", file=sys.stderr)
+        return 2
+    modes = range(diagram.mode_count)
+    print("speed (rad/s)" + "".join(f"  mode {m + 1:<2d} (Hz)" for m in modes))
+    for k, w in enumerate(diagram.speeds):
+        print(f"{w:13.4g}" + "".join(f"  {f:12.5g}" for f in diagram.frequencies[k]))
+    for c in diagram.critical_speeds(args.orders):
+        print(
+            f"critical speed: order {c['order']:g} meets mode {c['mode'] + 1} at "
+            f"{c['speed']:.5g} rad/s ({c['frequency']:.5g} Hz)"
+        )
+    print(f"written: {stem.with_suffix('.png')}, {stem.with_suffix('.nc')}")
+    return 0
+
+
 def _schema(args: argparse.Namespace) -> int:
     from .model_file import model_schema
 
@@ -721,9 +761,24 @@ def _main(argv: list[str] | None) -> int:
     )
     pre.add_argument("--precision", choices=("auto", "double", "single"), default="auto")
     add_sweep_parser(sub)
+    camp = sub.add_parser(
+        "campbell",
+        help="Campbell diagram: mode frequencies against the speed of a driver",
+        description="At each speed the driver turns at that constant speed; the modes of the "
+        "steady rotation are followed across the speeds by their shapes (MAC).",
+    )
+    camp.add_argument("model", help="model file (.yaml) or built-in example")
+    camp.add_argument("--driver", required=True, help="name of the angle driver")
+    camp.add_argument("--speeds", required=True, help="START:STOP:COUNT or V1,V2,... (rad/s)")
+    camp.add_argument("--modes", type=int, default=6, help="modes followed (default 6)")
+    camp.add_argument(
+        "--orders", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="excitation orders"
+    )
+    camp.add_argument("-o", "--output", help="output stem (default: MODEL_campbell)")
     args = parser.parse_args(argv)
     commands = {
         "sweep": sweep,
+        "campbell": _campbell,
         "preprocess": _preprocess,
         "info": _info,
         "plot": _plot,

@@ -223,6 +223,37 @@ class System(_core.System):
     def __reduce__(self) -> tuple[Any, ...]:
         return (_rebuilt, (type(self), tuple(self._calls)))
 
+    def with_driver(self, name: str, function: Any) -> System:
+        """A copy of this system whose driver `name` (an angle or translation driver) follows
+        `function` (a time function) instead; the system itself is not changed. Raises
+        `UnknownItemError` naming the drivers when there is none of that name."""
+        drivers = ("add_angle_driver", "add_translation_driver")
+        calls, found = [], []
+        for method, args, kwargs in self._calls:
+            if method in drivers:
+                found.append(kwargs.get("name"))
+                if kwargs.get("name") == name:
+                    if len(args) >= 3:
+                        args = (*args[:2], function, *args[3:])
+                    else:
+                        key = "angle" if method == "add_angle_driver" else "displacement"
+                        kwargs = {**kwargs, key: function}
+            calls.append((method, args, kwargs))
+        if name not in found:
+            known = [n for n in found if n is not None]
+            raise UnknownItemError(f"no driver named {name!r}; drivers: {known}", item=name)
+        return _rebuilt(type(self), tuple(calls))
+
+    def driver_function(self, name: str) -> Any:
+        """The time function of the driver `name` as it was given."""
+        for method, args, kwargs in self._calls:
+            if method in ("add_angle_driver", "add_translation_driver"):
+                if kwargs.get("name") == name:
+                    if len(args) >= 3:
+                        return args[2]
+                    return kwargs.get("angle", kwargs.get("displacement"))
+        raise UnknownItemError(f"no driver named {name!r}", item=name)
+
     def add_flexible_body(
         self,
         body: FlexibleBodyData,

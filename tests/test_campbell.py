@@ -1,0 +1,142 @@
+"""Campbell diagrams (issue 32): the rotating cantilever's flap frequencies against R2, the
+lead-lag frequencies sqrt(w_flap^2 - W^2) without Coriolis coupling, modes followed through a
+crossing by their shapes, and the critical speeds of excitation orders."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+from flexmbd.campbell import CampbellDiagram, campbell, plot_campbell
+from flexmbd.fe import Material, Section, build_body, straight_beam
+
+ELEMENTS = 20
+# R2 (Wright et al. 1982): nondimensional flap frequencies at g = 0, 4, 8, 12.
+R2 = {0: (3.5160, 22.0345, 61.6972), 4: (5.5850, 24.2733, 63.9668),
+      8: (9.2568, 29.9954, 70.2930), 12: (13.1702, 37.6031, 79.6145)}  # fmt: skip
+
+
+def blade(width, height):
+    """A 1 m aluminium cantilever along x turned about global z by the driver "hub"; its
+    nondimensional frequency scale sqrt(rho A L^4 / EI_flap)."""
+    material = Material(7.0e10, 0.3, 2700.0)
+    nodes, conn = straight_beam(1.0, ELEMENTS)
+    data = build_body(
+        nodes,
+        conn,
+        material,
+        section=Section.rectangle(width, height),
+        orientation=(0.0, 1.0, 0.0),
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = fm.System()
+    body = system.add_flexible_body(data, geometric_stiffness=True, name="blade")
+    hub, root = system.add_marker(system.ground), system.add_node_marker(body, 1)
+    system.add_revolute_joint(hub, root, name="bearing")
+    system.add_angle_driver(hub, root, fm.Polynomial([0.0, 0.0]), name="hub")
+    flap = material.young_modulus * width * height**3 / 12
+    return system, np.sqrt(material.density * width * height / flap)
+
+
+def flap_fraction(diagram):
+    """Per speed and mode, the share of the nodes' motion along z (flap)."""
+    rows = np.concatenate([7 + 6 * k + np.arange(3) for k in range(ELEMENTS)])
+    moved = np.abs(diagram.shapes[:, rows, :].reshape(len(diagram.speeds), ELEMENTS, 3, -1))
+    return np.sum(moved[:, :, 2] ** 2, axis=1) / np.sum(moved**2, axis=(1, 2))
+
+
+def test_flap_frequencies_against_r2_and_modes_followed_through_a_crossing(assert_close):
+    system, scale = blade(0.01, 0.002)  # lead-lag 25 times stiffer than flap
+    g = np.arange(0.0, 26.0, 2.0)
+    diagram = campbell(system, "hub", g / scale, modes=4)
+    w = 2 * np.pi * diagram.frequencies * scale
+    flap = flap_fraction(diagram)
+    # Each followed mode keeps its kind at every speed: flap, lead-lag, flap, flap.
+    kinds = flap > 0.99
+    assert np.all(kinds == kinds[0]) and list(kinds[0]) == [True, False, True, True]
+    for k, reference in R2.items():
+        row = list(g).index(k)
+        assert_close(w[row, [0, 2, 3]], reference, rel=1e-3, what=f"flap frequencies at g = {k}")
+    # The first flap mode rises through the first lead-lag mode near g = 18: sorting by
+    # frequency would swap them there; the MAC of every match stays near 1.
+    assert w[8, 0] < w[8, 1] and w[10, 0] > w[10, 1]
+    assert diagram.mac.min() > 0.99
+    # The damping ratios of an undamped blade vanish.
+    assert np.abs(diagram.damping).max() < 1e-6
+    data = diagram.to_xarray()
+    assert data["frequency"].shape == (len(g), 4) and data.attrs["driver"] == "hub"
+
+
+def test_lead_lag_without_coriolis_is_sqrt_flap_squared_minus_speed_squared(assert_close):
+    # A square section: flap and lead-lag stiffness equal; the in-plane modes are softened by
+    # the spin, w_lag^2 = w_flap^2 - W^2, when their Coriolis coupling with the axial motion
+    # is left out.
+    system, scale = blade(0.002, 0.002)
+    g = np.array([0.0, 4.0, 8.0, 12.0])
+    diagram = campbell(system, "hub", g / scale, modes=4, gyroscopic=False)
+    w = 2 * np.pi * diagram.frequencies * scale
+    flap = flap_fraction(diagram)[-1] > 0.99
+    lag = flap_fraction(diagram)[-1] < 0.01
+    for k in range(len(g)):
+        flaps, lags = np.sort(w[k, flap]), np.sort(w[k, lag])
+        assert_close(flaps, [R2[int(g[k])][0], R2[int(g[k])][1]], rel=1e-3, what="flap")
+        assert_close(lags, np.sqrt(flaps**2 - g[k] ** 2), rel=1e-3, what="lead-lag")
+
+
+def test_critical_speeds_are_the_crossings_of_the_order_lines(assert_close):
+    speeds = np.array([0.0, 150.0, 300.0])
+    # A mode at 20 Hz, another rising as 30 + W / 150 Hz.
+    frequencies = np.array([[20.0, 30.0], [20.0, 31.0], [20.0, 32.0]])
+    shapes = np.ones((3, 2, 2), complex)
+    diagram = CampbellDiagram(speeds, frequencies, 0 * frequencies, shapes, np.ones((3, 2)))
+    found = diagram.critical_speeds(orders=(1, 4))
+    # Order 1: W / 2 pi meets 20 Hz at W = 40 pi, 30 + W / 150 at W = 30 / (1 / 2 pi - 1 / 150).
+    # Order 4 (4 W / 2 pi): 20 Hz at W = 10 pi, 30 + W / 150 at 30 / (4 / 2 pi - 1 / 150).
+    expected = sorted(
+        [(1, 0, 40 * np.pi), (1, 1, 30 / (1 / (2 * np.pi) - 1 / 150)),
+         (4, 0, 10 * np.pi), (4, 1, 30 / (4 / (2 * np.pi) - 1 / 150))],
+        key=lambda e: e[2],
+    )  # fmt: skip
+    assert [(c["order"], c["mode"]) for c in found] == [(k, m) for k, m, _ in expected]
+    assert_close([c["speed"] for c in found], [w for _, _, w in expected], rel=1e-12)
+    frequency = [c["order"] * c["speed"] / (2 * np.pi) for c in found]
+    assert_close([c["frequency"] for c in found], frequency, rel=1e-12)
+
+
+def test_plot_and_refusals(tmp_path):
+    system, scale = blade(0.01, 0.002)
+    diagram = campbell(system, "hub", np.array([0.0, 10.0, 20.0]) / scale, modes=2)
+    plot_campbell(diagram, tmp_path / "campbell.png")
+    assert (tmp_path / "campbell.png").stat().st_size > 1000
+    with pytest.raises(fm.UnknownItemError, match="no driver named 'rotor'"):
+        campbell(system, "rotor", [0.0, 1.0])
+    with pytest.raises(fm.InvalidParameterError, match="ascending"):
+        campbell(system, "hub", [2.0, 1.0])
+    with pytest.raises(fm.InvalidParameterError, match="flexmbd.System"):
+        campbell(system.compile(), "hub", [0.0])
+
+
+def test_the_campbell_command_on_the_rotating_blade_model_file(tmp_path, capsys, assert_close):
+    from pathlib import Path
+
+    from flexmbd.cli import main
+
+    model = Path(__file__).parent.parent / "examples" / "models" / "rotating_blade.yaml"
+    stem = tmp_path / "blade"
+    code = main(["campbell", str(model), "--driver", "hub", "--speeds", "0:35.3:4",
+                 "--modes", "3", "-o", str(stem)])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert stem.with_suffix(".png").stat().st_size > 1000
+    import xarray as xr
+
+    with xr.open_dataset(stem.with_suffix(".nc"), engine="scipy") as data:
+        f = data["frequency"].values
+    # g = 0.340 W: W = 35.3 rad/s is g = 12, where R2's first flap frequency is 13.1702.
+    scale = np.sqrt(2700.0 * 0.01 * 0.002 / (7.0e10 * 0.01 * 0.002**3 / 12))
+    assert_close(2 * np.pi * f[-1, 0] * scale, 13.1702, rel=2e-3)
+    assert "critical speed: order" in out
+    assert main(["campbell", str(model), "--driver", "rotor", "--speeds", "0:1:2"]) == 2
+    assert "no driver named 'rotor'" in capsys.readouterr().err
