@@ -55,6 +55,13 @@ from .results_file import read_results
 from .rotation import euler_parameters_to_matrix, rotation
 from .simulation import simulate
 from .state import EquilibriumState, State
+from .state_space import (
+    BodyPosition,
+    ElasticCoordinate,
+    NodeDisplacement,
+    PointLoad,
+    StateSpace,
+)
 from .study import Study, load_study
 from .system import System
 
@@ -111,4 +118,9 @@ __all__ = [
     "CampbellDiagram",
     "campbell",
     "plot_campbell",
+    "BodyPosition",
+    "ElasticCoordinate",
+    "NodeDisplacement",
+    "PointLoad",
+    "StateSpace",
 ]

@@ -11,6 +11,7 @@ Both work on the augmented equations (seed eqs. 20, 25) through ``Model.evaluate
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,6 +25,7 @@ from . import _core
 from ._checks import number
 from .errors import EquilibriumError, InvalidModelError
 from .state import EquilibriumState
+from .state_space import PointLoad, StateSpace, input_forces, output_rows
 
 Array = NDArray[np.float64]
 
@@ -340,6 +342,27 @@ class LinearizedSystem:
     basis: Array
     state: EquilibriumState
     _eigen: tuple[Array, Array] | None = field(default=None, repr=False)
+    #: Generalized forces of the inputs (coordinates x inputs) and their names.
+    input_forces: Array | None = field(default=None, repr=False)
+    input_names: list[str] = field(default_factory=list, repr=False)
+    #: Output rows dy/dq (outputs x coordinates) and their names.
+    output_rows: Array | None = field(default=None, repr=False)
+    output_names: list[str] = field(default_factory=list, repr=False)
+
+    def state_space(self) -> StateSpace:
+        """The state-space model x_dot = A x + B u, y = C x + D u with x = (z, z_dot) of the
+        inputs and outputs given to :func:`linearize` (:mod:`flexmbd.state_space`)."""
+        n = self.mass.shape[0]
+        minv = np.linalg.inv(self.mass)
+        zero, one = np.zeros((n, n)), np.eye(n)
+        a = np.block([[zero, one], [-minv @ self.stiffness, -minv @ self.damping]])
+        nq = self.basis.shape[0]
+        forces = np.zeros((nq, 0)) if self.input_forces is None else self.input_forces
+        b = np.vstack([np.zeros((n, forces.shape[1])), minv @ (self.basis.T @ forces)])
+        rows = np.zeros((0, self.basis.shape[0])) if self.output_rows is None else self.output_rows
+        c = np.hstack([rows @ self.basis, np.zeros((rows.shape[0], n))])
+        d = np.zeros((c.shape[0], b.shape[1]))
+        return StateSpace(a, b, c, d, list(self.input_names), list(self.output_names))
 
     def eigenvalues(self) -> tuple[Array, Array]:
         """Eigenvalues s (1/s) of the first-order form, sorted by |Im s| then Re s, and the
@@ -377,14 +400,25 @@ class LinearizedSystem:
 
 
 def linearize(
-    model: _core.Model | _core.System, state: EquilibriumState | None = None
+    model: _core.Model | _core.System,
+    state: EquilibriumState | None = None,
+    *,
+    inputs: Sequence[PointLoad] = (),
+    outputs: Sequence[Any] = (),
 ) -> LinearizedSystem:
     """Linearizes the equations of motion about `state` (default: :func:`equilibrium` of the
     model): M, D = dr/dq_dot and K = dr/dq (with the multipliers' constraint Hessians) of the
     augmented system, restricted to the null space of the constraint Jacobian C_q. The
     eigenvalues are those of the motion about a static state, or about a steady rotation
     whose linearized equations do not depend on time (for example the elastic coordinates of
-    a body whose reference motion is prescribed)."""
+    a body whose reference motion is prescribed); about a state of a trajectory
+    (``result.state(k)``) it is the motion at that instant.
+
+    `inputs` (loads, :class:`flexmbd.PointLoad`; `model` must then be a
+    :class:`flexmbd.System`) and `outputs` (:class:`flexmbd.NodeDisplacement`,
+    :class:`flexmbd.BodyPosition`, :class:`flexmbd.ElasticCoordinate`) make
+    :meth:`LinearizedSystem.state_space` the state-space model (A, B, C, D) between them."""
+    system = model
     model = _model(model)
     if state is None:
         state = equilibrium(model)
@@ -407,4 +441,11 @@ def linearize(
     def reduce(a: sp.csc_matrix) -> Array:
         return basis.T @ (a[:nq, :nq] @ basis)
 
-    return LinearizedSystem(reduce(m), reduce(d), reduce(k), basis, state)
+    linear = LinearizedSystem(reduce(m), reduce(d), reduce(k), basis, state)
+    if inputs:
+        linear.input_forces = input_forces(system, state, list(inputs))
+        linear.input_names = [load.label() for load in inputs]
+    if outputs:
+        linear.output_rows = output_rows(model, list(outputs))
+        linear.output_names = [output.label() for output in outputs]
+    return linear

@@ -1,0 +1,193 @@
+"""State-space models of the motion linearized about a state, with named inputs and outputs:
+
+    lin = fm.linearize(system, state, inputs=[fm.PointLoad(tip, (0, 0, 1), name="F_z")],
+                       outputs=[fm.NodeDisplacement("blade", 21, (0, 0, 1), name="w_tip")])
+    ss = lin.state_space()                  # A, B, C, D with x = [z, z_dot]
+    h = ss.frequency_response([1.0, 2.0])   # (frequencies, outputs, inputs), complex
+
+The state is x = (z, z_dot), the independent coordinates of the linearization (q = q0 +
+basis z, :func:`flexmbd.linearize`): M z_dd + D z_dot + K z = B_z u. An input is a load of
+unit amplitude (a force or a torque at a marker, along a direction); its column of B is the
+generalized force of that load at the state, basis^T Q, found from the equations of motion of
+the system with the load added (its building calls replayed with the load). Outputs are
+linear functions of the coordinates: the elastic displacement of a node of a deformable body
+(body axes), the position of a body's frame origin (global), an elastic coordinate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._checks import numbers_array
+from .errors import InvalidParameterError, UnknownItemError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PointLoad:
+    """An input: a unit force (or, `kind="torque"`, a torque) at `marker` along `direction`
+    (global axes, or the marker's with `frame="marker"`)."""
+
+    marker: Any
+    direction: ArrayLike
+    kind: str = "force"
+    frame: str = "global"
+    name: str | None = None
+
+    def label(self) -> str:
+        return self.name or f"{self.kind} at marker {getattr(self.marker, 'index', self.marker)}"
+
+
+@dataclass(frozen=True)
+class NodeDisplacement:
+    """An output: the elastic displacement of node `node` (a node id) of the deformable body
+    `body` (name, index or id) along `direction` (body axes)."""
+
+    body: Any
+    node: int
+    direction: ArrayLike
+    name: str | None = None
+
+    def label(self) -> str:
+        return self.name or f"displacement of node {self.node} of body {self.body}"
+
+
+@dataclass(frozen=True)
+class BodyPosition:
+    """An output: the position of the frame origin of `body` along `direction` (global)."""
+
+    body: Any
+    direction: ArrayLike
+    name: str | None = None
+
+    def label(self) -> str:
+        return self.name or f"position of body {self.body}"
+
+
+@dataclass(frozen=True)
+class ElasticCoordinate:
+    """An output: elastic coordinate `index` of the deformable body `body`."""
+
+    body: Any
+    index: int
+    name: str | None = None
+
+    def label(self) -> str:
+        return self.name or f"elastic coordinate {self.index} of body {self.body}"
+
+
+@dataclass
+class StateSpace:
+    """x_dot = A x + B u, y = C x + D u with x = (z, z_dot) (see the module); `inputs`,
+    `outputs` name the columns of B and the rows of C."""
+
+    a: Array
+    b: Array
+    c: Array
+    d: Array
+    inputs: list[str]
+    outputs: list[str]
+
+    def frequency_response(self, frequencies: ArrayLike) -> NDArray[np.complex128]:
+        """H(i w) = C (i w I - A)^-1 B + D at `frequencies` (Hz): (frequencies, outputs,
+        inputs)."""
+        f = numbers_array(frequencies, "frequencies").ravel()
+        n = self.a.shape[0]
+        out = np.empty((len(f), self.c.shape[0], self.b.shape[1]), dtype=complex)
+        for k, fk in enumerate(f):
+            s = 2j * np.pi * fk
+            out[k] = self.c @ np.linalg.solve(s * np.eye(n) - self.a, self.b) + self.d
+        return out
+
+
+def _body_entry(layout: dict[str, Any], body: Any) -> tuple[int, dict[str, Any]]:
+    entries = layout["bodies"]
+    names = [e["name"] for e in entries]
+    if isinstance(body, str):
+        if body not in names:
+            raise UnknownItemError(f"no body named {body!r}; known: {names}", item=body)
+        index = names.index(body)
+    else:
+        index = int(getattr(body, "index", body))
+        if not 0 <= index < len(entries):
+            raise UnknownItemError(f"body {index} does not exist", item=str(body))
+    return index, entries[index]
+
+
+def _unit(direction: ArrayLike, what: str) -> Array:
+    d = numbers_array(direction, f"{what} direction").ravel()
+    norm = float(np.linalg.norm(d))
+    if d.shape != (3,) or not np.isfinite(norm) or norm == 0.0:
+        raise InvalidParameterError(f"{what}: direction must be a non-zero 3-vector, got {d}")
+    return d / norm
+
+
+def output_rows(model: Any, outputs: list[Any]) -> Array:
+    """The rows dy/dq (outputs x coordinates) of linear outputs of the coordinates."""
+    from .system import _node_index, elastic_basis
+
+    layout = model.describe()
+    flexible = model.flexible_bodies
+    rows = np.zeros((len(outputs), model.coordinate_count))
+    for k, output in enumerate(outputs):
+        index, entry = _body_entry(layout, output.body)
+        start = entry["offset"]
+        if isinstance(output, BodyPosition):
+            rows[k, start : start + 3] = _unit(output.direction, output.label())
+            continue
+        if index not in flexible:
+            raise InvalidParameterError(
+                f"{output.label()}: body {entry['name']!r} is not a deformable body"
+            )
+        data = flexible[index]
+        elastic = start + 7  # after the position and the Euler parameters of the frame
+        if isinstance(output, ElasticCoordinate):
+            count = entry["count"] - 7
+            if not 0 <= output.index < count:
+                raise InvalidParameterError(
+                    f"{output.label()}: the body has {count} elastic coordinates"
+                )
+            rows[k, elastic + output.index] = 1.0
+        elif isinstance(output, NodeDisplacement):
+            node = _node_index(data, output.node, output.label())
+            d = data.dofs_per_node
+            basis = elastic_basis(data)[node * d : node * d + 3].toarray()
+            direction = _unit(output.direction, output.label())
+            rows[k, elastic : elastic + basis.shape[1]] = direction @ basis
+        else:
+            raise InvalidParameterError(f"unknown output {output!r}")
+    return rows
+
+
+def input_forces(system: Any, state: Any, inputs: list[Any]) -> Array:
+    """The generalized forces Q (coordinates x inputs) of unit loads at `state`: the
+    difference of the residuals of the equations of motion with and without each load."""
+    from ._boundary import Constant
+    from .system import System, _rebuilt
+
+    if not isinstance(system, System):
+        raise InvalidParameterError(
+            "inputs need a flexmbd.System (the loads are added to it)", item="inputs"
+        )
+    args = (state.time, state.coordinates, state.velocities, state.accelerations)
+    base = system.compile()
+    nq = base.coordinate_count
+    reference = base.evaluate(*args, state.multipliers)["residual"][:nq]
+    columns = np.zeros((nq, len(inputs)))
+    for k, load in enumerate(inputs):
+        if not isinstance(load, PointLoad):
+            raise InvalidParameterError(f"unknown input {load!r}")
+        if load.kind not in ("force", "torque"):
+            raise InvalidParameterError(f"{load.label()}: kind must be 'force' or 'torque'")
+        unit = _unit(load.direction, load.label())
+        method = "add_point_force" if load.kind == "force" else "add_torque"
+        call = (method, (load.marker, [Constant(float(v)) for v in unit]), {"frame": load.frame})
+        loaded = _rebuilt(type(system), (*system.building_calls, call)).compile()
+        residual = loaded.evaluate(*args, state.multipliers)["residual"][:nq]
+        columns[:, k] = reference - residual  # the residual holds -Q
+    return columns

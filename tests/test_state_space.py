@@ -1,0 +1,130 @@
+"""State-space models (issue 32): named inputs and outputs of the linearized motion; a
+cantilever's tip-force-to-tip-displacement frequency response against the modal sum of its FE
+model, B against the generalized force of the load, A against finite differences of the
+nonlinear equations about a point of a trajectory."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import flexmbd as fm
+from flexmbd.fe import Material, Section, build_body, straight_beam
+from flexmbd.system import elastic_basis
+
+ELEMENTS = 12
+TIP = ELEMENTS + 1  # node ids 1 .. ELEMENTS + 1
+
+
+def cantilever():
+    """A clamped aluminium strip (1 m, 10 x 2 mm) on a hinge held by a driver at rest."""
+    nodes, conn = straight_beam(1.0, ELEMENTS)
+    data = build_body(
+        nodes, conn, Material(7.0e10, 0.3, 2700.0), section=Section.rectangle(0.01, 0.002),
+        orientation=(0.0, 1.0, 0.0), reference="clamped", reference_nodes=[0],
+    )  # fmt: skip
+    system = fm.System()
+    body = system.add_flexible_body(data, name="strip")
+    hub, root = system.add_marker(system.ground), system.add_node_marker(body, 1)
+    system.add_revolute_joint(hub, root, name="hinge")
+    system.add_angle_driver(hub, root, fm.Constant(0.0), name="hold")
+    tip = system.add_node_marker(body, TIP)
+    return system, data, tip
+
+
+def test_tip_frequency_response_is_the_modal_sum_of_the_fe_model(assert_close):
+    system, data, tip = cantilever()
+    linear = fm.linearize(
+        system,
+        inputs=[fm.PointLoad(tip, (0, 0, 1), name="F_z")],
+        outputs=[fm.NodeDisplacement("strip", TIP, (0, 0, 1), name="w_tip")],
+    )
+    ss = linear.state_space()
+    assert ss.inputs == ["F_z"] and ss.outputs == ["w_tip"]
+    # The FE model: K_ff, M_ff of the clamped strip; its modes, mass-normalized.
+    k, m = data.invariants.k_ff, data.invariants.m_ff
+    k = k.toarray() if hasattr(k, "toarray") else np.asarray(k)
+    m = m.toarray() if hasattr(m, "toarray") else np.asarray(m)
+    w2, phi = sla.eigh(k, m)
+    d = data.dofs_per_node
+    tip_row = np.asarray(elastic_basis(data)[(TIP - 1) * d + 2].toarray()).ravel()
+    frequencies = np.array([0.3, 1.0, 2.5, 7.0, 30.0, 120.0])  # Hz, between resonances
+    omega = 2 * np.pi * frequencies
+    modal = np.array([np.sum((tip_row @ phi) ** 2 / (w2 - o**2)) for o in omega])
+    response = ss.frequency_response(frequencies)[:, 0, 0]
+    assert_close(response.imag, 0.0, abs=1e-12 * np.abs(modal).max(), what="undamped: real")
+    assert_close(response.real, modal, rel=1e-8, what="H(w) against the modal sum")
+
+
+def test_input_columns_are_the_generalized_forces_of_the_loads(assert_close):
+    system, data, tip = cantilever()
+    model = system.compile()
+    linear = fm.linearize(
+        system, inputs=[fm.PointLoad(tip, (0, 0, 2)), fm.PointLoad(tip, (0, 1, 0), "torque")]
+    )
+    q = linear.input_forces
+    layout = model.describe()["bodies"]
+    offset = layout[1]["offset"] + 7
+    elastic = slice(offset, offset + data.invariants.k_ff.shape[0])
+    d = data.dofs_per_node
+    basis = elastic_basis(data)
+    # A unit force along z at the tip node: its z row of the elastic basis; a unit torque about
+    # y: its rotation row (the direction is normalized).
+    assert_close(q[elastic, 0], basis[(TIP - 1) * d + 2].toarray().ravel(), abs=1e-12)
+    assert_close(q[elastic, 1], basis[(TIP - 1) * d + 4].toarray().ravel(), abs=1e-12)
+
+
+def test_about_a_point_of_a_trajectory_a_matches_finite_differences(assert_close):
+    # A double pendulum of rigid bodies (nonlinear): linearized about a state in mid-swing,
+    # the stiffness and damping of the z-coordinates match central differences of the
+    # equations of motion restricted to the same basis.
+    system = fm.System(gravity=(0, -9.81, 0))
+    a = system.add_rigid_body(1.0, (1e-3, 0.1, 0.1), position=(0.5, 0, 0), name="a")
+    b = system.add_rigid_body(1.0, (1e-3, 0.1, 0.1), position=(1.5, 0, 0), name="b")
+    system.add_revolute_joint(system.add_marker(system.ground),
+                              system.add_marker(a, position=(-0.5, 0, 0)))  # fmt: skip
+    system.add_revolute_joint(system.add_marker(a, position=(0.5, 0, 0)),
+                              system.add_marker(b, position=(-0.5, 0, 0)))  # fmt: skip
+    model = system.compile()
+    result = fm.simulate(model, 0.4, 1e-4, output_interval=0.1,
+                         solver=fm.GeneralizedAlpha(newton_tolerance=1e-12))  # fmt: skip
+    state = result.state(-1)
+    linear = fm.linearize(model, state, outputs=[fm.BodyPosition("b", (0, 1, 0))])
+    # Residual of M q_dd - F + C_q^T lambda along the basis, with the accelerations and
+    # multipliers of the state held: its derivatives along z give K and D.
+    basis = linear.basis
+
+    def projected(dq, dqd):
+        r = model.evaluate(state.time, state.coordinates + basis @ dq,
+                           state.velocities + basis @ dqd, state.accelerations,
+                           state.multipliers)["residual"][: model.coordinate_count]  # fmt: skip
+        return basis.T @ r
+
+    h = 1e-6
+    n = basis.shape[1]
+    stiffness = np.column_stack([(projected(h * e, 0 * e) - projected(-h * e, 0 * e)) / (2 * h)
+                                 for e in np.eye(n)])  # fmt: skip
+    damping = np.column_stack([(projected(0 * e, h * e) - projected(0 * e, -h * e)) / (2 * h)
+                               for e in np.eye(n)])  # fmt: skip
+    scale = np.abs(linear.stiffness).max()
+    assert_close(linear.stiffness, stiffness, abs=1e-6 * scale, what="K")
+    assert_close(linear.damping, damping, abs=1e-6 * max(1.0, np.abs(linear.damping).max()))
+    ss = linear.state_space()
+    assert ss.a.shape == (2 * n, 2 * n) and ss.c.shape == (1, 2 * n)
+    # The output row: y of body b's origin.
+    y_row = np.zeros(model.coordinate_count)
+    y_row[model.describe()["bodies"][2]["offset"] + 1] = 1.0
+    assert_close(ss.c[0, :n], y_row @ basis, abs=1e-15)
+
+
+def test_bad_inputs_and_outputs_are_refused():
+    system, _, tip = cantilever()
+    with pytest.raises(fm.InvalidParameterError, match="flexmbd.System"):
+        fm.linearize(system.compile(), inputs=[fm.PointLoad(tip, (0, 0, 1))])
+    with pytest.raises(fm.InvalidParameterError, match="non-zero 3-vector"):
+        fm.linearize(system, inputs=[fm.PointLoad(tip, (0, 0, 0))])
+    with pytest.raises(fm.UnknownItemError, match="no body named 'rod'"):
+        fm.linearize(system, outputs=[fm.NodeDisplacement("rod", 2, (0, 0, 1))])
+    with pytest.raises(fm.UnknownItemError, match="no node with id 99"):
+        fm.linearize(system, outputs=[fm.NodeDisplacement("strip", 99, (0, 0, 1))])
