@@ -128,3 +128,53 @@ def test_bad_inputs_and_outputs_are_refused():
         fm.linearize(system, outputs=[fm.NodeDisplacement("rod", 2, (0, 0, 1))])
     with pytest.raises(fm.UnknownItemError, match="no node with id 99"):
         fm.linearize(system, outputs=[fm.NodeDisplacement("strip", 99, (0, 0, 1))])
+
+
+def test_assembly_modes_map_to_node_displacements_and_animate(tmp_path, assert_close):
+    from flexmbd.animation import read_pvd, render_animation, write_vtu_series
+    from flexmbd.state_space import body_shapes, mode_result
+
+    system, data, _ = cantilever()
+    model = system.compile()
+    linear = fm.linearize(model)
+    frequencies, damping, shapes = linear.oscillating()
+    k, m = (np.asarray(getattr(x, "toarray", lambda x=x: x)()) for x in
+            (data.invariants.k_ff, data.invariants.m_ff))  # fmt: skip
+    fe = np.sqrt(sla.eigh(k, m, eigvals_only=True)) / (2 * np.pi)
+    assert_close(frequencies[:6], fe[:6], rel=1e-8, what="assembly against FE frequencies")
+    assert_close(damping[:6], 0.0, abs=1e-9)
+    parts = body_shapes(model, shapes[:, 0])
+    assert set(parts) == {"strip"}
+    offset = model.describe()["bodies"][1]["offset"] + 7
+    q_f = shapes[offset : offset + k.shape[0], 0]
+    expected = (elastic_basis(data) @ q_f).reshape(-1, data.dofs_per_node)[:, :3]
+    difference = np.abs(parts["strip"]["displacements"] - expected)  # complex shapes
+    assert_close(difference, 0.0, abs=1e-15, what="node displacements of the shape")
+    # The clamped end does not move; the first mode bends about y (flap, along z).
+    assert_close(np.abs(parts["strip"]["displacements"][0]), 0.0, abs=1e-15)
+    tip = np.abs(parts["strip"]["displacements"][-1])
+    assert tip[2] > 100 * max(tip[0], tip[1])
+    # One period of the mode as a result: the animation and the ParaView series.
+    result = mode_result(linear, model, 0, frames=4)
+    assert len(result) == 4 and result.statistics["frequency"] == frequencies[0]
+    written = render_animation(result, tmp_path / "mode1.gif", frames=4)
+    assert all(p.stat().st_size > 0 for p in written)
+    assert len(read_pvd(write_vtu_series(result, tmp_path / "vtu", name="mode1"))) == 4
+    with pytest.raises(fm.InvalidParameterError, match="oscillating modes"):
+        mode_result(linear, model, 10_000)
+
+
+def test_the_modes_command(tmp_path, capsys):
+    from pathlib import Path
+
+    from flexmbd.cli import main
+
+    model = Path(__file__).parent.parent / "examples" / "models" / "rotating_blade.yaml"
+    stem = tmp_path / "blade"
+    code = main(["modes", str(model), "--count", "3", "--animate", "1", "--frames", "4",
+                 "-o", str(stem)])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "about the steady rotation" in out and "blade" in out
+    assert (tmp_path / "blade_mode1.gif").stat().st_size > 0
+    assert (tmp_path / "blade_mode1_vtu" / "mode1.pvd").exists()

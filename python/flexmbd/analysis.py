@@ -378,25 +378,29 @@ class LinearizedSystem:
             self._eigen = (values, self.basis @ vectors[:n])
         return self._eigen
 
+    def oscillating(self) -> tuple[Array, Array, NDArray[np.complex128]]:
+        """The oscillating modes (one per pair of complex eigenvalues s, Im s > 0), by
+        frequency: damped frequencies Im s / 2 pi (Hz), damping ratios -Re s / |s| and the
+        complex shapes in q (columns)."""
+        values, vectors = self.eigenvalues()
+        scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
+        keep = np.flatnonzero(values.imag > 1e-9 * scale)
+        keep = keep[np.argsort(values[keep].imag, kind="stable")]
+        s = values[keep]
+        return s.imag / (2.0 * np.pi), -s.real / np.abs(s), vectors[:, keep]
+
     def frequencies(self) -> Array:
         """Damped natural frequencies (Hz) of the oscillating modes, ascending (one per pair
         of complex eigenvalues)."""
-        values, _ = self.eigenvalues()
-        positive = values[values.imag > 1e-9 * max(1.0, float(np.max(np.abs(values))))]
-        return np.sort(positive.imag) / (2.0 * np.pi)
+        return self.oscillating()[0]
 
     def modes(self) -> tuple[Array, Array]:
         """Frequencies (Hz) and mode shapes (real parts of the eigenvectors in q, columns) of
         the oscillating modes."""
-        values, vectors = self.eigenvalues()
-        keep = values.imag > 1e-9 * max(1.0, float(np.max(np.abs(values))))
-        freq = values[keep].imag / (2.0 * np.pi)
-        shapes = vectors[:, keep]
-        order = np.argsort(freq)
+        freq, _, shapes = self.oscillating()
         # Rotate each complex shape so that its largest entry is real.
-        shapes = shapes[:, order]
         peak = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
-        return freq[order], np.real(shapes / (peak / np.abs(peak)))
+        return freq, np.real(shapes / (peak / np.abs(peak)))
 
 
 def linearize(

@@ -103,16 +103,6 @@ def _mac(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> Array:
     return cross / np.where(norms > 0.0, norms, 1.0)
 
 
-def _oscillating(values: NDArray[np.complex128], vectors: NDArray[np.complex128], count: int):
-    """The `count` lowest oscillating modes (Im s > 0): frequencies (Hz), damping ratios and
-    shapes."""
-    scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
-    keep = np.flatnonzero(values.imag > 1e-9 * scale)
-    keep = keep[np.argsort(values[keep].imag)][:count]
-    s = values[keep]
-    return s.imag / (2 * np.pi), -s.real / np.abs(s), vectors[:, keep]
-
-
 def campbell(
     system: Any,
     driver: str,
@@ -157,8 +147,7 @@ def campbell(
         if not gyroscopic:
             linear.damping = np.zeros_like(linear.damping)
             linear._eigen = None
-        values, vectors = linear.eigenvalues()
-        f, zeta, phi = _oscillating(values, vectors, count + EXTRA_CANDIDATES)
+        f, zeta, phi = (part[..., : count + EXTRA_CANDIDATES] for part in linear.oscillating())
         if followed is None:
             if len(f) < count:
                 raise InvalidParameterError(

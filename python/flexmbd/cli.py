@@ -563,6 +563,50 @@ def _campbell(args: argparse.Namespace) -> int:
     return 0
 
 
+def _modes(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .analysis import equilibrium, linearize, steady_rotation
+    from .animation import render_animation, write_vtu_series
+    from .errors import InvalidModelError
+    from .state_space import body_shapes, mode_result
+
+    try:
+        job = _job(args.model)
+        model = job.system.compile()
+        try:
+            state = steady_rotation(model)
+            about = "the steady rotation"
+        except InvalidModelError:
+            state = equilibrium(model)
+            about = "the static equilibrium"
+        linear = linearize(model, state)
+        frequencies, damping, shapes = linear.oscillating()
+        print(f"{job.name}: {len(frequencies)} oscillating modes about {about}")
+        print("mode  frequency (Hz)  damping ratio  moves most")
+        for k in range(min(args.count, len(frequencies))):
+            parts = body_shapes(model, shapes[:, k])
+            share = {
+                name: float(sum(np.sum(np.abs(v) ** 2) for v in part.values()))
+                for name, part in parts.items()
+            }
+            most = max(share, key=lambda name: share[name])
+            print(f"{k + 1:4d}  {frequencies[k]:14.6g}  {damping[k]:13.3g}  {most}")
+        stem = Path(args.output) if args.output else Path(job.stem)
+        for k in args.animate:
+            result = mode_result(linear, model, k - 1, frames=args.frames)
+            movie = stem.with_name(f"{stem.name}_mode{k}.gif")
+            render_animation(result, movie, frames=args.frames)
+            print(f"written: {movie}")
+            if result.flexible:
+                folder = stem.with_name(f"{stem.name}_mode{k}_vtu")
+                print(f"written: {write_vtu_series(result, folder, name=f'mode{k}')}")
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd modes: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
 def _schema(args: argparse.Namespace) -> int:
     from .model_file import model_schema
 
@@ -775,10 +819,22 @@ def _main(argv: list[str] | None) -> int:
         "--orders", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="excitation orders"
     )
     camp.add_argument("-o", "--output", help="output stem (default: MODEL_campbell)")
+    modes = sub.add_parser(
+        "modes",
+        help="modes of the assembly about its equilibrium or steady rotation, and animations",
+    )
+    modes.add_argument("model", help="model file (.yaml) or built-in example")
+    modes.add_argument("--count", type=int, default=10, help="modes listed (default 10)")
+    modes.add_argument(
+        "--animate", type=int, nargs="*", default=[], metavar="K", help="modes to animate (1 ..)"
+    )
+    modes.add_argument("--frames", type=int, default=24, help="frames per period (default 24)")
+    modes.add_argument("-o", "--output", help="output stem (default: the model's name)")
     args = parser.parse_args(argv)
     commands = {
         "sweep": sweep,
         "campbell": _campbell,
+        "modes": _modes,
         "preprocess": _preprocess,
         "info": _info,
         "plot": _plot,

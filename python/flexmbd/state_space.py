@@ -191,3 +191,78 @@ def input_forces(system: Any, state: Any, inputs: list[Any]) -> Array:
         residual = loaded.evaluate(*args, state.multipliers)["residual"][:nq]
         columns[:, k] = reference - residual  # the residual holds -Q
     return columns
+
+
+def body_shapes(model: Any, shape: NDArray[np.complex128]) -> dict[str, dict[str, Any]]:
+    """A mode shape (in the coordinates q) per body: for every moving body its reference
+    motion, ``translation`` (3, global) and ``rotation`` (3, the small rotation 2 G(p) dp of
+    its Euler parameters, body axes; point masses have none), and for deformable bodies the
+    elastic ``displacements`` of their nodes (nodes x 3, body axes)."""
+    from .system import elastic_basis
+
+    layout = model.describe()
+    flexible = model.flexible_bodies
+    q0 = model.initial_coordinates
+    shapes: dict[str, dict[str, Any]] = {}
+    for index, entry in enumerate(layout["bodies"]):
+        if entry["kind"] == "ground":
+            continue
+        start = entry["offset"]
+        part: dict[str, Any] = {"translation": shape[start : start + 3]}
+        if entry["kind"] != "point-mass":
+            e0, e1, e2, e3 = q0[start + 3 : start + 7]
+            g = np.array([[-e1, e0, e3, -e2], [-e2, -e3, e0, e1], [-e3, e2, -e1, e0]])
+            part["rotation"] = 2.0 * g @ shape[start + 3 : start + 7]
+        if index in flexible:
+            data = flexible[index]
+            count = entry["count"] - 7
+            u = elastic_basis(data) @ shape[start + 7 : start + 7 + count]
+            part["displacements"] = np.asarray(u).reshape(-1, data.dofs_per_node)[:, :3]
+        shapes[entry["name"]] = part
+    return shapes
+
+
+def mode_result(
+    linear: Any, model: Any, mode: int, frames: int = 24, amplitude: float = 0.05
+) -> Any:
+    """One period of oscillating mode `mode` (0: the lowest) of `linear` about its state as a
+    :class:`flexmbd.Result` of `frames` records (time: the phase in periods), for the plots,
+    the animation and the ParaView series: q = q0 + a Re(phi e^(i 2 pi t)), `amplitude` the
+    largest change of a reference coordinate (the elastic deformation is scaled by the
+    animation itself)."""
+    from .result import Result
+
+    frequencies, _, shapes = linear.oscillating()
+    if not 0 <= mode < len(frequencies):
+        raise InvalidParameterError(
+            f"mode {mode}: the linearization has {len(frequencies)} oscillating modes",
+            item="mode",
+        )
+    phi = shapes[:, mode]
+    layout = model.describe()
+    reference = np.zeros(model.coordinate_count, dtype=bool)
+    for entry in layout["bodies"]:
+        if entry["kind"] != "ground":
+            reference[entry["offset"] : entry["offset"] + min(entry["count"], 7)] = True
+    peak = np.max(np.abs(phi[reference])) if np.any(reference) else 0.0
+    if peak == 0.0:
+        peak = float(np.max(np.abs(phi))) or 1.0
+    phi = phi * (amplitude / peak)
+    phase = np.arange(frames) / frames
+    q = linear.state.coordinates[None, :] + np.real(
+        phi[None, :] * np.exp(2j * np.pi * phase)[:, None]
+    )
+    nc = model.constraint_count
+    raw = {
+        "time": phase,
+        "coordinates": q,
+        "velocities": np.zeros_like(q),
+        "accelerations": np.zeros_like(q),
+        "multipliers": np.zeros((frames, nc)),
+        "constraint_violation": np.zeros(frames),
+        "statistics": {"mode": mode, "frequency": float(frequencies[mode])},
+        "reactions": np.zeros((frames, len(layout["joints"]) * 6)),
+        "sensors": np.zeros((frames, 0)),
+        "energy": np.zeros((frames, 2)),
+    }
+    return Result(raw, layout, flexible=model.flexible_bodies)
