@@ -29,6 +29,7 @@ from ._boundary import (
 from ._core import BodyId, ForceId, JointId, MarkerId, Model, SensorId, __version__
 from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
 from .campbell import CampbellDiagram, campbell, plot_campbell
+from .dispersion import DispersionBranch, dispersion
 from .errors import (
     ArgumentTypeError,
     CallbackError,
@@ -123,4 +124,6 @@ __all__ = [
     "NodeDisplacement",
     "PointLoad",
     "StateSpace",
+    "DispersionBranch",
+    "dispersion",
 ]
