@@ -34,8 +34,9 @@ class Result:
         statistics: steps, rejected steps, Newton iterations, factorizations, function
             evaluations (explicit solvers), step sizes.
         events: what happened during the run, in order: dicts with ``time``, ``kind``
-            ("initial correction", "redundant constraints", "repartition", "constraint
-            drift") and ``message``.
+            ("initial correction", "redundant constraints", "repartition", "singular
+            configuration", "constraint drift", "joint coordinates rebased", "loop rank") and
+            ``message``.
         redundancy: the redundant constraints found at the start (dict with ``rows``,
             ``rank``, ``removed_rows``, ``groups`` of rows dependent together, ``joints``
             involved and ``message``), or None.

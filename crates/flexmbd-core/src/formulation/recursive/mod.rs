@@ -57,7 +57,7 @@ use faer::Mat;
 use crate::body::marker::MarkerElastic;
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
-use crate::formulation::augmented::{null_space_solve, DenseEquations};
+use crate::formulation::augmented::DenseEquations;
 use crate::joint::JointKind;
 use crate::math::euler::rotation_matrix;
 use crate::math::hyper_dual::{
@@ -211,12 +211,14 @@ pub struct Tree {
 
 mod frames;
 mod kinematics;
+mod loops;
 mod placement;
 #[cfg(test)]
 mod tests;
 mod topology;
 
 use frames::*;
+pub use loops::{LoopClosure, LOOP_DAMPING};
 
 /// Joint accelerations from (B^T M B) p_dd = B^T (f - M gamma_B), given M and f of the
 /// model at the tree's state (q, B p_dot).
@@ -248,20 +250,18 @@ pub(crate) fn joint_space(
 
 /// Joint accelerations with cut-joint constraints: (B^T M B) p_dd + C_hat^T mu =
 /// B^T (f - M gamma_B), C_hat p_dd = g_hat, with C_hat = C_cut B and g_hat = gamma_cut -
-/// C_cut gamma_B, by the null-space method ([`null_space_solve`]; singular values below
-/// `cutoff` of the largest treated as zero: redundant cut equations and singular
-/// configurations).
+/// C_cut gamma_B, by the null-space method of `closure`, the SVD of C_hat
+/// ([`LoopClosure::accelerations`]: redundant cut equations and singular configurations).
 pub fn constrained_joint_accelerations(
     b: &Mat<f64>,
     mass: &Mat<f64>,
     force: &[f64],
     gamma_b: &[f64],
-    c_hat: &Mat<f64>,
+    closure: &LoopClosure,
     g_hat: &[f64],
-    cutoff: f64,
 ) -> Result<Vec<f64>> {
     let (reduced_mass, reduced_force) = joint_space(b, mass, force, gamma_b);
-    null_space_solve(&reduced_mass, &reduced_force, c_hat, g_hat, cutoff).map_err(|detail| {
+    closure.accelerations(&reduced_mass, &reduced_force, g_hat).map_err(|detail| {
         FlexmbdError::SingularMatrix {
             time: f64::NAN,
             context: "joint-coordinate accelerations with cut joints".to_string(),
@@ -270,20 +270,15 @@ pub fn constrained_joint_accelerations(
     })
 }
 
-/// Joint accelerations of a tree whose loops are closed by the cut joints of the constraint
-/// rows `cut_rows` of `eq` (evaluated at the acceleration level): [`joint_accelerations`]
-/// without cut rows, otherwise [`constrained_joint_accelerations`] with C_cut (B p_dd +
-/// gamma_B) = gamma_cut, i.e. C_hat = C_cut B and g_hat = gamma_cut - C_cut gamma_B.
-pub fn tree_joint_accelerations(
+/// The cut joints' equations in joint coordinates at the acceleration level, C_hat p_dd =
+/// g_hat: C_hat = C_cut B (cut rows x free joint coordinates) and g_hat = gamma_cut - C_cut
+/// gamma_B, from the constraint rows `cut_rows` of `eq`.
+pub fn cut_equations(
     eq: &DenseEquations,
     b: &Mat<f64>,
     gamma_b: &[f64],
     cut_rows: &[usize],
-    cutoff: f64,
-) -> Result<Vec<f64>> {
-    if cut_rows.is_empty() {
-        return joint_accelerations(b, &eq.mass, &eq.force, gamma_b);
-    }
+) -> (Mat<f64>, Vec<f64>) {
     let n = b.nrows();
     let c_cut = Mat::from_fn(cut_rows.len(), n, |a, j| eq.jacobian[(cut_rows[a], j)]);
     let c_hat = &c_cut * b;
@@ -292,5 +287,41 @@ pub fn tree_joint_accelerations(
         .enumerate()
         .map(|(a, &r)| eq.gamma[r] - (0..n).map(|j| c_cut[(a, j)] * gamma_b[j]).sum::<f64>())
         .collect();
-    constrained_joint_accelerations(b, &eq.mass, &eq.force, gamma_b, &c_hat, &g_hat, cutoff)
+    (c_hat, g_hat)
+}
+
+/// The number of independent cut equations at the state of `eq` and `b`: the singular values
+/// of C_cut B above `tolerance` times the largest (0 without cut rows or where the SVD fails).
+pub fn loop_rank(eq: &DenseEquations, b: &Mat<f64>, cut_rows: &[usize], tolerance: f64) -> usize {
+    if cut_rows.is_empty() {
+        return 0;
+    }
+    let (c_hat, _) = cut_equations(eq, b, &vec![0.0; b.nrows()], cut_rows);
+    LoopClosure::new(c_hat.as_ref(), cut_rows.len(), LOOP_DAMPING).map_or(0, |c| c.numerical_rank(tolerance))
+}
+
+/// Joint accelerations of a tree whose loops are closed by the cut joints of the constraint
+/// rows `cut_rows` of `eq` (evaluated at the acceleration level): [`joint_accelerations`]
+/// without cut rows, otherwise [`constrained_joint_accelerations`] with C_cut (B p_dd +
+/// gamma_B) = gamma_cut ([`cut_equations`]) and `rank` independent cut equations where the
+/// loops are regular (see [`LoopClosure`]).
+pub fn tree_joint_accelerations(
+    eq: &DenseEquations,
+    b: &Mat<f64>,
+    gamma_b: &[f64],
+    cut_rows: &[usize],
+    rank: usize,
+) -> Result<Vec<f64>> {
+    if cut_rows.is_empty() {
+        return joint_accelerations(b, &eq.mass, &eq.force, gamma_b);
+    }
+    let (c_hat, g_hat) = cut_equations(eq, b, gamma_b, cut_rows);
+    let closure = LoopClosure::new(c_hat.as_ref(), rank, LOOP_DAMPING).map_err(|detail| {
+        FlexmbdError::SingularMatrix {
+            time: f64::NAN,
+            context: "joint-coordinate accelerations with cut joints".to_string(),
+            detail,
+        }
+    })?;
+    constrained_joint_accelerations(b, &eq.mass, &eq.force, gamma_b, &closure, &g_hat)
 }

@@ -425,7 +425,14 @@ fn joint_coordinate_accelerations_equal_the_augmented_ones() {
                 );
             }
             let b = &state.influence;
-            let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
+            let pdd = tree_joint_accelerations(
+                &eq,
+                b,
+                &state.gamma,
+                &tree.cut_rows,
+                loop_rank(&eq, b, &tree.cut_rows, 1e-12),
+            )
+            .unwrap();
             let qdd_tree: Vec<f64> =
                 (0..n).map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>()).collect();
             let part = partition(eq.jacobian.as_ref(), PartitionMethod::Lu, DEFAULT_RANK_TOLERANCE);
@@ -477,7 +484,14 @@ fn decoupled_and_coupled_systems_equal_the_joint_space_one() {
             )
             .unwrap();
             let b = &state.influence;
-            let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
+            let pdd = tree_joint_accelerations(
+                &eq,
+                b,
+                &state.gamma,
+                &tree.cut_rows,
+                loop_rank(&eq, b, &tree.cut_rows, 1e-12),
+            )
+            .unwrap();
             let st = tree.structured(model, time, &p, &pd).unwrap();
             assert_all_close(&st.coordinates, &state.coordinates, 0.0, 1e-14, "structured coordinates");
             let r40 = coupled.accelerations(model, &mut ws, &st, time, &[]).unwrap();
@@ -546,7 +560,14 @@ fn rebasing_cardan_angles_keeps_the_body_state() {
         eq.evaluate(&model, &mut ws, 0.4, &state.coordinates, &state.velocities, &[], Level::Acceleration)
             .unwrap();
         let b = &state.influence;
-        let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, 1e-12).unwrap();
+        let pdd = tree_joint_accelerations(
+            &eq,
+            b,
+            &state.gamma,
+            &tree.cut_rows,
+            loop_rank(&eq, b, &tree.cut_rows, 1e-12),
+        )
+        .unwrap();
         (0..n)
             .map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>())
             .collect::<Vec<f64>>()

@@ -78,6 +78,12 @@ pub(super) struct Engine<'a> {
     /// Velocity influence coefficients B = dq/dp of the free joint coordinates at p (n x np),
     /// filled by `update_bodies_with_influence`.
     pub(super) influence: Mat<f64>,
+    /// Joint coordinates: the number of independent cut equations where the loops are regular
+    /// (the rank of C_cut B at the start, raised when a later state shows more; see
+    /// `formulation::recursive::LoopClosure`).
+    pub(super) loop_rank: usize,
+    /// The numerical rank of C_cut B at the last projection (`project_joint_coordinates`).
+    pub(super) observed_loop_rank: usize,
 }
 
 impl<'a> Engine<'a> {
@@ -120,6 +126,8 @@ impl<'a> Engine<'a> {
             pdd: Vec::new(),
             gamma_b: vec![0.0; n],
             influence: Mat::zeros(0, 0),
+            loop_rank: 0,
+            observed_loop_rank: 0,
             tree_solver: None,
             structured: None,
             tree_reactions: TreeAccelerations::default(),
@@ -162,9 +170,8 @@ impl<'a> Engine<'a> {
         if let Some(tree) = &self.tree {
             let n = self.q.len();
             let b = &self.influence;
-            self.pdd =
-                tree_joint_accelerations(&self.eq, b, &self.gamma_b, &tree.cut_rows, SINGULAR_VALUE_CUTOFF)
-                    .map_err(|e| self.singular(time, e.to_string()))?;
+            self.pdd = tree_joint_accelerations(&self.eq, b, &self.gamma_b, &tree.cut_rows, self.loop_rank)
+                .map_err(|e| self.singular(time, e.to_string()))?;
             for i in 0..n {
                 self.qdd[i] =
                     self.gamma_b[i] + (0..self.pdd.len()).map(|k| b[(i, k)] * self.pdd[k]).sum::<f64>();

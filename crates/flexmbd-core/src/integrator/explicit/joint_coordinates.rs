@@ -9,14 +9,17 @@ use super::engine::{converged, Engine};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{worst, Level, SINGULAR_VALUE_CUTOFF};
 use crate::formulation::decoupled::{TreeFormulation, TreeSolver};
-use crate::formulation::recursive::Tree;
-use crate::linalg::partition::minimum_norm_solve;
+use crate::formulation::recursive::{loop_rank, LoopClosure, Tree, LOOP_DAMPING};
 use crate::output::{Event, Output};
 use crate::system::State;
 
 /// Joint coordinates: the middle Cardan angle (rad) beyond which a spherical or free joint's
 /// angles are rebased (their singularity is at 90 degrees).
 const CARDAN_REBASE_ANGLE: f64 = 1.0;
+
+/// Projection onto the cut joints: a residual this factor below the constraint tolerance ends
+/// the Newton iteration without the polishing iteration.
+const POLISHED: f64 = 1e-3;
 
 impl Engine<'_> {
     /// The tree and the joint coordinates of the consistent initial `state`; the body state is
@@ -47,6 +50,10 @@ impl Engine<'_> {
             None => tree.free_count() + tree.cut_rows.len(),
         };
         self.tree = Some(tree);
+        self.update_bodies_with_influence(t0)?;
+        self.evaluate(t0, Level::Velocity)?;
+        let cut_rows = self.tree.as_ref().map(|t| t.cut_rows.clone()).unwrap_or_default();
+        self.loop_rank = loop_rank(&self.eq, &self.influence, &cut_rows, explicit.rank_tolerance);
         self.update_bodies(t0)?;
         state.coordinates.copy_from_slice(&self.q);
         state.velocities.copy_from_slice(&self.qd);
@@ -78,28 +85,49 @@ impl Engine<'_> {
         Ok(())
     }
 
-    /// Joint coordinates with cut joints: projects p onto C_cut(q(p), t) = 0 (Newton with
-    /// minimum-norm steps) and p_dot onto the cut joints' velocity constraints.
+    /// Joint coordinates with cut joints: projects p onto C_cut(q(p), t) = 0 and p_dot onto the
+    /// cut joints' velocity constraints by Newton steps and a velocity correction that solve
+    /// C_hat dx = residual through the SVD of C_hat = C_cut B ([`LoopClosure`]): with the
+    /// loops' rank and the damped inverse singular values in the joint-space formulation;
+    /// truncated with seed eqs. 40-41, which solve for their cut multipliers with a
+    /// minimum-norm solve. The Newton iteration goes on to round-off: near a singular
+    /// configuration of a loop a residual r leaves p off the branch by r / s along the
+    /// vanishing singular direction (s its singular value), and the accelerations that keep
+    /// that residual grow as 1 / s^3.
     pub(super) fn project_joint_coordinates(&mut self, time: f64) -> Result<()> {
         let Some(rows) = self.tree.as_ref().map(|t| t.cut_rows.clone()) else { return Ok(()) };
         let n = self.q.len();
         let mut iterations = 0;
         let mut previous = f64::INFINITY;
+        let mut polished = false;
         loop {
             self.update_bodies_with_influence(time)?;
             self.evaluate(time, Level::Velocity)?;
             let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
             let c_hat = Mat::from_fn(rows.len(), n, |a, j| self.eq.jacobian[(rows[a], j)]) * &self.influence;
-            if converged(violation, previous, self.settings.constraint_tolerance) {
+            // Seed eqs. 40-41 solve for the cut multipliers with their own minimum-norm
+            // solve: their projection truncates likewise.
+            let closure = if self.tree_solver.is_some() {
+                LoopClosure::truncated(c_hat.as_ref(), SINGULAR_VALUE_CUTOFF)
+            } else {
+                LoopClosure::new(c_hat.as_ref(), self.loop_rank, LOOP_DAMPING)
+            }
+            .map_err(|detail| self.singular(time, detail))?;
+            // One more iteration once the tolerance is met, unless the residual is round-off
+            // already or stagnates.
+            let tolerance = self.settings.constraint_tolerance;
+            let met = converged(violation, previous, tolerance);
+            if met && (polished || violation <= POLISHED * tolerance || violation > 0.5 * previous) {
+                self.observed_loop_rank = closure.numerical_rank(self.settings.rank_tolerance);
                 // Velocities: C_cut (B p_dot + v_prescribed) + C_t = 0.
                 let rate: Vec<f64> = rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect();
-                let dv = minimum_norm_solve(c_hat.as_ref(), &rate, SINGULAR_VALUE_CUTOFF);
-                for (x, d) in self.pd.iter_mut().zip(&dv) {
+                for (x, d) in self.pd.iter_mut().zip(closure.solve(&rate)) {
                     *x -= d;
                 }
                 return self.update_bodies(time);
             }
+            polished = met;
             previous = violation;
             if iterations >= self.settings.max_iterations || !violation.is_finite() {
                 return Err(FlexmbdError::NewtonDiverged {
@@ -113,13 +141,31 @@ impl Engine<'_> {
                     ),
                 });
             }
-            let dp = minimum_norm_solve(c_hat.as_ref(), &residual, SINGULAR_VALUE_CUTOFF);
-            for (x, d) in self.p.iter_mut().zip(&dp) {
+            for (x, d) in self.p.iter_mut().zip(closure.solve(&residual)) {
                 *x -= d;
             }
             iterations += 1;
             self.newton_iterations += 1;
         }
+    }
+
+    /// After an accepted (projected) step at `time`: a rank of C_cut B above the loops' rank
+    /// (a run that started at a singular configuration of a loop) becomes the loops' rank.
+    /// Returns the event.
+    pub(super) fn raise_loop_rank(&mut self, time: f64) -> Option<Event> {
+        if self.observed_loop_rank <= self.loop_rank {
+            return None;
+        }
+        let before = std::mem::replace(&mut self.loop_rank, self.observed_loop_rank);
+        Some(Event {
+            time,
+            kind: "loop rank".to_string(),
+            message: format!(
+                "the cut joints' equations have rank {} here, {before} before (the run started at \
+                 a singular configuration of a loop): {} constrained directions from now on",
+                self.loop_rank, self.loop_rank
+            ),
+        })
     }
 
     /// After an accepted step at `time`: Cardan angles of spherical and free joints restart at

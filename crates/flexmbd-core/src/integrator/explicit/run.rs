@@ -253,6 +253,7 @@ impl ExplicitSteps<'_, '_> {
         }
         if engine.tree.as_ref().is_some_and(|t| !t.cut_rows.is_empty()) {
             engine.project_joint_coordinates(t_new)?;
+            output.events.extend(engine.raise_loop_rank(t_new));
             modified = true;
         }
         if let Some(event) = engine.rebase_joint_coordinates(t_new)? {
