@@ -37,8 +37,9 @@ use crate::model::Model;
 /// - `jacobian`: "modified" (keep the factorized Newton matrix across iterations and steps
 ///   while it contracts well), "step" (refactorize once per step, at the predictor) or
 ///   "full" (refactorize every iteration).
-/// - `step_control`: "newton" (retry failed steps with a quarter of the step, grow back to
-///   the nominal step), "fixed" (a failed step is an error), or "error" (local error
+/// - `step_control`: "newton" (retry steps whose Newton iteration diverges or contracts too
+///   slowly with a quarter to a half of the step, grow back to the nominal step after fast
+///   iterations), "fixed" (a failed step is an error), or "error" (local error
 ///   estimate with `relative_tolerance` and `absolute_tolerance`, steps up to
 ///   `max_step_size`).
 /// - `velocity_projection`: "auto" (at spectral radius 1 only), "always" or "never". Projecting

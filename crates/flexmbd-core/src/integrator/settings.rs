@@ -119,8 +119,10 @@ pub const STEP_CONTROL_NAMES: [&str; 3] = ["newton", "fixed", "error"];
 pub enum StepControl {
     /// Constant step; a failed Newton iteration is an error.
     Fixed,
-    /// Newton-based: a failed step is retried with a quarter of the step, and the step grows
-    /// back (doubling) to the nominal one after steps that converge in few iterations.
+    /// Newton-based: a step whose iteration diverges or contracts too slowly to converge is
+    /// retried with a quarter to a half of the step (by its contraction rate), and the step
+    /// grows back (up to doubling) to the nominal one after steps that converge fast
+    /// (`generalized_alpha::run`).
     Newton,
     /// Error-based: local error estimate h^2 |beta - 1/6| |q_dd(n+1) - q_dd(n)| in a weighted
     /// norm with these tolerances; steps with error > 1 are rejected.

@@ -56,9 +56,9 @@ pub(crate) enum Attempt {
 pub(crate) enum Growth {
     /// Kept (fixed steps, or a Newton step that needed many iterations).
     Kept,
-    /// Doubled, up to the step size of the settings, if below it (a Newton step that
-    /// converged in few iterations).
-    Doubled,
+    /// Multiplied by the factor (at least 1), up to the step size of the settings, if below
+    /// it (Newton-based control: a step that converged fast enough).
+    Grown(f64),
     /// The step size of the step times the error controller's factor, at most the largest step
     /// size; kept if the step was shortened to land on an output time.
     Scaled(f64),
@@ -155,8 +155,8 @@ fn step_size_after_rejection(retry: Retry, h: f64, time: f64, settings: &Simulat
 fn step_size_after_acceptance(growth: Growth, h: f64, h_try: f64, settings: &SimulationSettings) -> f64 {
     match growth {
         Growth::Kept => h,
-        Growth::Doubled if h < settings.step_size => (2.0 * h).min(settings.step_size),
-        Growth::Doubled => h,
+        Growth::Grown(factor) if h < settings.step_size => (factor * h).min(settings.step_size),
+        Growth::Grown(_) => h,
         // Steps shortened to land on an output time do not shrink the step size.
         Growth::Scaled(factor) if h_try >= h * (1.0 - 1e-12) => (h_try * factor).min(settings.max_step_size),
         Growth::Scaled(_) => h,

@@ -91,6 +91,10 @@ pub struct SymmetricFactor {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     values: Vec<f64>,
+    /// Entries of the matrix given to [`SymmetricFactor::new`], and how they make `values`
+    /// (in the order of the summation there): what [`SymmetricFactor::refactorize`] repeats.
+    given_len: usize,
+    sources: Vec<Source>,
     kind: FactorKind,
     symbolic: SymbolicCholesky<usize>,
     factor: Vec<f64>,
@@ -105,6 +109,15 @@ pub struct SymmetricFactor {
     /// ([`crate::linalg::parallel`]), which survives `fork`.
     par: Par,
     threads: usize,
+}
+
+/// Where an entry of the stored lower triangle comes from: the given entry `given` (usize::MAX:
+/// the zero of a diagonal entry not given) is added to `values[lower]`, or starts it (`first`).
+#[derive(Clone, Copy, Debug)]
+struct Source {
+    given: usize,
+    lower: usize,
+    first: bool,
 }
 
 impl std::fmt::Debug for SymmetricFactor {
@@ -145,10 +158,13 @@ impl SymmetricFactor {
         let mut lower_ptr = vec![0usize; n + 1];
         let mut lower_idx = Vec::with_capacity(values.len() / 2 + n);
         let mut lower_val = Vec::with_capacity(values.len() / 2 + n);
-        let mut column: Vec<(usize, f64)> = Vec::new();
+        // Per lower entry in the order summed: the given entry it takes (usize::MAX for the
+        // zero of a diagonal entry not given), for `refactorize`.
+        let mut sources = Vec::with_capacity(values.len() / 2 + n);
+        let mut column: Vec<(usize, f64, usize)> = Vec::new();
         for c in 0..n {
             column.clear();
-            column.push((c, 0.0));
+            column.push((c, 0.0, usize::MAX));
             for k in col_ptr[c]..col_ptr[c + 1] {
                 let r = row_idx[k];
                 if r >= n {
@@ -164,19 +180,21 @@ impl SymmetricFactor {
                             time: 0.0,
                         });
                     }
-                    column.push((r, values[k]));
+                    column.push((r, values[k], k));
                 }
             }
             column.sort_unstable_by_key(|e| e.0);
             let mut last = usize::MAX;
-            for &(r, v) in &column {
-                if r == last {
-                    *lower_val.last_mut().expect("an entry was pushed") += v;
-                } else {
+            for &(r, v, k) in &column {
+                let first = r != last;
+                if first {
                     lower_idx.push(r);
                     lower_val.push(v);
                     last = r;
+                } else {
+                    *lower_val.last_mut().expect("an entry was pushed") += v;
                 }
+                sources.push(Source { given: k, lower: lower_idx.len() - 1, first });
             }
             lower_ptr[c + 1] = lower_idx.len();
         }
@@ -245,6 +263,8 @@ impl SymmetricFactor {
             col_ptr: lower_ptr,
             row_idx: lower_idx,
             values: lower_val,
+            given_len: values.len(),
+            sources,
             kind,
             factor: Vec::new(),
             factor32: Vec::new(),
@@ -256,6 +276,37 @@ impl SymmetricFactor {
         };
         this.factorize(item)?;
         Ok(this)
+    }
+
+    /// Factorizes anew the matrix of [`Self::new`] with other `values` on the same pattern
+    /// (the same `col_ptr` and `row_idx`, entries above the diagonal ignored), keeping the
+    /// ordering and the symbolic analysis (or the envelope's structure): the numeric
+    /// factorization only. Summed as in [`Self::new`], so the factor equals a fresh one's
+    /// bit for bit. `item` names the matrix in errors; on an error the factor is unusable
+    /// until a factorization succeeds.
+    pub fn refactorize(&mut self, item: &str, values: &[f64]) -> Result<()> {
+        if values.len() != self.given_len {
+            return Err(FlexmbdError::InvalidParameter {
+                item: item.to_string(),
+                message: format!(
+                    "{} values for a pattern of {} entries (a refactorization keeps the pattern)",
+                    values.len(),
+                    self.given_len
+                ),
+            });
+        }
+        for s in &self.sources {
+            let v = if s.given == usize::MAX { 0.0 } else { values[s.given] };
+            if !v.is_finite() {
+                return Err(FlexmbdError::NonFinite { item: format!("{item} entry {}", s.given), time: 0.0 });
+            }
+            if s.first {
+                self.values[s.lower] = v;
+            } else {
+                self.values[s.lower] += v;
+            }
+        }
+        self.factorize(item)
     }
 
     /// Order of the matrix.
@@ -300,7 +351,9 @@ impl SymmetricFactor {
                 )
             });
         }
-        self.factor = vec![0.0; self.symbolic.len_val()];
+        // Zeroed, keeping the memory of an earlier factorization.
+        self.factor.clear();
+        self.factor.resize(self.symbolic.len_val(), 0.0);
         let scale =
             (0..n).map(|c| self.values[self.col_ptr[c]].abs()).fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
         match self.kind {
@@ -378,7 +431,8 @@ impl SymmetricFactor {
                 scaled[k] = (self.values[k] * scaling[c] * scaling[self.row_idx[k]]) as f32;
             }
         }
-        self.factor32 = vec![0.0f32; self.symbolic.len_val()];
+        self.factor32.clear();
+        self.factor32.resize(self.symbolic.len_val(), 0.0);
         let params: Spec<LltParams, f32> = Default::default();
         let req = self.symbolic.factorize_numeric_llt_scratch::<f32>(self.par, params);
         let mut memory = MemBuffer::try_new(req).map_err(|_| out_of_memory(item))?;
@@ -965,6 +1019,115 @@ mod tests {
             SymmetricFactor::new("K", csc(n, &cp, &ri, &shifted), Ordering::Amd, FactorKind::Cholesky, 1)
                 .expect_err("indefinite");
         assert!(format!("{err}").contains("not positive definite (pivot"), "{err}");
+    }
+
+    #[test]
+    fn refactorized_factors_solve_as_fresh_ones_for_changed_values() {
+        // The iteration matrix of a step size, then of another: the values change on the same
+        // pattern (here the grid Laplacian given in both triangles, with a duplicated
+        // diagonal, shifted and scaled anew). The factor refactorized with the kept ordering
+        // and symbolic analysis solves as a fresh factorization of the new values does, in
+        // every form: envelope (fill-reducing requests), supernodal (a given order), single
+        // precision, quasi-definite.
+        let (n, cp, ri, v, pos) = laplacian(12, 0.5);
+        let nodes: Vec<usize> = (0..n).collect();
+        let order = nested_dissection_dofs(&cp, &ri, &nodes, &pos).unwrap();
+        // Both triangles (the upper entries must be ignored) and a second diagonal entry.
+        let mut col_ptr = vec![0];
+        let mut row_idx = Vec::new();
+        let mut base = Vec::new();
+        let mut upper: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        for c in 0..n {
+            for k in cp[c]..cp[c + 1] {
+                if ri[k] != c {
+                    upper[ri[k]].push((c, v[k]));
+                }
+            }
+        }
+        for c in 0..n {
+            for &(r, x) in &upper[c] {
+                row_idx.push(r);
+                base.push(x);
+            }
+            row_idx.extend_from_slice(&ri[cp[c]..cp[c + 1]]);
+            base.extend_from_slice(&v[cp[c]..cp[c + 1]]);
+            row_idx.push(c);
+            base.push(0.25);
+            col_ptr.push(row_idx.len());
+        }
+        // New values: every entry scaled, the diagonal shifted (positive definite still).
+        let changed: Vec<f64> = (0..n)
+            .flat_map(|c| (col_ptr[c]..col_ptr[c + 1]).map(move |k| (c, k)))
+            .map(|(c, k)| if row_idx[k] == c { 3.0 * base[k] + 1.7 } else { 3.0 * base[k] })
+            .collect();
+        let b: Vec<f64> = (0..2 * n).map(|i| ((i * 7919) % 23) as f64 - 11.0).collect();
+        let dissection = Ordering::NestedDissection { dof_nodes: &nodes, positions: &pos };
+        let cases = [
+            (dissection, FactorKind::Cholesky, true),
+            (Ordering::Amd, FactorKind::Cholesky, true),
+            (Ordering::Given(&order), FactorKind::Cholesky, false),
+            (dissection, FactorKind::CholeskySingle, false),
+        ];
+        for (ordering, kind, envelope) in cases {
+            let mut kept =
+                SymmetricFactor::new("A", csc(n, &col_ptr, &row_idx, &base), ordering, kind, 1).unwrap();
+            assert_eq!(kept.is_envelope(), envelope, "{ordering:?} {kind:?}");
+            kept.refactorize("A", &changed).unwrap();
+            let fresh =
+                SymmetricFactor::new("A", csc(n, &col_ptr, &row_idx, &changed), ordering, kind, 1).unwrap();
+            let (mut x, mut expected) = (b.clone(), b.clone());
+            kept.solve_in_place(&mut x).unwrap();
+            fresh.solve_in_place(&mut expected).unwrap();
+            let what = format_args!("{ordering:?} {kind:?}: refactorized against fresh solve");
+            assert_all_close(&x, &expected, 1e-12, 0.0, what);
+            // And it solves the new matrix (in single precision: as a preconditioner does).
+            let accuracy = if kind == FactorKind::CholeskySingle { 1e-4 } else { 1e-12 };
+            assert!(residual(&kept, &x, &b) < accuracy * 11.0, "{ordering:?} {kind:?}");
+        }
+        // Quasi-definite: a constraint row (the mean) appended as the last unknown.
+        let mut q_ptr = vec![0];
+        let (mut q_idx, mut q_base, mut q_changed) = (Vec::new(), Vec::new(), Vec::new());
+        for c in 0..n {
+            for k in col_ptr[c]..col_ptr[c + 1] {
+                q_idx.push(row_idx[k]);
+                q_base.push(base[k]);
+                q_changed.push(changed[k]);
+            }
+            q_idx.push(n);
+            q_base.push(1.0 / n as f64);
+            q_changed.push(2.0 / n as f64);
+            q_ptr.push(q_idx.len());
+        }
+        q_ptr.push(q_idx.len());
+        let kind = FactorKind::QuasiDefinite { positive: n };
+        let mut kept =
+            SymmetricFactor::new("K", csc(n + 1, &q_ptr, &q_idx, &q_base), Ordering::Amd, kind, 1).unwrap();
+        kept.refactorize("K", &q_changed).unwrap();
+        let fresh = SymmetricFactor::new("K", csc(n + 1, &q_ptr, &q_idx, &q_changed), Ordering::Amd, kind, 1)
+            .unwrap();
+        let (mut x, mut expected) = (b[..n + 1].to_vec(), b[..n + 1].to_vec());
+        kept.solve_refined(&mut x, 2).unwrap();
+        fresh.solve_refined(&mut expected, 2).unwrap();
+        assert_all_close(&x, &expected, 1e-12, 0.0, "quasi-definite: refactorized against fresh solve");
+        // Values of another pattern, non-finite values and matrices that are not positive
+        // definite are errors naming the matrix.
+        let err = kept.refactorize("K", &q_changed[1..]).unwrap_err();
+        assert!(err.to_string().contains("keeps the pattern"), "{err}");
+        let mut bad = changed.clone();
+        bad[col_ptr[4] - 1] = f64::NAN;
+        let mut single = SymmetricFactor::new(
+            "A",
+            csc(n, &col_ptr, &row_idx, &base),
+            Ordering::Amd,
+            FactorKind::Cholesky,
+            1,
+        )
+        .unwrap();
+        assert!(matches!(single.refactorize("A", &bad), Err(FlexmbdError::NonFinite { .. })));
+        let indefinite: Vec<f64> =
+            changed.iter().enumerate().map(|(k, &x)| if base[k] == 0.25 { x - 40.0 } else { x }).collect();
+        let err = single.refactorize("A of body 'beam'", &indefinite).unwrap_err();
+        assert!(err.to_string().contains("A of body 'beam'"), "{err}");
     }
 
     #[test]

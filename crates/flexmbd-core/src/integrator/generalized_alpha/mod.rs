@@ -86,6 +86,9 @@ pub struct StepReport {
     pub factorizations: usize,
     /// Last weighted increment norm (converged at <= 1).
     pub increment_norm: f64,
+    /// Contraction rate of the iteration (see `newton::convergence`): the largest after the
+    /// first increment of a converged iteration, the last of a failed one; 0 when not measured.
+    pub contraction: f64,
     /// Coordinate index of the largest last increment.
     pub worst: usize,
     /// Why it failed, if it did (for messages).

@@ -94,36 +94,60 @@ impl BlockFactor {
     }
 }
 
-/// The sparse Cholesky factor of A = s (m M_ff + v D_ff + p K_ff + i I) of the deformable body
-/// `fb` (`n` = n_f) for the coefficients `c`, ordered by nested dissection when the body has
-/// node positions, else by minimum degree.
-fn elastic_iteration_factor(fb: &FlexibleBody, c: &MatrixCoefficients, n: usize) -> Result<SymmetricFactor> {
+/// The values of A = s (m M_ff + v D_ff + p K_ff + i I) of the deformable body `fb` for the
+/// coefficients `c`, on the pattern of [`elastic_iteration_pattern`].
+fn elastic_iteration_values(fb: &FlexibleBody, c: &MatrixCoefficients) -> Vec<f64> {
     let mut on_pattern = vec![0.0; fb.pattern.nnz()];
     fb.mass_matrix.add_to_pattern(c.scale * c.mass, &mut on_pattern);
     fb.damping.add_to_pattern(c.scale * c.velocity, &mut on_pattern);
     fb.stiffness.add_to_pattern(c.scale * c.position, &mut on_pattern);
-    // The pattern with a diagonal entry appended to every column (duplicates are
-    // summed by the factorization) for the identity term.
+    let ep = &fb.pattern;
+    let mut values = Vec::with_capacity(ep.nnz() + ep.n);
+    for col in 0..ep.n {
+        values.extend_from_slice(&on_pattern[ep.col_ptr[col]..ep.col_ptr[col + 1]]);
+        values.push(c.scale * c.identity);
+    }
+    values
+}
+
+/// The pattern of A (column pointers, row indices): the body's pattern with a diagonal entry
+/// appended to every column (duplicates are summed by the factorization) for the identity term.
+fn elastic_iteration_pattern(fb: &FlexibleBody) -> (Vec<usize>, Vec<usize>) {
     let ep = &fb.pattern;
     let mut col_ptr = Vec::with_capacity(ep.n + 1);
     let mut row_idx = Vec::with_capacity(ep.nnz() + ep.n);
-    let mut values = Vec::with_capacity(ep.nnz() + ep.n);
     col_ptr.push(0);
     for col in 0..ep.n {
-        for k in ep.col_ptr[col]..ep.col_ptr[col + 1] {
-            row_idx.push(ep.row_idx[k]);
-            values.push(on_pattern[k]);
-        }
+        row_idx.extend_from_slice(&ep.row_idx[ep.col_ptr[col]..ep.col_ptr[col + 1]]);
         row_idx.push(col);
-        values.push(c.scale * c.identity);
         col_ptr.push(row_idx.len());
     }
+    (col_ptr, row_idx)
+}
+
+/// The sparse Cholesky factor of A of the deformable body `fb` (`n` = n_f) for the
+/// coefficients `c`: `recycled` (a factor of A for other coefficients) factorized anew with
+/// its ordering and symbolic analysis, or else a new factor, ordered by nested dissection when
+/// the body has node positions, else by minimum degree.
+fn elastic_iteration_factor(
+    fb: &FlexibleBody,
+    c: &MatrixCoefficients,
+    n: usize,
+    recycled: Option<SymmetricFactor>,
+) -> Result<SymmetricFactor> {
+    const ITEM: &str = "elastic iteration matrix";
+    let values = elastic_iteration_values(fb, c);
+    if let Some(mut factor) = recycled {
+        factor.refactorize(ITEM, &values)?;
+        return Ok(factor);
+    }
+    let (col_ptr, row_idx) = elastic_iteration_pattern(fb);
     let matrix = CscRef { n, col_ptr: &col_ptr, row_idx: &row_idx, values: &values };
     let ordering = match (&fb.dof_nodes, &fb.node_positions) {
         (Some(nodes), Some(positions)) => Ordering::NestedDissection { dof_nodes: nodes, positions },
         _ => Ordering::Amd,
     };
-    SymmetricFactor::new("elastic iteration matrix", matrix, ordering, FactorKind::Cholesky, 1)
+    SymmetricFactor::new(ITEM, matrix, ordering, FactorKind::Cholesky, 1)
 }
 
 /// The LU factorization of the reduced (Schur complement) system: dense for systems of at
@@ -188,10 +212,12 @@ impl Block {
             return Ok(());
         }
         let only_identity = c.mass == 0.0 && c.velocity == 0.0 && c.position == 0.0;
+        // The factor that makes room for the new one lends it its symbolic analysis.
+        let evicted = if self.factors.len() >= 2 { self.factors.pop().and_then(|f| f.factor) } else { None };
         let mut factor = if only_identity {
             BlockFactor::new(k, None, c.scale * c.identity)
         } else {
-            BlockFactor::new(k, Some(elastic_iteration_factor(fb, c, self.n)?), 0.0)
+            BlockFactor::new(k, Some(elastic_iteration_factor(fb, c, self.n, evicted)?), 0.0)
         };
         let mut influence = Vec::with_capacity(12 * self.n);
         for i in 0..12 {
@@ -199,9 +225,7 @@ impl Block {
         }
         factor.solve_in_place(&mut influence)?;
         factor.influence = influence;
-        if self.factors.len() >= 2 {
-            self.factors.pop();
-        }
+        self.factors.truncate(1);
         self.factors.insert(0, factor);
         self.current = 0;
         Ok(())

@@ -328,6 +328,33 @@ fn factorizations_of_a_serve_coefficients_equal_to_round_off() {
 }
 
 #[test]
+fn a_factor_of_a_refactorized_for_a_third_step_size_solves_as_a_fresh_one() {
+    // A third step size takes the place of the older of the two kept factors of A and
+    // refactorizes it numerically with its ordering and symbolic analysis: its solves equal
+    // those of a solver that factorized A for that step size alone.
+    let condensed = model(true, false);
+    let state = moving_deformed_state(&condensed);
+    let method = crate::integrator::generalized_alpha::GeneralizedAlpha::from_spectral_radius(0.9).unwrap();
+    let rhs = test_rhs(condensed.system_size());
+    let solve_after = |steps: &[f64]| {
+        let mut solver = CondensedSolver::new(&condensed, true).unwrap();
+        let mut x = rhs.clone();
+        for &step in steps {
+            let c = method.coefficients(step);
+            let ws = assembled(&condensed, &state, c);
+            solver.factorize(&condensed, &ws.values, &c, &state.coordinates).unwrap();
+            x = rhs.clone();
+            solver.solve_in_place(&mut x).unwrap();
+        }
+        assert_eq!(solver.blocks[0].factors.len(), steps.len().min(2));
+        x
+    };
+    let recycled = solve_after(&[1e-3, 2.5e-4, 5e-4]);
+    let fresh = solve_after(&[5e-4]);
+    assert_all_close(&recycled, &fresh, 1e-12, 0.0, "solve with a refactorized A against a fresh one");
+}
+
+#[test]
 fn deformation_solves_are_kept_while_the_deformation_coupling_changes_little() {
     // A factorization at a deformation close to that of the kept solves of dJ reuses them
     // (its solve is then close to, not equal to, the direct one); a larger change solves
