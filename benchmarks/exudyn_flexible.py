@@ -97,6 +97,7 @@ Command line::
     python benchmarks/exudyn_flexible.py --model pendulum --configs rxyz-mod-dense-fast-sph
     python benchmarks/exudyn_flexible.py --model slider-crank --repeat 3 --json sc.json
     python benchmarks/exudyn_flexible.py --model nodal --size 10k --steps 20
+    python benchmarks/exudyn_flexible.py --model soft --size 1k     # the soft beam, 2 s
 
 Exudyn is imported lazily (in the worker process), so this module imports without it.
 """
@@ -122,7 +123,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import exudyn_fourbar as fourbar  # noqa: E402
 import flexible_models  # noqa: E402
 
-MODELS = ("pendulum", "slider-crank", "nodal")
+MODELS = ("pendulum", "slider-crank", "nodal", "soft")
 NODAL_SIZES = tuple(flexible_models.NODAL_SIZES)
 
 GRAVITY = flexible_models.GRAVITY
@@ -136,6 +137,8 @@ SLIDER_CRANK_STEPS = math.ceil(4.0 * math.pi / flexible_models.OMEGA / SLIDER_CR
 NODAL_STEP = 1e-3
 #: default number of steps of the nodal timing runs, by size
 NODAL_STEPS = {"1k": 100, "10k": 20, "50k": 3}
+#: the soft beam (issue 30): step, end time and output interval of benchmarks/soft_beam.py
+SOFT_STEP, SOFT_END, SOFT_OUTPUT = 1e-3, 2.0, 0.01
 
 CRANK_MASS = 0.1
 CRANK_INERTIA = (
@@ -186,6 +189,7 @@ DEFAULT_CONFIGS = {
         "ep-mod-sparse-fast",
         "rxyz-mod-eigdense-fast",
     ),
+    "soft": ("rxyz-mod-sparse-fast", "ep-mod-sparse-fast"),
 }
 
 #: fastest configuration per model found on the 2-core test machine (notes_exudyn_flexible.md)
@@ -193,6 +197,7 @@ FASTEST_CONFIGS = {
     "pendulum": "rxyz-mod-dense-rho0.9-ctr0.1-fast-sph",
     "slider-crank": "ep-mod-eigdense-rho0.9-fast-sph",
     "nodal": "rxyz-mod-sparse-rho0.9-fast",
+    "soft": "rxyz-mod-sparse-rho0.9-fast",
 }
 
 
@@ -569,8 +574,9 @@ def check_dense_memory(ode2_coordinates: int) -> float:
     return needed
 
 
-def build_nodal(exu, cfg: FlexibleConfig, size: str):
-    """The unreduced pendulum as ObjectFFRF; returns like ``build_pendulum``."""
+def build_nodal(exu, cfg: FlexibleConfig, size: str, soft: bool = False):
+    """The unreduced pendulum (the soft beam if `soft`) as ObjectFFRF; returns like
+    ``build_pendulum``."""
     from exudyn.itemInterface import (
         CoordinateConstraint,
         LoadForceVector,
@@ -585,7 +591,7 @@ def build_nodal(exu, cfg: FlexibleConfig, size: str):
     )
     from exudyn.rigidBodyUtilities import GetRigidBodyNode
 
-    model = flexible_models.nodal(size)
+    model = flexible_models.soft(size) if soft else flexible_models.nodal(size)
     body = model.body
     x0 = flexible_models.nodes_of(model, "x0")
     x1 = flexible_models.nodes_of(model, "x1")
@@ -692,6 +698,12 @@ def scenario(model: str, size: str | None = None, steps: int | None = None) -> d
             "steps": steps or NODAL_STEPS[size],
             "output_interval": NODAL_STEP,
         }
+    if model == "soft":
+        return {
+            "step_size": SOFT_STEP,
+            "steps": steps or round(SOFT_END / SOFT_STEP),
+            "output_interval": SOFT_OUTPUT,
+        }
     raise ValueError(f"model must be one of {MODELS}, got {model!r}")
 
 
@@ -720,7 +732,7 @@ def run_in_process(model: str, size: str | None, config: str, steps: int | None 
     elif model == "slider-crank":
         sc, mbs, recorder, checks, keep_alive = build_slider_crank(exu, cfg)
     else:
-        sc, mbs, recorder, checks, keep_alive = build_nodal(exu, cfg, size)
+        sc, mbs, recorder, checks, keep_alive = build_nodal(exu, cfg, size, soft=model == "soft")
     build_time = time.perf_counter() - start
 
     settings = fourbar.simulation_settings(exu, cfg.solver, h, end_time)
@@ -778,6 +790,9 @@ def run_in_process(model: str, size: str | None, config: str, steps: int | None 
         "checks": checks,
         "outputs": outputs,
     }
+    if model == "soft":
+        # Exudyn's own counts: steps taken (with its step reductions), Newton iterations.
+        result["end_reached"] = float(solver.it.currentTime)
     if step_starts:
         marks = [*step_starts, end]
         result["initialization_time"] = step_starts[0] - start
@@ -851,7 +866,7 @@ def _format_row(res: dict) -> str:
 
 
 def _print_checks(model: str, checks: dict) -> None:
-    if model == "nodal":
+    if model in ("nodal", "soft"):
         print(f"  {checks}")
         return
     print(
@@ -876,7 +891,7 @@ def main(argv: list[str] | None = None) -> int:
 
     configs = args.configs or list(DEFAULT_CONFIGS[args.model])
     configs = [parse_flexible_config(c).name() for c in configs]  # fail early on a typo
-    size = args.size if args.model == "nodal" else None
+    size = args.size if args.model in ("nodal", "soft") else None
     case = scenario(args.model, size, args.steps)
     print(
         f"Exudyn {fourbar._exudyn_version_string()} {args.model}{' ' + size if size else ''}: "

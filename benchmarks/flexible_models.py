@@ -28,6 +28,10 @@ import numpy as np
 from flexmbd.fe import FlexibleBodyData, Material, Mesh, build_body, shapes
 
 ALUMINIUM = Material(7.0e10, 0.33, 2700.0)
+#: The soft beam of issue 30 (benchmarks/soft_beam.py; the peer's flexible-pendulum material).
+SOFT = Material(1.0e8, 0.3, 1000.0)
+#: Cells of the soft 1 x 0.1 x 0.1 m beam by size: 960 and 9,408 elastic coordinates.
+SOFT_SIZES = {"1k": (20, 3, 3), "10k": (64, 6, 6)}
 STEEL = Material(2.0e11, 0.3, 7870.0)
 GRAVITY = (0.0, -9.81, 0.0)
 
@@ -90,6 +94,21 @@ def slider_crank_rod() -> FlexibleModel:
         interface_kind="rbe2",
     )
     return FlexibleModel(mesh, STEEL, body)
+
+
+@cache
+def soft(size: str) -> FlexibleModel:
+    """The soft tet4 beam of `size` (a key of `SOFT_SIZES`), clamped at face x0."""
+    mesh = shapes.box((1.0, 0.1, 0.1), SOFT_SIZES[size], "tet4")
+    body = build_body(
+        mesh.nodes,
+        mesh.elements,
+        SOFT,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+    )
+    return FlexibleModel(mesh, SOFT, body)
 
 
 @cache
