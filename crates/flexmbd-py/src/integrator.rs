@@ -615,7 +615,9 @@ impl ExplicitSolver {
         s.min_step_size = self.min_step_size.unwrap_or(step_size * 1e-9);
         s.max_step_size = match method {
             ExplicitMethod::Rk4 => step_size,
-            ExplicitMethod::Dopri5 => self.max_step_size.unwrap_or(f64::MAX).max(step_size),
+            ExplicitMethod::Dopri5 | ExplicitMethod::TrBdf2 => {
+                self.max_step_size.unwrap_or(f64::MAX).max(step_size)
+            }
         };
         s.initial = initial_settings(
             self.initial_tolerance,

@@ -306,9 +306,12 @@ pub enum ExplicitMethod {
     Rk4,
     /// Dormand-Prince 5(4), error-controlled step.
     Dopri5,
+    /// TR-BDF2, implicit (L-stable, second order), error-controlled step: for stiff
+    /// deformable bodies.
+    TrBdf2,
 }
 
-crate::named!(ExplicitMethod { Dopri5 => "dopri5", Rk4 => "rk4" });
+crate::named!(ExplicitMethod { Dopri5 => "dopri5", Rk4 => "rk4", TrBdf2 => "tr-bdf2" });
 
 /// The seed's strategies for the constrained equations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,8 +1,10 @@
 //! Explicit integration of the constrained equations of motion: the three strategies of seed
 //! section 4 ("Numerical solution of the augmented equations"), each with the accelerations
 //! from the augmented system (seed eq. 26) or from the embedding technique (seed eqs. 27-30),
-//! and a classical Runge-Kutta method of order 4 (fixed step) or the embedded Dormand-Prince
-//! 5(4) pair (error-controlled step):
+//! and a classical Runge-Kutta method of order 4 (fixed step), the embedded Dormand-Prince
+//! 5(4) pair (error-controlled step) or, for stiff deformable bodies, the implicit TR-BDF2
+//! (error-controlled step; the folder keeps its name: the strategies are those of the explicit
+//! integration):
 //!
 //! 1. `IntegrateAll`: integrate q and q_dot, dependent and independent. The constraints hold
 //!    only at the acceleration level, so C and C_q q_dot + C_t drift; Baumgarte's
@@ -25,7 +27,8 @@
 //!
 //! The folder: `engine` (the right-hand sides of every strategy), `partitioning` (2),
 //! `projection` (3), `joint_coordinates`, `runge_kutta` (the methods, their stages and error
-//! estimate) and `run` (the start of a run and the step attempts of the time loop).
+//! estimate), `trbdf2` (the implicit method and its Newton iterations) and `run` (the start of
+//! a run and the step attempts of the time loop).
 
 mod engine;
 mod joint_coordinates;
@@ -33,5 +36,6 @@ mod partitioning;
 mod projection;
 mod run;
 mod runge_kutta;
+mod trbdf2;
 
 pub use run::run;

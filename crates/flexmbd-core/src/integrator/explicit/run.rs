@@ -7,6 +7,7 @@
 use super::engine::Engine;
 use super::partitioning::{first_partition, redundant_rows_event};
 use super::runge_kutta::{self, Stages};
+use super::trbdf2::Newton;
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::DenseEquations;
 use crate::integrator::discrete::{start_discrete, update_discrete};
@@ -62,9 +63,10 @@ pub fn run(
         near_singular: false,
         drift_reported: false,
         last_state,
+        newton: Newton::default(),
     };
     time_loop(model, settings, &mut steps, observer, output, &mut state)?;
-    count_evaluations(&steps.engine, &mut output.statistics);
+    count_evaluations(&steps.engine, &steps.newton, &mut output.statistics);
     Ok(())
 }
 
@@ -87,6 +89,8 @@ struct ExplicitSteps<'a, 'b> {
     drift_reported: bool,
     /// The last accepted state that was checked and recorded, kept for a failure.
     last_state: &'b mut Option<State>,
+    /// The iteration matrix of the implicit method (TR-BDF2), kept between steps.
+    newton: Newton,
 }
 
 impl Stepper for ExplicitSteps<'_, '_> {
@@ -170,14 +174,14 @@ impl Stepper for ExplicitSteps<'_, '_> {
     /// Keeps a copy of `state` for a failure later, and counts the evaluations.
     fn completed(&mut self, state: &State, output: &mut Output) {
         state.store_in(self.last_state);
-        count_evaluations(&self.engine, &mut output.statistics);
+        count_evaluations(&self.engine, &self.newton, &mut output.statistics);
     }
 }
 
 impl ExplicitSteps<'_, '_> {
     /// Whether the method controls the error (Dormand-Prince) or takes fixed steps (RK4).
     fn adaptive(&self) -> bool {
-        self.engine.settings.method == ExplicitMethod::Dopri5
+        self.engine.settings.method != ExplicitMethod::Rk4
     }
 
     /// The Runge-Kutta step from (t, y) with step h; returns its error norm. The end point of
@@ -188,9 +192,15 @@ impl ExplicitSteps<'_, '_> {
         let engine = &mut self.engine;
         let explicit = engine.settings;
         let tolerances = (explicit.relative_tolerance, explicit.absolute_tolerance);
-        let err = runge_kutta::step(explicit.method, t, h, &mut self.stages, tolerances, |time, y, dy| {
-            engine.derivative(time, y, dy)
-        })?;
+        let err = runge_kutta::step(
+            explicit.method,
+            t,
+            h,
+            &mut self.stages,
+            tolerances,
+            &mut self.newton,
+            |time, y, dy| engine.derivative(time, y, dy),
+        )?;
         if (adaptive && err <= 1.0) || (!adaptive && err.is_finite()) {
             engine.check_branch = true;
             let result = engine.unpack(t + h, &self.stages.y_new);
@@ -231,6 +241,7 @@ impl ExplicitSteps<'_, '_> {
         if let Some(event) = self.engine.repartition_after_failure()? {
             output.events.push(event);
             self.restart_stages();
+            self.newton.invalidate();
             self.first_derivative_valid = false;
             return Ok(Attempt::Rejected(Retry::Again));
         }
@@ -259,11 +270,14 @@ impl ExplicitSteps<'_, '_> {
         if let Some(event) = engine.rebase_joint_coordinates(t_new)? {
             output.events.push(event);
             modified = true;
+            // Other coordinates: the implicit method's Jacobian no longer applies.
+            self.newton.invalidate();
         }
         let mode = engine.mode;
         let events = engine.update_partition(t_new)?;
         if !events.is_empty() || engine.mode != mode {
             modified = true;
+            self.newton.invalidate();
         }
         output.events.extend(events);
         Ok(modified)
@@ -307,8 +321,10 @@ fn retryable(e: &FlexmbdError) -> bool {
     )
 }
 
-/// The evaluations and Newton iterations of the engine so far into the statistics.
-fn count_evaluations(engine: &Engine, statistics: &mut Statistics) {
+/// The evaluations and Newton iterations of the engine (and of the implicit method's stages)
+/// so far into the statistics; the implicit method's Jacobians as factorizations.
+fn count_evaluations(engine: &Engine, newton: &Newton, statistics: &mut Statistics) {
     statistics.function_evaluations = engine.evaluations;
-    statistics.newton_iterations = engine.newton_iterations;
+    statistics.newton_iterations = engine.newton_iterations + newton.iterations;
+    statistics.factorizations = newton.jacobians;
 }

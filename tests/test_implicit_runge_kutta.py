@@ -1,0 +1,73 @@
+"""TR-BDF2, the implicit Runge-Kutta method of the strategies (issue 30): second order on
+IFToMM A01, and stiff deformable bodies in joint coordinates at steps where the explicit
+methods fail."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+
+
+def test_pendulum_errors_fall_at_second_order():
+    example = fm.examples.pendulum()
+    errors, steps = [], []
+    for tolerance in (1e-4, 1e-5, 1e-6):
+        solver = fm.ExplicitSolver(
+            "tr-bdf2", "projection",
+            relative_tolerance=tolerance, absolute_tolerance=tolerance * 1e-2,
+        )  # fmt: skip
+        result = fm.simulate(example.system, 10.0, 1e-3, output_interval=0.5, solver=solver)
+        position = result.sensor("bob position")
+        times = list(np.round(result.time, 9))
+        errors.append(
+            max(
+                np.abs(position[times.index(t), :2] - np.array(exact)).max()
+                for t, exact in example.reference.items()
+            )
+        )
+        steps.append(result.statistics["steps"])
+    # Each tenfold tolerance: about 2.2 times the steps and a 3.5 to 5 times smaller error
+    # (second order: error ~ steps^-2).
+    for k in range(2):
+        order = np.log(errors[k] / errors[k + 1]) / np.log(steps[k + 1] / steps[k])
+        assert 1.6 < order < 2.4, (errors, steps)
+    assert errors[-1] < 1e-3
+
+
+@pytest.fixture(scope="module")
+def arm():
+    """The flexible robot arm (three elastic links, 2 elements each) and its tip over 0.3 s
+    by generalized-alpha at h = 1e-4 (the reference)."""
+    example = fm.examples.flexible_robot_arm(elements=2)
+    model = example.system.compile()
+    links, tip = example.items["links"], example.items["tip node"]
+
+    def tip_of(result):
+        return result.node_positions(links[2], [tip])[:, 0, :]
+
+    solver = fm.GeneralizedAlpha(1.0, newton_tolerance=1e-10)
+    reference = fm.simulate(model, 0.3, 1e-4, output_interval=0.05, solver=solver)
+    return model, tip_of, tip_of(reference)
+
+
+def test_stiff_links_in_joint_coordinates(arm, assert_close):
+    model, tip_of, reference = arm
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        # The explicit method at h = 1e-3 meets the links' elastic modes and fails.
+        with pytest.raises(fm.NonFiniteError):
+            fm.simulate(model, 0.3, 1e-3, solver=fm.ExplicitSolver("rk4", "joint-coordinates"))
+        for tolerance, agreement in ((1e-3, 2e-5), (1e-4, 1e-6)):
+            solver = fm.ExplicitSolver(
+                "tr-bdf2", "joint-coordinates",
+                relative_tolerance=tolerance, absolute_tolerance=0.1 * tolerance,
+            )  # fmt: skip
+            result = fm.simulate(model, 0.3, 1e-3, output_interval=0.05, solver=solver)
+            assert_close(tip_of(result), reference, abs=agreement, what=f"tip at rtol {tolerance}")
+            stats = result.statistics
+            # Steps of 5e-5 s and more (RK4 fails at 1e-3), the Jacobian formed a few times.
+            assert stats["steps"] < 0.3 / 5e-5 and stats["factorizations"] < stats["steps"] / 10
