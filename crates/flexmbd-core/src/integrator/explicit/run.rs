@@ -7,7 +7,7 @@
 use super::engine::Engine;
 use super::partitioning::{first_partition, redundant_rows_event};
 use super::runge_kutta::{self, Stages};
-use super::trbdf2::Newton;
+use super::trbdf2::{self, Newton, Outcome};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::DenseEquations;
 use crate::integrator::discrete::{start_discrete, update_discrete};
@@ -192,15 +192,17 @@ impl ExplicitSteps<'_, '_> {
         let engine = &mut self.engine;
         let explicit = engine.settings;
         let tolerances = (explicit.relative_tolerance, explicit.absolute_tolerance);
-        let err = runge_kutta::step(
-            explicit.method,
-            t,
-            h,
-            &mut self.stages,
-            tolerances,
-            &mut self.newton,
-            |time, y, dy| engine.derivative(time, y, dy),
-        )?;
+        let derivative = |time: f64, y: &[f64], dy: &mut [f64]| engine.derivative(time, y, dy);
+        let err = match explicit.method {
+            ExplicitMethod::TrBdf2 => {
+                match trbdf2::step(t, h, &mut self.stages, tolerances, &mut self.newton, derivative)? {
+                    Outcome::Error(err) => err,
+                    // The step attempt fails: a shorter step (error control) follows.
+                    Outcome::NotConverged => f64::INFINITY,
+                }
+            }
+            method => runge_kutta::step(method, t, h, &mut self.stages, tolerances, derivative)?,
+        };
         if (adaptive && err <= 1.0) || (!adaptive && err.is_finite()) {
             engine.check_branch = true;
             let result = engine.unpack(t + h, &self.stages.y_new);

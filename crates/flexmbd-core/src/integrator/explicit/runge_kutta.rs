@@ -1,10 +1,9 @@
 //! The Runge-Kutta methods on the integrated vector y of a strategy: the classical method of
 //! order 4 (fixed step), the embedded Dormand-Prince 5(4) pair with its error estimate
-//! (error-controlled step, first same as last), and the implicit TR-BDF2 (`trbdf2`), over
-//! stage buffers kept between steps.
+//! (error-controlled step, first same as last), over stage buffers kept between steps (which
+//! the implicit TR-BDF2 of `trbdf2` uses too).
 
-use super::trbdf2::{self, Newton, Outcome};
-use crate::error::Result;
+use crate::error::{FlexmbdError, Result};
 use crate::integrator::settings::ExplicitMethod;
 
 /// Dormand-Prince 5(4) coefficients (Dormand and Prince 1980; Hairer, Norsett and Wanner,
@@ -68,15 +67,14 @@ pub(super) fn step(
     h: f64,
     stages: &mut Stages,
     tolerances: (f64, f64),
-    newton: &mut Newton,
     derivative: impl FnMut(f64, &[f64], &mut [f64]) -> Result<()>,
 ) -> Result<f64> {
     match method {
-        ExplicitMethod::TrBdf2 => match trbdf2::step(t, h, stages, tolerances, newton, derivative)? {
-            Outcome::Error(err) => Ok(err),
-            // The step attempt fails: a shorter step (error control) follows.
-            Outcome::NotConverged => Ok(f64::INFINITY),
-        },
+        // The implicit method steps in `trbdf2` (the caller dispatches it there).
+        ExplicitMethod::TrBdf2 => Err(FlexmbdError::InvalidParameter {
+            item: "explicit solver".to_string(),
+            message: "tr-bdf2 is not an explicit Runge-Kutta method".to_string(),
+        }),
         ExplicitMethod::Rk4 => {
             rk4_step(t, h, stages, derivative)?;
             Ok(0.0)
