@@ -270,3 +270,21 @@ def test_set_values_are_numbers_text_and_lists():
         _parameters(["a=1,2"], "lhs")
     with pytest.raises(fm.InvalidParameterError, match="KEY=V1"):
         _parameters(["a"], "grid")
+
+
+def test_an_existing_scheduler_runs_the_same_study(tmp_path, worker_path):
+    # A cluster started elsewhere (here: in this test) is used by its address, the same path
+    # as a remote one; the study does not stop it.
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        study = fm.Study(
+            swinging_arm, {"length": [0.5, 1.0]}, folder=tmp_path / "remote",
+            outputs={"lowest tip": "min(sensor:tip[y])"}, end_time=0.2, step_size=1e-3,
+        )  # fmt: skip
+        data = study.run(scheduler=cluster.scheduler_address, progress=False)
+        assert list(data["status"].values) == ["complete", "complete"]
+        assert cluster.scheduler is not None and len(cluster.workers) == 1
+    assert np.all(data["lowest tip"].values < 0.0)
