@@ -28,31 +28,22 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import flexible_models  # noqa: E402
 import numpy as np  # noqa: E402
 
 import flexmbd as fm  # noqa: E402
-from flexmbd.fe import Material, build_body, shapes  # noqa: E402
 
-SOFT = Material(1.0e8, 0.3, 1000.0)
 GRAVITY = (0.0, -9.81, 0.0)
 
-#: Cells of the 1 x 0.1 x 0.1 m box by size: 960 and 9,408 elastic coordinates.
-SIZES = {"1k": (20, 3, 3), "10k": (64, 6, 6)}
+#: Sizes of the beam: 960 and 9,408 elastic coordinates.
+SIZES = flexible_models.SOFT_SIZES
 
 STEP, INTERVAL, SPECTRAL_RADIUS = 1e-3, 0.01, 0.9
 
 
 def soft_body(size: str) -> fm.fe.FlexibleBodyData:
-    """The soft beam of `size`, clamped to its frame at face x0."""
-    mesh = shapes.box((1.0, 0.1, 0.1), SIZES[size], "tet4")
-    return build_body(
-        mesh.nodes,
-        mesh.elements,
-        SOFT,
-        node_sets=mesh.node_sets,
-        reference="clamped",
-        reference_nodes="x0",
-    )
+    """The soft beam of `size`, clamped to its frame at face x0 (`flexible_models.soft`)."""
+    return flexible_models.soft(size).body
 
 
 def soft_beam(body: fm.fe.FlexibleBodyData) -> tuple[fm.System, int]:

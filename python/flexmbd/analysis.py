@@ -378,6 +378,21 @@ class LinearizedSystem:
             self._eigen = (values, self.basis @ vectors[:n])
         return self._eigen
 
+    def without_velocity_terms(self) -> LinearizedSystem:
+        """The same linearization with the velocity-dependent terms (Coriolis coupling,
+        gyroscopic moments, damping) left out: D = 0."""
+        return LinearizedSystem(
+            self.mass,
+            np.zeros_like(self.damping),
+            self.stiffness,
+            self.basis,
+            self.state,
+            input_forces=self.input_forces,
+            input_names=self.input_names,
+            output_rows=self.output_rows,
+            output_names=self.output_names,
+        )
+
     def oscillating(self) -> tuple[Array, Array, NDArray[np.complex128]]:
         """The oscillating modes (one per pair of complex eigenvalues s, Im s > 0), by
         frequency: damped frequencies Im s / 2 pi (Hz), damping ratios -Re s / |s| and the

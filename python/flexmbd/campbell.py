@@ -145,8 +145,7 @@ def campbell(
         state = steady_rotation(model, time) if w != 0.0 else equilibrium(model, time)
         linear = linearize(model, state)
         if not gyroscopic:
-            linear.damping = np.zeros_like(linear.damping)
-            linear._eigen = None
+            linear = linear.without_velocity_terms()
         f, zeta, phi = (part[..., : count + EXTRA_CANDIDATES] for part in linear.oscillating())
         if followed is None:
             if len(f) < count:

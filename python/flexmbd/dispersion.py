@@ -134,9 +134,7 @@ def dispersion(
     system.add_angle_driver(hub, root, Polynomial([0.0, speed]), name="hub")
     model = system.compile()
     state = steady_rotation(model) if speed != 0.0 else equilibrium(model)
-    linear = linearize(model, state)
-    linear.damping = np.zeros_like(linear.damping)  # no Coriolis coupling (see the module)
-    linear._eigen = None
+    linear = linearize(model, state).without_velocity_terms()  # no Coriolis (see the module)
     frequencies, _, shapes = linear.oscillating()
     # Each node's 6 elastic coordinates; rotations times the section's polar radius of
     # gyration, so that torsion (no translation) counts as its own motion.

@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import InvalidParameterError, UnknownItemError
-from .quantities import resolve_item
+from .quantities import deformable, resolve_item
 
 Array = NDArray[np.float64]
 
@@ -224,7 +224,7 @@ def plot_deflections(result: Any, body: object, node: int | None = None, ax: Any
     axes): of node `node` (a node id of the mesh), or, if None, of the node whose largest
     |u| over the run is the largest; with the largest |u| over all nodes per record
     (dashed)."""
-    _, name, data = _deformable(result, body)
+    _, name, data = deformable(result, body)
     u = result.node_displacements(body)
     magnitude = np.linalg.norm(u, axis=2)
     if node is None:
@@ -237,28 +237,6 @@ def plot_deflections(result: Any, body: object, node: int | None = None, ax: Any
         ax.plot(result.time, u[:, index, k], label=f"u_{axis}, node {node_id}")
     ax.plot(result.time, magnitude.max(axis=1), "k--", lw=1.0, label="largest |u| of all nodes")
     return _finish(ax, "elastic displacement (m)", f"Deflection of {name} (body axes)")
-
-
-def _deformable(result: Any, body: object) -> tuple[int, str, Any]:
-    """Index, name and FlexibleBodyData of a deformable body given by name, index or id;
-    UnknownItemError for other bodies."""
-    entries = result.layout["bodies"]
-    names = [e["name"] for e in entries]
-    if isinstance(body, str):
-        if body not in names:
-            raise UnknownItemError(f"no body named {body!r}; known: {names}", item=body)
-        index = names.index(body)
-    else:
-        index = int(getattr(body, "index", body))  # type: ignore[call-overload]
-        if not 0 <= index < len(entries):
-            raise UnknownItemError(f"body {index} does not exist", item=str(body))
-    if entries[index]["kind"] != "flexible" or index not in result.flexible:
-        raise UnknownItemError(
-            f"body {names[index]!r} is not a deformable body; deformable bodies: "
-            f"{_flexible_names(result)}",
-            item=names[index],
-        )
-    return index, names[index], result.flexible[index]
 
 
 def _node_of(data: Any, node: int) -> int:
@@ -277,7 +255,7 @@ def plot_stress(result: Any, body: object, axes: Any = None) -> list[Any]:
     """Largest von Mises stress over the nodes of the solid elements of a deformable body
     (Pa) per record; for a body of beams, the largest axial force |N| (N) and bending moment
     sqrt(M_y^2 + M_z^2) (N m) over the element ends, two panels. Returns the Axes."""
-    _, _, data = _deformable(result, body)
+    _, _, data = deformable(result, body)
     kinds = ("von-mises",) if _has_solids(data) else ("axial", "bending")
     axes = _new_axes(len(kinds)) if axes is None else list(np.ravel(axes))
     for kind, ax in zip(kinds, axes, strict=True):
@@ -293,7 +271,7 @@ def _plot_stress_panel(result: Any, body: object, kind: str, ax: Any) -> Any:
     """One panel of :func:`plot_stress`: "von-mises", "axial" or "bending"."""
     from .fe.stress import von_mises
 
-    _, name, _ = _deformable(result, body)
+    _, name, _ = deformable(result, body)
     n = len(result.time)
     if kind == "von-mises":
         largest = von_mises(result.stresses(body)).reshape(n, -1).max(axis=1)
@@ -419,7 +397,7 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
     if kind in BODY_QUANTITIES:
         body = resolve_item(result, "bodies", rest)
         if kind == "elastic":
-            _deformable(result, body)
+            deformable(result, body)
         return [lambda ax: plot_body(result, body, kind, ax)]
     if kind == "deflection":
         node = None
@@ -428,13 +406,13 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
         if rest not in names and head and re.fullmatch(r"-?\d+", tail.strip()):
             rest, node = head.strip(), int(tail)
         body = resolve_item(result, "bodies", rest)
-        _, _, data = _deformable(result, body)
+        _, _, data = deformable(result, body)
         if node is not None:
             _node_of(data, node)
         return [lambda ax: plot_deflections(result, body, node, ax)]
     if kind == "stress":
         body = resolve_item(result, "bodies", rest)
-        _, _, data = _deformable(result, body)
+        _, _, data = deformable(result, body)
         kinds = ("von-mises",) if _has_solids(data) else ("axial", "bending")
         return [lambda ax, k=k: _plot_stress_panel(result, body, k, ax) for k in kinds]
     if kind == "reaction":

@@ -114,7 +114,7 @@ def _plain(result: Any, kind: str) -> tuple[Array, list[str]]:
 
 def _deflection(result: Any, body: object, node_text: str) -> tuple[Array, list[str]]:
     """u_x, u_y, u_z of a node (its id, or the node that moves most) and the largest |u|."""
-    data = _flexible_data(result, body)
+    data = deformable(result, body)[2]
     u = result.node_displacements(body)
     magnitude = np.linalg.norm(u, axis=2)
     if node_text:
@@ -138,7 +138,7 @@ def _stress(result: Any, body: object) -> tuple[Array, list[str]]:
     """Largest von Mises stress (solids), or largest |N| and |M| (beams), per record."""
     from .fe.stress import von_mises
 
-    data = _flexible_data(result, body)
+    data = deformable(result, body)[2]
     n = len(result.time)
     if any(kind != "beam2" for kind in data.elements):
         return von_mises(result.stresses(body)).reshape(n, -1).max(axis=1)[:, None], ["von-mises"]
@@ -148,12 +148,32 @@ def _stress(result: Any, body: object) -> tuple[Array, list[str]]:
     return np.column_stack([axial, bending]), ["axial", "bending"]
 
 
-def _flexible_data(result: Any, body: object) -> Any:
-    entries = result.layout["bodies"]
-    index = [e["name"] for e in entries].index(body) if isinstance(body, str) else int(body)  # type: ignore[call-overload]
-    if index not in result.flexible:
-        raise UnknownItemError(f"body {entries[index]['name']!r} is not a deformable body")
-    return result.flexible[index]
+def body_entry(layout: dict[str, Any], body: object) -> tuple[int, dict[str, Any]]:
+    """Index and layout entry of a body given by name, index or id; UnknownItemError
+    otherwise."""
+    entries = layout["bodies"]
+    names = [e["name"] for e in entries]
+    if isinstance(body, str):
+        if body not in names:
+            raise UnknownItemError(f"no body named {body!r}; known: {names}", item=body)
+        return names.index(body), entries[names.index(body)]
+    index = int(getattr(body, "index", body))  # type: ignore[call-overload]
+    if not 0 <= index < len(entries):
+        raise UnknownItemError(f"body {index} does not exist", item=str(body))
+    return index, entries[index]
+
+
+def deformable(result: Any, body: object) -> tuple[int, str, Any]:
+    """Index, name and FlexibleBodyData of a deformable body given by name, index or id;
+    UnknownItemError for other bodies."""
+    index, entry = body_entry(result.layout, body)
+    if entry["kind"] != "flexible" or index not in result.flexible:
+        known = [e["name"] for k, e in enumerate(result.layout["bodies"]) if k in result.flexible]
+        raise UnknownItemError(
+            f"body {entry['name']!r} is not a deformable body; deformable bodies: {known}",
+            item=entry["name"],
+        )
+    return index, entry["name"], result.flexible[index]
 
 
 def parse_output(spec: str) -> tuple[str, str, str | None]:

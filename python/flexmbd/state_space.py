@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._checks import numbers_array
-from .errors import InvalidParameterError, UnknownItemError
+from .errors import InvalidParameterError
+from .quantities import body_entry
 
 Array = NDArray[np.float64]
 
@@ -105,20 +106,6 @@ class StateSpace:
         return out
 
 
-def _body_entry(layout: dict[str, Any], body: Any) -> tuple[int, dict[str, Any]]:
-    entries = layout["bodies"]
-    names = [e["name"] for e in entries]
-    if isinstance(body, str):
-        if body not in names:
-            raise UnknownItemError(f"no body named {body!r}; known: {names}", item=body)
-        index = names.index(body)
-    else:
-        index = int(getattr(body, "index", body))
-        if not 0 <= index < len(entries):
-            raise UnknownItemError(f"body {index} does not exist", item=str(body))
-    return index, entries[index]
-
-
 def _unit(direction: ArrayLike, what: str) -> Array:
     d = numbers_array(direction, f"{what} direction").ravel()
     norm = float(np.linalg.norm(d))
@@ -135,7 +122,7 @@ def output_rows(model: Any, outputs: list[Any]) -> Array:
     flexible = model.flexible_bodies
     rows = np.zeros((len(outputs), model.coordinate_count))
     for k, output in enumerate(outputs):
-        index, entry = _body_entry(layout, output.body)
+        index, entry = body_entry(layout, output.body)
         start = entry["offset"]
         if isinstance(output, BodyPosition):
             rows[k, start : start + 3] = _unit(output.direction, output.label())

@@ -102,9 +102,8 @@ def _settings_of(built: Any) -> dict[str, Any]:
         value = getattr(built, name, None)
         if value is not None:
             settings[name] = value
-    for name in ("start_time",):
-        if getattr(built, name, None) is not None:
-            settings[name] = getattr(built, name)
+    if getattr(built, "start_time", None) is not None:
+        settings["start_time"] = built.start_time
     start = getattr(built, "start", None)
     if start is not None:
         settings["initial_state"] = start

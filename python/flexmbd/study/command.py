@@ -13,6 +13,7 @@ import numpy as np
 import yaml
 
 from ..errors import FlexmbdError, InvalidParameterError
+from .sampling import plain
 
 DEFAULT_OUTPUTS = {"largest violation": "max(violation)", "final energy": "final(energy[total])"}
 
@@ -183,11 +184,6 @@ def info_study(folder: Path) -> int:
     return 0
 
 
-def _scalar(value: Any) -> Any:
-    """A numpy scalar as the Python value it holds; anything else as it is."""
-    return value.item() if isinstance(value, np.generic) else value
-
-
 def plot_study(folder: Path, output: str, against: str | None, image: str | None) -> list[Path]:
     """Draws `output` of a study against the parameter `against` (one line per combination of
     the other parameters, failed cases crossed); returns the image written."""
@@ -215,7 +211,7 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
     others = [n for n in names if n != against]
     groups: dict[tuple[Any, ...], list[int]] = {}
     for k in range(data.sizes["case"]):
-        key = tuple(_scalar(data[n].values[k]) for n in others)
+        key = tuple(plain(data[n].values[k]) for n in others)
         groups.setdefault(key, []).append(k)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     x_all = data[against].values

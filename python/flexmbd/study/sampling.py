@@ -67,7 +67,7 @@ def make_cases(
                 options = list(np.atleast_1d(options)) if np.ndim(options) else [options]
             if not options:
                 raise InvalidParameterError(f"parameter {key!r}: no values", item=key)
-            values.append([_plain(v) for v in options])
+            values.append([plain(v) for v in options])
         return [dict(zip(parameters, combo, strict=True)) for combo in itertools.product(*values)]
     if samples is None or int(samples) != samples or samples < 1:
         raise InvalidParameterError(
@@ -99,7 +99,7 @@ def make_cases(
     return [{key: float(points[i, j]) for j, key in enumerate(parameters)} for i in range(n)]
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
     """A numpy scalar or array as the Python number or list it holds (JSON and hashes take
     those)."""
     return value.tolist() if isinstance(value, (np.generic, np.ndarray)) else value

@@ -354,9 +354,9 @@ pub struct ExplicitSettings {
     pub independent: Option<Vec<usize>>,
     /// Baumgarte stabilization (alpha, beta) of strategy (1).
     pub baumgarte: Option<(f64, f64)>,
-    /// Relative tolerance of the Dormand-Prince error control.
+    /// Relative tolerance of the error control (Dormand-Prince, TR-BDF2).
     pub relative_tolerance: f64,
-    /// Absolute tolerance of the Dormand-Prince error control.
+    /// Absolute tolerance of the error control (Dormand-Prince, TR-BDF2).
     pub absolute_tolerance: f64,
     /// Tolerance on |C| of the dependent-coordinate Newton iteration and of the projection.
     pub constraint_tolerance: f64,
