@@ -15,7 +15,7 @@ import scipy.sparse as sp
 
 import flexmbd as fm
 from flexmbd.errors import InvalidModelError, InvalidParameterError
-from flexmbd.fe import Material, Section, build_body, shapes, straight_beam
+from flexmbd.fe import Material, Section, body_file, build_body, shapes, straight_beam
 from flexmbd.fe.body import BODY_DATA_VERSION, FlexibleBodyData, Invariants, ReferenceConditions
 from flexmbd.fe.body_file import BODY_FILE_FORMAT, load_body, save_body
 
@@ -609,3 +609,28 @@ def test_a_damaged_global_heap_is_refused_by_the_check_shared_with_results_files
         load_body(damaged)
     assert str(damaged) in str(info.value) and "truncated or damaged" in str(info.value)
     assert info.value.item == f"file '{damaged}'"
+
+
+@pytest.mark.parametrize("limit", [None, 0], ids=["templates", "too-large-for-templates"])
+def test_bodies_copied_from_templates_read_back_as_each_models_own(tmp_path, monkeypatch, limit):
+    """Results files copy a body this process wrote before for the same content (HDF5 object
+    copy): two builds of the same rod share it, another diameter does not, and every file
+    reads back its own model's body, bit for bit; bodies above the templates' size are
+    written directly."""
+    if limit is not None:
+        monkeypatch.setattr(body_file, "_TEMPLATE_BYTES", limit)
+    models = [
+        fm.examples.flexible_slider_crank(rod_diameter=d).system.compile()
+        for d in (6e-3, 6e-3, 7e-3, 6e-3)
+    ]
+    for k, model in enumerate(models):
+        fm.simulate(model, 2e-3, 1e-3, results_file=tmp_path / f"{k}.h5")
+    for k, model in enumerate(models):
+        back = fm.read_results(tmp_path / f"{k}.h5").flexible[2]
+        assert_identical(back, model.flexible_bodies[2], f"file {k}")
+    assert (
+        models[0].flexible_bodies[2].invariants.mass != models[2].flexible_bodies[2].invariants.mass
+    )
+    with h5py.File(tmp_path / "3.h5") as file:
+        assert file["flexible/2/stiffness"].attrs["type"] == "sparse"
+        assert file["flexible/2"].attrs["format"] == BODY_FILE_FORMAT

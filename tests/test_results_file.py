@@ -112,6 +112,50 @@ def test_records_reach_the_file_while_the_run_goes_on(tmp_path, solver, end):
     assert_same_records(result, fm.read_results(path))
 
 
+def test_a_write_interval_writes_less_often_and_loses_nothing(tmp_path):
+    """``results_write_interval`` holds deliveries back and writes them together: nothing
+    reaches the file during a run shorter than the interval, and the file ends with every
+    record (kept in memory or not), also when the run fails."""
+    system = fm.System(gravity=(0, -9.81, 0))
+    mass = system.add_point_mass(1.0, position=(1, 0, 0), name="mass")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(mass))
+
+    def slow_force(t, q, qd):
+        time.sleep(0.002)  # several deliveries
+        if t > 0.4 and q[0] == q[0] and failing:
+            raise ZeroDivisionError("user bug")
+        return np.zeros(3)
+
+    failing = False
+    system.add_callback_force([mass], slow_force, name="slow")
+    seen: list[int] = []
+    path = tmp_path / "held.h5"
+
+    def progress(t, h, iterations):
+        seen.append(read_results_metadata(path)["records"])
+
+    settings = {"output_interval": 0.01, "results_write_interval": 3600.0}
+    kept = fm.simulate(system, 0.5, 0.005, results_file=path, progress=progress, **settings)
+    assert len(seen) >= 3 and set(seen) == {0}, seen
+    assert_same_records(kept, fm.read_results(path))
+    lean = fm.simulate(
+        system, 0.5, 0.005, results_file=tmp_path / "lean.h5", keep_in_memory=False, **settings
+    )
+    assert len(lean) < len(kept)
+    assert_same_records(kept, fm.read_results(tmp_path / "lean.h5"))
+    failing = True
+    with pytest.raises(fm.CallbackError) as info:
+        fm.simulate(system, 0.5, 0.005, results_file=tmp_path / "failed.h5", **settings)
+    back = fm.read_results(tmp_path / "failed.h5")
+    assert not back.success and len(back) == len(info.value.result) > 30
+    assert_same_records(info.value.result, back)
+    for bad in (-1.0, float("nan"), float("inf"), "1"):
+        with pytest.raises(fm.InvalidParameterError, match="write_interval"):
+            fm.simulate(
+                system, 0.01, 0.005, results_file=tmp_path / "x.h5", results_write_interval=bad
+            )
+
+
 def test_a_failed_run_keeps_its_records_and_says_why(tmp_path, assert_close):
     system = fm.System()
     body = system.add_point_mass(1.0, name="mass")

@@ -36,8 +36,10 @@ import ctypes
 import errno
 import fcntl
 import json
+import math
 import os
 import resource
+import time
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +49,7 @@ import numpy as np
 from . import _core, errors
 from ._hdf5 import global_heap_damage
 from .errors import FlexmbdError, InvalidModelError, ResultsFileError
-from .fe.body_file import read_body_group, write_body_group
+from .fe.body_file import copy_body_group, read_body_group
 from .result import Result
 
 #: Value of the root attribute ``format`` of a results file.
@@ -60,6 +62,9 @@ RESULTS_UNITS = {"length": "m", "mass": "kg", "time": "s", "angle": "rad", "forc
 #: Room left free on the disk (and below the file size limit) beyond what the next records
 #: need, for HDF5's metadata, bytes.
 _SPACE_MARGIN = 1 << 20
+
+#: The bytes of records a writer with a ``write_interval`` holds back at most.
+_PENDING_BYTES = 64 << 20
 
 #: Record datasets: name -> shape of one record, from the model description.
 _RECORD_FIELDS = (
@@ -224,8 +229,20 @@ class ResultsWriter:
         *,
         metadata: dict[str, Any] | None = None,
         protect: tuple[str | os.PathLike[str], ...] = (),
+        write_interval: float = 0.0,
     ):
         self.path = Path(path)
+        if not (isinstance(write_interval, int | float) and 0.0 <= write_interval < math.inf):
+            raise errors.InvalidParameterError(
+                f"write_interval must be a finite number of seconds >= 0, got {write_interval!r}",
+                item="write_interval",
+            )
+        self.write_interval = float(write_interval)
+        # Chunks delivered and not yet written (with write_interval > 0), their bytes, and
+        # when the file was last written.
+        self._pending: list[dict[str, Any]] = []
+        self._pending_bytes = 0
+        self._written_at = time.monotonic()
         self.layout = model.describe()
         self._shapes = _record_shapes(self.layout)
         self.records = 0
@@ -247,6 +264,8 @@ class ResultsWriter:
         # The datasets written at every delivery, opened once (a lookup by name per write
         # was a fifth of the writing's time).
         self._datasets: dict[str, Any] = {}
+        # The text fields as last written.
+        self._texts: dict[str, bytes] = {}
         try:
             file.attrs["format"] = RESULTS_FILE_FORMAT
             file.attrs["version"] = np.int64(RESULTS_FILE_VERSION)
@@ -272,7 +291,7 @@ class ResultsWriter:
                 )
             flexible = file.create_group("flexible")
             for index, body in sorted(model.flexible_bodies.items()):
-                write_body_group(flexible.create_group(str(index)), body)
+                copy_body_group(flexible, str(index), body)
             self._write_text("status", {"state": "running", "error": None, "message": ""})
             file.swmr_mode = True
             file.flush()
@@ -286,10 +305,14 @@ class ResultsWriter:
             raise
 
     def _write_text(self, name: str, value: Any) -> None:
-        data = np.frombuffer(_json(value).encode("utf-8"), dtype=np.uint8)
+        text = _json(value).encode("utf-8")
+        if self._texts.get(name) == text:
+            return  # events and redundancy rarely change between deliveries
+        data = np.frombuffer(text, dtype=np.uint8)
         dataset = self._datasets[name]
         dataset.resize((len(data),))
         dataset[:] = data
+        self._texts[name] = text
 
     def _abandon(self) -> None:
         """Closes the file after a failure, quietly (what was committed stays)."""
@@ -360,11 +383,41 @@ class ResultsWriter:
 
     def append(self, raw: dict[str, Any]) -> None:
         """Appends the records of a raw chunk (the dict of ``_core.simulate``'s ``records``
-        callback), with its statistics and events, and makes them durable. Where the disk
-        (or the file size limit) has no room for all of them, those that fit are written
-        and the file is ended with a ResultsFileError."""
+        callback), with its statistics and events, and makes them durable: at once, or, with
+        a ``write_interval``, together with the chunks that follow within that many seconds
+        (at most :data:`_PENDING_BYTES` held back). Where the disk (or the file size limit)
+        has no room for all of them, those that fit are written and the file is ended with a
+        ResultsFileError."""
         if self.failure is not None:
             raise self.failure
+        self._pending.append(raw)
+        self._pending_bytes += sum(
+            np.asarray(raw[name]).nbytes for name in _RECORD_FIELDS if name in raw
+        )
+        if (
+            time.monotonic() - self._written_at < self.write_interval
+            and self._pending_bytes < _PENDING_BYTES
+        ):
+            return
+        self._write_pending()
+
+    def _write_pending(self) -> None:
+        """Writes the chunks held back, as one."""
+        if not self._pending:
+            return
+        chunks, self._pending, self._pending_bytes = self._pending, [], 0
+        raw = dict(chunks[-1])
+        if len(chunks) > 1:
+            for name in _RECORD_FIELDS:
+                raw[name] = np.concatenate(
+                    [
+                        np.asarray(c[name], dtype=np.float64).reshape(
+                            len(c["time"]), *self._shapes[name]
+                        )
+                        for c in chunks
+                    ]
+                )
+        self._written_at = time.monotonic()
         count = len(raw["time"])
         fits, reason = self._room(count)
         try:
@@ -411,13 +464,15 @@ class ResultsWriter:
         was at the path, ``STEM.failed.SUFFIX`` beside it."""
         if self.failure is not None:
             raise self.failure
+        self._write_pending()
         chunk: dict[str, Any] = {
             name: result._record(name)[self.records - released :] for name in _RECORD_FIELDS
         }
         chunk["statistics"] = result.statistics
         chunk["events"] = result.events
         chunk["redundancy"] = result.redundancy
-        self.append(chunk)
+        self._pending.append(chunk)
+        self._write_pending()
         run_error = result.error
         if run_error is None:
             status = {"state": "complete", "error": None, "message": ""}
@@ -447,8 +502,10 @@ class ResultsWriter:
         :meth:`finish` wrote it) and releases the lock."""
         if self._file.id.valid:
             try:
+                if self.failure is None:
+                    self._write_pending()
                 self._file.flush()
-            except OSError:
+            except (OSError, ResultsFileError):
                 pass
             self._abandon()
         self._lock.release()

@@ -97,6 +97,7 @@ def simulate(
     metadata: dict[str, Any] | None = None,
     keep_in_memory: bool = True,
     protect: tuple[str | os.PathLike[str], ...] = (),
+    results_write_interval: float = 0.0,
 ) -> Result:
     """Simulates ``model`` (a :class:`Model`, or a :class:`System`, which is compiled first)
     from ``start_time`` (default 0, or the time of ``initial_state``) to ``end_time`` (s)
@@ -126,6 +127,9 @@ def simulate(
     is refused; the file replaces an earlier one only once the run has taken its first step
     (see :class:`flexmbd.results_file.ResultsWriter`). A failed write (a full disk) raises
     :class:`flexmbd.ResultsFileError` with ``result``, the file keeping what was committed.
+    ``results_write_interval`` (s of wall time) writes the file less often, the records of
+    that time together (a study's short cases, whose failures still write everything they
+    computed; a killed run loses up to that much).
 
     ``keep_in_memory=False`` (with a ``results_file``) keeps the records only in the file:
     the memory of the run stays flat however many records it writes, and the returned
@@ -185,7 +189,13 @@ def simulate(
     if results_file is not None:
         from .results_file import ResultsWriter
 
-        writer = ResultsWriter(results_file, model, metadata=metadata, protect=protect)
+        writer = ResultsWriter(
+            results_file,
+            model,
+            metadata=metadata,
+            protect=protect,
+            write_interval=results_write_interval,
+        )
     try:
         raw, error = _core.simulate(
             model,

@@ -22,6 +22,10 @@ import numpy as np
 
 from ..errors import FlexmbdError, InvalidParameterError, SimulationError
 
+#: Seconds of wall time between writes of a case's results file: a case that fails still
+#: writes all it computed, and a case killed with its worker runs again on the next run.
+CASE_WRITE_INTERVAL = 2.0
+
 #: Settings of a run a study may give (they replace the model's).
 RUN_SETTINGS = ("end_time", "step_size", "output_interval", "solver")
 
@@ -167,6 +171,7 @@ def run_case(task: CaseTask) -> dict[str, Any]:
                 run.pop("end_time"),
                 run.pop("step_size"),
                 results_file=task.results_path,
+                results_write_interval=CASE_WRITE_INTERVAL,
                 metadata={"study case": task.index, "parameters": task.parameters},
                 **run,
             )
