@@ -43,11 +43,7 @@ def arm(deformed_joint: bool, young_modulus: float = 7.0e10) -> tuple[fm.System,
     )
     hub, root = system.add_marker(system.ground), system.add_node_marker(first, 1)
     system.add_revolute_joint(hub, root, name="shoulder")
-    profile = fm.Spline(
-        np.linspace(0.0, 1.0, 201),
-        [ANGLE * (3 * (t / DURATION) ** 2 - 2 * (t / DURATION) ** 3) if t < DURATION else ANGLE
-         for t in np.linspace(0.0, 1.0, 201)],
-    )  # fmt: skip
+    profile = fm.Step(0.0, DURATION, 0.0, ANGLE, shape="cubic")
     drive = system.add_angle_driver(hub, root, profile, name="drive")
     elbow_on_first = (
         system.add_node_marker(first, ELEMENTS + 1)

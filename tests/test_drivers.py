@@ -32,6 +32,16 @@ def body_angle(result, body):
         (fm.Polynomial([0.0, 1.0, -0.5]), lambda t: t - 0.5 * t**2),
         (lambda t: 0.3 * t**3, lambda t: 0.3 * t**3),
         (fm.UserFunction(lambda t: (t**2, 2 * t, 2.0), derivatives=True), lambda t: t**2),
+        (
+            fm.Step(0.2, 0.8, 0.0, 1.2, shape="quintic"),
+            lambda t: (
+                1.2 * (lambda s: 10 * s**3 - 15 * s**4 + 6 * s**5)(np.clip((t - 0.2) / 0.6, 0, 1))
+            ),
+        ),
+        (
+            fm.Trapezoidal(0.0, 1.0, 0.0, 0.9, blend=0.5),
+            lambda t: np.where(t < 0.5, 1.8 * t**2, 0.9 - 1.8 * (1 - t) ** 2),
+        ),
     ],
 )
 def test_angle_driver_imposes_the_function(function, exact, assert_close):

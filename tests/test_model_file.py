@@ -8,6 +8,7 @@ import inspect
 import json
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -303,6 +304,72 @@ def test_units_are_converted_to_si(tmp_path, assert_close):
     assert_close(b.multipliers, a.multipliers, abs=1e-9 * scale, what="multipliers")
 
 
+PROFILES_MODEL = """\
+units: {length: mm, time: ms, angle: deg}
+functions:
+  lift: {type: step, start_time: 100, end_time: 400, start_value: 0, end_value: 90,
+         shape: cycloidal}
+  slide: {type: trapezoidal, start_time: 0, end_time: 500, start_value: 0, end_value: 50,
+          blend: 0.3}
+  sway: {type: spline, times: [0, 200, 500], values: [0, 30, 10], end: clamped,
+         slopes: [0.1, 0]}
+  loop: {type: spline, times: [0, 250, 500], values: [0, 20, 0], end: periodic}
+bodies:
+  - {name: wheel, type: rigid, mass: 1.0, inertia: [1.0, 1.0, 1.0]}
+  - {name: carriage, type: rigid, mass: 1.0, inertia: [1.0, 1.0, 1.0]}
+  - {name: arm, type: rigid, mass: 1.0, inertia: [1.0, 1.0, 1.0], position: [0, 500, 0],
+     angular_velocity: [0, 0, 0.1]}
+  - {name: shuttle, type: rigid, mass: 1.0, inertia: [1.0, 1.0, 1.0], position: [0, 0, 500]}
+joints:
+  - {type: revolute, marker1: &axle {body: ground}, marker2: {body: wheel}}
+  - {name: lift, type: angle-driver, marker1: *axle, marker2: {body: wheel}, angle: lift}
+  - {type: prismatic, marker1: &rail {body: ground}, marker2: {body: carriage}}
+  - {name: slide, type: translation-driver, marker1: *rail, marker2: {body: carriage},
+     displacement: slide}
+  - {type: revolute, marker1: &arm {body: ground, position: [0, 500, 0]}, marker2: {body: arm}}
+  - {name: sway, type: angle-driver, marker1: *arm, marker2: {body: arm}, angle: sway}
+  - {type: prismatic, marker1: &track {body: ground, position: [0, 0, 500]},
+     marker2: {body: shuttle}}
+  - {name: loop, type: translation-driver, marker1: *track, marker2: {body: shuttle},
+     displacement: loop}
+simulation: {end_time: 500, step_size: 1}
+"""
+
+
+def test_motion_profiles_and_spline_ends_in_model_files(tmp_path, assert_close):
+    """Steps, trapezoids and clamped and periodic splines in a model file, in ms, mm and
+    degrees, are the Python functions in SI."""
+    path = tmp_path / "profiles.yaml"
+    path.write_text(PROFILES_MODEL)
+    system = load_model(path).system
+    deg = math.pi / 180
+    functions = {name: system.driver_function(name) for name in ("lift", "slide", "sway", "loop")}
+    assert isinstance(functions["lift"], fm.Step)
+    assert isinstance(functions["slide"], fm.Trapezoidal)
+    expected = {
+        "lift": fm.Step(0.1, 0.4, 0.0, 90 * deg, shape="cycloidal"),
+        "slide": fm.Trapezoidal(0.0, 0.5, 0.0, 0.05, blend=0.3),
+        # 0.1 degree per millisecond: 100 degrees per second.
+        "sway": fm.Spline(
+            [0.0, 0.2, 0.5], [0.0, 30 * deg, 10 * deg], end="clamped", slopes=(100 * deg, 0.0)
+        ),
+        "loop": fm.Spline([0.0, 0.25, 0.5], [0.0, 0.02, 0.0], end="periodic"),
+    }
+    for t in (0.05, 0.2, 0.33, 0.45, 0.7):
+        for name, function in functions.items():
+            assert_close(
+                function.derivatives(t),
+                expected[name].derivatives(t),
+                rel=1e-12,
+                abs=1e-15,
+                what=f"{name} at {t}",
+            )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a consistent start: no correction
+        result = simulate_model(load_model(path))
+    assert result.success
+
+
 def test_mesh_files_and_materials_in_millimetres_tonnes_and_seconds(tmp_path, assert_close):
     import meshio
 
@@ -466,7 +533,7 @@ MALFORMED = {
             "marker2: bob, angle: {type: sine}}\n",
         ),
         "model.yaml: line 15: joints[1].angle.type: unknown type 'sine' (one of: constant, "
-        "polynomial, harmonic, spline)",
+        "polynomial, harmonic, spline, step, trapezoidal)",
     ),
     "error of the Python API": (
         ("{name: bob, body: mass}", "{name: bob, body: mass, position: [0.0, 1.0, 0.0]}"),

@@ -24,6 +24,8 @@ from ._boundary import (
     Harmonic,
     Polynomial,
     Spline,
+    Step,
+    Trapezoidal,
     UserFunction,
 )
 from ._core import BodyId, ForceId, JointId, MarkerId, Model, SensorId, __version__
@@ -100,9 +102,11 @@ __all__ = [
     "SingularMatrixError",
     "Spline",
     "State",
+    "Step",
     "StepSizeTooSmallError",
     "Study",
     "System",
+    "Trapezoidal",
     "UnknownItemError",
     "UserFunction",
     "__version__",

@@ -109,13 +109,23 @@ def boundary_class(base: T, module: str) -> T:
 
 for _cls in (_core.System, _core.Model, _core.Section, _core.SymmetricFactor):
     wrap_methods(_cls)
-for _cls in (_core.Constant, _core.Polynomial, _core.Harmonic, _core.Spline, _core.UserFunction):
+for _cls in (
+    _core.Constant,
+    _core.Polynomial,
+    _core.Harmonic,
+    _core.Spline,
+    _core.Step,
+    _core.Trapezoidal,
+    _core.UserFunction,
+):
     wrap_methods(_cls)
 
 Constant = boundary_class(_core.Constant, "flexmbd")
 Polynomial = boundary_class(_core.Polynomial, "flexmbd")
 Harmonic = boundary_class(_core.Harmonic, "flexmbd")
 Spline = boundary_class(_core.Spline, "flexmbd")
+Step = boundary_class(_core.Step, "flexmbd")
+Trapezoidal = boundary_class(_core.Trapezoidal, "flexmbd")
 UserFunction = boundary_class(_core.UserFunction, "flexmbd")
 GeneralizedAlpha = boundary_class(_core.GeneralizedAlpha, "flexmbd")
 ExplicitSolver = boundary_class(_core.ExplicitSolver, "flexmbd")

@@ -60,7 +60,49 @@ class Harmonic:
 class Spline:
     times: list[float]
     values: list[float]
-    def __init__(self, times: Sequence[float], values: Sequence[float]) -> None: ...
+    end: str
+    slopes: tuple[float, float] | None
+    def __init__(
+        self,
+        times: Sequence[float],
+        values: Sequence[float],
+        end: str = "natural",
+        slopes: tuple[float, float] | None = None,
+    ) -> None: ...
+    def __call__(self, t: float) -> float: ...
+    def derivatives(self, t: float) -> tuple[float, float, float]: ...
+
+class Step:
+    start_time: float
+    end_time: float
+    start_value: float
+    end_value: float
+    shape: str
+    def __init__(
+        self,
+        start_time: float,
+        end_time: float,
+        start_value: float,
+        end_value: float,
+        shape: str = "quintic",
+    ) -> None: ...
+    def __call__(self, t: float) -> float: ...
+    def derivatives(self, t: float) -> tuple[float, float, float]: ...
+
+class Trapezoidal:
+    start_time: float
+    end_time: float
+    start_value: float
+    end_value: float
+    blend: float
+    def __init__(
+        self,
+        start_time: float,
+        end_time: float,
+        start_value: float,
+        end_value: float,
+        blend: float = 0.25,
+    ) -> None: ...
     def __call__(self, t: float) -> float: ...
     def derivatives(self, t: float) -> tuple[float, float, float]: ...
 
@@ -72,7 +114,15 @@ class UserFunction:
 
 Number = float | int
 TimeFunctionLike = (
-    Number | Constant | Polynomial | Harmonic | Spline | UserFunction | Callable[[float], float]
+    Number
+    | Constant
+    | Polynomial
+    | Harmonic
+    | Spline
+    | Step
+    | Trapezoidal
+    | UserFunction
+    | Callable[[float], float]
 )
 
 class Model:

@@ -31,6 +31,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<time_function::Polynomial>()?;
     m.add_class::<time_function::Harmonic>()?;
     m.add_class::<time_function::Spline>()?;
+    m.add_class::<time_function::Step>()?;
+    m.add_class::<time_function::Trapezoidal>()?;
     m.add_class::<time_function::UserFunction>()?;
     m.add_class::<integrator::GeneralizedAlpha>()?;
     m.add_class::<integrator::ExplicitSolver>()?;

@@ -1,9 +1,10 @@
-//! Functions of time for drivers and forces: constants, polynomials, harmonics, splines and
-//! Python callables.
+//! Functions of time for drivers and forces: constants, polynomials, harmonics, splines,
+//! motion profiles and Python callables.
 
 use std::sync::Arc;
 
-use flexmbd_core::math::time_function::{CubicSpline, TimeCallback, TimeFunction};
+use flexmbd_core::math::profile::{MotionProfile, ProfileShape};
+use flexmbd_core::math::time_function::{CubicSpline, SplineEnd, TimeCallback, TimeFunction};
 use pyo3::prelude::*;
 
 use crate::errors::{invalid, stash_callback_error};
@@ -44,7 +45,12 @@ pub struct Harmonic {
     pub offset: f64,
 }
 
-/// Natural cubic spline through (times, values); constant outside the range of times.
+/// Cubic spline through (times, values) with end conditions `end`: "natural" (zero second
+/// derivative at the ends), "clamped" (first derivatives `slopes` at the ends, default zero)
+/// or "periodic" (first and last values equal; value, slope and curvature continuous across
+/// the period, which repeats). Outside its knots a periodic spline repeats; the others go on
+/// as the straight line of their end value and slope (value and velocity continuous; a
+/// clamped spline with zero end slopes rests).
 #[pyclass(module = "flexmbd._core", frozen, subclass)]
 #[derive(Clone)]
 pub struct Spline {
@@ -54,7 +60,65 @@ pub struct Spline {
     /// Values at the knots.
     #[pyo3(get)]
     pub values: Vec<f64>,
+    /// End conditions: "natural", "clamped" or "periodic".
+    #[pyo3(get)]
+    pub end: String,
+    /// First derivatives at the first and the last knot of a clamped spline (None otherwise).
+    #[pyo3(get)]
+    pub slopes: Option<(f64, f64)>,
     inner: Arc<CubicSpline>,
+}
+
+/// A rest-to-rest step from `start_value` at `start_time` to `end_value` at `end_time` (at
+/// rest before and after), of `shape` "cubic" (3 s^2 - 2 s^3 of the normalized time s: zero
+/// end velocities), "quintic" (10 s^3 - 15 s^4 + 6 s^5: zero end velocities and
+/// accelerations) or "cycloidal" (s - sin(2 pi s) / (2 pi): zero end velocities and
+/// accelerations), with exact derivatives.
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
+#[derive(Clone)]
+pub struct Step {
+    /// When the step starts.
+    #[pyo3(get)]
+    pub start_time: f64,
+    /// When it ends.
+    #[pyo3(get)]
+    pub end_time: f64,
+    /// The value before and at `start_time`.
+    #[pyo3(get)]
+    pub start_value: f64,
+    /// The value at and after `end_time`.
+    #[pyo3(get)]
+    pub end_value: f64,
+    /// "cubic", "quintic" or "cycloidal".
+    #[pyo3(get)]
+    pub shape: String,
+    inner: MotionProfile,
+}
+
+/// A rest-to-rest motion with a trapezoidal velocity: constant acceleration over the fraction
+/// `blend` of the duration, constant velocity, constant deceleration over the last `blend`
+/// (a linear segment with parabolic blends; 0 < blend <= 0.5, 0.5: a triangular velocity).
+/// Peak velocity (end_value - start_value) / (T (1 - blend)), acceleration that over
+/// (blend T), T = end_time - start_time.
+#[pyclass(module = "flexmbd._core", frozen, subclass)]
+#[derive(Clone)]
+pub struct Trapezoidal {
+    /// When the motion starts.
+    #[pyo3(get)]
+    pub start_time: f64,
+    /// When it ends.
+    #[pyo3(get)]
+    pub end_time: f64,
+    /// The value before and at `start_time`.
+    #[pyo3(get)]
+    pub start_value: f64,
+    /// The value at and after `end_time`.
+    #[pyo3(get)]
+    pub end_value: f64,
+    /// Acceleration time over the duration.
+    #[pyo3(get)]
+    pub blend: f64,
+    inner: MotionProfile,
 }
 
 /// A Python function of time. With `derivatives=True` it must return (f, f', f''); otherwise
@@ -165,17 +229,99 @@ impl Harmonic {
 #[pymethods]
 impl Spline {
     #[new]
-    fn new(times: Vec<f64>, values: Vec<f64>) -> PyResult<Self> {
-        let inner = CubicSpline::new(times.clone(), values.clone()).map_err(|m| invalid("Spline", m))?;
-        Ok(Spline { times, values, inner: Arc::new(inner) })
+    #[pyo3(signature = (times, values, end = "natural", slopes = None))]
+    fn new(times: Vec<f64>, values: Vec<f64>, end: &str, slopes: Option<(f64, f64)>) -> PyResult<Self> {
+        let condition = match (end, slopes) {
+            ("natural", None) => SplineEnd::Natural,
+            ("periodic", None) => SplineEnd::Periodic,
+            ("clamped", None) => SplineEnd::Clamped(0.0, 0.0),
+            ("clamped", Some((first, last))) => SplineEnd::Clamped(first, last),
+            ("natural" | "periodic", Some(_)) => {
+                return Err(invalid(
+                    "Spline",
+                    format!("slopes are the end conditions of a clamped spline, not of a {end} one"),
+                ))
+            }
+            (other, _) => {
+                return Err(invalid(
+                    "Spline",
+                    format!("end must be 'natural', 'clamped' or 'periodic', got {other:?}"),
+                ))
+            }
+        };
+        let inner =
+            CubicSpline::new(times.clone(), values.clone(), condition).map_err(|m| invalid("Spline", m))?;
+        let slopes = match condition {
+            SplineEnd::Clamped(first, last) => Some((first, last)),
+            _ => None,
+        };
+        Ok(Spline { times, values, end: end.to_string(), slopes, inner: Arc::new(inner) })
     }
     fn __repr__(&self) -> String {
         format!(
-            "Spline({} points from t = {} to {})",
+            "Spline({} points from t = {} to {}, end={:?})",
             self.times.len(),
             self.times[0],
-            self.times[self.times.len() - 1]
+            self.times[self.times.len() - 1],
+            self.end
         )
+    }
+}
+
+#[pymethods]
+impl Step {
+    #[new]
+    #[pyo3(signature = (start_time, end_time, start_value, end_value, shape = "quintic"))]
+    fn new(start_time: f64, end_time: f64, start_value: f64, end_value: f64, shape: &str) -> PyResult<Self> {
+        let law = match shape {
+            "cubic" => ProfileShape::Cubic,
+            "quintic" => ProfileShape::Quintic,
+            "cycloidal" => ProfileShape::Cycloidal,
+            other => {
+                return Err(invalid(
+                    "Step",
+                    format!("shape must be 'cubic', 'quintic' or 'cycloidal', got {other:?}"),
+                ))
+            }
+        };
+        let inner = MotionProfile::new(start_time, end_time, start_value, end_value, law)
+            .map_err(|m| invalid("Step", m))?;
+        Ok(Step { start_time, end_time, start_value, end_value, shape: shape.to_string(), inner })
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Step({}, {}, {}, {}, shape={:?})",
+            self.start_time, self.end_time, self.start_value, self.end_value, self.shape
+        )
+    }
+    fn __getnewargs__(&self) -> (f64, f64, f64, f64, String) {
+        (self.start_time, self.end_time, self.start_value, self.end_value, self.shape.clone())
+    }
+}
+
+#[pymethods]
+impl Trapezoidal {
+    #[new]
+    #[pyo3(signature = (start_time, end_time, start_value, end_value, blend = 0.25))]
+    fn new(start_time: f64, end_time: f64, start_value: f64, end_value: f64, blend: f64) -> PyResult<Self> {
+        let inner = MotionProfile::new(
+            start_time,
+            end_time,
+            start_value,
+            end_value,
+            ProfileShape::Trapezoidal { blend },
+        )
+        .map_err(|m| invalid("Trapezoidal", m))?;
+        Ok(Trapezoidal { start_time, end_time, start_value, end_value, blend, inner })
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Trapezoidal({}, {}, {}, {}, blend={})",
+            self.start_time, self.end_time, self.start_value, self.end_value, self.blend
+        )
+    }
+    fn __getnewargs__(&self) -> (f64, f64, f64, f64, f64) {
+        (self.start_time, self.end_time, self.start_value, self.end_value, self.blend)
     }
 }
 
@@ -219,6 +365,16 @@ impl Spline {
         TimeFunction::Spline(self.inner.clone())
     }
 }
+impl Step {
+    fn core(&self) -> TimeFunction {
+        TimeFunction::Profile(self.inner)
+    }
+}
+impl Trapezoidal {
+    fn core(&self) -> TimeFunction {
+        TimeFunction::Profile(self.inner)
+    }
+}
 impl UserFunction {
     fn core(&self) -> TimeFunction {
         Python::attach(|py| {
@@ -233,6 +389,8 @@ common_methods!(Constant);
 common_methods!(Polynomial);
 common_methods!(Harmonic);
 common_methods!(Spline);
+common_methods!(Step);
+common_methods!(Trapezoidal);
 common_methods!(UserFunction);
 
 /// Converts a number, a time-function object or a callable into a core time function.
@@ -247,6 +405,12 @@ pub fn to_time_function(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<TimeFunc
         return Ok(c.get().core());
     }
     if let Ok(c) = obj.cast::<Spline>() {
+        return Ok(c.get().core());
+    }
+    if let Ok(c) = obj.cast::<Step>() {
+        return Ok(c.get().core());
+    }
+    if let Ok(c) = obj.cast::<Trapezoidal>() {
         return Ok(c.get().core());
     }
     if let Ok(c) = obj.cast::<UserFunction>() {
@@ -267,7 +431,7 @@ pub fn to_time_function(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<TimeFunc
     Err(invalid(
         item,
         format!(
-            "expected a number, a callable or a time function (Constant, Polynomial, Harmonic, Spline, UserFunction), got {}",
+            "expected a number, a callable or a time function (Constant, Polynomial, Harmonic, Spline, Step, Trapezoidal, UserFunction), got {}",
             obj.get_type().name().map(|n| n.to_string()).unwrap_or_default()
         ),
     ))
@@ -312,8 +476,9 @@ impl Harmonic {
 
 #[pymethods]
 impl Spline {
-    fn __getnewargs__(&self) -> (Vec<f64>, Vec<f64>) {
-        (self.times.clone(), self.values.clone())
+    #[allow(clippy::type_complexity)]
+    fn __getnewargs__(&self) -> (Vec<f64>, Vec<f64>, String, Option<(f64, f64)>) {
+        (self.times.clone(), self.values.clone(), self.end.clone(), self.slopes)
     }
 }
 

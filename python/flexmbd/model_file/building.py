@@ -44,7 +44,9 @@ from .schema import (
     RigidBodySpec,
     SplineFunction,
     SpringDamperSpec,
+    StepFunction,
     TorqueSpec,
+    TrapezoidalFunction,
     TubeSection,
     UnitsSpec,
 )
@@ -380,7 +382,28 @@ class _Builder:
             if len(spec.times) != len(spec.values):
                 raise self.fail(path, "a spline needs as many values as times")
             times = [t * seconds for t in spec.times]
-            return self.call(path, _boundary.Spline, times, [v * scale for v in spec.values])
+            slopes = (
+                None if spec.slopes is None else tuple(v * scale / seconds for v in spec.slopes)
+            )
+            return self.call(
+                path,
+                _boundary.Spline,
+                times,
+                [v * scale for v in spec.values],
+                spec.end,
+                slopes,
+            )
+        if isinstance(spec, StepFunction | TrapezoidalFunction):
+            last = spec.shape if isinstance(spec, StepFunction) else spec.blend
+            return self.call(
+                path,
+                _boundary.Step if isinstance(spec, StepFunction) else _boundary.Trapezoidal,
+                spec.start_time * seconds,
+                spec.end_time * seconds,
+                spec.start_value * scale,
+                spec.end_value * scale,
+                last,
+            )
         return float(spec) * scale
 
     def material(self, spec: Any, path: Path_) -> Any:

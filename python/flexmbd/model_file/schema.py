@@ -93,11 +93,53 @@ class HarmonicFunction(_Spec):
 
 
 class SplineFunction(_Spec):
-    """Natural cubic spline through (times, values), constant outside (:class:`flexmbd.Spline`)."""
+    """Cubic spline through (times, values) with end conditions; outside its knots it goes on
+    with its end value and slope, or repeats if periodic (:class:`flexmbd.Spline`)."""
 
     type: Literal["spline"]
     times: list[float] = Field(min_length=2, description="strictly increasing knot times (time)")
     values: list[float] = Field(min_length=2, description="values at the knots")
+    end: Literal["natural", "clamped", "periodic"] = Field(
+        "natural",
+        description="natural (zero curvature at the ends), clamped (the end slopes `slopes`) "
+        "or periodic (first and last values equal)",
+    )
+    slopes: list[float] | None = Field(
+        None,
+        min_length=2,
+        max_length=2,
+        description="first derivatives at the first and last knot of a clamped spline "
+        "(unit of the quantity / time; default 0, 0: it comes to rest)",
+    )
+
+
+class StepFunction(_Spec):
+    """A rest-to-rest step from `start_value` to `end_value` between `start_time` and
+    `end_time` (:class:`flexmbd.Step`)."""
+
+    type: Literal["step"]
+    start_time: float = Field(description="when the motion starts (time)")
+    end_time: float = Field(description="when it ends (time)")
+    start_value: float = Field(description="the value before (unit of the quantity)")
+    end_value: float = Field(description="the value after (unit of the quantity)")
+    shape: Literal["cubic", "quintic", "cycloidal"] = Field(
+        "quintic",
+        description="cubic (zero end velocities), quintic or cycloidal (zero end velocities "
+        "and accelerations)",
+    )
+
+
+class TrapezoidalFunction(_Spec):
+    """A rest-to-rest motion with a trapezoidal velocity (:class:`flexmbd.Trapezoidal`)."""
+
+    type: Literal["trapezoidal"]
+    start_time: float = Field(description="when the motion starts (time)")
+    end_time: float = Field(description="when it ends (time)")
+    start_value: float = Field(description="the value before (unit of the quantity)")
+    end_value: float = Field(description="the value after (unit of the quantity)")
+    blend: float = Field(
+        0.25, description="acceleration time over the duration, in (0, 0.5] (0.5: triangular)"
+    )
 
 
 TimeFunction = Annotated[
@@ -106,11 +148,13 @@ TimeFunction = Annotated[
     | Annotated[ConstantFunction, Tag("constant")]
     | Annotated[PolynomialFunction, Tag("polynomial")]
     | Annotated[HarmonicFunction, Tag("harmonic")]
-    | Annotated[SplineFunction, Tag("spline")],
+    | Annotated[SplineFunction, Tag("spline")]
+    | Annotated[StepFunction, Tag("step")]
+    | Annotated[TrapezoidalFunction, Tag("trapezoidal")],
     Discriminator(_shape_tag),
     Field(
         description="a number (constant), the name of an entry of `functions`, or a mapping "
-        "with `type` constant, polynomial, harmonic or spline"
+        "with `type` constant, polynomial, harmonic, spline, step or trapezoidal"
     ),
 ]
 TimeVector = Annotated[list[TimeFunction], Field(min_length=3, max_length=3)]

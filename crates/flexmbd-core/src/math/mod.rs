@@ -1,9 +1,10 @@
-//! Rotations (Euler parameters), 3-vectors, small dense matrices, hyper-dual numbers and
-//! functions of time.
+//! Rotations (Euler parameters), 3-vectors, small dense matrices, hyper-dual numbers,
+//! functions of time and motion profiles.
 
 pub mod dense;
 pub mod euler;
 pub mod hyper_dual;
+pub mod profile;
 pub mod small;
 pub mod time_function;
 pub mod vec3;
