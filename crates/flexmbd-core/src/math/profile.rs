@@ -147,10 +147,10 @@ mod tests {
                 let h = 1e-6;
                 let (a, b, v) = (p.evaluate(t - h), p.evaluate(t + h), p.evaluate(t));
                 let what = format_args!("{shape:?} at {t}");
-                assert_close((b[0] - a[0]) / (2.0 * h), v[1], 1e-7, 1e-7, &what);
+                assert_close((b[0] - a[0]) / (2.0 * h), v[1], 1e-7, 1e-7, what);
                 // The trapezoid's acceleration jumps at its blends: skip a step across one.
                 if (a[2] - b[2]).abs() < 1e-3 * (1.0 + v[2].abs()) {
-                    assert_close((b[1] - a[1]) / (2.0 * h), v[2], 1e-6, 1e-6, &what);
+                    assert_close((b[1] - a[1]) / (2.0 * h), v[2], 1e-6, 1e-6, what);
                 }
             }
         }
