@@ -309,6 +309,18 @@ class System:
         preload: float = 0.0,
         name: str | None = None,
     ) -> ForceId: ...
+    def add_joint_actuator(
+        self,
+        joint: JointId,
+        set_point: TimeFunctionLike,
+        *,
+        proportional_gain: float,
+        derivative_gain: float = 0.0,
+        feed_forward: TimeFunctionLike | None = None,
+        limit: float | None = None,
+        coordinate: str | None = None,
+        name: str | None = None,
+    ) -> ForceId: ...
     def add_callback_force(
         self,
         bodies: Sequence[BodyId],

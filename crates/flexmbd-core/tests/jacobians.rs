@@ -13,13 +13,14 @@ use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
+use flexmbd_core::force::joint_actuator::{ActuatedCoordinate, ServoLaw};
 use flexmbd_core::force::{ForceCallback, ForceKind, Frame};
 use flexmbd_core::joint::JointKind;
 use flexmbd_core::linalg::csc::Csc;
 use flexmbd_core::math::dense::Jacobian3;
 use flexmbd_core::math::time_function::TimeFunction;
 use flexmbd_core::math::{Mat3, Vec3};
-use flexmbd_core::{BodyId, MarkerId, Model, State, SystemBuilder, Workspace};
+use flexmbd_core::{BodyId, JointId, MarkerId, Model, State, SystemBuilder, Workspace};
 
 struct Drag;
 impl ForceCallback for Drag {
@@ -42,8 +43,9 @@ fn random_model(seed: u64) -> (Model, State) {
     let mut sys = SystemBuilder::new();
     sys.set_gravity(Vec3([0.3, -9.81, 1.2])).unwrap();
     let bodies = add_bodies(&mut sys, &mut rng);
-    add_joints(&mut sys, &mut rng, &bodies);
+    let joints = add_joints(&mut sys, &mut rng, &bodies);
     add_forces(&mut sys, &mut rng, &bodies);
+    add_actuators(&mut sys, &joints);
     let model = sys.compile().unwrap();
     let state = random_state(&model, &mut rng);
     (model, state)
@@ -135,7 +137,7 @@ fn add_marker(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId], body: B
 }
 
 /// Every joint type and driver between the `bodies`, on random markers.
-fn add_joints(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId]) {
+fn add_joints(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId]) -> Vec<JointId> {
     let kinds = vec![
         JointKind::Spherical,
         JointKind::Revolute,
@@ -178,11 +180,31 @@ fn add_joints(sys: &mut SystemBuilder, rng: &mut Rng, bodies: &[BodyId]) {
         (9, 2),
         (8, 7),
     ];
+    let mut joints = Vec::new();
     for (kind, (a, b)) in kinds.into_iter().zip(pairs) {
         let mi = add_marker(sys, rng, bodies, bodies[a]);
         let mj = add_marker(sys, rng, bodies, bodies[b]);
-        sys.add_joint("", kind, [mi, mj]).unwrap();
+        joints.push(sys.add_joint("", kind, [mi, mj]).unwrap());
     }
+    joints
+}
+
+/// Joint actuators on the revolute (rigid and deformable bodies), prismatic and both
+/// coordinates of the cylindrical joints; one held at its limit (the gains drop out).
+fn add_actuators(sys: &mut SystemBuilder, joints: &[JointId]) {
+    let law = |kp: f64, kd: f64, limit: f64| ServoLaw {
+        proportional_gain: kp,
+        derivative_gain: kd,
+        set_point: harmonic(0.4, 1.3),
+        feed_forward: TimeFunction::Polynomial(vec![0.2, -0.5]),
+        limit,
+    };
+    sys.add_joint_actuator("", joints[1], None, law(30.0, 2.0, f64::INFINITY)).unwrap();
+    sys.add_joint_actuator("", joints[3], None, law(50.0, 3.0, f64::INFINITY)).unwrap();
+    sys.add_joint_actuator("", joints[2], Some(ActuatedCoordinate::Angle), law(20.0, 1.0, f64::INFINITY))
+        .unwrap();
+    sys.add_joint_actuator("", joints[2], Some(ActuatedCoordinate::Slide), law(40.0, 0.5, 1e-3)).unwrap();
+    sys.add_joint_actuator("", joints[13], None, law(10.0, 0.7, f64::INFINITY)).unwrap();
 }
 
 /// Three components of a force or torque as functions of time.

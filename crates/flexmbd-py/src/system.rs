@@ -3,8 +3,10 @@
 
 use std::sync::Arc;
 
+use flexmbd_core::force::joint_actuator::{ActuatedCoordinate, ServoLaw};
 use flexmbd_core::force::{ForceCallback, ForceKind, Frame};
 use flexmbd_core::joint::JointKind;
+use flexmbd_core::math::time_function::TimeFunction;
 use flexmbd_core::math::{Mat3, Vec3};
 use flexmbd_core::system::sensor::SensorQuantity;
 use flexmbd_core::SystemBuilder;
@@ -443,6 +445,54 @@ impl System {
             ForceKind::RotationalSpringDamper { markers, stiffness, damping, rest_angle, preload },
             name,
         )
+    }
+
+    /// Joint actuator: a PD servo on the angle (revolute joint) or the slide (prismatic
+    /// joint) of `joint`'s markers, for a cylindrical joint on the `coordinate` given
+    /// ("angle" or "slide"). Its effort u = proportional_gain (f(t) - x) + derivative_gain
+    /// (f'(t) - x_dot) + feed_forward(t), with `set_point` f (a time function; its rate f' is
+    /// the velocity feed-forward), held within +/- `limit` (None: no limit; a reached limit
+    /// gives an "actuator saturation" event), turns (N m) or pushes (N) marker 2's body
+    /// about or along the z axis of marker 1 (and marker 1's body back). Analytic Jacobians.
+    #[pyo3(signature = (joint, set_point, *, proportional_gain, derivative_gain = 0.0, feed_forward = None, limit = None, coordinate = None, name = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_joint_actuator(
+        &mut self,
+        joint: JointId,
+        set_point: Bound<'_, PyAny>,
+        proportional_gain: f64,
+        derivative_gain: f64,
+        feed_forward: Option<Bound<'_, PyAny>>,
+        limit: Option<f64>,
+        coordinate: Option<&str>,
+        name: Option<String>,
+    ) -> PyResult<ForceId> {
+        let label = label("actuator", &name, self.inner.item_counts()[2]);
+        let coordinate = match coordinate {
+            None => None,
+            Some("angle") => Some(ActuatedCoordinate::Angle),
+            Some("slide") => Some(ActuatedCoordinate::Slide),
+            Some(other) => {
+                return Err(invalid(&label, format!("coordinate must be 'angle' or 'slide', got {other:?}")))
+            }
+        };
+        let law = ServoLaw {
+            proportional_gain,
+            derivative_gain,
+            set_point: to_time_function(&set_point, &format!("{label} set_point"))?,
+            feed_forward: match feed_forward {
+                None => TimeFunction::Constant(0.0),
+                Some(f) => to_time_function(&f, &format!("{label} feed_forward"))?,
+            },
+            limit: limit.unwrap_or(f64::INFINITY),
+        };
+        let id = check(self.inner.add_joint_actuator(
+            name.as_deref().unwrap_or(""),
+            joint.into(),
+            coordinate,
+            law,
+        ))?;
+        Ok(ForceId { index: id.0 })
     }
 
     /// User force: `function(t, q, q_dot)` returns the generalized force on the coordinates of

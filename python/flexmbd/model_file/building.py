@@ -33,6 +33,7 @@ from .schema import (
     FlexibleBodySpec,
     GeneralizedAlphaSpec,
     HarmonicFunction,
+    JointActuatorSpec,
     JointSpec,
     MarkerSpec,
     ModelSpec,
@@ -763,6 +764,8 @@ class _Builder:
                     preload=spec.preload * units.force,
                     name=spec.name,
                 )
+            elif isinstance(spec, JointActuatorSpec):
+                force = self.add_actuator(spec, path)
             else:
                 first = self.marker(spec.marker1, path + ("marker1",))
                 second = self.marker(spec.marker2, path + ("marker2",))
@@ -779,6 +782,38 @@ class _Builder:
                 )
             if spec.name is not None:
                 self.forces[spec.name] = force
+
+    def add_actuator(self, spec: JointActuatorSpec, path: Path_) -> Any:
+        """A joint actuator, its values in the units of the coordinate it drives."""
+        units = self.units
+        if spec.joint not in self.joints:
+            known = _listing(self.joints)
+            raise self.fail(
+                path + ("joint",), f"unknown joint {value_text(spec.joint)} (joints: {known})"
+            )
+        kind = next(j.type for j in self.spec.joints if getattr(j, "name", None) == spec.joint)
+        coordinate = spec.coordinate or ("slide" if kind == "prismatic" else "angle")
+        if coordinate == "angle":
+            value, effort = units.angle, units.torque
+        else:
+            value, effort = units.length, units.force
+        feed_forward = (
+            None
+            if spec.feed_forward is None
+            else self.time_function(spec.feed_forward, effort, path + ("feed_forward",))
+        )
+        return self.call(
+            path,
+            self.system.add_joint_actuator,
+            self.joints[spec.joint],
+            self.time_function(spec.set_point, value, path + ("set_point",)),
+            proportional_gain=spec.proportional_gain * effort / value,
+            derivative_gain=spec.derivative_gain * effort * units.time / value,
+            feed_forward=feed_forward,
+            limit=None if spec.limit is None else spec.limit * effort,
+            coordinate=spec.coordinate,
+            name=spec.name,
+        )
 
     def add_sensors(self) -> None:
         for k, spec in enumerate(self.spec.sensors):

@@ -561,8 +561,27 @@ class RotationalSpringDamperSpec(_Spec):
     preload: float = Field(0.0, description="torque (N m in SI)")
 
 
+class JointActuatorSpec(_Spec):
+    """A PD servo on the angle or the slide of a joint (:meth:`System.add_joint_actuator`):
+    effort proportional_gain (f(t) - x) + derivative_gain (f'(t) - x_dot) + feed_forward(t),
+    held within +/- limit. Angles: gains in torque/angle and torque time/angle, efforts in
+    torque; slides: force/length, force time/length and force."""
+
+    type: Literal["joint-actuator"]
+    name: Name | None = None
+    joint: Name = Field(description="a revolute, prismatic or cylindrical joint by its name")
+    set_point: TimeFunction
+    proportional_gain: float = Field(ge=0, description="torque/angle or force/length")
+    derivative_gain: float = Field(0.0, ge=0, description="torque time/angle or force time/length")
+    feed_forward: TimeFunction | None = None
+    limit: float | None = Field(None, gt=0, description="largest |effort| (torque or force)")
+    coordinate: Literal["angle", "slide"] | None = Field(
+        None, description="for a cylindrical joint: the coordinate it drives"
+    )
+
+
 ForceSpec = Annotated[
-    PointForceSpec | TorqueSpec | SpringDamperSpec | RotationalSpringDamperSpec,
+    PointForceSpec | TorqueSpec | SpringDamperSpec | RotationalSpringDamperSpec | JointActuatorSpec,
     Field(discriminator="type"),
 ]
 

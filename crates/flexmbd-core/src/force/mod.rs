@@ -1,10 +1,11 @@
 //! Applied forces: gravity (per body), point forces and torques at markers, translational and
-//! rotational spring-dampers between markers, and user callbacks. Each force element gives its
+//! rotational spring-dampers between markers, joint actuators (PD servos), and user callbacks. Each force element gives its
 //! generalized force Q (by virtual work) and the Jacobians -dQ/dq and -dQ/dq_dot that enter
 //! the Newton matrix.
 
 pub mod callback;
 pub mod gravity;
+pub mod joint_actuator;
 pub mod point_load;
 pub mod rotational_spring_damper;
 pub mod spring_damper;
@@ -19,6 +20,7 @@ use crate::joint::equation::MarkerPair;
 use crate::math::dense::DenseMatrix;
 use crate::math::time_function::TimeFunction;
 pub use callback::ForceCallback;
+use joint_actuator::{ActuatedCoordinate, ServoLaw};
 
 /// Axes in which vector components are given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,6 +78,15 @@ pub enum ForceKind {
         /// Constant torque added (N m).
         preload: f64,
     },
+    /// A PD servo on the angle or the slide of a joint's markers (see [`joint_actuator`]).
+    JointActuator {
+        /// Markers i and j (the joint's).
+        markers: [MarkerId; 2],
+        /// The coordinate it drives.
+        coordinate: ActuatedCoordinate,
+        /// Gains, set point, feed-forward effort and limit.
+        law: ServoLaw,
+    },
     /// User function Q(t, q, q_dot) on the coordinates of the listed bodies.
     Callback {
         /// Bodies whose coordinates the callback reads and loads (in this order).
@@ -99,7 +110,17 @@ impl ForceKind {
             ForceKind::Torque { .. } => "torque",
             ForceKind::SpringDamper { .. } => "spring-damper",
             ForceKind::RotationalSpringDamper { .. } => "rotational spring-damper",
+            ForceKind::JointActuator { .. } => "joint actuator",
             ForceKind::Callback { .. } => "callback force",
+        }
+    }
+
+    /// The number of discrete variables of the element (unwrapped angles, saturation states).
+    pub fn discrete_variables(&self) -> usize {
+        match self {
+            ForceKind::RotationalSpringDamper { .. } => 1,
+            ForceKind::JointActuator { coordinate, .. } => coordinate.discrete_variables(),
+            _ => 0,
         }
     }
 
@@ -107,9 +128,9 @@ impl ForceKind {
     pub fn markers(&self) -> Vec<MarkerId> {
         match self {
             ForceKind::PointForce { marker, .. } | ForceKind::Torque { marker, .. } => vec![*marker],
-            ForceKind::SpringDamper { markers, .. } | ForceKind::RotationalSpringDamper { markers, .. } => {
-                markers.to_vec()
-            }
+            ForceKind::SpringDamper { markers, .. }
+            | ForceKind::RotationalSpringDamper { markers, .. }
+            | ForceKind::JointActuator { markers, .. } => markers.to_vec(),
             ForceKind::Callback { .. } => vec![],
         }
     }
@@ -255,6 +276,16 @@ pub fn evaluate_force(
                 local,
                 tangent,
             )
+        }
+        ForceKind::JointActuator { markers, coordinate, law } => {
+            let pair = env.pair(markers);
+            let reference = match coordinate {
+                ActuatedCoordinate::Angle => {
+                    env.discrete[force.discrete.expect("an actuator has discrete states")]
+                }
+                ActuatedCoordinate::Slide => 0.0,
+            };
+            joint_actuator::evaluate(&item, &pair, *coordinate, law, reference, env.time, local, tangent)
         }
         ForceKind::Callback { callback, .. } => {
             callback::evaluate(&item, callback.as_ref(), force, env, local, tangent)

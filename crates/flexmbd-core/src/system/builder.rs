@@ -7,6 +7,7 @@ use std::collections::HashSet;
 use crate::body::marker::MarkerElastic;
 use crate::body::{rigid::RigidBody, BodyKind, FlexibleBody};
 use crate::error::{check_finite, FlexmbdError, Result};
+use crate::force::joint_actuator::{ActuatedCoordinate, ServoLaw};
 use crate::force::ForceKind;
 use crate::ids::{BodyId, ForceId, JointId, MarkerId, SensorId};
 use crate::joint::JointKind;
@@ -489,6 +490,15 @@ impl SystemBuilder {
                     }
                 }
             }
+            ForceKind::JointActuator { markers, law, .. } => {
+                law.validate().map_err(bad)?;
+                if self.markers[markers[0].0].body == self.markers[markers[1].0].body {
+                    return Err(FlexmbdError::InvalidModel {
+                        item: label,
+                        message: "both markers are on the same body".to_string(),
+                    });
+                }
+            }
             ForceKind::Callback { bodies, .. } => {
                 if bodies.is_empty() {
                     return Err(bad("a callback force needs at least one body".to_string()));
@@ -508,6 +518,54 @@ impl SystemBuilder {
         let name = self.unique_name("force", name, index)?;
         self.forces.push(ForceDefinition { name, kind });
         Ok(ForceId(index))
+    }
+
+    /// Adds a joint actuator (a PD servo, [`crate::force::joint_actuator`]) on the markers of
+    /// `joint`: on its angle for a revolute joint, on its slide for a prismatic joint, on
+    /// either (`coordinate`, required) for a cylindrical joint.
+    pub fn add_joint_actuator(
+        &mut self,
+        name: &str,
+        joint: JointId,
+        coordinate: Option<ActuatedCoordinate>,
+        law: ServoLaw,
+    ) -> Result<ForceId> {
+        let index = self.forces.len();
+        let label = if name.is_empty() { format!("force {index}") } else { format!("actuator '{name}'") };
+        let Some(def) = self.joints.get(joint.0) else {
+            return Err(FlexmbdError::UnknownItem {
+                kind: JointId::KIND,
+                id: joint.0,
+                context: format!(" (used by {label})"),
+            });
+        };
+        let bad = |message: String| FlexmbdError::InvalidParameter { item: label.clone(), message };
+        let joint_label = format!("joint '{}'", def.name);
+        let coordinate = match (&def.kind, coordinate) {
+            (JointKind::Revolute, None | Some(ActuatedCoordinate::Angle)) => ActuatedCoordinate::Angle,
+            (JointKind::Prismatic, None | Some(ActuatedCoordinate::Slide)) => ActuatedCoordinate::Slide,
+            (JointKind::Cylindrical, Some(c)) => c,
+            (JointKind::Cylindrical, None) => {
+                return Err(bad(format!(
+                    "{joint_label} is cylindrical: give the coordinate to drive ('angle' or 'slide')"
+                )))
+            }
+            (JointKind::Revolute | JointKind::Prismatic, Some(c)) => {
+                return Err(bad(format!(
+                    "{joint_label} is {} and has no {} to drive",
+                    def.kind.type_name(),
+                    c.name()
+                )))
+            }
+            (kind, _) => {
+                return Err(bad(format!(
+                    "an actuator drives a revolute, prismatic or cylindrical joint; {joint_label} is {}",
+                    kind.type_name()
+                )))
+            }
+        };
+        let markers = def.markers;
+        self.add_force(name, ForceKind::JointActuator { markers, coordinate, law })
     }
 
     /// Adds a sensor recording `quantity` of `marker`.

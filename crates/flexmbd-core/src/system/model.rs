@@ -312,7 +312,7 @@ impl SystemBuilder {
                 ForceKind::PointForce { frame, .. } | ForceKind::Torque { frame, .. } => {
                     *frame == Frame::Marker
                 }
-                ForceKind::RotationalSpringDamper { .. } => true,
+                ForceKind::RotationalSpringDamper { .. } | ForceKind::JointActuator { .. } => true,
                 _ => false,
             };
             if uses_axes {
@@ -378,12 +378,9 @@ impl SystemBuilder {
                     (dofs, n_i)
                 }
             };
-            let discrete = if matches!(def.kind, ForceKind::RotationalSpringDamper { .. }) {
-                discrete_count += 1;
-                Some(discrete_count - 1)
-            } else {
-                None
-            };
+            let count = def.kind.discrete_variables();
+            let discrete = (count > 0).then_some(discrete_count);
+            discrete_count += count;
             forces.push(ForceElement { name: def.name.clone(), kind: def.kind.clone(), dofs, n_i, discrete });
         }
         (forces, discrete_count)

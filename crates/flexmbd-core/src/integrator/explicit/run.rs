@@ -36,7 +36,7 @@ pub fn run(
     let (given_q, given_qd) = (state.coordinates.clone(), state.velocities.clone());
     let violated = dense_initial_conditions(model, &mut ws, &mut eq, &mut state, &settings.initial)?;
     report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
-    start_discrete(model, &mut state, &mut ws, settings);
+    start_discrete(model, &mut state, &mut ws, settings, &mut output.events)?;
 
     let partition = first_partition(model, explicit, &mut ws, &mut eq, &state)?;
     let mut engine = Engine::new(model, explicit, ws, eq, partition, &state);
@@ -132,7 +132,7 @@ impl Stepper for ExplicitSteps<'_, '_> {
         state.coordinates.copy_from_slice(&engine.q);
         state.velocities.copy_from_slice(&engine.qd);
         let discrete_before = state.discrete.clone();
-        update_discrete(engine.model, state, &mut engine.ws, false);
+        update_discrete(engine.model, state, &mut engine.ws, false, &mut output.events)?;
         engine.discrete.copy_from_slice(&state.discrete);
         // First same as last: dy/dt at the new point, unless the state or the forces changed.
         self.first_derivative_valid = self.adaptive() && !modified && discrete_before == state.discrete;

@@ -33,7 +33,7 @@ pub(crate) fn run(
     let violated =
         solve_initial_positions_and_velocities(model, &mut state, &mut ws, &mut solvers, &settings.initial)?;
     report_initial_correction(model, &given_q, &given_qd, &state, &violated, settings, output)?;
-    start_discrete(model, &mut state, &mut ws, settings);
+    start_discrete(model, &mut state, &mut ws, settings, &mut output.events)?;
     solve_accelerations(model, &mut state, &mut ws, &mut solvers)?;
     let first_step = settings.step_size.min(settings.end_time - state.time).max(f64::MIN_POSITIVE);
     start_algorithmic_accelerations(
@@ -172,9 +172,9 @@ impl Stepper for GeneralizedAlphaSteps<'_> {
         Ok(Attempt::Passed { growth, newton_iterations: report.iterations })
     }
 
-    fn accept(&mut self, state: &mut State, _h: f64, _output: &mut Output) -> Result<()> {
+    fn accept(&mut self, state: &mut State, _h: f64, output: &mut Output) -> Result<()> {
         std::mem::swap(state, &mut self.next);
-        update_discrete(self.model, state, &mut self.ws, false);
+        update_discrete(self.model, state, &mut self.ws, false, &mut output.events)?;
         Ok(())
     }
 
