@@ -65,6 +65,7 @@ from .state_space import (
 )
 from .study import Study, load_study
 from .system import System
+from .waves import AxialPulse, axial_pulse
 
 __all__ = [
     "ArgumentTypeError",
@@ -126,4 +127,6 @@ __all__ = [
     "StateSpace",
     "DispersionBranch",
     "dispersion",
+    "AxialPulse",
+    "axial_pulse",
 ]
