@@ -142,6 +142,8 @@ def test_generalized_alpha_frequency(assert_close):
         ({"cycles": 40}, "too short for the burst"),
         ({"steps_per_period": 10}, "steps_per_period"),
         ({"stations": [15.0, 2.0]}, "stations must be"),
+        ({"stations": [15.0, 16.0]}, "stations must be"),
+        ({"amplitude": 0.0}, "amplitude must be > 0"),
         ({"front_threshold": 1.0}, "front_threshold"),
         ({"speed": "fast"}, "speed must be a number"),
     ],

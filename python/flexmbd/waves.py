@@ -63,7 +63,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -74,6 +74,9 @@ from scipy.signal import hilbert
 from ._checks import integer, number, numbers_array
 from .errors import InvalidParameterError
 
+if TYPE_CHECKING:
+    from .fe.body import FlexibleBodyData
+
 Array = NDArray[np.float64]
 
 #: Fewest elements per carrier wavelength and steps per carrier period `axial_pulse` takes.
@@ -83,7 +86,7 @@ MIN_STEPS_PER_PERIOD = 20
 MIN_CYCLES = 4
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class AxialPulse:
     """An axial pulse in a spinning rod (see the module). Velocities in m/s, positions in m
     from the hub, times in s; arrays are read-only.
@@ -125,7 +128,9 @@ class AxialPulse:
     discrete_group_velocity: float
 
 
-def rod_body(material: Any, section: Any, length: float, elements: int, foundation: float = 0.0):
+def rod_body(
+    material: Any, section: Any, length: float, elements: int, foundation: float = 0.0
+) -> FlexibleBodyData:
     """The FlexibleBodyData of a straight rod along the body x axis from x = 0 to `length`
     (m), `elements` two-node elements of `material` and cross-section area `section.area`,
     clamped at x = 0, whose only elastic coordinates are the axial displacements of its other
@@ -304,7 +309,7 @@ def axial_pulse(
     from the tip of a rod of `material`, cross-section area `section.area`, `length` (m) and
     `elements` elements, turned at `speed` W (rad/s, >= 0) on a bedding of axial stiffness
     `foundation` (N/m^2) per unit length, measured at stations along the rod (see the
-    module). `amplitude`: of the force (N; default 1e-3 E A). `stations`: positions (m from
+    module). `amplitude`: of the force (N, > 0; default 1e-3 E A). `stations`: positions (m from
     the hub; each taken at its nearest node), default `station_count` of them evenly from one
     wavelength inside the tip to the innermost position that the pulse passes before its
     reflection from the hub can arrive. The step is 1/`steps_per_period` of the carrier's
@@ -369,7 +374,9 @@ def axial_pulse(
     period = 2.0 * np.pi / w0
     # A station at x sees the whole burst (and two periods more) before the reflection of its
     # front from the hub, travelling at c0, can arrive: (L - x)/c_g + (N + 2) T <= (L + x)/c0.
+    # (A station needs a node on either side for its strain.)
     inner = (length * (1.0 / group - 1.0 / c0) + (cycles + 2) * period) / (1.0 / group + 1.0 / c0)
+    inner = max(inner, h)
     outer = length - 2.0 * np.pi / k0
     if inner >= outer:
         raise InvalidParameterError(
@@ -388,16 +395,17 @@ def axial_pulse(
     node_x = np.linspace(0.0, length, elements + 1)
     nodes = np.unique(np.rint(stations / h).astype(np.int64))[::-1]
     positions = node_x[nodes]
-    if len(nodes) < 2 or positions.min() < inner - 0.5 * h or positions.max() > length:
+    if len(nodes) < 2 or positions.min() < inner - 0.5 * h or positions.max() > length - h:
         raise InvalidParameterError(
-            f"stations must be at least two distinct positions from {inner:.4g} m to {length:g} m "
-            f"(the part of the rod the pulse passes before its reflection), got {stations}",
+            f"stations must be at least two distinct positions from {inner:.4g} m to "
+            f"{length - h:.4g} m (the part of the rod the pulse passes before its reflection, "
+            f"inside the tip), got {stations}",
             item="stations",
         )
     body = rod_body(material, section, length, elements, foundation)
     if amplitude is None:
         amplitude = 1e-3 * material.young_modulus * section.area
-    amplitude = number(amplitude, "amplitude")
+    amplitude = _positive(amplitude, "amplitude")
     burst = tone_burst(w0, cycles, amplitude)
     step = period / steps_per_period
     solver = GeneralizedAlpha(spectral_radius, step_control="fixed")
