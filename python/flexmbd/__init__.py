@@ -67,6 +67,7 @@ from .state_space import (
 )
 from .study import Study, load_study
 from .system import System
+from .waves import AxialPulse, axial_pulse
 
 __all__ = [
     "ArgumentTypeError",
@@ -130,4 +131,6 @@ __all__ = [
     "StateSpace",
     "DispersionBranch",
     "dispersion",
+    "AxialPulse",
+    "axial_pulse",
 ]
