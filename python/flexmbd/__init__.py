@@ -53,6 +53,7 @@ from .errors import (
     StepSizeTooSmallError,
     UnknownItemError,
 )
+from .inverse_dynamics import InverseDynamics, inverse_dynamics
 from .result import Result
 from .results_file import read_results
 from .rotation import euler_parameters_to_matrix, rotation
@@ -86,6 +87,7 @@ __all__ = [
     "InitialConditionsError",
     "InitialCorrectionWarning",
     "InvalidModelError",
+    "InverseDynamics",
     "InvalidParameterError",
     "JointId",
     "MarkerId",
@@ -112,6 +114,7 @@ __all__ = [
     "UserFunction",
     "__version__",
     "equilibrium",
+    "inverse_dynamics",
     "errors",
     "euler_parameters_to_matrix",
     "examples",

@@ -596,6 +596,104 @@ def flexible_robot_arm(elements: int = 4, mode_count: int = 0) -> Example:
     )
 
 
+#: The space crane's joint angles at the end of its manoeuvre (rad): turret, shoulder, elbow.
+SPACE_CRANE_MOVE = {"turret": 0.6, "shoulder": 0.5, "elbow": -1.0}
+
+
+def space_crane(
+    mode_count: int = 4,
+    duration: float = 30.0,
+    elements: int = 8,
+    rigid: bool = False,
+    shape: str = "quintic",
+) -> Example:
+    """The space crane of the seed's Figure 2 (section 3, control): in orbit (no gravity), a
+    turret on the station turns about the station's y axis, and two booms of 15 m (aluminium
+    tubes, outer radius 0.3 m, wall 10 mm: 753 kg each; `elements` Euler-Bernoulli beam
+    elements, `mode_count` clamped modes each; 0: no elastic coordinates, the booms' rigid
+    limit) hinged at the shoulder and the elbow about z carry a 2,000 kg payload (a cube of
+    1 m) welded to the second boom's tip. The three joint angles follow rest-to-rest `shape`
+    steps (:class:`flexmbd.Step`) over `duration` s to :data:`SPACE_CRANE_MOVE` (the arm
+    leaves the x-y plane through the turret), then hold; the run ends `duration` / 2 later,
+    when the payload swings on the held joints. Drivers "turret drive", "shoulder drive",
+    "elbow drive" give the joint torques (inverse dynamics, :func:`flexmbd.inverse_dynamics`).
+
+    `rigid=True` replaces each boom by a rigid body of the same mass, centre of mass and
+    inertia (from the boom's invariants), the model whose torques the booms' rigid limit
+    (`mode_count=0`) must give."""
+    from .fe import Material, Section, build_body, straight_beam
+
+    length, payload_mass, side = 15.0, 2000.0, 1.0
+    nodes, conn = straight_beam(length, elements)
+    boom = build_body(
+        nodes,
+        conn,
+        Material(7.0e10, 0.33, 2700.0),
+        section=Section.tube(0.3, 0.29),
+        reference="clamped",
+        reference_nodes=[0],
+        modes="fixed-interface",
+        mode_count=mode_count,
+    )
+    system = System()
+    turret = system.add_rigid_body(50.0, (5.0, 5.0, 5.0), name="turret")
+    bodies, roots, tips = [], [], []
+    for k in range(2):
+        position = (k * length, 0.0, 0.0)
+        name = ("upper boom", "lower boom")[k]
+        if rigid:
+            inertia, com = _rigid_equivalent(boom)
+            body = system.add_rigid_body(
+                boom.invariants.mass, inertia, center_of_mass=com, position=position, name=name
+            )
+            roots.append(system.add_marker(body))
+            tips.append(system.add_marker(body, position=(length, 0.0, 0.0)))
+        else:
+            body = system.add_flexible_body(boom, position=position, name=name)
+            roots.append(system.add_node_marker(body, 1))
+            tips.append(system.add_node_marker(body, elements + 1))
+        bodies.append(body)
+    payload = system.add_rigid_body(
+        payload_mass,
+        (payload_mass * side**2 / 6,) * 3,
+        position=(2 * length + side / 2, 0.0, 0.0),
+        name="payload",
+    )
+    station = system.add_marker(system.ground, orientation=rotation("x", -np.pi / 2))
+    on_turret = system.add_marker(turret, orientation=rotation("x", -np.pi / 2))
+    joints = {}
+    axes = [(station, on_turret), (system.add_marker(turret), roots[0]), (tips[0], roots[1])]
+    for name, (first, second) in zip(SPACE_CRANE_MOVE, axes, strict=True):
+        joints[name] = system.add_revolute_joint(first, second, name=name)
+        profile = _boundary.Step(0.0, duration, 0.0, SPACE_CRANE_MOVE[name], shape=shape)
+        system.add_angle_driver(first, second, profile, name=f"{name} drive")
+    holder = system.add_marker(payload, position=(-side / 2, 0.0, 0.0))
+    system.add_fixed_joint(tips[1], holder, name="payload clamp")
+    tip = system.add_sensor(system.add_marker(payload), "position", name="payload position")
+    return Example(
+        name="space-crane",
+        description="a two-boom space crane moving a payload rest to rest (inverse dynamics)",
+        system=system,
+        end_time=1.5 * duration,
+        step_size=duration / 2400,
+        solver=_boundary.GeneralizedAlpha(1.0, step_control="fixed", velocity_projection="always"),
+        output_interval=duration / 2400,
+        items={"booms": bodies, "payload": payload, "joints": joints, "tip": tip},
+    )
+
+
+def _rigid_equivalent(data: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The inertia about the centre of mass (body axes) and the centre of mass of a
+    deformable body's undeformed mass distribution, from its invariants."""
+    inv = data.invariants
+    mass = inv.mass
+    com = np.asarray(inv.first_moment) / mass
+    second = np.asarray(inv.second_moment)
+    about_origin = np.trace(second) * np.eye(3) - second
+    about_com = about_origin - mass * (com @ com * np.eye(3) - np.outer(com, com))
+    return about_com, com
+
+
 EXAMPLES: dict[str, Callable[[], Example]] = {
     "andrews": lambda: andrews(),
     "bricard": lambda: bricard(),
@@ -605,6 +703,7 @@ EXAMPLES: dict[str, Callable[[], Example]] = {
     "four-bar": four_bar,
     "four-bar-spatial": lambda: four_bar_spatial(),
     "pendulum": pendulum,
+    "space-crane": lambda: space_crane(),
     "spin-up": spin_up,
     "tetrahedral-pendulum": tetrahedral_pendulum,
 }

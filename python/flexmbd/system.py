@@ -244,6 +244,83 @@ class System(_core.System):
             raise UnknownItemError(f"no driver named {name!r}; drivers: {known}", item=name)
         return _rebuilt(type(self), tuple(calls))
 
+    def with_drivers_as_efforts(self, efforts: dict[str, Any]) -> System:
+        """A copy of this system whose drivers named in `efforts` no longer prescribe their
+        joints' motion but apply the given efforts (time functions: a torque for an angle
+        driver, a force for a translation driver) on the joints they drive, as joint
+        actuators of zero gains (``NAME effort``): the free mechanism of an inverse-dynamics
+        run, driven by its efforts. Raises `UnknownItemError` for a name that is not a driver,
+        `InvalidModelError` for a driver with no revolute, prismatic or cylindrical joint on
+        its markers."""
+        drivers = {"add_angle_driver": "angle", "add_translation_driver": "slide"}
+        kinds = {
+            "angle": ("add_revolute_joint", "add_cylindrical_joint"),
+            "slide": ("add_prismatic_joint", "add_cylindrical_joint"),
+        }
+        calls: list[_Call] = []
+        renumbered: dict[int, int] = {}
+        joints: list[tuple[str, tuple[Any, Any], int]] = []
+        replaced: list[tuple[str, str, tuple[Any, Any]]] = []
+        found = []
+        old = 0
+        for method, args, kwargs in self._calls:
+            adds_joint = method.startswith("add_") and method.endswith(("_joint", "_driver"))
+            if method in drivers:
+                found.append(kwargs.get("name"))
+            markers = (
+                (args + (None, None))[:2]
+                if len(args) >= 2
+                else (kwargs.get("marker1"), kwargs.get("marker2"))
+            )
+            if method in drivers and kwargs.get("name") in efforts:
+                replaced.append((kwargs["name"], drivers[method], markers))
+            else:
+                if adds_joint:
+                    renumbered[old] = len(renumbered)
+                    joints.append((method, markers, renumbered[old]))
+                if method == "add_joint_actuator":
+                    if args:
+                        args = (_core.JointId(renumbered[args[0].index]), *args[1:])
+                    else:
+                        joint = _core.JointId(renumbered[kwargs["joint"].index])
+                        kwargs = {**kwargs, "joint": joint}
+                calls.append((method, args, kwargs))
+            old += adds_joint
+        unknown = [name for name in efforts if name not in found]
+        if unknown:
+            known = [n for n in found if n is not None]
+            raise UnknownItemError(
+                f"no driver named {unknown[0]!r}; drivers: {known}", item=unknown[0]
+            )
+        system = _rebuilt(type(self), tuple(calls))
+        for name, coordinate, markers in replaced:
+            joint = next(
+                (
+                    index
+                    for method, at, index in joints
+                    if at == markers and method in kinds[coordinate]
+                ),
+                None,
+            )
+            if joint is None:
+                raise InvalidModelError(
+                    f"driver {name!r} drives no {' or '.join(k[4:-6] for k in kinds[coordinate])} "
+                    "joint on its markers: its effort has no joint to act on",
+                    item=name,
+                )
+            extra = (
+                {"coordinate": coordinate} if joints[joint][0] == "add_cylindrical_joint" else {}
+            )
+            system.add_joint_actuator(
+                _core.JointId(joint),
+                0.0,
+                proportional_gain=0.0,
+                feed_forward=efforts[name],
+                name=f"{name} effort",
+                **extra,
+            )
+        return system
+
     def driver_function(self, name: str) -> Any:
         """The time function of the driver `name` as it was given."""
         for method, args, kwargs in self._calls:

@@ -413,7 +413,9 @@ def build_body(
       "uniform" or arrays, see `flexmbd.fe.interface`) or "external" (`external_modes`
       over the kept coordinates, e.g. from experimental modal analysis or another FE code).
       `mode_count` eigenmodes are kept (Craig-Bampton adds the static modes); a `mode_count`
-      that is not an integer >= 0 is an `InvalidParameterError` naming it.
+      that is not an integer >= 0 is an `InvalidParameterError` naming it. Fixed-interface
+      modes with `mode_count=0` give no elastic coordinates: the body moves rigidly with the
+      mesh's mass distribution (the rigid limit of a deformable body).
     - Bad options are an `InvalidParameterError` naming the parameter (an `ArgumentTypeError`
       for a value of the wrong type): a `mass`, `beam_theory`, `reference`, `modes`,
       `interface_kind` or `precision` that is not one of its strings (an array, a number,
@@ -574,9 +576,12 @@ def _body_from_nodal(
         k_ff = nodal.stiffness[free][:, free].tocsc()
         m_ff = nodal.mass[free][:, free].tocsc()
     else:
-        if mode_count < 1 and modes != "craig-bampton" and modes != "external":
+        if mode_count < 1 and modes == "free-free":
             raise InvalidParameterError(f"{modes} modes need mode_count >= 1")
-        if modes == "fixed-interface":
+        if modes == "fixed-interface" and mode_count == 0:
+            # No elastic coordinates: the rigid limit, with the mesh's mass distribution.
+            basis, freqs = np.zeros((len(free), 0)), np.zeros(0)
+        elif modes == "fixed-interface":
             basis, freqs = fixed_interface_modes(
                 nodal.stiffness,
                 nodal.mass,

@@ -1,0 +1,138 @@
+"""Inverse dynamics (issue 33): the efforts of prescribed joint motions against closed forms,
+the work-energy balance and the replay of the efforts on the free mechanism for the space
+crane, and the rigid limit of its deformable booms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+
+J = 0.5
+
+
+def arm():
+    system = fm.System()
+    body = system.add_rigid_body(2.0, (0.1, 0.1, J), name="arm")
+    ground, own = system.add_marker(system.ground), system.add_marker(body)
+    system.add_revolute_joint(ground, own, name="hinge")
+    profile = fm.Step(0.1, 0.9, 0.0, 1.3, shape="cycloidal")
+    system.add_angle_driver(ground, own, profile, name="drive")
+    return system, profile
+
+
+def test_the_effort_of_a_prescribed_rotation_is_inertia_times_acceleration(assert_close):
+    system, profile = arm()
+    inverse = fm.inverse_dynamics(system, 1.2, 2.5e-4)
+    expected = [J * profile.derivatives(t)[2] for t in inverse.time]
+    assert_close(inverse.efforts["drive"], expected, rel=0, abs=1e-6 * J * 60, what="torque")
+    assert inverse.units == {"drive": "N m"}
+    replayed = inverse.replay()
+    angle = inverse.joint_coordinates(replayed)["drive"]
+    assert_close(angle, inverse.prescribed("drive", replayed.time), rel=0, abs=1e-6,
+                 what="replayed angle")  # fmt: skip
+
+
+def test_a_prescribed_slide_needs_mass_times_acceleration(assert_close):
+    mass = 3.0
+    system = fm.System()
+    slider = system.add_rigid_body(mass, (0.1, 0.1, 0.1), name="slider")
+    ground, own = system.add_marker(system.ground), system.add_marker(slider)
+    system.add_prismatic_joint(ground, own, name="rail")
+    profile = fm.Trapezoidal(0.0, 1.0, 0.0, 0.4, blend=0.5)
+    system.add_translation_driver(ground, own, profile, name="push")
+    inverse = fm.inverse_dynamics(system, 1.0, 1e-3)
+    expected = [mass * profile.derivatives(t)[2] for t in inverse.time]
+    # The trapezoid's acceleration jumps at mid-time: compare away from the jump.
+    away = np.abs(inverse.time - 0.5) > 2e-3
+    assert_close(inverse.efforts["push"][away], np.array(expected)[away], rel=0, abs=1e-6,
+                 what="force")  # fmt: skip
+    assert inverse.units == {"push": "N"}
+
+
+@pytest.fixture(scope="module")
+def cranes():
+    options = {"elements": 4, "duration": 20.0}
+    runs = {}
+    for name, extra in (
+        ("flexible", {}),
+        ("no modes", {"mode_count": 0}),
+        ("rigid", {"rigid": True}),
+    ):
+        crane = fm.examples.space_crane(**options, **extra)
+        runs[name] = fm.inverse_dynamics(crane.system, crane.end_time, crane.step_size)
+    return runs
+
+
+def test_the_work_of_the_crane_torques_is_the_change_of_energy(cranes):
+    inverse = cranes["flexible"]
+    energy = inverse.result.total_energy - inverse.result.total_energy[0]
+    balance = np.abs(inverse.work() - energy).max() / np.abs(energy).max()
+    assert balance < 1e-6
+    # The booms bend: strain energy is part of the balance, and the torques differ from the
+    # rigid crane's by far more than the tolerances.
+    rigid = cranes["rigid"]
+    assert np.abs(inverse.efforts["turret drive"] - rigid.efforts["turret drive"]).max() > 100.0
+
+
+def test_replaying_the_crane_torques_on_the_free_crane_gives_the_prescribed_angles(cranes):
+    inverse = cranes["flexible"]
+    replayed = inverse.replay()
+    angles = inverse.joint_coordinates(replayed)
+    assert set(angles) == {"turret drive", "shoulder drive", "elbow drive"}
+    for name, angle in angles.items():
+        error = np.abs(angle - inverse.prescribed(name, replayed.time)).max()
+        assert error < 1e-6, (name, error)
+    assert np.ptp(angles["elbow drive"]) > 0.9  # it moved
+
+
+def test_booms_without_modes_need_the_torques_of_rigid_bodies(cranes):
+    for name, torque in cranes["rigid"].efforts.items():
+        difference = np.abs(cranes["no modes"].efforts[name] - torque).max()
+        assert difference <= 1e-9 * np.abs(torque).max(), name
+
+
+def test_bad_inverse_dynamics_requests_are_refused():
+    system, _ = arm()
+    with pytest.raises(fm.InvalidParameterError, match="no driver named 'crank'"):
+        fm.inverse_dynamics(system, 1.0, 1e-3, drivers=["crank"])
+    with pytest.raises(fm.InvalidParameterError, match="output_interval"):
+        fm.inverse_dynamics(system, 1.0, 1e-3, output_interval=0.01)
+    with pytest.raises(fm.InvalidParameterError, match="flexmbd.System"):
+        fm.inverse_dynamics(system.compile(), 1.0, 1e-3)
+    bare = fm.System()
+    bare.add_rigid_body(1.0, (1.0, 1.0, 1.0))
+    with pytest.raises(fm.InvalidModelError, match="no named angle or translation drivers"):
+        fm.inverse_dynamics(bare, 1.0, 1e-3)
+
+
+def test_efforts_need_a_joint_on_the_drivers_markers():
+    system = fm.System()
+    body = system.add_rigid_body(1.0, (0.1, 0.1, 0.1))
+    ground, own = system.add_marker(system.ground), system.add_marker(body)
+    system.add_spherical_joint(ground, own)
+    system.add_angle_driver(ground, own, fm.Step(0.0, 1.0, 0.0, 1.0), name="drive")
+    with pytest.raises(fm.InvalidModelError, match="drives no revolute or cylindrical joint"):
+        system.with_drivers_as_efforts({"drive": 0.0})
+    with pytest.raises(fm.UnknownItemError, match="no driver named 'other'"):
+        system.with_drivers_as_efforts({"other": 0.0})
+
+
+def test_joints_after_a_replaced_driver_keep_their_actuators(assert_close):
+    """An actuator added after a driver refers to a joint whose id moves down when the driver
+    is replaced: the copy renumbers it."""
+    system = fm.System()
+    first = system.add_rigid_body(1.0, (0.1, 0.1, J), name="first")
+    second = system.add_rigid_body(1.0, (0.1, 0.1, J), position=(0, 0, 1), name="second")
+    g, a = system.add_marker(system.ground), system.add_marker(first)
+    system.add_revolute_joint(g, a, name="hinge 1")
+    system.add_angle_driver(g, a, fm.Step(0.0, 1.0, 0.0, 0.5), name="drive")
+    b = system.add_marker(first, position=(0, 0, 1))
+    c = system.add_marker(second)
+    hinge = system.add_revolute_joint(b, c, name="hinge 2")
+    system.add_joint_actuator(hinge, 0.2, proportional_gain=50.0, derivative_gain=5.0)
+    copy = system.with_drivers_as_efforts({"drive": 0.0})
+    calls = [c for c in copy.building_calls if c[0] == "add_joint_actuator"]
+    assert calls[0][1][0] == fm.JointId(1)  # hinge 2, after hinge 1 (the driver is gone)
+    assert calls[1][2]["name"] == "drive effort" and calls[1][1][0] == fm.JointId(0)
