@@ -409,6 +409,47 @@ def tetrahedral_pendulum(mode_count: int = 6) -> Example:
     )
 
 
+def rotating_beam(
+    material: Any,
+    section: Any,
+    length: float,
+    elements: int,
+    *,
+    speed: float = 0.0,
+    geometric_stiffness: bool = False,
+    orientation: Any = (0.0, 1.0, 0.0),
+    name: str = "blade",
+) -> System:
+    """A uniform clamped-free beam turned about an axis through its clamped end: `elements`
+    Euler-Bernoulli elements of `material` and `section` along x, `length` (m) long, the body
+    frame clamped at its first node (the root), which the revolute joint "bearing" holds on
+    the global z axis and the angle driver "hub" turns at `speed` (rad/s) from angle 0
+    (:meth:`flexmbd.System.with_driver` changes its motion). `orientation` is the section's
+    (:func:`flexmbd.fe.build_body`; the default puts the section's y axis along global y, so
+    that bending about it, flap, moves the beam along z, out of the plane of rotation). The
+    deformable body is named `name`; `geometric_stiffness` as in
+    :meth:`flexmbd.System.add_flexible_body`. The blade of R2 (Wright et al. 1982), the rod of
+    R6 (:func:`flexmbd.dispersion`)."""
+    from .fe import build_body, straight_beam
+
+    nodes, conn = straight_beam(length, elements)
+    data = build_body(
+        nodes,
+        conn,
+        material,
+        section=section,
+        orientation=orientation,
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = System()
+    beam = system.add_flexible_body(data, geometric_stiffness=geometric_stiffness, name=name)
+    hub, root = system.add_marker(system.ground), system.add_node_marker(beam, 1)
+    system.add_revolute_joint(hub, root, name="bearing")
+    system.add_angle_driver(hub, root, _boundary.Polynomial([0.0, float(speed)]), name="hub")
+    return system
+
+
 def rotating_blade_flap_frequencies(
     g: float,
     geometric_stiffness: bool = True,
@@ -423,33 +464,27 @@ def rotating_blade_flap_frequencies(
     same bending stiffness in both planes (a square section).
 
     The blade (aluminium, 1 m, a slender 10 x 2 mm section with the flap stiffness EI_y,
-    `elements` beams) is turned by an angle driver at constant speed; `flexmbd.equilibrium`
-    finds the steadily rotating, stretched blade and `flexmbd.linearize` the motion about it.
-    Flap modes are those that move the nodes along z, lead-lag modes along y."""
+    `elements` beams; :func:`rotating_beam`) is turned by an angle driver at constant speed;
+    `flexmbd.equilibrium` finds the steadily rotating, stretched blade and `flexmbd.linearize`
+    the motion about it. Flap modes are those that move the nodes along z, lead-lag modes
+    along y."""
     if direction not in ("flap", "lag"):
         raise ValueError(f"direction must be 'flap' or 'lag', got {direction!r}")
     from .analysis import equilibrium, linearize
-    from .fe import Material, Section, build_body, straight_beam
+    from .fe import Material, Section
 
     width, height = (0.01, 0.002) if direction == "flap" else (0.002, 0.002)
     material = Material(7.0e10, 0.3, 2700.0)
     rho_a = material.density * width * height
     scale = np.sqrt(rho_a / (material.young_modulus * width * height**3 / 12))
-    nodes, conn = straight_beam(1.0, elements)
-    data = build_body(
-        nodes,
-        conn,
+    system = rotating_beam(
         material,
-        section=Section.rectangle(width, height),  # iy = width height^3 / 12: flap
-        orientation=(0.0, 1.0, 0.0),
-        reference="clamped",
-        reference_nodes=[0],
+        Section.rectangle(width, height),  # iy = width height^3 / 12: flap
+        1.0,
+        elements,
+        speed=g / scale,
+        geometric_stiffness=geometric_stiffness,
     )
-    system = System()
-    blade = system.add_flexible_body(data, geometric_stiffness=geometric_stiffness)
-    hub, root = system.add_marker(system.ground), system.add_node_marker(blade, 1)
-    system.add_revolute_joint(hub, root)
-    system.add_angle_driver(hub, root, _boundary.Polynomial([0.0, g / scale]))
     frequencies, shapes = linearize(system, equilibrium(system)).modes()
     rows = np.concatenate([7 + 6 * k + np.arange(3) for k in range(elements)])
     moved = shapes[rows].reshape(elements, 3, -1)
