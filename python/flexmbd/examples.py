@@ -18,6 +18,8 @@ from . import _boundary, _core
 from .rotation import rotation
 from .system import System
 
+Array = NDArray[np.float64]
+
 
 @dataclass
 class Example:
@@ -491,6 +493,157 @@ def rotating_blade_flap_frequencies(
     axis = 2 if direction == "flap" else 1
     selected = np.sum(moved[:, axis] ** 2, axis=0) / np.sum(moved**2, axis=(0, 1)) > 0.9
     return 2 * np.pi * frequencies[selected][:count] * scale
+
+
+#: The disc of :func:`overhung_rotor`: steel (7850 kg/m^3), radius 0.15 m, 0.03 m thick.
+DISC_MASS = 7850.0 * np.pi * 0.15**2 * 0.03
+#: Its polar moment of inertia m r^2 / 2 (kg m^2).
+DISC_POLAR_INERTIA = DISC_MASS * 0.15**2 / 2
+#: Its diametral moment of inertia m r^2 / 4 + m t^2 / 12 (kg m^2).
+DISC_DIAMETRAL_INERTIA = DISC_MASS * (0.15**2 / 4 + 0.03**2 / 12)
+
+
+def _r8_whirl(speed: float, reference: dict[str, float]) -> tuple[Array, Array]:
+    """Reference R8: the forward and the backward whirl frequencies (rad/s, ascending) of the
+    overhung rotor of `reference` at `speed` (rad/s), the positive real roots w of
+    (k11 - m w^2)(k22 - I_d w^2 + s I_p W w) - k12^2 = 0 (s = +1, -1)."""
+    m, polar, diametral = (reference[k] for k in ("mass", "polar inertia", "diametral inertia"))
+    k11, k12, k22 = (reference[k] for k in ("k11", "k12", "k22"))
+    whirls = []
+    for sense in (1.0, -1.0):
+        quartic = np.polysub(
+            np.polymul([-m, 0.0, k11], [-diametral, sense * polar * speed, k22]), [k12**2]
+        )
+        roots = np.roots(quartic)
+        real = roots[(np.abs(roots.imag) <= 1e-9 * np.abs(roots)) & (roots.real > 0)].real
+        whirls.append(np.sort(real))
+    return whirls[0], whirls[1]
+
+
+def overhung_rotor(
+    *,
+    speed: float = 0.0,
+    length: float = 0.4,
+    diameter: float = 0.02,
+    young_modulus: float = 2.1e11,
+    shaft_density: float = 7850.0e-5,
+    elements: int = 4,
+    disc_mass: float = DISC_MASS,
+    polar_inertia: float = DISC_POLAR_INERTIA,
+    diametral_inertia: float = DISC_DIAMETRAL_INERTIA,
+) -> Example:
+    """Reference R8, the overhung rotor: a rigid disc (`disc_mass` kg, `polar_inertia` and
+    `diametral_inertia` kg m^2; by default a steel disc of radius 0.15 m, 0.03 m thick) at
+    the free end of a cantilever shaft along global x (`length` m, a round section of
+    `diameter` m, `young_modulus` Pa, `elements` Euler-Bernoulli beams), spinning at `speed`
+    rad/s about its axis. The shaft is the deformable body "shaft", its frame clamped at its
+    root, which the revolute joint "bearing" holds on the x axis and the angle driver "spin"
+    turns; the disc is the rigid body "disc", welded (fixed joint "weld") to a marker on the
+    shaft's tip node, which turns with the node's small rotations. All independent
+    coordinates are then the shaft's elastic coordinates, in its rotating frame
+    (:func:`flexmbd.linearize` with ``independent="elastic"``, :func:`flexmbd.campbell`).
+    R8's shaft is massless: `shaft_density` (kg/m^3) defaults to 1e-5 of steel's, a shaft
+    of 6e-7 of the disc's mass, which moves the whirl frequencies by about 1.5e-7 relative.
+
+    `reference` holds R8's parameters (mass, polar inertia, diametral inertia, and the end
+    stiffness k11 = 12 EI / L^3, k12 = -6 EI / L^2, k22 = 4 EI / L); `check` takes a
+    :func:`flexmbd.campbell` diagram in the fixed frame and returns the largest relative
+    differences of its forward and backward whirl frequencies from R8's, speed by speed
+    (the lowest R8 roots of each direction, as many as the diagram has modes of it). The
+    simulation settings are for a run of the spinning rotor from its steady rotation."""
+    from .fe import Material, Section, build_body, straight_beam
+
+    for label, value in (
+        ("length", length),
+        ("diameter", diameter),
+        ("young_modulus", young_modulus),
+        ("shaft_density", shaft_density),
+        ("disc_mass", disc_mass),
+        ("polar_inertia", polar_inertia),
+        ("diametral_inertia", diametral_inertia),
+    ):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{label} must be positive and finite, got {value}")
+    if elements < 1:
+        raise ValueError(f"elements must be at least 1, got {elements}")
+    section = Section.circle(diameter / 2)
+    nodes, conn = straight_beam(length, elements)
+    data = build_body(
+        nodes,
+        conn,
+        Material(young_modulus, 0.3, shaft_density),
+        section=section,
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = System()
+    shaft = system.add_flexible_body(data, name="shaft")
+    # Joint frames with their z axes along the shaft (global x).
+    along_x = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    hub = system.add_marker(system.ground, orientation=along_x, name="hub")
+    root = system.add_node_marker(shaft, 1, orientation=along_x, name="root")
+    bearing = system.add_revolute_joint(hub, root, name="bearing")
+    spin = system.add_angle_driver(
+        hub, root, _boundary.Polynomial([0.0, float(speed)]), name="spin"
+    )
+    tip = elements + 1
+    disc = system.add_rigid_body(
+        disc_mass,
+        (polar_inertia, diametral_inertia, diametral_inertia),
+        position=(length, 0.0, 0.0),
+        name="disc",
+    )
+    weld = system.add_fixed_joint(
+        system.add_node_marker(shaft, tip, name="tip"), system.add_marker(disc), name="weld"
+    )
+    bending = young_modulus * section.iy
+    reference = {
+        "mass": float(disc_mass),
+        "polar inertia": float(polar_inertia),
+        "diametral inertia": float(diametral_inertia),
+        "k11": 12 * bending / length**3,
+        "k12": -6 * bending / length**2,
+        "k22": 4 * bending / length,
+    }
+
+    def check(diagram: Any) -> dict[str, float]:
+        if diagram.frame != "fixed":
+            raise ValueError("overhung_rotor's check needs a Campbell diagram in the fixed frame")
+        worst = {"forward": 0.0, "backward": 0.0}
+        for k, w in enumerate(diagram.speeds):
+            analytic = dict(
+                zip(("forward", "backward"), _r8_whirl(float(w), reference), strict=True)
+            )
+            for label in worst:
+                found = np.sort(2 * np.pi * diagram.frequencies[k][diagram.whirl[k] == label])
+                expected = analytic[label][: len(found)]
+                if len(expected) < len(found):
+                    worst[label] = np.inf
+                elif len(found):
+                    difference = float(np.max(np.abs(found / expected - 1.0)))
+                    worst[label] = max(worst[label], difference)
+        return {f"{label} whirl, largest relative difference": v for label, v in worst.items()}
+
+    return Example(
+        name="overhung-rotor",
+        description="R8 overhung rotor: a disc on a cantilever shaft, forward and backward whirl",
+        system=system,
+        end_time=0.2,
+        step_size=1e-4,
+        solver=_boundary.GeneralizedAlpha(0.9),
+        output_interval=1e-3,
+        items={
+            "shaft": shaft,
+            "disc": disc,
+            "bearing": bearing,
+            "spin": spin,
+            "weld": weld,
+            "tip node": tip,
+            "driver": "spin",
+        },
+        reference=reference,
+        check=check,
+    )
 
 
 def _beam_link(length: float, elements: int, mode_count: int = 0) -> Any:
