@@ -393,13 +393,20 @@ class LinearizedSystem:
             output_names=self.output_names,
         )
 
-    def oscillating(self) -> tuple[Array, Array, NDArray[np.complex128]]:
+    def oscillating(
+        self, relative_floor: float = 1e-9
+    ) -> tuple[Array, Array, NDArray[np.complex128]]:
         """The oscillating modes (one per pair of complex eigenvalues s, Im s > 0), by
         frequency: damped frequencies Im s / 2 pi (Hz), damping ratios -Re s / |s| and the
-        complex shapes in q (columns)."""
+        complex shapes in q (columns). Pairs with Im s at most `relative_floor` times the
+        largest |s| (at least 1) are left out: the rounding of a rigid-body mode's double zero
+        makes such a pair. With 0, every pair with Im s > 0 is kept (LAPACK gives real
+        eigenvalues of the real first-order matrix exactly real): a rotor's forward whirl
+        seen from the rotating frame near its critical speed, where its frequency there nears
+        zero while the stiff modes of a nearly massless damped shaft make |s| large."""
         values, vectors = self.eigenvalues()
         scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
-        keep = np.flatnonzero(values.imag > 1e-9 * scale)
+        keep = np.flatnonzero(values.imag > relative_floor * scale)
         keep = keep[np.argsort(values[keep].imag, kind="stable")]
         s = values[keep]
         return s.imag / (2.0 * np.pi), -s.real / np.abs(s), vectors[:, keep]

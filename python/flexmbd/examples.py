@@ -531,6 +531,7 @@ def overhung_rotor(
     disc_mass: float = DISC_MASS,
     polar_inertia: float = DISC_POLAR_INERTIA,
     diametral_inertia: float = DISC_DIAMETRAL_INERTIA,
+    shaft_damping: float = 0.0,
 ) -> Example:
     """Reference R8, the overhung rotor: a rigid disc (`disc_mass` kg, `polar_inertia` and
     `diametral_inertia` kg m^2; by default a steel disc of radius 0.15 m, 0.03 m thick) at
@@ -544,6 +545,9 @@ def overhung_rotor(
     (:func:`flexmbd.linearize` with ``independent="elastic"``, :func:`flexmbd.campbell`).
     R8's shaft is massless: `shaft_density` (kg/m^3) defaults to 1e-5 of steel's, a shaft
     of 6e-7 of the disc's mass, which moves the whirl frequencies by about 1.5e-7 relative.
+    `shaft_damping` (s) is the shaft's stiffness-proportional damping D_ff = beta K_ff:
+    internal damping, which turns with the shaft (it makes forward whirl unstable above its
+    critical speed).
 
     `reference` holds R8's parameters (mass, polar inertia, diametral inertia, and the end
     stiffness k11 = 12 EI / L^3, k12 = -6 EI / L^2, k22 = 4 EI / L); `check` takes a
@@ -566,6 +570,8 @@ def overhung_rotor(
             raise ValueError(f"{label} must be positive and finite, got {value}")
     if elements < 1:
         raise ValueError(f"elements must be at least 1, got {elements}")
+    if not (np.isfinite(shaft_damping) and shaft_damping >= 0):
+        raise ValueError(f"shaft_damping must be >= 0 and finite, got {shaft_damping}")
     section = Section.circle(diameter / 2)
     nodes, conn = straight_beam(length, elements)
     data = build_body(
@@ -577,7 +583,9 @@ def overhung_rotor(
         reference_nodes=[0],
     )
     system = System()
-    shaft = system.add_flexible_body(data, name="shaft")
+    shaft = system.add_flexible_body(
+        data, rayleigh_damping=(0.0, shaft_damping) if shaft_damping else None, name="shaft"
+    )
     # Joint frames with their z axes along the shaft (global x).
     along_x = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     hub = system.add_marker(system.ground, orientation=along_x, name="hub")
