@@ -544,7 +544,8 @@ def overhung_rotor(
     coordinates are then the shaft's elastic coordinates, in its rotating frame
     (:func:`flexmbd.linearize` with ``independent="elastic"``, :func:`flexmbd.campbell`).
     R8's shaft is massless: `shaft_density` (kg/m^3) defaults to 1e-5 of steel's, a shaft
-    of 6e-7 of the disc's mass, which moves the whirl frequencies by about 1.5e-7 relative.
+    of 6e-7 of the disc's mass, which moves the whirl frequencies by 1.5e-7 to 4.3e-7 relative
+    (0 to 800 rad/s).
     `shaft_damping` (s) is the shaft's stiffness-proportional damping D_ff = beta K_ff:
     internal damping, which turns with the shaft (it makes forward whirl unstable above its
     critical speed).
