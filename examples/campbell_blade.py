@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 import flexmbd as fm
-from flexmbd.fe import Material, Section, build_body, straight_beam
+from flexmbd.fe import Material, Section
 
 R2_FLAP_1 = {0: 3.5160, 4: 5.5850, 8: 9.2568, 12: 13.1702}
 
@@ -19,21 +19,9 @@ R2_FLAP_1 = {0: 3.5160, 4: 5.5850, 8: 9.2568, 12: 13.1702}
 def blade() -> tuple[fm.System, float]:
     material = Material(7.0e10, 0.3, 2700.0)
     width, height = 0.01, 0.002
-    nodes, conn = straight_beam(1.0, 20)
-    data = build_body(
-        nodes,
-        conn,
-        material,
-        section=Section.rectangle(width, height),
-        orientation=(0.0, 1.0, 0.0),
-        reference="clamped",
-        reference_nodes=[0],
+    system = fm.examples.rotating_beam(
+        material, Section.rectangle(width, height), 1.0, 20, geometric_stiffness=True
     )
-    system = fm.System()
-    body = system.add_flexible_body(data, geometric_stiffness=True, name="blade")
-    hub, root = system.add_marker(system.ground), system.add_node_marker(body, 1)
-    system.add_revolute_joint(hub, root, name="bearing")
-    system.add_angle_driver(hub, root, fm.Polynomial([0.0, 0.0]), name="hub")
     flap_stiffness = material.young_modulus * width * height**3 / 12
     return system, np.sqrt(material.density * width * height / flap_stiffness)
 

@@ -9,7 +9,7 @@ import pytest
 
 import flexmbd as fm
 from flexmbd.campbell import CampbellDiagram, campbell, plot_campbell
-from flexmbd.fe import Material, Section, build_body, straight_beam
+from flexmbd.fe import Material, Section
 
 ELEMENTS = 20
 # R2 (Wright et al. 1982): nondimensional flap frequencies at g = 0, 4, 8, 12.
@@ -21,21 +21,8 @@ def blade(width, height):
     """A 1 m aluminium cantilever along x turned about global z by the driver "hub"; its
     nondimensional frequency scale sqrt(rho A L^4 / EI_flap)."""
     material = Material(7.0e10, 0.3, 2700.0)
-    nodes, conn = straight_beam(1.0, ELEMENTS)
-    data = build_body(
-        nodes,
-        conn,
-        material,
-        section=Section.rectangle(width, height),
-        orientation=(0.0, 1.0, 0.0),
-        reference="clamped",
-        reference_nodes=[0],
-    )
-    system = fm.System()
-    body = system.add_flexible_body(data, geometric_stiffness=True, name="blade")
-    hub, root = system.add_marker(system.ground), system.add_node_marker(body, 1)
-    system.add_revolute_joint(hub, root, name="bearing")
-    system.add_angle_driver(hub, root, fm.Polynomial([0.0, 0.0]), name="hub")
+    section = Section.rectangle(width, height)
+    system = fm.examples.rotating_beam(material, section, 1.0, ELEMENTS, geometric_stiffness=True)
     flap = material.young_modulus * width * height**3 / 12
     return system, np.sqrt(material.density * width * height / flap)
 

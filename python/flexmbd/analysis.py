@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from . import _core
 from ._checks import number
-from .errors import EquilibriumError, InvalidModelError
+from .errors import EquilibriumError, InvalidModelError, InvalidParameterError
 from .state import EquilibriumState
 from .state_space import PointLoad, StateSpace, input_forces, output_rows
 
@@ -393,13 +393,20 @@ class LinearizedSystem:
             output_names=self.output_names,
         )
 
-    def oscillating(self) -> tuple[Array, Array, NDArray[np.complex128]]:
+    def oscillating(
+        self, relative_floor: float = 1e-9
+    ) -> tuple[Array, Array, NDArray[np.complex128]]:
         """The oscillating modes (one per pair of complex eigenvalues s, Im s > 0), by
         frequency: damped frequencies Im s / 2 pi (Hz), damping ratios -Re s / |s| and the
-        complex shapes in q (columns)."""
+        complex shapes in q (columns). Pairs with Im s at most `relative_floor` times the
+        largest |s| (at least 1) are left out: the rounding of a rigid-body mode's double zero
+        makes such a pair. With 0, every pair with Im s > 0 is kept (LAPACK gives real
+        eigenvalues of the real first-order matrix exactly real): a rotor's forward whirl
+        seen from the rotating frame near its critical speed, where its frequency there nears
+        zero while the stiff modes of a nearly massless damped shaft make |s| large."""
         values, vectors = self.eigenvalues()
         scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
-        keep = np.flatnonzero(values.imag > 1e-9 * scale)
+        keep = np.flatnonzero(values.imag > relative_floor * scale)
         keep = keep[np.argsort(values[keep].imag, kind="stable")]
         s = values[keep]
         return s.imag / (2.0 * np.pi), -s.real / np.abs(s), vectors[:, keep]
@@ -418,12 +425,100 @@ class LinearizedSystem:
         return freq, np.real(shapes / (peak / np.abs(peak)))
 
 
+#: Choices of the independent coordinates of :func:`linearize`.
+INDEPENDENT = ("null-space", "elastic")
+
+#: The turn (rad) of the fastest reference coordinate over the step of the central
+#: differences of :func:`moving_basis`: truncation (its square) and round-off (1e-16 over its
+#: square) both near 1e-8 relative.
+BASIS_TURN = 1e-4
+
+
+def _constraint_jacobian(model: _core.Model, time: float, q: Array) -> Array:
+    """C_q (constraint rows x coordinates), dense."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    zero = np.zeros(nq)
+    return _matrix(model.evaluate(time, q, zero, zero, np.zeros(nc), mass=1.0))[nq:, :nq].toarray()
+
+
+def _dependent_columns(cq: Array, elastic: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """Columns of C_q for the dependent coordinates, as many as its rank: pivoted among the
+    reference coordinates first (QR with column pivoting), then among the elastic ones for
+    the rank the reference coordinates leave."""
+    if cq.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    scale = max(1.0, float(np.max(np.abs(cq))))
+    tolerance = 1e-10 * scale
+    chosen: list[int] = []
+    remaining = cq
+    for group in (np.flatnonzero(~elastic), np.flatnonzero(elastic)):
+        if len(group) == 0:
+            continue
+        _, r, pivots = sla.qr(remaining[:, group], mode="economic", pivoting=True)
+        rank = int(np.sum(np.abs(np.diag(r)) > tolerance))
+        chosen.extend(group[pivots[:rank]])
+        if rank:
+            q, _ = np.linalg.qr(cq[:, chosen])
+            remaining = cq - q @ (q.T @ cq)
+    return np.array(chosen, dtype=np.int64)
+
+
+def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
+    """The basis B (coordinates x independent coordinates) of the motions that keep the
+    constraints about `state`, with the independent coordinates chosen by
+    :func:`_dependent_columns` (the elastic ones first), and its first and second time
+    derivatives along the state's motion: C_q B = 0 with the rows of the independent
+    coordinates the identity, differentiated, C_q B_dot = -C_q_dot B and
+    C_q B_dd = -2 C_q_dot B_dot - C_q_ddot B (zero rows for the independent coordinates).
+    C_q_dot and C_q_ddot are central differences of C_q along
+    q(t +- h) = q +- h q_dot + h^2 / 2 q_dd, the step h a turn of :data:`BASIS_TURN` rad of
+    the fastest reference coordinate (second order in h); both vanish at rest. Dense:
+    (coordinates x independent coordinates) each."""
+    nq = model.coordinate_count
+    elastic = _elastic_mask(model.describe())
+    time, q = state.time, np.asarray(state.coordinates, dtype=float)
+    velocity = np.asarray(state.velocities, dtype=float)
+    acceleration = np.asarray(state.accelerations, dtype=float)
+    cq = _constraint_jacobian(model, time, q)
+    dependent = _dependent_columns(cq, elastic)
+    independent = np.setdiff1d(np.arange(nq), dependent)
+    basis = np.zeros((nq, len(independent)))
+    basis[independent] = np.eye(len(independent))
+    rate, curvature = np.zeros_like(basis), np.zeros_like(basis)
+    if len(dependent) == 0:
+        return basis, rate, curvature
+    columns = cq[:, dependent]
+
+    def solve(right: Array) -> Array:
+        return np.linalg.lstsq(columns, right, rcond=None)[0]
+
+    basis[dependent] = -solve(cq[:, independent])
+    speed = float(np.max(np.abs(velocity[~elastic]), initial=0.0))
+    rise = float(np.max(np.abs(acceleration[~elastic]), initial=0.0))
+    if speed == 0.0 and rise == 0.0:
+        return basis, rate, curvature  # C_q of a state at rest does not move
+    # h: the step over which the fastest coordinate moves BASIS_TURN, h v + h^2 a / 2.
+    h = (
+        BASIS_TURN / speed
+        if rise == 0.0
+        else (np.sqrt(speed**2 + 2.0 * rise * BASIS_TURN) - speed) / rise
+    )
+    ahead = _constraint_jacobian(model, time + h, q + h * velocity + 0.5 * h * h * acceleration)
+    behind = _constraint_jacobian(model, time - h, q - h * velocity + 0.5 * h * h * acceleration)
+    cq_rate = (ahead - behind) / (2.0 * h)
+    cq_curvature = (ahead - 2.0 * cq + behind) / (h * h)
+    rate[dependent] = -solve(cq_rate @ basis)
+    curvature[dependent] = -solve(2.0 * cq_rate @ rate + cq_curvature @ basis)
+    return basis, rate, curvature
+
+
 def linearize(
     model: _core.Model | _core.System,
     state: EquilibriumState | None = None,
     *,
     inputs: Sequence[PointLoad] = (),
     outputs: Sequence[Any] = (),
+    independent: str = "null-space",
 ) -> LinearizedSystem:
     """Linearizes the equations of motion about `state` (default: :func:`equilibrium` of the
     model): M, D = dr/dq_dot and K = dr/dq (with the multipliers' constraint Hessians) of the
@@ -436,7 +531,28 @@ def linearize(
     `inputs` (loads, :class:`flexmbd.PointLoad`; `model` must then be a
     :class:`flexmbd.System`) and `outputs` (:class:`flexmbd.NodeDisplacement`,
     :class:`flexmbd.BodyPosition`, :class:`flexmbd.ElasticCoordinate`) make
-    :meth:`LinearizedSystem.state_space` the state-space model (A, B, C, D) between them."""
+    :meth:`LinearizedSystem.state_space` the state-space model (A, B, C, D) between them.
+
+    `independent` chooses the coordinates z. ``"null-space"`` (default): an orthonormal basis
+    of the null space of C_q at the state, held fixed. ``"elastic"``: z are coordinates of q,
+    the elastic coordinates of the deformable bodies first (generalized coordinate
+    partitioning, seed eqs. 27-30, the dependent coordinates pivoted among the reference
+    coordinates of the bodies); the dependent coordinates follow the constraints along the
+    state's motion, q = q0(t) + B(t) z, and the equations carry the terms of that moving
+    basis (:func:`moving_basis`):
+    B^T M B z_dd + B^T (D B + 2 M B_dot) z_dot + B^T (K B + D B_dot + M B_dd) z = 0.
+    About a steady rotation whose independent coordinates are all elastic (the bodies driven,
+    or joined to driven bodies, as a disc welded to a turning shaft) these are the
+    time-invariant equations of the rotating frames, and the eigenvalues the exact
+    frequencies seen there; with the basis held fixed the welded disc's absolute coordinates
+    turn under it, and the frequencies are wrong (a rotor's whirl at 100 rad/s: 66.1 and 73.1
+    rad/s instead of 27.0 and 157.9). The two choices agree where B does not move (static
+    states, blades whose reference motion is all prescribed)."""
+    if independent not in INDEPENDENT:
+        raise InvalidParameterError(
+            f"independent must be one of {', '.join(INDEPENDENT)}, got {independent!r}",
+            item="independent",
+        )
     system = model
     model = _model(model)
     if state is None:
@@ -453,14 +569,23 @@ def linearize(
     d = _matrix(model.evaluate(*args, velocity=1.0))
     k = _matrix(model.evaluate(*args, position=1.0))
     cq = m[nq:, :nq].toarray()
-    basis = sla.null_space(cq) if cq.shape[0] else np.eye(nq)
+    if independent == "elastic":
+        basis, rate, curvature = moving_basis(model, state)
+    else:
+        basis = sla.null_space(cq) if cq.shape[0] else np.eye(nq)
+        rate = curvature = np.zeros_like(basis)
     if basis.shape[1] == 0:
         raise InvalidModelError("linearize: the constraints leave no degree of freedom")
+    mass, damping, stiffness = (a[:nq, :nq] for a in (m, d, k))
+    mass_rate = mass @ rate
 
-    def reduce(a: sp.csc_matrix) -> Array:
-        return basis.T @ (a[:nq, :nq] @ basis)
-
-    linear = LinearizedSystem(reduce(m), reduce(d), reduce(k), basis, state)
+    linear = LinearizedSystem(
+        basis.T @ (mass @ basis),
+        basis.T @ (damping @ basis + 2.0 * mass_rate),
+        basis.T @ (stiffness @ basis + damping @ rate + mass @ curvature),
+        basis,
+        state,
+    )
     if inputs:
         linear.input_forces = input_forces(system, state, list(inputs))
         linear.input_names = [load.label() for load in inputs]

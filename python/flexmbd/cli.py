@@ -543,7 +543,9 @@ def _campbell(args: argparse.Namespace) -> int:
 
     try:
         job = _job(args.model)
-        diagram = campbell(job.system, args.driver, _speeds(args.speeds), modes=args.modes)
+        diagram = campbell(
+            job.system, args.driver, _speeds(args.speeds), modes=args.modes, frame=args.frame
+        )
         stem = Path(args.output) if args.output else Path(Path(args.model).stem + "_campbell")
         plot_campbell(diagram, stem.with_suffix(".png"), orders=args.orders)
         diagram.to_xarray().to_netcdf(stem.with_suffix(".nc"), engine="scipy")
@@ -551,12 +553,16 @@ def _campbell(args: argparse.Namespace) -> int:
         print(f"flexmbd campbell: {error}", file=sys.stderr)
         return 2
     modes = range(diagram.mode_count)
+    print(f"frequencies in the {diagram.frame} frame")
     print("speed (rad/s)" + "".join(f"  mode {m + 1:<2d} (Hz)" for m in modes))
+    whirl = {"forward": "forward", "backward": "backward", None: "-"}
+    print(f"{'whirl':>13s}" + "".join(f"  {whirl[w]:>12s}" for w in diagram.whirl_labels))
     for k, w in enumerate(diagram.speeds):
         print(f"{w:13.4g}" + "".join(f"  {f:12.5g}" for f in diagram.frequencies[k]))
     for c in diagram.critical_speeds(args.orders):
+        kind = f", {c['whirl']} whirl" if c["whirl"] else ""
         print(
-            f"critical speed: order {c['order']:g} meets mode {c['mode'] + 1} at "
+            f"critical speed: order {c['order']:g} meets mode {c['mode'] + 1}{kind} at "
             f"{c['speed']:.5g} rad/s ({c['frequency']:.5g} Hz)"
         )
     print(f"written: {stem.with_suffix('.png')}, {stem.with_suffix('.nc')}")
@@ -817,6 +823,13 @@ def _main(argv: list[str] | None) -> int:
     camp.add_argument("--modes", type=int, default=6, help="modes followed (default 6)")
     camp.add_argument(
         "--orders", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="excitation orders"
+    )
+    camp.add_argument(
+        "--frame",
+        choices=("rotating", "fixed"),
+        default="rotating",
+        help="frame of the frequencies: rotating (blades; default) or fixed (rotor whirl: "
+        "forward at w_rotating + W, backward at w_rotating - W)",
     )
     camp.add_argument("-o", "--output", help="output stem (default: MODEL_campbell)")
     modes = sub.add_parser(

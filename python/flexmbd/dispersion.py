@@ -90,10 +90,8 @@ def dispersion(
     """The first `count` modes of `branch` of a clamped-free beam of `material`, `section`,
     `length` (m) and `elements` Euler-Bernoulli elements turned at `speed` (rad/s) about an
     axis through its clamped end, against the analytic relation (see the module)."""
-    from ._boundary import Polynomial
     from .analysis import equilibrium, linearize, steady_rotation
-    from .fe import build_body, straight_beam
-    from .system import System
+    from .examples import rotating_beam
 
     if branch not in BRANCHES:
         raise InvalidParameterError(
@@ -117,22 +115,7 @@ def dispersion(
             f"{np.pi * c0 / (2 * length):.6g} rad/s the rod has no steady rotation",
             item="speed",
         )
-    nodes, conn = straight_beam(length, elements)
-    data = build_body(
-        nodes,
-        conn,
-        material,
-        section=section,
-        orientation=(0.0, 1.0, 0.0),
-        reference="clamped",
-        reference_nodes=[0],
-    )
-    system = System()
-    body = system.add_flexible_body(data, name="rod")
-    hub, root = system.add_marker(system.ground), system.add_node_marker(body, 1)
-    system.add_revolute_joint(hub, root)
-    system.add_angle_driver(hub, root, Polynomial([0.0, speed]), name="hub")
-    model = system.compile()
+    model = rotating_beam(material, section, length, elements, speed=speed, name="rod").compile()
     state = steady_rotation(model) if speed != 0.0 else equilibrium(model)
     linear = linearize(model, state).without_velocity_terms()  # no Coriolis (see the module)
     frequencies, _, shapes = linear.oscillating()

@@ -18,6 +18,8 @@ from . import _boundary, _core
 from .rotation import rotation
 from .system import System
 
+Array = NDArray[np.float64]
+
 
 @dataclass
 class Example:
@@ -409,6 +411,47 @@ def tetrahedral_pendulum(mode_count: int = 6) -> Example:
     )
 
 
+def rotating_beam(
+    material: Any,
+    section: Any,
+    length: float,
+    elements: int,
+    *,
+    speed: float = 0.0,
+    geometric_stiffness: bool = False,
+    orientation: Any = (0.0, 1.0, 0.0),
+    name: str = "blade",
+) -> System:
+    """A uniform clamped-free beam turned about an axis through its clamped end: `elements`
+    Euler-Bernoulli elements of `material` and `section` along x, `length` (m) long, the body
+    frame clamped at its first node (the root), which the revolute joint "bearing" holds on
+    the global z axis and the angle driver "hub" turns at `speed` (rad/s) from angle 0
+    (:meth:`flexmbd.System.with_driver` changes its motion). `orientation` is the section's
+    (:func:`flexmbd.fe.build_body`; the default puts the section's y axis along global y, so
+    that bending about it, flap, moves the beam along z, out of the plane of rotation). The
+    deformable body is named `name`; `geometric_stiffness` as in
+    :meth:`flexmbd.System.add_flexible_body`. The blade of R2 (Wright et al. 1982), the rod of
+    R6 (:func:`flexmbd.dispersion`)."""
+    from .fe import build_body, straight_beam
+
+    nodes, conn = straight_beam(length, elements)
+    data = build_body(
+        nodes,
+        conn,
+        material,
+        section=section,
+        orientation=orientation,
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = System()
+    beam = system.add_flexible_body(data, geometric_stiffness=geometric_stiffness, name=name)
+    hub, root = system.add_marker(system.ground), system.add_node_marker(beam, 1)
+    system.add_revolute_joint(hub, root, name="bearing")
+    system.add_angle_driver(hub, root, _boundary.Polynomial([0.0, float(speed)]), name="hub")
+    return system
+
+
 def rotating_blade_flap_frequencies(
     g: float,
     geometric_stiffness: bool = True,
@@ -423,39 +466,193 @@ def rotating_blade_flap_frequencies(
     same bending stiffness in both planes (a square section).
 
     The blade (aluminium, 1 m, a slender 10 x 2 mm section with the flap stiffness EI_y,
-    `elements` beams) is turned by an angle driver at constant speed; `flexmbd.equilibrium`
-    finds the steadily rotating, stretched blade and `flexmbd.linearize` the motion about it.
-    Flap modes are those that move the nodes along z, lead-lag modes along y."""
+    `elements` beams; :func:`rotating_beam`) is turned by an angle driver at constant speed;
+    `flexmbd.equilibrium` finds the steadily rotating, stretched blade and `flexmbd.linearize`
+    the motion about it. Flap modes are those that move the nodes along z, lead-lag modes
+    along y."""
     if direction not in ("flap", "lag"):
         raise ValueError(f"direction must be 'flap' or 'lag', got {direction!r}")
     from .analysis import equilibrium, linearize
-    from .fe import Material, Section, build_body, straight_beam
+    from .fe import Material, Section
 
     width, height = (0.01, 0.002) if direction == "flap" else (0.002, 0.002)
     material = Material(7.0e10, 0.3, 2700.0)
     rho_a = material.density * width * height
     scale = np.sqrt(rho_a / (material.young_modulus * width * height**3 / 12))
-    nodes, conn = straight_beam(1.0, elements)
-    data = build_body(
-        nodes,
-        conn,
+    system = rotating_beam(
         material,
-        section=Section.rectangle(width, height),  # iy = width height^3 / 12: flap
-        orientation=(0.0, 1.0, 0.0),
-        reference="clamped",
-        reference_nodes=[0],
+        Section.rectangle(width, height),  # iy = width height^3 / 12: flap
+        1.0,
+        elements,
+        speed=g / scale,
+        geometric_stiffness=geometric_stiffness,
     )
-    system = System()
-    blade = system.add_flexible_body(data, geometric_stiffness=geometric_stiffness)
-    hub, root = system.add_marker(system.ground), system.add_node_marker(blade, 1)
-    system.add_revolute_joint(hub, root)
-    system.add_angle_driver(hub, root, _boundary.Polynomial([0.0, g / scale]))
     frequencies, shapes = linearize(system, equilibrium(system)).modes()
     rows = np.concatenate([7 + 6 * k + np.arange(3) for k in range(elements)])
     moved = shapes[rows].reshape(elements, 3, -1)
     axis = 2 if direction == "flap" else 1
     selected = np.sum(moved[:, axis] ** 2, axis=0) / np.sum(moved**2, axis=(0, 1)) > 0.9
     return 2 * np.pi * frequencies[selected][:count] * scale
+
+
+#: The disc of :func:`overhung_rotor`: steel (7850 kg/m^3), radius 0.15 m, 0.03 m thick.
+DISC_MASS = 7850.0 * np.pi * 0.15**2 * 0.03
+#: Its polar moment of inertia m r^2 / 2 (kg m^2).
+DISC_POLAR_INERTIA = DISC_MASS * 0.15**2 / 2
+#: Its diametral moment of inertia m r^2 / 4 + m t^2 / 12 (kg m^2).
+DISC_DIAMETRAL_INERTIA = DISC_MASS * (0.15**2 / 4 + 0.03**2 / 12)
+
+
+def _r8_whirl(speed: float, reference: dict[str, float]) -> tuple[Array, Array]:
+    """Reference R8: the forward and the backward whirl frequencies (rad/s, ascending) of the
+    overhung rotor of `reference` at `speed` (rad/s), the positive real roots w of
+    (k11 - m w^2)(k22 - I_d w^2 + s I_p W w) - k12^2 = 0 (s = +1, -1)."""
+    m, polar, diametral = (reference[k] for k in ("mass", "polar inertia", "diametral inertia"))
+    k11, k12, k22 = (reference[k] for k in ("k11", "k12", "k22"))
+    whirls = []
+    for sense in (1.0, -1.0):
+        quartic = np.polysub(
+            np.polymul([-m, 0.0, k11], [-diametral, sense * polar * speed, k22]), [k12**2]
+        )
+        roots = np.roots(quartic)
+        real = roots[(np.abs(roots.imag) <= 1e-9 * np.abs(roots)) & (roots.real > 0)].real
+        whirls.append(np.sort(real))
+    return whirls[0], whirls[1]
+
+
+def overhung_rotor(
+    *,
+    speed: float = 0.0,
+    length: float = 0.4,
+    diameter: float = 0.02,
+    young_modulus: float = 2.1e11,
+    shaft_density: float = 7850.0e-5,
+    elements: int = 4,
+    disc_mass: float = DISC_MASS,
+    polar_inertia: float = DISC_POLAR_INERTIA,
+    diametral_inertia: float = DISC_DIAMETRAL_INERTIA,
+    shaft_damping: float = 0.0,
+) -> Example:
+    """Reference R8, the overhung rotor: a rigid disc (`disc_mass` kg, `polar_inertia` and
+    `diametral_inertia` kg m^2; by default a steel disc of radius 0.15 m, 0.03 m thick) at
+    the free end of a cantilever shaft along global x (`length` m, a round section of
+    `diameter` m, `young_modulus` Pa, `elements` Euler-Bernoulli beams), spinning at `speed`
+    rad/s about its axis. The shaft is the deformable body "shaft", its frame clamped at its
+    root, which the revolute joint "bearing" holds on the x axis and the angle driver "spin"
+    turns; the disc is the rigid body "disc", welded (fixed joint "weld") to a marker on the
+    shaft's tip node, which turns with the node's small rotations. All independent
+    coordinates are then the shaft's elastic coordinates, in its rotating frame
+    (:func:`flexmbd.linearize` with ``independent="elastic"``, :func:`flexmbd.campbell`).
+    R8's shaft is massless: `shaft_density` (kg/m^3) defaults to 1e-5 of steel's, a shaft
+    of 6e-7 of the disc's mass, which moves the whirl frequencies by 1.5e-7 to 4.3e-7 relative
+    (0 to 800 rad/s).
+    `shaft_damping` (s) is the shaft's stiffness-proportional damping D_ff = beta K_ff:
+    internal damping, which turns with the shaft (it makes forward whirl unstable above its
+    critical speed).
+
+    `reference` holds R8's parameters (mass, polar inertia, diametral inertia, and the end
+    stiffness k11 = 12 EI / L^3, k12 = -6 EI / L^2, k22 = 4 EI / L); `check` takes a
+    :func:`flexmbd.campbell` diagram in the fixed frame and returns the largest relative
+    differences of its forward and backward whirl frequencies from R8's, speed by speed
+    (the lowest R8 roots of each direction, as many as the diagram has modes of it). The
+    simulation settings are for a run of the spinning rotor from its steady rotation."""
+    from .fe import Material, Section, build_body, straight_beam
+
+    for label, value in (
+        ("length", length),
+        ("diameter", diameter),
+        ("young_modulus", young_modulus),
+        ("shaft_density", shaft_density),
+        ("disc_mass", disc_mass),
+        ("polar_inertia", polar_inertia),
+        ("diametral_inertia", diametral_inertia),
+    ):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{label} must be positive and finite, got {value}")
+    if elements < 1:
+        raise ValueError(f"elements must be at least 1, got {elements}")
+    if not (np.isfinite(shaft_damping) and shaft_damping >= 0):
+        raise ValueError(f"shaft_damping must be >= 0 and finite, got {shaft_damping}")
+    section = Section.circle(diameter / 2)
+    nodes, conn = straight_beam(length, elements)
+    data = build_body(
+        nodes,
+        conn,
+        Material(young_modulus, 0.3, shaft_density),
+        section=section,
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = System()
+    shaft = system.add_flexible_body(
+        data, rayleigh_damping=(0.0, shaft_damping) if shaft_damping else None, name="shaft"
+    )
+    # Joint frames with their z axes along the shaft (global x).
+    along_x = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    hub = system.add_marker(system.ground, orientation=along_x, name="hub")
+    root = system.add_node_marker(shaft, 1, orientation=along_x, name="root")
+    bearing = system.add_revolute_joint(hub, root, name="bearing")
+    spin = system.add_angle_driver(
+        hub, root, _boundary.Polynomial([0.0, float(speed)]), name="spin"
+    )
+    tip = elements + 1
+    disc = system.add_rigid_body(
+        disc_mass,
+        (polar_inertia, diametral_inertia, diametral_inertia),
+        position=(length, 0.0, 0.0),
+        name="disc",
+    )
+    weld = system.add_fixed_joint(
+        system.add_node_marker(shaft, tip, name="tip"), system.add_marker(disc), name="weld"
+    )
+    bending = young_modulus * section.iy
+    reference = {
+        "mass": float(disc_mass),
+        "polar inertia": float(polar_inertia),
+        "diametral inertia": float(diametral_inertia),
+        "k11": 12 * bending / length**3,
+        "k12": -6 * bending / length**2,
+        "k22": 4 * bending / length,
+    }
+
+    def check(diagram: Any) -> dict[str, float]:
+        if diagram.frame != "fixed":
+            raise ValueError("overhung_rotor's check needs a Campbell diagram in the fixed frame")
+        worst = {"forward": 0.0, "backward": 0.0}
+        for k, w in enumerate(diagram.speeds):
+            analytic = dict(
+                zip(("forward", "backward"), _r8_whirl(float(w), reference), strict=True)
+            )
+            for label in worst:
+                found = np.sort(2 * np.pi * diagram.frequencies[k][diagram.whirl[k] == label])
+                expected = analytic[label][: len(found)]
+                if len(expected) < len(found):
+                    worst[label] = np.inf
+                elif len(found):
+                    difference = float(np.max(np.abs(found / expected - 1.0)))
+                    worst[label] = max(worst[label], difference)
+        return {f"{label} whirl, largest relative difference": v for label, v in worst.items()}
+
+    return Example(
+        name="overhung-rotor",
+        description="R8 overhung rotor: a disc on a cantilever shaft, forward and backward whirl",
+        system=system,
+        end_time=0.2,
+        step_size=1e-4,
+        solver=_boundary.GeneralizedAlpha(0.9),
+        output_interval=1e-3,
+        items={
+            "shaft": shaft,
+            "disc": disc,
+            "bearing": bearing,
+            "spin": spin,
+            "weld": weld,
+            "tip node": tip,
+            "driver": "spin",
+        },
+        reference=reference,
+        check=check,
+    )
 
 
 def _beam_link(length: float, elements: int, mode_count: int = 0) -> Any:

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from ._checks import flag, number, numbers_array
+from ._checks import flag, number, numbers_array, value_text
 from .errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -580,7 +580,7 @@ class System(_core.System):
             raise InvalidParameterError(
                 f"{item}: coupling must be one of {COUPLINGS}, got {coupling!r}", item=item
             )
-        label = f"{item} on node set {nodes!r}" if isinstance(nodes, str) else item
+        label = f"{item} on node set {value_text(nodes)}" if isinstance(nodes, str) else item
         interface = body_interface(data, nodes, weights, name=label)
         rows = interface.average_rows(data.dofs_per_node, data.dof_count) @ basis
         rows = np.asarray(rows.todense()) if sp.issparse(rows) else np.asarray(rows)

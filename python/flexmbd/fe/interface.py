@@ -575,14 +575,15 @@ def body_interface(
     """The `Interface` of a node set of a `FlexibleBodyData`: a set name of the body, or node
     ids (`ids=True`, as in the mesh) or indices. With weights "auto" on a set that is an
     interface of the body's Craig-Bampton modes, the weights of those modes are used."""
+    from .._checks import value_text
     from ..errors import UnknownItemError
 
     if isinstance(nodes, str):
         if nodes not in body.node_sets:
             raise UnknownItemError(
-                f"{name or 'interface'}: the body has no node set {nodes!r}; known: "
+                f"{name or 'interface'}: the body has no node set {value_text(nodes)}; known: "
                 f"{sorted(body.node_sets)}",
-                item=name or nodes,
+                item=name or value_text(nodes),
             )
         label = name or f"node set '{nodes}'"
         members = np.asarray(body.node_sets[nodes], dtype=np.int64)
