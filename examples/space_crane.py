@@ -9,12 +9,13 @@ checks itself: the torques' work equals the change of kinetic plus strain energy
 the torques on the free crane reproduces the joint angles, and booms without modes need the
 torques of rigid bodies of the same mass distribution.
 
-    python examples/space_crane.py [--plot space_crane.png]
+    python examples/space_crane.py [--plot FILE.png]   (default: examples/space_crane.png)
 """
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -28,7 +29,7 @@ def study(duration: float, **options) -> fm.InverseDynamics:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--plot", default="space_crane.png")
+    parser.add_argument("--plot", default=str(Path(__file__).with_suffix(".png")))
     args = parser.parse_args()
     checks = {}
     runs = {}
