@@ -221,3 +221,33 @@ def test_actuators_in_model_files_with_their_units(tmp_path, assert_close):
     assert_close(runs[1].coordinates, runs[0].coordinates, rel=1e-9, abs=1e-12, what="units")
     exact = step_response(runs[0].time, 0.8, J)
     assert_close(angle(runs[0], "arm"), exact, rel=0, abs=1e-9, what="servo")
+
+
+def test_the_effort_is_recorded_and_plotted(assert_close, tmp_path):
+    """The actuator's effort is a sensor ("servo effort"): the law at each record, also after
+    a results file, and a panel of the overview in N m."""
+    from flexmbd import plotting
+
+    system, body = arm(0.8, limit=100.0)
+    result = fm.simulate(
+        system,
+        0.5,
+        1e-4,
+        output_interval=0.01,
+        solver=fm.ExplicitSolver("rk4", "projection"),
+        results_file=tmp_path / "servo.h5",
+    )
+    x = angle(result, body)
+    rate = result.angular_velocity(body)[:, 2]
+    expected = np.clip(KP * (0.8 - x) - KD * rate, -100.0, 100.0)
+    effort = result.actuator_effort("servo")
+    assert_close(effort, expected, rel=1e-9, abs=1e-9, what="recorded effort")
+    assert effort[0] == 100.0  # saturated at the start
+    np.testing.assert_array_equal(
+        fm.read_results(tmp_path / "servo.h5").actuator_effort("servo"), effort
+    )
+    entry = next(s for s in result.layout["sensors"] if s["name"] == "servo effort")
+    assert entry["quantity"] == "actuator torque (N m)"
+    assert "sensor:servo effort" in plotting.default_quantities(result)
+    ax = plotting.plot_sensor(result, "servo effort")
+    assert ax.get_ylabel().startswith("actuator torque (N m)")

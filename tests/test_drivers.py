@@ -74,6 +74,8 @@ def test_driving_torque_at_constant_speed_balances_gravity(assert_close):
     expected = mass * G * length / 2 * np.cos(w * result.time)
     torque = result.reaction_torque(drive)[:, 2]
     assert_close(torque[LAYER], expected[LAYER], rel=1e-7, abs=1e-5, what="driving torque")
+    effort = result.driver_effort(drive)
+    assert_close(effort[LAYER], expected[LAYER], rel=1e-7, abs=1e-5, what="driver effort")
 
 
 def test_velocity_projection_removes_the_start_up_layer(assert_close):

@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -101,6 +102,12 @@ def test_bad_simulation_settings(system):
         fm.simulate(s, 1.0, 0.0)
     with pytest.raises(fm.InvalidParameterError, match="output interval"):
         fm.simulate(s, 1.0, 1e-3, output_interval=-0.1)
+    # Output times finer than the run can resolve (they used to hang the output clock).
+    for tiny, match in ((1e-300, "time resolution"), (1e-10, "minimum step size")):
+        started = time.perf_counter()
+        with pytest.raises(fm.InvalidParameterError, match=match):
+            fm.simulate(s, 1.0, 1e-3, output_interval=tiny)
+        assert time.perf_counter() - started < 1.0
 
 
 def test_inconsistent_initial_positions_name_the_joint():

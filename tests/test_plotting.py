@@ -45,6 +45,7 @@ def test_plot_result_writes_one_png_with_all_default_panels(slider_crank, tmp_pa
         "violation",
         "bodies",
         "reactions",
+        "efforts",
         "deflection:rod",
         "stress:rod",
     ]
@@ -164,3 +165,16 @@ def test_energy_panel_of_a_driven_model_is_called_a_change_not_a_drift(slider_cr
     assert driven.startswith("Change of the total energy (work of drivers and forces)")
     free = plotting.plot_energy_drift(four_bar).get_title()
     assert free.startswith("Drift of the total energy") and "kinetic energy" in free
+
+
+def test_efforts_are_the_signed_driving_torques(slider_crank, tmp_path):
+    panels = plotting.quantity_panels(slider_crank, "efforts")
+    assert len(panels) == 1  # angle drivers only: one panel in N m
+    ax = plotting.plot_efforts(slider_crank, "angle driver")
+    line = ax.get_lines()[0]
+    np.testing.assert_array_equal(line.get_ydata(), slider_crank.driver_effort("drive"))
+    assert "N m" in ax.get_ylabel()
+    with pytest.raises(fm.UnknownItemError, match="no translation drivers"):
+        plotting.plot_efforts(slider_crank, "translation driver")
+    with pytest.raises(fm.InvalidParameterError, match="not a driver"):
+        slider_crank.driver_effort("crank pin")

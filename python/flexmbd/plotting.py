@@ -24,6 +24,8 @@ Quantity names
 ``reaction:JOINT``           reaction force (N) and torque (N m) of a joint, in the axes of
                              its second marker, two panels
 ``reactions``                magnitudes of the reaction forces of all joints
+``efforts``                  driving torques (N m) of the angle drivers and forces (N) of the
+                             translation drivers, signed, one panel per unit
 ``sensor:SENSOR``            the values of a sensor
 ===========================  =================================================================
 
@@ -49,7 +51,7 @@ from .quantities import deformable, resolve_item
 Array = NDArray[np.float64]
 
 #: Quantity kinds that take no item.
-PLAIN_QUANTITIES = ("energy", "drift", "violation", "bodies", "reactions")
+PLAIN_QUANTITIES = ("energy", "drift", "violation", "bodies", "reactions", "efforts")
 #: Quantity kinds that take an item after a colon.
 ITEM_QUANTITIES = (
     "position",
@@ -320,15 +322,43 @@ def plot_reactions(
     return _finish(ax, f"|{kind}| ({unit})", f"Reaction {kind}s")
 
 
+#: Driver types, the unit of their efforts and what the effort is.
+_EFFORTS = {"angle driver": ("N m", "torque"), "translation driver": ("N", "force")}
+
+
+def _drivers(result: Any, kind: str) -> list[str]:
+    return [j["name"] for j in result.layout["joints"] if j["type"] == kind]
+
+
+def plot_efforts(result: Any, kind: str = "angle driver", ax: Any = None) -> Any:
+    """The signed efforts of the drivers of `kind` ("angle driver": torques, N m;
+    "translation driver": forces, N), one curve each."""
+    if kind not in _EFFORTS:
+        raise InvalidParameterError(
+            f"kind must be 'angle driver' or 'translation driver', got {kind!r}", item=kind
+        )
+    names = _drivers(result, kind)
+    if not names:
+        raise UnknownItemError(f"the model has no {kind}s", item=kind)
+    ax = _axes(ax)
+    for name in names:
+        ax.plot(result.time, result.driver_effort(name), label=name)
+    unit, effort = _EFFORTS[kind]
+    return _finish(ax, f"{effort} ({unit})", f"Driving {effort}s ({kind}s)")
+
+
 def plot_sensor(result: Any, sensor: object, ax: Any = None) -> Any:
     """Values of a sensor (an orientation sensor: its nine matrix entries)."""
     values = result.sensor(sensor)
     values = values.reshape(len(result.time), -1)
     ax = _axes(ax)
-    labels = _AXES if values.shape[1] == 3 else [f"[{k // 3}, {k % 3}]" for k in range(9)]
+    name = _item_name(result, "sensors", sensor)
+    if values.shape[1] == 1:
+        labels = [name]
+    else:
+        labels = _AXES if values.shape[1] == 3 else [f"[{k // 3}, {k % 3}]" for k in range(9)]
     for k in range(values.shape[1]):
         ax.plot(result.time, values[:, k], label=labels[k])
-    name = _item_name(result, "sensors", sensor)
     entry = next((s for s in result.layout["sensors"] if s["name"] == name), None)
     quantity = entry["quantity"] if entry is not None else "value"
     return _finish(ax, quantity, f"Sensor {name}")
@@ -352,6 +382,8 @@ def default_quantities(result: Any) -> list[str]:
         quantities.append("bodies")
     if result.layout["joints"]:
         quantities.append("reactions")
+    if any(_drivers(result, kind) for kind in _EFFORTS):
+        quantities.append("efforts")
     for name in _flexible_names(result):
         quantities += [f"deflection:{name}", f"stress:{name}"]
     quantities += [f"sensor:{s['name']}" for s in result.layout["sensors"]]
@@ -382,6 +414,11 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
             if not names:
                 raise UnknownItemError("the model has no moving bodies to plot", item=quantity)
             return [lambda ax, n=n: plot_body(result, n, "position", ax) for n in names]
+        if kind == "efforts":
+            kinds = [k for k in _EFFORTS if _drivers(result, k)]
+            if not kinds:
+                raise UnknownItemError("the model has no drivers to plot", item=quantity)
+            return [lambda ax, k=k: plot_efforts(result, k, ax) for k in kinds]
         if not result.layout["joints"]:
             raise UnknownItemError("the model has no joints to plot", item=quantity)
         return [lambda ax: plot_reactions(result, None, "force", ax)]

@@ -319,6 +319,25 @@ class Result:
         _, j = self._lookup("joints", joint, _core.JointId)
         return self.multipliers[:, j["row"] : j["row"] + len(j["equations"])]
 
+    def driver_effort(self, driver: object) -> Array:
+        """The effort of an angle driver (torque, N m) or a translation driver (force, N) on
+        the joint coordinate it prescribes, acting on its second marker's body: minus its
+        multiplier, (n,). (On markers of deformable bodies' nodes the angle driver's effort
+        differs from it by the square of the elastic rotation, which
+        :func:`flexmbd.inverse_dynamics` takes into account.) Raises `InvalidParameterError`
+        for a joint that is not a driver."""
+        _, j = self._lookup("joints", driver, _core.JointId)
+        if j["type"] not in ("angle driver", "translation driver"):
+            raise InvalidParameterError(
+                f"joint {j['name']!r} is a {j['type']} joint, not a driver", item=j["name"]
+            )
+        return -self.multipliers[:, j["row"]]
+
+    def actuator_effort(self, actuator: str) -> Array:
+        """The effort of the joint actuator named `actuator` (its torque, N m, or force, N,
+        after the limit), (n,): the sensor "`actuator` effort" it records."""
+        return self.sensor(f"{actuator} effort")[:, 0]
+
     # Sensors ---------------------------------------------------------------------------
     def sensor(self, sensor: object) -> Array:
         """Values of a sensor: (n, 3), or (n, 3, 3) for an orientation."""

@@ -454,6 +454,8 @@ impl System {
     /// the velocity feed-forward), held within +/- `limit` (None: no limit; a reached limit
     /// gives an "actuator saturation" event), turns (N m) or pushes (N) marker 2's body
     /// about or along the z axis of marker 1 (and marker 1's body back). Analytic Jacobians.
+    /// Its effort is recorded as the sensor "NAME effort" ("actuator K effort" unnamed;
+    /// `Result.actuator_effort(NAME)`).
     #[pyo3(signature = (joint, set_point, *, proportional_gain, derivative_gain = 0.0, feed_forward = None, limit = None, coordinate = None, name = None))]
     #[allow(clippy::too_many_arguments)]
     fn add_joint_actuator(

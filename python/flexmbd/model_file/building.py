@@ -869,6 +869,19 @@ class _Builder:
                 ("solver", "max_step_size"),
                 f"the maximum step size {largest:g} is smaller than simulation.step_size {step:g}",
             )
+        # The steps land on the output times: an interval below the smallest step (or below
+        # the time resolution of the run) cannot be met.
+        interval = self.spec.simulation.output_interval
+        floor = max(
+            smallest if smallest is not None else 1e-6 * step,
+            2e-12 * (1.0 + abs(self.spec.simulation.end_time)),
+        )
+        if interval is not None and 0 < interval < floor:
+            raise self.fail(
+                ("simulation", "output_interval"),
+                f"the output interval {interval:g} is below the smallest step size {floor:g} "
+                "(the steps land on the output times)",
+            )
 
     def outputs(self) -> list[Output]:
         if self.spec.outputs is None:

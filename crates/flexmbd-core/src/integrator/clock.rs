@@ -23,9 +23,13 @@ impl OutputClock {
         let eps = 1e-12 * (1.0 + settings.end_time.abs());
         let mut index = 1;
         if let Some(dt) = settings.output_interval {
-            // The first output time after `from`.
+            // The first output time after `from` (at most a step of round-off away from the
+            // estimate; the settings keep dt above the minimum step size).
             index = (((from - start) / dt).floor() as usize).max(1);
-            while start + dt * index as f64 <= from + eps {
+            for _ in 0..4 {
+                if start + dt * index as f64 > from + eps {
+                    break;
+                }
                 index += 1;
             }
         }

@@ -267,6 +267,19 @@ impl SimulationSettings {
             if !(dt.is_finite() && dt > 0.0) {
                 return bad(format!("output interval must be positive, got {dt}"));
             }
+            let resolution = 2e-12 * (1.0 + self.end_time.abs());
+            if dt <= resolution {
+                return bad(format!(
+                    "output interval {dt:e} is below the time resolution {resolution:e} of the run"
+                ));
+            }
+            if dt < self.min_step_size {
+                return bad(format!(
+                    "output interval {dt:e} is below the minimum step size {:e}: the steps land \
+                     on the output times",
+                    self.min_step_size
+                ));
+            }
         }
         if self.newton.max_iterations == 0 {
             return bad("Newton needs at least one iteration (max_iterations 0)".to_string());

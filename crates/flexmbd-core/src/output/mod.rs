@@ -6,7 +6,8 @@ use crate::assembly::{joint_pair, update_kinematics};
 use crate::body::marker::marker_accelerations;
 use crate::body::{flexible, point_mass, rigid, BodyKind};
 use crate::force::gravity::gravity_potential;
-use crate::force::{force_potential, ForceEnv};
+use crate::force::joint_actuator::{effort_at, ActuatedCoordinate};
+use crate::force::{force_potential, ForceEnv, ForceKind, ForceLocal};
 use crate::joint::equation::equation_value;
 use crate::joint::reaction::joint_reaction;
 use crate::system::sensor::SensorQuantity;
@@ -258,6 +259,9 @@ impl Output {
                     }
                 }
                 SensorQuantity::AngularVelocity => self.sensors.extend_from_slice(&kin.angular_velocity().0),
+                SensorQuantity::Effort { force, .. } => {
+                    self.sensors.push(actuator_effort(model, state, ws, force))
+                }
                 SensorQuantity::Acceleration | SensorQuantity::AngularAcceleration => {
                     let (acc, ang) = marker_accelerations(body, m, q, qd, qdd);
                     let v = if s.quantity == SensorQuantity::Acceleration { acc } else { ang };
@@ -299,4 +303,30 @@ impl Output {
         self.energy.push(kinetic);
         self.energy.push(potential);
     }
+}
+
+/// The effort of the joint actuator that is force element `force` at `state` (the marker
+/// kinematics of `ws` up to date); NaN where its set point cannot be evaluated.
+fn actuator_effort(model: &Model, state: &State, ws: &Workspace, force: usize) -> f64 {
+    let element = &model.forces[force];
+    let ForceKind::JointActuator { markers, coordinate, law } = &element.kind else {
+        return f64::NAN;
+    };
+    let env = ForceEnv {
+        bodies: &model.bodies,
+        markers: &model.markers,
+        kinematics: &ws.markers,
+        q: &state.coordinates,
+        qd: &state.velocities,
+        time: state.time,
+        discrete: &state.discrete,
+    };
+    let reference = match (coordinate, element.discrete) {
+        (ActuatedCoordinate::Angle, Some(k)) => state.discrete[k],
+        _ => 0.0,
+    };
+    let mut local = ForceLocal::with_size(element.dofs.len());
+    let item = format!("actuator '{}'", element.name);
+    effort_at(&item, &env.pair(markers), *coordinate, law, reference, state.time, &mut local)
+        .map_or(f64::NAN, |e| e.effort)
 }

@@ -565,7 +565,13 @@ impl SystemBuilder {
             }
         };
         let markers = def.markers;
-        self.add_force(name, ForceKind::JointActuator { markers, coordinate, law })
+        let force = self.add_force(name, ForceKind::JointActuator { markers, coordinate, law })?;
+        // Its effort, recorded as a sensor.
+        let sensor =
+            if name.is_empty() { format!("actuator {index} effort") } else { format!("{name} effort") };
+        let torque = coordinate == ActuatedCoordinate::Angle;
+        self.add_sensor(&sensor, markers[1], SensorQuantity::Effort { force: force.0, torque })?;
+        Ok(force)
     }
 
     /// Adds a sensor recording `quantity` of `marker`.

@@ -18,6 +18,14 @@ pub enum SensorQuantity {
     AngularVelocity,
     /// Angular acceleration (rad/s^2), 3 values.
     AngularAcceleration,
+    /// The effort of the joint actuator that is force element `force` (added with it, on its
+    /// second marker): a torque (N m) if `torque`, else a force (N), 1 value.
+    Effort {
+        /// Index of the force element.
+        force: usize,
+        /// Whether the effort is a torque (the actuator drives an angle).
+        torque: bool,
+    },
 }
 
 impl SensorQuantity {
@@ -25,6 +33,7 @@ impl SensorQuantity {
     pub fn size(self) -> usize {
         match self {
             SensorQuantity::Orientation => 9,
+            SensorQuantity::Effort { .. } => 1,
             _ => 3,
         }
     }
@@ -38,10 +47,13 @@ impl SensorQuantity {
             SensorQuantity::Orientation => "orientation",
             SensorQuantity::AngularVelocity => "angular_velocity",
             SensorQuantity::AngularAcceleration => "angular_acceleration",
+            SensorQuantity::Effort { torque: true, .. } => "actuator torque (N m)",
+            SensorQuantity::Effort { torque: false, .. } => "actuator force (N)",
         }
     }
 
-    /// Parses the Python name.
+    /// Parses the Python name (of the marker quantities; actuator efforts come with their
+    /// actuators).
     pub fn from_name(name: &str) -> Option<Self> {
         [
             SensorQuantity::Position,
