@@ -64,12 +64,12 @@ def assert_same_body(actual, expected, tolerance: float) -> None:
     np.testing.assert_array_equal(actual.reference["free_dofs"], expected.reference["free_dofs"])
 
 
-def cantilever(material=STEEL, **options):
+def cantilever(material=STEEL, section=SECTION, **options):
     """A 1 m steel beam of 6 elements clamped at node index 0 (id 1)."""
     nodes, elements = straight_beam(1.0, 6)
     options.setdefault("reference", "clamped")
     options.setdefault("reference_nodes", [0])
-    return build_body(nodes, elements, material, section=SECTION, **options)
+    return build_body(nodes, elements, material, section=section, **options)
 
 
 @pytest.fixture(scope="module")
@@ -261,6 +261,18 @@ def test_with_material_equals_a_build_from_scratch(kind, assert_close):
     assert "material(" in heavier.metadata["variants"]
     aluminium = body.with_material(Material(7.0e10, 0.33, 2700.0))
     assert_same_body(aluminium, cantilever(Material(7.0e10, 0.33, 2700.0), **options), 1e-12)
+
+
+def test_with_material_keeps_a_section_without_rotary_inertia():
+    plain = SECTION.without_rotary_inertia()
+    body = cantilever(section=plain)
+    assert body.section["rotary_inertia"] is False
+    assert "rotary_inertia" not in cantilever().section  # the default layout as it was
+    lighter = body.with_material(density=2700.0)
+    assert_same_body(lighter, cantilever(Material(2.1e11, 0.3, 2700.0), section=plain), 1e-12)
+    # The rotary inertia is in the mass: the two bodies differ there.
+    difference = (cantilever().mass - body.mass).toarray()
+    assert np.abs(difference).max() > 1e-6 * np.abs(body.mass.toarray()).max()
 
 
 def test_with_material_keeps_the_craig_bampton_reduction():

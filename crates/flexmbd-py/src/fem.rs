@@ -129,6 +129,19 @@ impl Section {
         Ok(Section { inner: check(self.inner.with_shear_factor("section", kappa))? })
     }
 
+    /// Whether beams of this section carry the rotary inertia of the section turning with
+    /// the bending slopes (the Rayleigh beam, kinematic coupling; default True).
+    #[getter]
+    fn rotary_inertia(&self) -> bool {
+        self.inner.rotary_inertia
+    }
+
+    /// The same section without the rotary inertia of bending: the classical consistent
+    /// mass of the centroid line (the torsional inertia stays), to measure its effect.
+    fn without_rotary_inertia(&self) -> Self {
+        Section { inner: self.inner.without_rotary_inertia() }
+    }
+
     fn __repr__(&self) -> String {
         let s = &self.inner;
         format!(

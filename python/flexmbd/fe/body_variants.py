@@ -147,6 +147,8 @@ def _section(body: FlexibleBodyData) -> tuple[preprocess.Section | None, Any, st
     )
     if values.get("shear_factor") is not None:
         section = section.with_shear_factor(values["shear_factor"])
+    if values.get("rotary_inertia") is False:
+        section = section.without_rotary_inertia()
     orientation = values.get("orientation")
     if orientation is not None:
         orientation = np.asarray(orientation, dtype=float)

@@ -667,6 +667,8 @@ def _body_from_nodal(
             "orientation": None
             if orientation is None
             else [float(v) for v in np.asarray(orientation, dtype=float).ravel()],
+            # Kept only where it is off (the default Rayleigh beam leaves the layout as it was).
+            **({} if section.rotary_inertia else {"rotary_inertia": False}),
         },
         dofs_per_node=d,
         stiffness=nodal.stiffness,

@@ -108,7 +108,7 @@ impl Beam {
 
     /// Shape matrix in local axes (3 x 12, local coordinates) of the point (xi, y, z), for
     /// the shear parameters (phi_y, phi_z) of the two bending planes.
-    fn local_shape(length: f64, xi: f64, y: f64, z: f64, phi: (f64, f64)) -> [[f64; 12]; 3] {
+    fn local_shape(length: f64, xi: f64, y: f64, z: f64, phi: (f64, f64), rotary: bool) -> [[f64; 12]; 3] {
         let (bv, bt) = Beam::bending_rows(length, xi, phi.0);
         let (cv, ct) = Beam::bending_rows(length, xi, phi.1);
         let (n1, n2) = (1.0 - xi, xi);
@@ -134,10 +134,12 @@ impl Beam {
             w[dof] = sign * cv[k];
             thy[dof] = -sign * ct[k];
         }
-        // Displacement of the section point: [u, v, w] + theta x (0, y, z).
+        // Displacement of the section point: [u, v, w] + theta x (0, y, z); without the
+        // rotary inertia of bending, the axial part of the section's turn is left out.
+        let bend = if rotary { 1.0 } else { 0.0 };
         let mut s = [[0.0; 12]; 3];
         for k in 0..12 {
-            s[0][k] = u[k] + z * thy[k] - y * thz[k];
+            s[0][k] = u[k] + bend * (z * thy[k] - y * thz[k]);
             s[1][k] = v[k] - z * thx[k];
             s[2][k] = w[k] + y * thx[k];
         }
@@ -278,7 +280,7 @@ impl ElementKernel for Beam {
         let ex = Vec3(r.0[0]);
         for &(xi, wx) in &GAUSS4 {
             for &(y, z) in &section_points {
-                let local = Beam::local_shape(length, xi, y, z, phi);
+                let local = Beam::local_shape(length, xi, y, z, phi, sec.rotary_inertia);
                 out.push(MassPoint {
                     weight: material.density * sec.area / 4.0 * length * wx,
                     position: x[0] + ex * (xi * length) + ey * y + ez * z,
@@ -309,7 +311,7 @@ impl ElementKernel for Beam {
         let b = (2.0 * sec.iy / sec.area).sqrt();
         for &(xi, wx) in &GAUSS4 {
             for &(y, z) in &[(a, 0.0), (-a, 0.0), (0.0, b), (0.0, -b)] {
-                let local = Beam::local_shape(length, xi, y, z, phi);
+                let local = Beam::local_shape(length, xi, y, z, phi, sec.rotary_inertia);
                 local_points.push(MassPoint {
                     weight: material.density * sec.area / 4.0 * length * wx,
                     position: Vec3::ZERO,
@@ -427,7 +429,7 @@ mod tests {
             let mut max_error: f64 = 0.0;
             for i in 0..=10 {
                 let xi = i as f64 / 10.0;
-                let sh = Beam::local_shape(l, xi, 0.0, 0.0, (0.0, 0.0));
+                let sh = Beam::local_shape(l, xi, 0.0, 0.0, (0.0, 0.0), true);
                 let u: f64 = (0..12).map(|k| sh[0][k] * q[k]).sum();
                 let v: f64 = (0..12).map(|k| sh[1][k] * q[k]).sum();
                 let x = xi * l;
@@ -557,6 +559,57 @@ mod tests {
             }
         }
         assert_close(sum_x, mass, 1e-12, 0.0, "translational mass along x");
+    }
+
+    #[test]
+    fn bending_mass_is_the_classical_consistent_mass_plus_the_rayleigh_rotary_inertia() {
+        // Along x: local axes are global. v-thz block (dofs 1, 5, 7, 11): rho A L / 420 [...]
+        // and, with rotary inertia, rho Iz / (30 L) [...] (Przemieniecki); torsion (3, 9):
+        // rho (Iy + Iz) L / 6 [[2, 1], [1, 2]] either way.
+        let section = Section::rectangle("test", 0.02, 0.05).unwrap();
+        let m = Material::new("steel", 2.1e11, 0.3, 7850.0).unwrap();
+        let l = 0.8;
+        let x = [Vec3::ZERO, Vec3([l, 0.0, 0.0])];
+        let consistent = [
+            [156.0, 22.0 * l, 54.0, -13.0 * l],
+            [22.0 * l, 4.0 * l * l, 13.0 * l, -3.0 * l * l],
+            [54.0, 13.0 * l, 156.0, -22.0 * l],
+            [-13.0 * l, -3.0 * l * l, -22.0 * l, 4.0 * l * l],
+        ];
+        let rotary = [
+            [36.0, 3.0 * l, -36.0, 3.0 * l],
+            [3.0 * l, 4.0 * l * l, -3.0 * l, -l * l],
+            [-36.0, -3.0 * l, 36.0, -3.0 * l],
+            [3.0 * l, -l * l, -3.0 * l, 4.0 * l * l],
+        ];
+        let dofs = [1usize, 5, 7, 11];
+        for with_rotary in [true, false] {
+            let section = if with_rotary { section } else { section.without_rotary_inertia() };
+            let b = Beam { section, orientation: Vec3([0.0, 1.0, 0.0]), shear: false };
+            let mut points = Vec::new();
+            b.mass_points(&m, &x, &mut points).unwrap();
+            let mut mm = DenseMatrix::zeros(12, 12);
+            mass_matrix(&points, 12, &mut mm);
+            let scale = m.density * section.area * l;
+            for (i, &a) in dofs.iter().enumerate() {
+                for (j, &c) in dofs.iter().enumerate() {
+                    let mut expected = scale / 420.0 * consistent[i][j];
+                    if with_rotary {
+                        expected += m.density * section.iz / (30.0 * l) * rotary[i][j];
+                    }
+                    assert_close(
+                        mm.get(a, c),
+                        expected,
+                        0.0,
+                        1e-12 * scale,
+                        format_args!("M[{a}][{c}], rotary inertia {with_rotary}"),
+                    );
+                }
+            }
+            let polar = m.density * (section.iy + section.iz) * l;
+            assert_close(mm.get(3, 3), polar / 3.0, 0.0, 1e-12 * scale, "torsional inertia");
+            assert_close(mm.get(3, 9), polar / 6.0, 0.0, 1e-12 * scale, "torsional coupling");
+        }
     }
 
     #[test]

@@ -22,6 +22,11 @@ pub struct Section {
     /// is kappa A (5/6 for rectangles, 0.9 for solid circles, 0.5 for thin tubes; given
     /// sections default to 5/6).
     pub shear_factor: f64,
+    /// Whether the beam's mass includes the rotary inertia of the section turning with the
+    /// bending slopes (the Rayleigh beam, kinematic coupling; default). Without it the mass
+    /// of bending is that of the section's centroid line (the classical consistent mass);
+    /// the torsional inertia stays.
+    pub rotary_inertia: bool,
 }
 
 impl Section {
@@ -35,7 +40,7 @@ impl Section {
                 });
             }
         }
-        Ok(Section { area, iy, iz, torsion_constant, shear_factor: 5.0 / 6.0 })
+        Ok(Section { area, iy, iz, torsion_constant, shear_factor: 5.0 / 6.0, rotary_inertia: true })
     }
 
     /// The same section with another shear correction factor (0 < kappa <= 1).
@@ -47,6 +52,11 @@ impl Section {
             });
         }
         Ok(Section { shear_factor: kappa, ..self })
+    }
+
+    /// The same section without the rotary inertia of bending (see `rotary_inertia`).
+    pub fn without_rotary_inertia(self) -> Self {
+        Section { rotary_inertia: false, ..self }
     }
 
     /// Solid rectangle of width b (along y) and height h (along z). Torsion constant by the
