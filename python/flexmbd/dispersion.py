@@ -38,7 +38,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import brentq
 
 from ._checks import integer, number
 from .errors import InvalidParameterError
@@ -70,6 +69,8 @@ class DispersionBranch:
 
 def _bending_roots(count: int) -> Array:
     """The first `count` roots beta L of cos(beta L) cosh(beta L) = -1."""
+    from scipy.optimize import brentq  # where used: importing flexmbd stays light
+
     roots = []
     for n in range(1, count + 1):
         guess = (2 * n - 1) * np.pi / 2

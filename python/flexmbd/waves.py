@@ -66,10 +66,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.signal import hilbert
 
 from ._checks import integer, number, numbers_array
 from .errors import InvalidParameterError
@@ -234,6 +232,8 @@ def _fe_branch(model: Any, state: Any, length: float) -> tuple[Array, Array]:
     linear = linearize(model, state).without_velocity_terms()
     stiffness = 0.5 * (linear.stiffness + linear.stiffness.T)
     mass = 0.5 * (linear.mass + linear.mass.T)
+    import scipy.linalg as sla  # where used: importing flexmbd stays light
+
     values = sla.eigh(stiffness, mass, eigvals_only=True)
     omega = np.sqrt(values[values > 0.0])
     k = (2 * np.arange(1, len(omega) + 1) - 1) * np.pi / (2.0 * length)
@@ -427,6 +427,8 @@ def axial_pulse(
     if speed > 0.0:
         # The same run without the force: what the discrete method makes of the steady state.
         signals = signals - run(None)[1]
+    from scipy.signal import hilbert  # where used: scipy.signal takes 0.3 s to import
+
     envelopes = np.abs(hilbert(signals, axis=0))
     time = result.time
     arrivals = np.array([_peak_time(time, envelopes[:, j]) for j in range(len(nodes))])
