@@ -7,7 +7,7 @@ use crate::assembly::update_kinematics;
 use crate::error::Result;
 use crate::force::joint_actuator::{effort_at, ActuatedCoordinate};
 use crate::force::rotational_spring_damper::{unwrapped_angle, wrapped_angle};
-use crate::force::{ForceEnv, ForceKind, ForceLocal};
+use crate::force::{ForceKind, ForceLocal};
 use crate::integrator::settings::SimulationSettings;
 use crate::output::Event;
 use crate::system::{Model, State, Workspace};
@@ -38,15 +38,7 @@ pub(crate) fn update_discrete(
         return Ok(());
     }
     update_kinematics(model, &state.coordinates, &state.velocities, ws);
-    let env = ForceEnv {
-        bodies: &model.bodies,
-        markers: &model.markers,
-        kinematics: &ws.markers,
-        q: &state.coordinates,
-        qd: &state.velocities,
-        time: state.time,
-        discrete: &state.discrete,
-    };
+    let env = model.force_env(state, ws);
     let angle = |markers, k: usize| {
         let pair = env.pair(markers);
         if initialize {

@@ -7,7 +7,7 @@ use crate::body::marker::marker_accelerations;
 use crate::body::{flexible, point_mass, rigid, BodyKind};
 use crate::force::gravity::gravity_potential;
 use crate::force::joint_actuator::{effort_at, ActuatedCoordinate};
-use crate::force::{force_potential, ForceEnv, ForceKind, ForceLocal};
+use crate::force::{force_potential, ForceKind, ForceLocal};
 use crate::joint::equation::equation_value;
 use crate::joint::reaction::joint_reaction;
 use crate::system::sensor::SensorQuantity;
@@ -288,15 +288,7 @@ impl Output {
             };
             potential += gravity_potential(body, q, &model.gravity);
         }
-        let env = ForceEnv {
-            bodies: &model.bodies,
-            markers: &model.markers,
-            kinematics: &ws.markers,
-            q,
-            qd,
-            time: state.time,
-            discrete: &state.discrete,
-        };
+        let env = model.force_env(state, ws);
         for f in &model.forces {
             potential += force_potential(f, &env);
         }
@@ -312,15 +304,7 @@ fn actuator_effort(model: &Model, state: &State, ws: &Workspace, force: usize) -
     let ForceKind::JointActuator { markers, coordinate, law } = &element.kind else {
         return f64::NAN;
     };
-    let env = ForceEnv {
-        bodies: &model.bodies,
-        markers: &model.markers,
-        kinematics: &ws.markers,
-        q: &state.coordinates,
-        qd: &state.velocities,
-        time: state.time,
-        discrete: &state.discrete,
-    };
+    let env = model.force_env(state, ws);
     let reference = match (coordinate, element.discrete) {
         (ActuatedCoordinate::Angle, Some(k)) => state.discrete[k],
         _ => 0.0,

@@ -11,7 +11,7 @@ use crate::body::flexible::REFERENCE_COORDINATES;
 use crate::body::marker::Marker;
 use crate::body::{Body, BodyKind};
 use crate::error::{FlexmbdError, Result};
-use crate::force::{ForceElement, ForceKind, Frame};
+use crate::force::{ForceElement, ForceEnv, ForceKind, Frame};
 use crate::ids::{BodyId, MarkerId};
 use crate::joint::equation::Primitive;
 use crate::joint::Joint;
@@ -19,6 +19,7 @@ use crate::linalg::sparse::{PatternBuilder, SparsePattern};
 use crate::math::Vec3;
 use crate::system::builder::SystemBuilder;
 use crate::system::sensor::{Sensor, SensorQuantity};
+use crate::system::{State, Workspace};
 
 /// The normalization constraint p.p - 1 = 0 of one rigid body.
 #[derive(Clone, Debug)]
@@ -105,6 +106,20 @@ pub struct Model {
 }
 
 impl Model {
+    /// What the force elements read at `state`, with the marker kinematics of `ws` (up to
+    /// date for the state).
+    pub fn force_env<'a>(&'a self, state: &'a State, ws: &'a Workspace) -> ForceEnv<'a> {
+        ForceEnv {
+            bodies: &self.bodies,
+            markers: &self.markers,
+            kinematics: &ws.markers,
+            q: &state.coordinates,
+            qd: &state.velocities,
+            time: state.time,
+            discrete: &state.discrete,
+        }
+    }
+
     /// Whether the model has deformable bodies whose elastic coordinates the linear solves
     /// condense ([`crate::body::is_condensed`]).
     pub fn has_condensed_bodies(&self) -> bool {
