@@ -211,6 +211,7 @@ pub struct Tree {
 
 mod frames;
 mod kinematics;
+mod linearization;
 mod loops;
 mod placement;
 #[cfg(test)]
@@ -218,6 +219,7 @@ mod tests;
 mod topology;
 
 use frames::*;
+pub use linearization::{elastic_matrices, TreeLinearization};
 pub use loops::{LoopClosure, LOOP_DAMPING};
 
 /// Joint accelerations from (B^T M B) p_dd = B^T (f - M gamma_B), given M and f of the
