@@ -269,10 +269,16 @@ fn attempt(
         let base: Vec<f64> = (0..n)
             .map(|i| if s == 1 { y[i] + c * k[0][i] } else { y[i] + h * W * (k[0][i] + k[1][i]) })
             .collect();
-        // Start from the previous stage's slope.
+        // Stage 2 starts from k1, stage 3 from the line through k1 and k2 extended to t + h.
         let (done, rest) = k.split_at_mut(s);
-        rest[0].copy_from_slice(&done[s - 1]);
         let ks = &mut rest[0];
+        if s == 1 {
+            ks.copy_from_slice(&done[0]);
+        } else {
+            for i in 0..n {
+                ks[i] = done[0][i] + (done[1][i] - done[0][i]) / GAMMA;
+            }
+        }
         let mut f = vec![0.0; n];
         let mut converged = false;
         let mut previous = f64::INFINITY;
