@@ -673,6 +673,7 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     s.set_item("min_step_size", if st.steps > 0 { st.min_step_size_used } else { f64::NAN })?;
     s.set_item("max_step_size", if st.steps > 0 { st.max_step_size_used } else { f64::NAN })?;
     s.set_item("function_evaluations", st.function_evaluations)?;
+    s.set_item("jacobian_evaluations", st.jacobian_evaluations)?;
     s.set_item("reduced_system_size", st.reduced_system_size)?;
     d.set_item("statistics", s)?;
     let events = PyList::empty(py);

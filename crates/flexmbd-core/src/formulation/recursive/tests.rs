@@ -660,6 +660,13 @@ fn linearized_equations_match_finite_differences_at_rest() {
         let rank = loop_rank(&eq, &state.influence, &tree.cut_rows, 1e-12);
         let lin = TreeLinearization::new(&model, &tree, &eq, &state.influence, rank).unwrap();
         assert_eq!(lin.null_space.as_ref().map(|n| n.ncols()), closed.then(|| nf - rank));
+        // M_t formed body by body is the dense B^T M B.
+        let dense = state.influence.transpose() * (&eq.mass * &state.influence);
+        for k in 0..nf {
+            let column: Vec<f64> = (0..nf).map(|i| lin.mass[(i, k)]).collect();
+            let expected: Vec<f64> = (0..nf).map(|i| dense[(i, k)]).collect();
+            assert_all_close(&column, &expected, 1e-12, 1e-12, format_args!("B^T M B column {k}"));
+        }
         let inverse = match &lin.null_space {
             None => lin.mass.partial_piv_lu().inverse(),
             Some(v) => v * (v.transpose() * &lin.mass * v).partial_piv_lu().inverse() * v.transpose(),

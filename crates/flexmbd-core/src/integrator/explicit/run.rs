@@ -333,6 +333,7 @@ fn count_evaluations(engine: &Engine, newton: &Newton, statistics: &mut Statisti
     statistics.function_evaluations = engine.evaluations;
     statistics.newton_iterations = engine.newton_iterations + newton.iterations;
     statistics.factorizations = newton.factorizations;
+    statistics.jacobian_evaluations = newton.jacobians;
 }
 
 /// The right-hand side of the strategy for TR-BDF2, and in joint coordinates the tree's

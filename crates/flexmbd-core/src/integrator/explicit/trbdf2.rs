@@ -48,8 +48,10 @@ const D: f64 = GAMMA / 2.0;
 const W: f64 = SQRT2 / 4.0;
 /// Newton iterations per stage before the stage counts as failed.
 const MAX_ITERATIONS: usize = 8;
-/// Iterations of a stage above which the Jacobian is formed again for the next step.
+/// Iterations of a stage above which the Jacobian is formed again for the next step: by
+/// differences, and from the tree's linearization (one evaluation of the mass matrix).
 const SLOW: usize = 4;
+const SLOW_TREE: usize = 2;
 /// A stage has converged when its Newton increment, in the error norm, is below this.
 const NEWTON_TOLERANCE: f64 = 1e-2;
 /// Contraction rate of the Newton iterations (the ratio of successive increments) above which
@@ -339,7 +341,11 @@ fn attempt(
             (filtered[i] / s).powi(2)
         })
         .sum();
-    if slowest > SLOW {
+    let slow = match newton.jacobian {
+        Some(Jacobian::Tree(_)) => SLOW_TREE,
+        _ => SLOW,
+    };
+    if slowest > slow {
         newton.jacobian = None;
     }
     Ok(Some(if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }))
