@@ -20,7 +20,7 @@
 
 use faer::Mat;
 
-use super::{LoopClosure, Tree, LOOP_DAMPING};
+use super::{reduced_mass, LoopClosure, Tree, LOOP_DAMPING};
 use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::DenseEquations;
@@ -47,7 +47,7 @@ impl TreeLinearization {
     /// tree's state: M and C_q), with `b` the influence coefficients of the free coordinates
     /// there (n x free) and `rank` the loops' rank.
     pub fn new(model: &Model, tree: &Tree, eq: &DenseEquations, b: &Mat<f64>, rank: usize) -> Result<Self> {
-        let mass = reduced_mass(model, &eq.mass, b);
+        let mass = reduced_mass(&eq.mass, b);
         let (stiffness, damping) = elastic_matrices(model, tree);
         let null_space = if tree.cut_rows.is_empty() {
             None
@@ -68,30 +68,27 @@ impl TreeLinearization {
     }
 }
 
-/// B^T M B for the mass matrix `mass` of the bodies (n x n, block diagonal by body) and the
-/// influence coefficients `b` (n x free): body by body over the columns of B that move it
-/// (the joints between it and the ground, the elastic coordinates of the markers on that
-/// path, its own elastic coordinates), instead of the dense product.
-fn reduced_mass(model: &Model, mass: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
-    let nf = b.ncols();
-    let mut reduced = Mat::zeros(nf, nf);
-    for body in &model.bodies {
-        let (first, count) = (body.offset, body.kind.coordinate_count());
-        let rows = first..first + count;
-        let columns: Vec<usize> = (0..nf).filter(|&k| rows.clone().any(|r| b[(r, k)] != 0.0)).collect();
-        if columns.is_empty() {
-            continue;
-        }
-        let bi = Mat::from_fn(count, columns.len(), |r, k| b[(first + r, columns[k])]);
-        let mi = Mat::from_fn(count, count, |r, c| mass[(first + r, first + c)]);
-        let product = bi.transpose() * (mi * &bi);
-        for (a, &ka) in columns.iter().enumerate() {
-            for (c, &kc) in columns.iter().enumerate() {
-                reduced[(ka, kc)] += product[(a, c)];
-            }
+impl TreeLinearization {
+    /// Whether the stiffness and damping are zero (a tree of rigid bodies and point masses, or
+    /// of deformable bodies without stiffness): J's lower blocks are then zero, and the Newton
+    /// correction of the rates is the residual itself, whatever the mass matrix and the cut
+    /// joints (x_v = r_v).
+    pub fn is_rigid(&self) -> bool {
+        let zero = |m: &Mat<f64>| (0..m.ncols()).all(|c| (0..m.nrows()).all(|r| m[(r, c)] == 0.0));
+        zero(&self.stiffness) && zero(&self.damping)
+    }
+
+    /// The linearization of a tree whose stiffness and damping are zero (`is_rigid`), without
+    /// its mass matrix: the identity stands for it, as the iteration does not depend on it
+    /// (`free`: the free coordinates).
+    pub fn rigid(free: usize) -> Self {
+        TreeLinearization {
+            mass: Mat::identity(free, free),
+            stiffness: Mat::zeros(free, free),
+            damping: Mat::zeros(free, free),
+            null_space: None,
         }
     }
-    reduced
 }
 
 /// The elastic stiffness K_t and damping D_t of `tree` in its free coordinates (free x free):
