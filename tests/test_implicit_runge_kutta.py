@@ -84,3 +84,10 @@ def test_stiff_links_in_joint_coordinates(arm, assert_close):
             iterations = {k: r.statistics["newton_iterations"] for k, r in runs.items()}
             assert evaluations["analytic"] < evaluations["differences"], evaluations
             assert iterations["analytic"] < 1.2 * iterations["differences"], iterations
+
+
+def test_the_jacobian_setting_is_checked():
+    assert fm.ExplicitSolver().jacobian == "analytic"
+    assert fm.ExplicitSolver.choices()["jacobian"] == ["analytic", "differences"]
+    with pytest.raises(ValueError, match="jacobian"):
+        fm.ExplicitSolver("tr-bdf2", "joint-coordinates", jacobian="exact")

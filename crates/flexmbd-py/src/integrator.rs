@@ -330,7 +330,8 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///
 /// - `method`: "dopri5" (Dormand-Prince 5(4), error-controlled step with
 ///   `relative_tolerance` and `absolute_tolerance`, starting from the step size given to
-///   `simulate`) or "rk4" (classical Runge-Kutta, fixed step).
+///   `simulate`), "rk4" (classical Runge-Kutta, fixed step) or "tr-bdf2" (implicit, L-stable,
+///   second order, error-controlled: for stiff deformable bodies).
 /// - `strategy`: "integrate-all" (integrate all coordinates and velocities; the constraints
 ///   drift unless `baumgarte=(alpha, beta)` stabilizes them), "partitioning" (Wehage:
 ///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
