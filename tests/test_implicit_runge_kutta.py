@@ -61,6 +61,7 @@ def test_stiff_links_in_joint_coordinates(arm, assert_close):
         # The explicit method at h = 1e-3 meets the links' elastic modes and fails.
         with pytest.raises(fm.NonFiniteError):
             fm.simulate(model, 0.3, 1e-3, solver=fm.ExplicitSolver("rk4", "joint-coordinates"))
+        errors, steps = [], []
         for tolerance, agreement in ((1e-3, 2e-5), (1e-4, 1e-6)):
             runs = {}
             for jacobian in ("analytic", "differences"):
@@ -84,6 +85,12 @@ def test_stiff_links_in_joint_coordinates(arm, assert_close):
             iterations = {k: r.statistics["newton_iterations"] for k, r in runs.items()}
             assert evaluations["analytic"] < evaluations["differences"], evaluations
             assert iterations["analytic"] < 1.2 * iterations["differences"], iterations
+            errors.append(np.abs(tip_of(analytic) - reference).max())
+            steps.append(analytic.statistics["steps"])
+        # Second order with the analytic matrix (measured 1.9: 5.8e-6 m over 560 steps,
+        # 2.2e-7 m over 3,086).
+        order = np.log(errors[0] / errors[1]) / np.log(steps[1] / steps[0])
+        assert 1.5 < order < 2.5, (errors, steps)
 
 
 def test_the_jacobian_setting_is_checked():

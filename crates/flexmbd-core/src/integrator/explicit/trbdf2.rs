@@ -32,8 +32,8 @@
 //! - otherwise by forward differences of f at the start of a step (one evaluation of f per
 //!   component of y).
 
-use faer::linalg::solvers::{PartialPivLu, Solve};
-use faer::Mat;
+use faer::linalg::solvers::{Llt, PartialPivLu, Solve};
+use faer::{Mat, Side};
 
 use super::runge_kutta::Stages;
 use crate::error::Result;
@@ -81,7 +81,32 @@ enum Factor {
     /// I - c J.
     Differences(PartialPivLu<f64>),
     /// M_t + c D_t + c^2 K_t, or N^T (M_t + c D_t + c^2 K_t) N with cut joints.
-    Tree(PartialPivLu<f64>),
+    Tree(TreeFactor),
+}
+
+/// The factor of the tree's iteration matrix: Cholesky (symmetric positive definite, as it is
+/// with symmetric stiffness and damping), else LU.
+enum TreeFactor {
+    Cholesky(Llt<f64>),
+    Lu(PartialPivLu<f64>),
+}
+
+impl TreeFactor {
+    /// Factorizes `a`.
+    fn new(a: Mat<f64>) -> Self {
+        match a.llt(Side::Lower) {
+            Ok(llt) => TreeFactor::Cholesky(llt),
+            Err(_) => TreeFactor::Lu(a.partial_piv_lu()),
+        }
+    }
+
+    /// a^-1 `b`.
+    fn solve(&self, b: Mat<f64>) -> Mat<f64> {
+        match self {
+            TreeFactor::Cholesky(llt) => llt.solve(b),
+            TreeFactor::Lu(lu) => lu.solve(b),
+        }
+    }
 }
 
 /// The iteration matrix kept between the steps.
@@ -124,7 +149,7 @@ impl Newton {
                     Some(n) => n.transpose() * (&a * n),
                     None => a,
                 };
-                Factor::Tree(a.partial_piv_lu())
+                Factor::Tree(TreeFactor::new(a))
             }
         };
         self.factorizations += 1;
@@ -154,7 +179,7 @@ impl Newton {
 /// (N^T) (M_t + c D_t + c^2 K_t) (N): x_v from the Schur complement on the rates (with the cut
 /// joints: x_v = x_r + N z, x_r = r_v - N N^T r_v the part of r_v the constraints fix), then
 /// x_p = r_p + c x_v.
-fn solve_tree(lin: &TreeLinearization, lu: &PartialPivLu<f64>, c: f64, r: &mut [f64]) {
+fn solve_tree(lin: &TreeLinearization, lu: &TreeFactor, c: f64, r: &mut [f64]) {
     let n = r.len() / 2;
     let (rp, rv) = r.split_at_mut(n);
     let r_p = Mat::from_fn(n, 1, |i, _| rp[i]);
