@@ -28,7 +28,9 @@
 //!   of M_t = B^T M B. The derivatives of M_t, of the velocity-quadratic, gravity and
 //!   geometric-stiffness forces and of the cut joints are left out (a modified Newton
 //!   method); the contraction of the iterations is watched, and a slow or diverging
-//!   iteration forms the matrix again or shortens the step;
+//!   iteration forms the matrix again or shortens the step. The matrix is symmetric positive
+//!   definite (Cholesky). Without stiffness and damping (rigid trees) the lower blocks of J
+//!   vanish and the iteration is x_v = r_v: nothing is formed;
 //! - otherwise by forward differences of f at the start of a step (one evaluation of f per
 //!   component of y).
 
