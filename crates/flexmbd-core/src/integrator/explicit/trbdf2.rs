@@ -125,6 +125,9 @@ pub(super) struct Newton {
     pub(super) jacobians: usize,
     pub(super) factorizations: usize,
     pub(super) difference_evaluations: usize,
+    /// The time of the slope of the last converged second stage, held in `Stages::k[1]`
+    /// (None: none, or the integrated vector changed since).
+    second_stage: Option<f64>,
 }
 
 impl Newton {
@@ -132,6 +135,7 @@ impl Newton {
     pub(super) fn invalidate(&mut self) {
         self.jacobian = None;
         self.factors.clear();
+        self.second_stage = None;
     }
 
     /// The factorization for c = h d, formed if it is not one of the kept ones.
@@ -236,6 +240,8 @@ pub(super) fn step(
             newton.jacobian = Some(match equations.linearization(t, &stages.y)? {
                 Some(lin) => Jacobian::Tree(lin),
                 None => {
+                    // The differences use k[1] for their columns.
+                    newton.second_stage = None;
                     newton.difference_evaluations += n;
                     Jacobian::Differences(differences(t, stages, equations)?)
                 }
@@ -298,11 +304,21 @@ fn attempt(
         let base: Vec<f64> = (0..n)
             .map(|i| if s == 1 { y[i] + c * k[0][i] } else { y[i] + h * W * (k[0][i] + k[1][i]) })
             .collect();
-        // Stage 2 starts from k1, stage 3 from the line through k1 and k2 extended to t + h.
+        // Stage 2 starts from the line through k1 and the last converged second stage's slope
+        // (of the previous step, or of a rejected attempt of this one) at t + gamma h, or
+        // from k1; stage 3 from the line through k1 and k2 extended to t + h.
         let (done, rest) = k.split_at_mut(s);
         let ks = &mut rest[0];
         if s == 1 {
-            ks.copy_from_slice(&done[0]);
+            match newton.second_stage.take() {
+                Some(tau) if tau != t => {
+                    let f = abscissa * h / (tau - t);
+                    for i in 0..n {
+                        ks[i] = done[0][i] + f * (ks[i] - done[0][i]);
+                    }
+                }
+                _ => ks.copy_from_slice(&done[0]),
+            }
         } else {
             for i in 0..n {
                 ks[i] = done[0][i] + (done[1][i] - done[0][i]) / GAMMA;
@@ -349,6 +365,9 @@ fn attempt(
         }
         if !converged {
             return Ok(None);
+        }
+        if s == 1 {
+            newton.second_stage = Some(t + abscissa * h);
         }
     }
     let Stages { y, y_new, stage, k, .. } = stages;
