@@ -62,7 +62,8 @@ def describe(label, wall, result, extra=""):
     print(
         f"{label:44s} {wall:8.3f} s  steps {s['steps']:6d} (rej. {s.get('rejected_steps', 0):4d})"
         f"  evaluations {s['function_evaluations']:7d}  newton {s['newton_iterations']:7d}"
-        f"  jacobians {s.get('jacobian_evaluations', 0):5d}  factorizations {s['factorizations']:5d}{extra}"
+        f"  jacobians {s.get('jacobian_evaluations', 0):5d}"
+        f"  factorizations {s['factorizations']:5d}{extra}"
     )
 
 
@@ -90,14 +91,20 @@ def arm(args):
     exact = arm_positions(reference, links)
     print(f"flexible robot arm, {args.elements} elements per link, {end} s")
     wall, result = timed(model, end, 1e-3, fm.GeneralizedAlpha(1.0), args.repeat, interval)
-    describe("generalized-alpha (augmented), h = 1e-3", wall, result,
-             f"  positions off {np.abs(arm_positions(result, links) - exact).max():.2e} m")  # fmt: skip
+    off = np.abs(arm_positions(result, links) - exact).max()
+    describe(
+        "generalized-alpha (augmented), h = 1e-3", wall, result, f"  positions off {off:.2e} m"
+    )
     for tolerance in args.tolerances:
         for formulation in args.formulations:
-            wall, result = timed(model, end, 1e-3, trbdf2(tolerance, formulation), args.repeat, interval)
+            wall, result = timed(
+                model, end, 1e-3, trbdf2(tolerance, formulation), args.repeat, interval
+            )
             extra = ""
             if not isinstance(result, Exception):
-                extra = f"  positions off {np.abs(arm_positions(result, links) - exact).max():.2e} m"
+                extra = (
+                    f"  positions off {np.abs(arm_positions(result, links) - exact).max():.2e} m"
+                )
             describe(f"tr-bdf2 jc {formulation}, rtol {tolerance:g}", wall, result, extra)
 
 
@@ -107,7 +114,9 @@ def links16(args):
     links = example.items["links"]
     end, interval = args.end, 0.01
     print(f"three links of 16 elements (3 x 96 elastic coordinates), {end} s")
-    wall, result = timed(model, end, 1e-5, fm.ExplicitSolver("rk4", "joint-coordinates"), 1, interval)
+    wall, result = timed(
+        model, end, 1e-5, fm.ExplicitSolver("rk4", "joint-coordinates"), 1, interval
+    )
     describe("rk4 jc, h = 1e-5", wall, result)
     runs = {}
     for step in args.steps:
@@ -120,9 +129,7 @@ def links16(args):
         wall, result = timed(model, end, args.steps[0], solver, args.repeat, interval)
         extra = ""
         if not isinstance(result, Exception):
-            h = np.diff(result.time)
             extra = f"  mean step {end / result.statistics['steps']:.2e}"
-            del h
         describe(f"tr-bdf2 jc, rtol {tolerance:g}", wall, result, extra)
         runs[f"tr-bdf2 {tolerance:g}"] = result
     good = {k: arm_positions(r, links) for k, r in runs.items() if not isinstance(r, Exception)}
