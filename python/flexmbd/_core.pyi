@@ -397,6 +397,7 @@ class ExplicitSolver:
     redundant_constraints: str
     rank_tolerance: float
     cut_joints: list[JointId] | None
+    jacobian: str
     def __init__(
         self,
         method: str | None = None,
@@ -421,6 +422,7 @@ class ExplicitSolver:
         redundant_constraints: str | None = None,
         rank_tolerance: float | None = None,
         cut_joints: list[JointId] | None = None,
+        jacobian: str | None = None,
     ) -> None: ...
     @staticmethod
     def choices() -> dict[str, list[str]]: ...

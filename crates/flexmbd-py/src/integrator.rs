@@ -8,8 +8,8 @@ use crate::ids::JointId;
 use flexmbd_core::formulation::augmented::Formulation;
 use flexmbd_core::formulation::decoupled::TreeFormulation;
 use flexmbd_core::integrator::settings::{
-    ExplicitMethod, ExplicitSettings, InitialSettings, RedundancyHandling, RedundancySettings, StartState,
-    Strategy, STEP_CONTROL_NAMES,
+    ExplicitMethod, ExplicitSettings, InitialSettings, IterationJacobian, RedundancyHandling,
+    RedundancySettings, StartState, Strategy, STEP_CONTROL_NAMES,
 };
 use flexmbd_core::integrator::{
     simulate as core_simulate, Integrator, JacobianUpdate, LinearSolver, NewtonSettings, SimulationSettings,
@@ -330,7 +330,8 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///
 /// - `method`: "dopri5" (Dormand-Prince 5(4), error-controlled step with
 ///   `relative_tolerance` and `absolute_tolerance`, starting from the step size given to
-///   `simulate`) or "rk4" (classical Runge-Kutta, fixed step).
+///   `simulate`), "rk4" (classical Runge-Kutta, fixed step) or "tr-bdf2" (implicit, L-stable,
+///   second order, error-controlled: for stiff deformable bodies).
 /// - `strategy`: "integrate-all" (integrate all coordinates and velocities; the constraints
 ///   drift unless `baumgarte=(alpha, beta)` stabilizes them), "partitioning" (Wehage:
 ///   integrate the independent coordinates, solve the dependent ones by Newton-Raphson) or
@@ -360,6 +361,12 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   takes projection steps until the configuration is passed (reported as events).
 /// - `constraint_tolerance`, `max_iterations`: the Newton iterations of the dependent
 ///   coordinates and of the projection.
+/// - `jacobian`: how "tr-bdf2" forms the Jacobian of its Newton iteration matrix: "analytic"
+///   (default: with "joint-coordinates" from the tree's mass matrix in joint and elastic
+///   coordinates and the elastic stiffness and damping, the iteration matrix of the
+///   coordinates' size; by forward differences for the other strategies) or "differences"
+///   (forward differences of the right-hand side everywhere, one evaluation per integrated
+///   component: a check).
 /// - `redundant_constraints`, `rank_tolerance`, `initial_tolerance`,
 ///   `correct_initial_positions`, `correct_initial_velocities`: as for `GeneralizedAlpha`.
 #[pyclass(module = "flexmbd._core", subclass, get_all, set_all, from_py_object)]
@@ -407,6 +414,8 @@ pub struct ExplicitSolver {
     pub rank_tolerance: f64,
     /// Joint coordinates: the joints to cut, or None (every loop closure).
     pub cut_joints: Option<Vec<JointId>>,
+    /// TR-BDF2: "analytic" or "differences".
+    pub jacobian: String,
 }
 
 #[pymethods]
@@ -420,7 +429,8 @@ impl ExplicitSolver {
                         constraint_tolerance = None, max_iterations = None, repartition_ratio = None,
                         drift_threshold = None, singular_factor = None, min_step_size = None, max_step_size = None,
                         initial_tolerance = None, correct_initial_positions = None, correct_initial_velocities = None,
-                        redundant_constraints = None, rank_tolerance = None, cut_joints = None))]
+                        redundant_constraints = None, rank_tolerance = None, cut_joints = None,
+                        jacobian = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         method: Option<String>,
@@ -444,10 +454,12 @@ impl ExplicitSolver {
         redundant_constraints: Option<String>,
         rank_tolerance: Option<f64>,
         cut_joints: Option<Vec<JointId>>,
+        jacobian: Option<String>,
     ) -> PyResult<Self> {
         let d = ExplicitSolver::default();
         let s = ExplicitSolver {
             cut_joints,
+            jacobian: jacobian.unwrap_or(d.jacobian),
             method: method.unwrap_or(d.method),
             strategy: strategy.unwrap_or(d.strategy),
             formulation: formulation.unwrap_or(d.formulation),
@@ -484,6 +496,7 @@ impl ExplicitSolver {
         d.set_item("formulation", formulation_names())?;
         d.set_item("partition", names(PartitionMethod::NAMES))?;
         d.set_item("redundant_constraints", names(RedundancyHandling::NAMES))?;
+        d.set_item("jacobian", names(IterationJacobian::NAMES))?;
         Ok(d)
     }
 
@@ -521,6 +534,7 @@ impl ExplicitSolver {
         d.set_item("redundant_constraints", self.redundant_constraints.clone())?;
         d.set_item("rank_tolerance", self.rank_tolerance)?;
         d.set_item("cut_joints", self.cut_joints.clone())?;
+        d.set_item("jacobian", self.jacobian.clone())?;
         Ok(((), d))
     }
 }
@@ -552,6 +566,7 @@ impl Default for ExplicitSolver {
             redundant_constraints: RedundancySettings::default().handling.name().to_string(),
             rank_tolerance: e.rank_tolerance,
             cut_joints: None,
+            jacobian: e.jacobian.name().to_string(),
         }
     }
 }
@@ -593,6 +608,7 @@ impl ExplicitSolver {
             ));
         }
         let partition = choice(item, "partition", &self.partition, PartitionMethod::NAMES)?;
+        let jacobian = choice(item, "jacobian", &self.jacobian, IterationJacobian::NAMES)?;
         let explicit = ExplicitSettings {
             method,
             strategy,
@@ -610,6 +626,7 @@ impl ExplicitSolver {
             rank_tolerance: self.rank_tolerance,
             drift_threshold: self.drift_threshold,
             singular_factor: self.singular_factor,
+            jacobian,
         };
         let mut s = SimulationSettings::new(end_time, step_size);
         s.min_step_size = self.min_step_size.unwrap_or(step_size * 1e-9);
@@ -657,6 +674,7 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     s.set_item("min_step_size", if st.steps > 0 { st.min_step_size_used } else { f64::NAN })?;
     s.set_item("max_step_size", if st.steps > 0 { st.max_step_size_used } else { f64::NAN })?;
     s.set_item("function_evaluations", st.function_evaluations)?;
+    s.set_item("jacobian_evaluations", st.jacobian_evaluations)?;
     s.set_item("reduced_system_size", st.reduced_system_size)?;
     d.set_item("statistics", s)?;
     let events = PyList::empty(py);

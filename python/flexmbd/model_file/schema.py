@@ -655,6 +655,7 @@ ExplicitMethod = Literal[tuple(_EXPLICIT["method"])]  # type: ignore[valid-type]
 Strategy = Literal[tuple(_EXPLICIT["strategy"])]  # type: ignore[valid-type]
 ExplicitFormulation = Literal[tuple(_EXPLICIT["formulation"])]  # type: ignore[valid-type]
 Partition = Literal[tuple(_EXPLICIT["partition"])]  # type: ignore[valid-type]
+IterationJacobian = Literal[tuple(_EXPLICIT["jacobian"])]  # type: ignore[valid-type]
 
 
 class GeneralizedAlphaSpec(_Spec):
@@ -710,6 +711,7 @@ class ExplicitSolverSpec(_Spec):
     redundant_constraints: RedundantConstraints | None = None
     rank_tolerance: float | None = Field(None, gt=0, lt=1)
     cut_joints: list[Name] | None = Field(None, description="joint names (joint-coordinates)")
+    jacobian: IterationJacobian | None = Field(None, description="tr-bdf2's iteration matrix")
 
 
 SolverSpec = Annotated[GeneralizedAlphaSpec | ExplicitSolverSpec, Field(discriminator="type")]

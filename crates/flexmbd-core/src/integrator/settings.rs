@@ -347,6 +347,20 @@ crate::named!(Strategy {
     JointCoordinates => "joint-coordinates",
 });
 
+/// How TR-BDF2 forms the Jacobian of its iteration matrix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IterationJacobian {
+    /// In joint coordinates from the tree's linearized equations of motion (the mass matrix
+    /// in joint and elastic coordinates, the elastic stiffness and damping), by forward
+    /// differences of the right-hand side for the other strategies.
+    Analytic,
+    /// By forward differences of the right-hand side (one evaluation per integrated
+    /// component), for every strategy: a check of the analytic one.
+    Differences,
+}
+
+crate::named!(IterationJacobian { Analytic => "analytic", Differences => "differences" });
+
 /// Settings of the explicit solvers.
 #[derive(Clone, Debug)]
 pub struct ExplicitSettings {
@@ -386,6 +400,8 @@ pub struct ExplicitSettings {
     pub singular_factor: f64,
     /// Constraint violation at which the drift of strategy (1) is reported as an event.
     pub drift_threshold: f64,
+    /// TR-BDF2: how the Jacobian of the iteration matrix is formed.
+    pub jacobian: IterationJacobian,
 }
 
 impl Default for ExplicitSettings {
@@ -407,6 +423,7 @@ impl Default for ExplicitSettings {
             rank_tolerance: crate::linalg::partition::DEFAULT_RANK_TOLERANCE,
             singular_factor: 4.0,
             drift_threshold: 1e-6,
+            jacobian: IterationJacobian::Analytic,
         }
     }
 }

@@ -30,6 +30,9 @@ pub struct Statistics {
     pub max_step_size_used: f64,
     /// Evaluations of the accelerations (explicit integrators).
     pub function_evaluations: usize,
+    /// TR-BDF2: Jacobians of the iteration matrix formed (by differences or from the tree's
+    /// linearized equations of motion).
+    pub jacobian_evaluations: usize,
     /// Joint coordinates: the dimension of the acceleration system solved per evaluation
     /// (joint space: the free coordinates plus the cut rows; seed eq. 40 or 41: see
     /// `TreeSolver::reduced_size`); 0 otherwise.
@@ -184,6 +187,7 @@ impl Output {
         s.newton_iterations += l.newton_iterations;
         s.factorizations += l.factorizations;
         s.function_evaluations += l.function_evaluations;
+        s.jacobian_evaluations += l.jacobian_evaluations;
         s.min_step_size_used = s.min_step_size_used.min(l.min_step_size_used);
         s.max_step_size_used = s.max_step_size_used.max(l.max_step_size_used);
         s.reduced_system_size = s.reduced_system_size.max(l.reduced_system_size);

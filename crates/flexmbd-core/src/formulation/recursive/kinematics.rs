@@ -185,7 +185,69 @@ impl Tree {
     pub(crate) fn poses(&self, p: &[HyperDual], deformation: &[[[HVec; 2]; 2]]) -> Vec<Pose> {
         let mut poses: Vec<Pose> = vec![(HIDENTITY, [HyperDual::ZERO; 3]); self.offsets.len()];
         for (joint, d) in self.joints.iter().zip(deformation) {
-            let (a_p, r_p) = poses[joint.parent.body];
+            poses[joint.child.body] = joint_pose(joint, &poses[joint.parent.body], p, d);
+        }
+        poses
+    }
+
+    /// The poses of `base` (all bodies, at `p` and `deformation`) with those of the bodies
+    /// that joint `start` and the joints beyond it move placed again, at the hyper-dual `p`
+    /// and `deformation` that differ from `base`'s only in joint `start`'s coordinates or
+    /// marker deformations; and which bodies moved. The joints before `start` and those not
+    /// beyond it keep their bodies' poses: a pass over a subtree instead of the whole tree.
+    pub(crate) fn poses_beyond(
+        &self,
+        base: &[Pose],
+        start: usize,
+        p: &[HyperDual],
+        deformation: &[[[HVec; 2]; 2]],
+    ) -> (Vec<Pose>, Vec<bool>) {
+        let mut poses = base.to_vec();
+        let mut moved = vec![false; poses.len()];
+        for (k, (joint, d)) in self.joints.iter().zip(deformation).enumerate().skip(start) {
+            if k == start || moved[joint.parent.body] {
+                poses[joint.child.body] = joint_pose(joint, &poses[joint.parent.body], p, d);
+                moved[joint.child.body] = true;
+            }
+        }
+        (poses, moved)
+    }
+
+    /// The joint whose coordinates include the joint coordinate `k` (p's full layout): the
+    /// joints take their coordinates one after the other in tree order, so it is the last
+    /// joint that starts at or before `k`.
+    fn joint_of_coordinate(&self, k: usize) -> usize {
+        self.joints.iter().rposition(|j| j.first <= k).expect("a joint coordinate belongs to a joint")
+    }
+
+    /// Writes the derivatives (e1) of the reference coordinates of the `moved` bodies at
+    /// `poses` into column `col` of `b` (the other bodies' are zero).
+    fn influence_column(&self, poses: &[Pose], moved: &[bool], b: &mut Mat<f64>, col: usize) {
+        for (body, (a, r)) in poses.iter().enumerate().skip(1) {
+            if !moved[body] {
+                continue;
+            }
+            let o = self.offsets[body];
+            for i in 0..3 {
+                b[(o + i, col)] = r[i].e1;
+            }
+            if !self.point_masses[body] {
+                let e = euler_parameters(a, &self.reference_parameters[body]);
+                for i in 0..4 {
+                    b[(o + 3 + i, col)] = e[i].e1;
+                }
+            }
+        }
+    }
+}
+
+/// The pose of `joint`'s child body from its parent body's pose `parent`, the joint and
+/// elastic coordinates `p` (hyper-dual) and the deformation `d` of the joint's markers
+/// ([parent side, child side]).
+fn joint_pose(joint: &TreeJoint, parent: &Pose, p: &[HyperDual], d: &[[HVec; 2]; 2]) -> Pose {
+    {
+        {
+            let (a_p, r_p) = *parent;
             let (u_p, xb_p) = joint.parent.local_frame(&d[0]);
             let (u_c, xb_c) = joint.child.local_frame(&d[1]);
             let x_p = mul_mat(&a_p, &xb_p);
@@ -275,11 +337,12 @@ impl Tree {
                 }
             };
             let origin = sub(&o_c, &mul_vec(&rotation, &u_c));
-            poses[joint.child.body] = (rotation, origin);
+            (rotation, origin)
         }
-        poses
     }
+}
 
+impl Tree {
     /// Reference coordinates (origin, Euler parameters) of every body as hyper-dual numbers,
     /// in q's layout (the elastic entries are left zero).
     pub(crate) fn reference_coordinates(
@@ -403,18 +466,18 @@ impl Tree {
         b
     }
 
-    /// dq/dp_k (n rows) for the joint coordinates `columns` at p: one pass each.
+    /// dq/dp_k (n rows) for the joint coordinates `columns` at p: one pass each over the
+    /// subtree the coordinate's joint moves.
     pub(crate) fn joint_columns(&self, n: usize, p: &[f64], columns: &[usize]) -> Mat<f64> {
         let mut b = Mat::zeros(n, columns.len());
         let mut ph: Vec<HyperDual> = p.iter().map(|&x| HyperDual::constant(x)).collect();
         let deformation = self.deformations(&ph);
+        let base = self.poses(&ph, &deformation);
         for (col, &k) in columns.iter().enumerate() {
             ph[k] = HyperDual::curve(p[k], 1.0, 0.0);
-            let q = self.reference_coordinates(n, &ph, &deformation);
+            let (poses, moved) = self.poses_beyond(&base, self.joint_of_coordinate(k), &ph, &deformation);
             ph[k] = HyperDual::constant(p[k]);
-            for (i, x) in q.iter().enumerate() {
-                b[(i, col)] = x.e1;
-            }
+            self.influence_column(&poses, &moved, &mut b, col);
         }
         b
     }
@@ -425,6 +488,7 @@ impl Tree {
     pub(crate) fn marker_derivatives(&self, n: usize, p: &[f64]) -> Vec<Mat<f64>> {
         let ph: Vec<HyperDual> = p.iter().map(|&x| HyperDual::constant(x)).collect();
         let deformation = self.deformations(&ph);
+        let base = self.poses(&ph, &deformation);
         let mut out = Vec::new();
         for (jk, joint) in self.joints.iter().enumerate() {
             for (s, side) in [&joint.parent, &joint.child].into_iter().enumerate() {
@@ -432,14 +496,14 @@ impl Tree {
                     continue;
                 }
                 let mut d = Mat::zeros(n, 6);
+                let mut def = deformation.clone();
                 for c in 0..6 {
-                    let mut def = deformation.clone();
                     let x = &mut def[jk][s][c / 3][c % 3];
                     *x = HyperDual::curve(x.v, 1.0, 0.0);
-                    let q = self.reference_coordinates(n, &ph, &def);
-                    for (i, x) in q.iter().enumerate() {
-                        d[(i, c)] = x.e1;
-                    }
+                    let (poses, moved) = self.poses_beyond(&base, jk, &ph, &def);
+                    let x = &mut def[jk][s][c / 3][c % 3];
+                    *x = HyperDual::constant(x.v);
+                    self.influence_column(&poses, &moved, &mut d, c);
                 }
                 out.push(d);
             }

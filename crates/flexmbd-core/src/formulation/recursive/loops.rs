@@ -91,6 +91,13 @@ impl LoopClosure {
         x
     }
 
+    /// An orthonormal basis of the null space of the constrained directions: V_2 = V[:, rank..]
+    /// (free joint coordinates x (free - rank)).
+    pub fn null_space(&self) -> Mat<f64> {
+        let n = self.v.nrows();
+        self.v.subcols(self.rank, n - self.rank).to_owned()
+    }
+
     /// The null-space method for M x + C_hat^T mu = f, C_hat x = g: x = x_p + V_2 z with the
     /// damped particular solution x_p ([`LoopClosure::solve`]) and (V_2^T M V_2) z =
     /// V_2^T (f - M x_p). `mass` symmetric, positive definite on the null space.
@@ -102,7 +109,7 @@ impl LoopClosure {
     ) -> std::result::Result<Vec<f64>, String> {
         let n = force.len();
         let mut x = self.solve(g);
-        let v2 = self.v.subcols(self.rank, n - self.rank).to_owned();
+        let v2 = self.null_space();
         let residual = Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * x[j]).sum::<f64>());
         let mut z = v2.transpose() * &residual;
         let reduced = v2.transpose() * (mass * &v2);

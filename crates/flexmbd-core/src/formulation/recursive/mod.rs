@@ -211,6 +211,7 @@ pub struct Tree {
 
 mod frames;
 mod kinematics;
+mod linearization;
 mod loops;
 mod placement;
 #[cfg(test)]
@@ -218,6 +219,7 @@ mod tests;
 mod topology;
 
 use frames::*;
+pub use linearization::{elastic_matrices, TreeLinearization};
 pub use loops::{LoopClosure, LOOP_DAMPING};
 
 /// Joint accelerations from (B^T M B) p_dd = B^T (f - M gamma_B), given M and f of the
@@ -242,10 +244,46 @@ pub(crate) fn joint_space(
     gamma: &[f64],
 ) -> (Mat<f64>, Vec<f64>) {
     let n = force.len();
-    let reduced_mass = b.transpose() * (mass * b);
+    let reduced_mass = reduced_mass(mass, b);
     let rhs_full = Mat::from_fn(n, 1, |i, _| force[i] - (0..n).map(|j| mass[(i, j)] * gamma[j]).sum::<f64>());
     let rhs = b.transpose() * &rhs_full;
     (reduced_mass, (0..b.ncols()).map(|k| rhs[(k, 0)]).collect())
+}
+
+/// B^T M B for the bodies' mass matrix `mass` (n x n, block diagonal: each body's block) and
+/// the influence coefficients `b` (n x free), block by block over the columns of B that move
+/// the block's body (the joints between it and the ground, the elastic coordinates of the
+/// markers on that path, its own), instead of the dense product (which on IFToMM A02 with
+/// N = 40, 567 coordinates, cost a sixth of an evaluation).
+pub(crate) fn reduced_mass(mass: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let (n, nf) = (b.nrows(), b.ncols());
+    let mut reduced = Mat::zeros(nf, nf);
+    let mut first = 0;
+    while first < n {
+        // The diagonal block starting at `first`: it ends where no entry reaches further.
+        let mut end = first + 1;
+        let mut r = first;
+        while r < end {
+            if let Some(last) = (end..n).rev().find(|&c| mass[(r, c)] != 0.0 || mass[(c, r)] != 0.0) {
+                end = last + 1;
+            }
+            r += 1;
+        }
+        let count = end - first;
+        let columns: Vec<usize> = (0..nf).filter(|&k| (first..end).any(|r| b[(r, k)] != 0.0)).collect();
+        if !columns.is_empty() {
+            let bi = Mat::from_fn(count, columns.len(), |r, k| b[(first + r, columns[k])]);
+            let mi = Mat::from_fn(count, count, |r, c| mass[(first + r, first + c)]);
+            let product = bi.transpose() * (mi * &bi);
+            for (a, &ka) in columns.iter().enumerate() {
+                for (c, &kc) in columns.iter().enumerate() {
+                    reduced[(ka, kc)] += product[(a, c)];
+                }
+            }
+        }
+        first = end;
+    }
+    reduced
 }
 
 /// Joint accelerations with cut-joint constraints: (B^T M B) p_dd + C_hat^T mu =

@@ -621,3 +621,85 @@ fn unsupported_trees_are_refused_and_loops_are_cut() {
     let error = Tree::new(&model, &model.initial_coordinates, Some(&[7])).unwrap_err().to_string();
     assert!(error.contains("cut joint 7"), "{error}");
 }
+
+/// The linearized equations of motion of implicit methods ([`TreeLinearization`]) against
+/// central differences of the joint accelerations: at rest, undeformed, without gravity and
+/// drivers the terms it leaves out vanish, so that d p_dd / d p = -P K_t and
+/// d p_dd / d p_dot = -P D_t hold exactly (P = M_t^-1 with M_t = B^T M B, or its inverse on
+/// the null space of the cut joints). A wrong mass matrix, stiffness, damping or null space
+/// fails it.
+#[test]
+fn linearized_equations_match_finite_differences_at_rest() {
+    use faer::linalg::solvers::DenseSolveCore;
+    for closed in [false, true] {
+        let mut model = flexible_tree_model_with(false, closed, 5);
+        model.gravity = Vec3::ZERO;
+        let (tree, p0) = Tree::new(&model, &consistent(&model), None).unwrap();
+        assert_eq!(!tree.cut_rows.is_empty(), closed);
+        let (nf, nj) = (tree.free_count(), tree.free_joint_count());
+        let mut p = perturbed(&tree, &p0, 61, 0.6);
+        p[nj..].iter_mut().for_each(|x| *x = 0.0);
+        let rest = vec![0.0; nf];
+        let mut ws = Workspace::new(&model);
+        let mut eq = DenseEquations::new(&model);
+        let mut evaluate = |p: &[f64], pd: &[f64], eq: &mut DenseEquations| {
+            let state = tree.evaluate(&model, 0.0, p, pd).unwrap();
+            eq.evaluate(
+                &model,
+                &mut ws,
+                0.0,
+                &state.coordinates,
+                &state.velocities,
+                &[],
+                Level::Acceleration,
+            )
+            .unwrap();
+            state
+        };
+        let state = evaluate(&p, &rest, &mut eq);
+        let rank = loop_rank(&eq, &state.influence, &tree.cut_rows, 1e-12);
+        let lin = TreeLinearization::new(&model, &tree, &eq, &state.influence, rank).unwrap();
+        assert_eq!(lin.null_space.as_ref().map(|n| n.ncols()), closed.then(|| nf - rank));
+        // M_t formed body by body is the dense B^T M B.
+        let dense = state.influence.transpose() * (&eq.mass * &state.influence);
+        for k in 0..nf {
+            let column: Vec<f64> = (0..nf).map(|i| lin.mass[(i, k)]).collect();
+            let expected: Vec<f64> = (0..nf).map(|i| dense[(i, k)]).collect();
+            assert_all_close(&column, &expected, 1e-12, 1e-12, format_args!("B^T M B column {k}"));
+        }
+        let inverse = match &lin.null_space {
+            None => lin.mass.partial_piv_lu().inverse(),
+            Some(v) => v * (v.transpose() * &lin.mass * v).partial_piv_lu().inverse() * v.transpose(),
+        };
+        let mut accelerations = |p: &[f64], pd: &[f64]| {
+            let state = evaluate(p, pd, &mut eq);
+            tree_joint_accelerations(&eq, &state.influence, &state.gamma, &tree.cut_rows, rank).unwrap()
+        };
+        let at_rest = accelerations(&p, &rest);
+        assert_all_close(&at_rest, &rest, 0.0, 1e-12, "accelerations at rest");
+        let eps = 1e-6;
+        for (name, matrix, of_rates) in
+            [("stiffness", &lin.stiffness, false), ("damping", &lin.damping, true)]
+        {
+            let expected = -(&inverse * matrix);
+            let scale = (0..nf)
+                .flat_map(|i| (0..nf).map(move |k| (i, k)))
+                .fold(0.0f64, |m, (i, k)| m.max(expected[(i, k)].abs()));
+            for k in 0..nf {
+                let (mut plus, mut minus) =
+                    if of_rates { (rest.clone(), rest.clone()) } else { (p.clone(), p.clone()) };
+                plus[k] += eps;
+                minus[k] -= eps;
+                let (a_plus, a_minus) = if of_rates {
+                    (accelerations(&p, &plus), accelerations(&p, &minus))
+                } else {
+                    (accelerations(&plus, &rest), accelerations(&minus, &rest))
+                };
+                let fd: Vec<f64> = (0..nf).map(|i| (a_plus[i] - a_minus[i]) / (2.0 * eps)).collect();
+                let column: Vec<f64> = (0..nf).map(|i| expected[(i, k)]).collect();
+                let what = format!("closed {closed}: -P {name}, column {k}");
+                assert_all_close(&fd, &column, 0.0, 1e-6 * scale, what);
+            }
+        }
+    }
+}

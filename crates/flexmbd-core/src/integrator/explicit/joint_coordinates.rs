@@ -9,7 +9,10 @@ use super::engine::{converged, Engine};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{worst, Level, SINGULAR_VALUE_CUTOFF};
 use crate::formulation::decoupled::{TreeFormulation, TreeSolver};
-use crate::formulation::recursive::{loop_rank, LoopClosure, Tree, LOOP_DAMPING};
+use crate::formulation::recursive::{
+    elastic_matrices, loop_rank, LoopClosure, Tree, TreeLinearization, LOOP_DAMPING,
+};
+use crate::integrator::settings::{IterationJacobian, Strategy};
 use crate::output::{Event, Output};
 use crate::system::State;
 
@@ -83,6 +86,40 @@ impl Engine<'_> {
             self.influence = state.influence;
         }
         Ok(())
+    }
+
+    /// Joint coordinates: the tree's equations of motion linearized at (time, y = [p; p_dot])
+    /// for an implicit method's iteration matrix ([`TreeLinearization`]: M_t = B^T M B from one
+    /// evaluation of M, the constant elastic stiffness and damping, the null space of the cut
+    /// joints); without stiffness and damping ([`TreeLinearization::is_rigid`]) only the
+    /// zero blocks. None for the other strategies, or when the settings ask for the Jacobian
+    /// by differences.
+    pub(super) fn tree_linearization(&mut self, time: f64, y: &[f64]) -> Result<Option<TreeLinearization>> {
+        if self.mode != Strategy::JointCoordinates || self.settings.jacobian == IterationJacobian::Differences
+        {
+            return Ok(None);
+        }
+        let tree = self.tree.as_ref().expect("joint coordinates have a tree");
+        let (stiffness, damping) = elastic_matrices(self.model, tree);
+        let rigid = TreeLinearization { stiffness, damping, ..TreeLinearization::rigid(tree.free_count()) };
+        if rigid.is_rigid() {
+            // Without stiffness and damping the iteration does not depend on M_t.
+            return Ok(Some(rigid));
+        }
+        self.unpack(time, y)?;
+        self.update_bodies_with_influence(time)?;
+        self.evaluate(time, Level::Acceleration)?;
+        let tree = self.tree.as_ref().expect("joint coordinates have a tree");
+        let linearization =
+            TreeLinearization::new(self.model, tree, &self.eq, &self.influence, self.loop_rank).map_err(
+                |e| match e {
+                    FlexmbdError::SingularMatrix { context, detail, .. } => {
+                        FlexmbdError::SingularMatrix { time, context, detail }
+                    }
+                    other => other,
+                },
+            )?;
+        Ok(Some(linearization))
     }
 
     /// Joint coordinates with cut joints: projects p onto C_cut(q(p), t) = 0 and p_dot onto the

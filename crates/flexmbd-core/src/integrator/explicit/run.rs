@@ -10,6 +10,7 @@ use super::runge_kutta::{self, Stages};
 use super::trbdf2::{self, Newton, Outcome};
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::DenseEquations;
+use crate::formulation::recursive::TreeLinearization;
 use crate::integrator::discrete::{start_discrete, update_discrete};
 use crate::integrator::initial::{dense_initial_conditions, report_initial_correction, starting_state};
 use crate::integrator::progress::Progress;
@@ -192,16 +193,18 @@ impl ExplicitSteps<'_, '_> {
         let engine = &mut self.engine;
         let explicit = engine.settings;
         let tolerances = (explicit.relative_tolerance, explicit.absolute_tolerance);
-        let derivative = |time: f64, y: &[f64], dy: &mut [f64]| engine.derivative(time, y, dy);
         let err = match explicit.method {
             ExplicitMethod::TrBdf2 => {
-                match trbdf2::step(t, h, &mut self.stages, tolerances, &mut self.newton, derivative)? {
+                match trbdf2::step(t, h, &mut self.stages, tolerances, &mut self.newton, &mut *engine)? {
                     Outcome::Error(err) => err,
                     // The step attempt fails: a shorter step (error control) follows.
                     Outcome::NotConverged => f64::INFINITY,
                 }
             }
-            method => runge_kutta::step(method, t, h, &mut self.stages, tolerances, derivative)?,
+            method => {
+                let derivative = |time: f64, y: &[f64], dy: &mut [f64]| engine.derivative(time, y, dy);
+                runge_kutta::step(method, t, h, &mut self.stages, tolerances, derivative)?
+            }
         };
         if (adaptive && err <= 1.0) || (!adaptive && err.is_finite()) {
             engine.check_branch = true;
@@ -324,9 +327,23 @@ fn retryable(e: &FlexmbdError) -> bool {
 }
 
 /// The evaluations and Newton iterations of the engine (and of the implicit method's stages)
-/// so far into the statistics; the implicit method's Jacobians as factorizations.
+/// so far into the statistics, and the implicit method's factorizations of its iteration
+/// matrix.
 fn count_evaluations(engine: &Engine, newton: &Newton, statistics: &mut Statistics) {
     statistics.function_evaluations = engine.evaluations;
     statistics.newton_iterations = engine.newton_iterations + newton.iterations;
-    statistics.factorizations = newton.jacobians;
+    statistics.factorizations = newton.factorizations;
+    statistics.jacobian_evaluations = newton.jacobians;
+}
+
+/// The right-hand side of the strategy for TR-BDF2, and in joint coordinates the tree's
+/// linearized equations of motion for its iteration matrix.
+impl trbdf2::Equations for Engine<'_> {
+    fn derivative(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<()> {
+        Engine::derivative(self, t, y, dy)
+    }
+
+    fn linearization(&mut self, t: f64, y: &[f64]) -> Result<Option<TreeLinearization>> {
+        self.tree_linearization(t, y)
+    }
 }
