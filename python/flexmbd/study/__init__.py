@@ -218,7 +218,13 @@ def _start_local_cluster(workers: int | None) -> Any:
         # sample the stacks (every 10 ms) or the GIL (every 1 ms) of the running cases.
         with dask.config.set(QUIET_WORKERS):
             return LocalCluster(
-                n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=count,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                # Workers import flexmbd as they start (during the checks), not at their first
+                # case, where it adds to the run's wall time.
+                preload=["flexmbd.study.cases"],
             )
 
     pool = ThreadPoolExecutor(1, thread_name_prefix="flexmbd-cluster")
