@@ -12,7 +12,7 @@
 //! the gains dropping out where the effort is saturated.
 
 use crate::error::{FlexmbdError, Result};
-use crate::force::rotational_spring_damper::{angle_derivatives, apply_moment, unwrapped_angle};
+use crate::force::rotational_spring_damper::{angle_derivatives, apply_moment};
 use crate::force::spring_damper::local_velocities;
 use crate::force::ForceLocal;
 use crate::joint::equation::{primitive_gradient, primitive_hessian, primitive_value, MarkerPair, Primitive};
@@ -135,14 +135,6 @@ fn coordinate(
             }
             (primitive_value(&SLIDE, pair), rate)
         }
-    }
-}
-
-/// The coordinate's value at a state without derivatives (for the saturation events).
-pub fn coordinate_value(pair: &MarkerPair, which: ActuatedCoordinate, reference: f64) -> f64 {
-    match which {
-        ActuatedCoordinate::Angle => unwrapped_angle(pair, reference),
-        ActuatedCoordinate::Slide => primitive_value(&SLIDE, pair),
     }
 }
 

@@ -251,16 +251,6 @@ impl CubicSpline {
         Ok(CubicSpline { times, values, end, second })
     }
 
-    /// The end conditions.
-    pub fn end(&self) -> SplineEnd {
-        self.end
-    }
-
-    /// The knot times.
-    pub fn times(&self) -> &[f64] {
-        &self.times
-    }
-
     /// Value and derivatives at `t`.
     pub fn evaluate(&self, t: f64) -> [f64; 3] {
         let n = self.times.len();
