@@ -500,14 +500,9 @@ class System(_core.System):
             )
         if not (np.isfinite(zeta) and zeta >= 0):
             raise InvalidParameterError(f"{item}: modal damping ratio must be >= 0, got {zeta}")
-        k = np.asarray(sp.csc_matrix(body.invariants.k_ff).toarray())
-        m = np.asarray(sp.csc_matrix(body.invariants.m_ff).toarray())
-        import scipy.linalg as sla
+        from .fe.body_variants import modal_damping_matrix
 
-        w2, phi = sla.eigh(k, m)
-        omega = np.sqrt(np.clip(w2, 0.0, None))
-        mphi = m @ phi
-        return mphi @ np.diag(2.0 * zeta * omega) @ mphi.T
+        return modal_damping_matrix(body.invariants.k_ff, body.invariants.m_ff, zeta)
 
     def _flexible_data(self, body: _core.BodyId, item: str) -> tuple[FlexibleBodyData, Any]:
         index = body.index if isinstance(body, _core.BodyId) else int(body)

@@ -18,6 +18,7 @@ from .preprocess import (
     build_body,
     straight_beam,
 )
+from .sid import read_sid, write_sid
 from .stress import recover_stresses, von_mises
 
 __all__ = [
@@ -34,10 +35,12 @@ __all__ = [
     "load_body",
     "read_abaqus_matrix",
     "read_mesh",
+    "read_sid",
     "recover_stresses",
     "save_body",
     "shapes",
     "straight_beam",
     "validate_mesh",
     "von_mises",
+    "write_sid",
 ]

@@ -129,6 +129,36 @@ def with_damping(
     return _replace(body, damping=damping, metadata=_noted(body, f"damping({described})"))
 
 
+def modal_damping_matrix(k_ff: Any, m_ff: Any, zeta: float) -> np.ndarray:
+    """D_ff of damping ratio `zeta` in every mode of (K_ff, M_ff): M Phi diag(2 zeta omega)
+    Phi^T M with Phi the mass-normalized eigenvectors (dense, (n, n))."""
+    import scipy.linalg as sla
+
+    k = np.asarray(sp.csc_matrix(k_ff).toarray())
+    m = np.asarray(sp.csc_matrix(m_ff).toarray())
+    w2, phi = sla.eigh(k, m)
+    omega = np.sqrt(np.clip(w2, 0.0, None))
+    mphi = m @ phi
+    return mphi @ np.diag(2.0 * zeta * omega) @ mphi.T
+
+
+def damping_matrix(body: FlexibleBodyData) -> np.ndarray:
+    """D_ff of the body's own damping (:meth:`FlexibleBodyData.with_damping`), dense (n, n);
+    zero when it has none."""
+    inv = body.invariants
+    n = body.elastic_coordinate_count
+    damping = np.zeros((n, n))
+    spec = body.damping or {}
+    if spec.get("rayleigh") is not None:
+        alpha, beta = spec["rayleigh"]
+        damping += (
+            alpha * sp.csc_matrix(inv.m_ff).toarray() + beta * sp.csc_matrix(inv.k_ff).toarray()
+        )
+    if spec.get("modal") is not None:
+        damping += modal_damping_matrix(inv.k_ff, inv.m_ff, float(spec["modal"]))
+    return damping
+
+
 def _has_mesh(body: FlexibleBodyData) -> bool:
     return bool(body.material) and any(len(conn) for conn in body.elements.values())
 

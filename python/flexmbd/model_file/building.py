@@ -542,7 +542,15 @@ class _Builder:
 
     def body_data(self, spec: FlexibleBodySpec, kind: str, path: Path_) -> Any:
         """The FlexibleBodyData of a deformable body: read, or preprocessed."""
-        from ..fe import body_from_mesh, build_body, load_body, read_mesh, shapes, straight_beam
+        from ..fe import (
+            body_from_mesh,
+            build_body,
+            load_body,
+            read_mesh,
+            read_sid,
+            shapes,
+            straight_beam,
+        )
 
         if kind == "body_file":
             for key in _PREPROCESS_KEYS:
@@ -552,7 +560,8 @@ class _Builder:
                         "not used with body_file: the body file holds a preprocessed body",
                     )
             location = self.file(str(spec.body_file), path + ("body_file",))
-            data = self.call(path + ("body_file",), load_body, location)
+            reader = read_sid if Path(location).suffix.lower() == ".sid" else load_body
+            data = self.call(path + ("body_file",), reader, location)
             si = {"length": "m", "mass": "kg", "time": "s"}
             units = {k: data.units.get(k) for k in si}
             if units != si:

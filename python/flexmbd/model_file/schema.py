@@ -355,7 +355,9 @@ class FlexibleBodySpec(_Spec):
     name: Name
     # Where the body comes from.
     body_file: str | None = Field(
-        None, description="HDF5 body file (relative to the model file), SI units"
+        None,
+        description="HDF5 body file written by the preprocessor, or a SID file (.sid) of a "
+        "modal body (relative to the model file), SI units",
     )
     beam: BeamSpec | None = None
     mesh: str | None = Field(
