@@ -18,6 +18,7 @@ from .preprocess import (
     build_body,
     straight_beam,
 )
+from .nastran import read_nastran
 from .sid import read_sid, write_sid
 from .stress import recover_stresses, von_mises
 
@@ -35,6 +36,7 @@ __all__ = [
     "load_body",
     "read_abaqus_matrix",
     "read_mesh",
+    "read_nastran",
     "read_sid",
     "recover_stresses",
     "save_body",

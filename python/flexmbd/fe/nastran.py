@@ -1,0 +1,711 @@
+"""Nastran bulk data (``.bdf``, ``.nas``, ``.dat``, ``.pch``): meshes with their materials and
+beam sections, node sets (ASET, SPC1, SET1, RBE2, RBE3), and DMIG matrices.
+
+    from flexmbd.fe import read_nastran
+    deck = read_nastran("bracket.bdf")
+    body = deck.body(reference="interface", modes="craig-bampton", mode_count=8,
+                     interfaces=["rbe2_9001", "rbe2_9002"])
+
+The reader is flexmbd's own (pyNastran, the maintained Python reader, pins numpy < 2, which
+the rest of the stack has left behind). It reads the three field formats (small 8-character,
+large 16-character with ``*``, free with commas, with their continuation lines), Nastran's
+numbers (``1.5-3`` = 1.5e-3, ``7.+10``, ``1.D5``), ``INCLUDE`` files and the bulk data between
+``BEGIN BULK`` and ``ENDDATA`` (the whole file when there is no ``BEGIN BULK``). The cards it
+understands are listed in :data:`CARDS`; every other card is refused, naming the card, the file
+and the line, unless it is in :data:`IGNORED` (cards that do not change the body: loads,
+output requests, ...). See ``docs/preprocessor.md``, "Nastran decks"."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import InvalidModelError, UnknownItemError
+from .body import FlexibleBodyData
+from .mesh_io import Mesh
+
+#: The cards that make the body.
+CARDS = (
+    "GRID", "CORD2R", "CTETRA", "CHEXA", "CBAR", "CBEAM", "MAT1", "PSOLID", "PBAR", "PBEAM",
+    "PBARL", "PBEAML", "ASET", "ASET1", "QSET1", "SPC1", "SET1", "RBE2", "RBE3", "DMIG",
+)  # fmt: skip
+
+#: Cards read and not used: they do not change the body's mesh, material or sets.
+IGNORED = (
+    "PARAM", "EIGRL", "EIGR", "SPC", "SPCADD", "FORCE", "MOMENT", "LOAD", "GRAV", "TEMPD",
+    "CONM2", "PLOAD4", "PLOAD", "NLPARM", "TSTEP", "MPCADD", "SUPORT", "SUPORT1", "TABLED1",
+    "DAREA", "RLOAD1", "RLOAD2", "TLOAD1", "TLOAD2", "FREQ", "FREQ1", "DPHASE", "DELAY",
+)  # fmt: skip
+
+#: Deepest nesting of INCLUDE files.
+INCLUDE_DEPTH = 16
+
+#: Largest deck read (bytes, with its INCLUDE files); larger ones are refused with the size.
+MAX_BYTES = 2 << 30
+
+_NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([EeDd]?)([+-]?\d+)?$")
+
+
+@dataclass
+class Card:
+    """One bulk data entry: its name, its data fields (continuations appended, 8 per line of
+    the small-field format; None for blank fields), and where it begins."""
+
+    name: str
+    fields: list[str | None]
+    file: Path
+    line: int
+
+    def where(self) -> str:
+        return f"{self.file}, line {self.line}"
+
+    def error(self, message: str) -> InvalidModelError:
+        return InvalidModelError(
+            f"{self.where()}: {self.name}: {message}", item=f"line {self.line} of '{self.file}'"
+        )
+
+    def field(self, index: int) -> str | None:
+        """Data field `index` (1-based: field 1 is the one after the name)."""
+        return self.fields[index - 1] if index <= len(self.fields) else None
+
+    def integer(self, index: int, default: int | None = None, what: str = "") -> int:
+        text = self.field(index)
+        if text is None:
+            if default is None:
+                raise self.error(f"field {index + 1} ({what or 'an integer'}) is blank")
+            return default
+        try:
+            return int(text)
+        except ValueError:
+            raise self.error(
+                f"field {index + 1} ({what or 'an integer'}) is not an integer: {text!r}"
+            ) from None
+
+    def real(self, index: int, default: float | None = None, what: str = "") -> float:
+        text = self.field(index)
+        if text is None:
+            if default is None:
+                raise self.error(f"field {index + 1} ({what or 'a number'}) is blank")
+            return default
+        value = parse_real(text)
+        if value is None or not math.isfinite(value):
+            raise self.error(f"field {index + 1} ({what or 'a number'}) is not a number: {text!r}")
+        return value
+
+    def integers_from(self, index: int) -> list[int]:
+        """Grid ids from field `index` on, with ``THRU`` ranges (``G1 THRU G2``)."""
+        values: list[int] = []
+        items = [f for f in self.fields[index - 1 :] if f is not None]
+        k = 0
+        while k < len(items):
+            if items[k].upper() == "THRU":
+                if not values or k + 1 >= len(items):
+                    raise self.error("THRU without a range")
+                last = self.integer_text(items[k + 1])
+                values.extend(range(values[-1] + 1, last + 1))
+                k += 2
+                continue
+            values.append(self.integer_text(items[k]))
+            k += 1
+        return values
+
+    def integer_text(self, text: str) -> int:
+        try:
+            return int(text)
+        except ValueError:
+            raise self.error(f"expected an integer, found {text!r}") from None
+
+
+def parse_real(text: str) -> float | None:
+    """A Nastran real: ``1.5``, ``1.5E-3``, ``1.5D-3``, ``1.5-3`` (exponent without E), ``7.+10``;
+    None if `text` is not one."""
+    text = text.strip()
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    hit = _NUMBER.match(text)
+    if not hit or not hit.group(3):
+        return None
+    mantissa, _, exponent = hit.groups()
+    return float(f"{mantissa}e{exponent}")
+
+
+@dataclass
+class NastranDeck:
+    """The body data of a Nastran deck.
+
+    Attributes:
+        mesh: the nodes (GRID, in the basic system), the elements and the node sets:
+            ``aset`` (ASET, ASET1 and QSET1 nodes), ``spc<SID>`` (SPC1), ``set<SID>`` (SET1),
+            ``rbe2_<EID>`` (an RBE2's dependent nodes) and ``rbe3_<EID>`` (an RBE3's
+            independent nodes): the interfaces of the Nastran model. Only grids of the
+            elements are nodes (an RBE's reference grid and other free points are not: they
+            would carry no stiffness and no mass); sets keep their grids that are nodes.
+        materials: MAT1 id -> {"young_modulus", "poisson_ratio", "density"}.
+        properties: property id -> (card name, fields): PSOLID, PBAR, PBEAM, PBARL, PBEAML.
+        element_properties: element type -> (n_elements,) property ids.
+        orientations: beam element id -> orientation vector v (basic system).
+        matrices: DMIG name -> :class:`DmigMatrix`.
+    """
+
+    mesh: Mesh
+    materials: dict[int, dict[str, float]] = field(default_factory=dict)
+    properties: dict[int, tuple[str, Card]] = field(default_factory=dict)
+    element_properties: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+    orientations: dict[int, NDArray[np.float64]] = field(default_factory=dict)
+    matrices: dict[str, DmigMatrix] = field(default_factory=dict)
+
+    def material(self) -> Any:
+        """The one material of the mesh's elements (flexmbd bodies are of one material), as a
+        :class:`flexmbd.fe.Material`. Raises `InvalidModelError` naming the properties if their
+        materials differ, `UnknownItemError` for a property or material that is not
+        defined."""
+        from .preprocess import Material
+
+        used = sorted({int(p) for ids in self.element_properties.values() for p in ids})
+        mids = {}
+        for pid in used:
+            if pid not in self.properties:
+                raise UnknownItemError(
+                    f"Nastran deck: property {pid} is not defined", item=f"{pid}"
+                )
+            name, card = self.properties[pid]
+            mids[pid] = card.integer(2, what="MID")
+        values = {}
+        for pid, mid in mids.items():
+            if mid not in self.materials:
+                raise UnknownItemError(
+                    f"Nastran deck: property {pid} refers to material {mid}, which no MAT1 defines",
+                    item=f"MAT1 {mid}",
+                )
+            values[mid] = tuple(self.materials[mid].values())
+        if len(set(values.values())) > 1:
+            raise InvalidModelError(
+                f"Nastran deck: the elements use materials {sorted(values)} with different "
+                "values; a flexmbd body has one material (split the deck into bodies)",
+                item="MAT1",
+            )
+        if not values:
+            raise InvalidModelError("Nastran deck: no element has a property", item="PSOLID")
+        mid = next(iter(values))
+        m = self.materials[mid]
+        return Material(m["young_modulus"], m["poisson_ratio"], m["density"])
+
+    def section(self) -> tuple[Any, NDArray[np.float64] | None]:
+        """(section, orientation) of the beams: one section and one orientation vector for all
+        of them (flexmbd's preprocessor takes one of each), or (None, None) without beams."""
+        beams = self.element_properties.get("beam2")
+        if beams is None or len(beams) == 0:
+            return None, None
+        sections = {}
+        for pid in sorted({int(p) for p in beams}):
+            if pid not in self.properties:
+                raise UnknownItemError(
+                    f"Nastran deck: property {pid} is not defined", item=f"{pid}"
+                )
+            sections[pid] = _beam_section(*self.properties[pid])
+        keys = {(s.area, s.iy, s.iz, s.torsion_constant) for s in sections.values()}
+        if len(keys) > 1:
+            raise InvalidModelError(
+                f"Nastran deck: the beams have different sections (properties "
+                f"{sorted(sections)}); a flexmbd body has one beam section",
+                item="PBAR",
+            )
+        vectors = list(self.orientations.items())
+        eid0, v0 = vectors[0]
+        for eid, v in vectors[1:]:
+            if np.linalg.norm(np.cross(v / np.linalg.norm(v), v0 / np.linalg.norm(v0))) > 1e-9:
+                raise InvalidModelError(
+                    f"Nastran deck: beam {eid} has orientation {v.tolist()}, beam {eid0} "
+                    f"{v0.tolist()}; flexmbd's preprocessor takes one orientation for all beams",
+                    item=f"CBAR {eid}",
+                )
+        return next(iter(sections.values())), v0
+
+    def body(self, **options: Any) -> FlexibleBodyData:
+        """The deck's body through :func:`flexmbd.fe.build_body` with its mesh, material and
+        beam section; `options` are build_body's (reference conditions, modes, ...)."""
+        from .preprocess import build_body
+
+        section, orientation = self.section()
+        extra: dict[str, Any] = {}
+        if section is not None:
+            extra = {"section": section, "orientation": orientation}
+        return build_body(
+            self.mesh.nodes,
+            self.mesh.elements,
+            self.material(),
+            node_ids=self.mesh.node_ids,
+            element_ids=self.mesh.element_ids,
+            node_sets=self.mesh.node_sets,
+            **extra,
+            **options,
+        )
+
+
+@dataclass
+class DmigMatrix:
+    """A DMIG matrix: entries by (row grid, row component) and (column grid, column
+    component), components 1-6 (0 for scalar points). ``form`` is IFO: 1 square, 6
+    symmetric (one triangle given), 2 or 9 rectangular."""
+
+    name: str
+    form: int
+    rows: list[tuple[int, int]]
+    columns: list[tuple[int, int]]
+    values: list[float]
+
+    def to_matrix(self, dofs: list[tuple[int, int]]) -> Any:
+        """The matrix on the ordered (grid, component) list `dofs`, as scipy CSC; symmetric
+        forms are completed from their triangle. Raises `UnknownItemError` for an entry on a
+        dof that is not in `dofs`."""
+        import scipy.sparse as sp
+
+        index = {dof: k for k, dof in enumerate(dofs)}
+        rows, cols, data = [], [], []
+        for r, c, v in zip(self.rows, self.columns, self.values, strict=True):
+            for dof in (r, c):
+                if dof not in index:
+                    raise UnknownItemError(
+                        f"DMIG {self.name}: an entry on grid {dof[0]} component {dof[1]}, which "
+                        "is not one of the body's coordinates",
+                        item=f"grid {dof[0]}",
+                    )
+            rows.append(index[r])
+            cols.append(index[c])
+            data.append(v)
+            if self.form == 6 and r != c:
+                rows.append(index[c])
+                cols.append(index[r])
+                data.append(v)
+        n = len(dofs)
+        return sp.csc_matrix((data, (rows, cols)), shape=(n, n))
+
+
+def read_nastran(path: str | os.PathLike[str]) -> NastranDeck:
+    """Reads the bulk data of a Nastran deck (see the module docstring).
+
+    Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 grids) -> hex8, CBAR and CBEAM
+    -> beam2 (offsets, pin flags and tapered PBEAMs are refused). Grids may be given in CORD2R
+    systems (rectangular, chained); other coordinate systems are refused.
+
+    Raises `FileNotFoundError`; `InvalidModelError` naming the file, line and card of an
+    unknown or malformed card, a refused option, a deck larger than :data:`MAX_BYTES`;
+    `UnknownItemError` for a reference to an undefined grid, property or coordinate system."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(2, "No such Nastran file", str(path))
+    cards = list(_cards(path, 0, [0]))
+    return _deck(cards)
+
+
+def read_dmig(path: str | os.PathLike[str]) -> dict[str, DmigMatrix]:
+    """The DMIG matrices of a Nastran bulk data or punch file (``.pch``, as written by
+    ``EXTSEOUT`` or ``PARAM,EXTOUT``), by name."""
+    return read_nastran(path).matrices
+
+
+# Reading cards -----------------------------------------------------------------------------
+
+
+def _lines(path: Path, depth: int, size: list[int]) -> Any:
+    """(file, line number, text) of the bulk data lines of `path` and its INCLUDE files."""
+    if depth > INCLUDE_DEPTH:
+        raise InvalidModelError(
+            f"{path}: INCLUDE files nested deeper than {INCLUDE_DEPTH}", item=f"file '{path}'"
+        )
+    size[0] += path.stat().st_size
+    if size[0] > MAX_BYTES:
+        raise InvalidModelError(
+            f"{path}: the deck is larger than {MAX_BYTES >> 20} MB with its INCLUDE files "
+            f"({size[0] >> 20} MB read so far); split it or reduce it in the FE code first",
+            item=f"file '{path}'",
+        )
+    text = path.read_text(encoding="latin-1").splitlines()
+    has_bulk = depth > 0 or any(line.upper().startswith("BEGIN BULK") for line in text)
+    in_bulk = not has_bulk or depth > 0
+    k = 0
+    while k < len(text):
+        line = text[k].rstrip("\r\n").expandtabs(8)
+        number = k + 1
+        k += 1
+        upper = line.upper()
+        if not in_bulk:
+            in_bulk = upper.startswith("BEGIN BULK")
+            continue
+        if upper.startswith("ENDDATA"):
+            return
+        if upper.startswith("INCLUDE"):
+            name = line[7:].strip()
+            while name.count("'") == 1 and k < len(text):  # a quoted name over several lines
+                name += text[k].strip()
+                k += 1
+            name = name.strip().strip("'\"")
+            target = (path.parent / name).resolve()
+            if not target.is_file():
+                raise FileNotFoundError(2, f"{path}, line {number}: no INCLUDE file", str(target))
+            yield from _lines(target, depth + 1, size)
+            continue
+        if not line.strip() or line.lstrip().startswith("$"):
+            continue
+        yield path, number, line.split("$", 1)[0]
+
+
+def _split(line: str) -> tuple[str, list[str | None], bool]:
+    """(first field, 8 data fields, large field?) of one physical line."""
+    if "," in line[:80]:  # free field (8 data fields per line)
+        parts = [p.strip() for p in line.split(",")]
+        first = parts[0]
+        data = [p or None for p in parts[1:9]]
+        return first, data + [None] * (8 - len(data)), False
+    first = line[:8].strip()
+    if first.endswith("*") or first.startswith("*"):
+        data = [line[8 + 16 * i : 24 + 16 * i].strip() or None for i in range(4)]
+        return first, data + [None] * 4, True
+    data = [line[8 + 8 * i : 16 + 8 * i].strip() or None for i in range(8)]
+    return first, data, False
+
+
+def _cards(path: Path, depth: int, size: list[int]) -> Any:
+    current: Card | None = None
+    large_half = False  # a large-field line waiting for its second half
+    for file, number, line in _lines(path, depth, size):
+        first, data, large = _split(line)
+        continuation = not first or first[0] in "+*" or (first == "" and current is not None)
+        if line[:1] in (" ", "\t") and not first and current is None:
+            raise InvalidModelError(
+                f"{file}, line {number}: a continuation line without a card",
+                item=f"line {number} of '{file}'",
+            )
+        if continuation and current is not None:
+            if large and large_half:
+                # The second line of a large-field pair: its 4 fields complete 8.
+                current.fields[-4:] = data[:4]
+                large_half = False
+            else:
+                current.fields.extend(data)
+                large_half = large
+            continue
+        if current is not None:
+            yield current
+        name = first.rstrip("*").upper()
+        current = Card(name, list(data), file, number)
+        large_half = large
+    if current is not None:
+        yield current
+
+
+# Building the deck -------------------------------------------------------------------------
+
+
+def _frame(card: Card) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(origin, rotation with the system's axes as columns) of a CORD2R in its reference."""
+    a = np.array([card.real(i, what=f"A{i - 2}") for i in (3, 4, 5)])
+    b = np.array([card.real(i, what=f"B{i - 5}") for i in (6, 7, 8)])
+    c = np.array([card.real(i, what=f"C{i - 8}") for i in (9, 10, 11)])
+    z = b - a
+    x_guess = c - a
+    y = np.cross(z, x_guess)
+    if np.linalg.norm(z) == 0 or np.linalg.norm(y) == 0:
+        raise card.error("points A, B and C do not define a coordinate system")
+    z, y = z / np.linalg.norm(z), y / np.linalg.norm(y)
+    return a, np.column_stack([np.cross(y, z), y, z])
+
+
+def _deck(cards: list[Card]) -> NastranDeck:
+    grids: dict[int, Card] = {}
+    systems: dict[int, Card] = {}
+    elements: dict[str, list[tuple[int, int, list[int], Card]]] = {}
+    materials: dict[int, dict[str, float]] = {}
+    properties: dict[int, tuple[str, Card]] = {}
+    sets: dict[str, list[int]] = {}
+    orientation_cards: list[Card] = []
+    dmig_headers: dict[str, Card] = {}
+    dmig_columns: list[Card] = []
+    for card in cards:
+        name = card.name
+        if name == "GRID":
+            gid = card.integer(1, what="ID")
+            if gid in grids:
+                raise card.error(f"grid {gid} is defined twice (also {grids[gid].where()})")
+            grids[gid] = card
+        elif name == "CORD2R":
+            systems[card.integer(1, what="CID")] = card
+        elif name in ("CTETRA", "CHEXA"):
+            eid, pid = card.integer(1, what="EID"), card.integer(2, what="PID")
+            nodes = [card.integer_text(f) for f in card.fields[2:] if f is not None]
+            if name == "CTETRA" and len(nodes) == 4:
+                kind = "tet4"
+            elif name == "CTETRA" and len(nodes) == 10:
+                kind = "tet10"
+                nodes[8], nodes[9] = nodes[9], nodes[8]  # Nastran G9 on (2,4), G10 on (3,4)
+            elif name == "CHEXA" and len(nodes) == 8:
+                kind = "hex8"
+            else:
+                raise card.error(
+                    f"{len(nodes)} grids: flexmbd has CTETRA of 4 or 10 grids and CHEXA of 8"
+                )
+            elements.setdefault(kind, []).append((eid, pid, nodes, card))
+        elif name in ("CBAR", "CBEAM"):
+            eid, pid = card.integer(1, what="EID"), card.integer(2, what="PID")
+            nodes = [card.integer(3, what="GA"), card.integer(4, what="GB")]
+            if any(card.field(i) not in (None, "0", "0.", "0.0") for i in range(9, 17)):
+                raise card.error(
+                    f"element {eid}: pin flags and offsets (fields 10-17) are not supported"
+                )
+            elements.setdefault("beam2", []).append((eid, pid, nodes, card))
+            orientation_cards.append(card)
+        elif name == "MAT1":
+            materials[card.integer(1, what="MID")] = _material(card)
+        elif name in ("PSOLID", "PBAR", "PBEAM", "PBARL", "PBEAML"):
+            properties[card.integer(1, what="PID")] = (name, card)
+        elif name in ("ASET1", "QSET1"):
+            sets.setdefault("aset", []).extend(card.integers_from(2))
+        elif name == "ASET":
+            sets.setdefault("aset", []).extend(
+                card.integer(i) for i in range(1, len(card.fields) + 1, 2) if card.field(i)
+            )
+        elif name == "SPC1":
+            sets.setdefault(f"spc{card.integer(1, what='SID')}", []).extend(card.integers_from(3))
+        elif name == "SET1":
+            sets.setdefault(f"set{card.integer(1, what='SID')}", []).extend(card.integers_from(2))
+        elif name == "RBE2":
+            sets[f"rbe2_{card.integer(1, what='EID')}"] = _rbe2_dependents(card)
+        elif name == "RBE3":
+            sets[f"rbe3_{card.integer(1, what='EID')}"] = _rbe3_independents(card)
+        elif name == "DMIG":
+            if card.field(1) is None:
+                raise card.error("no matrix name")
+            matrix = card.field(1).upper()  # type: ignore[union-attr]
+            if card.field(2) == "0":
+                dmig_headers[matrix] = card
+            else:
+                dmig_columns.append(card)
+        elif name in IGNORED:
+            continue
+        else:
+            raise card.error(
+                f"unsupported card {name!r} (supported: {', '.join(CARDS)}; skipped: "
+                f"{', '.join(IGNORED)})"
+            )
+
+    # Grids of no element (the reference grids of RBE2/RBE3, CONM2 points, ...) are not nodes
+    # of the body: they would carry neither stiffness nor mass.
+    used = {g for items in elements.values() for _e, _p, nodes, _c in items for g in nodes}
+    missing = sorted(used - set(grids))
+    if missing:
+        card = next(c for items in elements.values() for _e, _p, n, c in items if missing[0] in n)
+        raise UnknownItemError(
+            f"{card.where()}: {card.name} {card.integer(1)} refers to grid {missing[0]}, which "
+            "no GRID defines",
+            item=f"grid {missing[0]}",
+        )
+    ids = np.array(sorted(used), dtype=np.int64)
+    index = {int(g): k for k, g in enumerate(ids)}
+    positions = np.array([_position(grids[int(g)], systems) for g in ids]).reshape(-1, 3)
+    mesh = Mesh(nodes=positions, node_ids=ids)
+    element_properties = {}
+    for kind, items in elements.items():
+        connectivity = []
+        for _eid, _pid, nodes, _card in items:
+            connectivity.append([index[g] for g in nodes])
+        mesh.elements[kind] = np.array(connectivity, dtype=np.int64)
+        mesh.element_ids[kind] = np.array([e[0] for e in items], dtype=np.int64)
+        element_properties[kind] = np.array([e[1] for e in items], dtype=np.int64)
+    for set_name, members in sets.items():
+        undefined = [g for g in members if g not in grids]
+        if undefined:
+            raise UnknownItemError(
+                f"Nastran deck: {set_name} refers to grid {undefined[0]}, which no GRID defines",
+                item=f"grid {undefined[0]}",
+            )
+        kept = [index[g] for g in members if g in index]  # grids of the body's elements
+        if kept:
+            mesh.node_sets[set_name] = np.unique(np.array(kept, dtype=np.int64))
+    orientations = {
+        card.integer(1): _orientation(card, grids, systems) for card in orientation_cards
+    }
+    matrices = _dmig(dmig_headers, dmig_columns)
+    return NastranDeck(mesh, materials, properties, element_properties, orientations, matrices)
+
+
+def _position(card: Card, systems: dict[int, Card]) -> NDArray[np.float64]:
+    x = np.array([card.real(i, 0.0, what=f"X{i - 2}") for i in (3, 4, 5)])
+    return _to_basic(x, card.integer(2, 0, what="CP"), systems, card)
+
+
+def _to_basic(
+    x: NDArray[np.float64], cid: int, systems: dict[int, Card], card: Card, depth: int = 0
+) -> NDArray[np.float64]:
+    if cid == 0:
+        return x
+    if cid not in systems:
+        raise UnknownItemError(
+            f"{card.where()}: {card.name} uses coordinate system {cid}, which no CORD2R "
+            "defines (only rectangular CORD2R systems are supported)",
+            item=f"coordinate system {cid}",
+        )
+    if depth > 32:
+        raise card.error(f"coordinate system {cid} refers to itself through its references")
+    system = systems[cid]
+    origin, axes = _frame(system)
+    reference = system.integer(2, 0, what="RID")
+    local = origin + axes @ x
+    return _to_basic(local, reference, systems, system, depth + 1) if reference else local
+
+
+def _orientation(
+    card: Card, grids: dict[int, Card], systems: dict[int, Card]
+) -> NDArray[np.float64]:
+    """The orientation vector v of a CBAR/CBEAM in the basic system (X1-X3 or G0)."""
+    x1 = card.field(5)
+    if x1 is None:
+        raise card.error("no orientation vector (X1, X2, X3 or G0 in fields 6-8)")
+    if card.field(6) is None and card.field(7) is None and x1.lstrip("+-").isdigit():
+        g0 = card.integer(5, what="G0")
+        ga = card.integer(3, what="GA")
+        for g in (g0, ga):
+            if g not in grids:
+                raise UnknownItemError(
+                    f"{card.where()}: {card.name} refers to grid {g}, which no GRID defines",
+                    item=f"grid {g}",
+                )
+        return _position(grids[g0], systems) - _position(grids[ga], systems)
+    v = np.array([card.real(i, 0.0, what=f"X{i - 4}") for i in (5, 6, 7)])
+    ga = grids.get(card.integer(3, what="GA"))
+    cd = ga.integer(6, 0, what="CD") if ga is not None else 0
+    if cd:
+        origin, axes = _frame(systems[cd]) if cd in systems else (None, None)
+        if axes is None:
+            raise UnknownItemError(
+                f"{card.where()}: the orientation is in system {cd}, which no CORD2R defines",
+                item=f"coordinate system {cd}",
+            )
+        v = axes @ v
+    if not np.any(v):
+        raise card.error("the orientation vector is zero")
+    return v
+
+
+def _material(card: Card) -> dict[str, float]:
+    e = card.real(2, math.nan, what="E")
+    g = card.real(3, math.nan, what="G")
+    nu = card.real(4, math.nan, what="NU")
+    if math.isnan(e) and not (math.isnan(g) or math.isnan(nu)):
+        e = 2.0 * g * (1.0 + nu)
+    if math.isnan(nu) and not (math.isnan(e) or math.isnan(g)):
+        nu = e / (2.0 * g) - 1.0
+    if math.isnan(e) or math.isnan(nu):
+        raise card.error("needs E and NU (or two of E, G, NU)")
+    rho = card.real(5, 0.0, what="RHO")
+    if not rho > 0:
+        raise card.error(f"RHO must be > 0 for a body in motion, got {rho}")
+    return {"young_modulus": e, "poisson_ratio": nu, "density": rho}
+
+
+def _beam_section(name: str, card: Card) -> Any:
+    from .preprocess import Section
+
+    if name in ("PBAR", "PBEAM"):
+        area = card.real(3, what="A")
+        i1 = card.real(4, 0.0, what="I1")  # about the element z axis: flexmbd's iz
+        i2 = card.real(5, 0.0, what="I2")  # about y: iy
+        j = card.real(6 if name == "PBAR" else 7, 0.0, what="J")
+        if name == "PBAR" and card.field(18) not in (None, "0", "0.", "0.0"):
+            raise card.error("I12 (product of inertia) is not supported")
+        if name == "PBEAM" and card.field(6) not in (None, "0", "0.", "0.0"):
+            raise card.error("I12 (product of inertia) is not supported")
+        if name == "PBEAM" and len([f for f in card.fields[8:] if f is not None]) > 16:
+            raise card.error("tapered beams (more than one station) are not supported")
+        return Section(area, i2, i1, j)
+    shape = (card.field(4) or "").upper()
+    dims = [card.real(i, what=f"DIM{i - 8}") for i in range(9, 17) if card.field(i) is not None]
+    if shape == "ROD" and dims:
+        return Section.circle(dims[0])
+    if shape == "TUBE" and len(dims) >= 2:
+        return Section.tube(dims[0], dims[1])
+    if shape == "BAR" and len(dims) >= 2:
+        # DIM1 along the element y axis, DIM2 along z.
+        return Section.rectangle(dims[0], dims[1])
+    raise card.error(f"section type {shape!r} is not supported (ROD, TUBE, BAR)")
+
+
+def _rbe2_dependents(card: Card) -> list[int]:
+    # RBE2 EID GN CM GM1 GM2 ... (ALPHA may end the list).
+    items = [f for f in card.fields[3:] if f is not None]
+    out = []
+    for text in items:
+        try:
+            out.append(int(text))
+        except ValueError:
+            if text.upper() == "THRU":
+                raise card.error("THRU in RBE2 is not supported") from None
+            break  # ALPHA (a real) ends the grids
+    return out
+
+
+_RBE3_ENDS = ("UM", "ALPHA", "TREF")
+
+
+def _rbe3_independents(card: Card) -> list[int]:
+    # RBE3 EID blank REFGRID REFC WT1 C1 G1,1 G1,2 ... WT2 C2 G2,1 ... [UM ...]
+    items = [f for f in card.fields[4:] if f is not None]
+    grids: list[int] = []
+    k = 0
+    while k < len(items):
+        text = items[k]
+        if text.upper() in _RBE3_ENDS:
+            break
+        if parse_real(text) is not None and "." in text:  # a weight, then its components
+            k += 2
+            while k < len(items) and "." not in items[k] and items[k].upper() not in _RBE3_ENDS:
+                grids.append(card.integer_text(items[k]))
+                k += 1
+            continue
+        raise card.error(f"expected a weight (a real) in the RBE3, found {text!r}")
+    return grids
+
+
+def _dmig(headers: dict[str, Card], columns: list[Card]) -> dict[str, DmigMatrix]:
+    matrices: dict[str, DmigMatrix] = {}
+    for name, header in headers.items():
+        form = header.integer(3, what="IFO")
+        tin = header.integer(4, what="TIN")
+        if tin not in (1, 2):
+            raise header.error(f"TIN = {tin}: only real matrices (TIN 1 or 2) are supported")
+        if form not in (1, 2, 6, 9):
+            raise header.error(f"IFO = {form} is not one of 1, 2, 6, 9")
+        matrices[name] = DmigMatrix(name, form, [], [], [])
+    for card in columns:
+        name = (card.field(1) or "").upper()
+        if name not in matrices:
+            raise card.error(f"a column of matrix {name!r}, which has no header (DMIG,{name},0)")
+        matrix = matrices[name]
+        column = (card.integer(2, what="GJ"), card.integer(3, 0, what="CJ"))
+        # (G, C, A, B) quadruples from field 5 on; B (imaginary part) blank for real matrices.
+        for k in range(5, len(card.fields) + 1, 4):
+            if card.field(k) is None:
+                continue
+            matrix.rows.append((card.integer(k, what="G"), card.integer(k + 1, 0, what="C")))
+            matrix.columns.append(column)
+            matrix.values.append(card.real(k + 2, what="A"))
+    return matrices
+
+
+__all__ = [
+    "CARDS",
+    "IGNORED",
+    "DmigMatrix",
+    "NastranDeck",
+    "parse_real",
+    "read_dmig",
+    "read_nastran",
+]

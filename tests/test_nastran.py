@@ -1,0 +1,249 @@
+"""Nastran decks (issue 35): the three field formats, Nastran numbers, coordinate systems,
+continuations and INCLUDE files read into the same mesh, K, M and modes as the preprocessor
+on the mesh itself; beams with their sections; node sets of the interfaces; DMIG matrices;
+bad decks named by file, line and card."""
+
+import numpy as np
+import pytest
+
+import flexmbd.fe.preprocess as pp
+from flexmbd._core import Material, Section
+from flexmbd.errors import InvalidModelError, UnknownItemError
+from flexmbd.fe import read_nastran, shapes
+from flexmbd.fe.nastran import parse_real, read_dmig
+
+STEEL = Material(2.1e11, 0.3, 7800.0)
+
+
+def number(x, width):
+    """The shortest Nastran real of `x` that fits in `width` characters."""
+    text = repr(float(x))
+    if len(text) <= width and ("." in text or "e" in text):
+        return text
+    for digits in range(width, 0, -1):
+        text = f"{x:.{digits}e}".replace("e+0", "+").replace("e-0", "-").replace("e", "")
+        if len(text) <= width:
+            return text
+    raise ValueError(x)
+
+
+def card(name, fields, form):
+    """One card in the small (8), large (16, with *) or free (commas) field format."""
+    if form == "free":
+        head, rest = fields[:8], fields[8:]
+        lines = [",".join([name] + [str(f) for f in head])]
+        while rest:
+            lines.append(",".join([""] + [str(f) for f in rest[:8]]))
+            rest = rest[8:]
+        return "\n".join(lines) + "\n"
+    width, per_line = (8, 8) if form == "small" else (16, 4)
+    text = []
+    first = f"{name}*" if form == "large" else name
+    chunks = [fields[i : i + per_line] for i in range(0, max(len(fields), 1), per_line)]
+    for k, chunk in enumerate(chunks):
+        lead = first if k == 0 else ("*" if form == "large" else "+")
+        cells = [
+            (number(f, width) if isinstance(f, float) else str(f)).ljust(width) for f in chunk
+        ]
+        text.append(lead.ljust(8) + "".join(cells))
+    return "\n".join(text) + "\n"
+
+
+def deck_of(mesh, form, *, aset=(), ids=None, shift=(0.0, 0.0, 0.0), system=None):
+    """A bulk data deck of a solid mesh of STEEL (MAT1 1, PSOLID 1), grids in `system`
+    (a CORD2R card's fields) when given."""
+    ids = np.arange(1, mesh.node_count + 1) * 3 + 100 if ids is None else ids
+    lines = ["SOL 103\nCEND\nBEGIN BULK\n$ a comment\n"]
+    if system is not None:
+        lines.append(card("CORD2R", system["fields"], form))
+    for gid, x in zip(ids, mesh.nodes, strict=True):
+        local = system["to_local"](x) if system is not None else x
+        cp = system["fields"][0] if system is not None else ""
+        lines.append(card("GRID", [int(gid), cp] + [float(v) for v in local], form))
+    eid = 1
+    for kind, connectivity in mesh.elements.items():
+        name = {"tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA"}[kind]
+        for nodes in connectivity:
+            grid = [int(ids[n]) for n in nodes]
+            if kind == "tet10":
+                grid[8], grid[9] = grid[9], grid[8]
+            lines.append(card(name, [eid, 1] + grid, form))
+            eid += 1
+    lines.append(card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], form))
+    lines.append(card("PSOLID", [1, 1], form))
+    if len(aset):
+        lines.append(card("ASET1", [123] + [int(ids[n]) for n in aset], form))
+    lines.append(card("PARAM", ["POST", -1], form))
+    lines.append("ENDDATA\n")
+    return "".join(lines)
+
+
+@pytest.fixture(scope="module")
+def bracket():
+    return shapes.box((0.6, 0.1, 0.05), (6, 2, 1), "tet4")
+
+
+def dense(m):
+    return m.toarray() if hasattr(m, "toarray") else np.asarray(m)
+
+
+@pytest.mark.parametrize("form", ["small", "large", "free"])
+def test_a_deck_gives_the_preprocessors_body(form, bracket, tmp_path, assert_close):
+    face = bracket.node_sets["x0"]
+    path = tmp_path / "bracket.bdf"
+    path.write_text(deck_of(bracket, form, aset=face))
+    deck = read_nastran(path)
+    assert_close(deck.mesh.nodes, bracket.nodes, abs=1e-12, what="nodes")
+    np.testing.assert_array_equal(deck.mesh.elements["tet4"], bracket.elements["tet4"])
+    np.testing.assert_array_equal(deck.mesh.node_sets["aset"], np.sort(face))
+    assert deck.mesh.node_ids[:3].tolist() == [103, 106, 109]
+    options = dict(reference="interface", modes="craig-bampton", mode_count=4)
+    body = deck.body(interfaces=["aset"], **options)
+    direct = pp.build_body(bracket.nodes, bracket.elements, STEEL, interfaces=[face], **options)
+    for name in ("k_ff", "m_ff"):
+        want = dense(getattr(direct.invariants, name))
+        got = dense(getattr(body.invariants, name))
+        assert_close(got, want, abs=1e-9 * np.abs(want).max(), what=name)
+    assert_close(body.frequencies, direct.frequencies, rel=1e-9, what="frequencies")
+    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    assert_close(dense(body.mass), dense(direct.mass), abs=1e-9 * direct.mass.max(), what="M")
+
+
+def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
+    tet10 = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "tet10")
+    angle = 0.3
+    rot = np.array(
+        [[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0, 0, 1.0]]
+    )
+    origin = np.array([1.0, 2.0, 3.0])
+    # CORD2R 5: A = origin, B on its z axis, C in its x-z plane.
+    a, b, c = origin, origin + rot[:, 2], origin + rot[:, 0]
+    system = {
+        "fields": [5, 0] + [float(v) for v in (*a, *b, *c)],
+        "to_local": lambda x: rot.T @ (x - origin),
+    }
+    path = tmp_path / "tet10.bdf"
+    path.write_text(deck_of(tet10, "large", system=system))
+    deck = read_nastran(path)
+    # Local coordinates in 16 characters: 11 significant digits.
+    assert_close(deck.mesh.nodes, tet10.nodes, abs=1e-10, what="nodes")
+    np.testing.assert_array_equal(deck.mesh.elements["tet10"], tet10.elements["tet10"])
+    hexa = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "hex8")
+    path.write_text(deck_of(hexa, "small"))
+    deck = read_nastran(path)
+    np.testing.assert_array_equal(deck.mesh.elements["hex8"], hexa.elements["hex8"])
+    body = deck.body()
+    direct = pp.build_body(hexa.nodes, hexa.elements, STEEL)
+    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+
+
+def beam_deck(form, property_card):
+    lines = ["BEGIN BULK\n"]
+    for k in range(5):
+        lines.append(card("GRID", [k + 1, "", 0.25 * k, 0.0, 0.0], form))
+    for k in range(4):
+        lines.append(card("CBAR", [10 + k, 7, k + 1, k + 2, 0.0, 1.0, 1.0], form))
+    lines.append(card("MAT1", [3, 2.1e11, 8.1e10, "", 7800.0], form))
+    lines.append(card(*property_card, form))
+    lines.append(card("SPC1", [1, 123456, 1], form))
+    lines.append(card("RBE2", [900, 99, 123456, 5], form))
+    lines.append(card("GRID", [99, "", 1.2, 0.0, 0.0], form))
+    return "".join(lines)
+
+
+@pytest.mark.parametrize(
+    ("property_card", "section"),
+    [
+        (("PBAR", [7, 3, 2e-4, 3e-8, 5e-8, 4e-8]), Section(2e-4, 5e-8, 3e-8, 4e-8)),
+        (("PBARL", [7, 3, "", "BAR", "", "", "", "", 0.02, 0.01]), Section.rectangle(0.02, 0.01)),
+    ],
+)
+def test_beams_with_their_sections_and_orientation(
+    property_card, section, tmp_path, assert_close
+):
+    path = tmp_path / "beam.bdf"
+    path.write_text(beam_deck("small", property_card))
+    deck = read_nastran(path)
+    got_section, orientation = deck.section()
+    assert_close(orientation, [0.0, 1.0, 1.0], abs=0.0, what="orientation")
+    material = deck.material()
+    assert_close(material.poisson_ratio, 2.1e11 / (2 * 8.1e10) - 1, rel=1e-14, what="nu from G")
+    body = deck.body(reference="clamped", reference_nodes="spc1")
+    nodes = np.column_stack([0.25 * np.arange(5), np.zeros(5), np.zeros(5)])
+    elements = {"beam2": np.column_stack([np.arange(4), np.arange(1, 5)])}
+    nu = 2.1e11 / (2 * 8.1e10) - 1
+    direct = pp.build_body(
+        nodes, elements, Material(2.1e11, nu, 7800.0), section=section,
+        orientation=(0.0, 1.0, 1.0), reference="clamped", reference_nodes=[0],
+    )  # fmt: skip
+    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    assert_close(dense(body.mass), dense(direct.mass), abs=1e-9 * direct.mass.max(), what="M")
+    # The RBE2's reference grid 99 belongs to no element: not a node; its dependent is.
+    assert 99 not in deck.mesh.node_ids.tolist()
+    assert deck.mesh.node_ids[deck.mesh.node_sets["rbe2_900"]].tolist() == [5]
+
+
+def test_nastran_numbers():
+    for text, value in [
+        ("1.5", 1.5), ("1.5-3", 1.5e-3), ("-2.5+4", -2.5e4), ("7.+10", 7e10), ("1.D5", 1e5),
+        (".5E-2", 0.005), ("3", 3.0), ("-.25-1", -0.025),
+    ]:  # fmt: skip
+        assert parse_real(text) == value, text
+    assert parse_real("abc") is None and parse_real("1.2.3") is None
+
+
+def test_dmig_matrices(tmp_path, assert_close):
+    rng = np.random.default_rng(2)
+    a = rng.normal(size=(6, 6))
+    k = a @ a.T
+    dofs = [(g, c) for g in (11, 12) for c in (1, 2, 3)]
+    lines = ["BEGIN BULK\n", card("DMIG", ["KAAX", 0, 6, 2, "", "", "", 6], "free")]
+    for j, (gj, cj) in enumerate(dofs):
+        entries = []
+        for i in range(j, 6):  # the lower triangle of column j
+            entries += [dofs[i][0], dofs[i][1], float(k[i, j]), ""]
+        lines.append(card("DMIG", ["KAAX", gj, cj, ""] + entries, "large"))
+    path = tmp_path / "k.pch"
+    path.write_text("".join(lines))
+    matrix = read_dmig(path)["KAAX"]
+    assert matrix.form == 6
+    assert_close(matrix.to_matrix(dofs).toarray(), k, rel=1e-10, what="K from DMIG")
+    with pytest.raises(UnknownItemError, match="grid 11 component 1"):
+        matrix.to_matrix(dofs[1:])
+
+
+def test_include_files_and_continuation_markers(bracket, tmp_path, assert_close):
+    text = deck_of(bracket, "small")
+    head, rest = text.split("BEGIN BULK\n")
+    (tmp_path / "part").mkdir()
+    (tmp_path / "part" / "mesh.bdf").write_text(rest.replace("ENDDATA\n", ""))
+    (tmp_path / "main.bdf").write_text(head + "BEGIN BULK\nINCLUDE 'part/mesh.bdf'\nENDDATA\n")
+    deck = read_nastran(tmp_path / "main.bdf")
+    assert_close(deck.mesh.nodes, bracket.nodes, abs=1e-12, what="nodes")
+
+
+def test_bad_decks_name_the_file_line_and_card(bracket, tmp_path):
+    path = tmp_path / "bad.bdf"
+    text = deck_of(bracket, "small")
+    path.write_text(text.replace("PARAM   POST", "CQUAD8  POST"))
+    with pytest.raises(InvalidModelError, match=r"bad.bdf, line \d+: CQUAD8: unsupported card"):
+        read_nastran(path)
+    lines = text.splitlines()
+    ctetra = next(i for i, line in enumerate(lines) if line.startswith("CTETRA"))
+    broken = list(lines)
+    broken[ctetra] = broken[ctetra][:32] + "99999".ljust(8) + broken[ctetra][40:]
+    path.write_text("\n".join(broken))
+    with pytest.raises(UnknownItemError, match="refers to grid 99999"):
+        read_nastran(path)
+    path.write_text(text.replace("MAT1    1 ", "MAT1    2 "))
+    with pytest.raises(UnknownItemError, match="material 1, which no MAT1 defines"):
+        read_nastran(path).material()
+    mat1 = next(line for line in lines if line.startswith("MAT1"))
+    path.write_text(text.replace(mat1, mat1[:16] + "abc".ljust(8) + mat1[24:]))
+    with pytest.raises(InvalidModelError, match=r"MAT1: field 3 \(E\) is not a number: 'abc'"):
+        read_nastran(path)
+    path.write_text("BEGIN BULK\n        1       2\n")
+    with pytest.raises(InvalidModelError, match="line 2: a continuation line without a card"):
+        read_nastran(path)
+    with pytest.raises(FileNotFoundError):
+        read_nastran(tmp_path / "missing.bdf")
