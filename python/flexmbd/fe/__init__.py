@@ -9,6 +9,7 @@ from . import shapes
 from .body import FlexibleBodyData, Invariants, ReferenceConditions
 from .body_file import load_body, save_body
 from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
+from .nastran import read_nastran
 from .preprocess import (
     Material,
     Section,
@@ -18,7 +19,6 @@ from .preprocess import (
     build_body,
     straight_beam,
 )
-from .nastran import read_nastran
 from .sid import read_sid, write_sid
 from .stress import recover_stresses, von_mises
 
