@@ -382,4 +382,9 @@ def test_moving_the_slider_changes_the_picture(browser, tet_pendulum, tmp_path):
     browser.open(path.as_uri() + f"#frame={last}&color=stress")
     again = plot_region(browser.screenshot())
     assert np.mean(np.any(np.abs(again - moved) > 30, axis=2)) < 0.2 * changed
+    # Play runs on from the last frame to the first ones, pause stops.
+    browser.evaluate("document.getElementById('flexmbd-play').click()")
+    browser.wait_for(f"flexmbdViewer.state.frame > 0 && flexmbdViewer.state.frame < {last}")
+    browser.evaluate("document.getElementById('flexmbd-play').click()")
+    assert not browser.evaluate("flexmbdViewer.state.playing")
     assert browser.errors() == []
