@@ -6,7 +6,8 @@ the centroid of that face and released horizontally under gravity.
 Without damping, at spectral radius 1, the energy is conserved to second order in the step:
 the example checks the drift against the energy exchanged (1e-5). The results are written to
 ``gmsh_pendulum.h5`` during the run, with a ParaView series (``gmsh_pendulum_vtu/``) and a
-rendered animation (``gmsh_pendulum.gif``) of the deformed mesh, in the folder given as the
+rendered animation (``gmsh_pendulum.gif``) of the deformed mesh and the interactive viewer
+(``gmsh_pendulum.html``, coloured by stress), in the folder given as the
 first argument (default: a temporary folder).
 
 Needs gmsh (``pip install flexmbd[mesh]``).
@@ -98,6 +99,9 @@ def main(folder: Path) -> int:
     render_animation(back, folder / "gmsh_pendulum.gif")
     render_image(back, folder / "gmsh_pendulum.png", record=len(back) // 2)
     print(f"ParaView series {pvd}, animation {folder / 'gmsh_pendulum.gif'}")
+    # The interactive viewer (needs plotly: pip install flexmbd[view]), coloured by stress.
+    page = fm.view(back, folder / "gmsh_pendulum.html", color_by="stress")
+    print(f"viewer {page} ({page.stat().st_size / 1e6:.1f} MB): open it in a browser")
     return int(drift > 1e-5 or not same)
 
 

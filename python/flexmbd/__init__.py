@@ -68,6 +68,7 @@ from .state_space import (
 )
 from .study import Study, load_study
 from .system import System
+from .viewer import view
 from .waves import AxialPulse, axial_pulse
 
 __all__ = [
@@ -136,4 +137,5 @@ __all__ = [
     "dispersion",
     "AxialPulse",
     "axial_pulse",
+    "view",
 ]

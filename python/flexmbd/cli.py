@@ -613,6 +613,46 @@ def _modes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _view(args: argparse.Namespace) -> int:
+    from .viewer import view
+
+    options = {"max_frames": args.max_frames, "scale": args.scale, "color_by": args.color}
+    try:
+        if Path(args.source).suffix.lower() == ".h5":
+            if args.modes is not None:
+                raise InvalidParameterError("--modes is for a model file or built-in example")
+            written = view(args.source, args.output, **options)
+        elif args.modes is None:
+            raise InvalidParameterError(
+                f"{args.source!r} is not a results file (.h5): give --modes to view the mode "
+                "shapes of a model, or run it (flexmbd run) and view its results file"
+            )
+        else:
+            from .analysis import equilibrium, linearize, steady_rotation
+            from .errors import InvalidModelError
+
+            job = _job(args.source)
+            model = job.system.compile()
+            try:
+                state = steady_rotation(model)
+            except InvalidModelError:
+                state = equilibrium(model)
+            output = args.output or f"{job.stem}_modes.html"
+            written = view(
+                linearize(model, state), output, model=model, modes=args.modes, **options
+            )
+    except BrokenPipeError:
+        raise
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd view: {error}", file=sys.stderr)
+        return 2
+    except ImportError as error:
+        print(f"flexmbd view: {error} (pip install flexmbd[view])", file=sys.stderr)
+        return 2
+    print(f"written: {written} ({written.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
 def _schema(args: argparse.Namespace) -> int:
     from .model_file import model_schema
 
@@ -843,6 +883,25 @@ def _main(argv: list[str] | None) -> int:
     )
     modes.add_argument("--frames", type=int, default=24, help="frames per period (default 24)")
     modes.add_argument("-o", "--output", help="output stem (default: the model's name)")
+    view = sub.add_parser(
+        "view",
+        help="write an interactive viewer (one HTML page, opens offline) of a results file, or "
+        "of a model's mode shapes",
+    )
+    view.add_argument("source", help="results file (.h5), or with --modes a model or example")
+    view.add_argument("-o", "--output", help="HTML file (default: RESULTS.html)")
+    view.add_argument(
+        "--max-frames", type=int, default=200, help="most records stored (default 200)"
+    )
+    view.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
+    view.add_argument(
+        "--color",
+        default="displacement",
+        help="colour: displacement (default), stress (solids) or none",
+    )
+    view.add_argument(
+        "--modes", type=int, help="view this many mode shapes of a model (as flexmbd modes)"
+    )
     args = parser.parse_args(argv)
     commands = {
         "sweep": sweep,
@@ -853,6 +912,7 @@ def _main(argv: list[str] | None) -> int:
         "plot": _plot,
         "animate": _animate,
         "schema": _schema,
+        "view": _view,
     }
     if args.command in commands:
         return commands[args.command](args)
