@@ -304,13 +304,10 @@ def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalB
             form_i_kl=form_i_kl,
         )
         invariants, scalar = assembled.invariants, assembled.scalar_mass
+    elif body.dofs_per_node == 6:
+        scalar = None
+        invariants = preprocess.rotational_matrix_invariants(body.nodes, mass)
     else:
-        if body.dofs_per_node != 3:
-            raise InvalidModelError(
-                "with_modes: a body without a mesh needs 3 coordinates per node, got "
-                f"{body.dofs_per_node}",
-                item="field 'dofs_per_node'",
-            )
         scalar = preprocess._scalar_mass(mass)
         invariants = preprocess._matrix_invariants(body.nodes, scalar, form_i_kl=form_i_kl)
     return preprocess.NodalBody(

@@ -822,7 +822,9 @@ def body_from_matrices(
 ) -> FlexibleBodyData:
     """A body from stiffness and mass matrices computed elsewhere (another FE code, e.g.
     `mesh_io.read_abaqus_matrix`, or NumPy/SciPy arrays), over the three displacements of each
-    of the `nodes` (n, 3) (node-major: row 3 i + k is displacement k of node i).
+    of the `nodes` (n, 3) (node-major: row 3 i + k is displacement k of node i), or over three
+    displacements and three small rotations of each (6 n rows: beams and shells; row 6 i + 3 +
+    k is rotation k of node i; invariants as in `rotational_matrix_invariants`).
 
     The invariants of motion are derived from the mass matrix, which must have the structure
     of a solid's, M = M_s (x) I_3 (each displacement direction carries the same scalar mass
@@ -844,13 +846,14 @@ def body_from_matrices(
         )
     k, m = matrices_from_arrays(stiffness, mass)
     n = len(nodes)
-    if k.shape[0] != 3 * n:
+    if k.shape[0] not in (3 * n, 6 * n):
         raise InvalidParameterError(
-            f"matrices of shape {k.shape} for {n} nodes: expected 3 coordinates per node ({3 * n})",
+            f"matrices of shape {k.shape} for {n} nodes: expected 3 coordinates per node "
+            f"({3 * n}) or 6 ({6 * n})",
             item="stiffness matrix",
         )
     choice(mass_kind, "mass_kind", MASS_KINDS)
-    scalar = _scalar_mass(m)
+    dofs_per_node = k.shape[0] // n if n else 3
     ids = (
         np.arange(1, n + 1, dtype=np.int64)
         if node_ids is None
@@ -859,13 +862,18 @@ def body_from_matrices(
     if ids.shape != (n,) or len(np.unique(ids)) != n:
         raise InvalidParameterError(f"node_ids must be {n} distinct ids", item="node_ids")
     sets = _node_sets(node_sets)
-    invariants = _matrix_invariants(nodes, scalar, form_i_kl=modes is None)
+    if dofs_per_node == 6:
+        scalar = None
+        invariants = rotational_matrix_invariants(nodes, m)
+    else:
+        scalar = _scalar_mass(m)
+        invariants = _matrix_invariants(nodes, scalar, form_i_kl=modes is None)
     if not invariants["mass"] > 0:
         raise InvalidModelError(
             f"the mass matrix gives a total mass of {invariants['mass']:g}", item="mass matrix"
         )
     nodal = NodalBody(
-        dofs_per_node=3, stiffness=k, mass=m, invariants=invariants, scalar_mass=scalar
+        dofs_per_node=dofs_per_node, stiffness=k, mass=m, invariants=invariants, scalar_mass=scalar
     )
     clock.lap("assemble")
     return _body_from_nodal(
@@ -908,6 +916,107 @@ def _matrix_invariants(
         "i1": np.einsum("ka,j->kja", eye, column_sums).reshape(3, 3 * n),
         "ibar": np.einsum("kj,la->klja", weighted, eye).reshape(3, 3, 3 * n),
         "i_kl": solid_i_kl(scalar) if form_i_kl else None,
+    }
+
+
+_EPS = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _EPS[_i, _j, _k], _EPS[_i, _k, _j] = 1.0, -1.0
+
+
+def rotational_matrix_invariants(nodes: NDArray[np.float64], m: sp.csc_matrix) -> dict[str, Any]:
+    """Nodal invariants of a body of 6-coordinate nodes (3 displacements, 3 small rotations:
+    beams and shells from another FE code) from its mass matrix M alone (see
+    `body_from_matrices`).
+
+    Exact for every mass matrix that moves rigidly with rigid motions (consistent or lumped):
+    the mass, first moment and second moment from the rigid modes (T^T M T, T^T M R, R^T M R;
+    rotary inertia included), I1 = T^T M and the antisymmetric part of Ibar from R^T M (R_c:
+    the rotation about axis c through the frame's origin). Lumped-mass approximation (exact
+    for a lumped mass matrix): the symmetric part of Ibar and I_kl from each node's mass m_i
+    (its share of the rigid translation, I1) and rotary inertia J_i (the node's rotational
+    block of M), as mass points around the node; the consistent mass beyond the lumped one is
+    added to the I_aa so that sum_a I_aa = M (the elastic mass is M exactly)."""
+    n = len(nodes)
+    m = sp.csc_matrix(m)
+    rows = np.arange(n) * 6
+    eye = np.eye(3)
+    # Rigid translations T_a and rotations R_c as (6n, 3) matrices.
+    t = np.zeros((6 * n, 3))
+    r = np.zeros((6 * n, 3))
+    for a in range(3):
+        t[rows + a, a] = 1.0
+        for c in range(3):
+            r[rows + a, c] = np.cross(eye[c], nodes)[:, a]
+        r[rows + 3 + a, a] = 1.0
+    mt = np.asarray(m @ t)  # (6n, 3): column a = M T_a
+    mr = np.asarray(m @ r)
+    tmt = t.T @ mt
+    mass = float(np.trace(tmt)) / 3.0
+    scale = max(abs(mass), 1e-300)
+    if np.abs(tmt - mass * eye).max() > 1e-9 * scale:
+        raise InvalidModelError(
+            f"the mass matrix gives the rigid translations the masses {np.diag(tmt).tolist()} "
+            "(and couplings): a mass matrix must carry the same mass in every direction",
+            item="mass matrix",
+        )
+    coupling = t.T @ mr  # [a, c] = eps_ack s0_k
+    first = 0.5 * np.einsum("ack,ac->k", _EPS, coupling)
+    inertia = r.T @ mr  # the inertia tensor about the origin
+    inertia = 0.5 * (inertia + inertia.T)
+    second = 0.5 * np.trace(inertia) * eye - inertia
+    i1 = mt.T.copy()  # (3, 6n): T_a^T M
+    # Lumped parts: node masses and rotary second moments P_i = tr(J_i)/2 I - J_i.
+    node_mass = np.mean([i1[a, rows + a] for a in range(3)], axis=0)
+    blocks = np.array(
+        [m[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6].toarray() for i in range(n)]
+    ).reshape(n, 3, 3)
+    blocks = 0.5 * (blocks + blocks.transpose(0, 2, 1))
+    moments = 0.5 * np.einsum("i,ab->iab", np.trace(blocks, axis1=1, axis2=2), eye) - blocks
+    lumped = np.zeros((3, 3, 6 * n))
+    for b in range(3):
+        lumped[:, b, rows + b] = (node_mass[:, None] * nodes).T
+    # A rotation theta_c of node i moves its points by e_c x r: int r_a (e_c x r)_b.
+    rot = np.einsum("bcd,iad->iabc", _EPS, moments)  # [i, a, b, c]
+    for c in range(3):
+        lumped[:, :, rows + 3 + c] = rot[:, :, :, c].transpose(1, 2, 0)
+    symmetric = 0.5 * (lumped + lumped.transpose(1, 0, 2))
+    # (M R_c)_k = R_c^T M e_k = eps_cab Ibar_k(a, b): Ibar_k - Ibar_k^T = eps_abc (M R_c)_k.
+    antisymmetric = np.einsum("abc,kc->abk", _EPS, mr)
+    ibar = symmetric + 0.5 * antisymmetric
+    i_kl = [[None] * 3 for _ in range(3)]
+    for a in range(3):
+        for b in range(3):
+            # Translations: int (e_a . e_a)(e_b . e_b) dm = m_i at (a of node i, b of node i).
+            entries_r, entries_c, values = list(rows + a), list(rows + b), list(node_mass)
+            # Rotations c, d of node i: int (e_c x r)_a (e_d x r)_b = eps_ace eps_bdf P_ef.
+            block = np.einsum("ce,df,ief->icd", _EPS[a], _EPS[b], moments)
+            for c in range(3):
+                for d in range(3):
+                    entries_r += list(rows + 3 + c)
+                    entries_c += list(rows + 3 + d)
+                    values += list(block[:, c, d])
+            i_kl[a][b] = sp.csc_matrix((values, (entries_r, entries_c)), shape=(6 * n, 6 * n))
+    # The elastic mass M_ff = sum_a I_aa must be M itself: the rest D = M - sum_a I_aa (the
+    # consistent mass beyond the lumped one) goes to the direction of its coordinates (entries
+    # between displacements of one direction), else to the three directions in equal parts.
+    rest = (m - sum(i_kl[a][a] for a in range(3))).tocoo()
+    kind_r, kind_c = rest.row % 6, rest.col % 6
+    same = (kind_r == kind_c) & (kind_r < 3)
+    shared = sp.csc_matrix(
+        (rest.data[~same] / 3.0, (rest.row[~same], rest.col[~same])), shape=rest.shape
+    )
+    for a in range(3):
+        mine = same & (kind_r == a)
+        own = sp.csc_matrix((rest.data[mine], (rest.row[mine], rest.col[mine])), shape=rest.shape)
+        i_kl[a][a] = (i_kl[a][a] + own + shared).tocsc()
+    return {
+        "mass": mass,
+        "first_moment": first,
+        "second_moment": 0.5 * (second + second.T),
+        "i1": i1,
+        "ibar": ibar,
+        "i_kl": i_kl,
     }
 
 
