@@ -436,3 +436,42 @@ def test_preprocess_checks_its_output_before_preprocessing(tmp_path, capsys):
         assert main(["preprocess", str(mesh), "-o", output, *material]) == 2
         assert message in capsys.readouterr().err
     assert mesh.read_text().startswith("*")
+
+
+def _documented_commands(text: str, program: str) -> list[str]:
+    """The ``flexmbd ...`` command lines of the sh blocks of a Markdown text that mention the
+    shipped mesh, with their continuation lines joined and comments dropped."""
+    import re
+
+    commands = []
+    for block in re.findall(r"```sh\n(.*?)```", text, flags=re.S):
+        joined = block.replace("\\\n", " ")
+        for line in joined.splitlines():
+            line = line.split("#")[0].strip()
+            if line.startswith(program) and "examples/meshes/arm.msh" in line:
+                commands.append(line)
+    return commands
+
+
+def test_the_documented_mesh_commands_run_verbatim(tmp_path, monkeypatch, capsys):
+    """README, getting-started and preprocessor.md use examples/meshes/arm.msh with its
+    groups root and tip; their commands run as written from the repository's folder."""
+    import shlex
+    from pathlib import Path
+
+    root = Path(__file__).parents[1]
+    monkeypatch.chdir(root)
+    seen = 0
+    for doc in ("README.md", "docs/getting-started.md", "docs/preprocessor.md"):
+        commands = _documented_commands((root / doc).read_text(), "flexmbd ")
+        assert commands, doc
+        for command in commands:
+            argv = shlex.split(command)[1:]
+            if "-o" in argv:  # the body file goes to the test's folder, not the repository
+                k = argv.index("-o") + 1
+                argv[k] = str(tmp_path / argv[k])
+            assert main(argv) == 0, (doc, command, capsys.readouterr().err)
+            seen += 1
+    assert seen >= 4
+    out = capsys.readouterr().out
+    assert "group 'tip': 18 nodes" in out and "interface 1 (rbe2): 18 nodes" in out

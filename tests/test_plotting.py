@@ -52,6 +52,10 @@ def test_plot_result_writes_one_png_with_all_default_panels(slider_crank, tmp_pa
     ]
     notes = plotting.overview_notes(slider_crank)
     assert notes[0].startswith("constraint violation at most") and "(round-off)" in notes[0]
+    assert (
+        "Note: constraint violation at most"
+        in plotting.plot_quantities(slider_crank).get_supxlabel()
+    )
     # A grid of three columns that fits a screen, every axis with its unit.
     with Image.open(files[0]) as image:
         width, height = image.size

@@ -7,10 +7,13 @@ into a given matplotlib ``Axes`` (or a new figure) and return it.
 Quantity names
 --------------
 ===========================  =================================================================
-``energy``                   kinetic, potential and total energy (J), and the drift of the
-                             total energy, E(t) - E(0) (J), in a second panel
-``drift``                    the drift of the total energy only
+``energy``                   kinetic, potential and total energy (J), and in a second panel
+                             the balance with the drivers' work (drivers) or the drift
+                             E(t) - E(0) (no work done on the model)
+``drift``                    the drift (change) of the total energy only
+``balance``                  E(t) - E(0), the drivers' work and their difference (J)
 ``violation``                largest |C(q, t)| of the constraint equations per record
+``joints``                   angles (rad) and slides (m) of the joints that move
 ``bodies``                   positions of the origins of all moving bodies, one panel each
 ``position:BODY``            position of a body frame origin (m, global), x, y, z
 ``velocity:BODY``            its velocity (m/s, global)
@@ -23,9 +26,11 @@ Quantity names
                              for beams, the largest axial force and bending moment
 ``reaction:JOINT``           reaction force (N) and torque (N m) of a joint, in the axes of
                              its second marker, two panels
-``reactions``                magnitudes of the reaction forces of all joints
-``efforts``                  driving torques (N m) of the angle drivers and forces (N) of the
-                             translation drivers, signed, one panel per unit
+``reactions``                magnitudes of the reaction forces (and torques) of all joints
+                             but the drivers
+``efforts``                  driving torques (N m) of the angle drivers and actuators and
+                             forces (N) of the translation drivers and actuators, signed,
+                             one panel per unit
 ``sensor:SENSOR``            the values of a sensor
 ===========================  =================================================================
 
@@ -869,7 +874,7 @@ def plot_result(
     suffix = target.suffix.lower()
     if suffix in IMAGE_SUFFIXES:
         target.parent.mkdir(parents=True, exist_ok=True)
-        figure = plot_quantities(result, names)
+        figure = plot_quantities(result, None if quantities is None else names)
         figure.savefig(target, dpi=dpi)
         return [target]
     if suffix:
