@@ -10,6 +10,8 @@ rendered animation (``gmsh_pendulum.gif``) of the deformed mesh and the interact
 (``gmsh_pendulum.html``, coloured by stress), in the folder given as the
 first argument (default: a temporary folder).
 
+``python examples/gmsh_pendulum.py --mesh FILE`` only writes the mesh to FILE.
+
 Needs gmsh (``pip install flexmbd[mesh]``).
 """
 
@@ -25,7 +27,9 @@ from flexmbd.fe import Material, body_from_mesh, von_mises
 
 def mesh_arm(path: Path) -> None:
     """The arm in Gmsh (OpenCASCADE): a box minus a cylinder, the end face x = 0 a physical
-    surface "root", the volume a physical volume "arm"."""
+    surface "root", the end face x = 0.4 m a physical surface "tip", the volume a physical
+    volume "arm". ``examples/meshes/arm.msh``, the mesh the documentation's commands use, is
+    this mesh (``python examples/gmsh_pendulum.py --mesh examples/meshes/arm.msh``)."""
     import gmsh
 
     gmsh.initialize(interruptible=False)
@@ -41,7 +45,13 @@ def mesh_arm(path: Path) -> None:
             for dim, tag in gmsh.model.getEntities(2)
             if np.allclose(gmsh.model.occ.getCenterOfMass(dim, tag)[0], 0.0)
         ]
+        tip = [
+            tag
+            for dim, tag in gmsh.model.getEntities(2)
+            if np.allclose(gmsh.model.occ.getCenterOfMass(dim, tag)[0], 0.4)
+        ]
         gmsh.model.addPhysicalGroup(2, root, name="root")
+        gmsh.model.addPhysicalGroup(2, tip, name="tip")
         gmsh.model.addPhysicalGroup(3, [volume[1]], name="arm")
         gmsh.option.setNumber("Mesh.MeshSizeMax", 0.01)
         gmsh.model.mesh.generate(3)
@@ -106,6 +116,9 @@ def main(folder: Path) -> int:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "--mesh":
+        mesh_arm(Path(sys.argv[2]))
+        raise SystemExit(0)
     if len(sys.argv) > 1:
         raise SystemExit(main(Path(sys.argv[1])))
     with tempfile.TemporaryDirectory() as folder:

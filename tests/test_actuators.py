@@ -248,6 +248,11 @@ def test_the_effort_is_recorded_and_plotted(assert_close, tmp_path):
     )
     entry = next(s for s in result.layout["sensors"] if s["name"] == "servo effort")
     assert entry["quantity"] == "actuator torque (N m)"
-    assert "sensor:servo effort" in plotting.default_quantities(result)
+    assert "efforts" in plotting.default_quantities(result)
+    assert "sensor:servo effort" not in plotting.default_quantities(result)
+    ax = plotting.plot_efforts(result, "angle driver")  # the torques: drivers and actuators
+    (line,) = ax.get_lines()
+    assert line.get_label() == "servo effort"
+    np.testing.assert_array_equal(line.get_ydata(), effort)
     ax = plotting.plot_sensor(result, "servo effort")
     assert ax.get_ylabel().startswith("actuator torque (N m)")

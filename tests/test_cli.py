@@ -280,11 +280,80 @@ def test_run_a_model_file_prints_its_outputs(capsys, assert_close):
     assert main(["run", str(model), "-o", "r4.h5", *QUIET]) == 0
     out = capsys.readouterr().out
     # R4: the largest midpoint deflection 4.658e-3 m near t = 0.078 s.
-    line = out.split("midpoint deflection: largest |value|")[1]
+    line = out.split("midpoint deflection: largest magnitude")[1]
     deflection, time_of = float(line.split()[0]), float(line.split("t =")[1].split()[0])
     assert_close(deflection, 4.658e-3, rel=0.03, what="largest midpoint deflection")
     assert_close(time_of, 0.078, abs=0.002, what="time of the largest deflection")
-    assert "drive reaction_torque: largest |value|" in out
+    assert " m at t = " in line.splitlines()[0]
+    # Units everywhere; vectors by their magnitude, energies by their extremes.
+    assert "drive reaction_torque: largest magnitude " in out
+    assert out.split("drive reaction_torque: largest magnitude ")[1].split()[1:3] == ["N", "m"]
+    energy = out.split("total_energy: smallest ")[1].splitlines()[0]
+    assert energy.count(" J at t = ") == 2, energy
+    assert "largest constraint violation" in out and " m or rad" in out
+    # Named after the model file's stem, not its `name:` (the built-in example's name).
+    assert main(["run", str(model), "--end", "0.002", "--no-animation", "-q"]) == 0
+    assert (
+        Path("flexible_slider_crank.h5").is_file() and Path("flexible_slider_crank.png").is_file()
+    )
+    assert not Path("flexible-slider-crank.h5").exists()
+
+
+def test_a_model_file_named_like_a_built_in_example_writes_files_of_its_own(capsys):
+    from pathlib import Path
+
+    model = Path(__file__).parents[1] / "examples" / "models" / "pendulum.yaml"
+    assert main(["run", "pendulum", "--end", "0.01", "--no-animation", "-q"]) == 0
+    assert main(["run", str(model), "--end", "0.01", "--no-animation", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "results: pendulum.h5" in out and "results: pendulum_model.h5" in out
+    sources = [
+        read_results_metadata(f)["metadata"]["source"] for f in ("pendulum.h5", "pendulum_model.h5")
+    ]
+    assert sources[0] == "built-in example 'pendulum'" and sources[1].endswith("pendulum.yaml")
+
+
+def test_plot_takes_quantities_after_the_output_option(tmp_path, capsys):
+    """The command line of docs/getting-started.md, verbatim (bar the file names)."""
+    from flexmbd.examples import flexible_slider_crank
+
+    example = flexible_slider_crank()
+    fm.simulate(
+        example.system,
+        2e-3,
+        1e-4,
+        output_interval=5e-4,
+        results_file=tmp_path / "flexible-slider-crank.h5",
+    )
+    argv = "plot flexible-slider-crank.h5 -o deflection.svg deflection:rod reaction:guide"
+    assert main(argv.split()) == 0
+    svg = (tmp_path / "deflection.svg").read_text()
+    assert "Deflection of rod" in svg or "<svg" in svg[:500]
+    # Three panels: the deflection, the guide's reaction force and torque.
+    from flexmbd import plotting
+
+    figure = plotting.plot_quantities(
+        fm.read_results(tmp_path / "flexible-slider-crank.h5"), ["deflection:rod", "reaction:guide"]
+    )
+    assert len([ax for ax in figure.axes if ax.get_visible()]) == 3
+    with pytest.raises(SystemExit) as stopped:
+        main(["plot", "flexible-slider-crank.h5", "-o", "x.svg", "energy", "--bogus"])
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments" in err and "--bogus" in err
+
+
+def test_info_summarizes_a_mesh_file(capsys):
+    from pathlib import Path
+
+    mesh = Path(__file__).parents[1] / "examples" / "meshes" / "arm.msh"
+    assert main(["info", str(mesh)]) == 0
+    out = capsys.readouterr().out
+    assert "gmsh mesh, 702 nodes, 2054 tet4" in out
+    assert "bounding box x 0 .. 0.4, y -0.02 .. 0.02, z -0.01 .. 0.01" in out
+    assert "group 'root': 18 nodes; no elements" in out
+    assert "group 'tip': 18 nodes; no elements" in out
+    assert "group 'arm': 702 nodes; elements: 2054 tet4" in out
 
 
 GAP = """
@@ -367,3 +436,42 @@ def test_preprocess_checks_its_output_before_preprocessing(tmp_path, capsys):
         assert main(["preprocess", str(mesh), "-o", output, *material]) == 2
         assert message in capsys.readouterr().err
     assert mesh.read_text().startswith("*")
+
+
+def _documented_commands(text: str, program: str) -> list[str]:
+    """The ``flexmbd ...`` command lines of the sh blocks of a Markdown text that mention the
+    shipped mesh, with their continuation lines joined and comments dropped."""
+    import re
+
+    commands = []
+    for block in re.findall(r"```sh\n(.*?)```", text, flags=re.S):
+        joined = block.replace("\\\n", " ")
+        for line in joined.splitlines():
+            line = line.split("#")[0].strip()
+            if line.startswith(program) and "examples/meshes/arm.msh" in line:
+                commands.append(line)
+    return commands
+
+
+def test_the_documented_mesh_commands_run_verbatim(tmp_path, monkeypatch, capsys):
+    """README, getting-started and preprocessor.md use examples/meshes/arm.msh with its
+    groups root and tip; their commands run as written from the repository's folder."""
+    import shlex
+    from pathlib import Path
+
+    root = Path(__file__).parents[1]
+    monkeypatch.chdir(root)
+    seen = 0
+    for doc in ("README.md", "docs/getting-started.md", "docs/preprocessor.md"):
+        commands = _documented_commands((root / doc).read_text(), "flexmbd ")
+        assert commands, doc
+        for command in commands:
+            argv = shlex.split(command)[1:]
+            if "-o" in argv:  # the body file goes to the test's folder, not the repository
+                k = argv.index("-o") + 1
+                argv[k] = str(tmp_path / argv[k])
+            assert main(argv) == 0, (doc, command, capsys.readouterr().err)
+            seen += 1
+    assert seen >= 4
+    out = capsys.readouterr().out
+    assert "group 'tip': 18 nodes" in out and "interface 1 (rbe2): 18 nodes" in out

@@ -91,7 +91,7 @@ def test_the_base_model_loads(tmp_path):
     """The base of every case here is valid: each case fails for its own edit."""
     model = load_model(write(tmp_path, BASE))
     assert set(model.bodies) == {"arm", "rod", "block"}
-    assert model.file_stem == "limits"
+    assert model.file_stem == "model"  # the file's stem, not its name
 
 
 # 1. Size limits, checked before YAML composes the file -----------------------------------------
@@ -462,17 +462,23 @@ def test_a_model_name_that_would_be_a_path_is_refused(name, problem, tmp_path):
     ],
 )
 def test_the_file_stem_is_a_plain_file_name(name, stem, tmp_path):
-    model = load_model(write(tmp_path, edited("name: limits", f"name: {json.dumps(name)}")))
+    # The model file's stem names the outputs: a file whose own stem is nothing (".yaml")
+    # falls back to the model's name, made a stem the same way.
+    model = load_model(
+        write(tmp_path, edited("name: limits", f"name: {json.dumps(name)}"), "...yaml")
+    )
     assert model.name == name
     assert model.file_stem == stem
     assert len(model.file_stem.encode()) <= 120
     assert os.path.basename(model.file_stem) == model.file_stem
 
 
-def test_the_file_stem_of_a_file_without_a_name_is_the_file_stem(tmp_path):
+def test_the_file_stem_is_the_model_files_stem(tmp_path):
     text = edited("name: limits\n", "")
     assert load_model(write(tmp_path, text, "pendulum.v2.yaml")).file_stem == "pendulum.v2"
     assert load_model(write(tmp_path, text, "...yaml")).file_stem == "model"
+    assert load_model(write(tmp_path, BASE, "crank: v2.yaml")).file_stem == "crank_ v2"
+    assert load_model(write(tmp_path, BASE, "four_bar.yaml")).file_stem == "four_bar"
 
 
 # 7. Tags that would run code stay refused; files that are not regular files ---------------

@@ -40,15 +40,44 @@ def test_plot_result_writes_one_png_with_all_default_panels(slider_crank, tmp_pa
     files = plotting.plot_result(slider_crank, tmp_path / "crank.png")
     assert files == [tmp_path / "crank.png"]
     assert_rich_image(files[0])
+    # Chosen by what the model has: no constraint violation (round-off), no positions (the
+    # crank's frame sits on its pivot; the joints' angles and slides say how it moves).
     assert plotting.default_quantities(slider_crank) == [
         "energy",
-        "violation",
-        "bodies",
-        "reactions",
+        "joints",
         "efforts",
+        "reactions",
         "deflection:rod",
         "stress:rod",
     ]
+    notes = plotting.overview_notes(slider_crank)
+    assert notes[0].startswith("constraint violation at most") and "(round-off)" in notes[0]
+    assert (
+        "Note: constraint violation at most"
+        in plotting.plot_quantities(slider_crank).get_supxlabel()
+    )
+    # A grid of three columns that fits a screen, every axis with its unit.
+    with Image.open(files[0]) as image:
+        width, height = image.size
+    assert width <= 1920 and height <= 1200, (width, height)
+    figure = plotting.plot_quantities(slider_crank)
+    axes = [ax for ax in figure.axes if ax.get_visible()]
+    assert len(axes) == 9 and len({round(ax.get_position().x0, 3) for ax in axes}) == 3
+    for ax in axes:
+        assert ax.get_ylabel().endswith(")"), ax.get_ylabel()
+
+
+def test_legends_are_beside_the_curves_not_over_them(slider_crank):
+    import matplotlib
+
+    figure = plotting.plot_quantities(slider_crank, ["joints", "reactions"])
+    figure.canvas = matplotlib.backends.backend_agg.FigureCanvasAgg(figure)
+    renderer = figure.canvas.get_renderer()
+    for ax in figure.axes:
+        legend = ax.get_legend()
+        assert legend is not None
+        box, frame = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
+        assert box.x0 >= frame.x1 - 1.0, (ax.get_title(), box, frame)
 
 
 def test_plot_result_writes_one_svg_per_quantity(slider_crank, tmp_path):
@@ -75,7 +104,9 @@ def test_comma_separated_quantities(four_bar, tmp_path):
     [
         ("energy", 2),
         ("drift", 1),
+        ("balance", 1),
         ("violation", 1),
+        ("joints", 2),
         ("bodies", 3),
         ("position:crank", 1),
         ("velocity:slider", 1),
@@ -87,6 +118,7 @@ def test_comma_separated_quantities(four_bar, tmp_path):
         ("stress:rod", 2),
         ("reaction:crank pin", 2),
         ("reactions", 1),
+        ("efforts", 1),
     ],
 )
 def test_every_quantity_kind_draws(slider_crank, quantity, panels):
@@ -162,9 +194,73 @@ def test_names_are_checked_before_anything_is_written(slider_crank, tmp_path):
 def test_energy_panel_of_a_driven_model_is_called_a_change_not_a_drift(slider_crank, four_bar):
     # The crank's driver does work: E changes by design; the four-bar conserves it.
     driven = plotting.plot_energy_drift(slider_crank).get_title()
-    assert driven.startswith("Change of the total energy (work of drivers and forces)")
+    assert driven.startswith("Change of the total energy (work done)")
     free = plotting.plot_energy_drift(four_bar).get_title()
-    assert free.startswith("Drift of the total energy") and "kinetic energy" in free
+    assert free.startswith("Energy drift") and "kinetic energy" in free
+    # The overview's second energy panel: the balance with the drivers' work (driven), the
+    # drift (conservative), never the change of E alone (the energy panel has the total).
+    driven_panels = plotting.plot_quantities(slider_crank, ["energy"]).axes
+    assert driven_panels[1].get_title().startswith("Energy balance")
+    free_panels = plotting.plot_quantities(four_bar, ["energy"]).axes
+    assert free_panels[1].get_title().startswith("Energy drift")
+
+
+def _driven_arm(output_interval):
+    """A rigid arm (inertia J about z) turned by an angle driver through a quintic step of
+    1 rad in 1 s: the driver's work is the kinetic energy 0.5 J f'(t)^2."""
+    system = fm.System()
+    arm = system.add_rigid_body(2.0, (0.1, 0.1, 0.5), name="arm")
+    ground, own = system.add_marker(system.ground), system.add_marker(arm)
+    system.add_revolute_joint(ground, own, name="hinge")
+    system.add_angle_driver(ground, own, fm.Step(0.0, 1.0, 0.0, 1.0, shape="quintic"), name="drive")
+    return fm.simulate(system, 1.0, 1e-3, output_interval=output_interval)
+
+
+def test_the_drivers_work_is_the_kinetic_energy_they_give(assert_close):
+    from flexmbd.quantities import driver_work, joint_coordinates
+
+    result = _driven_arm(1e-3)  # a record every step
+    s = result.time
+    rate = 30 * s**2 - 60 * s**3 + 30 * s**4  # f'(t) of 10 s^3 - 15 s^4 + 6 s^5
+    # Largest kinetic energy 0.5 J (15/8)^2 = 0.88 J; trapezoidal work over the steps.
+    assert_close(driver_work(result), 0.5 * 0.5 * rate**2, abs=1e-5, what="work of the driver")
+    ((name, kind, angle, angle_rate),) = joint_coordinates(result)  # the driver is the hinge's
+    assert (name, kind) == ("hinge", "angle")
+    assert_close(angle, 10 * s**3 - 15 * s**4 + 6 * s**5, abs=1e-6, what="hinge angle")
+    assert_close(angle_rate, rate, abs=5e-5, what="hinge angle rate")  # the solver: 1e-5
+    ax = plotting.plot_energy_balance(result)
+    change, work, difference = (line.get_ydata() for line in ax.get_lines())
+    assert np.max(np.abs(difference)) < 1e-5 * np.max(work)
+    np.testing.assert_array_equal(change, result.total_energy - result.total_energy[0])
+
+
+def test_under_sampled_vibrations_are_noted(tet_pendulum, capsys):
+    # The tetrahedral arm vibrates at ~2.4 kHz (its first modes); records 0.01 s apart.
+    notes = plotting.sampling_notes(tet_pendulum)
+    assert len(notes) == 1 and notes[0].startswith("arm: a mode at ")
+    frequency = float(notes[0].split("a mode at ")[1].split()[0])
+    assert 1000.0 < frequency < 5000.0
+    figure = plotting.plot_quantities(tet_pendulum)
+    assert "under-sampled" in figure.get_supxlabel()
+
+
+def test_records_fine_enough_give_no_sampling_note():
+    from conftest import run_example
+
+    result = run_example("flexible-slider-crank", 0.004, 2e-5)
+    assert plotting.sampling_notes(result) == []
+
+
+def test_a_violation_above_round_off_is_drawn_without_spikes(slider_crank):
+    import copy
+
+    assert "violation" not in plotting.default_quantities(slider_crank)
+    drifting = copy.copy(slider_crank)
+    drifting.constraint_violation = np.where(np.arange(len(slider_crank)) % 2, 1e-6, 0.0)
+    assert "violation" in plotting.default_quantities(drifting)
+    ax = plotting.plot_constraint_violation(drifting)
+    low, high = ax.get_ylim()
+    assert ax.get_yscale() == "log" and low >= 1e-14 and high >= 1e-6
 
 
 def test_efforts_are_the_signed_driving_torques(slider_crank, tmp_path):

@@ -73,6 +73,8 @@ class _Job:
     start: str = "given"
     #: The stem of the output files' names (never a path).
     stem: str = "results"
+    #: The outputs of a model file (:class:`flexmbd.model_file.building.Output`), for units.
+    output_specs: list[Any] | None = None
 
 
 def _job(model: str) -> _Job:
@@ -113,8 +115,15 @@ def _job(model: str) -> _Job:
         outputs=loaded.output_values,
         start_time=loaded.start_time,
         start=loaded.start,
-        stem=loaded.file_stem,
+        stem=_model_stem(loaded.file_stem),
+        output_specs=list(loaded.outputs),
     )
+
+
+def _model_stem(stem: str) -> str:
+    """The stem of a model file's output files: its file stem, with ``_model`` appended when
+    that is the name of a built-in example (whose files ``flexmbd run NAME`` writes)."""
+    return f"{stem}_model" if stem in EXAMPLES else stem
 
 
 class _ProgressBar:
@@ -187,21 +196,34 @@ def _print_summary(result: Any, elapsed: float) -> None:
         print(f"  ... {len(result.events) - 10} more events")
     if len(result):
         energy = result.total_energy
-        print(f"  largest constraint violation {result.constraint_violation.max():.2e}")
+        print(f"  largest constraint violation {result.constraint_violation.max():.2e} m or rad")
         print(f"  total energy {energy[0]:.6f} J -> {energy[-1]:.6f} J")
 
 
-def _print_outputs(outputs: dict[str, Any], times: Any) -> None:
-    """The largest absolute value of each output of a model file, with its time (SI)."""
+def _print_outputs(outputs: dict[str, Any], result: Any, specs: list[Any] | None = None) -> None:
+    """Each output of a model file summed up in one line, in SI units, by the kind of its
+    quantity (:func:`flexmbd.quantities.summarize`): positions by where they went, vectors by
+    their largest magnitude, energies by their extremes, ..."""
     import numpy as np
 
+    from .quantities import OUTPUT_UNITS, SENSOR_UNITS, summarize
+
+    times = result.time
+    kinds = {spec.label: spec for spec in specs or []}
+    sensors = {s["name"]: s.get("quantity") for s in result.layout["sensors"]}
     for label, values in outputs.items():
         values = np.asarray(values, dtype=float)
         if values.size == 0 or not len(times):
             continue
-        size = np.abs(values).reshape(len(times), -1).max(axis=1)
-        k = int(np.argmax(size))
-        print(f"  {label}: largest |value| {size[k]:.6g} at t = {times[k]:.6g} s")
+        spec = kinds.get(label)
+        if spec is not None and spec.kind == "sensor":
+            quantity = str(sensors.get(spec.item, ""))
+            unit = SENSOR_UNITS.get(quantity, "")
+            quantity = quantity.replace(" ", "_")
+        else:
+            quantity = str(getattr(spec, "quantity", "") or "")
+            unit = OUTPUT_UNITS.get(quantity, "")
+        print(f"  {label}: {summarize(values, times, quantity, unit)}")
 
 
 def _stop_on_sigterm() -> None:
@@ -312,7 +334,7 @@ def _run(args: argparse.Namespace) -> int:
         for name, value in job.check(result).items():
             print(f"  {name}: {value:.2e}")
     if job.outputs is not None:
-        _print_outputs(job.outputs(result), result.time)
+        _print_outputs(job.outputs(result), result, job.output_specs)
     print(f"  results: {results}")
     if not args.no_plot:
         from .plotting import plot_result
@@ -320,6 +342,7 @@ def _run(args: argparse.Namespace) -> int:
         plot = Path(args.plot) if args.plot else results.with_suffix(".png")
         written = plot_result(result, plot, quantities=job.plots)
         print(f"  plot: {', '.join(str(p) for p in written)}")
+        _print_notes(result, job.plots)
     if not args.no_animation:
         from .animation import render_animation, write_vtu_series
 
@@ -357,6 +380,10 @@ def _info(args: argparse.Namespace) -> int:
         if not path.exists():
             print(f"flexmbd info: no such file or example: {target}", file=sys.stderr)
             return 2
+        from .fe.mesh_io import MESH_FORMATS
+
+        if path.suffix.lower() in MESH_FORMATS:
+            return _info_mesh(path)
         import h5py
 
         if not h5py.is_hdf5(path):
@@ -435,6 +462,43 @@ def _info_results(path: Path) -> int:
     return 0
 
 
+def _info_mesh(path: Path) -> int:
+    """A mesh file: its nodes (ids, bounding box), elements by type, and its groups (node
+    sets; for each, the elements whose nodes all belong to it: an element set)."""
+    import numpy as np
+
+    from .fe.mesh_io import MESH_FORMATS, read_mesh
+
+    mesh = read_mesh(path)
+    kind = MESH_FORMATS[path.suffix.lower()]
+    elements = ", ".join(f"{len(c)} {t}" for t, c in mesh.elements.items()) or "no elements"
+    print(f"{path}: {kind} mesh, {mesh.node_count} nodes, {elements}")
+    if mesh.node_count:
+        ids = np.asarray(mesh.node_ids)
+        low, high = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
+        box = ", ".join(
+            f"{a} {lo:.6g} .. {hi:.6g}" for a, lo, hi in zip("xyz", low, high, strict=True)
+        )
+        print(f"  node ids {ids.min()} .. {ids.max()}; bounding box {box} (mesh units)")
+    if not mesh.node_sets:
+        print("  no groups (node or element sets)")
+    for name, members in mesh.node_sets.items():
+        inside = np.zeros(mesh.node_count, dtype=bool)
+        inside[np.asarray(members, dtype=np.int64)] = True
+        counts = [
+            f"{int(np.all(inside[c], axis=1).sum())} {t}"
+            for t, c in mesh.elements.items()
+            if len(c) and np.any(np.all(inside[c], axis=1))
+        ]
+        held = (
+            f"; elements: {', '.join(counts)}"
+            if counts
+            else "; no elements (a face, edge or point set)"
+        )
+        print(f"  group {name!r}: {len(members)} nodes{held}")
+    return 0
+
+
 def _info_body(path: Path) -> int:
     from .fe.body_file import load_body
 
@@ -485,6 +549,7 @@ def _plot(args: argparse.Namespace) -> int:
             result = read_results(args.results)
             output = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
             written = plot_result(result, output, quantities=args.quantity or None)
+            _print_notes(result, args.quantity)
     except BrokenPipeError:
         raise
     except (FlexmbdError, OSError) as error:
@@ -493,6 +558,16 @@ def _plot(args: argparse.Namespace) -> int:
     for path in written:
         print(f"written: {path}")
     return 0
+
+
+def _print_notes(result: Any, quantities: Any) -> None:
+    """The notes of the plot (:func:`flexmbd.plotting.overview_notes`, or the sampling notes
+    for chosen quantities)."""
+    from .plotting import overview_notes, sampling_notes
+
+    notes = overview_notes(result) if not quantities else sampling_notes(result)
+    for note in notes:
+        print(f"  note: {note}")
 
 
 def _animate(args: argparse.Namespace) -> int:
@@ -772,9 +847,11 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--no-plot", action="store_true", help="write no plot")
     run.add_argument("--no-animation", action="store_true", help="write no animation")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    info = sub.add_parser("info", help="summarize a model, body or results file, or a study")
+    info = sub.add_parser("info", help="summarize a model, body, results or mesh file, or a study")
     info.add_argument(
-        "file", help="model file (.yaml), body or results file (.h5), example, or study folder"
+        "file",
+        help="model file (.yaml), body or results file (.h5), mesh file (.msh, .inp, .vtu, "
+        ".vtk), example, or study folder",
     )
     plot = sub.add_parser("plot", help="plot a results file, or an output of a study")
     plot.add_argument("results", help="results file (.h5) or study folder")
@@ -902,7 +979,13 @@ def _main(argv: list[str] | None) -> int:
     view.add_argument(
         "--modes", type=int, help="view this many mode shapes of a model (as flexmbd modes)"
     )
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if args.command == "plot" and not any(text.startswith("-") for text in extra):
+        # Quantities after an option (``plot R.h5 -o x.svg deflection:rod``): argparse has
+        # already closed the positional list at the option.
+        args.quantity = [*args.quantity, *extra]
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     commands = {
         "sweep": sweep,
         "campbell": _campbell,

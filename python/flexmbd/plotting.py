@@ -7,10 +7,13 @@ into a given matplotlib ``Axes`` (or a new figure) and return it.
 Quantity names
 --------------
 ===========================  =================================================================
-``energy``                   kinetic, potential and total energy (J), and the drift of the
-                             total energy, E(t) - E(0) (J), in a second panel
-``drift``                    the drift of the total energy only
+``energy``                   kinetic, potential and total energy (J), and in a second panel
+                             the balance with the drivers' work (drivers) or the drift
+                             E(t) - E(0) (no work done on the model)
+``drift``                    the drift (change) of the total energy only
+``balance``                  E(t) - E(0), the drivers' work and their difference (J)
 ``violation``                largest |C(q, t)| of the constraint equations per record
+``joints``                   angles (rad) and slides (m) of the joints that move
 ``bodies``                   positions of the origins of all moving bodies, one panel each
 ``position:BODY``            position of a body frame origin (m, global), x, y, z
 ``velocity:BODY``            its velocity (m/s, global)
@@ -23,9 +26,11 @@ Quantity names
                              for beams, the largest axial force and bending moment
 ``reaction:JOINT``           reaction force (N) and torque (N m) of a joint, in the axes of
                              its second marker, two panels
-``reactions``                magnitudes of the reaction forces of all joints
-``efforts``                  driving torques (N m) of the angle drivers and forces (N) of the
-                             translation drivers, signed, one panel per unit
+``reactions``                magnitudes of the reaction forces (and torques) of all joints
+                             but the drivers
+``efforts``                  driving torques (N m) of the angle drivers and actuators and
+                             forces (N) of the translation drivers and actuators, signed,
+                             one panel per unit
 ``sensor:SENSOR``            the values of a sensor
 ===========================  =================================================================
 
@@ -46,12 +51,30 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import InvalidParameterError, UnknownItemError
-from .quantities import deformable, resolve_item
+from .quantities import (
+    JOINT_COORDINATES,
+    SENSOR_UNITS,
+    cumulative_integral,
+    deformable,
+    driver_power,
+    joint_coordinates,
+    resolve_item,
+    with_unit,
+)
 
 Array = NDArray[np.float64]
 
 #: Quantity kinds that take no item.
-PLAIN_QUANTITIES = ("energy", "drift", "violation", "bodies", "reactions", "efforts")
+PLAIN_QUANTITIES = (
+    "energy",
+    "drift",
+    "balance",
+    "violation",
+    "joints",
+    "bodies",
+    "reactions",
+    "efforts",
+)
 #: Quantity kinds that take an item after a colon.
 ITEM_QUANTITIES = (
     "position",
@@ -99,12 +122,27 @@ def _finish(
             ax.set_ylim(middle - floor, middle + floor)
     ax.set_xlabel("time (s)")
     ax.set_ylabel(ylabel)
-    ax.set_title(title)
+    ax.set_title(title, fontsize="medium")
     ax.grid(True, alpha=0.3)
     handles, _ = ax.get_legend_handles_labels()
     if legend and handles:
-        ax.legend(fontsize="small", loc="best")
+        _legend(ax, len(handles))
     return ax
+
+
+def _legend(ax: Any, count: int) -> None:
+    """A legend beside the axes (right of them, never over the curves)."""
+    size = "small" if count <= 6 else "x-small"
+    columns = 1 if count <= 12 else 2
+    ax.legend(
+        fontsize=size,
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        borderaxespad=0.0,
+        ncols=columns,
+        frameon=False,
+        handlelength=1.5,
+    )
 
 
 def _item_name(result: Any, kind: str, item: object) -> str:
@@ -119,13 +157,27 @@ def _item_name(result: Any, kind: str, item: object) -> str:
 
 
 # Energy and constraints ------------------------------------------------------------------------
+#: Largest |C(q, t)| (m or rad) that counts as round-off: the overview draws the constraint
+#: violation only above it (and says so in a note otherwise).
+VIOLATION_ROUND_OFF = 1e-10
+
+
 def plot_energy(result: Any, ax: Any = None) -> Any:
     """Kinetic, potential (gravity, springs, strain) and total energy (J) over time."""
     ax = _axes(ax)
     ax.plot(result.time, result.kinetic_energy, label="kinetic")
-    ax.plot(result.time, result.potential_energy, label="potential")
+    ax.plot(result.time, result.potential_energy, label="potential\n(gravity, springs,\nstrain)")
     ax.plot(result.time, result.total_energy, "k", lw=1.5, label="total")
     return _finish(ax, "energy (J)", "Energy")
+
+
+def _driven(result: Any) -> tuple[bool, bool]:
+    """(the model has drivers, it has applied forces that do work): spring-dampers store
+    their energy (or dissipate it); other forces and drivers do work."""
+    layout = result.layout
+    drivers = any(joint["type"] in _EFFORTS for joint in layout["joints"])
+    forces = any("spring-damper" not in force["type"] for force in layout["forces"])
+    return drivers, forces
 
 
 def plot_energy_drift(result: Any, ax: Any = None) -> Any:
@@ -137,28 +189,61 @@ def plot_energy_drift(result: Any, ax: Any = None) -> Any:
     ax.plot(result.time, drift, "k")
     largest = float(np.max(np.abs(drift))) if len(drift) else 0.0
     reference = float(np.max(np.abs(result.kinetic_energy))) if len(drift) else 0.0
-    layout = result.layout
-    # Spring-dampers store their energy (or dissipate it); other forces and drivers do work.
-    driven = any("driver" in joint["type"] for joint in layout["joints"]) or any(
-        "spring-damper" not in force["type"] for force in layout["forces"]
-    )
+    driven = any(_driven(result))
     if driven:
-        title = f"Change of the total energy (work of drivers and forces): largest {largest:.3g} J"
+        title = f"Change of the total energy (work done): largest {largest:.3g} J"
     else:
-        title = f"Drift of the total energy: largest {largest:.3g} J"
+        title = f"Energy drift: largest {largest:.3g} J"
     if reference > 0.0 and not driven:
-        title += f" ({largest / reference:.2g} of the largest kinetic energy)"
+        title += f" ({largest / reference:.2g} x largest kinetic energy)"
     return _finish(ax, "E(t) - E(0) (J)", title, flatten_round_off=False)
 
 
-def plot_constraint_violation(result: Any, ax: Any = None) -> Any:
-    """Largest |C(q, t)| of the constraint equations per record (log scale where positive)."""
+def plot_energy_balance(result: Any, ax: Any = None) -> Any:
+    """The energy balance of a driven model: the change of the total energy E(t) - E(0), the
+    work W(t) of the drivers (:func:`flexmbd.quantities.driver_work`) and their difference,
+    what neither accounts for (numerical dissipation, damping, the work of applied forces)
+    (J). The work is integrated over the records: the title says when its error (estimated
+    from every other record) is large, as when the records are too few."""
     ax = _axes(ax)
-    violation = np.asarray(result.constraint_violation)
-    ax.plot(result.time, violation, "k")
-    if np.any(violation > 0.0):
+    change = result.total_energy - result.total_energy[0]
+    power = driver_power(result)
+    work = cumulative_integral(result.time, power)
+    # The error of the trapezoidal work, from the sum over every other record (Richardson).
+    coarse = cumulative_integral(result.time[::2], power[::2])
+    uncertain = float(np.max(np.abs(work[::2] - coarse))) / 3.0 if len(coarse) > 2 else 0.0
+    ax.plot(result.time, change, label="E(t) - E(0)")
+    ax.plot(result.time, work, "--", label="work of the drivers")
+    rest = change - work
+    ax.plot(result.time, rest, "k", lw=1.5, label="difference")
+    reference = max(float(np.max(np.abs(work))), float(np.max(np.abs(change))))
+    largest = float(np.max(np.abs(rest)))
+    title = f"Energy balance: largest difference {largest:.3g} J"
+    if reference > 0.0:
+        title += f" ({largest / reference:.2g} x work)"
+    if uncertain > 0.1 * largest and uncertain > 1e-6 * reference:
+        title += f"\n(the work integrated over the records: +- {uncertain:.2g} J)"
+    return _finish(ax, "energy (J)", title, flatten_round_off=False)
+
+
+def plot_constraint_violation(result: Any, ax: Any = None) -> Any:
+    """Largest |C(q, t)| of the constraint equations per record, on a log scale when it
+    spans decades; values below 1e-8 of the largest (round-off) are drawn at that floor, not
+    as spikes towards zero."""
+    ax = _axes(ax)
+    violation = np.asarray(result.constraint_violation, dtype=float)
+    largest = float(np.max(violation)) if violation.size else 0.0
+    if largest > 0.0:
+        floor = max(largest * 1e-8, np.finfo(float).tiny)
+        ax.plot(result.time, np.maximum(violation, floor), "k")
         ax.set_yscale("log")
-    return _finish(ax, "max |C| (m, rad)", "Constraint violation")
+        ax.set_ylim(floor, largest * 2.0)
+    else:
+        ax.plot(result.time, violation, "k")
+    title = f"Constraint violation: largest {largest:.2g}"
+    if largest <= VIOLATION_ROUND_OFF:
+        title += " (round-off)"
+    return _finish(ax, "max |C| (m or rad)", title)
 
 
 # Bodies ----------------------------------------------------------------------------------------
@@ -265,6 +350,22 @@ def plot_stress(result: Any, body: object, axes: Any = None) -> list[Any]:
     return axes
 
 
+def _stress_kinds(result: Any, body: object, data: Any) -> tuple[str, ...]:
+    """The stress panels of a body: "von-mises" (solids), or "axial" and "bending" (beams),
+    without the axial force when it is round-off next to the bending moments (less than 1e-8
+    of the largest moment over the body's size)."""
+    if _has_solids(data):
+        return ("von-mises",)
+    sections = np.asarray(result.section_forces(body))
+    axial = float(np.max(np.abs(sections[..., 0]), initial=0.0))
+    bending = float(np.max(np.hypot(sections[..., 4], sections[..., 5]), initial=0.0))
+    nodes = np.asarray(data.nodes, dtype=float)
+    size = max(float(np.ptp(nodes, axis=0).max()), 1e-300)
+    if bending > 0.0 and axial <= 1e-8 * bending / size:
+        return ("bending",)
+    return ("axial", "bending")
+
+
 def _has_solids(data: Any) -> bool:
     return any(kind != "beam2" for kind in data.elements)
 
@@ -288,6 +389,41 @@ def _plot_stress_panel(result: Any, body: object, kind: str, ax: Any) -> Any:
     return _finish(ax, "|M| (N m)", f"Largest bending moment in {name}")
 
 
+# Joint coordinates -----------------------------------------------------------------------------
+#: A time history whose range is below this fraction of its size (and 1e-12 absolute) is
+#: constant up to round-off: the overview leaves it out.
+CONSTANT_TOLERANCE = 1e-9
+
+
+def _moves(values: Array) -> bool:
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return False
+    spread = float(np.max(np.ptp(values.reshape(len(values), -1), axis=0)))
+    return spread > CONSTANT_TOLERANCE * max(1e-3, float(np.max(np.abs(values))))
+
+
+def _moving_coordinates(result: Any, kind: str) -> list[tuple[str, Array]]:
+    return [
+        (name, values)
+        for name, k, values, _ in joint_coordinates(result)
+        if k == kind and _moves(values)
+    ]
+
+
+def plot_joint_coordinates(result: Any, kind: str = "angle", ax: Any = None) -> Any:
+    """The coordinates of the joints (:func:`flexmbd.quantities.joint_coordinates`) that
+    move: `kind` "angle" (rad, continued over turns) or "slide" (m), one curve each."""
+    if kind not in ("angle", "slide"):
+        raise InvalidParameterError(f"kind must be 'angle' or 'slide', got {kind!r}", item=kind)
+    ax = _axes(ax)
+    for name, values in _moving_coordinates(result, kind):
+        ax.plot(result.time, values, label=name)
+    if kind == "angle":
+        return _finish(ax, "angle (rad)", "Joint angles")
+    return _finish(ax, "slide (m)", "Joint slides")
+
+
 # Joints and sensors ----------------------------------------------------------------------------
 def plot_reaction(result: Any, joint: object, kind: str = "force", ax: Any = None) -> Any:
     """Reaction force (N) or torque (N m), `kind` "force" or "torque", of a joint on the body
@@ -303,13 +439,20 @@ def plot_reaction(result: Any, joint: object, kind: str = "force", ax: Any = Non
     return _finish(ax, f"{kind} ({unit})", f"Reaction {kind} of {name} (marker axes)")
 
 
+def _reaction_joints(result: Any) -> list[str]:
+    """The joints whose reactions the overview draws: all but the drivers (whose efforts have
+    a panel of their own)."""
+    return [j["name"] for j in result.layout["joints"] if j["type"] not in _EFFORTS]
+
+
 def plot_reactions(
     result: Any, joints: Sequence[object] | None = None, kind: str = "force", ax: Any = None
 ) -> Any:
-    """Magnitudes of the reaction forces (or torques) of several joints (all if None)."""
+    """Magnitudes of the reaction forces (or torques) of several joints (all but the drivers
+    if None), one curve each."""
     if kind not in ("force", "torque"):
         raise InvalidParameterError(f"kind must be 'force' or 'torque', got {kind!r}", item=kind)
-    chosen = [j["name"] for j in result.layout["joints"]] if joints is None else list(joints)
+    chosen = _reaction_joints(result) if joints is None else list(joints)
     if not chosen:
         raise UnknownItemError("the model has no joints to plot")
     ax = _axes(ax)
@@ -319,36 +462,70 @@ def plot_reactions(
             result.time, np.linalg.norm(values, axis=1), label=_item_name(result, "joints", joint)
         )
     unit = "N" if kind == "force" else "N m"
-    return _finish(ax, f"|{kind}| ({unit})", f"Reaction {kind}s")
+    return _finish(ax, f"|{kind}| ({unit})", f"Reaction {kind}s (magnitudes)")
+
+
+def _torques_matter(result: Any) -> bool:
+    """Whether any joint but a driver transmits a reaction torque above round-off (relative
+    to its reaction forces times 1 mm)."""
+    joints = _reaction_joints(result)
+    if not joints:
+        return False
+    torque = max(float(np.max(np.abs(result.reaction_torque(j)), initial=0.0)) for j in joints)
+    force = max(float(np.max(np.abs(result.reaction_force(j)), initial=0.0)) for j in joints)
+    return torque > 1e-9 * max(force * 1e-3, 1e-12)
 
 
 #: Driver types, the unit of their efforts and what the effort is.
 _EFFORTS = {"angle driver": ("N m", "torque"), "translation driver": ("N", "force")}
+#: The sensor quantities of joint actuators' efforts, and the unit of each.
+_ACTUATORS = {"actuator torque (N m)": "N m", "actuator force (N)": "N"}
 
 
 def _drivers(result: Any, kind: str) -> list[str]:
     return [j["name"] for j in result.layout["joints"] if j["type"] == kind]
 
 
+def _actuators(result: Any, unit: str) -> list[str]:
+    """The effort sensors of the joint actuators whose efforts are in `unit`."""
+    return [
+        s["name"] for s in result.layout["sensors"] if _ACTUATORS.get(s.get("quantity")) == unit
+    ]
+
+
 def plot_efforts(result: Any, kind: str = "angle driver", ax: Any = None) -> Any:
     """The signed efforts of the drivers of `kind` ("angle driver": torques, N m;
-    "translation driver": forces, N), one curve each."""
+    "translation driver": forces, N) and of the joint actuators in the same unit, one curve
+    each."""
     if kind not in _EFFORTS:
         raise InvalidParameterError(
             f"kind must be 'angle driver' or 'translation driver', got {kind!r}", item=kind
         )
+    unit, effort = _EFFORTS[kind]
     names = _drivers(result, kind)
-    if not names:
+    actuators = _actuators(result, unit)
+    if not names and not actuators:
         raise UnknownItemError(f"the model has no {kind}s", item=kind)
     ax = _axes(ax)
     for name in names:
         ax.plot(result.time, result.driver_effort(name), label=name)
-    unit, effort = _EFFORTS[kind]
-    return _finish(ax, f"{effort} ({unit})", f"Driving {effort}s ({kind}s)")
+    for name in actuators:
+        ax.plot(result.time, np.asarray(result.sensor(name))[:, 0], label=name)
+    what = f"{kind}s" + (" and actuators" if actuators else "")
+    return _finish(ax, f"{effort} ({unit})", f"Driving {effort}s ({what})")
+
+
+def _effort_kinds(result: Any) -> list[str]:
+    return [
+        kind
+        for kind, (unit, _) in _EFFORTS.items()
+        if _drivers(result, kind) or _actuators(result, unit)
+    ]
 
 
 def plot_sensor(result: Any, sensor: object, ax: Any = None) -> Any:
-    """Values of a sensor (an orientation sensor: its nine matrix entries)."""
+    """Values of a sensor (an orientation sensor: its nine matrix entries), with the unit of
+    its quantity."""
     values = result.sensor(sensor)
     values = values.reshape(len(result.time), -1)
     ax = _axes(ax)
@@ -361,7 +538,93 @@ def plot_sensor(result: Any, sensor: object, ax: Any = None) -> Any:
         ax.plot(result.time, values[:, k], label=labels[k])
     entry = next((s for s in result.layout["sensors"] if s["name"] == name), None)
     quantity = entry["quantity"] if entry is not None else "value"
-    return _finish(ax, quantity, f"Sensor {name}")
+    ylabel = quantity if "(" in quantity else with_unit(quantity, SENSOR_UNITS.get(quantity, ""))
+    return _finish(ax, ylabel.replace("_", " "), f"Sensor {name}")
+
+
+# Sampling of the records -----------------------------------------------------------------------
+#: Records per period below which a vibration is drawn as a zig-zag (or aliased): the note of
+#: :func:`sampling_notes` asks for at least this many (Nyquist's 2, with a margin).
+RECORDS_PER_PERIOD = 5
+#: Modal amplitude (relative to the largest) above which a mode counts as present.
+MODE_PRESENT = 0.01
+#: Largest number of elastic coordinates whose modes :func:`sampling_notes` computes.
+SAMPLING_MODES_LIMIT = 600
+
+
+def _present_frequency(result: Any, body: int, data: Any) -> float | None:
+    """The highest frequency (Hz) of the modes of a deformable body that move in the records:
+    the modes of the body's stiffness and mass matrices whose vibration amplitude (the rms of
+    the modal rate over the angular frequency) is at least :data:`MODE_PRESENT` of the
+    largest modal amplitude (standard deviation over the run); None if there is none, the
+    body has too many coordinates or the eigenproblem fails."""
+    import scipy.linalg
+
+    count = int(data.elastic_coordinate_count)
+    if not 0 < count <= SAMPLING_MODES_LIMIT:
+        return None
+    stiffness = data.invariants.k_ff
+    mass = data.invariants.m_ff
+    stiffness = stiffness.toarray() if hasattr(stiffness, "toarray") else np.asarray(stiffness)
+    mass = mass.toarray() if hasattr(mass, "toarray") else np.asarray(mass)
+    try:
+        eigenvalues, shapes = scipy.linalg.eigh(stiffness, mass)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    frequencies = np.sqrt(np.maximum(eigenvalues, 0.0)) / (2.0 * np.pi)
+    elastic = frequencies > 1e-6 * max(float(frequencies.max()), 1e-300)
+    if not np.any(elastic):
+        return None
+    projection = mass @ shapes[:, elastic]
+    modal = np.asarray(result.elastic_coordinates(body)) @ projection
+    rates = np.asarray(result.elastic_velocities(body)) @ projection
+    largest = float(modal.std(axis=0).max())
+    if largest <= 0.0:
+        return None
+    # A mode vibrating at its own frequency w moves its coordinate by about rms(rate) / w; a
+    # mode that only follows the slow loads (quasi-statically) has a much smaller rate.
+    vibration = np.sqrt(np.mean(rates**2, axis=0)) / (2.0 * np.pi * frequencies[elastic])
+    present = vibration >= MODE_PRESENT * largest
+    if not np.any(present):
+        return None
+    return float(frequencies[elastic][present].max())
+
+
+def sampling_notes(result: Any) -> list[str]:
+    """Notes on deformable bodies whose vibrations the records under-sample: for each, the
+    highest frequency of its modes that move in the records (an estimate from the body's own
+    modes, :func:`_present_frequency`) if the records are fewer than
+    :data:`RECORDS_PER_PERIOD` per period of it, with the output interval that resolves it."""
+    if len(result.time) < 3 or not result.flexible:
+        return []
+    interval = float(np.median(np.diff(result.time)))
+    if interval <= 0.0:
+        return []
+    notes = []
+    for index, data in sorted(result.flexible.items()):
+        frequency = _present_frequency(result, index, data)
+        if frequency is None or frequency * interval * RECORDS_PER_PERIOD <= 1.0:
+            continue
+        name = result.layout["bodies"][index]["name"]
+        notes.append(
+            f"{name}: a mode at {frequency:.4g} Hz moves, but the records are {interval:.3g} s "
+            f"apart ({1.0 / (frequency * interval):.2g} per period): its curves are "
+            f"under-sampled (zig-zag or aliased); an output interval of at most "
+            f"{1.0 / (RECORDS_PER_PERIOD * frequency):.2g} s resolves it"
+        )
+    return notes
+
+
+def overview_notes(result: Any) -> list[str]:
+    """What the overview (:func:`default_quantities`) leaves out, and the
+    :func:`sampling_notes`."""
+    notes = []
+    violation = np.asarray(result.constraint_violation)
+    if violation.size and float(violation.max()) <= VIOLATION_ROUND_OFF:
+        notes.append(
+            f"constraint violation at most {float(violation.max()):.2g} (round-off): not drawn"
+        )
+    return notes + sampling_notes(result)
 
 
 # Quantity names --------------------------------------------------------------------------------
@@ -373,21 +636,66 @@ def _flexible_names(result: Any) -> list[str]:
     ]
 
 
+#: Bodies whose positions the overview draws at most (the others: ``position:NAME``).
+OVERVIEW_BODIES = 4
+
+
+def _loose_bodies(result: Any) -> list[str]:
+    """Moving bodies whose frames move and that no joint with a coordinate holds (free
+    bodies, bodies on spherical or fixed joints): their positions are in the overview."""
+    layout = result.layout
+    held = {
+        int(layout["markers"][m]["body"])
+        for j in layout["joints"]
+        if j["type"] in JOINT_COORDINATES
+        for m in j["markers"]
+    }
+    return [
+        b["name"]
+        for i, b in enumerate(layout["bodies"])
+        if b["kind"] != "ground" and i not in held and _moves(result.position(i))
+    ]
+
+
 def default_quantities(result: Any) -> list[str]:
-    """The quantities :func:`plot_result` draws by default: energy, constraint violation,
-    the bodies, the reactions, the deflection and stress of every deformable body and every
+    """The quantities of the overview, chosen by what the model has: the energy (and its
+    balance with the drivers' work, or its drift), the constraint violation if above
+    round-off, the joints' angles and slides that move, the positions of moving bodies no
+    such joint holds (up to :data:`OVERVIEW_BODIES`), the drivers' and actuators' efforts,
+    the reactions, the deflection and stress of every deformable body and every other
     sensor."""
-    quantities = ["energy", "violation"]
-    if _moving_bodies(result):
-        quantities.append("bodies")
-    if result.layout["joints"]:
-        quantities.append("reactions")
-    if any(_drivers(result, kind) for kind in _EFFORTS):
+    quantities = ["energy"]
+    violation = np.asarray(result.constraint_violation)
+    if violation.size and float(violation.max()) > VIOLATION_ROUND_OFF:
+        quantities.append("violation")
+    if _moving_coordinates(result, "angle") or _moving_coordinates(result, "slide"):
+        quantities.append("joints")
+    quantities += [f"position:{name}" for name in _loose_bodies(result)[:OVERVIEW_BODIES]]
+    if _effort_kinds(result):
         quantities.append("efforts")
+    if _reaction_joints(result):
+        quantities.append("reactions")
     for name in _flexible_names(result):
         quantities += [f"deflection:{name}", f"stress:{name}"]
-    quantities += [f"sensor:{s['name']}" for s in result.layout["sensors"]]
+    quantities += [
+        f"sensor:{s['name']}"
+        for s in result.layout["sensors"]
+        if s.get("quantity") not in _ACTUATORS
+    ]
     return quantities
+
+
+def _energy_panels(result: Any) -> list[Callable[[Any], Any]]:
+    """The energy, and: its balance with the drivers' work (drivers), its drift (no work
+    done on the model), or nothing more (applied forces, whose work is not recorded: the
+    total energy is on the energy panel)."""
+    drivers, forces = _driven(result)
+    panels = [lambda ax: plot_energy(result, ax)]
+    if drivers:
+        panels.append(lambda ax: plot_energy_balance(result, ax))
+    elif not forces:
+        panels.append(lambda ax: plot_energy_drift(result, ax))
+    return panels
 
 
 def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
@@ -404,9 +712,13 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
                 f"quantity {kind!r} takes no item, got {quantity!r}", item=quantity
             )
         if kind == "energy":
-            return [lambda ax: plot_energy(result, ax), lambda ax: plot_energy_drift(result, ax)]
+            return _energy_panels(result)
         if kind == "drift":
             return [lambda ax: plot_energy_drift(result, ax)]
+        if kind == "balance":
+            if not _driven(result)[0]:
+                raise UnknownItemError("the model has no drivers: no work to balance", item=kind)
+            return [lambda ax: plot_energy_balance(result, ax)]
         if kind == "violation":
             return [lambda ax: plot_constraint_violation(result, ax)]
         if kind == "bodies":
@@ -414,14 +726,24 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
             if not names:
                 raise UnknownItemError("the model has no moving bodies to plot", item=quantity)
             return [lambda ax, n=n: plot_body(result, n, "position", ax) for n in names]
+        if kind == "joints":
+            kinds = [k for k in ("angle", "slide") if _moving_coordinates(result, k)]
+            if not kinds:
+                raise UnknownItemError(
+                    "the model has no joint angles or slides that move", item=quantity
+                )
+            return [lambda ax, k=k: plot_joint_coordinates(result, k, ax) for k in kinds]
         if kind == "efforts":
-            kinds = [k for k in _EFFORTS if _drivers(result, k)]
+            kinds = _effort_kinds(result)
             if not kinds:
                 raise UnknownItemError("the model has no drivers to plot", item=quantity)
             return [lambda ax, k=k: plot_efforts(result, k, ax) for k in kinds]
-        if not result.layout["joints"]:
+        if not _reaction_joints(result):
             raise UnknownItemError("the model has no joints to plot", item=quantity)
-        return [lambda ax: plot_reactions(result, None, "force", ax)]
+        panels = [lambda ax: plot_reactions(result, None, "force", ax)]
+        if _torques_matter(result):
+            panels.append(lambda ax: plot_reactions(result, None, "torque", ax))
+        return panels
     if kind not in ITEM_QUANTITIES:
         known = [*PLAIN_QUANTITIES, *(f"{k}:NAME" for k in ITEM_QUANTITIES)]
         raise InvalidParameterError(
@@ -450,7 +772,7 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
     if kind == "stress":
         body = resolve_item(result, "bodies", rest)
         _, _, data = deformable(result, body)
-        kinds = ("von-mises",) if _has_solids(data) else ("axial", "bending")
+        kinds = _stress_kinds(result, body, data)
         return [lambda ax, k=k: _plot_stress_panel(result, body, k, ax) for k in kinds]
     if kind == "reaction":
         joint = resolve_item(result, "joints", rest)
@@ -469,19 +791,56 @@ def check_quantities(result: Any, quantities: Sequence[str]) -> None:
 
 
 # Figures and files -----------------------------------------------------------------------------
-def plot_quantities(result: Any, quantities: Sequence[str] | None = None) -> Any:
+#: Size of one panel of a figure (inches) and the most panels side by side.
+PANEL_SIZE = (4.6, 2.7)
+MAX_COLUMNS = 3
+
+
+def _columns(count: int) -> int:
+    """Panels side by side: one for a single panel, two for 2 and 4, else three."""
+    if count <= 1:
+        return 1
+    if count in (2, 4):
+        return 2
+    return MAX_COLUMNS
+
+
+def plot_quantities(
+    result: Any, quantities: Sequence[str] | None = None, *, notes: bool = True
+) -> Any:
     """One figure with the panels of all `quantities` (default: :func:`default_quantities`)
-    stacked over a common time axis; returns the matplotlib Figure."""
+    in a grid of up to three columns over a common time axis; returns the matplotlib
+    Figure. With `notes`, the figure's foot says what the overview left out (default
+    quantities) and whether the records under-sample a vibration (:func:`sampling_notes`)."""
+    from matplotlib.figure import Figure
+
     names = default_quantities(result) if quantities is None else list(quantities)
     panels = [panel for quantity in names for panel in quantity_panels(result, quantity)]
     if not panels:
         raise InvalidParameterError("no quantities to plot")
-    axes = _new_axes(len(panels), size=(8.0, 0.5 + 2.6 * len(panels)))
-    for panel, ax in zip(panels, axes, strict=True):
+    count = len(panels)
+    columns = _columns(count)
+    rows = -(-count // columns)
+    width, height = PANEL_SIZE
+    figure = Figure(figsize=(width * columns + 1.2, height * rows + 0.4), layout="constrained")
+    grid = figure.subplots(rows, columns, sharex=True, squeeze=False).ravel()
+    for panel, ax in zip(panels, grid, strict=False):
         panel(ax)
-    for ax in axes[:-1]:
-        ax.set_xlabel("")
-    return axes[0].figure
+    for k, ax in enumerate(grid):
+        if k >= count:
+            ax.set_visible(False)
+        elif k + columns < count:
+            ax.set_xlabel("")
+            ax.tick_params(labelbottom=False)
+        else:
+            ax.tick_params(labelbottom=True)
+    shown = (
+        (overview_notes(result) if quantities is None else sampling_notes(result)) if notes else []
+    )
+    if shown:
+        text = "\n".join(f"Note: {note}" for note in shown)
+        figure.supxlabel(text, x=0.01, ha="left", fontsize="small", color="firebrick")
+    return figure
 
 
 def _slug(quantity: str) -> str:
@@ -515,7 +874,7 @@ def plot_result(
     suffix = target.suffix.lower()
     if suffix in IMAGE_SUFFIXES:
         target.parent.mkdir(parents=True, exist_ok=True)
-        figure = plot_quantities(result, names)
+        figure = plot_quantities(result, None if quantities is None else names)
         figure.savefig(target, dpi=dpi)
         return [target]
     if suffix:

@@ -49,6 +49,137 @@ _SPEC = re.compile(
 )
 
 
+#: SI unit of each component of a quantity kind (by label; "*" for every component).
+#: Elastic coordinates mix lengths and slopes (nodal) or are modal amplitudes: no unit.
+UNITS: dict[str, dict[str, str]] = {
+    "energy": {"*": "J"},
+    "drift": {"*": "J"},
+    "violation": {"*": "m or rad"},
+    "reactions": {"*": "N"},
+    "position": {"*": "m"},
+    "velocity": {"*": "m/s"},
+    "angular-velocity": {"*": "rad/s"},
+    "elastic": {"*": ""},
+    "deflection": {"*": "m"},
+    "stress": {"von-mises": "Pa", "axial": "N", "bending": "N m"},
+    "reaction": {"fx": "N", "fy": "N", "fz": "N", "tx": "N m", "ty": "N m", "tz": "N m"},
+}
+
+#: SI unit of the values of a sensor, by its quantity (as in the model's description).
+SENSOR_UNITS = {
+    "position": "m",
+    "velocity": "m/s",
+    "acceleration": "m/s^2",
+    "orientation": "",
+    "angular_velocity": "rad/s",
+    "angular velocity": "rad/s",
+    "angular_acceleration": "rad/s^2",
+    "angular acceleration": "rad/s^2",
+    "actuator torque (N m)": "N m",
+    "actuator force (N)": "N",
+}
+
+#: SI unit of the outputs of a model file (``outputs:``), by their quantity.
+OUTPUT_UNITS = {
+    "position": "m",
+    "velocity": "m/s",
+    "orientation": "",
+    "euler_parameters": "",
+    "angular_velocity": "rad/s",
+    "elastic_coordinates": "",
+    "elastic_velocities": "",
+    "node_displacements": "m",
+    "node_positions": "m",
+    "deflection": "m",
+    "stresses": "Pa",
+    "section_forces": "N, N m",
+    "reaction_force": "N",
+    "reaction_torque": "N m",
+    "multipliers": "",
+    "kinetic_energy": "J",
+    "potential_energy": "J",
+    "total_energy": "J",
+    "constraint_violation": "m or rad",
+}
+
+#: How a time history is summed up in one line, by the kind of quantity:
+#: "range" (positions, orientations: where it went, per component), "magnitude" (vectors
+#: whose size matters: the largest |v| and when), "extremes" (signed scalars: smallest and
+#: largest, and when), "largest" (the largest value, e.g. a constraint violation).
+SUMMARIES = {
+    "position": "range",
+    "orientation": "range",
+    "euler_parameters": "range",
+    "node_positions": "range",
+    "velocity": "magnitude",
+    "angular_velocity": "magnitude",
+    "acceleration": "magnitude",
+    "angular_acceleration": "magnitude",
+    "node_displacements": "magnitude",
+    "deflection": "magnitude",
+    "reaction_force": "magnitude",
+    "reaction_torque": "magnitude",
+    "elastic_coordinates": "largest-abs",
+    "elastic_velocities": "largest-abs",
+    "stresses": "largest-abs",
+    "section_forces": "largest-abs",
+    "multipliers": "largest-abs",
+    "kinetic_energy": "extremes",
+    "potential_energy": "extremes",
+    "total_energy": "extremes",
+    "constraint_violation": "largest",
+}
+
+
+def unit_of(kind: str, label: str | None = None) -> str:
+    """The SI unit of component `label` of a quantity kind of this module ("" if it has
+    none); kind "sensor:QUANTITY" for a sensor of that quantity."""
+    if kind.startswith("sensor:"):
+        return SENSOR_UNITS.get(kind.partition(":")[2], "")
+    units = UNITS.get(kind, {})
+    return units.get(label or "*", units.get("*", ""))
+
+
+def with_unit(text: str, unit: str) -> str:
+    """`text (unit)`, or `text (-)` for a quantity without a unit."""
+    return f"{text} ({unit or '-'})"
+
+
+def summarize(values: Any, times: Any, quantity: str | None, unit: str) -> str:
+    """One line that sums up a time history (records first) of a quantity (an output
+    quantity of a model file, or a sensor quantity), with its unit: see :data:`SUMMARIES`."""
+    values = np.asarray(values, dtype=float).reshape(len(times), -1)
+    times = np.asarray(times, dtype=float)
+    kind = SUMMARIES.get(str(quantity), "extremes" if values.shape[1] == 1 else "magnitude")
+    u = f" {unit}" if unit else ""
+    if kind == "range":
+        labels = _AXES if values.shape[1] == 3 else [str(k) for k in range(values.shape[1])]
+        shown = [
+            f"{label} {values[0, k]:.6g} -> {values[-1, k]:.6g} (from {values[:, k].min():.6g}"
+            f" to {values[:, k].max():.6g})"
+            for k, label in enumerate(labels[:4])
+        ]
+        more = " ..." if values.shape[1] > 4 else ""
+        return "; ".join(shown) + more + u
+    if kind == "magnitude" and values.shape[1] % 3 == 0:
+        # Vectors (several for node outputs): the largest length of any of them.
+        size = np.linalg.norm(values.reshape(len(times), -1, 3), axis=2).max(axis=1)
+        k = int(np.argmax(size))
+        return f"largest magnitude {size[k]:.6g}{u} at t = {times[k]:.6g} s"
+    if kind == "extremes" and values.shape[1] == 1:
+        low, high = int(np.argmin(values[:, 0])), int(np.argmax(values[:, 0]))
+        return (
+            f"smallest {values[low, 0]:.6g}{u} at t = {times[low]:.6g} s, largest "
+            f"{values[high, 0]:.6g}{u} at t = {times[high]:.6g} s"
+        )
+    if kind == "largest":
+        k = int(np.argmax(values.max(axis=1)))
+        return f"largest {values[k].max():.6g}{u} at t = {times[k]:.6g} s"
+    size = np.abs(values).max(axis=1)
+    k = int(np.argmax(size))
+    return f"largest |value| {size[k]:.6g}{u} at t = {times[k]:.6g} s"
+
+
 def resolve_item(result: Any, kind: str, text: str) -> object:
     """A body, joint or sensor (`kind` "bodies", "joints", "sensors") given by name, or else
     by index; UnknownItemError naming the known items otherwise."""
@@ -239,3 +370,122 @@ def output_value(result: Any, spec: str) -> float | Array:
         "final": lambda v: v[-1],
     }[reduction]
     return float(reduce(values))
+
+
+# Joint coordinates and the drivers' work -------------------------------------------------------
+#: Joint types whose coordinates :func:`joint_coordinates` measures: type -> kinds.
+JOINT_COORDINATES = {
+    "revolute": ("angle",),
+    "cylindrical": ("angle", "slide"),
+    "prismatic": ("slide",),
+    "inline": ("slide",),
+    "planar": ("angle",),
+    "angle driver": ("angle",),
+    "translation driver": ("slide",),
+}
+
+
+def marker_motion(result: Any, marker: int) -> tuple[Array, Array, Array, Array]:
+    """Position (m), orientation, velocity (m/s) and angular velocity (rad/s) of marker
+    `marker` (index into the layout's markers) in global axes, per record. A marker on a
+    deformable body moves with the elastic displacement of the node it sits on (if it sits
+    on one); its orientation is the body frame's (the small elastic rotation is left out),
+    and so is its velocity's elastic part."""
+    entry = result.layout["markers"][marker]
+    body = int(entry["body"])
+    kind = result.layout["bodies"][body]["kind"]
+    n = len(result.time)
+    local = np.asarray(entry["position"], dtype=float)
+    frame = np.asarray(entry["orientation"], dtype=float)
+    if kind == "ground":
+        zeros = np.zeros((n, 3))
+        return np.tile(local, (n, 1)), np.tile(frame, (n, 1, 1)), zeros, zeros.copy()
+    if kind in ("rigid", "flexible"):
+        rotation = np.asarray(result.orientation(body))
+    else:
+        rotation = np.tile(np.eye(3), (n, 1, 1))
+    offset = np.tile(local, (n, 1))
+    data = result.flexible.get(body) if kind == "flexible" else None
+    if data is not None:
+        nodes = np.asarray(data.nodes, dtype=float)
+        distance = np.linalg.norm(nodes - local, axis=1)
+        size = max(float(np.ptp(nodes, axis=0).max()), 1e-300)
+        nearest = int(np.argmin(distance))
+        if distance[nearest] <= 1e-9 * size:
+            offset = offset + np.asarray(result.node_displacements(body))[:, nearest, :]
+    arm = np.einsum("nij,nj->ni", rotation, offset)
+    omega = np.asarray(result.angular_velocity(body))
+    position = np.asarray(result.position(body)) + arm
+    velocity = np.asarray(result.velocity(body)) + np.cross(omega, arm)
+    return position, rotation @ frame, velocity, omega
+
+
+def joint_coordinates(result: Any) -> list[tuple[str, str, Array, Array]]:
+    """(joint, "angle" or "slide", values, rates) of every joint that has a coordinate (see
+    :data:`JOINT_COORDINATES`): the angle (rad) of marker 2's x axis from marker 1's about
+    marker 1's z axis, continued over turns, or the slide (m) of marker 2's origin along
+    marker 1's z axis, and their rates (rad/s, m/s), per record. Drivers on the markers of
+    another listed joint are left out (that joint's coordinate is the driven one)."""
+    joints = [j for j in result.layout["joints"] if j["type"] in JOINT_COORDINATES]
+    free = {frozenset(j["markers"]) for j in joints if "driver" not in j["type"]}
+    out: list[tuple[str, str, Array, Array]] = []
+    for joint in joints:
+        if "driver" in joint["type"] and frozenset(joint["markers"]) in free:
+            continue
+        first, second = (marker_motion(result, int(m)) for m in joint["markers"])
+        p1, a1, v1, w1 = first
+        p2, a2, v2, w2 = second
+        axis = a1[:, :, 2]
+        for kind in JOINT_COORDINATES[joint["type"]]:
+            if kind == "angle":
+                sine = np.einsum("ni,ni->n", a1[:, :, 1], a2[:, :, 0])
+                cosine = np.einsum("ni,ni->n", a1[:, :, 0], a2[:, :, 0])
+                values = np.unwrap(np.arctan2(sine, cosine))
+                rates = np.einsum("ni,ni->n", w2 - w1, axis)
+            else:
+                d = p2 - p1
+                values = np.einsum("ni,ni->n", axis, d)
+                rates = np.einsum("ni,ni->n", np.cross(w1, axis), d) + np.einsum(
+                    "ni,ni->n", axis, v2 - v1
+                )
+            out.append((joint["name"], kind, values, rates))
+    return out
+
+
+def driver_rates(result: Any, driver: str) -> Array:
+    """The rate of the coordinate that driver `driver` prescribes (rad/s or m/s) per record,
+    from the motion of its markers (:func:`marker_motion`)."""
+    joint = next(j for j in result.layout["joints"] if j["name"] == driver)
+    first, second = (marker_motion(result, int(m)) for m in joint["markers"])
+    axis = first[1][:, :, 2]
+    if joint["type"] == "angle driver":
+        return np.einsum("ni,ni->n", second[3] - first[3], axis)
+    d = second[0] - first[0]
+    return np.einsum("ni,ni->n", np.cross(first[3], axis), d) + np.einsum(
+        "ni,ni->n", axis, second[2] - first[2]
+    )
+
+
+def driver_power(result: Any) -> Array:
+    """The power (W) of all angle and translation drivers per record: effort times the rate
+    of the driven coordinate, summed."""
+    total = np.zeros(len(result.time))
+    for joint in result.layout["joints"]:
+        if joint["type"] in ("angle driver", "translation driver"):
+            effort = np.asarray(result.driver_effort(joint["name"]))
+            total += effort * driver_rates(result, joint["name"])
+    return total
+
+
+def cumulative_integral(time: Array, values: Array) -> Array:
+    """The trapezoidal integral of `values` over `time` from the first record to each."""
+    total = np.zeros(len(time))
+    total[1:] = np.cumsum(0.5 * (values[1:] + values[:-1]) * np.diff(time))
+    return total
+
+
+def driver_work(result: Any) -> Array:
+    """The work (J) done by all angle and translation drivers from the first record to each
+    record: the trapezoidal integral of :func:`driver_power` over the records (second order
+    in the output interval)."""
+    return cumulative_integral(np.asarray(result.time), driver_power(result))

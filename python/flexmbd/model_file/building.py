@@ -158,14 +158,16 @@ class ModelFile:
 
     @property
     def file_stem(self) -> str:
-        """The name as the stem of file names (``flexmbd run`` names its results, plots and
-        animations after it): characters that are not allowed in file names on some system
-        (path separators, control and other invisible characters, ``<>:"|?*``) become ``_``,
-        leading and trailing dots and spaces are dropped, at most 120 bytes of UTF-8 are
-        kept, Windows' reserved names (``CON``, ``NUL``, ...) get a ``_``, and a name that is
-        then empty gives the model file's stem (or ``model``). Never a path: no folder, no
-        ``..``, not hidden."""
-        for name in (self.name, self.path.stem):
+        """The model file's stem as the stem of file names (``flexmbd run`` names its
+        results, plots and animations after it, so that two model files of one name, or a
+        model file and the built-in example it is named after, do not write the same files):
+        characters that are not allowed in file names on some system (path separators,
+        control and other invisible characters, ``<>:"|?*``) become ``_``, leading and
+        trailing dots and spaces are dropped, at most 120 bytes of UTF-8 are kept, Windows'
+        reserved names (``CON``, ``NUL``, ...) get a ``_``, and a stem that is then empty
+        gives the model's name made a stem the same way (or ``model``). Never a path: no
+        folder, no ``..``, not hidden."""
+        for name in (self.path.stem, self.name):
             stem = _file_stem(name)
             if stem:
                 return stem
