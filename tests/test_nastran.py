@@ -42,9 +42,7 @@ def card(name, fields, form):
     chunks = [fields[i : i + per_line] for i in range(0, max(len(fields), 1), per_line)]
     for k, chunk in enumerate(chunks):
         lead = first if k == 0 else ("*" if form == "large" else "+")
-        cells = [
-            (number(f, width) if isinstance(f, float) else str(f)).ljust(width) for f in chunk
-        ]
+        cells = [(number(f, width) if isinstance(f, float) else str(f)).ljust(width) for f in chunk]
         text.append(lead.ljust(8) + "".join(cells))
     return "\n".join(text) + "\n"
 
@@ -158,9 +156,7 @@ def beam_deck(form, property_card):
         (("PBARL", [7, 3, "", "BAR", "", "", "", "", 0.02, 0.01]), Section.rectangle(0.02, 0.01)),
     ],
 )
-def test_beams_with_their_sections_and_orientation(
-    property_card, section, tmp_path, assert_close
-):
+def test_beams_with_their_sections_and_orientation(property_card, section, tmp_path, assert_close):
     path = tmp_path / "beam.bdf"
     path.write_text(beam_deck("small", property_card))
     deck = read_nastran(path)
@@ -247,3 +243,15 @@ def test_bad_decks_name_the_file_line_and_card(bracket, tmp_path):
         read_nastran(path)
     with pytest.raises(FileNotFoundError):
         read_nastran(tmp_path / "missing.bdf")
+
+
+def test_a_deck_larger_than_the_free_memory_is_refused_before_reading(
+    bracket, tmp_path, monkeypatch
+):
+    import flexmbd.fe._memory as memory
+
+    path = tmp_path / "big.bdf"
+    path.write_text(deck_of(bracket, "small"))
+    monkeypatch.setattr(memory, "available_memory", lambda: 1000)
+    with pytest.raises(InvalidModelError, match=r"would take about .* GB of memory; 0.0 GB"):
+        read_nastran(path)

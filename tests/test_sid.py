@@ -313,3 +313,12 @@ def test_a_model_file_takes_a_sid_body(tmp_path):
     ]
     np.testing.assert_array_equal(runs[0].coordinates, runs[1].coordinates)
     assert np.abs(runs[0].coordinates[-1] - runs[0].coordinates[0]).max() > 1e-3
+
+
+def test_a_sid_file_larger_than_the_free_memory_is_refused(solid, tmp_path, monkeypatch):
+    import flexmbd.fe._memory as memory
+
+    path = write_sid(solid[0], tmp_path / "s.sid")
+    monkeypatch.setattr(memory, "available_memory", lambda: 1000)
+    with pytest.raises(InvalidModelError, match="SID file"):
+        read_sid(path)

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InvalidModelError, UnknownItemError
+from ._memory import check_fits
 from .body import FlexibleBodyData
 from .mesh_io import Mesh
 
@@ -47,8 +48,9 @@ IGNORED = (
 #: Deepest nesting of INCLUDE files.
 INCLUDE_DEPTH = 16
 
-#: Largest deck read (bytes, with its INCLUDE files); larger ones are refused with the size.
-MAX_BYTES = 2 << 30
+#: Memory taken by the reader per byte of bulk data (the cards as Python strings), measured:
+#: decks whose estimate exceeds the available memory are refused before they are read.
+MEMORY_PER_BYTE = 20.0
 
 _NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([EeDd]?)([+-]?\d+)?$")
 
@@ -298,7 +300,8 @@ def read_nastran(path: str | os.PathLike[str]) -> NastranDeck:
     systems (rectangular, chained); other coordinate systems are refused.
 
     Raises `FileNotFoundError`; `InvalidModelError` naming the file, line and card of an
-    unknown or malformed card, a refused option, a deck larger than :data:`MAX_BYTES`;
+    unknown or malformed card, a refused option, a deck that would not fit in the available
+    memory (estimated before reading);
     `UnknownItemError` for a reference to an undefined grid, property or coordinate system."""
     path = Path(path)
     if not path.is_file():
@@ -323,12 +326,7 @@ def _lines(path: Path, depth: int, size: list[int]) -> Any:
             f"{path}: INCLUDE files nested deeper than {INCLUDE_DEPTH}", item=f"file '{path}'"
         )
     size[0] += path.stat().st_size
-    if size[0] > MAX_BYTES:
-        raise InvalidModelError(
-            f"{path}: the deck is larger than {MAX_BYTES >> 20} MB with its INCLUDE files "
-            f"({size[0] >> 20} MB read so far); split it or reduce it in the FE code first",
-            item=f"file '{path}'",
-        )
+    check_fits(path, size[0], MEMORY_PER_BYTE, "Nastran deck (with its INCLUDE files)")
     text = path.read_text(encoding="latin-1").splitlines()
     has_bulk = depth > 0 or any(line.upper().startswith("BEGIN BULK") for line in text)
     in_bulk = not has_bulk or depth > 0

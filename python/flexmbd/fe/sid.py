@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InvalidModelError, UnknownItemError
+from ._memory import check_fits
 from .body import FlexibleBodyData
 
 #: Structure codes of a matrix object: which entries are written.
@@ -42,6 +43,10 @@ FIELD_ORDER = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", 
 #: Modal bodies with more modes than this are refused: J's second-order terms alone hold
 #: 9 n^2 numbers per pair of modes.
 MAX_MODES = 400
+
+#: Memory taken by the reader per byte of text (its lines, then the arrays): files whose
+#: estimate exceeds the available memory are refused before they are read.
+MEMORY_PER_BYTE = 5.0
 
 #: Relative tolerance of the checks that a file's redundant fields agree with each other.
 CONSISTENCY_TOLERANCE = 1e-8
@@ -173,6 +178,7 @@ def load_sid_data(path: str | os.PathLike[str]) -> SidData:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(2, "No such SID file", str(path))
+    check_fits(path, path.stat().st_size, MEMORY_PER_BYTE, "SID file")
     return _Parser(path).parse()
 
 
