@@ -776,10 +776,16 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
         return [lambda ax, k=k: _plot_stress_panel(result, body, k, ax) for k in kinds]
     if kind == "reaction":
         joint = resolve_item(result, "joints", rest)
-        return [
-            lambda ax: plot_reaction(result, joint, "force", ax),
-            lambda ax: plot_reaction(result, joint, "torque", ax),
-        ]
+        # A reaction that is round-off next to the other (an angle driver's force, a spherical
+        # joint's torque; relative to the other times 1 m) gets no panel.
+        force = float(np.max(np.abs(result.reaction_force(joint)), initial=0.0))
+        torque = float(np.max(np.abs(result.reaction_torque(joint)), initial=0.0))
+        panels = []
+        if force > 1e-8 * torque or force == torque == 0.0:
+            panels.append(lambda ax: plot_reaction(result, joint, "force", ax))
+        if torque > 1e-8 * force:
+            panels.append(lambda ax: plot_reaction(result, joint, "torque", ax))
+        return panels
     sensor = resolve_item(result, "sensors", rest)
     return [lambda ax: plot_sensor(result, sensor, ax)]
 
