@@ -32,8 +32,6 @@ from .errors import (
     ResultsFileError,
     SimulationInterrupted,
 )
-from .examples import EXAMPLES
-from .simulation import simulate
 from .study.command import add_sweep_parser, sweep
 
 
@@ -76,6 +74,8 @@ class _Job:
 
 
 def _job(model: str) -> _Job:
+    from .examples import EXAMPLES
+
     if model in EXAMPLES:
         example = EXAMPLES[model]()
         return _Job(
@@ -269,6 +269,8 @@ def _run(args: argparse.Namespace) -> int:
         "output_interval": interval,
         "solver": repr(solver),
     }
+    from .simulation import simulate
+
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():
@@ -334,6 +336,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _info(args: argparse.Namespace) -> int:
+    from .examples import EXAMPLES
+
     target = args.file
     try:
         if Path(target).is_dir():
@@ -857,6 +861,8 @@ def _main(argv: list[str] | None) -> int:
     if args.command in commands:
         return commands[args.command](args)
     if args.command == "examples":
+        from .examples import EXAMPLES
+
         for name, builder in sorted(EXAMPLES.items()):
             print(f"{name}: {builder().description}")
         return 0
