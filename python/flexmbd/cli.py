@@ -52,6 +52,50 @@ def _solver(text: str | None, default: Any) -> Any:
     return _boundary.ExplicitSolver(parts[0], parts[1], formulation=formulation)
 
 
+def _every(text: str) -> int:
+    """A positive whole number of records (``--vtu-every``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}")
+    return value
+
+
+def _times(text: str) -> tuple[float, float]:
+    """A time window START:END in s (``--vtu-times``); an empty side is open."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start = float(parts[0]) if parts[0].strip() else -math.inf
+        end = float(parts[1]) if parts[1].strip() else math.inf
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected START:END in s, got {text!r}") from None
+    if not start <= end:
+        raise argparse.ArgumentTypeError(f"START must not be after END, got {text!r}")
+    return start, end
+
+
+def _write_paraview(
+    result: Any, directory: Path, name: str, every: int, times: Any, **options: Any
+) -> Path:
+    """Writes the ParaView series of `result` after saying what is being written (the one
+    place where the command line writes VTU files)."""
+    from .animation import LARGE_VTU_SERIES, vtu_series_size, write_vtu_series
+
+    files, size = vtu_series_size(result, every, times=times)
+    print(f"  writing {files} VTU files (~{size / 1e6:.3g} MB) to {directory}", flush=True)
+    if size > LARGE_VTU_SERIES:
+        print(
+            "  (--vtu-every N, --vtu-times A:B or --no-vtu write less; the model file's "
+            "paraview section sets them too)",
+            flush=True,
+        )
+    return write_vtu_series(result, directory, every, name=name, times=times, **options)
+
+
 @dataclass
 class _Job:
     """What ``run`` simulates: a built-in example or a model file."""
@@ -71,6 +115,8 @@ class _Job:
     start: str = "given"
     #: The stem of the output files' names (never a path).
     stem: str = "results"
+    #: The model file's ParaView series settings (model_file.ParaViewOutput); None: defaults.
+    paraview: Any = None
 
 
 def _job(model: str) -> _Job:
@@ -114,6 +160,7 @@ def _job(model: str) -> _Job:
         start_time=loaded.start_time,
         start=loaded.start,
         stem=loaded.file_stem,
+        paraview=loaded.paraview,
     )
 
 
@@ -323,15 +370,23 @@ def _run(args: argparse.Namespace) -> int:
         written = plot_result(result, plot, quantities=job.plots)
         print(f"  plot: {', '.join(str(p) for p in written)}")
     if not args.no_animation:
-        from .animation import render_animation, write_vtu_series
+        from .animation import render_animation
 
         movie = Path(args.animation) if args.animation else results.with_suffix(".gif")
         render_animation(result, movie)
         print(f"  animation: {movie}")
-        if result.flexible:
-            directory = results.with_name(f"{results.stem}_vtu")
-            pvd = write_vtu_series(result, directory, name=results.stem)
-            print(f"  ParaView series: {pvd}")
+    paraview = job.paraview
+    explicit = args.vtu_every is not None or args.vtu_times is not None
+    if result.flexible and not args.no_vtu and (paraview is None or paraview.write or explicit):
+        every = args.vtu_every or (paraview.every if paraview else 1)
+        times = args.vtu_times or (paraview.times if paraview else None)
+        directory = results.with_name(f"{results.stem}_vtu")
+        try:
+            pvd = _write_paraview(result, directory, results.stem, every, times)
+        except FlexmbdError as error:
+            print(f"flexmbd run: ParaView series: {error}", file=sys.stderr)
+            return 2
+        print(f"  ParaView series: {pvd}")
     return 0
 
 
@@ -500,7 +555,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _animate(args: argparse.Namespace) -> int:
-    from .animation import render_animation, write_vtu_series
+    from .animation import render_animation
     from .results_file import read_results
 
     try:
@@ -511,7 +566,8 @@ def _animate(args: argparse.Namespace) -> int:
             options["scale"] = args.scale
         if args.vtu or not args.no_vtu and result.flexible:
             directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
-            pvd = write_vtu_series(result, directory, name=results.stem, **options)
+            every, times = args.vtu_every or 1, args.vtu_times
+            pvd = _write_paraview(result, directory, results.stem, every, times, **options)
             print(f"written: {pvd}")
         if not args.no_render:
             movie = Path(args.output) if args.output else results.with_suffix(".gif")
@@ -577,7 +633,7 @@ def _modes(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .analysis import equilibrium, linearize, steady_rotation
-    from .animation import render_animation, write_vtu_series
+    from .animation import render_animation
     from .errors import InvalidModelError
     from .state_space import body_shapes, mode_result
 
@@ -610,7 +666,7 @@ def _modes(args: argparse.Namespace) -> int:
             print(f"written: {movie}")
             if result.flexible:
                 folder = stem.with_name(f"{stem.name}_mode{k}_vtu")
-                print(f"written: {write_vtu_series(result, folder, name=f'mode{k}')}")
+                print(f"written: {_write_paraview(result, folder, f'mode{k}', 1, None)}")
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd modes: {error}", file=sys.stderr)
         return 2
@@ -734,7 +790,29 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--plot", help="plot file (.png or .svg; default: NAME.png)")
     run.add_argument("--animation", help="animation file (.gif; default: NAME.gif)")
     run.add_argument("--no-plot", action="store_true", help="write no plot")
-    run.add_argument("--no-animation", action="store_true", help="write no animation")
+    run.add_argument(
+        "--no-animation", action="store_true", help="render no animation (the GIF only)"
+    )
+    run.add_argument(
+        "--no-vtu",
+        action="store_true",
+        help="write no ParaView series (a .vtu file per record and a .pvd, NAME_vtu/) of the "
+        "deformable bodies",
+    )
+    run.add_argument(
+        "--vtu-every",
+        type=_every,
+        metavar="N",
+        help="ParaView series: every N-th record and the last (default: the model file's "
+        "paraview.every, else 1)",
+    )
+    run.add_argument(
+        "--vtu-times",
+        type=_times,
+        metavar="A:B",
+        help="ParaView series: only the records from time A to B (s; A or B may be left out; "
+        "default: the model file's paraview.times, else all)",
+    )
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     info = sub.add_parser("info", help="summarize a model, body or results file, or a study")
     info.add_argument(
@@ -757,6 +835,15 @@ def _main(argv: list[str] | None) -> int:
     animate.add_argument("-o", "--output", help="animation file (.gif; default: RESULTS.gif)")
     animate.add_argument("--vtu", help="folder of the ParaView series (default: RESULTS_vtu)")
     animate.add_argument("--no-vtu", action="store_true", help="write no ParaView series")
+    animate.add_argument(
+        "--vtu-every", type=_every, metavar="N", help="ParaView series: every N-th record"
+    )
+    animate.add_argument(
+        "--vtu-times",
+        type=_times,
+        metavar="A:B",
+        help="ParaView series: only the records from time A to B (s; A or B may be left out)",
+    )
     animate.add_argument("--no-render", action="store_true", help="render no animation")
     animate.add_argument("--frames", type=int, help="number of frames rendered")
     animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
