@@ -88,6 +88,24 @@ def test_a_rigid_simulation_loads_no_file_or_mesh_library():
     assert _heavy_after(code) == []
 
 
+def test_submodules_are_attributes_on_first_access():
+    # As when the package imported them all: `fm.fe.build_body` after `import flexmbd`.
+    code = (
+        "import flexmbd as fm\n"
+        "assert fm.fe.FlexibleBodyData is fm.fe.body.FlexibleBodyData\n"
+        "assert fm.animation.write_vtu_series and fm.study.Study is fm.Study\n"
+        "for name in ('__main__', 'no_such_module'):\n"
+        "    try:\n"
+        "        getattr(fm, name)\n"
+        "    except AttributeError:\n"
+        "        pass\n"
+        "    else:\n"
+        "        raise AssertionError(name)\n"
+        "print('ok')"
+    )
+    assert _python(code).strip() == "ok"
+
+
 def _kind(value: object) -> str:
     if isinstance(value, types.ModuleType):
         return "module"

@@ -17,6 +17,7 @@ Units are SI by convention. See ``docs/`` for the theory and the solver choices.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import sys
 import types
 from typing import TYPE_CHECKING, Any
@@ -146,7 +147,10 @@ _FUNCTION_MODULES = frozenset(("campbell", "dispersion", "inverse_dynamics", "ro
 def __getattr__(name: str) -> Any:
     origin = _ORIGIN.get(name)
     if origin is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        # Any other submodule (fm.fe, fm.animation, ...) on first access too.
+        if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return importlib.import_module(f".{name}", __name__)
     if origin == "":
         value: Any = importlib.import_module(f".{name}", __name__)
     else:

@@ -11,6 +11,7 @@ meshio or h5py."""
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -56,7 +57,10 @@ _ORIGIN: dict[str, str] = {
 def __getattr__(name: str) -> Any:
     origin = _ORIGIN.get(name)
     if origin is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        # Any other submodule (fe.modal, fe.preprocess, ...) on first access too.
+        if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return importlib.import_module(f".{name}", __name__)
     module = importlib.import_module(f".{origin or name}", __name__)
     value = module if origin == "" else getattr(module, name)
     globals()[name] = value
