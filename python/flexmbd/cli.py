@@ -756,8 +756,8 @@ def _main(argv: list[str] | None) -> int:
         "run",
         help="simulate a model file or a built-in example (default: flexible-slider-crank)",
         description="Simulate a model file (.yaml) or a built-in example; write the results "
-        "(HDF5, during the run), a plot and an animation next to them. Ctrl-C stops and keeps "
-        "what was computed.",
+        "(HDF5, during the run), a plot, an animation (GIF) and, for deformable bodies, a "
+        "ParaView series next to them. Ctrl-C stops and keeps what was computed.",
     )
     run.add_argument(
         "model",
@@ -791,7 +791,9 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--animation", help="animation file (.gif; default: NAME.gif)")
     run.add_argument("--no-plot", action="store_true", help="write no plot")
     run.add_argument(
-        "--no-animation", action="store_true", help="render no animation (the GIF only)"
+        "--no-animation",
+        action="store_true",
+        help="render no animation GIF (the ParaView series is written still: --no-vtu)",
     )
     run.add_argument(
         "--no-vtu",
