@@ -122,6 +122,51 @@ def test_vtu_rejects_a_bad_stride(slider_crank, tmp_path):
         animation.write_vtu_series(slider_crank, tmp_path, scale=-1.0)
 
 
+def test_vtu_times_window_then_every_nth_record_and_the_windows_last(slider_crank, tmp_path):
+    # Records every 2 ms over 0 .. 20 ms: the window 5 .. 15 ms holds 6, 8, 10, 12, 14 ms;
+    # every 3rd from its first is 6 and 12 ms, and the window's last, 14 ms, is added.
+    entries = animation.read_pvd(
+        animation.write_vtu_series(slider_crank, tmp_path, every=3, times=(0.005, 0.015))
+    )
+    np.testing.assert_allclose([t for t, _ in entries], [0.006, 0.012, 0.014], rtol=1e-12)
+    mesh = meshio.read(entries[0][1])
+    expected = slider_crank.node_positions("rod")[3]
+    np.testing.assert_allclose(mesh.points[: len(expected)], expected, rtol=0, atol=1e-12)
+    # A window's ends are inclusive; an open end is infinite.
+    ends = animation.read_pvd(
+        animation.write_vtu_series(slider_crank, tmp_path / "b", times=(0.016, np.inf))
+    )
+    np.testing.assert_allclose([t for t, _ in ends], [0.016, 0.018, 0.02], rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("times", "message"),
+    [
+        ((0.5, 1.0), r"no record in times 0\.5 \.\. 1 s \(the records: 0 \.\. 0\.02 s\)"),
+        ((0.01, 0.005), "start <= end"),
+        ((np.nan, 1.0), "start <= end"),
+        ((0.01,), r"times must be \(start, end\)"),
+        ("0:1", r"times must be \(start, end\)"),
+    ],
+)
+def test_vtu_rejects_a_bad_time_window(slider_crank, tmp_path, times, message):
+    with pytest.raises(fm.InvalidParameterError, match=message):
+        animation.write_vtu_series(slider_crank, tmp_path, times=times)
+    with pytest.raises(fm.InvalidParameterError, match=message):
+        animation.vtu_series_size(slider_crank, times=times)
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("stress", [True, False])
+def test_vtu_series_size_counts_the_files_and_estimates_their_size(tet_pendulum, tmp_path, stress):
+    files, size = animation.vtu_series_size(tet_pendulum, 2, times=(0.02, 0.1), stress=stress)
+    pvd = animation.write_vtu_series(tet_pendulum, tmp_path, 2, times=(0.02, 0.1), stress=stress)
+    written = [path for _, path in animation.read_pvd(pvd)]
+    assert files == len(written) == 5  # 0.02, 0.04, 0.06, 0.08 and 0.1 s
+    actual = sum(path.stat().st_size for path in written)
+    assert actual / 1.5 < size < actual * 1.5, (size, actual)
+
+
 # Markers located from the motion ----------------------------------------------------------------
 def test_joint_markers_are_located_from_the_motion(four_bar):
     # The four-bar's geometry: ground pivots at x = 0, 1, 2; crank ends at +-0.5 m on the local

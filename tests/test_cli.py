@@ -13,7 +13,7 @@ import flexmbd as fm
 from flexmbd.cli import main
 from flexmbd.results_file import read_results_metadata
 
-QUIET = ["--no-plot", "--no-animation", "-q"]
+QUIET = ["--no-plot", "--no-animation", "--no-vtu", "-q"]
 
 
 @pytest.fixture(autouse=True)
@@ -329,13 +329,14 @@ def test_plot_takes_quantities_after_the_output_option(tmp_path, capsys):
     assert main(argv.split()) == 0
     svg = (tmp_path / "deflection.svg").read_text()
     assert "Deflection of rod" in svg or "<svg" in svg[:500]
-    # Three panels: the deflection, the guide's reaction force and torque.
+    # Two panels: the deflection and the guide's reaction force (an in-line joint transmits no
+    # torque: that panel is left out).
     from flexmbd import plotting
 
     figure = plotting.plot_quantities(
         fm.read_results(tmp_path / "flexible-slider-crank.h5"), ["deflection:rod", "reaction:guide"]
     )
-    assert len([ax for ax in figure.axes if ax.get_visible()]) == 3
+    assert len([ax for ax in figure.axes if ax.get_visible()]) == 2
     with pytest.raises(SystemExit) as stopped:
         main(["plot", "flexible-slider-crank.h5", "-o", "x.svg", "energy", "--bogus"])
     assert stopped.value.code == 2
@@ -475,3 +476,52 @@ def test_the_documented_mesh_commands_run_verbatim(tmp_path, monkeypatch, capsys
     assert seen >= 4
     out = capsys.readouterr().out
     assert "group 'tip': 18 nodes" in out and "interface 1 (rbe2): 18 nodes" in out
+
+
+def test_run_thins_the_paraview_series_and_no_animation_skips_only_the_gif(tmp_path, capsys):
+    argv = ["run", "flexible-slider-crank", "--end", "0.004", "--step", "1e-4", "-q"]
+    argv += ["--no-plot", "--no-animation", "--vtu-every", "10", "--vtu-times", "0.001:"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    # Records every 0.1 ms: the window 1 .. 4 ms, every 10th from its first: 1, 2, 3, 4 ms.
+    assert "writing 4 VTU files (~" in out and "MB) to flexible-slider-crank_vtu" in out
+    from flexmbd.animation import read_pvd
+
+    entries = read_pvd(tmp_path / "flexible-slider-crank_vtu" / "flexible-slider-crank.pvd")
+    assert [round(t, 12) for t, _ in entries] == [0.001, 0.002, 0.003, 0.004]
+    assert not list(tmp_path.glob("*.gif"))
+    assert main([*argv[:6], "-o", "none.h5", *QUIET]) == 0
+    assert not (tmp_path / "none_vtu").exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--vtu-every", "0"], "--vtu-every: expected a positive whole number, got '0'"),
+        (["--vtu-times", "2:1"], "--vtu-times: START must not be after END, got '2:1'"),
+        (["--vtu-times", "1"], "--vtu-times: expected START:END in s, got '1'"),
+    ],
+)
+def test_run_refuses_bad_paraview_options(capsys, option, message):
+    with pytest.raises(SystemExit) as stop:
+        main(["run", "flexible-slider-crank", *option])
+    assert stop.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_run_takes_the_paraview_section_of_a_model_file(tmp_path, capsys):
+    from pathlib import Path
+
+    model = Path(__file__).parents[1] / "examples" / "models" / "tetrahedral_pendulum.yaml"
+    text = model.read_text()
+    quiet = ["--end", "0.02", "--output-interval", "0.002", "--no-plot", "--no-animation", "-q"]
+    (tmp_path / "thin.yaml").write_text(text + "paraview: {every: 4, times: [0.004, 0.02]}\n")
+    assert main(["run", "thin.yaml", "-o", "thin.h5", *quiet]) == 0
+    # 4, 12 and 20 ms (the window's last).
+    assert "writing 3 VTU files" in capsys.readouterr().out
+    (tmp_path / "off.yaml").write_text(text + "paraview: {write: false}\n")
+    assert main(["run", "off.yaml", "-o", "off.h5", *quiet]) == 0
+    assert "VTU" not in capsys.readouterr().out and not (tmp_path / "off_vtu").exists()
+    # A --vtu- option on the command line writes the series anyway and replaces the file's.
+    assert main(["run", "off.yaml", "-o", "on.h5", "--vtu-every", "5", *quiet]) == 0
+    assert "writing 3 VTU files" in capsys.readouterr().out  # 0, 10 and 20 ms

@@ -582,6 +582,32 @@ MALFORMED = {
         ("simulation:", "solver: {type: explicit, cut_joints: [hinge]}\nsimulation:"),
         "model.yaml: line 15: solver.cut_joints[0]: unknown joint 'hinge' (joints: link)",
     ),
+    "paraview every zero": (
+        ("simulation:", "paraview: {every: 0}\nsimulation:"),
+        "model.yaml: line 15: paraview.every: Input should be greater than or equal to 1, got 0",
+    ),
+    "paraview every not whole": (
+        ("simulation:", "paraview: {every: 2.5}\nsimulation:"),
+        "model.yaml: line 15: paraview.every: Input should be a valid integer, got 2.5",
+    ),
+    "paraview times reversed": (
+        ("simulation:", "paraview: {times: [1.0, 0.5]}\nsimulation:"),
+        "model.yaml: line 15: paraview.times: times must be [start, end] with start <= end, "
+        "got [1.0, 0.5]",
+    ),
+    "paraview times one number": (
+        ("simulation:", "paraview: {times: [1.0]}\nsimulation:"),
+        "model.yaml: line 15: paraview.times: expected at least 2 items, got 1",
+    ),
+    "paraview unknown key": (
+        ("simulation:", "paraview: {evry: 2}\nsimulation:"),
+        "model.yaml: line 15: paraview.evry: unknown key 'evry' (allowed: write, every, times); "
+        "did you mean 'every'?",
+    ),
+    "paraview write not a flag": (
+        ("simulation:", "paraview: {write: maybe}\nsimulation:"),
+        "model.yaml: line 15: paraview.write: Input should be a valid boolean, got 'maybe'",
+    ),
     "not a mapping": ((PENDULUM, "- 1\n- 2\n"), "model.yaml: line 1: a model file is a mapping"),
     "empty": ((PENDULUM, ""), "model.yaml: the model file is empty"),
 }
@@ -609,6 +635,25 @@ def test_malformed_model_files_give_one_error_with_line_and_key_path(case, tmp_p
     assert caught.value.file == "model.yaml"
     line = re.match(r"model\.yaml: line (\d+)", message)
     assert caught.value.line == (int(line.group(1)) if line else None)
+
+
+def test_paraview_section_in_the_files_time_unit(tmp_path):
+    text = "units: {time: ms}\nparaview: {every: 3, times: [100, 250]}\n" + edited(
+        "end_time: 1.0", "end_time: 1000.0", "step_size: 1.0e-3", "step_size: 1.0"
+    )
+    (tmp_path / "model.yaml").write_text(text)
+    paraview = load_model(tmp_path / "model.yaml").paraview
+    assert (paraview.write, paraview.every) == (True, 3)
+    assert paraview.times == pytest.approx((0.1, 0.25), rel=1e-15)
+    (tmp_path / "model.yaml").write_text(
+        edited("simulation:", "paraview: {write: false}\nsimulation:")
+    )
+    paraview = load_model(tmp_path / "model.yaml").paraview
+    assert (paraview.write, paraview.every, paraview.times) == (False, 1, None)
+    # Without the section: every record.
+    (tmp_path / "model.yaml").write_text(PENDULUM)
+    paraview = load_model(tmp_path / "model.yaml").paraview
+    assert (paraview.write, paraview.every, paraview.times) == (True, 1, None)
 
 
 def test_the_unedited_base_model_loads_and_runs(tmp_path):

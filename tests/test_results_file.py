@@ -600,3 +600,82 @@ def test_a_results_path_the_system_refuses_is_a_results_file_error(name, match, 
     with pytest.raises(fm.ResultsFileError, match=match):
         fm.simulate(pendulum(), 0.01, 1e-3, results_file=f"{tmp_path}/{name}")
     assert list(tmp_path.iterdir()) == []
+
+
+# Bodies stored once per distinct content ---------------------------------------------------------
+def _three_links():
+    """A chain of three beam links: the first two of the same content (one a deep copy, not
+    the same object), the third longer."""
+    import copy
+
+    from flexmbd.examples import _beam_link
+
+    system = fm.System(gravity=(0, -9.81, 0))
+    short = _beam_link(1.0, 4, 0)
+    links = [
+        system.add_flexible_body(data, position=(x, 0, 0), name=f"link {k}")
+        for k, (data, x) in enumerate([(short, 0.0), (copy.deepcopy(short), 1.0)])
+    ]
+    links.append(system.add_flexible_body(_beam_link(1.5, 4, 0), position=(2, 0, 0), name="long"))
+    previous = system.add_marker(system.ground)
+    for k, link in enumerate(links):
+        system.add_revolute_joint(previous, system.add_node_marker(link, 1), name=f"hinge {k}")
+        previous = system.add_node_marker(link, 5)
+    return system
+
+
+def _copy_per_body(path) -> None:
+    """Rewrites the ``flexible`` group of a results file in the layout written before bodies
+    were shared: an independent copy of the body data under every body index."""
+    with h5py.File(path, "r+") as file:
+        group = file["flexible"]
+        for name in list(group):
+            group.copy(group[name], group, name=f"{name}-copy")
+            del group[name]
+            group.move(f"{name}-copy", name)
+
+
+def test_bodies_of_the_same_content_are_stored_once(tmp_path):
+    from test_body_file import assert_identical
+
+    system = _three_links()
+    model = system.compile()
+    path = tmp_path / "chain.h5"
+    result = fm.simulate(model, 0.005, 1e-3, results_file=path)
+    with h5py.File(path, "r") as file:
+        groups = [file["flexible"][str(index)] for index in sorted(model.flexible_bodies)]
+        assert groups[0].id == groups[1].id  # one group, two names (HDF5 hard links)
+        assert groups[0].id != groups[2].id
+    shared = tmp_path / "shared.h5"
+    shared.write_bytes(path.read_bytes())
+    _copy_per_body(path)
+    assert shared.stat().st_size < path.stat().st_size
+    for file in (shared, path):
+        back = fm.read_results(file)
+        assert_same_records(result, back)
+        assert sorted(back.flexible) == sorted(model.flexible_bodies)
+        for index, data in model.flexible_bodies.items():
+            assert_identical(back.flexible[index], data, f"body {index}")
+        np.testing.assert_array_equal(
+            back.node_positions("link 1"), result.node_positions("link 1")
+        )
+    # Read once, the shared body is one object, as it is in the model it came from.
+    back = fm.read_results(shared)
+    first, second, third = (back.flexible[i] for i in sorted(back.flexible))
+    assert first is second and third is not first
+
+
+def test_large_body_arrays_are_compressed_in_results_files(tmp_path):
+    from flexmbd.fe import Material, build_body, shapes
+
+    mesh = shapes.box((1.0, 0.1, 0.1), (12, 3, 3), "tet4")
+    data = build_body(mesh.nodes, mesh.elements, Material(7e10, 0.3, 2700.0))
+    system = fm.System()
+    system.add_flexible_body(data, name="bar")
+    system.add_flexible_body(data, position=(0, 1, 0), name="twin")
+    path = tmp_path / "bar.h5"
+    fm.simulate(system, 2e-3, 1e-3, results_file=path)
+    with h5py.File(path, "r") as file:
+        stiffness = file["flexible"]["1"]["stiffness"]["data"]
+        assert stiffness.nbytes >= 64 * 1024 and stiffness.compression == "gzip"
+        assert stiffness.id.get_storage_size() < stiffness.nbytes

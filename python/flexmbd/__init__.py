@@ -16,22 +16,13 @@ Units are SI by convention. See ``docs/`` for the theory and the solver choices.
 
 from __future__ import annotations
 
-from . import errors, examples
-from ._boundary import (
-    Constant,
-    ExplicitSolver,
-    GeneralizedAlpha,
-    Harmonic,
-    Polynomial,
-    Spline,
-    Step,
-    Trapezoidal,
-    UserFunction,
-)
-from ._core import BodyId, ForceId, JointId, MarkerId, Model, SensorId, __version__
-from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
-from .campbell import CampbellDiagram, campbell, plot_campbell
-from .dispersion import DispersionBranch, dispersion
+import importlib
+import importlib.util
+import sys
+import types
+from typing import TYPE_CHECKING, Any
+
+from . import errors
 from .errors import (
     ArgumentTypeError,
     CallbackError,
@@ -53,23 +44,138 @@ from .errors import (
     StepSizeTooSmallError,
     UnknownItemError,
 )
-from .inverse_dynamics import InverseDynamics, inverse_dynamics
-from .result import Result
-from .results_file import read_results
-from .rotation import euler_parameters_to_matrix, rotation
-from .simulation import simulate
-from .state import EquilibriumState, State
-from .state_space import (
-    BodyPosition,
-    ElasticCoordinate,
-    NodeDisplacement,
-    PointLoad,
-    StateSpace,
-)
-from .study import Study, load_study
-from .system import System
-from .viewer import view
-from .waves import AxialPulse, axial_pulse
+
+if TYPE_CHECKING:
+    from . import examples
+    from ._boundary import (
+        Constant,
+        ExplicitSolver,
+        GeneralizedAlpha,
+        Harmonic,
+        Polynomial,
+        Spline,
+        Step,
+        Trapezoidal,
+        UserFunction,
+    )
+    from ._core import (
+        BodyId,
+        ForceId,
+        JointId,
+        MarkerId,
+        Model,
+        SensorId,
+        __version__,
+    )
+    from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
+    from .campbell import CampbellDiagram, campbell, plot_campbell
+    from .dispersion import DispersionBranch, dispersion
+    from .inverse_dynamics import InverseDynamics, inverse_dynamics
+    from .result import Result
+    from .results_file import read_results
+    from .rotation import euler_parameters_to_matrix, rotation
+    from .simulation import simulate
+    from .state import EquilibriumState, State
+    from .state_space import (
+        BodyPosition,
+        ElasticCoordinate,
+        NodeDisplacement,
+        PointLoad,
+        StateSpace,
+    )
+    from .study import Study, load_study
+    from .system import System
+    from .viewer import view
+    from .waves import AxialPulse, axial_pulse
+
+#: Public name -> the submodule that defines it. Importing ``flexmbd`` loads none of them (nor
+#: numpy, scipy, h5py, ...): each is imported on first access (PEP 562), so a script or the
+#: command line pays only for what it uses.
+_ORIGIN: dict[str, str] = {
+    "Constant": "_boundary",
+    "ExplicitSolver": "_boundary",
+    "GeneralizedAlpha": "_boundary",
+    "Harmonic": "_boundary",
+    "Polynomial": "_boundary",
+    "Spline": "_boundary",
+    "Step": "_boundary",
+    "Trapezoidal": "_boundary",
+    "UserFunction": "_boundary",
+    "BodyId": "_core",
+    "ForceId": "_core",
+    "JointId": "_core",
+    "MarkerId": "_core",
+    "Model": "_core",
+    "SensorId": "_core",
+    "__version__": "_core",
+    "LinearizedSystem": "analysis",
+    "equilibrium": "analysis",
+    "linearize": "analysis",
+    "steady_rotation": "analysis",
+    "CampbellDiagram": "campbell",
+    "campbell": "campbell",
+    "plot_campbell": "campbell",
+    "DispersionBranch": "dispersion",
+    "dispersion": "dispersion",
+    "InverseDynamics": "inverse_dynamics",
+    "inverse_dynamics": "inverse_dynamics",
+    "Result": "result",
+    "read_results": "results_file",
+    "euler_parameters_to_matrix": "rotation",
+    "rotation": "rotation",
+    "simulate": "simulation",
+    "EquilibriumState": "state",
+    "State": "state",
+    "BodyPosition": "state_space",
+    "ElasticCoordinate": "state_space",
+    "NodeDisplacement": "state_space",
+    "PointLoad": "state_space",
+    "StateSpace": "state_space",
+    "Study": "study",
+    "load_study": "study",
+    "System": "system",
+    "view": "viewer",
+    "AxialPulse": "waves",
+    "axial_pulse": "waves",
+    "examples": "",
+}
+
+#: Names that are both a submodule and the public function it defines (``fm.rotation(...)``,
+#: ``fm.campbell(...)``): the package attribute is always the function, also after the
+#: submodule is imported (the import system would otherwise set the attribute to the module).
+_FUNCTION_MODULES = frozenset(("campbell", "dispersion", "inverse_dynamics", "rotation"))
+
+
+def __getattr__(name: str) -> Any:
+    origin = _ORIGIN.get(name)
+    if origin is None:
+        # Any other submodule (fm.fe, fm.animation, ...) on first access too.
+        if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return importlib.import_module(f".{name}", __name__)
+    if origin == "":
+        value: Any = importlib.import_module(f".{name}", __name__)
+    else:
+        value = getattr(importlib.import_module(f".{origin}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_ORIGIN))
+
+
+class _Package(types.ModuleType):
+    """The package's module type: keeps `_FUNCTION_MODULES` bound to their functions."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _FUNCTION_MODULES and isinstance(value, types.ModuleType):
+            # The import system binds a newly imported submodule on its package.
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 __all__ = [
     "ArgumentTypeError",

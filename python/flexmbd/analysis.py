@@ -13,12 +13,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from . import _core
@@ -26,6 +23,9 @@ from ._checks import number
 from .errors import EquilibriumError, InvalidModelError, InvalidParameterError
 from .state import EquilibriumState
 from .state_space import PointLoad, StateSpace, input_forces, output_rows
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 Array = NDArray[np.float64]
 
@@ -44,6 +44,8 @@ def _elastic_mask(layout: dict[str, Any]) -> NDArray[np.bool_]:
 
 
 def _matrix(ev: dict[str, Any]) -> sp.csc_matrix:
+    import scipy.sparse as sp
+
     data, indices, indptr, n = ev["matrix"]
     return sp.csc_matrix((data, indices, indptr), shape=(n, n))
 
@@ -120,6 +122,9 @@ def _newton_solve(
     is not symmetric positive definite, by a sparse LU of the whole matrix. `kept_factors`
     (body index -> block, factor) keeps the factors between the iterations: a block equal to
     the kept one (the stiffness at rest is) is not factorized again."""
+    import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
+
     from .fe.modal import factorize
 
     blocks = []
@@ -246,6 +251,7 @@ def _solve_equilibrium(
     max_iterations: int = 100,
 ) -> EquilibriumState:
     """Newton's method of :func:`equilibrium` from `q` (the drivers checked at `time`)."""
+
     flexible = model.flexible_bodies
     nq, nc = model.coordinate_count, model.constraint_count
     rigid = ~_elastic_mask(layout)
@@ -367,6 +373,8 @@ class LinearizedSystem:
     def eigenvalues(self) -> tuple[Array, Array]:
         """Eigenvalues s (1/s) of the first-order form, sorted by |Im s| then Re s, and the
         mode shapes in the coordinates q (columns)."""
+        import scipy.linalg as sla
+
         if self._eigen is None:
             n = self.mass.shape[0]
             minv_k = np.linalg.solve(self.mass, self.stiffness)
@@ -445,6 +453,8 @@ def _dependent_columns(cq: Array, elastic: NDArray[np.bool_]) -> NDArray[np.int6
     """Columns of C_q for the dependent coordinates, as many as its rank: pivoted among the
     reference coordinates first (QR with column pivoting), then among the elastic ones for
     the rank the reference coordinates leave."""
+    import scipy.linalg as sla
+
     if cq.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
     scale = max(1.0, float(np.max(np.abs(cq))))
@@ -548,6 +558,8 @@ def linearize(
     turn under it, and the frequencies are wrong (a rotor's whirl at 100 rad/s: 66.1 and 73.1
     rad/s instead of 27.0 and 157.9). The two choices agree where B does not move (static
     states, blades whose reference motion is all prescribed)."""
+    import scipy.linalg as sla
+
     if independent not in INDEPENDENT:
         raise InvalidParameterError(
             f"independent must be one of {', '.join(INDEPENDENT)}, got {independent!r}",

@@ -42,8 +42,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ._checks import integer, numbers_array
@@ -200,6 +198,8 @@ class _WhirlProbe:
         """The combinations of the columns of `shapes` (modes of one frequency) that whirl
         most purely: the eigenvectors of the whirl form i (A^H B - B^H A) relative to the
         size form A^H A + B^H B + C^H C; the columns unchanged when none whirls."""
+        import scipy.linalg as sla
+
         a, b, c = self.amplitudes(shapes)
         turn = 1j * (a.conj().T @ b - b.conj().T @ a)
         size = a.conj().T @ a + b.conj().T @ b + c.conj().T @ c
@@ -222,6 +222,8 @@ def _whirl_probe(system: Any, driver: str, time: float) -> _WhirlProbe | None:
     """The whirl rows of the deformable bodies that `driver` turns (their angular velocity
     per unit speed of the driver, at the model's initial coordinates, is not zero); None when
     it turns none."""
+    import scipy.sparse as sp
+
     from ._boundary import Polynomial
     from .analysis import _elastic_mask, _prescribed_rates
     from .system import elastic_basis

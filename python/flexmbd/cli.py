@@ -32,8 +32,6 @@ from .errors import (
     ResultsFileError,
     SimulationInterrupted,
 )
-from .examples import EXAMPLES
-from .simulation import simulate
 from .study.command import add_sweep_parser, sweep
 
 
@@ -52,6 +50,50 @@ def _solver(text: str | None, default: Any) -> Any:
     default = "joint-space" if parts[1] == "joint-coordinates" else "augmented"
     formulation = parts[2] if len(parts) == 3 else default
     return _boundary.ExplicitSolver(parts[0], parts[1], formulation=formulation)
+
+
+def _every(text: str) -> int:
+    """A positive whole number of records (``--vtu-every``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}")
+    return value
+
+
+def _times(text: str) -> tuple[float, float]:
+    """A time window START:END in s (``--vtu-times``); an empty side is open."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start = float(parts[0]) if parts[0].strip() else -math.inf
+        end = float(parts[1]) if parts[1].strip() else math.inf
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected START:END in s, got {text!r}") from None
+    if not start <= end:
+        raise argparse.ArgumentTypeError(f"START must not be after END, got {text!r}")
+    return start, end
+
+
+def _write_paraview(
+    result: Any, directory: Path, name: str, every: int, times: Any, **options: Any
+) -> Path:
+    """Writes the ParaView series of `result` after saying what is being written (the one
+    place where the command line writes VTU files)."""
+    from .animation import LARGE_VTU_SERIES, vtu_series_size, write_vtu_series
+
+    files, size = vtu_series_size(result, every, times=times)
+    print(f"  writing {files} VTU files (~{size / 1e6:.3g} MB) to {directory}", flush=True)
+    if size > LARGE_VTU_SERIES:
+        print(
+            "  (--vtu-every N, --vtu-times A:B or --no-vtu write less; the model file's "
+            "paraview section sets them too)",
+            flush=True,
+        )
+    return write_vtu_series(result, directory, every, name=name, times=times, **options)
 
 
 @dataclass
@@ -75,9 +117,13 @@ class _Job:
     stem: str = "results"
     #: The outputs of a model file (:class:`flexmbd.model_file.building.Output`), for units.
     output_specs: list[Any] | None = None
+    #: The model file's ParaView series settings (model_file.ParaViewOutput); None: defaults.
+    paraview: Any = None
 
 
 def _job(model: str) -> _Job:
+    from .examples import EXAMPLES
+
     if model in EXAMPLES:
         example = EXAMPLES[model]()
         return _Job(
@@ -117,12 +163,15 @@ def _job(model: str) -> _Job:
         start=loaded.start,
         stem=_model_stem(loaded.file_stem),
         output_specs=list(loaded.outputs),
+        paraview=loaded.paraview,
     )
 
 
 def _model_stem(stem: str) -> str:
     """The stem of a model file's output files: its file stem, with ``_model`` appended when
     that is the name of a built-in example (whose files ``flexmbd run NAME`` writes)."""
+    from .examples import EXAMPLES
+
     return f"{stem}_model" if stem in EXAMPLES else stem
 
 
@@ -291,6 +340,8 @@ def _run(args: argparse.Namespace) -> int:
         "output_interval": interval,
         "solver": repr(solver),
     }
+    from .simulation import simulate
+
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():
@@ -344,19 +395,29 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  plot: {', '.join(str(p) for p in written)}")
         _print_notes(result, job.plots)
     if not args.no_animation:
-        from .animation import render_animation, write_vtu_series
+        from .animation import render_animation
 
         movie = Path(args.animation) if args.animation else results.with_suffix(".gif")
         render_animation(result, movie)
         print(f"  animation: {movie}")
-        if result.flexible:
-            directory = results.with_name(f"{results.stem}_vtu")
-            pvd = write_vtu_series(result, directory, name=results.stem)
-            print(f"  ParaView series: {pvd}")
+    paraview = job.paraview
+    explicit = args.vtu_every is not None or args.vtu_times is not None
+    if result.flexible and not args.no_vtu and (paraview is None or paraview.write or explicit):
+        every = args.vtu_every or (paraview.every if paraview else 1)
+        times = args.vtu_times or (paraview.times if paraview else None)
+        directory = results.with_name(f"{results.stem}_vtu")
+        try:
+            pvd = _write_paraview(result, directory, results.stem, every, times)
+        except FlexmbdError as error:
+            print(f"flexmbd run: ParaView series: {error}", file=sys.stderr)
+            return 2
+        print(f"  ParaView series: {pvd}")
     return 0
 
 
 def _info(args: argparse.Namespace) -> int:
+    from .examples import EXAMPLES
+
     target = args.file
     try:
         if Path(target).is_dir():
@@ -571,7 +632,7 @@ def _print_notes(result: Any, quantities: Any) -> None:
 
 
 def _animate(args: argparse.Namespace) -> int:
-    from .animation import render_animation, write_vtu_series
+    from .animation import render_animation
     from .results_file import read_results
 
     try:
@@ -582,7 +643,8 @@ def _animate(args: argparse.Namespace) -> int:
             options["scale"] = args.scale
         if args.vtu or not args.no_vtu and result.flexible:
             directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
-            pvd = write_vtu_series(result, directory, name=results.stem, **options)
+            every, times = args.vtu_every or 1, args.vtu_times
+            pvd = _write_paraview(result, directory, results.stem, every, times, **options)
             print(f"written: {pvd}")
         if not args.no_render:
             movie = Path(args.output) if args.output else results.with_suffix(".gif")
@@ -648,7 +710,7 @@ def _modes(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .analysis import equilibrium, linearize, steady_rotation
-    from .animation import render_animation, write_vtu_series
+    from .animation import render_animation
     from .errors import InvalidModelError
     from .state_space import body_shapes, mode_result
 
@@ -681,7 +743,7 @@ def _modes(args: argparse.Namespace) -> int:
             print(f"written: {movie}")
             if result.flexible:
                 folder = stem.with_name(f"{stem.name}_mode{k}_vtu")
-                print(f"written: {write_vtu_series(result, folder, name=f'mode{k}')}")
+                print(f"written: {_write_paraview(result, folder, f'mode{k}', 1, None)}")
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd modes: {error}", file=sys.stderr)
         return 2
@@ -811,8 +873,8 @@ def _main(argv: list[str] | None) -> int:
         "run",
         help="simulate a model file or a built-in example (default: flexible-slider-crank)",
         description="Simulate a model file (.yaml) or a built-in example; write the results "
-        "(HDF5, during the run), a plot and an animation next to them. Ctrl-C stops and keeps "
-        "what was computed.",
+        "(HDF5, during the run), a plot, an animation (GIF) and, for deformable bodies, a "
+        "ParaView series next to them. Ctrl-C stops and keeps what was computed.",
     )
     run.add_argument(
         "model",
@@ -845,7 +907,31 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--plot", help="plot file (.png or .svg; default: NAME.png)")
     run.add_argument("--animation", help="animation file (.gif; default: NAME.gif)")
     run.add_argument("--no-plot", action="store_true", help="write no plot")
-    run.add_argument("--no-animation", action="store_true", help="write no animation")
+    run.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="render no animation GIF (the ParaView series is written still: --no-vtu)",
+    )
+    run.add_argument(
+        "--no-vtu",
+        action="store_true",
+        help="write no ParaView series (a .vtu file per record and a .pvd, NAME_vtu/) of the "
+        "deformable bodies",
+    )
+    run.add_argument(
+        "--vtu-every",
+        type=_every,
+        metavar="N",
+        help="ParaView series: every N-th record and the last (default: the model file's "
+        "paraview.every, else 1)",
+    )
+    run.add_argument(
+        "--vtu-times",
+        type=_times,
+        metavar="A:B",
+        help="ParaView series: only the records from time A to B (s; A or B may be left out; "
+        "default: the model file's paraview.times, else all)",
+    )
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     info = sub.add_parser("info", help="summarize a model, body, results or mesh file, or a study")
     info.add_argument(
@@ -870,6 +956,15 @@ def _main(argv: list[str] | None) -> int:
     animate.add_argument("-o", "--output", help="animation file (.gif; default: RESULTS.gif)")
     animate.add_argument("--vtu", help="folder of the ParaView series (default: RESULTS_vtu)")
     animate.add_argument("--no-vtu", action="store_true", help="write no ParaView series")
+    animate.add_argument(
+        "--vtu-every", type=_every, metavar="N", help="ParaView series: every N-th record"
+    )
+    animate.add_argument(
+        "--vtu-times",
+        type=_times,
+        metavar="A:B",
+        help="ParaView series: only the records from time A to B (s; A or B may be left out)",
+    )
     animate.add_argument("--no-render", action="store_true", help="render no animation")
     animate.add_argument("--frames", type=int, help="number of frames rendered")
     animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
@@ -1000,6 +1095,8 @@ def _main(argv: list[str] | None) -> int:
     if args.command in commands:
         return commands[args.command](args)
     if args.command == "examples":
+        from .examples import EXAMPLES
+
         for name, builder in sorted(EXAMPLES.items()):
             print(f"{name}: {builder().description}")
         return 0

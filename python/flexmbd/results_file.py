@@ -22,8 +22,10 @@ Datasets, time first, one row per record, extensible along the first axis (SI un
   ``"running"``.
 
 Group ``flexible``: one group per deformable body, named by its body index, in the layout of a
-body file (:mod:`flexmbd.fe.body_file`), so that node positions, stresses and animations can
-be computed from the file alone.
+body file (:mod:`flexmbd.fe.body_file`; arrays of 64 KiB or more gzip-compressed), so that node
+positions, stresses and animations can be computed from the file alone. Bodies of the same
+content (identical links of a chain) are stored once: the later indices are HDF5 hard links to
+the first one's group (files written before had a copy per index; both read alike).
 
 The file is written in HDF5's single-writer/multiple-reader mode, whose ordered writes keep it
 readable after the writer is killed; :func:`read_results` opens it accordingly. Nothing in the
@@ -49,7 +51,7 @@ import numpy as np
 from . import _core, errors
 from ._hdf5 import global_heap_damage
 from .errors import FlexmbdError, InvalidModelError, ResultsFileError
-from .fe.body_file import copy_body_group, read_body_group
+from .fe.body_file import copy_body_groups, read_body_group
 from .result import Result
 
 #: Value of the root attribute ``format`` of a results file.
@@ -290,8 +292,8 @@ class ResultsWriter:
                     name, shape=(0,), maxshape=(None,), dtype="u1", chunks=(4096,)
                 )
             flexible = file.create_group("flexible")
-            for index, body in sorted(model.flexible_bodies.items()):
-                copy_body_group(flexible, str(index), body)
+            bodies = sorted(model.flexible_bodies.items())
+            copy_body_groups(flexible, {str(index): body for index, body in bodies})
             self._write_text("status", {"state": "running", "error": None, "message": ""})
             file.swmr_mode = True
             file.flush()
@@ -797,9 +799,14 @@ def _read_results(path: Path) -> Result:
         raw["redundancy"] = _text(file, "redundancy")
         status = _text(file, "status") or {"state": "running"}
         flexible = {}
+        # Bodies stored once for several indices (hard links to one group) are read once.
+        read: dict[Any, Any] = {}
         for key in file["flexible"] if "flexible" in file else []:
             try:
-                flexible[int(key)] = read_body_group(file["flexible"][key], path)
+                group = file["flexible"][key]
+                if group.id not in read:
+                    read[group.id] = read_body_group(group, path)
+                flexible[int(key)] = read[group.id]
             except (OSError, KeyError, ValueError, TypeError) as error:
                 raise ResultsFileError(
                     f"{path}: the data of deformable body {key} in the results file is damaged "

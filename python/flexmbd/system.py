@@ -16,10 +16,9 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
@@ -34,6 +33,9 @@ from .errors import (
 from .fe.body import FlexibleBodyData, Invariants, check_body
 from .fe.interface import COUPLINGS, Interface, body_interface
 
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
 #: The units of the numbers of a deformable body that `System.add_flexible_body` takes.
 SI_UNITS = {"length": "m", "mass": "kg", "time": "s"}
 
@@ -45,6 +47,8 @@ def _csc_tuple(
     without duplicates. `m` is not changed: a body's matrices are read-only (and a CSC matrix
     of floats shares its arrays with `c`), so a matrix that is not canonical is sorted in a
     copy."""
+    import scipy.sparse as sp
+
     c = sp.csc_matrix(m, dtype=float)
     if c.shape != (n, n):
         raise InvalidParameterError(f"matrix of shape {c.shape}, expected ({n}, {n})")
@@ -63,6 +67,8 @@ def elastic_basis(body: FlexibleBodyData) -> sp.csr_matrix:
     """The matrix (n_nodal_dofs, n_f) that maps the elastic coordinates of `body` to its nodal
     displacements (zero at the dofs held by the reference conditions): the selection of the
     kept dofs for nodal bodies, the modal matrix B_m of seed eq. 18 for modal ones."""
+    import scipy.sparse as sp
+
     free = np.asarray(body.reference.free_dofs, dtype=np.int64)
     n_dofs = body.dof_count
     if body.modes is None:
@@ -114,6 +120,8 @@ def _compress(
 def _scalar_mass(body: FlexibleBodyData, free: NDArray[np.int64]) -> Any:
     """(M_s, kept coordinates) of a body of solids whose nodal mass matrix is M_s (x) I_3 (the
     fast products of `ScalarMass` in the core), else None."""
+    import scipy.sparse as sp
+
     if body.dofs_per_node != 3:
         return None
     mass = sp.csr_matrix(body.mass)
@@ -132,6 +140,8 @@ def _check_rigid(
     item: str,
 ) -> None:
     """Raises unless every elastic coordinate moves the interface's nodes rigidly (RBE2)."""
+    import scipy.sparse as sp
+
     d = body.dofs_per_node
     dofs = (interface.members[:, None] * d + np.arange(3)).ravel()
     motion = basis[dofs]
@@ -198,6 +208,7 @@ class System(_core.System):
     """
 
     def __init__(self, gravity: ArrayLike | None = None):
+
         self._flexible: dict[int, FlexibleBodyData] = {}
         self._bases: dict[int, sp.csr_matrix] = {}
         self._calls: list[_Call] = [("gravity", (_kept(gravity),), {})]
@@ -382,6 +393,8 @@ class System(_core.System):
         `modal_damping` that is not a number, `geometric_stiffness` or `condense` that are
         not True or False.
         """
+        import scipy.sparse as sp
+
         item = f"body '{name}'" if name else "flexible body"
         if not isinstance(body, FlexibleBodyData):
             raise InvalidParameterError(
@@ -493,6 +506,7 @@ class System(_core.System):
 
     @staticmethod
     def _modal_damping(body: FlexibleBodyData, zeta: float, item: str) -> NDArray[np.float64]:
+
         if body.modes is None:
             raise InvalidModelError(
                 f"{item}: modal damping needs a modal body; use rayleigh_damping for nodal bodies",
@@ -569,6 +583,8 @@ class System(_core.System):
         body axes), or "principal" (z the outward normal of a face, x its axis of largest
         extent). Raises `InvalidModelError` naming the set when it is empty, of zero weight
         or on one line."""
+        import scipy.sparse as sp
+
         item = f"marker '{name}'" if name else "node set marker"
         data, basis = self._flexible_data(body, item)
         if coupling not in COUPLINGS:

@@ -66,7 +66,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ._checks import integer, number, numbers_array
@@ -135,6 +134,8 @@ def rod_body(
     nodes: per element EA/h [[1, -1], [-1, 1]] plus the bedding k_f h/6 [[2, 1], [1, 2]]
     (`foundation` k_f in N/m^2), consistent mass rho A h/6 [[2, 1], [1, 2]] in each
     direction (the invariants of motion see a line of mass)."""
+    import scipy.sparse as sp
+
     from .fe import body_from_matrices
 
     h = length / elements

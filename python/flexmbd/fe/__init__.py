@@ -3,24 +3,78 @@ invariants of motion, reference conditions, modal reduction, and body files.
 
     from flexmbd.fe import Material, body_from_mesh, save_body, shapes
 
-See ``docs/preprocessor.md``."""
+See ``docs/preprocessor.md``.
 
-from . import shapes
-from .body import FlexibleBodyData, Invariants, ReferenceConditions
-from .body_file import load_body, save_body
-from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
-from .nastran import read_nastran
-from .preprocess import (
-    Material,
-    Section,
-    assemble,
-    body_from_matrices,
-    body_from_mesh,
-    build_body,
-    straight_beam,
-)
-from .sid import read_sid, write_sid
-from .stress import recover_stresses, von_mises
+The submodules are imported on first access (PEP 562): ``flexmbd.fe.body`` does not load
+meshio or h5py."""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from . import shapes
+    from .body import FlexibleBodyData, Invariants, ReferenceConditions
+    from .body_file import load_body, save_body
+    from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
+    from .nastran import read_nastran
+    from .preprocess import (
+        Material,
+        Section,
+        assemble,
+        body_from_matrices,
+        body_from_mesh,
+        build_body,
+        straight_beam,
+    )
+    from .sid import read_sid, write_sid
+    from .stress import recover_stresses, von_mises
+
+#: Public name -> the submodule that defines it ("" for a submodule itself).
+_ORIGIN: dict[str, str] = {
+    "shapes": "",
+    "FlexibleBodyData": "body",
+    "Invariants": "body",
+    "ReferenceConditions": "body",
+    "load_body": "body_file",
+    "save_body": "body_file",
+    "Mesh": "mesh_io",
+    "read_abaqus_matrix": "mesh_io",
+    "read_mesh": "mesh_io",
+    "validate_mesh": "mesh_io",
+    "read_nastran": "nastran",
+    "Material": "preprocess",
+    "Section": "preprocess",
+    "assemble": "preprocess",
+    "body_from_matrices": "preprocess",
+    "body_from_mesh": "preprocess",
+    "build_body": "preprocess",
+    "straight_beam": "preprocess",
+    "read_sid": "sid",
+    "write_sid": "sid",
+    "recover_stresses": "stress",
+    "von_mises": "stress",
+}
+
+
+def __getattr__(name: str) -> Any:
+    origin = _ORIGIN.get(name)
+    if origin is None:
+        # Any other submodule (fe.modal, fe.preprocess, ...) on first access too.
+        if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return importlib.import_module(f".{name}", __name__)
+    module = importlib.import_module(f".{origin or name}", __name__)
+    value = module if origin == "" else getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_ORIGIN))
+
 
 __all__ = [
     "FlexibleBodyData",

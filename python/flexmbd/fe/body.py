@@ -14,12 +14,13 @@ from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, NoReturn, Self
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ..errors import FrozenBodyError, InvalidModelError, InvalidParameterError
 
 if TYPE_CHECKING:
+    import scipy.sparse as sp
+
     from .preprocess import Material
 
 #: Version of the data layout (and of the HDF5 body file that stores it).
@@ -101,6 +102,8 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 def _freeze(value: Any, where: str) -> Any:
     """`value` with its arrays read-only and its dicts and lists frozen (recursively). Sparse
     matrices become new matrix objects over read-only views of the same arrays (no copy)."""
+    import scipy.sparse as sp
+
     if isinstance(value, np.ndarray):
         return _read_only(value)
     if sp.issparse(value):
@@ -716,6 +719,8 @@ def _index_array(value: Any, path: str, bound: int, what: str) -> np.ndarray:
 
 def _check_matrix(value: Any, path: str, size: int) -> None:
     """A dense or sparse (size, size) matrix of finite numbers."""
+    import scipy.sparse as sp
+
     if sp.issparse(value):
         shape, data = value.shape, value.data
         if data.dtype.kind not in "fiu":

@@ -55,6 +55,7 @@ import os
 import pickle
 import threading
 from collections import OrderedDict
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -196,7 +197,26 @@ def copy_body_group(parent: h5py.Group, name: str, data: FlexibleBodyData) -> No
     content: a body is a hundred small datasets, and copying them is about a tenth of the
     time of writing them, which is what a study's cases that share a body spend per results
     file. Bodies of more than :data:`_TEMPLATE_BYTES` are written directly."""
-    _TEMPLATES.copy(parent, name, data)
+    _TEMPLATES.copy(parent, name, data, _content_key(data))
+
+
+def copy_body_groups(parent: h5py.Group, bodies: Mapping[str, FlexibleBodyData]) -> None:
+    """Write each body of `bodies` (name -> data) as the group ``parent[name]``, as
+    :func:`copy_body_group` does, storing each distinct body once: a body of the same content
+    as one written before (two identical links of a chain) becomes an HDF5 hard link to that
+    body's group, so the file holds its data once and reads it back under both names."""
+    written: dict[str, str] = {}
+    keys: dict[int, tuple[int, str]] = {}
+    for name, data in bodies.items():
+        # The same object twice is hashed once.
+        key = keys.get(id(data)) or _content_key(data)
+        keys[id(data)] = key
+        first = written.get(key[1])
+        if first is None:
+            _TEMPLATES.copy(parent, name, data, key)
+            written[key[1]] = name
+        else:
+            parent[name] = parent[first]
 
 
 #: The bodies' bytes that the templates of :func:`copy_body_group` keep in memory at most.
@@ -215,8 +235,11 @@ class _Templates:
         self._files: OrderedDict[str, tuple[h5py.File, int]] = OrderedDict()
         self._process = os.getpid()
 
-    def copy(self, parent: h5py.Group, name: str, data: FlexibleBodyData) -> None:
-        size, key = _content_key(data)
+    def copy(
+        self, parent: h5py.Group, name: str, data: FlexibleBodyData, content: tuple[int, str]
+    ) -> None:
+        """Writes `data` as ``parent[name]``; `content` is its :func:`_content_key`."""
+        size, key = content
         if size > _TEMPLATE_BYTES:
             write_body_group(parent.create_group(name), data)
             return

@@ -38,14 +38,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
 from .shapes import HEX8_CORNERS, TET10_EDGES
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 #: Ways of weighting the nodes of an interface.
 WEIGHTINGS = ("auto", "area", "length", "volume", "uniform")
@@ -403,6 +405,8 @@ class Interface:
     def average_rows(self, dofs_per_node: int, dof_count: int) -> sp.csr_matrix:
         """The six rows G (6, dof_count) with G u = (u_c, theta) of nodal displacements u
         (node-major, `dofs_per_node` per node; rotational dofs of beams are not used)."""
+        import scipy.sparse as sp
+
         d = dofs_per_node
         n = len(self.members)
         rows = [np.repeat(np.arange(3), n)]

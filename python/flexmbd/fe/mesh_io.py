@@ -30,17 +30,17 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import meshio
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .body import ELEMENT_NODES
+
+if TYPE_CHECKING:
+    import meshio
+    import scipy.sparse as sp
 
 #: meshio cell types read as flexmbd elements.
 MESHIO_ELEMENT_TYPES = {
@@ -163,6 +163,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         UnknownItemError: a set or element of an Abaqus file refers to a node, element or
             set that is not defined (also a ``GENERATE`` range of more labels than defined).
     """
+    import meshio
+
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(2, "No such mesh file", str(path))
@@ -645,6 +647,7 @@ def _include_target(
 
 def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) -> None:
     """Scan `path` (reached through the *INCLUDE files `chain`, itself last) into `scan`."""
+
     item = f"file '{path}'"
     if len(chain) > ABAQUS_INCLUDE_DEPTH + 1:
         raise InvalidModelError(
@@ -847,6 +850,9 @@ def mesh_parts(
     elements joins them; without elements, when a chain of nonzero entries of the nodal
     `stiffness` matrix (``dofs_per_node`` coordinates per node) couples them. A node of no
     element is a part of its own."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
     rows: list[NDArray[np.int64]] = []
     columns: list[NDArray[np.int64]] = []
     for connectivity in elements.values():
@@ -929,6 +935,8 @@ def _check_connectivity(
 
 
 def _check_duplicate_nodes(nodes: NDArray[np.float64], node_ids: NDArray[Any]) -> None:
+    from scipy.spatial import cKDTree
+
     if len(nodes) < 2:
         return
     size = float(np.linalg.norm(nodes.max(axis=0) - nodes.min(axis=0)))
@@ -1097,6 +1105,8 @@ def _symmetrize(
 ) -> sp.csc_matrix:
     """Full symmetric matrix from entries given in one or both triangles (rule in
     :func:`read_abaqus_matrix`)."""
+    import scipy.sparse as sp
+
     keys = rows * size + columns
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
@@ -1158,6 +1168,8 @@ def matrices_from_arrays(stiffness: Any, mass: Any) -> tuple[sp.csc_matrix, sp.c
 
 
 def _checked_matrix(matrix: Any, what: str) -> sp.csc_matrix:
+    import scipy.sparse as sp
+
     if sp.issparse(matrix):
         dtype = matrix.dtype
     else:

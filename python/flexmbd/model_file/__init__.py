@@ -27,7 +27,7 @@ from .. import _boundary
 from ..errors import ModelFileError
 from ..result import Result
 from ..simulation import simulate
-from .building import ModelFile, Output, _Builder, _name_problem
+from .building import ModelFile, Output, ParaViewOutput, _Builder, _name_problem
 from .reading import (
     MAX_DEPTH,
     MAX_FILE_SIZE,
@@ -80,6 +80,17 @@ def load_model(
             f"end_time must be after start_time ({simulation.start_time:g}), "
             f"got {simulation.end_time:g}",
         )
+    paraview = spec.paraview
+    if paraview.times is not None and not paraview.times[0] <= paraview.times[1]:
+        raise builder.fail(
+            ("paraview", "times"),
+            f"times must be [start, end] with start <= end, got {paraview.times}",
+        )
+    window = (
+        None
+        if paraview.times is None
+        else (paraview.times[0] * seconds, paraview.times[1] * seconds)
+    )
     problem = None if spec.name is None else _name_problem(spec.name)
     if problem is not None:
         raise builder.fail(("name",), problem)
@@ -114,6 +125,7 @@ def load_model(
         forces=builder.forces,
         sensors=builder.sensors,
         body_data=builder.flexible,
+        paraview=ParaViewOutput(paraview.write, paraview.every, window),
         spec=spec,
     )
 
@@ -234,6 +246,7 @@ __all__ = [
     "MODEL_FILE_VERSION",
     "UNITS",
     "ModelFile",
+    "ParaViewOutput",
     "ModelSpec",
     "Output",
     "check_model",

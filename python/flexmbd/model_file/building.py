@@ -117,6 +117,17 @@ class Output:
         return getattr(result, str(self.quantity))(self.item)
 
 
+@dataclass(frozen=True)
+class ParaViewOutput:
+    """The ParaView series ``flexmbd run`` writes (the model file's ``paraview``): whether,
+    every how many records, and the time window (start, end) in s (None: all records); the
+    arguments of :func:`flexmbd.animation.write_vtu_series`."""
+
+    write: bool = True
+    every: int = 1
+    times: tuple[float, float] | None = None
+
+
 @dataclass
 class ModelFile:
     """A loaded model file: the system and everything needed to simulate it (SI units).
@@ -133,6 +144,7 @@ class ModelFile:
         outputs: what to report or plot (:class:`Output`, ``values(result)``).
         bodies, markers, joints, forces, sensors: name -> id of the named items.
         body_data: name -> :class:`flexmbd.fe.FlexibleBodyData` of the deformable bodies.
+        paraview: the ParaView series of ``flexmbd run`` (:class:`ParaViewOutput`).
         spec: the validated file (:class:`ModelSpec`), in the file's units.
     """
 
@@ -154,6 +166,7 @@ class ModelFile:
     forces: dict[str, _core.ForceId] = field(default_factory=dict)
     sensors: dict[str, _core.SensorId] = field(default_factory=dict)
     body_data: dict[str, Any] = field(default_factory=dict)
+    paraview: ParaViewOutput = field(default_factory=ParaViewOutput)
     spec: ModelSpec | None = None
 
     @property

@@ -736,6 +736,18 @@ class SimulationSpec(_Spec):
     )
 
 
+class ParaViewSpec(_Spec):
+    """The ParaView series (a ``.vtu`` file per record and a ``.pvd``) of the deformable
+    bodies that ``flexmbd run`` writes next to the results (``--no-vtu``, ``--vtu-every``,
+    ``--vtu-times`` replace these)."""
+
+    write: bool = Field(True, description="write the series (false: none)")
+    every: int = Field(1, ge=1, description="every N-th record (the last one always)")
+    times: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[start, end]: only the records in this window (time; default: all)"
+    )
+
+
 class UnitsSpec(_Spec):
     """Units of the numbers in the file; everything is converted to SI on loading."""
 
@@ -769,6 +781,9 @@ class ModelSpec(_Spec):
     solver: SolverSpec | None = Field(None, description="default: generalized-alpha")
     simulation: SimulationSpec
     outputs: list[OutputSpec] | None = Field(None, description="default: every sensor")
+    paraview: ParaViewSpec = Field(
+        default_factory=ParaViewSpec, description="the ParaView series of flexmbd run"
+    )
 
 
 def model_schema() -> dict[str, Any]:

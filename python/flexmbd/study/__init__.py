@@ -30,14 +30,14 @@ import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidParameterError, ModelFileError
-from ..quantities import parse_output
 from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, run_case
 from .sampling import SAMPLINGS, make_cases
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["SAMPLINGS", "Study", "load_study"]
 
@@ -76,6 +76,8 @@ class Study:
         output_interval: float | None = None,
         solver: Any = None,
     ):
+        from ..quantities import parse_output
+
         if callable(model):
             self.source = ModelSource(build=model, arguments=dict(arguments or {}))
         else:
@@ -282,6 +284,7 @@ def _dataset(
 ) -> Any:
     """One xarray Dataset of the cases: parameters as coordinates of ``case``, scalar outputs
     per case, ``series`` outputs over ``time`` (NaN past a failed case's last record)."""
+    import numpy as np
     import xarray as xr
 
     n = len(cases)
@@ -325,6 +328,8 @@ def _dataset(
 def _column(values: list[Any]) -> np.ndarray:
     """Parameter values as an array: numbers as floats, anything else (text, lists) as
     text."""
+    import numpy as np
+
     if all(isinstance(v, (int, float)) for v in values):
         return np.array(values, dtype=float)
     return np.array([str(v) for v in values], dtype=str)

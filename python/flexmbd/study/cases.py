@@ -18,8 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..errors import FlexmbdError, InvalidParameterError, SimulationError
 
 #: Seconds of wall time between writes of a case's results file: a case that fails still
@@ -150,6 +148,8 @@ def run_case(task: CaseTask) -> dict[str, Any]:
     """Builds and simulates a case, writing its results file, then its outputs and status to
     the summary file (written last, by rename: a case is done when it exists). A case that
     fails keeps its partial results and records the error's class and message."""
+    import numpy as np
+
     from ..quantities import output_value
     from ..simulation import simulate
 

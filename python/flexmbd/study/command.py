@@ -9,9 +9,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import yaml
-
 from ..errors import FlexmbdError, InvalidParameterError
 from .sampling import plain
 
@@ -58,6 +55,8 @@ def add_sweep_parser(sub: Any) -> None:
 def _value(text: str) -> Any:
     """A value of --set: a number (also 5e-3, which YAML 1.1 reads as text), else as YAML
     reads it (booleans, text, [lists])."""
+    import yaml
+
     for kind in (int, float):
         try:
             return kind(text)
@@ -142,6 +141,8 @@ def sweep(args: argparse.Namespace) -> int:
 
 
 def _print_study(data: Any, description: dict[str, Any]) -> None:
+    import numpy as np
+
     status = [str(s) for s in data["status"].values]
     print(
         f"{description.get('model')}: {len(status)} cases, {status.count('complete')} complete, "
@@ -174,6 +175,8 @@ def _print_study(data: Any, description: dict[str, Any]) -> None:
 
 def info_study(folder: Path) -> int:
     """``flexmbd info DIR`` of a study folder."""
+    import numpy as np
+
     from . import load_study
 
     data, description = load_study(folder)

@@ -7,8 +7,6 @@ import itertools
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import numpy as np
-
 from ..errors import InvalidParameterError
 
 #: How the cases are made from the parameters.
@@ -16,6 +14,8 @@ SAMPLINGS = ("grid", "list", "random", "lhs")
 
 
 def _number(value: Any, where: str) -> float:
+    import numpy as np
+
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -41,6 +41,8 @@ def make_cases(
     - ``"lhs"``: as "random", by Latin hypercube sampling (one case in each of `samples`
       equal strata of every range).
     """
+    import numpy as np
+
     if sampling not in SAMPLINGS:
         raise InvalidParameterError(
             f"sampling must be one of {', '.join(SAMPLINGS)}, got {sampling!r}", item="sampling"
@@ -102,4 +104,6 @@ def make_cases(
 def plain(value: Any) -> Any:
     """A numpy scalar or array as the Python number or list it holds (JSON and hashes take
     those)."""
+    import numpy as np
+
     return value.tolist() if isinstance(value, (np.generic, np.ndarray)) else value
