@@ -16,6 +16,8 @@ Units are SI by convention. See ``docs/`` for the theory and the solver choices.
 
 from __future__ import annotations
 
+import logging
+
 from . import errors, examples
 from ._boundary import (
     Constant,
@@ -69,6 +71,9 @@ from .state_space import (
 from .study import Study, load_study
 from .system import System
 from .waves import AxialPulse, axial_pulse
+
+# The library logs under "flexmbd" and leaves the handlers to its user (a script, the CLI).
+logging.getLogger("flexmbd").addHandler(logging.NullHandler())
 
 __all__ = [
     "ArgumentTypeError",
