@@ -580,7 +580,7 @@ def _modes(args: argparse.Namespace) -> int:
         for k in args.animate:
             result = mode_result(linear, model, k - 1, frames=args.frames)
             movie = stem.with_name(f"{stem.name}_mode{k}.gif")
-            render_animation(result, movie, frames=args.frames)
+            render_animation(result, movie, frames=args.frames, progress=True)
             print(f"written: {movie}")
             if result.flexible:
                 folder = stem.with_name(f"{stem.name}_mode{k}_vtu")

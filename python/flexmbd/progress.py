@@ -43,6 +43,9 @@ STYLES = ("auto", "terminal", "lines", "widget")
 #: progress function about ten times a second).
 REDRAW_INTERVAL = 0.1
 
+#: Characters of the bar of the "terminal" style.
+BAR_WIDTH = 12
+
 T = TypeVar("T")
 
 
@@ -160,8 +163,8 @@ class ProgressBar:
         parts = [self.label] if self.label else []
         percent = f"{100 * self.fraction:3.0f}%"
         if bar:
-            filled = int(20 * self.fraction)
-            percent += f" [{'#' * filled}{'.' * (20 - filled)}]"
+            filled = int(BAR_WIDTH * self.fraction)
+            percent += f" [{'#' * filled}{'.' * (BAR_WIDTH - filled)}]"
         parts.append(percent)
         # The times before the detail: a line cut to the terminal's width keeps them.
         times = f"{duration(self.elapsed())} elapsed"
@@ -310,13 +313,13 @@ class SimulationProgress:
     def _detail(self) -> str:
         end = "?" if self.end_time is None else f"{self.end_time:.6g}"
         t = "?" if self.time is None else f"{self.time:.6g}"
-        parts = [f"t = {t} of {end} s"]
+        parts = [f"t = {t}/{end} s"]
         if self.steps is not None:
             parts.append(f"step {self.steps}")
         if math.isfinite(self.step_size):
             parts.append(f"h = {self.step_size:.3g} s")
         if self._implicit:
-            parts.append(f"{self.newton_iterations} Newton it/step")
+            parts.append(f"{self.newton_iterations} Newton it")
         return "  ".join(parts)
 
     def clear(self) -> None:
@@ -329,7 +332,7 @@ class SimulationProgress:
         if len(getattr(result, "time", ())):
             self.time = float(result.time[-1])
         steps = int(stats.get("steps", self.steps or 0))
-        parts = [f"t = {self.time:.6g} of {self.end_time:.6g} s", f"{steps} steps"]
+        parts = [f"t = {self.time:.6g}/{self.end_time:.6g} s", f"{steps} steps"]
         if stats.get("rejected_steps"):
             parts.append(f"{stats['rejected_steps']} rejected")
         if stats.get("function_evaluations"):
