@@ -298,8 +298,11 @@ class SimulationProgress:
         self._implicit |= self.newton_iterations > 0
         self.bar.update(self._fraction(), self._detail())
 
-    def begin(self) -> None:
-        """Starts the clock and shows the bar (a terminal or widget; nothing on "lines")."""
+    def begin(self, start_time: float) -> None:
+        """Starts the clock and shows the bar (a terminal or widget; nothing on "lines");
+        `start_time`: that of the run unless one was given."""
+        if self.start_time is None:
+            self.start_time = self.time = start_time
         self.bar.began = time.perf_counter()
         if self.bar.style != "lines":
             self.bar.update(0.0, self._detail(), force=True)
@@ -351,22 +354,21 @@ class SimulationProgress:
 
 
 def simulation_progress(
-    progress: Any, start_time: float, end_time: float
+    progress: Any, end_time: float
 ) -> tuple[Callable[[float, float, int], object] | None, SimulationProgress | None]:
     """What :func:`flexmbd.simulate` does with its ``progress`` argument: (the function the
     run calls, the display to finish; either None). None or False: nothing; True: a
-    :class:`SimulationProgress`; a :class:`SimulationProgress`: that one, its missing times
-    filled in; another callable: called as given."""
+    :class:`SimulationProgress`; a :class:`SimulationProgress`: that one, its missing end
+    time filled in (the start time is set by :meth:`SimulationProgress.begin`); another
+    callable: called as given."""
     from .errors import InvalidParameterError
 
     if progress is None or progress is False:
         return None, None
     if progress is True:
-        display = SimulationProgress(start_time, end_time)
+        display = SimulationProgress(None, end_time)
         return display, display
     if isinstance(progress, SimulationProgress):
-        if progress.start_time is None:
-            progress.start_time = progress.time = start_time
         if progress.end_time is None:
             progress.end_time = end_time
         return progress, progress

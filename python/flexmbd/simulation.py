@@ -8,6 +8,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,7 @@ import numpy as np
 from . import _boundary, _core
 from ._checks import number
 from .errors import InitialCorrectionWarning, InvalidParameterError, ResultsFileError
-from .progress import SimulationProgress, simulation_progress
+from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
 from .state import State
 
@@ -273,12 +274,19 @@ def simulate(
             f"keep_in_memory must be True or False, got {keep_in_memory!r}", item="keep_in_memory"
         )
     _check_paths(results_file, protect)
-    start_time, start = _start(model, initial_state, start_time)
+    progress, display = simulation_progress(progress, end_time)
+    # An equilibrium or steady rotation to start from is solved first (seconds on large
+    # models): a status line on a terminal meanwhile.
+    solving: AbstractContextManager[None] = nullcontext()
+    if display is not None and isinstance(initial_state, str) and initial_state in STARTS[1:]:
+        label = f"{display.bar.label}: finding the {initial_state} state"
+        solving = status(label, stream=display.bar.stream)
+    with solving:
+        start_time, start = _start(model, initial_state, start_time)
     if end_time < start_time:
         raise InvalidParameterError(
             f"end time {end_time:g} is before start time {start_time:g}", item="end_time"
         )
-    progress, display = simulation_progress(progress, start_time, end_time)
     start_arrays: dict[str, Any] = {}
     if start is not None:
         start_arrays = {
@@ -316,7 +324,7 @@ def simulate(
     result = None
     try:
         if display is not None:
-            display.begin()
+            display.begin(start_time)
         raw, error = _core.simulate(
             model,
             end_time,
