@@ -522,7 +522,12 @@ def _campbell(args: argparse.Namespace) -> int:
     try:
         job = _job(args.model)
         diagram = campbell(
-            job.system, args.driver, _speeds(args.speeds), modes=args.modes, frame=args.frame
+            job.system,
+            args.driver,
+            _speeds(args.speeds),
+            modes=args.modes,
+            frame=args.frame,
+            progress=True,
         )
         stem = Path(args.output) if args.output else Path(Path(args.model).stem + "_campbell")
         plot_campbell(diagram, stem.with_suffix(".png"), orders=args.orders)
