@@ -158,6 +158,19 @@ def test_a_failing_display_is_switched_off_and_the_run_completes(caplog):
     assert isinstance(info.value.__cause__, ValueError) and len(info.value.result.time) >= 1
 
 
+def test_ctrl_c_in_the_python_code_of_a_run_is_an_interruption():
+    # Ctrl-C that lands while the progress display (or the results writer) runs reaches
+    # Python as KeyboardInterrupt inside the callback: a CallbackError before, so that
+    # `flexmbd run` said "failed" instead of "interrupted".
+    def pressed(t, h, its):
+        raise KeyboardInterrupt
+
+    with pytest.raises(fm.SimulationInterrupted, match="interrupted at t = ") as info:
+        explicit_pendulum_run(0.5, progress=pressed)
+    assert isinstance(info.value.__cause__, KeyboardInterrupt)
+    assert 0 < info.value.result.time[-1] <= info.value.time < 0.5
+
+
 def test_events_are_logged_once_under_flexmbd_while_the_run_goes_on(caplog):
     seen = []  # the simulated time reached when each record was logged
     end = 3.0

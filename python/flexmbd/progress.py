@@ -270,8 +270,9 @@ class SimulationProgress:
 
     ``simulate(..., progress=True)`` makes one; give one yourself to choose the stream or the
     style: ``simulate(..., progress=SimulationProgress(stream=f, style="lines"))`` (the start
-    and end times then come from ``simulate``). The step number comes from the records of the
-    run as they are delivered (about ten times a second); at the end the totals of the run."""
+    and end times then come from ``simulate``); one display per run. The step number comes
+    from the records of the run as they are delivered (about ten times a second); at the end
+    the totals of the run."""
 
     def __init__(
         self,

@@ -15,7 +15,13 @@ import numpy as np
 
 from . import _boundary, _core
 from ._checks import number
-from .errors import InitialCorrectionWarning, InvalidParameterError, ResultsFileError
+from .errors import (
+    CallbackError,
+    InitialCorrectionWarning,
+    InvalidParameterError,
+    ResultsFileError,
+    SimulationInterrupted,
+)
 from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
 from .state import State
@@ -175,6 +181,17 @@ def _summary(result: Result, start_time: float, wall: float) -> None:
     logger.log(
         level, "run %s: t = %.6g .. %.6g s, %s; %.3g s", outcome, start_time, end, work, wall
     )
+
+
+def _interruption(error: BaseException | None) -> BaseException | None:
+    """Ctrl-C (or a signal raised as KeyboardInterrupt) that arrives while Python code of the
+    run runs (the progress display, the results writer, a user's function) is reported as
+    the core reports it between steps: SimulationInterrupted, not CallbackError."""
+    if isinstance(error, CallbackError) and isinstance(error.__cause__, KeyboardInterrupt):
+        interrupted = SimulationInterrupted(f"interrupted at t = {error.time:g}", time=error.time)
+        interrupted.__cause__ = error.__cause__
+        return interrupted
+    return error
 
 
 def simulate(
@@ -338,6 +355,7 @@ def simulate(
             keep_in_memory=keep_in_memory,
             **start_arrays,
         )
+        error = _interruption(error)
         result = Result(raw, model.describe(), error=error, flexible=model.flexible_bodies)
         if writer is not None:
             if writer.failure is not None:
