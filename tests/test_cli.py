@@ -121,17 +121,6 @@ def test_ctrl_c_stops_a_run_and_keeps_its_records(tmp_path, stop):
     assert read_results_metadata(tmp_path / "stopped.h5")["status"]["state"] == "interrupted"
 
 
-def test_the_progress_bar_shows_time_step_size_and_iterations(capsys):
-    from flexmbd.cli import _ProgressBar
-
-    bar = _ProgressBar(0.0, 2.0, enabled=True)
-    bar(0.5, 1e-3, 4)
-    bar.close()
-    err = capsys.readouterr().err
-    assert "25.0%" in err and "t = 0.5 s" in err and "h = 0.001 s" in err
-    assert "4 Newton its" in err
-
-
 def test_python_dash_m_runs_the_default_example_and_writes_results_plot_and_animation(
     tmp_path, assert_close
 ):

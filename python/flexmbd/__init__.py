@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import logging
 import sys
 import types
 from typing import TYPE_CHECKING, Any
@@ -176,6 +177,9 @@ class _Package(types.ModuleType):
 
 
 sys.modules[__name__].__class__ = _Package
+
+# The library logs under "flexmbd" and leaves the handlers to its user (a script, the CLI).
+logging.getLogger("flexmbd").addHandler(logging.NullHandler())
 
 __all__ = [
     "ArgumentTypeError",

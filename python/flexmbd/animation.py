@@ -47,7 +47,7 @@ import logging
 import math
 import os
 import xml.etree.ElementTree as ElementTree
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -56,6 +56,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import InvalidParameterError
+from .progress import status
+from .progress import track as track_progress
 from .simulation import logger
 
 Array = NDArray[np.float64]
@@ -547,6 +549,7 @@ def write_vtu_series(
     name: str = "result",
     stress: bool = True,
     times: Sequence[float] | None = None,
+    progress: bool | Callable[[int, int], object] | None = None,
 ) -> Path:
     """Writes the motion of `result` for ParaView: ``<name>_00000.vtu`` ... (one VTK
     unstructured grid per written record) and ``<name>.pvd`` (their times, s) into
@@ -566,7 +569,10 @@ def write_vtu_series(
     Point data: ``displacement`` (the true elastic displacement A u_f, global axes, m; zero on
     the mechanism), ``body`` (body index; -1 for none) and, if `stress` and a deformable body
     has solid elements, ``von_mises`` (Pa) and ``stress`` (Pa, global axes, ParaView's order
-    xx, yy, zz, xy, yz, xz; zero on beams and the mechanism). Cell data: ``body``."""
+    xx, yy, zz, xy, yz, xz; zero on beams and the mechanism). Cell data: ``body``.
+
+    `progress`: True shows a progress bar of the files written (:func:`flexmbd.progress.track`),
+    a function is called as ``progress(done, total)``."""
     records = _records(result, every, times)
     files, size = vtu_series_size(result, every, times=times, stress=stress)
     logger.log(
@@ -589,7 +595,10 @@ def write_vtu_series(
         "VTKFile", type="Collection", version="0.1", byte_order="LittleEndian"
     )
     datasets = ElementTree.SubElement(collection, "Collection")
-    for k, record in enumerate(records):
+    shown = track_progress(
+        enumerate(records), progress, f"writing {out}", total=len(records), unit="files"
+    )
+    for k, record in shown:
         mesh = _mesh(scene, int(record), factor, {b: s[k] for b, s in stresses.items()})
         file = f"{name}_{k:05d}.vtu"
         mesh.write(out / file)
@@ -883,6 +892,7 @@ def render_animation(
     fps: float = 15.0,
     dpi: int = 80,
     backend: str = "matplotlib",
+    progress: bool | Callable[[int, int], object] | None = None,
 ) -> list[Path]:
     """Renders the motion of `result` off screen and returns the written files.
 
@@ -893,7 +903,8 @@ def render_animation(
     scale and colour range are the same for all frames. `backend`: ``"matplotlib"`` (mplot3d,
     always available), ``"pyvista"`` (VTK, off screen; raises :class:`InvalidParameterError`
     if pyvista is missing or cannot render here) or ``"auto"`` (pyvista if it works, else
-    matplotlib)."""
+    matplotlib). `progress`: True shows a progress bar of the frames rendered
+    (:func:`flexmbd.progress.track`), a function is called as ``progress(done, total)``."""
     if not isinstance(frames, int | np.integer) or frames < 1:
         raise InvalidParameterError(f"frames must be a positive integer, got {frames!r}")
     if not fps > 0:
@@ -913,20 +924,19 @@ def render_animation(
         out.mkdir(parents=True, exist_ok=True)
         pattern = str(out / "frame_{:04d}.png")
     style = _style(scene, records, scale, view, color_by)
+    shown = track_progress(records, progress, f"rendering {out}", unit="frames")
     if backend == "pyvista" or (backend == "auto" and pyvista_available()):
-        return _render_pyvista(scene, records, style, out if gif else None, pattern, fps)
-    return _render_matplotlib(scene, records, style, out if gif else None, pattern, fps, dpi)
+        images = _render_pyvista(scene, shown, style)
+    else:
+        images = _render_matplotlib(scene, shown, style, dpi)
+    with status(f"saving {out}", enabled=progress is True):
+        return _save_frames(images, out if gif else None, pattern, fps)
 
 
 def _render_matplotlib(
-    scene: Scene,
-    records: NDArray[np.int64],
-    style: _Style,
-    gif: Path | None,
-    pattern: str,
-    fps: float,
-    dpi: int,
-) -> list[Path]:
+    scene: Scene, records: Iterable[np.int64], style: _Style, dpi: int
+) -> list[Any]:
+    """The frames of `records` drawn by matplotlib (PIL images)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
 
@@ -941,7 +951,7 @@ def _render_matplotlib(
         _draw(ax, scene, int(record), style, cache)
         canvas.draw()
         images.append(Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3].copy()))
-    return _save_frames(images, gif, pattern, fps)
+    return images
 
 
 def _save_frames(images: list[Any], gif: Path | None, pattern: str, fps: float) -> list[Path]:
@@ -1005,14 +1015,8 @@ def _camera(style: _Style) -> tuple[Array, Array, Array]:
     return centre, centre + distance * towards_eye, up
 
 
-def _render_pyvista(
-    scene: Scene,
-    records: NDArray[np.int64],
-    style: _Style,
-    gif: Path | None,
-    pattern: str,
-    fps: float,
-) -> list[Path]:
+def _render_pyvista(scene: Scene, records: Iterable[np.int64], style: _Style) -> list[Any]:
+    """The frames of `records` drawn by pyvista off screen (PIL images)."""
     if not pyvista_available():
         raise InvalidParameterError(
             "pyvista is not installed or cannot render off screen here (VTK needs EGL or "
@@ -1072,4 +1076,4 @@ def _render_pyvista(
         plotter.camera.parallel_scale = half
         images.append(Image.fromarray(np.asarray(plotter.screenshot(return_img=True))[..., :3]))
     plotter.close()
-    return _save_frames(images, gif, pattern, fps)
+    return images

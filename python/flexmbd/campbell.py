@@ -38,6 +38,7 @@ resolved into its circular combinations, so that forward and backward are follow
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +47,7 @@ from numpy.typing import NDArray
 
 from ._checks import integer, numbers_array
 from .errors import InvalidParameterError
+from .progress import track as track_progress
 
 Array = NDArray[np.float64]
 
@@ -329,6 +331,7 @@ def campbell(
     time: float = 0.0,
     gyroscopic: bool = True,
     frame: str = "rotating",
+    progress: bool | Callable[[int, int], object] | None = None,
 ) -> CampbellDiagram:
     """The Campbell diagram of `system` (a :class:`flexmbd.System`) turned by its angle
     driver `driver` at each of `speeds` (rad/s, ascending): the `modes` lowest oscillating
@@ -340,6 +343,8 @@ def campbell(
     modes are seen) or "fixed" (the ground, where a rotor's whirl is seen: forward whirl at
     w_rotating + W, backward at w_rotating - W; needs a deformable body turned by the
     driver). Every mode gets its whirl label ("forward", "backward" or None) either way.
+    `progress`: True shows a progress bar of the speeds, a function is called as
+    ``progress(done, total)`` (:func:`flexmbd.progress.track`).
 
     Raises `UnknownItemError` for an unknown driver, `InvalidParameterError` for a driver that
     is not an angle driver, an unknown frame, speeds not ascending, and "fixed" for a model
@@ -377,7 +382,7 @@ def campbell(
 
     frequencies, damping, shapes, mac, whirl, ratios = [], [], [], [], [], []
     followed = None
-    for w in speeds:
+    for w in track_progress(speeds, progress, "campbell diagram", unit="speeds"):
         turning = system.with_driver(driver, Polynomial([start - w * time, float(w)]))
         model = turning.compile()
         state = steady_rotation(model, time) if w != 0.0 else equilibrium(model, time)

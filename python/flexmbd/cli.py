@@ -20,6 +20,8 @@ import os
 import sys
 import time
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +34,7 @@ from .errors import (
     ResultsFileError,
     SimulationInterrupted,
 )
+from .progress import SimulationProgress, status
 from .study.command import add_sweep_parser, sweep
 
 
@@ -175,35 +178,6 @@ def _model_stem(stem: str) -> str:
     return f"{stem}_model" if stem in EXAMPLES else stem
 
 
-class _ProgressBar:
-    """One line on the terminal: simulated time, step size, Newton iterations, wall time."""
-
-    def __init__(self, start: float, end: float, enabled: bool):
-        self.start, self.end = start, end
-        self.enabled = enabled
-        self.began = time.perf_counter()
-        self.width = 0
-
-    def __call__(self, t: float, h: float, iterations: int) -> None:
-        if not self.enabled:
-            return
-        span = self.end - self.start
-        fraction = min(1.0, max(0.0, (t - self.start) / span)) if span > 0 else 1.0
-        filled = int(round(24 * fraction))
-        line = (
-            f"  [{'#' * filled}{'.' * (24 - filled)}] {100 * fraction:5.1f}%  t = {t:.6g} s"
-            f"  h = {h:.3g} s  {iterations} Newton its  {time.perf_counter() - self.began:.1f} s"
-        )
-        sys.stderr.write("\r" + line.ljust(self.width))
-        sys.stderr.flush()
-        self.width = len(line)
-
-    def close(self) -> None:
-        if self.enabled and self.width:
-            sys.stderr.write("\r" + " " * self.width + "\r")
-            sys.stderr.flush()
-
-
 def _kept(error: FlexmbdError, results: Path) -> tuple[Path, int, str]:
     """Where a stopped run's records are, how many, and up to when (from its file)."""
     from .results_file import read_results_metadata
@@ -328,7 +302,8 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     print(f"  {model!r}")
     print(f"  simulating to t = {end:g} s with step {step:g} s ({solver!r})")
-    bar = _ProgressBar(job.start_time, end, enabled=not args.quiet and sys.stderr.isatty())
+    sys.stdout.flush()  # before the progress bar on stderr
+    bar = None if args.quiet else SimulationProgress(label="  simulating")
     _stop_on_sigterm()
     metadata = {
         "source": job.source,
@@ -363,23 +338,20 @@ def _run(args: argparse.Namespace) -> int:
                 protect=(job.source,) if Path(job.source).is_file() else (),
             )
     except SimulationInterrupted as error:
-        bar.close()
         where, count, last = _kept(error, results)
         print(f"  interrupted: {count} records up to {last} kept in {where}", file=sys.stderr)
         return 130
     except ResultsFileError as error:
-        bar.close()
         print(f"  failed: {error}", file=sys.stderr)
         return 1
     except FlexmbdError as error:
-        bar.close()
         where, count, last = _kept(error, results)
         print(f"  failed: {error}", file=sys.stderr)
         print(f"  {count} records up to {last} kept in {where}", file=sys.stderr)
         return 1
-    bar.close()
     # The records were kept only in the file (memory flat on any run length): read them.
-    result = _read_back(result)
+    with status("  reading the results", enabled=not args.quiet):
+        result = _read_back(result)
     _print_summary(result, time.perf_counter() - start)
     if job.check is not None:
         for name, value in job.check(result).items():
@@ -391,15 +363,16 @@ def _run(args: argparse.Namespace) -> int:
         from .plotting import plot_result
 
         plot = Path(args.plot) if args.plot else results.with_suffix(".png")
-        written = plot_result(result, plot, quantities=job.plots)
-        print(f"  plot: {', '.join(str(p) for p in written)}")
+        with status(f"  plotting {plot}", enabled=not args.quiet):
+            written = plot_result(result, plot, quantities=job.plots)
+        print(f"  plot: {', '.join(str(p) for p in written)}", flush=True)
         _print_notes(result, job.plots)
     if not args.no_animation:
         from .animation import render_animation
 
         movie = Path(args.animation) if args.animation else results.with_suffix(".gif")
-        render_animation(result, movie)
-        print(f"  animation: {movie}")
+        render_animation(result, movie, progress=not args.quiet)
+        print(f"  animation: {movie}", flush=True)
     paraview = job.paraview
     explicit = args.vtu_every is not None or args.vtu_times is not None
     if result.flexible and not args.no_vtu and (paraview is None or paraview.write or explicit):
@@ -407,7 +380,9 @@ def _run(args: argparse.Namespace) -> int:
         times = args.vtu_times or (paraview.times if paraview else None)
         directory = results.with_name(f"{results.stem}_vtu")
         try:
-            pvd = _write_paraview(result, directory, results.stem, every, times)
+            pvd = _write_paraview(
+                result, directory, results.stem, every, times, progress=not args.quiet
+            )
         except FlexmbdError as error:
             print(f"flexmbd run: ParaView series: {error}", file=sys.stderr)
             return 2
@@ -636,7 +611,8 @@ def _animate(args: argparse.Namespace) -> int:
     from .results_file import read_results
 
     try:
-        result = read_results(args.results)
+        with status(f"reading {args.results}", enabled=not args.quiet):
+            result = read_results(args.results)
         results = Path(args.results)
         options: dict[str, Any] = {}
         if args.scale is not None:
@@ -644,13 +620,17 @@ def _animate(args: argparse.Namespace) -> int:
         if args.vtu or not args.no_vtu and result.flexible:
             directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
             every, times = args.vtu_every or 1, args.vtu_times
-            pvd = _write_paraview(result, directory, results.stem, every, times, **options)
-            print(f"written: {pvd}")
+            pvd = _write_paraview(
+                result, directory, results.stem, every, times, progress=not args.quiet, **options
+            )
+            print(f"written: {pvd}", flush=True)
         if not args.no_render:
             movie = Path(args.output) if args.output else results.with_suffix(".gif")
             if args.frames is not None:
                 options["frames"] = args.frames
-            render_animation(result, movie, backend=args.backend, **options)
+            render_animation(
+                result, movie, backend=args.backend, progress=not args.quiet, **options
+            )
             print(f"written: {movie}")
     except BrokenPipeError:
         raise
@@ -681,7 +661,12 @@ def _campbell(args: argparse.Namespace) -> int:
     try:
         job = _job(args.model)
         diagram = campbell(
-            job.system, args.driver, _speeds(args.speeds), modes=args.modes, frame=args.frame
+            job.system,
+            args.driver,
+            _speeds(args.speeds),
+            modes=args.modes,
+            frame=args.frame,
+            progress=True,
         )
         stem = Path(args.output) if args.output else Path(Path(args.model).stem + "_campbell")
         plot_campbell(diagram, stem.with_suffix(".png"), orders=args.orders)
@@ -739,7 +724,7 @@ def _modes(args: argparse.Namespace) -> int:
         for k in args.animate:
             result = mode_result(linear, model, k - 1, frames=args.frames)
             movie = stem.with_name(f"{stem.name}_mode{k}.gif")
-            render_animation(result, movie, frames=args.frames)
+            render_animation(result, movie, frames=args.frames, progress=True)
             print(f"written: {movie}")
             if result.flexible:
                 folder = stem.with_name(f"{stem.name}_mode{k}_vtu")
@@ -853,6 +838,29 @@ def _preprocess(args: argparse.Namespace) -> int:
     return 0
 
 
+@contextmanager
+def _logging_to_stderr(verbose: int, quiet: bool) -> Iterator[None]:
+    """Shows the records of the "flexmbd" loggers on stderr while a command runs: warnings
+    (the events that ask for a look), with ``-v`` also the routine events and the run's
+    summary (INFO), with ``-vv`` DEBUG; with ``--quiet`` errors only."""
+    import logging
+
+    log = logging.getLogger("flexmbd")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("  [%(levelname)s] %(message)s"))
+    level = logging.ERROR if quiet else [logging.WARNING, logging.INFO][min(verbose, 1)]
+    if verbose >= 2:
+        level = logging.DEBUG
+    before = log.level
+    log.setLevel(level)
+    log.addHandler(handler)
+    try:
+        yield
+    finally:
+        log.removeHandler(handler)
+        log.setLevel(before)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``flexmbd`` command."""
     try:
@@ -932,7 +940,10 @@ def _main(argv: list[str] | None) -> int:
         help="ParaView series: only the records from time A to B (s; A or B may be left out; "
         "default: the model file's paraview.times, else all)",
     )
-    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bars; log errors only")
+    run.add_argument(
+        "-v", "--verbose", action="count", default=0, help="log every event of the run (-vv: debug)"
+    )
     info = sub.add_parser("info", help="summarize a model, body, results or mesh file, or a study")
     info.add_argument(
         "file",
@@ -968,6 +979,7 @@ def _main(argv: list[str] | None) -> int:
     animate.add_argument("--no-render", action="store_true", help="render no animation")
     animate.add_argument("--frames", type=int, help="number of frames rendered")
     animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
+    animate.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     animate.add_argument(
         "--backend",
         choices=("matplotlib", "pyvista", "auto"),
@@ -1081,6 +1093,11 @@ def _main(argv: list[str] | None) -> int:
         args.quantity = [*args.quantity, *extra]
     elif extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    with _logging_to_stderr(getattr(args, "verbose", 0), getattr(args, "quiet", False)):
+        return _command(parser, args)
+
+
+def _command(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     commands = {
         "sweep": sweep,
         "campbell": _campbell,

@@ -3,16 +3,26 @@
 from __future__ import annotations
 
 import logging
+import math
 import os
+import time
 import warnings
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 import numpy as np
 
 from . import _boundary, _core
 from ._checks import number
-from .errors import InitialCorrectionWarning, InvalidParameterError, ResultsFileError
+from .errors import (
+    CallbackError,
+    InitialCorrectionWarning,
+    InvalidParameterError,
+    ResultsFileError,
+    SimulationInterrupted,
+)
+from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
 from .state import State
 
@@ -20,9 +30,25 @@ from .state import State
 #: steady rotation of a rotor (see :func:`simulate`).
 STARTS = ("given", "equilibrium", "steady-rotation")
 
-logger = logging.getLogger("flexmbd")
-# A library logs only where its user configures logging (the warning is shown anyway).
-logger.addHandler(logging.NullHandler())
+logger = logging.getLogger("flexmbd.simulation")
+
+#: The level at which each kind of event of ``result.events`` is logged; other kinds: INFO.
+#: WARNING: what may spoil the results or asks for a look at the model (a changed initial
+#: state, drift, near-singular constraints); INFO: what the run handles as planned.
+EVENT_LEVELS = {
+    "initial correction": logging.WARNING,
+    "constraint drift": logging.WARNING,
+    "singular configuration": logging.WARNING,
+    "loop rank": logging.WARNING,
+    "redundant constraints": logging.INFO,
+    "redundancy re-selected": logging.INFO,
+    "repartition": logging.INFO,
+    "joint coordinates rebased": logging.INFO,
+    "actuator saturation": logging.INFO,
+}
+
+#: A share of rejected steps above which the run's summary is logged as a WARNING.
+REJECTED_WARNING = 0.1
 
 
 def _start(
@@ -74,12 +100,98 @@ def _check_paths(results_file: Any, protect: Any) -> None:
 
 
 def _report(result: Result) -> None:
-    """Warns (``warnings`` and the "flexmbd" logger) of the initial corrections of a run."""
+    """Warns (``warnings``) of the initial corrections of a run."""
     for event in result.events:
         if event["kind"] == "initial correction":
             message = f"t = {event['time']:g}: {event['message']}"
-            logger.warning("initial correction: %s", message)
             warnings.warn(message, InitialCorrectionWarning, stacklevel=3)
+
+
+def _handled(log: logging.Logger, level: int) -> bool:
+    """True if a record of `level` from `log` reaches a handler that is not a NullHandler."""
+    if not log.isEnabledFor(level):
+        return False
+    current: logging.Logger | None = log
+    found = False
+    while current is not None:
+        for handler in current.handlers:
+            found = True
+            if not isinstance(handler, logging.NullHandler) and level >= handler.level:
+                return True
+        if not current.propagate:
+            break
+        current = current.parent
+    # Python's last resort (stderr, WARNING) when no handler at all is configured.
+    last = logging.lastResort
+    return not found and last is not None and level >= last.level
+
+
+class _EventLog:
+    """Logs the events of a run once each, as they come (from the records delivered during
+    the run) and at its end; erases a terminal progress line first."""
+
+    def __init__(self, display: SimulationProgress | None):
+        self.display = display
+        self.logged: set[tuple[float, str, str]] = set()
+
+    def log(self, events: list[dict[str, Any]]) -> None:
+        fresh = [e for e in events if (e["time"], e["kind"], e["message"]) not in self.logged]
+        if not fresh:
+            return
+        lowest = min(EVENT_LEVELS.get(e["kind"], logging.INFO) for e in fresh)
+        if self.display is not None and _handled(logger, lowest):
+            self.display.clear()
+        for event in fresh:
+            self.logged.add((event["time"], event["kind"], event["message"]))
+            level = EVENT_LEVELS.get(event["kind"], logging.INFO)
+            logger.log(
+                level,
+                "t = %.6g s: %s: %s",
+                event["time"],
+                event["kind"],
+                event["message"],
+                extra={"event": event},
+            )
+
+    def chunk(self, raw: dict[str, Any]) -> None:
+        """The records delivered during the run: their events, and the step number."""
+        if self.display is not None:
+            self.display.steps = int(raw["statistics"]["steps"])
+        self.log(raw["events"])
+
+
+def _summary(result: Result, start_time: float, wall: float) -> None:
+    """Logs what the run did: INFO, or WARNING if many steps were rejected."""
+    stats = result.statistics
+    steps, rejected = int(stats.get("steps", 0)), int(stats.get("rejected_steps", 0))
+    end = result.time[-1] if len(result.time) else start_time
+    work = f"{steps} steps"
+    if rejected:
+        smallest = stats.get("min_step_size", math.nan)
+        work += f" ({rejected} rejected, smallest step {smallest:.3g} s)"
+    if stats.get("newton_iterations"):
+        work += f", {stats['newton_iterations'] / max(steps, 1):.2f} Newton iterations per step"
+    if stats.get("function_evaluations"):
+        work += f", {stats['function_evaluations']} function evaluations"
+    outcome = "done" if result.error is None else f"stopped ({type(result.error).__name__})"
+    level = logging.INFO
+    if rejected > REJECTED_WARNING * max(steps, 1):
+        level = logging.WARNING
+        work += ": many rejected steps (the step size is too large or the model stiff)"
+    logger.log(
+        level, "run %s: t = %.6g .. %.6g s, %s; %.3g s", outcome, start_time, end, work, wall
+    )
+
+
+def _interruption(error: BaseException | None) -> BaseException | None:
+    """Ctrl-C (or a signal raised as KeyboardInterrupt) that arrives while Python code of the
+    run runs (the progress display, the results writer, a user's function) is reported as
+    the core reports it between steps: SimulationInterrupted, not CallbackError."""
+    if isinstance(error, CallbackError) and isinstance(error.__cause__, KeyboardInterrupt):
+        interrupted = SimulationInterrupted(f"interrupted at t = {error.time:g}", time=error.time)
+        interrupted.__cause__ = error.__cause__
+        return interrupted
+    return error
 
 
 def simulate(
@@ -92,7 +204,7 @@ def simulate(
     initial_conditions: str = "correct",
     output_interval: float | None = None,
     solver: _boundary.GeneralizedAlpha | _boundary.ExplicitSolver | None = None,
-    progress: Callable[[float, float, int], object] | None = None,
+    progress: bool | Callable[[float, float, int], object] | None = None,
     results_file: str | os.PathLike[str] | None = None,
     metadata: dict[str, Any] | None = None,
     keep_in_memory: bool = True,
@@ -115,8 +227,18 @@ def simulate(
     radius 0.9); an :class:`ExplicitSolver` selects Runge-Kutta 4 or Dormand-Prince 5(4) with
     one of the seed's three strategies (integrate all accelerations, coordinate partitioning,
     projection) or in joint plus elastic coordinates (open trees, loops cut), see
-    ``docs/solvers.md``. ``progress(time, step_size, newton_iterations)`` is
-    called about ten times a second.
+    ``docs/solvers.md``.
+
+    ``progress``: True shows a progress bar (simulated time of end time, step, step size,
+    Newton iterations per step, elapsed and remaining wall time) on stderr: redrawn on a
+    terminal, a line every 10 % in a pipe or log file, a widget in a Jupyter notebook with
+    ipywidgets (:class:`flexmbd.progress.SimulationProgress`; give one to choose the stream or
+    style). A function ``progress(time, step_size, newton_iterations)`` is called about ten
+    times a second instead; its exception stops the run (:class:`flexmbd.CallbackError`,
+    with the results so far), while a failure of the built-in bar only switches it off.
+    The events of the run go to the ``"flexmbd.simulation"`` logger as they come (when it
+    has a handler) or at the end, at the levels of :data:`EVENT_LEVELS`, then a summary at
+    INFO (see ``docs/progress-and-logging.md``).
 
     ``results_file`` (a path, conventionally ``*.h5``) writes the results to an HDF5 file
     while the run goes on (:mod:`flexmbd.results_file`; ``metadata``, a JSON-compatible dict,
@@ -145,7 +267,7 @@ def simulate(
     correction that moves a coordinate or velocity by more than 1e-6 (relative to max(1,
     |value|)) is not silent: ``result.events`` holds an "initial correction" event for every
     joint it closes and every body it moves, and Python warns
-    (:class:`flexmbd.errors.InitialCorrectionWarning`, and the "flexmbd" logger).
+    (:class:`flexmbd.errors.InitialCorrectionWarning`, and the "flexmbd.simulation" logger).
     ``initial_conditions="strict"`` refuses such a correction instead
     (:class:`flexmbd.InitialConditionsError`).
 
@@ -169,7 +291,15 @@ def simulate(
             f"keep_in_memory must be True or False, got {keep_in_memory!r}", item="keep_in_memory"
         )
     _check_paths(results_file, protect)
-    start_time, start = _start(model, initial_state, start_time)
+    progress, display = simulation_progress(progress, end_time)
+    # An equilibrium or steady rotation to start from is solved first (seconds on large
+    # models): a status line on a terminal meanwhile.
+    solving: AbstractContextManager[None] = nullcontext()
+    if display is not None and isinstance(initial_state, str) and initial_state in STARTS[1:]:
+        label = f"{display.bar.label}: finding the {initial_state} state"
+        solving = status(label, stream=display.bar.stream)
+    with solving:
+        start_time, start = _start(model, initial_state, start_time)
     if end_time < start_time:
         raise InvalidParameterError(
             f"end time {end_time:g} is before start time {start_time:g}", item="end_time"
@@ -196,7 +326,22 @@ def simulate(
             protect=protect,
             write_interval=results_write_interval,
         )
+    events = _EventLog(display)
+    records = None if writer is None else writer.append
+    if display is not None or _handled(logger, logging.WARNING):
+        # The records delivered during the run give the step number and the events as they
+        # come (a copy of the new records about ten times a second: a few % on small models,
+        # so only when they are shown).
+        def records(raw: dict[str, Any]) -> None:
+            if writer is not None:
+                writer.append(raw)
+            events.chunk(raw)
+
+    began = time.perf_counter()
+    result = None
     try:
+        if display is not None:
+            display.begin(start_time)
         raw, error = _core.simulate(
             model,
             end_time,
@@ -205,11 +350,12 @@ def simulate(
             output_interval=output_interval,
             solver=solver,
             progress=progress,
-            records=None if writer is None else writer.append,
+            records=records,
             initial_conditions=initial_conditions,
             keep_in_memory=keep_in_memory,
             **start_arrays,
         )
+        error = _interruption(error)
         result = Result(raw, model.describe(), error=error, flexible=model.flexible_bodies)
         if writer is not None:
             if writer.failure is not None:
@@ -223,6 +369,12 @@ def simulate(
     finally:
         if writer is not None:
             writer.close()
+        if display is not None and result is None:
+            display.close()
+    events.log(result.events)
+    if display is not None:
+        display.finish(result)
+    _summary(result, start_time, time.perf_counter() - began)
     _report(result)
     if error is not None:
         error.result = result

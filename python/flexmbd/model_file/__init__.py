@@ -214,7 +214,7 @@ def simulate_model(
     output_interval: float | None = None,
     start_time: float | None = None,
     solver: _boundary.GeneralizedAlpha | _boundary.ExplicitSolver | None = None,
-    progress: Callable[[float, float, int], object] | None = None,
+    progress: bool | Callable[[float, float, int], object] | None = None,
 ) -> Result:
     """Simulates a model file (a :class:`ModelFile` or a path, loaded first) with
     :func:`flexmbd.simulate`. Keyword arguments given replace the file's settings; they are

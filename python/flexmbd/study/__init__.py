@@ -25,14 +25,13 @@ from __future__ import annotations
 
 import json
 import os
-import sys
-import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidParameterError, ModelFileError
+from ..progress import ProgressBar
 from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, run_case
 from .sampling import SAMPLINGS, make_cases
 
@@ -242,6 +241,7 @@ def _run_on_dask(
     cases done, failed and the time left; closes the local cluster."""
     from dask.distributed import Client, as_completed
 
+    bar = ProgressBar("cases") if progress else None
     try:
         client = Client(cluster if scheduler is None else scheduler)
     except BaseException:
@@ -255,22 +255,16 @@ def _run_on_dask(
         ]
         done = total - len(tasks)
         failed = 0
-        started = time.perf_counter()
         for finished, future in enumerate(as_completed(futures), start=1):
             summary = future.result()
             done += 1
             failed += summary["status"] != "complete"
-            if progress:
-                elapsed = time.perf_counter() - started
-                left = elapsed / finished * (len(tasks) - finished)
-                bar = "#" * (20 * done // total)
-                sys.stderr.write(
-                    f"\r[{bar:<20}] {done}/{total} cases, {failed} failed, ~{left:.0f} s left "
-                )
-                sys.stderr.flush()
-        if progress:
-            sys.stderr.write("\n")
+            if bar is not None:
+                # The fraction of the cases run now (the time left is theirs); all counted.
+                bar.update(finished / len(tasks), f"{done}/{total} cases, {failed} failed")
     finally:
+        if bar is not None:
+            bar.close(failed=bar.fraction < 1.0)
         client.close()
         if cluster is not None:
             cluster.close()
