@@ -11,8 +11,9 @@ generalized-alpha on the augmented equations:
 - `agreement`: the 16-element arm over a short time, TR-BDF2 in joint coordinates at tight
   tolerances against generalized-alpha at fixed small steps and its Richardson extrapolation;
 - `a02`: IFToMM A02 N-four-bar, N = 40 (81 rigid bodies), 2 s, in joint coordinates with
-  TR-BDF2 against augmented generalized-alpha at h = 1e-3 (benchmarks/fourbar.py), with B0's
-  errors against the exact one-degree-of-freedom reduction.
+  TR-BDF2 and Dormand-Prince against augmented generalized-alpha at h = 1e-3
+  (benchmarks/fourbar.py), with B0's errors against Dormand-Prince in joint coordinates at
+  rtol 1e-11 (the reference) and the CPU time of the process (the machine may be shared).
 
     python benchmarks/implicit_runge_kutta.py arm --elements 4
     python benchmarks/implicit_runge_kutta.py links16
@@ -180,23 +181,45 @@ def a02(args):
     model = example.system.compile()
     end = args.end
 
-    def errors(result):
+    def b0(result):
         p = result.sensor(example.items["B0 position"])[-1]
         v = result.sensor(example.items["B0 velocity"])[-1]
         return p, v
 
-    print(f"A02 N = {args.n}, {end} s")
-    wall, ga = timed(model, end, 1e-3, fm.GeneralizedAlpha(0.99), args.repeat, end)
-    describe("generalized-alpha (augmented) 0.99, h = 1e-3", wall, ga)
-    p_ref, v_ref = errors(ga)
+    def run(solver):
+        cpu = time.process_time()
+        wall, result = timed(model, end, 1e-3, solver, args.repeat, end)
+        return wall, (time.process_time() - cpu) / args.repeat, result
+
+    print(f"A02 N = {args.n}, {end} s (wall, and CPU time of the process per run)")
+    reference = fm.ExplicitSolver(
+        "dopri5", "joint-coordinates", relative_tolerance=1e-11, absolute_tolerance=1e-12
+    )
+    _, _, exact = run(reference)
+    p_ref, v_ref = b0(exact)
+    wall, cpu, ga = run(fm.GeneralizedAlpha(0.99))
+
+    def errors(result):
+        if isinstance(result, Exception):
+            return ""
+        p, v = b0(result)
+        return (
+            f"  cpu {cpu:.3f} s  B0 vs reference: {np.abs(p - p_ref).max():.1e}"
+            f" {np.abs(v - v_ref).max():.1e}"
+        )
+
+    describe("generalized-alpha (augmented) 0.99, h = 1e-3", wall, ga, errors(ga))
     for tolerance in args.tolerances:
         for formulation in args.formulations:
-            wall, result = timed(model, end, 1e-3, trbdf2(tolerance, formulation), args.repeat, end)
-            extra = ""
-            if not isinstance(result, Exception):
-                p, v = errors(result)
-                extra = f"  B0 vs g-a: {np.abs(p - p_ref).max():.1e} {np.abs(v - v_ref).max():.1e}"
-            describe(f"tr-bdf2 jc {formulation}, rtol {tolerance:g}", wall, result, extra)
+            wall, cpu, result = run(trbdf2(tolerance, formulation))
+            describe(f"tr-bdf2 jc {formulation}, rtol {tolerance:g}", wall, result, errors(result))
+    for tolerance in args.explicit_tolerances:
+        solver = fm.ExplicitSolver(
+            "dopri5", "joint-coordinates",
+            relative_tolerance=tolerance, absolute_tolerance=0.1 * tolerance,
+        )  # fmt: skip
+        wall, cpu, result = run(solver)
+        describe(f"dopri5 jc, rtol {tolerance:g}", wall, result, errors(result))
 
 
 def main():
@@ -209,6 +232,7 @@ def main():
     parser.add_argument("--tolerances", type=float, nargs="+", default=None)
     parser.add_argument("--steps", type=float, nargs="+", default=[1e-3, 5e-4])
     parser.add_argument("--formulations", nargs="+", default=["joint-space"])
+    parser.add_argument("--explicit-tolerances", type=float, nargs="+", default=[1e-6, 1e-7, 1e-8])
     args = parser.parse_args()
     defaults = {
         "arm": (1.0, [1e-3]),

@@ -137,6 +137,27 @@ impl DenseEquations {
         discrete: &[f64],
         level: Level,
     ) -> Result<()> {
+        self.evaluate_sparse(model, ws, time, q, qd, discrete, level)?;
+        self.fill_dense(model, ws, level);
+        Ok(())
+    }
+
+    /// [`DenseEquations::evaluate`] without the dense M and C_q: their values stay in the
+    /// workspace's sparse matrix (`ws.values` in the model's pattern, C_q in the rows from n
+    /// on), for the sparse joint-space evaluation
+    /// ([`crate::formulation::recursive::SparseJointSpace`]). `mass` and `jacobian` keep the
+    /// values of the last dense evaluation.
+    #[allow(clippy::too_many_arguments)]
+    pub fn evaluate_sparse(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        time: f64,
+        q: &[f64],
+        qd: &[f64],
+        discrete: &[f64],
+        level: Level,
+    ) -> Result<()> {
         let nq = model.coordinate_count;
         let view =
             StateView { time, q, qd, qdd: &self.zero_coordinates, lambda: &self.zero_multipliers, discrete };
@@ -146,6 +167,22 @@ impl DenseEquations {
             MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
         };
         assemble(model, view, ws, &Request::matrix(coefficients))?;
+        self.constraints.copy_from_slice(&ws.residual[nq..]);
+        if level == Level::Acceleration {
+            for k in 0..nq {
+                self.force[k] = -ws.residual[k];
+            }
+        }
+        if level >= Level::Velocity {
+            let gamma = if level == Level::Acceleration { Some(&mut self.gamma[..]) } else { None };
+            constraint_time_terms(model, view, ws, &mut self.rate, gamma)?;
+        }
+        Ok(())
+    }
+
+    /// The dense M (acceleration level) and C_q from the workspace's sparse matrix.
+    fn fill_dense(&mut self, model: &Model, ws: &Workspace, level: Level) {
+        let nq = model.coordinate_count;
         let pattern = &model.layout.pattern;
         self.jacobian.fill(0.0);
         if level == Level::Acceleration {
@@ -164,17 +201,6 @@ impl DenseEquations {
                 }
             }
         }
-        self.constraints.copy_from_slice(&ws.residual[nq..]);
-        if level == Level::Acceleration {
-            for k in 0..nq {
-                self.force[k] = -ws.residual[k];
-            }
-        }
-        if level >= Level::Velocity {
-            let gamma = if level == Level::Acceleration { Some(&mut self.gamma[..]) } else { None };
-            constraint_time_terms(model, view, ws, &mut self.rate, gamma)?;
-        }
-        Ok(())
     }
 
     /// Velocity constraint violation C_q q_dot + C_t of row `row` (after a `Velocity` or

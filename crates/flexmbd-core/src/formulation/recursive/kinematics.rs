@@ -216,7 +216,7 @@ impl Tree {
     /// The joint whose coordinates include the joint coordinate `k` (p's full layout): the
     /// joints take their coordinates one after the other in tree order, so it is the last
     /// joint that starts at or before `k`.
-    fn joint_of_coordinate(&self, k: usize) -> usize {
+    pub(super) fn joint_of_coordinate(&self, k: usize) -> usize {
         self.joints.iter().rposition(|j| j.first <= k).expect("a joint coordinate belongs to a joint")
     }
 
@@ -244,7 +244,7 @@ impl Tree {
 /// The pose of `joint`'s child body from its parent body's pose `parent`, the joint and
 /// elastic coordinates `p` (hyper-dual) and the deformation `d` of the joint's markers
 /// ([parent side, child side]).
-fn joint_pose(joint: &TreeJoint, parent: &Pose, p: &[HyperDual], d: &[[HVec; 2]; 2]) -> Pose {
+pub(super) fn joint_pose(joint: &TreeJoint, parent: &Pose, p: &[HyperDual], d: &[[HVec; 2]; 2]) -> Pose {
     {
         {
             let (a_p, r_p) = *parent;

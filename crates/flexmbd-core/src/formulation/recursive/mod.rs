@@ -214,6 +214,7 @@ mod kinematics;
 mod linearization;
 mod loops;
 mod placement;
+mod sparse;
 #[cfg(test)]
 mod tests;
 mod topology;
@@ -221,6 +222,7 @@ mod topology;
 use frames::*;
 pub use linearization::{elastic_matrices, TreeLinearization};
 pub use loops::{LoopClosure, LOOP_DAMPING};
+pub use sparse::{BodyInfluence, SparseJointSpace, REGULAR_MARGIN};
 
 /// Joint accelerations from (B^T M B) p_dd = B^T (f - M gamma_B), given M and f of the
 /// model at the tree's state (q, B p_dot).

@@ -703,3 +703,195 @@ fn linearized_equations_match_finite_differences_at_rest() {
         }
     }
 }
+
+/// IFToMM A02 with `n` four-bars in 3D (as `flexmbd.examples.four_bar`): vertical cranks on
+/// revolute pivots at x = 0..n, horizontal couplers at y = 1 on a revolute joint to crank k
+/// and an in-line joint to crank k + 1 (cut by the tree), gravity along -y.
+fn four_bar_model(n: usize) -> Model {
+    let mut sys = SystemBuilder::new();
+    sys.set_gravity(Vec3([0.0, -9.81, 0.0])).unwrap();
+    let inertia = Mat3([[5e-5, 0.0, 0.0], [0.0, 1.0 / 12.0, 0.0], [0.0, 0.0, 1.0 / 12.0]]);
+    let rz = |a: f64| {
+        let (s, c) = f64::sin_cos(a);
+        Mat3([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    };
+    let (up, to_joint) = (rz(std::f64::consts::FRAC_PI_2), rz(-std::f64::consts::FRAC_PI_2));
+    let g = sys.ground();
+    let mut tops = Vec::new();
+    for k in 0..=n {
+        let x = k as f64;
+        let crank = sys
+            .add_rigid_body(
+                &format!("crank {k}"),
+                1.0,
+                inertia,
+                Vec3::ZERO,
+                Vec3([x, 0.5, 0.0]),
+                up,
+                Vec3([0.5, 0.0, 0.0]),
+                Vec3([0.0, 0.0, -1.0]),
+            )
+            .unwrap();
+        let pivot = sys.add_marker("", g, Vec3([x, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        let bottom = sys.add_marker("", crank, Vec3([-0.5, 0.0, 0.0]), to_joint).unwrap();
+        sys.add_joint(&format!("pivot {k}"), JointKind::Revolute, [pivot, bottom]).unwrap();
+        tops.push(sys.add_marker("", crank, Vec3([0.5, 0.0, 0.0]), to_joint).unwrap());
+    }
+    for k in 0..n {
+        let coupler = sys
+            .add_rigid_body(
+                &format!("coupler {k}"),
+                1.0,
+                inertia,
+                Vec3::ZERO,
+                Vec3([k as f64 + 0.5, 1.0, 0.0]),
+                Mat3::IDENTITY,
+                Vec3([1.0, 0.0, 0.0]),
+                Vec3::ZERO,
+            )
+            .unwrap();
+        let left = sys.add_marker("", coupler, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        let right = sys.add_marker("", coupler, Vec3([0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
+        sys.add_joint(&format!("coupler {k} left"), JointKind::Revolute, [tops[k], left]).unwrap();
+        sys.add_joint(&format!("coupler {k} right"), JointKind::Inline, [tops[k + 1], right]).unwrap();
+    }
+    sys.compile().unwrap()
+}
+
+/// The sparse joint-space evaluation (body by body, range-space solve) against the dense one
+/// (B, M and C_q of the model's size, the SVD of C_cut B) on IFToMM A02 with 2 to 10
+/// four-bars: the influence coefficients, the accelerations, the minimum-norm corrections and
+/// the multipliers at random states along the mechanism's motion (cranks at 0.3 and 1.1 rad,
+/// within 0.05 and 0.01 rad of horizontal) and off it, and the singular configuration (cranks
+/// horizontal), where the sparse path must refuse and leave it to the SVD.
+#[test]
+fn sparse_joint_space_equals_the_dense_one_on_a02() {
+    for n in [2, 5, 10] {
+        let model = four_bar_model(n);
+        let (tree, p0) = Tree::new(&model, &consistent(&model), None).unwrap();
+        let (nq, nf, nc) = (model.coordinate_count, tree.free_count(), tree.cut_rows.len());
+        assert_eq!((nf, nc), (2 * n + 1, 2 * n));
+        let mut sparse = SparseJointSpace::new(&model, &tree).expect("a rigid tree");
+        let mut ws = Workspace::new(&model);
+        let mut eq = DenseEquations::new(&model);
+        // The motion: p0 + theta d along the null space of C_cut B (a straight branch),
+        // scaled so that the first crank turns by theta.
+        let start = tree.evaluate(&model, 0.0, &p0, &vec![0.0; nf]).unwrap();
+        eq.evaluate(&model, &mut ws, 0.0, &start.coordinates, &start.velocities, &[], Level::Velocity)
+            .unwrap();
+        let (c_hat, _) = cut_equations(&eq, &start.influence, &vec![0.0; nq], &tree.cut_rows);
+        let rank = loop_rank(&eq, &start.influence, &tree.cut_rows, 1e-12);
+        assert_eq!(rank, nc);
+        let d = LoopClosure::new(c_hat.as_ref(), nc, 0.0).unwrap().null_space();
+        let crank = (0..nf).find(|&k| d[(k, 0)].abs() > 1e-3).unwrap();
+        let direction: Vec<f64> = (0..nf).map(|k| d[(k, 0)] / d[(crank, 0)].abs()).collect();
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let mut sparse_states = 0;
+        for (case, (theta, scale)) in [
+            (0.3, 0.0),
+            (1.1, 0.0),
+            (0.3, 0.2),
+            (1.1, 0.1),
+            (half_pi - 0.05, 0.0),
+            (half_pi - 0.01, 0.0),
+            (half_pi, 0.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let seed = 100 * n as u64 + case as u64;
+            let on_branch: Vec<f64> = p0.iter().zip(&direction).map(|(a, b)| a + theta * b).collect();
+            let p = perturbed(&tree, &on_branch, seed, scale);
+            let pd = perturbed(&tree, &vec![0.0; nf], seed + 7, 3.0);
+            let time = 0.1 * case as f64;
+            let context = format!("N = {n}, theta = {theta}, perturbation {scale}");
+            // Dense.
+            let state = tree.evaluate(&model, time, &p, &pd).unwrap();
+            eq.evaluate(
+                &model,
+                &mut ws,
+                time,
+                &state.coordinates,
+                &state.velocities,
+                &[],
+                Level::Acceleration,
+            )
+            .unwrap();
+            let b = &state.influence;
+            let pdd = tree_joint_accelerations(&eq, b, &state.gamma, &tree.cut_rows, rank).unwrap();
+            let (c_hat, _) = cut_equations(&eq, b, &vec![0.0; nq], &tree.cut_rows);
+            let closure = LoopClosure::new(c_hat.as_ref(), rank, LOOP_DAMPING).unwrap();
+            let s = closure.singular_values();
+            let ratio = s[nc - 1] / s[0];
+            // Sparse.
+            let (full_p, full_pd, _) = tree.full_coordinates(&model, time, &p, &pd).unwrap();
+            let influence = sparse.influence(&tree, &full_p);
+            assert_eq!(full_pd.len(), full_p.len());
+            let dense_b = sparse.dense(&influence, nq);
+            for i in 0..nq {
+                let row: Vec<f64> = (0..nf).map(|k| dense_b[(i, k)]).collect();
+                let expected: Vec<f64> = (0..nf).map(|k| b[(i, k)]).collect();
+                assert_all_close(&row, &expected, 0.0, 1e-14, format_args!("{context}: B row {i}"));
+            }
+            let mut eq_sparse = DenseEquations::new(&model);
+            let mut ws_sparse = Workspace::new(&model);
+            eq_sparse
+                .evaluate_sparse(
+                    &model,
+                    &mut ws_sparse,
+                    time,
+                    &state.coordinates,
+                    &state.velocities,
+                    &[],
+                    Level::Acceleration,
+                )
+                .unwrap();
+            let regular = sparse.closure(&ws_sparse, &influence, Some((&eq_sparse.gamma, &state.gamma)));
+            if theta == half_pi {
+                assert!(ratio < LOOP_DAMPING, "{context}: singular values {s:?}");
+                assert!(!regular, "{context}: the sparse path must refuse a singular configuration");
+                continue;
+            }
+            if theta < 1.2 {
+                assert!(regular, "{context}: regular loops (ratio {ratio:.2e}) must take the sparse path");
+            }
+            if !regular {
+                continue;
+            }
+            // Taken only where the damping band does not act.
+            assert!(ratio >= LOOP_DAMPING, "{context}: ratio {ratio:.2e} within the band");
+            sparse_states += 1;
+            let pdd_sparse =
+                sparse.accelerations(&ws_sparse, &influence, &eq_sparse.force, &state.gamma).unwrap();
+            let scale_pdd = pdd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+            assert_all_close(&pdd_sparse, &pdd, 0.0, 1e-10 * scale_pdd, format_args!("{context}: p_dd"));
+            let mut qdd = vec![0.0; nq];
+            sparse.body_accelerations(&influence, &state.gamma, &pdd_sparse, &mut qdd);
+            let qdd_dense: Vec<f64> =
+                (0..nq).map(|i| state.gamma[i] + (0..nf).map(|k| b[(i, k)] * pdd[k]).sum::<f64>()).collect();
+            assert_all_close(&qdd, &qdd_dense, 0.0, 1e-10 * scale_pdd, format_args!("{context}: q_dd"));
+            // The corrections of the projection: the SVD's solve where the band does not act.
+            let residual = sample(nc, seed + 3, 1e-3);
+            assert_all_close(
+                &sparse.minimum_norm(&residual),
+                &closure.solve(&residual),
+                0.0,
+                1e-12,
+                format_args!("{context}: minimum-norm correction"),
+            );
+            // The multipliers against the dense minimum-norm solve of C_q^T lambda = f - M q_dd.
+            let lambda = sparse.multipliers(&ws_sparse, &eq_sparse.force, &qdd_dense).unwrap();
+            let r: Vec<f64> = (0..nq)
+                .map(|i| eq.force[i] - (0..nq).map(|j| eq.mass[(i, j)] * qdd_dense[j]).sum::<f64>())
+                .collect();
+            let expected = crate::linalg::partition::minimum_norm_solve(
+                eq.jacobian.transpose().to_owned().as_ref(),
+                &r,
+                crate::formulation::augmented::SINGULAR_VALUE_CUTOFF,
+            );
+            let scale_lambda = expected.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+            assert_all_close(&lambda, &expected, 0.0, 1e-9 * scale_lambda, format_args!("{context}: lambda"));
+        }
+        assert!(sparse_states >= 4, "N = {n}: {sparse_states} states took the sparse path");
+    }
+}

@@ -9,7 +9,9 @@ use faer::Mat;
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{DenseEquations, Level, SINGULAR_VALUE_CUTOFF};
 use crate::formulation::decoupled::{TreeAccelerations, TreeSolver};
-use crate::formulation::recursive::{tree_joint_accelerations, StructuredState, Tree};
+use crate::formulation::recursive::{
+    tree_joint_accelerations, BodyInfluence, SparseJointSpace, StructuredState, Tree,
+};
 use crate::integrator::settings::{ExplicitSettings, Strategy};
 use crate::linalg::partition::{minimum_norm_solve, Partition};
 use crate::output::Output;
@@ -84,6 +86,14 @@ pub(super) struct Engine<'a> {
     pub(super) loop_rank: usize,
     /// The numerical rank of C_cut B at the last projection (`project_joint_coordinates`).
     pub(super) observed_loop_rank: usize,
+    /// Joint space of a rigid tree: the evaluation body by body (without B and the model's
+    /// dense matrices) and its influence coefficients at self.p; the dense path serves where
+    /// the cut joints are not regular (`formulation::recursive::SparseJointSpace`).
+    pub(super) sparse: Option<SparseJointSpace>,
+    pub(super) body_influence: BodyInfluence,
+    /// Evaluations and projection iterations that took the dense path although the sparse one
+    /// exists (near singular configurations of the loops).
+    pub(super) dense_fallbacks: usize,
 }
 
 impl<'a> Engine<'a> {
@@ -131,6 +141,9 @@ impl<'a> Engine<'a> {
             tree_solver: None,
             structured: None,
             tree_reactions: TreeAccelerations::default(),
+            sparse: None,
+            body_influence: BodyInfluence::default(),
+            dense_fallbacks: 0,
         }
     }
 
@@ -164,6 +177,15 @@ impl<'a> Engine<'a> {
             self.pdd.copy_from_slice(&r.free_accelerations);
             self.tree_reactions = r;
             return Ok(());
+        }
+        if self.sparse.is_some() {
+            self.evaluations += 1;
+            if self.sparse_accelerations(time)? {
+                return Ok(());
+            }
+            self.dense_fallbacks += 1;
+            self.evaluations -= 1;
+            self.update_bodies_with_influence(time)?;
         }
         self.evaluate(time, Level::Acceleration)?;
         self.evaluations += 1;
@@ -341,6 +363,15 @@ impl<'a> Engine<'a> {
         self.discrete.copy_from_slice(&state.discrete);
         self.accelerations(state.time)?;
         state.accelerations.copy_from_slice(&self.qdd);
+        if let Some(sparse) = self.sparse.as_mut() {
+            // The workspace holds the acceleration-level assembly at this state.
+            if let Some(lambda) = sparse.multipliers(&self.ws, &self.eq.force, &self.qdd) {
+                state.multipliers.copy_from_slice(&lambda);
+                return Ok(());
+            }
+            // The dense path below reads the dense M and C_q.
+            self.evaluate(state.time, Level::Acceleration)?;
+        }
         self.multipliers(state.time, &mut state.multipliers)
     }
 

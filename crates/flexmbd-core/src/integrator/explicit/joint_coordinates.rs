@@ -10,7 +10,7 @@ use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{worst, Level, SINGULAR_VALUE_CUTOFF};
 use crate::formulation::decoupled::{TreeFormulation, TreeSolver};
 use crate::formulation::recursive::{
-    elastic_matrices, loop_rank, LoopClosure, Tree, TreeLinearization, LOOP_DAMPING,
+    elastic_matrices, loop_rank, LoopClosure, SparseJointSpace, Tree, TreeLinearization, LOOP_DAMPING,
 };
 use crate::integrator::settings::{IterationJacobian, Strategy};
 use crate::output::{Event, Output};
@@ -44,6 +44,8 @@ impl Engine<'_> {
         }
         if explicit.tree_formulation != TreeFormulation::JointSpace {
             self.tree_solver = Some(TreeSolver::new(model, &tree, explicit.tree_formulation)?);
+        } else {
+            self.sparse = SparseJointSpace::new(model, &tree);
         }
         self.pdd = vec![0.0; p0.len()];
         self.p = p0;
@@ -73,11 +75,111 @@ impl Engine<'_> {
             self.structured = Some(st);
             return Ok(());
         }
+        if let (Some(tree), Some(sparse)) = (&self.tree, &self.sparse) {
+            let (full_p, full_pd, pdd) = tree.full_coordinates(self.model, time, &self.p, &self.pd)?;
+            let (q, qd, gamma) = tree.state_with(self.q.len(), &full_p, &full_pd, &pdd);
+            self.body_influence = sparse.influence(tree, &full_p);
+            self.q = q;
+            self.qd = qd;
+            self.gamma_b = gamma;
+            return Ok(());
+        }
         self.update_bodies_with_influence(time)
     }
 
+    /// Joint space of a rigid tree: the accelerations at (time, self.q, self.qd) body by body
+    /// into self.pdd and self.qdd, from the body state of the last `update_bodies`. False
+    /// (nothing set) where the cut joints are not regular there or have redundant equations:
+    /// the dense path with the SVD of C_cut B takes over.
+    pub(super) fn sparse_accelerations(&mut self, time: f64) -> Result<bool> {
+        let (Some(tree), Some(sparse)) = (&self.tree, self.sparse.as_mut()) else { return Ok(false) };
+        if self.loop_rank < tree.cut_rows.len() {
+            return Ok(false);
+        }
+        self.eq.evaluate_sparse(
+            self.model,
+            &mut self.ws,
+            time,
+            &self.q,
+            &self.qd,
+            &self.discrete,
+            Level::Acceleration,
+        )?;
+        if !sparse.closure(&self.ws, &self.body_influence, Some((&self.eq.gamma, &self.gamma_b))) {
+            return Ok(false);
+        }
+        let Some(pdd) = sparse.accelerations(&self.ws, &self.body_influence, &self.eq.force, &self.gamma_b)
+        else {
+            return Ok(false);
+        };
+        sparse.body_accelerations(&self.body_influence, &self.gamma_b, &pdd, &mut self.qdd);
+        self.pdd = pdd;
+        Ok(true)
+    }
+
+    /// [`Self::project_joint_coordinates`] body by body for a rigid tree whose cut joints are
+    /// regular (minimum-norm corrections, those of the SVD there). False where an iterate is
+    /// not regular: the dense projection goes on from it.
+    fn project_sparse(&mut self, time: f64, rows: &[usize]) -> Result<bool> {
+        if self.sparse.is_none() || self.loop_rank < rows.len() {
+            return Ok(false);
+        }
+        let mut iterations = 0;
+        let mut previous = f64::INFINITY;
+        let mut polished = false;
+        loop {
+            self.update_bodies(time)?;
+            self.eq.evaluate_sparse(
+                self.model,
+                &mut self.ws,
+                time,
+                &self.q,
+                &self.qd,
+                &self.discrete,
+                Level::Velocity,
+            )?;
+            let sparse = self.sparse.as_mut().expect("checked above");
+            if !sparse.closure(&self.ws, &self.body_influence, None) {
+                self.dense_fallbacks += 1;
+                return Ok(false);
+            }
+            let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
+            let (k, violation) = worst(&residual);
+            let tolerance = self.settings.constraint_tolerance;
+            let met = converged(violation, previous, tolerance);
+            if met && (polished || violation <= POLISHED * tolerance || violation > 0.5 * previous) {
+                self.observed_loop_rank = rows.len();
+                let rate = sparse.cut_velocity_violation(&self.ws, &self.qd, &self.eq.rate);
+                for (x, d) in self.pd.iter_mut().zip(sparse.minimum_norm(&rate)) {
+                    *x -= d;
+                }
+                self.update_bodies(time)?;
+                return Ok(true);
+            }
+            polished = met;
+            previous = violation;
+            if iterations >= self.settings.max_iterations || !violation.is_finite() {
+                return Err(FlexmbdError::NewtonDiverged {
+                    time,
+                    step_size: 0.0,
+                    iterations,
+                    residual: violation,
+                    item: format!(
+                        "{}; joint coordinates onto the cut joints",
+                        self.model.constraint_name(rows[k])
+                    ),
+                });
+            }
+            for (x, d) in self.p.iter_mut().zip(sparse.minimum_norm(&residual)) {
+                *x -= d;
+            }
+            iterations += 1;
+            self.newton_iterations += 1;
+        }
+    }
+
     /// Joint coordinates: the body state with the dense influence coefficients B.
-    fn update_bodies_with_influence(&mut self, time: f64) -> Result<()> {
+    pub(super) fn update_bodies_with_influence(&mut self, time: f64) -> Result<()> {
         if let Some(tree) = &self.tree {
             let state = tree.evaluate(self.model, time, &self.p, &self.pd)?;
             self.q = state.coordinates;
@@ -133,6 +235,9 @@ impl Engine<'_> {
     /// that residual grow as 1 / s^3.
     pub(super) fn project_joint_coordinates(&mut self, time: f64) -> Result<()> {
         let Some(rows) = self.tree.as_ref().map(|t| t.cut_rows.clone()) else { return Ok(()) };
+        if self.project_sparse(time, &rows)? {
+            return Ok(());
+        }
         let n = self.q.len();
         let mut iterations = 0;
         let mut previous = f64::INFINITY;
