@@ -16,14 +16,13 @@ Units are SI by convention. See ``docs/`` for the theory and the solver choices.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import logging
 import sys
 import types
 from typing import TYPE_CHECKING, Any
 
 from . import errors
+from ._lazy import lazy_attributes
 from .errors import (
     ArgumentTypeError,
     CallbackError,
@@ -147,23 +146,7 @@ _ORIGIN: dict[str, str] = {
 _FUNCTION_MODULES = frozenset(("campbell", "dispersion", "inverse_dynamics", "rotation"))
 
 
-def __getattr__(name: str) -> Any:
-    origin = _ORIGIN.get(name)
-    if origin is None:
-        # Any other submodule (fm.fe, fm.animation, ...) on first access too.
-        if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is None:
-            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        return importlib.import_module(f".{name}", __name__)
-    if origin == "":
-        value: Any = importlib.import_module(f".{name}", __name__)
-    else:
-        value = getattr(importlib.import_module(f".{origin}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_ORIGIN))
+__getattr__, __dir__ = lazy_attributes(__name__, _ORIGIN, globals())
 
 
 class _Package(types.ModuleType):

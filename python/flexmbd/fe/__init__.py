@@ -10,9 +10,9 @@ meshio or h5py."""
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_attributes
 
 if TYPE_CHECKING:
     from . import shapes
@@ -59,21 +59,7 @@ _ORIGIN: dict[str, str] = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    origin = _ORIGIN.get(name)
-    if origin is None:
-        # Any other submodule (fe.modal, fe.preprocess, ...) on first access too.
-        if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is None:
-            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        return importlib.import_module(f".{name}", __name__)
-    module = importlib.import_module(f".{origin or name}", __name__)
-    value = module if origin == "" else getattr(module, name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_ORIGIN))
+__getattr__, __dir__ = lazy_attributes(__name__, _ORIGIN, globals())
 
 
 __all__ = [

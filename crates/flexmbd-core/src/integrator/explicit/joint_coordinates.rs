@@ -117,6 +117,18 @@ impl Engine<'_> {
         Ok(true)
     }
 
+    /// The error of a projection onto the cut joints that does not converge: the worst
+    /// constraint row named.
+    fn projection_diverged(&self, time: f64, iterations: usize, violation: f64, row: usize) -> FlexmbdError {
+        FlexmbdError::NewtonDiverged {
+            time,
+            step_size: 0.0,
+            iterations,
+            residual: violation,
+            item: format!("{}; joint coordinates onto the cut joints", self.model.constraint_name(row)),
+        }
+    }
+
     /// [`Self::project_joint_coordinates`] body by body for a rigid tree whose cut joints are
     /// regular (minimum-norm corrections, those of the SVD there). False where an iterate is
     /// not regular: the dense projection goes on from it.
@@ -159,16 +171,7 @@ impl Engine<'_> {
             polished = met;
             previous = violation;
             if iterations >= self.settings.max_iterations || !violation.is_finite() {
-                return Err(FlexmbdError::NewtonDiverged {
-                    time,
-                    step_size: 0.0,
-                    iterations,
-                    residual: violation,
-                    item: format!(
-                        "{}; joint coordinates onto the cut joints",
-                        self.model.constraint_name(rows[k])
-                    ),
-                });
+                return Err(self.projection_diverged(time, iterations, violation, rows[k]));
             }
             for (x, d) in self.p.iter_mut().zip(sparse.minimum_norm(&residual)) {
                 *x -= d;
@@ -272,16 +275,7 @@ impl Engine<'_> {
             polished = met;
             previous = violation;
             if iterations >= self.settings.max_iterations || !violation.is_finite() {
-                return Err(FlexmbdError::NewtonDiverged {
-                    time,
-                    step_size: 0.0,
-                    iterations,
-                    residual: violation,
-                    item: format!(
-                        "{}; joint coordinates onto the cut joints",
-                        self.model.constraint_name(rows[k])
-                    ),
-                });
+                return Err(self.projection_diverged(time, iterations, violation, rows[k]));
             }
             for (x, d) in self.p.iter_mut().zip(closure.solve(&residual)) {
                 *x -= d;
