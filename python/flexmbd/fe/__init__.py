@@ -12,6 +12,7 @@ from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
 from .preprocess import (
     Material,
     Section,
+    ShellSection,
     assemble,
     body_from_matrices,
     body_from_mesh,
@@ -19,7 +20,7 @@ from .preprocess import (
     straight_beam,
 )
 from .sid import read_sid, write_sid
-from .stress import recover_stresses, von_mises
+from .stress import recover_stresses, shell_stresses, von_mises
 
 __all__ = [
     "FlexibleBodyData",
@@ -28,6 +29,7 @@ __all__ = [
     "Mesh",
     "ReferenceConditions",
     "Section",
+    "ShellSection",
     "assemble",
     "body_from_matrices",
     "body_from_mesh",
@@ -39,6 +41,7 @@ __all__ = [
     "recover_stresses",
     "save_body",
     "shapes",
+    "shell_stresses",
     "straight_beam",
     "validate_mesh",
     "von_mises",
