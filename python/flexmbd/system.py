@@ -519,10 +519,10 @@ class System(_core.System):
         name: str | None = None,
     ) -> _core.MarkerId:
         """Adds a marker at node `node` (its id in the mesh) of a deformable body: it moves with
-        the node and, on beams, turns with the node's small rotations (the intermediate joint
-        frame of seed Figure 4). A node of a solid has no rotation of its own: its marker turns
-        with the body frame only; use :meth:`add_node_set_marker` on a face for joints that
-        transmit moments. `orientation` is in the body frame."""
+        the node and, on beams and shells, turns with the node's small rotations (the
+        intermediate joint frame of seed Figure 4). A node of a solid has no rotation of its
+        own: its marker turns with the body frame only; use :meth:`add_node_set_marker` on a
+        face for joints that transmit moments. `orientation` is in the body frame."""
         item = f"marker '{name}'" if name else "node marker"
         data, basis = self._flexible_data(body, item)
         index = _node_index(data, int(node), item)

@@ -828,11 +828,14 @@ def body_from_mesh(
 ) -> FlexibleBodyData:
     """`build_body` for a `Mesh` or a mesh file (Gmsh .msh, Abaqus .inp, VTK; see
     `mesh_io.read_mesh`). Node sets of the mesh can be named in `reference_nodes` and
-    `interfaces`; the source file is recorded in the body's metadata."""
+    `interfaces`; the source file is recorded in the body's metadata. Shells take the mesh's
+    `shell_thickness` (an Abaqus ``*SHELL SECTION``) unless `shell` is given."""
     source = None
     if not isinstance(mesh, Mesh):
         source = str(mesh)
         mesh = read_mesh(mesh)
+    if options.get("shell") is None and mesh.shell_thickness is not None:
+        options = {**options, "shell": mesh.shell_thickness}
     body = build_body(
         mesh.nodes,
         mesh.elements,
