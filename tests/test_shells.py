@@ -256,9 +256,10 @@ def test_gmsh_and_abaqus_shell_meshes_are_read(aluminium, tmp_path):
         fm.fe.read_mesh(tmp_path / "two.inp")
 
 
-def test_a_swinging_shell_panel_runs_with_node_markers_and_writes_vtu(aluminium, tmp_path):
-    # A plate pendulum: a 0.3 x 0.1 panel (x along its length, normal z) hinged at its corner
-    # node 1 about global y, falling under gravity along -z from horizontal.
+def swinging_panel(aluminium):
+    """A plate pendulum: a 0.3 x 0.1 panel (x along its length, normal z) clamped to its body
+    frame along x = 0 and hinged at its corner node 1 about global y, falling under gravity
+    along -z from horizontal."""
     mesh = shapes.plate((0.3, 0.1), (6, 2), "quad4")
     body = build_body(
         mesh.nodes,
@@ -280,6 +281,48 @@ def test_a_swinging_shell_panel_runs_with_node_markers_and_writes_vtu(aluminium,
         system.add_node_marker(panel, 1, orientation=axis_y),
         name="hinge",
     )
+    return mesh, system, panel
+
+
+PANEL_MODEL = """
+gravity: [0.0, 0.0, -9.81]
+bodies:
+  - name: panel
+    type: flexible
+    plate: {lengths: [0.3, 0.1], divisions: [6, 2], element: quad4}
+    shell_thickness: 2.0e-3
+    material: {young_modulus: 7.0e+10, poisson_ratio: 0.3, density: 2700.0}
+    reference: clamped
+    reference_nodes: x0
+    modes: fixed-interface
+    mode_count: 4
+joints:
+  - name: hinge
+    type: revolute
+    marker1: {body: ground, orientation: [[1, 0, 0], [0, 0, 1], [0, -1, 0]]}
+    marker2: {body: panel, node: 1, orientation: [[1, 0, 0], [0, 0, 1], [0, -1, 0]]}
+simulation: {end_time: 0.01, step_size: 1.0e-3, output_interval: 0.005}
+"""
+
+
+def test_a_model_file_plate_is_the_python_panel(aluminium, tmp_path):
+    from flexmbd.model_file import load_model, simulate_model
+
+    (tmp_path / "panel.yaml").write_text(PANEL_MODEL)
+    from_file = simulate_model(load_model(tmp_path / "panel.yaml"))
+    _, system, panel = swinging_panel(aluminium)
+    from_python = fm.simulate(system, end_time=0.01, step_size=1e-3, output_interval=0.005)
+    check_close(
+        from_file.elastic_coordinates("panel"),
+        from_python.elastic_coordinates(panel),
+        rel=1e-12,
+        abs=1e-15,
+        what="elastic coordinates",
+    )
+
+
+def test_a_swinging_shell_panel_runs_with_node_markers_and_writes_vtu(aluminium, tmp_path):
+    mesh, system, panel = swinging_panel(aluminium)
     result = fm.simulate(system, end_time=0.04, step_size=1e-3, output_interval=0.01)
     assert result.success
     levels = result.shell_stresses(panel)
