@@ -181,7 +181,10 @@ impl ShellSection {
     }
 
     fn __repr__(&self) -> String {
-        format!("ShellSection(thickness={:e}, shear_factor={})", self.inner.thickness, self.inner.shear_factor)
+        format!(
+            "ShellSection(thickness={:e}, shear_factor={})",
+            self.inner.thickness, self.inner.shear_factor
+        )
     }
 }
 
@@ -210,6 +213,7 @@ fn default_orientation(axis: Vec3) -> Vec3 {
 }
 
 /// Builds the core mesh from the arrays of `assemble_body`.
+#[allow(clippy::too_many_arguments)]
 fn build_mesh<'py>(
     nodes: PyReadonlyArray2<'py, f64>,
     node_ids: PyReadonlyArray1<'py, i64>,

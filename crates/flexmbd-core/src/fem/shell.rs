@@ -567,7 +567,8 @@ fn shell_surface_stresses(
     let t = section.thickness;
     let d = plane_stress(material);
     let shear = 1.5 * section.shear_factor * material.shear_modulus();
-    let tri = if corners == 3 { Some((triangle_gradients(&f.local)?, dkt_beta_nodes(&f.local))) } else { None };
+    let tri =
+        if corners == 3 { Some((triangle_gradients(&f.local)?, dkt_beta_nodes(&f.local))) } else { None };
     for (node, stresses) in out.iter_mut().enumerate().take(corners) {
         let (membrane, curvature, gamma) = match &tri {
             Some(((_, g), beta)) => {

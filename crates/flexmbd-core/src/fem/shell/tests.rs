@@ -69,7 +69,8 @@ fn rigid_motions(x: &[Vec3]) -> Vec<Vec<f64>> {
 #[test]
 fn flat_elements_have_six_rigid_body_modes_of_zero_energy_and_no_other() {
     let axes = plane_axes();
-    let quad_nodes = [place(&axes, 0.0, 0.0), place(&axes, 1.1, 0.1), place(&axes, 0.9, 0.8), place(&axes, -0.1, 1.0)];
+    let quad_nodes =
+        [place(&axes, 0.0, 0.0), place(&axes, 1.1, 0.1), place(&axes, 0.9, 0.8), place(&axes, -0.1, 1.0)];
     let tri_nodes = [place(&axes, 0.0, 0.0), place(&axes, 1.1, 0.1), place(&axes, 0.3, 0.9)];
     for (kind, x) in [(quad(0.05), &quad_nodes[..]), (tri(0.05), &tri_nodes[..])] {
         let element = kernel(&kind);
@@ -80,7 +81,13 @@ fn flat_elements_have_six_rigid_body_modes_of_zero_energy_and_no_other() {
         for (m, q) in rigid_motions(x).iter().enumerate() {
             let mut f = vec![0.0; n];
             k.mul_vec_add(1.0, q, &mut f);
-            assert_all_close(&f, &vec![0.0; n], 0.0, 1e-12 * largest, format_args!("K q for rigid motion {m}"));
+            assert_all_close(
+                &f,
+                &vec![0.0; n],
+                0.0,
+                1e-12 * largest,
+                format_args!("K q for rigid motion {m}"),
+            );
         }
         let values = symmetric_eigenvalues(&k);
         assert!(values[5].abs() < 1e-11 * largest, "{kind:?}: eigenvalue 6 {:e}", values[5]);
@@ -156,7 +163,8 @@ fn patch_solution(mesh: &Mesh, exact: &[f64]) -> Vec<f64> {
         }
     }
     let interior: Vec<usize> = (24..30).collect();
-    let a: Vec<Vec<f64>> = interior.iter().map(|&i| interior.iter().map(|&j| dense[i][j]).collect()).collect();
+    let a: Vec<Vec<f64>> =
+        interior.iter().map(|&i| interior.iter().map(|&j| dense[i][j]).collect()).collect();
     let b: Vec<f64> = interior
         .iter()
         .map(|&i| -(0..n).filter(|j| !interior.contains(j)).map(|j| dense[i][j] * exact[j]).sum::<f64>())
@@ -214,11 +222,23 @@ fn membrane_patch_test_reproduces_constant_strain() {
             ([1e-3 * (2.0 * x + 0.5 * y), 1e-3 * (-0.7 * x + 1.5 * y), 0.0], [0.0, 0.0, omega])
         });
         let u = patch_solution(&mesh, &exact);
-        assert_all_close(&u[24..30], &exact[24..30], 1e-9, 1e-15, format_args!("interior node, triangles {triangles}"));
+        assert_all_close(
+            &u[24..30],
+            &exact[24..30],
+            1e-9,
+            1e-15,
+            format_args!("interior node, triangles {triangles}"),
+        );
         let stresses = mesh.recover_stresses(&u).unwrap();
         for (node, levels) in stresses.shells.iter().enumerate() {
             for level in levels {
-                assert_all_close(level, &expected, 0.0, 1e-8 * c * exx, format_args!("stress at node {node}"));
+                assert_all_close(
+                    level,
+                    &expected,
+                    0.0,
+                    1e-8 * c * exx,
+                    format_args!("stress at node {node}"),
+                );
             }
         }
     }
@@ -233,11 +253,8 @@ fn bending_patch_test_reproduces_constant_curvature() {
     let modulus = m.young_modulus / (1.0 - 0.09);
     let (kx, ky, kxy) = (-a, -b, -2.0 * c);
     let z = t / 2.0;
-    let top = body_stress(
-        modulus * z * (kx + 0.3 * ky),
-        modulus * z * (ky + 0.3 * kx),
-        modulus * z * 0.35 * kxy,
-    );
+    let top =
+        body_stress(modulus * z * (kx + 0.3 * ky), modulus * z * (ky + 0.3 * kx), modulus * z * 0.35 * kxy);
     for triangles in [false, true] {
         let mesh = patch(triangles, t);
         let exact = field(&mesh, |x, y| {
@@ -245,14 +262,32 @@ fn bending_patch_test_reproduces_constant_curvature() {
             ([0.0, 0.0, w], [b * y + c * x, -(a * x + c * y), 0.0])
         });
         let u = patch_solution(&mesh, &exact);
-        assert_all_close(&u[24..30], &exact[24..30], 1e-8, 1e-14, format_args!("interior node, triangles {triangles}"));
+        assert_all_close(
+            &u[24..30],
+            &exact[24..30],
+            1e-8,
+            1e-14,
+            format_args!("interior node, triangles {triangles}"),
+        );
         let stresses = mesh.recover_stresses(&u).unwrap();
         let scale = modulus * z * a;
         for (node, levels) in stresses.shells.iter().enumerate() {
             let bottom = top.map(|v| -v);
             assert_all_close(&levels[0], &top, 0.0, 1e-7 * scale, format_args!("top stress at node {node}"));
-            assert_all_close(&levels[1], &[0.0; 6], 0.0, 1e-7 * scale, format_args!("mid stress at node {node}"));
-            assert_all_close(&levels[2], &bottom, 0.0, 1e-7 * scale, format_args!("bottom stress at node {node}"));
+            assert_all_close(
+                &levels[1],
+                &[0.0; 6],
+                0.0,
+                1e-7 * scale,
+                format_args!("mid stress at node {node}"),
+            );
+            assert_all_close(
+                &levels[2],
+                &bottom,
+                0.0,
+                1e-7 * scale,
+                format_args!("bottom stress at node {node}"),
+            );
         }
     }
 }
@@ -299,7 +334,13 @@ fn mass_points_carry_the_plate_mass_moments_and_rotary_inertia() {
             for i in 0..4 {
                 q[6 * i + 3..6 * i + 6].copy_from_slice(&axes.0[k]);
             }
-            assert_close(mm.quadratic_form(&q), mass * expected, 1e-12, 0.0, format_args!("rotary inertia {k}"));
+            assert_close(
+                mm.quadratic_form(&q),
+                mass * expected,
+                1e-12,
+                0.0,
+                format_args!("rotary inertia {k}"),
+            );
         }
         // Rigid translations are exact: the translational mass in every direction is m.
         for k in 0..3 {
