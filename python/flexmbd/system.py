@@ -163,7 +163,12 @@ def _stiffening_elements(
     conn = body.elements.get("beam2")
     if conn is None or len(conn) == 0 or body.section is None:
         raise InvalidModelError(
-            f"{item}: geometric stiffness is available for beam elements; the body has none",
+            f"{item}: geometric stiffness is available for beam elements; the body has none"
+            + (
+                " (shell elements have no geometric stiffness yet, see docs/flexible-bodies.md)"
+                if any(len(body.elements.get(k, ())) for k in ("quad4", "tri3"))
+                else ""
+            ),
             item=item,
         )
     ea = float(body.material["young_modulus"]) * float(body.section["area"])
