@@ -518,6 +518,9 @@ def body_mass_points(
     shear: bool = False,
     shell: ShellSection | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[Any, Any, Any, tuple[int, int]]]: ...
+def shell_membrane_stiffening(
+    nodes: NDArray[np.float64], shell: ShellSection, material: Material
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 
 class SymmetricFactor:
     def __init__(

@@ -493,6 +493,35 @@ pub fn body_mass_points<'py>(
     )
 }
 
+/// The membrane stiffening terms of one shell element (geometric stiffness; see
+/// `flexmbd_core::fem::membrane_stiffening`): for its nodes (3 or 4, 3) and the section and
+/// material, returns `(axes (3, 3) rows e1 e2 n, linear (3, n_e), slopes (3, n_e, n_e),
+/// stiffness (3, 3))` with n_e = 6 x nodes over the local coordinates in element axes.
+#[pyfunction]
+pub fn shell_membrane_stiffening<'py>(
+    py: Python<'py>,
+    nodes: PyReadonlyArray2<'py, f64>,
+    shell: &ShellSection,
+    material: &Material,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let x: Vec<Vec3> = nodes.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect();
+    if nodes.as_array().ncols() != 3 {
+        return Err(invalid("shell element", "nodes must be a (3 or 4, 3) array"));
+    }
+    let (axes, linear, slopes, stiffness) = fem::membrane_stiffening(&shell.inner, &material.inner, &x)
+        .map_err(|e| invalid("shell element", e.to_string()))?;
+    let ne = 6 * x.len();
+    PyTuple::new(
+        py,
+        [
+            PyArray1::from_vec(py, axes.0.concat()).reshape([3, 3])?.into_any(),
+            PyArray1::from_vec(py, linear).reshape([3, ne])?.into_any(),
+            PyArray1::from_vec(py, slopes).reshape([3, ne, ne])?.into_any(),
+            PyArray1::from_vec(py, stiffness).reshape([3, 3])?.into_any(),
+        ],
+    )
+}
+
 /// Sparse symmetric factorization (Rust, faer): Cholesky of a positive definite matrix, or
 /// regularized LDL^T of a quasi-definite saddle-point matrix whose first `positive` unknowns
 /// form the definite block. The matrix is given as CSC arrays (only the lower triangle is

@@ -17,5 +17,5 @@ pub use beam::Beam;
 pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
 pub use material::Material;
 pub use section::{Section, ShellSection};
-pub use shell::{ShellKernel, ShellQuad4, ShellTri3};
+pub use shell::{membrane_stiffening, ShellKernel, ShellQuad4, ShellTri3};
 pub use solid::{Hex8, Tet10, Tet4};

@@ -609,6 +609,64 @@ fn shell_surface_stresses(
     Ok(())
 }
 
+/// Membrane stiffening terms of a shell element: element axes (rows e1, e2, n), linear strains
+/// (3 x n_e), von Karman matrices (3 x n_e x n_e) and S (3 x 3), all row-major.
+pub type MembraneStiffening = (Mat3, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// The membrane stiffening terms of a shell element (`body::stiffening`): the element axes
+/// (rows e1, e2, n), the element means of the linear membrane strains (3 x n_e, over the local
+/// coordinates [u, v, w, theta_x, theta_y, theta_z] per node in element axes), the matrices
+/// G_xx, G_yy, G_xy (3 x n_e x n_e) of the mean von Karman terms w,x^2 / 2, w,y^2 / 2,
+/// w,x w,y = e^T G_k e / 2 (w bilinear; the triangle's linear in its corner values), and
+/// S = area D_m (3 x 3), n_e = 6 x nodes.
+pub fn membrane_stiffening(
+    section: &ShellSection,
+    material: &Material,
+    x: &[Vec3],
+) -> ElementResult<MembraneStiffening> {
+    let corners = x.len();
+    if corners != 3 && corners != 4 {
+        return Err(ElementError::Invalid { detail: format!("a shell has 3 or 4 nodes, got {corners}") });
+    }
+    let f = frame(x, corners)?;
+    let ne = 6 * corners;
+    let mut linear = vec![0.0; 3 * ne];
+    let mut slopes = vec![0.0; 3 * ne * ne];
+    let mut area = 0.0;
+    let mut add = |g: &[[f64; 4]; 2], weight: f64| {
+        let rows = membrane_rows(g, corners);
+        for c in 0..3 {
+            for k in 0..ne {
+                linear[c * ne + k] += weight * rows[c][k];
+            }
+        }
+        for i in 0..corners {
+            for j in 0..corners {
+                let (a, b) = (6 * i + 2, 6 * j + 2);
+                slopes[a * ne + b] += weight * g[0][i] * g[0][j];
+                slopes[ne * ne + a * ne + b] += weight * g[1][i] * g[1][j];
+                slopes[2 * ne * ne + a * ne + b] += weight * (g[0][i] * g[1][j] + g[1][i] * g[0][j]);
+            }
+        }
+    };
+    if corners == 4 {
+        for &(r, wr) in &GAUSS_LEGENDRE_2 {
+            for &(s, ws) in &GAUSS_LEGENDRE_2 {
+                let (_, g, det) = quad_gradients(&f.local, r, s)?;
+                add(&g, wr * ws * det);
+                area += wr * ws * det;
+            }
+        }
+    } else {
+        let (a, g) = triangle_gradients(&f.local)?;
+        add(&g, a);
+        area = a;
+    }
+    linear.iter_mut().chain(slopes.iter_mut()).for_each(|v| *v /= area);
+    let d = scaled(&plane_stress(material), section.thickness * area);
+    Ok((f.axes, linear, slopes, d.concat()))
+}
+
 /// Shell elements: stresses at the top, middle and bottom surfaces (see the module doc).
 pub trait ShellKernel {
     /// Stresses [top, middle, bottom] at each node, Voigt order, body axes (Pa).

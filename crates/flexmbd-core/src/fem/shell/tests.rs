@@ -388,3 +388,63 @@ fn degenerate_shells_are_refused() {
     assert!(ShellSection::new("s", 0.0).is_err());
     assert!(ShellSection::new("s", f64::NAN).is_err());
 }
+
+#[test]
+fn membrane_stiffening_terms_are_the_mean_von_karman_strains() {
+    // In element axes: u = eps0 x, w = p x + r y + c x y. Linear strains (eps0, 0, 0); the
+    // means over the rectangle [0, a] x [0, b] of w,x^2 / 2 = (p + c y)^2 / 2,
+    // w,y^2 / 2 = (r + c x)^2 / 2 and w,x w,y = (p + c y)(r + c x).
+    let (a, b, t) = (0.6, 0.4, 0.003);
+    let m = aluminium();
+    let (eps0, p, r, c) = (1e-3, 0.02, -0.01, 0.05);
+    for corners in [4usize, 3] {
+        let all =
+            [Vec3::new(0.0, 0.0, 0.0), Vec3::new(a, 0.0, 0.0), Vec3::new(a, b, 0.0), Vec3::new(0.0, b, 0.0)];
+        let x: Vec<Vec3> = if corners == 4 { all.to_vec() } else { vec![all[0], all[1], all[2]] };
+        let (axes, linear, slopes, stiffness) = membrane_stiffening(&section(t), &m, &x).unwrap();
+        let ne = 6 * corners;
+        // Local coordinates: the element axes are the body axes here (e1 along x).
+        assert_all_close(&axes.0.concat(), &Mat3::IDENTITY.0.concat(), 0.0, 1e-15, "axes");
+        let mut e = vec![0.0; ne];
+        for (i, node) in x.iter().enumerate() {
+            let (px, py) = (node[0], node[1]);
+            e[6 * i] = eps0 * px;
+            e[6 * i + 2] = p * px + r * py + if corners == 4 { c * px * py } else { 0.0 };
+        }
+        let strain: Vec<f64> = (0..3).map(|k| (0..ne).map(|j| linear[k * ne + j] * e[j]).sum()).collect();
+        assert_all_close(
+            &strain,
+            &[eps0, 0.0, 0.0],
+            0.0,
+            1e-15,
+            format_args!("linear strains, {corners} nodes"),
+        );
+        let quadratic: Vec<f64> = (0..3)
+            .map(|k| {
+                let g = &slopes[k * ne * ne..(k + 1) * ne * ne];
+                0.5 * (0..ne).map(|i| e[i] * (0..ne).map(|j| g[i * ne + j] * e[j]).sum::<f64>()).sum::<f64>()
+            })
+            .collect();
+        let expected = if corners == 4 {
+            // Means: (p + c y)^2 over y in [0, b], (r + c x)^2 over x in [0, a], and the product.
+            let my = |f: &dyn Fn(f64) -> f64, l: f64| (f(0.0) + 4.0 * f(l / 2.0) + f(l)) / 6.0;
+            [
+                0.5 * my(&|y| (p + c * y).powi(2), b),
+                0.5 * my(&|x| (r + c * x).powi(2), a),
+                (p + c * b / 2.0) * (r + c * a / 2.0),
+            ]
+        } else {
+            [0.5 * p * p, 0.5 * r * r, p * r]
+        };
+        assert_all_close(
+            &quadratic,
+            &expected,
+            1e-12,
+            0.0,
+            format_args!("von Karman terms, {corners} nodes"),
+        );
+        let area = if corners == 4 { a * b } else { a * b / 2.0 };
+        let modulus = m.young_modulus * t / (1.0 - 0.09) * area;
+        assert_close(stiffness[0], modulus, 1e-12, 0.0, "S_11 = area E t / (1 - nu^2)");
+    }
+}
