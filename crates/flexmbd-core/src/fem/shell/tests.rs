@@ -448,3 +448,41 @@ fn membrane_stiffening_terms_are_the_mean_von_karman_strains() {
         assert_close(stiffness[0], modulus, 1e-12, 0.0, "S_11 = area E t / (1 - nu^2)");
     }
 }
+
+#[test]
+fn warped_quadrilaterals_lose_rigid_rotations_only_in_proportion_to_the_warp() {
+    // Node 3 lifted off the plane of the others by `warp` (relative to the size 1): the
+    // projected stiffness leaves rigid translations free exactly and rigid rotations to
+    // the order of the warp (documented limitation).
+    let axes = plane_axes();
+    let n = Vec3(axes.0[2]);
+    let mut previous = 0.0;
+    for (k, warp) in [0.0, 1e-3, 1e-2].into_iter().enumerate() {
+        let x = [
+            place(&axes, 0.0, 0.0),
+            place(&axes, 1.1, 0.1),
+            place(&axes, 0.9, 0.8) + n * warp,
+            place(&axes, -0.1, 1.0),
+        ];
+        let mut k_matrix = DenseMatrix::zeros(1, 1);
+        let element = quad(0.05);
+        kernel(&element).stiffness(&aluminium(), &x, &mut k_matrix).unwrap();
+        let largest = symmetric_eigenvalues(&k_matrix)[23];
+        let mut worst: f64 = 0.0;
+        for (m, q) in rigid_motions(&x).iter().enumerate() {
+            let mut f = vec![0.0; 24];
+            k_matrix.mul_vec_add(1.0, q, &mut f);
+            let norm = f.iter().map(|v| v * v).sum::<f64>().sqrt() / largest;
+            if m < 3 {
+                assert!(norm < 1e-12, "translation {m} at warp {warp}: {norm:e}");
+            }
+            worst = worst.max(norm);
+        }
+        if k == 0 {
+            assert!(worst < 1e-12, "flat: {worst:e}");
+        } else {
+            assert!(worst > previous && worst < 10.0 * warp, "warp {warp}: {worst:e}");
+        }
+        previous = worst;
+    }
+}
