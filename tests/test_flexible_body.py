@@ -163,7 +163,7 @@ def test_bad_flexible_input_names_the_item():
     object.__setattr__(stripped, "invariants", {})
     with pytest.raises(fm.InvalidModelError, match="no invariants"):
         system.add_flexible_body(stripped)
-    with pytest.raises(fm.InvalidModelError, match="beam elements"):
+    with pytest.raises(fm.InvalidModelError, match="beam and shell elements"):
         mesh = shapes.box((0.4, 0.05, 0.05), (2, 1, 1), "hex8")
         solid = build_body(
             mesh.nodes, mesh.elements, STEEL, reference="clamped", reference_nodes=[0, 1, 2, 3]

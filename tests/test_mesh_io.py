@@ -388,9 +388,13 @@ def test_abaqus_labels_and_sets(tmp_path):
     mesh = read_mesh(path)
     np.testing.assert_array_equal(mesh.nodes, TWO_TETS_NODES)
     np.testing.assert_array_equal(mesh.node_ids, [101, 102, 103, 104, 105])
-    assert list(mesh.elements) == ["tet4"]  # the S3 shell is not an element
+    # The S3 element is a flat shell ("tri3"), next to the solids.
+    assert list(mesh.elements) == ["tet4", "tri3"]
     np.testing.assert_array_equal(mesh.elements["tet4"], TWO_TETS)
     np.testing.assert_array_equal(mesh.element_ids["tet4"], [11, 12])
+    np.testing.assert_array_equal(mesh.elements["tri3"], [[0, 1, 2]])
+    np.testing.assert_array_equal(mesh.element_ids["tri3"], [21])
+    assert mesh.shell_thickness is None
     expected = {
         "AllNodes": [0, 1, 2, 3, 4],
         "CLAMP": [0, 1, 2],  # *NSET CLAMP and *ELSET Clamp (the nodes of shell 21): one set
@@ -677,9 +681,9 @@ def test_element_with_repeated_node():
         ({"node_ids": np.array([11, 12, 12, 14, 15])}, InvalidModelError, "node id 12 is used 2"),
         ({"element_ids": {"tet4": np.array([3, 3])}}, InvalidModelError, "element id 3 is used"),
         (
-            {"elements": {"tri3": TWO_TETS[:, :3]}, "element_ids": {"tri3": np.array([1, 2])}},
+            {"elements": {"tri6": TWO_TETS[:, :3]}, "element_ids": {"tri6": np.array([1, 2])}},
             UnknownItemError,
-            "unknown element type 'tri3'",
+            "unknown element type 'tri6'",
         ),
         ({"elements": {"tet4": TWO_TETS[:, :3]}}, InvalidModelError, "shape \\(n, 4\\)"),
         ({"elements": {}, "element_ids": {}}, InvalidModelError, "no elements"),

@@ -559,7 +559,7 @@ MALFORMED = {
     "two body sources": (
         (POINT_MASS, FLEXIBLE + "    box: {lengths: [1.0, 1.0, 1.0], divisions: [1, 1, 1]}\n"),
         "model.yaml: line 3: bodies[0]: a flexible body needs exactly one of body_file, beam, "
-        "mesh, box, cylinder (got beam, box)",
+        "mesh, box, plate, cylinder (got beam, box)",
     ),
     "elastic coordinates in other units": (
         (
@@ -754,6 +754,7 @@ def test_the_format_covers_the_python_api():
     left_out = {"nodes", "elements", "node_ids", "element_ids", "node_sets", "external_modes"}
     left_out |= {"check_mesh", "timings"}
     renamed = {"orientation": "section_orientation", "mass": "mass_matrix"}
+    renamed["shell"] = "shell_thickness"
     options = set(inspect.signature(build_body).parameters) - left_out
     assert {renamed.get(o, o) for o in options} <= set(FlexibleBodySpec.model_fields)
     quantities = set(SensorSpec.model_fields["quantity"].annotation.__args__)

@@ -78,6 +78,7 @@ SHORT_RUNS = {
     "four-bar": 1e-3,
     "four-bar-spatial": 1e-3,
     "pendulum": 1e-3,
+    "satellite": 1e-2,
     "space-crane": 1e-2,
     "spin-up": 1e-3,
     "tetrahedral-pendulum": 1e-3,

@@ -478,6 +478,13 @@ class Section:
     def rotary_inertia(self) -> bool: ...
     def without_rotary_inertia(self) -> Section: ...
 
+class ShellSection:
+    def __init__(self, thickness: float, *, shear_factor: float = ...) -> None: ...
+    @property
+    def thickness(self) -> float: ...
+    @property
+    def shear_factor(self) -> float: ...
+
 def assemble_body(
     nodes: NDArray[np.float64],
     node_ids: NDArray[np.int64],
@@ -487,6 +494,7 @@ def assemble_body(
     orientation: list[float] | None = None,
     lumped: bool = False,
     shear: bool = False,
+    shell: ShellSection | None = None,
 ) -> dict[str, Any]: ...
 def recover_stresses(
     nodes: NDArray[np.float64],
@@ -497,7 +505,8 @@ def recover_stresses(
     section: Section | None = None,
     orientation: Sequence[float] | None = None,
     shear: bool = False,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+    shell: ShellSection | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 def body_mass_points(
     nodes: NDArray[np.float64],
     node_ids: NDArray[np.int64],
@@ -507,7 +516,11 @@ def body_mass_points(
     orientation: list[float] | None = None,
     lumped: bool = False,
     shear: bool = False,
+    shell: ShellSection | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[Any, Any, Any, tuple[int, int]]]: ...
+def shell_membrane_stiffening(
+    nodes: NDArray[np.float64], shell: ShellSection, material: Material
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 
 class SymmetricFactor:
     def __init__(

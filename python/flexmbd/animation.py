@@ -77,7 +77,12 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     "tet4": ("tetra", None),
     "tet10": ("tetra10", np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])),
     "hex8": ("hexahedron", None),
+    "quad4": ("quad", None),
+    "tri3": ("triangle", None),
 }
+
+#: Element types of shells (their stresses have top and bottom surfaces).
+SHELL_TYPES = ("quad4", "tri3")
 
 #: Boundary faces of the solid elements, by their corner nodes (outward normals).
 ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
@@ -91,6 +96,8 @@ ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
         (2, 3, 7, 6),
         (3, 0, 4, 7),
     ),
+    "quad4": ((0, 1, 2, 3),),
+    "tri3": ((0, 1, 2),),
 }
 
 #: Named views: (elevation, azimuth) in degrees, orthographic.
@@ -361,6 +368,7 @@ def _mesh(
     body_of_point: list[NDArray[np.int32]] = []
     von_mises: list[Array] = []
     stress: list[Array] = []
+    surfaces: list[Array] = []
     cells: list[tuple[str, NDArray[np.int64]]] = []
     cell_body: list[NDArray[np.int32]] = []
     offset = 0
@@ -373,6 +381,7 @@ def _mesh(
         body_of_point.append(np.full(len(p), body, dtype=np.int32))
         von_mises.append(np.zeros(len(p)))
         stress.append(np.zeros((len(p), 6)))
+        surfaces.append(np.zeros((len(p), 2, 6)))
         offset += len(p)
         return start
 
@@ -384,6 +393,11 @@ def _mesh(
             rotation = scene.pose(part.body, records)[1][0]
             von_mises[-1] = _von_mises(sigma)
             stress[-1] = _paraview_tensor(sigma, rotation)
+            if _has_shells(part):
+                levels = scene.result.shell_stresses(part.body, records)[0]
+                von_mises[-1] = np.maximum(von_mises[-1], _von_mises(levels).max(axis=1))
+                for k, level in enumerate((0, 2)):
+                    surfaces[-1][:, k] = _paraview_tensor(levels[:, level], rotation)
         for kind, connectivity in part.data.elements.items():
             cell_type, order = VTK_CELLS[kind]
             conn = np.asarray(connectivity, dtype=np.int64)
@@ -420,12 +434,29 @@ def _mesh(
     if stresses:
         point_data["von_mises"] = np.concatenate(von_mises)
         point_data["stress"] = np.concatenate(stress)
+        if any(_has_shells(part) for part in scene.parts if part.body in stresses):
+            both = np.concatenate(surfaces)
+            point_data["stress_top"] = both[:, 0]
+            point_data["stress_bottom"] = both[:, 1]
     return meshio.Mesh(
         np.concatenate(points),
         cells,
         point_data=point_data,
         cell_data={"body": cell_body},
     )
+
+
+def _has_shells(part: Any) -> bool:
+    return any(len(part.data.elements.get(kind, ())) for kind in SHELL_TYPES)
+
+
+def _nodal_von_mises(result: Any, part: Any, records: Array) -> Array:
+    """Von Mises stress at the nodes of a part (records, nodes): of the solids, and for shells
+    the largest of their top, middle and bottom surfaces."""
+    value = _von_mises(result.stresses(part.body, records))
+    if _has_shells(part):
+        value = np.maximum(value, _von_mises(result.shell_stresses(part.body, records)).max(axis=2))
+    return value
 
 
 def _von_mises(stress: Array) -> Array:
@@ -698,8 +729,7 @@ def _style(
     elif color_by == "stress":
         for part in scene.parts:
             if part.has_solids:
-                sigma = scene.result.stresses(part.body, records)
-                top = max(top, float(np.max(_von_mises(sigma.reshape(-1, 6)))))
+                top = max(top, float(np.max(_nodal_von_mises(scene.result, part, records))))
         label = "von Mises stress (Pa)"
     norm = Normalize(0.0, top if top > 0.0 else 1.0)
     return _Style(factor, _view_angles(view, extents), limits, color_by, norm, label)
@@ -736,7 +766,7 @@ def _draw(ax: Any, scene: Scene, record: int, style: _Style, cache: dict[str, An
         nodes, u = scene.nodes(part, records, style.scale)
         nodes = nodes[0]
         if style.color_by == "stress" and part.has_solids:
-            value = _von_mises(result.stresses(part.body, records)[0])
+            value = _nodal_von_mises(result, part, records)[0]
         else:
             value = np.linalg.norm(u[0], axis=1)
         faces = cache.setdefault(f"faces {part.body}", _boundary_faces(part))

@@ -879,6 +879,150 @@ def space_crane(
     )
 
 
+#: Satellite of :func:`satellite`: bus mass (kg) and side (m); panels' length and width (m),
+#: thickness (m) and aluminium (E Pa, nu, rho kg/m^3).
+SATELLITE = {
+    "bus_mass": 500.0,
+    "bus_side": 1.0,
+    "panel_length": 2.0,
+    "panel_width": 1.0,
+    "panel_thickness": 5e-3,
+    "material": (7.0e10, 0.33, 2700.0),
+}
+
+
+#: Duration (s) of the torque switches of :func:`satellite`.
+SATELLITE_SWITCH = 0.1
+
+
+def _satellite_inertia() -> float:
+    """The satellite's moment of inertia about the slew axis x through the bus centre, rigid:
+    the bus cube plus two panels from y = side / 2 to side / 2 + length (thin plates)."""
+    s = SATELLITE
+    half, length, width = s["bus_side"] / 2, s["panel_length"], s["panel_width"]
+    panel = s["material"][2] * length * width * s["panel_thickness"]
+    along = panel * ((half + length) ** 3 - half**3) / (3 * length)
+    return s["bus_mass"] * s["bus_side"] ** 2 / 6 + 2 * along
+
+
+def satellite_slew_torque(angle: float, duration: float) -> float:
+    """The bang-bang torque (N m) that turns the rigid satellite by `angle` (rad) rest to rest
+    in `duration` s: +T for half the time, -T for the other half, T = 4 angle I / duration^2."""
+    return 4.0 * angle * _satellite_inertia() / duration**2
+
+
+def satellite(
+    angle: float = np.radians(30.0),
+    duration: float = 20.0,
+    coast: float = 10.0,
+    mode_count: int = 6,
+    divisions: tuple[int, int] = (4, 8),
+    element: str = "quad4",
+    modal_damping: float = 0.0,
+) -> Example:
+    """A rigid bus with two flexible solar panels slewed about x by a torque profile, in orbit
+    (no gravity). The bus (:data:`SATELLITE`: a 500 kg cube of 1 m) carries on its faces
+    y = +-0.5 m two aluminium panels of 2 x 1 m and 5 mm (27 kg each, first bending frequency
+    about 1 Hz), meshed with `divisions` (across, along) `element` shells ("quad4" or "tri3")
+    and reduced to `mode_count` modes clamped at their root edge, welded to the bus (fixed
+    joints at the middle of each root edge). The torques "slew" and "slew stop" about the bus
+    x axis make the bang-bang profile :func:`satellite_slew_torque` that would turn the rigid
+    satellite by `angle` rest to rest in `duration` s; the run coasts `coast` s more, when the
+    panels' residual vibration shows (undamped unless `modal_damping`, a ratio of every
+    mode). Items: "bus", "panels" (body ids, +y first), "tips" (the node id at the middle of
+    each panel's free edge), "torque" (N m), "panel data" (the panels' FlexibleBodyData)."""
+    from .fe import Material, build_body, shapes
+
+    s = SATELLITE
+    length, width, half = s["panel_length"], s["panel_width"], s["bus_side"] / 2
+    mesh = shapes.plate((width, length), divisions, element, origin=(-width / 2, 0.0, 0.0))
+    panel = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(*s["material"]),
+        shell=s["panel_thickness"],
+        node_sets=mesh.node_sets,
+        node_ids=mesh.node_ids,
+        reference="clamped",
+        reference_nodes="y0",
+        modes="fixed-interface",
+        mode_count=mode_count,
+    )
+    middle = np.abs(mesh.nodes[:, 0]) < 1e-9 * width
+    root = int(mesh.node_ids[np.flatnonzero(middle & (np.abs(mesh.nodes[:, 1]) < 1e-9))[0]])
+    free_edge = np.abs(mesh.nodes[:, 1] - length) < 1e-9
+    tip = int(mesh.node_ids[np.flatnonzero(middle & free_edge)[0]])
+    system = System()
+    side = s["bus_side"]
+    bus = system.add_rigid_body(s["bus_mass"], (s["bus_mass"] * side**2 / 6,) * 3, name="bus")
+    panels = []
+    for sign, name in ((1.0, "panel +y"), (-1.0, "panel -y")):
+        turn = rotation("z", 0.0 if sign > 0 else np.pi)
+        body = system.add_flexible_body(
+            panel,
+            position=(0.0, sign * half, 0.0),
+            orientation=turn,
+            modal_damping=modal_damping or None,
+            name=name,
+        )
+        system.add_fixed_joint(
+            system.add_marker(bus, position=(0.0, sign * half, 0.0), orientation=turn),
+            system.add_node_marker(body, root),
+            name=f"{name} root",
+        )
+        panels.append(body)
+    torque = satellite_slew_torque(angle, duration)
+    # Bang-bang as two torques: +T reversed to -T at duration / 2, and +T added at the end;
+    # each switch a cubic step of SATELLITE_SWITCH s centred on its time (the impulses and the
+    # rigid rest-to-rest motion are those of sharp switches).
+    centre = system.add_marker(bus)
+    switch = SATELLITE_SWITCH / 2
+    middle, end = duration / 2, duration
+    reverse = _boundary.Step(middle - switch, middle + switch, torque, -torque, shape="cubic")
+    stop = _boundary.Step(end - switch, end + switch, 0.0, torque, shape="cubic")
+    system.add_torque(centre, (reverse, 0.0, 0.0), frame="marker", name="slew")
+    system.add_torque(centre, (stop, 0.0, 0.0), frame="marker", name="slew stop")
+    return Example(
+        name="satellite",
+        description="a satellite with two flexible shell solar panels slewed by a torque",
+        system=system,
+        end_time=duration + coast,
+        step_size=0.01,
+        solver=_boundary.GeneralizedAlpha(0.9, step_control="fixed"),
+        output_interval=0.05,
+        items={
+            "bus": bus,
+            "panels": panels,
+            "tips": [tip, tip],
+            "torque": torque,
+            "panel data": panel,
+        },
+        reference={"inertia": _satellite_inertia(), "angle": angle, "duration": duration},
+    )
+
+
+def satellite_quasi_static_tip(example: Example) -> float:
+    """The tip deflection (m, along the panel normal) of a panel of :func:`satellite` held at
+    its root under the d'Alembert load of the rigid satellite's angular acceleration
+    4 angle / duration^2 in the first half of the slew: a static solution of the same shell
+    mesh, which the dynamic tip deflection oscillates about while the torque is constant."""
+    from .fe.preprocess import static_displacements
+
+    body = example.items["panel data"]
+    alpha = 4 * example.reference["angle"] / example.reference["duration"] ** 2
+    # Acceleration of the rigid motion about global x through the bus centre, in the +y
+    # panel's body axes (parallel to the global ones): alpha e_x x (X + (0, side / 2, 0)).
+    offset = np.array([0.0, SATELLITE["bus_side"] / 2, 0.0])
+    acceleration = np.zeros(body.dof_count)
+    d = body.dofs_per_node
+    for i, x in enumerate(np.asarray(body.nodes)):
+        acceleration[d * i : d * i + 3] = np.cross([alpha, 0.0, 0.0], x + offset)
+        acceleration[d * i + 3] = alpha
+    u = static_displacements(body, -(body.mass @ acceleration))
+    index = int(np.flatnonzero(np.asarray(body.node_ids) == example.items["tips"][0])[0])
+    return float(u[d * index + 2])
+
+
 def _rigid_equivalent(data: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The inertia about the centre of mass (body axes) and the centre of mass of a
     deformable body's undeformed mass distribution, from its invariants."""
@@ -900,6 +1044,7 @@ EXAMPLES: dict[str, Callable[[], Example]] = {
     "four-bar": four_bar,
     "four-bar-spatial": lambda: four_bar_spatial(),
     "pendulum": pendulum,
+    "satellite": lambda: satellite(),
     "space-crane": lambda: space_crane(),
     "spin-up": spin_up,
     "tetrahedral-pendulum": tetrahedral_pendulum,

@@ -245,13 +245,23 @@ class Result:
         return np.asarray(elastic_basis(data) @ q_f.T).T
 
     def stresses(self, body: object, records: Any = None) -> Array:
-        """Stresses of the solid elements of a deformable body averaged at its nodes (Pa, body
-        axes, Voigt order xx, yy, zz, yz, xz, xy): (n, nodes, 6), for all records or the
-        given record indices. See :mod:`flexmbd.fe.stress`."""
+        """Stresses of the solid elements (and the middle surface of shells) of a deformable
+        body averaged at its nodes (Pa, body axes, Voigt order xx, yy, zz, yz, xz, xy):
+        (n, nodes, 6), for all records or the given record indices. See
+        :mod:`flexmbd.fe.stress`."""
         from .fe.stress import recover_stresses
 
         _, data = self._flexible(body)
         return recover_stresses(data, self._nodal_displacements(body, records))[0]
+
+    def shell_stresses(self, body: object, records: Any = None) -> Array:
+        """Stresses of the shell elements of a deformable body at their top, middle and bottom
+        surfaces, averaged at its nodes (Pa, body axes, Voigt order): (n, nodes, 3, 6). See
+        :func:`flexmbd.fe.stress.shell_stresses`."""
+        from .fe.stress import shell_stresses
+
+        _, data = self._flexible(body)
+        return shell_stresses(data, np.atleast_2d(self._nodal_displacements(body, records)))
 
     def section_forces(self, body: object, records: Any = None) -> Array:
         """Section resultants [N, V_y, V_z, T, M_y, M_z] (N, N m; element axes; tension

@@ -167,33 +167,60 @@ def _check_rigid(
 
 def _stiffening_elements(
     body: FlexibleBodyData, basis: sp.csr_matrix, item: str
-) -> list[tuple[NDArray[np.int64], NDArray[np.float64], float, float]]:
-    """The beam elements of the geometric stiffness: for each, the map (12, n_l) from the
-    elastic coordinates to its nodal coordinates in element axes, its length and EA."""
+) -> list[tuple[Any, ...]]:
+    """The elements of the geometric stiffness (`body/stiffening.rs`): for each beam, the map
+    (12, n_l) from the elastic coordinates to its nodal coordinates in element axes, its
+    length and EA; for each shell ("quad4", "tri3"), the map (n_e, n_l) and its membrane
+    terms (linear strains, von Karman matrices, area D_m; `fem::membrane_stiffening`)."""
     conn = body.elements.get("beam2")
-    if conn is None or len(conn) == 0 or body.section is None:
+    beams = conn is not None and len(conn) > 0 and body.section is not None
+    shells = body.shell is not None and any(
+        len(body.elements.get(kind, ())) for kind in ("quad4", "tri3")
+    )
+    if not (beams or shells):
         raise InvalidModelError(
-            f"{item}: geometric stiffness is available for beam elements; the body has none",
+            f"{item}: geometric stiffness is available for beam and shell elements; the body "
+            "has none",
             item=item,
         )
-    ea = float(body.material["young_modulus"]) * float(body.section["area"])
     d = body.dofs_per_node
     modal = body.modes is not None
-    elements = []
-    for a, b in np.asarray(conn, dtype=np.int64):
-        axis = body.nodes[b] - body.nodes[a]
-        length = float(np.linalg.norm(axis))
-        ex = axis / length
-        helper = np.eye(3)[int(np.argmin(np.abs(ex)))]
-        ey = helper - ex * (helper @ ex)
-        ey /= np.linalg.norm(ey)
-        rot = np.vstack([ex, ey, np.cross(ex, ey)])
-        rows = np.concatenate([np.arange(a * d, a * d + 6), np.arange(b * d, b * d + 6)])
-        local = np.kron(np.eye(4), rot) @ basis[rows].toarray()
+    elements: list[tuple[Any, ...]] = []
+
+    def mapped(nodes: NDArray[np.int64], rot: NDArray[np.float64]) -> tuple[Any, Any]:
+        rows = np.concatenate([np.arange(n * d, n * d + 6) for n in nodes])
+        local = np.kron(np.eye(2 * len(nodes)), rot) @ basis[rows].toarray()
         columns = np.arange(local.shape[1]) if modal else np.flatnonzero(np.any(local != 0, axis=0))
-        elements.append(
-            (columns.astype(np.int64), np.ascontiguousarray(local[:, columns]), length, ea)
+        return columns.astype(np.int64), np.ascontiguousarray(local[:, columns])
+
+    if beams:
+        ea = float(body.material["young_modulus"]) * float(body.section["area"])
+        for a, b in np.asarray(conn, dtype=np.int64):
+            axis = body.nodes[b] - body.nodes[a]
+            length = float(np.linalg.norm(axis))
+            ex = axis / length
+            helper = np.eye(3)[int(np.argmin(np.abs(ex)))]
+            ey = helper - ex * (helper @ ex)
+            ey /= np.linalg.norm(ey)
+            rot = np.vstack([ex, ey, np.cross(ex, ey)])
+            columns, local = mapped(np.array([a, b]), rot)
+            elements.append((columns, local, length, ea))
+    if shells:
+        section = _core.ShellSection(
+            float(body.shell["thickness"]),
+            shear_factor=float(body.shell.get("shear_factor", 5.0 / 6.0)),
         )
+        material = _core.Material(
+            body.material["young_modulus"], body.material["poisson_ratio"], body.material["density"]
+        )
+        for kind in ("quad4", "tri3"):
+            for element in np.asarray(body.elements.get(kind, np.zeros((0, 3))), dtype=np.int64):
+                nodes = np.ascontiguousarray(body.nodes[element], dtype=float)
+                axes, linear, slopes, stiffness = _core.shell_membrane_stiffening(
+                    nodes, section, material
+                )
+                columns, local = mapped(element, np.asarray(axes))
+                elements.append((columns, local, linear, slopes, stiffness))
     return elements
 
 
@@ -374,9 +401,10 @@ class System(_core.System):
 
         `geometric_stiffness=True` adds the elastic coupling of the beam elements (seed
         section 6): the nonlinear axial strain u' + (v'^2 + w'^2)/2, whose tangent is the
-        geometric stiffness of the axial force. Needed for beams that rotate fast (without it
-        a beam spun beyond its first bending frequency diverges). Modal bodies need axial
-        modes for it to act.
+        geometric stiffness of the axial force; and of the shell elements: the membrane
+        strains with the von Karman terms of the deflection. Needed for beams and plates that
+        rotate fast (without it a beam spun beyond its first bending frequency diverges).
+        Modal bodies need axial (membrane) modes for it to act.
 
         `condense` (default: for bodies of at least 300 elastic coordinates) makes the linear
         solves of the integrator eliminate the elastic coordinates through the constant
@@ -533,10 +561,10 @@ class System(_core.System):
         name: str | None = None,
     ) -> _core.MarkerId:
         """Adds a marker at node `node` (its id in the mesh) of a deformable body: it moves with
-        the node and, on beams, turns with the node's small rotations (the intermediate joint
-        frame of seed Figure 4). A node of a solid has no rotation of its own: its marker turns
-        with the body frame only; use :meth:`add_node_set_marker` on a face for joints that
-        transmit moments. `orientation` is in the body frame."""
+        the node and, on beams and shells, turns with the node's small rotations (the
+        intermediate joint frame of seed Figure 4). A node of a solid has no rotation of its
+        own: its marker turns with the body frame only; use :meth:`add_node_set_marker` on a
+        face for joints that transmit moments. `orientation` is in the body frame."""
         item = f"marker '{name}'" if name else "node marker"
         data, basis = self._flexible_data(body, item)
         index = _node_index(data, int(node), item)

@@ -102,13 +102,8 @@ fn random_deformable_body(rng: &mut Rng, n: usize, stiffening: bool) -> Flexible
     let damping = Csc::from_dense(n, n, |r, c| if r == c { 0.5 } else { 0.05 });
     let mut input = FlexibleBodyInput::from_mass_points(&masses, &positions, &shapes, stiffness, damping);
     if stiffening {
-        input.stiffening = vec![StiffeningElement {
-            indices: vec![0, 2, 3],
-            map: (0..36).map(|_| rng.uniform()).collect(),
-            length: 0.7,
-            axial_stiffness: 400.0,
-            positions: vec![],
-        }];
+        let map = (0..36).map(|_| rng.uniform()).collect();
+        input.stiffening = vec![StiffeningElement::beam(vec![0, 2, 3], map, 0.7, 400.0)];
     }
     FlexibleBody::new("flexible", input).unwrap()
 }

@@ -151,6 +151,43 @@ impl Section {
     }
 }
 
+/// Section of flat shell elements ("quad4", "tri3"): the thickness t (m) and the shear
+/// correction factor of the Mindlin plate (5/6).
+#[pyclass(module = "flexmbd._core", frozen, from_py_object)]
+#[derive(Clone)]
+pub struct ShellSection {
+    pub(crate) inner: fem::ShellSection,
+}
+
+#[pymethods]
+impl ShellSection {
+    #[new]
+    #[pyo3(signature = (thickness, *, shear_factor = 5.0 / 6.0))]
+    fn new(thickness: f64, shear_factor: f64) -> PyResult<Self> {
+        let inner = check(fem::ShellSection::new("shell section", thickness))?;
+        Ok(ShellSection { inner: check(inner.with_shear_factor("shell section", shear_factor))? })
+    }
+
+    /// Thickness (m).
+    #[getter]
+    fn thickness(&self) -> f64 {
+        self.inner.thickness
+    }
+
+    /// Shear correction factor kappa of the transverse shear stiffness kappa G t.
+    #[getter]
+    fn shear_factor(&self) -> f64 {
+        self.inner.shear_factor
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "ShellSection(thickness={:e}, shear_factor={})",
+            self.inner.thickness, self.inner.shear_factor
+        )
+    }
+}
+
 fn csc_tuple<'py>(py: Python<'py>, m: linalg::Csc) -> PyResult<Bound<'py, PyTuple>> {
     let to_i64 = |v: Vec<usize>| v.into_iter().map(|x| x as i64).collect::<Vec<i64>>();
     PyTuple::new(
@@ -176,6 +213,7 @@ fn default_orientation(axis: Vec3) -> Vec3 {
 }
 
 /// Builds the core mesh from the arrays of `assemble_body`.
+#[allow(clippy::too_many_arguments)]
 fn build_mesh<'py>(
     nodes: PyReadonlyArray2<'py, f64>,
     node_ids: PyReadonlyArray1<'py, i64>,
@@ -184,6 +222,7 @@ fn build_mesh<'py>(
     section: Option<&Section>,
     orientation: Option<&[f64]>,
     shear: bool,
+    shell: Option<&ShellSection>,
 ) -> PyResult<Mesh> {
     let nodes = nodes.as_array();
     if nodes.ncols() != 3 {
@@ -236,10 +275,22 @@ fn build_mesh<'py>(
                 "tet4" => ElementType::Tet4,
                 "tet10" => ElementType::Tet10,
                 "hex8" => ElementType::Hex8,
+                "quad4" | "tri3" => {
+                    let section = shell.ok_or_else(|| {
+                        invalid(&format!("element {id}"), "shell elements need a shell section (thickness)")
+                    })?;
+                    if kind == "quad4" {
+                        ElementType::Quad4(fem::ShellQuad4 { section: section.inner })
+                    } else {
+                        ElementType::Tri3(fem::ShellTri3 { section: section.inner })
+                    }
+                }
                 other => {
                     return Err(invalid(
                         "mesh",
-                        format!("unsupported element type '{other}' (use beam2, tet4, tet10, hex8)"),
+                        format!(
+                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, quad4, tri3)"
+                        ),
                     ))
                 }
             };
@@ -264,7 +315,7 @@ fn build_mesh<'py>(
 /// "second_moment", "i1" (3, n), "ibar" (3, 3, n), and either "i_kl_scalar" (the scalar nodal
 /// mass matrix M_s of solid bodies: I_kl = M_s (x) e_k e_l^T) or "i_kl" (nine CSC tuples).
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false))]
+#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false, shell = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn assemble_body<'py>(
     py: Python<'py>,
@@ -276,9 +327,18 @@ pub fn assemble_body<'py>(
     orientation: Option<Vec<f64>>,
     lumped: bool,
     shear: bool,
+    shell: Option<ShellSection>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let mesh =
-        build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref(), shear)?;
+    let mesh = build_mesh(
+        nodes,
+        node_ids,
+        elements,
+        material,
+        section.as_ref(),
+        orientation.as_deref(),
+        shear,
+        shell.as_ref(),
+    )?;
     let body = py.detach(|| mesh.assemble(lumped));
     let body = check(body)?;
     let n = body.stiffness.nrows;
@@ -306,13 +366,15 @@ pub fn assemble_body<'py>(
 }
 
 /// Stresses recovered from nodal displacements (same mesh arguments as `assemble_body`),
-/// `displacements` (records, n_dofs) node-major in body axes. Returns `(nodal, beams)`:
-/// solid stresses averaged at the nodes (records, nodes, 6) in Voigt order
-/// (xx, yy, zz, yz, xz, xy), body axes, Pa; and beam section resultants
-/// [N, V_y, V_z, T, M_y, M_z] at both ends of every beam element (records, beams, 2, 6),
-/// element axes.
+/// `displacements` (records, n_dofs) node-major in body axes. Returns
+/// `(nodal, beams, shells)`: solid (and shell mid-surface) stresses averaged at the nodes
+/// (records, nodes, 6) in Voigt order (xx, yy, zz, yz, xz, xy), body axes, Pa; beam section
+/// resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every beam element
+/// (records, beams, 2, 6), element axes; and shell stresses at the top, middle and bottom
+/// surfaces averaged at the nodes (records, nodes, 3, 6), body axes, zeros at nodes without
+/// shells.
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, displacements, section = None, orientation = None, shear = false))]
+#[pyo3(signature = (nodes, node_ids, elements, material, displacements, section = None, orientation = None, shear = false, shell = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn recover_stresses<'py>(
     py: Python<'py>,
@@ -324,29 +386,42 @@ pub fn recover_stresses<'py>(
     section: Option<Section>,
     orientation: Option<Vec<f64>>,
     shear: bool,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let mesh =
-        build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref(), shear)?;
+    shell: Option<ShellSection>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let mesh = build_mesh(
+        nodes,
+        node_ids,
+        elements,
+        material,
+        section.as_ref(),
+        orientation.as_deref(),
+        shear,
+        shell.as_ref(),
+    )?;
     let u = displacements.as_array();
     let records: Vec<Vec<f64>> = u.rows().into_iter().map(|r| r.to_vec()).collect();
-    let result = py.detach(|| -> flexmbd_core::Result<(Vec<f64>, Vec<f64>, usize)> {
+    type Recovered = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
+    let result = py.detach(|| -> flexmbd_core::Result<Recovered> {
         let mut nodal = Vec::new();
         let mut beams = Vec::new();
+        let mut shells = Vec::new();
         let mut count = 0;
         for r in &records {
             let s = mesh.recover_stresses(r)?;
             nodal.extend(s.nodal.iter().flatten());
             beams.extend(s.beams.iter().flatten().flatten());
+            shells.extend(s.shells.iter().flatten().flatten());
             count = s.beams.len();
         }
-        Ok((nodal, beams, count))
+        Ok((nodal, beams, shells, count))
     });
-    let (nodal, beams, count) = check(result)?;
+    let (nodal, beams, shells, count) = check(result)?;
     let n = mesh.nodes.len();
     let r = records.len();
     Ok((
         PyArray1::from_vec(py, nodal).reshape([r, n, 6])?.into_any(),
         PyArray1::from_vec(py, beams).reshape([r, count, 2, 6])?.into_any(),
+        PyArray1::from_vec(py, shells).reshape([r, n, 3, 6])?.into_any(),
     ))
 }
 
@@ -355,7 +430,7 @@ pub fn recover_stresses<'py>(
 /// matrix (3 P, n_dofs) whose rows 3 p .. 3 p + 3 are S of point p. For brute-force checks of
 /// the invariants.
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false))]
+#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false, shell = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn body_mass_points<'py>(
     py: Python<'py>,
@@ -367,9 +442,18 @@ pub fn body_mass_points<'py>(
     orientation: Option<Vec<f64>>,
     lumped: bool,
     shear: bool,
+    shell: Option<ShellSection>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let mesh =
-        build_mesh(nodes, node_ids, elements, material, section.as_ref(), orientation.as_deref(), shear)?;
+    let mesh = build_mesh(
+        nodes,
+        node_ids,
+        elements,
+        material,
+        section.as_ref(),
+        orientation.as_deref(),
+        shear,
+        shell.as_ref(),
+    )?;
     let n = mesh.nodes.len() * mesh.dofs_per_node();
     let mut weights = Vec::new();
     let mut positions = Vec::new();
@@ -405,6 +489,35 @@ pub fn body_mass_points<'py>(
                 ],
             )?
             .into_any(),
+        ],
+    )
+}
+
+/// The membrane stiffening terms of one shell element (geometric stiffness; see
+/// `flexmbd_core::fem::membrane_stiffening`): for its nodes (3 or 4, 3) and the section and
+/// material, returns `(axes (3, 3) rows e1 e2 n, linear (3, n_e), slopes (3, n_e, n_e),
+/// stiffness (3, 3))` with n_e = 6 x nodes over the local coordinates in element axes.
+#[pyfunction]
+pub fn shell_membrane_stiffening<'py>(
+    py: Python<'py>,
+    nodes: PyReadonlyArray2<'py, f64>,
+    shell: &ShellSection,
+    material: &Material,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let x: Vec<Vec3> = nodes.as_array().rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect();
+    if nodes.as_array().ncols() != 3 {
+        return Err(invalid("shell element", "nodes must be a (3 or 4, 3) array"));
+    }
+    let (axes, linear, slopes, stiffness) = fem::membrane_stiffening(&shell.inner, &material.inner, &x)
+        .map_err(|e| invalid("shell element", e.to_string()))?;
+    let ne = 6 * x.len();
+    PyTuple::new(
+        py,
+        [
+            PyArray1::from_vec(py, axes.0.concat()).reshape([3, 3])?.into_any(),
+            PyArray1::from_vec(py, linear).reshape([3, ne])?.into_any(),
+            PyArray1::from_vec(py, slopes).reshape([3, ne, ne])?.into_any(),
+            PyArray1::from_vec(py, stiffness).reshape([3, 3])?.into_any(),
         ],
     )
 }

@@ -8,7 +8,7 @@ use flexmbd_core::body::stiffening::StiffeningElement;
 use flexmbd_core::linalg::csc::Csc;
 use flexmbd_core::math::dense::Jacobian3;
 use flexmbd_core::math::{Mat3, Vec3};
-use numpy::{PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -56,11 +56,19 @@ fn jacobian3(a: &PyReadonlyArray2<f64>, item: &str, what: &str) -> PyResult<Jaco
     Ok(j)
 }
 
-/// A stiffening element from `(indices, map (12, n_l), length, axial_stiffness)`.
+/// A stiffening element from a beam's `(indices, map (12, n_l), length, axial_stiffness)` or
+/// a shell's `(indices, map (n_e, n_l), linear (m, n_e), slopes (m, n_e, n_e), stiffness
+/// (m, m))` (see `flexmbd_core::body::stiffening`).
 fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<StiffeningElement> {
-    let bad = || invalid(item, "stiffening elements are (indices, map (12, n_l), length, EA) tuples");
+    let bad = || {
+        invalid(
+            item,
+            "stiffening elements are (indices, map (12, n_l), length, EA) or (indices, map (n_e, n_l), \
+             linear (m, n_e), slopes (m, n_e, n_e), stiffness (m, m)) tuples",
+        )
+    };
     let t = obj.cast::<PyTuple>().map_err(|_| bad())?;
-    if t.len() != 4 {
+    if t.len() != 4 && t.len() != 5 {
         return Err(bad());
     }
     let indices: PyReadonlyArray1<i64> = t.get_item(0)?.extract()?;
@@ -71,14 +79,35 @@ fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Stiffening
         .map(|&i| usize::try_from(i).map_err(|_| bad()))
         .collect::<PyResult<Vec<_>>>()?;
     let m = map.as_array();
-    if m.nrows() != 12 || m.ncols() != indices.len() {
+    if m.ncols() != indices.len() {
+        return Err(bad());
+    }
+    let map: Vec<f64> = m.iter().copied().collect();
+    if t.len() == 4 {
+        if m.nrows() != 12 {
+            return Err(bad());
+        }
+        return Ok(StiffeningElement::beam(
+            indices,
+            map,
+            t.get_item(2)?.extract()?,
+            t.get_item(3)?.extract()?,
+        ));
+    }
+    let linear: PyReadonlyArray2<f64> = t.get_item(2)?.extract()?;
+    let slopes: PyReadonlyArrayDyn<f64> = t.get_item(3)?.extract()?;
+    let stiffness: PyReadonlyArray2<f64> = t.get_item(4)?.extract()?;
+    let (linear, slopes, stiffness) = (linear.as_array(), slopes.as_array(), stiffness.as_array());
+    let (strains, ne) = (linear.nrows(), linear.ncols());
+    if ne != m.nrows() || slopes.shape() != [strains, ne, ne] || stiffness.shape() != [strains, strains] {
         return Err(bad());
     }
     Ok(StiffeningElement {
         indices,
-        map: m.iter().copied().collect(),
-        length: t.get_item(2)?.extract()?,
-        axial_stiffness: t.get_item(3)?.extract()?,
+        map,
+        linear: linear.iter().copied().collect(),
+        slopes: slopes.iter().copied().collect(),
+        stiffness: stiffness.iter().copied().collect(),
         positions: Vec::new(),
     })
 }

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     from .preprocess import (
         Material,
         Section,
+        ShellSection,
         assemble,
         body_from_matrices,
         body_from_mesh,
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
         straight_beam,
     )
     from .sid import read_sid, write_sid
-    from .stress import recover_stresses, von_mises
+    from .stress import recover_stresses, shell_stresses, von_mises
 
 #: Public name -> the submodule that defines it ("" for a submodule itself).
 _ORIGIN: dict[str, str] = {
@@ -47,6 +48,7 @@ _ORIGIN: dict[str, str] = {
     "read_nastran": "nastran",
     "Material": "preprocess",
     "Section": "preprocess",
+    "ShellSection": "preprocess",
     "assemble": "preprocess",
     "body_from_matrices": "preprocess",
     "body_from_mesh": "preprocess",
@@ -55,6 +57,7 @@ _ORIGIN: dict[str, str] = {
     "read_sid": "sid",
     "write_sid": "sid",
     "recover_stresses": "stress",
+    "shell_stresses": "stress",
     "von_mises": "stress",
 }
 
@@ -69,6 +72,7 @@ __all__ = [
     "Mesh",
     "ReferenceConditions",
     "Section",
+    "ShellSection",
     "assemble",
     "body_from_matrices",
     "body_from_mesh",
@@ -81,6 +85,7 @@ __all__ = [
     "recover_stresses",
     "save_body",
     "shapes",
+    "shell_stresses",
     "straight_beam",
     "validate_mesh",
     "von_mises",

@@ -27,7 +27,8 @@ if TYPE_CHECKING:
 BODY_DATA_VERSION = 1
 
 #: Element types and their number of nodes.
-ELEMENT_NODES = {"beam2": 2, "tet4": 4, "tet10": 10, "hex8": 8}
+#: "quad4" and "tri3" are flat shells (6 coordinates per node, see `docs/preprocessor.md`).
+ELEMENT_NODES = {"beam2": 2, "tet4": 4, "tet10": 10, "hex8": 8, "quad4": 4, "tri3": 3}
 
 _HOW_TO_CHANGE = (
     "body data is immutable: make variants with the body's with_stiffness_scale, "
@@ -385,14 +386,14 @@ class FlexibleBodyData:
     Attributes:
         nodes: undeformed node positions in the body frame, (n_nodes, 3), m.
         node_ids: ids of the nodes in the source mesh, (n_nodes,).
-        elements: element type ("beam2", "tet4", "tet10", "hex8") -> (n_elements, nodes)
-            indices into ``nodes``.
+        elements: element type ("beam2", "tet4", "tet10", "hex8", and the shells "quad4",
+            "tri3") -> (n_elements, nodes) indices into ``nodes``.
         element_ids: element type -> (n_elements,) ids in the source mesh.
         node_sets: name -> indices into ``nodes``.
         material: {"young_modulus": Pa, "poisson_ratio": -, "density": kg/m^3}; empty for
             bodies built from matrices.
         section: beam section {"area", "iy", "iz", "torsion_constant", ...} or None.
-        dofs_per_node: 3 for solids, 6 when beams are present.
+        dofs_per_node: 3 for solids, 6 when beams or shells are present.
         stiffness: K_ff, sparse (n_dofs, n_dofs), nodal.
         mass: M_ff, sparse (n_dofs, n_dofs), nodal.
         mass_kind: "consistent" or "lumped".
@@ -414,6 +415,8 @@ class FlexibleBodyData:
             it is given neither `rayleigh_damping` nor `modal_damping`: None (undamped), or
             {"rayleigh": (alpha 1/s, beta s) or None, "modal": damping ratio or None} (see
             :meth:`with_damping`).
+        shell: shell section {"thickness", "shear_factor"} of the "quad4" and "tri3"
+            elements, or None.
         units: names of the units of length, mass and time.
         metadata: free-form strings (source file, creation date, "variants": the ``with_*``
             methods applied, ...).
@@ -439,6 +442,7 @@ class FlexibleBodyData:
     # have one.
     invariants: Invariants = None  # type: ignore[assignment]
     damping: dict[str, Any] | None = None
+    shell: dict[str, Any] | None = None
     units: dict[str, str] = field(
         default_factory=lambda: {"length": "m", "mass": "kg", "time": "s"}
     )

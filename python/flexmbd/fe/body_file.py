@@ -83,7 +83,7 @@ COMPRESSION_THRESHOLD_BYTES = 64 * 1024
 # Fields kept as root attributes rather than members.
 _ATTRIBUTE_FIELDS = ("units", "version")
 # Fields added to layout version 1 after its first files: missing ones read as their default.
-_LATER_FIELDS = ("damping",)
+_LATER_FIELDS = ("damping", "shell")
 _TYPE = "type"
 _NUMERIC_KINDS = "biufc"
 # A dataset may declare more bytes than the file stores (compression) by at most this factor

@@ -185,6 +185,16 @@ def _section(body: FlexibleBodyData) -> tuple[preprocess.Section | None, Any, st
     return section, orientation, values.get("beam_theory") or "euler-bernoulli"
 
 
+def _shell(body: FlexibleBodyData) -> preprocess.ShellSection | None:
+    """The shell section of a meshed body, as `build_body` takes it."""
+    values = body.shell
+    if values is None:
+        return None
+    return preprocess.ShellSection(
+        float(values["thickness"]), shear_factor=float(values.get("shear_factor", 5.0 / 6.0))
+    )
+
+
 def _eigenmode_count(body: FlexibleBodyData) -> int:
     """The `mode_count` the body's modes were built with."""
     if body.modes is None or body.mode_kind == "external":
@@ -260,6 +270,7 @@ def with_material(
         new_material,
         section=section,
         orientation=orientation,
+        shell=_shell(body),
         mass=body.mass_kind,
         beam_theory=beam_theory,
         node_ids=body.node_ids,
@@ -297,6 +308,7 @@ def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalB
             _material(body.material),
             section=section,
             orientation=orientation,
+            shell=_shell(body),
             mass=body.mass_kind,
             beam_theory=beam_theory,
             node_ids=body.node_ids,
@@ -367,6 +379,7 @@ def with_modes(
         dict(body.material),
         section=section,
         orientation=orientation,
+        shell=_shell(body),
         beam_theory=beam_theory,
         mass=body.mass_kind,
         precision=precision,

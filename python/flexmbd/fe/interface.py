@@ -79,6 +79,9 @@ _FACETS: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
             (3, 0, 4, 7),
         ),
     ),
+    # Shells: the element is its own facet (an interface of shell nodes weighted by area).
+    "quad4": ("quad4", ((0, 1, 2, 3),)),
+    "tri3": ("tri3", ((0, 1, 2),)),
 }
 _EDGES: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
     "beam2": ("line2", ((0, 1),)),
@@ -104,6 +107,8 @@ _EDGES: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
             (3, 7),
         ),
     ),
+    "quad4": ("line2", ((0, 1), (1, 2), (2, 3), (3, 0))),
+    "tri3": ("line2", ((0, 1), (1, 2), (2, 0))),
 }
 _SOLIDS = ("tet4", "tet10", "hex8")
 #: Cells integrated at a time.

@@ -20,6 +20,9 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   (``TET10_FROM_MESHIO``).
 * ``hex8``: bottom face 0, 1, 2, 3, then top face 4, 5, 6, 7 with node 4 above node 0, both
   faces counter-clockwise seen from the top (the same in VTK, Gmsh and Abaqus C3D8).
+* ``quad4``, ``tri3`` (flat shells): the corners counter-clockwise about the element normal
+  (the same in VTK, Gmsh and Abaqus S4/S3); the top surface of the shell is on the side of
+  the normal.
 """
 
 from __future__ import annotations
@@ -49,6 +52,21 @@ MESHIO_ELEMENT_TYPES = {
     "tetra4": "tet4",
     "tetra10": "tet10",
     "hexahedron": "hex8",
+}
+
+#: meshio cell types of surfaces read as shell elements ("quad4", "tri3") in files without
+#: volume cells (Gmsh, VTK) or from Abaqus shell element types (`ABAQUS_SHELL_TYPES`).
+MESHIO_SHELL_TYPES = {"quad": "quad4", "triangle": "tri3"}
+
+#: Abaqus element types read as flat shells (S4R, S3R: reduced integration in Abaqus; here
+#: the MITC4 and DKT elements of the preprocessor).
+ABAQUS_SHELL_TYPES = {
+    "S4": "quad4",
+    "S4R": "quad4",
+    "S4R5": "quad4",
+    "S3": "tri3",
+    "S3R": "tri3",
+    "STRI3": "tri3",
 }
 
 #: Permutation of a meshio/VTK "tetra10" cell into the flexmbd (Gmsh) node order.
@@ -84,10 +102,13 @@ class Mesh:
         nodes: node positions, (n_nodes, 3) float64, in the length unit of the source file.
         node_ids: ids of the nodes in the source file, (n_nodes,) int64 (see
             :func:`read_mesh` for where they come from).
-        elements: element type ("beam2", "tet4", "tet10", "hex8") -> (n_elements, nodes)
-            int64 indices into ``nodes``, node order as in the module docstring.
+        elements: element type ("beam2", "tet4", "tet10", "hex8", "quad4", "tri3") ->
+            (n_elements, nodes) int64 indices into ``nodes``, node order as in the module
+            docstring.
         element_ids: element type -> (n_elements,) int64 ids in the source file.
         node_sets: name -> sorted, unique int64 indices into ``nodes``.
+        shell_thickness: the thickness of the shells from an Abaqus ``*SHELL SECTION``, or
+            None (`body_from_mesh` takes it when no `shell` is given).
     """
 
     nodes: NDArray[np.float64]
@@ -95,6 +116,7 @@ class Mesh:
     elements: dict[str, NDArray[np.int64]] = field(default_factory=dict)
     element_ids: dict[str, NDArray[np.int64]] = field(default_factory=dict)
     node_sets: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+    shell_thickness: float | None = None
 
     @property
     def node_count(self) -> int:
@@ -115,11 +137,15 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron" and "line"
     become "tet4", "tet10", "hex8" and "beam2", in the node order of the module docstring.
-    Other cells (vertices, triangles, quads, higher-order cells) are not elements, but their
-    nodes go into the node sets of the named groups they belong to: a Gmsh physical surface of
-    triangles named "clamp" gives the node set "clamp". In a Gmsh file that also has volume
-    elements, "line" cells are edges of the geometry, not beams, and are treated like
-    triangles.
+    Shells: in Gmsh and VTK files without volume cells, "quad" and "triangle" cells become
+    the flat shells "quad4" and "tri3" (and "line" cells, then edges of the surfaces, are not
+    beams); in Abaqus files the shell types S4, S4R, S4R5, S3, S3R and STRI3 do, and the
+    thickness of a ``*SHELL SECTION`` (one thickness for the whole mesh) becomes
+    ``shell_thickness``. Other cells (vertices, faces of volume meshes, Abaqus membranes and
+    plane-stress elements, higher-order cells) are not elements, but their nodes go into the
+    node sets of the named groups they belong to: a Gmsh physical surface of triangles named
+    "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements, "line"
+    cells are edges of the geometry, not beams, and are treated like triangles.
 
     Node and element ids:
 
@@ -221,13 +247,20 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         block_ids = _split(positional, blocks)
         node_sets = {}
 
-    # Gmsh writes the edges of the geometry as line cells next to the volume cells.
+    # Gmsh writes the edges of the geometry as line cells next to the volume (or surface)
+    # cells.
     has_volume = any(_cell_dimension(cell_type) == 3 for cell_type, _ in blocks)
-    skip_lines = file_format == "gmsh" and has_volume
+    shells_from_cells = abaqus is None and not has_volume
+    has_surface = shells_from_cells and any(cell in MESHIO_SHELL_TYPES for cell, _ in blocks)
+    skip_lines = file_format == "gmsh" and (has_volume or has_surface)
     elements: dict[str, list[NDArray[np.int64]]] = {}
     element_ids: dict[str, list[NDArray[np.int64]]] = {}
-    for (cell_type, data), ids in zip(blocks, block_ids, strict=True):
+    for index, ((cell_type, data), ids) in enumerate(zip(blocks, block_ids, strict=True)):
         kind = MESHIO_ELEMENT_TYPES.get(cell_type)
+        if abaqus is not None and kind is None:
+            kind = ABAQUS_SHELL_TYPES.get(abaqus.element_types[index])
+        elif shells_from_cells and kind is None:
+            kind = MESHIO_SHELL_TYPES.get(cell_type)
         if kind is None or (kind == "beam2" and skip_lines):
             continue
         if kind == "tet10":
@@ -240,6 +273,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         elements={kind: np.concatenate(parts) for kind, parts in elements.items()},
         element_ids={kind: np.concatenate(parts) for kind, parts in element_ids.items()},
         node_sets=node_sets,
+        shell_thickness=None if abaqus is None else abaqus.shell_thickness(path),
     )
 
 
@@ -407,6 +441,10 @@ class _AbaqusScan:
     # whole input is scanned and their sizes are checked against the labels it defines.
     generated: list[tuple[_AbaqusSet, str, str, range]] = field(default_factory=list)
     node_blocks: int = 0
+    # The TYPE= of each *ELEMENT block (upper case).
+    element_types: list[str] = field(default_factory=list)
+    # (where, thickness) of each *SHELL SECTION.
+    shell_sections: list[tuple[str, float]] = field(default_factory=list)
     # The folder of the input file: *INCLUDE files must be inside it (see `_include_target`).
     root: Path = field(default_factory=Path)
 
@@ -438,6 +476,18 @@ class _AbaqusScan:
                 )
             block_ids.append(np.asarray(values, dtype=np.int64).reshape(-1, width)[:, 0])
         return np.asarray(self.node_ids, dtype=np.int64), block_ids
+
+    def shell_thickness(self, path: Path) -> float | None:
+        """The thickness of the *SHELL SECTION lines (None without one); several different
+        thicknesses are an `InvalidModelError` (a body has one shell section)."""
+        values = sorted({t for _, t in self.shell_sections})
+        if len(values) > 1:
+            raise InvalidModelError(
+                f"{path}: *SHELL SECTION thicknesses {values}: a body has one shell section; "
+                "split the mesh into bodies of one thickness each",
+                item=f"file '{path}'",
+            )
+        return values[0] if values else None
 
     def resolve_node_sets(
         self,
@@ -690,6 +740,19 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
             scan.element_blocks.append(
                 (_abaqus_integers(path, data), parameters.get("ELSET") or None)
             )
+            scan.element_types.append((parameters.get("TYPE") or "").upper())
+        elif keyword == "SHELL SECTION":
+            where = f"{path}, line {first}"
+            try:
+                thickness = float(data[0][1].split(",")[0]) if data else math.nan
+            except ValueError:
+                thickness = math.nan
+            if not (math.isfinite(thickness) and thickness > 0):
+                raise InvalidModelError(
+                    f"{where}: *SHELL SECTION needs a positive thickness on its first data line",
+                    item=f"line {first} of '{path}'",
+                )
+            scan.shell_sections.append((where, thickness))
         elif keyword in ("NSET", "ELSET"):
             name = parameters.get(keyword)
             if not name:

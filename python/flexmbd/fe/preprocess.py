@@ -39,6 +39,34 @@ from .modal import (
 
 Material = _boundary.Material
 Section = _core.Section
+ShellSection = _core.ShellSection
+
+#: Element types of shells, which need a shell section.
+SHELL_ELEMENTS = ("quad4", "tri3")
+
+
+def shell_section(shell: Any) -> ShellSection | None:
+    """The `shell` option of `build_body`: a `ShellSection`, a thickness (m) or None."""
+    if shell is None or isinstance(shell, _core.ShellSection):
+        return shell
+    if isinstance(shell, bool) or not isinstance(shell, int | float | np.floating | np.integer):
+        raise ArgumentTypeError(
+            f"shell must be a ShellSection or a thickness (a number), got {shell!r:.60} "
+            f"({type(shell).__name__})",
+            item="shell",
+        )
+    return ShellSection(float(shell))
+
+
+def _check_shell(elements: Mapping[str, Any], shell: ShellSection | None) -> None:
+    """Shell elements need a shell section (`InvalidParameterError` naming `shell`)."""
+    kinds = [k for k in SHELL_ELEMENTS if k in elements and len(elements[k])]
+    if kinds and shell is None:
+        raise InvalidParameterError(
+            f"{' and '.join(kinds)} shell elements need a shell section: pass "
+            "shell=ShellSection(thickness) or shell=thickness",
+            item="shell",
+        )
 
 
 #: The values of the str options of `build_body`.
@@ -136,17 +164,21 @@ def assemble(
     node_ids: ArrayLike | None = None,
     element_ids: Mapping[str, ArrayLike] | None = None,
     form_i_kl: bool = True,
+    shell: ShellSection | float | None = None,
 ) -> NodalBody:
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
-    `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8") to
-    its connectivity (n_e, nodes) of 0-based node indices. `mass` is "consistent" or "lumped";
+    `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8", the
+    flat shells "quad4" and "tri3") to its connectivity (n_e, nodes) of 0-based node indices;
+    shells need `shell` (a `ShellSection` or the thickness). `mass` is "consistent" or "lumped";
     `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams). For bodies of
     solid elements the nine I_kl are the scalar mass matrix M_s spread over the coordinates;
     with `form_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants
     need only M_s), which saves memory of the size of M."""
     choice(mass, "mass", MASS_KINDS)
     shear = _beam_theory(beam_theory)
+    shell = shell_section(shell)
+    _check_shell(elements, shell)
     nodes = np.ascontiguousarray(nodes, dtype=float)
     ids = np.arange(1, len(nodes) + 1) if node_ids is None else np.asarray(node_ids)
     blocks = {}
@@ -170,6 +202,7 @@ def assemble(
         None if orientation is None else list(np.asarray(orientation, dtype=float)),
         mass == "lumped",
         shear,
+        shell,
     )
     n = raw["i1"].shape[1]
     if "i_kl_scalar" in raw:
@@ -204,6 +237,7 @@ def mass_points(
     orientation: ArrayLike | None = None,
     mass: str = "consistent",
     beam_theory: str = "euler-bernoulli",
+    shell: ShellSection | float | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], sp.csr_matrix]:
     """The body's mass points: weights rho dV (P,), undeformed positions (P, 3), and the shape
     matrices stacked as a sparse (3 P, n_dofs) matrix (rows 3p..3p+3: S of point p). The
@@ -225,6 +259,7 @@ def mass_points(
         None if orientation is None else list(np.asarray(orientation, dtype=float)),
         mass == "lumped",
         _beam_theory(beam_theory),
+        shell_section(shell),
     )
     data, indices, indptr, dims = shape
     return weights, positions, sp.csr_matrix((data, indices, indptr), shape=dims)
@@ -393,6 +428,7 @@ def build_body(
     check_mesh: bool = True,
     precision: str = "auto",
     timings: dict[str, float] | None = None,
+    shell: ShellSection | float | None = None,
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
@@ -400,6 +436,8 @@ def build_body(
       `assemble`; `node_ids`, `element_ids` (ids of the source mesh, for messages) and
       `node_sets` (name -> indices) are optional. With `check_mesh` the mesh is first checked
       by `mesh_io.validate_mesh` (duplicate and unconnected nodes, bad indices, ...).
+    - `section` (beams), `shell` (the flat shells "quad4" and "tri3": a `ShellSection` or the
+      thickness in m).
     - `reference` (the body frame, `docs/preprocessor.md`): "none", "clamped", "3-2-1" or
       "simply-supported" (beams) at
       `reference_nodes` (indices or a node set name), "mean-axis" (with free-free or
@@ -440,10 +478,12 @@ def build_body(
         mass=mass,
         beam_theory=beam_theory,
     )
+    shell = shell_section(shell)
     # Copies: the body's arrays are read-only and must not alias the caller's.
     nodes = np.array(nodes, dtype=float)
     sets = _node_sets(node_sets)
     elements = {k: np.array(v, dtype=np.int64) for k, v in elements.items()}
+    _check_shell(elements, shell)
     ids = (
         np.arange(1, len(nodes) + 1, dtype=np.int64)
         if node_ids is None
@@ -475,6 +515,7 @@ def build_body(
         node_ids=ids,
         element_ids=eids,
         form_i_kl=modes is None,
+        shell=shell,
     )
     clock.lap("assemble")
     return _body_from_nodal(
@@ -491,6 +532,7 @@ def build_body(
         },
         section=section,
         orientation=orientation,
+        shell=shell,
         beam_theory=beam_theory,
         mass=mass,
         reference=reference,
@@ -518,6 +560,7 @@ def _body_from_nodal(
     section: Section | None,
     beam_theory: str,
     orientation: ArrayLike | None = None,
+    shell: ShellSection | None = None,
     mass: str,
     reference: str,
     reference_nodes: str | Sequence[int],
@@ -679,6 +722,9 @@ def _body_from_nodal(
         frequencies=freqs,
         mode_kind=modes,
         invariants=invariants,
+        shell=None
+        if shell is None
+        else {"thickness": shell.thickness, "shear_factor": shell.shear_factor},
     )
 
 
@@ -782,11 +828,14 @@ def body_from_mesh(
 ) -> FlexibleBodyData:
     """`build_body` for a `Mesh` or a mesh file (Gmsh .msh, Abaqus .inp, VTK; see
     `mesh_io.read_mesh`). Node sets of the mesh can be named in `reference_nodes` and
-    `interfaces`; the source file is recorded in the body's metadata."""
+    `interfaces`; the source file is recorded in the body's metadata. Shells take the mesh's
+    `shell_thickness` (an Abaqus ``*SHELL SECTION``) unless `shell` is given."""
     source = None
     if not isinstance(mesh, Mesh):
         source = str(mesh)
         mesh = read_mesh(mesh)
+    if options.get("shell") is None and mesh.shell_thickness is not None:
+        options = {**options, "shell": mesh.shell_thickness}
     body = build_body(
         mesh.nodes,
         mesh.elements,

@@ -234,6 +234,84 @@ def box(
     return _with_face_sets(nodes, elements, origin, lengths)
 
 
+def plate(
+    lengths: ArrayLike,
+    divisions: Sequence[int] | int,
+    element: str = "quad4",
+    *,
+    origin: ArrayLike = (0.0, 0.0, 0.0),
+    max_elements: float = MAX_MESH_ELEMENTS,
+) -> Mesh:
+    """A structured mesh of flat shells on the rectangle origin + [0, a] x [0, b] in the x-y
+    plane (normals along +z).
+
+    `lengths` = (a, b); `divisions` = (n_x, n_y) cells (one integer n: n in both
+    directions); `element` "quad4" or "tri3" (two triangles per cell, split along
+    alternating diagonals so that the mesh has no preferred direction). Node sets: "x0",
+    "x1", "y0", "y1" (the edges), "all". The elements need a shell section in `build_body`
+    (`shell=thickness`).
+
+    Raises `InvalidParameterError` for lengths that are not two positive finite numbers,
+    divisions that are not two (or one) positive integers, an unknown element or more than
+    `max_elements` elements, naming the parameter."""
+    sizes = numbers_array(lengths, "lengths").ravel()
+    if sizes.shape != (2,) or not np.all(np.isfinite(sizes)) or not np.all(sizes > 0):
+        raise InvalidParameterError(
+            f"a plate needs two positive finite lengths, got {sizes.tolist()}", item="lengths"
+        )
+    origin = _three_numbers(origin, "origin")
+    given = divisions if isinstance(divisions, Iterable) else (divisions,)
+    if not isinstance(divisions, str | bytes) and len(list(given)) == 2:
+        nx, ny, _ = _divisions((*given, 1))
+    else:
+        nx, ny, _ = _divisions(divisions)
+    if min(nx, ny) < 1:
+        raise InvalidParameterError(
+            f"a plate needs two positive divisions, got {[nx, ny]}", item="divisions"
+        )
+    if not isinstance(element, str) or element not in ("quad4", "tri3"):
+        raise InvalidParameterError(
+            f"plate elements are quad4 or tri3, got {element!r:.60}", item="element"
+        )
+    cells = nx * ny
+    _check_mesh_size(
+        cells if element == "quad4" else 2 * cells,
+        (nx + 1) * (ny + 1),
+        "hex8",
+        max_elements,
+        f"divisions {nx} x {ny}",
+        "use fewer divisions",
+    )
+    x, y = np.meshgrid(
+        np.linspace(0.0, sizes[0], nx + 1), np.linspace(0.0, sizes[1], ny + 1), indexing="ij"
+    )
+    nodes = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]) + origin
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"))
+
+    def index(a: Any, b: Any) -> Any:
+        return a * (ny + 1) + b
+
+    quads = np.column_stack([index(i, j), index(i + 1, j), index(i + 1, j + 1), index(i, j + 1)])
+    quads = quads.astype(np.int64)
+    if element == "quad4":
+        elements = {"quad4": quads}
+    else:
+        # Diagonal 0-2 on cells of even i + j, 1-3 on the others.
+        even = (i + j) % 2 == 0
+        first = np.where(even[:, None], quads[:, [0, 1, 2]], quads[:, [0, 1, 3]])
+        second = np.where(even[:, None], quads[:, [0, 2, 3]], quads[:, [1, 2, 3]])
+        elements = {"tri3": np.vstack([first, second]).astype(np.int64)}
+    mesh = _with_face_sets(nodes, elements, origin, np.array([sizes[0], sizes[1], 1.0]))
+    sets = {k: v for k, v in mesh.node_sets.items() if k not in ("z0", "z1")}
+    return Mesh(
+        nodes=mesh.nodes,
+        node_ids=mesh.node_ids,
+        elements=mesh.elements,
+        element_ids=mesh.element_ids,
+        node_sets=sets,
+    )
+
+
 def _with_face_sets(
     nodes: NDArray[np.float64],
     elements: dict[str, NDArray[np.int64]],

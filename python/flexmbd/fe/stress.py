@@ -7,6 +7,13 @@
 - Beams: the section resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every element
   (element axes; N, N m; tension positive), from the element stiffness: exact for the static
   end-loaded element.
+- Shells ("quad4", "tri3"): the plane stresses at the top (z = t/2 along the element
+  normal), middle and bottom surfaces, evaluated at the element nodes and averaged over the
+  shell elements around each node (body axes, Voigt order); the middle surface carries the
+  peak 1.5 Q / t of the transverse shear (MITC4; zero for the Kirchhoff triangle). The
+  middle-surface stress is also the nodal stress of `recover_stresses`. Averaging across
+  elements assumes consistently oriented normals (a mesh whose elements all turn the same
+  way).
 """
 
 from __future__ import annotations
@@ -22,14 +29,31 @@ from .body import FlexibleBodyData
 STRESS_COMPONENTS = ("xx", "yy", "zz", "yz", "xz", "xy")
 #: Names of the beam section resultants, in order.
 SECTION_RESULTANTS = ("N", "Vy", "Vz", "T", "My", "Mz")
+#: Names of the shell surfaces of `shell_stresses`, in order.
+SHELL_SURFACES = ("top", "middle", "bottom")
 
 
 def recover_stresses(
     body: FlexibleBodyData, displacements: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Nodal stresses (records, nodes, 6) of the solid elements and section resultants
-    (records, beams, 2, 6) of the beam elements of `body`, for nodal displacements
-    (records, n_dofs) or (n_dofs,) in body axes (node-major, ``dofs_per_node`` per node)."""
+    """Nodal stresses (records, nodes, 6) of the solid elements (and the middle surface of
+    shells) and section resultants (records, beams, 2, 6) of the beam elements of `body`, for
+    nodal displacements (records, n_dofs) or (n_dofs,) in body axes (node-major,
+    ``dofs_per_node`` per node)."""
+    nodal, beams, _ = _recovered(body, displacements)
+    return nodal, beams
+
+
+def shell_stresses(body: FlexibleBodyData, displacements: ArrayLike) -> NDArray[np.float64]:
+    """Stresses of the shell elements at the top, middle and bottom surfaces
+    (`SHELL_SURFACES`), averaged at the nodes: (records, nodes, 3, 6), or (nodes, 3, 6) for
+    displacements (n_dofs,); Voigt order, body axes, Pa; zeros at nodes without shells."""
+    return _recovered(body, displacements)[2]
+
+
+def _recovered(
+    body: FlexibleBodyData, displacements: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     u = np.asarray(displacements, dtype=float)
     single = u.ndim == 1
     u = np.atleast_2d(u)
@@ -56,7 +80,13 @@ def recover_stresses(
             section = section.with_shear_factor(s["shear_factor"])
         orientation = s.get("orientation")
         shear = s.get("beam_theory") == "timoshenko"
-    nodal, beams = _core.recover_stresses(
+    shell = None
+    if body.shell is not None:
+        shell = _core.ShellSection(
+            float(body.shell["thickness"]),
+            shear_factor=float(body.shell.get("shear_factor", 5.0 / 6.0)),
+        )
+    nodal, beams, shells = _core.recover_stresses(
         np.ascontiguousarray(body.nodes, dtype=float),
         np.ascontiguousarray(body.node_ids, dtype=np.int64),
         blocks,
@@ -65,10 +95,11 @@ def recover_stresses(
         section,
         orientation,
         shear,
+        shell,
     )
     if single:
-        return nodal[0], beams[0]
-    return nodal, beams
+        return nodal[0], beams[0], shells[0]
+    return nodal, beams, shells
 
 
 def von_mises(stress: ArrayLike) -> NDArray[np.float64]:

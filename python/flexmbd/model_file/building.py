@@ -263,6 +263,7 @@ _PREPROCESS_KEYS = (
     "material",
     "section",
     "section_orientation",
+    "shell_thickness",
     "mass_matrix",
     "beam_theory",
     "reference",
@@ -274,7 +275,7 @@ _PREPROCESS_KEYS = (
     "interface_weights",
     "precision",
 )
-_SOURCES = ("body_file", "beam", "mesh", "box", "cylinder")
+_SOURCES = ("body_file", "beam", "mesh", "box", "plate", "cylinder")
 
 
 class _Builder:
@@ -610,7 +611,19 @@ class _Builder:
                 mesh.nodes = mesh.nodes * length
             data = self.call(path, body_from_mesh, mesh, options.pop("material"), **options)
             return data.with_metadata(source=str(location))
-        if kind == "box":
+        if kind == "plate":
+            plate = spec.plate
+            assert plate is not None
+            extra = {} if plate.origin is None else {"origin": _scaled(plate.origin, length)}
+            mesh = self.call(
+                where,
+                shapes.plate,
+                _scaled(plate.lengths, length),
+                plate.divisions,
+                plate.element,
+                **extra,
+            )
+        elif kind == "box":
             box = spec.box
             assert box is not None
             extra = {} if box.origin is None else {"origin": _scaled(box.origin, length)}
@@ -647,6 +660,8 @@ class _Builder:
             value = getattr(spec, key)
             if value is not None:
                 options[renamed.get(key, key)] = value
+        if "shell_thickness" in options:
+            options["shell"] = options.pop("shell_thickness") * self.units.length
         if spec.modes is None and spec.mode_count:
             raise self.fail(path + ("mode_count",), "mode_count needs `modes`")
         return options

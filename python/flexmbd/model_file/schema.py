@@ -334,6 +334,21 @@ class BoxSpec(_Spec):
     origin: Vector | None = Field(None, description="corner of the box (length)")
 
 
+class PlateSpec(_Spec):
+    """A built-in structured mesh of flat shells on a rectangle in the x-y plane
+    (:func:`flexmbd.fe.shapes.plate`); node sets x0, x1, y0, y1 (the edges) and all. Needs
+    `shell_thickness`."""
+
+    lengths: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
+        description="edge lengths along x and y (length)"
+    )
+    divisions: Annotated[list[int], Field(min_length=2, max_length=2)] = Field(
+        description="cells along x and y"
+    )
+    element: Literal["quad4", "tri3"] = "quad4"
+    origin: Vector | None = Field(None, description="corner of the plate (length)")
+
+
 class CylinderSpec(_Spec):
     """A tetrahedral mesh of a solid cylinder made by Gmsh (:func:`flexmbd.fe.shapes.cylinder`,
     needs the gmsh package); node sets base, end and mantle."""
@@ -347,9 +362,9 @@ class CylinderSpec(_Spec):
 
 class FlexibleBodySpec(_Spec):
     """A deformable body in the floating frame of reference (:meth:`System.add_flexible_body`)
-    from exactly one of `body_file`, `beam`, `mesh`, `box` or `cylinder`. All but `body_file`
-    run the preprocessor (:func:`flexmbd.fe.build_body`) with `material` and the options
-    below."""
+    from exactly one of `body_file`, `beam`, `mesh`, `box`, `plate` or `cylinder`. All but
+    `body_file` run the preprocessor (:func:`flexmbd.fe.build_body`) with `material` and the
+    options below."""
 
     type: Literal["flexible"]
     name: Name
@@ -366,12 +381,16 @@ class FlexibleBodySpec(_Spec):
         "coordinates in the file's length unit",
     )
     box: BoxSpec | None = None
+    plate: PlateSpec | None = None
     cylinder: CylinderSpec | None = None
     # Preprocessor options (build_body).
     material: MaterialRef | None = None
     section: SectionSpec | None = Field(None, description="beam section (beams only)")
     section_orientation: Vector | None = Field(
         None, description="the section's y axis, across the beam (build_body `orientation`)"
+    )
+    shell_thickness: float | None = Field(
+        None, gt=0, description="thickness of the shell elements (length; build_body `shell`)"
     )
     mass_matrix: Literal["consistent", "lumped"] | None = Field(
         None, description="build_body `mass` (default consistent)"

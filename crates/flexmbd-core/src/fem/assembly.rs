@@ -16,6 +16,7 @@ use crate::math::{Mat3, Vec3};
 use crate::fem::beam::Beam;
 use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
+use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
 use crate::fem::solid::{Hex8, Tet10, Tet4};
 
 /// The element types a body can be made of.
@@ -29,6 +30,10 @@ pub enum ElementType {
     Tet10,
     /// Eight-node hexahedron.
     Hex8,
+    /// Four-node flat shell (MITC4).
+    Quad4(ShellQuad4),
+    /// Three-node flat shell (DKT).
+    Tri3(ShellTri3),
 }
 
 impl ElementType {
@@ -38,12 +43,23 @@ impl ElementType {
             ElementType::Tet4 => &Tet4,
             ElementType::Tet10 => &Tet10,
             ElementType::Hex8 => &Hex8,
+            ElementType::Quad4(s) => s,
+            ElementType::Tri3(s) => s,
+        }
+    }
+
+    /// The shell kernel of shell elements.
+    fn shell(&self) -> Option<&dyn ShellKernel> {
+        match self {
+            ElementType::Quad4(s) => Some(s),
+            ElementType::Tri3(s) => Some(s),
+            _ => None,
         }
     }
 
     /// True for solid elements (translations only in their shape matrices).
     pub fn is_solid(&self) -> bool {
-        !matches!(self, ElementType::Beam(_))
+        matches!(self, ElementType::Tet4 | ElementType::Tet10 | ElementType::Hex8)
     }
 }
 
@@ -171,12 +187,17 @@ pub struct RecoveredStresses {
     /// Per beam element (in mesh order): the section resultants [N, V_y, V_z, T, M_y, M_z] at
     /// its two ends, element axes (N, N m).
     pub beams: Vec<[[f64; 6]; 2]>,
+    /// Per node: the stresses at the top (z = t/2 along the element normal), middle and bottom
+    /// surfaces of the shell elements around it, averaged (Voigt order, body axes, Pa); zeros
+    /// at nodes without shells. The middle values are also in `nodal`.
+    pub shells: Vec<[[f64; 6]; 3]>,
 }
 
 impl Mesh {
     /// Recovers stresses from nodal displacements `u` (node-major, `dofs_per_node` per node,
-    /// body axes): solid stresses evaluated at the element nodes and averaged over the
-    /// elements that share a node, and the section resultants at the ends of every beam.
+    /// body axes): solid and shell stresses evaluated at the element nodes and averaged over
+    /// the elements that share a node (shells: at three surfaces, the middle one in `nodal`),
+    /// and the section resultants at the ends of every beam.
     pub fn recover_stresses(&self, u: &[f64]) -> Result<RecoveredStresses> {
         let d = self.dofs_per_node();
         let n = self.nodes.len();
@@ -188,6 +209,9 @@ impl Mesh {
         }
         let mut nodal = vec![[0.0; 6]; n];
         let mut count = vec![0usize; n];
+        let mut shells = vec![[[0.0; 6]; 3]; n];
+        let mut shell_count = vec![0usize; n];
+        let mut levels = Vec::new();
         let mut beams = Vec::new();
         let mut x = Vec::new();
         let mut ue = Vec::new();
@@ -204,7 +228,22 @@ impl Mesh {
             out.clear();
             out.resize(e.nodes.len(), [0.0; 6]);
             kernel.nodal_stresses(&self.material, &x, &ue, &mut out).map_err(|err| element_error(e, err))?;
-            if e.kind.is_solid() {
+            if let Some(shell) = e.kind.shell() {
+                levels.clear();
+                levels.resize(e.nodes.len(), [[0.0; 6]; 3]);
+                shell
+                    .surface_stresses(&self.material, &x, &ue, &mut levels)
+                    .map_err(|err| element_error(e, err))?;
+                for (k, &a) in e.nodes.iter().enumerate() {
+                    for (level, values) in levels[k].iter().enumerate() {
+                        for r in 0..6 {
+                            shells[a][level][r] += values[r];
+                        }
+                    }
+                    shell_count[a] += 1;
+                }
+            }
+            if e.kind.is_solid() || e.kind.shell().is_some() {
                 for (k, &a) in e.nodes.iter().enumerate() {
                     for r in 0..6 {
                         nodal[a][r] += out[k][r];
@@ -220,10 +259,15 @@ impl Mesh {
                 s.iter_mut().for_each(|v| *v /= c as f64);
             }
         }
-        Ok(RecoveredStresses { nodal, beams })
+        for (s, &c) in shells.iter_mut().zip(&shell_count) {
+            if c > 0 {
+                s.iter_mut().flatten().for_each(|v| *v /= c as f64);
+            }
+        }
+        Ok(RecoveredStresses { nodal, beams, shells })
     }
 
-    /// Coordinates per node of the body: 6 when any beam is present, else 3.
+    /// Coordinates per node of the body: 6 when any beam or shell is present, else 3.
     pub fn dofs_per_node(&self) -> usize {
         if self.elements.iter().any(|e| !e.kind.is_solid()) {
             6

@@ -9,11 +9,13 @@ pub mod element;
 pub mod material;
 pub mod quadrature;
 pub mod section;
+pub mod shell;
 pub mod solid;
 
 pub use assembly::{AssembledBody, Element, ElementType, Ikl, Mesh, NodalInvariants};
 pub use beam::Beam;
 pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
 pub use material::Material;
-pub use section::Section;
+pub use section::{Section, ShellSection};
+pub use shell::{membrane_stiffening, ShellKernel, ShellQuad4, ShellTri3};
 pub use solid::{Hex8, Tet10, Tet4};

@@ -96,3 +96,37 @@ impl Section {
         Section::new(item, area, i, i, 2.0 * i)?.with_shear_factor(item, kappa)
     }
 }
+
+/// Section of a shell: its thickness (uniform over the element, the mid-surface at the nodes)
+/// and the shear correction factor of Mindlin plates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellSection {
+    /// Thickness t (m).
+    pub thickness: f64,
+    /// Shear correction factor kappa of the transverse shear stiffness kappa G t (5/6).
+    pub shear_factor: f64,
+}
+
+impl ShellSection {
+    /// Shell of thickness t > 0 (finite), shear factor 5/6.
+    pub fn new(item: &str, thickness: f64) -> Result<Self> {
+        if !(thickness.is_finite() && thickness > 0.0) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: item.to_string(),
+                message: format!("shell thickness must be positive and finite, got {thickness}"),
+            });
+        }
+        Ok(ShellSection { thickness, shear_factor: 5.0 / 6.0 })
+    }
+
+    /// The same section with another shear correction factor (0 < kappa <= 1).
+    pub fn with_shear_factor(self, item: &str, kappa: f64) -> Result<Self> {
+        if !(kappa > 0.0 && kappa <= 1.0) {
+            return Err(FlexmbdError::InvalidParameter {
+                item: item.to_string(),
+                message: format!("shear correction factor must be in (0, 1], got {kappa}"),
+            });
+        }
+        Ok(ShellSection { shear_factor: kappa, ..self })
+    }
+}

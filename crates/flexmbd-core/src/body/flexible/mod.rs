@@ -326,24 +326,18 @@ impl FlexibleBodyInput {
         Ok(())
     }
 
-    /// Stiffening elements: a 12 x n_l map over existing elastic coordinates, a positive
-    /// length and axial stiffness.
+    /// Stiffening elements: consistent sizes over existing elastic coordinates, finite values,
+    /// a symmetric S with a positive diagonal.
     fn check_stiffening(&self, item: &str, n: usize) -> Result<()> {
         for (k, el) in self.stiffening.iter().enumerate() {
-            let nl = el.indices.len();
-            let ok = el.map.len() == 12 * nl
-                && el.indices.iter().all(|&i| i < n)
-                && el.map.iter().all(|v| v.is_finite())
-                && el.length.is_finite()
-                && el.length > 0.0
-                && el.axial_stiffness.is_finite()
-                && el.axial_stiffness > 0.0;
-            if !ok {
+            if !el.is_consistent(n) {
                 return Err(FlexmbdError::InvalidParameter {
                     item: item.to_string(),
                     message: format!(
-                        "stiffening element {k}: needs a 12 x n_l map over existing elastic coordinates, \
-                         a positive length and a positive axial stiffness"
+                        "stiffening element {k}: needs an n_e x n_l map over existing elastic \
+                         coordinates, m x n_e linear strains, m matrices n_e x n_e and a symmetric \
+                         m x m stiffness with a positive diagonal (beams: a positive length and axial \
+                         stiffness), all finite"
                     ),
                 });
             }

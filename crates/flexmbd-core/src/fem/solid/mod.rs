@@ -47,7 +47,7 @@ mod hexahedron;
 mod mass;
 mod matrices;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 mod tetrahedra;
 mod validation;
 

@@ -254,7 +254,7 @@ fn displacement(point: &MassPoint, q: &[f64]) -> Vec3 {
 }
 
 /// Eigenvalues of a symmetric matrix by cyclic Jacobi rotations, ascending.
-fn symmetric_eigenvalues(m: &DenseMatrix) -> Vec<f64> {
+pub(crate) fn symmetric_eigenvalues(m: &DenseMatrix) -> Vec<f64> {
     let n = m.rows;
     let mut a = m.data.clone();
     for _ in 0..100 {
