@@ -13,6 +13,9 @@ from flexmbd.fe import read_nastran, shapes
 from flexmbd.fe.nastran import parse_real, read_dmig
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
+NASTRAN_NAMES = {
+    "tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA", "quad4": "CQUAD4", "tri3": "CTRIA3",
+}  # fmt: skip
 
 
 def number(x, width):
@@ -60,7 +63,7 @@ def deck_of(mesh, form, *, aset=(), ids=None, shift=(0.0, 0.0, 0.0), system=None
         lines.append(card("GRID", [int(gid), cp] + [float(v) for v in local], form))
     eid = 1
     for kind, connectivity in mesh.elements.items():
-        name = {"tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA"}[kind]
+        name = NASTRAN_NAMES[kind]
         for nodes in connectivity:
             grid = [int(ids[n]) for n in nodes]
             if kind == "tet10":
@@ -68,7 +71,10 @@ def deck_of(mesh, form, *, aset=(), ids=None, shift=(0.0, 0.0, 0.0), system=None
             lines.append(card(name, [eid, 1] + grid, form))
             eid += 1
     lines.append(card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], form))
-    lines.append(card("PSOLID", [1, 1], form))
+    if any(kind in mesh.elements for kind in ("quad4", "tri3")):
+        lines.append(card("PSHELL", [1, 1, 0.002, 1], form))
+    else:
+        lines.append(card("PSOLID", [1, 1], form))
     if len(aset):
         lines.append(card("ASET1", [123] + [int(ids[n]) for n in aset], form))
     lines.append(card("PARAM", ["POST", -1], form))
@@ -255,3 +261,20 @@ def test_a_deck_larger_than_the_free_memory_is_refused_before_reading(
     monkeypatch.setattr(memory, "available_memory", lambda: 1000)
     with pytest.raises(InvalidModelError, match=r"would take about .* GB of memory; 0.0 GB"):
         read_nastran(path)
+
+
+@pytest.mark.parametrize("element", ["quad4", "tri3"])
+def test_shells_from_cquad4_ctria3_and_pshell(element, tmp_path, assert_close):
+    plate = shapes.plate((0.4, 0.2), (4, 2), element)
+    path = tmp_path / "plate.bdf"
+    path.write_text(deck_of(plate, "free"))
+    deck = read_nastran(path)
+    np.testing.assert_array_equal(deck.mesh.elements[element], plate.elements[element])
+    assert deck.shell().thickness == pytest.approx(0.002, rel=1e-15)
+    body = deck.body()
+    direct = pp.build_body(plate.nodes, plate.elements, STEEL, shell=0.002)
+    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    assert_close(dense(body.mass), dense(direct.mass), abs=1e-9 * direct.mass.max(), what="M")
+    path.write_text(deck_of(plate, "free").replace("PSHELL,1,1,0.002,1", "PSHELL,1,1,0.002,1,2."))
+    with pytest.raises(InvalidModelError, match=r"12I/T\*\*3 = 2.0 is not supported"):
+        read_nastran(path).body()

@@ -34,8 +34,9 @@ from .mesh_io import Mesh
 
 #: The cards that make the body.
 CARDS = (
-    "GRID", "CORD2R", "CTETRA", "CHEXA", "CBAR", "CBEAM", "MAT1", "PSOLID", "PBAR", "PBEAM",
-    "PBARL", "PBEAML", "ASET", "ASET1", "QSET1", "SPC1", "SET1", "RBE2", "RBE3", "DMIG",
+    "GRID", "CORD2R", "CTETRA", "CHEXA", "CBAR", "CBEAM", "CQUAD4", "CTRIA3", "MAT1", "PSOLID",
+    "PSHELL", "PBAR", "PBEAM", "PBARL", "PBEAML", "ASET", "ASET1", "QSET1", "SPC1", "SET1",
+    "RBE2", "RBE3", "DMIG",
 )  # fmt: skip
 
 #: Cards read and not used: they do not change the body's mesh, material or sets.
@@ -232,6 +233,43 @@ class NastranDeck:
                 )
         return next(iter(sections.values())), v0
 
+    def shell(self) -> Any:
+        """The shells' :class:`flexmbd.fe.ShellSection`: one PSHELL thickness for all of them
+        (flexmbd's preprocessor takes one), or None without shells."""
+        from .preprocess import ShellSection
+
+        pids = sorted(
+            {int(p) for kind in ("quad4", "tri3") for p in self.element_properties.get(kind, [])}
+        )
+        if not pids:
+            return None
+        thickness = {}
+        for pid in pids:
+            if pid not in self.properties or self.properties[pid][0] != "PSHELL":
+                raise UnknownItemError(
+                    f"Nastran deck: shell property {pid} is not defined by a PSHELL",
+                    item=f"property {pid}",
+                )
+            card = self.properties[pid][1]
+            for index, what, default in ((5, "12I/T**3", 1.0), (7, "TS/T", 5.0 / 6.0)):
+                value = card.real(index, default, what=what)
+                if abs(value - default) > 1e-6 * default:
+                    raise card.error(f"{what} = {value} is not supported (only {default:.6g})")
+            mid1, mid2 = card.integer(2, what="MID1"), card.integer(4, 0, what="MID2")
+            if mid2 not in (0, mid1):
+                raise card.error(
+                    f"MID2 = {mid2} differs from MID1 = {mid1}: one material for membrane and "
+                    "bending"
+                )
+            thickness[pid] = card.real(3, what="T")
+        if len(set(thickness.values())) > 1:
+            raise InvalidModelError(
+                f"Nastran deck: the shells have different thicknesses {thickness}; a flexmbd "
+                "body has one shell section",
+                item="PSHELL",
+            )
+        return ShellSection(next(iter(thickness.values())))
+
     def body(self, **options: Any) -> FlexibleBodyData:
         """The deck's body through :func:`flexmbd.fe.build_body` with its mesh, material and
         beam section; `options` are build_body's (reference conditions, modes, ...)."""
@@ -241,6 +279,9 @@ class NastranDeck:
         extra: dict[str, Any] = {}
         if section is not None:
             extra = {"section": section, "orientation": orientation}
+        shell = self.shell()
+        if shell is not None:
+            extra["shell"] = shell
         return build_body(
             self.mesh.nodes,
             self.mesh.elements,
@@ -296,7 +337,9 @@ def read_nastran(path: str | os.PathLike[str]) -> NastranDeck:
     """Reads the bulk data of a Nastran deck (see the module docstring).
 
     Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 grids) -> hex8, CBAR and CBEAM
-    -> beam2 (offsets, pin flags and tapered PBEAMs are refused). Grids may be given in CORD2R
+    -> beam2 (offsets, pin flags and tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
+    shells quad4 and tri3 (PSHELL: one thickness, one material, default 12I/T^3 and TS/T;
+    offsets refused). Grids may be given in CORD2R
     systems (rectangular, chained); other coordinate systems are refused.
 
     Raises `FileNotFoundError`; `InvalidModelError` naming the file, line and card of an
@@ -463,7 +506,18 @@ def _deck(cards: list[Card]) -> NastranDeck:
             orientation_cards.append(card)
         elif name == "MAT1":
             materials[card.integer(1, what="MID")] = _material(card)
-        elif name in ("PSOLID", "PBAR", "PBEAM", "PBARL", "PBEAML"):
+        elif name in ("CQUAD4", "CTRIA3"):
+            eid, pid = card.integer(1, what="EID"), card.integer(2, what="PID")
+            count = 4 if name == "CQUAD4" else 3
+            nodes = [card.integer(3 + k, what=f"G{k + 1}") for k in range(count)]
+            if any(
+                card.field(i) not in (None, "0", "0.", "0.0") for i in (8 if count == 4 else 7,)
+            ):
+                raise card.error(f"element {eid}: an offset ZOFFS is not supported")
+            elements.setdefault("quad4" if count == 4 else "tri3", []).append(
+                (eid, pid, nodes, card)
+            )
+        elif name in ("PSOLID", "PSHELL", "PBAR", "PBEAM", "PBARL", "PBEAML"):
             properties[card.integer(1, what="PID")] = (name, card)
         elif name in ("ASET1", "QSET1"):
             sets.setdefault("aset", []).extend(card.integers_from(2))
