@@ -140,9 +140,10 @@ def test_solid_stress_is_the_largest_von_mises_stress(tet_pendulum):
 
 def test_energy_panel_shows_the_result_energies(tet_pendulum):
     ax = plotting.plot_energy(tet_pendulum)
-    kinetic, potential, total = (line.get_ydata() for line in ax.get_lines())
+    kinetic, gravity, strain, total = (line.get_ydata() for line in ax.get_lines())
     np.testing.assert_array_equal(kinetic, tet_pendulum.kinetic_energy)
-    np.testing.assert_array_equal(potential, tet_pendulum.potential_energy)
+    np.testing.assert_array_equal(strain, tet_pendulum.strain_energy)
+    np.testing.assert_array_equal(gravity + strain, tet_pendulum.potential_energy)
     np.testing.assert_array_equal(total, tet_pendulum.total_energy)
     drift = plotting.plot_energy_drift(tet_pendulum).get_lines()[0].get_ydata()
     np.testing.assert_array_equal(drift, tet_pendulum.total_energy - tet_pendulum.total_energy[0])

@@ -163,10 +163,20 @@ VIOLATION_ROUND_OFF = 1e-10
 
 
 def plot_energy(result: Any, ax: Any = None) -> Any:
-    """Kinetic, potential (gravity, springs, strain) and total energy (J) over time."""
+    """Kinetic, potential (gravity, springs; strain in a curve of its own for models with
+    deformable bodies) and total energy (J) over time."""
     ax = _axes(ax)
     ax.plot(result.time, result.kinetic_energy, label="kinetic")
-    ax.plot(result.time, result.potential_energy, label="potential\n(gravity, springs,\nstrain)")
+    strain = result.strain_energy
+    if result.flexible and np.all(np.isfinite(strain)):
+        ax.plot(
+            result.time, result.potential_energy - strain, label="potential\n(gravity, springs)"
+        )
+        ax.plot(result.time, strain, label="strain")
+    else:
+        ax.plot(
+            result.time, result.potential_energy, label="potential\n(gravity, springs,\nstrain)"
+        )
     ax.plot(result.time, result.total_energy, "k", lw=1.5, label="total")
     return _finish(ax, "energy (J)", "Energy")
 

@@ -98,6 +98,7 @@ OUTPUT_UNITS = {
     "multipliers": "",
     "kinetic_energy": "J",
     "potential_energy": "J",
+    "strain_energy": "J",
     "total_energy": "J",
     "constraint_violation": "m or rad",
 }
@@ -126,6 +127,7 @@ SUMMARIES = {
     "multipliers": "largest-abs",
     "kinetic_energy": "extremes",
     "potential_energy": "extremes",
+    "strain_energy": "extremes",
     "total_energy": "extremes",
     "constraint_violation": "largest",
 }

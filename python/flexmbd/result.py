@@ -125,6 +125,15 @@ class Result:
         return self._energy[:, 1]
 
     @property
+    def strain_energy(self) -> Array:
+        """Strain energy of the deformable bodies (J), (n,), part of the potential energy:
+        1/2 q_f^T K_ff q_f and the nonlinear strain of the geometric stiffness. NaN for
+        results files written before it was recorded."""
+        if self._energy.shape[1] < 3:
+            return np.full(len(self._energy), np.nan)
+        return self._energy[:, 2]
+
+    @property
     def total_energy(self) -> Array:
         """Kinetic plus potential energy (J), (n,)."""
         return self._energy[:, 0] + self._energy[:, 1]

@@ -13,7 +13,8 @@ Datasets, time first, one row per record, extensible along the first axis (SI un
 * ``time`` (n,) s; ``coordinates``, ``velocities``, ``accelerations`` (n, coordinates);
   ``multipliers`` (n, constraints); ``reactions`` (n, joints, 6): force and torque on the
   joint's first body at its first marker, in that marker's axes; ``sensors`` (n, width);
-  ``energy`` (n, 2): kinetic and potential, J; ``constraint_violation`` (n,).
+  ``energy`` (n, 3): kinetic, potential (strain included) and strain energy, J (files
+  written before the strain energy was recorded have (n, 2)); ``constraint_violation`` (n,).
 * ``records`` (1,) int64: the number of rows that are complete. Rows are flushed to the file
   before this count is raised, so a reader trusts the count, never the dataset lengths.
 * ``statistics``, ``events``, ``redundancy`` and ``status``: JSON texts (UTF-8 bytes in
@@ -94,7 +95,7 @@ def _record_shapes(layout: dict[str, Any]) -> dict[str, tuple[int, ...]]:
         "multipliers": (m,),
         "reactions": (len(layout["joints"]), 6),
         "sensors": (width,),
-        "energy": (2,),
+        "energy": (3,),
         "constraint_violation": (),
     }
 
@@ -788,6 +789,9 @@ def _read_results(path: Path) -> Result:
         shapes = _record_shapes(layout)
         count = _record_count(file, path)
         size = path.stat().st_size
+        energy = file.get("energy")
+        if isinstance(energy, h5py.Dataset) and energy.shape[1:] == (2,):
+            shapes["energy"] = (2,)  # written before the strain energy was recorded
         raw: dict[str, Any] = {
             name: _readable_rows(file, name, count, shapes[name], size) for name in _RECORD_FIELDS
         }

@@ -121,7 +121,7 @@ class State:
             "statistics": {},
             "reactions": zeros,
             "sensors": zeros,
-            "energy": np.zeros((1, 2)),
+            "energy": np.zeros((1, 3)),
         }
         return Result(raw, self.layout, flexible=self.flexible)
 

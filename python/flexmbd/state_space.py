@@ -250,6 +250,6 @@ def mode_result(
         "statistics": {"mode": mode, "frequency": float(frequencies[mode])},
         "reactions": np.zeros((frames, len(layout["joints"]) * 6)),
         "sensors": np.zeros((frames, 0)),
-        "energy": np.zeros((frames, 2)),
+        "energy": np.zeros((frames, 3)),
     }
     return Result(raw, layout, flexible=model.flexible_bodies)

@@ -661,7 +661,7 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     d.set_item("multipliers", array2(py, out.multipliers, n, out.constraint_count)?)?;
     d.set_item("reactions", PyArray1::from_vec(py, out.reactions).reshape([n, out.joint_count, 6])?)?;
     d.set_item("sensors", array2(py, out.sensors, n, width)?)?;
-    d.set_item("energy", array2(py, out.energy, n, 2)?)?;
+    d.set_item("energy", array2(py, out.energy, n, flexmbd_core::output::ENERGY_WIDTH)?)?;
     d.set_item("constraint_violation", PyArray1::from_vec(py, out.constraint_violation))?;
     d.set_item("time", PyArray1::from_vec(py, out.time))?;
     d.set_item("released", out.released)?;

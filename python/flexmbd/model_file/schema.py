@@ -641,7 +641,13 @@ BODY_QUANTITIES = (
     "section_forces",
 )
 JOINT_QUANTITIES = ("reaction_force", "reaction_torque", "multipliers")
-SYSTEM_QUANTITIES = ("kinetic_energy", "potential_energy", "total_energy", "constraint_violation")
+SYSTEM_QUANTITIES = (
+    "kinetic_energy",
+    "potential_energy",
+    "strain_energy",
+    "total_energy",
+    "constraint_violation",
+)
 
 
 class OutputSpec(_Spec):

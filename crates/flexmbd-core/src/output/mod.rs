@@ -70,6 +70,9 @@ pub struct Redundancy {
     pub message: String,
 }
 
+/// Energies per record: kinetic, potential (strain included), strain.
+pub const ENERGY_WIDTH: usize = 3;
+
 /// Recorded results.
 #[derive(Clone, Debug, Default)]
 pub struct Output {
@@ -96,7 +99,8 @@ pub struct Output {
     pub sensors: Vec<f64>,
     /// Offset of each sensor within a record's sensor values; last entry = record width.
     pub sensor_offsets: Vec<usize>,
-    /// Kinetic and potential energy (records x 2), J.
+    /// Kinetic energy, potential energy (gravity, springs and strain) and the strain energy
+    /// of the deformable bodies in it (records x [`ENERGY_WIDTH`]), J.
     pub energy: Vec<f64>,
     /// Largest absolute position-level constraint violation per record.
     pub constraint_violation: Vec<f64>,
@@ -155,7 +159,7 @@ impl Output {
             reactions: rows(&self.reactions, self.joint_count * 6),
             sensors: rows(&self.sensors, width),
             sensor_offsets: self.sensor_offsets.clone(),
-            energy: rows(&self.energy, 2),
+            energy: rows(&self.energy, ENERGY_WIDTH),
             constraint_violation: rows(&self.constraint_violation, 1),
             statistics: self.statistics.clone(),
             events: self.events.clone(),
@@ -212,7 +216,7 @@ impl Output {
         drop(&mut self.multipliers, self.constraint_count);
         drop(&mut self.reactions, self.joint_count * 6);
         drop(&mut self.sensors, width);
-        drop(&mut self.energy, 2);
+        drop(&mut self.energy, ENERGY_WIDTH);
         drop(&mut self.constraint_violation, 1);
         self.released += count;
     }
@@ -277,6 +281,7 @@ impl Output {
         // Energies.
         let mut kinetic = 0.0;
         let mut potential = 0.0;
+        let mut strain = 0.0;
         for (bi, body) in model.bodies.iter().enumerate() {
             let o = body.offset;
             let n = body.dofs.len();
@@ -286,7 +291,7 @@ impl Output {
                 BodyKind::PointMass { mass } => point_mass::kinetic_energy(*mass, &qd[o..]),
                 BodyKind::Flexible(fb) => {
                     let work = ws.flexible[bi].as_mut().expect("workspace of a flexible body");
-                    potential += flexible::strain_energy(fb, &q[o..o + n]);
+                    strain += flexible::strain_energy(fb, &q[o..o + n]);
                     flexible::kinetic_energy(fb, &q[o..o + n], &qd[o..o + n], &mut work.scratch)
                 }
             };
@@ -297,7 +302,8 @@ impl Output {
             potential += force_potential(f, &env);
         }
         self.energy.push(kinetic);
-        self.energy.push(potential);
+        self.energy.push(potential + strain);
+        self.energy.push(strain);
     }
 }
 
