@@ -278,3 +278,61 @@ def test_shells_from_cquad4_ctria3_and_pshell(element, tmp_path, assert_close):
     path.write_text(deck_of(plate, "free").replace("PSHELL,1,1,0.002,1", "PSHELL,1,1,0.002,1,2."))
     with pytest.raises(InvalidModelError, match=r"12I/T\*\*3 = 2.0 is not supported"):
         read_nastran(path).body()
+
+
+def write_op4(path, matrices, sparse=False):
+    """ASCII OP4 (OUTPUT4, FORMATTED) of real double matrices: {name: (form, dense array)}."""
+    lines = []
+
+    def numbers(values):
+        for k in range(0, len(values), 3):
+            lines.append("".join(f"{v:23.16E}" for v in values[k : k + 3]))
+
+    for name, (form, a) in matrices.items():
+        nrow, ncol = a.shape
+        lines.append(f"{ncol:8d}{nrow:8d}{form:8d}{2:8d}{name:<8s}1P,3E23.16")
+        for j in range(ncol):
+            rows = np.flatnonzero(a[:, j])
+            if not len(rows):
+                continue
+            if not sparse:
+                first, last = rows[0], rows[-1]
+                lines.append(f"{j + 1:8d}{first + 1:8d}{last - first + 1:8d}")
+                numbers(a[first : last + 1, j])
+                continue
+            strips = np.split(rows, np.flatnonzero(np.diff(rows) > 1) + 1)
+            lines.append(f"{j + 1:8d}{0:8d}{sum(1 + len(s) for s in strips):8d}")
+            for s in strips:
+                lines.append(f"{65536 * (len(s) + 1) + s[0] + 1:d}")
+                numbers(a[s, j])
+        lines.append(f"{ncol + 1:8d}{1:8d}{1:8d}")
+        numbers([1.0])
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_op4_matrices(sparse, tmp_path, assert_close):
+    from flexmbd.fe.nastran import read_op4
+
+    rng = np.random.default_rng(5)
+    k = rng.normal(size=(7, 7))
+    k = k @ k.T
+    k[np.abs(k) < 1.0] = 0.0  # gaps: several strips per column
+    rect = np.zeros((4, 3))
+    rect[1, 0], rect[3, 2] = -2.5e-7, 4.0
+    path = write_op4(tmp_path / "kaa.op4", {"KAA": (6, k), "PHIX": (2, rect)}, sparse=sparse)
+    matrices = read_op4(path)
+    assert sorted(matrices) == ["KAA", "PHIX"]
+    form, got = matrices["KAA"]
+    assert form == 6
+    assert_close(got.toarray(), k, rel=1e-15, what="KAA")
+    assert_close(matrices["PHIX"][1].toarray(), rect, rel=1e-15, what="PHIX")
+    text = path.read_text().splitlines()
+    text[0] = text[0][:24] + f"{4:8d}" + text[0][32:]  # complex
+    path.write_text("\n".join(text))
+    with pytest.raises(InvalidModelError, match=r"kaa.op4, line 1: matrix KAA: type 4"):
+        read_op4(path)
+    path.write_bytes(b"\x18\x00\x00\x00binary")
+    with pytest.raises(InvalidModelError, match="binary OP4"):
+        read_op4(path)

@@ -754,10 +754,154 @@ def _dmig(headers: dict[str, Card], columns: list[Card]) -> dict[str, DmigMatrix
 
 __all__ = [
     "CARDS",
+    "OP4_FORMS",
     "IGNORED",
     "DmigMatrix",
     "NastranDeck",
     "parse_real",
     "read_dmig",
     "read_nastran",
+    "read_op4",
 ]
+
+
+# OP4 matrices (OUTPUT4, ASCII) ---------------------------------------------------------------
+
+#: OP4 matrix forms: 1 square, 2 rectangular, 3 diagonal, 6 symmetric, 8 identity, 9
+#: pseudo-identity.
+OP4_FORMS = (1, 2, 3, 6, 8, 9)
+
+_OP4_WIDTH = re.compile(r"(\d+)\s*[EDed]\s*(\d+)\s*\.\s*\d+")
+
+
+def read_op4(path: str | os.PathLike[str]) -> dict[str, tuple[int, Any]]:
+    """The real matrices of an ASCII OP4 file (Nastran ``OUTPUT4``, e.g. ``KAA`` and ``MAA`` of
+    a reduced component), by name: (form, scipy CSC matrix). Dense and sparse columns are
+    read (a sparse column: strips of values, each after the word 65536 (length + 1) + first
+    row); BIGMAT files are refused. OP4 files carry no grid or component labels: map the rows
+    to the body's coordinates (for example with a DMIG or USET table) before
+    `body_from_matrices`.
+
+    Raises `FileNotFoundError`; `InvalidModelError` naming the file and line of a malformed
+    header or record, a binary file (write the OP4 with ``FORMATTED``) or a complex matrix."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(2, "No such OP4 file", str(path))
+    check_fits(path, path.stat().st_size, MEMORY_PER_BYTE, "OP4 file")
+    raw = path.read_bytes()
+    if b"\x00" in raw[:4096]:
+        raise InvalidModelError(
+            f"{path}: a binary OP4 file; flexmbd reads ASCII OP4 (OUTPUT4 with the FORMATTED "
+            "option)",
+            item=f"file '{path}'",
+        )
+    return _Op4(path, raw.decode("latin-1").splitlines()).matrices()
+
+
+class _Op4:
+    """The reader of one ASCII OP4 file: `k` is the number of lines read."""
+
+    def __init__(self, path: Path, lines: list[str]):
+        self.path, self.lines, self.k = path, lines, 0
+        self.name, self.per_line, self.size = "", 1, 1
+
+    def fail(self, message: str) -> InvalidModelError:
+        return InvalidModelError(
+            f"{self.path}, line {self.k}: {message}", item=f"line {self.k} of '{self.path}'"
+        )
+
+    def integers(self, count: int) -> list[int]:
+        if self.k >= len(self.lines):
+            raise self.fail(f"matrix {self.name}: the file ends before its last column")
+        self.k += 1
+        text = self.lines[self.k - 1]
+        try:
+            values = [int(v) for v in text.split()]
+        except ValueError:
+            raise self.fail(f"expected {count} integers, found {text!r:.80}") from None
+        if len(values) != count:
+            raise self.fail(f"expected {count} integers, found {len(values)}")
+        return values
+
+    def values(self, count: int) -> list[float]:
+        out: list[float] = []
+        while len(out) < count:
+            if self.k >= len(self.lines):
+                raise self.fail(f"matrix {self.name}: the file ends inside a column")
+            self.k += 1
+            text = self.lines[self.k - 1]
+            for j in range(self.per_line):
+                field = text[j * self.size : (j + 1) * self.size].strip()
+                if not field:
+                    break
+                value = parse_real(field)
+                if value is None or not math.isfinite(value):
+                    raise self.fail(f"matrix {self.name}: not a number: {field!r}")
+                out.append(value)
+        return out[:count]
+
+    def matrices(self) -> dict[str, tuple[int, Any]]:
+        out = {}
+        while self.k < len(self.lines):
+            if not self.lines[self.k].strip():
+                self.k += 1
+                continue
+            name, form, matrix = self.matrix()
+            out[name] = (form, matrix)
+        return out
+
+    def matrix(self) -> tuple[str, int, Any]:
+        import scipy.sparse as sp
+
+        self.k += 1
+        header = self.lines[self.k - 1]
+        try:
+            ncol, nrow, form, kind = (int(header[8 * i : 8 * i + 8]) for i in range(4))
+        except ValueError:
+            raise self.fail(
+                f"expected a matrix header (4I8, name, format), found {header!r:.80}"
+            ) from None
+        self.name = header[32:40].strip()
+        width = _OP4_WIDTH.search(header[40:])
+        if not self.name or width is None:
+            raise self.fail(f"the header has no matrix name or number format: {header!r:.80}")
+        self.per_line, self.size = int(width.group(1)), int(width.group(2))
+        if kind not in (1, 2):
+            raise self.fail(f"matrix {self.name}: type {kind} (complex) is not supported")
+        if form not in OP4_FORMS:
+            raise self.fail(f"matrix {self.name}: form {form} is not one of {OP4_FORMS}")
+        bigmat, nrow = nrow < 0, abs(nrow)
+        rows: list[int] = []
+        cols: list[int] = []
+        data: list[float] = []
+
+        def strip(first: int, column: int, length: int) -> None:
+            if length < 1 or first < 1 or first - 1 + length > nrow:
+                raise self.fail(f"matrix {self.name}: {length} values from row {first} of {nrow}")
+            for offset, value in enumerate(self.values(length)):
+                rows.append(first - 1 + offset)
+                cols.append(column - 1)
+                data.append(value)
+
+        while True:
+            icol, irow, words = self.integers(3)
+            if icol > ncol:  # the end of the matrix: a record of one value follows
+                self.values(max(words, 1))
+                break
+            if icol < 1:
+                raise self.fail(f"matrix {self.name}: column {icol}")
+            if irow > 0:  # dense: `words` values from row irow
+                strip(irow, icol, words)
+                continue
+            if bigmat:
+                raise self.fail(
+                    f"matrix {self.name}: BIGMAT sparse columns are not supported (write the OP4 "
+                    "dense or sparse without BIGMAT)"
+                )
+            left = words  # sparse: strips, each a packed header (length, first row), values
+            while left > 0:
+                (packed,) = self.integers(1)
+                length = packed // 65536 - 1
+                strip(packed - 65536 * (length + 1), icol, length)
+                left -= 1 + length
+        return self.name, form, sp.csc_matrix((data, (rows, cols)), shape=(nrow, ncol))
