@@ -168,8 +168,6 @@ impl Block {
             deformation: Vec::new(),
             antisymmetric_bound: None,
             angular_velocity: Vec3::ZERO,
-            gyroscopic_image: Vec::new(),
-            gyroscopic_products: Vec::new(),
         })
     }
 }
@@ -216,9 +214,6 @@ impl CondensedSolver {
             approximate_reference,
             factorized: false,
             keep_image,
-            gyroscopic: false,
-            gyroscopic_scale: 0.0,
-            right_hand_side: Vec::new(),
         })
     }
 }

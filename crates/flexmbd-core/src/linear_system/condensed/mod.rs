@@ -109,11 +109,6 @@ struct Block {
     /// Body-frame angular velocity of the velocity part of the structured reference coupling
     /// (see `CondensedSolver::set_angular_velocities`; zero until set).
     angular_velocity: Vec3,
-    /// G x_F of the gyroscopic correction of the last solve (n; empty when it made none):
-    /// part of what the solve eliminated, A x_F = b_F - G x0_F - W x_J (see `coupling_images`).
-    gyroscopic_image: Vec<f64>,
-    /// Scratch of the three antisymmetric products (3 n).
-    gyroscopic_products: Vec<f64>,
 }
 
 impl Block {
@@ -148,13 +143,6 @@ pub struct CondensedSolver {
     factorized: bool,
     /// Whether the solves keep W x_J of each block (see `coupling_images`).
     keep_image: bool,
-    /// Whether the iteration matrix takes the gyroscopic block of the elastic rows (see
-    /// `set_gyroscopic`).
-    gyroscopic: bool,
-    /// s gamma' of the last factorization of an iteration matrix (0 otherwise).
-    gyroscopic_scale: f64,
-    /// Scratch: the right-hand side of a solve with the gyroscopic correction.
-    right_hand_side: Vec<f64>,
 }
 
 impl std::fmt::Debug for CondensedSolver {
@@ -186,81 +174,6 @@ impl CondensedSolver {
             block.angular_velocity =
                 Vec3(std::array::from_fn(|i| 2.0 * (0..4).map(|k| l[i][k] * pd[k]).sum::<f64>()));
         }
-    }
-
-    /// Makes the solves of the iteration matrix take the gyroscopic block of each condensed
-    /// body's elastic rows (`on`), from the next factorization: see `solve_gyroscopic`.
-    pub fn set_gyroscopic(&mut self, on: bool) {
-        self.gyroscopic = on;
-    }
-
-    /// Whether the solves take the gyroscopic block (`set_gyroscopic`).
-    pub fn gyroscopic(&self) -> bool {
-        self.gyroscopic
-    }
-
-    /// Deformation tolerance of the reference coupling's kept solves of dJ: tighter with the
-    /// gyroscopic block (see `reference_coupling`).
-    fn deformation_tolerance(&self) -> f64 {
-        if self.gyroscopic {
-            reference::GYROSCOPIC_DEFORMATION_TOLERANCE
-        } else {
-            reference::DEFORMATION_TOLERANCE
-        }
-    }
-
-    /// Solves in place (global vector) with the iteration matrix plus the gyroscopic block of
-    /// the elastic rows of each condensed body, G = s gamma' 2 int rho S^T w~ S
-    /// = -2 s gamma' sum_i w_i A_i (A_i = I_jk - I_kj, w the angular velocity of
-    /// `set_angular_velocities`), by one correction: x0 = P^-1 b, x = P^-1 (b - G x0_F), one
-    /// more solve with P (the factorized iteration matrix). G is skew-symmetric, which the
-    /// Cholesky factor of A cannot hold; small against A (of relative size h w), it is
-    /// amplified in the iteration of a soft body by the nearly singular coupling of the
-    /// frame's rotation with the elastic coordinates: the 270-coordinate soft beam of the
-    /// tests at t = 0.3 s (dense matrices) has one pair of eigenvalues 0.0088 +- 0.0876i in
-    /// the error operator with N_FF replaced by A, the next 0.0032; with A + G, 0.0020.
-    /// Without the gyroscopic setting, or for a matrix that is not an iteration matrix, a
-    /// plain solve.
-    pub fn solve_gyroscopic(&mut self, model: &Model, x: &mut [f64]) -> std::result::Result<(), String> {
-        if !self.gyroscopic || self.gyroscopic_scale == 0.0 {
-            return self.solve_in_place(x);
-        }
-        self.right_hand_side.clear();
-        self.right_hand_side.extend_from_slice(x);
-        self.solve_in_place(x)?;
-        let scale = -2.0 * self.gyroscopic_scale;
-        for block in &mut self.blocks {
-            let n = block.n;
-            let fb = flexible(model, block.body);
-            block.gyroscopic_products.clear();
-            block.gyroscopic_products.resize(3 * n, 0.0);
-            fb.add_antisymmetric_products(
-                1.0,
-                &x[block.first..block.first + n],
-                &mut block.gyroscopic_products,
-            );
-            let w = block.angular_velocity;
-            let (a0, rest) = block.gyroscopic_products.split_at(n);
-            let (a1, a2) = rest.split_at(n);
-            block.gyroscopic_image.clear();
-            block.gyroscopic_image.extend(
-                a0.iter().zip(a1).zip(a2).map(|((x0, x1), x2)| scale * (w[0] * x0 + w[1] * x1 + w[2] * x2)),
-            );
-        }
-        x.copy_from_slice(&self.right_hand_side);
-        for block in &self.blocks {
-            for (v, g) in x[block.first..block.first + block.n].iter_mut().zip(&block.gyroscopic_image) {
-                *v -= g;
-            }
-        }
-        // The images survive this solve (`solve_in_place` clears them).
-        let images: Vec<Vec<f64>> =
-            self.blocks.iter_mut().map(|b| std::mem::take(&mut b.gyroscopic_image)).collect();
-        self.solve_in_place(x)?;
-        for (block, image) in self.blocks.iter_mut().zip(images) {
-            block.gyroscopic_image = image;
-        }
-        Ok(())
     }
 
     /// Size of the reduced (Schur complement) system.
