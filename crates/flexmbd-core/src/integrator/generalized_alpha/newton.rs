@@ -65,11 +65,8 @@ pub(super) fn solve(
             target.solve_in_place(&mut ws.solution)
         }
         LinearSolvers::Condensed { newton, projection } => {
-            if kind == Factorization::Projection {
-                projection.solve_in_place(&mut ws.solution)
-            } else {
-                newton.solve_gyroscopic(model, &mut ws.solution)
-            }
+            let target = if kind == Factorization::Projection { projection } else { newton };
+            target.solve_in_place(&mut ws.solution)
         }
         LinearSolvers::Direct { lu, ldlt, projection } => match kind {
             Factorization::Lu => lu.solve_in_place(&mut ws.solution),
@@ -268,14 +265,6 @@ pub(super) fn iterate(
         match outcome {
             Convergence::Converged => {
                 report.converged = true;
-                if approximate_matrix && slow_without_gyroscopic_block(&report) {
-                    if let LinearSolvers::Condensed { newton, .. } = solvers {
-                        if !newton.gyroscopic() {
-                            newton.set_gyroscopic(true);
-                            cache.step_size = None;
-                        }
-                    }
-                }
                 return Ok(report);
             }
             Convergence::Diverging { contraction } => {
@@ -318,22 +307,6 @@ pub(super) fn iterate(
     report.failure = Some(format!("no convergence in {} iterations", newton.max_iterations));
     Ok(report)
 }
-
-/// Whether a converged iteration with the condensed iteration matrix was slow enough for the
-/// gyroscopic block (`CondensedSolver::solve_gyroscopic`) to pay its extra solve per
-/// iteration: at least `GYROSCOPIC_ITERATIONS` iterations contracting at
-/// `GYROSCOPIC_CONTRACTION` or slower. The condensed solver then keeps the block for the rest
-/// of the run. The soft tet beam's iterations (benchmarks/soft_beam.py) contract at 0.1 to 0.3
-/// in 5 to 7 iterations; with the block at 0.01 in 2 to 3. The stiff nodal bars' contract at
-/// 1e-3 to 1e-2 in 2 to 3 iterations, which the block does not cut (2.16 against 2.17 per
-/// step on the 1k pendulum bar, at twice the time per step): they keep the plain solves.
-fn slow_without_gyroscopic_block(report: &StepReport) -> bool {
-    report.iterations >= GYROSCOPIC_ITERATIONS && report.contraction >= GYROSCOPIC_CONTRACTION
-}
-
-/// See [`slow_without_gyroscopic_block`].
-const GYROSCOPIC_ITERATIONS: usize = 5;
-const GYROSCOPIC_CONTRACTION: f64 = 0.05;
 
 /// `report` of iterations that end with `failure`; the cached factorization is dropped.
 fn abandon(mut report: StepReport, cache: &mut JacobianCache, failure: String) -> StepReport {

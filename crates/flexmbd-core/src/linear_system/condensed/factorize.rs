@@ -33,22 +33,16 @@ impl CondensedSolver {
         q: &[f64],
     ) -> Result<()> {
         self.factorized = false;
-        self.gyroscopic_scale = if self.approximate_reference { c.scale * c.velocity } else { 0.0 };
-        let tolerance = self.deformation_tolerance();
         for (r, &g) in self.reduced_values.iter_mut().zip(&self.copy_from) {
             *r = if g == usize::MAX { 0.0 } else { values[g] };
         }
-        let coarse = self.gyroscopic && self.gyroscopic_scale != 0.0;
-        let before_schur = if coarse { self.reduced_values.clone() } else { Vec::new() };
         for block in &mut self.blocks {
             block.last_x.clear();
-            block.gyroscopic_image.clear();
             block.structured = None;
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
             let qb = &q[model.bodies[block.body].offset..];
-            let reference_block =
-                block.eliminate_couplings(fb, values, c, qb, self.approximate_reference, tolerance)?;
+            let reference_block = block.eliminate_couplings(fb, values, c, qb, self.approximate_reference)?;
             block.subtract_coupling_product(reference_block.as_ref(), &mut self.reduced_values);
         }
         self.lu.factorize(&self.reduced_values).map_err(|detail| FlexmbdError::SingularMatrix {
@@ -57,10 +51,6 @@ impl CondensedSolver {
             detail,
         })?;
         self.factorized = true;
-        self.coarse = None;
-        if coarse {
-            self.make_coarse(model, values, &before_schur, q);
-        }
         Ok(())
     }
 }
@@ -70,7 +60,7 @@ impl Block {
     /// `values`; with `structured` (an iteration matrix), those of the body's reference
     /// coordinates from `reference_coupling` at the body coordinates `qb` (its block N_JF Z of
     /// the reference rows and columns returned when applied from the kept vectors), the others
-    /// as assembled (`tolerance`: the deformation tolerance of `reference_coupling`).
+    /// as assembled.
     fn eliminate_couplings(
         &mut self,
         fb: &FlexibleBody,
@@ -78,7 +68,6 @@ impl Block {
         c: &MatrixCoefficients,
         qb: &[f64],
         structured: bool,
-        tolerance: f64,
     ) -> Result<Option<[[f64; 7]; 7]>> {
         let nj = self.coupling.len();
         let reference = self.reference;
@@ -94,7 +83,7 @@ impl Block {
             }
         }
         if structured {
-            self.reference_coupling(fb, c, qb, tolerance)
+            self.reference_coupling(fb, c, qb)
         } else {
             Ok(None)
         }

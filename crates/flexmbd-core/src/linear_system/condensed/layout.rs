@@ -168,8 +168,6 @@ impl Block {
             deformation: Vec::new(),
             antisymmetric_bound: None,
             angular_velocity: Vec3::ZERO,
-            gyroscopic_image: Vec::new(),
-            gyroscopic_products: Vec::new(),
         })
     }
 }
@@ -216,10 +214,6 @@ impl CondensedSolver {
             approximate_reference,
             factorized: false,
             keep_image,
-            gyroscopic: false,
-            gyroscopic_scale: 0.0,
-            reduced_pattern: reduced_pattern.clone(),
-            coarse: None,
         })
     }
 }

@@ -15,13 +15,7 @@ use crate::math::Vec3;
 /// A factorization keeps A^-1 dJ^T of the deformation part of the rotation coupling while dJ
 /// differs from the one solved by at most this fraction of the row J_f0 + dJ (see
 /// `reference_coupling`).
-pub(super) const DEFORMATION_TOLERANCE: f64 = 1e-2;
-
-/// The deformation tolerance with the coarse stage (`CondensedSolver::set_gyroscopic`): the
-/// stage takes the rotation rows at q_f exactly, and the soft tet beam (1k, 1 s) took 3.53
-/// iterations per step with 1e-2 (3.62 with dJ solved at every factorization and the kept
-/// rows in the stage; 6.32 with 1e-2 and the kept rows).
-pub(super) const GYROSCOPIC_DEFORMATION_TOLERANCE: f64 = 1e-2;
+const DEFORMATION_TOLERANCE: f64 = 1e-2;
 
 /// Numbers of the row and column vectors of [`ReferenceCoupling`].
 pub(super) const ROW_VECTORS: usize = 16;
@@ -188,7 +182,7 @@ impl Block {
     /// and made the modified Newton iteration diverge at every step size (a modal beam hinged
     /// at a node). Its solves take three solves (A^-1 dJ^T, packed) when q_f != 0, which a
     /// factorization keeps for later refreshes while dJ moves by at most
-    /// `tolerance` of J_f (`DEFORMATION_TOLERANCE`, or `GYROSCOPIC_DEFORMATION_TOLERANCE`; the coupling of an iteration matrix is then as at the
+    /// `DEFORMATION_TOLERANCE` of J_f (the coupling of an iteration matrix is then as at the
     /// deformation of the solves, off by that fraction at most: a pendulum bar of solids
     /// changes dJ by 0.1-0.3 % of J_f between refreshes and needs the solves once).
     pub(super) fn reference_coupling(
@@ -196,7 +190,6 @@ impl Block {
         fb: &FlexibleBody,
         c: &MatrixCoefficients,
         qb: &[f64],
-        tolerance: f64,
     ) -> Result<Option<[[f64; 7]; 7]>> {
         let m = self.n;
         let sm = c.scale * c.mass;
@@ -206,7 +199,7 @@ impl Block {
         }
         let deformed = sm != 0.0 && qf.iter().any(|&x| x != 0.0);
         if deformed {
-            self.update_deformation_solves(fb, qf, tolerance)?;
+            self.update_deformation_solves(fb, qf)?;
         }
         let p = [qb[3], qb[4], qb[5], qb[6]];
         let coupling = ReferenceCoupling::at(&p, self.angular_velocity, sm, c.scale * c.velocity, deformed);
@@ -238,21 +231,21 @@ impl Block {
     /// d = b |q_f - q_kept| implies the test (|J_f0 + dJ(q_f)| >= r - d) without forming
     /// dJ(q_f), a product with the mass matrix (about a third of a refresh of the 1k pendulum
     /// bar); else dJ is formed and compared with the kept one row by row.
-    fn update_deformation_solves(&mut self, fb: &FlexibleBody, qf: &[f64], tolerance: f64) -> Result<()> {
+    fn update_deformation_solves(&mut self, fb: &FlexibleBody, qf: &[f64]) -> Result<()> {
         let m = self.n;
         if self.antisymmetric_bound.is_none() {
             self.antisymmetric_bound = Some(fb.antisymmetric_norm_bound());
         }
         let bound = self.antisymmetric_bound.unwrap_or(f64::INFINITY);
         let factor = &mut self.factors[self.current];
-        if factor.deformation_is_near(qf, bound, tolerance) {
+        if factor.deformation_is_near(qf, bound) {
             return Ok(());
         }
         self.deformation.resize(3 * m, 0.0);
         self.deformation.iter_mut().for_each(|x| *x = 0.0);
         fb.add_antisymmetric_products(-1.0, qf, &mut self.deformation);
         let rows = &self.reference_rows[3 * m..6 * m];
-        if factor.keeps_deformation(&self.deformation, rows, m, tolerance) {
+        if factor.keeps_deformation(&self.deformation, rows, m) {
             return Ok(());
         }
         factor.solve_deformation(&self.deformation, rows, qf, m)
@@ -324,22 +317,22 @@ fn deformed_row_norm(deformation: &[f64], rows: &[f64], i: usize, m: usize) -> f
 impl BlockFactor {
     /// Whether the kept solves of dJ serve q_f = `qf` by the bound alone: d (1 + tol) <= tol r
     /// with d = `bound` |q_f - q_kept| (see `Block::update_deformation_solves`).
-    fn deformation_is_near(&self, qf: &[f64], bound: f64, tolerance: f64) -> bool {
+    fn deformation_is_near(&self, qf: &[f64], bound: f64) -> bool {
         !self.deformation.is_empty() && {
             let d2: f64 = qf.iter().zip(&self.deformation_at).map(|(x, y)| (x - y) * (x - y)).sum();
             let d = bound * d2.sqrt();
-            d * (1.0 + tolerance) <= tolerance * self.deformation_rows
+            d * (1.0 + DEFORMATION_TOLERANCE) <= DEFORMATION_TOLERANCE * self.deformation_rows
         }
     }
 
     /// Whether the kept dJ^T is within the tolerance of `deformation` (dJ^T, 3 n_f) in every
     /// row, relative to the row J_f0 + dJ (`rows`: J_f0, 3 n_f).
-    fn keeps_deformation(&self, deformation: &[f64], rows: &[f64], m: usize, tolerance: f64) -> bool {
+    fn keeps_deformation(&self, deformation: &[f64], rows: &[f64], m: usize) -> bool {
         !self.deformation.is_empty()
             && (0..3).all(|i| {
                 let (new, old) = (&deformation[i * m..(i + 1) * m], &self.deformation[i * m..(i + 1) * m]);
                 let change: f64 = new.iter().zip(old).map(|(x, y)| (x - y) * (x - y)).sum();
-                change.sqrt() <= tolerance * deformed_row_norm(deformation, rows, i, m)
+                change.sqrt() <= DEFORMATION_TOLERANCE * deformed_row_norm(deformation, rows, i, m)
             })
     }
 

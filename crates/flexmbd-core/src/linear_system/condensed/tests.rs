@@ -221,14 +221,7 @@ fn reference_schur_block_from_the_small_products_equals_the_dot_products() {
     solver.factorize(&model, &ws.values, &ITERATION, &state.coordinates).unwrap();
     let block = &mut solver.blocks[0];
     let q = &state.coordinates[model.bodies[block.body].offset..];
-    let structured = block
-        .reference_coupling(
-            flexible(&model, block.body),
-            &ITERATION,
-            q,
-            super::reference::DEFORMATION_TOLERANCE,
-        )
-        .unwrap();
+    let structured = block.reference_coupling(flexible(&model, block.body), &ITERATION, q).unwrap();
     let structured = structured.expect("dense reference rows");
     assert!(!block.factors[block.current].deformation.is_empty(), "dJ solved");
     let coupling = block.structured.expect("a structured coupling");
