@@ -68,7 +68,7 @@ pub(super) fn solve(
             if kind == Factorization::Projection {
                 projection.solve_in_place(&mut ws.solution)
             } else {
-                newton.solve_gyroscopic(model, &mut ws.solution)
+                newton.solve_gyroscopic(&mut ws.solution)
             }
         }
         LinearSolvers::Direct { lu, ldlt, projection } => match kind {

@@ -9,8 +9,9 @@
 //! difference on the space V of the reduced unknowns and, per body, the six kept vectors
 //! A^-1 [I1^T, J_f^T] (the first column vectors of the structured coupling):
 //!   x = x0 + V C^-1 V^T (b - N' x0),  C = V^T N' V,
-//! where b - N' x0 = (P - N') x0 needs one product with the antisymmetric matrices and a few
-//! dot products, no solve with A. C is dense (the reduced size plus six per body, at most
+//! where b - N' x0 = (P - N') x0 needs nine dot products with rows made at each factorization
+//! (the rotation rows' difference, and V_u^T G from the products A_i V_u kept with the
+//! factor), no solve with A. C is dense (the reduced size plus six per body, at most
 //! `LIMIT`; beyond, no stage) and made at each factorization from the kept products G = U^T V
 //! of the structured coupling and V_u^T A_i V_v, kept with the factor.
 
@@ -29,9 +30,19 @@ pub(super) struct Coarse {
     size: usize,
     lu: Vec<f64>,
     pivots: Vec<usize>,
-    /// Per body: the difference dJ(q_f) - dJ(kept) of the rotation rows (3 n) and its
-    /// products with the six vectors (3 x 6).
-    rows: Vec<(Vec<f64>, [[f64; PER_BODY]; 3])>,
+    /// Per body, the rows of its part of the residual (P - N') x0.
+    rows: Vec<BodyRows>,
+}
+
+/// The rows of one body's part of the coarse stage's residual.
+#[derive(Debug, Default)]
+struct BodyRows {
+    /// The rotation rows at q_f less those of the kept solves, dJ(q_f) - dJ(kept) (3 n).
+    difference: Vec<f64>,
+    /// Their products with the six vectors V_u (3 x 6).
+    dots: [[f64; PER_BODY]; 3],
+    /// R_u (6 n) with R_u^T x = V_u^T G x.
+    gyroscopic: Vec<f64>,
 }
 
 impl Coarse {
@@ -87,23 +98,6 @@ impl Coarse {
 }
 
 impl CondensedSolver {
-    /// G v of body block `b` for its elastic vector `v` into the block's `gyroscopic_image`.
-    fn gyroscopic_into_image(&mut self, model: &Model, b: usize, v: &[f64]) {
-        let scale = -2.0 * self.gyroscopic_scale;
-        let block = &mut self.blocks[b];
-        let n = block.n;
-        let fb = flexible(model, block.body);
-        block.gyroscopic_products.clear();
-        block.gyroscopic_products.resize(3 * n, 0.0);
-        fb.add_antisymmetric_products(1.0, v, &mut block.gyroscopic_products);
-        let w = block.angular_velocity;
-        let p = &block.gyroscopic_products;
-        block.gyroscopic_image.clear();
-        block
-            .gyroscopic_image
-            .extend((0..n).map(|j| scale * (w[0] * p[j] + w[1] * p[n + j] + w[2] * p[2 * n + j])));
-    }
-
     /// Makes the coarse system at a factorization (`values`: the assembled global values;
     /// `reduced`: the reduced values before the Schur update), or none when a body's reference
     /// coupling is not structured or the system would be too large.
@@ -162,6 +156,7 @@ impl CondensedSolver {
                 if factor.antisymmetric_gram.is_empty() {
                     let mut products = vec![0.0; 3 * n];
                     let mut kept = vec![0.0; 3 * PER_BODY * PER_BODY];
+                    let mut images = vec![0.0; 3 * PER_BODY * n];
 
                     for v in 0..PER_BODY {
                         products.iter_mut().for_each(|x| *x = 0.0);
@@ -171,6 +166,8 @@ impl CondensedSolver {
                             &mut products,
                         );
                         for i in 0..3 {
+                            images[(i * PER_BODY + v) * n..(i * PER_BODY + v + 1) * n]
+                                .copy_from_slice(&products[i * n..(i + 1) * n]);
                             for u in 0..PER_BODY {
                                 let vu = column_vector(factor, rc.deformed, n, u);
                                 kept[(i * PER_BODY + u) * PER_BODY + v] =
@@ -179,6 +176,7 @@ impl CondensedSolver {
                         }
                     }
                     factor.antisymmetric_gram = kept;
+                    factor.antisymmetric_images = images;
                 }
             }
             let block = &self.blocks[b];
@@ -223,7 +221,18 @@ impl CondensedSolver {
                     c[at(o + u, o + v)] = g(u, v) + scale * gyro;
                 }
             }
-            differences.push(difference);
+            // V_u^T G x = 2 s gamma' sum_i w_i (A_i V_u)^T x (A_i antisymmetric).
+            let mut rows = vec![0.0; PER_BODY * m];
+            for (u, row) in rows.chunks_exact_mut(m).enumerate() {
+                for (i, &wi) in w.0.iter().enumerate() {
+                    if wi != 0.0 {
+                        let image =
+                            &factor.antisymmetric_images[(i * PER_BODY + u) * m..(i * PER_BODY + u + 1) * m];
+                        row.iter_mut().zip(image).for_each(|(o, a)| *o -= scale * wi * a);
+                    }
+                }
+            }
+            differences.push(BodyRows { difference: difference.0, dots: difference.1, gyroscopic: rows });
         }
         self.coarse = Coarse::factorize(size, c);
         if let Some(coarse) = &mut self.coarse {
@@ -233,18 +242,16 @@ impl CondensedSolver {
 
     /// The coarse stage after a solve `x` = x0 = P^-1 b (see the module documentation); the
     /// images of the elastic update take -E y_f.
-    pub(super) fn coarse_stage(&mut self, model: &Model, x: &mut [f64]) {
+    pub(super) fn coarse_stage(&mut self, x: &mut [f64]) {
         let Some(size) = self.coarse.as_ref().map(|c| c.size) else { return };
         let r = self.global_of.len();
         let mut y = vec![0.0; size];
         for b in 0..self.blocks.len() {
             let (first, n) = (self.blocks[b].first, self.blocks[b].n);
-            self.gyroscopic_into_image(model, b, &x[first..first + n]);
             let block = &self.blocks[b];
-            let g = &block.gyroscopic_image;
             let rc = block.structured.expect("structured");
-            let factor = &block.factors[block.current];
-            let (difference, dots) = &self.coarse.as_ref().expect("checked").rows[b];
+            let BodyRows { difference, dots, gyroscopic: gyroscopic_rows } =
+                &self.coarse.as_ref().expect("checked").rows[b];
             // (Nm - P) x0: the rotation rows' difference on x0_F, its columns on x0_ref.
             let on_f: [f64; 3] = std::array::from_fn(|i| {
                 difference[i * n..(i + 1) * n].iter().zip(&x[first..first + n]).map(|(a, b)| a * b).sum()
@@ -259,9 +266,10 @@ impl CondensedSolver {
             let column_weights: [f64; 3] =
                 std::array::from_fn(|i| (0..7).map(|a| rc.columns[3 + i][a] * x_ref[a]).sum());
             for u in 0..PER_BODY {
-                let vf = column_vector(factor, rc.deformed, n, u);
-                y[r + PER_BODY * b + u] = -vf.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()
-                    - (0..3).map(|i| column_weights[i] * dots[i][u]).sum::<f64>();
+                let row = &gyroscopic_rows[u * n..(u + 1) * n];
+                y[r + PER_BODY * b + u] =
+                    -row.iter().zip(&x[first..first + n]).map(|(a, b)| a * b).sum::<f64>()
+                        - (0..3).map(|i| column_weights[i] * dots[i][u]).sum::<f64>();
             }
         }
         self.coarse.as_ref().expect("checked").solve(&mut y);
@@ -274,7 +282,8 @@ impl CondensedSolver {
             let rc = block.structured.expect("structured");
             let coefficients = &y[r + PER_BODY * b..r + PER_BODY * (b + 1)];
             let mut image = std::mem::take(&mut block.gyroscopic_image);
-            image.iter_mut().for_each(|x| *x = 0.0);
+            image.clear();
+            image.resize(n, 0.0);
             {
                 let factor = &block.factors[block.current];
                 for (u, &cu) in coefficients.iter().enumerate() {

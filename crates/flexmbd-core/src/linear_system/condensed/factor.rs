@@ -56,6 +56,8 @@ pub(super) struct BlockFactor {
     /// A_i, i = 0..3 (3 x 6 x 6), for the coarse stage's gyroscopic block; empty until made,
     /// and made again with G.
     pub(super) antisymmetric_gram: Vec<f64>,
+    /// A_i V_v of the same (3 x 6 vectors of n_f, i-major), made with them.
+    pub(super) antisymmetric_images: Vec<f64>,
     /// Scratch of single solves (allocated at the first).
     memory: Option<faer::dyn_stack::MemBuffer>,
 }
@@ -77,6 +79,7 @@ impl BlockFactor {
             gram: Vec::new(),
             gram_deformed: false,
             antisymmetric_gram: Vec::new(),
+            antisymmetric_images: Vec::new(),
             memory: None,
         }
     }

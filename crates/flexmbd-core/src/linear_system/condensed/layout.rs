@@ -169,7 +169,6 @@ impl Block {
             antisymmetric_bound: None,
             angular_velocity: Vec3::ZERO,
             gyroscopic_image: Vec::new(),
-            gyroscopic_products: Vec::new(),
         })
     }
 }

@@ -113,8 +113,6 @@ struct Block {
     /// G x_F of the gyroscopic correction of the last solve (n; empty when it made none):
     /// part of what the solve eliminated, A x_F = b_F - G x0_F - W x_J (see `coupling_images`).
     gyroscopic_image: Vec<f64>,
-    /// Scratch of the three antisymmetric products (3 n).
-    gyroscopic_products: Vec<f64>,
 }
 
 impl Block {
@@ -208,10 +206,10 @@ impl CondensedSolver {
     /// = -2 s gamma' sum_i w_i A_i is the gyroscopic block of the elastic rows (A_i = I_jk -
     /// I_kj, w of `set_angular_velocities`), which the Cholesky factor of A cannot hold.
     /// Without the setting, or for a matrix that is not an iteration matrix, a plain solve.
-    pub fn solve_gyroscopic(&mut self, model: &Model, x: &mut [f64]) -> std::result::Result<(), String> {
+    pub fn solve_gyroscopic(&mut self, x: &mut [f64]) -> std::result::Result<(), String> {
         self.solve_in_place(x)?;
         if self.gyroscopic && self.gyroscopic_scale != 0.0 {
-            self.coarse_stage(model, x);
+            self.coarse_stage(x);
         }
         Ok(())
     }
