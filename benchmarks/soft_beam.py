@@ -9,6 +9,7 @@ Newton step-size control, nominal step 1e-3 s, output every 0.01 s.
 
     python benchmarks/soft_beam.py                 # 1k and 10k, 2 s each
     python benchmarks/soft_beam.py --size 10k --end 0.5
+    python benchmarks/soft_beam.py --newton-tolerance 1e-4   # the solver's default: 1e-6
 
 Printed per size: accepted and rejected steps, smallest step, Newton iterations and
 factorizations (of the Newton matrix) per step, the wall time of the run (model building
@@ -84,11 +85,11 @@ def one_solve(body: fm.fe.FlexibleBodyData, count: int = 50) -> float:
     return best
 
 
-def run(size: str, end: float) -> dict:
+def run(size: str, end: float, newton_tolerance: float | None = None) -> dict:
     body = soft_body(size)
     system, beam = soft_beam(body)
     compiled = system.compile()
-    solver = fm.GeneralizedAlpha(SPECTRAL_RADIUS)
+    solver = fm.GeneralizedAlpha(SPECTRAL_RADIUS, newton_tolerance=newton_tolerance)
     start = time.perf_counter()
     result = fm.simulate(compiled, end, STEP, output_interval=INTERVAL, solver=solver)
     wall = time.perf_counter() - start
@@ -117,9 +118,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", choices=sorted(SIZES), action="append")
     parser.add_argument("--end", type=float, default=2.0)
+    parser.add_argument(
+        "--newton-tolerance", type=float, help="Newton's tolerance (default: the solver's)"
+    )
     args = parser.parse_args(argv)
     for size in args.size or list(SIZES):
-        r = run(size, args.end)
+        r = run(size, args.end, args.newton_tolerance)
         print(
             f"soft beam {r['size']} ({r['elastic']} elastic coordinates), {r['end']:g} s: "
             f"{r['steps']} steps, {r['rejected']} rejected, smallest {r['min_step']:.2e} s, "

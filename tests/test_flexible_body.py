@@ -438,6 +438,9 @@ def test_a_soft_condensed_beam_keeps_its_steps_and_the_motion_of_the_direct_solv
 
     soft, stats = tip(True, 1e-3, "newton")
     assert stats["rejected_steps"] <= 2 and stats["steps"] <= 1002, stats
+    # The coarse stage of the condensed solves (gyroscopic block, switched on by the first
+    # slow steps) takes the iterations from 4.92 to 3.34 per step.
+    assert stats["newton_iterations"] <= 4.0 * stats["steps"], stats
     direct, _ = tip(False, 1e-3, "fixed")
     assert_close(soft, direct, abs=1e-6, what="condensed tip against the direct solves")
     finer, _ = tip(False, 2.5e-4, "fixed")

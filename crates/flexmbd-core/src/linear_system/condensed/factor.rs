@@ -52,6 +52,12 @@ pub(super) struct BlockFactor {
     /// empty until made, and made again when dJ is solved again. `gram_deformed`: with dJ.
     pub(super) gram: Vec<f64>,
     pub(super) gram_deformed: bool,
+    /// The products V_u^T A_i V_v of the first six column vectors with the antisymmetric
+    /// A_i, i = 0..3 (3 x 6 x 6), for the coarse stage's gyroscopic block; empty until made,
+    /// and made again with G.
+    pub(super) antisymmetric_gram: Vec<f64>,
+    /// A_i V_v of the same (3 x 6 vectors of n_f, i-major), made with them.
+    pub(super) antisymmetric_images: Vec<f64>,
     /// Scratch of single solves (allocated at the first).
     memory: Option<faer::dyn_stack::MemBuffer>,
 }
@@ -72,6 +78,8 @@ impl BlockFactor {
             deformation_rows: 0.0,
             gram: Vec::new(),
             gram_deformed: false,
+            antisymmetric_gram: Vec::new(),
+            antisymmetric_images: Vec::new(),
             memory: None,
         }
     }

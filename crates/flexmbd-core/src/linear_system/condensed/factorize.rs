@@ -33,11 +33,15 @@ impl CondensedSolver {
         q: &[f64],
     ) -> Result<()> {
         self.factorized = false;
+        self.gyroscopic_scale = if self.approximate_reference { c.scale * c.velocity } else { 0.0 };
         for (r, &g) in self.reduced_values.iter_mut().zip(&self.copy_from) {
             *r = if g == usize::MAX { 0.0 } else { values[g] };
         }
+        let coarse = self.gyroscopic && self.gyroscopic_scale != 0.0;
+        let before_schur = if coarse { self.reduced_values.clone() } else { Vec::new() };
         for block in &mut self.blocks {
             block.last_x.clear();
+            block.gyroscopic_image.clear();
             block.structured = None;
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
@@ -51,6 +55,10 @@ impl CondensedSolver {
             detail,
         })?;
         self.factorized = true;
+        self.coarse = None;
+        if coarse {
+            self.make_coarse(model, values, &before_schur, q);
+        }
         Ok(())
     }
 }

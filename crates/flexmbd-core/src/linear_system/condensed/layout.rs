@@ -168,6 +168,7 @@ impl Block {
             deformation: Vec::new(),
             antisymmetric_bound: None,
             angular_velocity: Vec3::ZERO,
+            gyroscopic_image: Vec::new(),
         })
     }
 }
@@ -214,6 +215,10 @@ impl CondensedSolver {
             approximate_reference,
             factorized: false,
             keep_image,
+            gyroscopic: false,
+            gyroscopic_scale: 0.0,
+            reduced_pattern: reduced_pattern.clone(),
+            coarse: None,
         })
     }
 }

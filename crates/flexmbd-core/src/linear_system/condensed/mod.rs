@@ -32,6 +32,7 @@ use crate::body::BodyKind;
 use crate::math::Vec3;
 use crate::system::model::Model;
 
+mod coarse;
 mod coupling_basis;
 mod factor;
 mod factorize;
@@ -109,6 +110,9 @@ struct Block {
     /// Body-frame angular velocity of the velocity part of the structured reference coupling
     /// (see `CondensedSolver::set_angular_velocities`; zero until set).
     angular_velocity: Vec3,
+    /// G x_F of the gyroscopic correction of the last solve (n; empty when it made none):
+    /// part of what the solve eliminated, A x_F = b_F - G x0_F - W x_J (see `coupling_images`).
+    gyroscopic_image: Vec<f64>,
 }
 
 impl Block {
@@ -143,6 +147,14 @@ pub struct CondensedSolver {
     factorized: bool,
     /// Whether the solves keep W x_J of each block (see `coupling_images`).
     keep_image: bool,
+    /// Whether the iteration matrix takes the gyroscopic block of the elastic rows (see
+    /// `set_gyroscopic`).
+    gyroscopic: bool,
+    /// s gamma' of the last factorization of an iteration matrix (0 otherwise).
+    gyroscopic_scale: f64,
+    /// The pattern of the reduced system and the coarse stage (see `coarse`).
+    reduced_pattern: crate::linalg::sparse::SparsePattern,
+    coarse: Option<coarse::Coarse>,
 }
 
 impl std::fmt::Debug for CondensedSolver {
@@ -174,6 +186,32 @@ impl CondensedSolver {
             block.angular_velocity =
                 Vec3(std::array::from_fn(|i| 2.0 * (0..4).map(|k| l[i][k] * pd[k]).sum::<f64>()));
         }
+    }
+
+    /// Makes the solves of the iteration matrix take the gyroscopic block of each condensed
+    /// body's elastic rows (`on`), from the next factorization: see `solve_gyroscopic`.
+    pub fn set_gyroscopic(&mut self, on: bool) {
+        self.gyroscopic = on;
+    }
+
+    /// Whether the solves take the gyroscopic block (`set_gyroscopic`).
+    pub fn gyroscopic(&self) -> bool {
+        self.gyroscopic
+    }
+
+    /// Solves in place (global vector) with the iteration matrix P, then, with the gyroscopic
+    /// setting, the coarse stage of `coarse`: the Galerkin correction with
+    /// P + G + the exact rotation rows on the reduced unknowns and the six kept vectors
+    /// A^-1 [I1^T, J_f^T] of each body, where G = s gamma' 2 int rho S^T w~ S
+    /// = -2 s gamma' sum_i w_i A_i is the gyroscopic block of the elastic rows (A_i = I_jk -
+    /// I_kj, w of `set_angular_velocities`), which the Cholesky factor of A cannot hold.
+    /// Without the setting, or for a matrix that is not an iteration matrix, a plain solve.
+    pub fn solve_gyroscopic(&mut self, x: &mut [f64]) -> std::result::Result<(), String> {
+        self.solve_in_place(x)?;
+        if self.gyroscopic && self.gyroscopic_scale != 0.0 {
+            self.coarse_stage(x);
+        }
+        Ok(())
     }
 
     /// Size of the reduced (Schur complement) system.

@@ -365,5 +365,6 @@ impl BlockFactor {
         }
         self.gram = gram;
         self.gram_deformed = deformed;
+        self.antisymmetric_gram.clear();
     }
 }

@@ -32,6 +32,10 @@ impl CondensedSolver {
                     &rc.combination(&x_ref),
                 );
             }
+            if block.gyroscopic_image.len() == m {
+                // The gyroscopic correction's G x0_F, taken from the right-hand side.
+                block.image.iter_mut().zip(&block.gyroscopic_image).for_each(|(o, g)| *o += g);
+            }
             for (j, (&xj, w)) in block.last_x.iter().zip(block.w.chunks_exact(m)).enumerate() {
                 if xj != 0.0 && !block.applied_from_kept(j) {
                     block.image.iter_mut().zip(w).for_each(|(o, wv)| *o += wv * xj);
@@ -48,6 +52,9 @@ impl CondensedSolver {
         }
         for (r, &g) in self.rhs.iter_mut().zip(&self.global_of) {
             *r = x[g];
+        }
+        for block in &mut self.blocks {
+            block.gyroscopic_image.clear();
         }
         // y = A^-1 r_F of each body, and r_S -= N_SF y.
         let mut offset = 0;
