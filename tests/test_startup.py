@@ -7,6 +7,7 @@ loaded machine (the times are printed by ``benchmarks/startup.py``)."""
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import subprocess
@@ -136,15 +137,7 @@ def test_every_public_name_keeps_its_kind_after_every_submodule_is_imported(orde
 import importlib, json, pkgutil, types
 import flexmbd as fm
 
-def kind(value):
-    if isinstance(value, types.ModuleType):
-        return "module"
-    if isinstance(value, type):
-        return "class"
-    if isinstance(value, types.FunctionType):
-        return "function"
-    return type(value).__name__
-
+{inspect.getsource(_kind)}
 def import_all():
     for info in pkgutil.walk_packages(fm.__path__, "flexmbd."):
         if not info.name.endswith("__main__"):
@@ -159,7 +152,7 @@ from flexmbd.campbell import campbell
 star = {{}}
 exec("from flexmbd import *", star)
 same = [name for name in fm.__all__ if getattr(fm, name) is before[name]]
-print(json.dumps({{"kinds": {{name: kind(getattr(fm, name)) for name in fm.__all__}},
+print(json.dumps({{"kinds": {{name: _kind(getattr(fm, name)) for name in fm.__all__}},
                   "same": same, "star": sorted(n for n in fm.__all__ if n in star)}}))
 """
     report = json.loads(_python(code).splitlines()[-1])

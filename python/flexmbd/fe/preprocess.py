@@ -1017,9 +1017,12 @@ def rotational_matrix_invariants(nodes: NDArray[np.float64], m: sp.csc_matrix) -
     i1 = mt.T.copy()  # (3, 6n): T_a^T M
     # Lumped parts: node masses and rotary second moments P_i = tr(J_i)/2 I - J_i.
     node_mass = np.mean([i1[a, rows + a] for a in range(3)], axis=0)
-    blocks = np.array(
-        [m[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6].toarray() for i in range(n)]
-    ).reshape(n, 3, 3)
+    # Each node's rotational block M[6i+3+a, 6i+3+b], all nodes at once.
+    by_rows = m.tocsr()
+    blocks = np.zeros((n, 3, 3))
+    for a in range(3):
+        for b in range(3):
+            blocks[:, a, b] = np.asarray(by_rows[rows + 3 + a, rows + 3 + b]).ravel()
     blocks = 0.5 * (blocks + blocks.transpose(0, 2, 1))
     moments = 0.5 * np.einsum("i,ab->iab", np.trace(blocks, axis1=1, axis2=2), eye) - blocks
     lumped = np.zeros((3, 3, 6 * n))

@@ -251,8 +251,7 @@ def _from_body(body: FlexibleBodyData, nodes: Iterable[int | str] | None) -> Sid
         "mdCM": Taylor(first[:, None], i1[:, None, :]),
         "J": Taylor(inertia(second), inertia(ibar_sym), inertia(g + gt), SYMMETRIC),
         "Ct": Taylor(i1.T.copy()),
-        # Row k: int u x Phi_k.
-        "Cr": Taylor(np.einsum("cab,abk->kc", _EPS, ibar), np.einsum("cab,abkl->lck", _EPS, g)),
+        "Cr": _coupling_rotation(ibar, g),
         "Me": Taylor(m_ff, structure=SYMMETRIC),
         "Gr": _gyroscopic_rotation(ibar, g, m_ff),
         "Ge": Taylor(_gyroscopic_elastic(g)),
@@ -293,6 +292,11 @@ def _from_body(body: FlexibleBodyData, nodes: Iterable[int | str] | None) -> Sid
     return SidData(
         float(inv.mass), names, frequencies, sid_nodes, {k: fields[k] for k in FIELD_ORDER}
     )
+
+
+def _coupling_rotation(ibar: NDArray[np.float64], g: NDArray[np.float64]) -> Taylor:
+    """Cr (n x 3): row k int u x Phi_k dm = eps_cab (Ibar_k(a, b) + G[a, b, l, k] q_l)."""
+    return Taylor(np.einsum("cab,abk->kc", _EPS, ibar), np.einsum("cab,abkl->lck", _EPS, g))
 
 
 def _gyroscopic_rotation(
@@ -479,7 +483,7 @@ def _check_consistency(
     n = sid.mode_count
     expected = {
         "Ct": Taylor(i1.T),
-        "Cr": Taylor(np.einsum("cab,abk->kc", _EPS, ibar), np.einsum("cab,abkl->lck", _EPS, g)),
+        "Cr": _coupling_rotation(ibar, g),
         "Me": Taylor(np.einsum("aakl->kl", g)),
         "Gr": _gyroscopic_rotation(ibar, g, m_ff),
         "Oe": _centrifugal(ibar, g),

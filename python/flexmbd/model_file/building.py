@@ -611,28 +611,16 @@ class _Builder:
                 mesh.nodes = mesh.nodes * length
             data = self.call(path, body_from_mesh, mesh, options.pop("material"), **options)
             return data.with_metadata(source=str(location))
-        if kind == "plate":
-            plate = spec.plate
-            assert plate is not None
-            extra = {} if plate.origin is None else {"origin": _scaled(plate.origin, length)}
+        if kind in ("plate", "box"):  # structured meshes: lengths, divisions, element, origin
+            grid = getattr(spec, kind)
+            assert grid is not None
+            extra = {} if grid.origin is None else {"origin": _scaled(grid.origin, length)}
             mesh = self.call(
                 where,
-                shapes.plate,
-                _scaled(plate.lengths, length),
-                plate.divisions,
-                plate.element,
-                **extra,
-            )
-        elif kind == "box":
-            box = spec.box
-            assert box is not None
-            extra = {} if box.origin is None else {"origin": _scaled(box.origin, length)}
-            mesh = self.call(
-                where,
-                shapes.box,
-                _scaled(box.lengths, length),
-                box.divisions,
-                box.element,
+                getattr(shapes, kind),
+                _scaled(grid.lengths, length),
+                grid.divisions,
+                grid.element,
                 **extra,
             )
         else:
