@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from .body_file import load_body, save_body
     from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
     from .nastran import read_nastran
+    from .op2 import Op2Results, body_from_nastran, read_op2
     from .preprocess import (
         Material,
         Section,
@@ -46,6 +47,9 @@ _ORIGIN: dict[str, str] = {
     "read_mesh": "mesh_io",
     "validate_mesh": "mesh_io",
     "read_nastran": "nastran",
+    "Op2Results": "op2",
+    "body_from_nastran": "op2",
+    "read_op2": "op2",
     "Material": "preprocess",
     "Section": "preprocess",
     "ShellSection": "preprocess",
@@ -70,17 +74,20 @@ __all__ = [
     "Invariants",
     "Material",
     "Mesh",
+    "Op2Results",
     "ReferenceConditions",
     "Section",
     "ShellSection",
     "assemble",
     "body_from_matrices",
     "body_from_mesh",
+    "body_from_nastran",
     "build_body",
     "load_body",
     "read_abaqus_matrix",
     "read_mesh",
     "read_nastran",
+    "read_op2",
     "read_sid",
     "recover_stresses",
     "save_body",

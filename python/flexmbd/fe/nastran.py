@@ -157,6 +157,9 @@ class NastranDeck:
         element_properties: element type -> (n_elements,) property ids.
         orientations: beam element id -> orientation vector v (basic system).
         matrices: DMIG name -> :class:`DmigMatrix`.
+        displacement_systems: grid id -> (3, 3) axes (columns, in the basic system) of the
+            grid's displacement system (GRID field CD), for the nodes with CD other than 0:
+            results in that system (OUGV1) are turned to the basic one by v = A v_CD.
     """
 
     mesh: Mesh
@@ -165,6 +168,7 @@ class NastranDeck:
     element_properties: dict[str, NDArray[np.int64]] = field(default_factory=dict)
     orientations: dict[int, NDArray[np.float64]] = field(default_factory=dict)
     matrices: dict[str, DmigMatrix] = field(default_factory=dict)
+    displacement_systems: dict[int, NDArray[np.float64]] = field(default_factory=dict)
 
     def material(self) -> Any:
         """The one material of the mesh's elements (flexmbd bodies are of one material), as a
@@ -292,6 +296,14 @@ class NastranDeck:
             **extra,
             **options,
         )
+
+    def modal_body(self, results: Any, modes: Any = None, **options: Any) -> FlexibleBodyData:
+        """The deck's body with the normal modes of its OP2 results (a path or an
+        :class:`~flexmbd.fe.op2.Op2Results`): :func:`flexmbd.fe.body_from_nastran` with this
+        deck."""
+        from .op2 import body_from_nastran
+
+        return body_from_nastran(self, results, modes, **options)
 
 
 @dataclass
@@ -586,7 +598,34 @@ def _deck(cards: list[Card]) -> NastranDeck:
         card.integer(1): _orientation(card, grids, systems) for card in orientation_cards
     }
     matrices = _dmig(dmig_headers, dmig_columns)
-    return NastranDeck(mesh, materials, properties, element_properties, orientations, matrices)
+    displacement = {}
+    for g in ids:
+        grid = grids[int(g)]
+        cd = grid.integer(6, 0, what="CD")
+        if cd:
+            displacement[int(g)] = _axes(cd, systems, grid)
+    return NastranDeck(
+        mesh, materials, properties, element_properties, orientations, matrices, displacement
+    )
+
+
+def _axes(cid: int, systems: dict[int, Card], card: Card) -> NDArray[np.float64]:
+    """The axes (columns, in the basic system) of coordinate system `cid`, through the
+    chain of its reference systems."""
+    axes = np.eye(3)
+    for _ in range(33):
+        if cid == 0:
+            return axes
+        if cid not in systems:
+            raise UnknownItemError(
+                f"{card.where()}: {card.name} uses coordinate system {cid}, which no CORD2R "
+                "defines (only rectangular CORD2R systems are supported)",
+                item=f"coordinate system {cid}",
+            )
+        system = systems[cid]
+        axes = _frame(system)[1] @ axes
+        cid = system.integer(2, 0, what="RID")
+    raise card.error(f"coordinate system {cid} refers to itself through its references")
 
 
 def _position(card: Card, systems: dict[int, Card]) -> NDArray[np.float64]:

@@ -43,16 +43,20 @@ the displacement tables is skipped. See ``docs/preprocessor.md``, "Nastran decks
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, UnknownItemError
+from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from ._memory import check_fits
+from .body import FlexibleBodyData, _replace
 
 #: Tables whose eigenvector subtables (table code 7) are read; the basic-system ones first.
 EIGENVECTOR_TABLES = ("BOUGV1", "BOPHIG", "BOUG1", "OUGV1", "OPHIG", "OUG1")
@@ -148,11 +152,6 @@ class Op2Results:
             )
         return self.eigenvectors[hits[0]]
 
-    def eigenvalues_of(self, modes: NDArray[np.int64]) -> NDArray[np.float64]:
-        """The eigenvalues of the given mode numbers (NaN for modes not in the table)."""
-        index = {int(m): k for k, m in enumerate(self.mode_numbers)}
-        return np.array([self.eigenvalues[index[int(m)]] if int(m) in index else np.nan for m in modes])
-
     def summary(self) -> str:
         """A few lines: the tables, the modes and their frequencies."""
         lines = [
@@ -168,7 +167,8 @@ class Op2Results:
             )
         else:
             lines.append("  eigenvectors: none")
-        lines.append(f"  {len(self.mode_numbers)} modes:   mode   frequency (Hz)   generalized mass")
+        count = len(self.mode_numbers)
+        lines.append(f"  {count} modes:   mode   frequency (Hz)   generalized mass")
         for number, hz, mass in zip(
             self.mode_numbers, self.cycles, self.generalized_mass, strict=True
         ):
@@ -280,7 +280,11 @@ class _Reader:
     def marker(self) -> int:
         start, body = self.record()
         if len(body) != self.word:
-            raise self.fail(f"expected a marker (one {self.word}-byte word), found a record of {len(body)} bytes", at=start)
+            raise self.fail(
+                f"expected a marker (one {self.word}-byte word), found a record of "
+                f"{len(body)} bytes",
+                at=start,
+            )
         return int(self.marker_struct.unpack(body)[0])
 
     def expect(self, *markers: int) -> None:
@@ -311,9 +315,7 @@ class _Reader:
             return
         self.record()  # the date (or one word)
         self.expect(7)
-        _, code = self.record()
-        if not self.text(code).startswith("NASTRAN FORT TAPE ID CODE"):
-            pass  # other writers put their own identification here
+        self.record()  # "NASTRAN FORT TAPE ID CODE -" (other writers: their own)
         start = self.at
         marker = self.marker()
         if marker > 0:
@@ -340,7 +342,9 @@ class _Reader:
                     )
                 return
             if marker < 1:
-                raise self.fail(f"expected marker 2 and a table name, found marker {marker}", at=start)
+                raise self.fail(
+                    f"expected marker 2 and a table name, found marker {marker}", at=start
+                )
             _, name = self.record()
             self.table = self.text(name)[:8].strip() or "(unnamed)"
             self.tables.append(self.table)
@@ -362,7 +366,9 @@ class _Reader:
         marker = self.marker()
         while True:
             if marker != number:
-                raise self.fail(f"expected marker {number} (subtable {-number}), found {marker}", at=start)
+                raise self.fail(
+                    f"expected marker {number} (subtable {-number}), found {marker}", at=start
+                )
             self.expect(1, 0)
             start = self.at
             marker = self.marker()
@@ -392,7 +398,9 @@ class _Reader:
     def eigenvalue_table(self, subtables: list[tuple[int, bytes]]) -> None:
         if len(subtables) < 3:
             offset = subtables[-1][0] if subtables else self.at
-            raise self.fail(f"{len(subtables)} subtables, expected 3 (eigenvalues in the third)", at=offset)
+            raise self.fail(
+                f"{len(subtables)} subtables, expected 3 (eigenvalues in the third)", at=offset
+            )
         for offset, data in subtables[2::2]:
             per = 7 * self.word
             if len(data) % per:
@@ -565,4 +573,294 @@ class _Reader:
         )
 
 
-__all__ = ["EIGENVALUE_TABLES", "EIGENVECTOR_TABLES", "Op2Results", "read_op2"]
+# Bodies from a deck and its modes ---------------------------------------------------------------
+
+#: Relative eigenvalue below which a mode is a rigid-body motion (its Rayleigh quotient with
+#: the body's K and M, against max diag K / max diag M; as in `modal.free_free_modes`).
+RIGID_EIGENVALUE = 1e-10
+
+#: Largest entry of a mode on a coordinate the reference conditions hold, relative to the
+#: mode's largest entry.
+HELD_MOTION = 1e-6
+
+#: Largest mass coupling (normalized) of a mode with a rigid motion in a mean-axis body.
+MEAN_AXIS_COUPLING = 1e-3
+
+#: build_body options that body_from_nastran sets itself.
+_OWN_OPTIONS = ("modes", "mode_count", "external_modes", "interfaces", "interface_kind")
+
+
+def body_from_nastran(
+    deck: Any,
+    results: Op2Results | str | os.PathLike[str],
+    modes: int | Sequence[int] | None = None,
+    *,
+    reference: str = "mean-axis",
+    reference_nodes: str | Sequence[int] = (),
+    subcase: int | None = None,
+    frequency_tolerance: float | None = 0.05,
+    **options: Any,
+) -> FlexibleBodyData:
+    """A modal body from a Nastran deck and the normal modes of its OP2 results: the mesh,
+    material and sections of `deck` (a :class:`~flexmbd.fe.nastran.NastranDeck` or the path
+    of a bulk data file) through the preprocessor, with the eigenvectors of `results` (an
+    :class:`Op2Results` or the path of an OP2 file, read with `subcase`) as the modal basis
+    (``modes="external"``).
+
+    - The eigenvectors are mapped onto the body's coordinates by grid id and component:
+      T1-T3 for solids, T1-T3 and R1-R3 for bodies of beams or shells (6 per node). Grids of
+      the results that are not nodes of the body (an RBE's reference grid, a CONM2 point)
+      are ignored; eigenvectors in the grids' displacement systems (OUGV1) are turned to the
+      basic system with the deck's CORD2R systems.
+    - Rigid-body modes (those whose Rayleigh quotient with the body's K and M vanishes:
+      below ``RIGID_EIGENVALUE`` max diag K / max diag M) are left out: the body frame
+      carries the rigid motion.
+    - `modes`: None (every elastic mode of the file), a count (the first ones), or the mode
+      numbers to keep.
+    - `reference`: the body frame, as in `build_body`: "mean-axis" (free-free modes, the
+      default), "clamped" at `reference_nodes` (a node set such as ``"spc1"`` or node
+      indices) for the modes of a constrained analysis, ... The modes must vanish on the
+      coordinates the reference conditions hold.
+    - `frequency_tolerance`: the largest relative difference between the frequency of each
+      mode with the body's K and M (its Rayleigh quotient) and the frequency of the OP2 file,
+      to catch a deck that is not the one analysed, other units, or another mass formulation
+      (Nastran lumps the mass of most elements unless ``PARAM,COUPMASS,1``: pass
+      ``mass="lumped"``). None skips the check.
+    - `options`: `build_body`'s (``mass``, ``beam_theory``, ``precision``, ...).
+
+    The body's k_ff and m_ff are B^T K B and B^T M B with flexmbd's K and M; its
+    ``frequencies`` are the file's (Hz).
+
+    Raises `UnknownItemError` naming a grid of the body that has no eigenvector, a mode
+    number that is not in the file, a node set that does not exist; `InvalidModelError` for a
+    file without eigenvectors, a mode that moves a held coordinate (naming the mode, grid and
+    component), a rigid-body mode asked for by number, fewer elastic modes than asked for,
+    and a frequency beyond `frequency_tolerance` (naming the mode and both frequencies);
+    `InvalidParameterError` for build_body options that this function sets itself."""
+    from . import preprocess
+    from .nastran import NastranDeck, read_nastran
+
+    if not isinstance(deck, NastranDeck):
+        deck = read_nastran(deck)
+    if not isinstance(results, Op2Results):
+        results = read_op2(results, subcase)
+    for key in _OWN_OPTIONS:
+        if key in options:
+            raise InvalidParameterError(
+                f"{key}: body_from_nastran sets it (the modes are the OP2 file's); give "
+                "`modes` (a count or mode numbers) instead",
+                item=key,
+            )
+    where = f"{results.path}"
+    if results.eigenvectors.shape[0] == 0:
+        raise InvalidModelError(
+            f"{where}: no eigenvectors (tables {', '.join(results.tables)}): request them with "
+            "DISPLACEMENT(SORT1) = ALL in the case control of the SOL 103 run",
+            item=f"file '{where}'",
+        )
+    nodal = deck.body(**options)
+    ids = np.asarray(nodal.node_ids, dtype=np.int64)
+    d = nodal.dofs_per_node
+    shapes = _shapes_on_nodes(results, ids, deck.displacement_systems)  # (k, n, 6)
+    count = shapes.shape[0]
+    phi = shapes[:, :, :d].reshape(count, len(ids) * d).T  # (n d, k)
+
+    # Rayleigh quotients with the body's own K and M: rigid modes and the frequency check.
+    k_phi = nodal.stiffness @ phi
+    m_phi = nodal.mass @ phi
+    generalized_k = np.einsum("ij,ij->j", phi, k_phi)
+    generalized_m = np.einsum("ij,ij->j", phi, m_phi)
+    if np.any(generalized_m <= 0):
+        bad = int(results.eigenvector_modes[int(np.argmin(generalized_m))])
+        raise InvalidModelError(
+            f"{where}: mode {bad} does not move the body's nodes (zero generalized mass)",
+            item=f"mode {bad}",
+        )
+    quotient = generalized_k / generalized_m
+    scale = float(nodal.stiffness.diagonal().max() / nodal.mass.diagonal().max())
+    rigid = quotient < RIGID_EIGENVALUE * scale
+    numbers = results.eigenvector_modes
+    chosen = _chosen_modes(modes, numbers, rigid, where)
+
+    node_sets = nodal.node_sets
+    if reference == "interface":
+        raise InvalidParameterError(
+            "reference: 'interface' frames are for Craig-Bampton bodies; use 'clamped' at "
+            "the interface nodes",
+            item="reference",
+        )
+    held_nodes = preprocess._node_indices(reference_nodes, node_sets, "reference_nodes")
+    kind = "none" if reference == "mean-axis" else reference
+    free = preprocess.reference_dofs(kind, len(ids), d, held_nodes)
+    held = np.setdiff1d(np.arange(len(ids) * d), free)
+    basis = phi[:, chosen]
+    if len(held):
+        size = np.max(np.abs(basis), axis=0)
+        moved = np.abs(basis[held]) > HELD_MOTION * size
+        if np.any(moved):
+            row, column = (int(v[0]) for v in np.nonzero(moved))
+            dof = int(held[row])
+            component = ("T1", "T2", "T3", "R1", "R2", "R3")[dof % d]
+            mode = int(numbers[chosen[column]])
+            raise InvalidModelError(
+                f"{where}: mode {mode} moves grid {int(ids[dof // d])} in {component} "
+                f"({basis[row, column]:.3e}, {size[column]:.3e} at most), which the reference "
+                f"conditions ({reference!r}) hold: the modes are not those of a model "
+                "constrained there",
+                item=f"grid {int(ids[dof // d])}",
+            )
+
+    if reference == "mean-axis":
+        _check_mean_axis(nodal, basis, numbers[chosen], where)
+
+    frequencies = _file_frequencies(results, numbers[chosen])
+    if frequency_tolerance is not None:
+        own = np.sqrt(np.clip(quotient[chosen], 0.0, None)) / (2.0 * np.pi)
+        off = np.abs(own - frequencies) > float(frequency_tolerance) * np.abs(frequencies)
+        if np.any(off):
+            j = int(np.flatnonzero(off)[0])
+            mode = int(numbers[chosen[j]])
+            raise InvalidModelError(
+                f"{where}: mode {mode} has {frequencies[j]:.6g} Hz in the OP2 file and "
+                f"{own[j]:.6g} Hz with the deck's stiffness and mass (more than "
+                f"{frequency_tolerance:.3g} apart): the deck is not the one analysed, its units "
+                "differ, or Nastran used another mass matrix (lumped unless PARAM,COUPMASS,1: "
+                "pass mass='lumped'); frequency_tolerance=None skips this check",
+                item=f"mode {mode}",
+            )
+    # A mean-axis frame is the frame of reference "none" (every coordinate kept) with modes
+    # that satisfy the Tisserand conditions, checked above.
+    body = nodal.with_modes(
+        "external",
+        len(chosen),
+        reference="none" if reference == "mean-axis" else reference,
+        reference_nodes=reference_nodes,
+        external_modes=basis[free],
+    )
+    metadata = dict(body.metadata)
+    metadata["source"] = f"{results.path} ({results.table}, modes "
+    metadata["source"] += f"{', '.join(str(int(m)) for m in numbers[chosen])})"
+    return _replace(
+        body,
+        frequencies=frequencies,
+        metadata=metadata,
+        reference=dataclasses.replace(body.reference, kind=reference),
+    )
+
+
+def _check_mean_axis(
+    nodal: FlexibleBodyData, basis: NDArray[np.float64], numbers: NDArray[np.int64], where: str
+) -> None:
+    """Raises `InvalidModelError` unless the modes are mass-orthogonal to the rigid motions
+    (the Tisserand conditions of a mean-axis frame) within ``MEAN_AXIS_COUPLING``."""
+    from .modal import rigid_modes
+
+    rigid = rigid_modes(np.asarray(nodal.nodes, dtype=float), nodal.dofs_per_node)
+    m_rigid = nodal.mass @ rigid
+    coupling = rigid.T @ (nodal.mass @ basis)
+    norms = np.sqrt(np.einsum("ij,ij->j", rigid, m_rigid))[:, None] * np.sqrt(
+        np.einsum("ij,ij->j", basis, nodal.mass @ basis)
+    )
+    relative = np.abs(coupling) / norms
+    if relative.max() > MEAN_AXIS_COUPLING:
+        motion, column = np.unravel_index(int(np.argmax(relative)), relative.shape)
+        names = ("x translation", "y translation", "z translation")
+        names += ("x rotation", "y rotation", "z rotation")
+        mode = int(numbers[column])
+        raise InvalidModelError(
+            f"{where}: mode {mode} is not mass-orthogonal to the rigid {names[motion]} of the "
+            f"body (coupling {relative.max():.2e} > {MEAN_AXIS_COUPLING:g}): not a free-free "
+            "mode of this mesh and mass matrix, so not a mean-axis frame; use "
+            "reference='none' (the modes as they are) or the constraints of the analysis "
+            "(reference='clamped')",
+            item=f"mode {mode}",
+        )
+
+
+def _shapes_on_nodes(
+    results: Op2Results, ids: NDArray[np.int64], systems: dict[int, NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """The eigenvectors (k, n, 6) of the grids `ids`, in the basic system."""
+    grids = results.point_types == 1
+    position = {int(g): k for k, g in enumerate(results.node_ids) if grids[k]}
+    missing = [int(g) for g in ids if int(g) not in position]
+    if missing:
+        raise UnknownItemError(
+            f"{results.path}: table {results.table} has no eigenvector of grid {missing[0]}, a "
+            f"node of the deck's elements ({len(missing)} grids missing: "
+            f"{_listing(missing)}): the results are not those of this mesh",
+            item=f"grid {missing[0]}",
+        )
+    shapes = results.eigenvectors[:, [position[int(g)] for g in ids], :].copy()
+    if not results.basic:
+        for k, g in enumerate(ids):
+            axes = systems.get(int(g))
+            if axes is not None:
+                shapes[:, k, :3] = shapes[:, k, :3] @ axes.T
+                shapes[:, k, 3:] = shapes[:, k, 3:] @ axes.T
+    return shapes
+
+
+def _chosen_modes(
+    modes: int | Sequence[int] | None,
+    numbers: NDArray[np.int64],
+    rigid: NDArray[np.bool_],
+    where: str,
+) -> NDArray[np.int64]:
+    """Indices of the eigenvectors kept."""
+    elastic = np.flatnonzero(~rigid)
+    if modes is None:
+        if len(elastic) == 0:
+            raise InvalidModelError(
+                f"{where}: every mode of the file is a rigid-body motion", item=f"file '{where}'"
+            )
+        return elastic
+    if isinstance(modes, int | np.integer) and not isinstance(modes, bool):
+        if modes < 1 or modes > len(elastic):
+            raise InvalidModelError(
+                f"{where}: {modes} elastic modes asked for, the file has {len(elastic)} "
+                f"(and {int(rigid.sum())} rigid-body modes)",
+                item=f"file '{where}'",
+            )
+        return elastic[: int(modes)]
+    out = []
+    for number in modes:
+        hits = np.flatnonzero(numbers == int(number))
+        if len(hits) == 0:
+            raise UnknownItemError(
+                f"{where}: no eigenvector of mode {number} (modes {_listing(numbers)})",
+                item=f"mode {number}",
+            )
+        if rigid[hits[0]]:
+            raise InvalidModelError(
+                f"{where}: mode {number} is a rigid-body motion; the body frame carries it",
+                item=f"mode {number}",
+            )
+        out.append(int(hits[0]))
+    if not out:
+        raise InvalidParameterError("modes: no mode numbers given", item="modes")
+    return np.array(out, dtype=np.int64)
+
+
+def _file_frequencies(results: Op2Results, numbers: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The frequencies (Hz) of the file's eigenvalue table for mode `numbers`."""
+    index = {int(m): k for k, m in enumerate(results.mode_numbers)}
+    out = []
+    for number in numbers:
+        if int(number) not in index:
+            raise UnknownItemError(
+                f"{results.path}: mode {int(number)} has an eigenvector but is not in the "
+                "eigenvalue table (LAMA)",
+                item=f"mode {int(number)}",
+            )
+        out.append(results.cycles[index[int(number)]])
+    return np.array(out, dtype=np.float64)
+
+
+__all__ = [
+    "EIGENVALUE_TABLES",
+    "EIGENVECTOR_TABLES",
+    "Op2Results",
+    "body_from_nastran",
+    "read_op2",
+]
