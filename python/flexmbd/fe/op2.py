@@ -61,6 +61,9 @@ from .body import FlexibleBodyData, _replace
 #: Tables whose eigenvector subtables (table code 7) are read; the basic-system ones first.
 EIGENVECTOR_TABLES = ("BOUGV1", "BOPHIG", "BOUG1", "OUGV1", "OPHIG", "OUG1")
 
+#: Displacement tables in SORT2 order: their eigenvectors are refused.
+SORT2_TABLES = ("OUGV2", "BOUGV2", "OUG2", "BOUG2", "OPHIG2")
+
 #: Eigenvalue tables of real modes.
 EIGENVALUE_TABLES = ("LAMA",)
 
@@ -353,13 +356,13 @@ class _Reader:
             subtables = self.subtables()
             if self.table in EIGENVALUE_TABLES:
                 self.eigenvalue_table(subtables)
-            elif self.table in EIGENVECTOR_TABLES:
+            elif self.table in EIGENVECTOR_TABLES or self.table in SORT2_TABLES:
                 self.eigenvector_table(subtables)
 
     def subtables(self) -> list[tuple[int, bytes]]:
         """(offset, logical record) of subtables 2, 3, ... of the current table. Only the
         tables read keep their bytes."""
-        keep = self.table in EIGENVALUE_TABLES or self.table in EIGENVECTOR_TABLES
+        keep = self.table in EIGENVALUE_TABLES + EIGENVECTOR_TABLES + SORT2_TABLES
         out: list[tuple[int, bytes]] = []
         number = -2
         start = self.at

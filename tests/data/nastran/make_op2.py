@@ -271,8 +271,7 @@ class Writer:
             cycles = np.sqrt(abs(value)) / (2 * np.pi)
             subtables.append(self.identification(21, 7, 1, j + 1, value, cycles, 8))
             rows = b"".join(
-                self.words("2i6f", int(g) * 10 + 1, 1, *shapes[j, k])
-                for k, g in enumerate(ids)
+                self.words("2i6f", int(g) * 10 + 1, 1, *shapes[j, k]) for k, g in enumerate(ids)
             )
             subtables.append(rows)
         self.table(name, subtables)
