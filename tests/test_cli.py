@@ -346,6 +346,21 @@ def test_info_summarizes_a_mesh_file(capsys):
     assert "group 'arm': 702 nodes; elements: 2054 tet4" in out
 
 
+def test_info_summarizes_the_modes_of_an_op2_file(capsys, tmp_path):
+    from pathlib import Path
+
+    op2 = Path(__file__).parent / "data" / "nastran" / "block_big.op2"
+    assert main(["info", str(op2)]) == 0
+    out = capsys.readouterr().out
+    assert "OP2 results block_big.op2: 32-bit, big-endian" in out
+    assert "eigenvectors: BOUGV1, subcase 1, 14 modes x 42 points (basic system)" in out
+    assert "                   7          2267.89                  1" in out
+    bad = tmp_path / "bad.op2"
+    bad.write_bytes(b"not an op2 file")
+    assert main(["info", str(bad)]) == 2
+    assert "not an OP2 file" in capsys.readouterr().err
+
+
 GAP = """
 name: gap
 gravity: [0, -9.81, 0]

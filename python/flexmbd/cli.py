@@ -5,7 +5,8 @@
   the run), a plot and an animation; Ctrl-C stops cleanly and keeps what was computed.
 * ``flexmbd preprocess MESH -o BODY.h5``: a deformable-body file from a mesh
   (``docs/preprocessor.md``).
-* ``flexmbd info FILE``: summarize a model, body or results file (or a built-in example).
+* ``flexmbd info FILE``: summarize a model, body, results, mesh or Nastran OP2 file (or a
+  built-in example).
 * ``flexmbd plot RESULTS`` and ``flexmbd animate RESULTS``: figures, ParaView series and
   rendered animations from a results file (``docs/plots-and-animations.md``).
 * ``flexmbd examples``: the built-in examples; ``flexmbd schema``: the model file schema.
@@ -420,6 +421,11 @@ def _info(args: argparse.Namespace) -> int:
 
         if path.suffix.lower() in MESH_FORMATS:
             return _info_mesh(path)
+        if path.suffix.lower() == ".op2":
+            from .fe.op2 import read_op2
+
+            print(read_op2(path).summary())
+            return 0
         import h5py
 
         if not h5py.is_hdf5(path):
@@ -948,7 +954,7 @@ def _main(argv: list[str] | None) -> int:
     info.add_argument(
         "file",
         help="model file (.yaml), body or results file (.h5), mesh file (.msh, .inp, .vtu, "
-        ".vtk), example, or study folder",
+        ".vtk), Nastran OP2 results (.op2: modes and frequencies), example, or study folder",
     )
     plot = sub.add_parser("plot", help="plot a results file, or an output of a study")
     plot.add_argument("results", help="results file (.h5) or study folder")
