@@ -559,7 +559,7 @@ MALFORMED = {
     "two body sources": (
         (POINT_MASS, FLEXIBLE + "    box: {lengths: [1.0, 1.0, 1.0], divisions: [1, 1, 1]}\n"),
         "model.yaml: line 3: bodies[0]: a flexible body needs exactly one of body_file, beam, "
-        "mesh, box, plate, cylinder (got beam, box)",
+        "mesh, nastran, box, plate, cylinder (got beam, box)",
     ),
     "elastic coordinates in other units": (
         (

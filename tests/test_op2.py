@@ -19,6 +19,7 @@ import scipy.linalg as sla
 import flexmbd as fm
 from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from flexmbd.fe import body_from_nastran, read_nastran, read_op2
+from flexmbd.model_file import simulate_model
 
 DATA = Path(__file__).parent / "data" / "nastran"
 BLOCK_FILES = ["block.op2", "block_big.op2", "block_64.op2", "block_geometry.op2"]
@@ -430,3 +431,57 @@ def test_several_subcases_need_a_choice(tmp_path):
     assert np.all(second.eigenvectors == 2.0)
     with pytest.raises(UnknownItemError, match="no eigenvectors of subcase 3"):
         read_op2(path, subcase=3)
+
+
+# Model files -----------------------------------------------------------------------------
+
+
+MODEL = """
+name: nastran pendulum
+gravity: [0, -9.81, 0]
+bodies:
+  - name: block
+    type: flexible
+    nastran: block.bdf
+    op2: block_64.op2
+    mode_count: 4
+markers:
+  - {name: pivot, body: ground}
+  - {name: corner, body: block, node: 1000}
+joints:
+  - {type: spherical, marker1: pivot, marker2: corner}
+simulation: {end_time: 0.05, step_size: 5.0e-4, output_interval: 0.005}
+"""
+
+
+def test_a_model_file_reads_the_deck_and_its_op2_modes(tmp_path, block, assert_close):
+    for name in ("block.bdf", "block_64.op2"):
+        shutil.copy(DATA / name, tmp_path / name)
+    path = tmp_path / "model.yaml"
+    path.write_text(MODEL)
+    result = simulate_model(path)
+    reference = fm.simulate(
+        pendulum(body_from_nastran(block[0], DATA / "block_64.op2", 4), 0),
+        end_time=0.05,
+        step_size=5e-4,
+        output_interval=0.005,
+    )
+    assert_close(result.coordinates, reference.coordinates, abs=1e-12, what="coordinates")
+    # A deck alone is preprocessed; op2 needs a deck; the deck has its material.
+    path.write_text(MODEL.replace("    op2: block_64.op2\n", "    modes: free-free\n"))
+    assert simulate_model(path).coordinates.shape == result.coordinates.shape
+    path.write_text(
+        MODEL.replace("nastran: block.bdf", "box: {lengths: [1, 1, 1], divisions: [1, 1, 1]}")
+    )
+    with pytest.raises(InvalidModelError, match="op2 results go with a Nastran deck"):
+        simulate_model(path)
+    path.write_text(
+        MODEL.replace(
+            "    op2:", "    material: {young_modulus: 1, poisson_ratio: 0.3, density: 1}\n    op2:"
+        )
+    )
+    with pytest.raises(InvalidModelError, match="material: not used with nastran"):
+        simulate_model(path)
+    path.write_text(MODEL.replace("    mode_count: 4", "    mode_count: 40"))
+    with pytest.raises(InvalidModelError, match="40 elastic modes asked for, the file has 8"):
+        simulate_model(path)

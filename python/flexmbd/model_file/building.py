@@ -275,7 +275,10 @@ _PREPROCESS_KEYS = (
     "interface_weights",
     "precision",
 )
-_SOURCES = ("body_file", "beam", "mesh", "box", "plate", "cylinder")
+_SOURCES = ("body_file", "beam", "mesh", "nastran", "box", "plate", "cylinder")
+
+#: Keys a Nastran deck gives itself.
+_DECK_KEYS = ("material", "section", "section_orientation", "shell_thickness")
 
 
 class _Builder:
@@ -568,6 +571,8 @@ class _Builder:
             straight_beam,
         )
 
+        if spec.op2 is not None and kind != "nastran":
+            raise self.fail(path + ("op2",), "op2 results go with a Nastran deck (`nastran`)")
         if kind == "body_file":
             for key in _PREPROCESS_KEYS:
                 if getattr(spec, key) is not None:
@@ -583,6 +588,8 @@ class _Builder:
             if units != si:
                 raise self.fail(path + ("body_file",), f"the body file is in {units}, not SI")
             return data
+        if kind == "nastran":
+            return self.nastran_body(spec, path)
         if spec.material is None:
             raise self.fail(path + ("material",), f"missing key 'material' (needed with {kind})")
         options = self.preprocess_options(spec, path)
@@ -637,6 +644,33 @@ class _Builder:
                 **extra,
             )
         return self.call(path, body_from_mesh, mesh, options.pop("material"), **options)
+
+    def nastran_body(self, spec: FlexibleBodySpec, path: Path_) -> Any:
+        """A body from a Nastran deck: preprocessed, or with the modes of its OP2 results."""
+        from ..fe import body_from_nastran, read_nastran
+
+        for key in _DECK_KEYS:
+            if getattr(spec, key) is not None:
+                raise self.fail(path + (key,), "not used with nastran: the deck defines it")
+        where = path + ("nastran",)
+        deck = self.call(where, read_nastran, self.file(str(spec.nastran), where))
+        options: dict[str, Any] = {}
+        renamed = {"mass_matrix": "mass"}
+        for key in _PREPROCESS_KEYS[4:]:
+            value = getattr(spec, key)
+            if value is not None:
+                options[renamed.get(key, key)] = value
+        if spec.op2 is None:
+            if spec.modes is None and spec.mode_count:
+                raise self.fail(path + ("mode_count",), "mode_count needs `modes`")
+            data = self.call(path, deck.body, **options)
+            return data.with_metadata(source=str(spec.nastran))
+        for key in ("modes", "interfaces", "interface_kind", "interface_weights"):
+            if key in options:
+                raise self.fail(path + (key,), "not used with op2: the modes are the file's")
+        results = self.file(str(spec.op2), path + ("op2",))
+        count = options.pop("mode_count", None)
+        return self.call(path + ("op2",), body_from_nastran, deck, results, count, **options)
 
     def preprocess_options(self, spec: FlexibleBodySpec, path: Path_) -> dict[str, Any]:
         """Keyword arguments of build_body / body_from_mesh (those given only)."""

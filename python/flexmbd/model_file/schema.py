@@ -362,9 +362,10 @@ class CylinderSpec(_Spec):
 
 class FlexibleBodySpec(_Spec):
     """A deformable body in the floating frame of reference (:meth:`System.add_flexible_body`)
-    from exactly one of `body_file`, `beam`, `mesh`, `box`, `plate` or `cylinder`. All but
-    `body_file` run the preprocessor (:func:`flexmbd.fe.build_body`) with `material` and the
-    options below."""
+    from exactly one of `body_file`, `beam`, `mesh`, `nastran`, `box`, `plate` or `cylinder`.
+    All but `body_file` run the preprocessor (:func:`flexmbd.fe.build_body`) with `material`
+    (a Nastran deck has its own) and the options below; a Nastran deck with `op2` takes its
+    modes from the OP2 results (:func:`flexmbd.fe.body_from_nastran`)."""
 
     type: Literal["flexible"]
     name: Name
@@ -379,6 +380,16 @@ class FlexibleBodySpec(_Spec):
         None,
         description="mesh file (Gmsh .msh, Abaqus .inp, VTK; relative to the model file), "
         "coordinates in the file's length unit",
+    )
+    nastran: str | None = Field(
+        None,
+        description="Nastran bulk data deck (.bdf, .dat, .nas; relative to the model file): "
+        "mesh, material, sections and node sets, its numbers taken as SI",
+    )
+    op2: str | None = Field(
+        None,
+        description="with `nastran`: the OP2 results of its normal modes analysis (SOL 103), "
+        "the body's modes (`mode_count`: the first ones; rigid-body modes left out)",
     )
     box: BoxSpec | None = None
     plate: PlateSpec | None = None
