@@ -226,6 +226,13 @@ def test_eigenvectors_in_the_grids_displacement_systems_are_turned_to_basic(
     body = body_from_nastran(deck, in_cd, **options)
     basic = body_from_nastran(beam, results, **options)
     assert_close(body.modes, basic.modes, abs=1e-12, what="modes")
+    # A CD system that is not a CORD2R: the deck reads, its OUGV1 modes cannot be turned.
+    other = tmp_path / "cylindrical.bdf"
+    # (grid 27, the tip, is no CBAR's GA, whose CD would also orient the CBAR)
+    other.write_text(turned.read_text().replace("GRID,27,,1.0,0.,0.,5", "GRID,27,,1.0,0.,0.,8"))
+    deck = read_nastran(other)
+    with pytest.raises(InvalidModelError, match="that of grid 27 .* not a rectangular CORD2R"):
+        body_from_nastran(deck, in_cd, **options)
 
 
 def pendulum(body, node):

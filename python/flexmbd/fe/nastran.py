@@ -159,7 +159,8 @@ class NastranDeck:
         matrices: DMIG name -> :class:`DmigMatrix`.
         displacement_systems: grid id -> (3, 3) axes (columns, in the basic system) of the
             grid's displacement system (GRID field CD), for the nodes with CD other than 0:
-            results in that system (OUGV1) are turned to the basic one by v = A v_CD.
+            results in that system (OUGV1) are turned to the basic one by v = A v_CD. NaN
+            for a system that is not a CORD2R of the deck.
     """
 
     mesh: Mesh
@@ -603,7 +604,11 @@ def _deck(cards: list[Card]) -> NastranDeck:
         grid = grids[int(g)]
         cd = grid.integer(6, 0, what="CD")
         if cd:
-            displacement[int(g)] = _axes(cd, systems, grid)
+            try:
+                displacement[int(g)] = _axes(cd, systems, grid)
+            except (UnknownItemError, InvalidModelError):
+                # Not a (chain of) CORD2R: NaN, refused only where results in it are used.
+                displacement[int(g)] = np.full((3, 3), np.nan)
     return NastranDeck(
         mesh, materials, properties, element_properties, orientations, matrices, displacement
     )

@@ -351,8 +351,11 @@ class _Reader:
             _, name = self.record()
             self.table = self.text(name)[:8].strip() or "(unnamed)"
             self.tables.append(self.table)
-            self.expect(-1, 7)
-            self.record()  # header record: 7 words
+            self.expect(-1)
+            start = self.at
+            if self.marker() < 1:  # the header record's length: 7 words
+                raise self.fail("expected the length of the table's header record", at=start)
+            self.record()
             subtables = self.subtables()
             if self.table in EIGENVALUE_TABLES:
                 self.eigenvalue_table(subtables)
@@ -798,6 +801,14 @@ def _shapes_on_nodes(
     if not results.basic:
         for k, g in enumerate(ids):
             axes = systems.get(int(g))
+            if axes is not None and not np.all(np.isfinite(axes)):
+                raise InvalidModelError(
+                    f"{results.path}: the eigenvectors of {results.table} are in the grids' "
+                    f"displacement systems, and that of grid {int(g)} (GRID field CD) is not a "
+                    "rectangular CORD2R system of the deck: write them in the basic system "
+                    "(BOUGV1)",
+                    item=f"grid {int(g)}",
+                )
             if axes is not None:
                 shapes[:, k, :3] = shapes[:, k, :3] @ axes.T
                 shapes[:, k, 3:] = shapes[:, k, 3:] @ axes.T
