@@ -39,7 +39,7 @@ Tables read:
   ``OUGV1`` in each grid's displacement system (GRID field CD).
 
 Every other table (geometry, stresses, forces, matrices, ...) and every other table code in
-the displacement tables is skipped. See ``docs/preprocessor.md``, "Nastran decks"."""
+the displacement tables is skipped. See ``docs/preprocessor.md``, "Nastran OP2 results"."""
 
 from __future__ import annotations
 
