@@ -332,3 +332,53 @@ def test_equilibrium_eliminating_large_nodal_bodies_equals_the_direct_solve(
     assert_close(eliminated.coordinates, direct.coordinates, abs=1e-12 * scale, what="coordinates")
     multipliers = direct.joint_multipliers(drive)
     assert_close(eliminated.joint_multipliers(drive), multipliers, rel=1e-10, what="multipliers")
+
+
+# Stability of equilibria ----------------------------------------------------------------------
+def test_a_double_pendulum_released_horizontal_settles_hanging_not_upright(assert_close):
+    # Newton's method alone ends with both links upright (stable=False keeps that answer and
+    # says it is unstable in both hinge angles); the default seeks the stable equilibrium:
+    # both links hanging, each stretched by the weight below it. Axial displacements of
+    # linear bar elements under their consistent loads are exact at the nodes:
+    # lower link d2 = m g L / (2 EA), upper d1 = (m g L + m g L / 2) / (EA).
+    example = fm.examples.flexible_double_pendulum(elements=4)
+    model = example.system.compile()
+    upright = fm.equilibrium(model, stable=False)
+    assert upright.stable is False and upright.unstable_directions == 2
+    assert_close(upright.orientation("upper link")[:, 0], [0, 1, 0], abs=1e-9)
+    hanging = fm.equilibrium(model)
+    assert hanging.stable is True and hanging.unstable_directions == 0
+    for link in ("upper link", "lower link"):
+        assert_close(hanging.orientation(link)[:, 0], [0, -1, 0], abs=1e-9)
+    ea = 7.0e10 * np.pi * 0.005**2
+    weight = 2700.0 * np.pi * 0.005**2 * 1.0 * 9.81
+    tip = hanging.node_positions("lower link")[-1]
+    expected = 2.0 + (weight + weight / 2) / ea + weight / 2 / ea
+    assert_close(tip[1], -expected, rel=1e-9)
+    assert fm.equilibrium(model, stable=True).coordinates == pytest.approx(hanging.coordinates)
+
+
+def test_the_stability_of_an_equilibrium_agrees_with_its_linearization(assert_close):
+    # A01's point mass on its link (a spherical pendulum): hanging, stable, the linearized
+    # motion swings at sqrt(g / l) in both free directions; upright, two unstable directions,
+    # and the linearization grows at sqrt(g / l) in both.
+    model = fm.examples.pendulum().system.compile()
+    hanging = fm.equilibrium(model)  # from the horizontal, where it has no stiffness
+    assert hanging.stable is True and hanging.unstable_directions == 0
+    assert_close(hanging.coordinates, [0, -1, 0], abs=1e-12)
+    upright = fm.equilibrium(model, coordinates=[0.01, 1.0, 0.0], stable=False)
+    assert upright.stable is False and upright.unstable_directions == 2
+    assert_close(upright.coordinates, [0, 1, 0], abs=1e-12)
+    rate = np.sqrt(9.81)
+    growing = np.sort(fm.linearize(model, upright).eigenvalues()[0].real)
+    assert_close(growing, [-rate, -rate, rate, rate], rel=1e-9)
+    swinging = fm.linearize(model, hanging).eigenvalues()[0]
+    assert_close(np.sort(np.abs(swinging.imag)), [rate] * 4, rel=1e-9)
+    assert_close(swinging.real, np.zeros(4), abs=1e-9)
+    # The default from near the top still finds the hanging state; asked for, an exact
+    # upright start has no way down (its gradient is zero) and is refused.
+    assert_close(fm.equilibrium(model, coordinates=[0.01, 1, 0]).coordinates, [0, -1, 0], abs=1e-12)
+    with pytest.raises(EquilibriumError, match="stable equilibrium"):
+        fm.equilibrium(model, coordinates=upright.coordinates, stable=True, max_iterations=5)
+    with pytest.raises(InvalidParameterError, match="stable"):
+        fm.equilibrium(model, stable="yes")

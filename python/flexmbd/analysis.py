@@ -11,6 +11,8 @@ Both work on the augmented equations (seed eqs. 20, 25) through ``Model.evaluate
 
 from __future__ import annotations
 
+import logging
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -28,6 +30,8 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 Array = NDArray[np.float64]
+
+_log = logging.getLogger("flexmbd.analysis")
 
 
 def _model(model: _core.Model | _core.System) -> _core.Model:
@@ -162,7 +166,10 @@ def _newton_solve(
         factors.append(factor)
     if not factors:
         try:
-            return spla.spsolve(a.tocsc(), rhs)
+            with warnings.catch_warnings():
+                # An exactly singular matrix gives NaN, which the caller reports.
+                warnings.simplefilter("ignore", spla.MatrixRankWarning)
+                return spla.spsolve(a.tocsc(), rhs)
         except RuntimeError as exc:  # pragma: no cover - scipy raises on exact singularity
             raise InvalidModelError(f"equilibrium: singular matrix ({exc})") from exc
     eliminated = np.concatenate([columns for _, columns, _ in blocks])
@@ -191,6 +198,135 @@ def _newton_solve(
     return x
 
 
+def _static_multipliers(
+    model: _core.Model, time: float, q: Array, rigid: NDArray[np.bool_]
+) -> Array:
+    """The multipliers that balance the applied forces at q best (least squares of
+    C_q^T lambda = -residual at lambda = 0): Newton's first matrix then holds the stiffness of
+    the constraint forces (a pendulum started near upright sees its link compressed)."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    if nc == 0:
+        return np.zeros(0)
+    qd, qdd = _prescribed_rates(model, time, q, rigid)
+    ev = model.evaluate(time, q, qd, qdd, np.zeros(nc), position=1.0)
+    jacobian = _matrix(ev)[nq:, :nq].toarray()
+    lam = np.linalg.lstsq(jacobian.T, -ev["residual"][:nq], rcond=None)[0]
+    return lam if np.all(np.isfinite(lam)) else np.zeros(nc)
+
+
+#: Largest change of a body's Euler parameters in one iteration of the search for a stable
+#: equilibrium (about 0.2 rad of rotation).
+SEEK_TURN_LIMIT = 0.1
+
+#: Eigenvalues of the condensed Newton matrix within this fraction of the largest count as
+#: zero (neutral directions, redundant constraints) in the stability test.
+NEUTRAL = 1e-9
+
+
+def _euler_parameter_mask(layout: dict[str, Any]) -> NDArray[np.bool_]:
+    """True for the Euler parameters of the body frames."""
+    mask = np.zeros(layout["coordinate_count"], dtype=bool)
+    for b in layout["bodies"]:
+        if b["kind"] != "ground" and b["count"] >= 7:
+            mask[b["offset"] + 3 : b["offset"] + 7] = True
+    return mask
+
+
+def _unstable_directions(
+    a: sp.csc_matrix, nq: int, layout: dict[str, Any], factors: dict[int, Any] | None = None
+) -> int | None:
+    """The number of directions the constraints leave free in which the Newton matrix
+    a = [[K, C_q^T], [C_q, 0]] of a state at rest is not positive (see `_inertia`)."""
+    inertia = _inertia(a, nq, layout, factors)
+    return None if inertia is None else inertia[0]
+
+
+def _inertia(
+    a: sp.csc_matrix, nq: int, layout: dict[str, Any], factors: dict[int, Any] | None = None
+) -> tuple[int, int] | None:
+    """The numbers of negative and of zero eigenvalues of Z^T K Z (Z a basis of the null space
+    of C_q; K taken symmetric) for the Newton matrix a = [[K, C_q^T], [C_q, 0]], from the
+    inertia of a (Sylvester): n_-(a) = n_-(Z^T K Z) + rank C_q, n_0(a) = n_0(Z^T K Z) +
+    (rows of C_q - rank C_q). The elastic coordinates are eliminated first by a sparse LDL^T
+    (LU with symmetric pivoting, whose pivots carry the inertia of their block), the rest
+    (reference coordinates, multipliers) is dense. None when the pivots are not symmetric
+    (the inertia is then not known). `factors`: the kept factors of `_newton_solve`."""
+    import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
+
+    sym = ((a + a.T) * 0.5).tocsr()
+    mask = _elastic_mask(layout)
+    other = np.flatnonzero(np.concatenate([~mask, np.ones(a.shape[0] - nq, dtype=bool)]))
+    condensed = sym[other][:, other].toarray()
+    negative = zero = 0
+    # Large nodal bodies whose (symmetric positive definite) elastic block has a Cholesky
+    # factor from the Newton solves: positive pivots, eliminated through that factor.
+    rows = a.tocsr()
+    for index, (block, factor) in (factors or {}).items():
+        body = layout["bodies"][index]
+        columns = np.arange(body["offset"] + 7, body["offset"] + body["count"])
+        if block.shape != (len(columns),) * 2 or (rows[columns][:, columns] != block).nnz:
+            continue
+        coupling = sym[columns][:, other].toarray()
+        condensed -= coupling.T @ factor.solve(np.ascontiguousarray(coupling))
+        mask[columns] = False
+    elastic = np.flatnonzero(mask)
+    if len(elastic):
+        block = sym[elastic][:, elastic].tocsc()
+        try:
+            lu = spla.splu(
+                block,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
+        except RuntimeError:  # an exactly singular elastic block
+            return None
+        if not np.array_equal(lu.perm_r, lu.perm_c):
+            return None
+        pivots = lu.U.diagonal()
+        floor = NEUTRAL * float(np.max(np.abs(pivots)))
+        negative += int(np.sum(pivots < -floor))
+        zero += int(np.sum(np.abs(pivots) <= floor))
+        coupling = sym[elastic][:, other].toarray()
+        condensed -= coupling.T @ lu.solve(coupling)
+    values = sla.eigvalsh(condensed)
+    floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
+    negative += int(np.sum(values < -floor))
+    zero += int(np.sum(np.abs(values) <= floor))
+    jacobian = a[nq:, :nq].toarray()
+    rank = int(np.linalg.matrix_rank(jacobian)) if jacobian.size else 0
+    return max(negative - rank, 0), max(zero - (jacobian.shape[0] - rank), 0)
+
+
+def _shifted_to_stable(
+    a: sp.csc_matrix,
+    nq: int,
+    layout: dict[str, Any],
+    rigid: NDArray[np.bool_],
+    factors: dict[int, Any],
+) -> sp.csc_matrix:
+    """The Newton matrix with the smallest shift s (a power of 4 times 1e-6 of its largest
+    reference-coordinate diagonal entry, at least 1e-6) added to the diagonal of the
+    reference coordinates that makes it positive definite in every free direction; a
+    unchanged when it is."""
+    import scipy.sparse as sp
+
+    if _inertia(a, nq, layout, factors) == (0, 0):
+        return a
+    shift_rows = np.zeros(a.shape[0])
+    shift_rows[:nq][rigid] = 1.0
+    diagonal = np.abs(a.diagonal()[:nq][rigid])
+    shift = 1e-6 * max(float(np.max(diagonal, initial=0.0)), 1.0)
+    shifted = a
+    for _ in range(40):
+        shifted = (a + sp.diags(shift * shift_rows)).tocsc()
+        if _inertia(shifted, nq, layout, factors) == (0, 0):
+            break
+        shift *= 4.0
+    return shifted
+
+
 def _residual_bodies(layout: dict[str, Any], residual: Array, count: int = 3) -> list[str]:
     """Names of the bodies with the largest |residual| entries, largest first."""
     sizes = []
@@ -210,6 +346,7 @@ def equilibrium(
     coordinates: Array | None = None,
     tolerance: float = 1e-10,
     max_iterations: int = 100,
+    stable: bool | None = None,
 ) -> EquilibriumState:
     """Static equilibrium, or steady equilibrium under the prescribed motion of the drivers
     at `time`: every elastic coordinate at rest, the other coordinates moving as the drivers
@@ -233,13 +370,56 @@ def equilibrium(
     below `tolerance` (relative to the coordinates, at least 1). Raises
     :class:`flexmbd.errors.EquilibriumError` with the residual and the bodies that carry it
     when it does not converge, `InvalidModelError` when the stiffness matrix is singular.
+
+    Newton's method finds any equilibrium, also an unstable one: from the horizontal, a
+    double pendulum's iteration ends with both links upright. The state says which it found
+    (``stable``, ``unstable_directions``: the stiffness at rest projected on the directions
+    the constraints leave free, from the inertia of the Newton matrix). `stable`:
+
+    - None (default): when Newton's method ends in an unstable equilibrium and no driver moves
+      at `time`, it starts again from the same coordinates and seeks a stable one (as below);
+      if it finds none, the unstable one is returned (and logged). Under moving drivers the
+      equilibrium is returned as found (a rotor's steady state may be held by its spin).
+    - True: seek a stable equilibrium from the start; `EquilibriumError` if none is found.
+    - False: the equilibrium Newton's method finds (to linearize about an inverted pendulum).
+
+    The search for a stable equilibrium is Newton's method with the stiffness of the
+    reference coordinates (positions and Euler parameters of the body frames) raised by a
+    shift where the projected stiffness is not positive definite, so that each step goes
+    down the potential, and with the body rotations limited to about 0.2 rad per iteration;
+    near a stable equilibrium no shift is needed and the iteration is Newton's again.
     """
     model = _model(model)
     time = number(time, "time")
+    if stable is not None and not isinstance(stable, bool):
+        raise InvalidParameterError(f"stable: True, False or None, got {stable!r}", item="stable")
     layout = model.describe()
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
     _check_drivers_at_start(model, time, q, layout)
-    return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations)
+    if stable:
+        return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
+    try:
+        state = _solve_equilibrium(model, time, q.copy(), layout, tolerance, max_iterations)
+    except InvalidModelError as singular:
+        # A direction without stiffness at the start (a rigid pendulum released from the
+        # horizontal): the search's shift gives it some.
+        if stable is not None:
+            raise
+        try:
+            return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
+        except (EquilibriumError, InvalidModelError):
+            raise singular from None
+    if stable is None and state.stable is False and not np.any(state.velocities != 0.0):
+        try:
+            return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
+        except EquilibriumError as error:
+            _log.warning(
+                "equilibrium: found an unstable equilibrium (%d unstable directions) and no "
+                "stable one from the starting coordinates (%s)",
+                state.unstable_directions,
+                error,
+            )
+    return state
 
 
 def _solve_equilibrium(
@@ -249,13 +429,16 @@ def _solve_equilibrium(
     layout: dict[str, Any],
     tolerance: float = 1e-10,
     max_iterations: int = 100,
+    seek: bool = False,
 ) -> EquilibriumState:
-    """Newton's method of :func:`equilibrium` from `q` (the drivers checked at `time`)."""
+    """Newton's method of :func:`equilibrium` from `q` (the drivers checked at `time`); with
+    `seek`, the search for a stable equilibrium described there."""
 
     flexible = model.flexible_bodies
     nq, nc = model.coordinate_count, model.constraint_count
     rigid = ~_elastic_mask(layout)
-    lam = np.zeros(nc)
+    rotations = _euler_parameter_mask(layout)
+    lam = _static_multipliers(model, time, q, rigid)
     scale = max(1.0, float(np.max(np.abs(q))))
     step = np.inf
     residual = np.zeros(nq + nc)
@@ -264,18 +447,30 @@ def _solve_equilibrium(
         qd, qdd = _prescribed_rates(model, time, q, rigid)
         ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
         residual = ev["residual"]
-        delta = _newton_solve(_matrix(ev), -residual, layout, flexible, kept_factors)
+        matrix = _matrix(ev)
+        truncated = False
+        if seek:
+            matrix = _shifted_to_stable(matrix, nq, layout, rigid, kept_factors)
+        delta = _newton_solve(matrix, -residual, layout, flexible, kept_factors)
         if not np.all(np.isfinite(delta)):
             raise InvalidModelError(
                 "equilibrium: the stiffness matrix is singular (a free motion without "
                 "stiffness, or redundant constraints)"
             )
+        if seek:
+            turn = float(np.max(np.abs(delta[:nq][rotations]), initial=0.0))
+            if turn > SEEK_TURN_LIMIT:
+                delta *= SEEK_TURN_LIMIT / turn
+                truncated = True
         q += delta[:nq]
         lam += delta[nq:]
         step = float(np.max(np.abs(delta[:nq]))) / scale
-        if step <= tolerance:
+        if step <= tolerance and not truncated:
             qd, qdd = _prescribed_rates(model, time, q, rigid)
-            final = model.evaluate(time, q, qd, qdd, lam)["residual"]
+            final = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+            unstable = _unstable_directions(_matrix(final), nq, layout, kept_factors)
+            if seek and unstable:
+                continue  # a saddle reached exactly: the shift pushes off it
             return EquilibriumState(
                 time,
                 q,
@@ -285,13 +480,17 @@ def _solve_equilibrium(
                 layout=layout,
                 flexible=flexible,
                 iterations=iteration,
-                residual=float(np.max(np.abs(final))),
+                residual=float(np.max(np.abs(final["residual"]))),
+                stable=None if unstable is None else unstable == 0,
+                unstable_directions=unstable or 0,
             )
     bodies = _residual_bodies(layout, residual[:nq])
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
+    what = " to a stable equilibrium" if seek else ""
     raise EquilibriumError(
-        f"equilibrium: no convergence in {max_iterations} iterations (last relative increment "
-        f"{step:.2e}, residual {largest:.3e}, largest in bodies {', '.join(bodies) or 'none'})",
+        f"equilibrium: no convergence{what} in {max_iterations} iterations (last relative "
+        f"increment {step:.2e}, residual {largest:.3e}, largest in bodies "
+        f"{', '.join(bodies) or 'none'})",
         residual=largest,
         bodies=bodies,
         time=time,

@@ -231,7 +231,15 @@ class EquilibriumState(State):
     Attributes (besides those of `State`):
         iterations: Newton iterations taken.
         residual: largest |residual| of the equations of motion at the solution.
+        stable: whether the equilibrium is stable: the stiffness of the equations at rest
+            (gravity, springs, elastic and constraint-force terms, centrifugal softening
+            under a steady drive) is positive definite in the directions the constraints
+            leave free; None where it was not determined.
+        unstable_directions: the number of free directions in which it is not (an inverted
+            double pendulum: 2).
     """
 
     iterations: int = 0
     residual: float = 0.0
+    stable: bool | None = None
+    unstable_directions: int = 0
