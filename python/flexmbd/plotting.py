@@ -475,15 +475,29 @@ def plot_reactions(
     return _finish(ax, f"|{kind}| ({unit})", f"Reaction {kind}s (magnitudes)")
 
 
+#: A reaction force (N) or torque (N m) at most this fraction of the other (times 1 m) is
+#: round-off next to it (an angle driver's force, a spherical joint's torque): not drawn.
+REACTION_ROUND_OFF = 1e-8
+
+
+def _above_round_off(value: float, other: float) -> bool:
+    """Whether a reaction's largest |value| is more than round-off next to the other kind's."""
+    return value > REACTION_ROUND_OFF * other
+
+
+def _largest(values: Array) -> float:
+    return float(np.max(np.abs(values), initial=0.0))
+
+
 def _torques_matter(result: Any) -> bool:
-    """Whether any joint but a driver transmits a reaction torque above round-off (relative
-    to its reaction forces times 1 mm)."""
+    """Whether any joint but a driver transmits a reaction torque above round-off next to
+    the joints' reaction forces."""
     joints = _reaction_joints(result)
     if not joints:
         return False
-    torque = max(float(np.max(np.abs(result.reaction_torque(j)), initial=0.0)) for j in joints)
-    force = max(float(np.max(np.abs(result.reaction_force(j)), initial=0.0)) for j in joints)
-    return torque > 1e-9 * max(force * 1e-3, 1e-12)
+    torque = max(_largest(result.reaction_torque(j)) for j in joints)
+    force = max(_largest(result.reaction_force(j)) for j in joints)
+    return _above_round_off(torque, force) and torque > 0.0
 
 
 #: Driver types, the unit of their efforts and what the effort is.
@@ -786,14 +800,13 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
         return [lambda ax, k=k: _plot_stress_panel(result, body, k, ax) for k in kinds]
     if kind == "reaction":
         joint = resolve_item(result, "joints", rest)
-        # A reaction that is round-off next to the other (an angle driver's force, a spherical
-        # joint's torque; relative to the other times 1 m) gets no panel.
-        force = float(np.max(np.abs(result.reaction_force(joint)), initial=0.0))
-        torque = float(np.max(np.abs(result.reaction_torque(joint)), initial=0.0))
+        # A reaction that is round-off next to the other gets no panel.
+        force = _largest(result.reaction_force(joint))
+        torque = _largest(result.reaction_torque(joint))
         panels = []
-        if force > 1e-8 * torque or force == torque == 0.0:
+        if _above_round_off(force, torque) or force == torque == 0.0:
             panels.append(lambda ax: plot_reaction(result, joint, "force", ax))
-        if torque > 1e-8 * force:
+        if _above_round_off(torque, force):
             panels.append(lambda ax: plot_reaction(result, joint, "torque", ax))
         return panels
     sensor = resolve_item(result, "sensors", rest)
