@@ -281,9 +281,7 @@ def _spin_up_hub_angle(t: float) -> tuple[float, float, float]:
     return ws * (t - ts / 2), ws, 0.0
 
 
-def spin_up(
-    geometric_stiffness: bool | str = True, elements: int = 10, bodies: int = 1
-) -> Example:
+def spin_up(geometric_stiffness: bool | str = True, elements: int = 10, bodies: int = 1) -> Example:
     """Reference R3 (Kane, Ryan and Banerjee 1987): a 10 m beam (EA = 2.8e7 N,
     EI = 1.4e4 N m^2, rho A = 1.2 kg/m) clamped to a hub whose angle is prescribed,
     theta = (Ws/Ts) [t^2/2 + (Ts/2 pi)^2 (cos(2 pi t/Ts) - 1)] up to Ts = 15 s, then Ws = 6 rad/s.

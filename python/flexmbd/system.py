@@ -583,9 +583,7 @@ class System(_core.System):
             _stiffening_elements(body, basis, item) if stiffening_kind == "von-karman" else None
         )
         corotational = (
-            _corotational_elements(body, basis, item)
-            if stiffening_kind == "corotational"
-            else None
+            _corotational_elements(body, basis, item) if stiffening_kind == "corotational" else None
         )
         # Nodes of the elastic coordinates of nodal bodies: the geometric nested-dissection
         # ordering of their factorizations.
