@@ -95,6 +95,22 @@ def test_a_large_deflection_cantilever_converges_to_the_elastica(assert_close):
     assert abs(von_karman[1] - y) / abs(y) > 0.1
 
 
+@pytest.mark.parametrize("angle", [np.pi / 8, np.pi / 4])
+def test_bending_in_an_oblique_plane_is_the_planar_elastica(angle):
+    # A round section loaded at its tip in a plane at `angle` to the section axes bends as in
+    # the x-y plane: the chord's swing is the exact rotation for any plane through the axis.
+    load = 3.6
+    planar = static_tip(8, "corotational", load)
+    system = fm.System()
+    beam = system.add_flexible_body(cantilever_data(8), geometric_stiffness="corotational")
+    system.add_fixed_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
+    direction = np.array([0.0, -np.cos(angle), -np.sin(angle)])
+    system.add_point_force(system.add_node_marker(beam, 9), tuple(load * direction))
+    tip = fm.equilibrium(system.compile()).node_positions(beam)[-1]
+    expected = np.array([planar[0], *(-planar[1] * direction[1:])])
+    np.testing.assert_allclose(tip, expected, rtol=0, atol=1e-10)
+
+
 def test_the_local_stiffness_is_the_preprocessors(assert_close):
     # The co-rotational elements subtract their linear part e^T K e / 2, which must be the
     # body's K_ff exactly: a tilted 3D Timoshenko beam with its own section orientation.
