@@ -1,11 +1,13 @@
 """Spin-up R3 under refinement (issue 30, item c): where the single-body FFRF beam converges,
 and an independent geometrically exact model of the same beam.
 
-    python benchmarks/spin_up_refinement.py            # about 40 s (80 elements: 17 s of it)
-    python benchmarks/spin_up_refinement.py --quick    # without the 80-element run
+    python benchmarks/spin_up_refinement.py            # about 80 s (80 elements: 50 s of it)
+    python benchmarks/spin_up_refinement.py --quick    # without the 80-element runs
 
 Prints min v_tip (m) of
-1. the built-in example (one deformable body, nodal, geometric stiffness) at 10-80 elements;
+1. the built-in example (one deformable body, nodal, geometric stiffness) at 10-80 elements,
+   with the von Karman strain (`geometric_stiffness=True`) and with the co-rotational beam
+   (`geometric_stiffness="corotational"`);
 2. the same beam as 2, 4, 8 deformable bodies joined by fixed joints (40 elements in all;
    `flexmbd.examples.spin_up(bodies=...)`);
 3. a chain of rigid links with rotational springs (a Hencky chain: EI/Le between links,
@@ -141,33 +143,38 @@ def quasi_static(t: float = 6.75) -> None:
             load[block] += w * le * (-RHO_A * accel * x) * shape
     linear = np.linalg.solve((stiffness - speed**2 * mass)[2:, 2:], load[2:])[-2]
 
-    example = fm.examples.spin_up(elements=40)
-    model = example.system.compile()
-    q = np.array(model.initial_coordinates)
-    q[3:7] = [np.cos(theta / 2), 0, 0, np.sin(theta / 2)]  # the hub's angle at t
-    state = fm.equilibrium(model, t, coordinates=q)
-    ffrf = state.node_displacements(example.items["beam"])[-1, 1]
+    ffrf = {}
+    for kind in (True, "corotational"):
+        example = fm.examples.spin_up(geometric_stiffness=kind, elements=40)
+        model = example.system.compile()
+        q = np.array(model.initial_coordinates)
+        q[3:7] = [np.cos(theta / 2), 0, 0, np.sin(theta / 2)]  # the hub's angle at t
+        state = fm.equilibrium(model, t, coordinates=q)
+        ffrf[kind] = state.node_displacements(example.items["beam"])[-1, 1]
     print(
         f"quasi-static v_tip at t = {t} s: exact elastica {exact:.5f}, linear theory "
         f"{linear:.5f} ({linear / exact - 1:+.2%}), "
-        f"FFRF beam (40 el.) {ffrf:.5f} ({ffrf / exact - 1:+.2%})"
+        f"FFRF beam (40 el.) von Karman {ffrf[True]:.5f} ({ffrf[True] / exact - 1:+.2%}), "
+        f"co-rotational {ffrf['corotational']:.5f} ({ffrf['corotational'] / exact - 1:+.3%})"
     )
 
 
 def main() -> None:
     quick = "--quick" in sys.argv
     print(f"R3 reference min v_tip = {REFERENCE} m at 6.75 s")
-    for n in (10, 20, 40) if quick else (10, 20, 40, 80):
-        example = fm.examples.spin_up(elements=n)
-        result, seconds = run(example.system)
-        tip = result.node_positions(example.items["beam"], [n + 1])[:, 0, :]
-        v, t = lag(result, tip)
-        steps = result.statistics
-        print(
-            f"one body, {n:2d} elements: min v_tip {v:.5f} at {t:.2f} s "
-            f"({v / REFERENCE - 1:+.2%}); "
-            f"{seconds:.1f} s, {steps['steps']} steps, {steps['rejected_steps']} rejected"
-        )
+    for kind in (True, "corotational"):
+        for n in (10, 20, 40) if quick else (10, 20, 40, 80):
+            example = fm.examples.spin_up(geometric_stiffness=kind, elements=n)
+            result, seconds = run(example.system)
+            tip = result.node_positions(example.items["beam"], [n + 1])[:, 0, :]
+            v, t = lag(result, tip)
+            steps = result.statistics
+            label = "von Karman" if kind is True else kind
+            print(
+                f"one body ({label}), {n:2d} elements: min v_tip {v:.5f} at {t:.2f} s "
+                f"({v / REFERENCE - 1:+.3%}); "
+                f"{seconds:.1f} s, {steps['steps']} steps, {steps['rejected_steps']} rejected"
+            )
     for parts in (2, 4, 8):
         example = fm.examples.spin_up(elements=40, bodies=parts)
         result, seconds = run(example.system)

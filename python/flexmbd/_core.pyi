@@ -206,6 +206,7 @@ class System:
         elastic_coordinates: NDArray[np.float64] | None = None,
         elastic_velocities: NDArray[np.float64] | None = None,
         stiffening: Sequence[tuple[Any, Any, float, float]] | None = None,
+        corotational: Sequence[tuple[Any, Any, float, Any]] | None = None,
         dof_nodes: NDArray[np.int64] | None = None,
         node_positions: NDArray[np.float64] | None = None,
         condense: bool | None = None,
@@ -521,6 +522,13 @@ def body_mass_points(
 def shell_membrane_stiffening(
     nodes: NDArray[np.float64], shell: ShellSection, material: Material
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+def beam_corotational_terms(
+    nodes: NDArray[np.float64],
+    section: Section,
+    material: Material,
+    orientation: list[float] | None = None,
+    shear: bool = False,
+) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]: ...
 
 class SymmetricFactor:
     def __init__(

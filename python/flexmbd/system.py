@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from ._checks import flag, number, numbers_array, value_text
+from ._checks import choice, flag, number, numbers_array, value_text
 from .errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -224,6 +224,79 @@ def _stiffening_elements(
     return elements
 
 
+GEOMETRIC_STIFFNESS = ("von-karman", "corotational")
+"""The kinds of `System.add_flexible_body(geometric_stiffness=...)` besides True and False."""
+
+
+def geometric_stiffness_kind(value: Any, item: str) -> str | None:
+    """The `geometric_stiffness` option: False -> None, True -> "von-karman", or one of
+    `GEOMETRIC_STIFFNESS`; another value is an `ArgumentTypeError` (not a bool or a string) or
+    an `InvalidParameterError` (another string), naming the parameter and the body."""
+    if isinstance(value, bool | np.bool_):
+        return "von-karman" if value else None
+    if not isinstance(value, str):
+        raise ArgumentTypeError(
+            f"{item}: geometric_stiffness must be True, False, 'von-karman' or 'corotational', "
+            f"got {value_text(value)}",
+            item="geometric_stiffness",
+        )
+    return choice(value, "geometric_stiffness", GEOMETRIC_STIFFNESS, item)
+
+
+def _corotational_elements(
+    body: FlexibleBodyData, basis: sp.csr_matrix, item: str
+) -> list[tuple[Any, ...]]:
+    """The elements of the co-rotational elastic forces (`body/corotational.rs`): for each
+    beam, the map (12, n_l) from the elastic coordinates to its nodal coordinates in the
+    element's axes (those of its section), its length and its local stiffness matrix."""
+    from .fe.body_variants import _section
+
+    if body.modes is not None:
+        raise InvalidModelError(
+            f"{item}: geometric_stiffness='corotational' needs a nodal body (its nodal "
+            "translations are the exact positions the chords are measured from); this body is "
+            "modal: use geometric_stiffness=True (von Karman) or build it without modes",
+            item=item,
+        )
+    if body.shell is not None and any(
+        len(body.elements.get(kind, ())) for kind in ("quad4", "tri3")
+    ):
+        raise InvalidModelError(
+            f"{item}: geometric_stiffness='corotational' is available for beams only; the body "
+            "has shell elements: use geometric_stiffness=True (von Karman) for shells",
+            item=item,
+        )
+    conn = body.elements.get("beam2")
+    if conn is None or len(conn) == 0 or body.section is None:
+        raise InvalidModelError(
+            f"{item}: geometric_stiffness='corotational' is available for beam elements; the "
+            "body has none",
+            item=item,
+        )
+    section, orientation, theory = _section(body)
+    material = _core.Material(
+        body.material["young_modulus"], body.material["poisson_ratio"], body.material["density"]
+    )
+    d = body.dofs_per_node
+    elements: list[tuple[Any, ...]] = []
+    for a, b in np.asarray(conn, dtype=np.int64):
+        nodes = np.ascontiguousarray(body.nodes[[a, b]], dtype=float)
+        axes, length, stiffness = _core.beam_corotational_terms(
+            nodes,
+            section,
+            material,
+            None if orientation is None else list(orientation),
+            theory == "timoshenko",
+        )
+        rows = np.concatenate([np.arange(n * d, n * d + 6) for n in (a, b)])
+        local = np.kron(np.eye(4), np.asarray(axes)) @ basis[rows].toarray()
+        columns = np.flatnonzero(np.any(local != 0, axis=0)).astype(np.int64)
+        elements.append(
+            (columns, np.ascontiguousarray(local[:, columns]), float(length), stiffness)
+        )
+    return elements
+
+
 class System(_core.System):
     """A multibody system under construction. Body 0 (``system.ground``) is the fixed frame.
 
@@ -381,7 +454,7 @@ class System(_core.System):
         elastic_velocities: ArrayLike | None = None,
         rayleigh_damping: tuple[float, float] | None = None,
         modal_damping: float | None = None,
-        geometric_stiffness: bool = False,
+        geometric_stiffness: bool | str = False,
         condense: bool | None = None,
         name: str | None = None,
     ) -> _core.BodyId:
@@ -404,7 +477,15 @@ class System(_core.System):
         geometric stiffness of the axial force; and of the shell elements: the membrane
         strains with the von Karman terms of the deflection. Needed for beams and plates that
         rotate fast (without it a beam spun beyond its first bending frequency diverges).
-        Modal bodies need axial (membrane) modes for it to act.
+        Modal bodies need axial (membrane) modes for it to act. ``"von-karman"`` is the same
+        as True. ``geometric_stiffness="corotational"`` (nodal beam bodies) instead measures
+        each beam element's energy in the frame of its current chord (axial stretch from the
+        chord length, bending and torsion from the nodal rotations relative to the chord's
+        rotation): exact for any turn of an element within the body in a plane of its section
+        axes, and the body converges to the geometrically exact beam under refinement, where
+        the von Karman strain stays slightly too flexible at large deflections (e.g. 0.4 % in
+        the spin-up R3); see ``docs/flexible-bodies.md`` for its limits in 3D. Modal bodies
+        and shells refuse it (`InvalidModelError` naming the body).
 
         `condense` (default: for bodies of at least 300 elastic coordinates) makes the linear
         solves of the integrator eliminate the elastic coordinates through the constant
@@ -418,8 +499,9 @@ class System(_core.System):
         the message names the body and the field. Raises `ArgumentTypeError` (an
         `InvalidParameterError`) naming the parameter for an argument of the wrong type:
         `elastic_coordinates` and `elastic_velocities` that are not numbers, a
-        `modal_damping` that is not a number, `geometric_stiffness` or `condense` that are
-        not True or False.
+        `modal_damping` that is not a number, `condense` that is not True or False, a
+        `geometric_stiffness` that is not True, False or a string (another string than
+        "von-karman" or "corotational": `InvalidParameterError`).
         """
         import scipy.sparse as sp
 
@@ -436,7 +518,7 @@ class System(_core.System):
             elastic_velocities = np.ascontiguousarray(
                 numbers_array(elastic_velocities, "elastic_velocities", item).ravel()
             )
-        geometric_stiffness = flag(geometric_stiffness, "geometric_stiffness", item)
+        stiffening_kind = geometric_stiffness_kind(geometric_stiffness, item)
         condense = None if condense is None else flag(condense, "condense", item)
         if modal_damping is not None:
             try:
@@ -497,7 +579,12 @@ class System(_core.System):
             damping = damping + sp.csc_matrix(self._modal_damping(body, modal_damping, item))
         i_kl = [_csc_tuple(inv.i_kl[k][j], n) for k in range(3) for j in range(3)]
         basis = elastic_basis(body)
-        stiffening = _stiffening_elements(body, basis, item) if geometric_stiffness else None
+        stiffening = (
+            _stiffening_elements(body, basis, item) if stiffening_kind == "von-karman" else None
+        )
+        corotational = (
+            _corotational_elements(body, basis, item) if stiffening_kind == "corotational" else None
+        )
         # Nodes of the elastic coordinates of nodal bodies: the geometric nested-dissection
         # ordering of their factorizations.
         dof_nodes = node_positions = scalar_mass = None
@@ -522,6 +609,7 @@ class System(_core.System):
             elastic_coordinates=elastic_coordinates,
             elastic_velocities=elastic_velocities,
             stiffening=stiffening,
+            corotational=corotational,
             dof_nodes=dof_nodes,
             node_positions=node_positions,
             condense=condense,

@@ -10,6 +10,7 @@ use std::sync::Arc;
 
 use common::{assert_close, Rng};
 use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
+use flexmbd_core::body::corotational::CorotationalBeam;
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
@@ -86,7 +87,7 @@ fn add_bodies(sys: &mut SystemBuilder, rng: &mut Rng) -> Vec<BodyId> {
 }
 
 /// A deformable body of six random mass points with `n` elastic coordinates, with a beam
-/// element of geometric stiffness if `stiffening`.
+/// element of geometric stiffness of each kind (von Karman, co-rotational) if `stiffening`.
 fn random_deformable_body(rng: &mut Rng, n: usize, stiffening: bool) -> FlexibleBody {
     let points = 6;
     let masses: Vec<f64> = (0..points).map(|_| 1.0 + 0.3 * rng.uniform()).collect();
@@ -104,6 +105,14 @@ fn random_deformable_body(rng: &mut Rng, n: usize, stiffening: bool) -> Flexible
     if stiffening {
         let map = (0..36).map(|_| rng.uniform()).collect();
         input.stiffening = vec![StiffeningElement::beam(vec![0, 2, 3], map, 0.7, 400.0)];
+        // And a co-rotational beam element (the other kind of geometric stiffness).
+        let section = flexmbd_core::fem::Section::new("beam", 4e-3, 1e-3, 2e-3, 1.5e-3).unwrap();
+        let material = flexmbd_core::fem::Material::new("beam", 1e5, 0.3, 1000.0).unwrap();
+        let beam = flexmbd_core::fem::Beam { section, orientation: Vec3([0.0, 1.0, 0.0]), shear: false };
+        let (_, length, k) =
+            beam.corotational_terms(&material, &[Vec3::ZERO, Vec3([0.7, 0.0, 0.0])]).unwrap();
+        let map = (0..36).map(|_| 2.0 * rng.uniform()).collect();
+        input.corotational = vec![CorotationalBeam::new(vec![1, 2, 4], map, length, k.concat())];
     }
     FlexibleBody::new("flexible", input).unwrap()
 }

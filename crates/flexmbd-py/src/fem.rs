@@ -522,6 +522,46 @@ pub fn shell_membrane_stiffening<'py>(
     )
 }
 
+/// The co-rotational terms of one beam element (see `flexmbd_core::body::corotational`): for
+/// its nodes (2, 3), section, material, section orientation (None: the preprocessor's
+/// default) and beam theory (`shear`: Timoshenko), returns `(axes (3, 3) rows x y z, length,
+/// stiffness (12, 12))`, the local stiffness matrix in those axes as the preprocessor
+/// assembles it.
+#[pyfunction]
+#[pyo3(signature = (nodes, section, material, orientation = None, shear = false))]
+pub fn beam_corotational_terms<'py>(
+    py: Python<'py>,
+    nodes: PyReadonlyArray2<'py, f64>,
+    section: &Section,
+    material: &Material,
+    orientation: Option<Vec<f64>>,
+    shear: bool,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let a = nodes.as_array();
+    if a.ncols() != 3 || a.nrows() != 2 {
+        return Err(invalid("beam element", "nodes must be a (2, 3) array"));
+    }
+    let x: Vec<Vec3> = a.rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect();
+    let orientation = match orientation {
+        Some(v) if v.len() == 3 => Vec3([v[0], v[1], v[2]]),
+        Some(v) => {
+            return Err(invalid("beam orientation", format!("expected 3 components, got {}", v.len())))
+        }
+        None => default_orientation(x[1] - x[0]),
+    };
+    let beam = fem::Beam { section: section.inner, orientation, shear };
+    let (axes, length, stiffness) =
+        beam.corotational_terms(&material.inner, &x).map_err(|e| invalid("beam element", e.to_string()))?;
+    PyTuple::new(
+        py,
+        [
+            PyArray1::from_vec(py, axes.0.concat()).reshape([3, 3])?.into_any(),
+            length.into_pyobject(py)?.into_any(),
+            PyArray1::from_vec(py, stiffness.concat()).reshape([12, 12])?.into_any(),
+        ],
+    )
+}
+
 /// Sparse symmetric factorization (Rust, faer): Cholesky of a positive definite matrix, or
 /// regularized LDL^T of a quasi-definite saddle-point matrix whose first `positive` unknowns
 /// form the definite block. The matrix is given as CSC arrays (only the lower triangle is

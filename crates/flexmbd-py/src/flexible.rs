@@ -2,6 +2,7 @@
 //! `add_flexible_body`, `add_node_marker` and `add_node_set_marker` of `flexmbd.System` turn a
 //! `FlexibleBodyData` into these calls).
 
+use flexmbd_core::body::corotational::CorotationalBeam;
 use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput, ScalarMass};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
@@ -112,6 +113,42 @@ fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Stiffening
     })
 }
 
+/// A co-rotational beam element from `(indices, map (12, n_l), length, stiffness (12, 12))`
+/// (see `flexmbd_core::body::corotational`).
+fn corotational_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<CorotationalBeam> {
+    let bad = || {
+        invalid(
+            item,
+            "co-rotational beam elements are (indices, map (12, n_l), length, stiffness (12, 12)) tuples",
+        )
+    };
+    let t = obj.cast::<PyTuple>().map_err(|_| bad())?;
+    if t.len() != 4 {
+        return Err(bad());
+    }
+    let indices: PyReadonlyArray1<i64> = t.get_item(0)?.extract()?;
+    let map: PyReadonlyArray2<f64> = t.get_item(1)?.extract()?;
+    let indices = indices
+        .as_slice()?
+        .iter()
+        .map(|&i| usize::try_from(i).map_err(|_| bad()))
+        .collect::<PyResult<Vec<_>>>()?;
+    let m = map.as_array();
+    if m.ncols() != indices.len() || m.nrows() != 12 {
+        return Err(bad());
+    }
+    let stiffness: PyReadonlyArray2<f64> = t.get_item(3)?.extract()?;
+    if stiffness.as_array().shape() != [12, 12] {
+        return Err(bad());
+    }
+    Ok(CorotationalBeam::new(
+        indices,
+        m.iter().copied().collect(),
+        t.get_item(2)?.extract()?,
+        stiffness.as_array().iter().copied().collect(),
+    ))
+}
+
 #[pymethods]
 impl System {
     /// Adds a deformable body from its invariants of motion (low level; use
@@ -122,7 +159,7 @@ impl System {
     #[pyo3(signature = (*, mass, first_moment, second_moment, i1, ibar, i_kl, stiffness, damping,
                         position = None, orientation = None, velocity = None, angular_velocity = None,
                         elastic_coordinates = None, elastic_velocities = None, stiffening = None,
-                        dof_nodes = None, node_positions = None, condense = None, scalar_mass = None,
+                        corotational = None, dof_nodes = None, node_positions = None, condense = None, scalar_mass = None,
                         name = None))]
     #[allow(clippy::too_many_arguments)]
     fn _add_flexible_body(
@@ -142,6 +179,7 @@ impl System {
         elastic_coordinates: Option<PyReadonlyArray1<f64>>,
         elastic_velocities: Option<PyReadonlyArray1<f64>>,
         stiffening: Option<Vec<Bound<'_, PyAny>>>,
+        corotational: Option<Vec<Bound<'_, PyAny>>>,
         dof_nodes: Option<PyReadonlyArray1<i64>>,
         node_positions: Option<PyReadonlyArray2<f64>>,
         condense: Option<bool>,
@@ -178,6 +216,11 @@ impl System {
                 .unwrap_or_default()
                 .iter()
                 .map(|e| stiffening_element(e, &item))
+                .collect::<PyResult<_>>()?,
+            corotational: corotational
+                .unwrap_or_default()
+                .iter()
+                .map(|e| corotational_element(e, &item))
                 .collect::<PyResult<_>>()?,
             dof_nodes: match dof_nodes {
                 Some(d) => Some(

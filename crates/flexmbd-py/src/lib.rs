@@ -44,6 +44,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fem::body_mass_points, m)?)?;
     m.add_function(wrap_pyfunction!(fem::recover_stresses, m)?)?;
     m.add_function(wrap_pyfunction!(fem::shell_membrane_stiffening, m)?)?;
+    m.add_function(wrap_pyfunction!(fem::beam_corotational_terms, m)?)?;
     m.add_class::<fem::SymmetricFactor>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -440,7 +440,11 @@ class FlexibleBodySpec(_Spec):
         None, description="[alpha (1/time), beta (time)]: D = alpha M_ff + beta K_ff"
     )
     modal_damping: float | None = Field(None, ge=0, description="damping ratio of every mode")
-    geometric_stiffness: bool = Field(False, description="stiffening of beams (seed section 6)")
+    geometric_stiffness: bool | Literal["von-karman", "corotational"] = Field(
+        False,
+        description="stiffening of beams and shells (seed section 6): true or 'von-karman', "
+        "or 'corotational' (nodal beam bodies: the geometrically exact elastic forces)",
+    )
     condense: bool | None = Field(None, description="condense the elastic coordinates")
 
 

@@ -6,6 +6,7 @@
 //! [R (3), p (4 Euler parameters)], a deformable body [R, p, q_f (n_f elastic coordinates)], a
 //! point mass [R (3)], the ground none.
 
+pub mod corotational;
 pub mod flexible;
 pub mod marker;
 pub mod point_mass;

@@ -190,6 +190,20 @@ impl Beam {
         k
     }
 
+    /// The data of the co-rotational elastic forces of the element (`body::corotational`):
+    /// its local axes (rows: x along the beam, y and z the section axes, in body
+    /// coordinates), its length and its local stiffness matrix (12 x 12, over [u1 v1 w1 thx1
+    /// thy1 thz1 u2 ...] in those axes, shear included for Timoshenko beams): the element's
+    /// share of K_ff is T^T K_local T with T the block diagonal of the axes.
+    pub fn corotational_terms(
+        &self,
+        material: &Material,
+        x: &[Vec3],
+    ) -> ElementResult<(Mat3, f64, [[f64; 12]; 12])> {
+        let (length, r) = self.frame(x)?;
+        Ok((r, length, self.local_stiffness(material, length)))
+    }
+
     /// Rotates a local 3 x 12 shape matrix to body axes: S_body = R^T S_local T, with T the
     /// block diagonal of R (rows of R: local axes in body coordinates).
     fn body_shape(r: &Mat3, local: &[[f64; 12]; 3]) -> Vec<f64> {

@@ -30,13 +30,14 @@ pub fn strain_energy(body: &FlexibleBody, q: &[f64]) -> f64 {
     let qf = &q[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf];
     let mut kq = vec![0.0; nf];
     body.stiffness.mul_vec_add(1.0, qf, &mut kq);
-    let nonlinear = add_stiffening(&body.stiffening, qf, &mut kq.clone(), None);
+    let nonlinear = add_stiffening(&body.stiffening, qf, &mut kq.clone(), None)
+        + add_corotational(&body.corotational, qf, &mut kq.clone(), None);
     0.5 * dot(qf, &kq) + nonlinear
 }
 
 /// Adds the elastic forces K_ff q_f + D_ff qf_dot (only with `linear`; see
 /// [`add_linear_elastic_forces`]) plus the nonlinear beam forces of the geometric stiffness
-/// to `out` (n_f) and, with `tangent = Some((position, velocity, values))`, their Jacobians
+/// (von Karman or co-rotational) to `out` (n_f) and, with `tangent = Some((position, velocity, values))`, their Jacobians
 /// position dF/dq_f + velocity dF/dqf_dot to the elastic pattern values.
 pub fn add_elastic_forces(
     body: &FlexibleBody,
@@ -55,9 +56,15 @@ pub fn add_elastic_forces(
             body.stiffness.add_to_pattern(position, values);
             body.damping.add_to_pattern(velocity, values);
             add_stiffening(&body.stiffening, qf, out, Some((position, values)));
+            if !body.corotational.is_empty() {
+                add_corotational(&body.corotational, qf, out, Some((position, values)));
+            }
         }
         None => {
             add_stiffening(&body.stiffening, qf, out, None);
+            if !body.corotational.is_empty() {
+                add_corotational(&body.corotational, qf, out, None);
+            }
         }
     }
 }

@@ -33,6 +33,7 @@
 //! coefficient matrices, so that large nodal bodies keep the sparsity of their mass matrix.
 //! Elastic forces -K_ff q_f - D_ff qf_dot and gravity (by virtual work) complete the body.
 
+use crate::body::corotational::{add_corotational, CorotationalBeam};
 use crate::body::stiffening::{add_stiffening, StiffeningElement};
 use crate::error::{FlexmbdError, Result};
 use crate::linalg::csc::Csc;
@@ -78,6 +79,9 @@ pub struct FlexibleBodyInput {
     pub damping: Csc,
     /// Beam elements of the geometric stiffness (elastic coupling); empty: linear elasticity.
     pub stiffening: Vec<StiffeningElement>,
+    /// Beam elements of the co-rotational elastic forces (`body::corotational`; nodal
+    /// bodies), the geometrically exact alternative to `stiffening`.
+    pub corotational: Vec<CorotationalBeam>,
     /// Node of each elastic coordinate (nodal bodies), for the fill-reducing ordering of
     /// the factorizations of large bodies (`linear_system::condensed`); None: minimum degree.
     pub dof_nodes: Option<Vec<usize>>,
@@ -166,6 +170,8 @@ pub struct FlexibleBody {
     pub damping: ElasticMatrix,
     /// Beam elements of the geometric stiffness (empty: linear elasticity).
     pub stiffening: Vec<StiffeningElement>,
+    /// Beam elements of the co-rotational elastic forces (empty: none).
+    pub corotational: Vec<CorotationalBeam>,
     /// Node of each elastic coordinate (for orderings), see [`FlexibleBodyInput`].
     pub dof_nodes: Option<Vec<usize>>,
     /// Node positions (for orderings).
@@ -342,8 +348,29 @@ impl FlexibleBodyInput {
                 });
             }
         }
+        for (k, el) in self.corotational.iter().enumerate() {
+            if !el.is_consistent(n) {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: item.to_string(),
+                    message: format!(
+                        "co-rotational beam element {k}: needs a 12 x n_l map over existing elastic \
+                         coordinates, a positive length and a symmetric 12 x 12 stiffness matrix, all \
+                         finite"
+                    ),
+                });
+            }
+        }
         Ok(())
     }
+}
+
+/// The positions of the (row, column) pairs of `indices` in `pattern`, row-major.
+fn block_positions(indices: &[usize], pattern: &ElasticPattern) -> Vec<usize> {
+    indices
+        .iter()
+        .flat_map(|&r| indices.iter().map(move |&c| (r, c)))
+        .map(|(r, c)| pattern.position(r, c))
+        .collect()
 }
 
 /// The stiffening elements with the positions of their (row, column) pairs in `pattern`.
@@ -352,12 +379,7 @@ fn placed_stiffening(
     pattern: &ElasticPattern,
 ) -> Vec<StiffeningElement> {
     for el in stiffening.iter_mut() {
-        el.positions = el
-            .indices
-            .iter()
-            .flat_map(|&r| el.indices.iter().map(move |&c| (r, c)))
-            .map(|(r, c)| pattern.position(r, c))
-            .collect();
+        el.positions = block_positions(&el.indices, pattern);
     }
     stiffening
 }
@@ -387,9 +409,18 @@ impl FlexibleBody {
         let mut all: Vec<&Csc> = input.i_kl.iter().collect();
         all.push(&input.stiffness);
         all.push(&input.damping);
-        let blocks: Vec<&[usize]> = input.stiffening.iter().map(|e| e.indices.as_slice()).collect();
+        let blocks: Vec<&[usize]> = input
+            .stiffening
+            .iter()
+            .map(|e| e.indices.as_slice())
+            .chain(input.corotational.iter().map(|e| e.indices.as_slice()))
+            .collect();
         let pattern = ElasticPattern::union(n, &all, &blocks);
         let stiffening = placed_stiffening(input.stiffening, &pattern);
+        let mut corotational = input.corotational;
+        for el in corotational.iter_mut() {
+            el.positions = block_positions(&el.indices, &pattern);
+        }
         // M_ff = sum_k I_kk and A_m = I_{m+1,m+2} - I_{m+2,m+1}.
         let mass_matrix = ElasticMatrix::new(
             i_kl_combination(&input.i_kl, &pattern, &[(1.0, 0), (1.0, 4), (1.0, 8)]),
@@ -413,6 +444,7 @@ impl FlexibleBody {
             stiffness: ElasticMatrix::new(input.stiffness, &pattern),
             damping: ElasticMatrix::new(input.damping, &pattern),
             stiffening,
+            corotational,
             dof_nodes: input.dof_nodes,
             node_positions: input.node_positions,
             condense: input.condense,
