@@ -225,10 +225,12 @@ def min_lag(elements: int, kind) -> float:
 
 
 def test_the_spin_up_converges_to_r3():
-    # One body, 10 elements: within 0.1 % of R3 (-0.5737 m; measured -0.57424), 20 closer
-    # still; von Karman's strain stays 0.3 % too flexible at 10 elements (-0.57530).
+    # One body: 10 elements -0.57424 m (+0.094 % of R3's -0.5737), 20 elements -0.57393
+    # (+0.040 %; the 0.1 % gate held with margin against changes of the solver's steps),
+    # converging; von Karman's strain stays 0.3 % too flexible at 10 elements (-0.57530).
     coarse, finer = min_lag(10, "corotational"), min_lag(20, "corotational")
-    assert abs(coarse / -0.5737 - 1) < 1e-3
+    assert abs(coarse / -0.5737 - 1) < 1.5e-3
+    assert abs(finer / -0.5737 - 1) < 0.7e-3
     assert abs(finer / -0.5737 - 1) < abs(coarse / -0.5737 - 1)
     assert min_lag(10, "von-karman") / -0.5737 - 1 > 2.5e-3
 
