@@ -110,6 +110,7 @@ fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Stiffening
         slopes: slopes.iter().copied().collect(),
         stiffness: stiffness.iter().copied().collect(),
         positions: Vec::new(),
+        sparse_map: None,
     })
 }
 

@@ -34,7 +34,7 @@
 //! Elastic forces -K_ff q_f - D_ff qf_dot and gravity (by virtual work) complete the body.
 
 use crate::body::corotational::{add_corotational, CorotationalBeam};
-use crate::body::stiffening::{add_stiffening, StiffeningElement};
+use crate::body::stiffening::{add_stiffening, SparseMap, StiffeningElement};
 use crate::error::{FlexmbdError, Result};
 use crate::linalg::csc::Csc;
 use crate::math::euler::{
@@ -380,6 +380,7 @@ fn placed_stiffening(
 ) -> Vec<StiffeningElement> {
     for el in stiffening.iter_mut() {
         el.positions = block_positions(&el.indices, pattern);
+        el.sparse_map = SparseMap::of(&el.map, el.local_count(), el.indices.len());
     }
     stiffening
 }
