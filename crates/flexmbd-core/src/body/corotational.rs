@@ -48,6 +48,8 @@
 //! The mass of the body is that of the linear FFRF body: exact for the nodal translations,
 //! linear in the rotation parameters (the rotary inertia of the sections).
 
+use crate::body::element_map::{add_tangent, gather, scatter, MappedElement, SparseMap};
+
 /// Positions of g = [ubar, phi_1, phi_2] in the element's 12 local coordinates (the rows of
 /// the local stiffness matrix that K7 keeps).
 const REDUCED: [usize; 7] = [6, 3, 4, 5, 9, 10, 11];
@@ -66,13 +68,30 @@ pub struct CorotationalBeam {
     /// Positions of the (indices[i], indices[j]) pairs in the body's elastic pattern, row-major
     /// n_l x n_l (filled when the body is built).
     pub positions: Vec<usize>,
+    /// The map's rows by their entries when they are few (filled when the body is built).
+    pub sparse_map: Option<SparseMap>,
+}
+
+impl MappedElement for CorotationalBeam {
+    fn indices(&self) -> &[usize] {
+        &self.indices
+    }
+    fn map(&self) -> &[f64] {
+        &self.map
+    }
+    fn positions(&self) -> &[usize] {
+        &self.positions
+    }
+    fn sparse_map(&self) -> Option<&SparseMap> {
+        self.sparse_map.as_ref()
+    }
 }
 
 impl CorotationalBeam {
     /// An element of length L with local stiffness matrix `stiffness` (12 x 12, row-major)
     /// over e = map q_l (map: 12 x n_l).
     pub fn new(indices: Vec<usize>, map: Vec<f64>, length: f64, stiffness: Vec<f64>) -> Self {
-        CorotationalBeam { indices, map, length, stiffness, positions: Vec::new() }
+        CorotationalBeam { indices, map, length, stiffness, positions: Vec::new(), sparse_map: None }
     }
 
     /// Whether the sizes agree (map 12 x n_l, stiffness 12 x 12 symmetric), the indices
@@ -356,32 +375,15 @@ pub fn add_corotational(
     mut tangent: Option<(f64, &mut [f64])>,
 ) -> f64 {
     let mut energy = 0.0;
-    let (mut f, mut k) = ([0.0; 12], [0.0; 144]);
+    let (mut e, mut f, mut k) = ([0.0; 12], [0.0; 12], [0.0; 144]);
     let mut kb = Vec::new();
     for el in elements {
-        let n = el.indices.len();
-        let e: [f64; 12] =
-            std::array::from_fn(|r| (0..n).map(|j| el.map[r * n + j] * qf[el.indices[j]]).sum());
+        gather(el, qf, &mut e);
         let want = tangent.is_some();
         energy += element_terms(el, &e, &mut f, if want { Some(&mut k) } else { None });
-        for j in 0..n {
-            out[el.indices[j]] += (0..12).map(|r| el.map[r * n + j] * f[r]).sum::<f64>();
-        }
+        scatter(el, &f, out);
         if let Some((w, values)) = tangent.as_mut() {
-            // B^T k B with B = map (12 x n_l).
-            kb.clear();
-            kb.resize(12 * n, 0.0);
-            for r in 0..12 {
-                for j in 0..n {
-                    kb[r * n + j] = (0..12).map(|s| k[r * 12 + s] * el.map[s * n + j]).sum();
-                }
-            }
-            for i in 0..n {
-                for j in 0..n {
-                    let v: f64 = (0..12).map(|r| el.map[r * n + i] * kb[r * n + j]).sum();
-                    values[el.positions[i * n + j]] += *w * v;
-                }
-            }
+            add_tangent(el, *w, &k, values, &mut kb);
         }
     }
     energy

@@ -7,6 +7,7 @@
 //! point mass [R (3)], the ground none.
 
 pub mod corotational;
+pub mod element_map;
 pub mod flexible;
 pub mod marker;
 pub mod point_mass;

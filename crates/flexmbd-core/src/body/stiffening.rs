@@ -37,6 +37,7 @@
 //! linear in its corner values), and S = area D_m: averaged over the element like the beam's,
 //! which keeps a bent element free of membrane locking.
 
+use crate::body::element_map::{add_tangent, gather, scatter, MappedElement, SparseMap};
 use crate::fem::beam::GAUSS4;
 
 /// One element of the stiffening (beam or shell).
@@ -58,46 +59,6 @@ pub struct StiffeningElement {
     /// The map's rows by their nonzero entries, when they are few (a nodal beam's rotation to
     /// element axes: at most three per row); filled when the body is built.
     pub sparse_map: Option<SparseMap>,
-}
-
-/// The rows of a map e = map q_l by their nonzero entries (row r: `entries[start[r]..start[r
-/// + 1]]` of (column, value)).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SparseMap {
-    start: Vec<usize>,
-    entries: Vec<(usize, f64)>,
-}
-
-/// A map row with more nonzero entries than this on average is used dense.
-const SPARSE_MAP_ROW: usize = 3;
-
-impl SparseMap {
-    /// The sparse rows of `map` (n_e x n_l, row-major) when they hold at most
-    /// `SPARSE_MAP_ROW` nonzero entries on average and fewer than the dense rows.
-    pub fn of(map: &[f64], ne: usize, nl: usize) -> Option<SparseMap> {
-        let nonzero = map.iter().filter(|v| **v != 0.0).count();
-        if ne == 0 || nonzero > SPARSE_MAP_ROW * ne || nonzero >= ne * nl {
-            return None;
-        }
-        let mut start = Vec::with_capacity(ne + 1);
-        let mut entries = Vec::with_capacity(nonzero);
-        start.push(0);
-        for r in 0..ne {
-            entries.extend(
-                map[r * nl..(r + 1) * nl]
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, v)| **v != 0.0)
-                    .map(|(j, v)| (j, *v)),
-            );
-            start.push(entries.len());
-        }
-        Some(SparseMap { start, entries })
-    }
-
-    fn row(&self, r: usize) -> &[(usize, f64)] {
-        &self.entries[self.start[r]..self.start[r + 1]]
-    }
 }
 
 /// A sparse row of 4 (index, value) entries.
@@ -240,18 +201,6 @@ pub fn element_terms(
     (0..m).map(|r| a[r] * sb[r] + 0.5 * b[r] * sb[r]).sum()
 }
 
-fn local(el: &StiffeningElement, qf: &[f64], e: &mut Vec<f64>) {
-    let n = el.indices.len();
-    let ne = el.local_count();
-    e.clear();
-    match &el.sparse_map {
-        Some(sm) => {
-            e.extend((0..ne).map(|r| sm.row(r).iter().map(|&(j, v)| v * qf[el.indices[j]]).sum::<f64>()))
-        }
-        None => e.extend((0..ne).map(|r| (0..n).map(|j| el.map[r * n + j] * qf[el.indices[j]]).sum::<f64>())),
-    }
-}
-
 /// Adds the nonlinear internal forces of all elements to `out` (n_f) and, with
 /// `tangent = Some((w, values))`, w times their tangent to the values of the elastic
 /// pattern. Returns the nonlinear part of the strain energy.
@@ -265,9 +214,10 @@ pub fn add_stiffening(
     let (mut e, mut f, mut k, mut kb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut scratch = Scratch::default();
     for el in elements {
-        let n = el.indices.len();
         let ne = el.local_count();
-        local(el, qf, &mut e);
+        e.clear();
+        e.resize(ne, 0.0);
+        gather(el, qf, &mut e);
         f.clear();
         f.resize(ne, 0.0);
         let want = tangent.is_some();
@@ -276,51 +226,27 @@ pub fn add_stiffening(
             k.resize(ne * ne, 0.0);
         }
         energy += element_terms(el, &e, &mut f, if want { Some(&mut k) } else { None }, &mut scratch);
-        if let Some(sm) = &el.sparse_map {
-            // f_l = map^T f and w map^T k map from the rows' few entries.
-            for (r, fr) in f.iter().enumerate() {
-                for &(j, v) in sm.row(r) {
-                    out[el.indices[j]] += v * fr;
-                }
-            }
-            if let Some((w, values)) = tangent.as_mut() {
-                for r in 0..ne {
-                    for s in 0..ne {
-                        let krs = *w * k[r * ne + s];
-                        if krs == 0.0 {
-                            continue;
-                        }
-                        for &(i, vi) in sm.row(r) {
-                            for &(j, vj) in sm.row(s) {
-                                values[el.positions[i * n + j]] += vi * krs * vj;
-                            }
-                        }
-                    }
-                }
-            }
-            continue;
-        }
-        for j in 0..n {
-            out[el.indices[j]] += (0..ne).map(|r| el.map[r * n + j] * f[r]).sum::<f64>();
-        }
+        scatter(el, &f, out);
         if let Some((w, values)) = tangent.as_mut() {
-            // B^T k B with B = map (n_e x n_l).
-            kb.clear();
-            kb.resize(ne * n, 0.0);
-            for r in 0..ne {
-                for j in 0..n {
-                    kb[r * n + j] = (0..ne).map(|s| k[r * ne + s] * el.map[s * n + j]).sum();
-                }
-            }
-            for i in 0..n {
-                for j in 0..n {
-                    let v: f64 = (0..ne).map(|r| el.map[r * n + i] * kb[r * n + j]).sum();
-                    values[el.positions[i * n + j]] += *w * v;
-                }
-            }
+            add_tangent(el, *w, &k, values, &mut kb);
         }
     }
     energy
+}
+
+impl MappedElement for StiffeningElement {
+    fn indices(&self) -> &[usize] {
+        &self.indices
+    }
+    fn map(&self) -> &[f64] {
+        &self.map
+    }
+    fn positions(&self) -> &[usize] {
+        &self.positions
+    }
+    fn sparse_map(&self) -> Option<&SparseMap> {
+        self.sparse_map.as_ref()
+    }
 }
 
 #[cfg(test)]

@@ -34,7 +34,8 @@
 //! Elastic forces -K_ff q_f - D_ff qf_dot and gravity (by virtual work) complete the body.
 
 use crate::body::corotational::{add_corotational, CorotationalBeam};
-use crate::body::stiffening::{add_stiffening, SparseMap, StiffeningElement};
+use crate::body::element_map::SparseMap;
+use crate::body::stiffening::{add_stiffening, StiffeningElement};
 use crate::error::{FlexmbdError, Result};
 use crate::linalg::csc::Csc;
 use crate::math::euler::{
@@ -421,6 +422,7 @@ impl FlexibleBody {
         let mut corotational = input.corotational;
         for el in corotational.iter_mut() {
             el.positions = block_positions(&el.indices, &pattern);
+            el.sparse_map = SparseMap::of(&el.map, 12, el.indices.len());
         }
         // M_ff = sum_k I_kk and A_m = I_{m+1,m+2} - I_{m+2,m+1}.
         let mass_matrix = ElasticMatrix::new(
