@@ -41,7 +41,7 @@ impl CondensedSolver {
         let before_schur = if coarse { self.reduced_values.clone() } else { Vec::new() };
         for block in &mut self.blocks {
             block.last_x.clear();
-            block.gyroscopic_image.clear();
+            block.gyroscopic_coefficients = None;
             block.structured = None;
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
