@@ -43,6 +43,11 @@ impl CondensedSolver {
             block.last_x.clear();
             block.gyroscopic_coefficients = None;
             block.structured = None;
+            block.deformation_tolerance = if coarse {
+                super::reference::COARSE_DEFORMATION_TOLERANCE
+            } else {
+                super::reference::DEFORMATION_TOLERANCE
+            };
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
             let qb = &q[model.bodies[block.body].offset..];

@@ -169,6 +169,7 @@ impl Block {
             antisymmetric_bound: None,
             angular_velocity: Vec3::ZERO,
             gyroscopic_coefficients: None,
+            deformation_tolerance: super::reference::DEFORMATION_TOLERANCE,
         })
     }
 }

@@ -105,6 +105,10 @@ struct Block {
     apply_kept: bool,
     /// Scratch of dJ^T (3 n).
     deformation: Vec<f64>,
+    /// The fraction of J_f by which dJ may move before its solves are made again
+    /// (`reference::DEFORMATION_TOLERANCE`, or `COARSE_DEFORMATION_TOLERANCE` with the coarse
+    /// stage; set at each factorization).
+    deformation_tolerance: f64,
     /// Bound of the norms of the body's antisymmetric matrices (made at the first use).
     antisymmetric_bound: Option<f64>,
     /// Body-frame angular velocity of the velocity part of the structured reference coupling
