@@ -10,6 +10,7 @@ Newton step-size control, nominal step 1e-3 s, output every 0.01 s.
     python benchmarks/soft_beam.py                 # 1k and 10k, 2 s each
     python benchmarks/soft_beam.py --size 10k --end 0.5
     python benchmarks/soft_beam.py --newton-tolerance 1e-4   # the solver's default: 1e-6
+    python benchmarks/soft_beam.py --newton-error-fraction 0.03   # default 0: off
 
 Printed per size: accepted and rejected steps, smallest step, Newton iterations and
 factorizations (of the Newton matrix) per step, the wall time of the run (model building
@@ -85,11 +86,20 @@ def one_solve(body: fm.fe.FlexibleBodyData, count: int = 50) -> float:
     return best
 
 
-def run(size: str, end: float, newton_tolerance: float | None = None) -> dict:
+def run(
+    size: str,
+    end: float,
+    newton_tolerance: float | None = None,
+    newton_error_fraction: float | None = None,
+) -> dict:
     body = soft_body(size)
     system, beam = soft_beam(body)
     compiled = system.compile()
-    solver = fm.GeneralizedAlpha(SPECTRAL_RADIUS, newton_tolerance=newton_tolerance)
+    solver = fm.GeneralizedAlpha(
+        SPECTRAL_RADIUS,
+        newton_tolerance=newton_tolerance,
+        newton_error_fraction=newton_error_fraction,
+    )
     start = time.perf_counter()
     result = fm.simulate(compiled, end, STEP, output_interval=INTERVAL, solver=solver)
     wall = time.perf_counter() - start
@@ -121,9 +131,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--newton-tolerance", type=float, help="Newton's tolerance (default: the solver's)"
     )
+    parser.add_argument(
+        "--newton-error-fraction",
+        type=float,
+        help="Newton's tolerance as a fraction of the step's error (default: the solver's, off)",
+    )
     args = parser.parse_args(argv)
     for size in args.size or list(SIZES):
-        r = run(size, args.end, args.newton_tolerance)
+        r = run(size, args.end, args.newton_tolerance, args.newton_error_fraction)
         print(
             f"soft beam {r['size']} ({r['elastic']} elastic coordinates), {r['end']:g} s: "
             f"{r['steps']} steps, {r['rejected']} rejected, smallest {r['min_step']:.2e} s, "
@@ -131,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
             f"({r['factorizations'] / r['steps']:.2f}/step), wall {r['wall']:.2f} s "
             f"({1e3 * r['wall'] / r['steps']:.3f} ms/step), one solve {1e3 * r['solve']:.3f} ms: "
             f"{r['solves_per_step']:.1f} solves/step; tip x1 centroid at the end "
-            f"({r['tip'][0]:.6f}, {r['tip'][1]:.6f}, {r['tip'][2]:.6f}) m",
+            f"({r['tip'][0]:.9f}, {r['tip'][1]:.9f}, {r['tip'][2]:.9f}) m",
             flush=True,
         )
     return 0

@@ -325,6 +325,11 @@ def test_a_field_of_the_wrong_type_is_named_and_a_bad_value_refused_at_simulate(
     "make, match",
     [
         (lambda: fm.GeneralizedAlpha(newton_tolerance=0.0), "newton_tolerance .* got 0"),
+        (
+            lambda: fm.GeneralizedAlpha(newton_error_fraction=1.0),
+            r"newton_error_fraction must be in \[0, 1\), got 1",
+        ),
+        (lambda: fm.GeneralizedAlpha(newton_error_fraction=float("nan")), "newton_error_fraction"),
         (lambda: fm.GeneralizedAlpha(relative_tolerance=float("nan")), "relative_tolerance"),
         (lambda: fm.GeneralizedAlpha(max_step_size=-1.0), "max_step_size .* got -1"),
         (lambda: fm.GeneralizedAlpha(min_step_size=1e-2, max_step_size=1e-3), "min_step_size"),

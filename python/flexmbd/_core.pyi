@@ -339,6 +339,7 @@ class System:
 class GeneralizedAlpha:
     spectral_radius: float
     newton_tolerance: float
+    newton_error_fraction: float
     max_iterations: int
     jacobian: str
     step_control: str
@@ -358,6 +359,7 @@ class GeneralizedAlpha:
         spectral_radius: float | None = None,
         *,
         newton_tolerance: float | None = None,
+        newton_error_fraction: float | None = None,
         max_iterations: int | None = None,
         jacobian: str | None = None,
         step_control: str | None = None,

@@ -34,6 +34,11 @@ use crate::model::Model;
 ///   consistent after every step (see `velocity_projection`).
 /// - `newton_tolerance`: tolerance on the Newton increment of the accelerations, relative to
 ///   max(1, |q_dd|).
+/// - `newton_error_fraction` (kappa in [0, 1), default 0: off): Newton's iteration has also
+///   converged when its estimated error in the positions is at most kappa times the step's
+///   local error estimate h^2 max(|beta - 1/6|, 1/12) |q_dd(n+1) - q_dd(n)|_inf (Hairer and
+///   Wanner's stopping rule, kappa = 0.01-0.1): fewer iterations where the step's own error is
+///   far above `newton_tolerance` (soft bodies), at that fraction of the step's error.
 /// - `jacobian`: "modified" (keep the factorized Newton matrix across iterations and steps
 ///   while it contracts well), "step" (refactorize once per step, at the predictor) or
 ///   "full" (refactorize every iteration).
@@ -56,6 +61,8 @@ pub struct GeneralizedAlpha {
     pub spectral_radius: f64,
     /// Newton tolerance.
     pub newton_tolerance: f64,
+    /// Newton's tolerance as a fraction of the step's local error (0: off).
+    pub newton_error_fraction: f64,
     /// Newton iterations per attempt.
     pub max_iterations: usize,
     /// "modified", "step" or "full".
@@ -91,7 +98,7 @@ impl GeneralizedAlpha {
     /// Every setting left out (or None) takes the core's default (`GeneralizedAlpha()` shows
     /// them all).
     #[new]
-    #[pyo3(signature = (spectral_radius = None, *, newton_tolerance = None, max_iterations = None, jacobian = None,
+    #[pyo3(signature = (spectral_radius = None, *, newton_tolerance = None, newton_error_fraction = None, max_iterations = None, jacobian = None,
                         step_control = None, relative_tolerance = None, absolute_tolerance = None,
                         min_step_size = None, max_step_size = None, velocity_projection = None, linear_solver = None,
                         initial_tolerance = None, correct_initial_positions = None, correct_initial_velocities = None,
@@ -100,6 +107,7 @@ impl GeneralizedAlpha {
     fn new(
         spectral_radius: Option<f64>,
         newton_tolerance: Option<f64>,
+        newton_error_fraction: Option<f64>,
         max_iterations: Option<&Bound<'_, PyAny>>,
         jacobian: Option<String>,
         step_control: Option<String>,
@@ -119,6 +127,7 @@ impl GeneralizedAlpha {
         let s = GeneralizedAlpha {
             spectral_radius: spectral_radius.unwrap_or(d.spectral_radius),
             newton_tolerance: newton_tolerance.unwrap_or(d.newton_tolerance),
+            newton_error_fraction: newton_error_fraction.unwrap_or(d.newton_error_fraction),
             max_iterations: max_iterations
                 .map_or(Ok(d.max_iterations), |v| integer_argument(v, "max_iterations", 1))?,
             jacobian: jacobian.unwrap_or(d.jacobian),
@@ -166,6 +175,7 @@ impl GeneralizedAlpha {
         let d = PyDict::new(py);
         d.set_item("spectral_radius", self.spectral_radius)?;
         d.set_item("newton_tolerance", self.newton_tolerance)?;
+        d.set_item("newton_error_fraction", self.newton_error_fraction)?;
         d.set_item("max_iterations", self.max_iterations)?;
         d.set_item("jacobian", self.jacobian.clone())?;
         d.set_item("step_control", self.step_control.clone())?;
@@ -192,6 +202,7 @@ impl Default for GeneralizedAlpha {
         GeneralizedAlpha {
             spectral_radius: s.spectral_radius,
             newton_tolerance: s.newton.tolerance,
+            newton_error_fraction: s.newton.error_fraction,
             max_iterations: s.newton.max_iterations,
             jacobian: s.newton.jacobian.name().to_string(),
             step_control: s.step_control.name().to_string(),
@@ -220,6 +231,12 @@ impl GeneralizedAlpha {
             ));
         }
         above(item, "newton_tolerance", self.newton_tolerance, 0.0)?;
+        if !(0.0..1.0).contains(&self.newton_error_fraction) {
+            return Err(invalid(
+                item,
+                format!("newton_error_fraction must be in [0, 1), got {}", shown(self.newton_error_fraction)),
+            ));
+        }
         above(item, "relative_tolerance", self.relative_tolerance, 0.0)?;
         above(item, "absolute_tolerance", self.absolute_tolerance, 0.0)?;
         above(item, "initial_tolerance", self.initial_tolerance, 0.0)?;
@@ -242,6 +259,7 @@ impl GeneralizedAlpha {
         s.newton = NewtonSettings {
             max_iterations: self.max_iterations,
             tolerance: self.newton_tolerance,
+            error_fraction: self.newton_error_fraction,
             jacobian,
             velocity_projection,
             linear_solver,

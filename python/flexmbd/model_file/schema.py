@@ -707,6 +707,7 @@ class GeneralizedAlphaSpec(_Spec):
     type: Literal["generalized-alpha"]
     spectral_radius: float | None = Field(None, ge=0, le=1, description="rho_inf (-)")
     newton_tolerance: float | None = Field(None, gt=0)
+    newton_error_fraction: float | None = Field(None, ge=0, lt=1)
     max_iterations: int | None = Field(None, ge=1)
     jacobian: Jacobian | None = None
     step_control: StepControl | None = None

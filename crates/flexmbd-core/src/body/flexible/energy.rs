@@ -8,13 +8,15 @@ pub fn kinetic_energy(body: &FlexibleBody, q: &[f64], qd: &[f64], scratch: &mut 
     let nf = body.elastic_count;
     let r7 = REFERENCE_COORDINATES;
     let zero = vec![0.0; q.len()];
-    let k = quantities(body, q, qd, &zero, scratch, true, true);
+    // J_f qf_dot from P_kl = N_kl qf_dot (row i of J_f is N_jk - N_kj, (i, j, k) cyclic): the
+    // quantities of the residual, without the rows N_kl themselves.
+    let k = quantities(body, q, qd, &zero, scratch, false, true);
     let qfd = &qd[r7..r7 + nf];
     let v = Vec3::from_slice(qd);
-    let mut jf = std::mem::take(&mut scratch.rows);
-    jf_rows(scratch, nf, &mut jf);
-    let jf_qfd = Vec3([dot(&jf[..nf], qfd), dot(&jf[nf..2 * nf], qfd), dot(&jf[2 * nf..], qfd)]);
-    scratch.rows = jf;
+    let jf_qfd = Vec3(std::array::from_fn(|i| {
+        let (j, l) = ((i + 1) % 3, (i + 2) % 3);
+        k.pm.0[j][l] - k.pm.0[l][j]
+    }));
     let mut m_qfd = vec![0.0; nf];
     body.mass_matrix.mul_vec_add(1.0, qfd, &mut m_qfd);
     0.5 * body.mass * v.dot(&v)

@@ -62,6 +62,14 @@ impl GeneralizedAlpha {
         Ok(GeneralizedAlpha { alpha_m, alpha_f, beta, gamma })
     }
 
+    /// The constant c of the local error estimate c h^2 |q_dd(n+1) - q_dd(n)| of a step in
+    /// the positions (the error-based step control's, and the yardstick of Newton's
+    /// `NewtonSettings::error_fraction`): |beta - 1/6|, at least 1/12 (the trapezoidal rule's
+    /// beta = 1/4 has the error (1/12) h^3 q_ddd).
+    pub fn local_error_constant(&self) -> f64 {
+        (self.beta - 1.0 / 6.0).abs().max(1.0 / 12.0)
+    }
+
     /// Iteration-matrix coefficients for step size h: (beta', gamma', s).
     pub fn coefficients(&self, h: f64) -> MatrixCoefficients {
         let s = self.beta * h * h;
@@ -176,12 +184,15 @@ pub fn step(
         newton.set_angular_velocities(model, &current.coordinates, &current.velocities);
     }
     predict(method, h, current, next);
-    let mut report = iterate(model, coef, newton, reuse, first_kind, h, next, ws, solvers, cache)?;
+    let local_error = method.local_error_constant() * h * h;
+    let mut report =
+        iterate(model, coef, newton, reuse, first_kind, h, local_error, next, ws, solvers, cache)?;
     if !report.converged && reuse && (report.factorizations < report.iterations || first_kind != exact_kind) {
         let first = report.clone();
         predict(method, h, current, next);
         cache.step_size = None;
-        let second = iterate(model, coef, newton, false, exact_kind, h, next, ws, solvers, cache)?;
+        let second =
+            iterate(model, coef, newton, false, exact_kind, h, local_error, next, ws, solvers, cache)?;
         report = second;
         report.iterations += first.iterations;
         report.factorizations += first.factorizations;

@@ -229,7 +229,7 @@ fn error_norm(
     rtol: f64,
     atol: f64,
 ) -> f64 {
-    let c = h * h * (method.beta - 1.0 / 6.0).abs().max(1.0 / 12.0);
+    let c = h * h * method.local_error_constant();
     let n = model.coordinate_count;
     let sum: f64 = (0..n)
         .map(|k| {

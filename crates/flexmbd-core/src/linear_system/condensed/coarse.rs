@@ -15,7 +15,8 @@
 //! `LIMIT`; beyond, no stage) and made at each factorization from the kept products G = U^T V
 //! of the structured coupling and V_u^T A_i V_v, kept with the factor.
 
-use super::reference::{column_vector, eliminated_vector};
+use super::kernels::subtract_combination;
+use super::reference::column_vector;
 use super::{flexible, CondensedSolver};
 use crate::system::model::Model;
 
@@ -32,6 +33,8 @@ pub(super) struct Coarse {
     pivots: Vec<usize>,
     /// Per body, the rows of its part of the residual (P - N') x0.
     rows: Vec<BodyRows>,
+    /// Scratch of the coarse unknowns.
+    scratch: Vec<f64>,
 }
 
 /// The rows of one body's part of the coarse stage's residual.
@@ -75,13 +78,18 @@ impl Coarse {
                 }
             }
         }
-        Some(Coarse { size, lu: a, pivots, rows: Vec::new() })
+        Some(Coarse { size, lu: a, pivots, rows: Vec::new(), scratch: Vec::new() })
     }
 
     fn solve(&self, x: &mut [f64]) {
         let n = self.size;
+        // The row interchanges first: `factorize` swaps whole rows, the columns of L made
+        // before included (P A = L U), so that a forward substitution interleaved with them
+        // would pair a row of L with another row of x.
         for k in 0..n {
             x.swap(k, self.pivots[k]);
+        }
+        for k in 0..n {
             let xk = x[k];
             for i in k + 1..n {
                 x[i] -= self.lu[k * n + i] * xk;
@@ -139,10 +147,12 @@ impl CondensedSolver {
                 }
                 let mut dots = [[0.0; PER_BODY]; 3];
                 for (i, row) in dots.iter_mut().enumerate() {
-                    for (u, d) in row.iter_mut().enumerate() {
-                        let vf = column_vector(factor, rc.deformed, n, u);
-                        *d = exact[i * n..(i + 1) * n].iter().zip(vf).map(|(a, b)| a * b).sum();
-                    }
+                    let sums: [f64; 8] = dots_of(
+                        PER_BODY,
+                        |u| column_vector(factor, rc.deformed, n, u),
+                        &exact[i * n..(i + 1) * n],
+                    );
+                    row.copy_from_slice(&sums[..PER_BODY]);
                 }
                 (exact, dots)
             };
@@ -168,10 +178,13 @@ impl CondensedSolver {
                         for i in 0..3 {
                             images[(i * PER_BODY + v) * n..(i * PER_BODY + v + 1) * n]
                                 .copy_from_slice(&products[i * n..(i + 1) * n]);
-                            for u in 0..PER_BODY {
-                                let vu = column_vector(factor, rc.deformed, n, u);
-                                kept[(i * PER_BODY + u) * PER_BODY + v] =
-                                    vu.iter().zip(&products[i * n..(i + 1) * n]).map(|(a, b)| a * b).sum();
+                            let sums: [f64; 8] = dots_of(
+                                PER_BODY,
+                                |u| column_vector(factor, rc.deformed, n, u),
+                                &products[i * n..(i + 1) * n],
+                            );
+                            for (u, &sum) in sums[..PER_BODY].iter().enumerate() {
+                                kept[(i * PER_BODY + u) * PER_BODY + v] = sum;
                             }
                         }
                     }
@@ -241,21 +254,35 @@ impl CondensedSolver {
     }
 
     /// The coarse stage after a solve `x` = x0 = P^-1 b (see the module documentation); the
-    /// images of the elastic update take -E y_f.
+    /// images of the elastic update take -E y_f (kept as the coefficients y_f, applied in
+    /// `coupling_images`).
     pub(super) fn coarse_stage(&mut self, x: &mut [f64]) {
-        let Some(size) = self.coarse.as_ref().map(|c| c.size) else { return };
-        let r = self.global_of.len();
-        let mut y = vec![0.0; size];
+        let Some(coarse) = self.coarse.as_mut() else { return };
+        let (size, r) = (coarse.size, self.global_of.len());
+        let mut y = std::mem::take(&mut coarse.scratch);
+        y.clear();
+        y.resize(size, 0.0);
+        let coarse = self.coarse.as_ref().expect("checked");
         for b in 0..self.blocks.len() {
             let (first, n) = (self.blocks[b].first, self.blocks[b].n);
             let block = &self.blocks[b];
             let rc = block.structured.expect("structured");
-            let BodyRows { difference, dots, gyroscopic: gyroscopic_rows } =
-                &self.coarse.as_ref().expect("checked").rows[b];
+            let BodyRows { difference, dots, gyroscopic: gyroscopic_rows } = &coarse.rows[b];
+            // One pass over x0_F for the nine rows: the rotation rows' difference (first
+            // three) and the rows R_u of V_u^T G.
+            let products: [f64; 12] = dots_of(
+                3 + PER_BODY,
+                |k| {
+                    if k < 3 {
+                        &difference[k * n..(k + 1) * n]
+                    } else {
+                        &gyroscopic_rows[(k - 3) * n..(k - 2) * n]
+                    }
+                },
+                &x[first..first + n],
+            );
             // (Nm - P) x0: the rotation rows' difference on x0_F, its columns on x0_ref.
-            let on_f: [f64; 3] = std::array::from_fn(|i| {
-                difference[i * n..(i + 1) * n].iter().zip(&x[first..first + n]).map(|(a, b)| a * b).sum()
-            });
+            let on_f: [f64; 3] = std::array::from_fn(|i| products[i]);
             for (a, &j) in block.reference.iter().enumerate() {
                 let rj = self.reduced_of[block.coupling[j]];
                 y[rj] -= (0..3).map(|i| rc.rows[a][3 + i] * on_f[i]).sum::<f64>();
@@ -266,13 +293,11 @@ impl CondensedSolver {
             let column_weights: [f64; 3] =
                 std::array::from_fn(|i| (0..7).map(|a| rc.columns[3 + i][a] * x_ref[a]).sum());
             for u in 0..PER_BODY {
-                let row = &gyroscopic_rows[u * n..(u + 1) * n];
                 y[r + PER_BODY * b + u] =
-                    -row.iter().zip(&x[first..first + n]).map(|(a, b)| a * b).sum::<f64>()
-                        - (0..3).map(|i| column_weights[i] * dots[i][u]).sum::<f64>();
+                    -products[3 + u] - (0..3).map(|i| column_weights[i] * dots[i][u]).sum::<f64>();
             }
         }
-        self.coarse.as_ref().expect("checked").solve(&mut y);
+        coarse.solve(&mut y);
         for (i, &g) in self.global_of.iter().enumerate() {
             x[g] += y[i];
         }
@@ -280,24 +305,52 @@ impl CondensedSolver {
             let block = &mut self.blocks[b];
             let (first, n) = (block.first, block.n);
             let rc = block.structured.expect("structured");
-            let coefficients = &y[r + PER_BODY * b..r + PER_BODY * (b + 1)];
-            let mut image = std::mem::take(&mut block.gyroscopic_image);
-            image.clear();
-            image.resize(n, 0.0);
-            {
-                let factor = &block.factors[block.current];
-                for (u, &cu) in coefficients.iter().enumerate() {
-                    let vf = column_vector(factor, rc.deformed, n, u);
-                    for (o, v) in x[first..first + n].iter_mut().zip(vf) {
-                        *o += cu * v;
-                    }
-                    let e = eliminated_vector(&block.reference_rows, factor, rc.deformed, n, u);
-                    for (o, v) in image.iter_mut().zip(e) {
-                        *o -= cu * v;
-                    }
-                }
-            }
-            block.gyroscopic_image = image;
+            let coefficients: [f64; PER_BODY] = std::array::from_fn(|u| y[r + PER_BODY * b + u]);
+            let minus: [f64; PER_BODY] = coefficients.map(|c| -c);
+            let factor = &block.factors[block.current];
+            subtract_combination(
+                &mut x[first..first + n],
+                PER_BODY,
+                |u| column_vector(factor, rc.deformed, n, u),
+                &minus,
+            );
+            block.gyroscopic_coefficients = Some(coefficients);
         }
+        if let Some(coarse) = self.coarse.as_mut() {
+            coarse.scratch = y;
+        }
+    }
+}
+
+/// The dot products of `y` with `vector(0..count)` (see `kernels::dots`).
+fn dots_of<'a, const N: usize>(count: usize, vector: impl Fn(usize) -> &'a [f64], y: &[f64]) -> [f64; N] {
+    super::kernels::dots(count, vector, y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Coarse;
+
+    #[test]
+    fn dense_lu_solves_where_later_columns_interchange_rows() {
+        // A 4 x 4 matrix (column-major) whose pivots interchange rows at the first and the
+        // later columns: the solve must give x with A x = b to round-off.
+        let a = [
+            1.0, 4.0, -2.0, 0.5, // column 0
+            2.0, 1.0, 7.0, -3.0, // column 1
+            0.0, -1.0, 3.0, 9.0, // column 2
+            5.0, 0.2, 1.0, 2.0, // column 3
+        ];
+        let x_true = [0.3, -1.2, 2.5, 0.7];
+        let b: Vec<f64> = (0..4).map(|i| (0..4).map(|k| a[k * 4 + i] * x_true[k]).sum()).collect();
+        let coarse = Coarse::factorize(4, a.to_vec()).expect("regular");
+        assert!(
+            coarse.pivots.iter().enumerate().filter(|&(k, &p)| p != k).count() >= 2,
+            "{:?}",
+            coarse.pivots
+        );
+        let mut x = b.clone();
+        coarse.solve(&mut x);
+        crate::testing::assert_all_close(&x, &x_true, 0.0, 1e-14, "dense LU solve");
     }
 }

@@ -41,8 +41,13 @@ impl CondensedSolver {
         let before_schur = if coarse { self.reduced_values.clone() } else { Vec::new() };
         for block in &mut self.blocks {
             block.last_x.clear();
-            block.gyroscopic_image.clear();
+            block.gyroscopic_coefficients = None;
             block.structured = None;
+            block.deformation_tolerance = if coarse {
+                super::reference::COARSE_DEFORMATION_TOLERANCE
+            } else {
+                super::reference::DEFORMATION_TOLERANCE
+            };
             let fb = flexible(model, block.body);
             block.select_factor(fb, c)?;
             let qb = &q[model.bodies[block.body].offset..];

@@ -168,7 +168,8 @@ impl Block {
             deformation: Vec::new(),
             antisymmetric_bound: None,
             angular_velocity: Vec3::ZERO,
-            gyroscopic_image: Vec::new(),
+            gyroscopic_coefficients: None,
+            deformation_tolerance: super::reference::DEFORMATION_TOLERANCE,
         })
     }
 }

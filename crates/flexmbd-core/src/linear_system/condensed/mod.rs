@@ -105,14 +105,20 @@ struct Block {
     apply_kept: bool,
     /// Scratch of dJ^T (3 n).
     deformation: Vec<f64>,
+    /// The fraction of J_f by which dJ may move before its solves are made again
+    /// (`reference::DEFORMATION_TOLERANCE`, or `COARSE_DEFORMATION_TOLERANCE` with the coarse
+    /// stage; set at each factorization).
+    deformation_tolerance: f64,
     /// Bound of the norms of the body's antisymmetric matrices (made at the first use).
     antisymmetric_bound: Option<f64>,
     /// Body-frame angular velocity of the velocity part of the structured reference coupling
     /// (see `CondensedSolver::set_angular_velocities`; zero until set).
     angular_velocity: Vec3,
-    /// G x_F of the gyroscopic correction of the last solve (n; empty when it made none):
-    /// part of what the solve eliminated, A x_F = b_F - G x0_F - W x_J (see `coupling_images`).
-    gyroscopic_image: Vec<f64>,
+    /// The coefficients y_f on the kept vectors V_u of the coarse stage's correction of the
+    /// last solve (None when it made none): its image -E y_f (E_u = A V_u, the columns as
+    /// eliminated) is part of what the solve eliminated, A x_F = b_F - W x_J - E y_f (see
+    /// `coupling_images`).
+    gyroscopic_coefficients: Option<[f64; 6]>,
 }
 
 impl Block {

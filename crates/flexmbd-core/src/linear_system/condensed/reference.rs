@@ -15,7 +15,14 @@ use crate::math::Vec3;
 /// A factorization keeps A^-1 dJ^T of the deformation part of the rotation coupling while dJ
 /// differs from the one solved by at most this fraction of the row J_f0 + dJ (see
 /// `reference_coupling`).
-const DEFORMATION_TOLERANCE: f64 = 1e-2;
+pub(super) const DEFORMATION_TOLERANCE: f64 = 1e-2;
+
+/// The same with the coarse stage (`coarse`), which takes the rotation rows at q_f exactly:
+/// the kept solves only make P, and the soft tet beam (benchmarks/soft_beam.py, Newton's
+/// tolerance at 0.1 of the step's error) takes the same iterations per step with them kept
+/// to 5e-2 or 0.2 as to 1e-2 (1k, 2 s: 2.03; 10k, 0.5 s: 2.12-2.13), with 1 instead of 21
+/// solves of dJ (three solves each) in the first 0.5 s at 10k.
+pub(super) const COARSE_DEFORMATION_TOLERANCE: f64 = 5e-2;
 
 /// Numbers of the row and column vectors of [`ReferenceCoupling`].
 pub(super) const ROW_VECTORS: usize = 16;
@@ -181,10 +188,12 @@ impl Block {
     /// alone errs by dJ, which is not small where J_f0 is (a slender beam about its own axis),
     /// and made the modified Newton iteration diverge at every step size (a modal beam hinged
     /// at a node). Its solves take three solves (A^-1 dJ^T, packed) when q_f != 0, which a
-    /// factorization keeps for later refreshes while dJ moves by at most
-    /// `DEFORMATION_TOLERANCE` of J_f (the coupling of an iteration matrix is then as at the
-    /// deformation of the solves, off by that fraction at most: a pendulum bar of solids
-    /// changes dJ by 0.1-0.3 % of J_f between refreshes and needs the solves once).
+    /// factorization keeps for later refreshes while dJ moves by at most the block's
+    /// `deformation_tolerance` of J_f: `DEFORMATION_TOLERANCE`, or
+    /// `COARSE_DEFORMATION_TOLERANCE` with the coarse stage. The coupling of an iteration
+    /// matrix is then as at the deformation of the solves, off by that fraction at most (a
+    /// pendulum bar of solids changes dJ by 0.1-0.3 % of J_f between refreshes and needs the
+    /// solves once).
     pub(super) fn reference_coupling(
         &mut self,
         fb: &FlexibleBody,
@@ -238,14 +247,15 @@ impl Block {
         }
         let bound = self.antisymmetric_bound.unwrap_or(f64::INFINITY);
         let factor = &mut self.factors[self.current];
-        if factor.deformation_is_near(qf, bound) {
+        let tolerance = self.deformation_tolerance;
+        if factor.deformation_is_near(qf, bound, tolerance) {
             return Ok(());
         }
         self.deformation.resize(3 * m, 0.0);
         self.deformation.iter_mut().for_each(|x| *x = 0.0);
         fb.add_antisymmetric_products(-1.0, qf, &mut self.deformation);
         let rows = &self.reference_rows[3 * m..6 * m];
-        if factor.keeps_deformation(&self.deformation, rows, m) {
+        if factor.keeps_deformation(&self.deformation, rows, m, tolerance) {
             return Ok(());
         }
         factor.solve_deformation(&self.deformation, rows, qf, m)
@@ -317,22 +327,22 @@ fn deformed_row_norm(deformation: &[f64], rows: &[f64], i: usize, m: usize) -> f
 impl BlockFactor {
     /// Whether the kept solves of dJ serve q_f = `qf` by the bound alone: d (1 + tol) <= tol r
     /// with d = `bound` |q_f - q_kept| (see `Block::update_deformation_solves`).
-    fn deformation_is_near(&self, qf: &[f64], bound: f64) -> bool {
+    fn deformation_is_near(&self, qf: &[f64], bound: f64, tolerance: f64) -> bool {
         !self.deformation.is_empty() && {
             let d2: f64 = qf.iter().zip(&self.deformation_at).map(|(x, y)| (x - y) * (x - y)).sum();
             let d = bound * d2.sqrt();
-            d * (1.0 + DEFORMATION_TOLERANCE) <= DEFORMATION_TOLERANCE * self.deformation_rows
+            d * (1.0 + tolerance) <= tolerance * self.deformation_rows
         }
     }
 
-    /// Whether the kept dJ^T is within the tolerance of `deformation` (dJ^T, 3 n_f) in every
+    /// Whether the kept dJ^T is within `tolerance` of `deformation` (dJ^T, 3 n_f) in every
     /// row, relative to the row J_f0 + dJ (`rows`: J_f0, 3 n_f).
-    fn keeps_deformation(&self, deformation: &[f64], rows: &[f64], m: usize) -> bool {
+    fn keeps_deformation(&self, deformation: &[f64], rows: &[f64], m: usize, tolerance: f64) -> bool {
         !self.deformation.is_empty()
             && (0..3).all(|i| {
                 let (new, old) = (&deformation[i * m..(i + 1) * m], &self.deformation[i * m..(i + 1) * m]);
                 let change: f64 = new.iter().zip(old).map(|(x, y)| (x - y) * (x - y)).sum();
-                change.sqrt() <= DEFORMATION_TOLERANCE * deformed_row_norm(deformation, rows, i, m)
+                change.sqrt() <= tolerance * deformed_row_norm(deformation, rows, i, m)
             })
     }
 

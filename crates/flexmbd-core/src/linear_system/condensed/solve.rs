@@ -32,9 +32,15 @@ impl CondensedSolver {
                     &rc.combination(&x_ref),
                 );
             }
-            if block.gyroscopic_image.len() == m {
-                // The gyroscopic correction's G x0_F, taken from the right-hand side.
-                block.image.iter_mut().zip(&block.gyroscopic_image).for_each(|(o, g)| *o += g);
+            if let (Some(y_f), Some(rc)) = (&block.gyroscopic_coefficients, &block.structured) {
+                // The coarse stage's correction V y_f, eliminated as -E y_f.
+                let (rows, factor) = (&block.reference_rows, &block.factors[block.current]);
+                subtract_combination(
+                    &mut block.image,
+                    y_f.len(),
+                    |u| eliminated_vector(rows, factor, rc.deformed, m, u),
+                    y_f,
+                );
             }
             for (j, (&xj, w)) in block.last_x.iter().zip(block.w.chunks_exact(m)).enumerate() {
                 if xj != 0.0 && !block.applied_from_kept(j) {
@@ -54,7 +60,7 @@ impl CondensedSolver {
             *r = x[g];
         }
         for block in &mut self.blocks {
-            block.gyroscopic_image.clear();
+            block.gyroscopic_coefficients = None;
         }
         // y = A^-1 r_F of each body, and r_S -= N_SF y.
         let mut offset = 0;
