@@ -57,6 +57,26 @@ fn jacobian3(a: &PyReadonlyArray2<f64>, item: &str, what: &str) -> PyResult<Jaco
     Ok(j)
 }
 
+/// The first two items of an element tuple: `(indices (n_l,), map (n_e, n_l))` as the indices,
+/// n_e and the map row-major; `bad` makes the error of a wrong shape or a negative index.
+fn indices_and_map(
+    t: &Bound<'_, PyTuple>,
+    bad: impl Fn() -> PyErr,
+) -> PyResult<(Vec<usize>, usize, Vec<f64>)> {
+    let indices: PyReadonlyArray1<i64> = t.get_item(0)?.extract()?;
+    let map: PyReadonlyArray2<f64> = t.get_item(1)?.extract()?;
+    let indices = indices
+        .as_slice()?
+        .iter()
+        .map(|&i| usize::try_from(i).map_err(|_| bad()))
+        .collect::<PyResult<Vec<_>>>()?;
+    let m = map.as_array();
+    if m.ncols() != indices.len() {
+        return Err(bad());
+    }
+    Ok((indices, m.nrows(), m.iter().copied().collect()))
+}
+
 /// A stiffening element from a beam's `(indices, map (12, n_l), length, axial_stiffness)` or
 /// a shell's `(indices, map (n_e, n_l), linear (m, n_e), slopes (m, n_e, n_e), stiffness
 /// (m, m))` (see `flexmbd_core::body::stiffening`).
@@ -72,20 +92,9 @@ fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Stiffening
     if t.len() != 4 && t.len() != 5 {
         return Err(bad());
     }
-    let indices: PyReadonlyArray1<i64> = t.get_item(0)?.extract()?;
-    let map: PyReadonlyArray2<f64> = t.get_item(1)?.extract()?;
-    let indices = indices
-        .as_slice()?
-        .iter()
-        .map(|&i| usize::try_from(i).map_err(|_| bad()))
-        .collect::<PyResult<Vec<_>>>()?;
-    let m = map.as_array();
-    if m.ncols() != indices.len() {
-        return Err(bad());
-    }
-    let map: Vec<f64> = m.iter().copied().collect();
+    let (indices, rows, map) = indices_and_map(t, bad)?;
     if t.len() == 4 {
-        if m.nrows() != 12 {
+        if rows != 12 {
             return Err(bad());
         }
         return Ok(StiffeningElement::beam(
@@ -100,7 +109,7 @@ fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Stiffening
     let stiffness: PyReadonlyArray2<f64> = t.get_item(4)?.extract()?;
     let (linear, slopes, stiffness) = (linear.as_array(), slopes.as_array(), stiffness.as_array());
     let (strains, ne) = (linear.nrows(), linear.ncols());
-    if ne != m.nrows() || slopes.shape() != [strains, ne, ne] || stiffness.shape() != [strains, strains] {
+    if ne != rows || slopes.shape() != [strains, ne, ne] || stiffness.shape() != [strains, strains] {
         return Err(bad());
     }
     Ok(StiffeningElement {
@@ -127,15 +136,8 @@ fn corotational_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Corotati
     if t.len() != 4 {
         return Err(bad());
     }
-    let indices: PyReadonlyArray1<i64> = t.get_item(0)?.extract()?;
-    let map: PyReadonlyArray2<f64> = t.get_item(1)?.extract()?;
-    let indices = indices
-        .as_slice()?
-        .iter()
-        .map(|&i| usize::try_from(i).map_err(|_| bad()))
-        .collect::<PyResult<Vec<_>>>()?;
-    let m = map.as_array();
-    if m.ncols() != indices.len() || m.nrows() != 12 {
+    let (indices, rows, map) = indices_and_map(t, bad)?;
+    if rows != 12 {
         return Err(bad());
     }
     let stiffness: PyReadonlyArray2<f64> = t.get_item(3)?.extract()?;
@@ -144,7 +146,7 @@ fn corotational_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Corotati
     }
     Ok(CorotationalBeam::new(
         indices,
-        m.iter().copied().collect(),
+        map,
         t.get_item(2)?.extract()?,
         stiffness.as_array().iter().copied().collect(),
     ))

@@ -48,7 +48,7 @@
 //! The mass of the body is that of the linear FFRF body: exact for the nodal translations,
 //! linear in the rotation parameters (the rotary inertia of the sections).
 
-use crate::body::element_map::{add_tangent, gather, scatter, MappedElement, SparseMap};
+use crate::body::element_map::{add_tangent, gather, scatter, SparseMap};
 
 /// Positions of g = [ubar, phi_1, phi_2] in the element's 12 local coordinates (the rows of
 /// the local stiffness matrix that K7 keeps).
@@ -72,20 +72,7 @@ pub struct CorotationalBeam {
     pub sparse_map: Option<SparseMap>,
 }
 
-impl MappedElement for CorotationalBeam {
-    fn indices(&self) -> &[usize] {
-        &self.indices
-    }
-    fn map(&self) -> &[f64] {
-        &self.map
-    }
-    fn positions(&self) -> &[usize] {
-        &self.positions
-    }
-    fn sparse_map(&self) -> Option<&SparseMap> {
-        self.sparse_map.as_ref()
-    }
-}
+crate::mapped_element!(CorotationalBeam);
 
 impl CorotationalBeam {
     /// An element of length L with local stiffness matrix `stiffness` (12 x 12, row-major)

@@ -17,6 +17,28 @@ pub trait MappedElement {
     fn sparse_map(&self) -> Option<&SparseMap>;
 }
 
+/// Implements [`MappedElement`] for an element type with the fields `indices`, `map`,
+/// `positions` and `sparse_map`.
+#[macro_export]
+macro_rules! mapped_element {
+    ($element:ty) => {
+        impl $crate::body::element_map::MappedElement for $element {
+            fn indices(&self) -> &[usize] {
+                &self.indices
+            }
+            fn map(&self) -> &[f64] {
+                &self.map
+            }
+            fn positions(&self) -> &[usize] {
+                &self.positions
+            }
+            fn sparse_map(&self) -> Option<&$crate::body::element_map::SparseMap> {
+                self.sparse_map.as_ref()
+            }
+        }
+    };
+}
+
 /// The rows of a map e = map q_l by their nonzero entries (row r: `entries[start[r]..start[r
 /// + 1]]` of (column, value)).
 #[derive(Clone, Debug, PartialEq)]

@@ -37,7 +37,7 @@
 //! linear in its corner values), and S = area D_m: averaged over the element like the beam's,
 //! which keeps a bent element free of membrane locking.
 
-use crate::body::element_map::{add_tangent, gather, scatter, MappedElement, SparseMap};
+use crate::body::element_map::{add_tangent, gather, scatter, SparseMap};
 use crate::fem::beam::GAUSS4;
 
 /// One element of the stiffening (beam or shell).
@@ -234,20 +234,7 @@ pub fn add_stiffening(
     energy
 }
 
-impl MappedElement for StiffeningElement {
-    fn indices(&self) -> &[usize] {
-        &self.indices
-    }
-    fn map(&self) -> &[f64] {
-        &self.map
-    }
-    fn positions(&self) -> &[usize] {
-        &self.positions
-    }
-    fn sparse_map(&self) -> Option<&SparseMap> {
-        self.sparse_map.as_ref()
-    }
-}
+crate::mapped_element!(StiffeningElement);
 
 #[cfg(test)]
 mod tests {
