@@ -288,3 +288,16 @@ def test_an_existing_scheduler_runs_the_same_study(tmp_path, worker_path):
         assert list(data["status"].values) == ["complete", "complete"]
         assert cluster.scheduler is not None and len(cluster.workers) == 1
     assert np.all(data["lowest tip"].values < 0.0)
+
+
+def test_cases_go_to_the_workers_in_a_few_batches_each():
+    from flexmbd.study import BATCHES_PER_WORKER, batch_size
+
+    assert BATCHES_PER_WORKER == 4
+    assert [batch_size(64, 2), batch_size(16, 2), batch_size(7, 2), batch_size(1, 8)] == [
+        8,
+        2,
+        1,
+        1,
+    ]
+    assert batch_size(100, 0) == 25  # no worker known yet: as for one
