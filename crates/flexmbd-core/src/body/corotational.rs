@@ -48,7 +48,7 @@
 //! The mass of the body is that of the linear FFRF body: exact for the nodal translations,
 //! linear in the rotation parameters (the rotary inertia of the sections).
 
-use crate::body::element_map::{add_tangent, gather, scatter, SparseMap};
+use crate::body::element_map::{add_elements, SparseMap};
 
 /// Positions of g = [ubar, phi_1, phi_2] in the element's 12 local coordinates (the rows of
 /// the local stiffness matrix that K7 keeps).
@@ -359,21 +359,9 @@ pub fn add_corotational(
     elements: &[CorotationalBeam],
     qf: &[f64],
     out: &mut [f64],
-    mut tangent: Option<(f64, &mut [f64])>,
+    tangent: Option<(f64, &mut [f64])>,
 ) -> f64 {
-    let mut energy = 0.0;
-    let (mut e, mut f, mut k) = ([0.0; 12], [0.0; 12], [0.0; 144]);
-    let mut kb = Vec::new();
-    for el in elements {
-        gather(el, qf, &mut e);
-        let want = tangent.is_some();
-        energy += element_terms(el, &e, &mut f, if want { Some(&mut k) } else { None });
-        scatter(el, &f, out);
-        if let Some((w, values)) = tangent.as_mut() {
-            add_tangent(el, *w, &k, values, &mut kb);
-        }
-    }
-    energy
+    add_elements(elements, qf, out, tangent, |_| 12, element_terms)
 }
 
 #[cfg(test)]

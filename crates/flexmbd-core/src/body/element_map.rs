@@ -148,3 +148,38 @@ pub fn add_tangent<E: MappedElement>(el: &E, w: f64, k: &[f64], values: &mut [f6
         }
     }
 }
+
+/// Adds the nonlinear forces of all `elements` to `out` (n_f) and, with
+/// `tangent = Some((w, values))`, w times their tangents to the values of the elastic
+/// pattern; returns the sum of their energies. `local_count(el)` is the element's n_e and
+/// `terms(el, e, f, k)` its energy, force f (n_e) and, if asked, tangent k (n_e x n_e) at e.
+pub fn add_elements<E: MappedElement>(
+    elements: &[E],
+    qf: &[f64],
+    out: &mut [f64],
+    mut tangent: Option<(f64, &mut [f64])>,
+    local_count: impl Fn(&E) -> usize,
+    mut terms: impl FnMut(&E, &[f64], &mut [f64], Option<&mut [f64]>) -> f64,
+) -> f64 {
+    let mut energy = 0.0;
+    let (mut e, mut f, mut k, mut kb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for el in elements {
+        let ne = local_count(el);
+        e.clear();
+        e.resize(ne, 0.0);
+        gather(el, qf, &mut e);
+        f.clear();
+        f.resize(ne, 0.0);
+        let want = tangent.is_some();
+        if want {
+            k.clear();
+            k.resize(ne * ne, 0.0);
+        }
+        energy += terms(el, &e, &mut f, if want { Some(&mut k) } else { None });
+        scatter(el, &f, out);
+        if let Some((w, values)) = tangent.as_mut() {
+            add_tangent(el, *w, &k, values, &mut kb);
+        }
+    }
+    energy
+}

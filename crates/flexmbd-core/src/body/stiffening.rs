@@ -37,7 +37,7 @@
 //! linear in its corner values), and S = area D_m: averaged over the element like the beam's,
 //! which keeps a bent element free of membrane locking.
 
-use crate::body::element_map::{add_tangent, gather, scatter, SparseMap};
+use crate::body::element_map::{add_elements, SparseMap};
 use crate::fem::beam::GAUSS4;
 
 /// One element of the stiffening (beam or shell).
@@ -208,30 +208,12 @@ pub fn add_stiffening(
     elements: &[StiffeningElement],
     qf: &[f64],
     out: &mut [f64],
-    mut tangent: Option<(f64, &mut [f64])>,
+    tangent: Option<(f64, &mut [f64])>,
 ) -> f64 {
-    let mut energy = 0.0;
-    let (mut e, mut f, mut k, mut kb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut scratch = Scratch::default();
-    for el in elements {
-        let ne = el.local_count();
-        e.clear();
-        e.resize(ne, 0.0);
-        gather(el, qf, &mut e);
-        f.clear();
-        f.resize(ne, 0.0);
-        let want = tangent.is_some();
-        if want {
-            k.clear();
-            k.resize(ne * ne, 0.0);
-        }
-        energy += element_terms(el, &e, &mut f, if want { Some(&mut k) } else { None }, &mut scratch);
-        scatter(el, &f, out);
-        if let Some((w, values)) = tangent.as_mut() {
-            add_tangent(el, *w, &k, values, &mut kb);
-        }
-    }
-    energy
+    add_elements(elements, qf, out, tangent, StiffeningElement::local_count, |el, e, f, k| {
+        element_terms(el, e, f, k, &mut scratch)
+    })
 }
 
 crate::mapped_element!(StiffeningElement);
