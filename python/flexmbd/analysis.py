@@ -247,11 +247,48 @@ def _inertia(
     """The numbers of negative and of zero eigenvalues of Z^T K Z (Z a basis of the null space
     of C_q; K taken symmetric) for the Newton matrix a = [[K, C_q^T], [C_q, 0]], from the
     inertia of a (Sylvester): n_-(a) = n_-(Z^T K Z) + rank C_q, n_0(a) = n_0(Z^T K Z) +
-    (rows of C_q - rank C_q). The elastic coordinates are eliminated first by a sparse LDL^T
-    (LU with symmetric pivoting, whose pivots carry the inertia of their block), the rest
-    (reference coordinates, multipliers) is dense. None when the pivots are not symmetric
-    (the inertia is then not known). `factors`: the kept factors of `_newton_solve`."""
-    import scipy.linalg as sla
+    (rows of C_q - rank C_q). None when it is not known (see `_condensation`). `factors`:
+    the kept factors of `_newton_solve`."""
+    condensation = _condensation(a, nq, layout, factors)
+    return None if condensation is None else condensation.inertia()
+
+
+@dataclass
+class _Condensation:
+    """The Newton matrix with its elastic coordinates eliminated: the dense `condensed`
+    matrix of the other unknowns (reference coordinates, multipliers; indices `other`), the
+    negative and zero pivots of the eliminated block, and the rows and rank of C_q."""
+
+    condensed: Array
+    other: NDArray[np.int64]
+    negative: int
+    zero: int
+    rows: int
+    rank: int
+
+    def inertia(self, shift: Array | None = None) -> tuple[int, int]:
+        """(negative, zero) eigenvalues of Z^T K Z, with `shift` (over all unknowns) added to
+        the diagonal of K first; a shift of the reference coordinates leaves the eliminated
+        block, and so the condensation, as it is."""
+        import scipy.linalg as sla
+
+        condensed = self.condensed
+        if shift is not None:
+            condensed = condensed + np.diag(shift[self.other])
+        values = sla.eigvalsh(condensed)
+        floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
+        negative = self.negative + int(np.sum(values < -floor))
+        zero = self.zero + int(np.sum(np.abs(values) <= floor))
+        return max(negative - self.rank, 0), max(zero - (self.rows - self.rank), 0)
+
+
+def _condensation(
+    a: sp.csc_matrix, nq: int, layout: dict[str, Any], factors: dict[int, Any] | None = None
+) -> _Condensation | None:
+    """The elastic coordinates of the Newton matrix `a` eliminated by a sparse LDL^T (LU with
+    symmetric pivoting, whose pivots carry the inertia of their block), or through the kept
+    Cholesky factors of large bodies; None when the pivots are not symmetric or the block is
+    exactly singular (the inertia is then not known)."""
     import scipy.sparse.linalg as spla
 
     sym = ((a + a.T) * 0.5).tocsr()
@@ -290,13 +327,9 @@ def _inertia(
         zero += int(np.sum(np.abs(pivots) <= floor))
         coupling = sym[elastic][:, other].toarray()
         condensed -= coupling.T @ lu.solve(coupling)
-    values = sla.eigvalsh(condensed)
-    floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
-    negative += int(np.sum(values < -floor))
-    zero += int(np.sum(np.abs(values) <= floor))
     jacobian = a[nq:, :nq].toarray()
     rank = int(np.linalg.matrix_rank(jacobian)) if jacobian.size else 0
-    return max(negative - rank, 0), max(zero - (jacobian.shape[0] - rank), 0)
+    return _Condensation(condensed, other, negative, zero, jacobian.shape[0], rank)
 
 
 def _shifted_to_stable(
@@ -309,22 +342,22 @@ def _shifted_to_stable(
     """The Newton matrix with the smallest shift s (a power of 4 times 1e-6 of its largest
     reference-coordinate diagonal entry, at least 1e-6) added to the diagonal of the
     reference coordinates that makes it positive definite in every free direction; a
-    unchanged when it is."""
+    unchanged when it is. The elastic coordinates are eliminated once: the shift does not
+    touch them."""
     import scipy.sparse as sp
 
-    if _inertia(a, nq, layout, factors) == (0, 0):
+    condensation = _condensation(a, nq, layout, factors)
+    if condensation is not None and condensation.inertia() == (0, 0):
         return a
     shift_rows = np.zeros(a.shape[0])
     shift_rows[:nq][rigid] = 1.0
     diagonal = np.abs(a.diagonal()[:nq][rigid])
     shift = 1e-6 * max(float(np.max(diagonal, initial=0.0)), 1.0)
-    shifted = a
-    for _ in range(40):
-        shifted = (a + sp.diags(shift * shift_rows)).tocsc()
-        if _inertia(shifted, nq, layout, factors) == (0, 0):
+    for _ in range(39):
+        if condensation is not None and condensation.inertia(shift * shift_rows) == (0, 0):
             break
         shift *= 4.0
-    return shifted
+    return (a + sp.diags(shift * shift_rows)).tocsc()
 
 
 def _residual_bodies(layout: dict[str, Any], residual: Array, count: int = 3) -> list[str]:
