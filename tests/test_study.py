@@ -100,7 +100,7 @@ def test_bad_outputs_name_what_is_wrong(spec, message):
 
 
 # Refusals before any case runs -----------------------------------------------------------------
-def test_unknown_key_paths_and_bad_values_are_refused_before_any_case_runs(tmp_path):
+def test_unknown_key_paths_and_bad_values_are_refused_before_any_case_runs(tmp_path, worker_path):
     for parameters, message in [
         ({"bodies.bob.mass": [1.0, 2.0]}, r"bodies.*no item 'bob'.*\['mass'\]"),
         ({"bodies.mass.weight": [1.0]}, r"bodies\[0\]\.weight"),
@@ -290,14 +290,14 @@ def test_an_existing_scheduler_runs_the_same_study(tmp_path, worker_path):
     assert np.all(data["lowest tip"].values < 0.0)
 
 
-def test_cases_go_to_the_workers_in_a_few_batches_each():
-    from flexmbd.study import BATCHES_PER_WORKER, batch_size
+def test_cases_go_to_the_workers_in_batches_of_decreasing_size():
+    from flexmbd.study import GUIDED_FACTOR, batch_sizes
 
-    assert BATCHES_PER_WORKER == 4
-    assert [batch_size(64, 2), batch_size(16, 2), batch_size(7, 2), batch_size(1, 8)] == [
-        8,
-        2,
-        1,
-        1,
-    ]
-    assert batch_size(100, 0) == 25  # no worker known yet: as for one
+    assert GUIDED_FACTOR == 2
+    # Each batch takes the cases left over twice the workers: a few large batches, then
+    # single cases, so the workers end within about one case of each other.
+    assert batch_sizes(64, 2) == [16, 12, 9, 7, 5, 4, 3, 2, 2, 1, 1, 1, 1]
+    assert batch_sizes(16, 2) == [4, 3, 3, 2, 1, 1, 1, 1]
+    assert batch_sizes(3, 8) == [1, 1, 1]
+    assert batch_sizes(0, 2) == []
+    assert batch_sizes(10, 0) == [5, 3, 1, 1]  # no worker known yet: as for one

@@ -30,9 +30,9 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InvalidParameterError, ModelFileError
+from ..errors import InvalidParameterError
 from ..progress import ProgressBar
-from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, run_case
+from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, check_case, check_cases, run_case
 from .sampling import SAMPLINGS, make_cases
 
 if TYPE_CHECKING:
@@ -114,15 +114,7 @@ class Study:
         a build function builds each case): the first one refused raises, naming the case and
         the parameter or key path."""
         for k, case in enumerate(self.cases):
-            try:
-                self.source.check(case)
-            except ModelFileError as error:
-                where = {"file": error.file, "line": error.line, "key": error.key}
-                raise ModelFileError(f"case {k} {case}: {error}", **where) from error
-            except Exception as error:
-                raise InvalidParameterError(
-                    f"case {k} {case}: {type(error).__name__}: {error}"
-                ) from error
+            check_case(self.source, k, case)
 
     def pending(self) -> list[int]:
         """Indices of the cases not done yet (no summary in the folder)."""
@@ -140,35 +132,36 @@ class Study:
         """Runs the cases not done yet and returns the gathered dataset (also saved as
         ``study.nc`` in the folder). `workers`: worker processes of the local cluster (default:
         the number of CPUs); `scheduler`: the address of an existing Dask scheduler instead.
-        Every case is checked first; nothing runs if one is refused (the local cluster
-        starts while the cases are checked, and is stopped if one is refused)."""
+        The cases to run are checked first, on the cluster's workers (each builds its models);
+        nothing runs if one is refused, and the error names the case and the key path."""
         todo = self.pending()
-        starting = _start_local_cluster(workers) if todo and scheduler is None else None
-        try:
-            self.check()
-        except BaseException:
-            if starting is not None:
-                starting.result().close()
-            raise
-        (self.folder / "cases").mkdir(parents=True, exist_ok=True)
-        self._write_description()
         if todo:
-            tasks = [
-                CaseTask(
-                    index=k,
-                    key=self.keys[k],
-                    parameters=self.cases[k],
-                    source=self.source,
-                    settings=self.settings,
-                    outputs=self.outputs,
-                    folder=str((self.folder / "cases").resolve()),
-                )
-                for k in todo
-            ]
-            cluster = None if starting is None else starting.result()
-            # After the checks (which import too: no two threads importing one package).
-            _import_in_background(GATHER_MODULES)
-            _run_on_dask(tasks, cluster, scheduler, progress, len(self.cases))
+            client, cluster = _connect(scheduler, workers)
+            try:
+                refusal = _check_on_dask(client, self.source, [(k, self.cases[k]) for k in todo])
+                if refusal is not None:
+                    raise refusal
+                (self.folder / "cases").mkdir(parents=True, exist_ok=True)
+                self._write_description()
+                tasks = [
+                    CaseTask(
+                        index=k,
+                        key=self.keys[k],
+                        parameters=self.cases[k],
+                        source=self.source,
+                        settings=self.settings,
+                        outputs=self.outputs,
+                        folder=str((self.folder / "cases").resolve()),
+                    )
+                    for k in todo
+                ]
+                _import_in_background(GATHER_MODULES)
+                _run_on_dask(client, tasks, progress, len(self.cases))
+            finally:
+                _disconnect(client, cluster)
+        else:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            self._write_description()
         return self.gather()
 
     def _write_description(self) -> None:
@@ -229,44 +222,64 @@ def _import_in_background(modules: Sequence[str]) -> None:
     threading.Thread(target=load, name="flexmbd-study-imports", daemon=True).start()
 
 
-def _start_local_cluster(workers: int | None) -> Any:
-    """Starts a LocalCluster of `workers` processes (default: the number of CPUs) in a thread:
-    a future of it. Its processes start (0.7 s) while the study checks its cases."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    def start() -> Any:
-        import dask
-        from dask.distributed import LocalCluster
-
-        count = workers or os.cpu_count() or 1
-        # The cases are CPU-bound and the cluster is this study's own: its processes do not
-        # sample the stacks (every 10 ms) or the GIL (every 1 ms) of the running cases.
-        with dask.config.set(QUIET_WORKERS):
-            return LocalCluster(
-                n_workers=count,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                # Workers import flexmbd as they start (during the checks), not at their first
-                # case, where it adds to the run's wall time.
-                preload=["flexmbd.study.cases"],
-            )
-
-    pool = ThreadPoolExecutor(1, thread_name_prefix="flexmbd-cluster")
-    future = pool.submit(start)
-    pool.shutdown(wait=False)  # the thread ends with the start
-    return future
+def _disconnect(client: Any, cluster: Any) -> None:
+    """Closes `client` and stops the local `cluster` (if any) in the background."""
+    client.close()
+    if cluster is not None:
+        _close_in_background(cluster)
 
 
-#: Batches per worker a study's cases are sent in: enough for the workers to share the work
-#: evenly, few enough that Dask's cost per task (about 6 ms of a 2-core machine's time per
-#: case of the slider-crank sweep, measured) is paid a few times per worker, not per case.
-BATCHES_PER_WORKER = 4
+def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
+    """A Dask client of `scheduler`'s cluster, or of a LocalCluster of `workers` processes
+    (default: the number of CPUs) started here: (client, the local cluster or None)."""
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        return Client(scheduler), None
+    count = workers or os.cpu_count() or 1
+    # The cases are CPU-bound and the cluster is this study's own: its processes do not
+    # sample the stacks (every 10 ms) or the GIL (every 1 ms) of the running cases.
+    with dask.config.set(QUIET_WORKERS):
+        cluster = LocalCluster(
+            n_workers=count,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            # Workers import flexmbd as they start, in parallel, not at their first case.
+            preload=["flexmbd.study.cases"],
+        )
+    try:
+        return Client(cluster), cluster
+    except BaseException:
+        cluster.close()
+        raise
 
 
-def batch_size(cases: int, workers: int) -> int:
-    """Cases per Dask task: `cases` over `BATCHES_PER_WORKER` batches per worker, at least 1."""
-    return max(1, cases // (BATCHES_PER_WORKER * max(1, workers)))
+#: Batches of a study's cases: each takes the cases left over `GUIDED_FACTOR` times the
+#: workers (guided self-scheduling). The first batches are large (Dask's cost per task, about
+#: 6 ms of a 2-core machine's time, is paid a few times per worker, not per case), the last
+#: are single cases, so the workers finish within about one case of each other.
+GUIDED_FACTOR = 2
+
+
+def batch_sizes(cases: int, workers: int) -> list[int]:
+    """The sizes of the batches `cases` go to `workers` in (decreasing; at least 1 case)."""
+    sizes = []
+    left = cases
+    while left > 0:
+        size = max(1, -(-left // (GUIDED_FACTOR * max(1, workers))))
+        sizes.append(size)
+        left -= size
+    return sizes
+
+
+def _batches(items: list[Any], workers: int) -> list[list[Any]]:
+    batches, start = [], 0
+    for size in batch_sizes(len(items), workers):
+        batches.append(items[start : start + size])
+        start += size
+    return batches
 
 
 def _worker_count(client: Any) -> int:
@@ -279,33 +292,38 @@ def _worker_count(client: Any) -> int:
     return len(info.get("workers", {}))
 
 
+def _check_on_dask(
+    client: Any, source: ModelSource, cases: list[tuple[int, Mapping[str, Any]]]
+) -> Exception | None:
+    """Checks `cases` (index, parameters) on the cluster's workers (`check_cases`: each
+    builds its models, in parallel, warming up the workers for the run) and returns the
+    refusal of the first case refused, or None."""
+    batches = _batches(cases, max(1, _worker_count(client)))
+    futures = [
+        client.submit(check_cases, source, batch, key=f"flexmbd-check-{k}", pure=False)
+        for k, batch in enumerate(batches)
+    ]
+    for refusal in client.gather(futures):
+        if refusal is not None:
+            return refusal
+    return None
+
+
 def run_cases(tasks: list[CaseTask]) -> list[dict[str, Any]]:
     """Runs a batch of cases one after the other (`run_case`: each writes its own files and
     records its own failure) and returns their summaries."""
     return [run_case(task) for task in tasks]
 
 
-def _run_on_dask(
-    tasks: list[CaseTask], cluster: Any, scheduler: str | None, progress: bool, total: int
-) -> None:
-    """Runs `tasks` on a Dask cluster (`cluster`, a local one, or `scheduler`'s) and reports
-    cases done, failed and the time left; closes the local cluster."""
-    from dask.distributed import Client, as_completed
+def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int) -> None:
+    """Runs `tasks` on `client`'s cluster and reports cases done, failed and the time left."""
+    from dask.distributed import as_completed
 
     bar = ProgressBar("cases") if progress else None
     try:
-        client = Client(cluster if scheduler is None else scheduler)
-    except BaseException:
-        if cluster is not None:
-            cluster.close()
-        raise
-    try:
-        workers = max(1, _worker_count(client))
-        size = batch_size(len(tasks), workers)
-        batches = [tasks[k : k + size] for k in range(0, len(tasks), size)]
         futures = [
             client.submit(run_cases, batch, key=f"flexmbd-cases-{batch[0].key}", pure=False)
-            for batch in batches
+            for batch in _batches(tasks, max(1, _worker_count(client)))
         ]
         done = total - len(tasks)
         finished = failed = 0
@@ -320,9 +338,6 @@ def _run_on_dask(
     finally:
         if bar is not None:
             bar.close(failed=bar.fraction < 1.0)
-        client.close()
-        if cluster is not None:
-            _close_in_background(cluster)
 
 
 def _close_in_background(cluster: Any) -> None:

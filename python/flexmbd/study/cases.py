@@ -97,6 +97,35 @@ class ModelSource:
         return system, _settings_of(built)
 
 
+def check_case(source: ModelSource, index: int, parameters: Mapping[str, Any]) -> None:
+    """Refuses case `index` if its model does not take `parameters`: the error names the case
+    and the key path (a model file's :class:`ModelFileError`) or the build function's error."""
+    from ..errors import ModelFileError
+
+    try:
+        source.check(parameters)
+    except ModelFileError as error:
+        where = {"file": error.file, "line": error.line, "key": error.key}
+        raise ModelFileError(f"case {index} {dict(parameters)}: {error}", **where) from error
+    except Exception as error:
+        raise InvalidParameterError(
+            f"case {index} {dict(parameters)}: {type(error).__name__}: {error}"
+        ) from error
+
+
+def check_cases(
+    source: ModelSource, cases: list[tuple[int, Mapping[str, Any]]]
+) -> FlexmbdError | None:
+    """Checks a batch of cases (on a worker: the check builds each model) and returns the
+    refusal of the first one refused, or None."""
+    for index, parameters in cases:
+        try:
+            check_case(source, index, parameters)
+        except FlexmbdError as refusal:
+            return refusal
+    return None
+
+
 def _settings_of(built: Any) -> dict[str, Any]:
     """The run settings an Example or a ModelFile carries."""
     settings = {}
