@@ -24,6 +24,49 @@ const CARDAN_REBASE_ANGLE: f64 = 1.0;
 /// the Newton iteration without the polishing iteration.
 const POLISHED: f64 = 1e-3;
 
+/// What a projection's Newton iteration does after a residual ([`ProjectionIteration`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Next {
+    /// Converged: correct the velocities and stop.
+    Converged,
+    /// Take another Newton step.
+    Iterate,
+    /// Too many iterations, or a residual that is not finite.
+    Diverged,
+}
+
+/// The stopping rule of a projection onto the cut joints, shared by the sparse and the dense
+/// iteration: one more iteration once the tolerance is met, unless the residual is round-off
+/// already or stagnates.
+#[derive(Clone, Copy, Debug)]
+struct ProjectionIteration {
+    iterations: usize,
+    previous: f64,
+    polished: bool,
+}
+
+impl ProjectionIteration {
+    fn new() -> Self {
+        ProjectionIteration { iterations: 0, previous: f64::INFINITY, polished: false }
+    }
+
+    /// The decision at a residual of largest entry `violation` (counting the iteration when
+    /// it goes on).
+    fn next(&mut self, violation: f64, tolerance: f64, max_iterations: usize) -> Next {
+        let met = converged(violation, self.previous, tolerance);
+        if met && (self.polished || violation <= POLISHED * tolerance || violation > 0.5 * self.previous) {
+            return Next::Converged;
+        }
+        if self.iterations >= max_iterations || !violation.is_finite() {
+            return Next::Diverged;
+        }
+        self.polished = met;
+        self.previous = violation;
+        self.iterations += 1;
+        Next::Iterate
+    }
+}
+
 impl Engine<'_> {
     /// The tree and the joint coordinates of the consistent initial `state`; the body state is
     /// then recomputed from them (it satisfies the joints exactly) and written to `state`.
@@ -136,9 +179,7 @@ impl Engine<'_> {
         if self.sparse.is_none() || self.loop_rank < rows.len() {
             return Ok(false);
         }
-        let mut iterations = 0;
-        let mut previous = f64::INFINITY;
-        let mut polished = false;
+        let mut iteration = ProjectionIteration::new();
         loop {
             self.update_bodies(time)?;
             self.eq.evaluate_sparse(
@@ -157,27 +198,27 @@ impl Engine<'_> {
             }
             let residual: Vec<f64> = rows.iter().map(|&r| self.eq.constraints[r]).collect();
             let (k, violation) = worst(&residual);
-            let tolerance = self.settings.constraint_tolerance;
-            let met = converged(violation, previous, tolerance);
-            if met && (polished || violation <= POLISHED * tolerance || violation > 0.5 * previous) {
-                self.observed_loop_rank = rows.len();
-                let rate = sparse.cut_velocity_violation(&self.ws, &self.qd, &self.eq.rate);
-                for (x, d) in self.pd.iter_mut().zip(sparse.minimum_norm(&rate)) {
-                    *x -= d;
+            match iteration.next(violation, self.settings.constraint_tolerance, self.settings.max_iterations)
+            {
+                Next::Converged => {
+                    self.observed_loop_rank = rows.len();
+                    let rate = sparse.cut_velocity_violation(&self.ws, &self.qd, &self.eq.rate);
+                    for (x, d) in self.pd.iter_mut().zip(sparse.minimum_norm(&rate)) {
+                        *x -= d;
+                    }
+                    self.update_bodies(time)?;
+                    return Ok(true);
                 }
-                self.update_bodies(time)?;
-                return Ok(true);
+                Next::Diverged => {
+                    return Err(self.projection_diverged(time, iteration.iterations, violation, rows[k]))
+                }
+                Next::Iterate => {
+                    for (x, d) in self.p.iter_mut().zip(sparse.minimum_norm(&residual)) {
+                        *x -= d;
+                    }
+                    self.newton_iterations += 1;
+                }
             }
-            polished = met;
-            previous = violation;
-            if iterations >= self.settings.max_iterations || !violation.is_finite() {
-                return Err(self.projection_diverged(time, iterations, violation, rows[k]));
-            }
-            for (x, d) in self.p.iter_mut().zip(sparse.minimum_norm(&residual)) {
-                *x -= d;
-            }
-            iterations += 1;
-            self.newton_iterations += 1;
         }
     }
 
@@ -242,9 +283,7 @@ impl Engine<'_> {
             return Ok(());
         }
         let n = self.q.len();
-        let mut iterations = 0;
-        let mut previous = f64::INFINITY;
-        let mut polished = false;
+        let mut iteration = ProjectionIteration::new();
         loop {
             self.update_bodies_with_influence(time)?;
             self.evaluate(time, Level::Velocity)?;
@@ -259,29 +298,28 @@ impl Engine<'_> {
                 LoopClosure::new(c_hat.as_ref(), self.loop_rank, LOOP_DAMPING)
             }
             .map_err(|detail| self.singular(time, detail))?;
-            // One more iteration once the tolerance is met, unless the residual is round-off
-            // already or stagnates.
-            let tolerance = self.settings.constraint_tolerance;
-            let met = converged(violation, previous, tolerance);
-            if met && (polished || violation <= POLISHED * tolerance || violation > 0.5 * previous) {
-                self.observed_loop_rank = closure.numerical_rank(self.settings.rank_tolerance);
-                // Velocities: C_cut (B p_dot + v_prescribed) + C_t = 0.
-                let rate: Vec<f64> = rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect();
-                for (x, d) in self.pd.iter_mut().zip(closure.solve(&rate)) {
-                    *x -= d;
+            match iteration.next(violation, self.settings.constraint_tolerance, self.settings.max_iterations)
+            {
+                Next::Converged => {
+                    self.observed_loop_rank = closure.numerical_rank(self.settings.rank_tolerance);
+                    // Velocities: C_cut (B p_dot + v_prescribed) + C_t = 0.
+                    let rate: Vec<f64> =
+                        rows.iter().map(|&r| self.eq.velocity_violation(r, &self.qd)).collect();
+                    for (x, d) in self.pd.iter_mut().zip(closure.solve(&rate)) {
+                        *x -= d;
+                    }
+                    return self.update_bodies(time);
                 }
-                return self.update_bodies(time);
+                Next::Diverged => {
+                    return Err(self.projection_diverged(time, iteration.iterations, violation, rows[k]))
+                }
+                Next::Iterate => {
+                    for (x, d) in self.p.iter_mut().zip(closure.solve(&residual)) {
+                        *x -= d;
+                    }
+                    self.newton_iterations += 1;
+                }
             }
-            polished = met;
-            previous = violation;
-            if iterations >= self.settings.max_iterations || !violation.is_finite() {
-                return Err(self.projection_diverged(time, iterations, violation, rows[k]));
-            }
-            for (x, d) in self.p.iter_mut().zip(closure.solve(&residual)) {
-                *x -= d;
-            }
-            iterations += 1;
-            self.newton_iterations += 1;
         }
     }
 
