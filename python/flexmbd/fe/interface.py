@@ -9,6 +9,12 @@ Its motion is the weighted least-squares rigid motion of its nodes (an RBE3 elem
 
 and with the coupling "rbe2" the nodes follow that motion rigidly, u_p = u_c + theta x d_p.
 
+On bodies whose nodes have rotational coordinates phi_p (beams and shells, six per node) a set
+may lie on one line (a shell's edge, a beam's segment) or be one node: H is then singular, and
+the components of theta along its null space (the line's direction e; every direction for one
+node) are the weighted mean of the nodes' rotations, theta.e = sum w_p phi_p.e / W. Sets that
+define a rotation use the translations only, as above.
+
 Weights (``weights=``):
 
 - ``"area"``: w_p = integral of N_p over the facets of the set (element faces whose nodes all
@@ -37,7 +43,7 @@ not fix it, and y = z x x.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -394,7 +400,11 @@ class Interface:
         centroid: the weighted centroid in the body frame, (3,).
         arms: x_p - centroid, (n, 3).
         principal_axes: the axes of ``orientation="principal"`` (columns), (3, 3).
-        rotation_inverse: H^-1 with H = sum w_p (|d_p|^2 I - d_p d_p^T), (3, 3).
+        rotation_inverse: H^-1 with H = sum w_p (|d_p|^2 I - d_p d_p^T), (3, 3); its
+            pseudo-inverse where H is singular.
+        free_axes: an orthonormal basis of the null space of a singular H (columns; (3, 0)
+            when the nodes define a rotation): the axes about which theta comes from the
+            nodes' rotational coordinates.
     """
 
     name: str
@@ -406,10 +416,13 @@ class Interface:
     arms: Array
     principal_axes: Array
     rotation_inverse: Array
+    free_axes: Array = field(default_factory=lambda: np.zeros((3, 0)))
 
     def average_rows(self, dofs_per_node: int, dof_count: int) -> sp.csr_matrix:
         """The six rows G (6, dof_count) with G u = (u_c, theta) of nodal displacements u
-        (node-major, `dofs_per_node` per node; rotational dofs of beams are not used)."""
+        (node-major, `dofs_per_node` per node): theta from the translations, and along the
+        `free_axes` (a line of nodes, or one node) from the nodes' rotational coordinates (the
+        three after the translations), which a body of three per node does not have."""
         import scipy.sparse as sp
 
         d = dofs_per_node
@@ -430,6 +443,14 @@ class Interface:
             rows.append(np.full(3 * n, 3 + i))
             cols.append((self.members[:, None] * d + np.arange(3)).ravel())
             vals.append(blocks[:, i, :].ravel())
+        if self.free_axes.shape[1] and d >= 6:
+            # + E E^T sum_p w_p phi_p along the free axes E.
+            projector = self.free_axes @ self.free_axes.T
+            turns = self.weights[:, None, None] * projector[None, :, :]
+            for i in range(3):
+                rows.append(np.full(3 * n, 3 + i))
+                cols.append((self.members[:, None] * d + 3 + np.arange(3)).ravel())
+                vals.append(turns[:, i, :].ravel())
         return sp.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
             shape=(6, dof_count),
@@ -489,13 +510,16 @@ def make_interface(
     *,
     name: str = "node set",
     require_rotation: bool = True,
+    nodal_rotations: bool = False,
 ) -> Interface:
     """The `Interface` of the node indices `members` of a body with `nodes` (n, 3) and
     `elements` (type -> connectivity). Raises `InvalidModelError` naming the set when it is
     empty, repeats a node, has zero weight in sum, or lies on one line (its rotation about
     that line is undefined; with `require_rotation` False such a set is accepted, its
     rotation about the line left out: a rigid interface of beam nodes with rotational
-    coordinates, or of two nodes)."""
+    coordinates, or of two nodes). With `nodal_rotations` (a body whose nodes have rotational
+    coordinates) a line of nodes or a single node is an interface whose rotation about the
+    line comes from the nodes' rotations (`Interface.free_axes`)."""
     nodes = np.asarray(nodes, dtype=float)
     members = np.asarray(members, dtype=np.int64).ravel()
     if members.size == 0:
@@ -511,7 +535,9 @@ def make_interface(
     try:
         raw, weighting, moments = _weights(nodes, elements, members, weights, name)
     except InvalidModelError:
-        if require_rotation or not (isinstance(weights, str) and weights == "auto"):
+        if (require_rotation and not nodal_rotations) or not (
+            isinstance(weights, str) and weights == "auto"
+        ):
             raise
         # A rigid interface of a node or two (beam ends): nothing to weight by.
         raw, weighting, moments = np.ones(len(members)), "uniform", None
@@ -530,7 +556,7 @@ def make_interface(
     values = np.linalg.eigvalsh(0.5 * (h + h.T))
     size = float(np.einsum("p,pi,pi->", np.abs(w), arms, arms))
     defined = len(members) >= 3 and values[0] > 1e-9 * max(size, 1e-300)
-    if require_rotation and not defined:
+    if require_rotation and not defined and not nodal_rotations:
         raise InvalidModelError(
             f"{name}: its {len(members)} weighted nodes lie on one line (or are fewer than "
             "three), so their rotation about it is undefined; an interface needs at least "
@@ -570,7 +596,15 @@ def make_interface(
         arms=arms,
         principal_axes=axes,
         rotation_inverse=np.linalg.inv(h) if defined else np.linalg.pinv(h, rcond=1e-9),
+        free_axes=np.zeros((3, 0)) if defined else _null_space(h, size),
     )
+
+
+def _null_space(h: Array, size: float) -> Array:
+    """An orthonormal basis (columns) of the null space of the singular H of a line of nodes
+    (its direction) or of one node (all three axes); `size`: the weighted spread sum w |d|^2."""
+    values, vectors = np.linalg.eigh(0.5 * (h + h.T))
+    return vectors[:, values <= 1e-9 * max(size, 1e-300)]
 
 
 def body_interface(
@@ -616,7 +650,14 @@ def body_interface(
         stored = _stored_weights(body, members)
         if stored is not None:
             weights = stored
-    return make_interface(body.nodes, body.elements, members, weights, name=label)
+    return make_interface(
+        body.nodes,
+        body.elements,
+        members,
+        weights,
+        name=label,
+        nodal_rotations=body.dofs_per_node >= 6,
+    )
 
 
 def _stored_weights(body: Any, members: NDArray[np.int64]) -> Array | None:

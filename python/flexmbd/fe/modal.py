@@ -550,12 +550,14 @@ def interface_objects(
     weights: str | Sequence[str | ArrayLike],
     *,
     rotation: bool = True,
+    nodal_rotations: bool = False,
 ) -> list[Interface]:
     """The `Interface`s of Craig-Bampton interfaces given as node indices (or already as
     interfaces), with their members in ascending order (the order of the boundary
     coordinates). `weights`: one weighting for all or one per interface (arrays in the
     order given). `rotation`: whether each must define a rotation (at least three
-    non-collinear nodes: averaged interfaces)."""
+    non-collinear nodes: averaged interfaces), unless `nodal_rotations` (nodes with
+    rotational coordinates) give it about a line of nodes."""
     count = len(interfaces)
     if isinstance(weights, str):
         per: list[Any] = [weights] * count
@@ -587,6 +589,7 @@ def interface_objects(
                 how,
                 name=f"interface {index}",
                 require_rotation=rotation,
+                nodal_rotations=nodal_rotations,
             )
         )
     return out
@@ -691,7 +694,9 @@ def craig_bampton(
     weighted = (
         []
         if kind == "nodal"
-        else interface_objects(interfaces, nodes, elements, weights, rotation=kind == "rbe3")
+        else interface_objects(
+            interfaces, nodes, elements, weights, rotation=kind == "rbe3", nodal_rotations=d >= 6
+        )
     )
     k = sp.csc_matrix(stiffness)
     m = sp.csc_matrix(mass)
@@ -792,8 +797,6 @@ def _craig_bampton_averaged(
     singular: with R the rigid motions and S six coordinates that fix a rigid motion, u =
     R a + w with w_S = 0, K_rr w_r = f_r - G_r^T lambda, and a small dense system for
     (lambda, a) from G u = g and R^T (f - G^T lambda) = 0."""
-    if d != 3:
-        raise InvalidModelError("averaged (RBE3) interfaces are for solid meshes; use rbe2")
     n = k.shape[0]
     g = sp.vstack([s.average_rows(d, n) for s in interfaces]).tocsr()
     r = rigid_modes(nodes, d)

@@ -646,7 +646,12 @@ def _body_from_nodal(
         elif modes == "craig-bampton":
             if interface_kind != "nodal":
                 weighted = interface_objects(
-                    members, nodes, elements, interface_weights, rotation=interface_kind == "rbe3"
+                    members,
+                    nodes,
+                    elements,
+                    interface_weights,
+                    rotation=interface_kind == "rbe3",
+                    nodal_rotations=d >= 6,
                 )
             full, freqs = craig_bampton(
                 nodal.stiffness,
