@@ -488,38 +488,27 @@ class ShellSection:
     @property
     def shear_factor(self) -> float: ...
 
-def assemble_body(
-    nodes: NDArray[np.float64],
-    node_ids: NDArray[np.int64],
-    elements: dict[str, tuple[NDArray[np.int64], NDArray[np.int64]]],
-    material: Material,
-    section: Section | None = None,
-    orientation: list[float] | None = None,
-    lumped: bool = False,
-    shear: bool = False,
-    shell: ShellSection | None = None,
-) -> dict[str, Any]: ...
+class FeMesh:
+    def __init__(
+        self,
+        nodes: NDArray[np.float64],
+        node_ids: NDArray[np.int64],
+        elements: dict[str, tuple[NDArray[np.int64], NDArray[np.int64]]],
+        material: Material,
+        section: Section | None = None,
+        orientation: Sequence[float] | None = None,
+        shear: bool = False,
+        shell: ShellSection | None = None,
+    ) -> None: ...
+    @property
+    def dofs_per_node(self) -> int: ...
+
+def assemble_body(mesh: FeMesh, lumped: bool = False) -> dict[str, Any]: ...
 def recover_stresses(
-    nodes: NDArray[np.float64],
-    node_ids: NDArray[np.int64],
-    elements: dict[str, tuple[NDArray[np.int64], NDArray[np.int64]]],
-    material: Material,
-    displacements: NDArray[np.float64],
-    section: Section | None = None,
-    orientation: Sequence[float] | None = None,
-    shear: bool = False,
-    shell: ShellSection | None = None,
+    mesh: FeMesh, displacements: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 def body_mass_points(
-    nodes: NDArray[np.float64],
-    node_ids: NDArray[np.int64],
-    elements: dict[str, tuple[NDArray[np.int64], NDArray[np.int64]]],
-    material: Material,
-    section: Section | None = None,
-    orientation: list[float] | None = None,
-    lumped: bool = False,
-    shear: bool = False,
-    shell: ShellSection | None = None,
+    mesh: FeMesh, lumped: bool = False
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[Any, Any, Any, tuple[int, int]]]: ...
 def shell_membrane_stiffening(
     nodes: NDArray[np.float64], shell: ShellSection, material: Material

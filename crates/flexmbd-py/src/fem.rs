@@ -212,6 +212,53 @@ fn default_orientation(axis: Vec3) -> Vec3 {
     }
 }
 
+/// A finite-element mesh with its material, beam section and shell section, checked and
+/// built once (`flexmbd_core::fem::Mesh`) for the functions that take it: `assemble_body`,
+/// `recover_stresses`, `body_mass_points`. Nodes (n, 3) in the body frame, node ids (n,),
+/// elements as a dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2",
+/// "tet4", "tet10" (Gmsh node order), "hex8", "quad4" and "tri3"; the beam orientation is a
+/// vector in the sections' x-y plane (default: global y, or global z for beams nearly along
+/// y); `shear`: shear-deformable (Timoshenko) beams.
+#[pyclass(name = "FeMesh", module = "flexmbd._core", frozen)]
+pub struct FeMesh {
+    inner: Mesh,
+}
+
+#[pymethods]
+impl FeMesh {
+    #[new]
+    #[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, shear = false, shell = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new<'py>(
+        nodes: PyReadonlyArray2<'py, f64>,
+        node_ids: PyReadonlyArray1<'py, i64>,
+        elements: &Bound<'py, PyDict>,
+        material: &Material,
+        section: Option<Section>,
+        orientation: Option<Vec<f64>>,
+        shear: bool,
+        shell: Option<ShellSection>,
+    ) -> PyResult<Self> {
+        let inner = build_mesh(
+            nodes,
+            node_ids,
+            elements,
+            material,
+            section.as_ref(),
+            orientation.as_deref(),
+            shear,
+            shell.as_ref(),
+        )?;
+        Ok(FeMesh { inner })
+    }
+
+    /// Coordinates per node: 3 for solids, 6 with beams or shells.
+    #[getter]
+    fn dofs_per_node(&self) -> usize {
+        self.inner.dofs_per_node()
+    }
+}
+
 /// Builds the core mesh from the arrays of `assemble_body`.
 #[allow(clippy::too_many_arguments)]
 fn build_mesh<'py>(
@@ -305,40 +352,15 @@ fn build_mesh<'py>(
     })
 }
 
-/// Assembles a deformable body: nodes (n, 3) in the body frame, node ids (n,), elements as a
-/// dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2", "tet4",
-/// "tet10" (Gmsh node order) and "hex8", the material, the beam section and the beam
-/// orientation (a vector in the sections' x-y plane; default: global y, or global z for beams
-/// nearly along y), whether the mass is lumped, and whether beams are shear-deformable
-/// (Timoshenko). Returns a dict of arrays: "dofs_per_node", "stiffness" and
-/// "mass" as (data, indices, indptr, shape) of CSC matrices, "mass_total", "first_moment",
-/// "second_moment", "i1" (3, n), "ibar" (3, 3, n), and either "i_kl_scalar" (the scalar nodal
-/// mass matrix M_s of solid bodies: I_kl = M_s (x) e_k e_l^T) or "i_kl" (nine CSC tuples).
+/// Assembles a deformable body of `mesh`, with the mass lumped or consistent. Returns a dict
+/// of arrays: "dofs_per_node", "stiffness" and "mass" as (data, indices, indptr, shape) of CSC
+/// matrices, "mass_total", "first_moment", "second_moment", "i1" (3, n), "ibar" (3, 3, n), and
+/// either "i_kl_scalar" (the scalar nodal mass matrix M_s of solid bodies: I_kl = M_s (x) e_k
+/// e_l^T) or "i_kl" (nine CSC tuples).
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false, shell = None))]
-#[allow(clippy::too_many_arguments)]
-pub fn assemble_body<'py>(
-    py: Python<'py>,
-    nodes: PyReadonlyArray2<'py, f64>,
-    node_ids: PyReadonlyArray1<'py, i64>,
-    elements: &Bound<'py, PyDict>,
-    material: &Material,
-    section: Option<Section>,
-    orientation: Option<Vec<f64>>,
-    lumped: bool,
-    shear: bool,
-    shell: Option<ShellSection>,
-) -> PyResult<Bound<'py, PyDict>> {
-    let mesh = build_mesh(
-        nodes,
-        node_ids,
-        elements,
-        material,
-        section.as_ref(),
-        orientation.as_deref(),
-        shear,
-        shell.as_ref(),
-    )?;
+#[pyo3(signature = (mesh, lumped = false))]
+pub fn assemble_body<'py>(py: Python<'py>, mesh: &FeMesh, lumped: bool) -> PyResult<Bound<'py, PyDict>> {
+    let mesh = &mesh.inner;
     let body = py.detach(|| mesh.assemble(lumped));
     let body = check(body)?;
     let n = body.stiffness.nrows;
@@ -365,39 +387,20 @@ pub fn assemble_body<'py>(
     Ok(d)
 }
 
-/// Stresses recovered from nodal displacements (same mesh arguments as `assemble_body`),
-/// `displacements` (records, n_dofs) node-major in body axes. Returns
-/// `(nodal, beams, shells)`: solid (and shell mid-surface) stresses averaged at the nodes
-/// (records, nodes, 6) in Voigt order (xx, yy, zz, yz, xz, xy), body axes, Pa; beam section
-/// resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every beam element
-/// (records, beams, 2, 6), element axes; and shell stresses at the top, middle and bottom
-/// surfaces averaged at the nodes (records, nodes, 3, 6), body axes, zeros at nodes without
-/// shells.
+/// Stresses recovered from nodal displacements of `mesh`, `displacements` (records, n_dofs)
+/// node-major in body axes. Returns `(nodal, beams, shells)`: solid (and shell mid-surface)
+/// stresses averaged at the nodes (records, nodes, 6) in Voigt order (xx, yy, zz, yz, xz, xy),
+/// body axes, Pa; beam section resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every beam
+/// element (records, beams, 2, 6), element axes; and shell stresses at the top, middle and
+/// bottom surfaces averaged at the nodes (records, nodes, 3, 6), body axes, zeros at nodes
+/// without shells.
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, displacements, section = None, orientation = None, shear = false, shell = None))]
-#[allow(clippy::too_many_arguments)]
 pub fn recover_stresses<'py>(
     py: Python<'py>,
-    nodes: PyReadonlyArray2<'py, f64>,
-    node_ids: PyReadonlyArray1<'py, i64>,
-    elements: &Bound<'py, PyDict>,
-    material: &Material,
+    mesh: &FeMesh,
     displacements: PyReadonlyArray2<'py, f64>,
-    section: Option<Section>,
-    orientation: Option<Vec<f64>>,
-    shear: bool,
-    shell: Option<ShellSection>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let mesh = build_mesh(
-        nodes,
-        node_ids,
-        elements,
-        material,
-        section.as_ref(),
-        orientation.as_deref(),
-        shear,
-        shell.as_ref(),
-    )?;
+    let mesh = &mesh.inner;
     let u = displacements.as_array();
     let records: Vec<Vec<f64>> = u.rows().into_iter().map(|r| r.to_vec()).collect();
     type Recovered = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
@@ -425,35 +428,13 @@ pub fn recover_stresses<'py>(
     ))
 }
 
-/// The mass points of a body (same arguments as `assemble_body`): weights (P,) = rho dV,
-/// positions (P, 3) and the shape matrices as the (data, indices, indptr, shape) of a CSR
-/// matrix (3 P, n_dofs) whose rows 3 p .. 3 p + 3 are S of point p. For brute-force checks of
-/// the invariants.
+/// The mass points of a body of `mesh`: weights (P,) = rho dV, positions (P, 3) and the
+/// shape matrices as the (data, indices, indptr, shape) of a CSR matrix (3 P, n_dofs) whose
+/// rows 3 p .. 3 p + 3 are S of point p. For brute-force checks of the invariants.
 #[pyfunction]
-#[pyo3(signature = (nodes, node_ids, elements, material, section = None, orientation = None, lumped = false, shear = false, shell = None))]
-#[allow(clippy::too_many_arguments)]
-pub fn body_mass_points<'py>(
-    py: Python<'py>,
-    nodes: PyReadonlyArray2<'py, f64>,
-    node_ids: PyReadonlyArray1<'py, i64>,
-    elements: &Bound<'py, PyDict>,
-    material: &Material,
-    section: Option<Section>,
-    orientation: Option<Vec<f64>>,
-    lumped: bool,
-    shear: bool,
-    shell: Option<ShellSection>,
-) -> PyResult<Bound<'py, PyTuple>> {
-    let mesh = build_mesh(
-        nodes,
-        node_ids,
-        elements,
-        material,
-        section.as_ref(),
-        orientation.as_deref(),
-        shear,
-        shell.as_ref(),
-    )?;
+#[pyo3(signature = (mesh, lumped = false))]
+pub fn body_mass_points<'py>(py: Python<'py>, mesh: &FeMesh, lumped: bool) -> PyResult<Bound<'py, PyTuple>> {
+    let mesh = &mesh.inner;
     let n = mesh.nodes.len() * mesh.dofs_per_node();
     let mut weights = Vec::new();
     let mut positions = Vec::new();

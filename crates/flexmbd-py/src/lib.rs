@@ -40,6 +40,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<fem::Material>()?;
     m.add_class::<fem::Section>()?;
     m.add_class::<fem::ShellSection>()?;
+    m.add_class::<fem::FeMesh>()?;
     m.add_function(wrap_pyfunction!(fem::assemble_body, m)?)?;
     m.add_function(wrap_pyfunction!(fem::body_mass_points, m)?)?;
     m.add_function(wrap_pyfunction!(fem::recover_stresses, m)?)?;

@@ -193,17 +193,17 @@ def assemble(
             eids = np.arange(offset, offset + len(conn), dtype=np.int64)
         offset += len(conn)
         blocks[kind] = (conn, np.ascontiguousarray(eids))
-    raw = _core.assemble_body(
+    mesh = _core.FeMesh(
         nodes,
         np.ascontiguousarray(ids, dtype=np.int64),
         blocks,
         material,
         section,
         None if orientation is None else list(np.asarray(orientation, dtype=float)),
-        mass == "lumped",
         shear,
         shell,
     )
+    raw = _core.assemble_body(mesh, mass == "lumped")
     n = raw["i1"].shape[1]
     if "i_kl_scalar" in raw:
         ms = _csc(raw["i_kl_scalar"])
@@ -250,17 +250,17 @@ def mass_points(
         )
         for kind, conn in elements.items()
     }
-    weights, positions, shape = _core.body_mass_points(
+    mesh = _core.FeMesh(
         nodes,
         np.arange(1, len(nodes) + 1, dtype=np.int64),
         blocks,
         material,
         section,
         None if orientation is None else list(np.asarray(orientation, dtype=float)),
-        mass == "lumped",
         _beam_theory(beam_theory),
         shell_section(shell),
     )
+    weights, positions, shape = _core.body_mass_points(mesh, mass == "lumped")
     data, indices, indptr, dims = shape
     return weights, positions, sp.csr_matrix((data, indices, indptr), shape=dims)
 

@@ -86,17 +86,17 @@ def _recovered(
             float(body.shell["thickness"]),
             shear_factor=float(body.shell.get("shear_factor", 5.0 / 6.0)),
         )
-    nodal, beams, shells = _core.recover_stresses(
+    mesh = _core.FeMesh(
         np.ascontiguousarray(body.nodes, dtype=float),
         np.ascontiguousarray(body.node_ids, dtype=np.int64),
         blocks,
         material,
-        np.ascontiguousarray(u),
         section,
         orientation,
         shear,
         shell,
     )
+    nodal, beams, shells = _core.recover_stresses(mesh, np.ascontiguousarray(u))
     if single:
         return nodal[0], beams[0], shells[0]
     return nodal, beams, shells
