@@ -382,3 +382,38 @@ def test_the_stability_of_an_equilibrium_agrees_with_its_linearization(assert_cl
         fm.equilibrium(model, coordinates=upright.coordinates, stable=True, max_iterations=5)
     with pytest.raises(InvalidParameterError, match="stable"):
         fm.equilibrium(model, stable="yes")
+
+
+def test_a_flexible_panel_released_horizontal_hangs_from_its_hinged_edge(assert_close):
+    # A 0.3 x 0.1 m shell panel hinged along its edge y = 0 (global x) and horizontal: its
+    # rotation about the hinge has no stiffness there but for the elastic coupling's tiny
+    # pivot, so Newton's first step is huge and it diverges (stable=False says so); the
+    # default then seeks the stable state: the panel hanging below its edge, the centroid of
+    # its (uniform) nodes at z = -0.05 m, less its elastic droop.
+    mesh = fm.fe.shapes.plate((0.3, 0.1), (6, 2), "quad4")
+    body = fm.fe.build_body(
+        mesh.nodes,
+        mesh.elements,
+        fm.fe.Material(7e10, 0.3, 2700.0),
+        shell=2e-3,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="y0",
+        modes="fixed-interface",
+        mode_count=6,
+    )
+    system = fm.System(gravity=(0.0, 0.0, -9.81))
+    panel = system.add_flexible_body(body, name="panel")
+    axis_x = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    system.add_revolute_joint(
+        system.add_marker(system.ground, position=(0.15, 0.0, 0.0), orientation=axis_x),
+        system.add_node_set_marker(panel, "y0", orientation=axis_x, coupling="rbe2"),
+        name="hinge",
+    )
+    model = system.compile()
+    with pytest.raises(EquilibriumError, match="no convergence"):
+        fm.equilibrium(model, stable=False)
+    hanging = fm.equilibrium(model)
+    assert hanging.stable is True
+    centroid = hanging.node_positions("panel").mean(axis=0)
+    assert_close(centroid, [0.15, 0.0, -0.05], abs=1e-6, what="centroid")

@@ -409,9 +409,11 @@ def equilibrium(
     (``stable``, ``unstable_directions``: the stiffness at rest projected on the directions
     the constraints leave free, from the inertia of the Newton matrix). `stable`:
 
-    - None (default): when Newton's method ends in an unstable equilibrium and no driver moves
-      at `time`, it starts again from the same coordinates and seeks a stable one (as below);
-      if it finds none, the unstable one is returned (and logged). Under moving drivers the
+    - None (default): when Newton's method ends in an unstable equilibrium, or fails (a
+      singular or nearly singular start, such as a pendulum released horizontal), and no
+      driver moves at `time`, it starts again from the same coordinates and seeks a stable
+      one (as below); if it finds none, the unstable one is returned (and logged), or
+      Newton's error raised. Under moving drivers the
       equilibrium is returned as found (a rotor's steady state may be held by its spin).
     - True: seek a stable equilibrium from the start; `EquilibriumError` if none is found.
     - False: the equilibrium Newton's method finds (to linearize about an inverted pendulum).
@@ -433,15 +435,17 @@ def equilibrium(
         return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
     try:
         state = _solve_equilibrium(model, time, q.copy(), layout, tolerance, max_iterations)
-    except InvalidModelError as singular:
+    except (InvalidModelError, EquilibriumError) as failure:
         # A direction without stiffness at the start (a rigid pendulum released from the
-        # horizontal): the search's shift gives it some.
+        # horizontal: a singular matrix), or nearly without (a flexible one, whose elastic
+        # coupling leaves a tiny pivot: Newton's first step is huge and it diverges): the
+        # search's shift gives it some.
         if stable is not None:
             raise
         try:
             return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
         except (EquilibriumError, InvalidModelError):
-            raise singular from None
+            raise failure from None
     if stable is None and state.stable is False and not np.any(state.velocities != 0.0):
         try:
             return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
