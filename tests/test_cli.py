@@ -529,3 +529,72 @@ def test_run_takes_the_paraview_section_of_a_model_file(tmp_path, capsys):
     # A --vtu- option on the command line writes the series anyway and replaces the file's.
     assert main(["run", "off.yaml", "-o", "on.h5", "--vtu-every", "5", *quiet]) == 0
     assert "writing 3 VTU files" in capsys.readouterr().out  # 0, 10 and 20 ms
+
+
+def test_preprocess_takes_beam_sections_and_shell_thickness(tmp_path, capsys, assert_close):
+    import numpy as np
+
+    from flexmbd.fe import Material, Section, build_body, shapes
+    from flexmbd.fe.body_file import load_body
+
+    material = ["-E", "7e10", "--poisson-ratio", "0.3", "--density", "2700"]
+    modal = ["--reference", "clamped", "--modes", "fixed-interface", "-n", "4"]
+    # A beam of ten B31 elements clamped at node set "root".
+    x = np.linspace(0.0, 1.0, 11)
+    lines = ["*NODE", *(f"{i + 1}, {v:.17g}, 0, 0" for i, v in enumerate(x))]
+    lines += ["*ELEMENT, TYPE=B31, ELSET=BEAM", *(f"{e + 1}, {e + 1}, {e + 2}" for e in range(10))]
+    lines += ["*NSET, NSET=root", "1"]
+    (tmp_path / "beam.inp").write_text("\n".join(lines) + "\n")
+    beam = ["preprocess", str(tmp_path / "beam.inp"), "-o", str(tmp_path / "beam.h5"), *material]
+    assert main([*beam, *modal, "--reference-nodes", "root"]) == 1
+    assert "beam elements need a section" in capsys.readouterr().err
+    options = ["--section", "rectangle:0.02,0.01", "--section-orientation", "0", "0", "1"]
+    assert main([*beam, *modal, "--reference-nodes", "root", *options]) == 0
+    same = build_body(
+        np.c_[x, 0 * x, 0 * x],
+        {"beam2": np.c_[np.arange(10), np.arange(1, 11)]},
+        Material(7e10, 0.3, 2700.0),
+        section=Section.rectangle(0.02, 0.01),
+        orientation=(0.0, 0.0, 1.0),
+        reference="clamped",
+        reference_nodes=[0],
+        modes="fixed-interface",
+        mode_count=4,
+    )
+    body = load_body(tmp_path / "beam.h5")
+    assert_close(body.frequencies, same.frequencies, rel=1e-10, what="beam frequencies")
+    for bad, message in [
+        ("square:0.01", "the kind must be one of circle"),
+        ("general:1,2", "general takes 4 comma-separated numbers"),
+        ("circle:-0.01", "circle radius must be positive"),
+    ]:
+        with pytest.raises(SystemExit):
+            main([*beam, "--section", bad])
+        assert message in capsys.readouterr().err
+    # A plate of quad4 shells from a VTK file (no thickness of its own) clamped at edge x0.
+    mesh = shapes.plate((0.3, 0.1), (6, 2), "quad4")
+    import meshio
+
+    meshio.write_points_cells(
+        str(tmp_path / "plate.vtu"),
+        mesh.nodes,
+        [("quad", mesh.elements["quad4"])],
+    )
+    nodes_x0 = [str(n) for n in mesh.node_sets["x0"]]
+    plate = ["preprocess", str(tmp_path / "plate.vtu"), "-o", str(tmp_path / "plate.h5")]
+    plate += [*material, *modal, "--reference-nodes", *nodes_x0]
+    assert main(plate) == 1
+    assert "shell" in capsys.readouterr().err
+    assert main([*plate, "--thickness", "0.002"]) == 0
+    same = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(7e10, 0.3, 2700.0),
+        shell=0.002,
+        reference="clamped",
+        reference_nodes=mesh.node_sets["x0"],
+        modes="fixed-interface",
+        mode_count=4,
+    )
+    body = load_body(tmp_path / "plate.h5")
+    assert_close(body.frequencies, same.frequencies, rel=1e-10, what="plate frequencies")

@@ -507,3 +507,20 @@ def test_node_ids_of_the_wrong_type_or_size_are_named():
         result.node_displacements(body, [[1, 2]])
     with pytest.raises(fm.InvalidParameterError, match="node must be an integer"):
         result.deflection(body, [2])
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: fm.fe.Section.circle(-0.01), "circle radius must be positive and finite"),
+        (lambda: fm.fe.Section.circle(0.0), "circle radius must be positive"),
+        (lambda: fm.fe.Section.rectangle(-0.02, -0.01), "rectangle width must be positive"),
+        (lambda: fm.fe.Section.rectangle(0.02, float("inf")), "rectangle height must be positive"),
+        (lambda: fm.fe.Section.tube(0.01, -0.005), "0 <= inner < outer"),
+    ],
+)
+def test_section_shapes_of_negative_size_are_refused(make, match):
+    # A negative radius or width gives a positive area and positive second moments: wrong
+    # numbers that look right, so the shape's lengths themselves are checked.
+    with pytest.raises(fm.InvalidParameterError, match=match):
+        make()

@@ -793,6 +793,35 @@ def _schema(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The beam sections of `flexmbd preprocess --section KIND:VALUES`: the values each takes.
+SECTION_KINDS = {"circle": 1, "rectangle": 2, "tube": 2, "general": 4}
+
+
+def _section_argument(text: str) -> Any:
+    """A beam section from KIND:VALUES (`SECTION_KINDS`), for argparse."""
+    from .fe import Section
+
+    kind, _, values = text.partition(":")
+    if kind not in SECTION_KINDS:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: the kind must be one of {', '.join(SECTION_KINDS)} (e.g. circle:0.01)"
+        )
+    try:
+        numbers = [float(v) for v in values.split(",")]
+    except ValueError:
+        numbers = []
+    if len(numbers) != SECTION_KINDS[kind]:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: {kind} takes {SECTION_KINDS[kind]} comma-separated numbers"
+        )
+    try:
+        if kind == "general":
+            return Section(*numbers)
+        return getattr(Section, kind)(*numbers)
+    except (FlexmbdError, ValueError) as error:
+        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
+
+
 def _preprocess(args: argparse.Namespace) -> int:
     from .fe.body_file import save_body
     from .fe.preprocess import Material, body_from_mesh
@@ -806,7 +835,14 @@ def _preprocess(args: argparse.Namespace) -> int:
         "interface_kind": args.interface_kind,
         "interface_weights": args.interface_weights,
         "precision": args.precision,
+        "beam_theory": args.beam_theory,
     }
+    if args.section is not None:
+        options["section"] = args.section
+    if args.section_orientation is not None:
+        options["orientation"] = args.section_orientation
+    if args.thickness is not None:
+        options["shell"] = args.thickness
     if args.reference_nodes:
         nodes = args.reference_nodes
         options["reference_nodes"] = nodes[0] if len(nodes) == 1 else [int(n) for n in nodes]
@@ -1000,7 +1036,7 @@ def _main(argv: list[str] | None) -> int:
         "preprocess",
         help="build a deformable body file from a mesh (Gmsh .msh, Abaqus .inp, VTK)",
         description="Element matrices, invariants of motion, reference conditions and modes "
-        "of a body meshed with solid or beam elements, saved as an HDF5 body file.",
+        "of a body meshed with solid, beam or shell elements, saved as an HDF5 body file.",
     )
     pre.add_argument("mesh", help="mesh file")
     pre.add_argument("-o", "--output", required=True, help="body file to write (.h5)")
@@ -1008,6 +1044,28 @@ def _main(argv: list[str] | None) -> int:
     pre.add_argument("--poisson-ratio", type=float, required=True)
     pre.add_argument("--density", type=float, required=True, help="kg/m^3")
     pre.add_argument("--mass", choices=("consistent", "lumped"), default="consistent")
+    pre.add_argument(
+        "--section",
+        type=_section_argument,
+        metavar="KIND:VALUES",
+        help="beam section: circle:R, rectangle:WIDTH,HEIGHT (along the section's y, z), "
+        "tube:OUTER,INNER (radii) or general:AREA,IY,IZ,J (m, m^2, m^4)",
+    )
+    pre.add_argument(
+        "--section-orientation",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="beam sections' y axis, a vector across the beams (default: chosen)",
+    )
+    pre.add_argument(
+        "--beam-theory", choices=("euler-bernoulli", "timoshenko"), default="euler-bernoulli"
+    )
+    pre.add_argument(
+        "--thickness",
+        type=float,
+        help="shell thickness (m; default: the mesh's own, an Abaqus *SHELL SECTION)",
+    )
     pre.add_argument(
         "--reference",
         choices=("none", "clamped", "3-2-1", "simply-supported", "mean-axis", "interface"),

@@ -62,6 +62,8 @@ impl Section {
     /// Solid rectangle of width b (along y) and height h (along z). Torsion constant by the
     /// series solution of Saint-Venant's problem (Timoshenko and Goodier), to 1e-10.
     pub fn rectangle(item: &str, b: f64, h: f64) -> Result<Self> {
+        positive_dimension(item, "rectangle width", b)?;
+        positive_dimension(item, "rectangle height", h)?;
         let (long, short) = if b >= h { (b, h) } else { (h, b) };
         // J = (a b^3 / 3) (1 - 192 b / (pi^5 a) sum_{n odd} tanh(n pi a / 2b) / n^5).
         let mut sum = 0.0;
@@ -77,6 +79,7 @@ impl Section {
 
     /// Solid circle of radius r.
     pub fn circle(item: &str, r: f64) -> Result<Self> {
+        positive_dimension(item, "circle radius", r)?;
         let i = std::f64::consts::PI * r.powi(4) / 4.0;
         Section::new(item, std::f64::consts::PI * r * r, i, i, 2.0 * i)?.with_shear_factor(item, 0.9)
     }
@@ -95,6 +98,18 @@ impl Section {
         let kappa = 0.5 + 0.4 * (inner / outer - 1.0).powi(2);
         Section::new(item, area, i, i, 2.0 * i)?.with_shear_factor(item, kappa)
     }
+}
+
+/// A length of a section's shape (radius, width, height), which must be positive and finite:
+/// the area and second moments of a negative one would be positive, and wrong.
+fn positive_dimension(item: &str, what: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value > 0.0 {
+        return Ok(());
+    }
+    Err(FlexmbdError::InvalidParameter {
+        item: item.to_string(),
+        message: format!("{what} must be positive and finite, got {value}"),
+    })
 }
 
 /// Section of a shell: its thickness (uniform over the element, the mid-surface at the nodes)
