@@ -524,3 +524,23 @@ def test_section_shapes_of_negative_size_are_refused(make, match):
     # numbers that look right, so the shape's lengths themselves are checked.
     with pytest.raises(fm.InvalidParameterError, match=match):
         make()
+
+
+@pytest.mark.parametrize(
+    "orientation, match",
+    [
+        ((float("nan"), 0.0, 0.0), "must be a finite, non-zero vector"),
+        ((0.0, 0.0, 0.0), "must be a finite, non-zero vector"),
+        ((2.0, 0.0, 0.0), "is parallel to the beam axis"),
+    ],
+)
+def test_a_bad_beam_orientation_names_the_element(orientation, match):
+    nodes = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    with pytest.raises(fm.InvalidModelError, match=f"element 1: .*{match}"):
+        fm.fe.build_body(
+            nodes,
+            {"beam2": np.array([[0, 1]])},
+            fm.fe.Material(7e10, 0.3, 2700.0),
+            section=fm.fe.Section.circle(0.01),
+            orientation=orientation,
+        )

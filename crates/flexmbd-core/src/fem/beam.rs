@@ -62,6 +62,11 @@ impl Beam {
             return Err(ElementError::Degenerate { detail: format!("beam length {length}") });
         }
         let ex = d * (1.0 / length);
+        if !self.orientation.0.iter().all(|c| c.is_finite()) || self.orientation.norm() == 0.0 {
+            return Err(ElementError::Invalid {
+                detail: format!("orientation {:?} must be a finite, non-zero vector", self.orientation.0),
+            });
+        }
         let v = self.orientation - ex * self.orientation.dot(&ex);
         let vn = v.norm();
         if !(vn > 1e-8 * self.orientation.norm()) {
