@@ -9,6 +9,7 @@ use flexmbd_core::integrator::{simulate, SimulationSettings, StepControl};
 use flexmbd_core::joint::JointKind;
 use flexmbd_core::math::{Mat3, Vec3};
 use flexmbd_core::system::sensor::SensorQuantity;
+use flexmbd_core::testing::a02_four_bar;
 use flexmbd_core::{Model, SystemBuilder};
 
 /// A01: 1 kg point mass on a massless 1 m link (a distance constraint), released at rest
@@ -22,72 +23,6 @@ fn pendulum() -> Model {
     sys.add_joint("link", JointKind::Distance { distance: 1.0 }, [pivot, bob]).unwrap();
     sys.add_sensor("bob position", bob, SensorQuantity::Position).unwrap();
     sys.compile().unwrap()
-}
-
-fn rot_z(angle: f64) -> Mat3 {
-    let (s, c) = angle.sin_cos();
-    Mat3([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-}
-
-/// A02: 2N+1 uniform 1 kg, 1 m links; cranks vertical at x = 0..N, couplers horizontal at
-/// y = 1; B0 (top of crank 0) starts at 1 m/s along x. Cranks: revolute to the ground;
-/// couplers: revolute to crank k, in-line (in-plane position) to crank k+1, so the 3D model has
-/// no redundant equations.
-pub fn four_bar(n: usize) -> (Model, flexmbd_core::SensorId) {
-    let mut sys = SystemBuilder::new();
-    sys.set_gravity(Vec3([0.0, -9.81, 0.0])).unwrap();
-    // Slender rod along its local x axis.
-    let inertia = Mat3::diagonal(Vec3([5e-5, 1.0 / 12.0, 1.0 / 12.0]));
-    let ground = sys.ground();
-    let mut cranks = Vec::new();
-    let mut top_sensor = None;
-    for k in 0..=n {
-        let x = k as f64;
-        let crank = sys
-            .add_rigid_body(
-                &format!("crank {k}"),
-                1.0,
-                inertia,
-                Vec3::ZERO,
-                Vec3([x, 0.5, 0.0]),
-                rot_z(std::f64::consts::FRAC_PI_2),
-                Vec3([0.5, 0.0, 0.0]),
-                Vec3([0.0, 0.0, -1.0]),
-            )
-            .unwrap();
-        let g = sys.add_marker("", ground, Vec3([x, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        // Local x runs up the crank: the pivot is at local -0.5, the top at +0.5.
-        let bottom =
-            sys.add_marker("", crank, Vec3([-0.5, 0.0, 0.0]), rot_z(-std::f64::consts::FRAC_PI_2)).unwrap();
-        sys.add_joint("", JointKind::Revolute, [g, bottom]).unwrap();
-        let top = sys
-            .add_marker(&format!("B{k}"), crank, Vec3([0.5, 0.0, 0.0]), rot_z(-std::f64::consts::FRAC_PI_2))
-            .unwrap();
-        if k == 0 {
-            top_sensor = Some(sys.add_sensor("B0", top, SensorQuantity::Position).unwrap());
-            sys.add_sensor("B0 velocity", top, SensorQuantity::Velocity).unwrap();
-        }
-        cranks.push(top);
-    }
-    for k in 0..n {
-        let coupler = sys
-            .add_rigid_body(
-                &format!("coupler {k}"),
-                1.0,
-                inertia,
-                Vec3::ZERO,
-                Vec3([k as f64 + 0.5, 1.0, 0.0]),
-                Mat3::IDENTITY,
-                Vec3([1.0, 0.0, 0.0]),
-                Vec3::ZERO,
-            )
-            .unwrap();
-        let left = sys.add_marker("", coupler, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        let right = sys.add_marker("", coupler, Vec3([0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        sys.add_joint("", JointKind::Revolute, [cranks[k], left]).unwrap();
-        sys.add_joint("", JointKind::Inline, [cranks[k + 1], right]).unwrap();
-    }
-    (sys.compile().unwrap(), top_sensor.unwrap())
 }
 
 #[test]
@@ -138,7 +73,7 @@ fn energy_drift(out: &flexmbd_core::output::Output) -> f64 {
 #[test]
 fn a02_four_bar_passes_its_singular_configurations() {
     // Spectral radius 0.9, modified Newton (the defaults).
-    let (model, _) = four_bar(2);
+    let (model, _) = a02_four_bar(2);
     let mut settings = SimulationSettings::new(10.0, 2e-4);
     settings.output_interval = Some(0.01);
     settings.spectral_radius = 0.9;
@@ -153,7 +88,7 @@ fn a02_four_bar_passes_its_singular_configurations() {
 #[test]
 fn a02_four_bar_energy_is_conserved_without_numerical_dissipation() {
     // Spectral radius 1, with the velocity projection it implies.
-    let (model, _) = four_bar(2);
+    let (model, _) = a02_four_bar(2);
     let mut settings = SimulationSettings::new(10.0, 1e-4);
     settings.output_interval = Some(0.01);
     settings.spectral_radius = 1.0;

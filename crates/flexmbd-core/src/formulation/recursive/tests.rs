@@ -8,7 +8,7 @@ use crate::integrator::test_models::{ground_joint, unit_body};
 use crate::linalg::partition::{partition, PartitionMethod, DEFAULT_RANK_TOLERANCE};
 use crate::math::time_function::TimeFunction;
 use crate::system::{State, Workspace};
-use crate::testing::{assert_all_close, assert_close};
+use crate::testing::{a02_four_bar, assert_all_close, assert_close};
 use crate::SystemBuilder;
 
 fn rot_x(angle: f64) -> Mat3 {
@@ -704,60 +704,6 @@ fn linearized_equations_match_finite_differences_at_rest() {
     }
 }
 
-/// IFToMM A02 with `n` four-bars in 3D (as `flexmbd.examples.four_bar`): vertical cranks on
-/// revolute pivots at x = 0..n, horizontal couplers at y = 1 on a revolute joint to crank k
-/// and an in-line joint to crank k + 1 (cut by the tree), gravity along -y.
-fn four_bar_model(n: usize) -> Model {
-    let mut sys = SystemBuilder::new();
-    sys.set_gravity(Vec3([0.0, -9.81, 0.0])).unwrap();
-    let inertia = Mat3([[5e-5, 0.0, 0.0], [0.0, 1.0 / 12.0, 0.0], [0.0, 0.0, 1.0 / 12.0]]);
-    let rz = |a: f64| {
-        let (s, c) = f64::sin_cos(a);
-        Mat3([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    };
-    let (up, to_joint) = (rz(std::f64::consts::FRAC_PI_2), rz(-std::f64::consts::FRAC_PI_2));
-    let g = sys.ground();
-    let mut tops = Vec::new();
-    for k in 0..=n {
-        let x = k as f64;
-        let crank = sys
-            .add_rigid_body(
-                &format!("crank {k}"),
-                1.0,
-                inertia,
-                Vec3::ZERO,
-                Vec3([x, 0.5, 0.0]),
-                up,
-                Vec3([0.5, 0.0, 0.0]),
-                Vec3([0.0, 0.0, -1.0]),
-            )
-            .unwrap();
-        let pivot = sys.add_marker("", g, Vec3([x, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        let bottom = sys.add_marker("", crank, Vec3([-0.5, 0.0, 0.0]), to_joint).unwrap();
-        sys.add_joint(&format!("pivot {k}"), JointKind::Revolute, [pivot, bottom]).unwrap();
-        tops.push(sys.add_marker("", crank, Vec3([0.5, 0.0, 0.0]), to_joint).unwrap());
-    }
-    for k in 0..n {
-        let coupler = sys
-            .add_rigid_body(
-                &format!("coupler {k}"),
-                1.0,
-                inertia,
-                Vec3::ZERO,
-                Vec3([k as f64 + 0.5, 1.0, 0.0]),
-                Mat3::IDENTITY,
-                Vec3([1.0, 0.0, 0.0]),
-                Vec3::ZERO,
-            )
-            .unwrap();
-        let left = sys.add_marker("", coupler, Vec3([-0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        let right = sys.add_marker("", coupler, Vec3([0.5, 0.0, 0.0]), Mat3::IDENTITY).unwrap();
-        sys.add_joint(&format!("coupler {k} left"), JointKind::Revolute, [tops[k], left]).unwrap();
-        sys.add_joint(&format!("coupler {k} right"), JointKind::Inline, [tops[k + 1], right]).unwrap();
-    }
-    sys.compile().unwrap()
-}
-
 /// The sparse joint-space evaluation (body by body, range-space solve) against the dense one
 /// (B, M and C_q of the model's size, the SVD of C_cut B) on IFToMM A02 with 2 to 10
 /// four-bars: the influence coefficients, the accelerations, the minimum-norm corrections and
@@ -767,7 +713,7 @@ fn four_bar_model(n: usize) -> Model {
 #[test]
 fn sparse_joint_space_equals_the_dense_one_on_a02() {
     for n in [2, 5, 10] {
-        let model = four_bar_model(n);
+        let (model, _) = a02_four_bar(n);
         let (tree, p0) = Tree::new(&model, &consistent(&model), None).unwrap();
         let (nq, nf, nc) = (model.coordinate_count, tree.free_count(), tree.cut_rows.len());
         assert_eq!((nf, nc), (2 * n + 1, 2 * n));
