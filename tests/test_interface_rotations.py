@@ -26,6 +26,14 @@ def rigid_field(nodes: np.ndarray, a: np.ndarray, w: np.ndarray) -> np.ndarray:
     return u.ravel()
 
 
+def straight_beam(nodes: np.ndarray, section: Section, **options):
+    """A beam of two-node elements through `nodes` in order, sections' y axis across."""
+    count = len(nodes) - 1
+    connectivity = {"beam2": np.c_[np.arange(count), np.arange(1, count + 1)]}
+    axis = (0.0, 0.0, 1.0)
+    return build_body(nodes, connectivity, ALUMINIUM, section=section, orientation=axis, **options)
+
+
 def shell_plate(reference: str = "none", **options):
     mesh = shapes.plate((0.3, 0.1), (6, 2), "quad4")
     data = build_body(
@@ -69,14 +77,7 @@ def test_a_shell_edge_follows_rigid_motions_and_averages_the_nodal_rotations_abo
 def test_a_beam_segment_or_node_has_the_rotation_of_its_nodes(nodes, assert_close):
     x = np.linspace(0.0, 1.0, 6)
     beam_nodes = np.c_[x, 0.2 * x, 0.1 * x]  # an oblique straight beam
-    data = build_body(
-        beam_nodes,
-        {"beam2": np.c_[np.arange(5), np.arange(1, 6)]},
-        ALUMINIUM,
-        section=Section(3e-4, 2e-8, 5e-8, 3e-8),
-        orientation=(0.0, 0.0, 1.0),
-        reference="none",
-    )
+    data = straight_beam(beam_nodes, Section(3e-4, 2e-8, 5e-8, 3e-8), reference="none")
     interface = body_interface(data, nodes, ids=False)
     assert interface.free_axes.shape == (3, 1 if len(nodes) > 1 else 3)
     rows = interface.average_rows(6, data.dof_count).toarray()
@@ -111,12 +112,9 @@ def test_without_rotational_coordinates_a_line_is_still_refused():
 
 def test_a_one_node_set_marker_of_a_beam_is_its_node_marker(assert_close):
     x = np.linspace(0.0, 0.5, 9)
-    data = build_body(
+    data = straight_beam(
         np.c_[x, 0 * x, 0 * x],
-        {"beam2": np.c_[np.arange(8), np.arange(1, 9)]},
-        ALUMINIUM,
-        section=Section(2e-5, 1.7e-11, 1.7e-11, 3.3e-11),
-        orientation=(0.0, 0.0, 1.0),
+        Section(2e-5, 1.7e-11, 1.7e-11, 3.3e-11),
         reference="clamped",
         reference_nodes=[0],
         modes="fixed-interface",
@@ -146,14 +144,7 @@ def test_a_one_node_set_marker_of_a_beam_is_its_node_marker(assert_close):
 def test_rbe3_craig_bampton_of_one_beam_node_is_the_rbe2_basis(assert_close):
     x = np.linspace(0.0, 1.0, 11)
     nodes = np.c_[x, 0 * x, 0 * x]
-    data = build_body(
-        nodes,
-        {"beam2": np.c_[np.arange(10), np.arange(1, 11)]},
-        ALUMINIUM,
-        section=Section(2e-4, 1.7e-9, 2.5e-9, 3.3e-9),
-        orientation=(0.0, 0.0, 1.0),
-        reference="none",
-    )
+    data = straight_beam(nodes, Section(2e-4, 1.7e-9, 2.5e-9, 3.3e-9), reference="none")
     frequencies = {}
     for kind in ("rbe2", "rbe3"):
         _, frequencies[kind] = craig_bampton(

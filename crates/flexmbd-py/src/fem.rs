@@ -239,16 +239,92 @@ impl FeMesh {
         shear: bool,
         shell: Option<ShellSection>,
     ) -> PyResult<Self> {
-        let inner = build_mesh(
-            nodes,
-            node_ids,
-            elements,
-            material,
-            section.as_ref(),
-            orientation.as_deref(),
-            shear,
-            shell.as_ref(),
-        )?;
+        let (section, orientation, shell) = (section.as_ref(), orientation.as_deref(), shell.as_ref());
+        let nodes = nodes.as_array();
+        if nodes.ncols() != 3 {
+            return Err(invalid(
+                "mesh",
+                format!("nodes must be an (n, 3) array, got {} columns", nodes.ncols()),
+            ));
+        }
+        let positions: Vec<Vec3> = nodes.rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect();
+        let mut list = Vec::new();
+        for (key, value) in elements.iter() {
+            let kind: String = key.extract()?;
+            let (connectivity, ids): (PyReadonlyArray2<'py, i64>, PyReadonlyArray1<'py, i64>) =
+                value.extract()?;
+            let connectivity = connectivity.as_array();
+            let ids = ids.as_array();
+            if ids.len() != connectivity.nrows() {
+                return Err(invalid(
+                    "mesh",
+                    format!("{} ids for {} {kind} elements", ids.len(), connectivity.nrows()),
+                ));
+            }
+            for (row, &id) in connectivity.rows().into_iter().zip(ids.iter()) {
+                let element_nodes: Vec<usize> = row
+                    .iter()
+                    .map(|&v| {
+                        usize::try_from(v).map_err(|_| {
+                            invalid(&format!("element {id}"), format!("negative node index {v}"))
+                        })
+                    })
+                    .collect::<PyResult<_>>()?;
+                let kind = match kind.as_str() {
+                    "beam2" => {
+                        let section = section.ok_or_else(|| {
+                            invalid(&format!("element {id}"), "beam elements need a section")
+                        })?;
+                        let axis = match (element_nodes.first(), element_nodes.get(1)) {
+                            (Some(&a), Some(&b)) if a < positions.len() && b < positions.len() => {
+                                positions[b] - positions[a]
+                            }
+                            _ => Vec3([1.0, 0.0, 0.0]),
+                        };
+                        let o = match orientation {
+                            Some(v) if v.len() == 3 => Vec3([v[0], v[1], v[2]]),
+                            Some(v) => {
+                                return Err(invalid(
+                                    "beam orientation",
+                                    format!("expected 3 components, got {}", v.len()),
+                                ))
+                            }
+                            None => default_orientation(axis),
+                        };
+                        ElementType::Beam(fem::Beam { section: section.inner, orientation: o, shear })
+                    }
+                    "tet4" => ElementType::Tet4,
+                    "tet10" => ElementType::Tet10,
+                    "hex8" => ElementType::Hex8,
+                    "quad4" | "tri3" => {
+                        let section = shell.ok_or_else(|| {
+                            invalid(
+                                &format!("element {id}"),
+                                "shell elements need a shell section (thickness)",
+                            )
+                        })?;
+                        if kind == "quad4" {
+                            ElementType::Quad4(fem::ShellQuad4 { section: section.inner })
+                        } else {
+                            ElementType::Tri3(fem::ShellTri3 { section: section.inner })
+                        }
+                    }
+                    other => return Err(invalid(
+                        "mesh",
+                        format!(
+                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, quad4, tri3)"
+                        ),
+                    )),
+                };
+                list.push(Element { id, kind, nodes: element_nodes });
+            }
+        }
+        let inner = Mesh {
+            nodes: positions,
+            node_ids: node_ids.as_array().to_vec(),
+            elements: list,
+            material: material.inner,
+        };
         Ok(FeMesh { inner })
     }
 
@@ -257,99 +333,6 @@ impl FeMesh {
     fn dofs_per_node(&self) -> usize {
         self.inner.dofs_per_node()
     }
-}
-
-/// Builds the core mesh from the arrays of `assemble_body`.
-#[allow(clippy::too_many_arguments)]
-fn build_mesh<'py>(
-    nodes: PyReadonlyArray2<'py, f64>,
-    node_ids: PyReadonlyArray1<'py, i64>,
-    elements: &Bound<'py, PyDict>,
-    material: &Material,
-    section: Option<&Section>,
-    orientation: Option<&[f64]>,
-    shear: bool,
-    shell: Option<&ShellSection>,
-) -> PyResult<Mesh> {
-    let nodes = nodes.as_array();
-    if nodes.ncols() != 3 {
-        return Err(invalid("mesh", format!("nodes must be an (n, 3) array, got {} columns", nodes.ncols())));
-    }
-    let positions: Vec<Vec3> = nodes.rows().into_iter().map(|r| Vec3([r[0], r[1], r[2]])).collect();
-    let mut list = Vec::new();
-    for (key, value) in elements.iter() {
-        let kind: String = key.extract()?;
-        let (connectivity, ids): (PyReadonlyArray2<'py, i64>, PyReadonlyArray1<'py, i64>) =
-            value.extract()?;
-        let connectivity = connectivity.as_array();
-        let ids = ids.as_array();
-        if ids.len() != connectivity.nrows() {
-            return Err(invalid(
-                "mesh",
-                format!("{} ids for {} {kind} elements", ids.len(), connectivity.nrows()),
-            ));
-        }
-        for (row, &id) in connectivity.rows().into_iter().zip(ids.iter()) {
-            let element_nodes: Vec<usize> = row
-                .iter()
-                .map(|&v| {
-                    usize::try_from(v)
-                        .map_err(|_| invalid(&format!("element {id}"), format!("negative node index {v}")))
-                })
-                .collect::<PyResult<_>>()?;
-            let kind = match kind.as_str() {
-                "beam2" => {
-                    let section = section
-                        .ok_or_else(|| invalid(&format!("element {id}"), "beam elements need a section"))?;
-                    let axis = match (element_nodes.first(), element_nodes.get(1)) {
-                        (Some(&a), Some(&b)) if a < positions.len() && b < positions.len() => {
-                            positions[b] - positions[a]
-                        }
-                        _ => Vec3([1.0, 0.0, 0.0]),
-                    };
-                    let o = match orientation {
-                        Some(v) if v.len() == 3 => Vec3([v[0], v[1], v[2]]),
-                        Some(v) => {
-                            return Err(invalid(
-                                "beam orientation",
-                                format!("expected 3 components, got {}", v.len()),
-                            ))
-                        }
-                        None => default_orientation(axis),
-                    };
-                    ElementType::Beam(fem::Beam { section: section.inner, orientation: o, shear })
-                }
-                "tet4" => ElementType::Tet4,
-                "tet10" => ElementType::Tet10,
-                "hex8" => ElementType::Hex8,
-                "quad4" | "tri3" => {
-                    let section = shell.ok_or_else(|| {
-                        invalid(&format!("element {id}"), "shell elements need a shell section (thickness)")
-                    })?;
-                    if kind == "quad4" {
-                        ElementType::Quad4(fem::ShellQuad4 { section: section.inner })
-                    } else {
-                        ElementType::Tri3(fem::ShellTri3 { section: section.inner })
-                    }
-                }
-                other => {
-                    return Err(invalid(
-                        "mesh",
-                        format!(
-                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, quad4, tri3)"
-                        ),
-                    ))
-                }
-            };
-            list.push(Element { id, kind, nodes: element_nodes });
-        }
-    }
-    Ok(Mesh {
-        nodes: positions,
-        node_ids: node_ids.as_array().to_vec(),
-        elements: list,
-        material: material.inner,
-    })
 }
 
 /// Assembles a deformable body of `mesh`, with the mass lumped or consistent. Returns a dict
