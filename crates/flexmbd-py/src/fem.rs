@@ -309,12 +309,14 @@ impl FeMesh {
                             ElementType::Tri3(fem::ShellTri3 { section: section.inner })
                         }
                     }
-                    other => return Err(invalid(
-                        "mesh",
-                        format!(
+                    other => {
+                        return Err(invalid(
+                            "mesh",
+                            format!(
                             "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, quad4, tri3)"
                         ),
-                    )),
+                        ))
+                    }
                 };
                 list.push(Element { id, kind, nodes: element_nodes });
             }
