@@ -464,3 +464,31 @@ def test_satellite_slew_reaches_the_rigid_angle_and_bends_the_panels_quasi_stati
     check_close(tips[0][accelerating].mean(), static, rel=0.02, what="mean tip deflection")
     residual = np.abs(tips[0][t > 20.5]).max()
     assert 0.05 < residual / np.abs(tips[0]).max() < 0.5
+
+
+def test_a_modal_strip_whose_modes_do_not_couple_x_and_y_runs_at_its_frequencies(aluminium):
+    # Bending modes of a strip in the x-y plane have no in-plane motion, so the modal I_12 is
+    # only round-off; its transpose check is against all nine I_kl (it was refused at 3.8e-7 of
+    # its own size). Held at its frame, the strip's linearized frequencies are its modes'
+    # (the first to 3e-6 here, 4e-8 on the 0.3 x 0.1 plate, the same with lumped mass: a
+    # difference not explained yet, which the refusal hid).
+    mesh = shapes.plate((1.0, 0.05), (20, 1), "quad4")
+    body = build_body(
+        mesh.nodes,
+        mesh.elements,
+        aluminium,
+        shell=2e-3,
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+        modes="fixed-interface",
+        mode_count=4,
+    )
+    system = fm.System()
+    strip = system.add_flexible_body(body, name="strip")
+    system.add_fixed_joint(system.add_marker(system.ground), system.add_marker(strip))
+    model = system.compile()
+    frequencies = fm.linearize(model, fm.equilibrium(model)).oscillating()[0]
+    check_close(np.sort(frequencies), np.sort(body.frequencies), rel=1e-5, what="frequencies")
+    i_kl = body.invariants["i_kl"]
+    assert abs(i_kl[0][1]).max() < 1e-7 * abs(i_kl[0][0]).max()  # no x-y coupling

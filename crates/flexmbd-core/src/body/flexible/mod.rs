@@ -231,9 +231,22 @@ pub(crate) fn check_square(item: &str, what: &str, m: &Csc, n: usize) -> Result<
     Ok(())
 }
 
-/// Largest |A - B^T| relative to the largest entry.
+/// Largest |A - B^T| relative to the largest entry of A and B.
 pub(crate) fn transpose_mismatch(a: &Csc, b: &Csc) -> f64 {
-    let scale = a.values.iter().chain(&b.values).fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    transpose_difference(a, b) / largest_entry([a, b])
+}
+
+/// The largest stored |entry| of the matrices (at least the smallest positive number).
+fn largest_entry<'a>(matrices: impl IntoIterator<Item = &'a Csc>) -> f64 {
+    matrices
+        .into_iter()
+        .flat_map(|m| m.values.iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE)
+}
+
+/// Largest |A - B^T| over the stored entries of both.
+fn transpose_difference(a: &Csc, b: &Csc) -> f64 {
     let mut worst = 0.0f64;
     for c in 0..a.ncols {
         for k in a.col_ptr[c]..a.col_ptr[c + 1] {
@@ -245,7 +258,7 @@ pub(crate) fn transpose_mismatch(a: &Csc, b: &Csc) -> f64 {
             worst = worst.max((b.values[k] - a.get(c, b.row_idx[k])).abs());
         }
     }
-    worst / scale
+    worst
 }
 
 impl FlexibleBodyInput {
@@ -307,12 +320,15 @@ impl FlexibleBodyInput {
         check_square(item, "damping matrix", &self.damping, n)
     }
 
-    /// I_kl^T = I_lk, and symmetric K_ff and D_ff (to 1e-9 of the largest entry).
+    /// I_kl^T = I_lk (to 1e-9 of the largest entry of all nine: a pair that couples nothing,
+    /// such as I_12 of the bending modes of a plate in the x-y plane, is round-off of the
+    /// others' size), and symmetric K_ff and D_ff (to 1e-9 of the largest entry).
     fn check_symmetry(&self, item: &str) -> Result<()> {
         let bad = |message: String| FlexmbdError::InvalidParameter { item: item.to_string(), message };
+        let scale = largest_entry(&self.i_kl);
         for k in 0..3 {
             for l in k..3 {
-                let mismatch = transpose_mismatch(&self.i_kl[3 * k + l], &self.i_kl[3 * l + k]);
+                let mismatch = transpose_difference(&self.i_kl[3 * k + l], &self.i_kl[3 * l + k]) / scale;
                 if mismatch > 1e-9 {
                     return Err(bad(format!(
                         "invariants I_{}{} and I_{}{} must be transposes of each other (mismatch {mismatch:.1e})",

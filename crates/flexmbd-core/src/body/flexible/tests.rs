@@ -713,3 +713,22 @@ fn bad_data_is_rejected() {
     inp.i1.pop();
     assert!(FlexibleBody::new("b", inp).is_err());
 }
+
+/// I_kl^T = I_lk is checked against the largest entry of all nine: a pair that is only
+/// round-off (I_12 of bending modes normal to the x-y plane) passes, a real mismatch does not.
+#[test]
+fn the_transpose_check_of_i_kl_is_relative_to_all_nine() {
+    let body = PointBody::random(6, 3, 11);
+    let mut input = body.input(10.0, 0.0);
+    assert!(input.validate("body").is_ok());
+    // Round-off in I_12 (1e-13 of the largest entry) that is not I_21^T: accepted.
+    let largest = input.i_kl.iter().flat_map(|m| m.values.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
+    let tiny = |value: f64| Csc::from_dense(3, 3, |r, c| if (r, c) == (0, 1) { value } else { 0.0 });
+    input.i_kl[1] = tiny(1e-13 * largest);
+    input.i_kl[3] = tiny(0.0);
+    assert!(input.validate("body").is_ok());
+    // A mismatch of 1e-6 of the largest entry: refused, naming the pair.
+    input.i_kl[1] = tiny(1e-6 * largest);
+    let error = input.validate("body").unwrap_err().to_string();
+    assert!(error.contains("I_12 and I_21 must be transposes"), "{error}");
+}
