@@ -21,6 +21,16 @@ def value_text(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def id_text(value: Any) -> str:
+    """An id (of a node or an element) for a message: as given, or, beyond the 64-bit integers
+    that no mesh numbers its nodes with, in exponent form (a 31-digit echo reads as noise)."""
+    try:
+        whole = int(value)
+    except (TypeError, ValueError, OverflowError):
+        return value_text(value)
+    return str(whole) if abs(whole) < 2**63 else f"{float(whole):.3e}"
+
+
 def _shown(value: Any) -> str:
     return f"{value_text(value)} ({type(value).__name__})"
 

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ._checks import id_text
 from .errors import InvalidParameterError, UnknownItemError
 from .quantities import (
     JOINT_COORDINATES,
@@ -342,8 +343,8 @@ def _node_of(data: Any, node: int) -> int:
     hits = np.flatnonzero(ids == node)
     if len(hits) == 0:
         raise UnknownItemError(
-            f"the body has no node with id {node}; ids {ids.min()} .. {ids.max()}",
-            item=str(node),
+            f"the body has no node with id {id_text(node)}; ids {ids.min()} .. {ids.max()}",
+            item=id_text(node),
         )
     return int(hits[0])
 

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ._checks import id_text
 from .errors import InvalidParameterError, UnknownItemError
 
 Array = NDArray[np.float64]
@@ -257,8 +258,9 @@ def _deflection(result: Any, body: object, node_text: str) -> tuple[Array, list[
         hits = np.flatnonzero(ids == int(node_text))
         if len(hits) == 0:
             raise UnknownItemError(
-                f"the body has no node with id {node_text}; ids {ids.min()} .. {ids.max()}",
-                item=node_text,
+                f"the body has no node with id {id_text(node_text)}; ids {ids.min()} .. "
+                f"{ids.max()}",
+                item=id_text(node_text),
             )
         index = int(hits[0])
     else:

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from ._checks import choice, flag, number, numbers_array, value_text
+from ._checks import choice, flag, id_text, number, numbers_array, value_text
 from .errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -85,7 +85,8 @@ def _node_index(body: FlexibleBodyData, node: int, item: str) -> int:
     hits = np.flatnonzero(ids == node)
     if len(hits) == 0:
         raise UnknownItemError(
-            f"{item}: the body has no node with id {node} (ids {ids.min()} .. {ids.max()})",
+            f"{item}: the body has no node with id {id_text(node)} (ids {ids.min()} .. "
+            f"{ids.max()})",
             item=item,
         )
     return int(hits[0])

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _boundary, _core
-from .._checks import value_text
+from .._checks import id_text, value_text
 from ..errors import FlexmbdError, ModelFileError
 from ..result import Result
 from ..rotation import rotation
@@ -1028,8 +1028,8 @@ class _Builder:
             if node not in ids:
                 raise self.fail(
                     where,
-                    f"body {value_text(spec.body)} has no node with id {node} (its {len(ids)} "
-                    f"nodes have ids {min(ids, default=0)} to {max(ids, default=0)})",
+                    f"body {value_text(spec.body)} has no node with id {id_text(node)} (its "
+                    f"{len(ids)} nodes have ids {min(ids, default=0)} to {max(ids, default=0)})",
                 )
         if spec.chord is not None:
             if spec.chord[0] == spec.chord[1]:
