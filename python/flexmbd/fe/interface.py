@@ -553,9 +553,11 @@ def make_interface(
     centroid = w @ nodes[members]
     arms = nodes[members] - centroid
     h = np.einsum("p,pi,pi->", w, arms, arms) * np.eye(3) - np.einsum("p,pi,pj->ij", w, arms, arms)
-    values = np.linalg.eigvalsh(0.5 * (h + h.T))
+    values, vectors = np.linalg.eigh(0.5 * (h + h.T))
     size = float(np.einsum("p,pi,pi->", np.abs(w), arms, arms))
-    defined = len(members) >= 3 and values[0] > 1e-9 * max(size, 1e-300)
+    # The null space of H: the direction of a line of nodes, every direction for one node.
+    free = values <= 1e-9 * max(size, 1e-300)
+    defined = len(members) >= 3 and not free[0]
     if require_rotation and not defined and not nodal_rotations:
         raise InvalidModelError(
             f"{name}: its {len(members)} weighted nodes lie on one line (or are fewer than "
@@ -596,15 +598,8 @@ def make_interface(
         arms=arms,
         principal_axes=axes,
         rotation_inverse=np.linalg.inv(h) if defined else np.linalg.pinv(h, rcond=1e-9),
-        free_axes=np.zeros((3, 0)) if defined else _null_space(h, size),
+        free_axes=np.zeros((3, 0)) if defined else vectors[:, free],
     )
-
-
-def _null_space(h: Array, size: float) -> Array:
-    """An orthonormal basis (columns) of the null space of the singular H of a line of nodes
-    (its direction) or of one node (all three axes); `size`: the weighted spread sum w |d|^2."""
-    values, vectors = np.linalg.eigh(0.5 * (h + h.T))
-    return vectors[:, values <= 1e-9 * max(size, 1e-300)]
 
 
 def body_interface(

@@ -275,6 +275,7 @@ def batch_sizes(cases: int, workers: int) -> list[int]:
 
 
 def _batches(items: list[Any], workers: int) -> list[list[Any]]:
+    """`items` in the batches of `batch_sizes` (no worker known yet: as for one)."""
     batches, start = [], 0
     for size in batch_sizes(len(items), workers):
         batches.append(items[start : start + size])
@@ -298,7 +299,7 @@ def _check_on_dask(
     """Checks `cases` (index, parameters) on the cluster's workers (`check_cases`: each
     builds its models, in parallel, warming up the workers for the run) and returns the
     refusal of the first case refused, or None."""
-    batches = _batches(cases, max(1, _worker_count(client)))
+    batches = _batches(cases, _worker_count(client))
     futures = [
         client.submit(check_cases, source, batch, key=f"flexmbd-check-{k}", pure=False)
         for k, batch in enumerate(batches)
@@ -323,7 +324,7 @@ def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int)
     try:
         futures = [
             client.submit(run_cases, batch, key=f"flexmbd-cases-{batch[0].key}", pure=False)
-            for batch in _batches(tasks, max(1, _worker_count(client)))
+            for batch in _batches(tasks, _worker_count(client))
         ]
         done = total - len(tasks)
         finished = failed = 0

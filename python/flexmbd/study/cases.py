@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import FlexmbdError, InvalidParameterError, SimulationError
+from ..errors import FlexmbdError, InvalidParameterError, ModelFileError, SimulationError
 
 #: Seconds of wall time between writes of a case's results file: a case that fails still
 #: writes all it computed, and a case killed with its worker runs again on the next run.
@@ -100,8 +100,6 @@ class ModelSource:
 def check_case(source: ModelSource, index: int, parameters: Mapping[str, Any]) -> None:
     """Refuses case `index` if its model does not take `parameters`: the error names the case
     and the key path (a model file's :class:`ModelFileError`) or the build function's error."""
-    from ..errors import ModelFileError
-
     try:
         source.check(parameters)
     except ModelFileError as error:

@@ -722,7 +722,7 @@ fn the_transpose_check_of_i_kl_is_relative_to_all_nine() {
     let mut input = body.input(10.0, 0.0);
     assert!(input.validate("body").is_ok());
     // Round-off in I_12 (1e-13 of the largest entry) that is not I_21^T: accepted.
-    let largest = input.i_kl.iter().flat_map(|m| m.values.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
+    let largest = largest_entry(&input.i_kl);
     let tiny = |value: f64| Csc::from_dense(3, 3, |r, c| if (r, c) == (0, 1) { value } else { 0.0 });
     input.i_kl[1] = tiny(1e-13 * largest);
     input.i_kl[3] = tiny(0.0);
