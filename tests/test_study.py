@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -301,3 +302,52 @@ def test_cases_go_to_the_workers_in_batches_of_decreasing_size():
     assert batch_sizes(3, 8) == [1, 1, 1]
     assert batch_sizes(0, 2) == []
     assert batch_sizes(10, 0) == [5, 3, 1, 1]  # no worker known yet: as for one
+
+
+def test_studies_one_after_another_in_a_script_print_only_their_progress(tmp_path):
+    # A script (as a user writes it, guarded for the spawned workers) runs two studies back to
+    # back: the second cluster starts while the first one closes. Dask's scheduler and nannies
+    # stay quiet in both (most runs before printed 7-26 of their log lines), and the second
+    # does not find the first's port taken.
+    script = tmp_path / "two_studies.py"
+    script.write_text(
+        "import sys\n"
+        "import flexmbd as fm\n"
+        "if __name__ == '__main__':\n"
+        "    for name in ('a', 'b'):\n"
+        "        data = fm.Study(sys.argv[1], {'joints.link.distance': [0.5, 1.0, 1.5]},\n"
+        "                        folder=sys.argv[2] + '/' + name,\n"
+        "                        outputs={'low': 'min(sensor:bob position[y])'}).run(workers=2)\n"
+        "        print(name, [str(s) for s in data['status'].values])\n"
+    )
+    run = subprocess.run(
+        [sys.executable, str(script), str(PENDULUM_FILE), str(tmp_path)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    statuses = [f"{name} {['complete'] * 3}" for name in "ab"]
+    assert run.stdout.split("\n")[:2] == statuses, run.stdout
+    assert " - INFO - " not in run.stderr and "already in use" not in run.stderr, run.stderr[:3000]
+    assert run.stderr.count("3/3 cases, 0 failed") == 2
+
+
+def test_a_script_without_the_main_guard_is_told_to_add_it(tmp_path):
+    # Spawned workers import the script; unguarded, each would start a study of its own.
+    # The workers refuse, and the study says why its cluster did not start.
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import sys\n"
+        "import flexmbd as fm\n"
+        "fm.Study(sys.argv[1], {'joints.link.distance': [0.5, 1.0]}, folder=sys.argv[2],\n"
+        "         outputs={'low': 'min(sensor:bob position[y])'}).run(workers=1)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, str(script), str(PENDULUM_FILE), str(tmp_path / "s")],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 1
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith("flexmbd.errors.StudyError: the local cluster's 1 worker process(es)")
+    assert f"if {str(script)!r} runs the study" in last and 'if __name__ == "__main__":' in last
+    assert "a worker process started a study as it imported the script" in run.stderr
+    assert not (tmp_path / "s" / "cases").exists()

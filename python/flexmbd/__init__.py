@@ -45,6 +45,7 @@ from .errors import (
     SimulationInterrupted,
     SingularMatrixError,
     StepSizeTooSmallError,
+    StudyError,
     UnknownItemError,
 )
 
@@ -204,6 +205,7 @@ __all__ = [
     "State",
     "Step",
     "StepSizeTooSmallError",
+    "StudyError",
     "Study",
     "System",
     "Trapezoidal",

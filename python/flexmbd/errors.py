@@ -138,6 +138,12 @@ class SimulationInterrupted(SimulationError):
     """The run was interrupted (Ctrl-C); ``error.result`` holds what was computed."""
 
 
+class StudyError(FlexmbdError, RuntimeError):
+    """A design study could not run its cases: its local cluster's worker processes did not
+    start (a script that runs a study without the ``if __name__ == "__main__":`` guard), or
+    a study was started by a worker process as it imported that script."""
+
+
 class InitialCorrectionWarning(UserWarning):
     """The consistent initial conditions of a run moved given coordinates or velocities by
     more than the report tolerance (a joint that does not close, a velocity that does not
@@ -163,5 +169,6 @@ __all__ = [
     "SimulationInterrupted",
     "SingularMatrixError",
     "StepSizeTooSmallError",
+    "StudyError",
     "UnknownItemError",
 ]

@@ -24,13 +24,15 @@ Dask, distributed and xarray are the optional extra ``flexmbd[dask]``.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
+import sys
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InvalidParameterError
+from ..errors import InvalidParameterError, StudyError
 from ..progress import ProgressBar
 from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, check_case, check_cases, run_case
 from .sampling import SAMPLINGS, make_cases
@@ -237,18 +239,30 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
 
     if scheduler is not None:
         return Client(scheduler), None
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # A spawned process imports the main script before it runs (multiprocessing's own
+        # test for the same mistake): here it is a worker of this study's cluster.
+        raise StudyError(f"a worker process started a study as it imported the script: {UNGUARDED}")
     count = workers or os.cpu_count() or 1
+    _wait_for_closing()
     # The cases are CPU-bound and the cluster is this study's own: its processes do not
     # sample the stacks (every 10 ms) or the GIL (every 1 ms) of the running cases.
-    with dask.config.set(QUIET_WORKERS):
-        cluster = LocalCluster(
-            n_workers=count,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            # Workers import flexmbd as they start, in parallel, not at their first case.
-            preload=["flexmbd.study.cases"],
-        )
+    try:
+        with dask.config.set(QUIET_WORKERS):
+            cluster = LocalCluster(
+                n_workers=count,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                # Workers import flexmbd as they start, in parallel, not at their first case.
+                preload=["flexmbd.study.cases"],
+            )
+    except Exception as error:
+        script = getattr(sys.modules.get("__main__"), "__file__", None)
+        hint = f"; if {script!r} runs the study, {UNGUARDED}" if script else ""
+        raise StudyError(
+            f"the local cluster's {count} worker process(es) did not start ({error}){hint}"
+        ) from error
     try:
         return Client(cluster), cluster
     except BaseException:
@@ -341,13 +355,37 @@ def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int)
             bar.close(failed=bar.fraction < 1.0)
 
 
+#: How a script that runs a study keeps the cluster's spawned workers, which import it as they
+#: start, from running the study again.
+UNGUARDED = (
+    'guard the study with `if __name__ == "__main__":` (the worker processes are spawned and '
+    "import the script: see docs/studies.md)"
+)
+
+
+#: Threads stopping the local clusters of earlier studies (`_close_in_background`).
+_CLOSING: list[Any] = []
+
+
 def _close_in_background(cluster: Any) -> None:
     """Stops a local cluster in a thread: its worker processes shut down (0.1-0.4 s) while
     the study gathers its dataset. The thread is not a daemon, so the interpreter waits for
-    it before it exits."""
+    it before it exits; the next local cluster waits for it too (`_wait_for_closing`)."""
     import threading
 
-    threading.Thread(target=cluster.close, name="flexmbd-cluster-close").start()
+    thread = threading.Thread(target=cluster.close, name="flexmbd-cluster-close")
+    thread.start()
+    _CLOSING.append(thread)
+
+
+def _wait_for_closing() -> None:
+    """Waits until the local clusters of earlier studies have stopped. A cluster keeps Dask's
+    log handlers at warnings until it has closed and then restores their level: closing while
+    the next one starts, it restored them over the new cluster's (whose start then found
+    them quiet already), and every scheduler and nanny message of the next study was printed;
+    its scheduler's HTTP server also still held the port the next one asks for."""
+    while _CLOSING:
+        _CLOSING.pop().join()
 
 
 def _dataset(
