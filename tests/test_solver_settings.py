@@ -61,3 +61,22 @@ def test_defaults_are_the_cores_and_none_means_the_default(solver, spec):
             "partitioning",
             20,
         )
+
+
+def test_a_step_longer_than_the_output_interval_warns_and_steps_at_the_interval():
+    # The steps end on the output times: a nominal step of 2 ms with outputs every 1 ms is a
+    # run at 1 ms, bit for bit, and says so (event, Python warning) instead of silently.
+    system = fm.examples.pendulum().system
+    with pytest.warns(fm.StepSizeWarning, match=r"the step size 2e-3 s is longer than the output"):
+        long = fm.simulate(system, 0.1, 2e-3, output_interval=1e-3)
+    assert [e["kind"] for e in long.events] == ["step size"]
+    exact = fm.simulate(system, 0.1, 1e-3, output_interval=1e-3)
+    assert exact.events == [] and (long.coordinates == exact.coordinates).all()
+    # Runge-Kutta 4 (fixed steps) alike; Dormand-Prince, whose step is only its first, not.
+    rk4 = fm.ExplicitSolver("rk4", "projection")
+    with pytest.warns(fm.StepSizeWarning):
+        fm.simulate(system, 0.01, 2e-3, output_interval=1e-3, solver=rk4)
+    dopri5 = fm.simulate(
+        system, 0.01, 2e-3, output_interval=1e-3, solver=fm.ExplicitSolver("dopri5", "projection")
+    )
+    assert dopri5.events == []

@@ -215,6 +215,9 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
             str(PENDULUM_FILE),
             "--set",
             "joints.link.distance=0.5,1.0,2.0",
+            # Longer than the model's output interval of 0.01 s: each case warns.
+            "--set",
+            "simulation.step_size=0.02",
             "--output",
             "lowest=min(sensor:bob position[y])",
             "--end",
@@ -232,6 +235,11 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
     assert main(["info", str(folder)]) == 0
     out = capsys.readouterr().out
     assert "parameter joints.link.distance: 0.5, 1.0, 2.0" in out and "output lowest:" in out
+    # The workers' warnings are kept with the cases: Python's warnings are not seen there.
+    assert (
+        "3 case(s) warned (0, 1, 2): step size: the step size 2e-2 s is longer than the output "
+        "interval 1e-2 s: the steps end on the output times, so they are 1e-2 s" in out
+    )
     image = tmp_path / "lowest.png"
     assert (
         main(["plot", str(folder), "lowest", "--against", "joints.link.distance", "-o", str(image)])
@@ -241,6 +249,14 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
     # The lowest point of the bob: about -distance for a pendulum released horizontally.
     data, _ = fm.load_study(folder)
     assert np.all(data["lowest"].values < 0.0)
+    # Also the initial corrections of the cases whose distance differs from the model's.
+    warned = [str(w).split("\n") for w in data["warnings"].values]
+    assert [[w.split(":")[0] for w in case] for case in warned] == [
+        ["initial correction", "step size"],
+        ["step size"],
+        ["initial correction", "step size"],
+    ]
+    assert "joint 'link' (distance): the given positions violate it by 5.000e-1" in warned[0][0]
     # Bad requests are refused with exit code 2, naming what is wrong.
     assert (
         main(

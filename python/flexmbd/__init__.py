@@ -45,6 +45,7 @@ from .errors import (
     SimulationInterrupted,
     SingularMatrixError,
     StepSizeTooSmallError,
+    StepSizeWarning,
     StudyError,
     UnknownItemError,
 )
@@ -205,6 +206,7 @@ __all__ = [
     "State",
     "Step",
     "StepSizeTooSmallError",
+    "StepSizeWarning",
     "StudyError",
     "Study",
     "System",

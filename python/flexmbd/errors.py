@@ -151,6 +151,13 @@ class InitialCorrectionWarning(UserWarning):
     ``initial_conditions="strict"`` to :func:`flexmbd.simulate` to refuse instead."""
 
 
+class StepSizeWarning(UserWarning):
+    """The nominal step size of a run (generalized-alpha, or Runge-Kutta 4) is longer than
+    its output interval: the steps end on the output times, so they are the output interval
+    and the step size asked for has no effect. The run's ``events`` hold a "step size"
+    event; give a longer output interval, or none, to step as asked."""
+
+
 __all__ = [
     "CallbackError",
     "EquilibriumError",
@@ -169,6 +176,7 @@ __all__ = [
     "SimulationInterrupted",
     "SingularMatrixError",
     "StepSizeTooSmallError",
+    "StepSizeWarning",
     "StudyError",
     "UnknownItemError",
 ]

@@ -21,6 +21,7 @@ from .errors import (
     InvalidParameterError,
     ResultsFileError,
     SimulationInterrupted,
+    StepSizeWarning,
 )
 from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
@@ -37,6 +38,7 @@ logger = logging.getLogger("flexmbd.simulation")
 #: state, drift, near-singular constraints); INFO: what the run handles as planned.
 EVENT_LEVELS = {
     "initial correction": logging.WARNING,
+    "step size": logging.WARNING,
     "constraint drift": logging.WARNING,
     "singular configuration": logging.WARNING,
     "loop rank": logging.WARNING,
@@ -99,12 +101,18 @@ def _check_paths(results_file: Any, protect: Any) -> None:
         )
 
 
+#: The events of a run that Python also warns of, and the class of the warning.
+WARNED_EVENTS = {"initial correction": InitialCorrectionWarning, "step size": StepSizeWarning}
+
+
 def _report(result: Result) -> None:
-    """Warns (``warnings``) of the initial corrections of a run."""
+    """Warns (``warnings``) of the initial corrections of a run and of a step size that the
+    output interval cuts short."""
     for event in result.events:
-        if event["kind"] == "initial correction":
+        category = WARNED_EVENTS.get(event["kind"])
+        if category is not None:
             message = f"t = {event['time']:g}: {event['message']}"
-            warnings.warn(message, InitialCorrectionWarning, stacklevel=3)
+            warnings.warn(message, category, stacklevel=3)
 
 
 def _handled(log: logging.Logger, level: int) -> bool:
@@ -223,11 +231,14 @@ def simulate(
     of rotors turned at constant speed by drivers (:func:`flexmbd.steady_rotation`).
 
     Results are recorded every ``output_interval`` seconds (steps land exactly on these times)
-    or, if None, after every step. ``solver`` defaults to ``GeneralizedAlpha()`` (spectral
-    radius 0.9); an :class:`ExplicitSolver` selects Runge-Kutta 4 or Dormand-Prince 5(4) with
-    one of the seed's three strategies (integrate all accelerations, coordinate partitioning,
-    projection) or in joint plus elastic coordinates (open trees, loops cut), see
-    ``docs/solvers.md``.
+    or, if None, after every step. A nominal step longer than the output interval is cut to
+    it: the run has a "step size" event and Python warns
+    (:class:`flexmbd.errors.StepSizeWarning`).
+
+    ``solver`` defaults to ``GeneralizedAlpha()`` (spectral radius 0.9); an
+    :class:`ExplicitSolver` selects Runge-Kutta 4 or Dormand-Prince 5(4) with one of the seed's
+    three strategies (integrate all accelerations, coordinate partitioning, projection) or in
+    joint plus elastic coordinates (open trees, loops cut), see ``docs/solvers.md``.
 
     ``progress``: True shows a progress bar (simulated time of end time, step, step size,
     Newton iterations per step, elapsed and remaining wall time) on stderr: redrawn on a

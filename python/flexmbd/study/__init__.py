@@ -428,6 +428,12 @@ def _dataset(
         "case",
         np.array(["" if e is None else f"{e['class']}: {e['message']}" for e in errors], dtype=str),
     )
+    variables["warnings"] = (
+        "case",
+        np.array(
+            ["" if s is None else "\n".join(s.get("warnings", [])) for s in summaries], dtype=str
+        ),
+    )
     variables["elapsed"] = (
         "case",
         np.array([np.nan if s is None else s["elapsed"] for s in summaries], dtype=float),

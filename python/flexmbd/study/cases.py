@@ -226,6 +226,7 @@ def run_case(task: CaseTask) -> dict[str, Any]:
         "key": task.key,
         "parameters": task.parameters,
         "status": "complete" if error is None else "failed",
+        "warnings": [] if result is None else case_warnings(result.events),
         "error": None
         if error is None
         else {
@@ -244,6 +245,29 @@ def run_case(task: CaseTask) -> dict[str, Any]:
     partial.write_text(json.dumps(summary, indent=1))
     os.replace(partial, task.summary_path)
     return summary
+
+
+def case_warnings(events: list[dict[str, Any]]) -> list[str]:
+    """The events of a case's run at the level of warnings (`simulation.EVENT_LEVELS`: an
+    initial correction, a step size longer than the output interval, ...), one line per kind:
+    its first message, and how many more there were. Python's warnings are not shown in the
+    workers; these go into the case's summary and the study's dataset."""
+    import logging
+
+    from ..simulation import EVENT_LEVELS
+
+    first: dict[str, str] = {}
+    counts: dict[str, int] = {}
+    for event in events:
+        kind = event["kind"]
+        if EVENT_LEVELS.get(kind, logging.INFO) < logging.WARNING:
+            continue
+        first.setdefault(kind, f"{kind}: {event['message']}")
+        counts[kind] = counts.get(kind, 0) + 1
+    return [
+        text if counts[kind] == 1 else f"{text} (and {counts[kind] - 1} more)"
+        for kind, text in first.items()
+    ]
 
 
 def _peak_memory() -> int | None:

@@ -161,7 +161,7 @@ def _print_study(data: Any, description: dict[str, Any]) -> None:
         print(f"  parameter {name}: {text}")
     complete = np.array(status) == "complete"
     for name, variable in data.data_vars.items():
-        if name in ("status", "error", "elapsed") or "time" in variable.dims:
+        if name in ("status", "error", "warnings", "elapsed") or "time" in variable.dims:
             continue
         if not np.issubdtype(variable.dtype, np.number):
             continue
@@ -171,6 +171,23 @@ def _print_study(data: Any, description: dict[str, Any]) -> None:
             print(f"  output {name}: {values.min():.6g} .. {values.max():.6g}")
     for k in np.flatnonzero(np.array(status) == "failed"):
         print(f"  case {k} failed: {data['error'].values[k]}")
+    warned = _warned_cases(data)
+    for text, cases in warned.items():
+        shown = ", ".join(str(k) for k in cases[:8]) + (", ..." if len(cases) > 8 else "")
+        print(f"  {len(cases)} case(s) warned ({shown}): {text}")
+
+
+def _warned_cases(data: Any) -> dict[str, list[int]]:
+    """The warnings of a study's cases (`run_case`), by kind: the first case's text of each
+    kind and the cases that had it. Studies gathered before cases kept warnings have none."""
+    if "warnings" not in data.data_vars:
+        return {}
+    warned: dict[str, tuple[str, list[int]]] = {}
+    for k, line in enumerate(data["warnings"].values):
+        for text in filter(None, str(line).split("\n")):
+            kind = text.split(":", 1)[0]
+            warned.setdefault(kind, (text, []))[1].append(k)
+    return dict(warned.values())
 
 
 def info_study(folder: Path) -> int:

@@ -1,6 +1,30 @@
 //! The end time and the output times of a run, on which its steps land.
 
-use crate::integrator::settings::SimulationSettings;
+use crate::integrator::settings::{ExplicitMethod, Integrator, SimulationSettings, StepControl};
+use crate::output::Event;
+
+/// The "step size" event of a run whose nominal step is longer than its output interval: its
+/// steps end on the output times, so none is longer than the interval and the step size asked
+/// for has no effect (a study varying it would find every case alike). None where the steps
+/// are fine as asked, and where the step size is only the first step of an error control.
+/// `time`: the run's start.
+pub(crate) fn step_above_output_interval(settings: &SimulationSettings, time: f64) -> Option<Event> {
+    let dt = settings.output_interval?;
+    let nominal = match &settings.integrator {
+        Integrator::GeneralizedAlpha => !matches!(settings.step_control, StepControl::Error { .. }),
+        Integrator::Explicit(explicit) => explicit.method == ExplicitMethod::Rk4,
+    };
+    let h = settings.step_size;
+    (nominal && h > dt * (1.0 + 1e-9)).then(|| Event {
+        time,
+        kind: "step size".to_string(),
+        message: format!(
+            "the step size {h:e} s is longer than the output interval {dt:e} s: the steps end on \
+             the output times, so they are {dt:e} s (a longer output interval, or none, steps \
+             at {h:e} s)"
+        ),
+    })
+}
 
 /// The end time and the output times of a run: steps are shortened to land on them, and
 /// `due` says whether an accepted step ended on one (and moves on to the next).
@@ -79,6 +103,7 @@ impl OutputClock {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator::settings::ExplicitSettings;
 
     #[test]
     fn a_continued_run_keeps_the_output_times_of_the_start_time() {
@@ -99,5 +124,40 @@ mod tests {
         settings.output_interval = None;
         let mut clock = OutputClock::new(&settings, 0.5731);
         assert!(clock.due(0.6));
+    }
+
+    #[test]
+    fn a_nominal_step_longer_than_the_output_interval_is_an_event() {
+        let mut settings = SimulationSettings::new(1.0, 2e-3);
+        settings.output_interval = Some(1e-3);
+        let event = step_above_output_interval(&settings, 0.5).expect("an event");
+        assert_eq!((event.time, event.kind.as_str()), (0.5, "step size"));
+        assert!(event.message.starts_with("the step size 2e-3 s is longer than the output interval 1e-3 s"));
+        // And the clock cuts every step to the interval.
+        let clock = OutputClock::new(&settings, 0.5);
+        assert!((clock.step(0.5, 2e-3) - 1e-3).abs() < 1e-15);
+        // Not at or below the interval (round-off of a step given as the interval included),
+        // nor without an output interval.
+        for (h, dt) in
+            [(1e-3, Some(1e-3)), (1e-3 * (1.0 + 1e-12), Some(1e-3)), (5e-4, Some(1e-3)), (2e-3, None)]
+        {
+            settings.step_size = h;
+            settings.output_interval = dt;
+            assert!(step_above_output_interval(&settings, 0.0).is_none(), "h {h}, dt {dt:?}");
+        }
+        // Where the step size is only the first step of an error control: no event. Newton's
+        // control (steps back to the nominal one) and Runge-Kutta 4 (fixed): an event.
+        settings.step_size = 2e-3;
+        settings.output_interval = Some(1e-3);
+        settings.step_control = StepControl::Error { relative_tolerance: 1e-6, absolute_tolerance: 1e-8 };
+        assert!(step_above_output_interval(&settings, 0.0).is_none());
+        settings.step_control = StepControl::Newton;
+        assert!(step_above_output_interval(&settings, 0.0).is_some());
+        for (method, event) in
+            [(ExplicitMethod::Rk4, true), (ExplicitMethod::Dopri5, false), (ExplicitMethod::TrBdf2, false)]
+        {
+            settings.integrator = Integrator::Explicit(ExplicitSettings { method, ..Default::default() });
+            assert_eq!(step_above_output_interval(&settings, 0.0).is_some(), event, "{method:?}");
+        }
     }
 }

@@ -12,7 +12,7 @@
 use std::cell::Cell;
 
 use crate::error::{FlexmbdError, Result};
-use crate::integrator::clock::OutputClock;
+use crate::integrator::clock::{step_above_output_interval, OutputClock};
 use crate::integrator::progress::{Progress, Records};
 use crate::integrator::settings::SimulationSettings;
 use crate::output::{Output, Statistics};
@@ -87,6 +87,7 @@ pub(crate) fn time_loop(
     state: &mut State,
 ) -> Result<()> {
     let mut clock = OutputClock::new(settings, state.time);
+    output.events.extend(step_above_output_interval(settings, state.time));
     let mut h = settings.step_size;
     let release = Cell::new(0);
     output.statistics.min_step_size_used = f64::INFINITY;
