@@ -367,3 +367,33 @@ def test_a_script_without_the_main_guard_is_told_to_add_it(tmp_path):
     assert f"if {str(script)!r} runs the study" in last and 'if __name__ == "__main__":' in last
     assert "a worker process started a study as it imported the script" in run.stderr
     assert not (tmp_path / "s" / "cases").exists()
+
+
+def test_sampled_cases_are_plotted_as_points_coloured_by_the_other_parameter(tmp_path, monkeypatch):
+    # Latin-hypercube cases share no value of the other parameter: one line per case (with a
+    # legend of six entries) said nothing; points coloured by it, with a colour bar, do.
+    import matplotlib.pyplot as plt
+
+    from flexmbd.study.command import plot_study
+
+    study = fm.Study(
+        swinging_arm, {"length": (0.5, 2.0), "mass": (1.0, 3.0)}, sampling="lhs", samples=6,
+        seed=3, outputs={"lowest tip": "min(sensor:tip[y])"}, folder=tmp_path / "s",
+    )  # fmt: skip
+    (tmp_path / "s" / "cases").mkdir(parents=True)
+    study._write_description()
+    for k, case in enumerate(study.cases):  # the summaries of runs, as the workers write them
+        summary = {"status": "complete" if k else "failed", "error": None, "time": None}
+        summary |= {"outputs": {"lowest tip": -case["length"]}, "elapsed": 0.1, "warnings": []}
+        study._summary(study.keys[k]).write_text(json.dumps(summary))
+    study.gather()
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    [image] = plot_study(tmp_path / "s", "lowest tip", "length", None)
+    assert image.stat().st_size > 1000
+    [axes, bar] = figures[0].axes
+    assert bar.get_ylabel() == "mass" and len(axes.collections) == 1
+    assert len(axes.collections[0].get_offsets()) == 5  # the complete cases; the failed one:
+    assert [t.get_text() for t in axes.get_legend().get_texts()] == ["failed"]
+    with pytest.raises(fm.InvalidParameterError, match="no output 'warnings'"):
+        plot_study(tmp_path / "s", "warnings", "length", None)

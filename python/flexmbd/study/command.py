@@ -140,6 +140,10 @@ def sweep(args: argparse.Namespace) -> int:
     return 0 if all(s == "complete" for s in data["status"].values) else 1
 
 
+#: The variables of a study's dataset that are not outputs: each case's run.
+CASE_FIELDS = ("status", "error", "warnings", "elapsed")
+
+
 def _print_study(data: Any, description: dict[str, Any]) -> None:
     import numpy as np
 
@@ -161,7 +165,7 @@ def _print_study(data: Any, description: dict[str, Any]) -> None:
         print(f"  parameter {name}: {text}")
     complete = np.array(status) == "complete"
     for name, variable in data.data_vars.items():
-        if name in ("status", "error", "warnings", "elapsed") or "time" in variable.dims:
+        if name in CASE_FIELDS or "time" in variable.dims:
             continue
         if not np.issubdtype(variable.dtype, np.number):
             continue
@@ -206,8 +210,10 @@ def info_study(folder: Path) -> int:
 
 def plot_study(folder: Path, output: str, against: str | None, image: str | None) -> list[Path]:
     """Draws `output` of a study against the parameter `against` (one line per combination of
-    the other parameters, failed cases crossed); returns the image written."""
+    the other parameters; sampled cases, which share none, as points coloured by the first
+    other parameter; failed cases crossed); returns the image written."""
     import matplotlib
+    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -222,8 +228,8 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
         against = names[0]
     if against not in names:
         raise InvalidParameterError(f"--against {against!r}: the parameters are {names}")
-    if output not in data.data_vars or output in ("status", "error", "elapsed"):
-        outputs = [n for n in data.data_vars if n not in ("status", "error", "elapsed")]
+    if output not in data.data_vars or output in CASE_FIELDS:
+        outputs = [n for n in data.data_vars if n not in CASE_FIELDS]
         raise InvalidParameterError(f"no output {output!r}; outputs: {outputs}")
     variable = data[output]
     if "time" in variable.dims:
@@ -236,6 +242,18 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
     fig, ax = plt.subplots(figsize=(7, 4.5))
     x_all = data[against].values
     status = data["status"].values
+    numeric = [n for n in others if np.issubdtype(data[n].dtype, np.number)]
+    if numeric and all(len(cases) == 1 for cases in groups.values()) and len(groups) > 1:
+        # Sampled cases (random, Latin hypercube): no two share the other parameters, so no
+        # lines; points coloured by the first other parameter instead of a legend per case.
+        colour = numeric[0]
+        ok = status == "complete"
+        points = ax.scatter(x_all[ok], variable.values[ok], c=data[colour].values[ok])
+        fig.colorbar(points, ax=ax, label=colour)
+        bad = status == "failed"
+        if bad.any():
+            ax.plot(x_all[bad], variable.values[bad], "kx", label="failed")
+        groups = {}
     for group, cases in groups.items():
         cases = sorted(cases, key=lambda k: x_all[k])
         ok = [k for k in cases if status[k] == "complete"]
@@ -255,7 +273,7 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
     ax.set_ylabel(output)
     ax.set_title(f"{output} against {against} ({len(x_all)} cases)")
     ax.grid(True, alpha=0.3)
-    if len(groups) > 1 or any(status != "complete"):
+    if len(groups) > 1 or any(status == "failed"):
         ax.legend(fontsize=8)
     path = Path(image) if image else Path(folder) / f"{output.replace(' ', '_')}_{against}.png"
     fig.tight_layout()
