@@ -158,6 +158,13 @@ class StepSizeWarning(UserWarning):
     event; give a longer output interval, or none, to step as asked."""
 
 
+class MeshQualityWarning(UserWarning):
+    """Elements the preprocessor accepts but models poorly: quadrilateral shells warped out of
+    their mean plane by more than :data:`flexmbd.fe.preprocess.SHELL_WARP_LIMIT` (the flat
+    element projects them onto that plane). The message names the worst element by its id
+    and how many there are; refine the mesh or split them into triangles."""
+
+
 __all__ = [
     "CallbackError",
     "EquilibriumError",
@@ -167,6 +174,7 @@ __all__ = [
     "InitialCorrectionWarning",
     "InvalidModelError",
     "InvalidParameterError",
+    "MeshQualityWarning",
     "ModelError",
     "ModelFileError",
     "NewtonDivergedError",

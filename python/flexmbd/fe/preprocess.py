@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -17,11 +18,12 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
-from .._checks import choice, integer, integers_array
+from .._checks import choice, id_text, integer, integers_array
 from ..errors import (
     ArgumentTypeError,
     InvalidModelError,
     InvalidParameterError,
+    MeshQualityWarning,
     UnknownItemError,
 )
 from .body import FlexibleBodyData, Invariants, ReferenceConditions
@@ -66,6 +68,51 @@ def _check_shell(elements: Mapping[str, Any], shell: ShellSection | None) -> Non
             f"{' and '.join(kinds)} shell elements need a shell section: pass "
             "shell=ShellSection(thickness) or shell=thickness",
             item="shell",
+        )
+
+
+#: The warp above which a quadrilateral shell is reported (`shell_warp`, `MeshQualityWarning`):
+#: the flat element takes the corners projected onto its mean plane, which serves while the
+#: warp is a few per cent (`docs/preprocessor.md`).
+SHELL_WARP_LIMIT = 0.05
+
+
+def shell_warp(nodes: NDArray[np.float64], quads: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The warp of quadrilateral shells: the distance h of the corners from the element's mean
+    plane (normal (x3 - x1) x (x4 - x2) through the corners' centroid; the four corners are
+    at +h, -h, +h, -h from it) over half the mean length of the diagonals. 0 for a flat
+    quadrilateral; for a unit square with one corner raised by d, d / (2 sqrt(2)) to first
+    order."""
+    x = nodes[quads]  # (n, 4, 3)
+    d13, d24 = x[:, 2] - x[:, 0], x[:, 3] - x[:, 1]
+    normal = np.cross(d13, d24)
+    length = np.linalg.norm(normal, axis=1)
+    size = 0.25 * (np.linalg.norm(d13, axis=1) + np.linalg.norm(d24, axis=1))
+    centre = x.mean(axis=1)
+    h = np.abs(np.einsum("ij,ij->i", x[:, 0] - centre, normal))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(length > 0.0, h / np.where(length > 0.0, length, 1.0) / size, 0.0)
+
+
+def _warn_warped_shells(
+    nodes: NDArray[np.float64], elements: Mapping[str, NDArray[np.int64]], ids: Mapping[str, Any]
+) -> None:
+    """Warns (`MeshQualityWarning`) of quadrilateral shells warped by more than
+    `SHELL_WARP_LIMIT`, naming the worst."""
+    quads = elements.get("quad4")
+    if quads is None or not len(quads):
+        return
+    warp = shell_warp(nodes, quads)
+    warped = np.flatnonzero(warp > SHELL_WARP_LIMIT)
+    if len(warped):
+        worst = warped[np.argmax(warp[warped])]
+        warnings.warn(
+            f"{len(warped)} of {len(quads)} quad4 shells are warped by more than "
+            f"{SHELL_WARP_LIMIT:.0%} (element {id_text(ids['quad4'][worst])}: "
+            f"{warp[worst]:.1%}): the flat element projects them onto their mean plane; "
+            "refine the mesh or split them into tri3",
+            MeshQualityWarning,
+            stacklevel=3,
         )
 
 
@@ -503,6 +550,7 @@ def build_body(
         validate_mesh(
             Mesh(nodes=nodes, node_ids=ids, elements=elements, element_ids=eids, node_sets=sets)
         )
+        _warn_warped_shells(nodes, elements, eids)
     clock.lap("check")
     nodal = assemble(
         nodes,

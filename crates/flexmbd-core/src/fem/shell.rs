@@ -5,8 +5,9 @@
 //! Element axes: the normal n of the mean plane (quadrilateral: (x3 - x1) x (x4 - x2);
 //! triangle: (x2 - x1) x (x3 - x1)), e1 along the mean of the edges 1-2 and 4-3 (triangle: the
 //! edge 1-2) projected onto that plane, e2 = n x e1. The stiffness uses the nodes projected onto
-//! the mean plane (a warped quadrilateral is treated as flat: its warp should stay small, a
-//! few per cent of its size); the mass uses the true bilinear surface. In element axes, with
+//! the mean plane, each tied to its node by a rigid offset (`Frame::heights`: a warped
+//! quadrilateral is flat but keeps its rigid motions exactly; its warp should stay a few per
+//! cent of its size); the mass uses the true bilinear surface. In element axes, with
 //! local coordinates [u, v, w, theta_x, theta_y, theta_z] per node, a point at height z above
 //! the mid-surface moves by u_mid + theta x (z n): u = u_mid + z theta_y, v = v_mid - z theta_x.
 //! So the rotations of the normal are beta = (theta_y, -theta_x) (Kirchhoff: beta = -grad w).
@@ -85,6 +86,50 @@ struct Frame {
     axes: Mat3,
     /// Node coordinates (x, y) in element axes, relative to the centroid of the nodes.
     local: Vec<[f64; 2]>,
+    /// Heights d of the nodes above the mean plane (along n; zero for a flat element). The
+    /// element works with the projected nodes p = x - d n, each tied rigidly to its node: its
+    /// motion is u_p = u + theta x (p - x) = u + d n x theta, in element axes
+    /// (u - d theta_y, v + d theta_x, w). Without that offset a warped quadrilateral strains
+    /// under rigid rotations about its in-plane axes and locks.
+    heights: Vec<f64>,
+}
+
+impl Frame {
+    /// K <- T^T K T over the first `n` local coordinates, T the rigid offsets of `heights`
+    /// (u_p = u - d theta_y, v_p = v + d theta_x).
+    fn offset_matrix(&self, k: &mut [[f64; MAX_DOFS]; MAX_DOFS], n: usize) {
+        if self.heights.iter().all(|&d| d == 0.0) {
+            return;
+        }
+        for row in k.iter_mut().take(n) {
+            self.offset_row(row);
+        }
+        for (node, &d) in self.heights.iter().enumerate() {
+            let b = 6 * node;
+            for col in 0..n {
+                k[b + 4][col] -= d * k[b][col];
+                k[b + 3][col] += d * k[b + 1][col];
+            }
+        }
+    }
+
+    /// A row over the projected nodes' coordinates as a row over the nodes' own (row T).
+    fn offset_row(&self, row: &mut [f64]) {
+        for (node, &d) in self.heights.iter().enumerate() {
+            let b = 6 * node;
+            row[b + 4] -= d * row[b];
+            row[b + 3] += d * row[b + 1];
+        }
+    }
+
+    /// The projected nodes' coordinates from the nodes' own (T u).
+    fn offset_displacements(&self, u: &mut Row) {
+        for (node, &d) in self.heights.iter().enumerate() {
+            let b = 6 * node;
+            u[b] -= d * u[b + 4];
+            u[b + 1] += d * u[b + 3];
+        }
+    }
 }
 
 fn frame(x: &[Vec3], corners: usize) -> ElementResult<Frame> {
@@ -109,7 +154,8 @@ fn frame(x: &[Vec3], corners: usize) -> ElementResult<Frame> {
     let e2 = n.cross(&e1);
     let centre = x.iter().fold(Vec3::ZERO, |s, p| s + *p) * (1.0 / corners as f64);
     let local = x.iter().map(|p| [(*p - centre).dot(&e1), (*p - centre).dot(&e2)]).collect();
-    Ok(Frame { axes: Mat3([e1.0, e2.0, n.0]), local })
+    let heights = if corners == 4 { x.iter().map(|p| (*p - centre).dot(&n)).collect() } else { vec![0.0; 3] };
+    Ok(Frame { axes: Mat3([e1.0, e2.0, n.0]), local, heights })
 }
 
 /// Bilinear shape functions and their (r, s) derivatives.
@@ -563,7 +609,8 @@ fn shell_surface_stresses(
     out: &mut [[[f64; 6]; 3]],
 ) -> ElementResult<()> {
     let f = frame(x, corners)?;
-    let ul = to_local(&f.axes, u);
+    let mut ul = to_local(&f.axes, u);
+    f.offset_displacements(&mut ul);
     let t = section.thickness;
     let d = plane_stress(material);
     let shear = 1.5 * section.shear_factor * material.shear_modulus();
@@ -663,6 +710,10 @@ pub fn membrane_stiffening(
         area = a;
     }
     linear.iter_mut().chain(slopes.iter_mut()).for_each(|v| *v /= area);
+    // The von Karman terms take w alone, which the offsets leave as it is.
+    for row in linear.chunks_mut(ne) {
+        f.offset_row(row);
+    }
     let d = scaled(&plane_stress(material), section.thickness * area);
     Ok((f.axes, linear, slopes, d.concat()))
 }
@@ -692,7 +743,8 @@ macro_rules! shell_kernel {
 
             fn stiffness(&self, material: &Material, x: &[Vec3], out: &mut DenseMatrix) -> ElementResult<()> {
                 let f = frame(x, $corners)?;
-                let local = $local_stiffness(&self.section, material, &f.local)?;
+                let mut local = $local_stiffness(&self.section, material, &f.local)?;
+                f.offset_matrix(&mut local, 6 * $corners);
                 to_body(&f.axes, &local, 6 * $corners, out);
                 Ok(())
             }
