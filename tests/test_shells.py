@@ -567,3 +567,108 @@ def test_warped_quadrilaterals_are_measured_and_the_strongly_warped_reported():
     message = r"6 of 6 quad4 shells are warped by more than 5% \(element \d: 6\.3%\)"
     with pytest.warns(fm.MeshQualityWarning, match=message):
         twisted_beam(6, 1, "quad4", warn="always")
+
+
+def shell_static(body, forces, fixed):
+    """Static displacements of a shell body (nodal, no reference conditions) under `forces`,
+    with the coordinates `fixed` held at zero (a sparse direct solve)."""
+    import scipy.sparse.linalg as spla
+
+    free = np.setdiff1d(np.arange(body.dof_count), fixed)
+    u = np.zeros(body.dof_count)
+    stiffness = body.stiffness.tocsc()
+    u[free] = spla.spsolve(stiffness[free][:, free], forces[free])
+    return u
+
+
+def quad_grid(rows: int, columns: int, element: str) -> dict[str, np.ndarray]:
+    """Cells of a grid of (rows + 1) x (columns + 1) nodes numbered row by row (the columns
+    closed into a ring if `columns` < 0), as quadrilaterals or each split into two
+    triangles."""
+    ring = columns < 0
+    columns = abs(columns)
+    width = columns if ring else columns + 1
+    i, j = np.meshgrid(np.arange(rows), np.arange(columns), indexing="ij")
+    corner = (i * width + j).ravel()
+    right = (i * width + (j + 1) % width).ravel()
+    quads = np.stack([corner, corner + width, right + width, right], axis=1)
+    if element == "quad4":
+        return {"quad4": quads}
+    return {"tri3": np.vstack([quads[:, :3], quads[:, [0, 2, 3]]])}
+
+
+@pytest.mark.parametrize(("element", "tolerance"), [("quad4", 0.01), ("tri3", 0.05)])
+def test_the_scordelis_lo_roof_converges_to_the_reference_deflection(element, tolerance):
+    # MacNeal and Harder (1985), test 6: a cylindrical roof (radius 25, length 50, 80 degrees
+    # of arc, t = 0.25, E = 4.32e8, nu = 0) on rigid diaphragms at its ends (no displacement
+    # in their planes), under its weight of 90 per unit area: the midpoint of a free edge sinks
+    # by 0.3024. Flat facets on the curved surface, 32 x 32 over the whole roof: the
+    # quadrilaterals 0.4 % short, the triangles (constant-strain membrane) 4.5 % (8 x 8:
+    # 0.285 and 0.211; 16 x 16: 0.295 and 0.261).
+    n, length, radius, half_angle, t = 32, 50.0, 25.0, np.radians(40.0), 0.25
+    x, angle = np.meshgrid(
+        np.linspace(0, length, n + 1), np.linspace(-half_angle, half_angle, n + 1), indexing="ij"
+    )
+    nodes = np.column_stack(
+        [x.ravel(), radius * np.sin(angle).ravel(), radius * np.cos(angle).ravel()]
+    )
+    body = build_body(
+        nodes, quad_grid(n, n, element), fm.fe.Material(4.32e8, 0.0, 90.0 / t), shell=t
+    )
+    weight = body.mass @ np.tile([0.0, 0.0, -1.0, 0.0, 0.0, 0.0], len(nodes))  # g = 1
+    ends = np.flatnonzero(np.isin(nodes[:, 0], [0.0, length]))
+    fixed = np.concatenate([6 * ends + 1, 6 * ends + 2, [0]])  # and one axial translation
+    u = shell_static(body, weight, fixed)
+    edge = np.flatnonzero(
+        np.isclose(nodes[:, 0], length / 2) & np.isclose(np.abs(angle.ravel()), half_angle)
+    )
+    check_close(u[6 * edge + 2], -0.3024, rel=tolerance, what=f"{element} free-edge deflection")
+
+
+@pytest.mark.parametrize("element", ["quad4", "tri3"])
+def test_the_pinched_hemisphere_converges_to_the_reference_deflection(element):
+    # MacNeal and Harder (1985), test 8: a hemisphere (radius 10, t = 0.04, E = 6.825e7,
+    # nu = 0.3) with an 18-degree hole at its pole, pinched by radial loads of 2 at its equator,
+    # outward and inward at 90-degree intervals (free edges): each load point moves by 0.094
+    # along its load. Bending-dominated (a test of membrane locking). 16 x 64 elements of the
+    # whole shell, held statically determinate, the rigid motion of the supports taken out
+    # (the symmetric solution has none): 1.2 % (quadrilaterals) and 1.5 % (triangles) short.
+    rows, around, radius = 16, 64, 10.0
+    polar, azimuth = np.meshgrid(
+        np.radians(np.linspace(18, 90, rows + 1)),
+        np.linspace(0, 2 * np.pi, around + 1)[:-1],
+        indexing="ij",
+    )
+    nodes = radius * np.stack(
+        [np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)], axis=-1
+    ).reshape(-1, 3)
+    body = build_body(
+        nodes, quad_grid(rows, -around, element), fm.fe.Material(6.825e7, 0.3, 1.0), shell=0.04
+    )
+    loads = rows * around + np.arange(4) * around // 4  # on the equator, at 0, 90, 180, 270 degrees
+    directions = nodes[loads] / radius * np.array([1.0, -1.0, 1.0, -1.0])[:, None]
+    forces = np.zeros(body.dof_count)
+    for node, direction in zip(loads, directions, strict=True):
+        forces[6 * node : 6 * node + 3] = 2.0 * direction
+    pole = np.arange(4) * around // 4  # the hole's edge: 3 + 2 + 1 supports
+    fixed = np.array(
+        [
+            6 * pole[0],
+            6 * pole[0] + 1,
+            6 * pole[0] + 2,
+            6 * pole[2] + 1,
+            6 * pole[2] + 2,
+            6 * pole[1] + 2,
+        ]
+    )
+    u = shell_static(body, forces, fixed).reshape(-1, 6)[:, :3]
+    rigid = np.zeros((len(nodes), 3, 6))
+    rigid[:, :, :3] = np.eye(3)
+    rigid[:, :, 3:] = np.cross(np.eye(3)[None, :, :], nodes[:, None, :]).transpose(0, 2, 1)
+    rigid_part = (
+        rigid.reshape(-1, 6) @ np.linalg.lstsq(rigid.reshape(-1, 6), u.ravel(), rcond=None)[0]
+    )
+    u = u - rigid_part.reshape(-1, 3)
+    check_close(
+        np.einsum("ij,ij->i", u[loads], directions), 0.094, rel=0.02, what=f"{element} load points"
+    )
