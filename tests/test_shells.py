@@ -672,3 +672,62 @@ def test_the_pinched_hemisphere_converges_to_the_reference_deflection(element):
     check_close(
         np.einsum("ij,ij->i", u[loads], directions), 0.094, rel=0.02, what=f"{element} load points"
     )
+
+
+@pytest.mark.parametrize("element", ["quad4", "tri3"])
+def test_shells_turned_to_opposite_sides_are_reported_and_oriented(aluminium, element):
+    # A cantilever strip (1 x 0.05 m, t = 2 mm, 20 x 2) whose shells alternate in their node
+    # order along x, as surfaces meshed separately may: the body is the same (stiffness and
+    # mass do not depend on the side of the normal), but the top and bottom stresses of
+    # neighbours were averaged across each other. build_body warns; orient_shells turns them
+    # to one side, the first shell's.
+    from flexmbd.fe.mesh_io import shell_neighbours
+
+    t, load = 2e-3, 1.0
+    mesh = shapes.plate((1.0, 0.05), (20, 2), element)
+    cells = mesh.elements[element].copy()
+    column = np.floor(mesh.nodes[cells].mean(axis=1)[:, 0] / 0.05).astype(int)
+    cells[column % 2 == 1] = np.roll(cells[column % 2 == 1][:, ::-1], 1, axis=1)
+    oriented = fm.fe.orient_shells({element: cells})
+    assert not any(flipped for _, _, flipped in shell_neighbours(oriented))
+    np.testing.assert_array_equal(oriented[element], mesh.elements[element])
+    bodies = {}
+    for name, elements in (("mixed", {element: cells}), ("oriented", oriented)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", fm.MeshQualityWarning)
+            bodies[name] = build_body(
+                mesh.nodes, elements, aluminium, shell=t, reference="clamped",
+                reference_nodes="x0", node_sets=mesh.node_sets,
+            )  # fmt: skip
+        messages = [str(w.message) for w in caught if w.category is fm.MeshQualityWarning]
+        if name == "mixed":
+            [message] = messages
+            assert "pairs of neighbouring shells have their normals to opposite sides" in message
+            assert "flexmbd.fe.orient_shells(elements)" in message
+        else:
+            assert messages == []
+    for matrix in ("stiffness", "mass"):
+        a, b = (getattr(bodies[n], matrix).toarray() for n in ("mixed", "oriented"))
+        check_close(a, b, abs=1e-12 * np.abs(b).max(), what=matrix)
+    tip = mesh.node_sets["x1"]
+    forces = np.zeros(bodies["oriented"].dof_count)
+    forces[6 * tip + 2] = load / len(tip)
+    middle = np.flatnonzero(np.isclose(mesh.nodes[:, 0], 0.5))
+    bending = load * 0.5 * (t / 2) / (0.05 * t**3 / 12)  # M (t / 2) / I half-way
+    top = {}
+    for name, body in bodies.items():
+        u = fm.fe.preprocess.static_displacements(body, forces)
+        top[name] = fm.fe.shell_stresses(body, u)[middle, 0, 0]
+    check_close(top["oriented"], -bending, rel=0.02, what="top sigma_xx, oriented")
+    check_close(top["mixed"], 0.0, abs=0.1 * bending, what="top sigma_xx, averaged across")
+
+
+def test_a_moebius_strip_cannot_be_oriented():
+    # 12 quadrilaterals around a strip of two rings of nodes (k and 12 + k) given half a turn:
+    # the last shell joins the first with the rings exchanged, meeting it from the other side.
+    # (Orientation is a matter of the connectivity alone.)
+    around = 12
+    quads = [[k, k + 1, around + k + 1, around + k] for k in range(around - 1)]
+    quads.append([around - 1, around, 0, 2 * around - 1])
+    with pytest.raises(fm.InvalidModelError, match="cannot all be turned to one side"):
+        fm.fe.orient_shells({"quad4": np.array(quads)})

@@ -159,10 +159,13 @@ class StepSizeWarning(UserWarning):
 
 
 class MeshQualityWarning(UserWarning):
-    """Elements the preprocessor accepts but models poorly: quadrilateral shells warped out of
-    their mean plane by more than :data:`flexmbd.fe.preprocess.SHELL_WARP_LIMIT` (the flat
-    element projects them onto that plane). The message names the worst element by its id
-    and how many there are; refine the mesh or split them into triangles."""
+    """Elements the preprocessor accepts but that give poor or misleading results: quadrilateral
+    shells warped out of their mean plane by more than
+    :data:`flexmbd.fe.preprocess.SHELL_WARP_LIMIT` (the flat element projects them onto that
+    plane: refine the mesh or split them into triangles), and neighbouring shells turned to
+    opposite sides (their top and bottom stresses are averaged across each other:
+    :func:`flexmbd.fe.orient_shells`). The message names an element by its id and how many
+    there are."""
 
 
 __all__ = [

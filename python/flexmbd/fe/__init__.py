@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from . import shapes
     from .body import FlexibleBodyData, Invariants, ReferenceConditions
     from .body_file import load_body, save_body
-    from .mesh_io import Mesh, read_abaqus_matrix, read_mesh, validate_mesh
+    from .mesh_io import Mesh, orient_shells, read_abaqus_matrix, read_mesh, validate_mesh
     from .nastran import read_nastran
     from .op2 import Op2Results, body_from_nastran, read_op2
     from .preprocess import (
@@ -43,6 +43,7 @@ _ORIGIN: dict[str, str] = {
     "load_body": "body_file",
     "save_body": "body_file",
     "Mesh": "mesh_io",
+    "orient_shells": "mesh_io",
     "read_abaqus_matrix": "mesh_io",
     "read_mesh": "mesh_io",
     "validate_mesh": "mesh_io",
@@ -84,6 +85,7 @@ __all__ = [
     "body_from_nastran",
     "build_body",
     "load_body",
+    "orient_shells",
     "read_abaqus_matrix",
     "read_mesh",
     "read_nastran",

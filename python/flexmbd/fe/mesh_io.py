@@ -810,6 +810,111 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
 # Checks
 
 
+#: The shell element types, whose node order gives their normal (`orient_shells`).
+SHELL_TYPES = ("quad4", "tri3")
+
+#: A shell element as (kind, index into that kind's connectivity).
+ShellKey = tuple[str, int]
+
+
+def _shell_edges(
+    elements: Mapping[str, Any],
+) -> tuple[list[ShellKey], NDArray[np.int64], NDArray[np.int64]]:
+    """The shells of `elements` (kind, index) and their directed edges: the shell of each
+    edge (an index into the list) and its two nodes (E, 2), in each shell's cyclic order."""
+    shells: list[ShellKey] = []
+    owners, edges = [], []
+    for kind in SHELL_TYPES:
+        conn = np.asarray(elements.get(kind, np.zeros((0, 3))), dtype=np.int64)
+        if not len(conn):
+            continue
+        first = len(shells)
+        shells += [(kind, k) for k in range(len(conn))]
+        corners = conn.shape[1]
+        for i in range(corners):
+            owners.append(first + np.arange(len(conn)))
+            edges.append(np.stack([conn[:, i], conn[:, (i + 1) % corners]], axis=1))
+    if not shells:
+        return [], np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.int64)
+    return shells, np.concatenate(owners), np.concatenate(edges)
+
+
+def shell_pairs(
+    elements: Mapping[str, Any],
+) -> tuple[list[ShellKey], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
+    """`shell_neighbours` as arrays: the shells and, per pair, the indices of its two shells
+    into them and whether they are turned to opposite sides."""
+    shells, owners, edges = _shell_edges(elements)
+    if not shells:
+        empty = np.zeros(0, dtype=np.int64)
+        return [], empty, empty, np.zeros(0, dtype=bool)
+    low, high = edges.min(axis=1), edges.max(axis=1)
+    keys = low * (int(high.max()) + 1) + high  # one integer per undirected edge
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    shared = np.flatnonzero(counts[inverse] == 2)
+    order = shared[np.argsort(inverse[shared], kind="stable")]
+    first, second = order[0::2], order[1::2]
+    return shells, owners[first], owners[second], edges[first, 0] == edges[second, 0]
+
+
+def shell_neighbours(elements: Mapping[str, Any]) -> list[tuple[ShellKey, ShellKey, bool]]:
+    """The pairs of shell elements that share an edge (one no third shell shares): (first,
+    second, opposite), each as (kind, index); `opposite` where both run along the edge in the
+    same direction, so that their normals, by the right-hand rule of their node order, point
+    to opposite sides."""
+    shells, first, second, opposite = shell_pairs(elements)
+    return [
+        (shells[a], shells[b], bool(flip))
+        for a, b, flip in zip(first, second, opposite, strict=True)
+    ]
+
+
+def orient_shells(elements: Mapping[str, Any]) -> dict[str, NDArray[np.int64]]:
+    """`elements` with the shells turned so that neighbours agree: across every edge that two
+    shells share, both normals point to the same side (the first shell of each connected
+    surface keeps its own). A shell is turned by reversing its node order after its first
+    node ((a, b, c, d) -> (a, d, c, b)), which leaves its stiffness and mass as they are and
+    exchanges its top and bottom surfaces. The shells' stresses are averaged at the nodes
+    (`flexmbd.fe.shell_stresses`), top with top: that needs a consistently turned mesh.
+
+    Raises:
+        InvalidModelError: a surface that cannot be oriented (a Moebius strip), naming two
+            shells whose orientations contradict each other.
+    """
+    shells = [(kind, k) for kind in SHELL_TYPES for k in range(len(elements.get(kind, ())))]
+    neighbours: dict[ShellKey, list[tuple[ShellKey, bool]]] = {}
+    for a, b, opposite in shell_neighbours(elements):
+        neighbours.setdefault(a, []).append((b, opposite))
+        neighbours.setdefault(b, []).append((a, opposite))
+    turned: dict[ShellKey, bool] = {}
+    for seed in shells:
+        if seed in turned:
+            continue
+        turned[seed] = False
+        stack = [seed]
+        while stack:
+            shell = stack.pop()
+            for other, opposite in neighbours.get(shell, []):
+                wanted = turned[shell] ^ opposite
+                if other not in turned:
+                    turned[other] = wanted
+                    stack.append(other)
+                elif turned[other] != wanted:
+                    raise InvalidModelError(
+                        f"the shells cannot all be turned to one side: {shell[1]} ({shell[0]}) "
+                        f"and {other[1]} ({other[0]}) contradict each other (a one-sided "
+                        "surface, such as a Moebius strip)",
+                        item="shell orientation",
+                    )
+    out = {kind: np.array(conn, dtype=np.int64) for kind, conn in elements.items()}
+    for kind in SHELL_TYPES:
+        if kind not in out or not len(out[kind]):
+            continue
+        flip = np.array([turned[(kind, k)] for k in range(len(out[kind]))], dtype=bool)
+        out[kind][flip] = np.roll(out[kind][flip][:, ::-1], 1, axis=1)
+    return out
+
+
 def validate_mesh(mesh: Mesh) -> None:
     """Check a mesh before it becomes a body.
 
@@ -1277,9 +1382,13 @@ def _entry_where(matrix: sp.csc_matrix, mask: NDArray[np.bool_]) -> tuple[int, i
 
 
 __all__ = [
+    "SHELL_TYPES",
     "Mesh",
     "matrices_from_arrays",
+    "orient_shells",
     "read_abaqus_matrix",
     "read_mesh",
+    "shell_neighbours",
+    "shell_pairs",
     "validate_mesh",
 ]

@@ -28,7 +28,14 @@ from ..errors import (
 )
 from .body import FlexibleBodyData, Invariants, ReferenceConditions
 from .interface import Interface
-from .mesh_io import Mesh, matrices_from_arrays, mesh_parts, read_mesh, validate_mesh
+from .mesh_io import (
+    Mesh,
+    matrices_from_arrays,
+    mesh_parts,
+    read_mesh,
+    shell_pairs,
+    validate_mesh,
+)
 from .modal import (
     INTERFACE_KINDS,
     craig_bampton,
@@ -94,11 +101,24 @@ def shell_warp(nodes: NDArray[np.float64], quads: NDArray[np.int64]) -> NDArray[
         return np.where(length > 0.0, h / np.where(length > 0.0, length, 1.0) / size, 0.0)
 
 
-def _warn_warped_shells(
+def _warn_of_shells(
     nodes: NDArray[np.float64], elements: Mapping[str, NDArray[np.int64]], ids: Mapping[str, Any]
 ) -> None:
-    """Warns (`MeshQualityWarning`) of quadrilateral shells warped by more than
-    `SHELL_WARP_LIMIT`, naming the worst."""
+    """Warns (`MeshQualityWarning`) of neighbouring shells turned to opposite sides and of
+    quadrilateral shells warped by more than `SHELL_WARP_LIMIT`, naming one of each."""
+    shells, first, second, opposite = shell_pairs(elements)
+    if opposite.any():
+        k = int(np.argmax(opposite))
+        (kind_a, a), (kind_b, b) = shells[first[k]], shells[second[k]]
+        warnings.warn(
+            f"{int(opposite.sum())} pairs of neighbouring shells have their normals to opposite "
+            f"sides (elements {id_text(ids[kind_a][a])} and {id_text(ids[kind_b][b])} run along "
+            "their shared edge in the same direction): their top and bottom stresses would be "
+            "averaged across each other at the shared nodes; flexmbd.fe.orient_shells(elements) "
+            "turns them to one side",
+            MeshQualityWarning,
+            stacklevel=3,
+        )
     quads = elements.get("quad4")
     if quads is None or not len(quads):
         return
@@ -550,7 +570,7 @@ def build_body(
         validate_mesh(
             Mesh(nodes=nodes, node_ids=ids, elements=elements, element_ids=eids, node_sets=sets)
         )
-        _warn_warped_shells(nodes, elements, eids)
+        _warn_of_shells(nodes, elements, eids)
     clock.lap("check")
     nodal = assemble(
         nodes,
