@@ -731,3 +731,48 @@ def test_a_moebius_strip_cannot_be_oriented():
     quads.append([around - 1, around, 0, 2 * around - 1])
     with pytest.raises(fm.InvalidModelError, match="cannot all be turned to one side"):
         fm.fe.orient_shells({"quad4": np.array(quads)})
+
+
+def test_orient_shells_is_an_option_of_build_body_model_files_and_the_command_line(
+    aluminium, tmp_path
+):
+    import meshio
+
+    from flexmbd.cli import main
+    from flexmbd.fe.mesh_io import shell_neighbours
+    from flexmbd.model_file import load_model
+
+    # The panel of PANEL_MODEL with every other shell turned over, as a VTK file.
+    mesh = shapes.plate((0.3, 0.1), (6, 2), "quad4")
+    cells = mesh.elements["quad4"].copy()
+    cells[1::2] = np.roll(cells[1::2][:, ::-1], 1, axis=1)
+    meshio.write_points_cells(str(tmp_path / "panel.vtu"), mesh.nodes, [("quad", cells)])
+
+    def quality_warnings(build):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", fm.MeshQualityWarning)
+            built = build()
+        return built, [w for w in caught if w.category is fm.MeshQualityWarning]
+
+    body, caught = quality_warnings(
+        lambda: build_body(mesh.nodes, {"quad4": cells}, aluminium, shell=2e-3, orient_shells=True)
+    )
+    assert caught == [] and not any(flip for *_, flip in shell_neighbours(body.elements))
+    np.testing.assert_array_equal(body.elements["quad4"], mesh.elements["quad4"])
+    with pytest.raises(ArgumentTypeError, match="orient_shells must be True or False"):
+        build_body(mesh.nodes, {"quad4": cells}, aluminium, shell=2e-3, orient_shells="yes")
+    source = "plate: {lengths: [0.3, 0.1], divisions: [6, 2], element: quad4}"
+    for orient, expected in (("", 1), ("    orient_shells: true\n", 0)):
+        text = PANEL_MODEL.replace(source, "mesh: panel.vtu\n" + orient)
+        text = text.replace(
+            "reference_nodes: x0", f"reference_nodes: {mesh.node_sets['x0'].tolist()}"
+        )
+        (tmp_path / "panel.yaml").write_text(text)
+        _, caught = quality_warnings(lambda: load_model(tmp_path / "panel.yaml"))
+        assert len(caught) == expected, [str(w.message) for w in caught]
+    command = ["preprocess", str(tmp_path / "panel.vtu"), "-o", str(tmp_path / "panel.h5")]
+    command += ["-E", "7e10", "--poisson-ratio", "0.3", "--density", "2700", "--thickness", "2e-3"]
+    _, caught = quality_warnings(lambda: main([*command, "--orient-shells"]))
+    assert caught == []
+    saved = fm.fe.load_body(tmp_path / "panel.h5")
+    np.testing.assert_array_equal(saved.elements["quad4"], mesh.elements["quad4"])

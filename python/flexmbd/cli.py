@@ -843,6 +843,8 @@ def _preprocess(args: argparse.Namespace) -> int:
         options["orientation"] = args.section_orientation
     if args.thickness is not None:
         options["shell"] = args.thickness
+    if args.orient_shells:
+        options["orient_shells"] = True
     if args.reference_nodes:
         nodes = args.reference_nodes
         options["reference_nodes"] = nodes[0] if len(nodes) == 1 else [int(n) for n in nodes]
@@ -1065,6 +1067,12 @@ def _main(argv: list[str] | None) -> int:
         "--thickness",
         type=float,
         help="shell thickness (m; default: the mesh's own, an Abaqus *SHELL SECTION)",
+    )
+    pre.add_argument(
+        "--orient-shells",
+        action="store_true",
+        help="turn the shells of each connected surface to one side (their stresses are "
+        "averaged at the nodes top with top)",
     )
     pre.add_argument(
         "--reference",

@@ -36,6 +36,7 @@ from .mesh_io import (
     shell_pairs,
     validate_mesh,
 )
+from .mesh_io import orient_shells as orient_shell_elements
 from .modal import (
     INTERFACE_KINDS,
     craig_bampton,
@@ -496,6 +497,7 @@ def build_body(
     precision: str = "auto",
     timings: dict[str, float] | None = None,
     shell: ShellSection | float | None = None,
+    orient_shells: bool = False,
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
@@ -504,7 +506,10 @@ def build_body(
       `node_sets` (name -> indices) are optional. With `check_mesh` the mesh is first checked
       by `mesh_io.validate_mesh` (duplicate and unconnected nodes, bad indices, ...).
     - `section` (beams), `shell` (the flat shells "quad4" and "tri3": a `ShellSection` or the
-      thickness in m).
+      thickness in m). `orient_shells`: turn the shells of each connected surface to the side
+      of its first one (`mesh_io.orient_shells`) before anything else; without it, neighbours
+      turned to opposite sides are a `MeshQualityWarning` (their stresses would be averaged
+      top against bottom).
     - `reference` (the body frame, `docs/preprocessor.md`): "none", "clamped", "3-2-1" or
       "simply-supported" (beams) at
       `reference_nodes` (indices or a node set name), "mean-axis" (with free-free or
@@ -551,6 +556,13 @@ def build_body(
     sets = _node_sets(node_sets)
     elements = {k: np.array(v, dtype=np.int64) for k, v in elements.items()}
     _check_shell(elements, shell)
+    if not isinstance(orient_shells, bool | np.bool_):
+        raise ArgumentTypeError(
+            f"orient_shells must be True or False, got {orient_shells!r}"[:200],
+            item="orient_shells",
+        )
+    if orient_shells:
+        elements = orient_shell_elements(elements)
     ids = (
         np.arange(1, len(nodes) + 1, dtype=np.int64)
         if node_ids is None

@@ -274,6 +274,7 @@ _PREPROCESS_KEYS = (
     "interface_kind",
     "interface_weights",
     "precision",
+    "orient_shells",
 )
 _SOURCES = ("body_file", "beam", "mesh", "nastran", "box", "plate", "cylinder")
 

@@ -403,6 +403,11 @@ class FlexibleBodySpec(_Spec):
     shell_thickness: float | None = Field(
         None, gt=0, description="thickness of the shell elements (length; build_body `shell`)"
     )
+    orient_shells: bool | None = Field(
+        None,
+        description="turn the shells of each connected surface to one side (build_body "
+        "`orient_shells`)",
+    )
     mass_matrix: Literal["consistent", "lumped"] | None = Field(
         None, description="build_body `mass` (default consistent)"
     )
