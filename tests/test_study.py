@@ -397,3 +397,32 @@ def test_sampled_cases_are_plotted_as_points_coloured_by_the_other_parameter(tmp
     assert [t.get_text() for t in axes.get_legend().get_texts()] == ["failed"]
     with pytest.raises(fm.InvalidParameterError, match="no output 'warnings'"):
         plot_study(tmp_path / "s", "warnings", "length", None)
+
+
+def test_a_case_that_kills_its_worker_is_recorded_and_the_others_run(tmp_path, worker_path):
+    # A case whose worker process dies (here by os._exit in a callback at t = 0.15 s; the
+    # out-of-memory killer or a crash in native code alike) is recorded as failed, with the
+    # records its file kept; the cases of its batch after it, and of the batches the dead
+    # worker had queued, run on the workers left. Before, the study raised Dask's KilledWorker
+    # (after running the case on four workers) and gathered nothing.
+    cases = [{"length": 0.5 + 0.1 * k, "die_at": 0.15 if k == 2 else None} for k in range(7)]
+    study = fm.Study(
+        swinging_arm, cases, sampling="list", outputs={"lowest tip": "min(sensor:tip[y])"},
+        folder=tmp_path / "s", end_time=0.3, step_size=1e-3, output_interval=0.01,
+    )  # fmt: skip
+    data = study.run(workers=2, progress=False)
+    status = [str(s) for s in data["status"].values]
+    assert status == ["complete"] * 2 + ["failed"] + ["complete"] * 4
+    assert str(data["error"].values[2]).startswith("WorkerDied: the worker process died")
+    summary = json.loads((tmp_path / "s" / "cases" / f"case-{study.keys[2]}.json").read_text())
+    assert summary["error"]["class"] == "WorkerDied" and summary["records"] <= 16
+    assert not list((tmp_path / "s" / "cases").glob("*.started"))
+    assert np.all(data["lowest tip"].values[[0, 1, 3, 4, 5, 6]] < 0.0)
+    assert study.pending() == []
+    # A case whose worker dies as its model is built, in the checks: a StudyError naming the
+    # cases, before anything runs.
+    cases = [{"length": 0.5 + 0.1 * k, "die_building": k == 4} for k in range(7)]
+    broken = fm.Study(swinging_arm, cases, sampling="list", folder=tmp_path / "b", end_time=0.1)
+    with pytest.raises(fm.StudyError, match=r"died while building the models of the cases \[.*4"):
+        broken.run(workers=2, progress=False)
+    assert not (tmp_path / "b" / "cases").exists()

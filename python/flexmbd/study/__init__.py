@@ -34,7 +34,16 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidParameterError, StudyError
 from ..progress import ProgressBar
-from .cases import RUN_SETTINGS, CaseTask, ModelSource, case_key, check_case, check_cases, run_case
+from .cases import (
+    RUN_SETTINGS,
+    CaseTask,
+    ModelSource,
+    case_key,
+    check_case,
+    check_cases,
+    record_lost_case,
+    run_case,
+)
 from .sampling import SAMPLINGS, make_cases
 
 if TYPE_CHECKING:
@@ -157,6 +166,8 @@ class Study:
                     )
                     for k in todo
                 ]
+                for task in tasks:  # markers of an earlier run that was stopped
+                    task.started_path.unlink(missing_ok=True)
                 _import_in_background(GATHER_MODULES)
                 _run_on_dask(client, tasks, progress, len(self.cases))
             finally:
@@ -195,10 +206,20 @@ class Study:
         return data
 
 
-#: Dask settings of the LocalCluster a study starts: no statistical profiler, no GIL monitor.
+#: How often the scheduler of a study's own LocalCluster runs a task again after its worker
+#: died (Dask's default 3): a case that kills its worker (out of memory, a crash in native
+#: code) would kill it again, so it is recorded as failed at once (`_run_on_dask`).
+ALLOWED_FAILURES = 0
+
+#: Times a batch whose worker died before it started goes to the workers again.
+LOST_BATCH_ATTEMPTS = 4
+
+#: Dask settings of the LocalCluster a study starts: no statistical profiler, no GIL monitor,
+#: no retries of a task whose worker died.
 QUIET_WORKERS = {
     "distributed.worker.profile.enabled": False,
     "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
 }
 
 
@@ -318,10 +339,20 @@ def _check_on_dask(
         client.submit(check_cases, source, batch, key=f"flexmbd-check-{k}", pure=False)
         for k, batch in enumerate(batches)
     ]
-    for refusal in client.gather(futures):
-        if refusal is not None:
-            return refusal
-    return None
+    refusals, lost = [], []
+    for batch, future in zip(batches, futures, strict=True):
+        try:
+            refusals.append(future.result())
+        except Exception as death:  # noqa: BLE001 - Dask's KilledWorker, or a lost worker
+            lost.append(([k for k, _ in batch], death))
+    if lost:
+        indices = sorted(k for batch, _ in lost for k in batch)
+        raise StudyError(
+            f"a worker process died while building the models of the cases {indices} to check "
+            f"them (out of memory, a crash in native code, an exit in the build function: "
+            f"{type(lost[0][1]).__name__}); build one of them alone to see why"
+        ) from lost[0][1]
+    return next((refusal for refusal in refusals if refusal is not None), None)
 
 
 def run_cases(tasks: list[CaseTask]) -> list[dict[str, Any]]:
@@ -331,25 +362,58 @@ def run_cases(tasks: list[CaseTask]) -> list[dict[str, Any]]:
 
 
 def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int) -> None:
-    """Runs `tasks` on `client`'s cluster and reports cases done, failed and the time left."""
+    """Runs `tasks` on `client`'s cluster and reports cases done, failed and the time left.
+
+    A batch whose worker process died (Dask gives up on it: at once on a study's own
+    cluster, `ALLOWED_FAILURES`; after its retries on another) lost the case that was running,
+    the one started (`CaseTask.started_path`) without a summary: it is recorded as failed here
+    (`record_lost_case`), and the cases after it go to the workers again as a batch of their
+    own. A batch that had not started (Dask also gives up on the tasks queued on the worker
+    that died) goes again whole, up to `LOST_BATCH_ATTEMPTS` times."""
     from dask.distributed import as_completed
 
     bar = ProgressBar("cases") if progress else None
+    done = total - len(tasks)
+    finished = failed = 0
+
+    def count(summaries: list[dict[str, Any]]) -> None:
+        nonlocal done, finished, failed
+        finished += len(summaries)
+        done += len(summaries)
+        failed += sum(summary["status"] != "complete" for summary in summaries)
+        if bar is not None:
+            # The fraction of the cases run now (the time left is theirs); all counted.
+            bar.update(finished / len(tasks), f"{done}/{total} cases, {failed} failed")
+
+    def submit(batch: list[CaseTask], attempt: int = 0) -> Any:
+        key = f"flexmbd-cases-{batch[0].key}" + (f"-{attempt}" if attempt else "")
+        future = client.submit(run_cases, batch, key=key, pure=False)
+        batches[future.key] = (batch, attempt)
+        return future
+
+    batches: dict[str, tuple[list[CaseTask], int]] = {}
     try:
-        futures = [
-            client.submit(run_cases, batch, key=f"flexmbd-cases-{batch[0].key}", pure=False)
-            for batch in _batches(tasks, _worker_count(client))
-        ]
-        done = total - len(tasks)
-        finished = failed = 0
-        for future in as_completed(futures):
-            summaries = future.result()
-            finished += len(summaries)
-            done += len(summaries)
-            failed += sum(summary["status"] != "complete" for summary in summaries)
-            if bar is not None:
-                # The fraction of the cases run now (the time left is theirs); all counted.
-                bar.update(finished / len(tasks), f"{done}/{total} cases, {failed} failed")
+        running = as_completed([submit(b) for b in _batches(tasks, _worker_count(client))])
+        for future in running:
+            batch, attempt = batches.pop(future.key)
+            try:
+                summaries = future.result()
+            except Exception as death:  # noqa: BLE001 - Dask's KilledWorker, or a lost worker
+                left = [task for task in batch if not task.summary_path.exists()]
+                summaries = [json.loads(t.summary_path.read_text()) for t in batch if t not in left]
+                lost = [task for task in left if task.started_path.exists()][:1]
+                if left and not lost and attempt + 1 >= LOST_BATCH_ATTEMPTS:
+                    lost = left[:1]
+                for task in lost:
+                    summaries.append(record_lost_case(task, death))
+                    task.started_path.unlink(missing_ok=True)
+                rest = [task for task in left if task not in lost]
+                if rest:
+                    running.add(submit(rest, attempt + 1))
+            # Released at once: a finished batch held by the client would be run again if its
+            # worker died later.
+            future.release()
+            count([s for s in summaries if s is not None])
     finally:
         if bar is not None:
             bar.close(failed=bar.fraction < 1.0)

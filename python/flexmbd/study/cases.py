@@ -170,16 +170,27 @@ class CaseTask:
     def summary_path(self) -> Path:
         return Path(self.folder) / f"case-{self.key}.json"
 
+    @property
+    def started_path(self) -> Path:
+        """Written as the case starts on a worker, removed with its summary: a case with it and
+        no summary was running when its worker died."""
+        return Path(self.folder) / f"case-{self.key}.started"
+
 
 def run_case(task: CaseTask) -> dict[str, Any]:
     """Builds and simulates a case, writing its results file, then its outputs and status to
     the summary file (written last, by rename: a case is done when it exists). A case that
-    fails keeps its partial results and records the error's class and message."""
-    import numpy as np
-
-    from ..quantities import output_value
+    fails keeps its partial results and records the error's class and message. A case done
+    already (a batch run again after its worker died) is not run again: its summary is
+    returned."""
     from ..simulation import simulate
 
+    if task.summary_path.exists():
+        try:
+            return json.loads(task.summary_path.read_text())
+        except (OSError, ValueError):
+            pass  # unreadable: run the case again
+    task.started_path.write_text(str(os.getpid()))
     started = time.perf_counter()
     error: BaseException | None = None
     result = None
@@ -206,6 +217,53 @@ def run_case(task: CaseTask) -> dict[str, Any]:
         error, result = failure, getattr(failure, "result", None)
     except Exception as failure:  # noqa: BLE001 - any error of a case is recorded, not raised
         error = failure
+    return _write_summary(task, result, error, time.perf_counter() - started, os.getpid())
+
+
+#: The error class recorded for a case whose worker process died while running it.
+WORKER_DIED = "WorkerDied"
+
+
+def record_lost_case(task: CaseTask, cause: BaseException) -> dict[str, Any]:
+    """Records, from the main process, a case whose worker process died while running it (out
+    of memory, a crash in native code, an os._exit in a callback; `cause`, Dask's report) as
+    failed with the error class `WORKER_DIED`, its outputs computed from what its results file
+    kept (the records flushed before the death, if any)."""
+    from ..results_file import read_results
+
+    result = None
+    if task.results_path.exists():
+        try:
+            result = read_results(task.results_path)
+        except Exception:  # noqa: BLE001,S110 - a file cut short by the death: no records
+            pass
+    if result is not None and not len(result.time):
+        result = None  # the death came before the first records were written
+    error = _LostCase(
+        f"the worker process died while running this case ({type(cause).__name__}: "
+        f"{str(cause)[:300]}); out of memory, a crash in native code or an exit in a callback "
+        f"can do that. Its results file keeps what was written before"
+    )
+    return _write_summary(task, result, error, None, None)
+
+
+class _LostCase(Exception):
+    """The error of a case whose worker died (recorded as `WORKER_DIED`)."""
+
+
+def _write_summary(
+    task: CaseTask,
+    result: Any,
+    error: BaseException | None,
+    elapsed: float | None,
+    pid: int | None,
+) -> dict[str, Any]:
+    """A case's outputs (computed from `result`, which may be partial) and status, written to
+    its summary file (last, by rename: the case is then done) and returned."""
+    import numpy as np
+
+    from ..quantities import output_value
+
     outputs: dict[str, Any] = {}
     series_time = None
     if result is not None:
@@ -230,20 +288,21 @@ def run_case(task: CaseTask) -> dict[str, Any]:
         "error": None
         if error is None
         else {
-            "class": type(error).__name__,
+            "class": WORKER_DIED if isinstance(error, _LostCase) else type(error).__name__,
             "message": str(error),
             "traceback": "".join(traceback.format_exception(error))[-4000:],
         },
         "outputs": outputs,
         "time": series_time,
         "records": 0 if result is None else len(result.time),
-        "elapsed": time.perf_counter() - started,
-        "worker_pid": os.getpid(),
-        "worker_peak_memory": _peak_memory(),
+        "elapsed": elapsed,
+        "worker_pid": pid,
+        "worker_peak_memory": _peak_memory() if pid is not None else None,
     }
     partial = task.summary_path.with_suffix(".json.partial")
     partial.write_text(json.dumps(summary, indent=1))
     os.replace(partial, task.summary_path)
+    task.started_path.unlink(missing_ok=True)
     return summary
 
 
