@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -426,3 +427,30 @@ def test_a_case_that_kills_its_worker_is_recorded_and_the_others_run(tmp_path, w
     with pytest.raises(fm.StudyError, match=r"died while building the models of the cases \[.*4"):
         broken.run(workers=2, progress=False)
     assert not (tmp_path / "b" / "cases").exists()
+
+
+def test_an_interrupted_sweep_says_what_is_done_and_the_same_command_finishes(tmp_path):
+    # Ctrl-C (SIGINT) during `flexmbd sweep`: no traceback, exit code 130, the cases done kept
+    # (files and summaries), and the same command runs only the others.
+    import signal
+
+    folder = tmp_path / "sweep"
+    command = [sys.executable, "-m", "flexmbd", "sweep", str(PENDULUM_FILE), "--set"]
+    command += ["joints.link.distance=0.6,0.7,0.8,0.9", "--end", "20", "--workers", "1"]
+    command += ["-o", str(folder)]
+    sweep = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not list(folder.glob("cases/*.json")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    sweep.send_signal(signal.SIGINT)
+    _, err = sweep.communicate(timeout=120)
+    assert sweep.returncode == 130, err[-3000:]
+    assert "Traceback" not in err, err[-3000:]
+    # (A case running as the cluster stops may still finish: the message counts those done
+    # when it was written.)
+    done = len(list(folder.glob("cases/*.json")))
+    said = re.search(r"flexmbd sweep: interrupted; (\d) of 4 cases are done in", err)
+    assert said is not None and 1 <= int(said.group(1)) <= done < 4, err[-3000:]
+    again = subprocess.run(command + ["-q"], capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert f"{4 - done} to run" in again.stdout and "4 cases, 4 complete" in again.stdout

@@ -104,6 +104,7 @@ def sweep(args: argparse.Namespace) -> int:
     from ..examples import EXAMPLES
     from . import Study
 
+    study = None
     try:
         sampling, samples = "grid", None
         if args.sample:
@@ -136,6 +137,19 @@ def sweep(args: argparse.Namespace) -> int:
     except FlexmbdError as error:
         print(f"flexmbd sweep: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        # The cases done keep their files and summaries; the cluster is stopped.
+        if study is None:
+            print("flexmbd sweep: interrupted", file=sys.stderr)
+        else:
+            total = len(study.cases)
+            done = total - len(study.pending())
+            print(
+                f"flexmbd sweep: interrupted; {done} of {total} cases are done in "
+                f"{str(args.folder)!r}: the same command runs the others",
+                file=sys.stderr,
+            )
+        return 130
     _print_study(data, {"model": args.model})
     return 0 if all(s == "complete" for s in data["status"].values) else 1
 
