@@ -417,6 +417,9 @@ def test_a_case_that_kills_its_worker_is_recorded_and_the_others_run(tmp_path, w
     assert str(data["error"].values[2]).startswith("WorkerDied: the worker process died")
     summary = json.loads((tmp_path / "s" / "cases" / f"case-{study.keys[2]}.json").read_text())
     assert summary["error"]["class"] == "WorkerDied" and summary["records"] <= 16
+    # Its output from the records its file kept: none (the file is written every 2 s of
+    # wall time) leaves no value.
+    assert np.isnan(data["lowest tip"].values[2]) == (summary["records"] == 0)
     assert not list((tmp_path / "s" / "cases").glob("*.started"))
     assert np.all(data["lowest tip"].values[[0, 1, 3, 4, 5, 6]] < 0.0)
     assert study.pending() == []

@@ -339,8 +339,11 @@ def parse_output(spec: str) -> tuple[str, str, str | None]:
 
 def output_value(result: Any, spec: str) -> float | Array:
     """The value of an output specification for `result`: a number, or the time history
-    for ``series``."""
+    for ``series``. A result without records (a run that failed or was killed before its
+    first) has no value: `InvalidParameterError`."""
     reduction, quantity, component = parse_output(spec)
+    if not len(result.time):
+        raise InvalidParameterError(f"output {spec!r}: the result has no records", item=spec)
     values, labels = quantity_values(result, quantity)
     if component is not None:
         key = component.strip()

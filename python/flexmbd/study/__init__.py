@@ -404,9 +404,7 @@ def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int)
                 lost = [task for task in left if task.started_path.exists()][:1]
                 if left and not lost and attempt + 1 >= LOST_BATCH_ATTEMPTS:
                     lost = left[:1]
-                for task in lost:
-                    summaries.append(record_lost_case(task, death))
-                    task.started_path.unlink(missing_ok=True)
+                summaries += [record_lost_case(task, death) for task in lost]
                 rest = [task for task in left if task not in lost]
                 if rest:
                     running.add(submit(rest, attempt + 1))

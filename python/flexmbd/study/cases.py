@@ -237,8 +237,6 @@ def record_lost_case(task: CaseTask, cause: BaseException) -> dict[str, Any]:
             result = read_results(task.results_path)
         except Exception:  # noqa: BLE001,S110 - a file cut short by the death: no records
             pass
-    if result is not None and not len(result.time):
-        result = None  # the death came before the first records were written
     error = _LostCase(
         f"the worker process died while running this case ({type(cause).__name__}: "
         f"{str(cause)[:300]}); out of memory, a crash in native code or an exit in a callback "
