@@ -238,10 +238,11 @@ def record_lost_case(task: CaseTask, cause: BaseException) -> dict[str, Any]:
         except Exception:  # noqa: BLE001,S110 - a file cut short by the death: no records
             pass
     error = _LostCase(
-        f"the worker process died while running this case ({type(cause).__name__}: "
-        f"{str(cause)[:300]}); out of memory, a crash in native code or an exit in a callback "
-        f"can do that. Its results file keeps what was written before"
+        f"the worker process died while running this case (Dask: {type(cause).__name__}); out "
+        "of memory, a crash in native code or an exit in a callback can do that. Its results "
+        "file keeps what was written before"
     )
+    error.__cause__ = cause  # Dask's own report, in the summary's traceback
     return _write_summary(task, result, error, None, None)
 
 
