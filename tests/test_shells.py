@@ -509,13 +509,8 @@ def twisted_beam(nx: int, ny: int, element: str, *, warn: str = "error"):
             for y in np.linspace(-width / 2, width / 2, ny + 1)
         ]
     )
-    corner = np.arange(nx * (ny + 1)).reshape(nx, ny + 1)[:, :ny].ravel()
-    quads = np.stack([corner, corner + ny + 1, corner + ny + 2, corner + 1], axis=1)
-    cells = (
-        {"quad4": quads}
-        if element == "quad4"
-        else {"tri3": np.vstack([quads[:, :3], quads[:, [0, 2, 3]]])}
-    )
+    quads = quad_grid(nx, ny, "quad4")["quad4"]
+    cells = quad_grid(nx, ny, element)
     with warnings.catch_warnings():
         warnings.simplefilter(warn, fm.MeshQualityWarning)
         body = build_body(

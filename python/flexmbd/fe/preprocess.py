@@ -18,7 +18,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
-from .._checks import choice, id_text, integer, integers_array
+from .._checks import choice, flag, id_text, integer, integers_array
 from ..errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -36,7 +36,7 @@ from .mesh_io import (
     shell_pairs,
     validate_mesh,
 )
-from .mesh_io import orient_shells as orient_shell_elements
+from .mesh_io import orient_shells as orient_shell_elements  # a parameter of build_body too
 from .modal import (
     INTERFACE_KINDS,
     craig_bampton,
@@ -556,12 +556,7 @@ def build_body(
     sets = _node_sets(node_sets)
     elements = {k: np.array(v, dtype=np.int64) for k, v in elements.items()}
     _check_shell(elements, shell)
-    if not isinstance(orient_shells, bool | np.bool_):
-        raise ArgumentTypeError(
-            f"orient_shells must be True or False, got {orient_shells!r}"[:200],
-            item="orient_shells",
-        )
-    if orient_shells:
+    if flag(orient_shells, "orient_shells"):
         elements = orient_shell_elements(elements)
     ids = (
         np.arange(1, len(nodes) + 1, dtype=np.int64)

@@ -373,16 +373,15 @@ def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int)
     from dask.distributed import as_completed
 
     bar = ProgressBar("cases") if progress else None
-    done = total - len(tasks)
     finished = failed = 0
 
     def count(summaries: list[dict[str, Any]]) -> None:
-        nonlocal done, finished, failed
+        nonlocal finished, failed
         finished += len(summaries)
-        done += len(summaries)
         failed += sum(summary["status"] != "complete" for summary in summaries)
         if bar is not None:
             # The fraction of the cases run now (the time left is theirs); all counted.
+            done = total - len(tasks) + finished
             bar.update(finished / len(tasks), f"{done}/{total} cases, {failed} failed")
 
     def submit(batch: list[CaseTask], attempt: int = 0) -> Any:
@@ -411,7 +410,7 @@ def _run_on_dask(client: Any, tasks: list[CaseTask], progress: bool, total: int)
             # Released at once: a finished batch held by the client would be run again if its
             # worker died later.
             future.release()
-            count([s for s in summaries if s is not None])
+            count(summaries)
     finally:
         if bar is not None:
             bar.close(failed=bar.fraction < 1.0)

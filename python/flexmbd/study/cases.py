@@ -220,14 +220,14 @@ def run_case(task: CaseTask) -> dict[str, Any]:
     return _write_summary(task, result, error, time.perf_counter() - started, os.getpid())
 
 
-#: The error class recorded for a case whose worker process died while running it.
-WORKER_DIED = "WorkerDied"
+class WorkerDied(Exception):
+    """The error recorded for a case whose worker process died while running it."""
 
 
 def record_lost_case(task: CaseTask, cause: BaseException) -> dict[str, Any]:
     """Records, from the main process, a case whose worker process died while running it (out
     of memory, a crash in native code, an os._exit in a callback; `cause`, Dask's report) as
-    failed with the error class `WORKER_DIED`, its outputs computed from what its results file
+    failed with the error class `WorkerDied`, its outputs computed from what its results file
     kept (the records flushed before the death, if any)."""
     from ..results_file import read_results
 
@@ -237,17 +237,13 @@ def record_lost_case(task: CaseTask, cause: BaseException) -> dict[str, Any]:
             result = read_results(task.results_path)
         except Exception:  # noqa: BLE001,S110 - a file cut short by the death: no records
             pass
-    error = _LostCase(
+    error = WorkerDied(
         f"the worker process died while running this case (Dask: {type(cause).__name__}); out "
         "of memory, a crash in native code or an exit in a callback can do that. Its results "
         "file keeps what was written before"
     )
     error.__cause__ = cause  # Dask's own report, in the summary's traceback
     return _write_summary(task, result, error, None, None)
-
-
-class _LostCase(Exception):
-    """The error of a case whose worker died (recorded as `WORKER_DIED`)."""
 
 
 def _write_summary(
@@ -287,7 +283,7 @@ def _write_summary(
         "error": None
         if error is None
         else {
-            "class": WORKER_DIED if isinstance(error, _LostCase) else type(error).__name__,
+            "class": type(error).__name__,
             "message": str(error),
             "traceback": "".join(traceback.format_exception(error))[-4000:],
         },

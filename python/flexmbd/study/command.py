@@ -257,7 +257,8 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
     x_all = data[against].values
     status = data["status"].values
     numeric = [n for n in others if np.issubdtype(data[n].dtype, np.number)]
-    if numeric and all(len(cases) == 1 for cases in groups.values()) and len(groups) > 1:
+    sampled = bool(numeric) and len(groups) > 1 and all(len(c) == 1 for c in groups.values())
+    if sampled:
         # Sampled cases (random, Latin hypercube): no two share the other parameters, so no
         # lines; points coloured by the first other parameter instead of a legend per case.
         colour = numeric[0]
@@ -267,27 +268,27 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
         bad = status == "failed"
         if bad.any():
             ax.plot(x_all[bad], variable.values[bad], "kx", label="failed")
-        groups = {}
-    for group, cases in groups.items():
-        cases = sorted(cases, key=lambda k: x_all[k])
-        ok = [k for k in cases if status[k] == "complete"]
-        label = (
-            ", ".join(
-                f"{n} = {v:g}" if isinstance(v, float) else f"{n} = {v}"
-                for n, v in zip(others, group, strict=True)
+    else:
+        for group, cases in groups.items():
+            cases = sorted(cases, key=lambda k: x_all[k])
+            ok = [k for k in cases if status[k] == "complete"]
+            label = (
+                ", ".join(
+                    f"{n} = {v:g}" if isinstance(v, float) else f"{n} = {v}"
+                    for n, v in zip(others, group, strict=True)
+                )
+                or None
             )
-            or None
-        )
-        ax.plot(x_all[ok], variable.values[ok], "o-", label=label)
-        bad = [k for k in cases if status[k] == "failed"]
-        if bad:
-            mark = "failed" if label is None else None
-            ax.plot(x_all[bad], variable.values[bad], "kx", label=mark)
+            ax.plot(x_all[ok], variable.values[ok], "o-", label=label)
+            bad = [k for k in cases if status[k] == "failed"]
+            if bad:
+                mark = "failed" if label is None else None
+                ax.plot(x_all[bad], variable.values[bad], "kx", label=mark)
     ax.set_xlabel(against)
     ax.set_ylabel(output)
     ax.set_title(f"{output} against {against} ({len(x_all)} cases)")
     ax.grid(True, alpha=0.3)
-    if len(groups) > 1 or any(status == "failed"):
+    if (len(groups) > 1 and not sampled) or any(status == "failed"):
         ax.legend(fontsize=8)
     path = Path(image) if image else Path(folder) / f"{output.replace(' ', '_')}_{against}.png"
     fig.tight_layout()

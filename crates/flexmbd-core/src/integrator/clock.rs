@@ -1,6 +1,6 @@
 //! The end time and the output times of a run, on which its steps land.
 
-use crate::integrator::settings::{ExplicitMethod, Integrator, SimulationSettings, StepControl};
+use crate::integrator::settings::{Integrator, SimulationSettings, StepControl};
 use crate::output::Event;
 
 /// The "step size" event of a run whose nominal step is longer than its output interval: its
@@ -12,7 +12,7 @@ pub(crate) fn step_above_output_interval(settings: &SimulationSettings, time: f6
     let dt = settings.output_interval?;
     let nominal = match &settings.integrator {
         Integrator::GeneralizedAlpha => !matches!(settings.step_control, StepControl::Error { .. }),
-        Integrator::Explicit(explicit) => explicit.method == ExplicitMethod::Rk4,
+        Integrator::Explicit(explicit) => !explicit.method.adaptive(),
     };
     let h = settings.step_size;
     (nominal && h > dt * (1.0 + 1e-9)).then(|| Event {
@@ -103,7 +103,7 @@ impl OutputClock {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrator::settings::ExplicitSettings;
+    use crate::integrator::settings::{ExplicitMethod, ExplicitSettings};
 
     #[test]
     fn a_continued_run_keeps_the_output_times_of_the_start_time() {

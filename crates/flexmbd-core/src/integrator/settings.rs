@@ -345,6 +345,14 @@ pub enum ExplicitMethod {
 
 crate::named!(ExplicitMethod { Dopri5 => "dopri5", Rk4 => "rk4", TrBdf2 => "tr-bdf2" });
 
+impl ExplicitMethod {
+    /// Whether the method controls its error (Dormand-Prince, TR-BDF2: the step size given is
+    /// only the first) or takes fixed steps (RK4).
+    pub fn adaptive(self) -> bool {
+        self != ExplicitMethod::Rk4
+    }
+}
+
 /// The seed's strategies for the constrained equations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Strategy {

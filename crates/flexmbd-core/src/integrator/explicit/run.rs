@@ -182,7 +182,7 @@ impl Stepper for ExplicitSteps<'_, '_> {
 impl ExplicitSteps<'_, '_> {
     /// Whether the method controls the error (Dormand-Prince) or takes fixed steps (RK4).
     fn adaptive(&self) -> bool {
-        self.engine.settings.method != ExplicitMethod::Rk4
+        self.engine.settings.method.adaptive()
     }
 
     /// The Runge-Kutta step from (t, y) with step h; returns its error norm. The end point of
