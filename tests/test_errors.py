@@ -221,18 +221,37 @@ def test_driver_function_errors_name_the_joint():
 
 
 def test_ctrl_c_stops_cleanly_and_keeps_results():
-    example = fm.examples.four_bar(20)
+    model = fm.examples.four_bar(20).system.compile()
     timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
     timer.start()
     try:
         with pytest.raises(fm.SimulationInterrupted) as info:
-            fm.simulate(example.system, 100.0, 1e-3, output_interval=0.01)
+            fm.simulate(model, 100.0, 1e-3, output_interval=0.01)
     finally:
         timer.cancel()
     result = info.value.result
     assert 0 < result.time[-1] < 100.0
     assert isinstance(info.value.__cause__, KeyboardInterrupt)
     assert result.constraint_violation.max() < 1e-8
+
+
+def test_ctrl_c_stops_cleanly_also_where_sigint_was_left_at_its_default_action():
+    # gmsh.initialize() sets SIGINT to the system's default, which ends the process at once:
+    # a run after meshing with Gmsh lost everything to a Ctrl-C. The run takes Ctrl-C as
+    # KeyboardInterrupt and puts the default back after. (Without this, the signal below ends
+    # the test session.)
+    model = fm.examples.four_bar(20).system.compile()
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(fm.SimulationInterrupted) as info:
+            fm.simulate(model, 100.0, 1e-3, output_interval=0.01)
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_DFL
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    assert 0 < info.value.result.time[-1] < 100.0
 
 
 def test_progress_callback_is_called_and_its_exception_is_a_callback_error(assert_close):

@@ -681,7 +681,7 @@ def test_the_pinched_hemisphere_of_gmsh_quadrilaterals_converges_to_the_referenc
     from flexmbd.fe.preprocess import shell_warp
 
     radius = 10.0
-    gmsh.initialize()
+    gmsh.initialize(interruptible=False)  # keeps Python's Ctrl-C handler
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("hemisphere")

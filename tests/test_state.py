@@ -9,6 +9,8 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.linalg
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import flexmbd as fm
@@ -382,6 +384,112 @@ def test_the_stability_of_an_equilibrium_agrees_with_its_linearization(assert_cl
         fm.equilibrium(model, coordinates=upright.coordinates, stable=True, max_iterations=5)
     with pytest.raises(InvalidParameterError, match="stable"):
         fm.equilibrium(model, stable="yes")
+
+
+@pytest.mark.parametrize(
+    "build",
+    [fm.examples.four_bar_spatial, fm.examples.bricard, lambda: fm.examples.bricard(np.pi / 2)],
+    ids=["spatial four-bar", "Bricard", "Bricard, turned frames"],
+)
+def test_mechanisms_with_redundant_joints_have_an_equilibrium(build, assert_close):
+    # The spatial four-bar (3 redundant equations) and Bricard's mechanism (1, which of them
+    # a round-off tie) made Newton's matrix singular; the redundant rows are now left out, as
+    # the runs leave them out. Checked by the dynamics: released there, nothing moves.
+    example = build()
+    state = fm.equilibrium(example.system)
+    assert state.stable is True and state.residual < 1e-12
+    sought = fm.equilibrium(example.system, stable=True)
+    assert_close(sought.coordinates, state.coordinates, abs=1e-12, what="stable=True")
+    result = fm.simulate(example.system, 0.5, 1e-3, output_interval=0.05, initial_state=state)
+    names = [b["name"] for b in example.system.compile().describe()["bodies"][1:]]
+    speed = max(float(np.abs(result.velocity(name)).max()) for name in names)
+    assert speed < 1e-9
+    # The linearization about it has the mechanism's one frequency, which a run started there
+    # with a small velocity along its motion (the null space of C_q) swings at.
+    model = example.system.compile()
+    frequencies = fm.linearize(model, state).frequencies()
+    assert len(frequencies) == 1
+    nq = model.coordinate_count
+    q, zero = state.coordinates, np.zeros(nq)
+    ev = model.evaluate(0.0, q, zero, zero, state.multipliers, position=1.0)
+    data, indices, indptr, size = ev["matrix"]
+    jacobian = sp.csc_matrix((data, indices, indptr), shape=(size, size))[nq:, :nq].toarray()
+    motion = scipy.linalg.null_space(jacobian)[:, 0] * 1e-3
+    swinging = fm.State(
+        0.0, state.coordinates, motion, np.zeros(nq), state.multipliers, layout=state.layout
+    )
+    periods = 5
+    run = fm.simulate(
+        model, periods / frequencies[0], 2e-3, output_interval=2e-3, initial_state=swinging
+    )
+    x = run.position(names[0])[:, 0]
+    upward = np.flatnonzero(np.diff(np.sign(x - x.mean())) > 0)
+    measured = 1.0 / np.mean(np.diff(run.time[upward]))
+    assert len(upward) >= periods - 1
+    assert_close(measured, frequencies[0], rel=2e-3, what="frequency of the swing")
+
+
+def door_on_two_hinges(upper_ground: float) -> fm.System:
+    """A 10 kg door (centre 0.5 m from its hinge axis, the global y axis) on two revolute
+    joints about that axis at heights 0.2 and 1.8 m; the upper one's ground point at height
+    `upper_ground`. Gravity -9.81 along y and -1 along z (so that the door has a way to hang)."""
+    system = fm.System(gravity=(0.0, -9.81, -1.0))
+    door = system.add_rigid_body(10.0, (1.0, 1.0, 1.0), position=(0.5, 1.0, 0.0), name="door")
+    vertical = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])  # z along y
+    for name, ground, hinge in (("lower", 0.2, -0.8), ("upper", upper_ground, 0.8)):
+        system.add_revolute_joint(
+            system.add_marker(system.ground, position=(0.0, ground, 0.0), orientation=vertical),
+            system.add_marker(door, position=(-0.5, hinge, 0.0), orientation=vertical),
+            name=f"{name} hinge",
+        )
+    return system
+
+
+def test_inconsistent_redundant_joints_are_named():
+    # The upper hinge's ground point 5 cm above its door point: its 'y' equation repeats the
+    # lower hinge's with another value. (A run says so too: InitialConditionsError.)
+    with pytest.raises(
+        InvalidModelError, match="inconsistent joints.*'upper hinge' equation 'y'"
+    ) as error:
+        fm.equilibrium(door_on_two_hinges(1.85))
+    assert error.value.item == "upper hinge"
+    # Where they agree, the door turns about the hinges to hang along -z (5 redundant rows).
+    state = fm.equilibrium(door_on_two_hinges(1.8))
+    assert state.stable is True
+    assert state.position("door") == pytest.approx([0.0, 1.0, -0.5], abs=1e-9)
+
+
+def test_an_equilibrium_that_cannot_exist_names_the_free_body():
+    # A body that nothing holds, and a slider on a vertical guide without a spring: the
+    # error names the body and the motion that nothing resists.
+    system = fm.System(gravity=GRAVITY)
+    system.add_rigid_body(1.0, (0.1, 0.1, 0.1), position=(1.0, 0.0, 0.0), name="hub")
+    with pytest.raises(
+        InvalidModelError,
+        match="6 directions.*body 'hub' \\(translation in any direction, rotation about any",
+    ) as error:
+        fm.equilibrium(system)
+    assert error.value.item == "hub"
+    vertical = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])  # z along y
+    system = fm.System(gravity=GRAVITY)
+    slider = system.add_rigid_body(1.0, (0.1, 0.1, 0.1), name="slider")
+    system.add_prismatic_joint(
+        system.add_marker(system.ground, orientation=vertical),
+        system.add_marker(slider, orientation=vertical),
+        name="guide",
+    )
+    with pytest.raises(
+        InvalidModelError, match="1 direction .*'slider' \\(translation along \\(0, 1, 0\\)\\)"
+    ):
+        fm.equilibrium(system)
+    # With a spring along the guide it hangs 9.81 / 100 below.
+    system.add_spring_damper(
+        system.add_marker(system.ground, position=(0.0, 1.0, 0.0)),
+        system.add_marker(slider),
+        stiffness=100.0,
+        rest_length=1.0,
+    )
+    assert fm.equilibrium(system).position("slider")[1] == pytest.approx(-9.81 / 100.0, rel=1e-9)
 
 
 def test_a_flexible_panel_released_horizontal_hangs_from_its_hinged_edge(assert_close):

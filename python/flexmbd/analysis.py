@@ -214,9 +214,100 @@ def _static_multipliers(
     return lam if np.all(np.isfinite(lam)) else np.zeros(nc)
 
 
+def _violated_rows(values: Array, kept: NDArray[np.int64], floor: float) -> NDArray[np.int64]:
+    """The constraint rows not in `kept` whose |C| is above `floor`."""
+    removed = np.setdiff1d(np.arange(len(values)), kept)
+    return removed[np.abs(values[removed]) > floor]
+
+
+def _row_names(layout: dict[str, Any], rows: NDArray[np.int64]) -> tuple[list[str], str]:
+    """The names of the joints of constraint `rows`, and "joint 'hinge' equation 'x', ..."
+    for them (rows of no joint by number)."""
+    joints, names = [], []
+    for row in rows:
+        for joint in layout["joints"]:
+            if joint["row"] <= row < joint["row"] + len(joint["equations"]):
+                equation = joint["equations"][row - joint["row"]]
+                names.append(f"joint '{joint['name']}' equation '{equation}'")
+                joints.append(joint["name"])
+                break
+        else:
+            names.append(f"constraint row {row}")
+    return joints, ", ".join(names)
+
+
+def _kept(a: sp.csc_matrix, unknowns: NDArray[np.int64]) -> sp.csc_matrix:
+    """The rows and columns `unknowns` of `a` (`a` itself when they are all)."""
+    return a if len(unknowns) == a.shape[0] else a[unknowns][:, unknowns].tocsc()
+
+
+def _moved_multipliers(a: sp.csc_matrix, nq: int, lam: Array, rows: NDArray[np.int64]) -> Array:
+    """Multipliers of the constraint `rows` alone (the others 0) with the same constraint
+    force C_q^T lambda as `lam` (least squares), for C_q the rows below `nq` of `a`."""
+    jacobian = a[nq:, :nq].toarray()
+    moved = np.zeros_like(lam)
+    moved[rows] = np.linalg.lstsq(jacobian[rows].T, jacobian.T @ lam, rcond=None)[0]
+    return moved
+
+
+#: Relative tolerance of the rank of C_q in the choice of redundant rows (the runs' default,
+#: DEFAULT_RANK_TOLERANCE of the core's partitioning).
+RANK_TOLERANCE = 1e-9
+
+
+#: The rows kept in Newton's matrix of an equilibrium with redundant constraints are chosen
+#: again when their conditioning (smallest pivot of their QR over the largest) falls below
+#: this fraction of the best choice's.
+REPIVOT_RATIO = 0.1
+
+
+def _independent_rows(a: sp.csc_matrix, nq: int, current: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The rows of C_q (the rows below `nq` of the Newton matrix `a`) that Newton's matrix
+    keeps: the `current` ones while they stay independent, otherwise those a QR factorization
+    of C_q^T with column pivoting keeps, in order. Independent: the pivots of the QR of the
+    rows (each scaled to unit length, so that a far iterate's scales do not decide) above
+    RANK_TOLERANCE times the largest. The equations of redundant joints (a spatial four-bar
+    of revolute joints, Bricard's mechanism) are left out of Newton's matrix, which they would
+    make singular, as the runs' `redundant_constraints="remove"` does, and chosen again when
+    the kept ones become dependent as the mechanism moves."""
+    import scipy.linalg as sla
+
+    jacobian = a[nq:, :nq].tocsc()
+    nc = jacobian.shape[0]
+    used = np.flatnonzero(np.diff(jacobian.indptr))
+    dense = jacobian[:, used].toarray()
+    lengths = np.linalg.norm(dense, axis=1)
+    if nc == 0 or not np.all(np.isfinite(dense)) or np.any(lengths == 0.0):
+        return current
+    dense /= lengths[:, None]
+
+    def pivoted(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], float]:
+        """The independent ones of `rows`, and their smallest pivot over the largest."""
+        r, pivots = sla.qr(dense[rows].T, mode="r", pivoting=True)
+        diagonal = np.abs(np.diag(r))
+        if not diagonal.size or diagonal[0] == 0.0:
+            return rows[:0], 0.0
+        rank = int(np.sum(diagonal > RANK_TOLERANCE * diagonal[0]))
+        return rows[pivots[:rank]], float(diagonal[rank - 1] / diagonal[0])
+
+    best, best_ratio = pivoted(np.arange(nc))
+    if len(current) == len(best):
+        kept, ratio = pivoted(current)
+        if len(kept) == len(current) and ratio >= REPIVOT_RATIO * best_ratio:
+            return current
+    return np.sort(best).astype(np.int64)
+
+
 #: Largest change of a body's Euler parameters in one iteration of the search for a stable
 #: equilibrium (about 0.2 rad of rotation).
 SEEK_TURN_LIMIT = 0.1
+
+#: Most times the shift of the search for a stable equilibrium is raised (by 4 each time,
+#: from 1e-6 of the largest diagonal entry to 67 times it). A direction no such shift makes
+#: positive is not a lack of stiffness but a near singular configuration of the constraints
+#: (Bricard's mechanism passes one on its way down): a larger shift would only stop the
+#: iteration there.
+SHIFT_STEPS = 13
 
 #: Eigenvalues of the condensed Newton matrix within this fraction of the largest count as
 #: zero (neutral directions, redundant constraints) in the stability test.
@@ -265,6 +356,16 @@ class _Condensation:
     zero: int
     rows: int
     rank: int
+    _scale: float | None = None
+
+    def scale(self) -> float:
+        """The largest |eigenvalue| of the condensed matrix (computed once)."""
+        import scipy.linalg as sla
+
+        if self._scale is None:
+            values = sla.eigvalsh(self.condensed)
+            self._scale = float(np.max(np.abs(values), initial=0.0))
+        return self._scale
 
     def inertia(self, shift: Array | None = None) -> tuple[int, int]:
         """(negative, zero) eigenvalues of Z^T K Z, with `shift` (over all unknowns) added to
@@ -273,10 +374,15 @@ class _Condensation:
         import scipy.linalg as sla
 
         condensed = self.condensed
+        # The floor of the zero eigenvalues is that of the unshifted matrix: a shift s of the
+        # constrained directions makes eigenvalues of about -sigma^2 / s (sigma those of
+        # C_q), which a floor relative to the shifted matrix's largest (about s) would count
+        # as zero, and the search for a stable equilibrium would raise its shift forever
+        # (Bricard's mechanism: shifts of 1e20 and more, and a singular matrix).
+        floor = NEUTRAL * self.scale()
         if shift is not None:
             condensed = condensed + np.diag(shift[self.other])
         values = sla.eigvalsh(condensed)
-        floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
         negative = self.negative + int(np.sum(values < -floor))
         zero = self.zero + int(np.sum(np.abs(values) <= floor))
         return max(negative - self.rank, 0), max(zero - (self.rows - self.rank), 0)
@@ -332,6 +438,89 @@ def _condensation(
     return _Condensation(condensed, other, negative, zero, jacobian.shape[0], rank)
 
 
+def _free_motions(
+    a: sp.csc_matrix,
+    q: Array,
+    nq: int,
+    layout: dict[str, Any],
+    factors: dict[int, Any] | None = None,
+) -> tuple[str, str | None]:
+    """What makes the Newton matrix `a` = [[K, C_q^T], [C_q, 0]] at coordinates `q` singular,
+    for the error of :func:`equilibrium`, and the item to name: the null space of its
+    condensation (elastic coordinates eliminated, see `_condensation`) read as the motions
+    of the bodies it moves (translations, and rotations from the Euler parameters' rates,
+    omega = 2 E(p) p_dot, in global axes); the item is the first of those bodies."""
+    condensation = _condensation(a, nq, layout, factors)
+    if condensation is None:
+        return (
+            "an elastic block is singular (a deformable body whose reference conditions "
+            "leave it a rigid motion?)",
+            None,
+        )
+    values, vectors = np.linalg.eigh(condensation.condensed)
+    floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
+    null = np.zeros((a.shape[0], 0))
+    if np.any(np.abs(values) <= floor):
+        null = np.zeros((a.shape[0], int(np.sum(np.abs(values) <= floor))))
+        null[condensation.other] = vectors[:, np.abs(values) <= floor]
+    motions, names = [], []
+    for body in layout["bodies"]:
+        if body["kind"] == "ground" or body["count"] == 0 or not null.shape[1]:
+            continue
+        at = body["offset"]
+        part = null[at : at + body["count"]]
+        if np.max(np.abs(part), initial=0.0) < 0.1 * np.max(np.abs(null[:nq]), initial=0.0):
+            continue
+        kinds = []
+        translation = part[:3]
+        rank = np.linalg.matrix_rank(
+            translation, tol=0.1 * np.max(np.abs(translation), initial=1.0)
+        )
+        if np.max(np.abs(translation)) > 0.1 * np.max(np.abs(part)):
+            kinds.append(_directions("translation", translation, rank))
+        if body["count"] >= 7:
+            e0, e1, e2, e3 = q[at + 3 : at + 7]
+            e = np.array([[-e1, e0, -e3, e2], [-e2, e3, e0, -e1], [-e3, -e2, e1, e0]])
+            rotation = 2.0 * e @ part[3:7]
+            if np.max(np.abs(rotation)) > 0.1 * np.max(np.abs(part)):
+                rank = np.linalg.matrix_rank(rotation, tol=0.1 * np.max(np.abs(rotation)))
+                kinds.append(_directions("rotation", rotation, rank))
+        if body["kind"] == "flexible" and np.max(np.abs(part[7:]), initial=0.0) > 0.1 * np.max(
+            np.abs(part)
+        ):
+            kinds.append("deformation")
+        motions.append(f"body '{body['name']}' ({', '.join(kinds) or 'motion'})")
+        names.append(body["name"])
+    if motions:
+        count = null.shape[1]
+        what = "; ".join(motions)
+        return (
+            f"{count} direction{'s' if count > 1 else ''} without stiffness or constraint, "
+            f"moving {what}: hold it by a joint, a spring or a driver, or simulate from the "
+            "model's initial state",
+            names[0],
+        )
+    return "a free motion without stiffness", None
+
+
+def _directions(kind: str, vectors: Array, rank: int) -> str:
+    """'translation along (x, y, z)' for one direction of the 3 x k `vectors`, 'translation in
+    the plane normal to (...)' for two, 'translation in any direction' for three."""
+    u = np.linalg.svd(vectors)[0]
+    if rank >= 3:
+        return f"{kind} in any direction" if kind == "translation" else f"{kind} about any axis"
+    axis = u[:, 0] if rank == 1 else u[:, 2]
+    axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
+    text = "(" + ", ".join(f"{v:.3g}" for v in axis + 0.0) + ")"
+    if rank == 1:
+        return f"{kind} along {text}" if kind == "translation" else f"{kind} about {text}"
+    return (
+        f"{kind} normal to {text}"
+        if kind == "translation"
+        else f"{kind} about axes normal to {text}"
+    )
+
+
 def _shifted_to_stable(
     a: sp.csc_matrix,
     nq: int,
@@ -353,7 +542,7 @@ def _shifted_to_stable(
     shift_rows[:nq][rigid] = 1.0
     diagonal = np.abs(a.diagonal()[:nq][rigid])
     shift = 1e-6 * max(float(np.max(diagonal, initial=0.0)), 1.0)
-    for _ in range(39):
+    for _ in range(SHIFT_STEPS):
         if condensation is not None and condensation.inertia(shift * shift_rows) == (0, 0):
             break
         shift *= 4.0
@@ -444,7 +633,11 @@ def equilibrium(
             raise
         try:
             return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
-        except (EquilibriumError, InvalidModelError):
+        except (EquilibriumError, InvalidModelError) as second:
+            # A fault of the model (inconsistent joints) found by the search outweighs the
+            # first iteration's failure to converge.
+            if isinstance(second, InvalidModelError) and not isinstance(failure, InvalidModelError):
+                raise second from None
             raise failure from None
     if stable is None and state.stable is False and not np.any(state.velocities != 0.0):
         try:
@@ -476,6 +669,7 @@ def _solve_equilibrium(
     rigid = ~_elastic_mask(layout)
     rotations = _euler_parameter_mask(layout)
     lam = _static_multipliers(model, time, q, rigid)
+    kept_rows = np.arange(nc)
     scale = max(1.0, float(np.max(np.abs(q))))
     step = np.inf
     residual = np.zeros(nq + nc)
@@ -485,14 +679,37 @@ def _solve_equilibrium(
         ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
         residual = ev["residual"]
         matrix = _matrix(ev)
+        # The unknowns of the Newton solve: the coordinates and the multipliers of the rows
+        # kept at this iterate (those of redundant rows 0, as the runs' "remove" does; which
+        # rows are redundant may change as the mechanism moves, as Bricard's does).
+        rows = _independent_rows(matrix, nq, kept_rows)
+        if not np.array_equal(rows, kept_rows):
+            lam = _moved_multipliers(matrix, nq, lam, rows)
+            kept_rows = rows
+            ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+            residual = ev["residual"]
+            matrix = _matrix(ev)
+        unknowns = np.concatenate([np.arange(nq), nq + kept_rows])
+        matrix = _kept(matrix, unknowns)
         truncated = False
         if seek:
             matrix = _shifted_to_stable(matrix, nq, layout, rigid, kept_factors)
-        delta = _newton_solve(matrix, -residual, layout, flexible, kept_factors)
-        if not np.all(np.isfinite(delta)):
+        delta = np.zeros(nq + nc)
+        delta[unknowns] = _newton_solve(matrix, -residual[unknowns], layout, flexible, kept_factors)
+        if not np.all(np.isfinite(delta)) and iteration == 1:
+            free, item = _free_motions(matrix, q, nq, layout, kept_factors)
             raise InvalidModelError(
-                "equilibrium: the stiffness matrix is singular (a free motion without "
-                "stiffness, or redundant constraints)"
+                f"equilibrium: the stiffness matrix is singular: {free}", item=item
+            )
+        if not np.all(np.isfinite(delta)):
+            # Singular at an iterate far from the start: the iteration diverged there.
+            bodies = _residual_bodies(layout, residual[:nq])
+            raise EquilibriumError(
+                f"equilibrium: no convergence (Newton's matrix singular at iteration "
+                f"{iteration}, where the residual is largest in bodies {', '.join(bodies)})",
+                residual=float(np.max(np.abs(residual))),
+                bodies=bodies,
+                time=time,
             )
         if seek:
             turn = float(np.max(np.abs(delta[:nq][rotations]), initial=0.0))
@@ -505,7 +722,21 @@ def _solve_equilibrium(
         if step <= tolerance and not truncated:
             qd, qdd = _prescribed_rates(model, time, q, rigid)
             final = model.evaluate(time, q, qd, qdd, lam, position=1.0)
-            unstable = _unstable_directions(_matrix(final), nq, layout, kept_factors)
+            violated = _violated_rows(final["residual"][nq:], kept_rows, scale * tolerance)
+            if len(violated):
+                # Rows left out as dependent on the kept ones (which `_independent_rows`
+                # would have taken back had they become independent) and not met with them:
+                # joints that repeat each other's equations with other values.
+                joints, equations = _row_names(layout, violated)
+                raise InvalidModelError(
+                    "equilibrium: constraint equations that repeat others but are not met "
+                    f"where those are (inconsistent joints, |C| up to "
+                    f"{np.max(np.abs(final['residual'][nq + violated])):.3e}): {equations}",
+                    item=joints[0] if joints else None,
+                )
+            unstable = _unstable_directions(
+                _kept(_matrix(final), unknowns), nq, layout, kept_factors
+            )
             if seek and unstable:
                 continue  # a saddle reached exactly: the shift pushes off it
             return EquilibriumState(

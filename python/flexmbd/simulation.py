@@ -5,10 +5,12 @@ from __future__ import annotations
 import logging
 import math
 import os
+import signal
+import threading
 import time
 import warnings
-from collections.abc import Callable
-from contextlib import AbstractContextManager, nullcontext
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -191,6 +193,27 @@ def _summary(result: Result, start_time: float, wall: float) -> None:
     )
 
 
+@contextmanager
+def _ctrl_c_stops_the_run() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt during the run, so that the run stops cleanly with its
+    records (`SimulationInterrupted`), also where the process's SIGINT was left at the
+    operating system's default action, which ends the process at once: Gmsh's
+    `gmsh.initialize()` does that (its `interruptible=True`), so a script or notebook that
+    meshed with Gmsh lost its run to a Ctrl-C. Only in the main thread, where Python takes
+    signals; the process's handler is put back after the run."""
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGINT) != signal.SIG_DFL
+    ):
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interruption(error: BaseException | None) -> BaseException | None:
     """Ctrl-C (or a signal raised as KeyboardInterrupt) that arrives while Python code of the
     run runs (the progress display, the results writer, a user's function) is reported as
@@ -353,19 +376,20 @@ def simulate(
     try:
         if display is not None:
             display.begin(start_time)
-        raw, error = _core.simulate(
-            model,
-            end_time,
-            step_size,
-            start_time=start_time,
-            output_interval=output_interval,
-            solver=solver,
-            progress=progress,
-            records=records,
-            initial_conditions=initial_conditions,
-            keep_in_memory=keep_in_memory,
-            **start_arrays,
-        )
+        with _ctrl_c_stops_the_run():
+            raw, error = _core.simulate(
+                model,
+                end_time,
+                step_size,
+                start_time=start_time,
+                output_interval=output_interval,
+                solver=solver,
+                progress=progress,
+                records=records,
+                initial_conditions=initial_conditions,
+                keep_in_memory=keep_in_memory,
+                **start_arrays,
+            )
         error = _interruption(error)
         result = Result(raw, model.describe(), error=error, flexible=model.flexible_bodies)
         if writer is not None:
