@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 import flexmbd as fm
@@ -598,3 +599,15 @@ def test_preprocess_takes_beam_sections_and_shell_thickness(tmp_path, capsys, as
     )
     body = load_body(tmp_path / "plate.h5")
     assert_close(body.frequencies, same.frequencies, rel=1e-10, what="plate frequencies")
+
+
+def test_summaries_show_the_round_off_of_components_at_zero_as_zero():
+    # A planar model's sensor: its x starts at 3.8e-107 and its z stays at round-off level.
+    from flexmbd.quantities import summarize
+
+    values = np.array([[3.76e-107, -1.0, -1.5e-60], [-1.77e-3, -0.99997, 1.0e-18]])
+    line = summarize(values, [0.0, 1.0], "position", "m")
+    assert line == (
+        "x 0 -> -0.00177 (from -0.00177 to 0); y -1 -> -0.99997 (from -1 to -0.99997); "
+        "z 0 -> 0 (from 0 to 0) m"
+    )

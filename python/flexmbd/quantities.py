@@ -156,6 +156,9 @@ def summarize(values: Any, times: Any, quantity: str | None, unit: str) -> str:
     kind = SUMMARIES.get(str(quantity), "extremes" if values.shape[1] == 1 else "magnitude")
     u = f" {unit}" if unit else ""
     if kind == "range":
+        # Round-off of components that stay at zero (a planar model's z: 1e-60) shown as 0.
+        scale = float(np.max(np.abs(values), initial=0.0))
+        values = np.where(np.abs(values) <= 1e-12 * scale, 0.0, values)
         labels = _AXES if values.shape[1] == 3 else [str(k) for k in range(values.shape[1])]
         shown = [
             f"{label} {values[0, k]:.6g} -> {values[-1, k]:.6g} (from {values[:, k].min():.6g}"
