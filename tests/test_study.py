@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import flexmbd as fm
-from flexmbd.quantities import output_value, parse_output
+from flexmbd.quantities import output_unit, output_value, parse_output
 from flexmbd.study.sampling import make_cases
 
 HERE = Path(__file__).parent
@@ -82,6 +82,35 @@ def test_outputs_are_the_plot_quantities_reduced_over_time(assert_close):
     rms = np.sqrt(np.mean(force[:, 1] ** 2))
     assert_close(output_value(result, "rms(reaction:hinge[fy])"), rms)
     assert_close(output_value(result, "max(violation)"), result.constraint_violation.max())
+    # Lengths of vectors: a sensor's or position's magnitude, a reaction's force and torque.
+    pull = np.linalg.norm(force, axis=1).max()
+    assert_close(output_value(result, "max(reaction:hinge[force])"), pull, rel=1e-15)
+    twist = np.linalg.norm(result.reaction_torque("hinge"), axis=1).max()
+    assert_close(output_value(result, "max(reaction:hinge[torque])"), twist, rel=1e-15)
+    reach = np.linalg.norm(tip, axis=1).min()
+    assert_close(output_value(result, "min(sensor:tip[magnitude])"), reach, rel=1e-15)
+    units = [output_unit(f"max(reaction:hinge[{part}])") for part in ("force", "torque", "fy")]
+    assert units == ["N", "N m", "N"]
+    assert output_unit("max(position:arm[magnitude])") == "m"
+    assert output_unit("final(energy[total])") == "J"
+
+
+def test_a_model_file_sweep_reports_the_model_files_outputs():
+    # Without --output, `flexmbd sweep` records the model file's outputs as `flexmbd run`
+    # sums them up (vectors by their largest length), besides the violation and the energy.
+    from flexmbd.model_file import load_model
+    from flexmbd.study.command import model_file_outputs
+
+    crank = load_model(
+        Path(__file__).parents[1] / "examples" / "models" / "flexible_slider_crank.yaml"
+    )
+    assert model_file_outputs(crank) == {
+        "largest midpoint deflection": "max(deflection:rod:5[magnitude])",
+        "largest drive reaction_torque": "max(reaction:drive[torque])",
+    }
+    assert model_file_outputs(load_model(PENDULUM_FILE)) == {
+        "largest link reaction_force": "max(reaction:link[force])"
+    }
 
 
 @pytest.mark.parametrize(
@@ -221,6 +250,8 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
             "simulation.step_size=0.02",
             "--output",
             "lowest=min(sensor:bob position[y])",
+            "--output",
+            "pull=max(reaction:link[force])",
             "--end",
             "0.3",
             "--workers",
@@ -236,6 +267,7 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
     assert main(["info", str(folder)]) == 0
     out = capsys.readouterr().out
     assert "parameter joints.link.distance: 0.5, 1.0, 2.0" in out and "output lowest:" in out
+    assert re.search(r"output pull: \S+ \.\. \S+ N\n", out), out
     # The workers' warnings are kept with the cases: Python's warnings are not seen there.
     assert (
         "3 case(s) warned (0, 1, 2): step size: the step size 2e-2 s is longer than the output "

@@ -11,7 +11,11 @@ reductions of them over time: what a study (:class:`flexmbd.Study`) records per 
 
 Reductions: ``max``, ``min``, ``max-abs``, ``mean``, ``rms``, ``initial``, ``final`` and
 ``series``. A component is an index or a label (``x``, ``y``, ``z``, ``total``, ``bending``,
-...); a quantity of several components needs one.
+...), or a vector's length: ``magnitude`` (of x, y, z), ``force`` and ``torque`` (of a
+reaction's fx, fy, fz and tx, ty, tz); a quantity of several components needs one::
+
+    max(deflection:rod:5[magnitude])  largest |u| of node 5 of body "rod" over the run
+    max(reaction:hinge[force])        largest force of joint "hinge"
 """
 
 from __future__ import annotations
@@ -48,6 +52,15 @@ _SPEC = re.compile(
     r"^\s*(?:(?P<reduction>[a-z-]+)\()?(?P<quantity>[^\[\]()]+?)"
     r"(?:\[(?P<component>[^\]]+)\])?(?(reduction)\))\s*$"
 )
+
+
+#: Components that are the length of a vector of other components: the `magnitude` of a
+#: position, velocity, deflection or sensor (x, y, z), the `force` and `torque` of a reaction.
+MAGNITUDES = {
+    "magnitude": ("x", "y", "z"),
+    "force": ("fx", "fy", "fz"),
+    "torque": ("tx", "ty", "tz"),
+}
 
 
 #: SI unit of each component of a quantity kind (by label; "*" for every component).
@@ -340,6 +353,21 @@ def parse_output(spec: str) -> tuple[str, str, str | None]:
     return reduction, quantity, match["component"]
 
 
+def output_unit(spec: str) -> str:
+    """The SI unit of the values of an output specification ("" for none, and for a sensor's,
+    which its model knows)."""
+    _, quantity, component = parse_output(spec)
+    kind = quantity.partition(":")[0]
+    if kind == "sensor":
+        return ""
+    label = None if component is None else component.strip()
+    if label in MAGNITUDES:
+        label = MAGNITUDES[label][0]
+    if label is None and kind == "stress":
+        label = "von-mises"  # the one component of a body that is not all beams
+    return unit_of(kind, label)
+
+
 def output_value(result: Any, spec: str) -> float | Array:
     """The value of an output specification for `result`: a number, or the time history
     for ``series``. A result without records (a run that failed or was killed before its
@@ -348,21 +376,25 @@ def output_value(result: Any, spec: str) -> float | Array:
     if not len(result.time):
         raise InvalidParameterError(f"output {spec!r}: the result has no records", item=spec)
     values, labels = quantity_values(result, quantity)
+    components = labels + [key for key, of in MAGNITUDES.items() if set(of) <= set(labels)]
     if component is not None:
         key = component.strip()
-        if key in labels:
+        if key in MAGNITUDES and set(MAGNITUDES[key]) <= set(labels):
+            columns = [labels.index(label) for label in MAGNITUDES[key]]
+            values = np.linalg.norm(values[:, columns], axis=1)
+        elif key in labels:
             values = values[:, labels.index(key)]
         elif re.fullmatch(r"\d+", key) and int(key) < len(labels):
             values = values[:, int(key)]
         else:
             raise InvalidParameterError(
-                f"output {spec!r}: no component {key!r}; components: {labels}", item=spec
+                f"output {spec!r}: no component {key!r}; components: {components}", item=spec
             )
     elif values.shape[1] == 1:
         values = values[:, 0]
     else:
         raise InvalidParameterError(
-            f"output {spec!r}: {quantity} has components {labels}; choose one with [...]",
+            f"output {spec!r}: {quantity} has components {components}; choose one with [...]",
             item=spec,
         )
     values = np.asarray(values, dtype=float)

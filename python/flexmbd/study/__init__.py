@@ -460,6 +460,8 @@ def _dataset(
     import numpy as np
     import xarray as xr
 
+    from ..quantities import output_unit
+
     n = len(cases)
     times: list[float] = []
     for summary in summaries:
@@ -501,6 +503,8 @@ def _dataset(
     )
     data = xr.Dataset(variables, coords=coords)
     data.attrs["outputs"] = json.dumps(dict(outputs))
+    for name, spec in outputs.items():
+        data[name].attrs["units"] = output_unit(spec)
     return data
 
 

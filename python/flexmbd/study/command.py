@@ -15,6 +15,45 @@ from .sampling import plain
 DEFAULT_OUTPUTS = {"largest violation": "max(violation)", "final energy": "final(energy[total])"}
 
 
+def model_file_outputs(model: Any) -> dict[str, str]:
+    """The study outputs of a model file's `outputs` (a :class:`flexmbd.model_file.ModelFile`):
+    each as ``flexmbd run`` sums it up, a number per case. Vectors by their largest length over
+    the run (deflection of a node, velocities, the force and the torque of a reaction, a
+    sensor's velocity or acceleration), a beam body's stresses by its largest axial force and
+    bending moment, other bodies' by their largest von Mises stress, energies by their largest
+    value; positions, orientations and elastic coordinates have no one number and are left
+    out."""
+    compiled = model.system.compile()
+    layout = compiled.describe()
+    sensors = {s["name"]: s["quantity"] for s in layout["sensors"]}
+    beams = {
+        layout["bodies"][index]["name"]: all(kind == "beam2" for kind in data.elements)
+        for index, data in compiled.flexible_bodies.items()
+    }
+    outputs: dict[str, str] = {}
+    for output in model.outputs:
+        item, quantity, label = output.item, output.quantity, f"largest {output.label}"
+        if output.kind == "sensor":
+            if sensors.get(item) not in ("position", "orientation"):
+                outputs[label] = f"max(sensor:{item}[magnitude])"
+        elif output.kind == "joint" and quantity in ("reaction_force", "reaction_torque"):
+            outputs[label] = f"max(reaction:{item}[{quantity.removeprefix('reaction_')}])"
+        elif (
+            output.kind == "system" and quantity.endswith("_energy") and quantity != "total_energy"
+        ):
+            outputs[label] = f"max(energy[{quantity.removesuffix('_energy')}])"
+        elif quantity == "deflection" and output.chord is None:
+            outputs[label] = f"max(deflection:{item}:{output.node}[magnitude])"
+        elif quantity in ("velocity", "angular_velocity"):
+            outputs[label] = f"max({quantity.replace('_', '-')}:{item}[magnitude])"
+        elif quantity == "stresses" and beams.get(item):
+            outputs[f"{label} axial force"] = f"max(stress:{item}[axial])"
+            outputs[f"{label} bending moment"] = f"max(stress:{item}[bending])"
+        elif quantity == "stresses":
+            outputs[label] = f"max(stress:{item})"
+    return outputs
+
+
 def add_sweep_parser(sub: Any) -> None:
     """The ``sweep`` subcommand's arguments."""
     sweep = sub.add_parser(
@@ -41,7 +80,8 @@ def add_sweep_parser(sub: Any) -> None:
         default=[],
         metavar="[NAME=]SPEC",
         help="an output, e.g. 'deflection=max-abs(deflection:rod:5[y])' (default: the largest "
-        "constraint violation and the final energy)",
+        "constraint violation, the final energy and a model file's outputs, each as `flexmbd "
+        "run` sums it up)",
     )
     sweep.add_argument("--workers", type=int, help="worker processes (default: CPUs)")
     sweep.add_argument("--scheduler", help="address of an existing Dask scheduler")
@@ -120,6 +160,10 @@ def sweep(args: argparse.Namespace) -> int:
         if model is args.model and not Path(model).is_file():
             known = ", ".join(sorted(EXAMPLES))
             raise InvalidParameterError(f"no model file or example {model!r} (examples: {known})")
+        if not outputs and model is args.model:
+            from ..model_file import load_model
+
+            outputs = {**DEFAULT_OUTPUTS, **model_file_outputs(load_model(model))}
         study = Study(
             model,
             _parameters(args.set, sampling),
@@ -186,7 +230,9 @@ def _print_study(data: Any, description: dict[str, Any]) -> None:
         values = variable.values[complete]
         values = values[np.isfinite(values)]
         if len(values):
-            print(f"  output {name}: {values.min():.6g} .. {values.max():.6g}")
+            unit = variable.attrs.get("units", "")
+            unit = f" {unit}" if unit else ""
+            print(f"  output {name}: {values.min():.6g} .. {values.max():.6g}{unit}")
     for k in np.flatnonzero(np.array(status) == "failed"):
         print(f"  case {k} failed: {data['error'].values[k]}")
     warned = _warned_cases(data)
@@ -285,7 +331,8 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
                 mark = "failed" if label is None else None
                 ax.plot(x_all[bad], variable.values[bad], "kx", label=mark)
     ax.set_xlabel(against)
-    ax.set_ylabel(output)
+    unit = variable.attrs.get("units", "")
+    ax.set_ylabel(f"{output} ({unit})" if unit else output)
     ax.set_title(f"{output} against {against} ({len(x_all)} cases)")
     ax.grid(True, alpha=0.3)
     if (len(groups) > 1 and not sampled) or any(status == "failed"):
