@@ -215,3 +215,66 @@ def test_failed_explicit_run_keeps_the_results_so_far(a02):
     result = info.value.result
     assert 0.65 < result.time[-1] < 0.72
     assert result.constraint_violation.max() < 1e-10
+
+
+# The stability limit of explicit methods on deformable bodies -------------------------------
+def hinged_steel_beam(beta):
+    """A 1 m steel beam of 10 nodal Euler-Bernoulli elements hinged at its first node, with
+    stiffness-proportional damping beta (s) or none."""
+    from flexmbd.fe import Material, Section, build_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 10)
+    steel = Material(2.1e11, 0.3, 7850.0)
+    data = build_body(
+        nodes,
+        elements,
+        steel,
+        section=Section.rectangle(0.02, 0.01),
+        reference="clamped",
+        reference_nodes=[0],
+    )
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    damping = None if beta is None else (0.0, beta)
+    rod = system.add_flexible_body(data, name="rod", rayleigh_damping=damping)
+    system.add_revolute_joint(system.add_marker(system.ground), system.add_node_marker(rod, 1))
+    return system.compile()
+
+
+@pytest.mark.parametrize("beta", [None, 1e-4], ids=["undamped", "damped"])
+@pytest.mark.parametrize("strategy", ["joint-coordinates", "partitioning"])
+def test_the_predicted_stability_limit_of_runge_kutta_4_is_where_it_diverges(beta, strategy):
+    # The stiffest mode: undamped, omega = 1.78e5 rad/s on the imaginary axis (RK4's
+    # boundary 2.83); damped by beta = 1e-4 s, overdamped with lambda = -3.14e6 1/s on the
+    # real axis (boundary 2.79). 300 steps at 0.95 of the predicted step stay bounded, at 1.05
+    # they diverge.
+    from flexmbd.stability import explicit_step_limit
+
+    model = hinged_steel_beam(beta)
+    limit = explicit_step_limit(model, "rk4")
+    assert limit.body == "rod"
+    expected = 2.828 / 1.775e5 if beta is None else 2.785 / 3.1416e6
+    assert limit.step == pytest.approx(expected, rel=2e-3)
+    solver = fm.ExplicitSolver("rk4", strategy)
+    with pytest.warns(fm.StepSizeWarning, match="diverges"):
+        with pytest.raises((fm.NonFiniteError, fm.NewtonDivergedError)):
+            h = 1.05 * limit.step
+            fm.simulate(model, 300 * h, h, output_interval=None, solver=solver)
+    h = 0.95 * limit.step
+    result = fm.simulate(model, 300 * h, h, output_interval=None, solver=solver)
+    assert np.abs(result.elastic_coordinates("rod")).max() < 1e-3
+
+
+def test_dormand_prince_on_a_stiff_body_is_told_its_step_before_the_run(recwarn):
+    # The damped beam's dopri5 steps (seen in runs: h = 1.05e-6 s) are predicted before the
+    # run; generalized-alpha, and TR-BDF2, are not warned.
+    model = hinged_steel_beam(1e-4)
+    solver = fm.ExplicitSolver("dopri5", "partitioning")
+    with pytest.warns(fm.StepSizeWarning, match=r"body 'rod'.* about 1.1e-06 s.*: 1,90\d steps"):
+        result = fm.simulate(model, 2e-3, 1e-3, solver=solver)
+    # Its error control finds the limit: the steps it took (accepted and rejected).
+    steps = result.statistics["steps"] + result.statistics["rejected_steps"]
+    assert 1800 < steps < 2100
+    recwarn.clear()
+    fm.simulate(model, 1e-2, 1e-3)
+    fm.simulate(model, 1e-2, 1e-3, solver=fm.ExplicitSolver("tr-bdf2", "partitioning"))
+    assert not [w for w in recwarn if issubclass(w.category, fm.StepSizeWarning)]

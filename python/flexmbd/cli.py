@@ -34,6 +34,7 @@ from .errors import (
     InvalidParameterError,
     ResultsFileError,
     SimulationInterrupted,
+    StepSizeWarning,
 )
 from .progress import SimulationProgress, status
 from .study.command import add_sweep_parser, sweep
@@ -321,8 +322,10 @@ def _run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():
-            # The events are printed below; no Python warning on top of them.
+            # The events and warnings are logged (printed as they come) and the events listed
+            # below; no Python warning on top of them.
             warnings.simplefilter("ignore", InitialCorrectionWarning)
+            warnings.simplefilter("ignore", StepSizeWarning)
             result = simulate(
                 model,
                 end,

@@ -193,6 +193,37 @@ def _summary(result: Result, start_time: float, wall: float) -> None:
     )
 
 
+def _warn_of_explicit_stability(model: Any, solver: Any, step_size: float, span: float) -> None:
+    """Warns (StepSizeWarning, and the log) before a run of Runge-Kutta 4 or Dormand-Prince
+    whose step the stiffest elastic mode holds below the nominal step
+    (:mod:`flexmbd.stability`): Dormand-Prince then takes millions of steps, Runge-Kutta 4 at
+    its fixed step diverges."""
+    from .stability import STABILITY_POLYNOMIALS, explicit_step_limit
+
+    method = getattr(solver, "method", None)
+    if not isinstance(solver, _boundary.ExplicitSolver) or method not in STABILITY_POLYNOMIALS:
+        return
+    limit = explicit_step_limit(model, method)
+    if limit is None or limit.step >= step_size:
+        return
+    mode = (
+        f"eigenvalue {limit.eigenvalue.real:.3g} 1/s, overdamped by its damping"
+        if limit.eigenvalue.imag == 0.0
+        else f"{limit.frequency / (2 * math.pi):.3g} Hz"
+    )
+    if method == "rk4":
+        outcome = f"at its fixed step of {step_size:g} s Runge-Kutta 4 is unstable and diverges"
+    else:
+        outcome = f"{span / limit.step:,.0f} steps to the end"
+    message = (
+        f"{method}: the stiffest elastic mode of body '{limit.body}' ({mode}) holds explicit "
+        f"steps to about {limit.step:.2g} s by stability: {outcome}. Generalized-alpha (the "
+        "default) and 'tr-bdf2' are not held to it."
+    )
+    logger.warning(message)
+    warnings.warn(message, StepSizeWarning, stacklevel=3)
+
+
 @contextmanager
 def _ctrl_c_stops_the_run() -> Iterator[None]:
     """Ctrl-C raises KeyboardInterrupt during the run, so that the run stops cleanly with its
@@ -338,6 +369,7 @@ def simulate(
         raise InvalidParameterError(
             f"end time {end_time:g} is before start time {start_time:g}", item="end_time"
         )
+    _warn_of_explicit_stability(model, solver, step_size, end_time - start_time)
     start_arrays: dict[str, Any] = {}
     if start is not None:
         start_arrays = {
