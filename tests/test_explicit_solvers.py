@@ -262,6 +262,10 @@ def test_the_predicted_stability_limit_of_runge_kutta_4_is_where_it_diverges(bet
     h = 0.95 * limit.step
     result = fm.simulate(model, 300 * h, h, output_interval=None, solver=solver)
     assert np.abs(result.elastic_coordinates("rod")).max() < 1e-3
+    # Far above the limit the error says when (it said "at t = NaN" in joint coordinates).
+    with pytest.warns(fm.StepSizeWarning), pytest.raises(fm.SimulationError) as error:
+        fm.simulate(model, 3e-3, 1e-3, solver=solver)
+    assert "NaN" not in str(error.value) and error.value.time > 0
 
 
 def test_dormand_prince_on_a_stiff_body_is_told_its_step_before_the_run(recwarn):

@@ -161,6 +161,23 @@ impl<'a> Engine<'a> {
         }
     }
 
+    /// The error of a failed solve for the joint accelerations: a state that is no longer
+    /// finite (a step that diverged, above the method's stability limit: its NaN make B^T M B
+    /// fail its Cholesky factorization) is `NonFinite`; otherwise the singular matrix, at
+    /// `time`.
+    fn tree_failure(&self, time: f64, error: FlexmbdError) -> FlexmbdError {
+        let state = self.q.iter().chain(&self.qd).chain(&self.eq.force);
+        if !state.into_iter().all(|v| v.is_finite()) {
+            return FlexmbdError::NonFinite { item: "the state of the step (it diverged)".to_string(), time };
+        }
+        match error {
+            FlexmbdError::SingularMatrix { context, detail, .. } => {
+                self.singular(time, format!("{context}: {detail}"))
+            }
+            other => other,
+        }
+    }
+
     /// Accelerations at (time, self.q, self.qd) into self.qdd.
     pub(super) fn accelerations(&mut self, time: f64) -> Result<()> {
         if let (Some(solver), Some(st)) = (self.tree_solver.as_mut(), self.structured.as_ref()) {
@@ -193,7 +210,7 @@ impl<'a> Engine<'a> {
             let n = self.q.len();
             let b = &self.influence;
             self.pdd = tree_joint_accelerations(&self.eq, b, &self.gamma_b, &tree.cut_rows, self.loop_rank)
-                .map_err(|e| self.singular(time, e.to_string()))?;
+                .map_err(|e| self.tree_failure(time, e))?;
             for i in 0..n {
                 self.qdd[i] =
                     self.gamma_b[i] + (0..self.pdd.len()).map(|k| b[(i, k)] * self.pdd[k]).sum::<f64>();
