@@ -127,3 +127,10 @@ def test_the_campbell_command_on_the_rotating_blade_model_file(tmp_path, capsys,
     assert "critical speed: order" in out
     assert main(["campbell", str(model), "--driver", "rotor", "--speeds", "0:1:2"]) == 2
     assert "no driver named 'rotor'" in capsys.readouterr().err
+    # The model's one angle driver is the default; a model without one is told to name it.
+    code = main(["campbell", str(model), "--speeds", "0,35.3", "--modes", "1", "-o", str(stem)])
+    assert code == 0 and "driver: hub" in capsys.readouterr().out
+    with xr.open_dataset(stem.with_suffix(".nc"), engine="scipy") as data:
+        assert_close(data["frequency"].values[-1, 0], f[-1, 0], rel=1e-9)
+    assert main(["campbell", "four-bar", "--speeds", "0:1:2"]) == 2
+    assert "no angle driver: name the one to turn with --driver" in capsys.readouterr().err

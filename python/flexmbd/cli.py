@@ -664,14 +664,27 @@ def _speeds(text: str) -> Any:
         ) from None
 
 
+def _only_angle_driver(system: Any) -> str:
+    """The name of the model's angle driver when it has one (`--driver` may then be left
+    out); InvalidParameterError naming them otherwise."""
+    joints = system.compile().describe()["joints"]
+    drivers = [j["name"] for j in joints if j["type"] == "angle driver"]
+    if len(drivers) != 1:
+        which = f"angle drivers {drivers}" if drivers else "no angle driver"
+        raise InvalidParameterError(f"the model has {which}: name the one to turn with --driver")
+    print(f"driver: {drivers[0]}")
+    return drivers[0]
+
+
 def _campbell(args: argparse.Namespace) -> int:
     from .campbell import campbell, plot_campbell
 
     try:
         job = _job(args.model)
+        driver = args.driver or _only_angle_driver(job.system)
         diagram = campbell(
             job.system,
-            args.driver,
+            driver,
             _speeds(args.speeds),
             modes=args.modes,
             frame=args.frame,
@@ -1117,7 +1130,9 @@ def _main(argv: list[str] | None) -> int:
         "steady rotation are followed across the speeds by their shapes (MAC).",
     )
     camp.add_argument("model", help="model file (.yaml) or built-in example")
-    camp.add_argument("--driver", required=True, help="name of the angle driver")
+    camp.add_argument(
+        "--driver", help="name of the angle driver (default: the model's one angle driver)"
+    )
     camp.add_argument("--speeds", required=True, help="START:STOP:COUNT or V1,V2,... (rad/s)")
     camp.add_argument("--modes", type=int, default=6, help="modes followed (default 6)")
     camp.add_argument(
