@@ -178,3 +178,15 @@ def test_the_modes_command(tmp_path, capsys):
     assert "about the steady rotation" in out and "blade" in out
     assert (tmp_path / "blade_mode1.gif").stat().st_size > 0
     assert (tmp_path / "blade_mode1_vtu" / "mode1.pvd").exists()
+
+
+def test_the_modes_command_on_a_mechanism_with_redundant_joints(capsys):
+    # The spatial four-bar (3 redundant joint equations) has one mode about its hanging
+    # equilibrium, undamped (its ratio printed 0, not -0); its equilibrium used to be refused.
+    from flexmbd.cli import main
+
+    assert main(["modes", "four-bar-spatial"]) == 0
+    out = capsys.readouterr().out
+    row = out.splitlines()[-1].split()
+    assert row[0] == "1" and row[2] == "0" and row[3] == "coupler"
+    assert float(row[1]) == pytest.approx(0.546066, rel=1e-5)

@@ -741,7 +741,8 @@ def _modes(args: argparse.Namespace) -> int:
                 for name, part in parts.items()
             }
             most = max(share, key=lambda name: share[name])
-            print(f"{k + 1:4d}  {frequencies[k]:14.6g}  {damping[k]:13.3g}  {most}")
+            # + 0.0: an undamped mode's ratio of -0.0 (a negative zero) reads 0.
+            print(f"{k + 1:4d}  {frequencies[k]:14.6g}  {damping[k] + 0.0:13.3g}  {most}")
         stem = Path(args.output) if args.output else Path(job.stem)
         for k in args.animate:
             result = mode_result(linear, model, k - 1, frames=args.frames)
