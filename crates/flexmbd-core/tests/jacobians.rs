@@ -342,15 +342,30 @@ fn newton_matrix_blocks_match_finite_differences() {
         // which = 0: dr/dq (and C_q), 1: dr/dq_dot, 2: dr/dq_dd.
         for which in 0..3 {
             let coef = match which {
-                0 => {
-                    MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 1.0, identity: 0.0, scale: 1.0 }
-                }
-                1 => {
-                    MatrixCoefficients { mass: 0.0, velocity: 1.0, position: 0.0, identity: 0.0, scale: 1.0 }
-                }
-                _ => {
-                    MatrixCoefficients { mass: 1.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
-                }
+                0 => MatrixCoefficients {
+                    mass: 0.0,
+                    velocity: 0.0,
+                    position: 1.0,
+                    identity: 0.0,
+                    elastic_identity: 0.0,
+                    scale: 1.0,
+                },
+                1 => MatrixCoefficients {
+                    mass: 0.0,
+                    velocity: 1.0,
+                    position: 0.0,
+                    identity: 0.0,
+                    elastic_identity: 0.0,
+                    scale: 1.0,
+                },
+                _ => MatrixCoefficients {
+                    mass: 1.0,
+                    velocity: 0.0,
+                    position: 0.0,
+                    identity: 0.0,
+                    elastic_identity: 0.0,
+                    scale: 1.0,
+                },
             };
             assemble(&model, StateView::of(&state), &mut ws, &Request::matrix(coef)).unwrap();
             let analytic = dense(&model, &ws.values);

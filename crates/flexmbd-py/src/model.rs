@@ -85,7 +85,8 @@ impl Model {
         let ws = guard.as_mut().expect("workspace");
         let view = StateView { time, q: &q, qd: &qd, qdd: &qdd, lambda: &lambda, discrete: &discrete };
         let with_matrix = mass != 0.0 || velocity != 0.0 || position != 0.0;
-        let coefficients = MatrixCoefficients { mass, velocity, position, identity: 0.0, scale: 1.0 };
+        let coefficients =
+            MatrixCoefficients { mass, velocity, position, identity: 0.0, elastic_identity: 0.0, scale: 1.0 };
         check(assemble(m, view, ws, &Request::with(with_matrix.then_some(coefficients))))?;
         let d = PyDict::new(py);
         d.set_item("residual", PyArray1::from_slice(py, &ws.residual))?;

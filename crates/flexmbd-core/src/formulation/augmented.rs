@@ -164,7 +164,14 @@ impl DenseEquations {
         let coefficients = if level == Level::Acceleration {
             MatrixCoefficients::ACCELERATION
         } else {
-            MatrixCoefficients { mass: 0.0, velocity: 0.0, position: 0.0, identity: 0.0, scale: 1.0 }
+            MatrixCoefficients {
+                mass: 0.0,
+                velocity: 0.0,
+                position: 0.0,
+                identity: 0.0,
+                elastic_identity: 0.0,
+                scale: 1.0,
+            }
         };
         assemble(model, view, ws, &Request::matrix(coefficients))?;
         self.constraints.copy_from_slice(&ws.residual[nq..]);

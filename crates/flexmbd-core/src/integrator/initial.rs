@@ -10,7 +10,11 @@
 //! violate and every body whose coordinates or velocities the correction moves by more than
 //! the report tolerance; with `strict` settings such a correction is refused instead.
 
-use crate::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
+use crate::assembly::{
+    assemble, constraint_time_terms, MatrixCoefficients, Request, StateView, ELASTIC_PROJECTION_WEIGHT,
+};
+use crate::body::flexible::REFERENCE_COORDINATES;
+use crate::body::BodyKind;
 use crate::error::{FlexmbdError, Result};
 use crate::formulation::augmented::{row_weight, worst, DenseEquations, Level};
 use crate::integrator::settings::{InitialSettings, SimulationSettings, StartState};
@@ -327,6 +331,22 @@ pub fn solve_accelerations(
     Ok(())
 }
 
+/// The column scales of the dense minimum-norm corrections: 1 for the reference coordinates,
+/// 1 / sqrt(ELASTIC_PROJECTION_WEIGHT) for the elastic ones (a change y of a scaled column is
+/// a change y s of its coordinate, whose square then weighs 1 / s^2).
+fn projection_column_scales(model: &Model) -> Vec<f64> {
+    let mut columns = vec![1.0; model.coordinate_count];
+    let elastic = 1.0 / ELASTIC_PROJECTION_WEIGHT.sqrt();
+    for body in &model.bodies {
+        if matches!(body.kind, BodyKind::Flexible(_)) {
+            for &d in &body.dofs[REFERENCE_COORDINATES..] {
+                columns[d] = elastic;
+            }
+        }
+    }
+    columns
+}
+
 /// Relative singular-value cut-off of the minimum-norm corrections.
 const PSEUDO_INVERSE_TOLERANCE: f64 = 1e-10;
 
@@ -342,6 +362,7 @@ pub fn dense_initial_conditions(
     settings: &InitialSettings,
 ) -> Result<Vec<(usize, f64)>> {
     let t = state.time;
+    let columns = projection_column_scales(model);
     let mut iterations = 0;
     let mut violated = None;
     loop {
@@ -363,18 +384,20 @@ pub fn dense_initial_conditions(
         }
         // Weighted rows: where the constraints cannot all be met, the least-squares compromise
         // keeps the normalizations and drivers and leaves the violation on the joints.
+        // Scaled columns: the elastic coordinates' changes weigh ELASTIC_PROJECTION_WEIGHT
+        // times the reference coordinates' (as in `MatrixCoefficients::PROJECTION`).
         let mut jacobian = eq.jacobian.clone();
         let mut residual = eq.constraints.clone();
         for (r, value) in residual.iter_mut().enumerate() {
             let w = row_weight(model, r);
             *value *= w;
             for c in 0..model.coordinate_count {
-                jacobian[(r, c)] *= w;
+                jacobian[(r, c)] *= w * columns[c];
             }
         }
         let dq = minimum_norm_solve(jacobian.as_ref(), &residual, PSEUDO_INVERSE_TOLERANCE);
-        for (x, d) in state.coordinates.iter_mut().zip(&dq) {
-            *x -= d;
+        for ((x, d), scale) in state.coordinates.iter_mut().zip(&dq).zip(&columns) {
+            *x -= d * scale;
         }
         iterations += 1;
     }
@@ -382,9 +405,15 @@ pub fn dense_initial_conditions(
         eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Velocity)?;
         let violation: Vec<f64> =
             (0..model.constraint_count).map(|k| eq.velocity_violation(k, &state.velocities)).collect();
-        let dv = minimum_norm_solve(eq.jacobian.as_ref(), &violation, PSEUDO_INVERSE_TOLERANCE);
-        for (x, d) in state.velocities.iter_mut().zip(&dv) {
-            *x -= d;
+        let mut jacobian = eq.jacobian.clone();
+        for r in 0..model.constraint_count {
+            for c in 0..model.coordinate_count {
+                jacobian[(r, c)] *= columns[c];
+            }
+        }
+        let dv = minimum_norm_solve(jacobian.as_ref(), &violation, PSEUDO_INVERSE_TOLERANCE);
+        for ((x, d), scale) in state.velocities.iter_mut().zip(&dv).zip(&columns) {
+            *x -= d * scale;
         }
     }
     Ok(violated.unwrap_or_default())

@@ -78,6 +78,7 @@ impl GeneralizedAlpha {
             velocity: self.gamma / (self.beta * h),
             position: 1.0,
             identity: 0.0,
+            elastic_identity: 0.0,
             scale: s,
         }
     }

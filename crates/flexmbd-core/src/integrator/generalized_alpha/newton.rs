@@ -647,7 +647,14 @@ mod tests {
     fn the_steps_error_widens_the_positions_weight_and_the_multipliers_test_alike() {
         // tol = 1e-6, max |q_dd| = 10, beta' = 4: the tolerance's weight of a position
         // increment is 2.5e-6.
-        let coef = MatrixCoefficients { mass: 4.0, velocity: 2.0, position: 1.0, identity: 0.0, scale: 0.25 };
+        let coef = MatrixCoefficients {
+            mass: 4.0,
+            velocity: 2.0,
+            position: 1.0,
+            identity: 0.0,
+            elastic_identity: 0.0,
+            scale: 0.25,
+        };
         let n = 3;
         let state = State {
             time: 0.0,
@@ -745,8 +752,14 @@ mod tests {
                 };
                 let mut dq = vector(0.1);
                 dq[at] = -40.0;
-                let coef =
-                    MatrixCoefficients { mass: 3.0, velocity: 2.0, position: 1.0, identity: 0.0, scale: 1.0 };
+                let coef = MatrixCoefficients {
+                    mass: 3.0,
+                    velocity: 2.0,
+                    position: 1.0,
+                    identity: 0.0,
+                    elastic_identity: 0.0,
+                    scale: 1.0,
+                };
                 let before = state.clone();
                 let (largest, change) = update_state(&mut state, &dq, &coef);
                 let expected_change = (0..n)

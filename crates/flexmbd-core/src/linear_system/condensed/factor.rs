@@ -10,11 +10,11 @@ use crate::linalg::dense::{DenseLu, DENSE_SYSTEM_SIZE};
 use crate::linalg::sparse::{SparseLu, SparsePattern};
 use crate::linalg::symmetric::{CscRef, FactorKind, Ordering, SymmetricFactor};
 
-/// The coefficients that define A (m, v, p, i, s).
+/// The coefficients that define A (m, v, p, the elastic coordinates' i, s).
 type Key = [f64; 5];
 
 fn key(c: &MatrixCoefficients) -> Key {
-    [c.mass, c.velocity, c.position, c.identity, c.scale]
+    [c.mass, c.velocity, c.position, c.elastic_identity, c.scale]
 }
 
 /// Whether a factorization of A made for the coefficients `kept` serves `wanted`: each equal
@@ -113,7 +113,7 @@ fn elastic_iteration_values(fb: &FlexibleBody, c: &MatrixCoefficients) -> Vec<f6
     let mut values = Vec::with_capacity(ep.nnz() + ep.n);
     for col in 0..ep.n {
         values.extend_from_slice(&on_pattern[ep.col_ptr[col]..ep.col_ptr[col + 1]]);
-        values.push(c.scale * c.identity);
+        values.push(c.scale * c.elastic_identity);
     }
     values
 }
@@ -223,7 +223,7 @@ impl Block {
         // The factor that makes room for the new one lends it its symbolic analysis.
         let evicted = if self.factors.len() >= 2 { self.factors.pop().and_then(|f| f.factor) } else { None };
         let mut factor = if only_identity {
-            BlockFactor::new(k, None, c.scale * c.identity)
+            BlockFactor::new(k, None, c.scale * c.elastic_identity)
         } else {
             BlockFactor::new(k, Some(elastic_iteration_factor(fb, c, self.n, evicted)?), 0.0)
         };

@@ -19,8 +19,14 @@ use crate::system::{State, SystemBuilder, Workspace};
 use crate::testing::assert_all_close;
 
 /// Iteration-matrix coefficients shared by the tests (s m = 1, as for generalized-alpha).
-const ITERATION: MatrixCoefficients =
-    MatrixCoefficients { mass: 4.0e4, velocity: 2.0e2, position: 1.0, identity: 0.0, scale: 2.5e-5 };
+const ITERATION: MatrixCoefficients = MatrixCoefficients {
+    mass: 4.0e4,
+    velocity: 2.0e2,
+    position: 1.0,
+    identity: 0.0,
+    elastic_identity: 0.0,
+    scale: 2.5e-5,
+};
 
 /// A rigid link hinged to the ground and a deformable body hinged to it (at a reference
 /// marker, or at an elastic one), the deformable body condensed or not.
