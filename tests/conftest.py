@@ -49,6 +49,18 @@ def rod_inertia(mass: float, length: float, axial: float = 1e-6) -> tuple[float,
     return (axial, transverse, transverse)
 
 
+def clamped_steel_beam(length: float, elements: int, section):
+    """Body data of a straight steel beam (E 2.1e11 Pa, nu 0.3, 7850 kg/m^3) of nodal
+    Euler-Bernoulli elements along x, its frame clamped at its first node."""
+    from flexmbd.fe import Material, build_body, straight_beam
+
+    nodes, beams = straight_beam(length, elements)
+    steel = Material(2.1e11, 0.3, 7850.0)
+    return build_body(
+        nodes, beams, steel, section=section, reference="clamped", reference_nodes=[0]
+    )
+
+
 def constraint_parts(model, q):
     """C(q) and C_q (constraint rows x coordinates) of a compiled model, from Model.evaluate."""
     nq, nc = model.coordinate_count, model.constraint_count

@@ -5,6 +5,7 @@ and the embedding formulation, and the LU, QR and SVD partitions, against IFToMM
 
 import numpy as np
 import pytest
+from conftest import clamped_steel_beam
 
 import flexmbd as fm
 
@@ -221,18 +222,7 @@ def test_failed_explicit_run_keeps_the_results_so_far(a02):
 def hinged_steel_beam(beta):
     """A 1 m steel beam of 10 nodal Euler-Bernoulli elements hinged at its first node, with
     stiffness-proportional damping beta (s) or none."""
-    from flexmbd.fe import Material, Section, build_body, straight_beam
-
-    nodes, elements = straight_beam(1.0, 10)
-    steel = Material(2.1e11, 0.3, 7850.0)
-    data = build_body(
-        nodes,
-        elements,
-        steel,
-        section=Section.rectangle(0.02, 0.01),
-        reference="clamped",
-        reference_nodes=[0],
-    )
+    data = clamped_steel_beam(1.0, 10, fm.fe.Section.rectangle(0.02, 0.01))
     system = fm.System(gravity=(0.0, -9.81, 0.0))
     damping = None if beta is None else (0.0, beta)
     rod = system.add_flexible_body(data, name="rod", rayleigh_damping=damping)

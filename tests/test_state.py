@@ -10,8 +10,8 @@ import warnings
 import numpy as np
 import pytest
 import scipy.linalg
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from conftest import clamped_steel_beam, constraint_parts
 
 import flexmbd as fm
 from flexmbd.errors import (
@@ -289,16 +289,7 @@ def test_initial_corrections_move_deformable_bodies_rather_than_bend_them(solver
 def test_a_violation_only_a_deformation_removes_is_still_corrected(solver, assert_close):
     # A 1 m steel beam pinned at both ends to points 1.001 m apart: no motion of its frame
     # meets both, so the correction stretches it by 1 mm (its axial elastic coordinate).
-    nodes, elements = straight_beam(1.0, 4)
-    steel = Material(2.1e11, 0.3, 7850.0)
-    data = build_body(
-        nodes,
-        elements,
-        steel,
-        section=Section.circle(0.01),
-        reference="clamped",
-        reference_nodes=[0],
-    )
+    data = clamped_steel_beam(1.0, 4, Section.circle(0.01))
     system = fm.System()
     beam = system.add_flexible_body(data, name="beam")
     system.add_spherical_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
@@ -486,10 +477,7 @@ def test_mechanisms_with_redundant_joints_have_an_equilibrium(build, assert_clos
     frequencies = fm.linearize(model, state).frequencies()
     assert len(frequencies) == 1
     nq = model.coordinate_count
-    q, zero = state.coordinates, np.zeros(nq)
-    ev = model.evaluate(0.0, q, zero, zero, state.multipliers, position=1.0)
-    data, indices, indptr, size = ev["matrix"]
-    jacobian = sp.csc_matrix((data, indices, indptr), shape=(size, size))[nq:, :nq].toarray()
+    jacobian = constraint_parts(model, state.coordinates)[1]
     motion = scipy.linalg.null_space(jacobian)[:, 0] * 1e-3
     swinging = fm.State(
         0.0, state.coordinates, motion, np.zeros(nq), state.multipliers, layout=state.layout

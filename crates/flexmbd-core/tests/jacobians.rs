@@ -341,31 +341,11 @@ fn newton_matrix_blocks_match_finite_differences() {
         let h = 1e-6;
         // which = 0: dr/dq (and C_q), 1: dr/dq_dot, 2: dr/dq_dd.
         for which in 0..3 {
+            let only = MatrixCoefficients { mass: 0.0, ..MatrixCoefficients::ACCELERATION };
             let coef = match which {
-                0 => MatrixCoefficients {
-                    mass: 0.0,
-                    velocity: 0.0,
-                    position: 1.0,
-                    identity: 0.0,
-                    elastic_identity: 0.0,
-                    scale: 1.0,
-                },
-                1 => MatrixCoefficients {
-                    mass: 0.0,
-                    velocity: 1.0,
-                    position: 0.0,
-                    identity: 0.0,
-                    elastic_identity: 0.0,
-                    scale: 1.0,
-                },
-                _ => MatrixCoefficients {
-                    mass: 1.0,
-                    velocity: 0.0,
-                    position: 0.0,
-                    identity: 0.0,
-                    elastic_identity: 0.0,
-                    scale: 1.0,
-                },
+                0 => MatrixCoefficients { position: 1.0, ..only },
+                1 => MatrixCoefficients { velocity: 1.0, ..only },
+                _ => MatrixCoefficients::ACCELERATION,
             };
             assemble(&model, StateView::of(&state), &mut ws, &Request::matrix(coef)).unwrap();
             let analytic = dense(&model, &ws.values);
