@@ -190,3 +190,22 @@ def test_the_modes_command_on_a_mechanism_with_redundant_joints(capsys):
     row = out.splitlines()[-1].split()
     assert row[0] == "1" and row[2] == "0" and row[3] == "coupler"
     assert float(row[1]) == pytest.approx(0.546066, rel=1e-5)
+
+
+def test_the_modes_command_on_a_point_mass(tmp_path, capsys):
+    # A01's point mass: the mode table read its body kind as "point-mass" (the layout says
+    # "point_mass") and took Euler parameters it does not have.
+    from flexmbd.cli import main
+
+    assert (
+        main(["modes", "pendulum", "--animate", "1", "--frames", "4", "-o", str(tmp_path / "a01")])
+        == 0
+    )
+    rows = [
+        line.split()
+        for line in capsys.readouterr().out.splitlines()
+        if line[:4].strip() in ("1", "2")
+    ]
+    assert [row[3] for row in rows] == ["mass", "mass"]
+    assert float(rows[0][1]) == pytest.approx(np.sqrt(9.81) / (2 * np.pi), rel=1e-5)
+    assert (tmp_path / "a01_mode1.gif").stat().st_size > 0

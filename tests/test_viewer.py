@@ -146,6 +146,21 @@ def test_modes_of_a_linearized_system(tmp_path):
         assert "stress" in dataset["colors"]
 
 
+def test_modes_of_rigid_models_with_position_sensors(tmp_path, assert_close):
+    # A01's point mass (with a position sensor) and A02's links: their mode results have no
+    # sensor records, and the page took the sensor's empty track (a ValueError); A01's mass
+    # swings at sqrt(g / l) / (2 pi) in both directions.
+    for name in ("pendulum", "four-bar"):
+        model = fm.examples.EXAMPLES[name]().system.compile()
+        linear = fm.linearize(model, fm.equilibrium(model))
+        path = fm.view(linear, tmp_path / f"{name}.html", model=model, modes=1)
+        assert len(page_data(path)["datasets"]) == 1
+    assert_close(linear.frequencies()[0], 0.538428, rel=1e-5, what="A02's mode")
+    model = fm.examples.pendulum().system.compile()
+    swing = fm.linearize(model, fm.equilibrium(model)).frequencies()
+    assert_close(swing, [np.sqrt(9.81) / (2 * np.pi)] * 2, rel=1e-9, what="A01's swing")
+
+
 def test_command_line_writes_the_page(tmp_path):
     example = fm.examples.EXAMPLES["pendulum"]()
     results = tmp_path / "run.h5"

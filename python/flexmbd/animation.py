@@ -281,8 +281,12 @@ def build_scene(result: Any) -> Scene:
     for marker, entry in enumerate(marker_entries):
         if entry.get("position") is not None:
             located[marker] = np.asarray(entry["position"], dtype=float)
+    # Position sensors with records (a mode shape's result, built from the linearization, has
+    # none: its markers are placed from the joint motion as any others).
     sensors = {
-        s["marker"]: s["name"] for s in layout.get("sensors", []) if s["quantity"] == "position"
+        s["marker"]: s["name"]
+        for s in layout.get("sensors", [])
+        if s["quantity"] == "position" and np.shape(result.sensor(s["name"]))[-1] == 3
     }
     poses = {index: scene.pose(index, sample) for index in range(len(bodies))}
     joint_markers: list[tuple[int, int]] = []

@@ -196,7 +196,7 @@ def body_shapes(model: Any, shape: NDArray[np.complex128]) -> dict[str, dict[str
             continue
         start = entry["offset"]
         part: dict[str, Any] = {"translation": shape[start : start + 3]}
-        if entry["kind"] != "point-mass":
+        if entry["kind"] != "point_mass":
             e0, e1, e2, e3 = q0[start + 3 : start + 7]
             g = np.array([[-e1, e0, e3, -e2], [-e2, -e3, e0, e1], [-e3, e2, -e1, e0]])
             part["rotation"] = 2.0 * g @ shape[start + 3 : start + 7]
