@@ -523,6 +523,15 @@ def test_inconsistent_redundant_joints_are_named():
     assert state.position("door") == pytest.approx([0.0, 1.0, -0.5], abs=1e-9)
 
 
+def test_linearize_refuses_a_state_without_accelerations():
+    # State.of_model has coordinates and velocities only; linearize handed its None to the
+    # core, which refused "argument 'accelerations': 'None' is not an instance of 'ndarray'".
+    model = fm.examples.pendulum().system.compile()
+    with pytest.raises(InvalidParameterError, match="no accelerations and multipliers") as error:
+        fm.linearize(model, fm.State.of_model(model))
+    assert error.value.item == "state"
+
+
 def test_an_equilibrium_that_cannot_exist_names_the_free_body():
     # A body that nothing holds, and a slider on a vertical guide without a spring: the
     # error names the body and the motion that nothing resists.

@@ -250,6 +250,11 @@ def _moved_multipliers(a: sp.csc_matrix, nq: int, lam: Array, rows: NDArray[np.i
     return moved
 
 
+#: Residual (N, N m) below which a state is in balance as it is: the equilibrium iteration
+#: takes no step there.
+BALANCED = 1e-12
+
+
 #: Relative tolerance of the rank of C_q in the choice of redundant rows (the runs' default,
 #: DEFAULT_RANK_TOLERANCE of the core's partitioning).
 RANK_TOLERANCE = 1e-9
@@ -695,7 +700,12 @@ def _solve_equilibrium(
         if seek:
             matrix = _shifted_to_stable(matrix, nq, layout, rigid, kept_factors)
         delta = np.zeros(nq + nc)
-        delta[unknowns] = _newton_solve(matrix, -residual[unknowns], layout, flexible, kept_factors)
+        # Already in balance (a satellite in free flight, nothing acting): nothing to solve,
+        # though the free directions make the matrix singular.
+        if float(np.max(np.abs(residual[unknowns]), initial=0.0)) > BALANCED:
+            delta[unknowns] = _newton_solve(
+                matrix, -residual[unknowns], layout, flexible, kept_factors
+            )
         if not np.all(np.isfinite(delta)) and iteration == 1:
             free, item = _free_motions(matrix, q, nq, layout, kept_factors)
             raise InvalidModelError(
@@ -1036,6 +1046,13 @@ def linearize(
     model = _model(model)
     if state is None:
         state = equilibrium(model)
+    if state.accelerations is None or state.multipliers is None:
+        raise InvalidParameterError(
+            "linearize: the state has no accelerations and multipliers (a state built from "
+            "coordinates and velocities, as State.of_model): linearize about fm.equilibrium, "
+            "fm.steady_rotation or a result's result.state(k)",
+            item="state",
+        )
     nq = model.coordinate_count
     args = (
         state.time,
