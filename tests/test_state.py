@@ -523,6 +523,21 @@ def test_inconsistent_redundant_joints_are_named():
     assert state.position("door") == pytest.approx([0.0, 1.0, -0.5], abs=1e-9)
 
 
+def test_a_free_body_with_nothing_acting_is_in_equilibrium_where_it_is():
+    # No gravity, no load: the state is balanced as given, though nothing holds the body
+    # (its six free directions made Newton's matrix singular, and the equilibrium refused).
+    system = fm.System()
+    system.add_rigid_body(2.0, (0.1, 0.2, 0.3), position=(1.0, 2.0, 3.0), name="probe")
+    model = system.compile()
+    state = fm.equilibrium(model)
+    assert np.array_equal(state.coordinates, model.initial_coordinates)
+    assert state.residual == 0.0 and state.iterations == 1
+    # With gravity it is refused, naming the body.
+    system.gravity = GRAVITY
+    with pytest.raises(InvalidModelError, match="body 'probe'"):
+        fm.equilibrium(system)
+
+
 def test_linearize_refuses_a_state_without_accelerations():
     # State.of_model has coordinates and velocities only; linearize handed its None to the
     # core, which refused "argument 'accelerations': 'None' is not an instance of 'ndarray'".
