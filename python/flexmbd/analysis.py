@@ -700,9 +700,11 @@ def _solve_equilibrium(
         if seek:
             matrix = _shifted_to_stable(matrix, nq, layout, rigid, kept_factors)
         delta = np.zeros(nq + nc)
-        # Already in balance (a satellite in free flight, nothing acting): nothing to solve,
-        # though the free directions make the matrix singular.
-        if float(np.max(np.abs(residual[unknowns]), initial=0.0)) > BALANCED:
+        # Already in balance (a probe in free flight, nothing acting): nothing to solve,
+        # though the free directions make the matrix singular. Not in the search for a stable
+        # equilibrium, whose shifted steps leave a balanced saddle (the spatial four-bar's
+        # start) by growing along its unstable direction.
+        if seek or float(np.max(np.abs(residual[unknowns]), initial=0.0)) > BALANCED:
             delta[unknowns] = _newton_solve(
                 matrix, -residual[unknowns], layout, flexible, kept_factors
             )
