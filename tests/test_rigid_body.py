@@ -58,3 +58,27 @@ def test_body_with_offset_centre_of_mass_falls_freely(assert_close):
     assert_close(com[:, 2], expected_z, rel=1e-7, abs=1e-8, what="centre of mass z")
     expected_xy = np.tile([0.4, -0.2], (len(result), 1))
     assert_close(com[:, :2], expected_xy, rel=1e-7, abs=1e-8, what="centre of mass x, y")
+
+
+def test_angular_velocity_from_euler_parameter_rates_against_finite_differences(assert_close):
+    # omega~ = R_dot R^T (global axes) and R^T R_dot (body axes), R_dot by central differences
+    # of the rotation matrix along p + t p_dot (p_dot normal to p: |p| stays 1 to first order).
+    from flexmbd.rotation import angular_velocity, euler_parameters_to_matrix
+
+    rng = np.random.default_rng(7)
+    p = rng.standard_normal(4)
+    p /= np.linalg.norm(p)
+    p_dot = rng.standard_normal(4)
+    p_dot -= (p_dot @ p) * p
+    h = 1e-6
+    r = euler_parameters_to_matrix(p)
+    r_dot = (
+        euler_parameters_to_matrix(p + h * p_dot) - euler_parameters_to_matrix(p - h * p_dot)
+    ) / (2 * h)
+    for frame, spin in (("global", r_dot @ r.T), ("body", r.T @ r_dot)):
+        expected = [spin[2, 1], spin[0, 2], spin[1, 0]]
+        assert_close(angular_velocity(p, p_dot, frame), expected, abs=1e-8, what=frame)
+    # Several rates at once (the columns of a null space, a mode's complex shape).
+    rates = np.stack([p_dot, 2j * p_dot])
+    both = angular_velocity(p, rates, "body")
+    assert_close(both[1], 2j * both[0], abs=1e-14, what="complex rates")

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from . import _core
 from ._checks import number
 from .errors import EquilibriumError, InvalidModelError, InvalidParameterError
+from .rotation import angular_velocity
 from .state import EquilibriumState
 from .state_space import PointLoad, StateSpace, input_forces, output_rows
 
@@ -484,9 +485,7 @@ def _free_motions(
         if np.max(np.abs(translation)) > 0.1 * np.max(np.abs(part)):
             kinds.append(_directions("translation", translation, rank))
         if body["count"] >= 7:
-            e0, e1, e2, e3 = q[at + 3 : at + 7]
-            e = np.array([[-e1, e0, -e3, e2], [-e2, e3, e0, -e1], [-e3, -e2, e1, e0]])
-            rotation = 2.0 * e @ part[3:7]
+            rotation = angular_velocity(q[at + 3 : at + 7], part[3:7].T).T
             if np.max(np.abs(rotation)) > 0.1 * np.max(np.abs(part)):
                 rank = np.linalg.matrix_rank(rotation, tol=0.1 * np.max(np.abs(rotation)))
                 kinds.append(_directions("rotation", rotation, rank))

@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from ._checks import integer, numbers_array
 from .errors import InvalidParameterError
 from .progress import track as track_progress
+from .rotation import angular_velocity
 
 Array = NDArray[np.float64]
 
@@ -239,9 +240,8 @@ def _whirl_probe(system: Any, driver: str, time: float) -> _WhirlProbe | None:
     rows: list[list[Any]] = [[], [], []]
     for index, data in unit.flexible_bodies.items():
         entry = layout["bodies"][index]
-        e0, e1, e2, e3 = q[entry["offset"] + 3 : entry["offset"] + 7]
-        g = np.array([[-e1, e0, e3, -e2], [-e2, -e3, e0, e1], [-e3, e2, -e1, e0]])
-        spin = 2.0 * g @ velocity[entry["offset"] + 3 : entry["offset"] + 7]
+        parameters = slice(entry["offset"] + 3, entry["offset"] + 7)
+        spin = angular_velocity(q[parameters], velocity[parameters], frame="body")
         rate = float(np.linalg.norm(spin))
         if rate < 1e-9:
             continue

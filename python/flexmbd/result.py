@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 from . import _core
 from ._checks import integer
 from .errors import InvalidParameterError, UnknownItemError
-from .rotation import euler_parameters_to_matrix
+from .rotation import angular_velocity, euler_parameters_to_matrix
 
 Array = NDArray[np.float64]
 
@@ -195,17 +195,14 @@ class Result:
         return euler_parameters_to_matrix(self.euler_parameters(body))
 
     def angular_velocity(self, body: object) -> Array:
-        """Angular velocity (rad/s, global axes), (n, 3): w = 2 G(p) p_dot."""
+        """Angular velocity (rad/s, global axes), (n, 3): w = 2 E(p) p_dot."""
         b = self._body(body)
         if b["kind"] not in ("rigid", "flexible"):
             return np.zeros((len(self.time), 3))
         o = b["offset"]
-        p = self.coordinates[:, o + 3 : o + 7]
-        pd = self.velocities[:, o + 3 : o + 7]
-        e0, e = p[:, :1], p[:, 1:]
-        e0d, ed = pd[:, :1], pd[:, 1:]
-        # G(p) p_dot = -e e0_dot + (e~ + e0 I) e_dot
-        return 2.0 * (-e * e0d + e0 * ed + np.cross(e, ed))
+        return angular_velocity(
+            self.coordinates[:, o + 3 : o + 7], self.velocities[:, o + 3 : o + 7]
+        )
 
     # Deformable bodies -----------------------------------------------------------------
     def _flexible(self, body: object) -> tuple[dict[str, Any], Any]:

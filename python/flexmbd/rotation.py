@@ -1,4 +1,5 @@
-"""Rotation helpers: rotation matrices from an axis and angle, and from Euler parameters."""
+"""Rotation helpers: rotation matrices from an axis and angle, and from Euler parameters, and
+angular velocities from Euler parameter rates."""
 
 from __future__ import annotations
 
@@ -40,3 +41,17 @@ def euler_parameters_to_matrix(p: ArrayLike) -> NDArray[np.float64]:
     a[..., 2, 1] = 2.0 * (e2 * e3 + e0 * e1)
     a[..., 2, 2] = e0 * e0 - e1 * e1 - e2 * e2 + e3 * e3
     return a
+
+
+def angular_velocity(p: ArrayLike, p_dot: ArrayLike, frame: str = "global") -> NDArray[np.generic]:
+    """Angular velocity from Euler parameters p = [e0, e] and their rates (shapes (..., 4) ->
+    (..., 3)): omega = 2 E(p) p_dot = 2 (-e e0_dot + e0 e_dot + e x e_dot) in global axes
+    (`frame` "global"), 2 G(p) p_dot = 2 (-e e0_dot + e0 e_dot - e x e_dot) in body axes
+    ("body"). Rates may be complex (a mode shape's). A change dp of the parameters turns the
+    frame by the small rotation of the same formula."""
+    p = np.asarray(p)
+    p_dot = np.asarray(p_dot)
+    e0, e = p[..., :1], p[..., 1:]
+    e0_dot, e_dot = p_dot[..., :1], p_dot[..., 1:]
+    sign = {"global": 1.0, "body": -1.0}[frame]
+    return 2.0 * (-e * e0_dot + e0 * e_dot + sign * np.cross(e, e_dot))

@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._checks import numbers_array
 from .errors import InvalidParameterError
 from .quantities import body_entry
+from .rotation import angular_velocity
 
 Array = NDArray[np.float64]
 
@@ -197,9 +198,8 @@ def body_shapes(model: Any, shape: NDArray[np.complex128]) -> dict[str, dict[str
         start = entry["offset"]
         part: dict[str, Any] = {"translation": shape[start : start + 3]}
         if entry["kind"] != "point_mass":
-            e0, e1, e2, e3 = q0[start + 3 : start + 7]
-            g = np.array([[-e1, e0, e3, -e2], [-e2, -e3, e0, e1], [-e3, e2, -e1, e0]])
-            part["rotation"] = 2.0 * g @ shape[start + 3 : start + 7]
+            p, dp = q0[start + 3 : start + 7], shape[start + 3 : start + 7]
+            part["rotation"] = angular_velocity(p, dp, frame="body")
         if index in flexible:
             data = flexible[index]
             count = entry["count"] - 7
