@@ -464,14 +464,12 @@ def _free_motions(
             None,
         )
     values, vectors = np.linalg.eigh(condensation.condensed)
-    floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
-    null = np.zeros((a.shape[0], 0))
-    if np.any(np.abs(values) <= floor):
-        null = np.zeros((a.shape[0], int(np.sum(np.abs(values) <= floor))))
-        null[condensation.other] = vectors[:, np.abs(values) <= floor]
+    zero = np.abs(values) <= NEUTRAL * np.max(np.abs(values), initial=0.0)
+    null = np.zeros((a.shape[0], int(np.sum(zero))))
+    null[condensation.other] = vectors[:, zero]
     motions, names = [], []
-    for body in layout["bodies"]:
-        if body["kind"] == "ground" or body["count"] == 0 or not null.shape[1]:
+    for body in layout["bodies"] if null.size else []:
+        if body["kind"] == "ground" or body["count"] == 0:
             continue
         at = body["offset"]
         part = null[at : at + body["count"]]
@@ -707,12 +705,12 @@ def _solve_equilibrium(
             delta[unknowns] = _newton_solve(
                 matrix, -residual[unknowns], layout, flexible, kept_factors
             )
-        if not np.all(np.isfinite(delta)) and iteration == 1:
-            free, item = _free_motions(matrix, q, nq, layout, kept_factors)
-            raise InvalidModelError(
-                f"equilibrium: the stiffness matrix is singular: {free}", item=item
-            )
         if not np.all(np.isfinite(delta)):
+            if iteration == 1:
+                free, item = _free_motions(matrix, q, nq, layout, kept_factors)
+                raise InvalidModelError(
+                    f"equilibrium: the stiffness matrix is singular: {free}", item=item
+                )
             # Singular at an iterate far from the start: the iteration diverged there.
             bodies = _residual_bodies(layout, residual[:nq])
             raise EquilibriumError(
