@@ -60,7 +60,7 @@ def explicit_step_limit(model: Any, method: str) -> StepLimit | None:
     stiffness and mass blocks of the Newton matrix, its mode phi's damping
     d = phi^T D phi / phi^T M phi, the root of lambda^2 + d lambda + omega^2 = 0 of largest
     magnitude, and the step that puts h lambda on the method's stability boundary."""
-    import scipy.sparse as sp
+    from .analysis import _matrix
 
     layout = model.describe()
     bodies = [
@@ -71,11 +71,8 @@ def explicit_step_limit(model: Any, method: str) -> StepLimit | None:
     q = np.asarray(model.initial_coordinates, dtype=float)
     zero_q, zero_l = np.zeros_like(q), np.zeros(model.constraint_count)
 
-    def matrix(**coefficient: float) -> sp.csr_matrix:
-        data, indices, indptr, n = model.evaluate(0.0, q, zero_q, zero_q, zero_l, **coefficient)[
-            "matrix"
-        ]
-        return sp.csc_matrix((data, indices, indptr), shape=(n, n)).tocsr()
+    def matrix(**coefficient: float) -> Any:
+        return _matrix(model.evaluate(0.0, q, zero_q, zero_q, zero_l, **coefficient)).tocsr()
 
     stiffness, damping, mass = matrix(position=1.0), matrix(velocity=1.0), matrix(mass=1.0)
     limit = None
