@@ -10,6 +10,8 @@
 //! violate and every body whose coordinates or velocities the correction moves by more than
 //! the report tolerance; with `strict` settings such a correction is refused instead.
 
+use faer::Mat;
+
 use crate::assembly::{
     assemble, constraint_time_terms, MatrixCoefficients, Request, StateView, ELASTIC_PROJECTION_WEIGHT,
 };
@@ -384,39 +386,33 @@ pub fn dense_initial_conditions(
         }
         // Weighted rows: where the constraints cannot all be met, the least-squares compromise
         // keeps the normalizations and drivers and leaves the violation on the joints.
-        // Scaled columns: the elastic coordinates' changes weigh ELASTIC_PROJECTION_WEIGHT
-        // times the reference coordinates' (as in `MatrixCoefficients::PROJECTION`).
-        let mut jacobian = eq.jacobian.clone();
-        let mut residual = eq.constraints.clone();
-        for (r, value) in residual.iter_mut().enumerate() {
-            let w = row_weight(model, r);
-            *value *= w;
-            for c in 0..model.coordinate_count {
-                jacobian[(r, c)] *= w * columns[c];
-            }
-        }
-        let dq = minimum_norm_solve(jacobian.as_ref(), &residual, PSEUDO_INVERSE_TOLERANCE);
-        for ((x, d), scale) in state.coordinates.iter_mut().zip(&dq).zip(&columns) {
-            *x -= d * scale;
-        }
+        let rows: Vec<f64> = (0..model.constraint_count).map(|r| row_weight(model, r)).collect();
+        subtract_correction(&eq.jacobian, &eq.constraints, &rows, &columns, &mut state.coordinates);
         iterations += 1;
     }
     if model.constraint_count > 0 && settings.correct_velocities {
         eq.evaluate(model, ws, t, &state.coordinates, &state.velocities, &state.discrete, Level::Velocity)?;
         let violation: Vec<f64> =
             (0..model.constraint_count).map(|k| eq.velocity_violation(k, &state.velocities)).collect();
-        let mut jacobian = eq.jacobian.clone();
-        for r in 0..model.constraint_count {
-            for c in 0..model.coordinate_count {
-                jacobian[(r, c)] *= columns[c];
-            }
-        }
-        let dv = minimum_norm_solve(jacobian.as_ref(), &violation, PSEUDO_INVERSE_TOLERANCE);
-        for ((x, d), scale) in state.velocities.iter_mut().zip(&dv).zip(&columns) {
-            *x -= d * scale;
-        }
+        let rows = vec![1.0; model.constraint_count];
+        subtract_correction(&eq.jacobian, &violation, &rows, &columns, &mut state.velocities);
     }
     Ok(violated.unwrap_or_default())
+}
+
+/// x <- x - S (W J S)^+ W r: the minimum-norm correction of `x` that removes the residual `r`
+/// of the rows of `jacobian` J to first order, rows weighted by `rows` (W) and changes
+/// measured in the metric of the column scales `columns` (S, `projection_column_scales`:
+/// the elastic coordinates' changes weigh ELASTIC_PROJECTION_WEIGHT times the reference
+/// coordinates', as in `MatrixCoefficients::PROJECTION`).
+fn subtract_correction(jacobian: &Mat<f64>, residual: &[f64], rows: &[f64], columns: &[f64], x: &mut [f64]) {
+    let scaled =
+        Mat::from_fn(jacobian.nrows(), jacobian.ncols(), |r, c| rows[r] * jacobian[(r, c)] * columns[c]);
+    let weighted: Vec<f64> = residual.iter().zip(rows).map(|(v, w)| v * w).collect();
+    let dx = minimum_norm_solve(scaled.as_ref(), &weighted, PSEUDO_INVERSE_TOLERANCE);
+    for ((x, d), scale) in x.iter_mut().zip(&dx).zip(columns) {
+        *x -= d * scale;
+    }
 }
 
 /// The worst violated row, and the other joints left violated with it (when constraints

@@ -166,8 +166,7 @@ impl<'a> Engine<'a> {
     /// fail its Cholesky factorization) is `NonFinite`; otherwise the singular matrix, at
     /// `time`.
     fn tree_failure(&self, time: f64, error: FlexmbdError) -> FlexmbdError {
-        let state = self.q.iter().chain(&self.qd).chain(&self.eq.force);
-        if !state.into_iter().all(|v| v.is_finite()) {
+        if !self.q.iter().chain(&self.qd).chain(&self.eq.force).all(|v| v.is_finite()) {
             return FlexmbdError::NonFinite { item: "the state of the step (it diverged)".to_string(), time };
         }
         match error {
