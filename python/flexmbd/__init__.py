@@ -31,6 +31,7 @@ from .errors import (
     CallbackError,
     EquilibriumError,
     FlexmbdError,
+    FreeMotionError,
     FrozenBodyError,
     InitialConditionsError,
     InitialCorrectionWarning,
@@ -73,7 +74,13 @@ if TYPE_CHECKING:
         SensorId,
         __version__,
     )
-    from .analysis import LinearizedSystem, equilibrium, linearize, steady_rotation
+    from .analysis import (
+        LinearizedSystem,
+        equilibrium,
+        linearize,
+        linearize_at_rest,
+        steady_rotation,
+    )
     from .campbell import CampbellDiagram, campbell, plot_campbell
     from .dispersion import DispersionBranch, dispersion
     from .inverse_dynamics import InverseDynamics, inverse_dynamics
@@ -117,6 +124,7 @@ _ORIGIN: dict[str, str] = {
     "LinearizedSystem": "analysis",
     "equilibrium": "analysis",
     "linearize": "analysis",
+    "linearize_at_rest": "analysis",
     "steady_rotation": "analysis",
     "CampbellDiagram": "campbell",
     "campbell": "campbell",
@@ -181,6 +189,7 @@ __all__ = [
     "ExplicitSolver",
     "FlexmbdError",
     "ForceId",
+    "FreeMotionError",
     "FrozenBodyError",
     "GeneralizedAlpha",
     "Harmonic",
@@ -222,6 +231,7 @@ __all__ = [
     "euler_parameters_to_matrix",
     "examples",
     "linearize",
+    "linearize_at_rest",
     "read_results",
     "rotation",
     "simulate",

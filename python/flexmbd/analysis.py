@@ -22,9 +22,9 @@ from numpy.typing import NDArray
 
 from . import _core
 from ._checks import number
-from .errors import EquilibriumError, InvalidModelError, InvalidParameterError
+from .errors import EquilibriumError, FreeMotionError, InvalidModelError, InvalidParameterError
 from .rotation import angular_velocity
-from .state import EquilibriumState
+from .state import EquilibriumState, State
 from .state_space import PointLoad, StateSpace, input_forces, output_rows
 
 if TYPE_CHECKING:
@@ -450,18 +450,20 @@ def _free_motions(
     nq: int,
     layout: dict[str, Any],
     factors: dict[int, Any] | None = None,
-) -> tuple[str, str | None]:
+) -> tuple[str, str | None, int]:
     """What makes the Newton matrix `a` = [[K, C_q^T], [C_q, 0]] at coordinates `q` singular,
-    for the error of :func:`equilibrium`, and the item to name: the null space of its
-    condensation (elastic coordinates eliminated, see `_condensation`) read as the motions
-    of the bodies it moves (translations, and rotations from the Euler parameters' rates,
-    omega = 2 E(p) p_dot, in global axes); the item is the first of those bodies."""
+    for the error of :func:`equilibrium`, the item to name and the number of free directions
+    (0 when it is no free motion of the bodies): the null space of its condensation (elastic
+    coordinates eliminated, see `_condensation`) read as the motions of the bodies it moves
+    (translations, and rotations from the Euler parameters' rates, omega = 2 E(p) p_dot, in
+    global axes); the item is the first of those bodies."""
     condensation = _condensation(a, nq, layout, factors)
     if condensation is None:
         return (
             "an elastic block is singular (a deformable body whose reference conditions "
             "leave it a rigid motion?)",
             None,
+            0,
         )
     values, vectors = np.linalg.eigh(condensation.condensed)
     zero = np.abs(values) <= NEUTRAL * np.max(np.abs(values), initial=0.0)
@@ -499,10 +501,11 @@ def _free_motions(
         return (
             f"{count} direction{'s' if count > 1 else ''} without stiffness or constraint, "
             f"moving {what}: hold it by a joint, a spring or a driver, or simulate from the "
-            "model's initial state",
+            "model's initial state (its free-free modes: fm.linearize_at_rest)",
             names[0],
+            count,
         )
-    return "a free motion without stiffness", None
+    return "a free motion without stiffness", None, 0
 
 
 def _directions(kind: str, vectors: Array, rank: int) -> str:
@@ -707,10 +710,11 @@ def _solve_equilibrium(
             )
         if not np.all(np.isfinite(delta)):
             if iteration == 1:
-                free, item = _free_motions(matrix, q, nq, layout, kept_factors)
-                raise InvalidModelError(
-                    f"equilibrium: the stiffness matrix is singular: {free}", item=item
-                )
+                free, item, directions = _free_motions(matrix, q, nq, layout, kept_factors)
+                message = f"equilibrium: the stiffness matrix is singular: {free}"
+                if directions:
+                    raise FreeMotionError(message, item=item, directions=directions)
+                raise InvalidModelError(message, item=item)
             # Singular at an iterate far from the start: the iteration diverged there.
             bodies = _residual_bodies(layout, residual[:nq])
             raise EquilibriumError(
@@ -894,6 +898,15 @@ class LinearizedSystem:
         keep = keep[np.argsort(values[keep].imag, kind="stable")]
         s = values[keep]
         return s.imag / (2.0 * np.pi), -s.real / np.abs(s), vectors[:, keep]
+
+    def free_motions(self, relative_floor: float = 1e-9) -> int:
+        """How many independent motions have neither stiffness nor damping: the rigid-body
+        modes of a free-flying structure (six for a free body, one for a wheel on a free
+        axle), each a double zero eigenvalue. Eigenvalues of modulus at most `relative_floor`
+        times the largest (at least 1) count as zero, as in :meth:`oscillating`."""
+        values, _ = self.eigenvalues()
+        scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
+        return int(np.sum(np.abs(values) <= relative_floor * scale)) // 2
 
     def frequencies(self) -> Array:
         """Damped natural frequencies (Hz) of the oscillating modes, ascending (one per pair
@@ -1088,3 +1101,72 @@ def linearize(
         linear.output_rows = output_rows(model, list(outputs))
         linear.output_names = [output.label() for output in outputs]
     return linear
+
+
+#: Largest violation of the constraints at the initial coordinates (relative to the largest
+#: coordinate, at least 1) that :func:`linearize_at_rest` takes as assembled.
+ASSEMBLED = 1e-8
+
+
+def linearize_at_rest(
+    system: _core.System | _core.Model,
+    time: float = 0.0,
+    *,
+    loads: bool = False,
+    inputs: Sequence[PointLoad] = (),
+    outputs: Sequence[Any] = (),
+) -> LinearizedSystem:
+    """Linearizes the model about its initial configuration at rest (velocities,
+    accelerations and multipliers zero), by default with its applied loads and gravity left
+    out (:meth:`flexmbd.System.without_loads`): the free-free modes of a free-flying
+    structure (a satellite, a launcher, a part on soft supports), which has no static
+    equilibrium for :func:`equilibrium` to find, and whose loads would otherwise bring the
+    stiffness of an accelerating state into the modes (a torque fixed to a satellite's bus
+    turns with it: a pair of spurious modes near 0.01 Hz). The rigid-body motions come out as
+    zero eigenvalues: :meth:`LinearizedSystem.free_motions` counts them and
+    :meth:`LinearizedSystem.oscillating` leaves them out. Springs, actuators, drivers and
+    callback forces (which may be elastic elements) stay.
+
+    With `loads`, the loads and gravity stay (their stiffness at rest: a follower load's);
+    `system` may then be a compiled model. `inputs` and `outputs` as in :func:`linearize`.
+    Raises `InvalidModelError` naming the joint equation when the initial coordinates violate
+    the constraints (the configuration is not assembled: linearize about
+    :func:`equilibrium` or a result's ``result.state(k)`` instead)."""
+    from .system import System
+
+    time = number(time, "time")
+    if not loads:
+        if not isinstance(system, System):
+            raise InvalidParameterError(
+                "linearize_at_rest: leaving the loads out needs the flexmbd.System (a compiled "
+                "model's loads cannot be removed); pass loads=True to keep them",
+                item="system",
+            )
+        system = system.without_loads()
+    model = _model(system)
+    nq, nc = model.coordinate_count, model.constraint_count
+    q = np.array(model.initial_coordinates, dtype=float)
+    zeros = np.zeros(nq)
+    ev = model.evaluate(time, q, zeros, zeros, np.zeros(nc), position=1.0)
+    violation = np.abs(ev["residual"][nq:])
+    floor = ASSEMBLED * max(1.0, float(np.max(np.abs(q), initial=0.0)))
+    if np.any(violation > floor):
+        layout = model.describe()
+        worst = np.argsort(-violation)[: min(3, int(np.sum(violation > floor)))]
+        joints, names = _row_names(layout, worst)
+        raise InvalidModelError(
+            f"linearize_at_rest: the initial coordinates violate {names} by up to "
+            f"{float(violation[worst[0]]):.3g}: the configuration is not assembled (linearize "
+            "about fm.equilibrium or a result's result.state(k))",
+            item=joints[0] if joints else None,
+        )
+    state = State(
+        time,
+        q,
+        zeros,
+        zeros,
+        np.zeros(nc),
+        layout=model.describe(),
+        flexible=model.flexible_bodies,
+    )
+    return linearize(system, state, inputs=inputs, outputs=outputs)

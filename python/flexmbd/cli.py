@@ -713,24 +713,46 @@ def _campbell(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Damping ratios of at most this size are printed as 0 by `flexmbd modes`: round-off of an
+#: undamped mode's eigenvalues (the modal damping users give is 1e-4 or more).
+UNDAMPED = 1e-12
+
+
+def _linearized(system: Any) -> tuple[Any, Any, str]:
+    """The modes' linearization of `system` (a flexmbd.System), its compiled model and what
+    it is about: the steady rotation, else the static equilibrium, else (a free-flying
+    structure, which has neither) the initial configuration at rest with the loads left out
+    (`flexmbd.linearize_at_rest`: the free-free modes)."""
+    from .analysis import equilibrium, linearize, linearize_at_rest, steady_rotation
+    from .errors import FreeMotionError, InvalidModelError
+
+    model = system.compile()
+    try:
+        return linearize(model, steady_rotation(model)), model, "the steady rotation"
+    except InvalidModelError:
+        pass
+    try:
+        return linearize(model, equilibrium(model)), model, "the static equilibrium"
+    except FreeMotionError:
+        unloaded = system.without_loads()
+        linear = linearize_at_rest(unloaded)
+        count = linear.free_motions()
+        about = (
+            "the initial configuration at rest, loads and gravity left out (free-free: no "
+            f"static equilibrium; {count} rigid-body mode{'s' if count != 1 else ''} at 0 Hz)"
+        )
+        return linear, unloaded.compile(), about
+
+
 def _modes(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .analysis import equilibrium, linearize, steady_rotation
     from .animation import render_animation
-    from .errors import InvalidModelError
     from .state_space import body_shapes, mode_result
 
     try:
         job = _job(args.model)
-        model = job.system.compile()
-        try:
-            state = steady_rotation(model)
-            about = "the steady rotation"
-        except InvalidModelError:
-            state = equilibrium(model)
-            about = "the static equilibrium"
-        linear = linearize(model, state)
+        linear, model, about = _linearized(job.system)
         frequencies, damping, shapes = linear.oscillating()
         print(f"{job.name}: {len(frequencies)} oscillating modes about {about}")
         print("mode  frequency (Hz)  damping ratio  moves most")
@@ -741,8 +763,9 @@ def _modes(args: argparse.Namespace) -> int:
                 for name, part in parts.items()
             }
             most = max(share, key=lambda name: share[name])
-            # + 0.0: an undamped mode's ratio of -0.0 (a negative zero) reads 0.
-            print(f"{k + 1:4d}  {frequencies[k]:14.6g}  {damping[k] + 0.0:13.3g}  {most}")
+            # An undamped mode's ratio is round-off (1e-17, or -0.0): it reads 0.
+            ratio = damping[k] if abs(damping[k]) > UNDAMPED else 0.0
+            print(f"{k + 1:4d}  {frequencies[k]:14.6g}  {ratio:13.3g}  {most}")
         stem = Path(args.output) if args.output else Path(job.stem)
         for k in args.animate:
             result = mode_result(linear, model, k - 1, frames=args.frames)
@@ -773,19 +796,10 @@ def _view(args: argparse.Namespace) -> int:
                 "shapes of a model, or run it (flexmbd run) and view its results file"
             )
         else:
-            from .analysis import equilibrium, linearize, steady_rotation
-            from .errors import InvalidModelError
-
             job = _job(args.source)
-            model = job.system.compile()
-            try:
-                state = steady_rotation(model)
-            except InvalidModelError:
-                state = equilibrium(model)
+            linear, model, _ = _linearized(job.system)
             output = args.output or f"{job.stem}_modes.html"
-            written = view(
-                linearize(model, state), output, model=model, modes=args.modes, **options
-            )
+            written = view(linear, output, model=model, modes=args.modes, **options)
     except BrokenPipeError:
         raise
     except (FlexmbdError, OSError) as error:
@@ -1149,7 +1163,8 @@ def _main(argv: list[str] | None) -> int:
     camp.add_argument("-o", "--output", help="output stem (default: MODEL_campbell)")
     modes = sub.add_parser(
         "modes",
-        help="modes of the assembly about its equilibrium or steady rotation, and animations",
+        help="modes of the assembly about its equilibrium or steady rotation (free-free modes "
+        "of a free-flying model), and animations",
     )
     modes.add_argument("model", help="model file (.yaml) or built-in example")
     modes.add_argument("--count", type=int, default=10, help="modes listed (default 10)")

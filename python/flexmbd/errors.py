@@ -57,6 +57,19 @@ class InvalidModelError(ModelError):
     """A structural error: a joint between a body and itself, a duplicated name, ..."""
 
 
+class FreeMotionError(InvalidModelError):
+    """The model moves freely in some direction (a free-flying body, a mechanism with no
+    spring or driver on a joint): it has no static equilibrium. ``directions`` is how many
+    independent motions lack stiffness and constraint. The free-free modes of such a structure
+    come from :func:`flexmbd.linearize_at_rest`."""
+
+    directions: int
+
+    def __init__(self, message: str, *, item: str | None, directions: int):
+        super().__init__(message, item=item)
+        self.directions = directions
+
+
 class ModelFileError(InvalidModelError):
     """A model file (YAML) that cannot be read: a syntax error, an unknown key, a value of the
     wrong type or out of range, a missing file, a name that refers to nothing. The message

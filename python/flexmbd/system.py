@@ -433,6 +433,16 @@ class System(_core.System):
             )
         return system
 
+    def without_loads(self) -> System:
+        """A copy of this system without its applied loads (point forces and torques) and
+        without gravity: the structure alone, with its bodies, joints, drivers, springs,
+        actuators and callback forces (which may be elastic elements). The system itself is
+        not changed; the ids of its bodies, markers, joints and sensors hold in the copy."""
+        loads = ("add_point_force", "add_torque")
+        calls = [call for call in self._calls if call[0] not in loads]
+        calls = [("gravity", ((0.0, 0.0, 0.0),), {}) if c[0] == "gravity" else c for c in calls]
+        return _rebuilt(type(self), tuple(calls))
+
     def driver_function(self, name: str) -> Any:
         """The time function of the driver `name` as it was given."""
         for method, args, kwargs in self._calls:
