@@ -523,6 +523,54 @@ def test_inconsistent_redundant_joints_are_named():
     assert state.position("door") == pytest.approx([0.0, 1.0, -0.5], abs=1e-9)
 
 
+def test_redundant_hinges_share_the_load_with_minimum_norm_multipliers(assert_close):
+    # The door hangs on two hinges along y: their 'y' equations repeat each other, and by
+    # default the lower hinge carries the whole weight (the upper one's rows left out, their
+    # multipliers 0). Minimum-norm multipliers of the same constraint forces share it, as the
+    # runs' redundant_constraints="minimum-norm" does.
+    system = door_on_two_hinges(1.8)
+    weight = 10.0 * 9.81
+    y = 1  # the hinges' equation 'y' (x, y, z, axis x, axis y)
+    removed = fm.equilibrium(system)
+    assert_close(abs(removed.joint_multipliers("lower hinge")[y]), weight, rel=1e-9)
+    assert removed.joint_multipliers("upper hinge")[y] == 0.0
+    shared = fm.equilibrium(system, redundant_constraints="minimum-norm")
+    assert_close(shared.coordinates, removed.coordinates, abs=1e-12)
+    lower, upper = (shared.joint_multipliers(h)[y] for h in ("lower hinge", "upper hinge"))
+    assert_close(lower + upper, -weight, rel=1e-9)
+    assert 0.4 * weight < -upper < 0.6 * weight
+    assert np.linalg.norm(shared.multipliers) < np.linalg.norm(removed.multipliers)
+    # The same constraint forces: C_q^T lambda unchanged.
+    model = system.compile()
+    jacobian = constraint_parts(model, shared.coordinates)[1]
+    assert_close(jacobian.T @ shared.multipliers, jacobian.T @ removed.multipliers, abs=1e-9)
+    # The run's minimum-norm multipliers (the core's SVD) from that state, which it keeps.
+    settings = fm.GeneralizedAlpha(redundant_constraints="minimum-norm")
+    run = fm.simulate(system, 0.01, 1e-3, initial_state=shared, solver=settings)
+    assert_close(run.multipliers[-1], shared.multipliers, abs=1e-6)
+    with pytest.raises(InvalidModelError, match="redundant constraint equations.*'upper hinge'"):
+        fm.equilibrium(system, redundant_constraints="error")
+    with pytest.raises(InvalidParameterError, match="redundant_constraints"):
+        fm.equilibrium(system, redundant_constraints="share")
+
+
+def test_a_symmetric_shaft_in_two_bearings_loads_each_with_half_its_weight(assert_close):
+    # Bearings at x = -0.5 and 0.5 (revolute about x), the shaft's centre between them: the
+    # minimum-norm multipliers are symmetric, each bearing carries m g / 2 and no moment.
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    axis_x = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # z along x
+    shaft = system.add_rigid_body(10.0, (0.1, 0.5, 0.5), name="shaft")
+    for k, x in enumerate((-0.5, 0.5)):
+        system.add_revolute_joint(
+            system.add_marker(system.ground, position=(x, 0.0, 0.0), orientation=axis_x),
+            system.add_marker(shaft, position=(x, 0.0, 0.0), orientation=axis_x),
+            name=f"bearing {k}",
+        )
+    state = fm.equilibrium(system, redundant_constraints="minimum-norm")
+    for bearing in ("bearing 0", "bearing 1"):
+        assert_close(state.joint_multipliers(bearing), [0, -49.05, 0, 0, 0], abs=1e-9)
+
+
 def test_a_free_body_with_nothing_acting_is_in_equilibrium_where_it_is():
     # No gravity, no load: the state is balanced as given, though nothing holds the body
     # (its six free directions made Newton's matrix singular, and the equilibrium refused).

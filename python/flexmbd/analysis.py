@@ -11,6 +11,7 @@ Both work on the augmented equations (seed eqs. 20, 25) through ``Model.evaluate
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import warnings
 from collections.abc import Sequence
@@ -574,6 +575,7 @@ def equilibrium(
     tolerance: float = 1e-10,
     max_iterations: int = 100,
     stable: bool | None = None,
+    redundant_constraints: str = "remove",
 ) -> EquilibriumState:
     """Static equilibrium, or steady equilibrium under the prescribed motion of the drivers
     at `time`: every elastic coordinate at rest, the other coordinates moving as the drivers
@@ -617,11 +619,77 @@ def equilibrium(
     shift where the projected stiffness is not positive definite, so that each step goes
     down the potential, and with the body rotations limited to about 0.2 rad per iteration;
     near a stable equilibrium no shift is needed and the iteration is Newton's again.
+
+    Redundant constraints (a shaft in two bearings, a planar mechanism of spatial joints)
+    leave the multipliers not unique; `redundant_constraints` as in the runs' settings:
+    ``"remove"`` (default) gives the redundant equations zero multipliers (the first bearing
+    carries the whole load), ``"minimum-norm"`` the minimum-norm multipliers of the same
+    constraint forces C_q^T lambda (the bearings of a symmetric shaft share it equally),
+    ``"error"`` raises `InvalidModelError` naming the redundant joint equations.
     """
     model = _model(model)
     time = number(time, "time")
     if stable is not None and not isinstance(stable, bool):
         raise InvalidParameterError(f"stable: True, False or None, got {stable!r}", item="stable")
+    if redundant_constraints not in REDUNDANCY:
+        raise InvalidParameterError(
+            f"redundant_constraints must be one of {', '.join(REDUNDANCY)}, got "
+            f"{redundant_constraints!r}",
+            item="redundant_constraints",
+        )
+    state = _equilibrium(model, time, coordinates, tolerance, max_iterations, stable)
+    return _redundancy_handled(model, state, redundant_constraints)
+
+
+#: Choices of `redundant_constraints` of :func:`equilibrium` (the runs' names).
+REDUNDANCY = ("remove", "minimum-norm", "error")
+
+
+def _redundancy_handled(
+    model: _core.Model, state: EquilibriumState, handling: str
+) -> EquilibriumState:
+    """`state` with the multipliers of redundant constraint equations as `handling` asks (see
+    :func:`equilibrium`): as they are ("remove": those of the left-out rows are 0), the
+    minimum-norm multipliers of the same constraint forces C_q^T lambda (truncated SVD at
+    RANK_TOLERANCE, as the runs' "minimum-norm"), or an error naming the redundant rows."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    if handling == "remove" or nc == 0:
+        return state
+    ev = model.evaluate(
+        state.time,
+        state.coordinates,
+        state.velocities,
+        state.accelerations,
+        state.multipliers,
+        mass=1.0,
+    )
+    matrix = _matrix(ev)
+    if handling == "error":
+        kept = _independent_rows(matrix, nq, np.arange(nc))
+        redundant = np.setdiff1d(np.arange(nc), kept)
+        if len(redundant):
+            joints, equations = _row_names(model.describe(), redundant)
+            raise InvalidModelError(
+                f"equilibrium: {len(redundant)} redundant constraint equation"
+                f"{'s' if len(redundant) > 1 else ''} (redundant_constraints='error'): {equations}",
+                item=joints[0] if joints else None,
+            )
+        return state
+    transpose = matrix[nq:, :nq].toarray().T
+    spread = np.linalg.lstsq(transpose, transpose @ state.multipliers, rcond=RANK_TOLERANCE)[0]
+    return dataclasses.replace(state, multipliers=spread)
+
+
+def _equilibrium(
+    model: _core.Model,
+    time: float,
+    coordinates: Array | None,
+    tolerance: float,
+    max_iterations: int,
+    stable: bool | None,
+) -> EquilibriumState:
+    """:func:`equilibrium` after its arguments were checked, the redundant rows' multipliers
+    as Newton's method leaves them (0)."""
     layout = model.describe()
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
     _check_drivers_at_start(model, time, q, layout)
