@@ -288,7 +288,13 @@ pub fn solve_initial_positions_and_velocities(
                 t,
                 "initial velocity correction",
             )?;
-            ws.solution[..nq].copy_from_slice(&state.velocities);
+            // The projection of q_dot in the metric W of the matrix: W q_dot on the right
+            // (q_dot itself would divide the elastic velocities by their weight).
+            for ((x, v), w) in
+                ws.solution[..nq].iter_mut().zip(&state.velocities).zip(projection_weights(model))
+            {
+                *x = w * v;
+            }
             for k in 0..model.constraint_count {
                 ws.solution[nq + k] = -ct[k];
             }
@@ -333,20 +339,26 @@ pub fn solve_accelerations(
     Ok(())
 }
 
-/// The column scales of the dense minimum-norm corrections: 1 for the reference coordinates,
-/// 1 / sqrt(ELASTIC_PROJECTION_WEIGHT) for the elastic ones (a change y of a scaled column is
-/// a change y s of its coordinate, whose square then weighs 1 / s^2).
-fn projection_column_scales(model: &Model) -> Vec<f64> {
-    let mut columns = vec![1.0; model.coordinate_count];
-    let elastic = 1.0 / ELASTIC_PROJECTION_WEIGHT.sqrt();
+/// The diagonal of the metric W of the minimum-norm corrections
+/// (`MatrixCoefficients::PROJECTION`): 1 for the reference coordinates,
+/// ELASTIC_PROJECTION_WEIGHT for the elastic ones.
+fn projection_weights(model: &Model) -> Vec<f64> {
+    let mut weights = vec![1.0; model.coordinate_count];
     for body in &model.bodies {
         if matches!(body.kind, BodyKind::Flexible(_)) {
             for &d in &body.dofs[REFERENCE_COORDINATES..] {
-                columns[d] = elastic;
+                weights[d] = ELASTIC_PROJECTION_WEIGHT;
             }
         }
     }
-    columns
+    weights
+}
+
+/// The column scales of the dense minimum-norm corrections: 1 / sqrt of the metric's weights
+/// (`projection_weights`; a change y of a scaled column is a change y s of its coordinate,
+/// whose square then weighs 1 / s^2).
+fn projection_column_scales(model: &Model) -> Vec<f64> {
+    projection_weights(model).into_iter().map(|w| 1.0 / w.sqrt()).collect()
 }
 
 /// Relative singular-value cut-off of the minimum-norm corrections.
