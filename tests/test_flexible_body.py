@@ -140,6 +140,13 @@ def test_bad_flexible_input_names_the_item():
     beam = system.add_flexible_body(data, name="beam")
     with pytest.raises(fm.UnknownItemError, match="no node with id 99"):
         system.add_node_marker(beam, 99)
+    # Node ids are integers: 2.7 and True were cut to nodes 2 and 1 without a word.
+    for bad in (2.7, True):
+        with pytest.raises(fm.InvalidParameterError, match="node id must be an integer"):
+            system.add_node_marker(beam, bad)
+    output = fm.NodeDisplacement(beam, 2.5, (0.0, 1.0, 0.0))
+    with pytest.raises(fm.InvalidParameterError, match="node id must be an integer"):
+        fm.linearize(system, "equilibrium", outputs=[output])
     rigid = system.add_rigid_body(1.0, (1, 1, 1))
     with pytest.raises(fm.InvalidModelError, match="not a deformable body"):
         system.add_node_marker(rigid, 1)

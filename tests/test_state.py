@@ -619,6 +619,17 @@ def test_a_free_body_with_nothing_acting_is_in_equilibrium_where_it_is():
         fm.equilibrium(system)
 
 
+def test_linearize_takes_the_names_of_its_states():
+    # As simulate's initial_state does; another string was an AttributeError of the str.
+    example = fm.examples.pendulum()
+    named = fm.linearize(example.system, "equilibrium").frequencies()
+    assert named == pytest.approx(fm.linearize(example.system).frequencies(), rel=1e-12)
+    with pytest.raises(InvalidModelError, match="no driver moves"):
+        fm.linearize(example.system, "steady-rotation")
+    with pytest.raises(InvalidParameterError, match="'equilibrium' or 'steady-rotation'"):
+        fm.linearize(example.system, "rest")
+
+
 def test_linearize_refuses_a_state_without_accelerations():
     # State.of_model has coordinates and velocities only; linearize handed its None to the
     # core, which refused "argument 'accelerations': 'None' is not an instance of 'ndarray'".

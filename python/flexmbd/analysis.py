@@ -1081,14 +1081,15 @@ def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
 
 def linearize(
     model: _core.Model | _core.System,
-    state: EquilibriumState | None = None,
+    state: State | str | None = None,
     *,
     inputs: Sequence[PointLoad] = (),
     outputs: Sequence[Any] = (),
     independent: str = "null-space",
 ) -> LinearizedSystem:
     """Linearizes the equations of motion about `state` (default: :func:`equilibrium` of the
-    model): M, D = dr/dq_dot and K = dr/dq (with the multipliers' constraint Hessians) of the
+    model; ``"equilibrium"`` and ``"steady-rotation"`` name the states of those functions):
+    M, D = dr/dq_dot and K = dr/dq (with the multipliers' constraint Hessians) of the
     augmented system, restricted to the null space of the constraint Jacobian C_q. The
     eigenvalues are those of the motion about a static state, or about a steady rotation
     whose linearized equations do not depend on time (for example the elastic coordinates of
@@ -1124,8 +1125,16 @@ def linearize(
         )
     system = model
     model = _model(model)
-    if state is None:
+    if state is None or (isinstance(state, str) and state == "equilibrium"):
         state = equilibrium(model)
+    elif isinstance(state, str) and state == "steady-rotation":
+        state = steady_rotation(model)
+    elif not isinstance(state, State):
+        raise InvalidParameterError(
+            f"linearize: state must be a flexmbd.State (fm.equilibrium, fm.steady_rotation, "
+            f"result.state(k)), 'equilibrium' or 'steady-rotation', got {state!r}",
+            item="state",
+        )
     if state.accelerations is None or state.multipliers is None:
         raise InvalidParameterError(
             "linearize: the state has no accelerations and multipliers (a state built from "

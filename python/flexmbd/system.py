@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from ._checks import choice, flag, id_text, number, numbers_array, value_text
+from ._checks import choice, flag, id_text, integer, number, numbers_array, value_text
 from .errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -81,6 +81,9 @@ def elastic_basis(body: FlexibleBodyData) -> sp.csr_matrix:
 
 
 def _node_index(body: FlexibleBodyData, node: int, item: str) -> int:
+    """The index of the node of id `node` (an integer: 2.7 or True is refused, not cut to 2
+    or 1) in the body's arrays."""
+    node = integer(node, f"{item}: node id")
     ids = np.asarray(body.node_ids)
     hits = np.flatnonzero(ids == node)
     if len(hits) == 0:
@@ -666,7 +669,7 @@ class System(_core.System):
         face for joints that transmit moments. `orientation` is in the body frame."""
         item = f"marker '{name}'" if name else "node marker"
         data, basis = self._flexible_data(body, item)
-        index = _node_index(data, int(node), item)
+        index = _node_index(data, node, item)
         translation, rotation = _node_shapes(data, basis, index)
         columns, t, r = _compress(translation, rotation, data.modes is not None)
         return self._add_flexible_marker(
