@@ -373,6 +373,7 @@ BAD_OUTPUTS = {
         "outputs[0].quantity: body 'block' has no beam elements with a section"
     ),
     "{body: arm, quantity: deflection, node: 1}": "outputs[0].body: 'arm' is not a flexible body",
+    "{body: nobody, quantity: position}": "outputs[0].body: unknown body 'nobody' (bodies: ",
 }
 
 

@@ -147,6 +147,10 @@ def test_unknown_key_paths_and_bad_values_are_refused_before_any_case_runs(tmp_p
     with pytest.raises(fm.InvalidParameterError, match="unknown reduction"):
         fm.Study(swinging_arm, {"length": [1.0]}, folder=tmp_path / "t", outputs=["top(x)"])
     study = fm.Study(swinging_arm, {"mass": [1.0, -1.0]}, folder=tmp_path / "u", end_time=0.1)
+    # A local cluster of -2 (or 0) workers waited for them forever.
+    for workers in (-2, 0, 1.5, True):
+        with pytest.raises(fm.InvalidParameterError, match="workers must be"):
+            study.run(workers=workers)
     with pytest.raises(fm.InvalidParameterError, match=r"case 1 \{'mass': -1.0\}"):
         study.run(workers=1)
     assert not (tmp_path / "u" / "cases").exists()

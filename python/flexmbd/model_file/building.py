@@ -990,7 +990,8 @@ class _Builder:
         known = {"sensor": self.sensors, "body": self.bodies, "joint": self.joints}.get(kind)
         if known is not None and item not in known:
             raise self.fail(
-                path + (kind,), f"unknown {kind} {value_text(item)} ({kind}s: {_listing(known)})"
+                path + (kind,),
+                f"unknown {kind} {value_text(item)} ({PLURALS[kind]}: {_listing(known)})",
             )
         node_quantities = ("node_displacements", "node_positions", "deflection", "stresses")
         if kind == "body" and (
@@ -1071,3 +1072,7 @@ _NODE_KEYS = {
     "node": ("deflection",),
     "chord": ("deflection",),
 }
+
+
+#: The plural of each kind of item an output names, for messages.
+PLURALS = {"sensor": "sensors", "body": "bodies", "joint": "joints"}

@@ -145,6 +145,13 @@ class Study:
         the number of CPUs); `scheduler`: the address of an existing Dask scheduler instead.
         The cases to run are checked first, on the cluster's workers (each builds its models);
         nothing runs if one is refused, and the error names the case and the key path."""
+        if workers is not None and (
+            isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+        ):
+            # A LocalCluster of -2 workers waited for them forever.
+            raise InvalidParameterError(
+                f"workers must be a whole number of at least 1, got {workers!r}", item="workers"
+            )
         todo = self.pending()
         if todo:
             client, cluster = _connect(scheduler, workers)

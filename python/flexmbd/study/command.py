@@ -178,7 +178,8 @@ def sweep(args: argparse.Namespace) -> int:
         )
         print(f"{study!r}: {len(study.pending())} to run")
         data = study.run(workers=args.workers, scheduler=args.scheduler, progress=not args.quiet)
-    except FlexmbdError as error:
+    except (FlexmbdError, OSError) as error:
+        # OSError: a folder that is a file, no permission to write it.
         print(f"flexmbd sweep: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
