@@ -32,6 +32,7 @@ FUNCTIONS = {
     "euler_parameters_to_matrix",
     "inverse_dynamics",
     "linearize",
+    "linearize_at_rest",
     "load_study",
     "plot_campbell",
     "read_results",
