@@ -160,6 +160,43 @@ def test_redundant_constraints_can_be_refused():
         fm.simulate(example.system, 0.1, 1e-3, solver=solver)
 
 
+def link_on_ground(second: str) -> fm.System:
+    """A 1 m link at the origin with a second equation set on its ground hinge: a weld with an
+    angle driver theta = t ("weld"), or a revolute joint with drivers theta = t and 2 t
+    ("drivers")."""
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    link = system.add_rigid_body(1.0, (0.01, 0.1, 0.1), position=(0.5, 0.0, 0.0), name="link")
+    pivot, end = system.add_marker(system.ground), system.add_marker(link, position=(-0.5, 0, 0))
+    if second == "weld":
+        system.add_fixed_joint(pivot, end, name="weld")
+        system.add_angle_driver(pivot, end, fm.Polynomial([0.0, 1.0]), name="drive")
+    else:
+        system.add_revolute_joint(pivot, end, name="hinge")
+        system.add_angle_driver(pivot, end, fm.Polynomial([0.0, 1.0]), name="drive 1")
+        system.add_angle_driver(pivot, end, fm.Polynomial([0.0, 2.0]), name="drive 2")
+    return system
+
+
+@pytest.mark.parametrize(
+    ("second", "equation"),
+    [
+        ("weld", "joint 'weld' (fixed) equation 'twist'"),
+        ("drivers", "joint 'drive 2' (angle driver) equation 'angle'"),
+    ],
+)
+@pytest.mark.parametrize("solver", [None, fm.ExplicitSolver("dopri5", "partitioning")])
+def test_conflicting_equations_are_not_taken_for_redundant_ones(second, equation, solver):
+    # Both equation sets hold at t = 0 with the same C_q rows, so one was left out as
+    # redundant, and the run went on without it: the welded link turned with its driver
+    # (at (0.27, 0.42) instead of (0.5, 0) at t = 1), the second driver's effort read 0,
+    # with no error. The left-out row's violation now stops the run, keeping its records.
+    with pytest.raises(fm.ConflictingConstraintsError, match="left out as redundant") as caught:
+        fm.simulate(link_on_ground(second), 1.0, 1e-3, output_interval=1e-3, solver=solver)
+    assert equation in caught.value.item
+    assert caught.value.time < 0.06  # at the first check of the rows, within 50 steps
+    assert caught.value.result is not None and len(caught.value.result.time) >= 1
+
+
 # Bricard's mechanism with other marker frames (each joint's markers turned about the joint
 # axis). Which row the analysis removes at the start is a near tie between joint 0's 'y' and
 # joint 5's 'x' equations, decided by round-off (a turn of 1e-9 rad flips it). Without joint 0's

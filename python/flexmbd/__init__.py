@@ -29,6 +29,7 @@ from ._lazy import lazy_attributes
 from .errors import (
     ArgumentTypeError,
     CallbackError,
+    ConflictingConstraintsError,
     EquilibriumError,
     FlexmbdError,
     FreeMotionError,
@@ -184,6 +185,7 @@ __all__ = [
     "EquilibriumState",
     "LinearizedSystem",
     "CallbackError",
+    "ConflictingConstraintsError",
     "Constant",
     "EquilibriumError",
     "ExplicitSolver",

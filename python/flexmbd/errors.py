@@ -138,6 +138,13 @@ class SingularMatrixError(SimulationError):
     configuration."""
 
 
+class ConflictingConstraintsError(SimulationError):
+    """A constraint equation left out as redundant is violated during the run: it contradicts
+    the kept equations (a driver on a welded joint, two drivers of one joint), or it repeated
+    them only at a singular configuration (a mechanism started at a dead centre). ``item``
+    names the equation; ``result`` holds the run up to there."""
+
+
 class NonFiniteError(SimulationError):
     """A NaN or infinity appeared in the state or in a computed quantity."""
 

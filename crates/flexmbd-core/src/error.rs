@@ -136,6 +136,28 @@ pub enum FlexmbdError {
         /// The callback's own error message.
         message: String,
     },
+    /// A constraint equation left out as redundant (a linear combination of the kept ones
+    /// where it was chosen) is violated during the run: it contradicts the kept equations
+    /// (a driver on a welded joint, two drivers of one joint), or it was dependent only at a
+    /// singular configuration the mechanism has left.
+    #[error(
+        "conflicting constraints at t = {}: {item}, left out as redundant at t = {}, is violated by \
+         {violation:.3e} (the kept equations hold): it contradicts them (a driver on a welded or \
+         doubly driven joint), or it repeated them only at a singular configuration (a \
+         mechanism started at a dead centre)",
+        Seconds(*.time),
+        Seconds(*.since)
+    )]
+    ConflictingConstraints {
+        /// Time at which the violation was found.
+        time: f64,
+        /// The violated equation.
+        item: String,
+        /// Its violation.
+        violation: f64,
+        /// Time at which it was left out.
+        since: f64,
+    },
     /// The run was interrupted by the user (Ctrl-C in Python).
     #[error("interrupted at t = {}", Seconds(*.time))]
     Interrupted {

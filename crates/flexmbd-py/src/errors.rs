@@ -42,6 +42,9 @@ fn class_and_data(err: &FlexmbdError) -> (&'static str, Option<String>, Option<f
         SingularMatrix { time, context, .. } => ("SingularMatrixError", Some(context.clone()), Some(*time)),
         NonFinite { item, time } => ("NonFiniteError", Some(item.clone()), Some(*time)),
         Callback { item, time, .. } => ("CallbackError", Some(item.clone()), Some(*time)),
+        ConflictingConstraints { time, item, .. } => {
+            ("ConflictingConstraintsError", Some(item.clone()), Some(*time))
+        }
         Interrupted { time } => ("SimulationInterrupted", None, Some(*time)),
     }
 }

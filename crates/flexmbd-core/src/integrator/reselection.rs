@@ -37,6 +37,12 @@ pub const IMPROVEMENT: f64 = 2.0;
 /// Longest time between two checks of the conditioning, in nominal step sizes.
 pub const MAX_STRIDE: f64 = 50.0;
 
+/// Largest violation (m or rad) of a left-out row at a check before the run stops with
+/// `ConflictingConstraints`. Rows that repeat the kept ones stay at round-off (1e-15 on
+/// Bricard's mechanism and the spatial four-bar over 5 s); a driver on a welded joint leaves
+/// the weld's row violated by its drive angle.
+pub const CONFLICT_LIMIT: f64 = 1e-6;
+
 /// The conditioning of the kept rows of a reduction along the run.
 struct Monitor {
     ws: Workspace,
@@ -51,6 +57,9 @@ struct Monitor {
     next_check: f64,
     /// Longest time between checks.
     max_wait: f64,
+    /// Rows of the original model left out, and the time they were chosen.
+    removed: Vec<usize>,
+    since: f64,
 }
 
 impl Monitor {
@@ -64,6 +73,8 @@ impl Monitor {
             last: (state.time, 0.0),
             next_check: state.time,
             max_wait: MAX_STRIDE * step_size,
+            removed: (0..model.constraint_count).filter(|r| !reduction.row_map.contains(r)).collect(),
+            since: reduction.report.time,
         };
         let now = monitor.conditioning(model, state)?;
         monitor.threshold = DEGRADATION * now;
@@ -95,6 +106,13 @@ impl Monitor {
         Ok(row_conditioning(eq.jacobian.as_ref(), &self.kept))
     }
 
+    /// The left-out row violated most, if by more than `CONFLICT_LIMIT`, at the state of the
+    /// last `conditioning`.
+    fn conflict(&self) -> Option<(usize, f64)> {
+        let violations = self.removed.iter().map(|&r| (r, self.eq.constraints[r].abs()));
+        violations.filter(|&(_, v)| v > CONFLICT_LIMIT || v.is_nan()).max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// A better choice of rows at `state`, if the kept ones have become ill-conditioned there
     /// and another choice is better by `IMPROVEMENT`; else None (the threshold follows a
     /// conditioning that no choice improves, so it is not tried again at every step).
@@ -103,6 +121,14 @@ impl Monitor {
             return Ok(None);
         }
         let now = self.conditioning(model, state)?;
+        if let Some((row, violation)) = self.conflict() {
+            return Err(FlexmbdError::ConflictingConstraints {
+                time: state.time,
+                item: model.constraint_name(row),
+                violation,
+                since: self.since,
+            });
+        }
         if now >= self.threshold {
             self.schedule(state.time, now);
             return Ok(None);
