@@ -165,3 +165,20 @@ def test_a_model_of_a_bare_core_system_refuses_pickling_with_the_reason():
     system.add_point_mass(1.0)
     with pytest.raises(TypeError, match="flexmbd.System"):
         pickle.dumps(system.compile())
+
+
+def test_functions_that_use_the_package_pickle_by_value_with_it_by_reference():
+    # A study's build function in a script refers to `fm`; cloudpickle sends such functions
+    # by value with their globals, and the package (a module subclass) could not be pickled:
+    # Study.run failed with "Could not serialize object", a raw TypeError.
+    cloudpickle = pytest.importorskip("cloudpickle")
+    assert pickle.loads(pickle.dumps(fm)) is fm
+
+    def build(mass: float = 1.0) -> fm.System:  # local: pickled by value
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        system.add_rigid_body(mass, (1.0, 1.0, 1.0), name="block")
+        return system
+
+    copied = pickle.loads(cloudpickle.dumps(build))
+    assert copied is not build
+    assert copied(2.0).compile().coordinate_count == 7

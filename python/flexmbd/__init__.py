@@ -16,6 +16,7 @@ Units are SI by convention. See ``docs/`` for the theory and the solver choices.
 
 from __future__ import annotations
 
+import importlib
 import logging
 import sys
 import types
@@ -172,6 +173,12 @@ class _Package(types.ModuleType):
             # The import system binds a newly imported submodule on its package.
             value = getattr(value, name)
         super().__setattr__(name, value)
+
+    def __reduce__(self) -> tuple[Any, tuple[str]]:
+        # Pickled by name, as cloudpickle pickles plain modules: a function of a script that
+        # refers to `fm` (a study's build function, a callback sent to Dask's workers) takes
+        # the package along by reference. Without it, "cannot pickle '_Package' object".
+        return importlib.import_module, (self.__name__,)
 
 
 sys.modules[__name__].__class__ = _Package
