@@ -324,6 +324,10 @@ def test_set_values_are_numbers_text_and_lists():
         _parameters(["a=1,2"], "lhs")
     with pytest.raises(fm.InvalidParameterError, match="KEY=V1"):
         _parameters(["a"], "grid")
+    # A range without --sample was read as YAML 1.1's base-60 number: 1:2 swept the value 62.
+    with pytest.raises(fm.InvalidParameterError, match="range to sample: give --sample"):
+        _parameters(["bodies.link.mass=1:2"], "grid")
+    assert _parameters(["label=a:b,1:x"], "grid") == {"label": ["a:b", "1:x"]}
 
 
 def test_an_existing_scheduler_runs_the_same_study(tmp_path, worker_path):

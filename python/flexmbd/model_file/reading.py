@@ -140,6 +140,18 @@ _Loader.add_constructor(_INT_TAG, _Loader.construct_int)
 _Loader.add_constructor(_FLOAT_TAG, _Loader.construct_float)
 
 
+def yaml_value(text: str) -> Any:
+    """`text` read as a YAML value the way model files read theirs (YAML 1.2 numbers: ``1:2``
+    is text, not the base-60 number 62; plain data only). Raises `yaml.YAMLError`."""
+    loader = _Loader(text)
+    try:
+        return loader.get_single_data()
+    except _ReadError as error:
+        raise yaml.YAMLError(error.message) from None
+    finally:
+        loader.dispose()
+
+
 def _key_path(path: Path_) -> str:
     text = ""
     for part in path:

@@ -93,9 +93,11 @@ def add_sweep_parser(sub: Any) -> None:
 
 
 def _value(text: str) -> Any:
-    """A value of --set: a number (also 5e-3, which YAML 1.1 reads as text), else as YAML
-    reads it (booleans, text, [lists])."""
+    """A value of --set: a number, else as model files read YAML (booleans, text, [lists];
+    YAML 1.2 numbers: 5e-3 is a number, 1:2 is text, not the base-60 number 62)."""
     import yaml
+
+    from ..model_file.reading import yaml_value
 
     for kind in (int, float):
         try:
@@ -103,7 +105,7 @@ def _value(text: str) -> Any:
         except ValueError:
             pass
     try:
-        return yaml.safe_load(text) if text.strip() else text
+        return yaml_value(text) if text.strip() else text
     except yaml.YAMLError as error:
         raise InvalidParameterError(f"--set value {text!r} is not a value: {error}") from None
 
@@ -128,6 +130,12 @@ def _parameters(settings: list[str], sampling: str) -> dict[str, Any]:
             raise InvalidParameterError(f"--set {item!r}: expected KEY=V1,V2,... or KEY=LOW:HIGH")
         key = key.strip()
         if sampling == "grid":
+            low, colon, high = values.partition(":")
+            if colon and all(isinstance(_value(v), (int, float)) for v in (low, high)):
+                raise InvalidParameterError(
+                    f"--set {item!r}: LOW:HIGH is a range to sample: give --sample random:N "
+                    "or lhs:N, or the values as V1,V2,..."
+                )
             parameters[key] = [_value(v) for v in _split(values)]
         else:
             low, sep, high = values.partition(":")
