@@ -611,3 +611,28 @@ def test_summaries_show_the_round_off_of_components_at_zero_as_zero():
         "x 0 -> -0.00177 (from -0.00177 to 0); y -1 -> -0.99997 (from -1 to -0.99997); "
         "z 0 -> 0 (from 0 to 0) m"
     )
+
+
+def test_preprocess_reads_one_reference_node_index_as_an_index(tmp_path, capsys, assert_close):
+    # "--reference-nodes 5" was taken for a node set named '5'; several indices were not.
+    from flexmbd.fe.body_file import load_body
+    from flexmbd.fe.preprocess import Material, build_body
+
+    mesh = _write_abaqus_box(tmp_path / "bar.inp")
+    out = tmp_path / "bar.h5"
+    material = ["-E", "2.1e11", "--poisson-ratio", "0.3", "--density", "7800"]
+    command = ["preprocess", str(tmp_path / "bar.inp"), "-o", str(out), *material]
+    clamped = ["--reference", "clamped", "--modes", "none"]
+    assert main([*command, *clamped, "--reference-nodes", "5"]) == 0
+    capsys.readouterr()
+    same = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(2.1e11, 0.3, 7800.0),
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes=[5],
+    )
+    assert load_body(out).reference.free_dofs == pytest.approx(same.reference.free_dofs)
+    assert main([*command, *clamped, "--reference-nodes", "5", "x"]) == 1
+    assert "'x' is not a node index" in capsys.readouterr().err

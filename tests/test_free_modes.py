@@ -107,3 +107,11 @@ def test_modes_command_gives_the_free_free_modes_of_the_satellite(capsys, tmp_pa
     assert [float(r[1]) for r in rows] == pytest.approx(expected[:3], rel=1e-5)
     # Undamped: the ratio's round-off reads 0.
     assert all(r[2] == "0" for r in rows)
+
+
+def test_modes_command_numbers_the_modes_it_animates_from_one(capsys):
+    # --animate 99 said "mode 98: the linearization has 12 oscillating modes".
+    from flexmbd.cli import main
+
+    assert main(["modes", "satellite", "--count", "1", "--animate", "99"]) == 2
+    assert "--animate 99: the modes are numbered 1 to 12" in capsys.readouterr().err

@@ -718,6 +718,17 @@ def _campbell(args: argparse.Namespace) -> int:
 UNDAMPED = 1e-12
 
 
+def _index(text: str) -> int:
+    """A node index of the command line; a typed error for anything else."""
+    try:
+        return int(text)
+    except ValueError:
+        raise InvalidParameterError(
+            f"--reference-nodes: {text!r} is not a node index (one node set name, or indices)",
+            item="--reference-nodes",
+        ) from None
+
+
 def _linearized(system: Any) -> tuple[Any, Any, str]:
     """The modes' linearization of `system` (a flexmbd.System), its compiled model and what
     it is about: the steady rotation, else the static equilibrium, else (a free-flying
@@ -768,6 +779,11 @@ def _modes(args: argparse.Namespace) -> int:
             print(f"{k + 1:4d}  {frequencies[k]:14.6g}  {ratio:13.3g}  {most}")
         stem = Path(args.output) if args.output else Path(job.stem)
         for k in args.animate:
+            if not 1 <= k <= len(frequencies):
+                raise InvalidParameterError(
+                    f"--animate {k}: the modes are numbered 1 to {len(frequencies)}",
+                    item="--animate",
+                )
             result = mode_result(linear, model, k - 1, frames=args.frames)
             movie = stem.with_name(f"{stem.name}_mode{k}.gif")
             render_animation(result, movie, frames=args.frames, progress=True)
@@ -876,9 +892,6 @@ def _preprocess(args: argparse.Namespace) -> int:
         options["shell"] = args.thickness
     if args.orient_shells:
         options["orient_shells"] = True
-    if args.reference_nodes:
-        nodes = args.reference_nodes
-        options["reference_nodes"] = nodes[0] if len(nodes) == 1 else [int(n) for n in nodes]
     output = Path(args.output)
     # The body file's path, checked before the (long) preprocessing.
     problem = None
@@ -896,6 +909,11 @@ def _preprocess(args: argparse.Namespace) -> int:
     timings: dict[str, float] = {}
     start = time.perf_counter()
     try:
+        if args.reference_nodes:
+            nodes = args.reference_nodes
+            # One word is a node set's name unless it is an index ("5" was taken for a set).
+            named = len(nodes) == 1 and not nodes[0].lstrip("-").isdigit()
+            options["reference_nodes"] = nodes[0] if named else [_index(n) for n in nodes]
         material = Material(args.young_modulus, args.poisson_ratio, args.density)
         body = body_from_mesh(args.mesh, material, timings=timings, **options)
     except (FlexmbdError, ValueError, OSError) as error:

@@ -222,7 +222,8 @@ def mode_result(
     frequencies, _, shapes = linear.oscillating()
     if not 0 <= mode < len(frequencies):
         raise InvalidParameterError(
-            f"mode {mode}: the linearization has {len(frequencies)} oscillating modes",
+            f"mode index {mode} (0: the lowest): the linearization has {len(frequencies)} "
+            f"oscillating modes (indices 0 to {len(frequencies) - 1})",
             item="mode",
         )
     phi = shapes[:, mode]
