@@ -497,3 +497,46 @@ def test_an_interrupted_sweep_says_what_is_done_and_the_same_command_finishes(tm
     again = subprocess.run(command + ["-q"], capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr[-3000:]
     assert f"{4 - done} to run" in again.stdout and "4 cases, 4 complete" in again.stdout
+
+
+def test_outputs_are_checked_before_the_runs_and_computed_again_when_they_change(
+    tmp_path, worker_path, assert_close
+):
+    from flexmbd.study.cases import refresh_outputs
+
+    cases = [{"length": 1.0, "fail_at": None}, {"length": 2.0, "fail_at": 0.2}]
+    run = {"sampling": "list", "folder": tmp_path / "s", "end_time": 0.4, "step_size": 1e-3}
+    # A mistyped item failed every case after its whole run; now nothing runs.
+    typo = fm.Study(swinging_arm, cases, outputs={"low": "min(sensor:tipp[y])"}, **run)
+    with pytest.raises(fm.InvalidParameterError, match=r"output 'low'.*case 0.*no sensor named"):
+        typo.run(workers=1, progress=False)
+    assert not (tmp_path / "s" / "cases").exists()
+    with pytest.raises(fm.InvalidParameterError, match="no sensor named 'tipp'"):
+        typo.check()
+    first = fm.Study(swinging_arm, cases, outputs={"low": "min(sensor:tip[y])"}, **run)
+    data = first.run(workers=1, progress=False)
+    assert list(data["status"].values) == ["complete", "failed"]
+    results = {p: p.stat().st_mtime_ns for p in (tmp_path / "s" / "cases").glob("*.h5")}
+    # An output that failed on a case (here made so by hand, as a case-dependent item or an
+    # older version could) is computed again once corrected, and a new output is computed for
+    # every case done, from the results files: no case runs again.
+    summary = json.loads(first._summary(first.keys[0]).read_text())
+    bad = fm.Study(swinging_arm, cases, outputs={"low": "min(sensor:tip[w])"}, **run)
+    failed = refresh_outputs(bad._task(0), summary)
+    assert failed["status"] == "failed" and "no component 'w'" in failed["error"]["message"]
+    outputs = {"low": "min(sensor:tip[y])", "end x": "final(sensor:tip[x])"}
+    again = fm.Study(swinging_arm, cases, outputs=outputs, **run).run(workers=1, progress=False)
+    assert list(again["status"].values) == ["complete", "failed"]
+    assert "deliberate failure" in str(again["error"].values[1])  # the run's own error
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "s" / "cases").glob("*.h5")} == results
+    complete = fm.simulate(swinging_arm(length=1.0), 0.4, 1e-3)
+    partial = fm.read_results(tmp_path / "s" / "cases" / f"case-{first.keys[1]}.h5")
+    assert 0.15 < partial.time[-1] < 0.25  # the failed case's records, up to its failure
+    for k, result in enumerate([complete, partial]):
+        assert_close(again["end x"].values[k], result.sensor("tip")[-1, 0], rel=1e-12)
+        assert_close(again["low"].values[k], data["low"].values[k], rel=1e-12)
+    # A case whose results file is gone runs again.
+    (tmp_path / "s" / "cases" / f"case-{first.keys[0]}.h5").unlink()
+    third = fm.Study(swinging_arm, cases, outputs={"low": "max(sensor:tip[y])"}, **run)
+    third.refresh()
+    assert third.pending() == [0]

@@ -41,7 +41,9 @@ from .cases import (
     case_key,
     check_case,
     check_cases,
+    check_outputs,
     record_lost_case,
+    refresh_outputs,
     run_case,
 )
 from .sampling import SAMPLINGS, make_cases
@@ -123,13 +125,43 @@ class Study:
     def check(self) -> None:
         """Checks every case's values against the model (key paths and values of a model file;
         a build function builds each case): the first one refused raises, naming the case and
-        the parameter or key path."""
+        the parameter or key path. The outputs are checked on the first case
+        (:func:`~flexmbd.study.cases.check_outputs`)."""
         for k, case in enumerate(self.cases):
             check_case(self.source, k, case)
+        if self.cases and self.outputs:
+            check_outputs(self.source, 0, self.cases[0], self.outputs)
 
     def pending(self) -> list[int]:
         """Indices of the cases not done yet (no summary in the folder)."""
         return [k for k, key in enumerate(self.keys) if not self._summary(key).exists()]
+
+    def _task(self, k: int) -> CaseTask:
+        return CaseTask(
+            index=k,
+            key=self.keys[k],
+            parameters=self.cases[k],
+            source=self.source,
+            settings=self.settings,
+            outputs=self.outputs,
+            folder=str((self.folder / "cases").resolve()),
+        )
+
+    def refresh(self) -> None:
+        """Computes the outputs of the cases done again where the study's outputs have changed
+        since they ran (a new or corrected ``outputs``), from their results files; the
+        simulations do not run again. A case whose results file is gone becomes pending."""
+        for k, key in enumerate(self.keys):
+            path = self._summary(key)
+            if not path.exists():
+                continue
+            try:
+                summary = json.loads(path.read_text())
+            except (OSError, ValueError):
+                path.unlink(missing_ok=True)  # unreadable: the case runs again
+                continue
+            if summary.get("outputs_of") != self.outputs:
+                refresh_outputs(self._task(k), summary)
 
     def _summary(self, key: str) -> Path:
         return self.folder / "cases" / f"case-{key}.json"
@@ -152,27 +184,18 @@ class Study:
             raise InvalidParameterError(
                 f"workers must be a whole number of at least 1, got {workers!r}", item="workers"
             )
+        self.refresh()
         todo = self.pending()
         if todo:
             client, cluster = _connect(scheduler, workers)
             try:
-                refusal = _check_on_dask(client, self.source, [(k, self.cases[k]) for k in todo])
+                cases = [(k, self.cases[k]) for k in todo]
+                refusal = _check_on_dask(client, self.source, cases, self.outputs)
                 if refusal is not None:
                     raise refusal
                 (self.folder / "cases").mkdir(parents=True, exist_ok=True)
                 self._write_description()
-                tasks = [
-                    CaseTask(
-                        index=k,
-                        key=self.keys[k],
-                        parameters=self.cases[k],
-                        source=self.source,
-                        settings=self.settings,
-                        outputs=self.outputs,
-                        folder=str((self.folder / "cases").resolve()),
-                    )
-                    for k in todo
-                ]
+                tasks = [self._task(k) for k in todo]
                 for task in tasks:  # markers of an earlier run that was stopped
                     task.started_path.unlink(missing_ok=True)
                 _import_in_background(GATHER_MODULES)
@@ -336,14 +359,25 @@ def _worker_count(client: Any) -> int:
 
 
 def _check_on_dask(
-    client: Any, source: ModelSource, cases: list[tuple[int, Mapping[str, Any]]]
+    client: Any,
+    source: ModelSource,
+    cases: list[tuple[int, Mapping[str, Any]]],
+    outputs: Mapping[str, str],
 ) -> Exception | None:
     """Checks `cases` (index, parameters) on the cluster's workers (`check_cases`: each
-    builds its models, in parallel, warming up the workers for the run) and returns the
-    refusal of the first case refused, or None."""
+    builds its models, in parallel, warming up the workers for the run; the first batch checks
+    the `outputs` on its first case) and returns the refusal of the first case refused, or
+    None."""
     batches = _batches(cases, _worker_count(client))
     futures = [
-        client.submit(check_cases, source, batch, key=f"flexmbd-check-{k}", pure=False)
+        client.submit(
+            check_cases,
+            source,
+            batch,
+            outputs if k == 0 else None,
+            key=f"flexmbd-check-{k}",
+            pure=False,
+        )
         for k, batch in enumerate(batches)
     ]
     refusals, lost = [], []

@@ -112,16 +112,54 @@ def check_case(source: ModelSource, index: int, parameters: Mapping[str, Any]) -
 
 
 def check_cases(
-    source: ModelSource, cases: list[tuple[int, Mapping[str, Any]]]
+    source: ModelSource,
+    cases: list[tuple[int, Mapping[str, Any]]],
+    outputs: Mapping[str, str] | None = None,
 ) -> FlexmbdError | None:
     """Checks a batch of cases (on a worker: the check builds each model) and returns the
-    refusal of the first one refused, or None."""
+    refusal of the first one refused, or None. `outputs` (the study's, or None) are checked
+    on the batch's first case (`check_outputs`)."""
     for index, parameters in cases:
         try:
             check_case(source, index, parameters)
         except FlexmbdError as refusal:
             return refusal
+    if outputs and cases:
+        try:
+            check_outputs(source, *cases[0], outputs)
+        except FlexmbdError as refusal:
+            return refusal
     return None
+
+
+def check_outputs(
+    source: ModelSource, index: int, parameters: Mapping[str, Any], outputs: Mapping[str, str]
+) -> None:
+    """Refuses outputs that name what the model of case `index` lacks (a body, joint,
+    sensor, node or component): each is evaluated on the model's first record, from a run of
+    no length, before the cases run (a mistyped name failed every case after its whole run).
+    A model that cannot start (its initial state refused) is not refused here: its run
+    records that failure."""
+    from ..quantities import output_value
+    from ..simulation import simulate
+
+    try:
+        model, defaults = source.load(parameters)
+        start = float(defaults.get("start_time") or 0.0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            first = simulate(model, start, 1.0, start_time=start)
+    except Exception:  # noqa: BLE001 - the case's run reports it
+        return
+    for name, spec in outputs.items():
+        try:
+            output_value(first, spec)
+        except FlexmbdError as error:
+            label = repr(spec) if name == spec else f"{name!r} ({spec})"
+            raise InvalidParameterError(
+                f"output {label}, on case {index} {dict(parameters)}: {error}",
+                item=name,
+            ) from error
 
 
 def _settings_of(built: Any) -> dict[str, Any]:
@@ -254,51 +292,92 @@ def _write_summary(
     pid: int | None,
 ) -> dict[str, Any]:
     """A case's outputs (computed from `result`, which may be partial) and status, written to
-    its summary file (last, by rename: the case is then done) and returned."""
-    import numpy as np
-
-    from ..quantities import output_value
-
-    outputs: dict[str, Any] = {}
-    series_time = None
-    if result is not None:
-        for name, spec in task.outputs.items():
-            try:
-                value = output_value(result, spec)
-            except FlexmbdError as failure:
-                outputs[name] = None
-                error = error or failure
-                continue
-            if isinstance(value, np.ndarray):
-                outputs[name] = [_json_number(v) for v in value]
-                series_time = [float(t) for t in result.time]
-            else:
-                outputs[name] = _json_number(value)
+    its summary file (last, by rename: the case is then done) and returned. `error` is the
+    run's; an output that cannot be computed fails the case too, and is computed again when
+    the study's outputs change (`refresh_outputs`)."""
+    run_error = None if error is None else _error_entry(error)
     summary = {
         "index": task.index,
         "key": task.key,
         "parameters": task.parameters,
-        "status": "complete" if error is None else "failed",
         "warnings": [] if result is None else case_warnings(result.events),
-        "error": None
-        if error is None
-        else {
-            "class": type(error).__name__,
-            "message": str(error),
-            "traceback": "".join(traceback.format_exception(error))[-4000:],
-        },
-        "outputs": outputs,
-        "time": series_time,
         "records": 0 if result is None else len(result.time),
         "elapsed": elapsed,
         "worker_pid": pid,
         "worker_peak_memory": _peak_memory() if pid is not None else None,
+        "run_error": run_error,
     }
+    _with_outputs(summary, task.outputs, result)
+    _save_summary(task, summary)
+    task.started_path.unlink(missing_ok=True)
+    return summary
+
+
+def refresh_outputs(task: CaseTask, summary: dict[str, Any]) -> dict[str, Any] | None:
+    """The summary of a case done, its outputs computed again for the study's outputs
+    (`task.outputs`) from its results file, and saved; None (and the summary removed: the case
+    runs again) for a summary of a version that did not keep the run's own error apart, or a
+    case whose results file is gone."""
+    from ..results_file import read_results
+
+    if "run_error" not in summary or not task.results_path.exists():
+        task.summary_path.unlink(missing_ok=True)
+        return None
+    try:
+        result = read_results(task.results_path)
+    except Exception:  # noqa: BLE001 - a file cut short (a worker died): no records
+        result = None
+    summary = dict(summary)
+    _with_outputs(summary, task.outputs, result)
+    _save_summary(task, summary)
+    return summary
+
+
+def _with_outputs(summary: dict[str, Any], outputs: Mapping[str, str], result: Any) -> None:
+    """Sets a summary's outputs (from `result`, None for none), their time, status and error
+    (the run's, else the first output's that failed)."""
+    import numpy as np
+
+    from ..quantities import output_value
+
+    values: dict[str, Any] = {}
+    series_time = None
+    error = summary["run_error"]
+    if result is not None:
+        for name, spec in outputs.items():
+            try:
+                value = output_value(result, spec)
+            except FlexmbdError as failure:
+                values[name] = None
+                error = error or _error_entry(failure)
+                continue
+            if isinstance(value, np.ndarray):
+                values[name] = [_json_number(v) for v in value]
+                series_time = [float(t) for t in result.time]
+            else:
+                values[name] = _json_number(value)
+    summary.update(
+        status="complete" if error is None else "failed",
+        error=error,
+        outputs=values,
+        outputs_of=dict(outputs),
+        time=series_time,
+    )
+
+
+def _error_entry(error: BaseException) -> dict[str, str]:
+    return {
+        "class": type(error).__name__,
+        "message": str(error),
+        "traceback": "".join(traceback.format_exception(error))[-4000:],
+    }
+
+
+def _save_summary(task: CaseTask, summary: dict[str, Any]) -> None:
+    """Writes a summary file by rename (a case is done once it exists)."""
     partial = task.summary_path.with_suffix(".json.partial")
     partial.write_text(json.dumps(summary, indent=1))
     os.replace(partial, task.summary_path)
-    task.started_path.unlink(missing_ok=True)
-    return summary
 
 
 def case_warnings(events: list[dict[str, Any]]) -> list[str]:
