@@ -56,6 +56,47 @@ def test_unknown_body_and_marker(system):
         s.add_sensor(fm.MarkerId(9), "position")
 
 
+def test_ids_of_another_system_are_refused():
+    # They were taken as indices into this system: a marker on the wrong body, silently.
+    import pickle
+
+    first, second = fm.System(), fm.System()
+    a = first.add_rigid_body(1.0, (1, 1, 1), name="a")
+    x = second.add_rigid_body(5.0, (1, 1, 1), name="x")
+    assert a == x == fm.BodyId(1)  # ids still compare by index
+    with pytest.raises(fm.UnknownItemError, match="add_marker: BodyId.1. is body 'a' of another"):
+        second.add_marker(a)
+    m1, m2 = first.add_marker(first.ground), first.add_marker(a, name="on a")
+    with pytest.raises(fm.UnknownItemError, match="here there is no marker 1"):
+        second.add_revolute_joint(second.add_marker(second.ground), m2)
+    with pytest.raises(fm.UnknownItemError, match="add_callback_force.*here body 1 is 'x'"):
+        second.add_callback_force([x, a], lambda t, q, qd: [0.0] * len(q))
+    # Ids made by hand, the ground's, and those of unnamed items are indices, as before.
+    second.add_revolute_joint(second.add_marker(second.ground), second.add_marker(fm.BodyId(1)))
+    first.add_revolute_joint(m1, m2)
+    result = fm.simulate(second, 0.01, 1e-3)
+    with pytest.raises(fm.UnknownItemError, match="this result: BodyId.1. is body 'a'"):
+        result.position(a)
+    assert result.position(x).shape == result.position("x").shape == (11, 3)
+
+    # A system built alike (the same builder called twice) takes the other's ids.
+    def build():
+        system = fm.System()
+        body = system.add_rigid_body(1.0, (1, 1, 1), name="a")
+        system.add_point_force(system.add_marker(body, name="on a"), (0.0, 1.0, 0.0))
+        return system, body
+
+    (_one, body), (two, _) = build(), build()
+    two.add_sensor(two.add_marker(body, name="tip"), "position")
+    assert fm.simulate(two, 0.01, 1e-3).position(body).shape == (11, 3)
+    # A copy of a system (a variant, or pickled) keeps its identity: its ids hold there.
+    copy = pickle.loads(pickle.dumps(first))
+    copy.add_point_force(copy.add_marker(a), (0.0, 1.0, 0.0))
+    variant = fm.simulate(first.without_loads(), 0.01, 1e-3)
+    assert variant.position(a).shape == (11, 3)
+    assert pickle.loads(pickle.dumps(a))._system == a._system != 0
+
+
 def test_joint_between_a_body_and_itself(system):
     s, body = system
     a, b = s.add_marker(body), s.add_marker(body, position=(1, 0, 0))

@@ -71,6 +71,10 @@ class Result:
         #: The results file the run wrote (:func:`flexmbd.simulate` with ``results_file``), or
         #: None.
         self.file: Any = None
+        #: The identity of the System the run's model was compiled from (None: unknown, as
+        #: for a results file read back): the ids of another system naming other items here
+        #: are refused.
+        self.system_identity: int | None = None
 
     def __len__(self) -> int:
         return len(self.time)
@@ -143,6 +147,13 @@ class Result:
         entries = self.layout[kind]
         singular = _SINGULAR.get(kind, kind)
         if isinstance(item, id_type):
+            from .system import stray_id, stray_id_error
+
+            def name_here(item: Any) -> str | None:
+                return entries[item.index]["name"] if item.index < len(entries) else None
+
+            if stray_id(self.system_identity, item, name_here) is not None:
+                raise stray_id_error(item, "this result", name_here(item))
             index = item.index  # type: ignore[attr-defined]
         elif isinstance(item, int | np.integer):
             index = int(item)

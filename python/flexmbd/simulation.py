@@ -28,6 +28,7 @@ from .errors import (
 from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
 from .state import State
+from .system import identity_of
 
 #: How a run may start: the model's given state, static (or steady) equilibrium, or the
 #: steady rotation of a rotor (see :func:`simulate`).
@@ -424,6 +425,7 @@ def simulate(
             )
         error = _interruption(error)
         result = Result(raw, model.describe(), error=error, flexible=model.flexible_bodies)
+        result.system_identity = identity_of(model)
         if writer is not None:
             if writer.failure is not None:
                 # The run stopped because its file could not be written: that is the error.

@@ -15,7 +15,8 @@ if they are lambdas or closures.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+import weakref
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -317,6 +318,11 @@ class System(_core.System):
         self._bases: dict[int, sp.csr_matrix] = {}
         self._calls: list[_Call] = [("gravity", (_kept(gravity),), {})]
         self._depth = 0
+        #: The identity the ids this system returns carry (`_core.BodyId._system`, ...).
+        self._identity = _new_identity()
+        #: The names given to its items: (id type name, index) -> name or None.
+        self._names: dict[tuple[str, int], str | None] = {}
+        _SYSTEMS[self._identity] = self
 
     @property
     def building_calls(self) -> tuple[_Call, ...]:
@@ -336,7 +342,7 @@ class System(_core.System):
         self._calls.append(("gravity", (_kept(value),), {}))
 
     def __reduce__(self) -> tuple[Any, ...]:
-        return (_rebuilt, (type(self), tuple(self._calls)))
+        return (_rebuilt, (type(self), tuple(self._calls), self._identity))
 
     def with_driver(self, name: str, function: Any) -> System:
         """A copy of this system whose driver `name` (an angle or translation driver) follows
@@ -357,7 +363,7 @@ class System(_core.System):
         if name not in found:
             known = [n for n in found if n is not None]
             raise UnknownItemError(f"no driver named {name!r}; drivers: {known}", item=name)
-        return _rebuilt(type(self), tuple(calls))
+        return _rebuilt(type(self), tuple(calls), self._identity)
 
     def with_drivers_as_efforts(self, efforts: dict[str, Any]) -> System:
         """A copy of this system whose drivers named in `efforts` no longer prescribe their
@@ -407,7 +413,7 @@ class System(_core.System):
             raise UnknownItemError(
                 f"no driver named {unknown[0]!r}; drivers: {known}", item=unknown[0]
             )
-        system = _rebuilt(type(self), tuple(calls))
+        system = _rebuilt(type(self), tuple(calls), self._identity)
         for name, coordinate, markers in replaced:
             joint = next(
                 (
@@ -444,7 +450,7 @@ class System(_core.System):
         loads = ("add_point_force", "add_torque")
         calls = [call for call in self._calls if call[0] not in loads]
         calls = [("gravity", ((0.0, 0.0, 0.0),), {}) if c[0] == "gravity" else c for c in calls]
-        return _rebuilt(type(self), tuple(calls))
+        return _rebuilt(type(self), tuple(calls), self._identity)
 
     def driver_function(self, name: str) -> Any:
         """The time function of the driver `name` as it was given."""
@@ -741,7 +747,7 @@ class System(_core.System):
 
     def compile(self) -> _core.Model:
         """Checks the whole system and compiles the immutable :class:`Model`."""
-        source = (type(self), tuple(self._calls))
+        source = (type(self), tuple(self._calls), self._identity)
         return super().compile(flexible_bodies=self._flexible, source=source)
 
 
@@ -749,9 +755,90 @@ class System(_core.System):
 _Call = tuple[str, tuple[Any, ...], dict[str, Any]]
 
 
+#: The ids a System returns.
+_IDS = (_core.BodyId, _core.MarkerId, _core.JointId, _core.ForceId, _core.SensorId)
+
+
+def _new_identity() -> int:
+    """A system's identity: random, so that it stays apart from other systems' after
+    pickling to another process (a pickled system and its ids keep theirs)."""
+    import secrets
+
+    return secrets.randbits(62) + 1
+
+
+#: The systems alive, by identity (`item_name` looks up the names of their items).
+_SYSTEMS: weakref.WeakValueDictionary[int, System] = weakref.WeakValueDictionary()
+
+
+def identity_of(model: Any) -> int | None:
+    """The identity of the System a Model was compiled from (None: unknown)."""
+    source = getattr(model, "_source", None)
+    return source[2] if isinstance(source, tuple) and len(source) > 2 else None
+
+
+def item_name(identity: int, item: Any) -> str | None:
+    """The name given to the item of the id `item` by the System of `identity`; None for an
+    item without a name, or a system that is gone."""
+    source = _SYSTEMS.get(identity)
+    return None if source is None else source._names.get((type(item).__name__, item.index))
+
+
+def stray_id(identity: int | None, value: Any, name_here: Callable[[Any], str | None]) -> Any:
+    """The first id in `value` (also inside lists, tuples and dicts) of another system than
+    the one of `identity` whose item has a name there that `name_here(id)` (the name of the
+    item of that index here) does not give, or None. Ids are indices, valid in any system
+    built alike (the same builder called twice); a named item found under another name here
+    is the mistake of a script holding two systems. Ids made by hand belong to none."""
+    if isinstance(value, _IDS):
+        other = value._system
+        if identity is None or other in (0, identity):
+            return None
+        theirs = item_name(other, value)
+        return value if theirs is not None and name_here(value) != theirs else None
+    if isinstance(value, (list, tuple)):
+        items: Any = value
+    elif isinstance(value, dict):
+        items = value.values()
+    else:
+        return None
+    found = (stray_id(identity, v, name_here) for v in items)
+    return next((f for f in found if f is not None), None)
+
+
+def stray_id_error(value: Any, where: str, here: str | None) -> UnknownItemError:
+    """The error of an id of another system (`stray_id`) used `where`; `here`: the name of
+    the item of its index here, if any."""
+    kind = _ID_KINDS[type(value).__name__]
+    theirs = item_name(value._system, value)
+    found = (
+        f"here {kind} {value.index} is {here!r}"
+        if here
+        else f"here there is no {kind} {value.index}"
+    )
+    return UnknownItemError(
+        f"{where}: {value!r} is {kind} {theirs!r} of another System, and {found}: ids are "
+        f"indices into the system that returned them. Use this system's id, or the name",
+        item=repr(value),
+    )
+
+
+#: The kind of item of each id type, for messages.
+_ID_KINDS = {
+    "BodyId": "body",
+    "MarkerId": "marker",
+    "JointId": "joint",
+    "ForceId": "force",
+    "SensorId": "sensor",
+}
+
+
 def _kept(value: Any) -> Any:
     """`value` as a building call keeps it: arrays (also inside lists, tuples and dicts)
-    copied, so that changing the caller's array later does not change the record."""
+    copied, so that changing the caller's array later does not change the record; ids
+    without their system (the calls build copies of it)."""
+    if isinstance(value, _IDS):
+        return type(value)(value.index)
     if isinstance(value, np.ndarray):
         return value.copy()
     if isinstance(value, (list, tuple)):
@@ -766,6 +853,13 @@ def _recorded(name: str, method: Any) -> Any:
     made again by it)."""
 
     def call(self: System, *args: Any, **kwargs: Any) -> Any:
+        def name_here(item: Any) -> str | None:
+            return self._names.get((type(item).__name__, item.index))
+
+        stray = stray_id(self._identity, (args, kwargs), name_here)
+        if stray is not None:
+            # It indexed this system's items: a marker on another body, silently.
+            raise stray_id_error(stray, name, name_here(stray))
         self._depth += 1
         try:
             value = method(self, *args, **kwargs)
@@ -773,6 +867,9 @@ def _recorded(name: str, method: Any) -> Any:
             self._depth -= 1
         if self._depth == 0:
             self._calls.append((name, _kept(args), _kept(kwargs)))
+        if isinstance(value, _IDS):
+            self._names[(type(value).__name__, value.index)] = kwargs.get("name")
+            value = type(value)(value.index, self._identity)
         return value
 
     call.__name__ = name
@@ -787,10 +884,14 @@ for _name in dir(System):
         setattr(System, _name, _recorded(_name, getattr(System, _name)))
 
 
-def _rebuilt(cls: type[System], calls: tuple[_Call, ...]) -> System:
-    """The system `cls` built by `calls` (`System.building_calls`)."""
+def _rebuilt(cls: type[System], calls: tuple[_Call, ...], identity: int | None = None) -> System:
+    """The system `cls` built by `calls` (`System.building_calls`); with `identity`, that of
+    the system it copies (whose ids then hold in it)."""
     (_, (gravity,), _), *rest = calls
     system = cls(gravity=gravity)
+    if identity is not None:
+        system._identity = identity
+        _SYSTEMS.setdefault(identity, system)
     for name, args, kwargs in rest:
         if name == "gravity":
             system.gravity = args[0]

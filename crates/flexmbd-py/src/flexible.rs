@@ -279,7 +279,7 @@ impl System {
             elastic_coordinates.map(|a| a.as_array().to_vec()).unwrap_or_default(),
             elastic_velocities.map(|a| a.as_array().to_vec()).unwrap_or_default(),
         ))?;
-        Ok(BodyId { index: id.0 })
+        Ok(BodyId::of(id.0))
     }
 
     /// Adds a marker on a deformable body that moves with the deformation (low level; use
@@ -327,6 +327,6 @@ impl System {
             orientation,
             elastic,
         ))?;
-        Ok(MarkerId { index: id.0 })
+        Ok(MarkerId::of(id.0))
     }
 }

@@ -7,19 +7,57 @@ use crate::errors::integer_argument;
 macro_rules! py_id {
     ($name:ident, $core:ty, $doc:literal) => {
         #[doc = $doc]
+        ///
+        /// Ids compare, hash and order by their index. An id returned by a `System` also
+        /// carries that system's identity (`_system`; 0 for an id made by hand), by which
+        /// the system and its results refuse the ids of another system.
         #[pyclass(module = "flexmbd._core", frozen, eq, hash, ord, from_py_object)]
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[derive(Clone, Copy, Debug)]
         pub struct $name {
             /// Index into the model's list of items of this kind.
             #[pyo3(get)]
             pub index: usize,
+            /// The identity of the system that made the id (0: none).
+            #[pyo3(get, name = "_system")]
+            pub system: u64,
+        }
+
+        impl $name {
+            /// The id of item `index`, tied to no system.
+            pub fn of(index: usize) -> Self {
+                $name { index, system: 0 }
+            }
+        }
+
+        impl PartialEq for $name {
+            fn eq(&self, other: &Self) -> bool {
+                self.index == other.index
+            }
+        }
+        impl Eq for $name {}
+        impl std::hash::Hash for $name {
+            fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+                self.index.hash(state)
+            }
+        }
+        impl PartialOrd for $name {
+            fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+                Some(self.cmp(other))
+            }
+        }
+        impl Ord for $name {
+            fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+                self.index.cmp(&other.index)
+            }
         }
 
         #[pymethods]
         impl $name {
             #[new]
-            fn new(index: &Bound<'_, PyAny>) -> PyResult<Self> {
-                Ok($name { index: integer_argument(index, concat!(stringify!($name), " index"), 0)? })
+            #[pyo3(signature = (index, _system = 0))]
+            fn new(index: &Bound<'_, PyAny>, _system: u64) -> PyResult<Self> {
+                let index = integer_argument(index, concat!(stringify!($name), " index"), 0)?;
+                Ok($name { index, system: _system })
             }
 
             fn __repr__(&self) -> String {
@@ -30,9 +68,9 @@ macro_rules! py_id {
                 self.index
             }
 
-            /// Pickling and copying: the id is its index.
-            fn __getnewargs__(&self) -> (usize,) {
-                (self.index,)
+            /// Pickling and copying: the id is its index and its system's identity.
+            fn __getnewargs__(&self) -> (usize, u64) {
+                (self.index, self.system)
             }
         }
 

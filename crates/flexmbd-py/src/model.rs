@@ -219,6 +219,13 @@ impl Model {
         Ok(d)
     }
 
+    /// What `flexmbd.System.compile` gave as the model's source (its class, building calls
+    /// and identity), or None.
+    #[getter]
+    fn _source(&self, py: Python<'_>) -> Option<Py<PyAny>> {
+        self.source.as_ref().map(|s| s.clone_ref(py))
+    }
+
     /// Pickling: the model is compiled again from the record of the calls that built its
     /// system (`flexmbd.System`), which gives the same model bit for bit.
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (Py<PyAny>,))> {

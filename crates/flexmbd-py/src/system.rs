@@ -115,7 +115,7 @@ impl System {
     /// The ground body (no coordinates).
     #[getter]
     fn ground(&self) -> BodyId {
-        BodyId { index: 0 }
+        BodyId::of(0)
     }
 
     /// Gravitational acceleration (m/s^2, global axes).
@@ -180,7 +180,7 @@ impl System {
             v(velocity, "velocity")?,
             v(angular_velocity, "angular_velocity")?,
         ))?;
-        Ok(BodyId { index: id.0 })
+        Ok(BodyId::of(id.0))
     }
 
     /// Adds a point mass (translation only; markers on it must be at its position).
@@ -202,7 +202,7 @@ impl System {
             v(position, "position")?,
             v(velocity, "velocity")?,
         ))?;
-        Ok(BodyId { index: id.0 })
+        Ok(BodyId::of(id.0))
     }
 
     /// Adds a marker (a frame fixed on `body`) at `position` with `orientation`, both in the
@@ -226,7 +226,7 @@ impl System {
             pos,
             optional_mat3(orientation, &item, "orientation")?,
         ))?;
-        Ok(MarkerId { index: id.0 })
+        Ok(MarkerId::of(id.0))
     }
 
     /// Spherical joint: the origins of the two markers coincide (seed eq. 21).
@@ -494,7 +494,7 @@ impl System {
             coordinate,
             law,
         ))?;
-        Ok(ForceId { index: id.0 })
+        Ok(ForceId::of(id.0))
     }
 
     /// User force: `function(t, q, q_dot)` returns the generalized force on the coordinates of
@@ -530,7 +530,7 @@ impl System {
             )
         })?;
         let id = check(self.inner.add_sensor(name.as_deref().unwrap_or(""), marker.into(), q))?;
-        Ok(SensorId { index: id.0 })
+        Ok(SensorId::of(id.0))
     }
 
     /// Checks the whole system and returns the compiled, immutable model; `flexible_bodies`
@@ -572,11 +572,11 @@ impl System {
         name: Option<String>,
     ) -> PyResult<JointId> {
         let id = check(self.inner.add_joint(name.as_deref().unwrap_or(""), kind, [m1.into(), m2.into()]))?;
-        Ok(JointId { index: id.0 })
+        Ok(JointId::of(id.0))
     }
 
     fn force(&mut self, kind: ForceKind, name: Option<String>) -> PyResult<ForceId> {
         let id = check(self.inner.add_force(name.as_deref().unwrap_or(""), kind))?;
-        Ok(ForceId { index: id.0 })
+        Ok(ForceId::of(id.0))
     }
 }
