@@ -8,10 +8,11 @@ Quantity names
 --------------
 ===========================  =================================================================
 ``energy``                   kinetic, potential and total energy (J), and in a second panel
-                             the balance with the drivers' work (drivers) or the drift
-                             E(t) - E(0) (no work done on the model)
+                             the balance with the work of the drivers and forces (work done
+                             on the model) or the drift E(t) - E(0) (none)
 ``drift``                    the drift (change) of the total energy only
-``balance``                  E(t) - E(0), the drivers' work and their difference (J)
+``balance``                  E(t) - E(0), the work of the drivers and of the forces and
+                             dampers, and their difference (J)
 ``violation``                largest |C(q, t)| of the constraint equations per record
 ``joints``                   angles (rad) and slides (m) of the joints that move
 ``bodies``                   positions of the origins of all moving bodies, one panel each
@@ -58,6 +59,7 @@ from .quantities import (
     cumulative_integral,
     deformable,
     driver_power,
+    force_work,
     joint_coordinates,
     resolve_item,
     with_unit,
@@ -183,11 +185,16 @@ def plot_energy(result: Any, ax: Any = None) -> Any:
 
 
 def _driven(result: Any) -> tuple[bool, bool]:
-    """(the model has drivers, it has applied forces that do work): spring-dampers store
-    their energy (or dissipate it); other forces and drivers do work."""
+    """(the model has drivers, forces do work on it): the recorded power of the forces no
+    potential accounts for is not zero (in results files written before it was recorded:
+    the model has forces other than spring-dampers)."""
     layout = result.layout
     drivers = any(joint["type"] in _EFFORTS for joint in layout["joints"])
-    forces = any("spring-damper" not in force["type"] for force in layout["forces"])
+    power = result.nonconservative_power
+    if len(power) and np.all(np.isnan(power)):
+        forces = any("spring-damper" not in force["type"] for force in layout["forces"])
+    else:
+        forces = bool(np.any(power[np.isfinite(power)] != 0.0))
     return drivers, forces
 
 
@@ -211,22 +218,34 @@ def plot_energy_drift(result: Any, ax: Any = None) -> Any:
 
 
 def plot_energy_balance(result: Any, ax: Any = None) -> Any:
-    """The energy balance of a driven model: the change of the total energy E(t) - E(0), the
-    work W(t) of the drivers (:func:`flexmbd.quantities.driver_work`) and their difference,
-    what neither accounts for (numerical dissipation, damping, the work of applied forces)
-    (J). The work is integrated over the records: the title says when its error (estimated
-    from every other record) is large, as when the records are too few."""
+    """The energy balance of a model that work is done on: the change of the total energy
+    E(t) - E(0), the work of the drivers (:func:`flexmbd.quantities.driver_work`), the work
+    of the forces no potential accounts for (:func:`flexmbd.quantities.force_work`: loads,
+    actuators, callback forces, dampers and structural damping), and their difference, what
+    none accounts for (the numerical dissipation of the integrator) (J). The work is
+    integrated over the records: the title says when its error (estimated from every other
+    record) is large, as when the records are too few."""
     ax = _axes(ax)
+    drivers, forces = _driven(result)
+    time = np.asarray(result.time)
     change = result.total_energy - result.total_energy[0]
-    power = driver_power(result)
-    work = cumulative_integral(result.time, power)
+    power = np.zeros(len(time))
+    ax.plot(time, change, label="E(t) - E(0)")
+    if drivers:
+        power = power + driver_power(result)
+        ax.plot(
+            time, cumulative_integral(time, driver_power(result)), "--", label="work of the drivers"
+        )
+    recorded = not np.all(np.isnan(result.nonconservative_power))
+    if forces and recorded:
+        power = power + np.nan_to_num(result.nonconservative_power)
+        ax.plot(time, force_work(result), ":", label="work of the forces\nand dampers")
+    work = cumulative_integral(time, power)
     # The error of the trapezoidal work, from the sum over every other record (Richardson).
-    coarse = cumulative_integral(result.time[::2], power[::2])
+    coarse = cumulative_integral(time[::2], power[::2])
     uncertain = float(np.max(np.abs(work[::2] - coarse))) / 3.0 if len(coarse) > 2 else 0.0
-    ax.plot(result.time, change, label="E(t) - E(0)")
-    ax.plot(result.time, work, "--", label="work of the drivers")
     rest = change - work
-    ax.plot(result.time, rest, "k", lw=1.5, label="difference")
+    ax.plot(time, rest, "k", lw=1.5, label="difference")
     reference = max(float(np.max(np.abs(work))), float(np.max(np.abs(change))))
     largest = float(np.max(np.abs(rest)))
     title = f"Energy balance: largest difference {largest:.3g} J"
@@ -234,6 +253,8 @@ def plot_energy_balance(result: Any, ax: Any = None) -> Any:
         title += f" ({largest / reference:.2g} x work)"
     if uncertain > 0.1 * largest and uncertain > 1e-6 * reference:
         title += f"\n(the work integrated over the records: +- {uncertain:.2g} J)"
+    if forces and not recorded:
+        title += "\n(the forces' work is not in this file: written before it was recorded)"
     return _finish(ax, "energy (J)", title, flatten_round_off=False)
 
 
@@ -711,14 +732,12 @@ def default_quantities(result: Any) -> list[str]:
 
 
 def _energy_panels(result: Any) -> list[Callable[[Any], Any]]:
-    """The energy, and: its balance with the drivers' work (drivers), its drift (no work
-    done on the model), or nothing more (applied forces, whose work is not recorded: the
-    total energy is on the energy panel)."""
-    drivers, forces = _driven(result)
+    """The energy, and: its balance with the work of the drivers and forces (work done on
+    the model), or its drift (none)."""
     panels = [lambda ax: plot_energy(result, ax)]
-    if drivers:
+    if any(_driven(result)):
         panels.append(lambda ax: plot_energy_balance(result, ax))
-    elif not forces:
+    else:
         panels.append(lambda ax: plot_energy_drift(result, ax))
     return panels
 
@@ -741,8 +760,12 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
         if kind == "drift":
             return [lambda ax: plot_energy_drift(result, ax)]
         if kind == "balance":
-            if not _driven(result)[0]:
-                raise UnknownItemError("the model has no drivers: no work to balance", item=kind)
+            if not any(_driven(result)):
+                raise UnknownItemError(
+                    "no driver or force does work on the model: no work to balance (its drift: "
+                    "'drift')",
+                    item=kind,
+                )
             return [lambda ax: plot_energy_balance(result, ax)]
         if kind == "violation":
             return [lambda ax: plot_constraint_violation(result, ax)]

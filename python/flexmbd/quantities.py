@@ -526,6 +526,14 @@ def cumulative_integral(time: Array, values: Array) -> Array:
     return total
 
 
+def force_work(result: Any) -> Array:
+    """The work (J) of the forces no potential energy accounts for
+    (`Result.nonconservative_power`: loads, actuators, callback forces, dampers and
+    structural damping) from the first record to each: the trapezoidal integral of their
+    power over the records. NaN for results files written before the power was recorded."""
+    return cumulative_integral(np.asarray(result.time), result.nonconservative_power)
+
+
 def driver_work(result: Any) -> Array:
     """The work (J) done by all angle and translation drivers from the first record to each
     record: the trapezoidal integral of :func:`driver_power` over the records (second order

@@ -138,6 +138,18 @@ class Result:
         return self._energy[:, 2]
 
     @property
+    def nonconservative_power(self) -> Array:
+        """Power (W), (n,), of the forces no potential energy accounts for: point forces,
+        torques, joint actuators and callback forces (their whole power Q . q_dot), the
+        dampers of the spring-dampers and the structural damping of the deformable bodies
+        (negative: dissipated). The drivers' power is apart
+        (:func:`flexmbd.quantities.driver_power`). NaN for results files written before it
+        was recorded."""
+        if self._energy.shape[1] < 4:
+            return np.full(len(self._energy), np.nan)
+        return self._energy[:, 3]
+
+    @property
     def total_energy(self) -> Array:
         """Kinetic plus potential energy (J), (n,)."""
         return self._energy[:, 0] + self._energy[:, 1]

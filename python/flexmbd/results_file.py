@@ -13,8 +13,10 @@ Datasets, time first, one row per record, extensible along the first axis (SI un
 * ``time`` (n,) s; ``coordinates``, ``velocities``, ``accelerations`` (n, coordinates);
   ``multipliers`` (n, constraints); ``reactions`` (n, joints, 6): force and torque on the
   joint's first body at its first marker, in that marker's axes; ``sensors`` (n, width);
-  ``energy`` (n, 3): kinetic, potential (strain included) and strain energy, J (files
-  written before the strain energy was recorded have (n, 2)); ``constraint_violation`` (n,).
+  ``energy`` (n, 4): kinetic, potential (strain included) and strain energy, J, and the
+  power of the forces no potential accounts for, W (`Result.nonconservative_power`; files
+  written before it was recorded have (n, 3), before the strain energy (n, 2));
+  ``constraint_violation`` (n,).
 * ``records`` (1,) int64: the number of rows that are complete. Rows are flushed to the file
   before this count is raised, so a reader trusts the count, never the dataset lengths.
 * ``statistics``, ``events``, ``redundancy`` and ``status``: JSON texts (UTF-8 bytes in
@@ -95,7 +97,7 @@ def _record_shapes(layout: dict[str, Any]) -> dict[str, tuple[int, ...]]:
         "multipliers": (m,),
         "reactions": (len(layout["joints"]), 6),
         "sensors": (width,),
-        "energy": (3,),
+        "energy": (4,),
         "constraint_violation": (),
     }
 
@@ -790,8 +792,9 @@ def _read_results(path: Path) -> Result:
         count = _record_count(file, path)
         size = path.stat().st_size
         energy = file.get("energy")
-        if isinstance(energy, h5py.Dataset) and energy.shape[1:] == (2,):
-            shapes["energy"] = (2,)  # written before the strain energy was recorded
+        if isinstance(energy, h5py.Dataset) and energy.shape[1:] in ((2,), (3,)):
+            # Written before the strain energy (2) or the power (3) was recorded.
+            shapes["energy"] = energy.shape[1:]
         raw: dict[str, Any] = {
             name: _readable_rows(file, name, count, shapes[name], size) for name in _RECORD_FIELDS
         }

@@ -293,6 +293,35 @@ pub fn evaluate_force(
     }
 }
 
+/// The power (W) of force element `force` at the state of `env` that no potential energy
+/// accounts for: the whole power Q . q_dot of loads, actuators and callback forces, the
+/// damper's of a spring-damper (whose spring's energy is in [`force_potential`]).
+pub fn nonconservative_power(force: &ForceElement, env: &ForceEnv, local: &mut ForceLocal) -> Result<f64> {
+    match &force.kind {
+        ForceKind::SpringDamper { markers, damping, .. } => {
+            local.generalized.iter_mut().for_each(|x| *x = 0.0);
+            let item = format!("force '{}'", force.name);
+            let pair = env.pair(markers);
+            spring_damper::evaluate(&item, &pair, env.time, [0.0, *damping, 0.0, 0.0], local, false)?;
+        }
+        ForceKind::RotationalSpringDamper { markers, damping, .. } => {
+            local.generalized.iter_mut().for_each(|x| *x = 0.0);
+            let reference = env.discrete[force.discrete.expect("rotational spring has a discrete state")];
+            let pair = env.pair(markers);
+            rotational_spring_damper::evaluate(
+                &pair,
+                env.time,
+                reference,
+                [0.0, *damping, 0.0, 0.0],
+                local,
+                false,
+            )?;
+        }
+        _ => evaluate_force(force, env, local, false)?,
+    }
+    Ok(force.dofs.iter().zip(&local.generalized).map(|(&d, &g)| g * env.qd[d]).sum())
+}
+
 /// Potential energy stored in a force element (springs); zero for the others.
 pub fn force_potential(force: &ForceElement, env: &ForceEnv) -> f64 {
     match &force.kind {

@@ -7,7 +7,7 @@ use crate::body::marker::marker_accelerations;
 use crate::body::{flexible, point_mass, rigid, BodyKind};
 use crate::force::gravity::gravity_potential;
 use crate::force::joint_actuator::{effort_at, ActuatedCoordinate};
-use crate::force::{force_potential, ForceKind, ForceLocal};
+use crate::force::{force_potential, nonconservative_power, ForceKind, ForceLocal};
 use crate::joint::equation::equation_value;
 use crate::joint::reaction::joint_reaction;
 use crate::system::sensor::SensorQuantity;
@@ -70,8 +70,9 @@ pub struct Redundancy {
     pub message: String,
 }
 
-/// Energies per record: kinetic, potential (strain included), strain.
-pub const ENERGY_WIDTH: usize = 3;
+/// Energies per record: kinetic, potential (strain included), strain, and the power of what
+/// stores no energy (see [`Output::energy`]).
+pub const ENERGY_WIDTH: usize = 4;
 
 /// Recorded results.
 #[derive(Clone, Debug, Default)]
@@ -100,7 +101,11 @@ pub struct Output {
     /// Offset of each sensor within a record's sensor values; last entry = record width.
     pub sensor_offsets: Vec<usize>,
     /// Kinetic energy, potential energy (gravity, springs and strain) and the strain energy
-    /// of the deformable bodies in it (records x [`ENERGY_WIDTH`]), J.
+    /// of the deformable bodies in it (J), then the power (W) of the forces no potential
+    /// accounts for: point forces, torques, actuators and callback forces, the dampers of the
+    /// spring-dampers and the structural damping of the deformable bodies (records x
+    /// [`ENERGY_WIDTH`]). The drivers' power is not in it (their efforts are multipliers).
+    /// NaN where a callback force cannot be evaluated again at the record.
     pub energy: Vec<f64>,
     /// Largest absolute position-level constraint violation per record.
     pub constraint_violation: Vec<f64>,
@@ -297,13 +302,27 @@ impl Output {
             };
             potential += gravity_potential(body, q, &model.gravity);
         }
+        let mut power: f64 = model
+            .bodies
+            .iter()
+            .map(|body| match &body.kind {
+                BodyKind::Flexible(fb) => {
+                    flexible::damping_power(fb, &qd[body.offset..body.offset + body.dofs.len()])
+                }
+                _ => 0.0,
+            })
+            .sum();
+        let mut locals = std::mem::take(&mut ws.forces);
         let env = model.force_env(state, ws);
-        for f in &model.forces {
+        for (f, local) in model.forces.iter().zip(locals.iter_mut()) {
             potential += force_potential(f, &env);
+            power += nonconservative_power(f, &env, local).unwrap_or(f64::NAN);
         }
+        ws.forces = locals;
         self.energy.push(kinetic);
         self.energy.push(potential + strain);
         self.energy.push(strain);
+        self.energy.push(power);
     }
 }
 

@@ -26,6 +26,15 @@ pub fn kinetic_energy(body: &FlexibleBody, q: &[f64], qd: &[f64], scratch: &mut 
         + 0.5 * dot(qfd, &m_qfd)
 }
 
+/// Power of the structural damping, -qf_dot^T D_ff qf_dot (W; `qd` the body's velocities).
+pub fn damping_power(body: &FlexibleBody, qd: &[f64]) -> f64 {
+    let nf = body.elastic_count;
+    let qfd = &qd[REFERENCE_COORDINATES..REFERENCE_COORDINATES + nf];
+    let mut dq = vec![0.0; nf];
+    body.damping.mul_vec_add(1.0, qfd, &mut dq);
+    -dot(qfd, &dq)
+}
+
 /// Strain energy 1/2 q_f^T K_ff q_f plus the nonlinear part of the geometric stiffness.
 pub fn strain_energy(body: &FlexibleBody, q: &[f64]) -> f64 {
     let nf = body.elastic_count;
