@@ -636,3 +636,29 @@ def test_preprocess_reads_one_reference_node_index_as_an_index(tmp_path, capsys,
     assert load_body(out).reference.free_dofs == pytest.approx(same.reference.free_dofs)
     assert main([*command, *clamped, "--reference-nodes", "5", "x"]) == 1
     assert "'x' is not a node index" in capsys.readouterr().err
+
+
+def test_bad_times_are_usage_errors_and_a_refused_run_claims_no_records(tmp_path, capsys):
+    for option, value, message in [
+        ("--step", "0", "'0': must be above zero"),
+        ("--output-interval", "-1e-3", "must be above zero"),
+        ("--end", "nan", "a time must be finite"),
+        ("--step", "fast", "'fast' is not a number of seconds"),
+    ]:
+        with pytest.raises(SystemExit) as stopped:
+            main(["run", "pendulum", f"{option}={value}", "--no-plot"])
+        assert stopped.value.code == 2 and message in capsys.readouterr().err
+    # A run refused before it starts said the earlier run's records were its own.
+    out = tmp_path / "p.h5"
+    quiet = ["--no-plot", "--no-animation", "-q", "-o", str(out)]
+    assert main(["run", "pendulum", "--end", "0.1", *quiet]) == 0
+    before = out.read_bytes()
+    capsys.readouterr()
+    assert main(["run", "pendulum", "--end", "-1", *quiet]) == 1
+    err = capsys.readouterr().err
+    assert "end time -1 is before start time 0" in err and "kept in" not in err
+    assert out.read_bytes() == before and not (tmp_path / "p.failed.h5").exists()
+    # The API refuses a step of zero before it opens the results file.
+    with pytest.raises(fm.InvalidParameterError, match="step_size must be above zero"):
+        fm.simulate(fm.examples.pendulum().system, 0.1, 0.0, results_file=tmp_path / "z.h5")
+    assert not (tmp_path / "z.h5").exists() and not (tmp_path / "z.failed.h5").exists()

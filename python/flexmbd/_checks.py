@@ -152,3 +152,28 @@ def choice(
         text = text if len(text) <= 60 else text[:57] + "..."
         raise InvalidParameterError(f"{where}{called} must be {listed}, got {text}", item=name)
     return str(value)
+
+
+def time_argument(text: str) -> float:
+    """A time (s) on the command line (an argparse type): a finite number. argparse reports
+    anything else as a usage error before the run starts."""
+    import argparse
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: a time must be finite")
+    return value
+
+
+def duration_argument(text: str) -> float:
+    """A step size or interval (s) on the command line (an argparse type): a finite number
+    above zero."""
+    import argparse
+
+    value = time_argument(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be above zero (s)")
+    return value

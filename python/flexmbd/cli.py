@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from . import __version__, _boundary
+from ._checks import duration_argument, time_argument
 from .errors import (
     FlexmbdError,
     InitialCorrectionWarning,
@@ -180,12 +181,16 @@ def _model_stem(stem: str) -> str:
     return f"{stem}_model" if stem in EXAMPLES else stem
 
 
-def _kept(error: FlexmbdError, results: Path) -> tuple[Path, int, str]:
-    """Where a stopped run's records are, how many, and up to when (from its file)."""
+def _kept(error: FlexmbdError) -> tuple[Path, int, str] | None:
+    """Where a stopped run's records are, how many, and up to when (from its file); None for
+    a run refused before it wrote any (the file of an earlier run at the same path, if any,
+    was not touched: its records are not this run's)."""
     from .results_file import read_results_metadata
 
     kept = getattr(error, "result", None)
-    where = getattr(kept, "file", None) or results
+    where = getattr(kept, "file", None)
+    if where is None:
+        return None
     try:
         count = int(read_results_metadata(where)["records"])
     except (FlexmbdError, OSError):
@@ -342,16 +347,20 @@ def _run(args: argparse.Namespace) -> int:
                 protect=(job.source,) if Path(job.source).is_file() else (),
             )
     except SimulationInterrupted as error:
-        where, count, last = _kept(error, results)
-        print(f"  interrupted: {count} records up to {last} kept in {where}", file=sys.stderr)
+        kept = _kept(error)
+        if kept is not None:
+            where, count, last = kept
+            print(f"  interrupted: {count} records up to {last} kept in {where}", file=sys.stderr)
         return 130
     except ResultsFileError as error:
         print(f"  failed: {error}", file=sys.stderr)
         return 1
     except FlexmbdError as error:
-        where, count, last = _kept(error, results)
+        kept = _kept(error)
         print(f"  failed: {error}", file=sys.stderr)
-        print(f"  {count} records up to {last} kept in {where}", file=sys.stderr)
+        if kept is not None:
+            where, count, last = kept
+            print(f"  {count} records up to {last} kept in {where}", file=sys.stderr)
         return 1
     # The records were kept only in the file (memory flat on any run length): read them.
     with status("  reading the results", enabled=not args.quiet):
@@ -984,9 +993,9 @@ def _main(argv: list[str] | None) -> int:
         help="model file (.yaml) or built-in example (flexmbd examples lists them)",
     )
     run.add_argument("-o", "--output", help="results file (default: NAME.h5)")
-    run.add_argument("--end", type=float, help="end time (s)")
-    run.add_argument("--step", type=float, help="step size (s)")
-    run.add_argument("--output-interval", type=float, help="time between records (s)")
+    run.add_argument("--end", type=time_argument, help="end time (s)")
+    run.add_argument("--step", type=duration_argument, help="step size (s)")
+    run.add_argument("--output-interval", type=duration_argument, help="time between records (s)")
     run.add_argument(
         "--start",
         choices=("given", "equilibrium", "steady-rotation"),

@@ -347,6 +347,11 @@ def simulate(
     step_size = number(step_size, "step_size")
     if output_interval is not None:
         output_interval = number(output_interval, "output_interval")
+    # Refused before a results file is opened (the core refused them after: a file of no
+    # records named .failed.h5).
+    for name, value in (("step_size", step_size), ("output_interval", output_interval)):
+        if value is not None and not value > 0.0:
+            raise InvalidParameterError(f"{name} must be above zero (s), got {value:g}", item=name)
     if not (isinstance(initial_conditions, str) and initial_conditions in ("correct", "strict")):
         raise InvalidParameterError(
             f"initial_conditions must be 'correct' or 'strict', got {initial_conditions!r}",

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .._checks import duration_argument, time_argument
 from ..errors import FlexmbdError, InvalidParameterError
 from .sampling import plain
 
@@ -86,9 +87,9 @@ def add_sweep_parser(sub: Any) -> None:
     sweep.add_argument("--workers", type=int, help="worker processes (default: CPUs)")
     sweep.add_argument("--scheduler", help="address of an existing Dask scheduler")
     sweep.add_argument("-o", "--folder", required=True, help="study folder")
-    sweep.add_argument("--end", type=float, help="end time (s)")
-    sweep.add_argument("--step", type=float, help="step size (s)")
-    sweep.add_argument("--output-interval", type=float, help="time between records (s)")
+    sweep.add_argument("--end", type=time_argument, help="end time (s)")
+    sweep.add_argument("--step", type=duration_argument, help="step size (s)")
+    sweep.add_argument("--output-interval", type=duration_argument, help="time between records (s)")
     sweep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
