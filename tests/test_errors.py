@@ -139,9 +139,9 @@ def test_bad_simulation_settings(system):
     s, _ = system
     with pytest.raises(fm.InvalidParameterError, match="end time"):
         fm.simulate(s, -1.0, 1e-3)
-    with pytest.raises(fm.InvalidParameterError, match="step size must be positive"):
+    with pytest.raises(fm.InvalidParameterError, match="step_size must be above zero"):
         fm.simulate(s, 1.0, 0.0)
-    with pytest.raises(fm.InvalidParameterError, match="output interval"):
+    with pytest.raises(fm.InvalidParameterError, match="output_interval must be above zero"):
         fm.simulate(s, 1.0, 1e-3, output_interval=-0.1)
     # Output times finer than the run can resolve (they used to hang the output clock).
     for tiny, match in ((1e-300, "time resolution"), (1e-10, "minimum step size")):
@@ -604,3 +604,28 @@ def test_a_bad_beam_orientation_names_the_element(orientation, match):
             section=fm.fe.Section.circle(0.01),
             orientation=orientation,
         )
+
+
+def test_missing_files_are_flexmbd_errors_and_file_not_found_errors(tmp_path):
+    # They were bare FileNotFoundErrors, which `except fm.FlexmbdError` let through.
+    from flexmbd.fe import load_body, read_mesh
+
+    missing = tmp_path / "nothing.h5"
+    for read in (fm.read_results, load_body, read_mesh):
+        with pytest.raises(fm.MissingFileError, match="No such .* file") as raised:
+            read(missing)
+        assert isinstance(raised.value, fm.FlexmbdError)
+        assert isinstance(raised.value, FileNotFoundError)
+        assert raised.value.filename == raised.value.item == str(missing)
+
+
+def test_straight_beam_refuses_a_fractional_element_count():
+    # straight_beam(1, 4.5) was a raw TypeError from numpy.
+    from flexmbd.fe import straight_beam
+
+    with pytest.raises(fm.InvalidParameterError, match="elements must be an integer, got 4.5"):
+        straight_beam(1.0, 4.5)
+    with pytest.raises(fm.InvalidParameterError, match="length must be a number"):
+        straight_beam("1", 3)
+    nodes, elements = straight_beam(2.0, 4)
+    assert nodes[-1].tolist() == [2.0, 0.0, 0.0] and elements["beam2"].shape == (4, 2)

@@ -103,6 +103,17 @@ class ResultsFileError(FlexmbdError, OSError):
     run's ``result`` holds what was computed. Also an ``OSError``."""
 
 
+class MissingFileError(FlexmbdError, FileNotFoundError):
+    """A file to read does not exist: a mesh, body, results, model, Nastran, OP2, OP4 or SID
+    file. ``item`` and ``filename`` are its path. Also a ``FileNotFoundError``."""
+
+    def __init__(self, what: str, path: Any):
+        FileNotFoundError.__init__(self, 2, f"No such {what}", str(path))
+        self.item = str(path)
+        self.time = None
+        self.result = None
+
+
 class SimulationError(FlexmbdError, RuntimeError):
     """A simulation failed; ``error.result`` holds the results up to the failure."""
 
@@ -199,6 +210,7 @@ __all__ = [
     "InvalidParameterError",
     "MeshQualityWarning",
     "ModelError",
+    "MissingFileError",
     "ModelFileError",
     "NewtonDivergedError",
     "ResultsFileError",

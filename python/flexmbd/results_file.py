@@ -53,7 +53,7 @@ import numpy as np
 
 from . import _core, errors
 from ._hdf5 import global_heap_damage
-from .errors import FlexmbdError, InvalidModelError, ResultsFileError
+from .errors import FlexmbdError, InvalidModelError, MissingFileError, ResultsFileError
 from .fe.body_file import copy_body_groups, read_body_group
 from .result import Result
 
@@ -546,7 +546,7 @@ def _open(path: Path, *, check: bool = True) -> h5py.File:
     at once. A file whose writer was killed is still marked as being written; the
     single-writer/multiple-reader mode reads it."""
     if check and not path.exists():
-        raise FileNotFoundError(2, "No such results file", str(path))
+        raise MissingFileError("results file", path)
     if check and not path.is_file():
         # A folder, a FIFO (whose reading would wait for a writer) or a device.
         raise InvalidModelError(

@@ -65,7 +65,13 @@ import scipy.sparse as sp
 
 from .._core import __version__
 from .._hdf5 import global_heap_damage
-from ..errors import FlexmbdError, InvalidModelError, InvalidParameterError, ModelError
+from ..errors import (
+    FlexmbdError,
+    InvalidModelError,
+    InvalidParameterError,
+    MissingFileError,
+    ModelError,
+)
 from .body import (
     BODY_DATA_VERSION,
     FlexibleBodyData,
@@ -150,7 +156,7 @@ def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
     checked before HDF5 reads them, as HDF5 loops or crashes on damaged ones.
 
     Raises:
-        FileNotFoundError: ``path`` does not exist.
+        MissingFileError: ``path`` does not exist (also a FileNotFoundError).
         InvalidModelError: ``path`` is not a flexmbd body file (not HDF5, or the ``format``
             attribute is missing or different), was written by a newer flexmbd (version
             greater than :data:`BODY_DATA_VERSION`), is damaged (truncated, a field missing,
@@ -160,7 +166,7 @@ def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:
     """
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(2, "No such body file", str(path))
+        raise MissingFileError("body file", path)
     item = f"file '{path}'"
     try:
         is_hdf5 = path.is_file() and h5py.is_hdf5(path)

@@ -38,7 +38,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from ..errors import (
+    InvalidModelError,
+    InvalidParameterError,
+    MissingFileError,
+    UnknownItemError,
+)
 from .body import ELEMENT_NODES
 
 if TYPE_CHECKING:
@@ -179,7 +184,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     The mesh is not checked: call :func:`validate_mesh`.
 
     Raises:
-        FileNotFoundError: ``path`` does not exist.
+        MissingFileError: ``path`` does not exist (also a FileNotFoundError).
         InvalidParameterError: the suffix is not one of the formats above.
         InvalidModelError: ``path`` (or an ``*INCLUDE`` file) is not a regular file once its
             links are followed (a folder, a FIFO, a device such as ``/dev/zero``, which would
@@ -193,7 +198,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
 
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(2, "No such mesh file", str(path))
+        raise MissingFileError("mesh file", path)
     _check_regular_file(path, "mesh file")
     item = f"file '{path}'"
     file_format = MESH_FORMATS.get(path.suffix.lower())
@@ -1155,7 +1160,7 @@ def read_abaqus_matrix(
         node ids in increasing order, (n_nodes,) int64; the number of coordinates per node.
 
     Raises:
-        FileNotFoundError: ``path`` does not exist.
+        MissingFileError: ``path`` does not exist (also a FileNotFoundError).
         InvalidModelError: ``path`` is not a regular file once its links are followed (a
             folder, a FIFO, a device).
         InvalidParameterError: a bad line (wrong number of fields, a node or dof that is not a

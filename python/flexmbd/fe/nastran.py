@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, UnknownItemError
+from ..errors import InvalidModelError, MissingFileError, UnknownItemError
 from ._memory import check_fits
 from .body import FlexibleBodyData
 from .mesh_io import Mesh
@@ -355,13 +355,13 @@ def read_nastran(path: str | os.PathLike[str]) -> NastranDeck:
     offsets refused). Grids may be given in CORD2R
     systems (rectangular, chained); other coordinate systems are refused.
 
-    Raises `FileNotFoundError`; `InvalidModelError` naming the file, line and card of an
+    Raises `MissingFileError`; `InvalidModelError` naming the file, line and card of an
     unknown or malformed card, a refused option, a deck that would not fit in the available
     memory (estimated before reading);
     `UnknownItemError` for a reference to an undefined grid, property or coordinate system."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(2, "No such Nastran file", str(path))
+        raise MissingFileError("Nastran file", path)
     cards = list(_cards(path, 0, [0]))
     return _deck(cards)
 
@@ -405,7 +405,7 @@ def _lines(path: Path, depth: int, size: list[int]) -> Any:
             name = name.strip().strip("'\"")
             target = (path.parent / name).resolve()
             if not target.is_file():
-                raise FileNotFoundError(2, f"{path}, line {number}: no INCLUDE file", str(target))
+                raise MissingFileError(f"INCLUDE file ({path}, line {number})", target)
             yield from _lines(target, depth + 1, size)
             continue
         if not line.strip() or line.lstrip().startswith("$"):
@@ -826,11 +826,11 @@ def read_op4(path: str | os.PathLike[str]) -> dict[str, tuple[int, Any]]:
     to the body's coordinates (for example with a DMIG or USET table) before
     `body_from_matrices`.
 
-    Raises `FileNotFoundError`; `InvalidModelError` naming the file and line of a malformed
+    Raises `MissingFileError`; `InvalidModelError` naming the file and line of a malformed
     header or record, a binary file (write the OP4 with ``FORMATTED``) or a complex matrix."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(2, "No such OP4 file", str(path))
+        raise MissingFileError("OP4 file", path)
     check_fits(path, path.stat().st_size, MEMORY_PER_BYTE, "OP4 file")
     raw = path.read_bytes()
     if b"\x00" in raw[:4096]:

@@ -54,7 +54,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from ..errors import (
+    InvalidModelError,
+    InvalidParameterError,
+    MissingFileError,
+    UnknownItemError,
+)
 from ._memory import check_fits
 from .body import FlexibleBodyData, _replace
 
@@ -184,7 +189,7 @@ def read_op2(path: str | os.PathLike[str], subcase: int | None = None) -> Op2Res
     Nastran OP2 file (see the module docstring). With several subcases of eigenvectors,
     `subcase` picks one.
 
-    Raises `FileNotFoundError`; `InvalidModelError` naming the file, the table and the byte
+    Raises `MissingFileError`; `InvalidModelError` naming the file, the table and the byte
     offset of a malformed record (a truncated file, a record whose byte counts differ, an
     unexpected marker), of complex, SORT2, random or buckling eigenvectors, of a file without
     eigenvectors or eigenvalues, and of a file that would not fit in the available memory
@@ -192,7 +197,7 @@ def read_op2(path: str | os.PathLike[str], subcase: int | None = None) -> Op2Res
     file."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(2, "No such OP2 file", str(path))
+        raise MissingFileError("OP2 file", path)
     check_fits(path, path.stat().st_size, MEMORY_PER_BYTE, "OP2 file")
     reader = _Reader(path, path.read_bytes())
     return reader.results(subcase)

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
-from .._checks import choice, flag, id_text, integer, integers_array
+from .._checks import choice, flag, id_text, integer, integers_array, number
 from ..errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -201,6 +201,8 @@ def straight_beam(
     direction: ArrayLike = (1.0, 0.0, 0.0),
 ) -> tuple[NDArray[np.float64], dict[str, NDArray[np.int64]]]:
     """Nodes and "beam2" connectivity of a straight beam of `elements` equal elements."""
+    elements = integer(elements, "elements")
+    length = number(length, "length")
     if elements < 1 or not length > 0:
         raise InvalidParameterError(
             f"a beam needs length > 0 and at least one element, got {length}, {elements}"

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, UnknownItemError
+from ..errors import InvalidModelError, MissingFileError, UnknownItemError
 from ._memory import check_fits
 from .body import FlexibleBodyData
 
@@ -168,7 +168,7 @@ def read_sid(path: str | os.PathLike[str]) -> FlexibleBodyData:
     file's modal coordinates, with its nodes (ids from ``new node = ID``, or their order)
     for markers, and its damping where ``De`` is Rayleigh or modal.
 
-    Raises `FileNotFoundError`, and `InvalidModelError` naming the file and line of a syntax
+    Raises `MissingFileError`, and `InvalidModelError` naming the file and line of a syntax
     error, or the field that is missing or inconsistent."""
     return load_sid_data(path).to_body(source=str(path))
 
@@ -177,7 +177,7 @@ def load_sid_data(path: str | os.PathLike[str]) -> SidData:
     """The content of a SID file as :class:`SidData` (see :func:`read_sid`)."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(2, "No such SID file", str(path))
+        raise MissingFileError("SID file", path)
     check_fits(path, path.stat().st_size, MEMORY_PER_BYTE, "SID file")
     return _Parser(path).parse()
 
