@@ -20,6 +20,20 @@ def system():
     return s, body
 
 
+def test_inertia_no_body_has_is_warned_of_and_flat_bodies_are_not(recwarn):
+    # The largest principal moment above the sum of the others was taken silently.
+    with pytest.warns(fm.InertiaWarning, match=r"body 'wheel': .* 0.5 exceeds .* other two 0.2"):
+        fm.System().add_rigid_body(1.0, (0.1, 0.1, 0.5), name="wheel")
+    turned = [[3.0, 0.0, 0.0], [0.0, 0.5, 0.4], [0.0, 0.4, 0.5]]  # moments 3, 0.9, 0.1
+    with pytest.warns(fm.InertiaWarning, match=r"body 1: .* 3 exceeds .* other two 1\b"):
+        fm.System().add_rigid_body(1.0, turned)
+    recwarn.clear()
+    # A disc (I, I, 2 I) sits on the bound; its moments rounded to four digits cross it.
+    fm.System().add_rigid_body(1.0, (0.1235, 0.1235, 0.2471))
+    fm.System().add_rigid_body(1.0, (1e-6, 0.5, 0.5))  # a slender rod
+    assert not [w for w in recwarn if issubclass(w.category, fm.InertiaWarning)]
+
+
 @pytest.mark.parametrize(
     "kwargs, match",
     [

@@ -189,6 +189,14 @@ class StepSizeWarning(UserWarning):
     event; give a longer output interval, or none, to step as asked."""
 
 
+class InertiaWarning(UserWarning):
+    """A rigid body's inertia that no mass distribution has: its largest principal moment
+    exceeds the sum of the other two (I_3 = int x^2 + y^2 dm <= I_1 + I_2), by more than
+    :data:`flexmbd.system.INERTIA_TRIANGLE_TOLERANCE` of it (flat bodies sit on the bound, and
+    values rounded to a few digits cross it by a little). The motion is computed all the
+    same; such data is usually mistyped, or about another point than the centre of mass."""
+
+
 class MeshQualityWarning(UserWarning):
     """Elements the preprocessor accepts but that give poor or misleading results: quadrilateral
     shells warped out of their mean plane by more than
@@ -205,6 +213,7 @@ __all__ = [
     "FlexmbdError",
     "FrozenBodyError",
     "InitialConditionsError",
+    "InertiaWarning",
     "InitialCorrectionWarning",
     "InvalidModelError",
     "InvalidParameterError",

@@ -462,6 +462,33 @@ class System(_core.System):
                     return kwargs.get("angle", kwargs.get("displacement"))
         raise UnknownItemError(f"no driver named {name!r}", item=name)
 
+    def add_rigid_body(
+        self,
+        mass: float,
+        inertia: ArrayLike,
+        *,
+        center_of_mass: ArrayLike | None = None,
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        velocity: ArrayLike | None = None,
+        angular_velocity: ArrayLike | None = None,
+        name: str | None = None,
+    ) -> _core.BodyId:
+        body = super().add_rigid_body(
+            mass,
+            inertia,
+            center_of_mass=center_of_mass,
+            position=position,
+            orientation=orientation,
+            velocity=velocity,
+            angular_velocity=angular_velocity,
+            name=name,
+        )
+        _check_inertia(inertia, f"body {name!r}" if name else f"body {body.index}")
+        return body
+
+    add_rigid_body.__doc__ = _core.System.add_rigid_body.__doc__
+
     def add_flexible_body(
         self,
         body: FlexibleBodyData,
@@ -753,6 +780,34 @@ class System(_core.System):
 
 #: A building call: (method name, positional arguments, keyword arguments).
 _Call = tuple[str, tuple[Any, ...], dict[str, Any]]
+
+
+#: How far (relative to the largest principal moment) the largest may exceed the sum of the
+#: other two before a rigid body's inertia is warned of (:class:`flexmbd.InertiaWarning`).
+INERTIA_TRIANGLE_TOLERANCE = 1e-3
+
+
+def _check_inertia(inertia: ArrayLike, item: str) -> None:
+    """Warns of principal moments that no mass distribution has (the core checked the rest:
+    three moments or a symmetric 3 x 3 matrix, positive definite)."""
+    import warnings
+
+    from .errors import InertiaWarning
+
+    values = np.asarray(inertia, dtype=float)
+    tensor = np.diag(values) if values.shape == (3,) else values.reshape(3, 3)
+    moments = np.linalg.eigvalsh(0.5 * (tensor + tensor.T))
+    largest, others = moments[-1], moments[0] + moments[1]
+    if largest - others > INERTIA_TRIANGLE_TOLERANCE * largest:
+        warnings.warn(
+            InertiaWarning(
+                f"{item}: the largest principal moment of inertia {largest:.6g} exceeds the sum "
+                f"of the other two {others:.6g}: no mass distribution has these moments "
+                "(I_1 + I_2 >= I_3); a value is mistyped, or about another point than the "
+                "centre of mass. The motion is computed with them all the same"
+            ),
+            stacklevel=4,  # the caller of System.add_rigid_body (through its recording)
+        )
 
 
 #: The ids a System returns.
