@@ -13,7 +13,7 @@ use crate::formulation::recursive::{
     tree_joint_accelerations, BodyInfluence, SparseJointSpace, StructuredState, Tree,
 };
 use crate::integrator::settings::{ExplicitSettings, Strategy};
-use crate::linalg::partition::{minimum_norm_solve, Partition};
+use crate::linalg::partition::{minimum_norm_solve, partition, Partition};
 use crate::output::Output;
 use crate::system::{Model, State, Workspace};
 
@@ -230,7 +230,30 @@ impl<'a> Engine<'a> {
             self.singular_limit,
             &mut self.qdd,
         );
-        if result.map_err(|detail| self.singular(time, detail))? {
+        let mut null_space = result.map_err(|detail| self.singular(time, detail))?;
+        if null_space && !self.settings.uses_coordinates() && self.settings.independent.is_none() {
+            // Integrating all coordinates, the partition only pivots this solve. Chosen at the
+            // start, its dependent block grows ill-conditioned as the mechanism moves far from
+            // there (an open chain swinging through a quarter turn), with no singular
+            // configuration: a fresh partition serves then, and the null-space method (and its
+            // event) is left to configurations that no partition resolves.
+            let fresh =
+                partition(self.eq.jacobian.as_ref(), self.settings.partition, self.settings.rank_tolerance);
+            if fresh.rank == self.partition.rank && fresh.condition <= self.singular_limit {
+                self.partition = fresh;
+                null_space = self
+                    .eq
+                    .accelerations(
+                        &self.partition,
+                        self.settings.formulation,
+                        &self.gamma,
+                        self.singular_limit,
+                        &mut self.qdd,
+                    )
+                    .map_err(|detail| self.singular(time, detail))?;
+            }
+        }
+        if null_space {
             self.singular_evaluations += 1;
         }
         Ok(())
