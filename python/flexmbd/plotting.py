@@ -594,6 +594,9 @@ def plot_sensor(result: Any, sensor: object, ax: Any = None) -> Any:
 RECORDS_PER_PERIOD = 5
 #: Modal amplitude (relative to the largest) above which a mode counts as present.
 MODE_PRESENT = 0.01
+#: Motion of the modal coordinates over the run (their standard deviation, relative to their
+#: largest value) below which a body counts as at rest: round-off, no vibration to sample.
+STILL = 1e-9
 #: Largest number of elastic coordinates whose modes :func:`sampling_notes` computes.
 SAMPLING_MODES_LIMIT = 600
 
@@ -625,7 +628,9 @@ def _present_frequency(result: Any, body: int, data: Any) -> float | None:
     modal = np.asarray(result.elastic_coordinates(body)) @ projection
     rates = np.asarray(result.elastic_velocities(body)) @ projection
     largest = float(modal.std(axis=0).max())
-    if largest <= 0.0:
+    # A body at rest (a static run, or one started in equilibrium) moves by round-off only,
+    # against which any mode would count as present.
+    if largest <= STILL * float(np.abs(modal).max()) or largest <= 0.0:
         return None
     # A mode vibrating at its own frequency w moves its coordinate by about rms(rate) / w; a
     # mode that only follows the slow loads (quasi-statically) has a much smaller rate.
