@@ -613,6 +613,19 @@ def test_summaries_show_the_round_off_of_components_at_zero_as_zero():
     )
 
 
+def test_summaries_of_a_static_run_give_no_time_of_the_largest_value():
+    # A cantilever held in equilibrium: "largest magnitude 0.0238 m at t = 0.002 s", the time
+    # that round-off picked.
+    from flexmbd.quantities import summarize
+
+    times = np.linspace(0.0, 0.01, 11)
+    tip = np.array([0.0, -0.0238095, 0.0]) * (1.0 + 1e-14 * np.sin(np.arange(11)))[:, None]
+    assert summarize(tip, times, "deflection", "m") == "magnitude 0.0238095 m throughout"
+    assert summarize(np.full(11, 2.0), times, None, "J") == "2 J throughout"
+    moving = summarize(np.linspace(0.0, 1.0, 11), times, None, "J")
+    assert moving == "smallest 0 J at t = 0 s, largest 1 J at t = 0.01 s"
+
+
 def test_preprocess_reads_one_reference_node_index_as_an_index(tmp_path, capsys, assert_close):
     # "--reference-nodes 5" was taken for a node set named '5'; several indices were not.
     from flexmbd.fe.body_file import load_body

@@ -168,6 +168,18 @@ def summarize(values: Any, times: Any, quantity: str | None, unit: str) -> str:
     times = np.asarray(times, dtype=float)
     kind = SUMMARIES.get(str(quantity), "extremes" if values.shape[1] == 1 else "magnitude")
     u = f" {unit}" if unit else ""
+    # A history that does not change but by round-off (a static run) has no time of its
+    # largest value: its round-off picked one.
+    spread = np.ptp(values, axis=0) if len(values) else np.zeros(values.shape[1])
+    constant = len(values) > 1 and bool(
+        np.all(spread <= 1e-9 * float(np.max(np.abs(values), initial=0.0)))
+    )
+
+    def largest(what: str, value: float, k: int) -> str:
+        if constant:
+            return f"{what} {value:.6g}{u} throughout"
+        return f"largest {what} {value:.6g}{u} at t = {times[k]:.6g} s".replace("  ", " ")
+
     if kind == "range":
         # Round-off of components that stay at zero (a planar model's z: 1e-60) shown as 0.
         scale = float(np.max(np.abs(values), initial=0.0))
@@ -184,8 +196,10 @@ def summarize(values: Any, times: Any, quantity: str | None, unit: str) -> str:
         # Vectors (several for node outputs): the largest length of any of them.
         size = np.linalg.norm(values.reshape(len(times), -1, 3), axis=2).max(axis=1)
         k = int(np.argmax(size))
-        return f"largest magnitude {size[k]:.6g}{u} at t = {times[k]:.6g} s"
+        return largest("magnitude", size[k], k)
     if kind == "extremes" and values.shape[1] == 1:
+        if constant:
+            return f"{values[0, 0]:.6g}{u} throughout"
         low, high = int(np.argmin(values[:, 0])), int(np.argmax(values[:, 0]))
         return (
             f"smallest {values[low, 0]:.6g}{u} at t = {times[low]:.6g} s, largest "
@@ -193,10 +207,10 @@ def summarize(values: Any, times: Any, quantity: str | None, unit: str) -> str:
         )
     if kind == "largest":
         k = int(np.argmax(values.max(axis=1)))
-        return f"largest {values[k].max():.6g}{u} at t = {times[k]:.6g} s"
+        return largest("", values[k].max(), k).strip()
     size = np.abs(values).max(axis=1)
     k = int(np.argmax(size))
-    return f"largest |value| {size[k]:.6g}{u} at t = {times[k]:.6g} s"
+    return largest("|value|", size[k], k)
 
 
 def resolve_item(result: Any, kind: str, text: str) -> object:
