@@ -92,6 +92,9 @@ def test_ids_of_another_system_are_refused():
     with pytest.raises(fm.UnknownItemError, match="this result: BodyId.1. is body 'a'"):
         result.position(a)
     assert result.position(x).shape == result.position("x").shape == (11, 3)
+    for state in (result.state(-1), fm.State.of_model(second)):
+        with pytest.raises(fm.UnknownItemError, match="this state: BodyId.1. is body 'a'"):
+            state.position(a)
 
     # A system built alike (the same builder called twice) takes the other's ids.
     def build():

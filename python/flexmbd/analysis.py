@@ -27,6 +27,7 @@ from .errors import EquilibriumError, FreeMotionError, InvalidModelError, Invali
 from .rotation import angular_velocity
 from .state import EquilibriumState, State
 from .state_space import PointLoad, StateSpace, input_forces, output_rows
+from .system import identity_of
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -638,6 +639,7 @@ def equilibrium(
             item="redundant_constraints",
         )
     state = _equilibrium(model, time, coordinates, tolerance, max_iterations, stable)
+    state = dataclasses.replace(state, system_identity=identity_of(model))
     return _redundancy_handled(model, state, redundant_constraints)
 
 
@@ -1245,5 +1247,6 @@ def linearize_at_rest(
         np.zeros(nc),
         layout=model.describe(),
         flexible=model.flexible_bodies,
+        system_identity=identity_of(model),
     )
     return linearize(system, state, inputs=inputs, outputs=outputs)

@@ -115,6 +115,7 @@ class Result:
             self.multipliers[index],
             layout=self.layout,
             flexible=self.flexible,
+            system_identity=self.system_identity,
         )
 
     # Energies -------------------------------------------------------------------------
@@ -155,6 +156,9 @@ class Result:
         return self._energy[:, 0] + self._energy[:, 1]
 
     # Lookups ---------------------------------------------------------------------------
+    #: What the lookups' errors call this (a `State`'s one-record view: "this state").
+    _described_as = "this result"
+
     def _lookup(self, kind: str, item: object, id_type: type) -> tuple[int, dict[str, Any]]:
         entries = self.layout[kind]
         singular = _SINGULAR.get(kind, kind)
@@ -165,7 +169,7 @@ class Result:
                 return entries[item.index]["name"] if item.index < len(entries) else None
 
             if stray_id(self.system_identity, item, name_here) is not None:
-                raise stray_id_error(item, "this result", name_here(item))
+                raise stray_id_error(item, self._described_as, name_here(item))
             index = item.index  # type: ignore[attr-defined]
         elif isinstance(item, int | np.integer):
             index = int(item)

@@ -60,6 +60,8 @@ class State:
             None.
         layout: the model's description (``Model.describe()``), which the accessors use.
         flexible: body index -> the `FlexibleBodyData` of its deformable bodies.
+        system_identity: that of the System the model was compiled from: the accessors refuse
+            the ids of another system that name other items there (see ``Result``).
 
     The accessors take a body as a ``BodyId``, an index or a name, and give the values of
     ``Result``'s accessors of the same name at this one time (without the time axis).
@@ -72,6 +74,8 @@ class State:
     multipliers: Array | None = None
     layout: dict[str, Any] | None = field(default=None, repr=False, compare=False)
     flexible: dict[int, Any] = field(default_factory=dict, repr=False, compare=False)
+    #: The identity of the System of the model (`Result.system_identity`), or None.
+    system_identity: int | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("coordinates", "velocities", "accelerations", "multipliers"):
@@ -87,6 +91,8 @@ class State:
     @classmethod
     def of_model(cls, model: _core.Model | _core.System, time: float = 0.0) -> State:
         """The model's initial state as given (before the constraints are enforced)."""
+        from .system import identity_of
+
         if isinstance(model, _core.System):
             model = model.compile()
         return cls(
@@ -95,6 +101,7 @@ class State:
             model.initial_velocities,
             layout=model.describe(),
             flexible=model.flexible_bodies,
+            system_identity=identity_of(model),
         )
 
     def _view(self) -> Any:
@@ -123,7 +130,10 @@ class State:
             "sensors": zeros,
             "energy": np.zeros((1, 3)),
         }
-        return Result(raw, self.layout, flexible=self.flexible)
+        view = Result(raw, self.layout, flexible=self.flexible)
+        view.system_identity = self.system_identity
+        view._described_as = "this state"
+        return view
 
     # Bodies ----------------------------------------------------------------------------
     def position(self, body: object) -> Array:
