@@ -229,6 +229,30 @@ def test_rbe2_needs_a_rigid_set_and_craig_bampton_modes_keep_it():
             system.add_node_set_marker(ids[name], "x1", coupling="rbe2")
 
 
+@pytest.mark.parametrize("kind", ["rbe2", "rbe3"])
+def test_craig_bampton_bodies_do_not_depend_on_the_length_unit(kind, assert_close):
+    """The same link in metres and shrunk 1000-fold (a millimetre part given in metres): the
+    interface rotations weigh 1e-6 of the translations in M there, and must still count. The
+    frequencies scale as 1 / length (same material), the coordinate count not at all."""
+    mesh = shapes.box((0.3, 0.04, 0.02), (10, 2, 2), "hex8")
+    frequencies = {}
+    for scale in (1.0, 1e-3):
+        body = build_body(
+            mesh.nodes * scale,
+            mesh.elements,
+            STEEL,
+            node_sets=mesh.node_sets,
+            reference="interface",
+            modes="craig-bampton",
+            mode_count=4,
+            interfaces=["x0", "x1"],
+            interface_kind=kind,
+        )
+        assert body.elastic_coordinate_count == 4 + 6, scale
+        frequencies[scale] = body.frequencies * scale
+    assert_close(frequencies[1e-3], frequencies[1.0], rel=1e-6, what="frequency x length")
+
+
 def test_craig_bampton_averaged_interfaces_use_the_weights_of_the_markers(assert_close):
     mesh = graded_box("tet10")
     body = build_body(

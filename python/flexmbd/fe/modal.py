@@ -638,11 +638,19 @@ def _orthonormal_diagonal(
     basis: NDArray[np.float64], k: sp.spmatrix, m: sp.spmatrix
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """M-orthonormalizes a basis (dropping dependent directions) and diagonalizes the reduced
-    stiffness: returns the modes and their eigenvalues."""
+    stiffness: returns the modes and their eigenvalues.
+
+    Each column is first scaled to unit M-norm, so that dependence is judged independently of
+    the columns' units: the rotations of a millimetre-sized interface (metres per radian) weigh
+    1e-6 of its translations in M and must not read as dependent on them."""
     mb = basis.T @ (m @ basis)
+    norms = np.sqrt(np.clip(np.diag(mb), 0.0, None))
+    live = norms > 1e-150 * max(norms.max(initial=0.0), 1e-300)
+    basis, norms = basis[:, live], norms[live]
+    mb = mb[np.ix_(live, live)] / np.outer(norms, norms)
     w, v = np.linalg.eigh(0.5 * (mb + mb.T))
     keep = w > 1e-10 * w.max()
-    basis = basis @ (v[:, keep] / np.sqrt(w[keep]))
+    basis = basis @ ((v[:, keep] / np.sqrt(w[keep])) / norms[:, None])
     kr = basis.T @ (k @ basis)
     values, vectors = np.linalg.eigh(0.5 * (kr + kr.T))
     return basis @ vectors, values
