@@ -168,6 +168,38 @@ def test_a_steady_rotation_start_has_no_transient_and_is_the_rotating_rod_soluti
     assert given.node_displacements(rod, [tip])[:, 0, 0].max() > 1.5 * stretch
 
 
+def test_bodies_on_free_hinges_of_a_turning_hub_turn_with_it(assert_close):
+    # A hub turning at W about z carries a bob on a free hinge (axis z) at radius R; a
+    # second pendulum hangs from the ground apart. In the steady rotation the bob turns
+    # rigidly with the hub (the minimum-norm velocities turned it backwards at -1.15 rad/s,
+    # and the run swung it by 37 degrees), and the pendulum apart stays at rest.
+    radius, arm, speed = 0.3, 0.1, 10.0
+    system = fm.System()
+    hub = system.add_rigid_body(10.0, (0.1, 0.1, 0.2), name="hub")
+    ground, axis = system.add_marker(system.ground), system.add_marker(hub)
+    system.add_revolute_joint(ground, axis, name="bearing")
+    system.add_angle_driver(ground, axis, fm.Polynomial([0.0, speed]), name="spin")
+    bob = system.add_rigid_body(0.5, (1e-6, 1e-6, 1e-6), position=(radius + arm, 0, 0), name="bob")
+    pivot = system.add_marker(hub, position=(radius, 0, 0))
+    system.add_revolute_joint(pivot, system.add_marker(bob, position=(-arm, 0, 0)), name="pivot")
+    apart = system.add_rigid_body(1.0, (0.1, 0.1, 0.1), position=(0, 5, 0), name="apart")
+    system.add_revolute_joint(system.add_marker(system.ground, position=(0, 5.5, 0)),
+                              system.add_marker(apart, position=(0, 0.5, 0)))  # fmt: skip
+    state = fm.steady_rotation(system)
+    reach = radius + arm
+    assert_close(state.angular_velocity("bob"), (0, 0, speed), abs=1e-12 * speed, what="bob spin")
+    assert_close(state.velocity("bob"), (0, speed * reach, 0), abs=1e-12, what="bob velocity")
+    offset = system.compile().describe()["bodies"][2]["offset"]
+    assert_close(state.accelerations[offset : offset + 3], (-(speed**2) * reach, 0, 0),
+                 abs=1e-10, what="centripetal acceleration")  # fmt: skip
+    assert_close(state.velocity("apart"), 0.0, abs=1e-15, what="pendulum apart")
+    assert_close(state.angular_velocity("apart"), 0.0, abs=1e-15, what="pendulum apart")
+    result = fm.simulate(system, 0.3, 1e-3, initial_state=state, output_interval=0.05)
+    relative = np.einsum("kji,kjl->kil", result.orientation("hub"), result.orientation("bob"))
+    assert_close(np.arctan2(relative[:, 1, 0], relative[:, 0, 0]), 0.0, abs=1e-4,
+                 what="bob's angle on the hub")  # fmt: skip
+
+
 def test_steady_rotation_needs_a_turning_driver_at_constant_speed():
     model, _, _ = rotating_rod(0.0, elements=4)
     with pytest.raises(InvalidModelError, match="no driver moves"):

@@ -60,22 +60,120 @@ def _matrix(ev: dict[str, Any]) -> sp.csc_matrix:
 def _prescribed_rates(
     model: _core.Model, time: float, q: Array, rigid: NDArray[np.bool_]
 ) -> tuple[Array, Array]:
-    """Velocities and accelerations of the prescribed motion at q: the minimum-norm solutions
-    of C_q q_dot = -C_t and C_q q_dd = gamma over the non-elastic coordinates (elastic
-    coordinates at rest)."""
+    """Velocities and accelerations of the prescribed motion at q (elastic coordinates at
+    rest): the solutions of C_q q_dot = -C_t and C_q q_dd = gamma over the non-elastic
+    coordinates nearest the steady motion of `_carried_rates`: the bodies that a moving
+    driver carries move rigidly with its driven body (a bob on a free hinge of a turning hub
+    turns with the hub, where the minimum-norm solution turned it backwards), the others
+    nearest rest."""
     nq = model.coordinate_count
     zero_q = np.zeros(nq)
     zero_l = np.zeros(model.constraint_count)
     ev = model.evaluate(time, q, zero_q, zero_q, zero_l, position=1.0)
     cq = _matrix(ev)[nq:, :nq].toarray()[:, rigid]
     qd = np.zeros(nq)
-    if np.any(ev["constraint_rate"] != 0.0):
-        qd[rigid] = np.linalg.lstsq(cq, -ev["constraint_rate"], rcond=None)[0]
     qdd = np.zeros(nq)
-    if np.any(qd != 0.0):
-        gamma = model.evaluate(time, q, qd, zero_q, zero_l)["gamma"]
-        qdd[rigid] = np.linalg.lstsq(cq, gamma, rcond=None)[0]
+    if not np.any(ev["constraint_rate"] != 0.0):
+        return qd, qdd
+    qd[rigid] = np.linalg.lstsq(cq, -ev["constraint_rate"], rcond=None)[0]
+    gamma = model.evaluate(time, q, qd, zero_q, zero_l)["gamma"]
+    qdd[rigid] = np.linalg.lstsq(cq, gamma, rcond=None)[0]
+    carried = _carried_rates(model.describe(), ev["constraint_rate"], q, qd, qdd)
+    if carried is None:
+        return qd, qdd
+    target_qd, target_qdd = carried
+    qd = target_qd.copy()
+    qd[~rigid] = 0.0
+    correction = -ev["constraint_rate"] - cq @ qd[rigid]
+    qd[rigid] += np.linalg.lstsq(cq, correction, rcond=None)[0]
+    gamma = model.evaluate(time, q, qd, zero_q, zero_l)["gamma"]
+    qdd = target_qdd.copy()
+    qdd[~rigid] = 0.0
+    qdd[rigid] += np.linalg.lstsq(cq, gamma - cq @ qdd[rigid], rcond=None)[0]
     return qd, qdd
+
+
+def _carried_rates(
+    layout: dict[str, Any], rate: Array, q: Array, qd: Array, qdd: Array
+) -> tuple[Array, Array] | None:
+    """The rates of the reference coordinates with which the bodies each moving driver carries
+    move rigidly with its driven body (None when no body is carried but the driven ones).
+
+    A driver's driven body is that of its second marker (its first when the second is on the
+    ground); the bodies it carries are those joined to it by joints other than drivers,
+    without passing through the ground or the driver's other body. The driven body's twist
+    (velocity, angular velocity and their rates) is read from `qd`, `qdd` (the minimum-norm
+    rates, exact for a body the constraints move fully); the twists of nested drivers add.
+    """
+    bodies, markers, joints = layout["bodies"], layout["markers"], layout["joints"]
+    ground = {i for i, b in enumerate(bodies) if b["kind"] == "ground"}
+    links: dict[int, set[int]] = {i: set() for i in range(len(bodies))}
+    for joint in joints:
+        if "driver" not in joint["type"]:
+            a, b = (markers[m]["body"] for m in joint["markers"])
+            links[a].add(b)
+            links[b].add(a)
+    twists: dict[int, list[tuple[int, int]]] = {}
+    carried_any = False
+    for joint in joints:
+        rows = slice(joint["row"], joint["row"] + len(joint["equations"]))
+        if "driver" not in joint["type"] or not np.any(rate[rows] != 0.0):
+            continue
+        other, driven = (markers[m]["body"] for m in joint["markers"])
+        if driven in ground:
+            other, driven = driven, other
+        if driven in ground or driven == other:
+            continue
+        seen, stack = {driven}, [driven]
+        while stack:
+            for nxt in links[stack.pop()]:
+                if nxt not in seen and nxt not in ground and nxt != other:
+                    seen.add(nxt)
+                    stack.append(nxt)
+        carried_any |= len(seen) > 1
+        for body in seen:
+            twists.setdefault(body, []).append((driven, joint["row"]))
+    if not carried_any:
+        return None
+
+    def twist(body: int) -> tuple[Array, Array, Array, Array, Array]:
+        """Origin, velocity, angular velocity and their rates of a body's reference frame."""
+        o = bodies[body]["offset"]
+        r, v, a = q[o : o + 3], qd[o : o + 3], qdd[o : o + 3]
+        if bodies[body]["count"] < 7:
+            return r, v, a, np.zeros(3), np.zeros(3)
+        p, pd, pdd = q[o + 3 : o + 7], qd[o + 3 : o + 7], qdd[o + 3 : o + 7]
+        # Global omega = 2 E(p) p_dot; its rate 2 E(p) p_dd (E(p_dot) p_dot = 0).
+        return r, v, a, angular_velocity(p, pd), angular_velocity(p, pdd)
+
+    target_qd, target_qdd = qd.copy(), qdd.copy()
+    for body, sources in twists.items():
+        o, count = bodies[body]["offset"], bodies[body]["count"]
+        if count < 3:
+            continue
+        r = q[o : o + 3]
+        v, a, w, alpha = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+        for driven, _ in sources:
+            r_d, v_d, a_d, w_d, alpha_d = twist(driven)
+            d = r - r_d
+            v += v_d + np.cross(w_d, d)
+            a += a_d + np.cross(alpha_d, d) + np.cross(w_d, np.cross(w_d, d))
+            w += w_d
+            alpha += alpha_d
+        target_qd[o : o + 3], target_qdd[o : o + 3] = v, a
+        if count >= 7:
+            p = q[o + 3 : o + 7]
+            pd = _euler_rates(p, w)
+            target_qd[o + 3 : o + 7] = pd
+            target_qdd[o + 3 : o + 7] = _euler_rates(pd, w) + _euler_rates(p, alpha)
+    return target_qd, target_qdd
+
+
+def _euler_rates(p: Array, omega: Array) -> Array:
+    """1/2 E(p)^T omega: the Euler-parameter rates of the global angular velocity omega (and,
+    with p_dot for p, the part of p_dd that omega's own rate leaves out)."""
+    e0, e = p[0], p[1:]
+    return 0.5 * np.concatenate([[-e @ omega], e0 * omega - np.cross(e, omega)])
 
 
 #: Largest violation of a driver's equations at the start of `equilibrium` (rad or m): beyond
@@ -853,8 +951,10 @@ def steady_rotation(
 ) -> EquilibriumState:
     """The steady rotation of a rotor at `time`: the drivers turn at their speed at `time`
     (at least one must turn, none may accelerate), the elastic coordinates are at rest in the
-    centrifugally stretched (and gravity-loaded) state, with the velocities of that spin.
-    This is :func:`equilibrium` with its preconditions checked; `options` are its options.
+    centrifugally stretched (and gravity-loaded) state, with the velocities of that spin:
+    the bodies a driver carries (joined to its driven body by other joints, as a bob on a free
+    hinge of a turning hub) move rigidly with the driven body, the others rest. This is
+    :func:`equilibrium` with its preconditions checked; `options` are its options.
     Raises `InvalidModelError` naming the driver that accelerates, or when nothing turns."""
     model = _model(model)
     time = number(time, "time")
