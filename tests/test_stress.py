@@ -90,9 +90,33 @@ def test_section_forces_and_chord_deflection_from_a_simulation(assert_close):
     w = 7800.0 * 0.04 * 0.02 * 9.81
     root_moment = abs(forces[-1, 0, 0, 4])
     assert_close(root_moment, w / 2 - w / 6**2 / 12, rel=1e-4, what="root bending moment")
-    stresses = result.stresses(beam, records=[-1])
-    assert stresses.shape == (1, 7, 6) and not np.any(stresses)  # no solid elements
+    # A beam has no nodal stress tensor: asking for one is an error that points to the
+    # section forces (it was a table of zeros), as are records that are not there.
+    with pytest.raises(fm.InvalidParameterError, match="no solid or shell.*section_forces"):
+        result.stresses(beam, records=[-1])
+    with pytest.raises(fm.InvalidParameterError, match="no shell elements"):
+        result.shell_stresses(beam)
+    n = len(result.time)
+    assert result.section_forces(beam, records=[-n, n - 1]).shape == (2, 6, 2, 6)
+    for records in ([n], [-n - 1], 0.5, ["last"]):
+        with pytest.raises(fm.InvalidParameterError, match="records"):
+            result.section_forces(beam, records=records)
+    for chord in ((1, 1), (1,), "17", (1, 2.5)):
+        with pytest.raises(fm.InvalidParameterError, match="chord"):
+            result.deflection(beam, 4, chord=chord)
     # The chord from the root to the tip: the middle node's deflection is perpendicular to it.
     d = result.deflection(beam, 4, chord=(1, 7))
     assert d.shape == (len(result.time), 3)
     assert abs(d[-1, 2]) > 1e-5
+
+
+def test_a_solid_has_no_section_forces():
+    mesh = shapes.box((0.3, 0.04, 0.02), (6, 2, 2), "hex8")
+    body = build_body(mesh.nodes, mesh.elements, STEEL, node_sets=mesh.node_sets,
+                      reference="clamped", reference_nodes="x0")  # fmt: skip
+    system = fm.System(gravity=(0.0, 0.0, -9.81))
+    system.add_flexible_body(body, name="block")
+    result = fm.simulate(system, 2e-3, 1e-3)
+    with pytest.raises(fm.InvalidParameterError, match="no beam elements.*hex8.*stresses"):
+        result.section_forces("block")
+    assert result.stresses("block", records=[0, -1]).shape == (2, len(body.nodes), 6)

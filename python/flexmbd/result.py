@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _core
-from ._checks import integer
+from ._checks import integer, integers_array
 from .errors import InvalidParameterError, UnknownItemError
 from .rotation import angular_velocity, euler_parameters_to_matrix
 
@@ -16,6 +16,20 @@ Array = NDArray[np.float64]
 
 #: The singular of the item lists of a model description, for messages.
 _SINGULAR = {"bodies": "body", "joints": "joint", "sensors": "sensor", "markers": "marker"}
+
+
+#: Element types by what their stresses are.
+_SOLIDS = ("tet4", "tet10", "hex8")
+_SHELLS = ("quad4", "tri3")
+#: Where to look instead, for a body of only these elements.
+_STRESS_OF = {
+    "beam2": "a beam's stresses are its section forces (section_forces)",
+    "quad4": "a shell's stresses are shell_stresses (and stresses, the middle surface)",
+    "tri3": "a shell's stresses are shell_stresses (and stresses, the middle surface)",
+    "tet4": "a solid's stresses are stresses",
+    "tet10": "a solid's stresses are stresses",
+    "hex8": "a solid's stresses are stresses",
+}
 
 
 class Result:
@@ -274,8 +288,37 @@ class Result:
 
         _, data = self._flexible(body)
         q_f = self.elastic_coordinates(body)
-        q_f = q_f if records is None else q_f[np.atleast_1d(records)]
+        q_f = q_f if records is None else q_f[self._record_indices(records)]
         return np.asarray(elastic_basis(data) @ q_f.T).T
+
+    def _record_indices(self, records: Any) -> NDArray[np.int64]:
+        """Record indices (negative from the end) checked against the records there are."""
+        index = np.atleast_1d(integers_array(records, "records"))
+        count = len(self.time)
+        outside = index[(index < -count) | (index >= count)]
+        if outside.size:
+            raise InvalidParameterError(
+                f"records: {int(outside[0])} is not a record index ({self._described_as} has "
+                f"{count} records: 0 to {count - 1}, or -{count} to -1 from the end)",
+                item="records",
+            )
+        return index
+
+    def _with_elements(self, body: object, kinds: tuple[str, ...], what: str) -> None:
+        """InvalidParameterError naming the body when it has no elements of `kinds`."""
+        b, data = self._flexible(body)
+        if not any(len(data.elements.get(kind, ())) for kind in kinds):
+            present = ", ".join(kind for kind in data.elements if len(data.elements[kind]))
+            others = f"its elements are {present}" if present else "it has no elements"
+            raise InvalidParameterError(
+                f"body {b['name']!r} has no {what} ({others}); "
+                + _STRESS_OF.get(
+                    present,
+                    "stresses (solids, shells' middle surface), shell_stresses (shells) and "
+                    "section_forces (beams) give each kind's",
+                ),
+                item=b["name"],
+            )
 
     def stresses(self, body: object, records: Any = None) -> Array:
         """Stresses of the solid elements (and the middle surface of shells) of a deformable
@@ -284,6 +327,7 @@ class Result:
         :mod:`flexmbd.fe.stress`."""
         from .fe.stress import recover_stresses
 
+        self._with_elements(body, _SOLIDS + _SHELLS, "solid or shell elements")
         _, data = self._flexible(body)
         return recover_stresses(data, self._nodal_displacements(body, records))[0]
 
@@ -293,6 +337,7 @@ class Result:
         :func:`flexmbd.fe.stress.shell_stresses`."""
         from .fe.stress import shell_stresses
 
+        self._with_elements(body, _SHELLS, "shell elements")
         _, data = self._flexible(body)
         return shell_stresses(data, np.atleast_2d(self._nodal_displacements(body, records)))
 
@@ -301,6 +346,7 @@ class Result:
         positive) at both ends of every beam element of a deformable body: (n, beams, 2, 6)."""
         from .fe.stress import recover_stresses
 
+        self._with_elements(body, ("beam2",), "beam elements")
         _, data = self._flexible(body)
         return recover_stresses(data, self._nodal_displacements(body, records))[1]
 
@@ -313,7 +359,17 @@ class Result:
         node = integer(node, "node")
         if chord is None:
             return self.node_displacements(body, [node])[:, 0]
-        ids = [chord[0], chord[1], node]
+        if isinstance(chord, str) or not hasattr(chord, "__len__") or len(chord) != 2:
+            raise InvalidParameterError(
+                f"chord must be two node ids (a, b), got {chord!r}", item="chord"
+            )
+        ends = [integer(chord[0], "chord"), integer(chord[1], "chord")]
+        if ends[0] == ends[1]:
+            raise InvalidParameterError(
+                f"chord ({ends[0]}, {ends[1]}): the chord needs two different nodes",
+                item="chord",
+            )
+        ids = [*ends, node]
         index = self._node_indices(data, ids)
         x = data.nodes[index][None, :, :] + self.node_displacements(body, ids)
         d = x[:, 1] - x[:, 0]
