@@ -759,3 +759,38 @@ def test_typed_parts_pickle_and_copy_frozen():
         assert not other.reference.interface_weights[0].flags.writeable
         np.testing.assert_array_equal(other.invariants.k_ff, data.invariants.k_ff)
         assert other.reference.mode_count == 3
+
+
+@pytest.mark.parametrize(
+    ("frame_joint", "motions"),
+    [(None, "all 6"), ("spherical", "rotation about body axis x, .*y, .*z"), ("fixed", None)],
+)
+def test_a_body_whose_frame_nothing_fixes_is_named(frame_joint, motions):
+    # Reference conditions "none" with nodal coordinates leave the frame free in the body:
+    # pinned at a node only, the acceleration system is singular (it said "no pivot in
+    # column 31"). A joint on a marker of the frame holds it (a fixed one wholly, a
+    # spherical one its translations only).
+    from flexmbd.system import unheld_frames
+
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    beam = system.add_flexible_body(beam_body(4, reference="none", reference_nodes=[]), name="beam")
+    system.add_revolute_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
+    if frame_joint is not None:
+        add = getattr(system, f"add_{frame_joint}_joint")
+        add(system.add_marker(system.ground), system.add_marker(beam))
+    model = system.compile()
+    found = unheld_frames(model, np.asarray(model.initial_coordinates))
+    if motions is None:
+        assert found == []
+        fm.simulate(model, 2e-3, 1e-3)
+        return
+    with pytest.raises(
+        fm.SingularMatrixError, match=f"body 'beam': nothing fixes its frame.*{motions}"
+    ) as caught:
+        fm.simulate(model, 2e-3, 1e-3)
+    assert caught.value.item == "body 'beam'" and caught.value.result is not None
+    # A clamped body's frame is fixed in it.
+    clamped = fm.System()
+    clamped.add_flexible_body(beam_body(4), name="beam")
+    compiled = clamped.compile()
+    assert unheld_frames(compiled, np.asarray(compiled.initial_coordinates)) == []

@@ -23,12 +23,13 @@ from .errors import (
     InvalidParameterError,
     ResultsFileError,
     SimulationInterrupted,
+    SingularMatrixError,
     StepSizeWarning,
 )
 from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
 from .state import State
-from .system import identity_of
+from .system import identity_of, unheld_frames
 
 #: How a run may start: the model's given state, static (or steady) equilibrium, or the
 #: steady rotation of a rotor (see :func:`simulate`).
@@ -451,6 +452,32 @@ def simulate(
     _summary(result, start_time, time.perf_counter() - began)
     _report(result)
     if error is not None:
+        error = _explained(error, model, start, start_time)
         error.result = result
         raise error
     return result
+
+
+def _explained(error: Exception, model: _core.Model, start: State | None, time: float) -> Exception:
+    """A singular matrix at the start explained, when it is: a deformable body whose frame
+    nothing fixes (its reference conditions and the joints both leave it free) becomes an
+    error naming the body and the way out; any other error is returned as it is."""
+    if not isinstance(error, SingularMatrixError) or error.time is None or error.time != time:
+        return error
+    q = np.asarray(model.initial_coordinates if start is None else start.coordinates, dtype=float)
+    frames = unheld_frames(model, q)
+    if not frames:
+        return error
+    name, motions = frames[0]
+    which = "all 6" if len(motions) == 6 else ", ".join(motions)
+    explained = SingularMatrixError(
+        f"body '{name}': nothing fixes its frame in the body, so the {error.item or 'matrix'} "
+        f"at t = {time:g} is singular: its reference conditions are 'none', and its nodal "
+        f"coordinates carry the rigid motions its frame carries ({which}: the frame moved one "
+        "way and the nodes back move no point). Give the body reference conditions "
+        "(reference 'clamped' or '3-2-1' at reference_nodes, or 'mean-axis' with free-free "
+        "modes), or hold its frame with a joint on a marker of the frame",
+        item=f"body '{name}'",
+        time=error.time,
+    )
+    return explained

@@ -81,6 +81,83 @@ def elastic_basis(body: FlexibleBodyData) -> sp.csr_matrix:
     return sp.csr_matrix(full)
 
 
+def unheld_frames(model: _core.Model, q: NDArray[np.float64]) -> list[tuple[str, list[str]]]:
+    """The deformable bodies whose frame nothing fixes in the body, at coordinates q: those
+    whose elastic coordinates can move the nodes rigidly (reference conditions "none" with
+    nodal coordinates) where the constraints do not hold the frame. Moving such a frame
+    rigidly and its nodes back, so that no point moves, changes neither the kinetic energy
+    nor a constraint: the augmented matrix is singular. Each entry: the body's name and
+    those motions ("translation along (1, 0, 0)", "rotation about body axis z")."""
+    nq = model.coordinate_count
+    zero_q, zero_l = np.zeros(nq), np.zeros(model.constraint_count)
+    found: list[tuple[str, list[str]]] = []
+    matrices = None
+    layout = model.describe()
+    for index, data in model.flexible_bodies.items():
+        entry = layout["bodies"][index]
+        o, count = entry["offset"], entry["count"]
+        basis = elastic_basis(data)
+        nodes = np.asarray(data.nodes, dtype=float)
+        d = data.dofs_per_node
+        u = nodes + (basis @ q[o + 7 : o + count]).reshape(-1, d)[:, :3]
+        p = q[o + 3 : o + 7]
+        e0, e = p[0], p[1:]
+        rotation = _rotation_of(p)
+        directions, names = [], []
+        for k in range(6):
+            nodal = np.zeros((len(nodes), d))
+            v = np.zeros(nq)
+            if k < 3:
+                v[o + k] = 1.0
+                nodal[:, :3] = -rotation[k]  # -A^T e_k in body axes
+                names.append("translation along global " + "xyz"[k])
+            else:
+                theta = np.eye(3)[k - 3]
+                # Euler-parameter change of a turn theta in body axes: 1/2 G(p)^T theta.
+                v[o + 3 : o + 7] = 0.5 * np.concatenate(
+                    [[-e @ theta], e0 * theta + np.cross(e, theta)]
+                )
+                nodal[:, :3] = -np.cross(theta, u)
+                if d == 6:
+                    nodal[:, 3:] = -theta
+                names.append("rotation about body axis " + "xyz"[k - 3])
+            g = nodal.ravel()
+            x = basis.T @ g
+            if not np.allclose(basis @ x, g, rtol=0.0, atol=1e-9 * max(1.0, np.abs(g).max())):
+                break  # the elastic coordinates cannot carry it: the reference conditions fix it
+            v[o + 7 : o + count] = x
+            directions.append(v)
+        if len(directions) < 6:
+            continue
+        if matrices is None:
+            from .analysis import _matrix
+
+            m = _matrix(model.evaluate(0.0, q, zero_q, zero_q, zero_l, mass=1.0))
+            c = _matrix(model.evaluate(0.0, q, zero_q, zero_q, zero_l, position=1.0))
+            matrices = (m[:nq, :nq], c[nq:, :nq])
+        mass, jacobian = matrices
+        v = np.column_stack(directions)
+        scale = max(float(abs(mass).max()), 1e-300)
+        if np.abs(mass @ v).max() > 1e-8 * scale * np.abs(v).max():
+            continue  # not a motion without kinetic energy: the construction does not apply
+        cv = np.asarray(jacobian @ v) if jacobian.shape[0] else np.zeros((1, 6))
+        tolerance = 1e-8 * max(float(abs(jacobian).max()) if jacobian.shape[0] else 0.0, 1.0)
+        singular = np.linalg.svd(cv, compute_uv=False)
+        count = 6 - int(np.sum(singular > tolerance * np.abs(v).max()))
+        if count:
+            alone = [
+                n for n, col in zip(names, cv.T, strict=True) if np.abs(col).max() <= tolerance
+            ]
+            found.append((entry["name"], alone or [f"{count} combinations of them"]))
+    return found
+
+
+def _rotation_of(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    from .rotation import euler_parameters_to_matrix
+
+    return np.asarray(euler_parameters_to_matrix(p))
+
+
 def _node_index(body: FlexibleBodyData, node: int, item: str) -> int:
     """The index of the node of id `node` (an integer: 2.7 or True is refused, not cut to 2
     or 1) in the body's arrays."""
