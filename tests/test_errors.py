@@ -1,6 +1,7 @@
 """Bad input raises a typed error naming the item; failed runs keep their results."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -184,6 +185,31 @@ def test_inconsistent_initial_positions_name_the_joint():
     assert "unreachable" in str(info.value) or "singular" in str(info.value)
     assert info.value.time == 0.0
     assert info.value.result is not None and len(info.value.result) == 0
+
+
+def test_a_four_bar_that_cannot_close_names_its_joints_not_a_normalization():
+    # Ground pivots 5 m apart, links of 1 m: the loop cannot close. The corrections' compromise
+    # also leaves Euler parameters unnormalized, and the error blamed "Euler-parameter
+    # normalization of body 'rocker'"; it now names the joints left open.
+    s = fm.System()
+    bodies = {}
+    for name, centre in (("crank", (0, 0.5, 0)), ("coupler", (0.5, 1, 0)), ("rocker", (5, 0.5, 0))):
+        bodies[name] = s.add_rigid_body(1.0, (0.01, 0.1, 0.1), position=centre, name=name)
+    crank, coupler, rocker = bodies.values()
+    ends = [
+        (s.add_marker(s.ground), s.add_marker(crank, position=(0, -0.5, 0))),
+        (s.add_marker(crank, position=(0, 0.5, 0)), s.add_marker(coupler, position=(-0.5, 0, 0))),
+        (s.add_marker(coupler, position=(0.5, 0, 0)), s.add_marker(rocker, position=(0, 0.5, 0))),
+        (s.add_marker(s.ground, position=(5, 0, 0)), s.add_marker(rocker, position=(0, -0.5, 0))),
+    ]
+    for name, (a, b) in zip("ABCD", ends, strict=True):
+        s.add_revolute_joint(a, b, name=name)
+    s.add_angle_driver(*ends[0], fm.Polynomial([0.0, 1.0]), name="drive")
+    with pytest.raises(fm.InitialConditionsError) as info:
+        fm.simulate(s, 0.1, 1e-3)
+    message = str(info.value)
+    assert re.search(r"t = 0: joint '[BCD]' \(revolute\)", message), message
+    assert "normalization" not in message
 
 
 def test_slightly_inconsistent_initial_positions_are_corrected(assert_close):

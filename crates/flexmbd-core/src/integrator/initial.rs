@@ -243,17 +243,13 @@ pub fn solve_initial_positions_and_velocities(
         if violated.is_none() {
             violated = Some(violated_rows(&ws.residual[nq..], settings.tolerance));
         }
-        let (row, violation) = worst_constraint(model, ws);
+        let (_, violation) = worst_constraint(model, ws);
         if violation <= settings.tolerance {
             break;
         }
         if !settings.correct_positions || iterations >= settings.max_iterations || !violation.is_finite() {
-            return Err(FlexmbdError::InconsistentInitialConditions {
-                time: t,
-                item: model.constraint_name(row),
-                residual: violation,
-                iterations,
-            });
+            let (item, residual) = violated_constraints(model, &ws.residual[nq..], settings.tolerance);
+            return Err(FlexmbdError::InconsistentInitialConditions { time: t, item, residual, iterations });
         }
         factorize(
             model,
@@ -384,17 +380,13 @@ pub fn dense_initial_conditions(
         if violated.is_none() {
             violated = Some(violated_rows(&eq.constraints, settings.tolerance));
         }
-        let (row, violation) = worst(&eq.constraints);
+        let (_, violation) = worst(&eq.constraints);
         if violation <= settings.tolerance {
             break;
         }
         if !settings.correct_positions || iterations >= settings.max_iterations || !violation.is_finite() {
-            return Err(FlexmbdError::InconsistentInitialConditions {
-                time: t,
-                item: violated_constraints(model, row, &eq.constraints, settings.tolerance),
-                residual: violation,
-                iterations,
-            });
+            let (item, residual) = violated_constraints(model, &eq.constraints, settings.tolerance);
+            return Err(FlexmbdError::InconsistentInitialConditions { time: t, item, residual, iterations });
         }
         // Weighted rows: where the constraints cannot all be met, the least-squares compromise
         // keeps the normalizations and drivers and leaves the violation on the joints.
@@ -427,11 +419,30 @@ fn subtract_correction(jacobian: &Mat<f64>, residual: &[f64], rows: &[f64], colu
     }
 }
 
-/// The worst violated row, and the other joints left violated with it (when constraints
-/// conflict, the least-squares compromise spreads the violation over all joints involved).
-fn violated_constraints(model: &Model, worst_row: usize, constraints: &[f64], tolerance: f64) -> String {
+/// The worst violated joint row (a normalization of Euler parameters only when no joint is
+/// violated: where joints cannot close, the compromise of the corrections also leaves the
+/// normalizations violated, and they are not the cause), named with the other joints left
+/// violated with it (when constraints conflict, the least-squares compromise spreads the
+/// violation over all joints involved), and its violation.
+fn violated_constraints(model: &Model, constraints: &[f64], tolerance: f64) -> (String, f64) {
+    // NaN counts as the largest; the violation returned is the row's own (NaN stays NaN).
+    let size = |r: usize| if constraints[r].is_nan() { f64::INFINITY } else { constraints[r].abs() };
+    let largest = |rows: &mut dyn Iterator<Item = usize>| {
+        let row = rows.fold(None, |best: Option<usize>, r| match best {
+            Some(b) if size(b) >= size(r) => Some(b),
+            _ => Some(r),
+        });
+        row.map_or((0, 0.0), |r| (r, constraints[r].abs()))
+    };
+    let (joint_row, joint_violation) =
+        largest(&mut model.joints.iter().flat_map(|j| j.row..j.row + j.equations.len()));
+    let (worst_row, violation) = if joint_violation > tolerance || joint_violation.is_nan() {
+        (joint_row, joint_violation)
+    } else {
+        largest(&mut (0..constraints.len()))
+    };
     let mut item = model.constraint_name(worst_row);
-    let threshold = tolerance.max(1e-6 * constraints[worst_row].abs());
+    let threshold = tolerance.max(1e-6 * violation);
     let mut others: Vec<String> = Vec::new();
     for j in &model.joints {
         let violated = (j.row..j.row + j.equations.len()).any(|r| constraints[r].abs() > threshold);
@@ -446,7 +457,7 @@ fn violated_constraints(model: &Model, worst_row: usize, constraints: &[f64], to
     if !others.is_empty() {
         item.push_str(&format!(" (also violated: joint {})", others.join(", ")));
     }
-    item
+    (item, violation)
 }
 
 /// Adds the "initial correction" events of the consistent-initial-condition solve that took
