@@ -765,3 +765,19 @@ def test_simulate_model_takes_a_path_and_overrides_in_si(tmp_path, assert_close)
     result = simulate_model(MODELS / "pendulum.yaml", end_time=0.1, step_size=1e-3)
     assert_close(result.time[-1], 0.1, rel=1e-6, abs=1e-12, what="last time")
     assert result.statistics["steps"] == 100
+
+
+def test_warnings_of_building_point_to_the_model_file_line(tmp_path):
+    # An inertia no mass distribution has is warned of at the file's line and key (it
+    # pointed into building.py).
+    path = tmp_path / "lopsided.yaml"
+    path.write_text(
+        "name: lopsided\n"
+        "bodies:\n"
+        "  - {name: b, type: rigid, mass: 1, inertia: [1, 1, 5]}\n"
+        "simulation: {end_time: 0.1, step_size: 0.01}\n"
+    )
+    with pytest.warns(fm.InertiaWarning, match=r"^bodies\[0\]: body 'b': the largest") as caught:
+        load_model(path)
+    (warning,) = [w for w in caught if issubclass(w.category, fm.InertiaWarning)]
+    assert (warning.filename, warning.lineno) == (str(path), 3)

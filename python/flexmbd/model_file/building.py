@@ -4,6 +4,7 @@ sensors, the solver and the outputs, each error naming the file, line and key pa
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,7 @@ from ..errors import FlexmbdError, ModelFileError
 from ..result import Result
 from ..rotation import rotation
 from ..system import System
-from .reading import Path_, _listing, _short, _Source
+from .reading import Path_, _key_path, _listing, _short, _Source
 from .schema import (
     BODY_QUANTITIES,
     GROUND,
@@ -306,10 +307,27 @@ class _Builder:
     def fail(self, path: Path_, message: str) -> ModelFileError:
         return self.source.error(path, message)
 
-    def call(self, path: Path_, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """Calls the Python API; its errors become model file errors at `path`."""
+    def warn(self, path: Path_, message: Warning | str, category: type[Warning]) -> None:
+        """Warns at the model file's line of `path` (Python shows that line of the file)."""
+        line = self.source.line(path)
+        key = _key_path(path)
+        text = f"{key}: {message}" if key else str(message)
         try:
-            return function(*args, **kwargs)
+            located: Warning | str = category(text)
+        except TypeError:  # a warning class that takes other arguments: as it was
+            located = message
+        warnings.warn_explicit(located, category, str(self.source.path), line or 0)
+
+    def call(self, path: Path_, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """Calls the Python API; its errors become model file errors at `path`, and its
+        warnings are warned again at the file and line of `path`."""
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                value = function(*args, **kwargs)
+            for warning in caught:
+                self.warn(path, warning.message, warning.category)
+            return value
         except FileNotFoundError as error:
             raise self.fail(path, f"no such file: {error.filename}") from error
         except (FlexmbdError, ValueError) as error:
