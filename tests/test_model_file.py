@@ -459,7 +459,7 @@ MALFORMED = {
     ),
     "short vector": (
         ("position: [1.0, 0.0, 0.0]", "position: [1.0, 0.0]"),
-        "model.yaml: line 6: bodies[0].position: expected at least 3 items, got 2",
+        "model.yaml: line 6: bodies[0].position: expected exactly 3 items, got 2",
     ),
     "negative mass": (
         ("mass: 1.0", "mass: -1.0"),
@@ -595,9 +595,17 @@ MALFORMED = {
         "model.yaml: line 15: paraview.times: times must be [start, end] with start <= end, "
         "got [1.0, 0.5]",
     ),
+    "paraview times after the run": (
+        ("simulation:", "paraview: {times: [5.0, 6.0]}\nsimulation:"),
+        "model.yaml: line 15: paraview.times: times [5, 6] hold no record of the run (from 0 to 1)",
+    ),
+    "paraview times three numbers": (
+        ("simulation:", "paraview: {times: [0.1, 0.2, 0.3]}\nsimulation:"),
+        "model.yaml: line 15: paraview.times: expected exactly 2 items, got 3",
+    ),
     "paraview times one number": (
         ("simulation:", "paraview: {times: [1.0]}\nsimulation:"),
-        "model.yaml: line 15: paraview.times: expected at least 2 items, got 1",
+        "model.yaml: line 15: paraview.times: expected exactly 2 items, got 1",
     ),
     "paraview unknown key": (
         ("simulation:", "paraview: {evry: 2}\nsimulation:"),

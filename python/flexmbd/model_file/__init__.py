@@ -86,6 +86,14 @@ def load_model(
             ("paraview", "times"),
             f"times must be [start, end] with start <= end, got {paraview.times}",
         )
+    if paraview.times is not None and (
+        paraview.times[1] < simulation.start_time or paraview.times[0] > simulation.end_time
+    ):
+        raise builder.fail(
+            ("paraview", "times"),
+            f"times [{paraview.times[0]:g}, {paraview.times[1]:g}] hold no record of the run "
+            f"(from {simulation.start_time:g} to {simulation.end_time:g})",
+        )
     window = (
         None
         if paraview.times is None

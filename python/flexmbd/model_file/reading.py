@@ -436,6 +436,8 @@ def _validation_message(error: dict[str, Any]) -> tuple[Path_, str]:
             kinds.append(f"a mapping with type {', '.join(named)}")
         expected = ", ".join(kinds) if kinds else "another kind of value"
         return path, f"expected {expected}; got {value_text(value)}"
+    if kind == "fixed_length":
+        return path, error["msg"]
     if kind in ("too_short", "too_long"):
         count = ctx.get("actual_length")
         bound = ctx.get("min_length" if kind == "too_short" else "max_length")

@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag
+from pydantic_core import PydanticCustomError
 
 from .. import _core
 
@@ -36,8 +37,32 @@ class _Spec(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
-Vector = Annotated[list[float], Field(min_length=3, max_length=3)]
-Matrix = Annotated[list[Vector], Field(min_length=3, max_length=3)]
+def _exactly(count: int) -> BeforeValidator:
+    """A list's length checked first, said as "exactly" (pydantic says "at least 3 items" of
+    a list of 3 given 2)."""
+
+    def check(value: Any) -> Any:
+        if isinstance(value, list) and len(value) != count:
+            raise PydanticCustomError(
+                "fixed_length",
+                "expected exactly {count} items, got {actual}",
+                {"count": count, "actual": len(value)},
+            )
+        return value
+
+    return BeforeValidator(check)
+
+
+def _fixed(item: Any, count: int) -> Any:
+    """A list of exactly `count` items."""
+    return Annotated[list[item], Field(min_length=count, max_length=count), _exactly(count)]
+
+
+Vector = _fixed(float, 3)
+Matrix = _fixed(Vector, 3)
+Pair = _fixed(float, 2)
+IntPair = _fixed(int, 2)
+IntTriple = _fixed(int, 3)
 Name = Annotated[str, Field(min_length=1)]
 
 
@@ -104,10 +129,8 @@ class SplineFunction(_Spec):
         description="natural (zero curvature at the ends), clamped (the end slopes `slopes`) "
         "or periodic (first and last values equal)",
     )
-    slopes: list[float] | None = Field(
+    slopes: Pair | None = Field(
         None,
-        min_length=2,
-        max_length=2,
         description="first derivatives at the first and last knot of a clamped spline "
         "(unit of the quantity / time; default 0, 0: it comes to rest)",
     )
@@ -157,7 +180,7 @@ TimeFunction = Annotated[
         "with `type` constant, polynomial, harmonic, spline, step or trapezoidal"
     ),
 ]
-TimeVector = Annotated[list[TimeFunction], Field(min_length=3, max_length=3)]
+TimeVector = _fixed(TimeFunction, 3)
 
 
 # Orientations ----------------------------------------------------------------------------------
@@ -327,9 +350,7 @@ class BoxSpec(_Spec):
     y0, y1, z0, z1 (the faces) and all."""
 
     lengths: Vector = Field(description="edge lengths along x, y, z (length)")
-    divisions: Annotated[list[int], Field(min_length=3, max_length=3)] = Field(
-        description="cells along x, y, z"
-    )
+    divisions: IntTriple = Field(description="cells along x, y, z")
     element: Literal["hex8", "tet4", "tet10"] = "hex8"
     origin: Vector | None = Field(None, description="corner of the box (length)")
 
@@ -339,12 +360,8 @@ class PlateSpec(_Spec):
     (:func:`flexmbd.fe.shapes.plate`); node sets x0, x1, y0, y1 (the edges) and all. Needs
     `shell_thickness`."""
 
-    lengths: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
-        description="edge lengths along x and y (length)"
-    )
-    divisions: Annotated[list[int], Field(min_length=2, max_length=2)] = Field(
-        description="cells along x and y"
-    )
+    lengths: Pair = Field(description="edge lengths along x and y (length)")
+    divisions: IntPair = Field(description="cells along x and y")
     element: Literal["quad4", "tri3"] = "quad4"
     origin: Vector | None = Field(None, description="corner of the plate (length)")
 
@@ -441,7 +458,7 @@ class FlexibleBodySpec(_Spec):
     elastic_velocities: list[float] | None = Field(
         None, description="initial dq_f/dt (SI only: not converted)"
     )
-    rayleigh_damping: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+    rayleigh_damping: Pair | None = Field(
         None, description="[alpha (1/time), beta (time)]: D = alpha M_ff + beta K_ff"
     )
     modal_damping: float | None = Field(None, ge=0, description="damping ratio of every mode")
@@ -683,9 +700,7 @@ class OutputSpec(_Spec):
         None, description="node ids (node_displacements, node_positions)"
     )
     node: int | None = Field(None, description="node id (deflection)")
-    chord: Annotated[list[int], Field(min_length=2, max_length=2)] | None = Field(
-        None, description="two node ids: deflection from their chord"
-    )
+    chord: IntPair | None = Field(None, description="two node ids: deflection from their chord")
 
 
 # Solvers and the simulation --------------------------------------------------------------------
@@ -741,9 +756,7 @@ class ExplicitSolverSpec(_Spec):
     independent: list[Annotated[int, Field(ge=0)]] | None = Field(
         None, description="indices of the independent coordinates"
     )
-    baumgarte: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
-        None, description="[alpha, beta] (1/time each)"
-    )
+    baumgarte: Pair | None = Field(None, description="[alpha, beta] (1/time each)")
     relative_tolerance: float | None = Field(None, gt=0)
     absolute_tolerance: float | None = Field(None, gt=0)
     constraint_tolerance: float | None = Field(None, gt=0)
@@ -789,7 +802,7 @@ class ParaViewSpec(_Spec):
 
     write: bool = Field(True, description="write the series (false: none)")
     every: int = Field(1, ge=1, description="every N-th record (the last one always)")
-    times: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+    times: Pair | None = Field(
         None, description="[start, end]: only the records in this window (time; default: all)"
     )
 
