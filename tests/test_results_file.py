@@ -284,6 +284,24 @@ def test_tables_for_pandas_and_xarray(tmp_path):
     assert data["multipliers"].sel(constraint="drive: angle").shape == (len(result),)
 
 
+def test_sensor_values_are_labelled_by_axis_in_tables():
+    # Columns "tip.0", "tip.1", ... and an unlabelled xarray dimension before.
+    system = fm.System(gravity=(0, -9.81, 0))
+    bob = system.add_rigid_body(1.0, (0.01, 0.01, 0.01), position=(1, 0, 0), name="bob")
+    system.add_revolute_joint(system.add_marker(system.ground),
+                              system.add_marker(bob, position=(-1, 0, 0)))  # fmt: skip
+    tip = system.add_marker(bob, position=(0.5, 0, 0))
+    system.add_sensor(tip, "position", name="tip")
+    system.add_sensor(tip, "orientation", name="turn")
+    result = fm.simulate(system, 0.05, 1e-2)
+    frame = result.to_dataframe()
+    np.testing.assert_array_equal(frame["tip.y"], result.sensor("tip")[:, 1])
+    np.testing.assert_array_equal(frame["turn.yx"], result.sensor("turn")[:, 1, 0])
+    data = result.to_xarray()
+    values = data["sensors"].sel(sensor_value="tip.z").to_numpy()
+    np.testing.assert_array_equal(values, result.sensor("tip")[:, 2])
+
+
 # Faults (issue 28) ------------------------------------------------------------------------
 
 

@@ -476,19 +476,31 @@ class Result:
             multipliers = self.joint_multipliers(joint["name"])
             for k, equation in enumerate(joint["equations"]):
                 columns[f"{joint['name']}.multiplier.{equation}"] = multipliers[:, k]
-        for sensor in self.layout["sensors"]:
-            values = self._sensors[:, sensor["offset"] : sensor["offset"] + sensor["size"]]
-            for k in range(sensor["size"]):
-                columns[f"{sensor['name']}.{k}"] = values[:, k]
+        labels = self._sensor_labels()
+        for k, label in enumerate(labels):
+            columns[label] = self._sensors[:, k]
         columns["kinetic_energy"] = self.kinetic_energy
         columns["potential_energy"] = self.potential_energy
         columns["constraint_violation"] = self.constraint_violation
         return columns
 
+    def _sensor_labels(self) -> list[str]:
+        """A label per sensor value: "tip.x" of a vector, "tip.xy" (row x, column y) of an
+        orientation matrix."""
+        labels = [""] * self._sensors.shape[1]
+        for sensor in self.layout["sensors"]:
+            size = sensor["size"]
+            parts = [a + b for a in "xyz" for b in "xyz"] if size == 9 else list("xyz")[:size]
+            if len(parts) != size:
+                parts = [str(k) for k in range(size)]
+            for k, part in enumerate(parts):
+                labels[sensor["offset"] + k] = f"{sensor['name']}.{part}"
+        return labels
+
     def to_dataframe(self) -> Any:
         """The named time series as a pandas DataFrame indexed by time (s); columns like
         ``"crank.position.x"``, ``"bearing.reaction_force.y"``, ``"rod.elastic.3"``,
-        ``"kinetic_energy"``. Needs pandas (``pip install flexmbd[data]``)."""
+        ``"tip.z"`` (a sensor), ``"kinetic_energy"``. Needs pandas (``pip install flexmbd[data]``)."""
         import pandas as pd
 
         frame = pd.DataFrame(self._columns(), index=pd.Index(self.time, name="time"))
@@ -499,7 +511,8 @@ class Result:
         """The results as an xarray Dataset on the dimension ``time``: the generalized
         coordinates, velocities, accelerations and multipliers as arrays (dimensions
         ``coordinate`` and ``constraint``, named), the reactions (``joint``, ``component``),
-        sensors, energies and the constraint violation. Needs xarray."""
+        sensors (dimension ``sensor_value``, labelled ``"tip.x"``), energies and the constraint
+        violation. Needs xarray."""
         import xarray as xr
 
         coordinate_names = [""] * self.coordinates.shape[1]
@@ -532,6 +545,7 @@ class Result:
             "constraint": constraint_names,
             "joint": joints,
             "component": components,
+            "sensor_value": self._sensor_labels(),
         }
         dataset = xr.Dataset(data, coords=coords)
         dataset["time"].attrs["units"] = "s"
