@@ -146,6 +146,39 @@ def test_body_file_and_mesh_file_give_the_same_bodies(tmp_path, monkeypatch):
     assert_same_run(simulate_model(bar, end_time=0.02), run_example(pendulum, 0.02))
 
 
+def test_a_mesh_in_millimetres_in_a_file_in_metres(tmp_path, assert_close):
+    # The bar's mesh written in mm, read by an SI model file with mesh_unit: mm, is the same
+    # body as the mesh in metres.
+    import meshio
+
+    from flexmbd.fe import shapes
+
+    mesh = shapes.box((0.5, 0.03, 0.03), (10, 2, 2), "tet4")
+    for name, scale in (("bar_m.vtu", 1.0), ("bar_mm.vtu", 1e3)):
+        meshio.write_points_cells(tmp_path / name, mesh.nodes * scale,
+                                  [("tetra", mesh.elements["tet4"])])  # fmt: skip
+    body = (
+        "bodies:\n  - name: bar\n    type: flexible\n    mesh: {mesh}\n"
+        "    material: {{young_modulus: 7.0e+10, poisson_ratio: 0.33, density: 2700.0}}\n"
+        "    reference: clamped\n    reference_nodes: {nodes}\n"
+        "simulation: {{end_time: 0.01, step_size: 0.001}}\n"
+    )
+    nodes = mesh.node_sets["x0"].tolist()
+    data = {}
+    for name, extra in (("bar_m.vtu", ""), ("bar_mm.vtu", "\n    mesh_unit: mm")):
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(body.format(mesh=name + extra, nodes=nodes))
+        data[name] = load_model(path).body_data["bar"]
+    assert_close(data["bar_mm.vtu"].nodes, data["bar_m.vtu"].nodes, rel=1e-12, what="nodes")
+    assert_close(data["bar_mm.vtu"].invariants.mass, 0.5 * 0.03 * 0.03 * 2700.0, rel=1e-12)
+    box = tmp_path / "box.yaml"
+    box.write_text(body.format(mesh="bar_m.vtu", nodes=nodes).replace(
+        "mesh: bar_m.vtu", "box: {lengths: [0.5, 0.03, 0.03], divisions: [10, 2, 2]}\n"
+        "    mesh_unit: mm"))  # fmt: skip
+    with pytest.raises(ModelFileError, match="line 5: bodies\\[0\\].mesh_unit: mesh_unit goes"):
+        load_model(box)
+
+
 # Units ------------------------------------------------------------------------------------------
 
 # A model that uses every converted quantity: a free rigid arm on a spring-damper and a

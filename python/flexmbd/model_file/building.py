@@ -592,6 +592,8 @@ class _Builder:
 
         if spec.op2 is not None and kind != "nastran":
             raise self.fail(path + ("op2",), "op2 results go with a Nastran deck (`nastran`)")
+        if spec.mesh_unit is not None and kind != "mesh":
+            raise self.fail(path + ("mesh_unit",), "mesh_unit goes with a mesh file (`mesh`)")
         if kind == "body_file":
             for key in _PREPROCESS_KEYS:
                 if getattr(spec, key) is not None:
@@ -630,6 +632,8 @@ class _Builder:
             return self.call(path, build_body, nodes, elements, options.pop("material"), **options)
         if kind == "mesh":
             location = self.file(str(spec.mesh), where)
+            if spec.mesh_unit is not None:
+                length = UNITS["length"][spec.mesh_unit]
             if length == 1.0:
                 mesh: Any = location
             else:

@@ -396,7 +396,12 @@ class FlexibleBodySpec(_Spec):
     mesh: str | None = Field(
         None,
         description="mesh file (Gmsh .msh, Abaqus .inp, VTK; relative to the model file), "
-        "coordinates in the file's length unit",
+        "coordinates in `mesh_unit`",
+    )
+    mesh_unit: Literal["m", "cm", "mm"] | None = Field(
+        None,
+        description="with `mesh`: the length unit of the mesh file's coordinates (default: "
+        "the model file's length unit)",
     )
     nastran: str | None = Field(
         None,
