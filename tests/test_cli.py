@@ -405,12 +405,14 @@ def test_run_outputs_are_checked_before_the_run_and_never_replace_the_model(tmp_
     model.write_text(GAP)
     text = model.read_text()
     # Regression (issue 28): `run model.yaml -o model.yaml` replaced the model by the results.
-    assert main(["run", str(model), "-o", str(model), *QUIET]) == 1
-    assert "is the model file of the run" in capsys.readouterr().err
+    # (A results file's name ends in .h5: the model file is refused for that first.)
+    assert main(["run", str(model), "-o", str(model), *QUIET]) == 2
+    assert "the results file is HDF5, its name ends in .h5" in capsys.readouterr().err
     assert model.read_text() == text
     for output, message in [
         (str(tmp_path), "is a folder"),
         (str(tmp_path / "missing" / "r.h5"), "does not exist"),
+        (str(tmp_path / "r.csv"), "-o " + str(tmp_path / "r.csv") + ": the results file is HDF5"),
     ]:
         assert main(["run", str(model), "-o", output, *QUIET]) == 2
         assert message in capsys.readouterr().err

@@ -275,6 +275,11 @@ def _checked_outputs(args: argparse.Namespace, results: Path) -> str | None:
 
     if results.is_dir():
         return f"{results} is a folder; give a results file name such as run.h5 with -o"
+    if results.suffix.lower() not in (".h5", ".hdf5"):
+        return (
+            f"-o {results}: the results file is HDF5, its name ends in .h5 (a table of the "
+            "results: flexmbd.read_results(...).to_dataframe().to_csv(...))"
+        )
     if not results.parent.is_dir():
         return f"cannot write {results}: its folder {results.parent} does not exist"
     if args.plot and not args.no_plot and Path(args.plot).suffix.lower() not in IMAGE_SUFFIXES:
@@ -1010,7 +1015,7 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument(
         "--solver",
         help="generalized-alpha (default: the model's settings), or an explicit solver "
-        "METHOD:STRATEGY[:FORMULATION] with METHOD rk4 or dopri5, STRATEGY integrate-all, "
+        "METHOD:STRATEGY[:FORMULATION] with METHOD rk4, dopri5 or tr-bdf2, STRATEGY integrate-all, "
         "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding "
         "(joint-coordinates: joint-space, coupled or decoupled)",
     )
