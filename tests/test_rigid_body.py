@@ -82,3 +82,17 @@ def test_angular_velocity_from_euler_parameter_rates_against_finite_differences(
     rates = np.stack([p_dot, 2j * p_dot])
     both = angular_velocity(p, rates, "body")
     assert_close(both[1], 2j * both[0], abs=1e-14, what="complex rates")
+    # The rates of a given angular velocity: tangent to |p| = 1, and turning the matrix as
+    # omega does (central differences again).
+    from flexmbd.rotation import euler_parameter_rates
+
+    omega = rng.standard_normal(3)
+    for frame in ("global", "body"):
+        rates = euler_parameter_rates(p, omega, frame)
+        assert abs(rates @ p) < 1e-15
+        r_dot = (
+            euler_parameters_to_matrix(p + h * rates) - euler_parameters_to_matrix(p - h * rates)
+        ) / (2 * h)
+        spin = r_dot @ r.T if frame == "global" else r.T @ r_dot
+        turned = [spin[2, 1], spin[0, 2], spin[1, 0]]
+        assert_close(turned, omega, abs=1e-8, what=f"rates of omega ({frame})")

@@ -55,3 +55,19 @@ def angular_velocity(p: ArrayLike, p_dot: ArrayLike, frame: str = "global") -> N
     e0_dot, e_dot = p_dot[..., :1], p_dot[..., 1:]
     sign = {"global": 1.0, "body": -1.0}[frame]
     return 2.0 * (-e * e0_dot + e0 * e_dot + sign * np.cross(e, e_dot))
+
+
+def euler_parameter_rates(
+    p: ArrayLike, omega: ArrayLike, frame: str = "global"
+) -> NDArray[np.float64]:
+    """Rates of Euler parameters p = [e0, e] for the angular velocity omega (shapes (4,),
+    (3,) -> (4,)), the inverse of :func:`angular_velocity` for unit p: 1/2 E(p)^T omega =
+    1/2 [-e.omega, e0 omega - e x omega] for omega in global axes (`frame` "global"),
+    1/2 G(p)^T omega = 1/2 [-e.omega, e0 omega + e x omega] in body axes ("body"). With p's
+    rates for p (and omega held) it is the part of p's second rates that omega's own rate
+    leaves out."""
+    p = np.asarray(p, dtype=float)
+    omega = np.asarray(omega, dtype=float)
+    e0, e = p[0], p[1:]
+    sign = {"global": -1.0, "body": 1.0}[frame]
+    return 0.5 * np.concatenate([[-e @ omega], e0 * omega + sign * np.cross(e, omega)])

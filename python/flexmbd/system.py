@@ -33,6 +33,7 @@ from .errors import (
 )
 from .fe.body import FlexibleBodyData, Invariants, check_body
 from .fe.interface import COUPLINGS, Interface, body_interface
+from .rotation import euler_parameter_rates, euler_parameters_to_matrix
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -101,8 +102,7 @@ def unheld_frames(model: _core.Model, q: NDArray[np.float64]) -> list[tuple[str,
         d = data.dofs_per_node
         u = nodes + (basis @ q[o + 7 : o + count]).reshape(-1, d)[:, :3]
         p = q[o + 3 : o + 7]
-        e0, e = p[0], p[1:]
-        rotation = _rotation_of(p)
+        rotation = euler_parameters_to_matrix(p)
         directions, names = [], []
         for k in range(6):
             nodal = np.zeros((len(nodes), d))
@@ -113,10 +113,7 @@ def unheld_frames(model: _core.Model, q: NDArray[np.float64]) -> list[tuple[str,
                 names.append("translation along global " + "xyz"[k])
             else:
                 theta = np.eye(3)[k - 3]
-                # Euler-parameter change of a turn theta in body axes: 1/2 G(p)^T theta.
-                v[o + 3 : o + 7] = 0.5 * np.concatenate(
-                    [[-e @ theta], e0 * theta + np.cross(e, theta)]
-                )
+                v[o + 3 : o + 7] = euler_parameter_rates(p, theta, frame="body")
                 nodal[:, :3] = -np.cross(theta, u)
                 if d == 6:
                     nodal[:, 3:] = -theta
@@ -150,12 +147,6 @@ def unheld_frames(model: _core.Model, q: NDArray[np.float64]) -> list[tuple[str,
             ]
             found.append((entry["name"], alone or [f"{count} combinations of them"]))
     return found
-
-
-def _rotation_of(p: NDArray[np.float64]) -> NDArray[np.float64]:
-    from .rotation import euler_parameters_to_matrix
-
-    return np.asarray(euler_parameters_to_matrix(p))
 
 
 def _node_index(body: FlexibleBodyData, node: int, item: str) -> int:
