@@ -22,11 +22,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _core
-from ._checks import number
-from .errors import EquilibriumError, FreeMotionError, InvalidModelError, InvalidParameterError
+from ._checks import integer, number, numbers_array, value_text
+from .errors import (
+    ArgumentTypeError,
+    EquilibriumError,
+    FreeMotionError,
+    InvalidModelError,
+    InvalidParameterError,
+)
 from .rotation import angular_velocity
 from .state import EquilibriumState, State
-from .state_space import PointLoad, StateSpace, input_forces, output_rows
+from .state_space import (
+    BodyPosition,
+    ElasticCoordinate,
+    NodeDisplacement,
+    PointLoad,
+    StateSpace,
+    input_forces,
+    output_rows,
+)
 from .system import identity_of
 
 if TYPE_CHECKING:
@@ -37,8 +51,29 @@ Array = NDArray[np.float64]
 _log = logging.getLogger("flexmbd.analysis")
 
 
-def _model(model: _core.Model | _core.System) -> _core.Model:
-    return model.compile() if isinstance(model, _core.System) else model
+def _model(model: _core.Model | _core.System, name: str = "model") -> _core.Model:
+    """`model` compiled (a System) or as it is (a Model); an `ArgumentTypeError` naming the
+    parameter `name` for anything else (a loaded model file: its ``.system``)."""
+    if isinstance(model, _core.System):
+        return model.compile()
+    if isinstance(model, _core.Model):
+        return model
+    raise not_a_model(model, name)
+
+
+def not_a_model(
+    value: Any, name: str, needs: str = "a flexmbd.System or a compiled Model"
+) -> ArgumentTypeError:
+    """The error of a `value` given as the model `name` that is none: what holds a system (a
+    model file's :func:`flexmbd.load_model`, an example) is told to pass its ``.system``."""
+    if isinstance(getattr(value, "system", None), _core.System):
+        return ArgumentTypeError(
+            f"{name} must be {needs}, got a {type(value).__name__}: pass its .system",
+            item=name,
+        )
+    return ArgumentTypeError(
+        f"{name} must be {needs}, got {value_text(value)} ({type(value).__name__})", item=name
+    )
 
 
 def _elastic_mask(layout: dict[str, Any]) -> NDArray[np.bool_]:
@@ -728,6 +763,9 @@ def equilibrium(
     """
     model = _model(model)
     time = number(time, "time")
+    coordinates, tolerance, max_iterations = _newton_options(
+        model, coordinates, tolerance, max_iterations
+    )
     if stable is not None and not isinstance(stable, bool):
         raise InvalidParameterError(f"stable: True, False or None, got {stable!r}", item="stable")
     if redundant_constraints not in REDUNDANCY:
@@ -739,6 +777,41 @@ def equilibrium(
     state = _equilibrium(model, time, coordinates, tolerance, max_iterations, stable)
     state = dataclasses.replace(state, system_identity=identity_of(model))
     return _redundancy_handled(model, state, redundant_constraints)
+
+
+def _newton_options(
+    model: _core.Model, coordinates: Any, tolerance: Any, max_iterations: Any
+) -> tuple[Array | None, float, int]:
+    """The options of :func:`equilibrium`'s Newton iteration, checked: the starting
+    `coordinates` (None, or one finite number per coordinate of `model`), `tolerance` (a
+    number above zero) and `max_iterations` (an integer, at least 1). An
+    `InvalidParameterError` names the option."""
+    tolerance = number(tolerance, "tolerance")
+    if tolerance <= 0.0:
+        raise InvalidParameterError(
+            f"tolerance must be above zero (a relative Newton increment), got {tolerance:g}",
+            item="tolerance",
+        )
+    max_iterations = integer(max_iterations, "max_iterations")
+    if max_iterations < 1:
+        raise InvalidParameterError(
+            f"max_iterations must be at least 1, got {max_iterations}", item="max_iterations"
+        )
+    if coordinates is None:
+        return None, tolerance, max_iterations
+    q = numbers_array(coordinates, "coordinates")
+    nq = model.coordinate_count
+    if q.shape != (nq,):
+        raise InvalidParameterError(
+            f"coordinates must be {nq} numbers (the model's coordinates), got shape {q.shape}",
+            item="coordinates",
+        )
+    bad = np.flatnonzero(~np.isfinite(q))
+    if len(bad):
+        raise InvalidParameterError(
+            f"coordinates must be finite, got {q[bad[0]]} at index {bad[0]}", item="coordinates"
+        )
+    return q, tolerance, max_iterations
 
 
 #: Choices of `redundant_constraints` of :func:`equilibrium` (the runs' names).
@@ -954,13 +1027,31 @@ def steady_rotation(
     centrifugally stretched (and gravity-loaded) state, with the velocities of that spin:
     the bodies a driver carries (joined to its driven body by other joints, as a bob on a free
     hinge of a turning hub) move rigidly with the driven body, the others rest. This is
-    :func:`equilibrium` with its preconditions checked; `options` are its options.
+    :func:`equilibrium` with its preconditions checked; `options` are its options
+    (``coordinates``, ``tolerance``, ``max_iterations``, ``redundant_constraints``).
     Raises `InvalidModelError` naming the driver that accelerates, or when nothing turns."""
     model = _model(model)
     time = number(time, "time")
     nq, nc = model.coordinate_count, model.constraint_count
-    options = dict(options)
-    q = np.array(options.pop("coordinates", model.initial_coordinates), dtype=float)
+    unknown = sorted(set(options) - set(STEADY_OPTIONS))
+    if unknown:
+        raise InvalidParameterError(
+            f"steady_rotation: unknown option {unknown[0]!r}; options: {', '.join(STEADY_OPTIONS)}",
+            item=unknown[0],
+        )
+    coordinates, tolerance, max_iterations = _newton_options(
+        model,
+        options.get("coordinates"),
+        options.get("tolerance", 1e-10),
+        options.get("max_iterations", 100),
+    )
+    handling = options.get("redundant_constraints", "remove")
+    if handling not in REDUNDANCY:
+        raise InvalidParameterError(
+            f"redundant_constraints must be one of {', '.join(REDUNDANCY)}, got {handling!r}",
+            item="redundant_constraints",
+        )
+    q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
     zero_q, zero_l = np.zeros(nq), np.zeros(nc)
     layout = model.describe()
     _check_drivers_at_start(model, time, q, layout)
@@ -982,7 +1073,13 @@ def steady_rotation(
                 "needs constant driver speeds (start later, or use equilibrium)",
                 item=f"driver '{name}'",
             )
-    return _solve_equilibrium(model, time, q, layout, **options)
+    state = _solve_equilibrium(model, time, q, layout, tolerance, max_iterations)
+    state = dataclasses.replace(state, system_identity=identity_of(model))
+    return _redundancy_handled(model, state, handling)
+
+
+#: The options of :func:`steady_rotation` (those of :func:`equilibrium` that apply).
+STEADY_OPTIONS = ("coordinates", "tolerance", "max_iterations", "redundant_constraints")
 
 
 @dataclass
@@ -1062,18 +1159,21 @@ class LinearizedSystem:
         eigenvalues of the real first-order matrix exactly real): a rotor's forward whirl
         seen from the rotating frame near its critical speed, where its frequency there nears
         zero while the stiff modes of a nearly massless damped shaft make |s| large."""
+        relative_floor = _floor(relative_floor)
         values, vectors = self.eigenvalues()
         scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
         keep = np.flatnonzero(values.imag > relative_floor * scale)
         keep = keep[np.argsort(values[keep].imag, kind="stable")]
         s = values[keep]
-        return s.imag / (2.0 * np.pi), -s.real / np.abs(s), vectors[:, keep]
+        # + 0.0: an undamped mode's ratio is 0, not -0 (-Re s of Re s = 0).
+        return s.imag / (2.0 * np.pi), -s.real / np.abs(s) + 0.0, vectors[:, keep]
 
     def free_motions(self, relative_floor: float = 1e-9) -> int:
         """How many independent motions have neither stiffness nor damping: the rigid-body
         modes of a free-flying structure (six for a free body, one for a wheel on a free
         axle), each a double zero eigenvalue. Eigenvalues of modulus at most `relative_floor`
         times the largest (at least 1) count as zero, as in :meth:`oscillating`."""
+        relative_floor = _floor(relative_floor)
         values, _ = self.eigenvalues()
         scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
         return int(np.sum(np.abs(values) <= relative_floor * scale)) // 2
@@ -1090,6 +1190,17 @@ class LinearizedSystem:
         # Rotate each complex shape so that its largest entry is real.
         peak = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
         return freq, np.real(shapes / (peak / np.abs(peak)))
+
+
+def _floor(value: Any) -> float:
+    """The `relative_floor` of :meth:`LinearizedSystem.oscillating`: a finite number, at
+    least 0."""
+    value = number(value, "relative_floor")
+    if value < 0.0:
+        raise InvalidParameterError(
+            f"relative_floor must be at least 0, got {value:g}", item="relative_floor"
+        )
+    return value
 
 
 #: Choices of the independent coordinates of :func:`linearize`.
@@ -1219,7 +1330,12 @@ def linearize(
     rad/s instead of 27.0 and 157.9). The two choices agree where B does not move (static
     states, blades whose reference motion is all prescribed), up to round-off, which is larger
     with the null space: its columns mix stiff and soft coordinates (the rotor at rest: its
-    first pair of bending frequencies split by 1e-5 against exactly equal)."""
+    first pair of bending frequencies split by 1e-5 against exactly equal).
+
+    Raises `InvalidParameterError` for a state of another System, or one whose coordinates
+    violate the constraints by more than :data:`STATE_VIOLATION` (naming the joint equation
+    violated most), and `ArgumentTypeError` for inputs or outputs that are not lists of
+    loads and outputs."""
     import scipy.linalg as sla
 
     if independent not in INDEPENDENT:
@@ -1246,6 +1362,11 @@ def linearize(
             "fm.steady_rotation or a result's result.state(k)",
             item="state",
         )
+    inputs = _items(inputs, "inputs", (PointLoad,), "flexmbd.PointLoad")
+    outputs = _items(
+        outputs, "outputs", OUTPUTS, "NodeDisplacement, BodyPosition, ElasticCoordinate"
+    )
+    _check_state(model, state)
     nq = model.coordinate_count
     args = (
         state.time,
@@ -1276,12 +1397,86 @@ def linearize(
         state,
     )
     if inputs:
-        linear.input_forces = input_forces(system, state, list(inputs))
+        linear.input_forces = input_forces(system, state, inputs)
         linear.input_names = [load.label() for load in inputs]
     if outputs:
-        linear.output_rows = output_rows(model, list(outputs))
+        linear.output_rows = output_rows(model, outputs)
         linear.output_names = [output.label() for output in outputs]
     return linear
+
+
+#: The outputs :func:`linearize` takes.
+OUTPUTS = (NodeDisplacement, BodyPosition, ElasticCoordinate)
+
+
+def _items(value: Any, name: str, kinds: tuple[type, ...], listed: str) -> list[Any]:
+    """The list or tuple `value` of the inputs or outputs `name` of :func:`linearize`, each
+    one of `kinds`, else an `ArgumentTypeError` naming the parameter (a single load not in a
+    list) or the entry (``outputs[1]``)."""
+    if isinstance(value, kinds):
+        raise ArgumentTypeError(
+            f"linearize: {name} must be a list ({listed}), got a single "
+            f"{type(value).__name__}: pass [{type(value).__name__}(...)]",
+            item=name,
+        )
+    if not isinstance(value, list | tuple):
+        raise ArgumentTypeError(
+            f"linearize: {name} must be a list of {listed}, got {value_text(value)} "
+            f"({type(value).__name__})",
+            item=name,
+        )
+    for k, entry in enumerate(value):
+        if not isinstance(entry, kinds):
+            raise ArgumentTypeError(
+                f"linearize: {name}[{k}] must be one of {listed}, got {value_text(entry)} "
+                f"({type(entry).__name__})",
+                item=f"{name}[{k}]",
+            )
+    return list(value)
+
+
+#: Largest violation of the constraints (relative to the largest coordinate, at least 1) of
+#: a state that :func:`linearize` takes: a run's states meet them to its Newton tolerance.
+STATE_VIOLATION = 1e-6
+
+
+def _check_state(model: _core.Model, state: State) -> None:
+    """An `InvalidParameterError` for a state that is not one of `model`: of another System
+    (its ``system_identity``), of other sizes, or whose coordinates violate the constraints
+    by more than :data:`STATE_VIOLATION` (the message names the joint equation violated
+    most)."""
+    here = identity_of(model)
+    if state.system_identity is not None and here is not None and state.system_identity != here:
+        raise InvalidParameterError(
+            "linearize: the state is one of another System (its system_identity differs): "
+            "linearize about a state of this system (fm.equilibrium(system), "
+            "fm.steady_rotation(system), or result.state(k) of a run of it)",
+            item="state",
+        )
+    nq, nc = model.coordinate_count, model.constraint_count
+    sizes = (len(state.coordinates), len(state.multipliers))
+    if sizes != (nq, nc):
+        raise InvalidParameterError(
+            f"linearize: the state has {sizes[0]} coordinates and {sizes[1]} multipliers, the "
+            f"model {nq} and {nc}: it is a state of another model",
+            item="state",
+        )
+    if nc == 0:
+        return
+    q = np.asarray(state.coordinates, dtype=float)
+    zeros = np.zeros(nq)
+    violation = np.abs(model.evaluate(state.time, q, zeros, zeros, np.zeros(nc))["residual"][nq:])
+    floor = STATE_VIOLATION * max(1.0, float(np.max(np.abs(q), initial=0.0)))
+    worst = int(np.argmax(violation))
+    if not violation[worst] <= floor:
+        joints, names = _row_names(model.describe(), np.array([worst]))
+        raise InvalidParameterError(
+            f"linearize: the state's coordinates violate {names} by "
+            f"{float(violation[worst]):.3g} at t = {state.time:g} (more than {floor:.3g}): it is "
+            "not a configuration of this model (a state of another model, or coordinates "
+            "changed by hand)",
+            item=joints[0] if joints else "state",
+        )
 
 
 #: Largest violation of the constraints at the initial coordinates (relative to the largest
@@ -1316,6 +1511,8 @@ def linearize_at_rest(
     from .system import System
 
     time = number(time, "time")
+    if not isinstance(system, _core.System | _core.Model):
+        raise not_a_model(system, "system")
     if not loads:
         if not isinstance(system, System):
             raise InvalidParameterError(

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from . import _core
 from ._checks import integer, numbers_array
 from .errors import InvalidParameterError
 from .progress import track as track_progress
@@ -117,7 +118,7 @@ class CampbellDiagram:
         the critical speed of the rotor's unbalance."""
         found = []
         w = self.speeds
-        for k in np.atleast_1d(np.asarray(orders, dtype=float)):
+        for k in _orders(orders):
             line = k * w / (2 * np.pi)
             for m in range(self.mode_count):
                 gap = self.frequencies[:, m] - line
@@ -349,10 +350,12 @@ def campbell(
     Raises `UnknownItemError` for an unknown driver, `InvalidParameterError` for a driver that
     is not an angle driver, an unknown frame, speeds not ascending, and "fixed" for a model
     whose driver turns no deformable body."""
-    from .analysis import equilibrium, linearize, steady_rotation
+    from .analysis import equilibrium, linearize, not_a_model, steady_rotation
     from .system import System
 
     if not isinstance(system, System):
+        if not isinstance(system, _core.Model):
+            raise not_a_model(system, "system", "a flexmbd.System")
         raise InvalidParameterError(
             "campbell needs a flexmbd.System (it builds the system again at every speed)",
             item="system",
@@ -449,6 +452,18 @@ def campbell(
     )
 
 
+def _orders(orders: Any) -> Array:
+    """The excitation orders k of the lines k W: finite numbers (one, or a sequence), else an
+    `InvalidParameterError` naming `orders`."""
+    values = np.atleast_1d(numbers_array(orders, "orders")).ravel()
+    bad = np.flatnonzero(~np.isfinite(values))
+    if len(bad):
+        raise InvalidParameterError(
+            f"orders must be finite, got {values[bad[0]]} at index {bad[0]}", item="orders"
+        )
+    return values
+
+
 def plot_campbell(
     diagram: CampbellDiagram,
     path: str | os.PathLike[str] | None = None,
@@ -477,7 +492,7 @@ def plot_campbell(
         style = styles[label] if whirling else "-"
         ax.plot(w, diagram.frequencies[:, m], style, lw=1.5, label=name)
     top = float(np.max(diagram.frequencies)) * 1.05
-    for k in np.atleast_1d(orders):
+    for k in _orders(orders):
         ax.plot(w, k * w / (2 * np.pi), "k--", lw=0.8)
         ax.annotate(f"{k:g}x", (w[-1], min(k * w[-1] / (2 * np.pi), top)), fontsize=8)
     for c in diagram.critical_speeds(orders):

@@ -779,7 +779,8 @@ def _modes(args: argparse.Namespace) -> int:
         job = _job(args.model)
         linear, model, about = _linearized(job.system)
         frequencies, damping, shapes = linear.oscillating()
-        print(f"{job.name}: {len(frequencies)} oscillating modes about {about}")
+        count = len(frequencies)
+        print(f"{job.name}: {count} oscillating mode{'s' if count != 1 else ''} about {about}")
         print("mode  frequency (Hz)  damping ratio  moves most")
         for k in range(min(args.count, len(frequencies))):
             parts = body_shapes(model, shapes[:, k])
@@ -1199,11 +1200,11 @@ def _main(argv: list[str] | None) -> int:
         "of a free-flying model), and animations",
     )
     modes.add_argument("model", help="model file (.yaml) or built-in example")
-    modes.add_argument("--count", type=int, default=10, help="modes listed (default 10)")
+    modes.add_argument("--count", type=_every, default=10, help="modes listed (default 10)")
     modes.add_argument(
-        "--animate", type=int, nargs="*", default=[], metavar="K", help="modes to animate (1 ..)"
+        "--animate", type=_every, nargs="*", default=[], metavar="K", help="modes to animate (1 ..)"
     )
-    modes.add_argument("--frames", type=int, default=24, help="frames per period (default 24)")
+    modes.add_argument("--frames", type=_every, default=24, help="frames per period (default 24)")
     modes.add_argument("-o", "--output", help="output stem (default: the model's name)")
     view = sub.add_parser(
         "view",

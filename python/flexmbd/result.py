@@ -500,7 +500,8 @@ class Result:
     def to_dataframe(self) -> Any:
         """The named time series as a pandas DataFrame indexed by time (s); columns like
         ``"crank.position.x"``, ``"bearing.reaction_force.y"``, ``"rod.elastic.3"``,
-        ``"tip.z"`` (a sensor), ``"kinetic_energy"``. Needs pandas (``pip install flexmbd[data]``)."""
+        ``"tip.z"`` (a sensor), ``"kinetic_energy"``. Needs pandas
+        (``pip install flexmbd[data]``)."""
         import pandas as pd
 
         frame = pd.DataFrame(self._columns(), index=pd.Index(self.time, name="time"))

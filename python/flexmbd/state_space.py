@@ -22,8 +22,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import numbers_array
-from .errors import InvalidParameterError
+from . import _core
+from ._checks import integer, number, numbers_array, value_text
+from .errors import ArgumentTypeError, InvalidParameterError
 from .quantities import body_entry
 from .rotation import angular_velocity
 
@@ -73,11 +74,15 @@ class BodyPosition:
 
 @dataclass(frozen=True)
 class ElasticCoordinate:
-    """An output: elastic coordinate `index` of the deformable body `body`."""
+    """An output: elastic coordinate `index` (an integer, 0: the first) of the deformable
+    body `body`."""
 
     body: Any
     index: int
     name: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "index", integer(self.index, "ElasticCoordinate index"))
 
     def label(self) -> str:
         return self.name or f"elastic coordinate {self.index} of body {self.body}"
@@ -99,6 +104,12 @@ class StateSpace:
         """H(i w) = C (i w I - A)^-1 B + D at `frequencies` (Hz): (frequencies, outputs,
         inputs)."""
         f = numbers_array(frequencies, "frequencies").ravel()
+        bad = np.flatnonzero(~np.isfinite(f))
+        if len(bad):
+            raise InvalidParameterError(
+                f"frequencies must be finite, got {f[bad[0]]} at index {bad[0]}",
+                item="frequencies",
+            )
         n = self.a.shape[0]
         out = np.empty((len(f), self.c.shape[0], self.b.shape[1]), dtype=complex)
         for k, fk in enumerate(f):
@@ -111,8 +122,37 @@ def _unit(direction: ArrayLike, what: str) -> Array:
     d = numbers_array(direction, f"{what} direction").ravel()
     norm = float(np.linalg.norm(d))
     if d.shape != (3,) or not np.isfinite(norm) or norm == 0.0:
-        raise InvalidParameterError(f"{what}: direction must be a non-zero 3-vector, got {d}")
+        raise InvalidParameterError(
+            f"{what}: direction must be a non-zero 3-vector, got {d}", item=f"{what} direction"
+        )
     return d / norm
+
+
+def _output_body(layout: dict[str, Any], output: Any) -> tuple[int, dict[str, Any]]:
+    """The index and layout entry of the body of `output`: a body id, index or name (a
+    marker's or a joint's id is refused, not read as the body of its index); the ground
+    only for outputs of deformable bodies, which it is not (it does not move)."""
+    body = output.body
+    if isinstance(body, _core.BodyId | str):
+        pass
+    elif isinstance(body, _core.MarkerId | _core.JointId | _core.ForceId | _core.SensorId):
+        kind = type(body).__name__[:-2].lower()
+        raise ArgumentTypeError(
+            f"{output.label()}: body must be a body (a BodyId, index or name), got {body!r}, "
+            f"a {kind}'s id: pass the body (a marker's body is its first argument to "
+            "add_marker)",
+            item=repr(body),
+        )
+    else:
+        integer(body, f"{output.label()}: body")
+    index, entry = body_entry(layout, body)
+    if entry["kind"] == "ground" and isinstance(output, BodyPosition):
+        raise InvalidParameterError(
+            f"{output.label()}: body {entry['name']!r} is the ground, which does not move: "
+            "its position is no output",
+            item=entry["name"],
+        )
+    return index, entry
 
 
 def output_rows(model: Any, outputs: list[Any]) -> Array:
@@ -123,14 +163,15 @@ def output_rows(model: Any, outputs: list[Any]) -> Array:
     flexible = model.flexible_bodies
     rows = np.zeros((len(outputs), model.coordinate_count))
     for k, output in enumerate(outputs):
-        index, entry = body_entry(layout, output.body)
+        index, entry = _output_body(layout, output)
         start = entry["offset"]
         if isinstance(output, BodyPosition):
             rows[k, start : start + 3] = _unit(output.direction, output.label())
             continue
         if index not in flexible:
             raise InvalidParameterError(
-                f"{output.label()}: body {entry['name']!r} is not a deformable body"
+                f"{output.label()}: body {entry['name']!r} is not a deformable body",
+                item=entry["name"],
             )
         data = flexible[index]
         elastic = start + 7  # after the position and the Euler parameters of the frame
@@ -138,7 +179,9 @@ def output_rows(model: Any, outputs: list[Any]) -> Array:
             count = entry["count"] - 7
             if not 0 <= output.index < count:
                 raise InvalidParameterError(
-                    f"{output.label()}: the body has {count} elastic coordinates"
+                    f"{output.label()}: the body has {count} elastic coordinates (indices 0 "
+                    f"to {count - 1})",
+                    item="index",
                 )
             rows[k, elastic + output.index] = 1.0
         elif isinstance(output, NodeDisplacement):
@@ -148,7 +191,11 @@ def output_rows(model: Any, outputs: list[Any]) -> Array:
             direction = _unit(output.direction, output.label())
             rows[k, elastic : elastic + basis.shape[1]] = direction @ basis
         else:
-            raise InvalidParameterError(f"unknown output {output!r}")
+            raise ArgumentTypeError(
+                f"unknown output {value_text(output)}: a NodeDisplacement, BodyPosition or "
+                "ElasticCoordinate",
+                item="outputs",
+            )
     return rows
 
 
@@ -169,9 +216,14 @@ def input_forces(system: Any, state: Any, inputs: list[Any]) -> Array:
     columns = np.zeros((nq, len(inputs)))
     for k, load in enumerate(inputs):
         if not isinstance(load, PointLoad):
-            raise InvalidParameterError(f"unknown input {load!r}")
+            raise ArgumentTypeError(
+                f"unknown input {value_text(load)}: a flexmbd.PointLoad", item="inputs"
+            )
         if load.kind not in ("force", "torque"):
-            raise InvalidParameterError(f"{load.label()}: kind must be 'force' or 'torque'")
+            raise InvalidParameterError(
+                f"{load.label()}: kind must be 'force' or 'torque', got {value_text(load.kind)}",
+                item="kind",
+            )
         unit = _unit(load.direction, load.label())
         method = "add_point_force" if load.kind == "force" else "add_torque"
         call = (method, (load.marker, [Constant(float(v)) for v in unit]), {"frame": load.frame})
@@ -217,6 +269,30 @@ def mode_result(
     the animation and the ParaView series: q = q0 + a Re(phi e^(i 2 pi t)), `amplitude` the
     largest change of a reference coordinate (the elastic deformation is scaled by the
     animation itself)."""
+    from .analysis import LinearizedSystem, _model
+
+    if not isinstance(linear, LinearizedSystem):
+        raise ArgumentTypeError(
+            f"linear must be a flexmbd LinearizedSystem (fm.linearize), got "
+            f"{value_text(linear)} ({type(linear).__name__})",
+            item="linear",
+        )
+    model = _model(model)
+    mode = integer(mode, "mode")
+    frames = integer(frames, "frames")
+    if frames < 1:
+        raise InvalidParameterError(f"frames must be at least 1, got {frames}", item="frames")
+    amplitude = number(amplitude, "amplitude")
+    if amplitude <= 0.0:
+        raise InvalidParameterError(
+            f"amplitude must be above zero, got {amplitude:g}", item="amplitude"
+        )
+    if model.coordinate_count != linear.basis.shape[0]:
+        raise InvalidParameterError(
+            f"model has {model.coordinate_count} coordinates, the linearization "
+            f"{linear.basis.shape[0]}: pass the model that was linearized",
+            item="model",
+        )
     from .result import Result
 
     frequencies, _, shapes = linear.oscillating()

@@ -1,0 +1,288 @@
+"""Arguments of the linear analyses (equilibrium, linearize, state-space models, mode
+animations, Campbell diagrams, ``flexmbd modes``) that are wrong end in a typed flexmbd error
+naming them, never in a raw TypeError, ValueError, IndexError or AttributeError, nor in a
+silently wrong result. One regression test per fault a review found; the comments say what
+happened before."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import flexmbd as fm
+from flexmbd.campbell import CampbellDiagram
+from flexmbd.cli import main
+from flexmbd.errors import ArgumentTypeError, InvalidParameterError
+from flexmbd.fe import Material, Section
+from flexmbd.model_file import load_model
+from flexmbd.state_space import mode_result
+
+MODELS = Path(__file__).resolve().parents[1] / "examples" / "models"
+
+
+def rod():
+    """A rigid rod (2 kg, 1.2 m) hanging from a hinge on the ground; its marker at the hinge."""
+    system = fm.System(gravity=(0, -9.81, 0))
+    turned = np.array([[0, 1, 0], [-1, 0, 0], [0, 0, 1]])
+    body = system.add_rigid_body(
+        2.0, (1e-4, 0.24, 0.24), position=(0, -0.6, 0), orientation=turned, name="rod"
+    )
+    top = system.add_marker(body, position=(-0.6, 0, 0))
+    system.add_revolute_joint(system.add_marker(system.ground), top, name="hinge")
+    return system, body, top
+
+
+def pendulum(length):
+    """A point mass on a distance joint of `length` below the ground's origin."""
+    system = fm.System(gravity=(0, -9.81, 0))
+    bob = system.add_point_mass(1.0, position=(0, -length, 0), name="bob")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(bob), name="rod")
+    return system
+
+
+@pytest.fixture(scope="module")
+def hanging():
+    """The rod, its equilibrium and its linearization."""
+    system, body, top = rod()
+    state = fm.equilibrium(system)
+    return system, body, top, state, fm.linearize(system, state)
+
+
+def test_body_position_outputs_of_the_ground_or_a_marker_are_refused(hanging):
+    # Both gave the row of the rod: the ground's output was the rod's position, and the
+    # marker's index 1 was read as body 1. All three rows of C were equal.
+    system, body, top, state, _ = hanging
+    rows = fm.linearize(system, state, outputs=[fm.BodyPosition(body, (1, 0, 0))])
+    assert rows.state_space().c.shape == (1, 2)
+    with pytest.raises(InvalidParameterError, match="ground, which does not move") as caught:
+        fm.linearize(system, state, outputs=[fm.BodyPosition(system.ground, (1, 0, 0))])
+    assert caught.value.item == "ground"
+    with pytest.raises(ArgumentTypeError, match="marker's id: pass the body"):
+        fm.linearize(system, state, outputs=[fm.BodyPosition(top, (1, 0, 0))])
+    with pytest.raises(InvalidParameterError, match="must be an integer"):
+        fm.linearize(system, state, outputs=[fm.BodyPosition(1.0, (1, 0, 0))])
+
+
+def test_a_state_of_another_system_is_refused():
+    # A pendulum of 4 m linearized about the equilibrium of one of 1 m gave the 1 m
+    # pendulum's frequency (0.498 Hz instead of 0.249 Hz).
+    short, long = pendulum(1.0), pendulum(4.0)
+    with pytest.raises(InvalidParameterError, match="another System") as caught:
+        fm.linearize(long, fm.equilibrium(short))
+    assert caught.value.item == "state"
+
+
+def test_a_state_that_violates_the_constraints_is_refused(assert_close):
+    # Coordinates moved off the joint (by hand, or of another model without an identity)
+    # were linearized about as they were.
+    system = pendulum(1.0)
+    state = fm.equilibrium(system)
+    moved = np.array(state.coordinates)
+    moved[1] -= 0.5
+    with pytest.raises(InvalidParameterError, match="joint 'rod' equation 'distance' by 0.5"):
+        fm.linearize(system, dataclasses.replace(state, coordinates=moved))
+    stray = dataclasses.replace(state, coordinates=moved, system_identity=None)
+    with pytest.raises(InvalidParameterError) as caught:
+        fm.linearize(system, stray)
+    assert caught.value.item == "rod"
+    # The states of the analyses and of a run are taken.
+    frequency = np.sqrt(9.81) / (2 * np.pi)
+    assert_close(fm.linearize(system, state).frequencies(), frequency, rel=1e-9)
+    run = fm.simulate(system, 0.2, 1e-3)
+    assert_close(fm.linearize(system, run.state(100)).frequencies(), frequency, rel=1e-6)
+
+
+def test_a_steady_rotation_is_a_state_of_its_system():
+    # steady_rotation's state carried no system identity, so a state of another system's
+    # steady rotation was not recognized; its unknown options were a raw TypeError.
+    steel, strip = Material(2.1e11, 0.3, 7850.0), Section.rectangle(0.02, 0.01)
+    spinning = fm.examples.rotating_beam(steel, strip, 1.0, 2, speed=5.0)
+    state = fm.steady_rotation(spinning)
+    assert state.system_identity == spinning._identity
+    with pytest.raises(InvalidParameterError, match="unknown option 'stable'"):
+        fm.steady_rotation(spinning, stable=True)
+    with pytest.raises(InvalidParameterError, match="max_iterations must be an integer"):
+        fm.steady_rotation(spinning, max_iterations=2.5)
+
+
+@pytest.mark.parametrize(
+    "options, name",
+    [
+        ({"max_iterations": "x"}, "max_iterations"),
+        ({"max_iterations": 2.5}, "max_iterations"),
+        ({"max_iterations": 0}, "max_iterations"),
+        # NaN and -1 ran 100 iterations and raised EquilibriumError "no convergence".
+        ({"tolerance": float("nan")}, "tolerance"),
+        ({"tolerance": -1.0}, "tolerance"),
+        ({"tolerance": "1e-9"}, "tolerance"),
+        ({"coordinates": "abc"}, "coordinates"),
+        ({"coordinates": [0.0, 1.0, 2.0]}, "coordinates"),
+        ({"coordinates": [np.nan] * 7}, "coordinates"),
+    ],
+)
+def test_equilibrium_options_are_checked(hanging, options, name):
+    system = hanging[0]
+    with pytest.raises(InvalidParameterError) as caught:
+        fm.equilibrium(system, **options)
+    assert caught.value.item == name
+
+
+@pytest.mark.parametrize("model", [None, "pendulum", 3.0])
+@pytest.mark.parametrize(
+    "analysis", [fm.equilibrium, fm.linearize, fm.steady_rotation, fm.linearize_at_rest]
+)
+def test_what_is_not_a_model_is_refused(analysis, model):
+    # equilibrium(None) and equilibrium("pendulum") raised AttributeError ('describe').
+    with pytest.raises(ArgumentTypeError, match="must be a flexmbd.System"):
+        analysis(model)
+
+
+@pytest.mark.parametrize(
+    "analysis", [fm.equilibrium, fm.linearize, fm.steady_rotation, fm.linearize_at_rest]
+)
+def test_a_loaded_model_file_is_told_to_pass_its_system(analysis):
+    # AttributeError: 'ModelFile' object has no attribute 'describe'.
+    loaded = load_model(MODELS / "overhung_rotor.yaml")
+    with pytest.raises(ArgumentTypeError, match=r"got a ModelFile: pass its \.system"):
+        analysis(loaded)
+    with pytest.raises(ArgumentTypeError, match=r"pass its \.system"):
+        fm.campbell(loaded, "spin", [0.0, 1.0])
+
+
+@pytest.mark.parametrize(
+    "arguments, item",
+    [
+        # A single load not in a list: TypeError "'PointLoad' object is not iterable".
+        (lambda top: {"inputs": fm.PointLoad(top, (0, 1, 0))}, "inputs"),
+        (lambda top: {"inputs": ["x"]}, "inputs[0]"),
+        (lambda top: {"inputs": "x"}, "inputs"),
+        # AttributeError: 'str' object has no attribute 'body'.
+        (lambda top: {"outputs": ["x"]}, "outputs[0]"),
+        (lambda top: {"outputs": fm.BodyPosition("rod", (1, 0, 0))}, "outputs"),
+    ],
+)
+def test_inputs_and_outputs_must_be_lists_of_loads_and_outputs(hanging, arguments, item):
+    system, _, top, state, _ = hanging
+    with pytest.raises(ArgumentTypeError) as caught:
+        fm.linearize(system, state, **arguments(top))
+    assert caught.value.item == item
+
+
+@pytest.mark.parametrize("index", [1.5, "1", None, True])
+def test_an_elastic_coordinate_index_is_an_integer(index):
+    # 1.5 gave IndexError from NumPy at linearize, "1" a TypeError.
+    with pytest.raises(InvalidParameterError, match="index must be an integer"):
+        fm.ElasticCoordinate("blade", index)
+    assert fm.ElasticCoordinate("blade", np.int64(2)).index == 2
+
+
+@pytest.mark.parametrize("floor", ["x", float("nan"), -1e-9, None])
+def test_the_relative_floor_of_the_modes_is_a_number_at_least_zero(hanging, floor):
+    # "x" raised TypeError; NaN silently left out every mode.
+    linear = hanging[4]
+    with pytest.raises(InvalidParameterError) as caught:
+        linear.oscillating(relative_floor=floor)
+    assert caught.value.item == "relative_floor"
+    with pytest.raises(InvalidParameterError):
+        linear.free_motions(relative_floor=floor)
+
+
+def test_an_undamped_mode_has_a_damping_ratio_of_zero_not_minus_zero(hanging):
+    # -Re s / |s| of Re s = 0 printed as "-0.".
+    _, damping, _ = hanging[4].oscillating()
+    assert np.all(damping == 0.0) and not np.any(np.signbit(damping))
+
+
+@pytest.mark.parametrize(
+    "options, item",
+    [
+        ({"mode": 1.5}, "mode"),  # IndexError from NumPy
+        ({"mode": "0"}, "mode"),  # TypeError on '<='
+        ({"mode": 0, "frames": -2}, "frames"),  # ValueError: negative dimensions
+        ({"mode": 0, "frames": 2.5}, "frames"),
+        ({"mode": 0, "amplitude": float("nan")}, "amplitude"),  # frames of NaN coordinates
+        ({"mode": 0, "amplitude": 0.0}, "amplitude"),
+        ({"mode": 5}, "mode"),
+    ],
+)
+def test_mode_result_checks_its_mode_frames_and_amplitude(hanging, options, item):
+    system, _, _, _, linear = hanging
+    with pytest.raises(InvalidParameterError) as caught:
+        mode_result(linear, system.compile(), **options)
+    assert caught.value.item == item
+
+
+def test_mode_result_refuses_what_is_not_a_model(hanging):
+    linear = hanging[4]
+    with pytest.raises(ArgumentTypeError, match="must be a flexmbd.System"):
+        mode_result(linear, "rod", 0)
+
+
+@pytest.mark.parametrize("frequencies", [[np.nan], [1.0, np.inf]])
+def test_frequency_response_at_a_frequency_that_is_not_finite_is_refused(hanging, frequencies):
+    # A response of NaN came back.
+    system, body, top, state, _ = hanging
+    linear = fm.linearize(
+        system,
+        state,
+        inputs=[fm.PointLoad(top, (1, 0, 0))],
+        outputs=[fm.BodyPosition(body, (1, 0, 0))],
+    )
+    with pytest.raises(InvalidParameterError, match="frequencies must be finite"):
+        linear.state_space().frequency_response(frequencies)
+
+
+def diagram():
+    """A Campbell diagram of one mode crossing the order-1 line."""
+    speeds = np.array([0.0, 10.0, 20.0])
+    return CampbellDiagram(
+        speeds=speeds,
+        frequencies=np.array([[2.0], [2.0], [2.0]]),
+        damping=np.zeros((3, 1)),
+        shapes=np.zeros((3, 1, 1)),
+        mac=np.ones((3, 1)),
+        driver="spin",
+        frame="rotating",
+        whirl=np.full((3, 1), None, dtype=object),
+        whirl_ratio=np.zeros((3, 1)),
+    )
+
+
+@pytest.mark.parametrize("orders", ["x", [np.nan], [1.0, np.inf], None])
+def test_critical_speeds_take_finite_orders(orders):
+    # "x" raised ValueError from NumPy; NaN found no crossing, silently.
+    with pytest.raises(InvalidParameterError) as caught:
+        diagram().critical_speeds(orders=orders)
+    assert caught.value.item == "orders"
+
+
+def test_critical_speeds_of_one_order(assert_close):
+    (found,) = diagram().critical_speeds(orders=1)
+    assert_close(found["speed"], 4 * np.pi, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["--frames", "-2", "--animate", "1"],  # a traceback (negative dimensions)
+        ["--count", "-3"],  # listed nothing
+        ["--animate", "0"],
+        ["--frames", "x"],
+    ],
+)
+def test_the_modes_command_refuses_counts_that_are_not_positive(arguments, capsys):
+    with pytest.raises(SystemExit) as caught:
+        main(["modes", "pendulum", *arguments])
+    assert caught.value.code == 2
+    assert "expected a positive whole number" in capsys.readouterr().err
+
+
+def test_the_modes_command_counts_one_mode_in_the_singular(capsys):
+    # "four-bar: 1 oscillating modes about the static equilibrium".
+    assert main(["modes", "four-bar", "--count", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "four-bar: 1 oscillating mode about" in out
+    assert " -0" not in out
