@@ -427,6 +427,43 @@ def test_abaqus_c3d10_order(tmp_path):
     assert_gmsh_tet10(mesh, mesh.elements["tet10"][0])
 
 
+def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
+    # A wedge on a hexahedron (VTK), a C3D6 wedge next to a C3D4 (Abaqus), a 6-node triangle
+    # among shell triangles: before, read_mesh left them out without a word, and the body
+    # had a hole (a wedge-and-hex bracket: 62.4 kg instead of 70.2).
+    points, hexes = hex_block()
+    top = points[hexes[0, 4:]]
+    apex = np.vstack([top[[0, 1]].mean(axis=0), top[[3, 2]].mean(axis=0)]) + [0, 0, 0.5]
+    points = np.vstack([points, apex])
+    n = len(points)
+    top_ids = hexes[0, 4:]
+    wedge = np.array([[top_ids[0], top_ids[1], n - 2, top_ids[3], top_ids[2], n - 1]])
+    path = write(
+        tmp_path, "bracket.vtu", meshio.Mesh(points, [("hexahedron", hexes), ("wedge", wedge)]),
+        "vtu",
+    )  # fmt: skip
+    with pytest.raises(InvalidModelError, match=r"1 wedge cell \(the first is element ") as info:
+        read_mesh(path)
+    assert "mass and stiffness" in str(info.value)
+    assert info.value.item.startswith("element ")
+
+    abaqus = tmp_path / "wedge.inp"
+    abaqus.write_text(
+        "*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n3, 0, 1, 0\n4, 0, 0, 1\n5, 1, 0, 1\n6, 0, 1, 1\n"
+        "7, 1, 1, 0\n*ELEMENT, TYPE=C3D4\n1, 2, 7, 3, 5\n*ELEMENT, TYPE=C3D6\n"
+        "40, 1, 2, 3, 4, 5, 6\n41, 1, 2, 3, 4, 5, 6\n"
+    )
+    with pytest.raises(InvalidModelError, match=r"2 C3D6 cells \(the first is element 40\)"):
+        read_mesh(abaqus)
+
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0, 0], [1, 0.5, 0],
+                       [0.5, 0.5, 0.0]], dtype=float)  # fmt: skip
+    cells = [("triangle", np.array([[0, 1, 2]])), ("triangle6", np.array([[1, 3, 2, 5, 6, 6]]))]
+    path = write(tmp_path, "shell.vtu", meshio.Mesh(points, cells), "vtu")
+    with pytest.raises(InvalidModelError, match=r"triangle6 cell .*quad4, tri3"):
+        read_mesh(path)
+
+
 def test_abaqus_set_with_unknown_node(tmp_path):
     path = tmp_path / "bad.inp"
     path.write_text(ABAQUS_INP.replace("*NSET, NSET=CLAMP\n101", "*NSET, NSET=CLAMP\n999"))

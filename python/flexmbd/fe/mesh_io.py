@@ -146,11 +146,15 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     the flat shells "quad4" and "tri3" (and "line" cells, then edges of the surfaces, are not
     beams); in Abaqus files the shell types S4, S4R, S4R5, S3, S3R and STRI3 do, and the
     thickness of a ``*SHELL SECTION`` (one thickness for the whole mesh) becomes
-    ``shell_thickness``. Other cells (vertices, faces of volume meshes, Abaqus membranes and
-    plane-stress elements, higher-order cells) are not elements, but their nodes go into the
-    node sets of the named groups they belong to: a Gmsh physical surface of triangles named
-    "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements, "line"
-    cells are edges of the geometry, not beams, and are treated like triangles.
+    ``shell_thickness``. Cells of lower dimension than the mesh's highest (vertices, faces
+    of volume meshes, Abaqus membranes on a solid) are not elements, but their nodes go into
+    the node sets of the named groups they belong to: a Gmsh physical surface of triangles
+    named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
+    "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
+    of the highest dimension must all be elements: a wedge (Abaqus C3D6), a pyramid or a
+    20-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
+    a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
+    miss their mass and stiffness).
 
     Node and element ids:
 
@@ -190,7 +194,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
             links are followed (a folder, a FIFO, a device such as ``/dev/zero``, which would
             block the reader), meshio cannot read the file, or the file is not consistent
             (several ``*NODE`` blocks in one Abaqus input, a label out of range, a bad
-            ``GENERATE`` line, a refused or cyclic ``*INCLUDE``, ...).
+            ``GENERATE`` line, a refused or cyclic ``*INCLUDE``, ...), or cells of the
+            mesh's highest dimension are not elements flexmbd has.
         UnknownItemError: a set or element of an Abaqus file refers to a node, element or
             set that is not defined (also a ``GENERATE`` range of more labels than defined).
     """
@@ -258,6 +263,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     shells_from_cells = abaqus is None and not has_volume
     has_surface = shells_from_cells and any(cell in MESHIO_SHELL_TYPES for cell, _ in blocks)
     skip_lines = file_format == "gmsh" and (has_volume or has_surface)
+    # Cells of the mesh's highest dimension are its body: one that is not an element would
+    # leave a hole (a wedge between hexahedra, second-order hexahedra), mass and stiffness
+    # silently lost.
+    top = max((_cell_dimension(cell_type) for cell_type, _ in blocks), default=0)
     elements: dict[str, list[NDArray[np.int64]]] = {}
     element_ids: dict[str, list[NDArray[np.int64]]] = {}
     for index, ((cell_type, data), ids) in enumerate(zip(blocks, block_ids, strict=True)):
@@ -266,6 +275,9 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
             kind = ABAQUS_SHELL_TYPES.get(abaqus.element_types[index])
         elif shells_from_cells and kind is None:
             kind = MESHIO_SHELL_TYPES.get(cell_type)
+        if kind is None and len(data) and _cell_dimension(cell_type) == top > 0:
+            source = abaqus.element_types[index] if abaqus is not None else cell_type
+            raise _unsupported_cells(path, source, len(data), int(ids[0]), top)
         if kind is None or (kind == "beam2" and skip_lines):
             continue
         if kind == "tet10":
@@ -279,6 +291,21 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         element_ids={kind: np.concatenate(parts) for kind, parts in element_ids.items()},
         node_sets=node_sets,
         shell_thickness=None if abaqus is None else abaqus.shell_thickness(path),
+    )
+
+
+def _unsupported_cells(
+    path: Path, cell_type: str, count: int, first_id: int, dimension: int
+) -> InvalidModelError:
+    """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
+    type), of the mesh's highest `dimension`, that are not flexmbd elements."""
+    supported = {3: "tet4, tet10, hex8", 2: "quad4, tri3 (flat shells)", 1: "beam2"}[dimension]
+    return InvalidModelError(
+        f"{path}: {count} {cell_type} cell{'s' if count > 1 else ''} (the first is element "
+        f"{first_id}) {'are' if count > 1 else 'is'} not an element type flexmbd has "
+        f"({supported}): left out, the body would miss their mass and stiffness. Mesh "
+        "with the supported types or remove these cells",
+        item=f"element {first_id} of '{path}'",
     )
 
 
