@@ -8,7 +8,7 @@ import pytest
 
 import flexmbd.fe.preprocess as pp
 from flexmbd._core import Material, Section
-from flexmbd.errors import InvalidModelError, UnknownItemError
+from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from flexmbd.fe import read_nastran, shapes
 from flexmbd.fe.nastran import parse_real, read_dmig
 
@@ -249,6 +249,46 @@ def test_bad_decks_name_the_file_line_and_card(bracket, tmp_path):
         read_nastran(path)
     with pytest.raises(FileNotFoundError):
         read_nastran(tmp_path / "missing.bdf")
+
+
+def test_wtmass_scales_the_mass_and_concentrated_masses_are_not_left_out(
+    bracket, tmp_path, assert_close
+):
+    # Before, PARAM,WTMASS and CONM2 were skipped: a deck in lb-in-s units with a 10 kg
+    # CONM2 made a body of 1.56 kg instead of 11.56, its first frequency 8.4 Hz for about 1.6.
+    text = deck_of(bracket, "small")
+    steel = read_nastran(_written(tmp_path, "steel.bdf", text)).body()
+    mat1 = card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], "small")
+    scaled = text.replace(mat1, card("MAT1", [1, 2.1e11, "", 0.3, 7800.0 * 4], "small"))
+    scaled = scaled.replace("ENDDATA", card("PARAM", ["WTMASS", 0.25], "small") + "ENDDATA")
+    deck = read_nastran(_written(tmp_path, "scaled.bdf", scaled))
+    assert_close(deck.material().density, 7800.0, rel=1e-12, what="RHO x WTMASS")
+    body = deck.body()
+    assert_close(body.invariants.mass, steel.invariants.mass, rel=1e-12, what="mass")
+    bad = scaled.replace("WTMASS  0.25", "WTMASS  -1.")
+    with pytest.raises(InvalidModelError, match="WTMASS must be a positive number, got -1"):
+        read_nastran(_written(tmp_path, "bad.bdf", bad))
+
+    conm2 = card("CONM2", [900, 103, "", 10.0], "small")
+    path = _written(tmp_path, "conm2.bdf", text.replace("ENDDATA", conm2 + "ENDDATA"))
+    with pytest.raises(
+        InvalidModelError, match=r"conm2.bdf, line \d+: CONM2: CONM2 900: concentrated masses"
+    ) as info:
+        read_nastran(path)
+    assert "skip=['CONM2']" in str(info.value)
+    # Skipped knowingly: the body without the mass.
+    skipped = read_nastran(path, skip=["conm2"]).body()
+    assert_close(skipped.invariants.mass, steel.invariants.mass, rel=1e-12, what="mass")
+    with pytest.raises(InvalidParameterError, match="skip: GRID cannot be skipped"):
+        read_nastran(path, skip="GRID")
+    with pytest.raises(InvalidParameterError, match="skip: card names"):
+        read_nastran(path, skip=5)
+
+
+def _written(folder, name, text):
+    path = folder / name
+    path.write_text(text)
+    return path
 
 
 def test_a_deck_larger_than_the_free_memory_is_refused_before_reading(

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, MissingFileError, UnknownItemError
+from ..errors import InvalidModelError, InvalidParameterError, MissingFileError, UnknownItemError
 from ._memory import check_fits
 from .body import FlexibleBodyData
 from .mesh_io import Mesh
@@ -42,9 +42,13 @@ CARDS = (
 #: Cards read and not used: they do not change the body's mesh, material or sets.
 IGNORED = (
     "PARAM", "EIGRL", "EIGR", "SPC", "SPCADD", "FORCE", "MOMENT", "LOAD", "GRAV", "TEMPD",
-    "CONM2", "PLOAD4", "PLOAD", "NLPARM", "TSTEP", "MPCADD", "SUPORT", "SUPORT1", "TABLED1",
+    "PLOAD4", "PLOAD", "NLPARM", "TSTEP", "MPCADD", "SUPORT", "SUPORT1", "TABLED1",
     "DAREA", "RLOAD1", "RLOAD2", "TLOAD1", "TLOAD2", "FREQ", "FREQ1", "DPHASE", "DELAY",
 )  # fmt: skip
+
+#: Cards that change the body's mass but are not part of a flexmbd body: refused, unless
+#: `read_nastran`'s `skip` names them (the user then adds the masses in the model).
+MASS_CARDS = ("CONM1", "CONM2", "CMASS1", "CMASS2", "CMASS3", "CMASS4")
 
 #: Deepest nesting of INCLUDE files.
 INCLUDE_DEPTH = 16
@@ -346,8 +350,15 @@ class DmigMatrix:
         return sp.csc_matrix((data, (rows, cols)), shape=(n, n))
 
 
-def read_nastran(path: str | os.PathLike[str]) -> NastranDeck:
+def read_nastran(path: str | os.PathLike[str], *, skip: Any = ()) -> NastranDeck:
     """Reads the bulk data of a Nastran deck (see the module docstring).
+
+    Mass: ``PARAM,WTMASS`` multiplies the densities of the MAT1 cards, as it multiplies
+    Nastran's structural mass (decks in lb, in and s write RHO in weight units with
+    WTMASS = 1/386.09). Concentrated masses (CONM1, CONM2, CMASS1-4, :data:`MASS_CARDS`) are
+    not part of a flexmbd body and are refused, as leaving them out changes the body's mass and
+    modes; `skip` (card names, e.g. ``["CONM2"]``) reads the deck without them, for a model
+    that adds these masses itself (a rigid body or point mass fixed to the node).
 
     Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 grids) -> hex8, CBAR and CBEAM
     -> beam2 (offsets, pin flags and tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
@@ -362,8 +373,22 @@ def read_nastran(path: str | os.PathLike[str]) -> NastranDeck:
     path = Path(path)
     if not path.is_file():
         raise MissingFileError("Nastran file", path)
+    if isinstance(skip, str):
+        skip = [skip]
+    try:
+        skipped = frozenset(str(name).upper() for name in skip)
+    except TypeError:
+        raise InvalidParameterError(
+            f"skip: card names (e.g. ['CONM2']), got {skip!r}", item="skip"
+        ) from None
+    unknown = sorted(skipped - set(MASS_CARDS))
+    if unknown:
+        raise InvalidParameterError(
+            f"skip: {', '.join(unknown)} cannot be skipped (skip takes {', '.join(MASS_CARDS)})",
+            item="skip",
+        )
     cards = list(_cards(path, 0, [0]))
-    return _deck(cards)
+    return _deck(cards, skipped)
 
 
 def read_dmig(path: str | os.PathLike[str]) -> dict[str, DmigMatrix]:
@@ -474,7 +499,7 @@ def _frame(card: Card) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     return a, np.column_stack([np.cross(y, z), y, z])
 
 
-def _deck(cards: list[Card]) -> NastranDeck:
+def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDeck:
     grids: dict[int, Card] = {}
     systems: dict[int, Card] = {}
     elements: dict[str, list[tuple[int, int, list[int], Card]]] = {}
@@ -484,6 +509,7 @@ def _deck(cards: list[Card]) -> NastranDeck:
     orientation_cards: list[Card] = []
     dmig_headers: dict[str, Card] = {}
     dmig_columns: list[Card] = []
+    mass_scale = 1.0
     for card in cards:
         name = card.name
         if name == "GRID":
@@ -554,8 +580,20 @@ def _deck(cards: list[Card]) -> NastranDeck:
                 dmig_headers[matrix] = card
             else:
                 dmig_columns.append(card)
-        elif name in IGNORED:
+        elif name == "PARAM" and (card.field(1) or "").upper() == "WTMASS":
+            wtmass = card.real(2, what="WTMASS")
+            if not (math.isfinite(wtmass) and wtmass > 0):
+                raise card.error(f"WTMASS must be a positive number, got {wtmass}")
+            mass_scale = wtmass
+        elif name in IGNORED or name in skipped:
             continue
+        elif name in MASS_CARDS:
+            raise card.error(
+                f"{name} {card.field(1)}: concentrated masses are not part of a flexmbd body, "
+                "and leaving them out would change its mass and modes; add them to the model "
+                f"(a rigid body or point mass fixed to the node) and read the deck with "
+                f"skip=['{name}'] (in a model file: nastran_skip: [{name}])"
+            )
         else:
             raise card.error(
                 f"unsupported card {name!r} (supported: {', '.join(CARDS)}; skipped: "
@@ -609,6 +647,8 @@ def _deck(cards: list[Card]) -> NastranDeck:
             except (UnknownItemError, InvalidModelError):
                 # Not a (chain of) CORD2R: NaN, refused only where results in it are used.
                 displacement[int(g)] = np.full((3, 3), np.nan)
+    for values in materials.values():  # PARAM,WTMASS: Nastran's structural mass x WTMASS
+        values["density"] *= mass_scale
     return NastranDeck(
         mesh, materials, properties, element_properties, orientations, matrices, displacement
     )
@@ -800,6 +840,7 @@ __all__ = [
     "CARDS",
     "OP4_FORMS",
     "IGNORED",
+    "MASS_CARDS",
     "DmigMatrix",
     "NastranDeck",
     "parse_real",

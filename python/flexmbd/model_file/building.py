@@ -592,6 +592,10 @@ class _Builder:
 
         if spec.op2 is not None and kind != "nastran":
             raise self.fail(path + ("op2",), "op2 results go with a Nastran deck (`nastran`)")
+        if spec.nastran_skip is not None and kind != "nastran":
+            raise self.fail(
+                path + ("nastran_skip",), "nastran_skip goes with a Nastran deck (`nastran`)"
+            )
         if spec.mesh_unit is not None and kind != "mesh":
             raise self.fail(path + ("mesh_unit",), "mesh_unit goes with a mesh file (`mesh`)")
         if kind == "body_file":
@@ -676,7 +680,9 @@ class _Builder:
             if getattr(spec, key) is not None:
                 raise self.fail(path + (key,), "not used with nastran: the deck defines it")
         where = path + ("nastran",)
-        deck = self.call(where, read_nastran, self.file(str(spec.nastran), where))
+        deck = self.call(
+            where, read_nastran, self.file(str(spec.nastran), where), skip=spec.nastran_skip or ()
+        )
         options: dict[str, Any] = {}
         renamed = {"mass_matrix": "mass"}
         for key in _PREPROCESS_KEYS[4:]:

@@ -408,6 +408,11 @@ class FlexibleBodySpec(_Spec):
         description="Nastran bulk data deck (.bdf, .dat, .nas; relative to the model file): "
         "mesh, material, sections and node sets, its numbers taken as SI",
     )
+    nastran_skip: list[str] | None = Field(
+        None,
+        description="with `nastran`: concentrated-mass cards to read the deck without "
+        "(CONM2, ...; the model adds these masses itself), `read_nastran`'s `skip`",
+    )
     op2: str | None = Field(
         None,
         description="with `nastran`: the OP2 results of its normal modes analysis (SOL 103), "
