@@ -637,16 +637,20 @@ def test_preprocess_reads_one_reference_node_index_as_an_index(tmp_path, capsys,
     out = tmp_path / "bar.h5"
     material = ["-E", "2.1e11", "--poisson-ratio", "0.3", "--density", "7800"]
     command = ["preprocess", str(tmp_path / "bar.inp"), "-o", str(out), *material]
+    # A solid clamped at one node keeps its rotations free: refused, naming node 6 (index 5).
     clamped = ["--reference", "clamped", "--modes", "none"]
-    assert main([*command, *clamped, "--reference-nodes", "5"]) == 0
+    assert main([*command, *clamped, "--reference-nodes", "5"]) == 1
+    assert "reference='clamped' at nodes 6 leaves a rotation" in capsys.readouterr().err
+    support = ["--reference", "3-2-1", "--modes", "none"]
+    assert main([*command, *support, "--reference-nodes", "0", "72", "6"]) == 0
     capsys.readouterr()
     same = build_body(
         mesh.nodes,
         mesh.elements,
         Material(2.1e11, 0.3, 7800.0),
         node_sets=mesh.node_sets,
-        reference="clamped",
-        reference_nodes=[5],
+        reference="3-2-1",
+        reference_nodes=[0, 72, 6],
     )
     assert load_body(out).reference.free_dofs == pytest.approx(same.reference.free_dofs)
     assert main([*command, *clamped, "--reference-nodes", "5", "x"]) == 1

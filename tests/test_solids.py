@@ -249,6 +249,41 @@ def test_inverted_and_flat_elements_are_named():
         pp.assemble(nodes, hexes.elements, STEEL)
 
 
+def test_reference_nodes_that_leave_a_rigid_motion_free_are_refused(assert_close):
+    # Three 3-2-1 nodes on one edge were accepted: the kept stiffness was singular, a static
+    # tip force of 1 N moved the bar by 7.5e4 m, and fixed-interface modes failed inside the
+    # eigensolver. Now the conditions are checked against the six rigid motions.
+    mesh = shapes.box((1.0, 0.2, 0.2), (5, 1, 1), "hex8")
+    n = mesh.nodes
+
+    def at(*p):
+        return int(np.argmin(np.linalg.norm(n - np.array(p), axis=1)))
+
+    a, b, c = at(0, 0, 0), at(1, 0, 0), at(0.4, 0, 0)
+    with pytest.raises(
+        InvalidModelError,
+        match=r"reference='3-2-1' at nodes .* leaves a rotation about the axis \(1, 0, 0\) "
+        r"through \(0.5, 0, 0\) free",
+    ) as info:
+        pp.build_body(n, mesh.elements, STEEL, reference="3-2-1", reference_nodes=[a, b, c])
+    assert info.value.item == f"node {a + 1}"
+    # Clamped at two corners: the rotation about the line through them.
+    with pytest.raises(InvalidModelError, match=r"leaves a rotation about the axis \(0, 0, 1\)"):
+        pp.build_body(
+            n, mesh.elements, STEEL, reference="clamped", reference_nodes=[a, at(0, 0, 0.2)],
+            modes="fixed-interface", mode_count=2,
+        )  # fmt: skip
+    # A sound 3-2-1 support holds: a finite static solution.
+    body = pp.build_body(
+        n, mesh.elements, STEEL, reference="3-2-1", reference_nodes=[a, b, at(0, 0.2, 0)]
+    )
+    force = np.zeros(body.dof_count)
+    force[3 * b + 2] = 0.0
+    force[3 * at(1, 0.2, 0.2) + 2] = 1.0
+    u = pp.static_displacements(body, force)
+    assert 0 < np.abs(u).max() < 1e-6
+
+
 def test_unknown_duplicate_and_unconnected_nodes_are_named():
     mesh = shapes.box((1.0, 0.2, 0.1), (2, 1, 1), "hex8")
     bad = mesh.elements["hex8"].copy()

@@ -45,6 +45,7 @@ from .modal import (
     free_free_modes,
     interface_objects,
     modal_invariants,
+    rigid_modes,
 )
 
 Material = _boundary.Material
@@ -688,6 +689,8 @@ def _body_from_nodal(
         )
     held = ref_nodes if kind == "clamped" else np.zeros(0, dtype=np.int64)
     _check_parts(nodes, ids, elements, nodal, reference, held)
+    if kind in ("clamped", "3-2-1", "simply-supported"):
+        _check_held(nodes, ids, d, free, reference, ref_nodes)
     basis = None
     freqs = None
     weighted: list[Interface] = []
@@ -863,6 +866,63 @@ def _check_parts(
         "in each)",
         item=f"node {ids[first_nodes[loose[0]]]}",
     )
+
+
+#: Smallest singular value, relative to the largest, of the rigid motions at the coordinates
+#: that reference conditions remove (rotations scaled by the body's size): below it, the
+#: conditions leave a rigid motion free.
+HELD_RIGID_TOLERANCE = 1e-9
+
+
+def _check_held(
+    nodes: NDArray[np.float64],
+    ids: NDArray[np.int64],
+    d: int,
+    free: NDArray[np.int64],
+    reference: str,
+    ref_nodes: NDArray[np.int64],
+) -> None:
+    """Raises `InvalidModelError` when the coordinates that the reference conditions remove do
+    not hold the six rigid motions (three collinear 3-2-1 nodes, a solid clamped at one node
+    or along a line): the body frame would not be defined, the stiffness on the kept
+    coordinates singular, and modes or static solutions meaningless. Names the nodes and the
+    free motion."""
+    removed = np.setdiff1d(np.arange(len(nodes) * d), free)
+    centre = nodes.mean(axis=0)
+    size = max(float(np.ptp(nodes, axis=0).max()), 1e-300)
+    rigid = rigid_modes((nodes - centre) / size, d)[removed]  # rotations times the size
+    _, values, vt = np.linalg.svd(rigid) if len(removed) else (None, np.zeros(0), np.eye(6))
+    values = np.concatenate([values, np.zeros(6 - len(values))]) if len(values) < 6 else values
+    if values[-1] > HELD_RIGID_TOLERANCE * max(values[0], 1e-300):
+        return
+    motion = vt[-1]
+    translation, rotation = motion[:3], motion[3:] / size  # rad per unit of motion
+    if np.linalg.norm(rotation) * size < 1e-6 * np.linalg.norm(translation):
+        direction = translation / np.linalg.norm(translation)
+        direction *= np.sign(direction[np.argmax(np.abs(direction))])
+        what = f"a translation along {_vector_text(direction)}"
+    else:
+        axis = rotation / np.linalg.norm(rotation)
+        axis *= np.sign(axis[np.argmax(np.abs(axis))])  # (0, 0, 1), not (0, 0, -1)
+        # u(x) = t + w x (x - centre): the axis passes through p with t + w x (p - centre) = 0.
+        point = centre + np.cross(rotation, translation) / float(rotation @ rotation)
+        what = f"a rotation about the axis {_vector_text(axis)} through {_vector_text(point)}"
+    held = ", ".join(str(int(ids[n])) for n in ref_nodes[:6])
+    if len(ref_nodes) > 6:
+        held += f", ... ({len(ref_nodes)} nodes)"
+    raise InvalidModelError(
+        f"reference={reference!r} at nodes {held} leaves {what} free (the coordinates they "
+        "remove do not hold the six rigid motions: nodes on one line, or a solid held at "
+        "one node): the body frame is not defined and the stiffness is singular. Choose "
+        "nodes that are not on one line (3-2-1: b off a, c off the line a-b) or clamp more "
+        "nodes",
+        item=f"node {int(ids[ref_nodes[0]])}" if len(ref_nodes) else "reference_nodes",
+    )
+
+
+def _vector_text(v: NDArray[np.float64]) -> str:
+    """A vector of a message, rounded (no -0)."""
+    return "(" + ", ".join(f"{x + 0.0:.4g}" for x in np.round(v, 12)) + ")"
 
 
 def static_displacements(body: FlexibleBodyData, forces: ArrayLike) -> NDArray[np.float64]:
