@@ -17,7 +17,12 @@ import pytest
 import scipy.linalg as sla
 
 import flexmbd as fm
-from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from flexmbd.errors import (
+    ArgumentTypeError,
+    InvalidModelError,
+    InvalidParameterError,
+    UnknownItemError,
+)
 from flexmbd.fe import body_from_nastran, read_nastran, read_op2
 from flexmbd.model_file import simulate_model
 
@@ -274,6 +279,11 @@ def test_a_deck_that_is_not_the_analysed_one_is_refused(block, beam, tmp_path):
         body_from_nastran(softer, DATA / "block.op2")
     body = body_from_nastran(softer, DATA / "block.op2", frequency_tolerance=None)
     assert body.modes.shape == (126, 8)
+    # NaN compared false and let every frequency pass; -1 gave an odd message.
+    for bad, message in ((float("nan"), "must be finite"), (-1, "must be >= 0"),
+                         ("0.05", "must be a number")):  # fmt: skip
+        with pytest.raises(InvalidParameterError, match=f"frequency_tolerance {message}"):
+            body_from_nastran(softer, DATA / "block.op2", frequency_tolerance=bad)
 
 
 def test_modes_on_held_coordinates_and_rigid_modes_are_refused(block):
@@ -289,6 +299,11 @@ def test_modes_on_held_coordinates_and_rigid_modes_are_refused(block):
         body_from_nastran(deck, DATA / "block.op2", 9)
     with pytest.raises(InvalidParameterError, match="mode_count: body_from_nastran sets it"):
         body_from_nastran(deck, DATA / "block.op2", mode_count=3)
+    # A float count was a raw TypeError.
+    for bad in (2.5, "7", True, [7.5]):
+        with pytest.raises((InvalidParameterError, ArgumentTypeError), match="modes"):
+            body_from_nastran(deck, DATA / "block.op2", bad)
+    assert body_from_nastran(deck, DATA / "block.op2", np.array([7, 8])).modes.shape[1] == 2
 
 
 def test_a_mean_axis_frame_needs_modes_orthogonal_to_the_rigid_motions(beam):

@@ -54,6 +54,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import integers_array
+from .._checks import number as real_number
 from ..errors import (
     InvalidModelError,
     InvalidParameterError,
@@ -651,6 +653,25 @@ def body_from_nastran(
     from . import preprocess
     from .nastran import NastranDeck, read_nastran
 
+    if frequency_tolerance is not None:
+        frequency_tolerance = real_number(frequency_tolerance, "frequency_tolerance")
+        if frequency_tolerance < 0:
+            raise InvalidParameterError(
+                f"frequency_tolerance must be >= 0 (a relative difference) or None (no check), "
+                f"got {frequency_tolerance}",
+                item="frequency_tolerance",
+            )
+    if modes is not None and not isinstance(modes, int | np.integer):
+        if isinstance(modes, str | bytes) or not isinstance(modes, Sequence | np.ndarray):
+            raise InvalidParameterError(
+                f"modes must be None, a count or a list of mode numbers, got {modes!r:.60}",
+                item="modes",
+            )
+        modes = [int(v) for v in integers_array(modes, "modes").ravel()]
+    elif isinstance(modes, bool):
+        raise InvalidParameterError(
+            f"modes must be None, a count or a list of mode numbers, got {modes!r}", item="modes"
+        )
     if not isinstance(deck, NastranDeck):
         deck = read_nastran(deck)
     if not isinstance(results, Op2Results):
