@@ -224,6 +224,7 @@ def test_large_arrays_are_compressed(tmp_path, compression):
         mass=None,
         # Smooth mode shapes compress well.
         modes=np.sin(np.outer(np.linspace(0.0, 10.0, n_free), np.arange(1, n_modes + 1))),
+        frequencies=np.arange(1.0, n_modes + 1),
         reference=dataclasses.replace(small.reference, free_dofs=np.arange(n_free, dtype=np.int64)),
         invariants=dataclasses.replace(
             small.invariants,
@@ -464,6 +465,12 @@ def test_damaged_body_files_name_the_file_and_field(tmp_path, case):
         ("invariants/second_moment", np.diag([1.0, 1.0, -0.5]), "positive semi-definite"),
         ("invariants/second_moment", np.triu(np.ones((3, 3))), "symmetric"),
         ("invariants/first_moment", np.array([0.0, np.inf, 0.0]), "non-finite"),
+        ("material/density", -7850.0, r"'material\[\"density\"\]' must be finite and > 0"),
+        ("material/young_modulus", np.nan, r"'material\[\"young_modulus\"\]' must be finite"),
+        ("material/poisson_ratio", 0.5, "between -1 and 0.5, got 0.5"),
+        ("frequencies", np.array([-12.5, 40.25, 77.0]), "finite numbers >= 0 \\(Hz\\), got -12.5"),
+        ("frequencies", np.array([12.5, 40.25]), "'frequencies' has 2 entries for 3 modes"),
+        ("node_ids", np.array([101, 102, 103, 102, 105]), "repeats node id 102 \\(nodes 1 and 3"),
     ],
     ids=[
         "nan nodes",
@@ -473,6 +480,12 @@ def test_damaged_body_files_name_the_file_and_field(tmp_path, case):
         "indefinite J0",
         "asymmetric J0",
         "infinite s0",
+        "negative density",
+        "nan young modulus",
+        "poisson ratio 0.5",
+        "negative frequency",
+        "frequencies short",
+        "repeated node id",
     ],
 )
 def test_values_that_do_not_make_a_body_are_refused_on_load(tmp_path, member, value, match):
@@ -484,6 +497,35 @@ def test_values_that_do_not_make_a_body_are_refused_on_load(tmp_path, member, va
     with pytest.raises(InvalidModelError, match=match) as info:
         load_body(path)
     assert str(path) in str(info.value)
+
+
+def test_bad_damping_and_interfaces_are_refused_on_load(tmp_path):
+    # A body file's damping and Craig-Bampton interface weights were loaded unchecked
+    # (NaN Rayleigh coefficients, a negative ratio, NaN weights).
+    from flexmbd.fe.body import _replace
+
+    path = tmp_path / "body.h5"
+    body = make_body()
+    for damping, match in (
+        ({"rayleigh": (np.nan, 0.0), "modal": None}, "Rayleigh coefficients"),
+        ({"rayleigh": None, "modal": -0.1}, "damping ratio must be finite and >= 0"),
+    ):
+        save_body(_replace(body, damping=damping), path)
+        with pytest.raises(InvalidModelError, match=match):
+            load_body(path)
+    reference = dataclasses.replace(
+        body.reference,
+        interfaces=[np.array([0, 1, 2])],
+        interface_kind="rbe3",
+        interface_weights=[np.array([1.0, np.nan, 1.0])],
+    )
+    save_body(_replace(body, reference=reference), path)
+    with pytest.raises(InvalidModelError, match="weights must be finite and positive in sum"):
+        load_body(path)
+    reference = dataclasses.replace(reference, interfaces=[np.array([0, 1, 9])])
+    save_body(_replace(body, reference=reference, metadata={}), path)
+    with pytest.raises(InvalidModelError, match=r"interfaces\"\]\[0\]' holds node index 9"):
+        load_body(path)
 
 
 def test_truncated_body_files_fail_fast(tmp_path):

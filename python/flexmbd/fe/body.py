@@ -828,6 +828,13 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
         raise _bad_shape('reference["free_dofs"]', "repeats a coordinate")
     if reference.get("nodes") is not None:
         _index_array(reference["nodes"], 'reference["nodes"]', count, "node")
+    _check_interfaces(reference, count)
+    unique_ids, first, repeats = np.unique(node_ids, return_index=True, return_counts=True)
+    if np.any(repeats > 1):
+        twice = int(unique_ids[np.argmax(repeats > 1)])
+        at = np.flatnonzero(node_ids == twice)[:2].tolist()
+        raise _bad_shape("node_ids", f"repeats node id {twice} (nodes {at[0]} and {at[1]})")
+    _check_material(values.get("material"))
     modes = values.get("modes")
     elastic = len(free)
     if modes is not None:
@@ -844,14 +851,109 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
         elastic = array.shape[1]
     if values.get("frequencies") is not None:
         array = _numeric_array(values["frequencies"], "frequencies")
-        if array.ndim != 1 or not _all_finite(array):
+        if array.ndim != 1 or not _all_finite(array) or (array.size and array.min() < 0):
             raise InvalidParameterError(
-                f"{_field('frequencies')} must be a 1-D array of finite numbers",
+                f"{_field('frequencies')} must be a 1-D array of finite numbers >= 0 (Hz)"
+                + (f", got {array.min()}" if array.ndim == 1 and array.size else ""),
                 item=_field("frequencies"),
             )
+        if modes is not None and len(array) != elastic:
+            raise _bad_shape("frequencies", f"has {len(array)} entries for {elastic} modes")
+    _check_damping(values.get("damping"), modes is not None)
     # Read as mappings: the typed Invariants of a body, or the dict read from a body file
     # before it becomes one.
     _check_invariants(values["invariants"], elastic)
+
+
+def _check_interfaces(reference: Mapping[str, Any], count: int) -> None:
+    """The Craig-Bampton interfaces (node indices) and their weights (one finite number per
+    node, positive in sum) of `reference`."""
+    interfaces = reference.get("interfaces")
+    if interfaces is not None:
+        for i, members in enumerate(interfaces):
+            _index_array(members, f'reference["interfaces"][{i}]', count, "node")
+    weights = reference.get("interface_weights")
+    if weights is None:
+        return
+    path = 'reference["interface_weights"]'
+    if interfaces is None or len(weights) != len(interfaces):
+        given = "no" if interfaces is None else len(interfaces)
+        raise _bad_shape(path, f"has {len(weights)} entries for {given} interfaces")
+    for i, (w, members) in enumerate(zip(weights, interfaces, strict=True)):
+        where = f"{path}[{i}]"
+        array = _numeric_array(w, where)
+        if array.shape != (len(members),):
+            raise _bad_shape(where, f"has shape {array.shape}, expected ({len(members)},)")
+        if not _all_finite(array) or not float(array.sum()) > 0:
+            raise InvalidParameterError(
+                f"{_field(where)}: the weights must be finite and positive in sum, got sum "
+                f"{float(array.sum())}",
+                item=_field(where),
+            )
+
+
+#: Material entries and their admissible open intervals.
+_MATERIAL_RANGES = {
+    "young_modulus": (0.0, math.inf, "Pa"),
+    "poisson_ratio": (-1.0, 0.5, ""),
+    "density": (0.0, math.inf, "kg/m^3"),
+}
+
+
+def _check_material(material: Any) -> None:
+    """The material of a meshed body (empty for bodies built from matrices): E > 0, -1 < nu <
+    0.5, rho > 0, all finite."""
+    if material is None or (isinstance(material, Mapping) and not material):
+        return
+    if not isinstance(material, Mapping):
+        raise _bad_shape("material", f"must be a dict, got {type(material).__name__}")
+    for key, (low, high, unit) in _MATERIAL_RANGES.items():
+        if key not in material:
+            continue
+        value = material[key]
+        path = f'material["{key}"]'
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise _bad_shape(path, f"must be a number, got {type(value).__name__}")
+        if not (math.isfinite(value) and low < value < high):
+            bounds = f"> {low:g}" if math.isinf(high) else f"between {low:g} and {high:g}"
+            raise InvalidParameterError(
+                f"{_field(path)} must be finite and {bounds}, got {value}"
+                + (f" {unit}" if unit else ""),
+                item=_field(path),
+            )
+
+
+def _check_damping(damping: Any, modal_body: bool) -> None:
+    """A body's damping: None, or {"rayleigh": (alpha, beta) >= 0 or None, "modal": ratio
+    >= 0 or None (modal bodies only)}."""
+    if damping is None:
+        return
+    if not isinstance(damping, Mapping):
+        raise _bad_shape("damping", f"must be a dict or None, got {type(damping).__name__}")
+    rayleigh, modal = damping.get("rayleigh"), damping.get("modal")
+    if rayleigh is not None:
+        path = 'damping["rayleigh"]'
+        try:
+            pair = [float(v) for v in rayleigh]
+        except (TypeError, ValueError):
+            raise _bad_shape(path, f"must be a pair (alpha, beta), got {rayleigh!r}") from None
+        if len(pair) != 2 or not all(math.isfinite(v) and v >= 0 for v in pair):
+            raise InvalidParameterError(
+                f"{_field(path)}: Rayleigh coefficients (alpha, beta) must be two finite "
+                f"numbers >= 0, got {pair}",
+                item=_field(path),
+            )
+    if modal is not None:
+        path = 'damping["modal"]'
+        if isinstance(modal, bool) or not isinstance(modal, numbers.Real):
+            raise _bad_shape(path, f"must be a number, got {type(modal).__name__}")
+        if not (math.isfinite(modal) and modal >= 0):
+            raise InvalidParameterError(
+                f"{_field(path)}: the damping ratio must be finite and >= 0, got {modal}",
+                item=_field(path),
+            )
+        if not modal_body:
+            raise _bad_shape(path, "is set on a nodal body (modal damping needs modes)")
 
 
 def _check_invariants(invariants: Mapping[str, Any], n_f: int) -> None:
