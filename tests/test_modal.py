@@ -236,6 +236,28 @@ def test_external_modes_give_the_same_body_as_computed_modes(bar):
             external_modes=computed.modes,
         )
 
+    # External modes are used as given (not normalized): five times the modes, 25 times m_ff.
+    def external_body(modes):
+        return pp.build_body(
+            bar.nodes, bar.elements, STEEL, node_sets=bar.node_sets, reference="clamped",
+            reference_nodes="x0", modes="external", external_modes=modes,
+        )  # fmt: skip
+
+    scaled = external_body(5.0 * computed.modes)
+    np.testing.assert_allclose(
+        scaled.invariants.m_ff, 25.0 * np.asarray(computed.invariants.m_ff), rtol=0, atol=1e-11
+    )
+    # A zero column, a repeated (scaled) column and a combination were accepted; the run then
+    # failed with a singular matrix blamed on the constraints.
+    phi = computed.modes
+    for columns, match in (
+        (np.column_stack([phi[:, :2], 0.0 * phi[:, 0]]), "column 2 moves no mass"),
+        (np.column_stack([phi[:, :3], -2.0 * phi[:, 1]]), "column 3 is a multiple of column 1"),
+        (np.column_stack([phi[:, :3], phi[:, 0] + phi[:, 2]]), "column 3 is .* combination of"),
+    ):
+        with pytest.raises(InvalidParameterError, match=match):
+            external_body(columns)
+
 
 def test_bodies_from_mesh_files_and_body_files_round_trip(tmp_path, bar):
     path = tmp_path / "bar.vtu"

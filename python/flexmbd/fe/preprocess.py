@@ -756,6 +756,7 @@ def _body_from_nodal(
                 )
             if not np.all(np.isfinite(basis)):
                 raise InvalidParameterError("external modes contain non-finite values")
+            _check_independent_modes(basis, nodal.mass[free][:, free])
         else:
             raise InvalidParameterError(f"unknown modes {modes!r}")
         clock.lap("modes")
@@ -866,6 +867,48 @@ def _check_parts(
         "in each)",
         item=f"node {ids[first_nodes[loose[0]]]}",
     )
+
+
+#: Smallest eigenvalue of the correlation matrix of external modes (their mass matrix scaled
+#: to a unit diagonal) under which the modes count as dependent.
+EXTERNAL_MODE_DEPENDENCE = 1e-10
+
+
+def _check_independent_modes(basis: NDArray[np.float64], mass: Any) -> None:
+    """Raises `InvalidParameterError` naming the first column of external modes that moves no
+    mass or is (nearly) a combination of the columns before it: the modal mass matrix
+    Phi^T M Phi would be singular, and the run would fail later with a message about
+    constraints."""
+    if basis.shape[1] == 0:
+        return
+    gram = basis.T @ (mass @ basis)
+    gram = 0.5 * (gram + gram.T)
+    diagonal = np.diag(gram).copy()
+    scale = max(float(diagonal.max()), 1e-300)
+    zero = np.flatnonzero(diagonal <= 1e-14 * scale)
+    if len(zero):
+        raise InvalidParameterError(
+            f"external_modes: column {int(zero[0])} moves no mass (it is zero on the kept "
+            "coordinates, or only on massless ones)",
+            item="external_modes",
+        )
+    root = 1.0 / np.sqrt(diagonal)
+    correlation = gram * root[:, None] * root[None, :]
+    if np.linalg.eigvalsh(correlation)[0] > EXTERNAL_MODE_DEPENDENCE:
+        return
+    for j in range(1, len(diagonal)):
+        if np.linalg.eigvalsh(correlation[: j + 1, : j + 1])[0] <= EXTERNAL_MODE_DEPENDENCE:
+            same = np.flatnonzero(np.abs(np.abs(correlation[j, :j]) - 1.0) < 1e-8)
+            which = (
+                f"a multiple of column {int(same[0])}"
+                if len(same)
+                else f"(nearly) a combination of columns 0..{j - 1}"
+            )
+            raise InvalidParameterError(
+                f"external_modes: column {j} is {which}: the modal mass matrix would be "
+                "singular; give independent mode shapes",
+                item="external_modes",
+            )
 
 
 #: Smallest singular value, relative to the largest, of the rigid motions at the coordinates
