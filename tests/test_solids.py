@@ -284,6 +284,32 @@ def test_reference_nodes_that_leave_a_rigid_motion_free_are_refused(assert_close
     assert 0 < np.abs(u).max() < 1e-6
 
 
+def test_bad_directions_and_float_connectivity_are_typed_errors():
+    # Before: a zero beam direction gave NaN nodes, a zero cylinder axis "nan elements", a
+    # per-element beam orientation a raw TypeError, and float connectivity was truncated
+    # (0.3 + index taken as the index).
+    from flexmbd._core import Section
+    from flexmbd.errors import ArgumentTypeError
+
+    with pytest.raises(InvalidParameterError, match="direction must not be the zero vector"):
+        pp.straight_beam(1.0, 4, direction=(0, 0, 0))
+    with pytest.raises(InvalidParameterError, match="axis must not be the zero vector"):
+        shapes.cylinder(0.1, 1.0, size=0.05, axis=(0, 0, 0))
+    nodes, elements = pp.straight_beam(2.0, 4, direction=(0, 0, 3))
+    np.testing.assert_allclose(nodes[-1], [0, 0, 2.0])
+    section = Section(1e-4, 1e-8, 1e-8, 2e-8)
+    for orientation, match in (
+        (np.tile([0.0, 1.0, 0.0], (4, 1)), "orientation must be one vector of three"),
+        ((0, 0, 0), "orientation must not be the zero vector"),
+        ((0, np.nan, 1), "orientation must be one vector of three finite numbers"),
+    ):
+        with pytest.raises(InvalidParameterError, match=match):
+            pp.build_body(nodes, elements, STEEL, section=section, orientation=orientation)
+    box = shapes.box((1.0, 0.1, 0.1), (2, 1, 1), "tet4")
+    with pytest.raises(ArgumentTypeError, match=r"elements\['tet4'\] must be integers"):
+        pp.build_body(box.nodes, {"tet4": box.elements["tet4"] + 0.3}, STEEL)
+
+
 def test_unknown_duplicate_and_unconnected_nodes_are_named():
     mesh = shapes.box((1.0, 0.2, 0.1), (2, 1, 1), "hex8")
     bad = mesh.elements["hex8"].copy()

@@ -73,6 +73,20 @@ def numbers_array(value: Any, name: str, item: str | None = None) -> NDArray[np.
     return array.astype(float)
 
 
+def direction(value: Any, name: str) -> NDArray[np.float64]:
+    """`value` as a unit vector (3,): three finite numbers, not all zero, else an
+    `InvalidParameterError` (`ArgumentTypeError` for what is not numbers) naming `name`."""
+    array = numbers_array(value, name)
+    if array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise InvalidParameterError(
+            f"{name} must be one vector of three finite numbers, got {_shown(value)}", item=name
+        )
+    length = float(np.linalg.norm(array))
+    if not length > 0:
+        raise InvalidParameterError(f"{name} must not be the zero vector", item=name)
+    return array / length
+
+
 def flag(value: Any, name: str, item: str | None = None) -> bool:
     """The bool parameter `name`: True or False (also NumPy's), else an `ArgumentTypeError`
     naming it (a number, a string or a list is not taken for a truth value)."""

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
 from .._checks import choice, flag, id_text, integer, integers_array, number
+from .._checks import direction as unit_vector
 from ..errors import (
     ArgumentTypeError,
     InvalidModelError,
@@ -208,8 +209,7 @@ def straight_beam(
         raise InvalidParameterError(
             f"a beam needs length > 0 and at least one element, got {length}, {elements}"
         )
-    d = np.asarray(direction, dtype=float)
-    d = d / np.linalg.norm(d)
+    d = unit_vector(direction, "direction")
     s = np.linspace(0.0, length, elements + 1)
     nodes = np.asarray(start, dtype=float)[None, :] + s[:, None] * d[None, :]
     conn = np.column_stack([np.arange(elements), np.arange(1, elements + 1)]).astype(np.int64)
@@ -270,7 +270,7 @@ def assemble(
         blocks,
         material,
         section,
-        None if orientation is None else list(np.asarray(orientation, dtype=float)),
+        None if orientation is None else list(unit_vector(orientation, "orientation")),
         shear,
         shell,
     )
@@ -327,7 +327,7 @@ def mass_points(
         blocks,
         material,
         section,
-        None if orientation is None else list(np.asarray(orientation, dtype=float)),
+        None if orientation is None else list(unit_vector(orientation, "orientation")),
         _beam_theory(beam_theory),
         shell_section(shell),
     )
@@ -557,7 +557,7 @@ def build_body(
     # Copies: the body's arrays are read-only and must not alias the caller's.
     nodes = np.array(nodes, dtype=float)
     sets = _node_sets(node_sets)
-    elements = {k: np.array(v, dtype=np.int64) for k, v in elements.items()}
+    elements = {k: integers_array(v, f"elements[{k!r}]").copy() for k, v in elements.items()}
     _check_shell(elements, shell)
     if flag(orient_shells, "orient_shells"):
         elements = orient_shell_elements(elements)

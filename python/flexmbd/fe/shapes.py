@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import direction as unit_vector
 from .._checks import numbers_array
 from ..errors import ArgumentTypeError, InvalidParameterError
 from .mesh_io import Mesh
@@ -462,8 +463,7 @@ def cylinder(
     `max_elements`: see :func:`gmsh_mesh`."""
     if not (radius > 0 and length > 0):
         raise InvalidParameterError(f"a cylinder needs radius, length > 0, got {radius}, {length}")
-    direction = np.asarray(axis, dtype=float)
-    direction = length * direction / np.linalg.norm(direction)
+    direction = length * unit_vector(axis, "axis")
 
     def build(gmsh: Any) -> None:
         volume = gmsh.model.occ.addCylinder(0, 0, 0, *direction, radius)
