@@ -339,7 +339,9 @@ def test_with_modes_equals_a_build_from_scratch(nodal_beam, modal_beam):
 
 
 def test_with_modes_of_a_solid_and_of_a_body_from_matrices():
-    nodal = hinged_bar(reference="clamped", reference_nodes="x0", modes=None, interfaces=())
+    nodal = hinged_bar(
+        reference="clamped", reference_nodes="x0", modes=None, mode_count=0, interfaces=()
+    )
     assert_same_body(
         nodal.with_modes("craig-bampton", 3, reference="interface", interfaces=["x0", "x1"]),
         hinged_bar(),

@@ -607,7 +607,7 @@ def test_a_body_clamped_in_one_part_only_is_refused_and_clamped_in_each_is_accep
                 reference="clamped",
                 reference_nodes=first_face,
                 modes=modes,
-                mode_count=4,
+                mode_count=0 if modes is None else 4,
             )
         assert info.value.item == f"node {half + 1}"
     # Each block clamped at its x = 0 face: two cantilevers on one frame, the same modes.

@@ -310,6 +310,32 @@ def test_bad_directions_and_float_connectivity_are_typed_errors():
         pp.build_body(box.nodes, {"tet4": box.elements["tet4"] + 0.3}, STEEL)
 
 
+def test_options_the_body_would_ignore_are_refused():
+    # A beam section or shell thickness for a solid mesh, mode_count without modes and
+    # interfaces without Craig-Bampton modes were ignored without a word.
+    from flexmbd._core import Section
+
+    mesh = shapes.box((1.0, 0.1, 0.1), (4, 1, 1), "tet4")
+
+    def build(**options):
+        return pp.build_body(mesh.nodes, mesh.elements, STEEL, node_sets=mesh.node_sets, **options)
+
+    for options, match in (
+        ({"section": Section(1e-4, 1e-8, 1e-8, 2e-8)}, "section: the mesh has no beam elements"),
+        ({"shell": 0.01}, "shell: the mesh has no shell elements \\(it has tet4\\)"),
+        ({"mode_count": 5}, "mode_count=5 without modes"),
+        ({"interfaces": ["x0"]}, "interfaces are for Craig-Bampton modes"),
+        (
+            {"interfaces": ["x0"], "modes": "fixed-interface", "mode_count": 2,
+             "reference": "clamped", "reference_nodes": "x0"},
+            "got modes='fixed-interface'",
+        ),
+    ):  # fmt: skip
+        with pytest.raises(InvalidParameterError, match=match):
+            build(**options)
+    assert build(mode_count=0).modes is None
+
+
 def test_unknown_duplicate_and_unconnected_nodes_are_named():
     mesh = shapes.box((1.0, 0.2, 0.1), (2, 1, 1), "hex8")
     bad = mesh.elements["hex8"].copy()

@@ -81,6 +81,43 @@ def _check_shell(elements: Mapping[str, Any], shell: ShellSection | None) -> Non
         )
 
 
+def _check_sections_used(
+    elements: Mapping[str, Any], section: Section | None, shell: ShellSection | None
+) -> None:
+    """A beam section without beams, a shell section without shells: refused
+    (`InvalidParameterError` naming the option), as the option would change nothing and the
+    mesh is likely not the one meant."""
+    present = [k for k, conn in elements.items() if len(conn)]
+    if section is not None and "beam2" not in present:
+        raise InvalidParameterError(
+            f"section: the mesh has no beam elements (it has {', '.join(present) or 'none'}); "
+            "a beam section applies to beam2 elements only",
+            item="section",
+        )
+    if shell is not None and not any(k in present for k in SHELL_ELEMENTS):
+        raise InvalidParameterError(
+            f"shell: the mesh has no shell elements (it has {', '.join(present) or 'none'}); "
+            "a shell section applies to quad4 and tri3 elements only",
+            item="shell",
+        )
+
+
+def _check_used_options(modes: str | None, mode_count: int, interfaces: Any) -> None:
+    """Options that the chosen modal reduction would ignore: refused, naming them."""
+    if modes is None and mode_count > 0:
+        raise InvalidParameterError(
+            f"mode_count={mode_count} without modes: the body keeps its nodal coordinates; "
+            "choose modes ('fixed-interface', 'free-free', 'craig-bampton')",
+            item="mode_count",
+        )
+    if modes != "craig-bampton" and len(_interface_selections(interfaces)):
+        raise InvalidParameterError(
+            f"interfaces are for Craig-Bampton modes (modes='craig-bampton'), got modes="
+            f"{modes!r}; use reference_nodes for the nodes of clamped or 3-2-1 conditions",
+            item="interfaces",
+        )
+
+
 #: The warp above which a quadrilateral shell is reported (`shell_warp`, `MeshQualityWarning`):
 #: the flat element takes the corners projected onto its mean plane, which serves while the
 #: warp is a few per cent (`docs/preprocessor.md`).
@@ -554,11 +591,13 @@ def build_body(
         beam_theory=beam_theory,
     )
     shell = shell_section(shell)
+    _check_used_options(modes, mode_count, interfaces)
     # Copies: the body's arrays are read-only and must not alias the caller's.
     nodes = np.array(nodes, dtype=float)
     sets = _node_sets(node_sets)
     elements = {k: integers_array(v, f"elements[{k!r}]").copy() for k, v in elements.items()}
     _check_shell(elements, shell)
+    _check_sections_used(elements, section, shell)
     if flag(orient_shells, "orient_shells"):
         elements = orient_shell_elements(elements)
     ids = (
