@@ -362,6 +362,64 @@ def test_info_summarizes_the_modes_of_an_op2_file(capsys, tmp_path):
     assert "not an OP2 file" in capsys.readouterr().err
 
 
+def test_info_summarizes_a_nastran_deck_and_explains_other_hdf5_files(capsys, tmp_path):
+    # A .bdf was "not a model, body or results file"; an HDF5 file of another program was
+    # "of format None", a truncated one an h5py message without the file's name.
+    from pathlib import Path
+
+    import h5py
+
+    deck = Path(__file__).parent / "data" / "nastran" / "beam.bdf"
+    assert main(["info", str(deck)]) == 0
+    out = capsys.readouterr().out
+    assert "beam.bdf: Nastran bulk data, 9 nodes, 8 beam2" in out
+    assert "group 'spc1': 1 nodes" in out
+    assert "material: E 2.1e+11, nu 0.3, rho 7800" in out
+    assert "beam section: A 0.0002, Iy 1.66667e-09, Iz 6.66667e-09" in out
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as file:
+        file["x"] = [1, 2, 3]
+    assert main(["info", str(other)]) == 2
+    assert "an HDF5 file, but not a flexmbd body or results file" in capsys.readouterr().err
+    truncated = tmp_path / "truncated.h5"
+    truncated.write_bytes(other.read_bytes()[:1000])
+    assert main(["info", str(truncated)]) == 2
+    assert (
+        f"{truncated}: cannot open the HDF5 file (damaged or truncated" in capsys.readouterr().err
+    )
+
+
+def test_preprocess_reads_a_nastran_deck_and_asks_for_what_a_mesh_lacks(capsys, tmp_path):
+    # A .bdf could not be preprocessed from the command line, and beams without --section
+    # were refused without saying how to give one.
+    from pathlib import Path
+
+    import meshio
+
+    from flexmbd.fe import read_nastran
+    from flexmbd.fe.body_file import load_body
+
+    deck = Path(__file__).parent / "data" / "nastran" / "block.bdf"
+    out = tmp_path / "block.h5"
+    modal = ["--reference", "mean-axis", "--modes", "free-free", "-n", "4"]
+    assert main(["preprocess", str(deck), "-o", str(out), *modal]) == 0
+    capsys.readouterr()
+    same = read_nastran(deck).body(reference="mean-axis", modes="free-free", mode_count=4)
+    np.testing.assert_allclose(load_body(out).frequencies, same.frequencies, rtol=1e-12)
+    assert main(["preprocess", str(deck), "-o", str(out), "--density", "3"]) == 2
+    assert "--density: a Nastran deck has its own material" in capsys.readouterr().err
+    mesh = tmp_path / "beam.vtu"
+    meshio.write(
+        mesh,
+        meshio.Mesh(np.array([[0.0, 0, 0], [0.5, 0, 0], [1, 0, 0]]), [("line", [[0, 1], [1, 2]])]),
+    )
+    assert main(["preprocess", str(mesh), "-o", str(out), "-E", "2e11"]) == 2
+    assert "not given: --poisson-ratio, --density" in capsys.readouterr().err
+    material = ["-E", "2e11", "--poisson-ratio", "0.3", "--density", "7800"]
+    assert main(["preprocess", str(mesh), "-o", str(out), *material]) == 1
+    assert "need a section (give one with --section" in capsys.readouterr().err
+
+
 GAP = """
 name: gap
 gravity: [0, -9.81, 0]

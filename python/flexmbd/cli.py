@@ -443,18 +443,36 @@ def _info(args: argparse.Namespace) -> int:
 
             print(read_op2(path).summary())
             return 0
+        if path.suffix.lower() in NASTRAN_SUFFIXES:
+            return _info_nastran(path)
         import h5py
 
         if not h5py.is_hdf5(path):
-            print(f"flexmbd info: {target}: not a model, body or results file", file=sys.stderr)
+            print(
+                f"flexmbd info: {target}: not a model, body, results, mesh, Nastran or OP2 file",
+                file=sys.stderr,
+            )
             return 2
-        with h5py.File(path, "r", swmr=True) as file:
-            kind = file.attrs.get("format")
+        try:
+            with h5py.File(path, "r", swmr=True) as file:
+                kind = file.attrs.get("format")
+        except OSError as error:
+            print(
+                f"flexmbd info: {target}: cannot open the HDF5 file (damaged or truncated: "
+                f"{error})",
+                file=sys.stderr,
+            )
+            return 2
         if kind == "flexmbd-results":
             return _info_results(path)
         if kind == "flexmbd-body":
             return _info_body(path)
-        print(f"flexmbd info: {target}: an HDF5 file of format {kind!r}", file=sys.stderr)
+        shown = "it has none" if kind is None else f"it is {kind!r}"
+        print(
+            f"flexmbd info: {target}: an HDF5 file, but not a flexmbd body or results file "
+            f"(their 'format' attribute is 'flexmbd-body' or 'flexmbd-results'; {shown})",
+            file=sys.stderr,
+        )
         return 2
     except BrokenPipeError:
         raise
@@ -521,17 +539,53 @@ def _info_results(path: Path) -> int:
     return 0
 
 
+#: Suffixes of Nastran bulk data files (`flexmbd info`).
+NASTRAN_SUFFIXES = (".bdf", ".nas", ".dat", ".pch", ".blk")
+
+
+def _info_nastran(path: Path) -> int:
+    """A Nastran deck: its mesh and node sets (as a mesh file), material, sections, DMIG
+    matrices."""
+    from .fe.nastran import read_nastran
+
+    deck = read_nastran(path)
+    _print_mesh(path, "Nastran bulk data", deck.mesh)
+    if deck.element_properties:
+        material = deck.material()
+        print(
+            f"  material: E {material.young_modulus:.6g}, nu {material.poisson_ratio:.6g}, "
+            f"rho {material.density:.6g} (deck units, WTMASS applied)"
+        )
+    section, orientation = deck.section()
+    if section is not None:
+        print(
+            f"  beam section: A {section.area:.6g}, Iy {section.iy:.6g}, Iz {section.iz:.6g}, "
+            f"J {section.torsion_constant:.6g}; orientation "
+            f"({', '.join(f'{v:.6g}' for v in orientation)})"
+        )
+    shell = deck.shell()
+    if shell is not None:
+        print(f"  shell thickness {shell.thickness:.6g}")
+    for name, matrix in deck.matrices.items():
+        print(f"  DMIG {name}: {len(matrix.values)} entries (form {matrix.form})")
+    return 0
+
+
 def _info_mesh(path: Path) -> int:
     """A mesh file: its nodes (ids, bounding box), elements by type, and its groups (node
     sets; for each, the elements whose nodes all belong to it: an element set)."""
-    import numpy as np
-
     from .fe.mesh_io import MESH_FORMATS, read_mesh
 
-    mesh = read_mesh(path)
-    kind = MESH_FORMATS[path.suffix.lower()]
+    _print_mesh(path, f"{MESH_FORMATS[path.suffix.lower()]} mesh", read_mesh(path))
+    return 0
+
+
+def _print_mesh(path: Path, kind: str, mesh: Any) -> None:
+    """Nodes (ids, bounding box), elements by type and groups of a mesh (see `_info_mesh`)."""
+    import numpy as np
+
     elements = ", ".join(f"{len(c)} {t}" for t, c in mesh.elements.items()) or "no elements"
-    print(f"{path}: {kind} mesh, {mesh.node_count} nodes, {elements}")
+    print(f"{path}: {kind}, {mesh.node_count} nodes, {elements}")
     if mesh.node_count:
         ids = np.asarray(mesh.node_ids)
         low, high = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
@@ -555,7 +609,6 @@ def _info_mesh(path: Path) -> int:
             else "; no elements (a face, edge or point set)"
         )
         print(f"  group {name!r}: {len(members)} nodes{held}")
-    return 0
 
 
 def _info_body(path: Path) -> int:
@@ -921,6 +974,42 @@ def _preprocess(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f"flexmbd preprocess: {problem}", file=sys.stderr)
         return 2
+    given = [
+        flag
+        for flag, value in (
+            ("-E", args.young_modulus),
+            ("--poisson-ratio", args.poisson_ratio),
+            ("--density", args.density),
+            ("--section", args.section),
+            ("--section-orientation", args.section_orientation),
+            ("--thickness", args.thickness),
+        )
+        if value is not None
+    ]
+    deck = Path(args.mesh).suffix.lower() in NASTRAN_SUFFIXES
+    if deck and given:
+        print(
+            f"flexmbd preprocess: {' '.join(given)}: a Nastran deck has its own material, "
+            "sections and thickness (MAT1, PBAR/PBEAM, PSHELL)",
+            file=sys.stderr,
+        )
+        return 2
+    missing = [
+        flag
+        for flag, value in (
+            ("-E", args.young_modulus),
+            ("--poisson-ratio", args.poisson_ratio),
+            ("--density", args.density),
+        )
+        if value is None
+    ]
+    if not deck and missing:
+        print(
+            "flexmbd preprocess: the material needs -E (Pa), --poisson-ratio and --density "
+            f"(kg/m^3); not given: {', '.join(missing)}",
+            file=sys.stderr,
+        )
+        return 2
     timings: dict[str, float] = {}
     start = time.perf_counter()
     try:
@@ -929,10 +1018,18 @@ def _preprocess(args: argparse.Namespace) -> int:
             # One word is a node set's name unless it is an index ("5" was taken for a set).
             named = len(nodes) == 1 and not nodes[0].lstrip("-").isdigit()
             options["reference_nodes"] = nodes[0] if named else [_index(n) for n in nodes]
-        material = Material(args.young_modulus, args.poisson_ratio, args.density)
-        body = body_from_mesh(args.mesh, material, timings=timings, **options)
+        if deck:
+            from .fe.nastran import read_nastran
+
+            body = read_nastran(args.mesh).body(timings=timings, **options)
+        else:
+            material = Material(args.young_modulus, args.poisson_ratio, args.density)
+            body = body_from_mesh(args.mesh, material, timings=timings, **options)
     except (FlexmbdError, ValueError, OSError) as error:
-        print(f"flexmbd preprocess: {error}", file=sys.stderr)
+        hint = ""
+        if "beam elements need a section" in str(error):
+            hint = " (give one with --section, e.g. --section circle:0.01)"
+        print(f"flexmbd preprocess: {error}{hint}", file=sys.stderr)
         return 1
     elapsed = time.perf_counter() - start
     _print_body(body, f"flexmbd {__version__}: {args.mesh}:", f", reference {args.reference}")
@@ -1100,15 +1197,18 @@ def _main(argv: list[str] | None) -> int:
     sub.add_parser("examples", help="list the built-in examples")
     pre = sub.add_parser(
         "preprocess",
-        help="build a deformable body file from a mesh (Gmsh .msh, Abaqus .inp, VTK)",
+        help="build a deformable body file from a mesh (Gmsh .msh, Abaqus .inp, VTK) or a "
+        "Nastran deck (.bdf, .nas, .dat)",
         description="Element matrices, invariants of motion, reference conditions and modes "
         "of a body meshed with solid, beam or shell elements, saved as an HDF5 body file.",
     )
     pre.add_argument("mesh", help="mesh file")
     pre.add_argument("-o", "--output", required=True, help="body file to write (.h5)")
-    pre.add_argument("-E", "--young-modulus", type=float, required=True, help="Pa")
-    pre.add_argument("--poisson-ratio", type=float, required=True)
-    pre.add_argument("--density", type=float, required=True, help="kg/m^3")
+    pre.add_argument(
+        "-E", "--young-modulus", type=float, help="Pa (not for Nastran decks: from their MAT1)"
+    )
+    pre.add_argument("--poisson-ratio", type=float)
+    pre.add_argument("--density", type=float, help="kg/m^3")
     pre.add_argument("--mass", choices=("consistent", "lumped"), default="consistent")
     pre.add_argument(
         "--section",
