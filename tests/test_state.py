@@ -737,3 +737,19 @@ def test_a_flexible_panel_released_horizontal_hangs_from_its_hinged_edge(assert_
     assert hanging.stable is True
     centroid = hanging.node_positions("panel").mean(axis=0)
     assert_close(centroid, [0.15, 0.0, -0.05], abs=1e-6, what="centroid")
+
+
+def test_a_neutral_equilibrium_is_not_called_stable():
+    # A free rigid body without gravity was reported stable=True: its stiffness is zero in
+    # all six free directions. A pendulum hanging is stable with no neutral direction.
+    system = fm.System()
+    system.add_rigid_body(1.0, (1.0, 2.0, 3.0), name="free")
+    free = fm.equilibrium(system.compile())
+    assert free.stable is None
+    assert (free.unstable_directions, free.neutral_directions) == (0, 6)
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    bob = system.add_point_mass(1.0, position=(0.0, -1.0, 0.0), name="bob")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(bob), 1.0)
+    hanging = fm.equilibrium(system.compile())
+    assert hanging.stable is True
+    assert (hanging.unstable_directions, hanging.neutral_directions) == (0, 0)

@@ -464,15 +464,6 @@ def _euler_parameter_mask(layout: dict[str, Any]) -> NDArray[np.bool_]:
     return mask
 
 
-def _unstable_directions(
-    a: sp.csc_matrix, nq: int, layout: dict[str, Any], factors: dict[int, Any] | None = None
-) -> int | None:
-    """The number of directions the constraints leave free in which the Newton matrix
-    a = [[K, C_q^T], [C_q, 0]] of a state at rest is not positive (see `_inertia`)."""
-    inertia = _inertia(a, nq, layout, factors)
-    return None if inertia is None else inertia[0]
-
-
 def _inertia(
     a: sp.csc_matrix, nq: int, layout: dict[str, Any], factors: dict[int, Any] | None = None
 ) -> tuple[int, int] | None:
@@ -988,11 +979,13 @@ def _solve_equilibrium(
                     f"{np.max(np.abs(final['residual'][nq + violated])):.3e}): {equations}",
                     item=joints[0] if joints else None,
                 )
-            unstable = _unstable_directions(
-                _kept(_matrix(final), unknowns), nq, layout, kept_factors
-            )
+            inertia = _inertia(_kept(_matrix(final), unknowns), nq, layout, kept_factors)
+            unstable, neutral = (None, 0) if inertia is None else inertia
             if seek and unstable:
                 continue  # a saddle reached exactly: the shift pushes off it
+            stable = None if unstable is None else unstable == 0
+            if stable and neutral:
+                stable = None  # no stiffness in some directions: not decided at this order
             return EquilibriumState(
                 time,
                 q,
@@ -1003,8 +996,9 @@ def _solve_equilibrium(
                 flexible=flexible,
                 iterations=iteration,
                 residual=float(np.max(np.abs(final["residual"]))),
-                stable=None if unstable is None else unstable == 0,
+                stable=stable,
                 unstable_directions=unstable or 0,
+                neutral_directions=neutral,
             )
     bodies = _residual_bodies(layout, residual[:nq])
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0

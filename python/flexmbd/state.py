@@ -241,15 +241,21 @@ class EquilibriumState(State):
     Attributes (besides those of `State`):
         iterations: Newton iterations taken.
         residual: largest |residual| of the equations of motion at the solution.
-        stable: whether the equilibrium is stable: the stiffness of the equations at rest
-            (gravity, springs, elastic and constraint-force terms, centrifugal softening
-            under a steady drive) is positive definite in the directions the constraints
-            leave free; None where it was not determined.
-        unstable_directions: the number of free directions in which it is not (an inverted
-            double pendulum: 2).
+        stable: whether the equilibrium is stable: True when the stiffness of the equations
+            at rest (gravity, springs, elastic and constraint-force terms, centrifugal
+            softening under a steady drive) is positive definite in the directions the
+            constraints leave free, False when it is negative in some; None where it was
+            not determined, also for a neutral equilibrium (zero stiffness in some free
+            directions and negative in none: a free body in space, a wheel whose axle no
+            force turns), which the stiffness alone does not decide.
+        unstable_directions: the number of free directions of negative stiffness (an
+            inverted double pendulum: 2).
+        neutral_directions: the number of free directions of zero stiffness (a free rigid
+            body without gravity: 6).
     """
 
     iterations: int = 0
     residual: float = 0.0
     stable: bool | None = None
     unstable_directions: int = 0
+    neutral_directions: int = 0
