@@ -194,6 +194,16 @@ def test_the_modes_command_on_a_mechanism_with_redundant_joints(capsys):
     assert float(row[1]) == pytest.approx(0.546066, rel=1e-5)
 
 
+def test_the_modes_command_prints_round_off_damping_as_zero(capsys):
+    # The spin-up beam (undamped) printed +6.27e-12 and -6.24e-12 for its first pair: the
+    # round-off of eigenvalues 1e-16 of the largest.
+    from flexmbd.cli import main
+
+    assert main(["modes", "spin-up", "--count", "2"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[-2:]]
+    assert [row[2] for row in rows] == ["0", "0"]
+
+
 def test_the_modes_command_on_a_point_mass(tmp_path, capsys):
     # A01's point mass: the mode table read its body kind as "point-mass" (the layout says
     # "point_mass") and took Euler parameters it does not have.

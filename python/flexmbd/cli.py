@@ -781,8 +781,9 @@ def _campbell(args: argparse.Namespace) -> int:
 
 
 #: Damping ratios of at most this size are printed as 0 by `flexmbd modes`: round-off of an
-#: undamped mode's eigenvalues (the modal damping users give is 1e-4 or more).
-UNDAMPED = 1e-12
+#: undamped mode's eigenvalues, about 1e-16 times the largest eigenvalue over the mode's own
+#: (the spin-up beam's first pair: +-6e-12); the modal damping users give is 1e-4 or more.
+UNDAMPED = 1e-9
 
 
 def _index(text: str) -> int:
