@@ -221,6 +221,23 @@ def test_mode_result_refuses_what_is_not_a_model(hanging):
         mode_result(linear, "rod", 0)
 
 
+def test_frequency_response_at_an_undamped_resonance_is_inf_with_a_warning(hanging):
+    # Exactly at an undamped eigenfrequency the solve returned a finite number of round-off.
+    system, body, top, state, linear = hanging
+    linear = fm.linearize(
+        system,
+        state,
+        inputs=[fm.PointLoad(top, (1, 0, 0))],
+        outputs=[fm.BodyPosition(body, (1, 0, 0))],
+    )
+    space = linear.state_space()
+    eigenvalues = np.linalg.eigvals(space.a)
+    resonance = float(np.max(np.abs(eigenvalues.imag))) / (2 * np.pi)
+    with pytest.warns(fm.ResonanceWarning, match="Hz is an undamped eigenfrequency of the model"):
+        response = space.frequency_response([0.5 * resonance, resonance])
+    assert np.isfinite(response[0]).all() and np.isinf(response[1]).all()
+
+
 @pytest.mark.parametrize("frequencies", [[np.nan], [1.0, np.inf]])
 def test_frequency_response_at_a_frequency_that_is_not_finite_is_refused(hanging, frequencies):
     # A response of NaN came back.

@@ -197,6 +197,12 @@ class InertiaWarning(UserWarning):
     same; such data is usually mistyped, or about another point than the centre of mass."""
 
 
+class ResonanceWarning(UserWarning):
+    """A frequency response asked for at an undamped eigenfrequency of the model, within
+    round-off (``i w I - A`` singular): the response is unbounded there and is returned as
+    inf. Add damping, or step around the frequency."""
+
+
 class MeshQualityWarning(UserWarning):
     """Elements the preprocessor accepts but that give poor or misleading results: quadrilateral
     shells warped out of their mean plane by more than
@@ -222,6 +228,7 @@ __all__ = [
     "MissingFileError",
     "ModelFileError",
     "NewtonDivergedError",
+    "ResonanceWarning",
     "ResultsFileError",
     "NonFiniteError",
     "SimulationError",

@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import _core
 from ._checks import integer, number, numbers_array, value_text
-from .errors import ArgumentTypeError, InvalidParameterError
+from .errors import ArgumentTypeError, InvalidParameterError, ResonanceWarning
 from .quantities import body_entry
 from .rotation import angular_velocity
 
@@ -110,11 +110,39 @@ class StateSpace:
                 f"frequencies must be finite, got {f[bad[0]]} at index {bad[0]}",
                 item="frequencies",
             )
+        import warnings
+
+        import scipy.linalg as sla
+
         n = self.a.shape[0]
         out = np.empty((len(f), self.c.shape[0], self.b.shape[1]), dtype=complex)
+        resonant = []
         for k, fk in enumerate(f):
             s = 2j * np.pi * fk
-            out[k] = self.c @ np.linalg.solve(s * np.eye(n) - self.a, self.b) + self.d
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error", sla.LinAlgWarning)
+                    solved = sla.solve(s * np.eye(n) - self.a, self.b)
+            except (sla.LinAlgWarning, np.linalg.LinAlgError):
+                # i w is an eigenvalue of A within round-off: an undamped resonance.
+                resonant.append(float(fk))
+                out[k] = complex(np.inf, 0.0)
+                continue
+            out[k] = self.c @ solved + self.d
+        if resonant:
+            shown = ", ".join(f"{v:.6g}" for v in resonant[:5])
+            which = (
+                "is an undamped eigenfrequency"
+                if len(resonant) == 1
+                else "are undamped eigenfrequencies"
+            )
+            warnings.warn(
+                f"frequency_response: {shown} Hz {which} of the model (i w I - A singular "
+                "within round-off): "
+                "the response is unbounded there, returned as inf",
+                ResonanceWarning,
+                stacklevel=2,
+            )
         return out
 
 
