@@ -157,6 +157,13 @@ def test_bad_sets_and_weights_are_typed_errors_naming_the_set():
         make_interface(x, elements, face, np.zeros(len(face)), name="face")
     with pytest.raises(InvalidParameterError, match="face.*one per node"):
         make_interface(x, elements, face, np.ones(3), name="face")
+    # A NaN weight was reported as a wrong shape.
+    weights = np.ones(len(face))
+    weights[2] = np.nan
+    with pytest.raises(
+        InvalidParameterError, match=f"face: weights must be finite, got nan for its node {face[2]}"
+    ):
+        make_interface(x, elements, face, weights, name="face")
     with pytest.raises(InvalidParameterError, match="face.*weights must be"):
         make_interface(x, elements, face, "mass", name="face")
     scattered = np.array([0, 40, 77, 101])

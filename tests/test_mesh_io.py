@@ -862,7 +862,7 @@ def test_abaqus_matrix_inconsistent_entries(tmp_path):
 
 
 def test_matrices_from_arrays_dense_and_sparse():
-    stiffness = symmetric_matrix()
+    stiffness = symmetric_matrix() + 20.0 * np.eye(6)  # a stiffness: no negative diagonal
     mass = np.diag(np.arange(1.0, 7.0))
     k, m = matrices_from_arrays(stiffness, sp.csr_matrix(mass))
     assert isinstance(k, sp.csc_matrix) and isinstance(m, sp.csc_matrix)
@@ -885,6 +885,10 @@ def test_matrices_from_arrays_dense_and_sparse():
         (np.diag([1.0, np.inf]), np.eye(2), "non-finite entry at \\(1, 1\\)"),
         (np.eye(2) * 1j, np.eye(2), "must be real"),
         (np.ones(3), np.eye(3), "must be square"),
+        # A stiffness of the wrong sign was accepted (the modes then blamed the reference
+        # conditions, a nodal body ran away).
+        (-np.eye(2), np.eye(2), "stiffness matrix has a negative diagonal entry A\\[0, 0\\]"),
+        (np.eye(2), np.diag([1.0, -1.0]), "mass matrix has a negative diagonal entry A\\[1, 1\\]"),
     ],
 )
 def test_matrices_from_arrays_errors(stiffness, mass, match):

@@ -304,10 +304,17 @@ def _weights(
     members = np.asarray(members, dtype=np.int64)
     if not isinstance(weights, str):
         given = np.asarray(weights, dtype=float).ravel()
-        if given.shape != members.shape or not np.all(np.isfinite(given)):
+        if given.shape != members.shape:
             raise InvalidParameterError(
                 f"{name}: weights must be {len(members)} finite values (one per node), "
                 f"got shape {np.shape(weights)}",
+                item=name,
+            )
+        bad = np.flatnonzero(~np.isfinite(given))
+        if len(bad):
+            raise InvalidParameterError(
+                f"{name}: weights must be finite, got {given[bad[0]]} for its node "
+                f"{int(members[bad[0]])} (entry {int(bad[0])})",
                 item=name,
             )
         return given, "given", None

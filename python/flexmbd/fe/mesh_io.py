@@ -1351,7 +1351,8 @@ def matrices_from_arrays(stiffness: Any, mass: Any) -> tuple[sp.csc_matrix, sp.c
     matrices) and return them as new float64 csc matrices (values unchanged).
 
     Each must be real, 2-D, square, finite and symmetric within :data:`SYMMETRY_TOLERANCE`
-    times its largest entry, and both must have the same shape (n_dofs, n_dofs).
+    times its largest entry, without negative diagonal entries (both are positive
+    semi-definite), and both must have the same shape (n_dofs, n_dofs).
 
     Raises:
         InvalidParameterError: naming the matrix ("stiffness matrix", "mass matrix") and, for
@@ -1364,6 +1365,20 @@ def matrices_from_arrays(stiffness: Any, mass: Any) -> tuple[sp.csc_matrix, sp.c
             f"stiffness matrix has shape {stiffness.shape} but mass matrix has shape {mass.shape}",
             item="mass matrix",
         )
+    for matrix, what in ((stiffness, "stiffness matrix"), (mass, "mass matrix")):
+        # A positive semi-definite matrix has no negative diagonal entry (a matrix of the
+        # wrong sign, -K, has them all).
+        diagonal = matrix.diagonal()
+        scale = max(float(np.abs(diagonal).max()), 1e-300)
+        negative = np.flatnonzero(diagonal < -SYMMETRY_TOLERANCE * scale)
+        if len(negative):
+            k = int(negative[0])
+            raise InvalidParameterError(
+                f"{what} has a negative diagonal entry A[{k}, {k}] = {diagonal[k]:.6g} "
+                f"({len(negative)} in all), which no {what.split()[0]} matrix has (positive "
+                "semi-definite): a wrong sign or a wrong matrix",
+                item=what,
+            )
     return stiffness, mass
 
 
