@@ -69,6 +69,47 @@ def test_bad_parameters_are_refused_naming_them():
         make_cases({"a": [1]}, "sobol")
 
 
+def _returns_nothing(length: float) -> None:
+    """A build function whose `return` was forgotten."""
+    fm.examples.pendulum()
+
+
+def test_studies_refuse_repeated_cases_taken_names_and_builds_without_a_model(tmp_path):
+    # Found by a fault hunt: a repeated case crashed the Dask bookkeeping (KeyError), an
+    # output named "status" was overwritten by the case status, one named like a parameter
+    # failed after every case had run, a build function returning None failed every case
+    # with an AttributeError, and 1 and 1.0 were two cases (run twice).
+    folder = tmp_path / "study"
+    with pytest.raises(fm.InvalidParameterError, match="cases 0 and 2 are the same case"):
+        fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0, 2.0, 1]}, folder=folder)
+    for name in ("status", "elapsed", "case", "bodies.mass.mass", " "):
+        with pytest.raises(fm.InvalidParameterError, match="output|outputs"):
+            fm.Study(
+                PENDULUM_FILE,
+                {"bodies.mass.mass": [1.0, 2.0]},
+                outputs={name: "final(position:mass[y])"},
+                folder=folder,
+            )
+    study = fm.Study(_returns_nothing, {"length": [1.0]}, folder=folder, end_time=0.1)
+    with pytest.raises(fm.InvalidParameterError, match="returned NoneType None, not a System"):
+        study.check()
+    whole = fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1, 2]}, folder=folder, end_time=1)
+    real = fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0, 2.0]}, folder=folder, end_time=1.0)
+    assert whole.keys == real.keys
+
+
+def test_sweep_refuses_a_parameter_or_an_output_given_twice(tmp_path, capsys):
+    from flexmbd.cli import main
+
+    base = ["sweep", str(PENDULUM_FILE), "-o", str(tmp_path / "s"), "--end", "0.1"]
+    twice = ["--set", "bodies.mass.mass=1,2", "--set", "bodies.mass.mass=3"]
+    assert main([*base, *twice]) == 2
+    assert "bodies.mass.mass is set twice" in capsys.readouterr().err
+    outputs = ["--output", "x=max(position:mass[x])", "--output", "x=min(position:mass[x])"]
+    assert main([*base, "--set", "bodies.mass.mass=1,2", *outputs]) == 2
+    assert "an output named 'x' is given twice" in capsys.readouterr().err
+
+
 # Outputs ---------------------------------------------------------------------------------------
 def test_outputs_are_the_plot_quantities_reduced_over_time(assert_close):
     system = swinging_arm(length=1.0)
@@ -494,6 +535,12 @@ def test_an_interrupted_sweep_says_what_is_done_and_the_same_command_finishes(tm
     done = len(list(folder.glob("cases/*.json")))
     said = re.search(r"flexmbd sweep: interrupted; (\d) of 4 cases are done in", err)
     assert said is not None and 1 <= int(said.group(1)) <= done < 4, err[-3000:]
+    # The folder has no study.nc yet: load_study (and info, plot) gather the cases done
+    # (a raw FileNotFoundError before).
+    assert not (folder / "study.nc").exists()
+    data, _ = fm.load_study(folder)
+    assert list(data["status"].values).count("complete") == done
+    assert list(data["status"].values).count("pending") == 4 - done
     again = subprocess.run(command + ["-q"], capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr[-3000:]
     assert f"{4 - done} to run" in again.stdout and "4 cases, 4 complete" in again.stdout

@@ -115,8 +115,19 @@ class Study:
         self.cases = make_cases(parameters, sampling, samples, seed)
         self.parameter_names = list(self.cases[0]) if self.cases else []
         self.source.check_names(self.parameter_names)
+        _check_output_names(self.outputs, self.parameter_names)
         identity = self.source.identity()
         self.keys = [case_key(identity, case, self.settings) for case in self.cases]
+        seen: dict[str, int] = {}
+        for k, key in enumerate(self.keys):
+            if key in seen:
+                # Dask ran one task per key: the second lost its bookkeeping (a KeyError).
+                raise InvalidParameterError(
+                    f"cases {seen[key]} and {k} are the same case {dict(self.cases[k])}: "
+                    "give each parameter combination once",
+                    item=f"case {k}",
+                )
+            seen[key] = k
 
     def __repr__(self) -> str:
         names, folder = self.parameter_names, str(self.folder)
@@ -549,6 +560,28 @@ def _dataset(
     return data
 
 
+#: Names of the study dataset's own variables and dimensions, which outputs cannot take.
+RESERVED_NAMES = ("case", "time", "status", "error", "warnings", "elapsed")
+
+
+def _check_output_names(outputs: Mapping[str, str], parameters: list[str]) -> None:
+    """Refuses output names the dataset uses already (its own variables, a parameter's
+    coordinate) or that are empty: the output was overwritten, or the dataset could not be
+    made after every case had run."""
+    for name in outputs:
+        if not isinstance(name, str) or not name.strip():
+            raise InvalidParameterError(
+                f"outputs: an output needs a name, got {name!r}", item="outputs"
+            )
+        if name in RESERVED_NAMES or name in parameters:
+            what = "a parameter" if name in parameters else "a variable of the study's dataset"
+            raise InvalidParameterError(
+                f"output {name!r}: the name is {what} ({', '.join(RESERVED_NAMES)} and the "
+                "parameters are taken); give the output another name",
+                item=name,
+            )
+
+
 def _column(values: list[Any]) -> np.ndarray:
     """Parameter values as an array: numbers as floats, anything else (text, lists) as
     text."""
@@ -568,10 +601,40 @@ def load_study(folder: str | os.PathLike[str]) -> Any:
     if not (folder / DESCRIPTION).is_file():
         raise InvalidParameterError(f"{str(folder)!r} is not a study folder (no {DESCRIPTION})")
     description = json.loads((folder / DESCRIPTION).read_text())
+    if not (folder / DATASET).is_file():
+        # A study stopped before it gathered (Ctrl-C): the cases done, from their summaries.
+        return _gathered_from_summaries(folder, description), description
     with xr.open_dataset(folder / DATASET, engine="scipy") as data:
         data = data.load()
     parameters = [n for n in description["parameters"] if n in data.data_vars]
     return data.set_coords(parameters), description
 
 
-__all__ += ["DATASET", "DESCRIPTION", "RUN_SETTINGS"]
+def _gathered_from_summaries(folder: Path, description: dict[str, Any]) -> Any:
+    """The dataset of a study folder without ``study.nc``, from the summaries of the cases
+    done (the others "pending"), also saved as ``study.nc``."""
+    from ..errors import MissingFileError
+
+    cases = description.get("cases")
+    if not isinstance(cases, list):
+        raise MissingFileError("study dataset", folder / DATASET)
+    summaries = []
+    for case in cases:
+        path = folder / "cases" / f"case-{case['key']}.json"
+        try:
+            summaries.append(json.loads(path.read_text()) if path.is_file() else None)
+        except (OSError, ValueError):
+            summaries.append(None)
+    data = _dataset(
+        [case["parameters"] for case in cases],
+        list(description["parameters"]),
+        dict(description["outputs"]),
+        summaries,
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data.to_netcdf(folder / DATASET, engine="scipy")
+    return data
+
+
+__all__ += ["DATASET", "DESCRIPTION", "RESERVED_NAMES", "RUN_SETTINGS"]

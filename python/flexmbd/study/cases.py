@@ -94,6 +94,13 @@ class ModelSource:
         assert self.build is not None
         built = self.build(**self.arguments, **parameters)
         system = getattr(built, "system", built)
+        if not hasattr(system, "compile") and not hasattr(system, "describe"):
+            name = getattr(self.build, "__name__", "the build function")
+            raise InvalidParameterError(
+                f"{name} returned {type(built).__name__} {built!r:.40}, not a System, Model, "
+                "Example or ModelFile (a `return` missing?)",
+                item=name,
+            )
         return system, _settings_of(built)
 
 
@@ -182,9 +189,25 @@ def _canonical(value: Any) -> str:
     return json.dumps(value, sort_keys=True, default=repr)
 
 
+def _as_floats(value: Any) -> Any:
+    """`value` with its integers (not bools) as floats, in lists and dicts too: the same
+    number written 1 or 1.0 is the same case."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int):
+        return float(value)
+    if isinstance(value, list | tuple):
+        return [_as_floats(v) for v in value]
+    if isinstance(value, Mapping):
+        return {k: _as_floats(v) for k, v in value.items()}
+    return value
+
+
 def case_key(identity: str, parameters: Mapping[str, Any], settings: Mapping[str, Any]) -> str:
-    """The key of a case: a hash of the model, its parameter values and the run settings."""
-    text = _canonical([identity, dict(parameters), {k: repr(v) for k, v in settings.items()}])
+    """The key of a case: a hash of the model, its parameter values and the run settings
+    (numbers compared as floats: 1 and 1.0 give one key)."""
+    shown = {k: repr(_as_floats(v)) for k, v in settings.items()}
+    text = _canonical([identity, _as_floats(dict(parameters)), shown])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

@@ -130,6 +130,10 @@ def _parameters(settings: list[str], sampling: str) -> dict[str, Any]:
         if not sep or not key.strip() or not values.strip():
             raise InvalidParameterError(f"--set {item!r}: expected KEY=V1,V2,... or KEY=LOW:HIGH")
         key = key.strip()
+        if key in parameters:
+            raise InvalidParameterError(
+                f"--set {item!r}: {key} is set twice; give its values in one --set"
+            )
         if sampling == "grid":
             low, colon, high = values.partition(":")
             if colon and all(isinstance(_value(v), (int, float)) for v in (low, high)):
@@ -164,7 +168,12 @@ def sweep(args: argparse.Namespace) -> int:
         outputs = {}
         for item in args.output:
             name, sep, spec = item.partition("=")
-            outputs[name.strip() if sep else item] = spec.strip() if sep else item
+            label = name.strip() if sep else item
+            if label in outputs:
+                raise InvalidParameterError(
+                    f"--output {item!r}: an output named {label!r} is given twice"
+                )
+            outputs[label] = spec.strip() if sep else item
         model: Any = EXAMPLES[args.model] if args.model in EXAMPLES else args.model
         if model is args.model and not Path(model).is_file():
             known = ", ".join(sorted(EXAMPLES))
