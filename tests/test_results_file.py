@@ -261,6 +261,21 @@ def test_files_that_are_not_results_files_are_refused(tmp_path):
         fm.read_results(other)
     with pytest.raises(FileNotFoundError):
         fm.read_results(tmp_path / "missing.h5")
+    # Both a ResultsFileError (an OSError, as documented) and an InvalidModelError.
+    with pytest.raises(OSError, match="not a flexmbd results file") as caught:
+        fm.read_results(other)
+    assert isinstance(caught.value, fm.NotAResultsFileError | fm.ResultsFileError)
+    with pytest.raises(fm.ResultsFileError, match="not a regular file"):
+        fm.read_results(tmp_path)
+
+
+def test_metadata_a_results_file_cannot_hold_is_refused_before_the_file(tmp_path):
+    # A set in the metadata was a raw TypeError and left a file without records.
+    path = tmp_path / "run.h5"
+    example = fm.examples.pendulum()
+    with pytest.raises(fm.InvalidParameterError, match=r"metadata\['tags'\]: cannot store set"):
+        fm.simulate(example.system, 0.01, 1e-3, results_file=path, metadata={"tags": {"a"}})
+    assert not path.exists()
 
 
 def test_tables_for_pandas_and_xarray(tmp_path):

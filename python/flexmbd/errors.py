@@ -103,6 +103,13 @@ class ResultsFileError(FlexmbdError, OSError):
     run's ``result`` holds what was computed. Also an ``OSError``."""
 
 
+class NotAResultsFileError(ResultsFileError, InvalidModelError):
+    """A path read as a results file is not one a flexmbd can read: not a regular file, not
+    HDF5, another format (a body file, another program's HDF5), a newer version or a file
+    without its datasets. A :class:`ResultsFileError` (an ``OSError``), as its docstring
+    says, and an :class:`InvalidModelError` (a ``ValueError``), as it was before."""
+
+
 class MissingFileError(FlexmbdError, FileNotFoundError):
     """A file to read does not exist: a mesh, body, results, model, Nastran, OP2, OP4 or SID
     file. ``item`` and ``filename`` are its path. Also a ``FileNotFoundError``."""
@@ -231,6 +238,7 @@ __all__ = [
     "ResonanceWarning",
     "ResultsFileError",
     "NonFiniteError",
+    "NotAResultsFileError",
     "SimulationError",
     "SimulationInterrupted",
     "SingularMatrixError",

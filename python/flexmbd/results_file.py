@@ -53,7 +53,13 @@ import numpy as np
 
 from . import _core, errors
 from ._hdf5 import global_heap_damage
-from .errors import FlexmbdError, InvalidModelError, MissingFileError, ResultsFileError
+from .errors import (
+    FlexmbdError,
+    InvalidParameterError,
+    MissingFileError,
+    NotAResultsFileError,
+    ResultsFileError,
+)
 from .fe.body_file import copy_body_groups, read_body_group
 from .result import Result
 
@@ -113,6 +119,25 @@ def _json(value: Any) -> str:
         raise TypeError(f"cannot store {type(item).__name__} in a results file")
 
     return json.dumps(value, default=convert)
+
+
+def check_metadata(metadata: Any) -> None:
+    """Refuses run metadata a results file cannot store (`InvalidParameterError` naming the
+    entry): None or a dict of JSON values (NumPy numbers and arrays too)."""
+    if metadata is None:
+        return
+    if not isinstance(metadata, dict):
+        raise InvalidParameterError(
+            f"metadata must be a dict, got {type(metadata).__name__}", item="metadata"
+        )
+    for key, value in metadata.items():
+        try:
+            _json({key: value})
+        except (TypeError, ValueError) as error:
+            raise InvalidParameterError(
+                f"metadata[{key!r}]: {error} (JSON values only: numbers, text, lists, dicts)",
+                item=f"metadata[{key!r}]",
+            ) from None
 
 
 def _is_results_file(path: Path) -> bool:
@@ -549,11 +574,11 @@ def _open(path: Path, *, check: bool = True) -> h5py.File:
         raise MissingFileError("results file", path)
     if check and not path.is_file():
         # A folder, a FIFO (whose reading would wait for a writer) or a device.
-        raise InvalidModelError(
+        raise NotAResultsFileError(
             f"{path} is not a flexmbd results file (not a regular file)", item=f"file '{path}'"
         )
     if check and not h5py.is_hdf5(path):
-        raise InvalidModelError(
+        raise NotAResultsFileError(
             f"{path} is not a flexmbd results file (not an HDF5 file)", item=f"file '{path}'"
         )
     damage = global_heap_damage(path)
@@ -685,20 +710,20 @@ def _check_header(file: h5py.File, path: Path) -> None:
     if isinstance(found, bytes):
         found = found.decode("utf-8", "replace")
     if found != RESULTS_FILE_FORMAT:
-        raise InvalidModelError(
+        raise NotAResultsFileError(
             f"{path} is not a flexmbd results file (format {found!r}, expected "
             f"{RESULTS_FILE_FORMAT!r})",
             item=f"file '{path}'",
         )
     if version > RESULTS_FILE_VERSION:
-        raise InvalidModelError(
+        raise NotAResultsFileError(
             f"{path} was written by a newer flexmbd: version {version} > "
             f"{RESULTS_FILE_VERSION}; update flexmbd to read it",
             item=f"file '{path}'",
         )
     for name in (*_RECORD_FIELDS, "records", "status"):
         if name not in file:
-            raise InvalidModelError(
+            raise NotAResultsFileError(
                 f"{path}: the results file has no dataset '{name}'", item=f"file '{path}'"
             )
 

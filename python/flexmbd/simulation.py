@@ -390,8 +390,9 @@ def simulate(
         )
     writer = None
     if results_file is not None:
-        from .results_file import ResultsWriter
+        from .results_file import ResultsWriter, check_metadata
 
+        check_metadata(metadata)  # before the file is made: a refused value leaves none
         writer = ResultsWriter(
             results_file,
             model,
