@@ -246,6 +246,9 @@ def test_the_effort_is_recorded_and_plotted(assert_close, tmp_path):
     np.testing.assert_array_equal(
         fm.read_results(tmp_path / "servo.h5").actuator_effort("servo"), effort
     )
+    # Another name: the actuators are listed (it said "no sensor named 'x effort'").
+    with pytest.raises(fm.UnknownItemError, match=r"no actuator named 'x' \(actuators: 'servo'\)"):
+        result.actuator_effort("x")
     entry = next(s for s in result.layout["sensors"] if s["name"] == "servo effort")
     assert entry["quantity"] == "actuator torque (N m)"
     assert "efforts" in plotting.default_quantities(result)

@@ -434,7 +434,24 @@ class Result:
 
     def actuator_effort(self, actuator: str) -> Array:
         """The effort of the joint actuator named `actuator` (its torque, N m, or force, N,
-        after the limit), (n,): the sensor "`actuator` effort" it records."""
+        after the limit), (n,): the sensor "`actuator` effort" it records. Raises
+        `UnknownItemError` naming the actuators when `actuator` is none of them."""
+        sensors = {s["name"] for s in self.layout["sensors"]}
+        if f"{actuator} effort" not in sensors:
+            actuators = sorted(
+                name[: -len(" effort")] for name in sensors if name.endswith(" effort")
+            )
+            joints = {j["name"]: j["type"] for j in self.layout["joints"]}
+            what = (
+                f"joint {actuator!r} is a {joints[actuator]} joint without an actuator"
+                if actuator in joints
+                else f"no actuator named {actuator!r}"
+            )
+            raise UnknownItemError(
+                f"{what} (actuators: {', '.join(map(repr, actuators)) or 'none'}); the effort "
+                "of a driver is driver_effort",
+                item=str(actuator),
+            )
         return self.sensor(f"{actuator} effort")[:, 0]
 
     # Sensors ---------------------------------------------------------------------------
