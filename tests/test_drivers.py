@@ -1,6 +1,8 @@
 """Driving constraints (specified motion) and inverse dynamics: the driving effort from the
 multiplier against closed-form values."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -120,3 +122,22 @@ def test_translation_driver_and_lifting_force(assert_close):
     lift = mass * (G - 0.8 * np.sin(2 * t))
     force = result.reaction_force(drive)[LAYER, 2]
     assert_close(force, lift[LAYER], rel=1e-7, abs=1e-5, what="lifting force")
+
+
+def test_a_driver_faster_than_the_steps_is_warned_of():
+    # 4000 rad/s at h = 1e-3 (4 rad a step) completed without a word, the bar turning
+    # 4 - 2 pi = -2.28 rad a step and its kinetic energy 29 times too large.
+    def bar(speed):
+        system = fm.System(gravity=[0, 0, 0])
+        body = system.add_rigid_body(1.0, [0.01, 0.1, 0.1], position=[0.5, 0, 0], name="bar")
+        hub, end = system.add_marker(system.ground), system.add_marker(body, position=[-0.5, 0, 0])
+        system.add_revolute_joint(hub, end, name="hinge")
+        system.add_angle_driver(hub, end, fm.Polynomial([0.0, speed]), name="drive")
+        return system
+
+    with pytest.warns(fm.StepSizeWarning, match="the angle driver 'drive' turns 4 rad in one step"):
+        fm.simulate(bar(4000.0), 0.01, 1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", fm.StepSizeWarning)
+        result = fm.simulate(bar(40.0), 0.01, 1e-3)  # 0.04 rad a step: no warning
+    assert result.angular_velocity("bar")[-1][2] == pytest.approx(40.0, rel=1e-4)
