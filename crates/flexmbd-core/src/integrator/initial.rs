@@ -134,29 +134,37 @@ pub fn correction_events(
         if body.dofs.is_empty() {
             continue;
         }
-        let moved = |given: &[f64], now: &[f64], range: std::ops::Range<usize>| -> f64 {
+        // (relative change, tested against `tol`; absolute change, reported: a position of
+        // 1.5 m moved by 0.5 m said 0.333).
+        let moved = |given: &[f64], now: &[f64], range: std::ops::Range<usize>| -> (f64, f64) {
             body.dofs[range.start.min(body.dofs.len())..range.end.min(body.dofs.len())]
                 .iter()
-                .map(|&k| (now[k] - given[k]).abs() / given[k].abs().max(1.0))
-                .fold(0.0, f64::max)
+                .map(|&k| {
+                    let change = (now[k] - given[k]).abs();
+                    (change / given[k].abs().max(1.0), change)
+                })
+                .fold((0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)))
         };
         let n = body.dofs.len();
         let rigid = n >= 7;
-        let parts: [(&str, f64); 4] = [
+        let parts: [(&str, (f64, f64)); 4] = [
             ("position", moved(given_q, &state.coordinates, 0..3)),
             (
                 "orientation (Euler parameters)",
-                if rigid { moved(given_q, &state.coordinates, 3..7) } else { 0.0 },
+                if rigid { moved(given_q, &state.coordinates, 3..7) } else { (0.0, 0.0) },
             ),
-            ("elastic coordinates", if n > 7 { moved(given_q, &state.coordinates, 7..n) } else { 0.0 }),
+            (
+                "elastic coordinates",
+                if n > 7 { moved(given_q, &state.coordinates, 7..n) } else { (0.0, 0.0) },
+            ),
             ("velocities", moved(given_qd, &state.velocities, 0..n)),
         ];
         let over: Vec<String> = parts
             .iter()
-            .filter(|(_, size)| *size > tol)
-            .map(|(what, size)| format!("{what} by up to {size:.3e}"))
+            .filter(|(_, (relative, _))| *relative > tol)
+            .map(|(what, (_, change))| format!("{what} by up to {change:.3e}"))
             .collect();
-        largest = parts.iter().map(|p| p.1).fold(largest, f64::max);
+        largest = parts.iter().map(|p| p.1 .0).fold(largest, f64::max);
         if !over.is_empty() {
             events.push(event(format!(
                 "body '{}': the consistent initial conditions move its {}",
