@@ -158,6 +158,11 @@ def test_plot_and_animate_a_results_file(tmp_path, capsys):
     assert "nowhere" in capsys.readouterr().err
     assert main(["animate", "fourbar.h5", "--frames", "4", "-o", "fourbar.gif"]) == 0
     assert (tmp_path / "fourbar.gif").stat().st_size > 1000
+    # --frames 0 is a usage error before anything is written (the ParaView series was).
+    with pytest.raises(SystemExit) as usage:
+        main(["animate", "fourbar.h5", "--frames", "0", "--vtu", "zero_vtu"])
+    assert usage.value.code == 2 and not (tmp_path / "zero_vtu").exists()
+    capsys.readouterr()
     assert main(["info", "fourbar.h5"]) == 0
     assert "status: complete" in capsys.readouterr().out
 

@@ -67,6 +67,10 @@ def test_bad_parameters_are_refused_naming_them():
         make_cases([{"a": 1}, {"b": 2}], "list")
     with pytest.raises(fm.InvalidParameterError, match="sampling"):
         make_cases({"a": [1]}, "sobol")
+    with pytest.raises(fm.InvalidParameterError, match="samples=5 is for random and lhs"):
+        make_cases({"a": [1, 2]}, samples=5)  # ignored before
+    with pytest.raises(fm.InvalidParameterError, match="n must be at least 1"):
+        fm.examples.four_bar(0)  # a raw ValueError before
 
 
 def _returns_nothing(length: float) -> None:

@@ -1183,7 +1183,7 @@ def _main(argv: list[str] | None) -> int:
         help="ParaView series: only the records from time A to B (s; A or B may be left out)",
     )
     animate.add_argument("--no-render", action="store_true", help="render no animation")
-    animate.add_argument("--frames", type=int, help="number of frames rendered")
+    animate.add_argument("--frames", type=_every, help="number of frames rendered")
     animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
     animate.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     animate.add_argument(

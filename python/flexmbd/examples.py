@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _boundary, _core
+from .errors import InvalidParameterError
 from .rotation import rotation
 from .system import System
 
@@ -116,7 +117,7 @@ def four_bar(n: int = 2) -> Example:
     k+1, so that the spatial model has no redundant equations. The mechanism passes singular
     configurations (cranks horizontal) twice per turn. Exact B0 at t = 10 s for N = 2."""
     if n < 1:
-        raise ValueError(f"n must be at least 1, got {n}")
+        raise InvalidParameterError(f"n must be at least 1, got {n}")
     system = System(gravity=(0.0, -9.81, 0.0))
     inertia = FOUR_BAR_ROD
     cranks, tops, pivots = _four_bar_cranks(system, n + 1)
@@ -301,7 +302,9 @@ def spin_up(geometric_stiffness: bool | str = True, elements: int = 10, bodies: 
 
     hub_angle = _spin_up_hub_angle
     if bodies < 1 or elements % bodies:
-        raise ValueError(f"elements ({elements}) must be a multiple of bodies ({bodies})")
+        raise InvalidParameterError(
+            f"elements ({elements}) must be a multiple of bodies ({bodies})"
+        )
     per_body = elements // bodies
     length = 10.0 / bodies
     nodes, conn = straight_beam(length, per_body)
@@ -475,7 +478,7 @@ def rotating_blade_flap_frequencies(
     the motion about it. Flap modes are those that move the nodes along z, lead-lag modes
     along y."""
     if direction not in ("flap", "lag"):
-        raise ValueError(f"direction must be 'flap' or 'lag', got {direction!r}")
+        raise InvalidParameterError(f"direction must be 'flap' or 'lag', got {direction!r}")
     from .analysis import equilibrium, linearize
     from .fe import Material, Section
 
@@ -572,11 +575,11 @@ def overhung_rotor(
         ("diametral_inertia", diametral_inertia),
     ):
         if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{label} must be positive and finite, got {value}")
+            raise InvalidParameterError(f"{label} must be positive and finite, got {value}")
     if elements < 1:
-        raise ValueError(f"elements must be at least 1, got {elements}")
+        raise InvalidParameterError(f"elements must be at least 1, got {elements}")
     if not (np.isfinite(shaft_damping) and shaft_damping >= 0):
-        raise ValueError(f"shaft_damping must be >= 0 and finite, got {shaft_damping}")
+        raise InvalidParameterError(f"shaft_damping must be >= 0 and finite, got {shaft_damping}")
     section = Section.circle(diameter / 2)
     nodes, conn = straight_beam(length, elements)
     data = build_body(

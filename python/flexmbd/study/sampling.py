@@ -47,6 +47,12 @@ def make_cases(
         raise InvalidParameterError(
             f"sampling must be one of {', '.join(SAMPLINGS)}, got {sampling!r}", item="sampling"
         )
+    if sampling in ("grid", "list") and samples is not None:
+        raise InvalidParameterError(
+            f"samples={samples!r} is for random and lhs sampling; a {sampling} has its own "
+            "cases",
+            item="samples",
+        )
     if sampling == "list":
         if isinstance(parameters, Mapping) or not parameters:
             raise InvalidParameterError("sampling 'list' takes a non-empty list of mappings")
