@@ -49,8 +49,7 @@ def make_cases(
         )
     if sampling in ("grid", "list") and samples is not None:
         raise InvalidParameterError(
-            f"samples={samples!r} is for random and lhs sampling; a {sampling} has its own "
-            "cases",
+            f"samples={samples!r} is for random and lhs sampling; a {sampling} has its own cases",
             item="samples",
         )
     if sampling == "list":
