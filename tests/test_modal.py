@@ -637,3 +637,21 @@ def test_free_free_modes_of_a_mechanism_are_refused():
         bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free", mode_count=4
     )
     assert body.frequencies[0] > 10.0
+
+
+def test_a_slender_clamped_strip_is_not_taken_for_a_free_body(assert_close):
+    # A 1 m x 10 mm x 2 mm aluminium strip of 125 x 5 x 1 hex8, clamped at x0, was refused
+    # as "free to move rigidly": its first bending eigenvalue (781, 4.45 Hz) was under the
+    # rigid threshold of 1e-10 max(diag K) / max(diag M).
+    from flexmbd.fe import shapes
+
+    mesh = shapes.box((1.0, 0.01, 0.002), (125, 5, 1), "hex8")
+    options = dict(node_sets=mesh.node_sets, reference="clamped", reference_nodes="x0")
+    aluminium = Material(7e10, 0.3, 2700.0)
+    body = pp.build_body(
+        mesh.nodes, mesh.elements, aluminium, modes="fixed-interface", mode_count=2, **options
+    )
+    nodal = pp.build_body(mesh.nodes, mesh.elements, aluminium, **options)
+    lowest = spla.eigsh(nodal.invariants.k_ff, 2, nodal.invariants.m_ff, sigma=0.0)[0]
+    assert_close(body.frequencies, np.sqrt(np.sort(lowest)) / (2 * np.pi), rel=1e-6)
+    assert body.frequencies[0] == pytest.approx(4.448, rel=1e-3)
