@@ -318,6 +318,23 @@ def test_bad_material_values_are_typed_errors(nodal_beam):
         nodal_beam.with_material(young_modulus=-1.0)
     with pytest.raises(fm.InvalidParameterError, match="material"):
         nodal_beam.with_material("steel")
+    # Text and lists were raw ValueErrors and TypeErrors of float().
+    for values, match in (
+        ({"density": "a"}, "density must be a number"),
+        ({"young_modulus": "7e10 Pa"}, "young_modulus must be a number"),
+        ({"density": [1, 2]}, "density must be a number"),
+    ):
+        with pytest.raises(fm.InvalidParameterError, match=match):
+            nodal_beam.with_material(**values)
+
+
+def test_with_modes_refuses_interfaces_it_would_drop():
+    # Interfaces given with fixed-interface, free-free or no modes were dropped silently
+    # (build_body refuses them).
+    body = hinged_bar()
+    for kind in ("fixed-interface", "free-free", None):
+        with pytest.raises(fm.InvalidParameterError, match="interfaces are for Craig-Bampton"):
+            body.with_modes(kind, 2, reference="clamped", reference_nodes="x0", interfaces=["x0"])
 
 
 # Modes -----------------------------------------------------------------------------------

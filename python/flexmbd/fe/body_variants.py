@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from .._checks import number
 from ..errors import InvalidModelError, InvalidParameterError
 from . import preprocess
 from .body import FlexibleBodyData, _replace
@@ -262,6 +263,9 @@ def with_material(
         )
     given = {"young_modulus": young_modulus, "poisson_ratio": poisson_ratio, "density": density}
     values.update({key: value for key, value in given.items() if value is not None})
+    for key in _MATERIAL_KEYS:
+        # A text or a list was a raw ValueError or TypeError of float().
+        values[key] = number(values[key], key)
     new_material = _material(values)
     section, orientation, beam_theory = _section(body)
     rebuilt = preprocess.build_body(
@@ -357,6 +361,12 @@ def with_modes(
     if reference_nodes is not None:
         options["reference_nodes"] = reference_nodes
     if interfaces is not None:
+        if kind != "craig-bampton":
+            raise InvalidParameterError(
+                f"interfaces are for Craig-Bampton modes (kind 'craig-bampton'), got kind "
+                f"{kind!r}; they would be dropped",
+                item="interfaces",
+            )
         options["interfaces"] = interfaces
         options["interface_weights"] = "auto"
     if interface_kind is not None:
