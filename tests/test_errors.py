@@ -683,3 +683,21 @@ def test_the_initial_correction_reports_how_far_a_body_moved():
     system.add_distance_joint(system.add_marker(system.ground), system.add_marker(bob), 1.0)
     with pytest.warns(fm.InitialCorrectionWarning, match="move its position by up to 5.000e-1"):
         fm.simulate(system, 0.01, 1e-3)
+
+
+def test_a_heavy_body_on_a_joint_is_not_singular(assert_close):
+    # A 200 t body of inertia (2e6, 2e7, 2e7) kg m^2 on one revolute joint stopped at t = 0
+    # with "no pivot" (its multipliers' pivots, C M^-1 C^T ~ 5e-8, were under 1e-15 of the
+    # mass matrix's largest entry); the same body 1000 times lighter ran. Gravity alone moves
+    # both alike.
+    def pendulum(scale):
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        inertia = (2e6 * scale, 2e7 * scale, 2e7 * scale)
+        load = system.add_rigid_body(2e5 * scale, inertia, position=(5.0, 0.0, 0.0), name="load")
+        hinge = system.add_marker(load, position=(-5.0, 0.0, 0.0))
+        system.add_revolute_joint(system.add_marker(system.ground), hinge, name="hinge")
+        return fm.simulate(system, 0.05, 1e-3)
+
+    heavy, light = pendulum(1.0), pendulum(1e-3)
+    assert_close(heavy.position("load"), light.position("load"), abs=1e-9, what="same motion")
+    assert heavy.position("load")[-1][1] < -1e-3

@@ -702,7 +702,15 @@ def test_large_body_arrays_are_compressed_in_results_files(tmp_path):
     from flexmbd.fe import Material, build_body, shapes
 
     mesh = shapes.box((1.0, 0.1, 0.1), (12, 3, 3), "tet4")
-    data = build_body(mesh.nodes, mesh.elements, Material(7e10, 0.3, 2700.0))
+    # Clamped at x0 (reference 'none' leaves its frame unheld, refused before a run).
+    data = build_body(
+        mesh.nodes,
+        mesh.elements,
+        Material(7e10, 0.3, 2700.0),
+        node_sets=mesh.node_sets,
+        reference="clamped",
+        reference_nodes="x0",
+    )
     system = fm.System()
     system.add_flexible_body(data, name="bar")
     system.add_flexible_body(data, position=(0, 1, 0), name="twin")

@@ -41,7 +41,7 @@ from .state_space import (
     input_forces,
     output_rows,
 )
-from .system import identity_of
+from .system import identity_of, unheld_frame_error
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -765,6 +765,10 @@ def equilibrium(
             f"{redundant_constraints!r}",
             item="redundant_constraints",
         )
+    start = model.initial_coordinates if coordinates is None else coordinates
+    unheld = unheld_frame_error(model, np.asarray(start, dtype=float), time, "Newton matrix")
+    if unheld is not None:
+        raise unheld  # (an equilibrium of such a body was found, and its modes were spurious)
     state = _equilibrium(model, time, coordinates, tolerance, max_iterations, stable)
     state = dataclasses.replace(state, system_identity=identity_of(model))
     return _redundancy_handled(model, state, redundant_constraints)
@@ -1361,6 +1365,9 @@ def linearize(
         outputs, "outputs", OUTPUTS, "NodeDisplacement, BodyPosition, ElasticCoordinate"
     )
     _check_state(model, state)
+    unheld = unheld_frame_error(model, np.asarray(state.coordinates, dtype=float), state.time)
+    if unheld is not None:
+        raise unheld  # (its modes were spurious: 12.2 and 132.8 Hz for a beam of 8.18 Hz)
     nq = model.coordinate_count
     args = (
         state.time,

@@ -29,7 +29,7 @@ from .errors import (
 from .progress import SimulationProgress, simulation_progress, status
 from .result import Result
 from .state import State
-from .system import identity_of, unheld_frames
+from .system import identity_of, unheld_frame_error
 
 #: How a run may start: the model's given state, static (or steady) equilibrium, or the
 #: steady rotation of a rotor (see :func:`simulate`).
@@ -420,6 +420,17 @@ def simulate(
         raise InvalidParameterError(
             f"end time {end_time:g} is before start time {start_time:g}", item="end_time"
         )
+    start_q = np.asarray(
+        model.initial_coordinates if start is None else start.coordinates, dtype=float
+    )
+    unheld = None
+    if start_q.shape == (model.coordinate_count,):  # (other sizes: refused by the run)
+        unheld = unheld_frame_error(model, start_q, start_time, "acceleration system")
+    if unheld is not None:
+        # Refused before the run: the pivots of such a matrix are round-off, which the
+        # factorization does not always tell from small true pivots (the run went on and
+        # diverged, or gave spurious motions).
+        raise unheld
     _warn_of_explicit_stability(model, solver, step_size, end_time - start_time)
     _warn_of_fast_drivers(system, model, step_size, start_time, end_time)
     start_arrays: dict[str, Any] = {}
@@ -511,19 +522,4 @@ def _explained(error: Exception, model: _core.Model, start: State | None, time: 
     if not isinstance(error, SingularMatrixError) or error.time is None or error.time != time:
         return error
     q = np.asarray(model.initial_coordinates if start is None else start.coordinates, dtype=float)
-    frames = unheld_frames(model, q)
-    if not frames:
-        return error
-    name, motions = frames[0]
-    which = "all 6" if len(motions) == 6 else ", ".join(motions)
-    explained = SingularMatrixError(
-        f"body '{name}': nothing fixes its frame in the body, so the {error.item or 'matrix'} "
-        f"at t = {time:g} is singular: its reference conditions are 'none', and its nodal "
-        f"coordinates carry the rigid motions its frame carries ({which}: the frame moved one "
-        "way and the nodes back move no point). Give the body reference conditions "
-        "(reference 'clamped' or '3-2-1' at reference_nodes, or 'mean-axis' with free-free "
-        "modes), or hold its frame with a joint on a marker of the frame",
-        item=f"body '{name}'",
-        time=error.time,
-    )
-    return explained
+    return unheld_frame_error(model, q, time, error.item or "matrix") or error

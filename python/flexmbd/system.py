@@ -29,6 +29,7 @@ from .errors import (
     InvalidModelError,
     InvalidParameterError,
     ModelError,
+    SingularMatrixError,
     UnknownItemError,
 )
 from .fe.body import FlexibleBodyData, Invariants, check_body
@@ -80,6 +81,29 @@ def elastic_basis(body: FlexibleBodyData) -> sp.csr_matrix:
     full = np.zeros((n_dofs, body.modes.shape[1]))
     full[free] = body.modes
     return sp.csr_matrix(full)
+
+
+def unheld_frame_error(
+    model: _core.Model, q: NDArray[np.float64], time: float, what: str = "matrix"
+) -> SingularMatrixError | None:
+    """The error for the first deformable body whose frame nothing fixes at coordinates `q`
+    (:func:`unheld_frames`), naming the body, its free motions and the way out; None when
+    every frame is held. `what`: the matrix that is singular, for the message."""
+    frames = unheld_frames(model, q)
+    if not frames:
+        return None
+    name, motions = frames[0]
+    which = "all 6" if len(motions) == 6 else ", ".join(motions)
+    return SingularMatrixError(
+        f"body '{name}': nothing fixes its frame in the body, so the {what} at t = {time:g} "
+        f"is singular: its reference conditions are 'none', and its nodal coordinates carry "
+        f"the rigid motions its frame carries ({which}: the frame moved one way and the nodes "
+        "back move no point). Give the body reference conditions (reference 'clamped' or "
+        "'3-2-1' at reference_nodes, or 'mean-axis' with free-free modes), or hold its frame "
+        "with a joint on a marker of the frame",
+        item=f"body '{name}'",
+        time=time,
+    )
 
 
 def unheld_frames(model: _core.Model, q: NDArray[np.float64]) -> list[tuple[str, list[str]]]:

@@ -30,6 +30,18 @@ const INVERSE_AFTER_SOLVES: usize = 2 * DENSE_SYSTEM_SIZE;
 /// (threshold partial pivoting), else the matrix is factorized with a new pivot search.
 const PIVOT_THRESHOLD: f64 = 0.1;
 
+/// A pivot below this fraction of the largest entry of its column of the matrix makes the
+/// matrix singular.
+const SINGULAR_PIVOT: f64 = 1e-15;
+
+/// The zero-pivot limit of column `j`: `relative` times its largest entry (at least 1e-300).
+#[inline(always)]
+fn column_limit(pattern: &SparsePattern, values: &[f64], j: usize, relative: f64) -> f64 {
+    let largest =
+        values[pattern.col_ptr[j]..pattern.col_ptr[j + 1]].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    1e-300f64.max(relative * largest)
+}
+
 /// Nonzero structure of a factorization, per column as bit masks of (permuted) rows.
 #[derive(Clone, Debug)]
 struct Structure {
@@ -111,9 +123,13 @@ impl DenseLu {
         self.factorized = false;
         self.solves = 0;
         self.has_inverse = false;
-        let scale = largest_magnitude(values)
+        largest_magnitude(values)
             .ok_or_else(|| format!("non-finite matrix entry at position {}", non_finite(values)))?;
-        let tiny = 1e-300f64.max(1e-15 * scale);
+        // A pivot counts as zero below `SINGULAR_PIVOT` times the largest entry of its own
+        // column of the matrix, not of the whole matrix: the multipliers' pivots of a heavy
+        // body (C M^-1 C^T, 5e-8 for the Euler parameters' normalization of a 200 t body of
+        // inertia 2e7 kg m^2) were under 1e-15 times its mass matrix's 8e7.
+        let tiny = SINGULAR_PIVOT;
         if !self.refactorize(pattern, values, tiny) {
             self.factorize_pivoting(pattern, values, tiny)?;
             self.analyze(pattern);
@@ -158,7 +174,7 @@ impl DenseLu {
                     (p, best) = (i, v.abs());
                 }
             }
-            if !(best > tiny) {
+            if !(best > column_limit(pattern, values, j, tiny)) {
                 return Err(format!("the matrix is singular (no pivot in column {j})"));
             }
             self.pivots[j] = p;
@@ -266,7 +282,7 @@ impl DenseLu {
             }
             let pivot = x[j].abs();
             let below = x[j + 1..].iter().fold(0.0f64, |m, v| if v.abs() > m { v.abs() } else { m });
-            if !(pivot > tiny && pivot >= PIVOT_THRESHOLD * below) {
+            if !(pivot > column_limit(pattern, values, j, tiny) && pivot >= PIVOT_THRESHOLD * below) {
                 return false;
             }
             let inverse_pivot = 1.0 / x[j];
