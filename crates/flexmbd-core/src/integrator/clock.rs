@@ -73,14 +73,25 @@ impl OutputClock {
     }
 
     /// The step from `time` of at most `h` that lands exactly on the end and the next output.
+    /// A target within the time tolerance of a whole step `h` is reached by `h` itself (and
+    /// `land` puts the step's end on it): shortening the step by the round-off of the summed
+    /// times would give it a step size of its own, and the matrices factorized for `h` (kept
+    /// from step to step) would be factorized again.
     pub(crate) fn step(&self, time: f64, h: f64) -> f64 {
-        let mut h_try = h.min(self.end - time);
-        if let Some(t_out) = self.next {
-            if t_out - time < h_try + self.eps {
-                h_try = t_out - time;
+        let mut h_try = h;
+        for target in std::iter::once(self.end).chain(self.next) {
+            let to_target = target - time;
+            if to_target < h_try + self.eps && (to_target - h).abs() > self.eps {
+                h_try = to_target;
             }
         }
         h_try
+    }
+
+    /// `time` (the end of an accepted step) put on the end or the next output time when it is
+    /// within the time tolerance of it.
+    pub(crate) fn land(&self, time: f64) -> f64 {
+        std::iter::once(self.end).chain(self.next).find(|t| (time - t).abs() <= self.eps).unwrap_or(time)
     }
 
     /// Whether a step that ended at `time` is to be recorded; advances to the next output.
@@ -124,6 +135,34 @@ mod tests {
         settings.output_interval = None;
         let mut clock = OutputClock::new(&settings, 0.5731);
         assert!(clock.due(0.6));
+    }
+
+    #[test]
+    fn steps_of_a_long_run_keep_their_size_and_land_on_every_output_time() {
+        // Summed step times drift from the output grid by round-off (at t = 10 s some 1e-14 s,
+        // 1e-11 of h): a step shortened by it would have a step size of its own, refactorizing
+        // the matrices kept for h. The steps keep h and land exactly on the grid and the end.
+        let (h, dt, end) = (1e-3, 1e-2, 20.0);
+        let mut settings = SimulationSettings::new(end, h);
+        settings.output_interval = Some(dt);
+        let mut clock = OutputClock::new(&settings, 0.0);
+        let (mut time, mut steps, mut outputs) = (0.0, 0usize, 0usize);
+        while clock.running(time) {
+            let h_try = clock.step(time, h);
+            assert_eq!(h_try, h, "step {steps} from t = {time}");
+            time = clock.land(time + h_try);
+            steps += 1;
+            if clock.due(time) {
+                outputs += 1;
+                assert_eq!(time, dt * outputs as f64, "output {outputs}");
+            }
+        }
+        assert_eq!((steps, outputs, time), (20_000, 2_000, end));
+        // A step still shortens to an output time it would pass by more than round-off.
+        let clock = OutputClock::new(&settings, 0.0);
+        assert_eq!(clock.step(0.0, 0.015), dt);
+        let clock = OutputClock::new(&settings, 19.995);
+        assert_eq!(clock.step(19.995, 0.01), end - 19.995);
     }
 
     #[test]

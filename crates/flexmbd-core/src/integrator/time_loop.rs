@@ -106,6 +106,7 @@ pub(crate) fn time_loop(
 
         // Accept the step.
         stepper.accept(state, h_try, output)?;
+        state.time = clock.land(state.time);
         count_step(&mut output.statistics, h_try);
         if let Some(k) = state.first_non_finite() {
             return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
