@@ -337,6 +337,29 @@ def test_with_modes_refuses_interfaces_it_would_drop():
             body.with_modes(kind, 2, reference="clamped", reference_nodes="x0", interfaces=["x0"])
 
 
+def test_with_modes_drops_what_it_carries_and_refuses_what_it_would_ignore():
+    # The interface kind and weights a body carries go with its interfaces; given for modes
+    # or a frame that do not use them they are refused, as by build_body.
+    body = hinged_bar(interface_kind="rbe3", interface_weights="uniform")
+    clamped = dict(reference="clamped", reference_nodes="x0")
+    assert_same_body(
+        body.with_modes("fixed-interface", 3, **clamped),
+        hinged_bar(modes="fixed-interface", interfaces=(), **clamped),
+        1e-9,
+    )
+    for options, match in (
+        ({"reference_nodes": [0]}, "reference_nodes with reference='interface'"),
+        ({"interface_kind": "rbe3", **clamped}, "interface_kind='rbe3' is for Craig-Bampton"),
+        ({"interface_weights": "area", **clamped}, "interface_weights are for the RBE2 and RBE3"),
+    ):
+        kind = "craig-bampton" if "reference" not in options else "fixed-interface"
+        with pytest.raises(fm.InvalidParameterError, match=match):
+            body.with_modes(kind, 2, **options)
+    # To nodal interfaces: the carried weights are dropped.
+    nodal_interfaces = body.with_modes("craig-bampton", 3, interface_kind="nodal")
+    assert nodal_interfaces.reference.interface_weights is None
+
+
 # Modes -----------------------------------------------------------------------------------
 
 

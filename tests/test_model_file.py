@@ -462,6 +462,12 @@ FLEXIBLE = """\
     reference_nodes: [0]
 """
 POINT_MASS = "    type: point-mass\n    mass: 1.0\n    position: [1.0, 0.0, 0.0]\n"
+BOX = """\
+    type: flexible
+    box: {lengths: [1.0, 0.1, 0.1], divisions: [4, 1, 1], element: tet4}
+    material: {young_modulus: 1.0e+9, poisson_ratio: 0.3, density: 1000.0}
+"""
+CLAMPED = "    reference: clamped\n    reference_nodes: x0\n"
 
 MALFORMED = {
     "YAML syntax": (
@@ -648,6 +654,25 @@ MALFORMED = {
     "paraview write not a flag": (
         ("simulation:", "paraview: {write: maybe}\nsimulation:"),
         "model.yaml: line 15: paraview.write: Input should be a valid boolean, got 'maybe'",
+    ),
+    # Keys the chosen body would ignore: refused at their line.
+    "beam orientation of a solid": (
+        (POINT_MASS, BOX + CLAMPED + "    section_orientation: [0.0, 0.0, 1.0]\n"),
+        "model.yaml: line 9: bodies[0].section_orientation: orientation: the mesh has no beam "
+        "elements (it has tet4)",
+    ),
+    "beam theory of a solid": (
+        (POINT_MASS, BOX + CLAMPED + "    beam_theory: timoshenko\n"),
+        "model.yaml: line 9: bodies[0].beam_theory: beam_theory: the mesh has no beam elements",
+    ),
+    "reference nodes of an unheld frame": (
+        (POINT_MASS, BOX + "    reference_nodes: x0\n"),
+        "model.yaml: line 7: bodies[0].reference_nodes: reference_nodes with reference='none'",
+    ),
+    "interface kind without interfaces": (
+        (POINT_MASS, BOX + CLAMPED + "    interface_kind: rbe3\n"),
+        "model.yaml: line 9: bodies[0].interface_kind: interface_kind='rbe3' is for "
+        "Craig-Bampton interfaces",
     ),
     "not a mapping": ((PENDULUM, "- 1\n- 2\n"), "model.yaml: line 1: a model file is a mapping"),
     "empty": ((PENDULUM, ""), "model.yaml: the model file is empty"),

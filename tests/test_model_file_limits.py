@@ -231,12 +231,12 @@ def test_a_tag_on_a_key_that_cannot_read_it_names_the_key(tmp_path):
 
 def test_an_integer_too_large_for_the_api_names_the_item(tmp_path):
     # A node index of 10^22 made the preprocessor raise a bare OverflowError; it is refused
-    # as a typed error naming the parameter (issue 28).
+    # as a typed error naming the parameter (issue 28), at the line of its key.
     text = edited("reference_nodes: [0]", "reference_nodes: [10000000000000000000000]")
     error = refused(write(tmp_path, text))
     assert (
-        f"line {line_of(BASE, '- name: rod')}: bodies[1]: reference_nodes must be integers "
-        "within int64, got an integer of 74 bits"
+        f"line {line_of(BASE, 'reference_nodes: [0]')}: bodies[1].reference_nodes: "
+        "reference_nodes must be integers within int64, got an integer of 74 bits"
     ) in str(error)
 
 

@@ -330,10 +330,40 @@ def test_options_the_body_would_ignore_are_refused():
              "reference": "clamped", "reference_nodes": "x0"},
             "got modes='fixed-interface'",
         ),
+        # A beam orientation or theory for a solid mesh, nodes of a frame they do not hold,
+        # interface kinds and weights without interfaces, external modes of other modes.
+        ({"orientation": (0, 0, 1)}, "orientation: the mesh has no beam elements"),
+        ({"beam_theory": "timoshenko"}, "beam_theory: the mesh has no beam elements"),
+        ({"reference_nodes": "x0"}, "reference_nodes with reference='none'"),
+        (
+            {"reference": "interface", "reference_nodes": "x0", "modes": "craig-bampton",
+             "mode_count": 2, "interfaces": ["x0"]},
+            "the first interface holds the body frame",
+        ),
+        (
+            {"reference": "clamped", "reference_nodes": "x0", "interface_kind": "rbe3"},
+            "interface_kind='rbe3' is for Craig-Bampton",
+        ),
+        ({"interface_weights": "uniform"}, "interface_weights are for the RBE2 and RBE3"),
+        (
+            {"reference": "interface", "modes": "craig-bampton", "mode_count": 2,
+             "interfaces": ["x0"], "interface_kind": "nodal", "interface_weights": "area"},
+            "interface_kind='nodal'",
+        ),
+        ({"external_modes": np.ones((3 * len(mesh.nodes), 1))}, "external_modes with modes=None"),
     ):  # fmt: skip
-        with pytest.raises(InvalidParameterError, match=match):
+        with pytest.raises(InvalidParameterError, match=match) as info:
             build(**options)
+        named = [key for key in options if key in info.value.item]
+        assert named, f"{info.value.item!r} names none of {list(options)}"
     assert build(mode_count=0).modes is None
+    # The same refusals in body_from_matrices.
+    nodal = build(reference="clamped", reference_nodes="x0")
+    with pytest.raises(InvalidParameterError, match="reference_nodes with reference='mean-axis'"):
+        pp.body_from_matrices(
+            mesh.nodes, nodal.stiffness, nodal.mass, reference="mean-axis", reference_nodes=[0],
+            modes="free-free", mode_count=2,
+        )  # fmt: skip
 
 
 def test_unknown_duplicate_and_unconnected_nodes_are_named():

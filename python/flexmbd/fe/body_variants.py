@@ -223,7 +223,11 @@ def _reduction_options(body: FlexibleBodyData) -> dict[str, Any]:
     weights = reference.interface_weights
     return {
         "reference": reference.kind,
-        "reference_nodes": np.asarray(reference.nodes, dtype=np.int64),
+        # (Held by the first interface or the mean axes, the body's nodes are not options.)
+        "reference_nodes": np.asarray(
+            reference.nodes if reference.kind in preprocess.NODE_REFERENCE_KINDS else (),
+            dtype=np.int64,
+        ),
         "modes": body.mode_kind,
         "mode_count": _eigenmode_count(body),
         "interfaces": [np.asarray(members) for members in reference.interfaces or ()],
@@ -375,6 +379,28 @@ def with_modes(
         options["interface_weights"] = interface_weights
     if external_modes is not None or kind != "external":
         options["external_modes"] = external_modes
+    # What the body carries and the new modes or frame do not use is dropped; what was given
+    # for them is refused (`_check_used_options`).
+    if kind != "craig-bampton":
+        options["interfaces"] = []
+        if interface_kind is None:
+            options["interface_kind"] = "rbe2"
+        if interface_weights is None:
+            options["interface_weights"] = "auto"
+    elif interface_kind is not None and interface_weights is None and interface_kind == "nodal":
+        options["interface_weights"] = "auto"
+    if options["reference"] not in preprocess.NODE_REFERENCE_KINDS and reference_nodes is None:
+        options["reference_nodes"] = ()
+    preprocess._check_used_options(
+        kind,
+        int(count),
+        options["interfaces"],
+        reference=options["reference"],
+        reference_nodes=options["reference_nodes"],
+        interface_kind=options["interface_kind"],
+        interface_weights=options["interface_weights"],
+        external_modes=options.get("external_modes"),
+    )
     options["modes"] = kind
     options["mode_count"] = int(count)
     nodal = _nodal_body(body, form_i_kl=kind is None)

@@ -82,18 +82,29 @@ def _check_shell(elements: Mapping[str, Any], shell: ShellSection | None) -> Non
 
 
 def _check_sections_used(
-    elements: Mapping[str, Any], section: Section | None, shell: ShellSection | None
+    elements: Mapping[str, Any],
+    section: Section | None,
+    shell: ShellSection | None,
+    orientation: Any = None,
+    beam_theory: str = "euler-bernoulli",
 ) -> None:
-    """A beam section without beams, a shell section without shells: refused
-    (`InvalidParameterError` naming the option), as the option would change nothing and the
-    mesh is likely not the one meant."""
+    """A beam section, orientation or beam theory without beams, a shell section without
+    shells: refused (`InvalidParameterError` naming the option), as the option would change
+    nothing and the mesh is likely not the one meant."""
     present = [k for k, conn in elements.items() if len(conn)]
-    if section is not None and "beam2" not in present:
-        raise InvalidParameterError(
-            f"section: the mesh has no beam elements (it has {', '.join(present) or 'none'}); "
-            "a beam section applies to beam2 elements only",
-            item="section",
-        )
+    if "beam2" not in present:
+        for item, given in (
+            ("section", section is not None),
+            ("orientation", orientation is not None),
+            ("beam_theory", beam_theory != "euler-bernoulli"),
+        ):
+            if given:
+                what = {"beam_theory": "a beam theory"}.get(item, f"a beam {item}")
+                raise InvalidParameterError(
+                    f"{item}: the mesh has no beam elements (it has "
+                    f"{', '.join(present) or 'none'}); {what} applies to beam2 elements only",
+                    item=item,
+                )
     if shell is not None and not any(k in present for k in SHELL_ELEMENTS):
         raise InvalidParameterError(
             f"shell: the mesh has no shell elements (it has {', '.join(present) or 'none'}); "
@@ -102,8 +113,64 @@ def _check_sections_used(
         )
 
 
-def _check_used_options(modes: str | None, mode_count: int, interfaces: Any) -> None:
-    """Options that the chosen modal reduction would ignore: refused, naming them."""
+def _given(selection: Any) -> bool:
+    """Whether a node selection (a node set name, indices) names any node."""
+    if isinstance(selection, str):
+        return True
+    try:
+        return len(selection) > 0
+    except TypeError:
+        return selection is not None
+
+
+#: The reference conditions that place the body frame at `reference_nodes`.
+NODE_REFERENCE_KINDS = ("clamped", "3-2-1", "simply-supported")
+
+
+def _check_used_options(
+    modes: str | None,
+    mode_count: int,
+    interfaces: Any,
+    *,
+    reference: str = "none",
+    reference_nodes: Any = (),
+    interface_kind: str = "rbe2",
+    interface_weights: Any = "auto",
+    external_modes: Any = None,
+) -> None:
+    """Options that the chosen reference conditions or modal reduction would ignore: refused,
+    naming them."""
+    if reference not in NODE_REFERENCE_KINDS and _given(reference_nodes):
+        frame = {
+            "none": "nothing holds the body frame",
+            "mean-axis": "the mean axes place the body frame",
+            "interface": "the first interface holds the body frame",
+        }.get(reference, f"reference {reference!r}")
+        raise InvalidParameterError(
+            f"reference_nodes with reference={reference!r}: {frame} and the nodes would be "
+            f"ignored; reference_nodes are for {', '.join(map(repr, NODE_REFERENCE_KINDS))} "
+            "conditions",
+            item="reference_nodes",
+        )
+    if modes != "craig-bampton" and interface_kind != "rbe2":
+        raise InvalidParameterError(
+            f"interface_kind={interface_kind!r} is for Craig-Bampton interfaces "
+            f"(modes='craig-bampton'), got modes={modes!r}",
+            item="interface_kind",
+        )
+    weighted = modes == "craig-bampton" and interface_kind != "nodal"
+    if not weighted and not (isinstance(interface_weights, str) and interface_weights == "auto"):
+        raise InvalidParameterError(
+            "interface_weights are for the RBE2 and RBE3 interfaces of Craig-Bampton modes, got "
+            f"modes={modes!r}, interface_kind={interface_kind!r}",
+            item="interface_weights",
+        )
+    if modes != "external" and external_modes is not None:
+        raise InvalidParameterError(
+            f"external_modes with modes={modes!r}: the matrix would be ignored; use "
+            "modes='external'",
+            item="external_modes",
+        )
     if modes is None and mode_count > 0:
         raise InvalidParameterError(
             f"mode_count={mode_count} without modes: the body keeps its nodal coordinates; "
@@ -591,13 +658,22 @@ def build_body(
         beam_theory=beam_theory,
     )
     shell = shell_section(shell)
-    _check_used_options(modes, mode_count, interfaces)
+    _check_used_options(
+        modes,
+        mode_count,
+        interfaces,
+        reference=reference,
+        reference_nodes=reference_nodes,
+        interface_kind=interface_kind,
+        interface_weights=interface_weights,
+        external_modes=external_modes,
+    )
     # Copies: the body's arrays are read-only and must not alias the caller's.
     nodes = np.array(nodes, dtype=float)
     sets = _node_sets(node_sets)
     elements = {k: integers_array(v, f"elements[{k!r}]").copy() for k, v in elements.items()}
     _check_shell(elements, shell)
-    _check_sections_used(elements, section, shell)
+    _check_sections_used(elements, section, shell, orientation, beam_theory)
     if flag(orient_shells, "orient_shells"):
         elements = orient_shell_elements(elements)
     ids = (
@@ -1113,6 +1189,17 @@ def body_from_matrices(
     not 3 per node, and `InvalidModelError` for a mass matrix without the structure above
     (naming an offending entry) or a non-positive total mass."""
     clock = _Stages(timings)
+    _options(reference=reference, modes=modes, interface_kind=interface_kind, precision=precision)
+    _check_used_options(
+        modes,
+        integer(mode_count, "mode_count"),
+        interfaces,
+        reference=reference,
+        reference_nodes=reference_nodes,
+        interface_kind=interface_kind,
+        interface_weights=interface_weights,
+        external_modes=external_modes,
+    )
     nodes = np.array(nodes, dtype=float)
     if nodes.ndim != 2 or nodes.shape[1] != 3 or not np.all(np.isfinite(nodes)):
         raise InvalidParameterError(

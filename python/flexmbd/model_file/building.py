@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -279,6 +279,23 @@ _PREPROCESS_KEYS = (
 )
 _SOURCES = ("body_file", "beam", "mesh", "nastran", "box", "plate", "cylinder")
 
+#: Preprocessing keys of the model file -> their names in the Python API (the others alike).
+_PYTHON_NAMES = {
+    "section_orientation": "orientation",
+    "mass_matrix": "mass",
+    "shell_thickness": "shell",
+}
+
+
+def _item_keys(spec: FlexibleBodySpec) -> dict[str, str]:
+    """Parameter of the Python API -> the body's key that gave it (the keys given only)."""
+    return {
+        _PYTHON_NAMES.get(key, key): key
+        for key in _PREPROCESS_KEYS
+        if getattr(spec, key) is not None
+    }
+
+
 #: Keys a Nastran deck gives itself.
 _DECK_KEYS = ("material", "section", "section_orientation", "shell_thickness")
 
@@ -318,8 +335,16 @@ class _Builder:
             located = message
         warnings.warn_explicit(located, category, str(self.source.path), line or 0)
 
-    def call(self, path: Path_, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """Calls the Python API; its errors become model file errors at `path`, and its
+    def call(
+        self,
+        path: Path_,
+        function: Callable[..., Any],
+        *args: Any,
+        item_keys: Mapping[str, str] | None = None,
+        **kwargs: Any,
+    ) -> Any:
+        """Calls the Python API; its errors become model file errors at `path` (at its key
+        `item_keys[item]` for an error naming a parameter `item` of the function), and its
         warnings are warned again at the file and line of `path`."""
         try:
             with warnings.catch_warnings(record=True) as caught:
@@ -331,7 +356,8 @@ class _Builder:
         except FileNotFoundError as error:
             raise self.fail(path, f"no such file: {error.filename}") from error
         except (FlexmbdError, ValueError) as error:
-            raise self.fail(path, str(error)) from error
+            key = (item_keys or {}).get(getattr(error, "item", None) or "")
+            raise self.fail(path if key is None else path + (key,), str(error)) from error
         except OverflowError as error:
             raise self.fail(path, f"a number is too large ({error})") from error
 
@@ -618,6 +644,7 @@ class _Builder:
         if spec.material is None:
             raise self.fail(path + ("material",), f"missing key 'material' (needed with {kind})")
         options = self.preprocess_options(spec, path)
+        keys = _item_keys(spec)
         length = self.units.length
         where = path + (kind,)
         if kind == "beam":
@@ -633,7 +660,8 @@ class _Builder:
             nodes, elements = self.call(
                 where, straight_beam, beam.length * length, beam.elements, **extra
             )
-            return self.call(path, build_body, nodes, elements, options.pop("material"), **options)
+            material = options.pop("material")
+            return self.call(path, build_body, nodes, elements, material, item_keys=keys, **options)
         if kind == "mesh":
             location = self.file(str(spec.mesh), where)
             if spec.mesh_unit is not None:
@@ -643,7 +671,8 @@ class _Builder:
             else:
                 mesh = self.call(where, read_mesh, location)
                 mesh.nodes = mesh.nodes * length
-            data = self.call(path, body_from_mesh, mesh, options.pop("material"), **options)
+            material = options.pop("material")
+            data = self.call(path, body_from_mesh, mesh, material, item_keys=keys, **options)
             return data.with_metadata(source=str(location))
         if kind in ("plate", "box"):  # structured meshes: lengths, divisions, element, origin
             grid = getattr(spec, kind)
@@ -670,7 +699,8 @@ class _Builder:
                 order=cylinder.order,
                 **extra,
             )
-        return self.call(path, body_from_mesh, mesh, options.pop("material"), **options)
+        material = options.pop("material")
+        return self.call(path, body_from_mesh, mesh, material, item_keys=keys, **options)
 
     def nastran_body(self, spec: FlexibleBodySpec, path: Path_) -> Any:
         """A body from a Nastran deck: preprocessed, or with the modes of its OP2 results."""
@@ -684,35 +714,41 @@ class _Builder:
             where, read_nastran, self.file(str(spec.nastran), where), skip=spec.nastran_skip or ()
         )
         options: dict[str, Any] = {}
-        renamed = {"mass_matrix": "mass"}
         for key in _PREPROCESS_KEYS[4:]:
             value = getattr(spec, key)
             if value is not None:
-                options[renamed.get(key, key)] = value
+                options[_PYTHON_NAMES.get(key, key)] = value
         if spec.op2 is None:
             if spec.modes is None and spec.mode_count:
                 raise self.fail(path + ("mode_count",), "mode_count needs `modes`")
-            data = self.call(path, deck.body, **options)
+            data = self.call(path, deck.body, item_keys=_item_keys(spec), **options)
             return data.with_metadata(source=str(spec.nastran))
         for key in ("modes", "interfaces", "interface_kind", "interface_weights"):
             if key in options:
                 raise self.fail(path + (key,), "not used with op2: the modes are the file's")
         results = self.file(str(spec.op2), path + ("op2",))
         count = options.pop("mode_count", None)
-        return self.call(path + ("op2",), body_from_nastran, deck, results, count, **options)
+        return self.call(
+            path + ("op2",),
+            body_from_nastran,
+            deck,
+            results,
+            count,
+            item_keys=_item_keys(spec),
+            **options,
+        )
 
     def preprocess_options(self, spec: FlexibleBodySpec, path: Path_) -> dict[str, Any]:
         """Keyword arguments of build_body / body_from_mesh (those given only)."""
         options: dict[str, Any] = {"material": self.material(spec.material, path + ("material",))}
         if spec.section is not None:
             options["section"] = self.section(spec.section, path + ("section",))
-        renamed = {"section_orientation": "orientation", "mass_matrix": "mass"}
         for key in _PREPROCESS_KEYS[2:]:
             value = getattr(spec, key)
             if value is not None:
-                options[renamed.get(key, key)] = value
-        if "shell_thickness" in options:
-            options["shell"] = options.pop("shell_thickness") * self.units.length
+                options[_PYTHON_NAMES.get(key, key)] = value
+        if "shell" in options:
+            options["shell"] = options["shell"] * self.units.length
         if spec.modes is None and spec.mode_count:
             raise self.fail(path + ("mode_count",), "mode_count needs `modes`")
         return options
