@@ -238,7 +238,7 @@ def test_stiffness_scale_of_a_body_from_matrices_equals_scaled_matrices():
     assert_same_body(soft, expected, 1e-14)
 
 
-@pytest.mark.parametrize("scale", [0.0, -1.0, np.nan, np.inf, "soft"])
+@pytest.mark.parametrize("scale", [0.0, -1.0, np.nan, np.inf, "soft", "2", True])
 def test_bad_stiffness_scale_names_the_parameter(nodal_beam, scale):
     with pytest.raises(fm.InvalidParameterError, match="scale") as info:
         nodal_beam.with_stiffness_scale(scale)

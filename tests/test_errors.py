@@ -613,6 +613,27 @@ def test_node_ids_of_the_wrong_type_or_size_are_named():
 
 
 @pytest.mark.parametrize(
+    "values, item",
+    [
+        # PyO3 took a bool as 0 or 1: Material(True, ...) was a material of E = 1 Pa.
+        ((True, 0.3, 7800.0), "young_modulus"),
+        ((2e11, False, 7800.0), "poisson_ratio"),
+        ((2e11, 0.3, "7800"), "density"),
+    ],
+)
+def test_material_values_that_are_not_numbers_are_named(values, item):
+    with pytest.raises(fm.ArgumentTypeError, match=f"Material: argument '{item}': must be") as e:
+        fm.fe.Material(*values)
+    assert e.value.item == item
+
+
+def test_a_bool_is_not_a_section_value():
+    with pytest.raises(TypeError, match="must be a real number, not bool") as raised:
+        fm.fe.Section(1e-4, True, 1e-8, 2e-8)
+    assert "while processing 'iy'" in getattr(raised.value, "__notes__", ())
+
+
+@pytest.mark.parametrize(
     "make, match",
     [
         (lambda: fm.fe.Section.circle(-0.01), "circle radius must be positive and finite"),

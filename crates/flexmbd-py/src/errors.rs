@@ -101,6 +101,23 @@ pub fn above(item: &str, name: &str, value: f64, floor: f64) -> PyResult<()> {
     }
 }
 
+/// A real-number argument that is not a bool: PyO3 takes True as 1.0 (`Material(True, ...)`
+/// was a material of 1 Pa). A bool is the TypeError of a wrong type, which the Python boundary
+/// names with the call and the argument (`ArgumentTypeError`).
+#[derive(Clone, Copy)]
+pub struct Real(pub f64);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Real {
+    type Error = PyErr;
+
+    fn extract(obj: pyo3::Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        if obj.is_instance_of::<pyo3::types::PyBool>() {
+            return Err(pyo3::exceptions::PyTypeError::new_err("must be a real number, not bool"));
+        }
+        Ok(Real(obj.extract::<f64>()?))
+    }
+}
+
 /// An integer argument of at least `min` (a count, an index): a negative number, a float or
 /// another type is an `InvalidParameterError` naming the argument (PyO3's own conversion
 /// raises OverflowError or TypeError without the name).

@@ -10,7 +10,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
-use crate::errors::{check, invalid};
+use crate::errors::{check, invalid, Real};
 
 /// Isotropic linear elastic material: Young's modulus (Pa), Poisson's ratio, density (kg/m^3).
 #[pyclass(module = "flexmbd._core", frozen, subclass, from_py_object)]
@@ -23,8 +23,9 @@ pub struct Material {
 impl Material {
     #[new]
     #[pyo3(signature = (young_modulus, poisson_ratio, density, *, name = None))]
-    fn new(young_modulus: f64, poisson_ratio: f64, density: f64, name: Option<String>) -> PyResult<Self> {
+    fn new(young_modulus: Real, poisson_ratio: Real, density: Real, name: Option<String>) -> PyResult<Self> {
         let item = name.map(|n| format!("material '{n}'")).unwrap_or_else(|| "material".to_string());
+        let (young_modulus, poisson_ratio, density) = (young_modulus.0, poisson_ratio.0, density.0);
         Ok(Material { inner: check(fem::Material::new(&item, young_modulus, poisson_ratio, density))? })
     }
 
@@ -72,7 +73,8 @@ pub struct Section {
 #[pymethods]
 impl Section {
     #[new]
-    fn new(area: f64, iy: f64, iz: f64, torsion_constant: f64) -> PyResult<Self> {
+    fn new(area: Real, iy: Real, iz: Real, torsion_constant: Real) -> PyResult<Self> {
+        let [area, iy, iz, torsion_constant] = [area.0, iy.0, iz.0, torsion_constant.0];
         Ok(Section { inner: check(fem::Section::new("section", area, iy, iz, torsion_constant))? })
     }
 

@@ -93,12 +93,8 @@ def _checked_damping(body: FlexibleBodyData, damping: Mapping[str, Any] | None) 
 
 def with_stiffness_scale(body: FlexibleBodyData, scale: float) -> FlexibleBodyData:
     """See :meth:`FlexibleBodyData.with_stiffness_scale`."""
-    try:
-        s = float(scale)
-    except (TypeError, ValueError):
-        raise InvalidParameterError(
-            f"scale: the stiffness scale must be a number, got {scale!r}", item="scale"
-        ) from None
+    # (float() took '2' and True.)
+    s = number(scale, "scale", finite=False)
     if not (math.isfinite(s) and s > 0):
         raise InvalidParameterError(
             f"scale: the stiffness scale must be finite and > 0, got {scale!r}", item="scale"
