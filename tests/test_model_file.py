@@ -403,6 +403,53 @@ def test_motion_profiles_and_spline_ends_in_model_files(tmp_path, assert_close):
     assert result.success
 
 
+def test_point_masses_of_a_body_in_millimetres_and_tonnes(tmp_path, assert_close):
+    # A tip mass with its rotary inertia on a beam, the file in mm and t: the body of build_body's
+    # point_masses in SI.
+    text = """\
+units: {length: mm, mass: t, time: s}
+bodies:
+  - name: arm
+    type: flexible
+    beam: {length: 1000.0, elements: 10}
+    section: {type: circle, radius: 10.0}
+    material: {young_modulus: 2.1e+5, poisson_ratio: 0.3, density: 7.8e-9}
+    reference: clamped
+    reference_nodes: [0]
+    modes: fixed-interface
+    mode_count: 4
+    point_masses:
+      - {node: 10, mass: 1.2e-3, inertia: [0.1, 0.05, 0.05]}
+simulation: {end_time: 0.01, step_size: 1.0e-3}
+"""
+    (tmp_path / "model.yaml").write_text(text)
+    body = load_model(tmp_path / "model.yaml").body_data["arm"]
+    from flexmbd.fe import build_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 10)
+    expected = build_body(
+        nodes,
+        elements,
+        fm.fe.Material(2.1e11, 0.3, 7800.0),
+        section=fm.fe.Section.circle(0.01),
+        reference="clamped",
+        reference_nodes=[0],
+        modes="fixed-interface",
+        mode_count=4,
+        point_masses={10: (1.2, np.diag([1e-4, 5e-5, 5e-5]))},
+    )
+    assert_close(body.frequencies, expected.frequencies, rel=1e-9, what="frequencies")
+    assert_close(body.invariants.mass, expected.invariants.mass, rel=1e-12, what="mass")
+    assert_close(body.invariants.mass, np.pi * 1e-4 * 7800.0 + 1.2, rel=1e-12, what="mass")
+    twice = text + "      - {node: 10, mass: 1.0}\n"
+    twice = twice.replace("simulation: {end_time: 0.01, step_size: 1.0e-3}\n", "") + (
+        "simulation: {end_time: 0.01, step_size: 1.0e-3}\n"
+    )
+    (tmp_path / "model.yaml").write_text(twice)
+    with pytest.raises(ModelFileError, match=r"point_masses\[1\]\.node: node 10 has a point"):
+        load_model(tmp_path / "model.yaml")
+
+
 def test_mesh_files_and_materials_in_millimetres_tonnes_and_seconds(tmp_path, assert_close):
     import meshio
 

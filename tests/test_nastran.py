@@ -269,15 +269,53 @@ def test_wtmass_scales_the_mass_and_concentrated_masses_are_not_left_out(
     with pytest.raises(InvalidModelError, match="WTMASS must be a positive number, got -1"):
         read_nastran(_written(tmp_path, "bad.bdf", bad))
 
+    # CONM2 at a grid of the elements: a point mass of the body (WTMASS applied, as Nastran
+    # does to its whole structural mass), the body of build_body's point_masses.
     conm2 = card("CONM2", [900, 103, "", 10.0], "small")
     path = _written(tmp_path, "conm2.bdf", text.replace("ENDDATA", conm2 + "ENDDATA"))
+    with_mass = read_nastran(path).body()
+    assert_close(with_mass.invariants.mass, steel.invariants.mass + 10.0, rel=1e-12, what="m")
+    direct = pp.build_body(bracket.nodes, bracket.elements, STEEL, point_masses={0: 10.0})
+    for name in ("first_moment", "second_moment", "i1", "ibar"):
+        assert_close(
+            getattr(with_mass.invariants, name),
+            getattr(direct.invariants, name),
+            rel=1e-12,
+            abs=1e-12,
+            what=name,
+        )
+    scaled_path = _written(
+        tmp_path, "conm2_scaled.bdf", scaled.replace("ENDDATA", conm2 + "ENDDATA")
+    )
+    assert_close(
+        read_nastran(scaled_path).body().invariants.mass,
+        steel.invariants.mass + 2.5,
+        rel=1e-12,
+        what="CONM2 mass x WTMASS",
+    )
+    # Where the body cannot carry it: refused, naming the card and the way out.
+    for fields, match in (
+        ([900, 103, "", 10.0, 0.1], r"CONM2 900: the centre of gravity is offset from grid 103"),
+        ([900, 103, "", 10.0, "", "", "", "", 1.0], r"a rotary inertia on grid 103, a node of"),
+        ([900, 99999, "", 10.0], r"CONM2 900 refers to grid 99999"),
+    ):
+        bad_path = _written(
+            tmp_path,
+            "conm2_bad.bdf",
+            text.replace("ENDDATA", card("CONM2", fields, "small") + "ENDDATA"),
+        )
+        with pytest.raises((InvalidModelError, UnknownItemError), match=match) as info:
+            read_nastran(bad_path)
+        assert "skip=['CONM2']" in str(info.value) or "99999" in str(info.value)
+    cmass = card("CMASS2", [901, 10.0, 103, 1], "small")
+    path = _written(tmp_path, "cmass.bdf", text.replace("ENDDATA", cmass + "ENDDATA"))
     with pytest.raises(
-        InvalidModelError, match=r"conm2.bdf, line \d+: CONM2: CONM2 900: concentrated masses"
+        InvalidModelError, match=r"cmass.bdf, line \d+: CMASS2: CMASS2 901: concentrated masses"
     ) as info:
         read_nastran(path)
-    assert "skip=['CONM2']" in str(info.value)
+    assert "skip=['CMASS2']" in str(info.value)
     # Skipped knowingly: the body without the mass.
-    skipped = read_nastran(path, skip=["conm2"]).body()
+    skipped = read_nastran(path, skip=["cmass2"]).body()
     assert_close(skipped.invariants.mass, steel.invariants.mass, rel=1e-12, what="mass")
     with pytest.raises(InvalidParameterError, match="skip: GRID cannot be skipped"):
         read_nastran(path, skip="GRID")

@@ -507,13 +507,17 @@ def test_a_model_file_reads_the_deck_and_its_op2_modes(tmp_path, block, assert_c
     path.write_text(MODEL.replace("    mode_count: 4", "    mode_count: 40"))
     with pytest.raises(InvalidModelError, match="40 elastic modes asked for, the file has 8"):
         simulate_model(path)
-    # A concentrated mass is refused, or skipped knowingly (nastran_skip).
+    # A CONM2 is part of the body: the OP2's modes, computed without it, are not this body's.
     deck = (tmp_path / "block.bdf").read_text()
     (tmp_path / "block.bdf").write_text(deck.replace("ENDDATA", "CONM2,77,1000,,2.5\nENDDATA"))
     path.write_text(MODEL)
-    with pytest.raises(InvalidModelError, match=r"CONM2 77: concentrated masses .* nastran_skip"):
+    with pytest.raises(InvalidModelError, match=r"mode 7 is not mass-orthogonal"):
         simulate_model(path)
-    path.write_text(MODEL.replace("    op2:", "    nastran_skip: [CONM2]\n    op2:"))
+    # Other concentrated masses are refused, or skipped knowingly (nastran_skip).
+    (tmp_path / "block.bdf").write_text(deck.replace("ENDDATA", "CMASS2,77,2.5,1000,1\nENDDATA"))
+    with pytest.raises(InvalidModelError, match=r"CMASS2 77: concentrated masses .* nastran_skip"):
+        simulate_model(path)
+    path.write_text(MODEL.replace("    op2:", "    nastran_skip: [CMASS2]\n    op2:"))
     assert_close(simulate_model(path).coordinates, reference.coordinates, abs=1e-12)
     path.write_text(
         MODEL.replace(

@@ -268,6 +268,17 @@ def with_material(
         values[key] = number(values[key], key)
     new_material = _material(values)
     section, orientation, beam_theory = _section(body)
+    own = preprocess.assemble(
+        body.nodes,
+        body.elements,
+        _material(body.material),
+        section=section,
+        orientation=orientation,
+        shell=_shell(body),
+        mass=body.mass_kind,
+        beam_theory=beam_theory,
+        form_i_kl=False,
+    )
     rebuilt = preprocess.build_body(
         body.nodes,
         body.elements,
@@ -281,6 +292,7 @@ def with_material(
         element_ids=body.element_ids,
         node_sets=body.node_sets,
         check_mesh=False,
+        point_masses=_point_masses(body, own.mass) or None,
         **_reduction_options(body),
     )
     change = ", ".join(f"{key}={float(values[key])!r}" for key in _MATERIAL_KEYS)
@@ -290,6 +302,42 @@ def with_material(
         damping=_checked_damping(rebuilt, body.damping),
         metadata=_noted(body, f"material({change})"),
     )
+
+
+def _point_masses(body: FlexibleBodyData, assembled: sp.csc_matrix) -> dict[int, Any]:
+    """The concentrated masses of a meshed body (`build_body`'s `point_masses`): its mass
+    matrix beyond the `assembled` one of its elements, node by node. Raises
+    `InvalidModelError` when the difference is not lumped masses at nodes (a mass matrix
+    changed otherwise: the body cannot be built again from its mesh)."""
+    extra = (sp.csc_matrix(body.mass) - assembled).tocoo()
+    scale = max(float(np.abs(assembled.data).max(initial=0.0)), 1e-300)
+    keep = np.abs(extra.data) > 1e-12 * scale
+    d = body.dofs_per_node
+    masses: dict[int, list[Any]] = {}
+    for row, col, value in zip(extra.row[keep], extra.col[keep], extra.data[keep], strict=True):
+        node, a, b = int(row) // d, int(row) % d, int(col) % d
+        entry = masses.setdefault(node, [np.zeros(3), np.zeros((3, 3))])
+        if int(col) // d == node and a == b < 3:
+            entry[0][a] = value
+        elif int(col) // d == node and a >= 3 and b >= 3:
+            entry[1][a - 3, b - 3] = value
+        else:
+            raise InvalidModelError(
+                f"the body's mass matrix differs from its elements' at ({row}, {col}) by "
+                f"{value:g}: not a concentrated mass at a node, so the body cannot be built "
+                "again from its mesh",
+                item="field 'mass'",
+            )
+    lumps: dict[int, Any] = {}
+    for node, (translation, inertia) in masses.items():
+        if np.ptp(translation) > 1e-9 * max(float(translation.max()), 1e-300):
+            raise InvalidModelError(
+                f"node {int(body.node_ids[node])}: the mass beyond the elements' differs by "
+                f"direction ({translation.tolist()}): not a concentrated mass",
+                item="field 'mass'",
+            )
+        lumps[node] = (float(translation.mean()), inertia) if d == 6 else float(translation.mean())
+    return lumps
 
 
 def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalBody:
@@ -319,6 +367,11 @@ def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalB
             element_ids=body.element_ids,
             form_i_kl=form_i_kl,
         )
+        lumps = _point_masses(body, assembled.mass)
+        if lumps:
+            assembled = preprocess.with_point_masses(
+                assembled, body.nodes, lumps, form_i_kl=form_i_kl
+            )
         invariants, scalar = assembled.invariants, assembled.scalar_mass
     elif body.dofs_per_node == 6:
         scalar = None

@@ -36,7 +36,7 @@ from .mesh_io import Mesh
 CARDS = (
     "GRID", "CORD2R", "CTETRA", "CHEXA", "CBAR", "CBEAM", "CQUAD4", "CTRIA3", "MAT1", "PSOLID",
     "PSHELL", "PBAR", "PBEAM", "PBARL", "PBEAML", "ASET", "ASET1", "QSET1", "SPC1", "SET1",
-    "RBE2", "RBE3", "DMIG",
+    "RBE2", "RBE3", "DMIG", "CONM2",
 )  # fmt: skip
 
 #: Cards read and not used: they do not change the body's mesh, material or sets.
@@ -46,9 +46,14 @@ IGNORED = (
     "DAREA", "RLOAD1", "RLOAD2", "TLOAD1", "TLOAD2", "FREQ", "FREQ1", "DPHASE", "DELAY",
 )  # fmt: skip
 
-#: Cards that change the body's mass but are not part of a flexmbd body: refused, unless
-#: `read_nastran`'s `skip` names them (the user then adds the masses in the model).
+#: Cards of concentrated masses: CONM2 at a grid of the elements is a point mass of the body
+#: (`build_body`'s `point_masses`); the others, and a CONM2 elsewhere or with an offset, are
+#: refused unless `read_nastran`'s `skip` names them (the user then adds the masses in the
+#: model).
 MASS_CARDS = ("CONM1", "CONM2", "CMASS1", "CMASS2", "CMASS3", "CMASS4")
+
+#: Elements whose nodes carry rotations (6 coordinates per node for the whole body).
+ROTATION_ELEMENTS = ("beam2", "quad4", "tri3")
 
 #: Deepest nesting of INCLUDE files.
 INCLUDE_DEPTH = 16
@@ -161,6 +166,8 @@ class NastranDeck:
         element_properties: element type -> (n_elements,) property ids.
         orientations: beam element id -> orientation vector v (basic system).
         matrices: DMIG name -> :class:`DmigMatrix`.
+        point_masses: grid id -> (mass, (3, 3) rotary inertia about the grid in the basic
+            system) of the CONM2 cards (summed per grid; WTMASS applied).
         displacement_systems: grid id -> (3, 3) axes (columns, in the basic system) of the
             grid's displacement system (GRID field CD), for the nodes with CD other than 0:
             results in that system (OUGV1) are turned to the basic one by v = A v_CD. NaN
@@ -174,6 +181,7 @@ class NastranDeck:
     orientations: dict[int, NDArray[np.float64]] = field(default_factory=dict)
     matrices: dict[str, DmigMatrix] = field(default_factory=dict)
     displacement_systems: dict[int, NDArray[np.float64]] = field(default_factory=dict)
+    point_masses: dict[int, tuple[float, NDArray[np.float64]]] = field(default_factory=dict)
 
     def material(self) -> Any:
         """The one material of the mesh's elements (flexmbd bodies are of one material), as a
@@ -291,6 +299,26 @@ class NastranDeck:
         shell = self.shell()
         if shell is not None:
             extra["shell"] = shell
+        given = options.pop("point_masses", None)
+        if self.point_masses:
+            # The deck's CONM2 masses, and those given (node indices) added to them.
+            index = {int(g): k for k, g in enumerate(self.mesh.node_ids)}
+            rotations = any(len(self.mesh.elements.get(k, ())) for k in ROTATION_ELEMENTS)
+            masses: dict[int, Any] = {
+                index[g]: (m, inertia) if rotations else m
+                for g, (m, inertia) in self.point_masses.items()
+            }
+            for node, value in dict(given or {}).items():
+                if node in masses:
+                    raise InvalidParameterError(
+                        f"point_masses[{node}]: grid {int(self.mesh.node_ids[node])} has a "
+                        "CONM2 of the deck already",
+                        item=f"point_masses[{node}]",
+                    )
+                masses[node] = value
+            given = masses
+        if given is not None:
+            extra["point_masses"] = given
         return build_body(
             self.mesh.nodes,
             self.mesh.elements,
@@ -355,10 +383,13 @@ def read_nastran(path: str | os.PathLike[str], *, skip: Any = ()) -> NastranDeck
 
     Mass: ``PARAM,WTMASS`` multiplies the densities of the MAT1 cards, as it multiplies
     Nastran's structural mass (decks in lb, in and s write RHO in weight units with
-    WTMASS = 1/386.09). Concentrated masses (CONM1, CONM2, CMASS1-4, :data:`MASS_CARDS`) are
-    not part of a flexmbd body and are refused, as leaving them out changes the body's mass and
-    modes; `skip` (card names, e.g. ``["CONM2"]``) reads the deck without them, for a model
-    that adds these masses itself (a rigid body or point mass fixed to the node).
+    WTMASS = 1/386.09), and the CONM2 masses. A CONM2 at a grid of the elements is a point
+    mass of the body (``deck.point_masses``; its rotary inertia on the nodes of beams and
+    shells); one offset from its grid, at a grid of no element or with a rotary inertia on a
+    solid's node, and the other concentrated masses (CONM1, CMASS1-4, :data:`MASS_CARDS`) are
+    refused, as leaving them out changes the body's mass and modes; `skip` (card names, e.g.
+    ``["CMASS2"]``) reads the deck without them, for a model that adds these masses itself (a
+    rigid body or point mass fixed to the node).
 
     Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 grids) -> hex8, CBAR and CBEAM
     -> beam2 (offsets, pin flags and tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
@@ -509,6 +540,7 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
     orientation_cards: list[Card] = []
     dmig_headers: dict[str, Card] = {}
     dmig_columns: list[Card] = []
+    conm2: list[Card] = []
     mass_scale = 1.0
     for card in cards:
         name = card.name
@@ -587,6 +619,8 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
             mass_scale = wtmass
         elif name in IGNORED or name in skipped:
             continue
+        elif name == "CONM2":
+            conm2.append(card)
         elif name in MASS_CARDS:
             raise card.error(
                 f"{name} {card.field(1)}: concentrated masses are not part of a flexmbd body, "
@@ -649,9 +683,72 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
                 displacement[int(g)] = np.full((3, 3), np.nan)
     for values in materials.values():  # PARAM,WTMASS: Nastran's structural mass x WTMASS
         values["density"] *= mass_scale
+    rotations = any(len(mesh.elements.get(k, ())) for k in ROTATION_ELEMENTS)
+    point_masses: dict[int, tuple[float, NDArray[np.float64]]] = {}
+    for card in conm2:
+        grid, mass, inertia = _conm2(card, grids, systems, index, rotations)
+        m0, j0 = point_masses.get(grid, (0.0, np.zeros((3, 3))))
+        point_masses[grid] = (m0 + mass_scale * mass, j0 + mass_scale * inertia)
     return NastranDeck(
-        mesh, materials, properties, element_properties, orientations, matrices, displacement
+        mesh,
+        materials,
+        properties,
+        element_properties,
+        orientations,
+        matrices,
+        displacement,
+        point_masses,
     )
+
+
+def _conm2(
+    card: Card,
+    grids: dict[int, Card],
+    systems: dict[int, Card],
+    index: dict[int, int],
+    rotations: bool,
+) -> tuple[int, float, NDArray[np.float64]]:
+    """(grid, mass, rotary inertia in the basic system) of a CONM2 card, refused where the body
+    cannot carry it: at a grid of no element, with an offset of its centre of gravity, with a
+    rotary inertia on the nodes of solids (no rotations)."""
+    eid, grid = card.integer(1, what="EID"), card.integer(2, what="G")
+    how = (
+        "add it to the model as a rigid body fixed to the grid's node (or the RBE's nodes) and "
+        "read the deck with skip=['CONM2'] (in a model file: nastran_skip: [CONM2])"
+    )
+    if grid not in grids:
+        raise UnknownItemError(
+            f"{card.where()}: CONM2 {eid} refers to grid {grid}, which no GRID defines",
+            item=f"grid {grid}",
+        )
+    if grid not in index:
+        raise card.error(
+            f"CONM2 {eid}: grid {grid} is not a grid of the body's elements (an RBE's reference "
+            f"grid?), so the mass has no node of the body to sit on; {how}"
+        )
+    cid = card.integer(3, 0, what="CID")
+    mass = card.real(4, 0.0, what="M")
+    if not mass >= 0:
+        raise card.error(f"CONM2 {eid}: the mass must be >= 0, got {mass}")
+    offset = np.array([card.real(5 + k, 0.0, what=f"X{k + 1}") for k in range(3)])
+    i11, i21, i22, i31, i32, i33 = (card.real(k, 0.0, what=f"I field {k}") for k in range(9, 15))
+    inertia = np.array([[i11, -i21, -i31], [-i21, i22, -i32], [-i31, -i32, i33]])
+    axes = np.eye(3) if cid in (0, -1) else _axes(cid, systems, card)
+    position = _position(grids[grid], systems)
+    # CID -1: X is the centre of gravity in the basic system; else the offset in system CID.
+    offset = offset - position if cid == -1 else axes @ offset
+    if np.abs(offset).max() > 1e-9 * max(1.0, float(np.abs(position).max())):
+        raise card.error(
+            f"CONM2 {eid}: the centre of gravity is offset from grid {grid} by "
+            f"{offset.tolist()}: an offset mass is not a point mass of the node; {how}"
+        )
+    inertia = axes @ inertia @ axes.T
+    if np.any(inertia) and not rotations:
+        raise card.error(
+            f"CONM2 {eid}: a rotary inertia on grid {grid}, a node of solid elements (no "
+            f"rotations to carry it); {how}"
+        )
+    return grid, mass, inertia
 
 
 def _axes(cid: int, systems: dict[int, Card], card: Card) -> NDArray[np.float64]:

@@ -6,6 +6,7 @@ the connectivity, seed eq. 9), invariants of motion (seed eqs. 16-17), reference
 
 from __future__ import annotations
 
+import math
 import os
 import time
 import warnings
@@ -18,7 +19,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
-from .._checks import choice, flag, id_text, integer, integers_array, number
+from .._checks import choice, flag, id_text, integer, integers_array, number, numbers_array
 from .._checks import direction as unit_vector
 from ..errors import (
     ArgumentTypeError,
@@ -605,6 +606,7 @@ def build_body(
     timings: dict[str, float] | None = None,
     shell: ShellSection | float | None = None,
     orient_shells: bool = False,
+    point_masses: Mapping[int, Any] | None = None,
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
@@ -644,6 +646,12 @@ def build_body(
       "auto" (single above `modal.SINGLE_PRECISION_ABOVE` coordinates).
     - `timings`: a dict that receives the seconds spent in each stage ("check", "assemble",
       "modes", "invariants").
+    - `point_masses`: concentrated masses at nodes, part of the body (equipment, a tip mass,
+      Nastran's CONM2): node index -> mass (kg), or (mass, inertia) with the (3, 3) rotary
+      inertia about the node in the body axes, for the 6-coordinate nodes of beams and shells
+      (a solid's nodes have no rotations to carry it). They add to the mass matrix and to
+      every invariant of motion (exact: lumped masses), and they are kept by the body's
+      variants (`with_material`, `with_modes`).
     """
     clock = _Stages(timings)
     mode_count = integer(mode_count, "mode_count")
@@ -710,6 +718,8 @@ def build_body(
         form_i_kl=modes is None,
         shell=shell,
     )
+    if point_masses is not None:
+        nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
     clock.lap("assemble")
     return _body_from_nodal(
         nodal,
@@ -1382,6 +1392,121 @@ def rotational_matrix_invariants(nodes: NDArray[np.float64], m: sp.csc_matrix) -
         "ibar": ibar,
         "i_kl": i_kl,
     }
+
+
+def point_mass_matrix(
+    point_masses: Mapping[int, Any], node_count: int, dofs_per_node: int
+) -> sp.csc_matrix:
+    """The nodal mass matrix of concentrated masses (see `build_body`'s `point_masses`): m I_3
+    on the displacements of each node and its rotary inertia J on the rotations (6-coordinate
+    nodes). Raises `InvalidParameterError` naming the node for a node index out of range, a
+    mass that is not a finite number >= 0, an inertia that is not a symmetric positive
+    semi-definite (3, 3) matrix, or an inertia at a node without rotations."""
+    if not isinstance(point_masses, Mapping):
+        raise InvalidParameterError(
+            f"point_masses: a mapping node index -> mass or (mass, inertia), got "
+            f"{type(point_masses).__name__}",
+            item="point_masses",
+        )
+    d = dofs_per_node
+    rows: list[int] = []
+    cols: list[int] = []
+    values: list[float] = []
+    for key, value in point_masses.items():
+        node = integer(key, "point_masses node")
+        item = f"point_masses[{node}]"
+        if not 0 <= node < node_count:
+            raise InvalidParameterError(
+                f"{item}: node index {node} out of range 0..{node_count - 1}", item=item
+            )
+        mass, inertia = value, None
+        if isinstance(value, tuple | list):
+            if len(value) != 2:
+                raise InvalidParameterError(
+                    f"{item}: a mass or (mass, inertia), got {value!r}", item=item
+                )
+            mass, inertia = value
+        mass = number(mass, f"{item} mass", finite=False)
+        if not (math.isfinite(mass) and mass >= 0):
+            raise InvalidParameterError(
+                f"{item}: the mass must be finite and >= 0, got {mass}", item=item
+            )
+        for a in range(3):
+            rows.append(d * node + a)
+            cols.append(d * node + a)
+            values.append(mass)
+        if inertia is None:
+            continue
+        j = numbers_array(inertia, f"{item} inertia")
+        if j.shape != (3, 3) or not np.all(np.isfinite(j)):
+            raise InvalidParameterError(
+                f"{item}: the inertia must be a finite (3, 3) matrix, got shape {j.shape}",
+                item=item,
+            )
+        scale = max(float(np.abs(j).max()), 1e-300)
+        if np.abs(j - j.T).max() > 1e-12 * scale or np.linalg.eigvalsh(j).min() < -1e-12 * scale:
+            raise InvalidParameterError(
+                f"{item}: the inertia must be symmetric and positive semi-definite, got "
+                f"{j.tolist()}",
+                item=item,
+            )
+        if not np.any(j):
+            continue
+        if d != 6:
+            raise InvalidParameterError(
+                f"{item}: a rotary inertia needs nodes with rotations (beams, shells); the "
+                "nodes of solid elements have displacements only: add the part as a rigid body "
+                "fixed to the node instead",
+                item=item,
+            )
+        for a in range(3):
+            for b in range(3):
+                if j[a, b] != 0.0:
+                    rows.append(d * node + 3 + a)
+                    cols.append(d * node + 3 + b)
+                    values.append(float(j[a, b]))
+    n = d * node_count
+    return sp.csc_matrix((values, (rows, cols)), shape=(n, n))
+
+
+def with_point_masses(
+    nodal: NodalBody,
+    nodes: NDArray[np.float64],
+    point_masses: Mapping[int, Any],
+    *,
+    form_i_kl: bool,
+) -> NodalBody:
+    """`nodal` with the concentrated masses `point_masses` (see `build_body`) added to its mass
+    matrix and invariants: the invariants are linear in the mass distribution, and those of
+    lumped masses are exact from their matrix (`_matrix_invariants`,
+    `rotational_matrix_invariants`)."""
+    extra = point_mass_matrix(point_masses, len(nodes), nodal.dofs_per_node)
+    if extra.nnz == 0:
+        return nodal
+    if nodal.dofs_per_node == 6:
+        scalar = None
+        added = rotational_matrix_invariants(nodes, extra)
+    else:
+        extra_scalar = sp.csc_matrix(extra[0::3, :][:, 0::3])
+        scalar = None if nodal.scalar_mass is None else (nodal.scalar_mass + extra_scalar).tocsc()
+        added = _matrix_invariants(nodes, extra_scalar, form_i_kl=form_i_kl)
+    invariants = dict(nodal.invariants)
+    for key in ("mass", "first_moment", "second_moment", "i1", "ibar"):
+        invariants[key] = invariants[key] + added[key]
+    if invariants.get("i_kl") is not None:
+        if added["i_kl"] is None:
+            added["i_kl"] = solid_i_kl(sp.csc_matrix(extra[0::3, :][:, 0::3]))
+        invariants["i_kl"] = [
+            [(invariants["i_kl"][k][j] + added["i_kl"][k][j]).tocsc() for j in range(3)]
+            for k in range(3)
+        ]
+    return NodalBody(
+        dofs_per_node=nodal.dofs_per_node,
+        stiffness=nodal.stiffness,
+        mass=(nodal.mass + extra).tocsc(),
+        invariants=invariants,
+        scalar_mass=scalar,
+    )
 
 
 def _scalar_mass(m: sp.csc_matrix) -> sp.csc_matrix:

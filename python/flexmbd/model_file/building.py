@@ -276,6 +276,7 @@ _PREPROCESS_KEYS = (
     "interface_weights",
     "precision",
     "orient_shells",
+    "point_masses",
 )
 _SOURCES = ("body_file", "beam", "mesh", "nastran", "box", "plate", "cylinder")
 
@@ -718,6 +719,8 @@ class _Builder:
             value = getattr(spec, key)
             if value is not None:
                 options[_PYTHON_NAMES.get(key, key)] = value
+        if spec.point_masses is not None:
+            options["point_masses"] = self.point_masses(spec.point_masses, path + ("point_masses",))
         if spec.op2 is None:
             if spec.modes is None and spec.mode_count:
                 raise self.fail(path + ("mode_count",), "mode_count needs `modes`")
@@ -738,6 +741,21 @@ class _Builder:
             **options,
         )
 
+    def point_masses(self, specs: list[Any], path: Path_) -> dict[int, Any]:
+        """build_body's `point_masses` of the model file's list, in SI."""
+        inertia_scale = self.units.scale(length=2, mass=1)
+        masses: dict[int, Any] = {}
+        for k, spec in enumerate(specs):
+            if spec.node in masses:
+                raise self.fail(path + (k, "node"), f"node {spec.node} has a point mass already")
+            mass = spec.mass * self.units.mass
+            if spec.inertia is None:
+                masses[spec.node] = mass
+            else:
+                inertia = np.asarray(spec.inertia, dtype=float) * inertia_scale
+                masses[spec.node] = (mass, np.diag(inertia) if inertia.ndim == 1 else inertia)
+        return masses
+
     def preprocess_options(self, spec: FlexibleBodySpec, path: Path_) -> dict[str, Any]:
         """Keyword arguments of build_body / body_from_mesh (those given only)."""
         options: dict[str, Any] = {"material": self.material(spec.material, path + ("material",))}
@@ -749,6 +767,8 @@ class _Builder:
                 options[_PYTHON_NAMES.get(key, key)] = value
         if "shell" in options:
             options["shell"] = options["shell"] * self.units.length
+        if spec.point_masses is not None:
+            options["point_masses"] = self.point_masses(spec.point_masses, path + ("point_masses",))
         if spec.modes is None and spec.mode_count:
             raise self.fail(path + ("mode_count",), "mode_count needs `modes`")
         return options

@@ -311,6 +311,18 @@ Inertia = Annotated[
 ]
 
 
+class BodyPointMassSpec(_Spec):
+    """A concentrated mass at a node of a deformable body (build_body's `point_masses`)."""
+
+    node: int = Field(ge=0, description="node index (0-based), as in reference_nodes")
+    mass: float = Field(ge=0, description="mass")
+    inertia: Inertia | None = Field(
+        None,
+        description="rotary inertia about the node in body axes (beam and shell nodes only): "
+        "the three principal moments or a 3 x 3 matrix (mass length^2)",
+    )
+
+
 class RigidBodySpec(_Spec):
     """A rigid body (:meth:`System.add_rigid_body`)."""
 
@@ -411,7 +423,7 @@ class FlexibleBodySpec(_Spec):
     nastran_skip: list[str] | None = Field(
         None,
         description="with `nastran`: concentrated-mass cards to read the deck without "
-        "(CONM2, ...; the model adds these masses itself), `read_nastran`'s `skip`",
+        "(CMASS2, ...; the model adds these masses itself), `read_nastran`'s `skip`",
     )
     op2: str | None = Field(
         None,
@@ -437,6 +449,10 @@ class FlexibleBodySpec(_Spec):
     )
     mass_matrix: Literal["consistent", "lumped"] | None = Field(
         None, description="build_body `mass` (default consistent)"
+    )
+    point_masses: list[BodyPointMassSpec] | None = Field(
+        None,
+        description="concentrated masses at nodes, part of the body (build_body `point_masses`)",
     )
     beam_theory: Literal["euler-bernoulli", "timoshenko"] | None = None
     reference: (
