@@ -486,6 +486,46 @@ def test_damaged_results_files_are_read_quickly_as_far_as_they_can_be(tmp_path):
         fm.read_results(path)
 
 
+def test_a_file_cut_near_its_end_never_reads_lost_data_as_zeros(tmp_path):
+    # Regression: HDF5 reads the part of a chunk beyond the end of a cut file as zeros, without
+    # an error: a run cut at 91-96 % of its file was read as complete, its constraint
+    # violations all 0 and its statistics empty. Every record read now equals the run's, and
+    # whatever is lost is a ResultsFileError.
+    path = tmp_path / "ok.h5"
+    example = EXAMPLES["tetrahedral-pendulum"]()
+    fm.simulate(example.system, 0.2, 1e-3, output_interval=0.01, results_file=path)
+    whole = fm.read_results(path)
+    data = path.read_bytes()
+    fields = ("time", "coordinates", "velocities", "multipliers", "constraint_violation")
+    checked_info = 0
+    for fraction in np.linspace(0.80, 0.999, 30):
+        damaged = tmp_path / "cut.h5"
+        damaged.write_bytes(data[: int(len(data) * fraction)])
+        try:
+            back = fm.read_results(damaged)
+        except fm.ResultsFileError:
+            continue
+        count = len(back.time)
+        for name in fields:
+            assert np.array_equal(getattr(back, name), getattr(whole, name)[:count]), (
+                fraction,
+                name,
+            )
+        lost = count < len(whole.time) or back.statistics != whole.statistics
+        assert lost == isinstance(back.error, fm.ResultsFileError), (fraction, back.error)
+        checked_info += 1
+        if checked_info % 6:
+            continue
+        info = subprocess.run(
+            [sys.executable, "-m", "flexmbd", "info", str(damaged)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert "Traceback" not in info.stderr, info.stderr
+        assert ("damaged:" in info.stdout) == lost, info.stdout
+
+
 FULL_DISK = textwrap.dedent(
     """
     import resource, sys

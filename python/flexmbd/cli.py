@@ -520,8 +520,12 @@ def _info_results(path: Path) -> int:
     if count:
         from .results_file import read_results
 
-        times = read_results(path).time
-        print(f"  {count} records, t = {times[0]:g} .. {times[-1]:g} s")
+        results = read_results(path)
+        times = results.time
+        if len(times):
+            print(f"  {count} records, t = {times[0]:g} .. {times[-1]:g} s")
+        if isinstance(results.error, ResultsFileError):
+            print(f"  damaged: {results.error}")
     else:
         print("  no records")
     stats = header["statistics"]

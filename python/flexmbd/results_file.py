@@ -743,7 +743,7 @@ def _readable_rows(
             return empty
         count = min(count, dataset.shape[0])
         if row_bytes:
-            count = min(count, size // row_bytes)
+            count = min(count, size // row_bytes, _rows_in_file(dataset, count, size))
         return np.asarray(dataset[:count], dtype=np.float64)
     except (OSError, ValueError, TypeError, KeyError, RuntimeError, IndexError):
         if "dataset" not in locals() or not isinstance(dataset, h5py.Dataset):
@@ -760,6 +760,39 @@ def _readable_rows(
         return np.asarray(dataset[:good], dtype=np.float64)
     except (OSError, ValueError, TypeError):
         return empty
+
+
+def _rows_in_file(dataset: h5py.Dataset, count: int, size: int) -> int:
+    """How many of the first `count` rows of a record dataset are stored within the file's
+    `size` bytes: HDF5 reads the part of a chunk beyond the end of a truncated file, or a
+    chunk never written, as zeros without an error (a file cut at 95 % gave a complete run
+    whose constraint violations were all 0)."""
+    try:
+        chunks = dataset.chunks
+        row_bytes = dataset.dtype.itemsize * int(np.prod(dataset.shape[1:]))
+        if chunks is None:
+            offset = dataset.id.get_offset()
+            return 0 if offset is None else min(count, max(size - offset, 0) // max(row_bytes, 1))
+        whole_rows = tuple(chunks[1:]) == tuple(dataset.shape[1:])
+        stored = {}
+        for k in range(dataset.id.get_num_chunks()):
+            info = dataset.id.get_chunk_info(k)
+            stored[info.chunk_offset] = info
+        rows = 0
+        while rows < count:
+            info = stored.get((rows,) + (0,) * (dataset.ndim - 1))
+            if info is None or info.byte_offset is None:
+                break
+            room = size - info.byte_offset
+            if room >= info.size and (whole_rows or dataset.ndim == 1):
+                rows += chunks[0]
+                continue
+            if whole_rows and dataset.compression is None and room > 0:
+                rows += min(chunks[0], room // max(row_bytes, 1))
+            break
+        return min(rows, count)
+    except (OSError, ValueError, TypeError, KeyError, RuntimeError, AttributeError):
+        return count  # (the layout cannot be told: the rows are read as they are)
 
 
 def _ordered(time: np.ndarray) -> tuple[int, str]:
@@ -826,10 +859,15 @@ def _read_results(path: Path) -> Result:
         readable = min(len(values) for values in raw.values())
         readable, disorder = _ordered(raw["time"][:readable])
         raw = {name: values[:readable] for name, values in raw.items()}
-        raw["statistics"] = _text(file, "statistics") or {}
+        raw["statistics"] = _text(file, "statistics")
         raw["events"] = _text(file, "events") or []
         raw["redundancy"] = _text(file, "redundancy")
         status = _text(file, "status") or {"state": "running"}
+        complete = isinstance(status, dict) and status.get("state") == "complete"
+        # A complete run wrote its statistics: unreadable, they are damage (else not yet
+        # written).
+        statistics_lost = raw["statistics"] is None and complete
+        raw["statistics"] = raw["statistics"] or {}
         flexible = {}
         # Bodies stored once for several indices (hard links to one group) are read once.
         read: dict[Any, Any] = {}
@@ -852,6 +890,11 @@ def _read_results(path: Path) -> Result:
         error = ResultsFileError(
             f"{path} is damaged: {readable} of its {count} records could be read (up to "
             f"t = {last}){why}",
+            item=f"file '{path}'",
+        )
+    elif statistics_lost:
+        error = ResultsFileError(
+            f"{path} is damaged: its {count} records could be read, its statistics could not",
             item=f"file '{path}'",
         )
     elif not isinstance(status, dict) or status.get("state") != "complete":
