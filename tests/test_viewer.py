@@ -120,6 +120,37 @@ def test_unknown_options_are_refused(slider_crank, four_bar, tmp_path):
     assert not (tmp_path / "a.html").exists()
 
 
+def test_a_page_never_replaces_a_file_of_another_kind(tmp_path):
+    # Regression: `flexmbd view run.h5 -o run.h5` wrote the page over the results file it
+    # read, and any path was replaced (a .txt by HTML); a title or source of the wrong type
+    # was an AttributeError.
+    example = fm.examples.EXAMPLES["pendulum"]()
+    results = tmp_path / "run.h5"
+    fm.simulate(example.system, 0.1, 1e-2, results_file=results)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    for target in (results, notes, tmp_path):
+        with pytest.raises(fm.InvalidParameterError, match="path: the viewer writes an HTML"):
+            fm.view(results, target)
+    assert notes.read_text() == "mine" and len(fm.read_results(results).time) == 11
+    run = subprocess.run(
+        [sys.executable, "-m", "flexmbd", "view", str(results), "-o", str(results)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 2 and "path: the viewer writes an HTML page" in run.stderr
+    assert len(fm.read_results(results).time) == 11
+    (tmp_path / "folder.html").mkdir()
+    with pytest.raises(fm.InvalidParameterError, match="is a folder"):
+        fm.view(results, tmp_path / "folder.html")
+    with pytest.raises(fm.ArgumentTypeError, match="title: a text"):
+        fm.view(results, tmp_path / "a.html", title=5)
+    with pytest.raises(fm.ArgumentTypeError, match="source: a flexmbd.Result"):
+        fm.view(None, tmp_path / "a.html")
+    assert fm.view(results, tmp_path / "page.HTML").exists()
+
+
 def test_results_file_gives_the_default_page_name(four_bar, tmp_path):
     example = fm.examples.EXAMPLES["pendulum"]()
     results = tmp_path / "pendulum.h5"

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InvalidParameterError
+from .errors import ArgumentTypeError, InvalidParameterError
 
 Array = NDArray[np.float64]
 
@@ -92,7 +92,19 @@ def view(
     Needs the ``plotly`` package (``pip install flexmbd[view]``). Raises
     :class:`flexmbd.InvalidParameterError` for unknown options and an empty result."""
     from .analysis import LinearizedSystem
+    from .result import Result
 
+    if not isinstance(source, LinearizedSystem | Result | str | os.PathLike):
+        raise ArgumentTypeError(
+            "source: a flexmbd.Result, a results file path or a LinearizedSystem, got "
+            f"{type(source).__name__}",
+            item="source",
+        )
+    if title is not None and not isinstance(title, str):
+        raise ArgumentTypeError(
+            f"title: a text, got {type(title).__name__} {title!r}", item="title"
+        )
+    _page_path(path, Path("flexmbd-view.html"))  # (refused before any work)
     if color_by not in COLOR_QUANTITIES:
         raise InvalidParameterError(
             f"unknown colour quantity {color_by!r}; known: "
@@ -127,9 +139,24 @@ def view(
             f"available: {', '.join(map(repr, available))}",
             item="stress",
         )
-    out = Path(path) if path is not None else default
+    out = _page_path(path, default)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(_page(heading, datasets, color_by), encoding="utf-8")
+    return out
+
+
+def _page_path(path: Any, default: Path) -> Path:
+    """The HTML file to write: an ``.html`` or ``.htm`` path that is not a folder (a page
+    written over a results file, `flexmbd view run.h5 -o run.h5`, destroyed the run)."""
+    out = Path(path) if path is not None else default
+    if out.suffix.lower() not in (".html", ".htm"):
+        raise InvalidParameterError(
+            f"path: the viewer writes an HTML page, a path ending in .html, got '{out}' (a file "
+            "of another kind is not replaced)",
+            item="path",
+        )
+    if out.is_dir():
+        raise InvalidParameterError(f"path: '{out}' is a folder", item="path")
     return out
 
 
