@@ -141,3 +141,41 @@ def test_a_driver_faster_than_the_steps_is_warned_of():
         warnings.simplefilter("error", fm.StepSizeWarning)
         result = fm.simulate(bar(40.0), 0.01, 1e-3)  # 0.04 rad a step: no warning
     assert result.angular_velocity("bar")[-1][2] == pytest.approx(40.0, rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    "solver",
+    [
+        fm.GeneralizedAlpha(),
+        fm.ExplicitSolver("rk4", "projection"),
+        fm.ExplicitSolver("rk4", "joint-coordinates"),
+    ],
+    ids=["generalized-alpha", "rk4-projection", "rk4-joint-coordinates"],
+)
+def test_an_angle_driver_started_half_a_turn_off_is_refused(solver):
+    # sin(theta - f) = 0 holds at theta = f + pi too: an arm started pointing along -x with
+    # the driver prescribing 0 ran on that branch (held the other way, its torque +9.81 N m
+    # instead of -9.81) under generalized-alpha, and joint coordinates turned it over to +x.
+    def arm(start):
+        system = fm.System(gravity=(0, -9.81, 0))
+        c, s = np.cos(start), np.sin(start)
+        body = system.add_rigid_body(
+            2.0,
+            (1e-6, 1 / 6, 1 / 6),
+            position=(0.5 * c, 0.5 * s, 0),
+            orientation=[[c, -s, 0], [s, c, 0], [0, 0, 1]],
+            name="arm",
+        )
+        pivot = system.add_marker(system.ground)
+        end = system.add_marker(body, position=(-0.5, 0, 0))
+        system.add_revolute_joint(pivot, end, name="hinge")
+        system.add_angle_driver(pivot, end, fm.Polynomial([0.0, 0.5]), name="drive")
+        return system
+
+    for start in (np.pi, -2.0, 1.7):
+        with pytest.raises(fm.InitialConditionsError, match="angle driver 'drive' .*half a turn"):
+            fm.simulate(arm(start), 0.01, 1e-3, solver=solver)
+    # A start a little off is corrected (and said so), on the right branch.
+    with pytest.warns(fm.InitialCorrectionWarning):
+        result = fm.simulate(arm(0.1), 0.01, 1e-3, solver=solver)
+    assert result.position("arm")[-1][0] > 0.49

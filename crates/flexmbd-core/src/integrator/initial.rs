@@ -25,6 +25,48 @@ use crate::linear_system::{LinearSolvers, NO_SOLVERS};
 use crate::output::{Event, Output};
 use crate::system::{Model, State, Workspace};
 
+/// Refuses a start with an angle driver's joint more than a quarter turn from the prescribed
+/// angle. Its equation sin(theta - f) = 0 holds half a turn from f too: a joint started near
+/// theta = f + pi is consistent with it, and the run would drive the joint on that branch
+/// (an arm held pointing the other way, its torque of the opposite sign) without a word, or
+/// the corrections of another solver would turn it over.
+pub fn check_angle_drivers(model: &Model, state: &State) -> Result<()> {
+    let mut ws = Workspace::new(model);
+    let mut kinematics_ready = false;
+    for (j, joint) in model.joints.iter().enumerate() {
+        let crate::joint::JointKind::AngleDriver(f) = &joint.kind else { continue };
+        let Ok([target, _, _]) = f.evaluate(state.time) else { continue };
+        if !kinematics_ready {
+            crate::assembly::update_kinematics(model, &state.coordinates, &state.velocities, &mut ws);
+            kinematics_ready = true;
+        }
+        let theta = crate::force::rotational_spring_damper::wrapped_angle(&crate::assembly::joint_pair(
+            model,
+            &ws.markers,
+            j,
+        ));
+        let two_pi = 2.0 * std::f64::consts::PI;
+        let delta = theta - target;
+        let off = delta - two_pi * (delta / two_pi).round();
+        if off.abs() > std::f64::consts::FRAC_PI_2 {
+            return Err(FlexmbdError::InconsistentInitialConditions {
+                time: state.time,
+                item: format!(
+                    "angle driver '{}' (its joint starts at {theta:.4} rad, {off:.4} rad from the \
+                     prescribed {target:.4} rad: the driver's equation sin(theta - f) = 0 holds half \
+                     a turn from f too, and the run would drive the joint on that branch, its torque \
+                     of the opposite sign; start the joint within a quarter turn of the prescribed \
+                     angle)",
+                    joint.name
+                ),
+                residual: off.abs(),
+                iterations: 0,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// The state a run starts from at `time`: `start`'s coordinates and velocities, or the
 /// model's initial ones. Errors name a wrong length or the first non-finite entry.
 pub fn starting_state(model: &Model, time: f64, start: Option<&StartState>) -> Result<State> {

@@ -3,6 +3,7 @@
 //! expanded back), and the run of the integrator the settings choose. A failure returns everything recorded up to it together with the error.
 
 use crate::error::{FlexmbdError, Result};
+use crate::integrator::initial::{check_angle_drivers, starting_state};
 use crate::integrator::progress::Progress;
 use crate::integrator::redundancy::analyse;
 use crate::integrator::reselection::run_reduced;
@@ -31,7 +32,12 @@ pub fn simulate(
 ) -> SimulationOutcome {
     let mut output = Output::new(model);
     let mut last_state = None;
-    let error = match settings.validate().and_then(|_| analyse(model, settings)) {
+    let error = match settings
+        .validate()
+        .and_then(|_| starting_state(model, settings.start_time, settings.start.as_ref()))
+        .and_then(|state| check_angle_drivers(model, &state))
+        .and_then(|_| analyse(model, settings))
+    {
         Err(e) => Some(e),
         Ok(None) => dispatch(model, settings, observer, &mut output, &mut last_state).err(),
         Ok(Some(reduction)) => {
