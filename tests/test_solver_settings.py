@@ -82,3 +82,20 @@ def test_a_step_longer_than_the_output_interval_warns_and_steps_at_the_interval(
         system, 0.01, 2e-3, output_interval=1e-3, solver=fm.ExplicitSolver("dopri5", "projection")
     )
     assert dopri5.events == []
+
+
+def test_a_largest_step_below_the_step_size_caps_the_adaptive_steps():
+    # It was raised to the step size without a word: dopri5 then took every step at 1e-2
+    # (its error control off), generalized-alpha's error control steps up to 1e-2.
+    system = fm.examples.pendulum().system
+    for solver in (
+        fm.GeneralizedAlpha(step_control="error", max_step_size=1e-3),
+        fm.ExplicitSolver("dopri5", "projection", max_step_size=1e-3),
+    ):
+        result = fm.simulate(system, 0.2, 1e-2, output_interval=0.1, solver=solver)
+        assert result.statistics["max_step_size"] <= 1e-3 * (1 + 1e-12), solver
+    # Where the steps return to the step size, a smaller largest step is a contradiction.
+    with pytest.raises(fm.InvalidParameterError, match="max_step_size 1e-3 is below the step"):
+        fm.simulate(system, 0.02, 1e-2, solver=fm.GeneralizedAlpha(max_step_size=1e-3))
+    with pytest.raises(fm.InvalidParameterError, match="rk4 takes fixed steps"):
+        fm.simulate(system, 0.02, 1e-2, solver=fm.ExplicitSolver("rk4", max_step_size=1e-3))

@@ -269,7 +269,28 @@ impl GeneralizedAlpha {
         if let Some(h) = self.min_step_size {
             s.min_step_size = h;
         }
-        s.max_step_size = self.max_step_size.unwrap_or(step_size).max(step_size);
+        // Under the error control the step size is only the first step: a largest step below
+        // it caps the first one too. Newton's control and fixed steps return to the step size
+        // (a largest step below it was ignored without a word).
+        s.max_step_size = match self.max_step_size {
+            Some(max) if max < step_size && matches!(step_control, StepControl::Error { .. }) => {
+                s.step_size = max;
+                max
+            }
+            Some(max) if max < step_size => {
+                return Err(invalid(
+                    item,
+                    format!(
+                        "max_step_size {max:e} is below the step size {step_size:e}: under step_control \
+                         '{}' the steps return to the step size (a smaller step size, or \
+                         step_control='error')",
+                        self.step_control
+                    ),
+                ))
+            }
+            Some(max) => max,
+            None => step_size,
+        };
         s.initial = initial_settings(
             self.initial_tolerance,
             self.correct_initial_positions,
@@ -648,11 +669,23 @@ impl ExplicitSolver {
         };
         let mut s = SimulationSettings::new(end_time, step_size);
         s.min_step_size = self.min_step_size.unwrap_or(step_size * 1e-9);
-        s.max_step_size = match method {
-            ExplicitMethod::Rk4 => step_size,
-            ExplicitMethod::Dopri5 | ExplicitMethod::TrBdf2 => {
-                self.max_step_size.unwrap_or(f64::MAX).max(step_size)
+        s.max_step_size = match (method, self.max_step_size) {
+            (ExplicitMethod::Rk4, None) => step_size,
+            (ExplicitMethod::Rk4, Some(_)) => {
+                return Err(invalid(
+                    item,
+                    "max_step_size is for the adaptive methods (dopri5, tr-bdf2); rk4 takes fixed steps \
+                     of the step size"
+                        .to_string(),
+                ))
             }
+            // The step size is only the first step: a largest step below it caps it too (it was
+            // raised to the step size, the error control then switched off).
+            (_, Some(max)) if max < step_size => {
+                s.step_size = max;
+                max
+            }
+            (_, max) => max.unwrap_or(f64::MAX),
         };
         s.initial = initial_settings(
             self.initial_tolerance,
