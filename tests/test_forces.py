@@ -1,6 +1,7 @@
 """Applied forces against closed-form solutions."""
 
 import numpy as np
+import pytest
 
 import flexmbd as fm
 
@@ -123,3 +124,17 @@ def test_callback_force_acts_on_the_listed_coordinates(assert_close):
     result = fm.simulate(system, 1.0, 1e-4, output_interval=0.01)
     exact = 0.05 * np.cos(np.sqrt(k / mass) * result.time)
     assert_close(result.position(body)[:, 0] - 1.0, exact, rel=1e-7, abs=1e-6, what="x - 1")
+
+
+def test_torques_on_a_point_mass_are_refused():
+    # A point mass has no rotation: a torque on it was dropped without a word, and the
+    # reaction of a torsional spring on it too (a wheel's angular momentum swung +0.2 to -0.2).
+    system = fm.System()
+    point = system.add_point_mass(1.0, position=(1.0, 0.0, 0.0), name="p")
+    wheel = system.add_rigid_body(1.0, (0.2, 0.2, 0.2), name="wheel")
+    on_point = system.add_marker(point)
+    with pytest.raises(fm.InvalidModelError, match="a torque acts on 'p', a point mass"):
+        system.add_torque(on_point, (0.0, 0.0, 5.0), name="tq")
+    with pytest.raises(fm.InvalidModelError, match="rotational spring-damper acts on 'p'"):
+        system.add_rotational_spring_damper(system.add_marker(wheel), on_point, stiffness=1.0)
+    system.add_point_force(on_point, (0.0, 0.0, 5.0))  # forces are its loads

@@ -183,7 +183,8 @@ impl System {
         Ok(BodyId::of(id.0))
     }
 
-    /// Adds a point mass (translation only; markers on it must be at its position).
+    /// Adds a point mass (translation only; markers on it must be at its position, and torques
+    /// and rotational spring-dampers on it are refused).
     #[pyo3(signature = (mass, *, position = None, velocity = None, name = None))]
     fn add_point_mass(
         &mut self,

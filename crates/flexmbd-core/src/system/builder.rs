@@ -449,6 +449,27 @@ impl SystemBuilder {
             self.check_marker(m, &format!(" (used by {label})"))?;
         }
         let bad = |message: String| FlexmbdError::InvalidParameter { item: label.clone(), message };
+        // A point mass has no rotation: a torque on it was dropped without a word (and the
+        // reaction of a torsional spring on it, so angular momentum was not conserved).
+        let torques = match &kind {
+            ForceKind::Torque { marker, .. } => vec![*marker],
+            ForceKind::RotationalSpringDamper { markers, .. } => markers.to_vec(),
+            _ => vec![],
+        };
+        for m in torques {
+            let body = &self.bodies[self.markers[m.0].body.0];
+            if matches!(body.kind, BodyKind::PointMass { .. }) {
+                return Err(FlexmbdError::InvalidModel {
+                    item: label,
+                    message: format!(
+                        "a {} acts on '{}', a point mass, which has no rotation to take a torque \
+                         (use a rigid body)",
+                        kind.type_name(),
+                        body.name
+                    ),
+                });
+            }
+        }
         match &kind {
             ForceKind::PointForce { components, .. } | ForceKind::Torque { components, .. } => {
                 for c in components {
