@@ -259,3 +259,21 @@ def test_the_effort_is_recorded_and_plotted(assert_close, tmp_path):
     np.testing.assert_array_equal(line.get_ydata(), effort)
     ax = plotting.plot_sensor(result, "servo effort")
     assert ax.get_ylabel().startswith("actuator torque (N m)")
+
+
+def test_the_effort_is_found_by_the_id_add_joint_actuator_returned(assert_close):
+    # Regression: the ForceId was "no actuator named ForceId(0)", and an unnamed actuator
+    # could only be found as "actuator 0".
+    system = fm.System()
+    body = system.add_rigid_body(2.0, (0.1, 0.1, J))
+    ground, own = system.add_marker(system.ground), system.add_marker(body)
+    hinge = system.add_revolute_joint(ground, own)
+    spring = system.add_rotational_spring_damper(ground, own, stiffness=1.0)
+    unnamed = system.add_joint_actuator(hinge, 0.5, proportional_gain=KP)
+    named = system.add_joint_actuator(hinge, 0.5, proportional_gain=KP, name="servo")
+    result = fm.simulate(system, 0.01, 1e-3)
+    assert_close(result.actuator_effort(unnamed), result.actuator_effort("actuator 1"))
+    assert_close(result.actuator_effort(named), result.actuator_effort("servo"))
+    assert result.actuator_effort(named)[0] == pytest.approx(KP * 0.5)
+    with pytest.raises(fm.UnknownItemError, match="is a rotational spring-damper, not a joint"):
+        result.actuator_effort(spring)

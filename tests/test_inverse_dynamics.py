@@ -74,6 +74,9 @@ def test_the_work_of_the_crane_torques_is_the_change_of_energy(cranes):
     # rigid crane's by far more than the tolerances.
     rigid = cranes["rigid"]
     assert np.abs(inverse.efforts["turret drive"] - rigid.efforts["turret drive"]).max() > 100.0
+    # An unknown driver is named (it was a bare KeyError).
+    with pytest.raises(fm.UnknownItemError, match=r"no driver named 'nope' \(drivers: 'turret"):
+        inverse.work("nope")
 
 
 def test_replaying_the_crane_torques_on_the_free_crane_gives_the_prescribed_angles(cranes):

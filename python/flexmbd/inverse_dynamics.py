@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _boundary
-from .errors import InvalidModelError, InvalidParameterError
+from .errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .result import Result
 from .simulation import simulate
 from .system import System
@@ -63,6 +63,11 @@ class InverseDynamics:
         names = list(self.efforts) if name is None else [name]
         total = np.zeros(len(self.time))
         for each in names:
+            if each not in self.efforts:  # (a bare KeyError)
+                raise UnknownItemError(
+                    f"no driver named {each!r} (drivers: {', '.join(map(repr, self.efforts))})",
+                    item=str(each),
+                )
             power = self.efforts[each] * self.rates(each)
             steps = 0.5 * (power[1:] + power[:-1]) * np.diff(self.time)
             total[1:] += np.cumsum(steps)

@@ -432,11 +432,21 @@ class Result:
             )
         return -self.multipliers[:, j["row"]]
 
-    def actuator_effort(self, actuator: str) -> Array:
-        """The effort of the joint actuator named `actuator` (its torque, N m, or force, N,
-        after the limit), (n,): the sensor "`actuator` effort" it records. Raises
+    def actuator_effort(self, actuator: object) -> Array:
+        """The effort of the joint actuator `actuator` (the ForceId `add_joint_actuator`
+        returned, or its name; its torque, N m, or force, N, after the limit), (n,): the
+        sensor "`name` effort" it records ("actuator <k> effort" when unnamed). Raises
         `UnknownItemError` naming the actuators when `actuator` is none of them."""
         sensors = {s["name"] for s in self.layout["sensors"]}
+        if isinstance(actuator, _core.ForceId):
+            index, entry = self._lookup("forces", actuator, _core.ForceId)
+            if entry["type"] != "joint actuator":
+                raise UnknownItemError(
+                    f"force {entry['name']!r} is a {entry['type']}, not a joint actuator",
+                    item=str(entry["name"]),
+                )
+            named = f"{entry['name']} effort" in sensors
+            actuator = entry["name"] if named else f"actuator {index}"
         if f"{actuator} effort" not in sensors:
             actuators = sorted(
                 name[: -len(" effort")] for name in sensors if name.endswith(" effort")
