@@ -753,3 +753,33 @@ def test_a_neutral_equilibrium_is_not_called_stable():
     hanging = fm.equilibrium(system.compile())
     assert hanging.stable is True
     assert (hanging.unstable_directions, hanging.neutral_directions) == (0, 0)
+
+
+@pytest.mark.parametrize("strict", [False, True])
+def test_a_run_continued_from_its_recorded_state_is_not_an_initial_correction(strict, assert_close):
+    # Generalized-alpha enforces the positions; its velocities drift off the velocity
+    # constraints within the step's error (4.3e-6 for the pendulum after 1 s). Continuing
+    # from result.state(), as the docs show, warned of an initial correction, and strict
+    # initial conditions refused it. The projection is now a "continuation" event.
+    system = fm.examples.pendulum().system
+    first = fm.simulate(system, 1.0, 1e-3, output_interval=0.1)
+    conditions = "strict" if strict else "correct"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InitialCorrectionWarning)
+        rest = fm.simulate(
+            system, 2.0, 1e-3, output_interval=0.1, initial_state=first.state(),
+            initial_conditions=conditions,
+        )  # fmt: skip
+    events = [e for e in rest.events if e["kind"] == "continuation"]
+    assert len(events) == 1 and "recorded state projected" in events[0]["message"]
+    whole = fm.simulate(system, 2.0, 1e-3, output_interval=0.1)
+    assert_close(rest.coordinates[-1], whole.coordinates[-1], abs=1e-5, what="end state")
+    # A recorded state changed by hand is given again: its corrections are reported.
+    changed = first.state().with_velocity(1, first.state().velocity(1) * 1.01)
+    assert not changed.recorded
+    if strict:
+        with pytest.raises(fm.InitialConditionsError, match="refused"):
+            fm.simulate(system, 1.1, 1e-3, initial_state=changed, initial_conditions="strict")
+    else:
+        with pytest.warns(InitialCorrectionWarning):
+            fm.simulate(system, 1.1, 1e-3, initial_state=changed)

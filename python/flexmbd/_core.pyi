@@ -449,6 +449,7 @@ def simulate(
     records: Callable[[dict[str, Any]], object] | None = None,
     coordinates: NDArray[np.float64] | None = None,
     velocities: NDArray[np.float64] | None = None,
+    recorded: bool = False,
     initial_conditions: str = "correct",
 ) -> tuple[dict[str, Any], BaseException | None]: ...
 

@@ -130,6 +130,7 @@ class Result:
             layout=self.layout,
             flexible=self.flexible,
             system_identity=self.system_identity,
+            recorded=True,
         )
 
     # Energies -------------------------------------------------------------------------

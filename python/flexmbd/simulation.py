@@ -438,6 +438,7 @@ def simulate(
         start_arrays = {
             "coordinates": np.ascontiguousarray(start.coordinates, dtype=float),
             "velocities": np.ascontiguousarray(start.velocities, dtype=float),
+            "recorded": bool(start.recorded),
         }
     if not keep_in_memory and results_file is None:
         raise InvalidParameterError(

@@ -76,6 +76,11 @@ class State:
     flexible: dict[int, Any] = field(default_factory=dict, repr=False, compare=False)
     #: The identity of the System of the model (`Result.system_identity`), or None.
     system_identity: int | None = field(default=None, repr=False, compare=False)
+    #: Whether a run recorded it (`Result.state`), unchanged since: ``simulate`` then takes
+    #: the projection of its velocities onto the velocity constraints (the integrator's own
+    #: drift, which generalized-alpha leaves within the step's error) as a "continuation"
+    #: event, not an initial correction.
+    recorded: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("coordinates", "velocities", "accelerations", "multipliers"):
@@ -213,7 +218,9 @@ class State:
             )
         target[span] = values
         changed = {"velocities" if rates else "coordinates": target}
-        return dataclasses.replace(self, **changed, accelerations=None, multipliers=None)
+        return dataclasses.replace(
+            self, **changed, accelerations=None, multipliers=None, recorded=False
+        )
 
     def with_elastic_coordinates(self, body: object, values: ArrayLike) -> State:
         """A copy with the elastic coordinates of a deformable body replaced."""

@@ -773,7 +773,7 @@ const RELEASE_BATCH: usize = 4096;
 /// `(raw_results, error)`; `error` is None on success, otherwise the exception to raise (the
 /// raw results then hold everything up to the failure).
 #[pyfunction]
-#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, initial_conditions = "correct", keep_in_memory = true))]
+#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, recorded = false, initial_conditions = "correct", keep_in_memory = true))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -787,6 +787,7 @@ pub fn simulate<'py>(
     records: Option<Py<PyAny>>,
     coordinates: Option<PyReadonlyArray1<'py, f64>>,
     velocities: Option<PyReadonlyArray1<'py, f64>>,
+    recorded: bool,
     initial_conditions: &str,
     keep_in_memory: bool,
 ) -> PyResult<(Bound<'py, PyDict>, Option<Py<PyAny>>)> {
@@ -821,6 +822,7 @@ pub fn simulate<'py>(
             velocities: qd.as_slice()?.to_vec(),
             time: None,
             discrete: None,
+            recorded,
         }),
         _ => return Err(invalid("simulate", "give both the initial coordinates and velocities, or neither")),
     };

@@ -240,6 +240,7 @@ pub(crate) fn run_reduced(
                     velocities: state.velocities,
                     time: Some(state.time),
                     discrete: Some(state.discrete),
+                    recorded: true,
                 });
                 segment_settings.initial.strict = false;
                 reduction = choice;

@@ -564,6 +564,11 @@ pub struct StartState {
     /// Discrete variables (the unwrapped spring angles) of a continued run; None: set from
     /// the coordinates.
     pub discrete: Option<Vec<f64>>,
+    /// A state recorded by a run (`Result.state()`): its velocities are the integrator's,
+    /// which satisfy the velocity constraints only to the step's error (generalized-alpha
+    /// enforces the positions). Their projection onto the constraints is then a
+    /// "continuation" event, neither an initial correction nor refused by strict settings.
+    pub recorded: bool,
 }
 
 // Redundant constraints -------------------------------------------------------------------

@@ -114,6 +114,7 @@ mod tests {
             velocities: last.velocities.clone(),
             time: Some(last.time),
             discrete: Some(last.discrete.clone()),
+            recorded: true,
         });
         let rest = simulate(&model, &second, &mut |_| true);
         assert!(rest.error.is_none(), "{:?}", rest.error);
