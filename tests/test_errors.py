@@ -722,3 +722,27 @@ def test_a_heavy_body_on_a_joint_is_not_singular(assert_close):
     heavy, light = pendulum(1.0), pendulum(1e-3)
     assert_close(heavy.position("load"), light.position("load"), abs=1e-9, what="same motion")
     assert heavy.position("load")[-1][1] < -1e-3
+
+
+@pytest.mark.parametrize(
+    "make, owner, item",
+    [
+        (
+            lambda: fm.Spline([0, 1, 2], [0, 1, 2], end="clamped", slopes=(1, 2, 3)),
+            "Spline",
+            "slopes",
+        ),
+        (
+            lambda: fm.ExplicitSolver("rk4", "integrate-all", baumgarte=(1, 2, 3)),
+            "ExplicitSolver",
+            "baumgarte",
+        ),
+    ],
+)
+def test_a_tuple_of_the_wrong_length_names_the_call_and_the_argument(make, owner, item):
+    # Regression: PyO3's bare ValueError "expected tuple of length 2" named nothing.
+    with pytest.raises(
+        fm.InvalidParameterError, match=f"{owner}: argument '{item}': expected"
+    ) as e:
+        make()
+    assert e.value.item == item

@@ -19,25 +19,31 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from . import _core
-from .errors import ArgumentTypeError
+from .errors import ArgumentTypeError, FlexmbdError, InvalidParameterError
 
 _NOTE = re.compile(r"^while processing '(\w+)'$")
 
 T = TypeVar("T", bound=type)
 
 
-def converted(error: BaseException, owner: str) -> ArgumentTypeError | None:
-    """The ArgumentTypeError for PyO3's conversion error `error` of a call to `owner`, or
-    None when `error` is not one (an error of the Rust code itself is left as it is)."""
-    if not isinstance(error, (TypeError, OverflowError)) or isinstance(error, ArgumentTypeError):
+def converted(error: BaseException, owner: str) -> InvalidParameterError | None:
+    """The ArgumentTypeError for PyO3's conversion error `error` of a call to `owner` (an
+    InvalidParameterError for a value PyO3 cannot take: a tuple of the wrong length), or None
+    when `error` is not one (an error of the Rust code itself is left as it is)."""
+    if not isinstance(error, (TypeError, OverflowError, ValueError)) or isinstance(
+        error, FlexmbdError
+    ):
         return None
     names = [m.group(1) for note in getattr(error, "__notes__", ()) if (m := _NOTE.match(note))]
     if not names:
         return None
     detail = str(error)
+    message = f"{owner}: argument {names[0]!r}: {detail}"
+    if isinstance(error, ValueError):
+        return InvalidParameterError(message, item=names[0])
     if isinstance(error, OverflowError):
-        detail = f"out of range ({detail})"
-    return ArgumentTypeError(f"{owner}: argument {names[0]!r}: {detail}", item=names[0])
+        message = f"{owner}: argument {names[0]!r}: out of range ({detail})"
+    return ArgumentTypeError(message, item=names[0])
 
 
 def _wrapped(function: Callable[..., Any], owner: str) -> Callable[..., Any]:
@@ -45,7 +51,7 @@ def _wrapped(function: Callable[..., Any], owner: str) -> Callable[..., Any]:
     def call(*args: Any, **kwargs: Any) -> Any:
         try:
             return function(*args, **kwargs)
-        except (TypeError, OverflowError) as error:
+        except (TypeError, OverflowError, ValueError) as error:
             typed = converted(error, owner)
             if typed is None:
                 raise
