@@ -206,7 +206,7 @@ pub fn correction_events(
         ];
         let parts = if recorded {
             let (relative, change) = parts[3].1;
-            if relative > tol && projected.is_none_or(|(c, _)| change > c) {
+            if relative > tol && projected.map_or(true, |(c, _)| change > c) {
                 projected = Some((change, body.name.as_str()));
             }
             &parts[..3]
