@@ -315,6 +315,11 @@ def test_sensor_values_are_labelled_by_axis_in_tables():
     data = result.to_xarray()
     values = data["sensors"].sel(sensor_value="tip.z").to_numpy()
     np.testing.assert_array_equal(values, result.sensor("tip")[:, 2])
+    # A sensor named like a body's series overwrote its column without a word.
+    system.add_sensor(tip, "position", name="bob.position")
+    result = fm.simulate(system, 0.05, 1e-2)
+    with pytest.raises(fm.InvalidModelError, match="two time series are named 'bob.position.x'"):
+        result.to_dataframe()
 
 
 # Faults (issue 28) ------------------------------------------------------------------------

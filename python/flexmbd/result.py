@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from . import _core
 from ._checks import integer, integers_array
-from .errors import InvalidParameterError, UnknownItemError
+from .errors import InvalidModelError, InvalidParameterError, UnknownItemError
 from .rotation import angular_velocity, euler_parameters_to_matrix
 
 Array = NDArray[np.float64]
@@ -30,6 +30,20 @@ _STRESS_OF = {
     "tet10": "a solid's stresses are stresses",
     "hex8": "a solid's stresses are stresses",
 }
+
+
+class _Columns(dict):
+    """The columns of `Result.to_dataframe`: a name given twice (a sensor named
+    "bob.position" on a body "bob") is refused instead of overwriting the first series."""
+
+    def __setitem__(self, name: str, values: Any) -> None:
+        if name in self:
+            raise InvalidModelError(
+                f"two time series are named {name!r} (the model's names make the columns, e.g. "
+                "a sensor 'bob.position' and a body 'bob'): rename one of the items",
+                item=name,
+            )
+        super().__setitem__(name, values)
 
 
 class Result:
@@ -479,7 +493,7 @@ class Result:
         """Named time series (SI units): body positions, velocities and Euler parameters,
         elastic coordinates, joint reactions and multipliers, sensors, energies and the
         constraint violation."""
-        columns: dict[str, Array] = {}
+        columns = _Columns()
         for body in self.layout["bodies"]:
             if body["kind"] == "ground":
                 continue
