@@ -221,3 +221,34 @@ def test_the_modes_command_on_a_point_mass(tmp_path, capsys):
     assert [row[3] for row in rows] == ["mass", "mass"]
     assert float(rows[0][1]) == pytest.approx(np.sqrt(9.81) / (2 * np.pi), rel=1e-5)
     assert (tmp_path / "a01_mode1.gif").stat().st_size > 0
+
+
+def test_ids_of_another_system_are_refused_and_names_label_the_channels():
+    # Regression: linearize took a body of another System as this one's body of that index
+    # (and a load on its marker as a load on this system's marker), and labelled the
+    # channels "position of body BodyId(1)".
+    def arm(name):
+        system = fm.System(gravity=(0, -9.81, 0))
+        body = system.add_rigid_body(1.0, (0.1, 0.1, 0.1), position=(0.5, 0, 0), name=name)
+        pivot = system.add_marker(system.ground)
+        pin = system.add_marker(body, position=(-0.5, 0, 0), name=f"{name} pin")
+        system.add_revolute_joint(pivot, pin)
+        return system, body, pin
+
+    system, body, pin = arm("arm")
+    other, other_body, other_pin = arm("other")
+    state = fm.equilibrium(system)
+    for inputs, outputs in (
+        ([], [fm.BodyPosition(other_body, (0, 1, 0))]),
+        ([fm.PointLoad(other_pin, (0, 1, 0))], []),
+    ):
+        with pytest.raises(fm.UnknownItemError, match="linearize: .* of another System"):
+            fm.linearize(system, state, inputs=inputs, outputs=outputs)
+    linear = fm.linearize(
+        system,
+        state,
+        inputs=[fm.PointLoad(pin, (0, 1, 0))],
+        outputs=[fm.BodyPosition(body, (0, 1, 0))],
+    )
+    assert linear.input_names == ["force at marker arm pin"]
+    assert linear.output_names == ["position of body arm"]

@@ -1364,6 +1364,7 @@ def linearize(
     outputs = _items(
         outputs, "outputs", OUTPUTS, "NodeDisplacement, BodyPosition, ElasticCoordinate"
     )
+    _refuse_stray_ids(model, inputs, outputs)
     _check_state(model, state)
     unheld = unheld_frame_error(model, np.asarray(state.coordinates, dtype=float), state.time)
     if unheld is not None:
@@ -1399,11 +1400,23 @@ def linearize(
     )
     if inputs:
         linear.input_forces = input_forces(system, state, inputs)
-        linear.input_names = [load.label() for load in inputs]
+        linear.input_names = [_label(load, model.describe()) for load in inputs]
     if outputs:
         linear.output_rows = output_rows(model, outputs)
-        linear.output_names = [output.label() for output in outputs]
+        linear.output_names = [_label(output, model.describe()) for output in outputs]
     return linear
+
+
+def _label(item: Any, layout: dict[str, Any]) -> str:
+    """The label of an input or output, its body or marker named by the model's name for it
+    ("position of body arm", not "position of body BodyId(1)")."""
+    if item.name is None:
+        for field, kind in (("body", "bodies"), ("marker", "markers")):
+            index = getattr(getattr(item, field, None), "index", None)
+            entries = layout.get(kind) or []
+            if isinstance(index, int) and 0 <= index < len(entries) and entries[index].get("name"):
+                return dataclasses.replace(item, **{field: entries[index]["name"]}).label()
+    return item.label()
 
 
 #: The outputs :func:`linearize` takes.
@@ -1483,6 +1496,22 @@ def _check_state(model: _core.Model, state: State) -> None:
 #: Largest violation of the constraints at the initial coordinates (relative to the largest
 #: coordinate, at least 1) that :func:`linearize_at_rest` takes as assembled.
 ASSEMBLED = 1e-8
+
+
+def _refuse_stray_ids(model: Any, inputs: Sequence[Any], outputs: Sequence[Any]) -> None:
+    """Refuses the ids of another System's items in the inputs and outputs (as `Result`,
+    `State` and the System's own methods do): a body of another system was taken as this
+    one's item of that index, a load on its marker applied to this system's marker."""
+    from .system import identity_of, item_name, stray_id, stray_id_error
+
+    identity = identity_of(model)
+    if identity is None:
+        return
+    for item in (*inputs, *outputs):
+        fields = [getattr(item, f.name) for f in dataclasses.fields(item)]
+        stray = stray_id(identity, fields, lambda it: item_name(identity, it))
+        if stray is not None:
+            raise stray_id_error(stray, "linearize", item_name(identity, stray))
 
 
 def linearize_at_rest(

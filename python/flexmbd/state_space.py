@@ -43,7 +43,12 @@ class PointLoad:
     name: str | None = None
 
     def label(self) -> str:
-        return self.name or f"{self.kind} at marker {getattr(self.marker, 'index', self.marker)}"
+        marker = (
+            self.marker
+            if isinstance(self.marker, str)
+            else getattr(self.marker, "index", self.marker)
+        )
+        return self.name or f"{self.kind} at marker {marker}"
 
 
 @dataclass(frozen=True)
