@@ -158,6 +158,15 @@ def test_plot_and_animate_a_results_file(tmp_path, capsys):
     assert "nowhere" in capsys.readouterr().err
     assert main(["animate", "fourbar.h5", "--frames", "4", "-o", "fourbar.gif"]) == 0
     assert (tmp_path / "fourbar.gif").stat().st_size > 1000
+    # A PNG sequence and a folder of frames: the files written are said (it said "written:
+    # frames.png", a file that does not exist).
+    capsys.readouterr()
+    assert main(["animate", "fourbar.h5", "--frames", "2", "-o", "frames.png"]) == 0
+    out = capsys.readouterr().out
+    assert "written: 2 frames frames_0000.png .. frames_0001.png" in out
+    assert not (tmp_path / "frames.png").exists() and (tmp_path / "frames_0001.png").exists()
+    assert main(["animate", "fourbar.h5", "--frames", "2", "-o", "movie.mp4"]) == 0
+    assert "(the folder movie.mp4: only .gif and .png name files)" in capsys.readouterr().out
     # --frames 0 is a usage error before anything is written (the ParaView series was).
     with pytest.raises(SystemExit) as usage:
         main(["animate", "fourbar.h5", "--frames", "0", "--vtu", "zero_vtu"])

@@ -708,16 +708,28 @@ def _animate(args: argparse.Namespace) -> int:
             movie = Path(args.output) if args.output else results.with_suffix(".gif")
             if args.frames is not None:
                 options["frames"] = args.frames
-            render_animation(
+            written = render_animation(
                 result, movie, backend=args.backend, progress=not args.quiet, **options
             )
-            print(f"written: {movie}")
+            print(f"written: {_written_frames(movie, written)}")
     except BrokenPipeError:
         raise
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd animate: {error}", file=sys.stderr)
         return 2
     return 0
+
+
+def _written_frames(path: Path, written: Any) -> str:
+    """What `render_animation` wrote to `path`: the GIF, or the PNG frames (it said "written:
+    run.png" of a sequence run_0000.png ..., and of a folder of frames named like a movie)."""
+    files = [Path(f) for f in written] if isinstance(written, list | tuple) else [path]
+    text = (
+        str(files[0]) if len(files) == 1 else f"{len(files)} frames {files[0]} .. {files[-1].name}"
+    )
+    if path.is_dir() and path.suffix:
+        text += f" (the folder {path}: only .gif and .png name files)"
+    return text
 
 
 def _speeds(text: str) -> Any:
