@@ -122,6 +122,25 @@ def test_vtu_rejects_a_bad_stride(slider_crank, tmp_path):
         animation.write_vtu_series(slider_crank, tmp_path, scale=-1.0)
 
 
+def test_vtu_series_names_and_folders_are_checked_and_stale_frames_removed(slider_crank, tmp_path):
+    # Regression: a name "a/b" was a raw FileNotFoundError, "" wrote hidden files, a file as
+    # the folder a raw FileExistsError; a shorter series over a longer one left its frames.
+    for name in ("a/b", "", ".hidden"):
+        with pytest.raises(fm.InvalidParameterError, match="name: the file name of the series"):
+            animation.write_vtu_series(slider_crank, tmp_path / "v", name=name)
+    (tmp_path / "file").write_text("mine")
+    with pytest.raises(fm.InvalidParameterError, match="is a file, not a folder"):
+        animation.write_vtu_series(slider_crank, tmp_path / "file")
+    folder = tmp_path / "series"
+    animation.write_vtu_series(slider_crank, folder, every=2)
+    (folder / "notes_00099.vtu").write_text("another series")
+    many = len(list(folder.glob("result_*.vtu")))
+    pvd = animation.write_vtu_series(slider_crank, folder, every=10)
+    kept = sorted(folder.glob("result_*.vtu"))
+    assert len(kept) == len(animation.read_pvd(pvd)) < many
+    assert (folder / "notes_00099.vtu").exists()
+
+
 def test_vtu_times_window_then_every_nth_record_and_the_windows_last(slider_crank, tmp_path):
     # Records every 2 ms over 0 .. 20 ms: the window 5 .. 15 ms holds 6, 8, 10, 12, 14 ms;
     # every 3rd from its first is 6 and 12 ms, and the window's last, 14 ms, is added.

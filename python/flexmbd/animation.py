@@ -46,6 +46,7 @@ import functools
 import logging
 import math
 import os
+import re
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -607,7 +608,19 @@ def write_vtu_series(
     xx, yy, zz, xy, yz, xz; zero on beams and the mechanism). Cell data: ``body``.
 
     `progress`: True shows a progress bar of the files written (:func:`flexmbd.progress.track`),
-    a function is called as ``progress(done, total)``."""
+    a function is called as ``progress(done, total)``. Frames ``<name>_NNNNN.vtu`` of an
+    earlier, longer series of the same name in `directory` are removed. Raises
+    `InvalidParameterError` for a `name` with a folder in it, an empty or hidden one, and a
+    `directory` that is a file."""
+    if not isinstance(name, str) or not re.fullmatch(r"[^/\\.][^/\\]*", name):
+        raise InvalidParameterError(
+            f"name: the file name of the series (no folder, not empty or hidden), got {name!r}",
+            item="name",
+        )
+    if Path(directory).exists() and not Path(directory).is_dir():
+        raise InvalidParameterError(
+            f"directory: '{directory}' is a file, not a folder", item="directory"
+        )
     records = _records(result, every, times)
     files, size = vtu_series_size(result, every, times=times, stress=stress)
     logger.log(
@@ -648,6 +661,13 @@ def write_vtu_series(
     ElementTree.indent(collection)
     pvd = out / f"{name}.pvd"
     ElementTree.ElementTree(collection).write(pvd, encoding="utf-8", xml_declaration=True)
+    # Frames of an earlier, longer series of this name are not this one's (21 files were
+    # left beside a .pvd of 5).
+    frame = re.compile(re.escape(name) + r"_(\d{5})\.vtu")
+    for stale in out.iterdir():
+        match = frame.fullmatch(stale.name)
+        if match and int(match.group(1)) >= len(records) and stale.is_file():
+            stale.unlink()
     return pvd
 
 
