@@ -783,3 +783,23 @@ def test_a_run_continued_from_its_recorded_state_is_not_an_initial_correction(st
     else:
         with pytest.warns(InitialCorrectionWarning):
             fm.simulate(system, 1.1, 1e-3, initial_state=changed)
+
+
+def test_an_equilibrium_state_has_the_section_forces_of_its_beams(assert_close):
+    # Regression: a State had no section_forces (the stresses error pointed there), so a
+    # static root moment needed a dummy run. Cantilever of 1 m, 10 N at its tip: M = P L.
+    from flexmbd.fe import Material, build_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 8)
+    data = build_body(
+        nodes, elements, Material(2.1e11, 0.3, 7800.0), section=Section.circle(0.01),
+        reference="clamped", reference_nodes=[0],
+    )  # fmt: skip
+    system = fm.System()
+    beam = system.add_flexible_body(data, name="beam")
+    system.add_fixed_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
+    system.add_point_force(system.add_node_marker(beam, 9), (0.0, -10.0, 0.0))
+    forces = fm.equilibrium(system).section_forces(beam)
+    assert forces.shape == (8, 2, 6)
+    assert_close(np.abs(forces[0, 0, [1, 5]]), [10.0, 10.0], rel=1e-9, what="V_y, M_z at root")
+    assert_close(np.abs(forces[-1, 1, 5]), 0.0, abs=1e-9, what="M_z at the tip")

@@ -182,6 +182,17 @@ class State:
         order), (nodes, 6); see ``Result.stresses``."""
         return self._view().stresses(body, [0])[0]
 
+    def shell_stresses(self, body: object) -> Array:
+        """Stresses of a deformable body's shells at their top, middle and bottom surfaces at
+        its nodes (Pa, body axes, Voigt order), (nodes, 3, 6); see ``Result.shell_stresses``."""
+        return self._view().shell_stresses(body, [0])[0]
+
+    def section_forces(self, body: object) -> Array:
+        """Section resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every beam element of
+        a deformable body (N, N m; element axes), (beams, 2, 6); see
+        ``Result.section_forces``: the static root moment of an equilibrium."""
+        return self._view().section_forces(body, [0])[0]
+
     def joint_multipliers(self, joint: object) -> Array:
         """The multipliers of a joint's equations (for a driver: its effort), (equations,)."""
         if self.multipliers is None:
