@@ -765,3 +765,18 @@ def test_large_body_arrays_are_compressed_in_results_files(tmp_path):
         stiffness = file["flexible"]["1"]["stiffness"]["data"]
         assert stiffness.nbytes >= 64 * 1024 and stiffness.compression == "gzip"
         assert stiffness.id.get_storage_size() < stiffness.nbytes
+
+
+def test_a_path_that_is_no_path_and_a_bool_item_are_named():
+    # Regression: read_results(None) was a bare TypeError of pathlib; result.position(True)
+    # was body 1; a NaN given to a state's with_* said only "expected 3 finite values".
+    for path in (None, 3):
+        with pytest.raises(fm.ArgumentTypeError, match="path: a results file's path"):
+            fm.read_results(path)
+        with pytest.raises(fm.ArgumentTypeError, match="path: a results file's path"):
+            read_results_metadata(path)
+    result = fm.simulate(pendulum(), 0.01, 1e-3)
+    with pytest.raises(fm.UnknownItemError, match="got True"):
+        result.position(True)
+    with pytest.raises(fm.InvalidParameterError, match="entry 1 is nan"):
+        result.state().with_position("mass", [1.0, np.nan, 0.0])

@@ -200,6 +200,10 @@ class Result:
             if stray_id(self.system_identity, item, name_here) is not None:
                 raise stray_id_error(item, self._described_as, name_here(item))
             index = item.index  # type: ignore[attr-defined]
+        elif isinstance(item, bool | np.bool_):  # (True was body 1)
+            raise UnknownItemError(
+                f"expected a {id_type.__name__}, an index or a name, got {item!r}", item=str(item)
+            )
         elif isinstance(item, int | np.integer):
             index = int(item)
         elif isinstance(item, str):

@@ -54,6 +54,7 @@ import numpy as np
 from . import _core, errors
 from ._hdf5 import global_heap_damage
 from .errors import (
+    ArgumentTypeError,
     FlexmbdError,
     InvalidParameterError,
     MissingFileError,
@@ -677,7 +678,7 @@ def read_results_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The header of a results file without its records: ``layout``, ``metadata``,
     ``records``, ``status``, ``statistics``, ``events``, ``redundancy``, ``flexible`` (body
     indices) and ``version``. Raises :class:`flexmbd.ResultsFileError` for a damaged file."""
-    path = Path(path)
+    path = _path(path)
     return _guarded(path, lambda: _read_results_metadata(path))
 
 
@@ -814,6 +815,17 @@ def _ordered(time: np.ndarray) -> tuple[int, str]:
 _DAMAGE = (OSError, KeyError, ValueError, RuntimeError, TypeError, AttributeError)
 
 
+def _path(path: Any) -> Path:
+    """A results file's path, or an ArgumentTypeError naming the argument (Path(None) was a
+    bare TypeError)."""
+    if not isinstance(path, str | os.PathLike):
+        raise ArgumentTypeError(
+            f"path: a results file's path (str or os.PathLike), got {type(path).__name__}",
+            item="path",
+        )
+    return Path(path)
+
+
 def _guarded(path: Path, read: Any) -> Any:
     """`read()`, with the errors of a damaged file (h5py raises OSError, KeyError,
     ValueError, RuntimeError for broken metadata) as a ResultsFileError naming the file;
@@ -838,7 +850,7 @@ def read_results(path: str | os.PathLike[str]) -> Result:
     flips) gives the records that can be read, with a :class:`flexmbd.ResultsFileError` as
     ``error`` saying how many; a file whose header or model description cannot be read
     raises it. Nothing waits on damaged metadata."""
-    path = Path(path)
+    path = _path(path)
     return _guarded(path, lambda: _read_results(path))
 
 

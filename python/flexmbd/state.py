@@ -222,10 +222,15 @@ class State:
         span = self._slice(body, part)
         target = np.array(self.velocities if rates else self.coordinates)
         values = _floats(values, part).ravel()
-        if values.shape != target[span].shape or not np.all(np.isfinite(values)):
+        if values.shape != target[span].shape:
             raise InvalidParameterError(
                 f"{part}: expected {target[span].shape[0]} finite values, got {values.shape}",
                 item=part,
+            )
+        if not np.all(np.isfinite(values)):
+            k = int(np.flatnonzero(~np.isfinite(values))[0])
+            raise InvalidParameterError(
+                f"{part}: expected finite values, entry {k} is {values[k]}", item=part
             )
         target[span] = values
         changed = {"velocities" if rates else "coordinates": target}
