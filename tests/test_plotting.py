@@ -298,3 +298,14 @@ def test_efforts_are_the_signed_driving_torques(slider_crank, tmp_path):
         plotting.plot_efforts(slider_crank, "translation driver")
     with pytest.raises(fm.InvalidParameterError, match="not a driver"):
         slider_crank.driver_effort("crank pin")
+
+
+def test_plot_result_refuses_a_bad_dpi_and_a_format_its_file_contradicts(slider_crank, tmp_path):
+    # Regression: dpi 0 was matplotlib's bare ValueError, NaN "cannot convert float NaN to
+    # integer", and format="svg" with a .png file wrote a PNG without a word.
+    for dpi in (0, -5, float("nan"), True):
+        with pytest.raises(fm.InvalidParameterError, match="dpi must be a number"):
+            plotting.plot_result(slider_crank, tmp_path / "a.png", "energy", dpi=dpi)
+    with pytest.raises(fm.InvalidParameterError, match="format 'svg' and the file"):
+        plotting.plot_result(slider_crank, tmp_path / "a.png", "energy", format="svg")
+    assert not (tmp_path / "a.png").exists()

@@ -928,9 +928,19 @@ def plot_result(
     if len(result.time) == 0:
         raise InvalidParameterError("the result has no records to plot")
     check_quantities(result, names)
+    if isinstance(dpi, bool) or not isinstance(dpi, int | float) or not (0 < dpi < 10_000):
+        raise InvalidParameterError(
+            f"dpi must be a number in (0, 10000), got {dpi!r}", item="dpi"
+        )  # (matplotlib's bare ValueError, or NaN's "cannot convert float NaN to integer")
     target = Path(path_or_dir)
     suffix = target.suffix.lower()
     if suffix in IMAGE_SUFFIXES:
+        if format.lower().lstrip(".") not in ("png", suffix.lstrip(".")):
+            raise InvalidParameterError(
+                f"format {format!r} and the file {str(target)!r}: the file's suffix is the "
+                "format of a single figure (format is for a directory of figures)",
+                item="format",
+            )
         target.parent.mkdir(parents=True, exist_ok=True)
         figure = plot_quantities(result, None if quantities is None else names)
         figure.savefig(target, dpi=dpi)
