@@ -148,6 +148,9 @@ def test_a_page_never_replaces_a_file_of_another_kind(tmp_path):
         fm.view(results, tmp_path / "a.html", title=5)
     with pytest.raises(fm.ArgumentTypeError, match="source: a flexmbd.Result"):
         fm.view(None, tmp_path / "a.html")
+    # The options of mode shapes were ignored for a result.
+    with pytest.raises(fm.InvalidParameterError, match="modes: for the modes of a Linearized"):
+        fm.view(results, tmp_path / "a.html", modes=3)
     assert fm.view(results, tmp_path / "page.HTML").exists()
 
 

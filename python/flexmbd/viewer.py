@@ -121,6 +121,20 @@ def view(
         datasets = _mode_datasets(source, model, modes, frames_per_period, scale)
         heading = title or "mode shapes"
     else:
+        given = [
+            name
+            for name, value, default in (
+                ("model", model, None),
+                ("modes", modes, MODE_COUNT),
+                ("frames_per_period", frames_per_period, FRAMES_PER_PERIOD),
+            )
+            if value is not default and value != default
+        ]
+        if given:  # (they were ignored without a word)
+            raise InvalidParameterError(
+                f"{', '.join(given)}: for the modes of a LinearizedSystem, not a result",
+                item=given[0],
+            )
         if isinstance(source, str | os.PathLike):
             from .results_file import read_results
 
