@@ -775,19 +775,23 @@ def _rows_in_file(dataset: h5py.Dataset, count: int, size: int) -> int:
             offset = dataset.id.get_offset()
             return 0 if offset is None else min(count, max(size - offset, 0) // max(row_bytes, 1))
         whole_rows = tuple(chunks[1:]) == tuple(dataset.shape[1:])
-        stored = {}
+        # The chunks of each block of rows (several when a row is split across chunks).
+        per_block = int(
+            np.prod([-(-n // c) for n, c in zip(dataset.shape[1:], chunks[1:], strict=True)])
+        )
+        blocks: dict[int, list[Any]] = {}
         for k in range(dataset.id.get_num_chunks()):
             info = dataset.id.get_chunk_info(k)
-            stored[info.chunk_offset] = info
+            blocks.setdefault(info.chunk_offset[0], []).append(info)
         rows = 0
         while rows < count:
-            info = stored.get((rows,) + (0,) * (dataset.ndim - 1))
-            if info is None or info.byte_offset is None:
+            stored = blocks.get(rows, [])
+            if len(stored) < per_block or any(info.byte_offset is None for info in stored):
                 break
-            room = size - info.byte_offset
-            if room >= info.size and (whole_rows or dataset.ndim == 1):
+            if all(size - info.byte_offset >= info.size for info in stored):
                 rows += chunks[0]
                 continue
+            room = size - stored[0].byte_offset
             if whole_rows and dataset.compression is None and room > 0:
                 rows += min(chunks[0], room // max(row_bytes, 1))
             break
