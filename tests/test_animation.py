@@ -306,3 +306,10 @@ def test_pyvista_renders_the_same_frames(slider_crank, tmp_path):
     assert len(files) == 2
     for file in files:
         assert_rich_image(file, colours=3)
+
+
+def test_colouring_by_stress_without_solids_is_refused(slider_crank):
+    # Regression: a beam-only model coloured by displacement under "stress" without a word
+    # (fm.view refused it).
+    with pytest.raises(fm.InvalidParameterError, match="color_by 'stress' needs a deformable"):
+        animation.render_frame(slider_crank, -1, color_by="stress")

@@ -747,7 +747,12 @@ def _style(
     limits = np.column_stack([centre - half, centre + half])
     top, label = 0.0, ""
     if color_by == "stress" and not any(part.has_solids for part in scene.parts):
-        color_by = "displacement"
+        # (it coloured by displacement under a displacement colour bar, without a word)
+        raise InvalidParameterError(
+            "color_by 'stress' needs a deformable body with solid elements (von Mises of "
+            "solids); use 'displacement' or None",
+            item="stress",
+        )
     if color_by == "displacement":
         top, label = scene.largest_displacement(records), "elastic displacement magnitude (m)"
     elif color_by == "stress":
@@ -891,7 +896,8 @@ def render_frame(
     """Draws record `record` (an index; negative from the end) of `result` into a matplotlib
     3D Axes (a new figure if None) and returns the Axes. `scale`: deformation scale (None or
     "auto": automatic); `view`: "auto", "xy", "xz", "yz", "iso" or (elevation, azimuth) in
-    degrees; `color_by`: "displacement", "stress" (von Mises of solids) or None."""
+    degrees; `color_by`: "displacement", "stress" (von Mises of solids; an
+    `InvalidParameterError` without them) or None."""
     scene = build_scene(result)
     index = _record_index(result, record)
     style = _style(scene, np.array([index]), scale, view, color_by)
