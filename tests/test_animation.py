@@ -313,3 +313,31 @@ def test_colouring_by_stress_without_solids_is_refused(slider_crank):
     # (fm.view refused it).
     with pytest.raises(fm.InvalidParameterError, match="color_by 'stress' needs a deformable"):
         animation.render_frame(slider_crank, -1, color_by="stress")
+
+
+def test_a_node_marker_with_a_sensor_moves_with_the_magnified_node():
+    # Regression: the sensor's true-scale track took priority, drawing the tip marker of a
+    # beam magnified 712 times 0.1 m off its own node.
+    from flexmbd.fe import Material, Section, build_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 4)
+    data = build_body(
+        nodes, elements, Material(2.1e9, 0.3, 7800.0), section=Section.circle(0.01),
+        reference="clamped", reference_nodes=[0],
+    )  # fmt: skip
+    system = fm.System(gravity=(0, -9.81, 0))
+    beam = system.add_flexible_body(data, name="arm")
+    system.add_revolute_joint(system.add_marker(system.ground), system.add_node_marker(beam, 1))
+    system.add_sensor(system.add_node_marker(beam, 5), "position", name="tip")
+    result = fm.simulate(system, 0.05, 1e-3, output_interval=0.01)
+    scene = animation.build_scene(result)
+    records = np.arange(len(result.time))
+    (part,) = scene.parts
+    tip = next(m for m, (_, _, node, sensor) in scene.markers.items() if sensor is not None)
+    node = scene.markers[tip][2]
+    for scale in (1.0, 50.0):
+        drawn = scene.nodes(part, records, scale)[0][:, node]
+        np.testing.assert_allclose(scene.marker_tracks(records, scale)[tip], drawn, atol=1e-12)
+    np.testing.assert_allclose(
+        scene.marker_tracks(records, 1.0)[tip], result.sensor("tip")[records], atol=1e-9
+    )

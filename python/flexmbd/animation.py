@@ -194,12 +194,14 @@ class Scene:
         parts = {part.body: part for part in self.parts}
         node_cache: dict[int, Array] = {}
         for marker, (body, local, node, sensor) in self.markers.items():
-            if sensor is not None:
-                tracks[marker] = self.result.sensor(sensor)[records]
-            elif node is not None:
+            # A marker at a node moves with the drawn (magnified) node, also when a sensor
+            # records it (the sensor's true-scale track drew it 0.1 m off its node at x712).
+            if node is not None:
                 if body not in node_cache:
                     node_cache[body] = self.nodes(parts[body], records, scale)[0]
                 tracks[marker] = node_cache[body][:, node]
+            elif sensor is not None:
+                tracks[marker] = self.result.sensor(sensor)[records]
             elif local is not None:
                 position, rotation = self.pose(body, records)
                 tracks[marker] = position + rotation @ local
