@@ -177,6 +177,8 @@ def test_reaction_components_are_the_result_reactions(slider_crank):
         ("deflection:crank", fm.UnknownItemError, "not a deformable body"),
         ("elastic:slider", fm.UnknownItemError, "not a deformable body"),
         ("deflection:rod:99", fm.UnknownItemError, "no node with id 99"),
+        # (it said "no body named 'rod:5.5'")
+        ("deflection:rod:5.5", fm.InvalidParameterError, "the node must be a node id .*'5.5'"),
     ],
 )
 def test_bad_quantity_names_raise_typed_errors(slider_crank, quantity, error, message):

@@ -817,6 +817,13 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
         head, _, tail = rest.rpartition(":")
         if rest not in names and head and re.fullmatch(r"-?\d+", tail.strip()):
             rest, node = head.strip(), int(tail)
+        elif rest not in names and head.strip() in names:
+            # ("deflection:arm:5.5" said "no body named 'arm:5.5'")
+            raise InvalidParameterError(
+                f"quantity {quantity!r}: the node must be a node id (an integer), got "
+                f"{tail.strip()!r}",
+                item=quantity,
+            )
         body = resolve_item(result, "bodies", rest)
         _, _, data = deformable(result, body)
         if node is not None:
