@@ -676,3 +676,27 @@ def test_bodies_copied_from_templates_read_back_as_each_models_own(tmp_path, mon
     with h5py.File(tmp_path / "3.h5") as file:
         assert file["flexible/2/stiffness"].attrs["type"] == "sparse"
         assert file["flexible/2"].attrs["format"] == BODY_FILE_FORMAT
+
+
+def test_a_file_that_is_no_body_file_is_not_replaced(tmp_path):
+    # Regression: `flexmbd preprocess mesh.inp -o model.yaml` replaced the model file (and
+    # save_body any file) by a body file.
+    body = make_body(modal=False)
+    other = tmp_path / "model.yaml"
+    other.write_text("name: mine\n")
+    with pytest.raises(InvalidParameterError, match="exists and is not a flexmbd body file"):
+        save_body(body, other)
+    assert other.read_text() == "name: mine\n"
+    path = tmp_path / "body.h5"
+    save_body(body, path)
+    save_body(body, path)  # a body file is replaced
+    import meshio
+
+    from flexmbd.cli import main
+
+    box = fm.fe.shapes.box((1.0, 0.1, 0.1), (2, 1, 1), "tet4")
+    mesh = tmp_path / "bar.vtu"
+    meshio.write(mesh, meshio.Mesh(box.nodes, [("tetra", box.elements["tet4"])]))
+    argv = ["preprocess", str(mesh), "-o", str(other), "-E", "2e11", "--poisson-ratio", "0.3"]
+    assert main([*argv, "--density", "7800"]) == 2
+    assert other.read_text() == "name: mine\n"

@@ -298,6 +298,7 @@ def test_wtmass_scales_the_mass_and_concentrated_masses_are_not_left_out(
         ([900, 103, "", 10.0, 0.1], r"CONM2 900: the centre of gravity is offset from grid 103"),
         ([900, 103, "", 10.0, "", "", "", "", 1.0], r"a rotary inertia on grid 103, a node of"),
         ([900, 99999, "", 10.0], r"CONM2 900 refers to grid 99999"),
+        ([900, 103, "", 1.0, "", "", "", "", -1.0], r"rotary inertia .* is not positive semi"),
     ):
         bad_path = _written(
             tmp_path,
@@ -306,7 +307,15 @@ def test_wtmass_scales_the_mass_and_concentrated_masses_are_not_left_out(
         )
         with pytest.raises((InvalidModelError, UnknownItemError), match=match) as info:
             read_nastran(bad_path)
-        assert "skip=['CONM2']" in str(info.value) or "99999" in str(info.value)
+        assert (
+            "skip=['CONM2']" in str(info.value)
+            or "99999" in str(info.value)
+            or "semi" in str(info.value)
+        )
+    twice = conm2 + card("CONM2", [900, 106, "", 1.0], "small")
+    bad_path = _written(tmp_path, "twice.bdf", text.replace("ENDDATA", twice + "ENDDATA"))
+    with pytest.raises(InvalidModelError, match=r"element id 900 is defined twice"):
+        read_nastran(bad_path)
     cmass = card("CMASS2", [901, 10.0, 103, 1], "small")
     path = _written(tmp_path, "cmass.bdf", text.replace("ENDDATA", cmass + "ENDDATA"))
     with pytest.raises(
@@ -356,6 +365,23 @@ def test_shells_from_cquad4_ctria3_and_pshell(element, tmp_path, assert_close):
     path.write_text(deck_of(plate, "free").replace("PSHELL,1,1,0.002,1", "PSHELL,1,1,0.002,1,2."))
     with pytest.raises(InvalidModelError, match=r"12I/T\*\*3 = 2.0 is not supported"):
         read_nastran(path).body()
+    # A membrane (MID2 blank) had full bending stiffness; a non-structural mass and corner
+    # thicknesses were ignored (the mass lost, a 4 mm plate taken as 2 mm).
+    for pshell, match in (
+        ("PSHELL,1,1,0.002", "MID2 is blank: in Nastran a membrane"),
+        ("PSHELL,1,1,0.002,1,,1,,5.0", r"NSM = 5.0 \(non-structural mass per area\)"),
+    ):
+        path.write_text(deck_of(plate, "free").replace("PSHELL,1,1,0.002,1", pshell))
+        with pytest.raises(InvalidModelError, match=match):
+            read_nastran(path).body()
+    name = NASTRAN_NAMES[element]
+    count = 4 if element == "quad4" else 3
+    first = deck_of(plate, "free").split(f"\n{name},", 1)
+    line, rest = first[1].split("\n", 1)
+    corners = ",".join(["0.004"] * count)
+    path.write_text(f"{first[0]}\n{name},{line}\n,,,{corners}\n{rest}")
+    with pytest.raises(InvalidModelError, match=r"corner thicknesses \(TFLAG, T1-T"):
+        read_nastran(path)
 
 
 def write_op4(path, matrices, sparse=False):

@@ -336,11 +336,28 @@ def test_gmsh_and_abaqus_shell_meshes_are_read(aluminium, tmp_path):
     )
     assert body.shell["thickness"] == 0.003
     check_close(body.invariants.mass, RHO * 0.003 * 0.2, rel=1e-12, what="panel mass")
-    second = "*SHELL SECTION, ELSET=X\n0.004\n*NSET, NSET=CLAMP"
+    second = "*SHELL SECTION, ELSET=PANEL\n0.004\n*NSET, NSET=CLAMP"
     two = ABAQUS_SHELLS.replace("*NSET, NSET=CLAMP", second)
     (tmp_path / "two.inp").write_text(two)
     with pytest.raises(fm.errors.InvalidModelError, match="thicknesses"):
         fm.fe.read_mesh(tmp_path / "two.inp")
+    # Layered sections, offsets, nodal thicknesses and unknown element sets were read as one
+    # plain section (a 2-layer COMPOSITE: half the mass, 8 times the deflection).
+    section = "*SHELL SECTION, ELSET=PANEL, MATERIAL=AL"
+    for options, error, match in (
+        (", COMPOSITE", fm.errors.InvalidModelError, "with COMPOSITE"),
+        (", OFFSET=SPOS", fm.errors.InvalidModelError, "with OFFSET"),
+        (", NODAL THICKNESS", fm.errors.InvalidModelError, "with NODAL THICKNESS"),
+    ):
+        (tmp_path / "bad.inp").write_text(ABAQUS_SHELLS.replace(section, section + options))
+        with pytest.raises(error, match=match):
+            fm.fe.read_mesh(tmp_path / "bad.inp")
+    for offset in (", OFFSET=SMID", ", OFFSET=0."):
+        (tmp_path / "mid.inp").write_text(ABAQUS_SHELLS.replace(section, section + offset))
+        assert fm.fe.read_mesh(tmp_path / "mid.inp").shell_thickness == 0.003
+    (tmp_path / "bad.inp").write_text(ABAQUS_SHELLS.replace("ELSET=PANEL, MAT", "ELSET=NONE, MAT"))
+    with pytest.raises(fm.UnknownItemError, match="ELSET=NONE: no element set of that name"):
+        fm.fe.read_mesh(tmp_path / "bad.inp")
 
 
 def swinging_panel(aluminium):
@@ -820,3 +837,28 @@ def test_orient_shells_is_an_option_of_build_body_model_files_and_the_command_li
     assert caught == []
     saved = fm.fe.load_body(tmp_path / "panel.h5")
     np.testing.assert_array_equal(saved.elements["quad4"], mesh.elements["quad4"])
+
+
+def test_a_solid_mesh_whose_file_has_a_shell_section_is_read_as_a_solid(aluminium, tmp_path):
+    # Regression: body_from_mesh passed the file's *SHELL SECTION thickness on as `shell`,
+    # and a hex8 mesh was refused for "shell: the mesh has no shell elements".
+    text = """*HEADING
+block
+*NODE
+1, 0., 0., 0.
+2, 1., 0., 0.
+3, 1., 1., 0.
+4, 0., 1., 0.
+5, 0., 0., 1.
+6, 1., 0., 1.
+7, 1., 1., 1.
+8, 0., 1., 1.
+*ELEMENT, TYPE=C3D8, ELSET=BLOCK
+1, 1, 2, 3, 4, 5, 6, 7, 8
+*SHELL SECTION, ELSET=BLOCK, MATERIAL=AL
+0.002
+"""
+    (tmp_path / "block.inp").write_text(text)
+    body = fm.fe.body_from_mesh(tmp_path / "block.inp", aluminium)
+    assert list(body.elements) == ["hex8"] and body.shell is None
+    check_close(body.invariants.mass, RHO, rel=1e-12, what="1 m^3 of aluminium")

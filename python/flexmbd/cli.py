@@ -955,7 +955,7 @@ def _section_argument(text: str) -> Any:
 
 
 def _preprocess(args: argparse.Namespace) -> int:
-    from .fe.body_file import save_body
+    from .fe.body_file import is_body_file, save_body
     from .fe.preprocess import Material, body_from_mesh
 
     options = {
@@ -986,6 +986,8 @@ def _preprocess(args: argparse.Namespace) -> int:
         problem = f"cannot write {output}: its folder {output.parent} does not exist"
     elif output.exists() and output.resolve() == Path(args.mesh).resolve():
         problem = f"{output} is the mesh file; the body file needs another name"
+    elif output.exists() and not is_body_file(output):
+        problem = f"{output} exists and is not a flexmbd body file: it is not replaced"
     elif not os.access(output.parent, os.W_OK):
         problem = f"cannot write {output}: its folder {output.parent} is not writable"
     if problem is not None:

@@ -104,7 +104,8 @@ def save_body(
     """Write ``data`` to the HDF5 body file ``path`` (layout in the module docstring).
 
     The file is written next to ``path`` under a temporary name and then renamed, so an
-    existing file is replaced only by a complete one.
+    existing file is replaced only by a complete one; an existing file that is not a flexmbd
+    body file is not replaced (an `InvalidParameterError`).
 
     Args:
         data: the body; ``data.version`` must be :data:`BODY_DATA_VERSION`.
@@ -136,6 +137,13 @@ def save_body(
     units = _check_units(data.units)
 
     path = Path(path)
+    if path.exists() and not is_body_file(path):
+        # (`flexmbd preprocess mesh.inp -o model.yaml` replaced the model file)
+        raise InvalidParameterError(
+            f"{path} exists and is not a flexmbd body file: it is not replaced (give another "
+            "name, or delete it first)",
+            item=f"file '{path}'",
+        )
     temporary = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         with h5py.File(temporary, "w", track_order=True) as file:
@@ -144,6 +152,20 @@ def save_body(
     finally:
         if temporary.exists():
             temporary.unlink()
+
+
+def is_body_file(path: Path) -> bool:
+    """Whether `path` is a flexmbd body file (its ``format`` attribute says so)."""
+    if not path.is_file():
+        return False
+    try:
+        with h5py.File(path, "r") as file:
+            found = file.attrs.get("format")
+    except (OSError, ValueError, KeyError, RuntimeError):
+        return False
+    if isinstance(found, bytes):
+        found = found.decode("utf-8", "replace")
+    return bool(found == BODY_FILE_FORMAT)
 
 
 def load_body(path: str | os.PathLike[str]) -> FlexibleBodyData:

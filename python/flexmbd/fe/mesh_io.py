@@ -477,6 +477,8 @@ class _AbaqusScan:
     element_types: list[str] = field(default_factory=list)
     # (where, thickness) of each *SHELL SECTION.
     shell_sections: list[tuple[str, float]] = field(default_factory=list)
+    # (where, ELSET) of each *SHELL SECTION that names its elements.
+    shell_elsets: list[tuple[str, str]] = field(default_factory=list)
     # The folder of the input file: *INCLUDE files must be inside it (see `_include_target`).
     root: Path = field(default_factory=Path)
 
@@ -512,6 +514,15 @@ class _AbaqusScan:
     def shell_thickness(self, path: Path) -> float | None:
         """The thickness of the *SHELL SECTION lines (None without one); several different
         thicknesses are an `InvalidModelError` (a body has one shell section)."""
+        defined = set(self.element_sets) | {
+            name.upper() for _, name in self.element_blocks if name is not None
+        }
+        for where, name in self.shell_elsets:
+            if name.upper() not in defined:
+                raise UnknownItemError(
+                    f"{where}: *SHELL SECTION, ELSET={name}: no element set of that name",
+                    item=name,
+                )
         values = sorted({t for _, t in self.shell_sections})
         if len(values) > 1:
             raise InvalidModelError(
@@ -775,6 +786,24 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
             scan.element_types.append((parameters.get("TYPE") or "").upper())
         elif keyword == "SHELL SECTION":
             where = f"{path}, line {first}"
+            # Layered sections, offsets and nodal thicknesses were read as one plain
+            # thickness (a 2-layer COMPOSITE: half the mass, 8 times the deflection).
+            offset = (parameters.get("OFFSET") or "0").upper()
+            unsupported = [
+                name
+                for name, used in (
+                    ("COMPOSITE", "COMPOSITE" in parameters),
+                    ("OFFSET", offset not in ("0", "0.", "0.0", "SMID")),
+                    ("NODAL THICKNESS", "NODAL THICKNESS" in parameters),
+                )
+                if used
+            ]
+            if unsupported:
+                raise InvalidModelError(
+                    f"{where}: *SHELL SECTION with {', '.join(unsupported)}: flexmbd shells have "
+                    "one homogeneous section of constant thickness at the middle surface",
+                    item=f"line {first} of '{path}'",
+                )
             try:
                 thickness = float(data[0][1].split(",")[0]) if data else math.nan
             except ValueError:
@@ -785,6 +814,8 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
                     item=f"line {first} of '{path}'",
                 )
             scan.shell_sections.append((where, thickness))
+            if parameters.get("ELSET"):
+                scan.shell_elsets.append((where, parameters["ELSET"]))
         elif keyword in ("NSET", "ELSET"):
             name = parameters.get(keyword)
             if not name:

@@ -273,10 +273,23 @@ class NastranDeck:
                 if abs(value - default) > 1e-6 * default:
                     raise card.error(f"{what} = {value} is not supported (only {default:.6g})")
             mid1, mid2 = card.integer(2, what="MID1"), card.integer(4, 0, what="MID2")
-            if mid2 not in (0, mid1):
+            if mid2 == 0:
+                # (it was taken as MID1: Nastran's membrane got full bending stiffness)
+                raise card.error(
+                    "MID2 is blank: in Nastran a membrane without bending stiffness, which a "
+                    f"flexmbd shell is not; give MID2 = MID1 = {mid1} for a shell that bends"
+                )
+            if mid2 != mid1:
                 raise card.error(
                     f"MID2 = {mid2} differs from MID1 = {mid1}: one material for membrane and "
                     "bending"
+                )
+            nsm = card.real(8, 0.0, what="NSM")
+            if nsm != 0.0:
+                # (it was ignored: the mass per area was lost)
+                raise card.error(
+                    f"NSM = {nsm} (non-structural mass per area) is not supported: add the mass "
+                    "as point masses of the body (build_body's point_masses) or as bodies"
                 )
             thickness[pid] = card.real(3, what="T")
         if len(set(thickness.values())) > 1:
@@ -585,6 +598,13 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
                 card.field(i) not in (None, "0", "0.", "0.0") for i in (8 if count == 4 else 7,)
             ):
                 raise card.error(f"element {eid}: an offset ZOFFS is not supported")
+            corners = [card.field(i) for i in range(11, 11 + count)]
+            if card.field(10) not in (None, "0") or any(t is not None for t in corners):
+                # (they were ignored: the PSHELL T was used, half of a 4 mm corner thickness)
+                raise card.error(
+                    f"element {eid}: corner thicknesses (TFLAG, T1-T{count}) are not supported: "
+                    "the shells take their PSHELL's thickness T"
+                )
             elements.setdefault("quad4" if count == 4 else "tri3", []).append(
                 (eid, pid, nodes, card)
             )
@@ -685,7 +705,12 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
         values["density"] *= mass_scale
     rotations = any(len(mesh.elements.get(k, ())) for k in ROTATION_ELEMENTS)
     point_masses: dict[int, tuple[float, NDArray[np.float64]]] = {}
+    element_ids = {e[0]: e[3] for items in elements.values() for e in items}
     for card in conm2:
+        eid = card.integer(1, what="EID")
+        if eid in element_ids:
+            raise card.error(f"element id {eid} is defined twice (also {element_ids[eid].where()})")
+        element_ids[eid] = card
         grid, mass, inertia = _conm2(card, grids, systems, index, rotations)
         m0, j0 = point_masses.get(grid, (0.0, np.zeros((3, 3))))
         point_masses[grid] = (m0 + mass_scale * mass, j0 + mass_scale * inertia)
@@ -743,6 +768,11 @@ def _conm2(
             f"{offset.tolist()}: an offset mass is not a point mass of the node; {how}"
         )
     inertia = axes @ inertia @ axes.T
+    scale = max(float(np.abs(inertia).max()), 1e-300)
+    if np.linalg.eigvalsh(inertia).min() < -1e-12 * scale:
+        raise card.error(
+            f"CONM2 {eid}: the rotary inertia {inertia.tolist()} is not positive semi-definite"
+        )
     if np.any(inertia) and not rotations:
         raise card.error(
             f"CONM2 {eid}: a rotary inertia on grid {grid}, a node of solid elements (no "

@@ -1145,7 +1145,9 @@ def body_from_mesh(
     if not isinstance(mesh, Mesh):
         source = str(mesh)
         mesh = read_mesh(mesh)
-    if options.get("shell") is None and mesh.shell_thickness is not None:
+    shells = any(len(mesh.elements.get(kind, ())) for kind in SHELL_ELEMENTS)
+    if options.get("shell") is None and mesh.shell_thickness is not None and shells:
+        # (a solid mesh whose file has a *SHELL SECTION was refused for "shell" not given)
         options = {**options, "shell": mesh.shell_thickness}
     body = build_body(
         mesh.nodes,
