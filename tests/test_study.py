@@ -591,3 +591,36 @@ def test_outputs_are_checked_before_the_runs_and_computed_again_when_they_change
     third = fm.Study(swinging_arm, cases, outputs={"low": "max(sensor:tip[y])"}, **run)
     third.refresh()
     assert third.pending() == [0]
+
+
+def test_cases_recording_at_other_times_keep_their_own_times(tmp_path, assert_close):
+    # Found by a fault hunt: a series of a case recording every 0.05 s was stored at the first
+    # case's times 0, 0.01, 0.02, ... (NaN after); a swept run setting the study replaced
+    # made every case alike; another study in the folder was replaced; numpy values of a
+    # list were refused by JSON after the cluster had started; one output as a string was
+    # read a character at a time.
+    folder = tmp_path / "study"
+    with pytest.raises(fm.InvalidParameterError, match="the study's step_size replaces the"):
+        fm.Study(PENDULUM_FILE, {"simulation.step_size": [1e-3, 1e-2]}, folder=folder,
+                 end_time=0.1, step_size=1e-4)  # fmt: skip
+    study = fm.Study(
+        PENDULUM_FILE,
+        [{"simulation.output_interval": np.float64(0.01)}, {"simulation.output_interval": 0.05}],
+        sampling="list",
+        folder=folder,
+        outputs="series(position:mass[x])",
+        end_time=0.2,
+    )
+    data = study.run(workers=1, progress=False)
+    assert list(data.status.values) == ["complete", "complete"]
+    model = fm.model_file.load_model(PENDULUM_FILE)
+    coarse = fm.simulate(model.system, 0.2, model.step_size, output_interval=0.05)
+    series = data["series(position:mass[x])"]
+    at = [int(np.argmin(np.abs(data.time.values - t))) for t in coarse.time]
+    assert_close(series.values[1, at], coarse.position("mass")[:, 0], rel=1e-9)
+    assert_close(data.time.values[at], coarse.time, abs=1e-12)
+    assert np.isnan(series.values[1, 1])  # no record of that case at t = 0.01
+    other = fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0]}, folder=folder, end_time=0.1)
+    with pytest.raises(fm.InvalidParameterError, match="holds another study"):
+        other.run(workers=1, progress=False)
+    assert fm.load_study(folder)[1]["parameters"] == ["simulation.output_interval"]

@@ -100,6 +100,8 @@ class Study:
                 raise InvalidParameterError(f"model file {str(model)!r} does not exist")
             self.source = ModelSource(path=str(path.resolve()))
         self.folder = Path(folder)
+        if isinstance(outputs, str):  # (one output; it was taken a character at a time)
+            outputs = [outputs]
         self.outputs = (
             dict(outputs) if isinstance(outputs, Mapping) else {spec: spec for spec in outputs}
         )
@@ -114,6 +116,24 @@ class Study:
         self.settings = {k: v for k, v in given.items() if v is not None}
         self.cases = make_cases(parameters, sampling, samples, seed)
         self.parameter_names = list(self.cases[0]) if self.cases else []
+        # A swept model-file key that a run setting of the study replaces made every case
+        # alike (a sweep of simulation.step_size with step_size=1e-4: two identical runs).
+        overridden = {
+            "end_time": ("simulation.end_time",),
+            "step_size": ("simulation.step_size",),
+            "output_interval": ("simulation.output_interval",),
+            "solver": ("solver",),
+        }
+        for setting, keys in overridden.items():
+            if setting not in self.settings:
+                continue
+            for name in self.parameter_names:
+                if any(name == key or name.startswith(key + ".") for key in keys):
+                    raise InvalidParameterError(
+                        f"the study's {setting} replaces the swept {name!r} in every case: "
+                        f"sweep one or the other",
+                        item=name,
+                    )
         self.source.check_names(self.parameter_names)
         _check_output_names(self.outputs, self.parameter_names)
         identity = self.source.identity()
@@ -195,6 +215,7 @@ class Study:
             raise InvalidParameterError(
                 f"workers must be a whole number of at least 1, got {workers!r}", item="workers"
             )
+        self._check_folder()
         self.refresh()
         todo = self.pending()
         if todo:
@@ -217,6 +238,31 @@ class Study:
             self.folder.mkdir(parents=True, exist_ok=True)
             self._write_description()
         return self.gather()
+
+    def _check_folder(self) -> None:
+        """Refuses a folder that holds another study (of another model or other parameters):
+        its description was replaced, and its cases could no longer be loaded. The same study
+        with more cases or other outputs goes on in its folder."""
+        path = self.folder / DESCRIPTION
+        if self.folder.exists() and not self.folder.is_dir():
+            raise InvalidParameterError(f"folder: {str(self.folder)!r} is a file", item="folder")
+        if not path.is_file():
+            return
+        try:
+            earlier = json.loads(path.read_text())
+        except (OSError, ValueError):
+            return  # (a damaged description is written again)
+        model = self.source.path or (
+            f"{getattr(self.source.build, '__module__', '')}."
+            f"{getattr(self.source.build, '__qualname__', '')}"
+        )
+        if earlier.get("model") != model or earlier.get("parameters") != self.parameter_names:
+            raise InvalidParameterError(
+                f"the folder {str(self.folder)!r} holds another study (model "
+                f"{earlier.get('model')!r}, parameters {earlier.get('parameters')}); this one "
+                f"(model {model!r}, parameters {self.parameter_names}) needs a folder of its own",
+                item="folder",
+            )
 
     def _write_description(self) -> None:
         description = {
@@ -515,10 +561,17 @@ def _dataset(
     from ..quantities import output_unit
 
     n = len(cases)
-    times: list[float] = []
-    for summary in summaries:
-        if summary and summary.get("time") and len(summary["time"]) > len(times):
-            times = summary["time"]
+    # The times of every case's records, merged (cases that record at other times, another
+    # output interval or an adaptive solver's steps, were put on the longest case's times).
+    own = [
+        np.asarray(s["time"], dtype=float) if s and s.get("time") else np.zeros(0)
+        for s in summaries
+    ]
+    merged = np.unique(np.concatenate([np.zeros(0), *own]))
+    if len(merged) > 1:
+        keep = np.concatenate([[True], np.diff(merged) > 1e-12 * (1.0 + np.abs(merged[1:]))])
+        merged = merged[keep]
+    times = merged
     coords: dict[str, Any] = {"case": np.arange(n)}
     for name in names:
         coords[name] = ("case", _column([case[name] for case in cases]))
@@ -530,7 +583,13 @@ def _dataset(
             for k, v in enumerate(values):
                 if isinstance(v, list):
                     row = np.array([np.nan if x is None else x for x in v], dtype=float)
-                    table[k, : len(row)] = row[: len(times)]
+                    at = own[k][: len(row)]
+                    right = np.clip(np.searchsorted(times, at), 0, max(len(times) - 1, 0))
+                    left = np.clip(right - 1, 0, None)
+                    closer = np.abs(times[left] - at) < np.abs(times[right] - at)
+                    columns = np.where(closer, left, right)
+                    near = np.abs(times[columns] - at) <= 1e-12 * (1.0 + np.abs(at))
+                    table[k, columns[near]] = row[: len(at)][near]
             variables[name] = (("case", "time"), table)
         else:
             variables[name] = ("case", np.array([np.nan if v is None else v for v in values]))

@@ -55,7 +55,13 @@ def make_cases(
     if sampling == "list":
         if isinstance(parameters, Mapping) or not parameters:
             raise InvalidParameterError("sampling 'list' takes a non-empty list of mappings")
-        cases = [dict(case) for case in parameters]
+        if not all(isinstance(case, Mapping) for case in parameters):
+            raise InvalidParameterError(
+                "sampling 'list' takes a non-empty list of mappings (one per case), got "
+                f"{next(c for c in parameters if not isinstance(c, Mapping))!r} in it"
+            )
+        # (numpy scalars were refused by JSON after the cluster had started)
+        cases = [{k: plain(v) for k, v in case.items()} for case in parameters]
         keys = set(cases[0])
         for k, case in enumerate(cases):
             if set(case) != keys:
