@@ -103,6 +103,11 @@ def test_plot_and_refusals(tmp_path):
         campbell(system, "hub", [2.0, 1.0])
     with pytest.raises(fm.InvalidParameterError, match="flexmbd.System"):
         campbell(system.compile(), "hub", [0.0])
+    # "no" was taken as True, a 2-D array of speeds flattened.
+    with pytest.raises(fm.ArgumentTypeError, match="gyroscopic must be True or False"):
+        campbell(system, "hub", [0.0, 1.0], gyroscopic="no")
+    with pytest.raises(fm.InvalidParameterError, match="one list of speeds"):
+        campbell(system, "hub", [[0.0, 1.0], [2.0, 3.0]])
 
 
 def test_the_campbell_command_on_the_rotating_blade_model_file(tmp_path, capsys, assert_close):

@@ -71,6 +71,34 @@ def test_bad_parameters_are_refused_naming_them():
         make_cases({"a": [1, 2]}, samples=5)  # ignored before
     with pytest.raises(fm.InvalidParameterError, match="n must be at least 1"):
         fm.examples.four_bar(0)  # a raw ValueError before
+    # numpy's raw errors for a bad seed or a NaN count; a set became one case.
+    for options in ({"samples": 3, "seed": -1}, {"samples": 3, "seed": "abc"}):
+        with pytest.raises(fm.InvalidParameterError, match="seed must be an integer"):
+            make_cases({"a": (0.0, 1.0)}, "lhs", **options)
+    with pytest.raises(fm.InvalidParameterError, match="needs samples >= 1, got nan"):
+        make_cases({"a": (0.0, 1.0)}, "lhs", samples=float("nan"))
+    with pytest.raises(fm.InvalidParameterError, match="as a list or an array, got set"):
+        make_cases({"a": {1.0, 2.0}})
+    assert len(make_cases({"a": (0.0, 1.0)}, "lhs", samples=2.0)) == 2
+
+
+def test_run_settings_are_checked_before_any_case_runs(tmp_path):
+    # They failed every case, which then counted as done (nothing left to run).
+    folder = tmp_path / "study"
+    for options, match in (
+        ({"end_time": float("nan")}, "end_time must be finite"),
+        ({"end_time": -1.0}, "end_time must be > 0"),
+        ({"step_size": 0.0}, "step_size must be > 0"),
+        ({"step_size": "1e-3"}, "step_size must be a number"),
+        ({"solver": "banana"}, "solver: a flexmbd.GeneralizedAlpha"),
+    ):
+        with pytest.raises(fm.InvalidParameterError, match=match):
+            fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0]}, folder=folder, **options)
+    with pytest.raises(fm.ArgumentTypeError, match="model: a build function"):
+        fm.Study(42, {"a": [1.0]}, folder=folder)
+    with pytest.raises(fm.ArgumentTypeError, match="folder: a path"):
+        fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0]}, folder=None)
+    assert not folder.exists()
 
 
 def _returns_nothing(length: float) -> None:

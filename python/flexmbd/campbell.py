@@ -47,7 +47,7 @@ from numpy.typing import NDArray
 
 from . import _core
 from ._checks import integer, numbers_array
-from .errors import InvalidParameterError
+from .errors import ArgumentTypeError, InvalidParameterError
 from .progress import track as track_progress
 from .rotation import angular_velocity
 
@@ -364,7 +364,17 @@ def campbell(
         raise InvalidParameterError(
             f"frame must be one of {', '.join(FRAMES)}, got {frame!r}", item="frame"
         )
-    speeds = numbers_array(speeds, "speeds").ravel()
+    if not isinstance(gyroscopic, bool | np.bool_):  # ("no" was True)
+        raise ArgumentTypeError(
+            f"gyroscopic must be True or False, got {gyroscopic!r}", item="gyroscopic"
+        )
+    speeds = numbers_array(speeds, "speeds")
+    if speeds.ndim > 1:  # (a 2-D array was flattened)
+        raise InvalidParameterError(
+            f"speeds must be one list of speeds, got an array of shape {speeds.shape}",
+            item="speeds",
+        )
+    speeds = speeds.ravel()
     count = integer(modes, "modes")
     if count < 1:
         raise InvalidParameterError(f"modes must be at least 1, got {count}", item="modes")

@@ -32,7 +32,9 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InvalidParameterError, StudyError
+from .._checks import number
+from .._core import ExplicitSolver, GeneralizedAlpha
+from ..errors import ArgumentTypeError, InvalidParameterError, StudyError
 from ..progress import ProgressBar
 from .cases import (
     RUN_SETTINGS,
@@ -92,6 +94,11 @@ class Study:
 
         if callable(model):
             self.source = ModelSource(build=model, arguments=dict(arguments or {}))
+        elif not isinstance(model, str | os.PathLike):  # (a bare TypeError of pathlib)
+            raise ArgumentTypeError(
+                f"model: a build function or a model file's path, got {type(model).__name__}",
+                item="model",
+            )
         else:
             if arguments:
                 raise InvalidParameterError("arguments are for build functions, not model files")
@@ -99,6 +106,8 @@ class Study:
             if not path.is_file():
                 raise InvalidParameterError(f"model file {str(model)!r} does not exist")
             self.source = ModelSource(path=str(path.resolve()))
+        if not isinstance(folder, str | os.PathLike):
+            raise ArgumentTypeError(f"folder: a path, got {type(folder).__name__}", item="folder")
         self.folder = Path(folder)
         if isinstance(outputs, str):  # (one output; it was taken a character at a time)
             outputs = [outputs]
@@ -114,6 +123,21 @@ class Study:
             "solver": solver,
         }
         self.settings = {k: v for k, v in given.items() if v is not None}
+        # Checked here: a bad value failed every case, recorded as done (nothing left to run).
+        for name in ("end_time", "step_size", "output_interval"):
+            if name in self.settings:
+                value = number(self.settings[name], name)
+                if not value > 0:
+                    raise InvalidParameterError(f"{name} must be > 0, got {value}", item=name)
+                self.settings[name] = value
+        if "solver" in self.settings and not isinstance(
+            self.settings["solver"], GeneralizedAlpha | ExplicitSolver
+        ):
+            raise ArgumentTypeError(
+                "solver: a flexmbd.GeneralizedAlpha or ExplicitSolver, got "
+                f"{type(self.settings['solver']).__name__}",
+                item="solver",
+            )
         self.cases = make_cases(parameters, sampling, samples, seed)
         self.parameter_names = list(self.cases[0]) if self.cases else []
         # A swept model-file key that a run setting of the study replaces made every case

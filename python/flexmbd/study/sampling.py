@@ -3,6 +3,7 @@ Latin hypercube with a seed."""
 
 from __future__ import annotations
 
+import inspect
 import itertools
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -74,6 +75,13 @@ def make_cases(
     if sampling == "grid":
         values = []
         for key, options in parameters.items():
+            if isinstance(options, (set, frozenset)) or inspect.isgenerator(options):
+                # (a set or a generator became one case holding it)
+                raise InvalidParameterError(
+                    f"parameter {key!r}: the values as a list or an array, got "
+                    f"{type(options).__name__}",
+                    item=key,
+                )
             if isinstance(options, (list, tuple)):
                 options = list(options)
             else:
@@ -82,10 +90,19 @@ def make_cases(
                 raise InvalidParameterError(f"parameter {key!r}: no values", item=key)
             values.append([plain(v) for v in options])
         return [dict(zip(parameters, combo, strict=True)) for combo in itertools.product(*values)]
-    if samples is None or int(samples) != samples or samples < 1:
+    whole = (
+        isinstance(samples, int | float | np.integer | np.floating)
+        and not isinstance(samples, bool)
+        and bool(np.isfinite(samples))
+        and int(samples) == samples
+    )
+    if not whole or samples < 1:  # (NaN was "cannot convert float NaN to integer")
         raise InvalidParameterError(
             f"sampling {sampling!r} needs samples >= 1, got {samples!r}", item="samples"
         )
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        # (numpy's ValueError or TypeError of its SeedSequence)
+        raise InvalidParameterError(f"seed must be an integer >= 0, got {seed!r}", item="seed")
     ranges = []
     for key, bounds in parameters.items():
         if np.ndim(bounds) != 1 or len(bounds) != 2:
