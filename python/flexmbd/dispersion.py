@@ -130,10 +130,11 @@ def dispersion(
     if branch == "axial":
         share = moved[:, 0].sum(axis=0) / total
     elif round_section:
-        # Bending about y and z at the same frequencies: the pairs mix; one of each.
-        share = moved[:, 1:3].sum(axis=(0, 1)) / total
+        # Bending about y and z at the same frequencies: the pairs mix; one of each. Its
+        # slopes are bending too (without them the fifth pair, 1.1 % slope, was dropped).
+        share = (moved[:, 1:3].sum(axis=(0, 1)) + moved[:, 4:6].sum(axis=(0, 1))) / total
     else:
-        share = moved[:, 2].sum(axis=0) / total
+        share = (moved[:, 2].sum(axis=0) + moved[:, 4].sum(axis=0)) / total
     omega = 2 * np.pi * frequencies[share > 0.99]
     if branch == "bending" and round_section and len(omega):
         omega = omega[np.concatenate([[True], np.diff(omega) > 1e-6 * omega[1:]])]
