@@ -238,6 +238,16 @@ def test_beam_mesh_from_vtu(tmp_path):
     validate_mesh(mesh)
 
 
+def test_vtk_lines_next_to_shells_are_edges_as_documented(tmp_path):
+    # Regression: they became beams (Gmsh's were skipped), and the shell mesh was refused for
+    # "beam elements need a section".
+    nodes = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    cells = [("quad", np.array([[0, 1, 2, 3]])), ("line", np.array([[0, 1]]))]
+    for suffix, file_format in ((".vtu", "vtu"), (".vtk", "vtk")):
+        mesh = read_mesh(write(tmp_path, "panel" + suffix, meshio.Mesh(nodes, cells), file_format))
+        assert list(mesh.elements) == ["quad4"]
+
+
 def test_gmsh_lines_next_to_volumes_are_geometry_edges(tmp_path):
     cells = [("tetra", TWO_TETS), ("line", np.array([[0, 1]])), ("vertex", np.array([[4]]))]
     names = {"solid": (1, 3), "edge": (2, 1), "tip": (3, 0)}

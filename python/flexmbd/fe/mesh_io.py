@@ -262,7 +262,11 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     has_volume = any(_cell_dimension(cell_type) == 3 for cell_type, _ in blocks)
     shells_from_cells = abaqus is None and not has_volume
     has_surface = shells_from_cells and any(cell in MESHIO_SHELL_TYPES for cell, _ in blocks)
-    skip_lines = file_format == "gmsh" and (has_volume or has_surface)
+    # (and, as documented, in VTK files of surfaces: their lines became beams, and the mesh was
+    # refused for a beam section nobody meant to give)
+    skip_lines = (file_format == "gmsh" and (has_volume or has_surface)) or (
+        file_format in ("vtu", "vtk") and has_surface
+    )
     # Cells of the mesh's highest dimension are its body: one that is not an element would
     # leave a hole (a wedge between hexahedra, second-order hexahedra), mass and stiffness
     # silently lost.
