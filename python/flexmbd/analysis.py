@@ -1398,12 +1398,13 @@ def linearize(
         basis,
         state,
     )
+    layout = model.describe() if inputs or outputs else {}
     if inputs:
         linear.input_forces = input_forces(system, state, inputs)
-        linear.input_names = [_label(load, model.describe()) for load in inputs]
+        linear.input_names = [_label(load, layout) for load in inputs]
     if outputs:
         linear.output_rows = output_rows(model, outputs)
-        linear.output_names = [_label(output, model.describe()) for output in outputs]
+        linear.output_names = [_label(output, layout) for output in outputs]
     return linear
 
 

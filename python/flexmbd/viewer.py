@@ -104,7 +104,12 @@ def view(
         raise ArgumentTypeError(
             f"title: a text, got {type(title).__name__} {title!r}", item="title"
         )
-    _page_path(path, Path("flexmbd-view.html"))  # (refused before any work)
+    default = Path("flexmbd-view.html")
+    if isinstance(source, str | os.PathLike):
+        default = Path(source).with_suffix(".html")
+    elif isinstance(source, Result) and getattr(source, "file", None) is not None:
+        default = Path(source.file).with_suffix(".html")
+    out = _page_path(path, default)  # (refused before any work)
     if color_by not in COLOR_QUANTITIES:
         raise InvalidParameterError(
             f"unknown colour quantity {color_by!r}; known: "
@@ -116,19 +121,18 @@ def view(
             raise InvalidParameterError(
                 f"{name} must be an integer of at least 2, got {value!r}", item=name
             )
-    default = Path("flexmbd-view.html")
     if isinstance(source, LinearizedSystem):
         datasets = _mode_datasets(source, model, modes, frames_per_period, scale)
         heading = title or "mode shapes"
     else:
         given = [
             name
-            for name, value, default in (
+            for name, value, unset in (
                 ("model", model, None),
                 ("modes", modes, MODE_COUNT),
                 ("frames_per_period", frames_per_period, FRAMES_PER_PERIOD),
             )
-            if value is not default and value != default
+            if value is not unset and value != unset
         ]
         if given:  # (they were ignored without a word)
             raise InvalidParameterError(
@@ -138,12 +142,9 @@ def view(
         if isinstance(source, str | os.PathLike):
             from .results_file import read_results
 
-            default = Path(source).with_suffix(".html")
             heading = title or Path(source).stem
             source = read_results(source)
         else:
-            if getattr(source, "file", None) is not None:
-                default = Path(source.file).with_suffix(".html")
             heading = title or "flexmbd result"
         datasets = [_dataset(source, heading, int(max_frames), scale, phase=False)]
     available = [q for q in COLOR_QUANTITIES if any(q in d["colors"] for d in datasets)]
@@ -153,7 +154,6 @@ def view(
             f"available: {', '.join(map(repr, available))}",
             item="stress",
         )
-    out = _page_path(path, default)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(_page(heading, datasets, color_by), encoding="utf-8")
     return out

@@ -268,17 +268,7 @@ def with_material(
         values[key] = number(values[key], key)
     new_material = _material(values)
     section, orientation, beam_theory = _section(body)
-    own = preprocess.assemble(
-        body.nodes,
-        body.elements,
-        _material(body.material),
-        section=section,
-        orientation=orientation,
-        shell=_shell(body),
-        mass=body.mass_kind,
-        beam_theory=beam_theory,
-        form_i_kl=False,
-    )
+    own = _assembled(body, form_i_kl=False)
     rebuilt = preprocess.build_body(
         body.nodes,
         body.elements,
@@ -301,6 +291,25 @@ def with_material(
         units=body.units,
         damping=_checked_damping(rebuilt, body.damping),
         metadata=_noted(body, f"material({change})"),
+    )
+
+
+def _assembled(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalBody:
+    """The nodal matrices and invariants of a meshed body's elements, assembled again with its
+    own material, section and mass kind (without its point masses)."""
+    section, orientation, beam_theory = _section(body)
+    return preprocess.assemble(
+        body.nodes,
+        body.elements,
+        _material(body.material),
+        section=section,
+        orientation=orientation,
+        shell=_shell(body),
+        mass=body.mass_kind,
+        beam_theory=beam_theory,
+        node_ids=body.node_ids,
+        element_ids=body.element_ids,
+        form_i_kl=form_i_kl,
     )
 
 
@@ -353,20 +362,7 @@ def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalB
     stiffness = sp.csc_matrix(body.stiffness)
     mass = sp.csc_matrix(body.mass)
     if _has_mesh(body):
-        section, orientation, beam_theory = _section(body)
-        assembled = preprocess.assemble(
-            body.nodes,
-            body.elements,
-            _material(body.material),
-            section=section,
-            orientation=orientation,
-            shell=_shell(body),
-            mass=body.mass_kind,
-            beam_theory=beam_theory,
-            node_ids=body.node_ids,
-            element_ids=body.element_ids,
-            form_i_kl=form_i_kl,
-        )
+        assembled = _assembled(body, form_i_kl=form_i_kl)
         lumps = _point_masses(body, assembled.mass)
         if lumps:
             assembled = preprocess.with_point_masses(
@@ -436,7 +432,7 @@ def with_modes(
             options["interface_kind"] = "rbe2"
         if interface_weights is None:
             options["interface_weights"] = "auto"
-    elif interface_kind is not None and interface_weights is None and interface_kind == "nodal":
+    elif interface_kind == "nodal" and interface_weights is None:
         options["interface_weights"] = "auto"
     if options["reference"] not in preprocess.NODE_REFERENCE_KINDS and reference_nodes is None:
         options["reference_nodes"] = ()

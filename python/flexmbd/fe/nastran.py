@@ -315,12 +315,9 @@ class NastranDeck:
         given = options.pop("point_masses", None)
         if self.point_masses:
             # The deck's CONM2 masses, and those given (node indices) added to them.
+            # (A solid's nodes carry no inertia: `_conm2` refused any, so theirs are zero.)
             index = {int(g): k for k, g in enumerate(self.mesh.node_ids)}
-            rotations = any(len(self.mesh.elements.get(k, ())) for k in ROTATION_ELEMENTS)
-            masses: dict[int, Any] = {
-                index[g]: (m, inertia) if rotations else m
-                for g, (m, inertia) in self.point_masses.items()
-            }
+            masses: dict[int, Any] = {index[g]: value for g, value in self.point_masses.items()}
             for node, value in dict(given or {}).items():
                 if node in masses:
                     raise InvalidParameterError(

@@ -1495,9 +1495,7 @@ def with_point_masses(
     invariants = dict(nodal.invariants)
     for key in ("mass", "first_moment", "second_moment", "i1", "ibar"):
         invariants[key] = invariants[key] + added[key]
-    if invariants.get("i_kl") is not None:
-        if added["i_kl"] is None:
-            added["i_kl"] = solid_i_kl(sp.csc_matrix(extra[0::3, :][:, 0::3]))
+    if invariants.get("i_kl") is not None:  # (formed for both alike: `form_i_kl`)
         invariants["i_kl"] = [
             [(invariants["i_kl"][k][j] + added["i_kl"][k][j]).tocsc() for j in range(3)]
             for k in range(3)

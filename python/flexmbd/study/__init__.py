@@ -263,6 +263,14 @@ class Study:
             self._write_description()
         return self.gather()
 
+    def _model_name(self) -> str:
+        """The model of the study as its description names it: the model file, or the build
+        function's module and name."""
+        return self.source.path or (
+            f"{getattr(self.source.build, '__module__', '')}."
+            f"{getattr(self.source.build, '__qualname__', '')}"
+        )
+
     def _check_folder(self) -> None:
         """Refuses a folder that holds another study (of another model or other parameters):
         its description was replaced, and its cases could no longer be loaded. The same study
@@ -276,10 +284,7 @@ class Study:
             earlier = json.loads(path.read_text())
         except (OSError, ValueError):
             return  # (a damaged description is written again)
-        model = self.source.path or (
-            f"{getattr(self.source.build, '__module__', '')}."
-            f"{getattr(self.source.build, '__qualname__', '')}"
-        )
+        model = self._model_name()
         if earlier.get("model") != model or earlier.get("parameters") != self.parameter_names:
             raise InvalidParameterError(
                 f"the folder {str(self.folder)!r} holds another study (model "
@@ -290,9 +295,7 @@ class Study:
 
     def _write_description(self) -> None:
         description = {
-            "model": self.source.path
-            or f"{getattr(self.source.build, '__module__', '')}."
-            f"{getattr(self.source.build, '__qualname__', '')}",
+            "model": self._model_name(),
             "parameters": self.parameter_names,
             "cases": [
                 {"index": k, "key": key, "parameters": case}

@@ -31,23 +31,20 @@ use crate::system::{Model, State, Workspace};
 /// (an arm held pointing the other way, its torque of the opposite sign) without a word, or
 /// the corrections of another solver would turn it over.
 pub fn check_angle_drivers(model: &Model, state: &State) -> Result<()> {
-    let mut ws = Workspace::new(model);
-    let mut kinematics_ready = false;
+    // (Made at the first angle driver: a model without one pays nothing.)
+    let mut ws: Option<Workspace> = None;
     for (j, joint) in model.joints.iter().enumerate() {
         let crate::joint::JointKind::AngleDriver(f) = &joint.kind else { continue };
         let Ok([target, _, _]) = f.evaluate(state.time) else { continue };
-        if !kinematics_ready {
+        let ws = ws.get_or_insert_with(|| {
+            let mut ws = Workspace::new(model);
             crate::assembly::update_kinematics(model, &state.coordinates, &state.velocities, &mut ws);
-            kinematics_ready = true;
-        }
-        let theta = crate::force::rotational_spring_damper::wrapped_angle(&crate::assembly::joint_pair(
-            model,
-            &ws.markers,
-            j,
-        ));
-        let two_pi = 2.0 * std::f64::consts::PI;
-        let delta = theta - target;
-        let off = delta - two_pi * (delta / two_pi).round();
+            ws
+        });
+        let pair = crate::assembly::joint_pair(model, &ws.markers, j);
+        let theta = crate::force::rotational_spring_damper::wrapped_angle(&pair);
+        // The joint angle continued from the prescribed one: their difference in (-pi, pi].
+        let off = crate::force::rotational_spring_damper::unwrapped_angle(&pair, target) - target;
         if off.abs() > std::f64::consts::FRAC_PI_2 {
             return Err(FlexmbdError::InconsistentInitialConditions {
                 time: state.time,
@@ -548,14 +545,10 @@ pub(crate) fn report_initial_correction(
     let recorded = settings.start.as_ref().is_some_and(|start| start.recorded);
     let (events, largest) =
         correction_events(model, given_q, given_qd, state, violated, &settings.initial, recorded);
-    let corrections = events.iter().filter(|e| e.kind == "initial correction").count();
-    if settings.initial.strict && corrections > 0 {
-        let item = events
-            .iter()
-            .filter(|e| e.kind == "initial correction")
-            .map(|e| e.message.as_str())
-            .collect::<Vec<_>>()
-            .join("; ");
+    let corrections: Vec<&str> =
+        events.iter().filter(|e| e.kind == "initial correction").map(|e| e.message.as_str()).collect();
+    if settings.initial.strict && !corrections.is_empty() {
+        let item = corrections.join("; ");
         return Err(FlexmbdError::InitialCorrectionRefused { time: state.time, item, size: largest });
     }
     output.events.extend(events);
