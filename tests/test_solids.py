@@ -1,6 +1,7 @@
-"""Solid elements (tet4, tet10, hex8) in bodies: meshes of blocks and cylinders, invariants of
-motion against the analytic rigid-body inertia and a brute-force sum over mass points, rigid
-motions, the sparse factorization, a solid cantilever against beam theory, and bad meshes."""
+"""Solid elements (tet4, tet10, hex8, hex8i) in bodies: meshes of blocks and cylinders,
+invariants of motion against the analytic rigid-body inertia and a brute-force sum over mass
+points, rigid motions, the sparse factorization, a solid cantilever against beam theory, and
+bad meshes."""
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from flexmbd.fe import shapes
 from flexmbd.rotation import rotation
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
-SOLIDS = ["tet4", "tet10", "hex8"]
+SOLIDS = ["tet4", "tet10", "hex8", "hex8i"]
 
 
 def rotated_box(element, divisions=(4, 2, 3), lengths=(0.8, 0.3, 0.5)):
@@ -33,7 +34,7 @@ def test_box_mesh_elements_are_positively_oriented_and_fill_the_box(element, ass
     body = pp.assemble(mesh.nodes, mesh.elements, Material(1.0e9, 0.25, 1.0))
     # Unit density: the mass is the volume.
     assert_close(body.invariants["mass"], 1.0, rel=1e-13, what="mass")
-    if element != "hex8":
+    if element.startswith("tet"):
         tets = mesh.elements[element][:, :4]
         volumes = shapes._signed_volumes(mesh.nodes, tets)
         assert volumes.min() > 0
@@ -220,7 +221,8 @@ def timoshenko_tip_deflection():
 
 
 @pytest.mark.parametrize(
-    "element, sizes, tolerance", [("tet10", (1, 2, 3), 0.012), ("hex8", (1, 2, 4), 0.05)]
+    "element, sizes, tolerance",
+    [("tet10", (1, 2, 3), 0.012), ("hex8", (1, 2, 4), 0.05), ("hex8i", (1, 2, 4), 0.011)],
 )
 def test_solid_cantilever_converges_to_the_beam_solution(element, sizes, tolerance):
     exact = timoshenko_tip_deflection()

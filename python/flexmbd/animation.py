@@ -57,6 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import InvalidParameterError
+from .fe.body import cell_of
 from .progress import status
 from .progress import track as track_progress
 from .simulation import logger
@@ -406,7 +407,7 @@ def _mesh(
                 for k, level in enumerate((0, 2)):
                     surfaces[-1][:, k] = _paraview_tensor(levels[:, level], rotation)
         for kind, connectivity in part.data.elements.items():
-            cell_type, order = VTK_CELLS[kind]
+            cell_type, order = VTK_CELLS[cell_of(kind)]
             conn = np.asarray(connectivity, dtype=np.int64)
             if order is not None:
                 conn = conn[:, order]
@@ -771,10 +772,10 @@ def _boundary_faces(part: _Part) -> list[NDArray[np.int64]]:
     indices, corner nodes), grouped by face size."""
     faces: dict[int, list[NDArray[np.int64]]] = {}
     for kind, connectivity in part.data.elements.items():
-        if kind not in ELEMENT_FACES:
+        if cell_of(kind) not in ELEMENT_FACES:
             continue
         conn = np.asarray(connectivity, dtype=np.int64)
-        for face in ELEMENT_FACES[kind]:
+        for face in ELEMENT_FACES[cell_of(kind)]:
             faces.setdefault(len(face), []).append(conn[:, list(face)])
     out = []
     for group in faces.values():

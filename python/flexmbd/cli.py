@@ -956,6 +956,7 @@ def _section_argument(text: str) -> Any:
 
 def _preprocess(args: argparse.Namespace) -> int:
     from .fe.body_file import is_body_file, save_body
+    from .fe.mesh_io import read_mesh
     from .fe.preprocess import Material, body_from_mesh
 
     options = {
@@ -1006,10 +1007,12 @@ def _preprocess(args: argparse.Namespace) -> int:
         if value is not None
     ]
     deck = Path(args.mesh).suffix.lower() in NASTRAN_SUFFIXES
+    if args.incompatible_modes:
+        given.append("--incompatible-modes")
     if deck and given:
         print(
             f"flexmbd preprocess: {' '.join(given)}: a Nastran deck has its own material, "
-            "sections and thickness (MAT1, PBAR/PBEAM, PSHELL)",
+            "sections, thickness and element formulations (MAT1, PBAR/PBEAM, PSHELL)",
             file=sys.stderr,
         )
         return 2
@@ -1043,7 +1046,12 @@ def _preprocess(args: argparse.Namespace) -> int:
             body = read_nastran(args.mesh).body(timings=timings, **options)
         else:
             material = Material(args.young_modulus, args.poisson_ratio, args.density)
-            body = body_from_mesh(args.mesh, material, timings=timings, **options)
+            mesh: Any = args.mesh
+            if args.incompatible_modes:
+                mesh = read_mesh(args.mesh).with_incompatible_modes()
+            body = body_from_mesh(mesh, material, timings=timings, **options)
+            if args.incompatible_modes:
+                body = body.with_metadata(source=str(args.mesh))
     except (FlexmbdError, ValueError, OSError) as error:
         hint = ""
         if "beam elements need a section" in str(error):
@@ -1256,6 +1264,12 @@ def _main(argv: list[str] | None) -> int:
         action="store_true",
         help="turn the shells of each connected surface to one side (their stresses are "
         "averaged at the nodes top with top)",
+    )
+    pre.add_argument(
+        "--incompatible-modes",
+        action="store_true",
+        help="the mesh's hexahedra as hex8i, with incompatible modes (they bend on coarse "
+        "meshes; Abaqus C3D8I elements are hex8i without it)",
     )
     pre.add_argument(
         "--reference",

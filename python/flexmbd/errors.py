@@ -216,8 +216,9 @@ class MeshQualityWarning(UserWarning):
     :data:`flexmbd.fe.preprocess.SHELL_WARP_LIMIT` (the flat element projects them onto that
     plane: refine the mesh or split them into triangles), and neighbouring shells turned to
     opposite sides (their top and bottom stresses are averaged across each other:
-    :func:`flexmbd.fe.orient_shells`). The message names an element by its id and how many
-    there are."""
+    :func:`flexmbd.fe.orient_shells`), and Abaqus elements read as an element of another
+    formulation (C3D8R, reduced integration, as the fully integrated hex8). The message names
+    an element by its id and how many there are."""
 
 
 __all__ = [

@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
+from .body import cell_of
 from .shapes import HEX8_CORNERS, TET10_EDGES
 
 if TYPE_CHECKING:
@@ -235,9 +236,9 @@ def _cells(
     set, by kind (a facet shared by two elements counts once)."""
     found: dict[str, list[NDArray[np.int64]]] = {}
     for element, conn in elements.items():
-        if element not in table or len(conn) == 0:
+        if cell_of(element) not in table or len(conn) == 0:
             continue
-        kind, local = table[element]
+        kind, local = table[cell_of(element)]
         conn = np.asarray(conn, dtype=np.int64)
         for sub in local:
             cells = conn[:, sub]
@@ -255,16 +256,16 @@ def _cells(
 def _volumes(
     elements: Mapping[str, ArrayLike], inside: NDArray[np.bool_]
 ) -> dict[str, NDArray[np.int64]]:
-    """The solid elements whose nodes all lie inside the set."""
-    out = {}
-    for element in _SOLIDS:
-        conn = elements.get(element)
-        if conn is None or len(conn) == 0:
+    """The solid elements whose nodes all lie inside the set, by cell type."""
+    out: dict[str, NDArray[np.int64]] = {}
+    for element, conn in elements.items():
+        cell = cell_of(element)
+        if cell not in _SOLIDS or len(conn) == 0:
             continue
         conn = np.asarray(conn, dtype=np.int64)
         cells = conn[inside[conn].all(axis=1)]
         if len(cells):
-            out[element] = cells
+            out[cell] = np.vstack([out[cell], cells]) if cell in out else cells
     return out
 
 
@@ -578,7 +579,9 @@ def make_interface(
         inside[members] = True
         owners = [
             conn[np.any([inside[conn[:, list(f)]].all(axis=1) for f in _FACETS[kind][1]], axis=0)]
-            for kind, conn in ((k, np.asarray(c, dtype=np.int64)) for k, c in elements.items())
+            for kind, conn in (
+                (cell_of(k), np.asarray(c, dtype=np.int64)) for k, c in elements.items()
+            )
             if kind in _FACETS and len(conn)
         ]
         owners = [c for c in owners if len(c)]

@@ -20,6 +20,7 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   (``TET10_FROM_MESHIO``).
 * ``hex8``: bottom face 0, 1, 2, 3, then top face 4, 5, 6, 7 with node 4 above node 0, both
   faces counter-clockwise seen from the top (the same in VTK, Gmsh and Abaqus C3D8).
+  ``hex8i`` (incompatible modes, Abaqus C3D8I): the same.
 * ``quad4``, ``tri3`` (flat shells): the corners counter-clockwise about the element normal
   (the same in VTK, Gmsh and Abaqus S4/S3); the top surface of the shell is on the side of
   the normal.
@@ -30,6 +31,7 @@ from __future__ import annotations
 import io
 import math
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +43,7 @@ from numpy.typing import NDArray
 from ..errors import (
     InvalidModelError,
     InvalidParameterError,
+    MeshQualityWarning,
     MissingFileError,
     UnknownItemError,
 )
@@ -72,6 +75,18 @@ ABAQUS_SHELL_TYPES = {
     "S3": "tri3",
     "S3R": "tri3",
     "STRI3": "tri3",
+}
+
+#: Abaqus solid element types read as another flexmbd element than their meshio cell's: the
+#: hexahedra with incompatible modes (the hybrid C3D8IH without its pressure unknowns, as
+#: C3D8H is read as hex8).
+ABAQUS_SOLID_TYPES = {"C3D8I": "hex8i", "C3D8IH": "hex8i"}
+
+#: Abaqus solid element types whose formulation flexmbd does not have, read as the element of
+#: their cell with a `MeshQualityWarning`: type -> what they are.
+ABAQUS_SUBSTITUTED_TYPES = {
+    "C3D8R": "reduced integration with hourglass control",
+    "C3D8RH": "reduced integration with hourglass control",
 }
 
 #: Permutation of a meshio/VTK "tetra10" cell into the flexmbd (Gmsh) node order.
@@ -107,7 +122,7 @@ class Mesh:
         nodes: node positions, (n_nodes, 3) float64, in the length unit of the source file.
         node_ids: ids of the nodes in the source file, (n_nodes,) int64 (see
             :func:`read_mesh` for where they come from).
-        elements: element type ("beam2", "tet4", "tet10", "hex8", "quad4", "tri3") ->
+        elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "quad4", "tri3") ->
             (n_elements, nodes) int64 indices into ``nodes``, node order as in the module
             docstring.
         element_ids: element type -> (n_elements,) int64 ids in the source file.
@@ -131,6 +146,29 @@ class Mesh:
     def element_count(self) -> int:
         return sum(len(connectivity) for connectivity in self.elements.values())
 
+    def with_incompatible_modes(self) -> Mesh:
+        """A copy whose hexahedra ("hex8", as Gmsh and VTK meshes have them) are hexahedra with
+        incompatible modes ("hex8i", which bend on coarse meshes; the same nodes, ids and
+        mass). Raises `InvalidModelError` for a mesh without hexahedra."""
+        if not len(self.elements.get("hex8", ())):
+            raise InvalidModelError(
+                "incompatible modes: the mesh has no hexahedra (hex8); its elements: "
+                + (", ".join(self.elements) or "none"),
+                item="mesh elements",
+            )
+        elements, element_ids = dict(self.elements), dict(self.element_ids)
+        for table in (elements, element_ids):
+            hexes = table.pop("hex8")
+            table["hex8i"] = np.concatenate([table["hex8i"], hexes]) if "hex8i" in table else hexes
+        return Mesh(
+            nodes=self.nodes,
+            node_ids=self.node_ids,
+            elements=elements,
+            element_ids=element_ids,
+            node_sets=self.node_sets,
+            shell_thickness=self.shell_thickness,
+        )
+
 
 # ---------------------------------------------------------------------------------------------
 # Reading meshes
@@ -141,7 +179,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron" and "line"
-    become "tet4", "tet10", "hex8" and "beam2", in the node order of the module docstring.
+    become "tet4", "tet10", "hex8" and "beam2", in the node order of the module docstring;
+    Abaqus' hexahedra with incompatible modes (C3D8I, C3D8IH) become "hex8i", its
+    reduced-integration hexahedra (C3D8R, C3D8RH) "hex8" with a
+    :class:`~flexmbd.MeshQualityWarning` (flexmbd has no hourglass-controlled element).
     Shells: in Gmsh and VTK files without volume cells, "quad" and "triangle" cells become
     the flat shells "quad4" and "tri3" (and "line" cells, then edges of the surfaces, are not
     beams); in Abaqus files the shell types S4, S4R, S4R5, S3, S3R and STRI3 do, and the
@@ -273,9 +314,16 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     top = max((_cell_dimension(cell_type) for cell_type, _ in blocks), default=0)
     elements: dict[str, list[NDArray[np.int64]]] = {}
     element_ids: dict[str, list[NDArray[np.int64]]] = {}
+    substituted: dict[str, list[int]] = {}
     for index, ((cell_type, data), ids) in enumerate(zip(blocks, block_ids, strict=True)):
         kind = MESHIO_ELEMENT_TYPES.get(cell_type)
-        if abaqus is not None and kind is None:
+        if abaqus is not None and kind is not None:
+            source = abaqus.element_types[index]
+            kind = ABAQUS_SOLID_TYPES.get(source, kind)
+            if source in ABAQUS_SUBSTITUTED_TYPES and len(data):
+                first = substituted.setdefault(source, [0, int(ids[0])])
+                first[0] += len(data)
+        elif abaqus is not None and kind is None:
             kind = ABAQUS_SHELL_TYPES.get(abaqus.element_types[index])
         elif shells_from_cells and kind is None:
             kind = MESHIO_SHELL_TYPES.get(cell_type)
@@ -288,6 +336,16 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
             data = data[:, TET10_FROM_MESHIO]
         elements.setdefault(kind, []).append(data)
         element_ids.setdefault(kind, []).append(ids)
+    for source, (count, first) in substituted.items():
+        warnings.warn(
+            f"{path}: {count} {source} element(s) (first: element {first}) are read as hex8, "
+            f"flexmbd's fully integrated trilinear hexahedron; Abaqus' {source} uses "
+            f"{ABAQUS_SUBSTITUTED_TYPES[source]}, so results differ, most in bending on coarse "
+            "meshes, where hex8 is too stiff: mesh them as C3D8I (read as hex8i, which bends "
+            "like it) or refine",
+            MeshQualityWarning,
+            stacklevel=2,
+        )
     return Mesh(
         nodes=nodes,
         node_ids=np.asarray(node_ids, dtype=np.int64),
@@ -303,7 +361,9 @@ def _unsupported_cells(
 ) -> InvalidModelError:
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
-    supported = {3: "tet4, tet10, hex8", 2: "quad4, tri3 (flat shells)", 1: "beam2"}[dimension]
+    supported = {3: "tet4, tet10, hex8, hex8i", 2: "quad4, tri3 (flat shells)", 1: "beam2"}[
+        dimension
+    ]
     return InvalidModelError(
         f"{path}: {count} {cell_type} cell{'s' if count > 1 else ''} (the first is element "
         f"{first_id}) {'are' if count > 1 else 'is'} not an element type flexmbd has "

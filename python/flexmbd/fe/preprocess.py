@@ -344,9 +344,10 @@ def assemble(
 ) -> NodalBody:
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
-    `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8", the
-    flat shells "quad4" and "tri3") to its connectivity (n_e, nodes) of 0-based node indices;
-    shells need `shell` (a `ShellSection` or the thickness). `mass` is "consistent" or "lumped";
+    `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8",
+    "hex8i" with incompatible modes, the flat shells "quad4" and "tri3") to its connectivity
+    (n_e, nodes) of 0-based node indices; shells need `shell` (a `ShellSection` or the
+    thickness). `mass` is "consistent" or "lumped";
     `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams). For bodies of
     solid elements the nine I_kl are the scalar mass matrix M_s spread over the coordinates;
     with `form_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants

@@ -47,7 +47,14 @@ MAX_MESH_ELEMENTS = 10_000_000
 
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
 #: Gmsh for tetrahedra of order 1 and 2.
-_BYTES_PER_ELEMENT = {"hex8": 220, "tet4": 280, "tet10": 640, "gmsh1": 1500, "gmsh2": 3500}
+_BYTES_PER_ELEMENT = {
+    "hex8": 220,
+    "hex8i": 220,
+    "tet4": 280,
+    "tet10": 640,
+    "gmsh1": 1500,
+    "gmsh2": 3500,
+}
 
 #: Tetrahedra that Gmsh makes per size^3 of volume (about 4.7 measured on cylinders and
 #: boxes; the estimate rounds up).
@@ -169,7 +176,8 @@ def box(
     """A structured mesh of the box origin + [0, a] x [0, b] x [0, c].
 
     `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
-    "hex8", "tet4" (six tetrahedra per cell) or "tet10". Node sets: "x0", "x1", "y0", "y1",
+    "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "tet4" (six tetrahedra per
+    cell) or "tet10". Node sets: "x0", "x1", "y0", "y1",
     "z0", "z1" (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
@@ -189,9 +197,9 @@ def box(
         raise InvalidParameterError(
             f"a box needs three positive divisions, got {[nx, ny, nz]}", item="divisions"
         )
-    if not isinstance(element, str) or element not in ("hex8", "tet4", "tet10"):
+    if not isinstance(element, str) or element not in ("hex8", "hex8i", "tet4", "tet10"):
         raise InvalidParameterError(
-            f"box elements are hex8, tet4 or tet10, got {element!r:.60}", item="element"
+            f"box elements are hex8, hex8i, tet4 or tet10, got {element!r:.60}", item="element"
         )
     # Sizes from the counts alone (Python integers: no overflow) before any array is made.
     cells = nx * ny * nz
@@ -201,7 +209,7 @@ def box(
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz + (nx + 1) * ny * nz + nx * (ny + 1) * nz
         node_count += nx * ny * (nz + 1) + cells
-    element_count = cells if element == "hex8" else 6 * cells
+    element_count = cells if element in ("hex8", "hex8i") else 6 * cells
     _check_mesh_size(
         element_count,
         node_count,
@@ -222,8 +230,8 @@ def box(
     i, j, k = (a.ravel() for a in cells)
     hexes = np.column_stack([index(i + a, j + b, k + c) for a, b, c in HEX8_CORNERS])
     hexes = hexes.astype(np.int64)
-    if element == "hex8":
-        elements = {"hex8": hexes}
+    if element in ("hex8", "hex8i"):
+        elements = {element: hexes}
     else:
         tets = np.vstack([hexes[:, list(t)] for t in _KUHN])
         tets = _orient(nodes, tets)

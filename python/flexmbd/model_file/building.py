@@ -625,6 +625,12 @@ class _Builder:
             )
         if spec.mesh_unit is not None and kind != "mesh":
             raise self.fail(path + ("mesh_unit",), "mesh_unit goes with a mesh file (`mesh`)")
+        if spec.incompatible_modes is not None and kind != "mesh":
+            hint = " (a box takes element: hex8i)" if kind == "box" else ""
+            raise self.fail(
+                path + ("incompatible_modes",),
+                f"incompatible_modes goes with a mesh file (`mesh`){hint}",
+            )
         if kind == "body_file":
             for key in _PREPROCESS_KEYS:
                 if getattr(spec, key) is not None:
@@ -667,11 +673,13 @@ class _Builder:
             location = self.file(str(spec.mesh), where)
             if spec.mesh_unit is not None:
                 length = UNITS["length"][spec.mesh_unit]
-            if length == 1.0:
+            if length == 1.0 and not spec.incompatible_modes:
                 mesh: Any = location
             else:
                 mesh = self.call(where, read_mesh, location)
                 mesh.nodes = mesh.nodes * length
+            if spec.incompatible_modes:
+                mesh = self.call(path + ("incompatible_modes",), mesh.with_incompatible_modes)
             material = options.pop("material")
             data = self.call(path, body_from_mesh, mesh, material, item_keys=keys, **options)
             return data.with_metadata(source=str(location))

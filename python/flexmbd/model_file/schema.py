@@ -363,7 +363,7 @@ class BoxSpec(_Spec):
 
     lengths: Vector = Field(description="edge lengths along x, y, z (length)")
     divisions: IntTriple = Field(description="cells along x, y, z")
-    element: Literal["hex8", "tet4", "tet10"] = "hex8"
+    element: Literal["hex8", "hex8i", "tet4", "tet10"] = "hex8"
     origin: Vector | None = Field(None, description="corner of the box (length)")
 
 
@@ -414,6 +414,11 @@ class FlexibleBodySpec(_Spec):
         None,
         description="with `mesh`: the length unit of the mesh file's coordinates (default: "
         "the model file's length unit)",
+    )
+    incompatible_modes: bool | None = Field(
+        None,
+        description="with `mesh`: its hexahedra as hex8i (incompatible modes: they bend on "
+        "coarse meshes; Abaqus C3D8I is read so anyway)",
     )
     nastran: str | None = Field(
         None,

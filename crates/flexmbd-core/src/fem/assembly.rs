@@ -17,7 +17,7 @@ use crate::fem::beam::Beam;
 use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
-use crate::fem::solid::{Hex8, Tet10, Tet4};
+use crate::fem::solid::{Hex8, Hex8Incompatible, Tet10, Tet4};
 
 /// The element types a body can be made of.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,6 +30,8 @@ pub enum ElementType {
     Tet10,
     /// Eight-node hexahedron.
     Hex8,
+    /// Eight-node hexahedron with incompatible modes (Abaqus' C3D8I).
+    Hex8Incompatible,
     /// Four-node flat shell (MITC4).
     Quad4(ShellQuad4),
     /// Three-node flat shell (DKT).
@@ -43,6 +45,7 @@ impl ElementType {
             ElementType::Tet4 => &Tet4,
             ElementType::Tet10 => &Tet10,
             ElementType::Hex8 => &Hex8,
+            ElementType::Hex8Incompatible => &Hex8Incompatible,
             ElementType::Quad4(s) => s,
             ElementType::Tri3(s) => s,
         }
@@ -59,7 +62,10 @@ impl ElementType {
 
     /// True for solid elements (translations only in their shape matrices).
     pub fn is_solid(&self) -> bool {
-        matches!(self, ElementType::Tet4 | ElementType::Tet10 | ElementType::Hex8)
+        matches!(
+            self,
+            ElementType::Tet4 | ElementType::Tet10 | ElementType::Hex8 | ElementType::Hex8Incompatible
+        )
     }
 }
 

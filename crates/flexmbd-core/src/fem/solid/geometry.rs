@@ -26,6 +26,14 @@ fn cofactor_and_determinant(j: &[[f64; 3]; 3]) -> ([[f64; 3]; 3], f64) {
     (c, determinant)
 }
 
+/// The cofactor matrix det(J) J^-T and the determinant of the Jacobian at `xi`.
+pub(super) fn cofactor_and_determinant_at<E: Isoparametric<N>, const N: usize>(
+    x: &[Vec3],
+    xi: [f64; 3],
+) -> ([[f64; 3]; 3], f64) {
+    cofactor_and_determinant(&jacobian(x, &E::reference_gradients(xi)))
+}
+
 /// Jacobian determinant at reference coordinates `xi`.
 pub(super) fn jacobian_determinant<E: Isoparametric<N>, const N: usize>(x: &[Vec3], xi: [f64; 3]) -> f64 {
     cofactor_and_determinant(&jacobian(x, &E::reference_gradients(xi))).1

@@ -1,4 +1,5 @@
-//! Solid elements: 4-node and 10-node tetrahedra, 8-node hexahedra.
+//! Solid elements: 4-node and 10-node tetrahedra, 8-node hexahedra (also with incompatible
+//! modes, [`Hex8Incompatible`]).
 //!
 //! Isoparametric, small-strain, linear elastic. Element coordinates are node-major with the 3
 //! displacements of every node in body axes (see `element.rs`), so an element with n nodes has
@@ -34,7 +35,8 @@
 //! Files: `tetrahedra` and `hexahedron` (nodes, rules and shape functions of each element),
 //! `geometry` (the isoparametric map: Jacobian, physical gradients), `validation` (node count,
 //! positions, degenerate and inverted elements), `matrices` (stiffness and nodal stresses),
-//! `mass` (mass points, HRZ lumped masses, volume).
+//! `mass` (mass points, HRZ lumped masses, volume), `incompatible` (the hexahedron with
+//! incompatible modes, on the shape functions, rules and mass of `Hex8`).
 
 use crate::fem::element::{ElementKernel, ElementResult, MassPoint};
 use crate::fem::material::Material;
@@ -44,12 +46,15 @@ use crate::math::Vec3;
 
 mod geometry;
 mod hexahedron;
+mod incompatible;
 mod mass;
 mod matrices;
 #[cfg(test)]
 pub(crate) mod tests;
 mod tetrahedra;
 mod validation;
+
+pub use incompatible::Hex8Incompatible;
 
 /// Linear 4-node tetrahedron (constant strain).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

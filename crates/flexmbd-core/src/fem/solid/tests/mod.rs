@@ -11,6 +11,7 @@ use crate::fem::quadrature::GAUSS_LEGENDRE_3;
 use crate::math::Mat3;
 use crate::testing::{assert_all_close, assert_close};
 
+mod incompatible;
 mod mass;
 mod stiffness;
 mod validation;
@@ -30,6 +31,8 @@ enum Kind {
     Tet4,
     Tet10,
     Hex8,
+    /// [`Hex8Incompatible`], on the same shapes as Hex8.
+    Hex8I,
 }
 
 fn element(kind: Kind) -> &'static dyn ElementKernel {
@@ -37,6 +40,7 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Tet4 => &Tet4,
         Kind::Tet10 => &Tet10,
         Kind::Hex8 => &Hex8,
+        Kind::Hex8I => &Hex8Incompatible,
     }
 }
 
@@ -187,7 +191,7 @@ fn cases() -> Vec<Case> {
         let moments = Some(hexahedron_moments(&nodes));
         Case { name, kind: Kind::Hex8, nodes, moments, fractions }
     };
-    vec![
+    let mut cases = vec![
         tet("unit Tet4", Kind::Tet4, unit_tet(), Some(tet4_fractions.clone())),
         tet("distorted Tet4", Kind::Tet4, distorted_tet(), Some(tet4_fractions)),
         tet("unit Tet10", Kind::Tet10, tet10_from(&unit_tet()), Some(tet10_fractions.clone())),
@@ -207,7 +211,27 @@ fn cases() -> Vec<Case> {
             Some(hex_fractions),
         ),
         hex("distorted Hex8", distorted_hex(), None),
-    ]
+    ];
+    // The same hexahedra with incompatible modes: their mass is that of Hex8, and every affine
+    // field leaves the modes at rest.
+    let incompatible: Vec<Case> = cases
+        .iter()
+        .filter(|c| c.kind == Kind::Hex8)
+        .map(|c| Case {
+            name: match c.name {
+                "unit cube Hex8" => "unit cube Hex8I",
+                "box Hex8" => "box Hex8I",
+                "parallelepiped Hex8" => "parallelepiped Hex8I",
+                _ => "distorted Hex8I",
+            },
+            kind: Kind::Hex8I,
+            nodes: c.nodes.clone(),
+            moments: c.moments,
+            fractions: c.fractions.clone(),
+        })
+        .collect();
+    cases.extend(incompatible);
+    cases
 }
 
 fn stiffness_of(case: &Case) -> DenseMatrix {

@@ -143,7 +143,7 @@ fn stress_forces_from_faces(case: &Case, sigma: &[[f64; 3]; 3]) -> Option<Vec<f6
                 }
             }
         }
-        Kind::Hex8 => hex_surface_quadrature(x, |face, n, _, area| {
+        Kind::Hex8 | Kind::Hex8I => hex_surface_quadrature(x, |face, n, _, area| {
             for (i, node) in face.iter().enumerate() {
                 add(*node, n[i] * area);
             }
@@ -167,7 +167,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
         let strains = match case.kind {
             Kind::Tet4 => strains_at_stiffness_points::<Tet4, 4>(x, &u),
             Kind::Tet10 => strains_at_stiffness_points::<Tet10, 10>(x, &u),
-            Kind::Hex8 => strains_at_stiffness_points::<Hex8, 8>(x, &u),
+            Kind::Hex8 | Kind::Hex8I => strains_at_stiffness_points::<Hex8, 8>(x, &u),
         };
         for (p, e) in strains.iter().enumerate() {
             assert_all_close(
@@ -184,7 +184,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
         let expected = stress_forces_from_faces(&case, &sigma).unwrap_or_else(|| match case.kind {
             Kind::Tet4 => stress_forces_by_quadrature::<Tet4, 4>(x, &sigma),
             Kind::Tet10 => stress_forces_by_quadrature::<Tet10, 10>(x, &sigma),
-            Kind::Hex8 => stress_forces_by_quadrature::<Hex8, 8>(x, &sigma),
+            Kind::Hex8 | Kind::Hex8I => stress_forces_by_quadrature::<Hex8, 8>(x, &sigma),
         });
         let scale = max_abs(&k.data) * max_abs(&u);
         assert_all_close(&internal, &expected, 0.0, RELATIVE * scale, format_args!("{}: K u", case.name));
