@@ -322,3 +322,17 @@ def test_a_sid_file_larger_than_the_free_memory_is_refused(solid, tmp_path, monk
     monkeypatch.setattr(memory, "available_memory", lambda: 1000)
     with pytest.raises(InvalidModelError, match="SID file"):
         read_sid(path)
+
+
+def test_flexmbd_info_describes_a_sid_file(solid, tmp_path, capsys):
+    # `flexmbd info` said a SID file was "not a model, body, results, mesh, Nastran or OP2
+    # file", though model files and read_sid take it.
+    from flexmbd.cli import main
+
+    write_sid(solid[0], tmp_path / "block.sid")
+    assert main(["info", str(tmp_path / "block.sid")]) == 0
+    printed = capsys.readouterr().out
+    body = read_sid(tmp_path / "block.sid")
+    assert f"SID file (a modal body), {body.node_count} nodes, no elements" in printed
+    assert f"{body.elastic_coordinate_count} elastic coordinates" in printed
+    assert f"{body.frequencies[0]:.4g}" in printed

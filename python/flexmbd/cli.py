@@ -445,11 +445,17 @@ def _info(args: argparse.Namespace) -> int:
             return 0
         if path.suffix.lower() in NASTRAN_SUFFIXES:
             return _info_nastran(path)
+        if path.suffix.lower() == ".sid":
+            from .fe.sid import read_sid
+
+            _print_body(read_sid(path), f"{path}: SID file (a modal body),")
+            return 0
         import h5py
 
         if not h5py.is_hdf5(path):
             print(
-                f"flexmbd info: {target}: not a model, body, results, mesh, Nastran or OP2 file",
+                f"flexmbd info: {target}: not a model, body, results, mesh, Nastran, OP2 or SID "
+                "file",
                 file=sys.stderr,
             )
             return 2
@@ -628,7 +634,7 @@ def _info_body(path: Path) -> int:
 def _print_body(body: Any, title: str, more: str = "") -> None:
     """Nodes, elements, mass, elastic coordinates and the first frequencies of a body."""
     elements = ", ".join(f"{len(c)} {kind}" for kind, c in body.elements.items())
-    print(f"{title} {body.node_count} nodes, {elements}")
+    print(f"{title} {body.node_count} nodes, {elements or 'no elements'}")
     print(
         f"  mass {body.invariants.mass:.6g} kg, {body.elastic_coordinate_count} elastic "
         f"coordinates ({body.mode_kind or 'nodal'}){more}"
