@@ -4,6 +4,7 @@ reach the Python classes and the model-file schema from there (issue 29)."""
 from __future__ import annotations
 
 import inspect
+import pickle
 import typing
 
 import pytest
@@ -23,12 +24,14 @@ def literal_names(spec: type, field: str) -> list[str]:
 def test_the_schema_offers_exactly_the_names_the_solver_takes(solver, spec):
     for field, names in solver.choices().items():
         assert literal_names(spec, field) == names, field
+        # (tr-bdf2 is the method with an iteration matrix)
+        extra = {"method": "tr-bdf2"} if (solver, field) == (fm.ExplicitSolver, "jacobian") else {}
         for name in names:
             if field == "formulation":
                 continue  # each belongs to its strategy: checked below
-            assert getattr(solver(**{field: name}), field) == name
+            assert getattr(solver(**{field: name}, **extra), field) == name
         with pytest.raises(fm.InvalidParameterError) as raised:
-            solver(**{field: "no-such-choice"})
+            solver(**{field: "no-such-choice"}, **extra)
         listed = ", ".join(f"'{n}'" for n in names)
         assert f"{field} must be one of {listed}, got 'no-such-choice'" in str(raised.value)
 
@@ -61,6 +64,40 @@ def test_defaults_are_the_cores_and_none_means_the_default(solver, spec):
             "partitioning",
             20,
         )
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"method": "rk4", "relative_tolerance": 1e-8}, "relative_tolerance is for the error-"),
+        ({"method": "rk4", "absolute_tolerance": 1e-8}, "rk4 takes fixed steps"),
+        ({"method": "dopri5", "jacobian": "differences"}, "jacobian is for tr-bdf2.*dopri5 has"),
+        ({"method": "rk4", "jacobian": "analytic"}, "jacobian is for tr-bdf2"),
+        (
+            {"strategy": "joint-coordinates", "baumgarte": (5.0, 5.0)},
+            "baumgarte is for the strategies that integrate the constrained coordinates",
+        ),
+        (
+            {"strategy": "joint-coordinates", "formulation": "embedding"},
+            "formulation 'embedding' is for the other strategies; 'joint-coordinates' takes "
+            "'joint-space', 'coupled', 'decoupled'",
+        ),
+    ],
+)
+def test_explicit_options_the_method_or_strategy_ignores_are_refused(options, message):
+    # They were accepted and did nothing: rk4 took its fixed steps whatever the tolerances,
+    # dopri5 has no iteration matrix, the joint-coordinate strategy neither uses Baumgarte's
+    # terms nor the dense formulations.
+    with pytest.raises(fm.InvalidParameterError, match=message):
+        fm.ExplicitSolver(**options)
+    # Where they do something they are taken.
+    assert fm.ExplicitSolver("tr-bdf2", jacobian="differences", relative_tolerance=1e-5)
+    # Set as attributes they are not checked, and a copy leaves them out (studies pickle it).
+    solver = fm.ExplicitSolver("rk4", "projection")
+    solver.relative_tolerance, solver.jacobian = 1e-9, "differences"
+    copy = pickle.loads(pickle.dumps(solver))
+    assert (copy.method, copy.strategy, copy.jacobian) == ("rk4", "projection", "analytic")
+    assert fm.ExplicitSolver("rk4", "projection", baumgarte=(5.0, 5.0)).baumgarte == (5.0, 5.0)
 
 
 def test_a_step_longer_than_the_output_interval_warns_and_steps_at_the_interval(assert_close):

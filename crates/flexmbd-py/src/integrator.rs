@@ -408,6 +408,10 @@ fn redundancy_settings(item: &str, handling: &str, tolerance: f64) -> PyResult<R
 ///   component: a check).
 /// - `redundant_constraints`, `rank_tolerance`, `initial_tolerance`,
 ///   `correct_initial_positions`, `correct_initial_velocities`: as for `GeneralizedAlpha`.
+///
+/// Options given that the method or strategy would not use are refused
+/// (`InvalidParameterError`): tolerances with "rk4", `jacobian` without "tr-bdf2", `baumgarte`
+/// or a dense formulation with "joint-coordinates".
 #[pyclass(module = "flexmbd._core", subclass, get_all, set_all, from_py_object)]
 #[derive(Clone)]
 pub struct ExplicitSolver {
@@ -496,6 +500,20 @@ impl ExplicitSolver {
         jacobian: Option<String>,
     ) -> PyResult<Self> {
         let d = ExplicitSolver::default();
+        let ignored = ignored_explicit_options(
+            method.as_deref().unwrap_or(&d.method),
+            strategy.as_deref().unwrap_or(&d.strategy),
+            &[
+                ("relative_tolerance", relative_tolerance.is_some()),
+                ("absolute_tolerance", absolute_tolerance.is_some()),
+                ("jacobian", jacobian.is_some()),
+                ("baumgarte", baumgarte.is_some()),
+            ],
+            formulation.as_deref(),
+        );
+        if let Some(detail) = ignored {
+            return Err(invalid("ExplicitSolver", detail));
+        }
         let s = ExplicitSolver {
             cut_joints,
             jacobian: jacobian.unwrap_or(d.jacobian),
@@ -574,8 +592,58 @@ impl ExplicitSolver {
         d.set_item("rank_tolerance", self.rank_tolerance)?;
         d.set_item("cut_joints", self.cut_joints.clone())?;
         d.set_item("jacobian", self.jacobian.clone())?;
+        // Options the method or strategy ignores (values set as attributes after construction)
+        // are left out: the constructor would refuse them.
+        for name in ["relative_tolerance", "absolute_tolerance", "jacobian", "baumgarte"] {
+            if ignored_explicit_options(&self.method, &self.strategy, &[(name, true)], None).is_some() {
+                d.del_item(name)?;
+            }
+        }
+        if ignored_explicit_options(&self.method, &self.strategy, &[], Some(&self.formulation)).is_some() {
+            d.del_item("formulation")?;
+        }
         Ok(((), d))
     }
+}
+
+/// Why an option given to `ExplicitSolver(...)` would do nothing with the chosen `method` and
+/// `strategy` (`given`: option name, whether given), or None. Checked where the constructor
+/// can tell given options from defaults; an attribute set later is not checked.
+fn ignored_explicit_options(
+    method: &str,
+    strategy: &str,
+    given: &[(&str, bool)],
+    formulation: Option<&str>,
+) -> Option<String> {
+    let is_given = |name: &str| given.iter().any(|&(n, g)| n == name && g);
+    for name in ["relative_tolerance", "absolute_tolerance"] {
+        if method == "rk4" && is_given(name) {
+            return Some(format!(
+                "{name} is for the error-controlled methods (dopri5, tr-bdf2); rk4 takes fixed steps"
+            ));
+        }
+    }
+    if method != "tr-bdf2" && is_given("jacobian") {
+        return Some(format!(
+            "jacobian is for tr-bdf2 (the matrix of its Newton iteration); {method} has none"
+        ));
+    }
+    if strategy == "joint-coordinates" && is_given("baumgarte") {
+        return Some(
+            "baumgarte is for the strategies that integrate the constrained coordinates; with \
+             'joint-coordinates' the tree joints hold exactly and the cut joints are projected"
+                .to_string(),
+        );
+    }
+    if let (Some(name), "joint-coordinates") = (formulation, strategy) {
+        if Formulation::from_name(name).is_some() {
+            return Some(format!(
+                "formulation '{name}' is for the other strategies; 'joint-coordinates' takes {}",
+                names(TreeFormulation::NAMES).iter().map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ")
+            ));
+        }
+    }
+    None
 }
 
 impl Default for ExplicitSolver {
