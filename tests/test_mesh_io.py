@@ -18,7 +18,12 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from flexmbd.errors import InvalidModelError, InvalidParameterError, UnknownItemError
+from flexmbd.errors import (
+    InvalidModelError,
+    InvalidParameterError,
+    MeshQualityWarning,
+    UnknownItemError,
+)
 from flexmbd.fe.mesh_io import (
     MAX_NODE_COORDINATE,
     Mesh,
@@ -418,6 +423,24 @@ def test_abaqus_labels_and_sets(tmp_path):
     for name, indices in expected.items():
         np.testing.assert_array_equal(mesh.node_sets[name], indices, err_msg=name)
     validate_mesh(mesh)
+
+
+def test_abaqus_blocks_of_types_meshio_cannot_read_are_left_out_with_a_warning(tmp_path):
+    # One block of membranes (M3D4, unknown to meshio) made the whole file unreadable
+    # ("Element type not available"). It is left out with a warning naming it, and its
+    # element set still gives a node set (an element continued on a second line too).
+    path = tmp_path / "skin.inp"
+    skin = "*ELEMENT, TYPE=M3D3, ELSET=Skin\n31, 101, 102,\n 105\n32, 102, 103, 105\n"
+    path.write_text(ABAQUS_INP.replace("*ELSET, ELSET=Clamp", skin + "*ELSET, ELSET=Clamp"))
+    with pytest.warns(MeshQualityWarning, match="2 M3D3 element.*first: element 31.*line 16"):
+        mesh = read_mesh(path)
+    assert list(mesh.elements) == ["tet4", "tri3"]
+    np.testing.assert_array_equal(mesh.node_sets["Skin"], [0, 1, 2, 4])
+    np.testing.assert_array_equal(mesh.node_sets["FromElements"], [0, 1, 2])
+    # An element of such a block on a node nobody defines is named.
+    path.write_text(path.read_text().replace("32, 102, 103, 105", "32, 102, 103, 999"))
+    with pytest.raises(UnknownItemError, match="line 16: element 32 refers to node 999"):
+        read_mesh(path)
 
 
 def test_abaqus_c3d10_order(tmp_path):

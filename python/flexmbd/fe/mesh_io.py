@@ -195,7 +195,9 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     of the highest dimension must all be elements: a wedge (Abaqus C3D6), a pyramid or a
     20-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
-    miss their mass and stiffness).
+    miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
+    (membranes such as M3D4, surface elements SFM3D4, ...) are left out with a
+    :class:`~flexmbd.MeshQualityWarning`; their element sets still give node sets.
 
     Node and element ids:
 
@@ -314,6 +316,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     top = max((_cell_dimension(cell_type) for cell_type, _ in blocks), default=0)
     elements: dict[str, list[NDArray[np.int64]]] = {}
     element_ids: dict[str, list[NDArray[np.int64]]] = {}
+    if abaqus is not None:
+        _warn_unread_blocks(path, abaqus)
     substituted: dict[str, list[int]] = {}
     for index, ((cell_type, data), ids) in enumerate(zip(blocks, block_ids, strict=True)):
         kind = MESHIO_ELEMENT_TYPES.get(cell_type)
@@ -539,6 +543,9 @@ class _AbaqusScan:
     node_blocks: int = 0
     # The TYPE= of each *ELEMENT block (upper case).
     element_types: list[str] = field(default_factory=list)
+    # *ELEMENT blocks of types meshio does not read (membranes, surface elements, ...), left
+    # out of `lines`: (type, where, ELSET, rows of [label, node labels...]).
+    unread_blocks: list[tuple[str, str, str | None, list[list[int]]]] = field(default_factory=list)
     # (where, thickness) of each *SHELL SECTION.
     shell_sections: list[tuple[str, float]] = field(default_factory=list)
     # (where, ELSET) of each *SHELL SECTION that names its elements.
@@ -613,6 +620,20 @@ class _AbaqusScan:
         for b, (_, name) in enumerate(self.element_blocks):
             if name is not None:
                 self._element_set(name).ids.extend(int(i) for i in block_ids[b])
+        # Elements of the blocks meshio does not read: their nodes (by label) for the sets.
+        unread: dict[int, list[int]] = {}
+        for _, where, name, rows in self.unread_blocks:
+            for row in rows:
+                for label in row[1:]:
+                    if label not in node_index:
+                        raise UnknownItemError(
+                            f"{where}: element {row[0]} refers to node {label}, which no "
+                            "*NODE line defines",
+                            item=f"node {label}",
+                        )
+                unread[row[0]] = [node_index[label] for label in row[1:]]
+            if name is not None:
+                self._element_set(name).ids.extend(row[0] for row in rows)
 
         def element_nodes(key: str, seen: set[str]) -> set[int]:
             entry = self.element_sets.get(key)
@@ -625,6 +646,9 @@ class _AbaqusScan:
             seen.add(key)
             result: set[int] = set()
             for element_id in entry.ids:
+                if element_id in unread:
+                    result.update(unread[element_id])
+                    continue
                 if element_id not in element_index:
                     raise UnknownItemError(
                         f"{path}: element set {entry.name!r} refers to element {element_id}, "
@@ -802,6 +826,32 @@ def _include_target(
     return target
 
 
+def _warn_unread_blocks(path: Path, scan: _AbaqusScan) -> None:
+    """A `MeshQualityWarning` per element type of the *ELEMENT blocks left out (see
+    `_AbaqusScan.unread_blocks`): their count, first element and where."""
+    counts: dict[str, list[Any]] = {}
+    for element_type, where, _, rows in scan.unread_blocks:
+        if rows:
+            entry = counts.setdefault(element_type, [0, rows[0][0], where])
+            entry[0] += len(rows)
+    for element_type, (count, first, where) in counts.items():
+        warnings.warn(
+            f"{path}: {count} {element_type} element(s) (first: element {first}, {where}) are "
+            "not read: flexmbd has no such element (membranes, surface, rigid and plane "
+            "elements), so their mass and stiffness are not in the body; their nodes are in "
+            "the node sets of their element sets",
+            MeshQualityWarning,
+            stacklevel=3,
+        )
+
+
+def _meshio_abaqus_types() -> set[str]:
+    """The Abaqus element types meshio's reader knows."""
+    import meshio.abaqus._abaqus as reader
+
+    return set(reader.abaqus_to_meshio_type)
+
+
 def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) -> None:
     """Scan `path` (reached through the *INCLUDE files `chain`, itself last) into `scan`."""
 
@@ -828,6 +878,23 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
         while number < len(lines) and not lines[number].startswith("*"):
             number += 1
         data = [(first + k + 1, text) for k, text in enumerate(lines[first:number]) if text.strip()]
+        element_type = (parameters.get("TYPE") or "").upper()
+        if keyword == "ELEMENT" and element_type not in _meshio_abaqus_types():
+            # meshio refuses the whole file for one block of a type it does not know (skins
+            # of membranes on a solid): such a block is left out of what it reads.
+            # One element per line, continued on the next while a line ends in a comma.
+            rows: list[list[int]] = []
+            continued = False
+            for row in data:
+                values = _abaqus_integers(path, [row])
+                if continued:
+                    rows[-1].extend(values)
+                else:
+                    rows.append(values)
+                continued = row[1].rstrip().endswith(",")
+            where = f"{path}, line {first}"
+            scan.unread_blocks.append((element_type, where, parameters.get("ELSET"), rows))
+            continue
         if keyword != "INCLUDE":
             scan.lines.extend(lines[first - 1 : number])
 
