@@ -137,5 +137,11 @@ def test_the_campbell_command_on_the_rotating_blade_model_file(tmp_path, capsys,
     assert code == 0 and "driver: hub" in capsys.readouterr().out
     with xr.open_dataset(stem.with_suffix(".nc"), engine="scipy") as data:
         assert_close(data["frequency"].values[-1, 0], f[-1, 0], rel=1e-9)
+    # Negative speeds after a space: argparse took "-35.3:0:2" for an option ("expected one
+    # argument"); only the "=" form worked.
+    code = main(["campbell", str(model), "--speeds", "-35.3:0:2", "--modes", "1", "-o", str(stem)])
+    assert code == 0, capsys.readouterr().err
+    with xr.open_dataset(stem.with_suffix(".nc"), engine="scipy") as data:
+        assert_close(data["frequency"].values[0, 0], f[-1, 0], rel=1e-6)
     assert main(["campbell", "four-bar", "--speeds", "0:1:2"]) == 2
     assert "no angle driver: name the one to turn with --driver" in capsys.readouterr().err

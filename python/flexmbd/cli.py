@@ -18,6 +18,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import time
 import warnings
@@ -1364,7 +1365,7 @@ def _main(argv: list[str] | None) -> int:
     view.add_argument(
         "--modes", type=int, help="view this many mode shapes of a model (as flexmbd modes)"
     )
-    args, extra = parser.parse_known_args(argv)
+    args, extra = parser.parse_known_args(_negative_values_joined(parser, argv))
     if args.command == "plot" and not any(text.startswith("-") for text in extra):
         # Quantities after an option (``plot R.h5 -o x.svg deflection:rod``): argparse has
         # already closed the positional list at the option.
@@ -1373,6 +1374,33 @@ def _main(argv: list[str] | None) -> int:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     with _logging_to_stderr(getattr(args, "verbose", 0), getattr(args, "quiet", False)):
         return _command(parser, args)
+
+
+def _negative_values_joined(parser: argparse.ArgumentParser, argv: list[str] | None) -> list[str]:
+    """`argv` with a value that starts with a minus sign and a digit joined to its option
+    (``--speeds -60:60:5`` -> ``--speeds=-60:60:5``): argparse takes such a value for an
+    option unless it is a plain negative number, so ``--step -1e-3`` failed too."""
+    tokens = list(sys.argv[1:] if argv is None else argv)
+    single = set()
+    parsers = [parser]
+    while parsers:
+        for action in parsers.pop()._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                parsers.extend(action.choices.values())
+            elif action.option_strings and action.nargs is None:
+                single.update(action.option_strings)
+    joined: list[str] = []
+    k = 0
+    while k < len(tokens):
+        token = tokens[k]
+        following = tokens[k + 1] if k + 1 < len(tokens) else ""
+        if token in single and re.match(r"-[0-9.]", following):
+            joined.append(f"{token}={following}")
+            k += 2
+        else:
+            joined.append(token)
+            k += 1
+    return joined
 
 
 def _command(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
