@@ -608,6 +608,12 @@ def test_outputs_are_checked_before_the_runs_and_computed_again_when_they_change
     assert list(again["status"].values) == ["complete", "failed"]
     assert "deliberate failure" in str(again["error"].values[1])  # the run's own error
     assert {p: p.stat().st_mtime_ns for p in (tmp_path / "s" / "cases").glob("*.h5")} == results
+    # With every case done, a mistyped output marked them all failed; now it is refused first.
+    summaries = {p: p.read_text() for p in (tmp_path / "s" / "cases").glob("*.json")}
+    typo = fm.Study(swinging_arm, cases, outputs={"low": "min(sensor:tipp[y])"}, **run)
+    with pytest.raises(fm.InvalidParameterError, match=r"output 'low'.*case 0.*no sensor named"):
+        typo.run(workers=1, progress=False)
+    assert {p: p.read_text() for p in (tmp_path / "s" / "cases").glob("*.json")} == summaries
     complete = fm.simulate(swinging_arm(length=1.0), 0.4, 1e-3)
     partial = fm.read_results(tmp_path / "s" / "cases" / f"case-{first.keys[1]}.h5")
     assert 0.15 < partial.time[-1] < 0.25  # the failed case's records, up to its failure

@@ -205,7 +205,10 @@ class Study:
     def refresh(self) -> None:
         """Computes the outputs of the cases done again where the study's outputs have changed
         since they ran (a new or corrected ``outputs``), from their results files; the
-        simulations do not run again. A case whose results file is gone becomes pending."""
+        simulations do not run again. A case whose results file is gone becomes pending. The
+        outputs are checked first, on the first case to refresh (`check_outputs`): a mistyped
+        one raises before any summary changes."""
+        checked = not self.outputs
         for k, key in enumerate(self.keys):
             path = self._summary(key)
             if not path.exists():
@@ -216,6 +219,10 @@ class Study:
                 path.unlink(missing_ok=True)  # unreadable: the case runs again
                 continue
             if summary.get("outputs_of") != self.outputs:
+                if not checked:
+                    # (a mistyped output marked every case done failed)
+                    check_outputs(self.source, k, self.cases[k], self.outputs)
+                    checked = True
                 refresh_outputs(self._task(k), summary)
 
     def _summary(self, key: str) -> Path:
