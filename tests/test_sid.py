@@ -192,6 +192,13 @@ def test_damping_travels_as_rayleigh_and_modal(solid, tmp_path, assert_close):
     assert_close(back.damping["rayleigh"], (2.0, 1e-5), rel=1e-8, what="rayleigh")
     assert_close(back.damping["modal"], 0.02, rel=1e-8, what="modal ratio")
     assert read_sid(write_sid(solid[0], tmp_path / "undamped.sid")).damping is None
+    # Each kind alone comes back alone: the tetrahedral pendulum's arm came back with modal
+    # damping of ratio 3.5e-17 besides its Rayleigh damping, and alpha 1.5e-12 besides 0.02.
+    example = fm.examples.tetrahedral_pendulum()
+    arm = example.system._flexible[example.items["arm"].index]
+    for damping in ({"rayleigh": (2.0, 1e-5)}, {"modal": 0.02}):
+        back = read_sid(write_sid(arm.with_damping(**damping), tmp_path / "one.sid"))
+        assert {k for k, v in back.damping.items() if v is not None} == set(damping), damping
 
 
 def test_a_selection_of_nodes_keeps_markers_on_them(beam, tmp_path, assert_close):

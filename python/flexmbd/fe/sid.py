@@ -542,7 +542,12 @@ def _damping_spec(
             f"{residual:.1e})",
             item="De",
         )
-    clean = [max(float(v), 0.0) for v in coefficients]
+    # Terms of round-off size dropped (a Rayleigh-damped body came back with modal damping
+    # of ratio 2.8e-17 besides).
+    clean = [
+        max(float(c), 0.0) if abs(c) * np.linalg.norm(b) > 1e-12 * size else 0.0
+        for c, b in zip(coefficients, basis, strict=True)
+    ]
     rayleigh = (clean[0], clean[1]) if clean[0] > 0 or clean[1] > 0 else None
     return {"rayleigh": rayleigh, "modal": clean[2] if clean[2] > 0 else None}
 
