@@ -2,8 +2,8 @@
 
 A steel bar 1 x 0.1 x 0.1 m (E = 210 GPa, nu = 0.3), clamped at x = 0 (every node of the face
 held: the body's reference conditions), carries 1 kN along z spread evenly over the nodes of
-the end face. The tip deflection (mean over the end face) of tet4, tet10, hex8 and hex8i box
-meshes of 10 n x n x n cells is compared with Timoshenko beam theory,
+the end face. The tip deflection (mean over the end face) of tet4, tet10, hex8, hex8i, hex20 and
+hex20r box meshes of 10 n x n x n cells is compared with Timoshenko beam theory,
 w = P L^3 / (3 E I) + P L / (kappa G A) with kappa = 5/6 (Euler-Bernoulli alone: the first
 term). The nodal clamp is stiffer than a beam's built-in end (it also holds the cross-section's
 Poisson contraction), so the finest meshes settle slightly below the beam value.
@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from flexmbd.errors import InvalidModelError
 from flexmbd.fe import Material, build_body, shapes
 from flexmbd.fe.preprocess import static_displacements
 
@@ -48,7 +49,9 @@ def tip_deflection(element: str, n: int) -> tuple[float, int, float]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 2, 4, 6, 8])
-    parser.add_argument("--elements", nargs="+", default=["tet4", "tet10", "hex8", "hex8i"])
+    parser.add_argument(
+        "--elements", nargs="+", default=["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r"]
+    )
     args = parser.parse_args(argv)
     inertia, area = WIDTH**4 / 12, WIDTH**2
     bending = LOAD * LENGTH**3 / (3 * E * inertia)
@@ -59,7 +62,11 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|---|---|")
     for element in args.elements:
         for n in args.sizes:
-            w, nodes, seconds = tip_deflection(element, n)
+            try:
+                w, nodes, seconds = tip_deflection(element, n)
+            except InvalidModelError as error:  # hex20r one element deep: hourglass modes
+                print(f"| {element} | {10 * n} x {n} x {n} | refused: {str(error)[:60]}... |")
+                continue
             print(
                 f"| {element} | {10 * n} x {n} x {n} | {nodes} | {w:.5e} | "
                 f"{100 * (w / exact - 1):+.2f} % | {seconds:.2f} |"

@@ -37,8 +37,10 @@ def test_hex8i_has_the_mass_of_hex8_and_a_softer_stiffness(assert_close):
     assert difference[-1] > 1e-2 * scale
 
 
-def clamped_bar(element, n):
-    mesh = shapes.box((1.0, 0.1, 0.1), (20 * n, n, n), element)
+def clamped_bar(element, n, cells=20):
+    """The steel bar 1 x 0.1 x 0.1 m of `cells` n x n x n `element`s, clamped at x0: the mesh
+    and its body with two fixed-interface modes."""
+    mesh = shapes.box((1.0, 0.1, 0.1), (cells * n, n, n), element)
     return mesh, pp.build_body(
         mesh.nodes,
         mesh.elements,

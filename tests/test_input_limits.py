@@ -62,7 +62,11 @@ def test_bad_box_divisions_are_typed_errors():
         ({"origin": fm.BodyId(1)}, "origin", "origin must be numbers"),
         ({"origin": (0.0, float("nan"), 0.0)}, "origin", "origin must be three finite"),
         ({"divisions": (1, 1, 0)}, "divisions", "three positive divisions"),
-        ({"element": np.array(["hex8", "tet4"])}, "element", "hex8, hex8i, tet4 or tet10"),
+        (
+            {"element": np.array(["hex8", "tet4"])},
+            "element",
+            "hex8, hex8i, hex20, hex20r, tet4 or tet10",
+        ),
     ],
     ids=["id", "string", "two", "negative", "id origin", "nan origin", "zero", "array"],
 )

@@ -79,6 +79,7 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     "tet4": ("tetra", None),
     "tet10": ("tetra10", np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])),
     "hex8": ("hexahedron", None),
+    "hex20": ("hexahedron20", None),
     "quad4": ("quad", None),
     "tri3": ("triangle", None),
 }
@@ -101,6 +102,8 @@ ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
     "quad4": ((0, 1, 2, 3),),
     "tri3": ((0, 1, 2),),
 }
+# (a hex20's faces by their corners: the surfaces drawn are flat between them)
+ELEMENT_FACES["hex20"] = ELEMENT_FACES["hex8"]
 
 #: Named views: (elevation, azimuth) in degrees, orthographic.
 VIEWS: dict[str, tuple[float, float]] = {

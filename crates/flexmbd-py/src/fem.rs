@@ -218,8 +218,8 @@ fn default_orientation(axis: Vec3) -> Vec3 {
 /// built once (`flexmbd_core::fem::Mesh`) for the functions that take it: `assemble_body`,
 /// `recover_stresses`, `body_mass_points`. Nodes (n, 3) in the body frame, node ids (n,),
 /// elements as a dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2",
-/// "tet4", "tet10" (Gmsh node order), "hex8", "hex8i" (with incompatible modes), "quad4" and
-/// "tri3"; the beam orientation is a
+/// "tet4", "tet10" (Gmsh node order), "hex8", "hex8i" (with incompatible modes), "hex20",
+/// "hex20r" (VTK node order; reduced integration), "quad4" and "tri3"; the beam orientation is a
 /// vector in the sections' x-y plane (default: global y, or global z for beams nearly along
 /// y); `shear`: shear-deformable (Timoshenko) beams.
 #[pyclass(name = "FeMesh", module = "flexmbd._core", frozen)]
@@ -300,6 +300,8 @@ impl FeMesh {
                     "tet10" => ElementType::Tet10,
                     "hex8" => ElementType::Hex8,
                     "hex8i" => ElementType::Hex8Incompatible,
+                    "hex20" => ElementType::Hex20,
+                    "hex20r" => ElementType::Hex20Reduced,
                     "quad4" | "tri3" => {
                         let section = shell.ok_or_else(|| {
                             invalid(
@@ -317,7 +319,7 @@ impl FeMesh {
                         return Err(invalid(
                             "mesh",
                             format!(
-                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, quad4, tri3)"
+                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, quad4, tri3)"
                         ),
                         ))
                     }

@@ -28,24 +28,28 @@ BODY_DATA_VERSION = 1
 
 #: Element types and their number of nodes.
 #: "quad4" and "tri3" are flat shells (6 coordinates per node, see `docs/preprocessor.md`);
-#: "hex8i" is the hexahedron with incompatible modes (Abaqus' C3D8I).
+#: "hex8i" is the hexahedron with incompatible modes (Abaqus' C3D8I), "hex20" the quadratic
+#: (serendipity) hexahedron and "hex20r" the same with reduced integration (C3D20R).
 ELEMENT_NODES = {
     "beam2": 2,
     "tet4": 4,
     "tet10": 10,
     "hex8": 8,
     "hex8i": 8,
+    "hex20": 20,
+    "hex20r": 20,
     "quad4": 4,
     "tri3": 3,
 }
 
 #: Element types whose cell (shape, node order, faces) is another type's: they differ in
 #: their stiffness only.
-_SAME_CELL = {"hex8i": "hex8"}
+_SAME_CELL = {"hex8i": "hex8", "hex20r": "hex20"}
 
 
 def cell_of(kind: str) -> str:
-    """The cell type of an element type: the type itself, or "hex8" for "hex8i"."""
+    """The cell type of an element type: the type itself, "hex8" for "hex8i" and "hex20" for
+    "hex20r"."""
     return _SAME_CELL.get(kind, kind)
 
 
@@ -405,8 +409,8 @@ class FlexibleBodyData:
     Attributes:
         nodes: undeformed node positions in the body frame, (n_nodes, 3), m.
         node_ids: ids of the nodes in the source mesh, (n_nodes,).
-        elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", and the shells
-            "quad4", "tri3") -> (n_elements, nodes) indices into ``nodes``.
+        elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r",
+            and the shells "quad4", "tri3") -> (n_elements, nodes) indices into ``nodes``.
         element_ids: element type -> (n_elements,) ids in the source mesh.
         node_sets: name -> indices into ``nodes``.
         material: {"young_modulus": Pa, "poisson_ratio": -, "density": kg/m^3}; empty for

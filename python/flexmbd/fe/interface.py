@@ -51,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
 from .body import cell_of
-from .shapes import HEX8_CORNERS, TET10_EDGES
+from .shapes import HEX8_CORNERS, HEX20_EDGES, TET10_EDGES
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -67,8 +67,9 @@ Array = NDArray[np.float64]
 # Facets (faces) and edges of the elements, in each element's local node numbers, with the
 # kind of the facet. Node orders are Gmsh's (see `flexmbd.fe.mesh_io`): tet10 mid-edge nodes
 # 4..9 on the edges (0,1), (1,2), (0,2), (0,3), (2,3), (1,3); triangle facets list their
-# corners, then the mid-edge nodes of the edges (a,b), (b,c), (c,a); line3 edges their ends,
-# then the middle.
+# corners, then the mid-edge nodes of the edges (a,b), (b,c), (c,a); quad8 facets their
+# corners, then the mid-edge nodes of the edges (a,b), (b,c), (c,d), (d,a); line3 edges their
+# ends, then the middle. hex20 mid-edge nodes 8..19 on the edges `HEX20_EDGES` (VTK order).
 _FACETS: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
     "tet4": ("tri3", ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3))),
     "tet10": (
@@ -84,6 +85,17 @@ _FACETS: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
             (1, 2, 6, 5),
             (2, 3, 7, 6),
             (3, 0, 4, 7),
+        ),
+    ),
+    "hex20": (
+        "quad8",
+        (
+            (0, 1, 2, 3, 8, 9, 10, 11),
+            (4, 5, 6, 7, 12, 13, 14, 15),
+            (0, 1, 5, 4, 8, 17, 12, 16),
+            (1, 2, 6, 5, 9, 18, 13, 17),
+            (2, 3, 7, 6, 10, 19, 14, 18),
+            (3, 0, 4, 7, 11, 16, 15, 19),
         ),
     ),
     # Shells: the element is its own facet (an interface of shell nodes weighted by area).
@@ -114,10 +126,11 @@ _EDGES: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
             (3, 7),
         ),
     ),
+    "hex20": ("line3", tuple((p, q, 8 + e) for e, (p, q) in enumerate(HEX20_EDGES))),
     "quad4": ("line2", ((0, 1), (1, 2), (2, 3), (3, 0))),
     "tri3": ("line2", ((0, 1), (1, 2), (2, 0))),
 }
-_SOLIDS = ("tet4", "tet10", "hex8")
+_SOLIDS = ("tet4", "tet10", "hex8", "hex20")
 #: Cells integrated at a time.
 _CHUNK = 16384
 
@@ -145,6 +158,18 @@ def _shape(kind: str, xi: Any) -> list[Any]:
     if kind == "quad4":
         a, b = xi
         return [(1 - a) * (1 - b), a * (1 - b), a * b, (1 - a) * b]
+    if kind == "quad8":
+        # Serendipity, on [-1, 1]^2: corners (1 + s u)(1 + t v)(s u + t v - 1) / 4, mid-edge
+        # nodes (1 - u^2)(1 + t v) / 2 and (1 + s u)(1 - v^2) / 2.
+        u, v = 2 * xi[0] - 1, 2 * xi[1] - 1
+        corners = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+        values = [(1 + s * u) * (1 + t * v) * (s * u + t * v - 1) / 4 for s, t in corners]
+        return values + [
+            (1 - u * u) * (1 - v) / 2,
+            (1 + u) * (1 - v * v) / 2,
+            (1 - u * u) * (1 + v) / 2,
+            (1 - u) * (1 - v * v) / 2,
+        ]
     if kind in ("tet4", "tet10"):
         a, b, c = xi
         lam = [1 - a - b - c, a, b, c]
@@ -158,6 +183,23 @@ def _shape(kind: str, xi: Any) -> list[Any]:
             (a if i else 1 - a) * (b if j else 1 - b) * (c if k else 1 - c)
             for i, j, k in HEX8_CORNERS
         ]
+    if kind == "hex20":
+        # Serendipity, on [-1, 1]^3 (see the element kernel `fem/solid/hexahedron.rs`).
+        u = [2 * x - 1 for x in xi]
+        signs = [[2 * s - 1 for s in corner] for corner in HEX8_CORNERS]
+        values = [
+            (1 + s[0] * u[0]) * (1 + s[1] * u[1]) * (1 + s[2] * u[2])
+            * (s[0] * u[0] + s[1] * u[1] + s[2] * u[2] - 2) / 8
+            for s in signs
+        ]  # fmt: skip
+        for p, q in HEX20_EDGES:
+            m = next(k for k in range(3) if signs[p][k] != signs[q][k])
+            factor = (1 - u[m] * u[m]) / 4
+            for k in range(3):
+                if k != m:
+                    factor = factor * (1 + signs[p][k] * u[k])
+            values.append(factor)
+        return values
     raise InvalidParameterError(f"no shape functions for {kind!r}")  # pragma: no cover
 
 
@@ -165,7 +207,8 @@ def _rule(kind: str) -> tuple[Array, Array]:
     """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: 3-point
     Gauss-Legendre products, collapsed (Duffy) onto simplices; exact for the integrals of
     the shape functions times the Jacobian of every straight-sided or flat cell here (degree
-    2 on simplices, 3 per direction on quadrilaterals and hexahedra)."""
+    2 on simplices, 3 per direction on quadrilaterals and hexahedra, 4 on the serendipity
+    quad8 and hex20)."""
     g, w = np.polynomial.legendre.leggauss(3)
     g, w = 0.5 * (g + 1.0), 0.5 * w
     dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3}[kind.rstrip("0123456789")]

@@ -21,6 +21,10 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
 * ``hex8``: bottom face 0, 1, 2, 3, then top face 4, 5, 6, 7 with node 4 above node 0, both
   faces counter-clockwise seen from the top (the same in VTK, Gmsh and Abaqus C3D8).
   ``hex8i`` (incompatible modes, Abaqus C3D8I): the same.
+* ``hex20``, ``hex20r``: the corners of ``hex8``, then the mid-edge nodes 8..19 on the edges
+  (0,1), (1,2), (2,3), (3,0), (4,5), (5,6), (6,7), (7,4), (0,4), (1,5), (2,6), (3,7): the
+  order of VTK's quadratic hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's own
+  order on reading).
 * ``quad4``, ``tri3`` (flat shells): the corners counter-clockwise about the element normal
   (the same in VTK, Gmsh and Abaqus S4/S3); the top surface of the shell is on the side of
   the normal.
@@ -60,6 +64,7 @@ MESHIO_ELEMENT_TYPES = {
     "tetra4": "tet4",
     "tetra10": "tet10",
     "hexahedron": "hex8",
+    "hexahedron20": "hex20",
 }
 
 #: meshio cell types of surfaces read as shell elements ("quad4", "tri3") in files without
@@ -78,9 +83,14 @@ ABAQUS_SHELL_TYPES = {
 }
 
 #: Abaqus solid element types read as another flexmbd element than their meshio cell's: the
-#: hexahedra with incompatible modes (the hybrid C3D8IH without its pressure unknowns, as
-#: C3D8H is read as hex8).
-ABAQUS_SOLID_TYPES = {"C3D8I": "hex8i", "C3D8IH": "hex8i"}
+#: hexahedra with incompatible modes and the quadratic ones with reduced integration (the
+#: hybrid types without their pressure unknowns, as C3D8H is read as hex8).
+ABAQUS_SOLID_TYPES = {
+    "C3D8I": "hex8i",
+    "C3D8IH": "hex8i",
+    "C3D20R": "hex20r",
+    "C3D20RH": "hex20r",
+}
 
 #: Abaqus solid element types whose formulation flexmbd does not have, read as the element of
 #: their cell with a `MeshQualityWarning`: type -> what they are.
@@ -122,7 +132,8 @@ class Mesh:
         nodes: node positions, (n_nodes, 3) float64, in the length unit of the source file.
         node_ids: ids of the nodes in the source file, (n_nodes,) int64 (see
             :func:`read_mesh` for where they come from).
-        elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "quad4", "tri3") ->
+        elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r",
+            "quad4", "tri3") ->
             (n_elements, nodes) int64 indices into ``nodes``, node order as in the module
             docstring.
         element_ids: element type -> (n_elements,) int64 ids in the source file.
@@ -178,9 +189,11 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     """Read a Gmsh (``.msh``, formats 2.2 and 4.1), Abaqus (``.inp``) or VTK (``.vtu``,
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
-    Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron" and "line"
-    become "tet4", "tet10", "hex8" and "beam2", in the node order of the module docstring;
-    Abaqus' hexahedra with incompatible modes (C3D8I, C3D8IH) become "hex8i", its
+    Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron",
+    "hexahedron20" and "line" become "tet4", "tet10", "hex8", "hex20" and "beam2", in the node
+    order of the module docstring; Abaqus' hexahedra with incompatible modes (C3D8I, C3D8IH)
+    become "hex8i", its quadratic ones with reduced integration (C3D20R, C3D20RH) "hex20r",
+    its
     reduced-integration hexahedra (C3D8R, C3D8RH) "hex8" with a
     :class:`~flexmbd.MeshQualityWarning` (flexmbd has no hourglass-controlled element).
     Shells: in Gmsh and VTK files without volume cells, "quad" and "triangle" cells become
@@ -193,7 +206,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
     "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
     of the highest dimension must all be elements: a wedge (Abaqus C3D6), a pyramid or a
-    20-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
+    27-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
     miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
     (membranes such as M3D4, surface elements SFM3D4, ...) are left out with a
@@ -365,9 +378,11 @@ def _unsupported_cells(
 ) -> InvalidModelError:
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
-    supported = {3: "tet4, tet10, hex8, hex8i", 2: "quad4, tri3 (flat shells)", 1: "beam2"}[
-        dimension
-    ]
+    supported = {
+        3: "tet4, tet10, hex8, hex8i, hex20, hex20r",
+        2: "quad4, tri3 (flat shells)",
+        1: "beam2",
+    }[dimension]
     return InvalidModelError(
         f"{path}: {count} {cell_type} cell{'s' if count > 1 else ''} (the first is element "
         f"{first_id}) {'are' if count > 1 else 'is'} not an element type flexmbd has "
@@ -828,9 +843,13 @@ def _include_target(
 
 def _warn_unread_blocks(path: Path, scan: _AbaqusScan) -> None:
     """A `MeshQualityWarning` per element type of the *ELEMENT blocks left out (see
-    `_AbaqusScan.unread_blocks`): their count, first element and where."""
+    `_AbaqusScan.unread_blocks`): their count, first element and where; solids (C3D...) and
+    continuum shells (SC...) of such types are refused instead."""
     counts: dict[str, list[Any]] = {}
     for element_type, where, _, rows in scan.unread_blocks:
+        if rows and element_type.startswith(("C3D", "SC")):
+            # A solid (or continuum shell) of another type would leave a hole in the body.
+            raise _unsupported_cells(path, element_type, len(rows), rows[0][0], 3)
         if rows:
             entry = counts.setdefault(element_type, [0, rows[0][0], where])
             entry[0] += len(rows)

@@ -345,7 +345,8 @@ def assemble(
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
     `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8",
-    "hex8i" with incompatible modes, the flat shells "quad4" and "tri3") to its connectivity
+    "hex8i" with incompatible modes, "hex20" and "hex20r" in VTK node order, the flat shells
+    "quad4" and "tri3") to its connectivity
     (n_e, nodes) of 0-based node indices; shells need `shell` (a `ShellSection` or the
     thickness). `mass` is "consistent" or "lumped";
     `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams). For bodies of
@@ -721,6 +722,8 @@ def build_body(
     )
     if point_masses is not None:
         nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
+    if len(elements.get("hex20r", ())):
+        _check_hourglass_modes(nodal, nodes, eids["hex20r"])
     clock.lap("assemble")
     return _body_from_nodal(
         nodal,
@@ -1088,6 +1091,43 @@ def _check_held(
         "nodes",
         item=f"node {int(ids[ref_nodes[0]])}" if len(ref_nodes) else "reference_nodes",
     )
+
+
+def _check_hourglass_modes(
+    nodal: NodalBody, nodes: NDArray[np.float64], eids: NDArray[np.int64]
+) -> None:
+    """Raises `InvalidModelError` when the stiffness of a body with reduced-integration hex20r
+    elements has zero-energy modes besides the rigid motions: those of a lone element pass
+    along a row of elements one element thick in two directions (as in Abaqus' C3D20R), and
+    the body would deform under no force. Checked by a factorization with three nodes far
+    apart held (their translations: the rigid motions and three more)."""
+    a = 0
+    b = int(np.argmax(np.linalg.norm(nodes - nodes[a], axis=1)))
+    axis = (nodes[b] - nodes[a]) / max(float(np.linalg.norm(nodes[b] - nodes[a])), 1e-300)
+    off = (nodes - nodes[a]) - np.outer((nodes - nodes[a]) @ axis, axis)
+    c = int(np.argmax(np.linalg.norm(off, axis=1)))
+    d = nodal.dofs_per_node
+    held = np.array([d * n + k for n in {a, b, c} for k in range(3)], dtype=np.int64)
+    free = np.setdiff1d(np.arange(nodal.stiffness.shape[0]), held)
+    from .modal import factorize
+
+    try:
+        factorize(
+            nodal.stiffness[free][:, free].tocsc(),
+            dofs=free,
+            nodes=nodes,
+            dofs_per_node=d,
+            name="stiffness of the hex20r elements",
+        )
+    except InvalidModelError as error:
+        raise InvalidModelError(
+            f"the reduced-integration hex20r elements (first: element {int(eids[0])}) have "
+            "zero-energy (hourglass) modes in this mesh: a lone element has six, and some "
+            "pass along a row of elements one element thick in two directions (as in Abaqus' "
+            "C3D20R), so the body would deform under no force. Mesh two or more elements "
+            f"through each thickness, or use hex20 (full integration) ({error})",
+            item=f"element {int(eids[0])}",
+        ) from error
 
 
 def _vector_text(v: NDArray[np.float64]) -> str:

@@ -38,6 +38,11 @@ HEX8_CORNERS = [
 _KUHN = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
 #: Vertices joined by the mid-edge nodes 4..9 of a tet10 (Gmsh order).
 TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
+#: Corners joined by the mid-edge nodes 8..19 of a hex20 (VTK order: the bottom face's edges,
+#: the top face's, the vertical ones).
+HEX20_EDGES = (
+    (0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7),
+)  # fmt: skip
 
 #: Meshes estimated at more elements than this are refused before they are made (the
 #: `max_elements` keyword of :func:`box`, :func:`gmsh_mesh`, :func:`cylinder` and
@@ -45,11 +50,16 @@ TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
 #: :func:`box` and 15 GB or more in Gmsh, and many times that in the preprocessor.
 MAX_MESH_ELEMENTS = 10_000_000
 
+#: The elements of :func:`box`.
+BOX_ELEMENTS = ("hex8", "hex8i", "hex20", "hex20r", "tet4", "tet10")
+
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
 #: Gmsh for tetrahedra of order 1 and 2.
 _BYTES_PER_ELEMENT = {
     "hex8": 220,
     "hex8i": 220,
+    "hex20": 1300,
+    "hex20r": 1300,
     "tet4": 280,
     "tet10": 640,
     "gmsh1": 1500,
@@ -158,11 +168,28 @@ def quadratic_tetrahedra(
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Tet10 elements from tet4 elements: one node at the midpoint of every edge, shared by
     the elements around it. Returns the extended nodes and the tet10 connectivity."""
-    pairs = np.concatenate([np.sort(tets[:, [p, q]], axis=1) for p, q in TET10_EDGES])
+    return _with_edge_midpoints(nodes, tets, TET10_EDGES)
+
+
+def quadratic_hexahedra(
+    nodes: NDArray[np.float64], hexes: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Hex20 elements from hex8 elements: one node at the midpoint of every edge, shared by
+    the elements around it. Returns the extended nodes and the hex20 connectivity."""
+    return _with_edge_midpoints(nodes, hexes, HEX20_EDGES)
+
+
+def _with_edge_midpoints(
+    nodes: NDArray[np.float64], cells: NDArray[np.int64], cell_edges: Sequence[tuple[int, int]]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """A node at the midpoint of each edge `cell_edges` of the cells (one per edge, however
+    many cells share it) appended to the nodes and, in the order of `cell_edges`, to the
+    cells."""
+    pairs = np.concatenate([np.sort(cells[:, [p, q]], axis=1) for p, q in cell_edges])
     edges, inverse = np.unique(pairs, axis=0, return_inverse=True)
     mid = 0.5 * (nodes[edges[:, 0]] + nodes[edges[:, 1]])
-    edge_nodes = len(nodes) + inverse.reshape(len(TET10_EDGES), len(tets)).T
-    return np.vstack([nodes, mid]), np.hstack([tets, edge_nodes]).astype(np.int64)
+    edge_nodes = len(nodes) + inverse.reshape(len(cell_edges), len(cells)).T
+    return np.vstack([nodes, mid]), np.hstack([cells, edge_nodes]).astype(np.int64)
 
 
 def box(
@@ -197,9 +224,11 @@ def box(
         raise InvalidParameterError(
             f"a box needs three positive divisions, got {[nx, ny, nz]}", item="divisions"
         )
-    if not isinstance(element, str) or element not in ("hex8", "hex8i", "tet4", "tet10"):
+    if not isinstance(element, str) or element not in BOX_ELEMENTS:
         raise InvalidParameterError(
-            f"box elements are hex8, hex8i, tet4 or tet10, got {element!r:.60}", item="element"
+            f"box elements are {', '.join(BOX_ELEMENTS[:-1])} or {BOX_ELEMENTS[-1]}, got "
+            f"{element!r:.60}",
+            item="element",
         )
     # Sizes from the counts alone (Python integers: no overflow) before any array is made.
     cells = nx * ny * nz
@@ -209,7 +238,11 @@ def box(
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz + (nx + 1) * ny * nz + nx * (ny + 1) * nz
         node_count += nx * ny * (nz + 1) + cells
-    element_count = cells if element in ("hex8", "hex8i") else 6 * cells
+    if element in ("hex20", "hex20r"):
+        # Mid-edge nodes: the grid's edges.
+        node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
+        node_count += (nx + 1) * (ny + 1) * nz
+    element_count = cells if element.startswith("hex") else 6 * cells
     _check_mesh_size(
         element_count,
         node_count,
@@ -231,6 +264,9 @@ def box(
     hexes = np.column_stack([index(i + a, j + b, k + c) for a, b, c in HEX8_CORNERS])
     hexes = hexes.astype(np.int64)
     if element in ("hex8", "hex8i"):
+        elements = {element: hexes}
+    elif element in ("hex20", "hex20r"):
+        nodes, hexes = quadratic_hexahedra(nodes, hexes)
         elements = {element: hexes}
     else:
         tets = np.vstack([hexes[:, list(t)] for t in _KUHN])

@@ -17,7 +17,7 @@ use crate::fem::beam::Beam;
 use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
-use crate::fem::solid::{Hex8, Hex8Incompatible, Tet10, Tet4};
+use crate::fem::solid::{Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Tet10, Tet4};
 
 /// The element types a body can be made of.
 #[derive(Clone, Debug, PartialEq)]
@@ -32,6 +32,10 @@ pub enum ElementType {
     Hex8,
     /// Eight-node hexahedron with incompatible modes (Abaqus' C3D8I).
     Hex8Incompatible,
+    /// Twenty-node hexahedron (VTK node order).
+    Hex20,
+    /// Twenty-node hexahedron with reduced integration (Abaqus' C3D20R).
+    Hex20Reduced,
     /// Four-node flat shell (MITC4).
     Quad4(ShellQuad4),
     /// Three-node flat shell (DKT).
@@ -46,6 +50,8 @@ impl ElementType {
             ElementType::Tet10 => &Tet10,
             ElementType::Hex8 => &Hex8,
             ElementType::Hex8Incompatible => &Hex8Incompatible,
+            ElementType::Hex20 => &Hex20,
+            ElementType::Hex20Reduced => &Hex20Reduced,
             ElementType::Quad4(s) => s,
             ElementType::Tri3(s) => s,
         }
@@ -64,7 +70,12 @@ impl ElementType {
     pub fn is_solid(&self) -> bool {
         matches!(
             self,
-            ElementType::Tet4 | ElementType::Tet10 | ElementType::Hex8 | ElementType::Hex8Incompatible
+            ElementType::Tet4
+                | ElementType::Tet10
+                | ElementType::Hex8
+                | ElementType::Hex8Incompatible
+                | ElementType::Hex20
+                | ElementType::Hex20Reduced
         )
     }
 }

@@ -174,12 +174,13 @@ pub const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
     (GAUSS_3_ABSCISSA, GAUSS_3_END_WEIGHT),
 ];
 
-/// The Gauss-Legendre rule on [-1, 1] with `points` points (1 to 3), as (abscissa, weight).
+/// The Gauss-Legendre rule on [-1, 1] with `points` points (1 to 4), as (abscissa, weight).
 pub fn gauss_legendre_rule(points: usize) -> Option<&'static [(f64, f64)]> {
     match points {
         1 => Some(&GAUSS_LEGENDRE_1),
         2 => Some(&GAUSS_LEGENDRE_2),
         3 => Some(&GAUSS_LEGENDRE_3),
+        4 => Some(&GAUSS_LEGENDRE_4),
         _ => None,
     }
 }
@@ -312,13 +313,100 @@ pub const HEXAHEDRON_GAUSS_3: [QuadraturePoint; 27] = [
     },
 ];
 
+/// Gauss-Legendre rule on [-1, 1] with 4 points, as (abscissa, weight); exact to degree 7.
+pub const GAUSS_LEGENDRE_4: [(f64, f64); 4] = [
+    (-0.8611363115940526, 0.3478548451374538),
+    (-0.3399810435848563, 0.6521451548625461),
+    (0.3399810435848563, 0.6521451548625461),
+    (0.8611363115940526, 0.3478548451374538),
+];
+
+/// Point (i, j, k) of the 4 x 4 x 4 tensor-product rule.
+macro_rules! gauss_4_point {
+    ($i:literal, $j:literal, $k:literal) => {
+        QuadraturePoint {
+            coordinates: [GAUSS_LEGENDRE_4[$i].0, GAUSS_LEGENDRE_4[$j].0, GAUSS_LEGENDRE_4[$k].0],
+            weight: GAUSS_LEGENDRE_4[$i].1 * GAUSS_LEGENDRE_4[$j].1 * GAUSS_LEGENDRE_4[$k].1,
+        }
+    };
+}
+
+/// Cube [-1, 1]^3, 4 x 4 x 4 Gauss-Legendre points (xi fastest, then eta, then zeta).
+pub const HEXAHEDRON_GAUSS_4: [QuadraturePoint; 64] = [
+    gauss_4_point!(0, 0, 0),
+    gauss_4_point!(1, 0, 0),
+    gauss_4_point!(2, 0, 0),
+    gauss_4_point!(3, 0, 0),
+    gauss_4_point!(0, 1, 0),
+    gauss_4_point!(1, 1, 0),
+    gauss_4_point!(2, 1, 0),
+    gauss_4_point!(3, 1, 0),
+    gauss_4_point!(0, 2, 0),
+    gauss_4_point!(1, 2, 0),
+    gauss_4_point!(2, 2, 0),
+    gauss_4_point!(3, 2, 0),
+    gauss_4_point!(0, 3, 0),
+    gauss_4_point!(1, 3, 0),
+    gauss_4_point!(2, 3, 0),
+    gauss_4_point!(3, 3, 0),
+    gauss_4_point!(0, 0, 1),
+    gauss_4_point!(1, 0, 1),
+    gauss_4_point!(2, 0, 1),
+    gauss_4_point!(3, 0, 1),
+    gauss_4_point!(0, 1, 1),
+    gauss_4_point!(1, 1, 1),
+    gauss_4_point!(2, 1, 1),
+    gauss_4_point!(3, 1, 1),
+    gauss_4_point!(0, 2, 1),
+    gauss_4_point!(1, 2, 1),
+    gauss_4_point!(2, 2, 1),
+    gauss_4_point!(3, 2, 1),
+    gauss_4_point!(0, 3, 1),
+    gauss_4_point!(1, 3, 1),
+    gauss_4_point!(2, 3, 1),
+    gauss_4_point!(3, 3, 1),
+    gauss_4_point!(0, 0, 2),
+    gauss_4_point!(1, 0, 2),
+    gauss_4_point!(2, 0, 2),
+    gauss_4_point!(3, 0, 2),
+    gauss_4_point!(0, 1, 2),
+    gauss_4_point!(1, 1, 2),
+    gauss_4_point!(2, 1, 2),
+    gauss_4_point!(3, 1, 2),
+    gauss_4_point!(0, 2, 2),
+    gauss_4_point!(1, 2, 2),
+    gauss_4_point!(2, 2, 2),
+    gauss_4_point!(3, 2, 2),
+    gauss_4_point!(0, 3, 2),
+    gauss_4_point!(1, 3, 2),
+    gauss_4_point!(2, 3, 2),
+    gauss_4_point!(3, 3, 2),
+    gauss_4_point!(0, 0, 3),
+    gauss_4_point!(1, 0, 3),
+    gauss_4_point!(2, 0, 3),
+    gauss_4_point!(3, 0, 3),
+    gauss_4_point!(0, 1, 3),
+    gauss_4_point!(1, 1, 3),
+    gauss_4_point!(2, 1, 3),
+    gauss_4_point!(3, 1, 3),
+    gauss_4_point!(0, 2, 3),
+    gauss_4_point!(1, 2, 3),
+    gauss_4_point!(2, 2, 3),
+    gauss_4_point!(3, 2, 3),
+    gauss_4_point!(0, 3, 3),
+    gauss_4_point!(1, 3, 3),
+    gauss_4_point!(2, 3, 3),
+    gauss_4_point!(3, 3, 3),
+];
+
 /// The tensor-product Gauss-Legendre rule on [-1, 1]^3 with `points_per_direction` points per
-/// direction (1 to 3); exact for x^a y^b z^c with a, b, c <= 2 points_per_direction - 1.
+/// direction (1 to 4); exact for x^a y^b z^c with a, b, c <= 2 points_per_direction - 1.
 pub fn hexahedron_rule(points_per_direction: usize) -> Option<&'static [QuadraturePoint]> {
     match points_per_direction {
         1 => Some(&HEXAHEDRON_GAUSS_1),
         2 => Some(&HEXAHEDRON_GAUSS_2),
         3 => Some(&HEXAHEDRON_GAUSS_3),
+        4 => Some(&HEXAHEDRON_GAUSS_4),
         _ => None,
     }
 }
@@ -416,7 +504,7 @@ mod tests {
 
     #[test]
     fn gauss_legendre_rules_are_exact_to_degree_2n_minus_1() {
-        for n in 1..=3usize {
+        for n in 1..=4usize {
             let rule = gauss_legendre_rule(n).unwrap();
             assert_eq!(rule.len(), n);
             for a in 0..=(2 * n as u32 - 1) {
@@ -427,12 +515,12 @@ mod tests {
             let q: f64 = rule.iter().map(|&(x, w)| w * x.powi(a as i32)).sum();
             assert!((q - interval_monomial(a)).abs() > 1e-3, "{n} points exact at degree {a}");
         }
-        assert!(gauss_legendre_rule(4).is_none());
+        assert!(gauss_legendre_rule(5).is_none());
     }
 
     #[test]
     fn hexahedron_rules_are_exact_per_direction() {
-        for n in 1..=3usize {
+        for n in 1..=4usize {
             let rule = hexahedron_rule(n).unwrap();
             assert_eq!(rule.len(), n * n * n);
             let total: f64 = rule.iter().map(|p| p.weight).sum();

@@ -15,15 +15,21 @@
 //! - [`Hex8`]: bottom face 0, 1, 2, 3 counter-clockwise seen from +z (from above), top face
 //!   4, 5, 6, 7 above them (reference corners (-1,-1,-1), (1,-1,-1), (1,1,-1), (-1,1,-1), then
 //!   the same with zeta = +1). VTK and meshio use the same order.
+//! - [`Hex20`], [`Hex20Reduced`]: the corners of `Hex8`, then the mid-edge nodes 8..19 on
+//!   the bottom face's edges (0,1), (1,2), (2,3), (3,0), the top face's (4,5), (5,6), (6,7),
+//!   (7,4) and the vertical ones (0,4), (1,5), (2,6), (3,7) ([`HEX20_EDGES`]): VTK's quadratic
+//!   hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's order on reading; not
+//!   Gmsh's own order).
 //!
 //! Quadrature: stiffness K = int B^T D B dV with the 1-point rule (`Tet4`, exact), the 4-point
-//! degree-2 rule (`Tet10`, exact for straight edges) and 2 x 2 x 2 Gauss (`Hex8`, full
-//! integration, no hourglass modes). Mass points (consistent mass, invariants of motion, volume)
+//! degree-2 rule (`Tet10`, exact for straight edges), 2 x 2 x 2 Gauss (`Hex8`, full
+//! integration, no hourglass modes; `Hex20Reduced`) and 3 x 3 x 3 Gauss (`Hex20`). Mass points (consistent mass, invariants of motion, volume)
 //! use a rule that makes every integrand of `element.rs` exact: the 4-point degree-2 rule for
 //! `Tet4`, the 15-point degree-5 rule for `Tet10` (exact for straight edges; an approximation
 //! when mid-edge nodes are off the edge midpoints) and 3 x 3 x 3 Gauss for `Hex8` (exact for
 //! every trilinear hexahedron: with a non-constant Jacobian determinant the integrands
-//! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss).
+//! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss),
+//! 4 x 4 x 4 Gauss for `Hex20` (exact for straight edges: degree 6 per direction).
 //! Lumped masses are HRZ (Hinton, Rock, Zienkiewicz, "A note on mass lumping and related
 //! processes in the finite element method", Earthquake Eng. Struct. Dyn. 4 (1976) 245-249):
 //! the diagonal of the consistent mass matrix scaled so that its sum is the element mass.
@@ -54,6 +60,7 @@ pub(crate) mod tests;
 mod tetrahedra;
 mod validation;
 
+pub use hexahedron::HEX20_EDGES;
 pub use incompatible::Hex8Incompatible;
 
 /// Linear 4-node tetrahedron (constant strain).
@@ -67,6 +74,16 @@ pub struct Tet10;
 /// Trilinear 8-node hexahedron (node order in the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Hex8;
+
+/// Quadratic 20-node hexahedron (serendipity; node order in the module doc), 3 x 3 x 3 Gauss
+/// stiffness.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Hex20;
+
+/// [`Hex20`] with the reduced 2 x 2 x 2 Gauss stiffness (Abaqus' C3D20R): softer, with
+/// zero-energy modes in a lone element that a mesh of two or more does not share.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Hex20Reduced;
 
 /// Vertices joined by the edge of each mid-edge node 4..9 of a [`Tet10`] (Gmsh order).
 pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [2, 3], [1, 3]];
@@ -145,3 +162,5 @@ macro_rules! solid_element_kernel {
 solid_element_kernel!(Tet4, 4);
 solid_element_kernel!(Tet10, 10);
 solid_element_kernel!(Hex8, 8);
+solid_element_kernel!(Hex20, 20);
+solid_element_kernel!(Hex20Reduced, 20);

@@ -33,6 +33,10 @@ enum Kind {
     Hex8,
     /// [`Hex8Incompatible`], on the same shapes as Hex8.
     Hex8I,
+    /// [`Hex20`] and [`Hex20Reduced`], on the same shapes as Hex8 (mid-edge nodes at the
+    /// edges' midpoints).
+    Hex20,
+    Hex20R,
 }
 
 fn element(kind: Kind) -> &'static dyn ElementKernel {
@@ -41,6 +45,8 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Tet10 => &Tet10,
         Kind::Hex8 => &Hex8,
         Kind::Hex8I => &Hex8Incompatible,
+        Kind::Hex20 => &Hex20,
+        Kind::Hex20R => &Hex20Reduced,
     }
 }
 
@@ -231,7 +237,48 @@ fn cases() -> Vec<Case> {
         })
         .collect();
     cases.extend(incompatible);
+    // The same hexahedra with 20 nodes: the geometry (trilinear) is the same, so are the
+    // moments; on the parallelepipeds (constant det J) the consistent-mass row sums are -1/8
+    // of the mass at a corner and 1/6 at a mid-edge node, the HRZ masses 7/248 and 2/31
+    // (int N_a^2 over the cube: 28/135 and 64/135).
+    let quadratic: Vec<Case> = cases
+        .iter()
+        .filter(|c| c.kind == Kind::Hex8)
+        .flat_map(|c| {
+            let fractions = c.fractions.as_ref().map(|_| {
+                let mut row_sums = vec![-1.0 / 8.0; 8];
+                row_sums.extend([1.0 / 6.0; 12]);
+                let mut lumped = vec![7.0 / 248.0; 8];
+                lumped.extend([2.0 / 31.0; 12]);
+                (row_sums, lumped)
+            });
+            let nodes = hex20_from(&c.nodes);
+            let names = match c.name {
+                "unit cube Hex8" => ["unit cube Hex20", "unit cube Hex20R"],
+                "box Hex8" => ["box Hex20", "box Hex20R"],
+                "parallelepiped Hex8" => ["parallelepiped Hex20", "parallelepiped Hex20R"],
+                _ => ["distorted Hex20", "distorted Hex20R"],
+            };
+            [(Kind::Hex20, names[0]), (Kind::Hex20R, names[1])].map(|(kind, name)| Case {
+                name,
+                kind,
+                nodes: nodes.clone(),
+                moments: c.moments,
+                fractions: fractions.clone(),
+            })
+        })
+        .collect();
+    cases.extend(quadratic);
     cases
+}
+
+/// A straight-edged Hex20: the corners and the midpoints of the edges.
+fn hex20_from(corners: &[Vec3]) -> Vec<Vec3> {
+    let mut nodes = corners.to_vec();
+    for [p, q] in HEX20_EDGES {
+        nodes.push(0.5 * (corners[p] + corners[q]));
+    }
+    nodes
 }
 
 fn stiffness_of(case: &Case) -> DenseMatrix {
