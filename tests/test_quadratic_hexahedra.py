@@ -141,3 +141,35 @@ def test_model_file_box_of_hex20(tmp_path, assert_close):
     body = load_model(tmp_path / "bar.yaml").body_data["bar"]
     assert list(body.elements) == ["hex20"]
     assert_close(body.frequencies, clamped_bar("hex20", 1).frequencies, rel=1e-12)
+
+
+#: Gmsh's 20-node hexahedron (element type 17): its mid-edge nodes 8..19 on these corners.
+GMSH_HEX20_EDGES = ((0, 1), (0, 3), (0, 4), (1, 2), (1, 5), (2, 3), (2, 6), (3, 7), (4, 5),
+                    (4, 7), (5, 6), (6, 7))  # fmt: skip
+
+
+def test_gmsh_second_order_hexahedra_are_read_in_the_element_order(tmp_path, assert_close):
+    # A Gmsh 2.2 file with one type-17 element in Gmsh's own node order (mid-edge nodes at
+    # slightly distinct points of their edges, so that a wrong order shows): read_mesh gives
+    # hex20 whose node 8 + e lies on edge HEX20_EDGES[e].
+    corners = np.array([[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0],
+                        [0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], dtype=float)  # fmt: skip
+    shares = 0.5 + 0.01 * np.arange(12)
+    edges = zip(shares, GMSH_HEX20_EDGES, strict=True)
+    mids = [(1 - s) * corners[p] + s * corners[q] for s, (p, q) in edges]
+    nodes = np.vstack([corners, mids])
+    lines = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$Nodes", "20"]
+    lines += [f"{k + 1} {x} {y} {z}" for k, (x, y, z) in enumerate(nodes)]
+    lines += ["$EndNodes", "$Elements", "1", "1 17 2 1 1 " + " ".join(map(str, range(1, 21)))]
+    lines += ["$EndElements"]
+    (tmp_path / "block.msh").write_text("\n".join(lines) + "\n")
+    mesh = read_mesh(tmp_path / "block.msh")
+    conn = mesh.elements["hex20"][0]
+    for e, (p, q) in enumerate(HEX20_EDGES):
+        a, b, m = (mesh.nodes[conn[i]] for i in (p, q, 8 + e))
+        # On the segment a-b, strictly inside.
+        t = float((m - a) @ (b - a) / ((b - a) @ (b - a)))
+        assert_close(m, a + t * (b - a), abs=1e-12, what=f"node {8 + e} on edge {(p, q)}")
+        assert 0.4 < t < 0.7, (e, t)
+    body = pp.body_from_mesh(mesh, STEEL)
+    assert_close(body.invariants.mass, 2.0 * 7800.0, rel=1e-2, what="mass")
