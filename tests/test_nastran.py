@@ -14,7 +14,8 @@ from flexmbd.fe.nastran import parse_real, read_dmig
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
 NASTRAN_NAMES = {
-    "tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA", "quad4": "CQUAD4", "tri3": "CTRIA3",
+    "tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA", "hex20": "CHEXA", "quad4": "CQUAD4",
+    "tri3": "CTRIA3",
 }  # fmt: skip
 
 
@@ -139,6 +140,22 @@ def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
     body = deck.body()
     direct = pp.build_body(hexa.nodes, hexa.elements, STEEL)
     assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    # CHEXA of 20 grids (G9-G12 bottom edges, G13-G16 top, G17-G20 vertical: hex20's order).
+    quadratic = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "hex20")
+    path.write_text(deck_of(quadratic, "large"))
+    deck = read_nastran(path)
+    np.testing.assert_array_equal(deck.mesh.elements["hex20"], quadratic.elements["hex20"])
+    body = deck.body()
+    direct = pp.build_body(quadratic.nodes, quadratic.elements, STEEL)
+    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    # A mid-edge grid left blank (G20, the last field of the card's third line) is refused,
+    # not read as some other element.
+    lines = deck_of(quadratic, "free").splitlines()
+    third = lines.index(next(line for line in lines if line.startswith("CHEXA"))) + 2
+    lines[third] = ",".join(lines[third].split(",")[:-1] + [""])
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InvalidModelError, match="19 grids: .*CHEXA of 8 or 20"):
+        read_nastran(path)
 
 
 def beam_deck(form, property_card):

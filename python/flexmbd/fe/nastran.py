@@ -401,7 +401,8 @@ def read_nastran(path: str | os.PathLike[str], *, skip: Any = ()) -> NastranDeck
     ``["CMASS2"]``) reads the deck without them, for a model that adds these masses itself (a
     rigid body or point mass fixed to the node).
 
-    Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 grids) -> hex8, CBAR and CBEAM
+    Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 or 20 grids) -> hex8 / hex20,
+    CBAR and CBEAM
     -> beam2 (offsets, pin flags and tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
     shells quad4 and tri3 (PSHELL: one thickness, one material, default 12I/T^3 and TS/T;
     offsets refused). Grids may be given in CORD2R
@@ -571,9 +572,14 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
                 nodes[8], nodes[9] = nodes[9], nodes[8]  # Nastran G9 on (2,4), G10 on (3,4)
             elif name == "CHEXA" and len(nodes) == 8:
                 kind = "hex8"
+            elif name == "CHEXA" and len(nodes) == 20:
+                # G9-G12 on the bottom face's edges, G13-G16 on the top face's, G17-G20 on
+                # the edges G1-G5 .. G4-G8: the order of hex20.
+                kind = "hex20"
             else:
                 raise card.error(
-                    f"{len(nodes)} grids: flexmbd has CTETRA of 4 or 10 grids and CHEXA of 8"
+                    f"{len(nodes)} grids: flexmbd has CTETRA of 4 or 10 grids and CHEXA of 8 "
+                    "or 20 (every mid-edge grid given)"
                 )
             elements.setdefault(kind, []).append((eid, pid, nodes, card))
         elif name in ("CBAR", "CBEAM"):
