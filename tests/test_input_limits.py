@@ -65,7 +65,7 @@ def test_bad_box_divisions_are_typed_errors():
         (
             {"element": np.array(["hex8", "tet4"])},
             "element",
-            "hex8, hex8i, hex20, hex20r, tet4 or tet10",
+            "box elements are hex8, .* or tet10, got array",
         ),
     ],
     ids=["id", "string", "two", "negative", "id origin", "nan origin", "zero", "array"],

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+import flexmbd.fe.preprocess as pp
+from flexmbd._core import Material
 from flexmbd.errors import (
     InvalidModelError,
     InvalidParameterError,
@@ -32,6 +34,8 @@ from flexmbd.fe.mesh_io import (
     read_mesh,
     validate_mesh,
 )
+
+STEEL = Material(2.1e11, 0.3, 7800.0)
 
 # VTK (and meshio, Abaqus C3D10) order of the mid-edge nodes 4..9 of a 10-node tetrahedron.
 TET10_EDGES = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]
@@ -188,6 +192,8 @@ def test_two_tets_vtk_and_abaqus(tmp_path, suffix, file_format):
         ("hex.inp", "abaqus", {}),
     ],
 )
+# (meshio writes hexahedra as C3D8RH, which read_mesh reads as hex8 with a warning)
+@pytest.mark.filterwarnings("ignore::flexmbd.errors.MeshQualityWarning")
 def test_hex_mesh(tmp_path, name, file_format, options):
     nodes, hexes = hex_block()
     assert all(hex_orientation(nodes[h]) > 0 for h in hexes)
@@ -443,6 +449,22 @@ def test_abaqus_blocks_of_types_meshio_cannot_read_are_left_out_with_a_warning(t
         read_mesh(path)
 
 
+def test_abaqus_types_meshio_misreads(tmp_path):
+    # meshio names C3D4H but fails on it (KeyError 'tetra4'), and C3D15 (KeyError 'wedge15'):
+    # "cannot read the mesh". C3D4H is a tet4; C3D15 is refused as a cell flexmbd lacks.
+    path = tmp_path / "hybrid.inp"
+    path.write_text(ABAQUS_INP.replace("TYPE=C3D4,", "TYPE=C3D4H,"))
+    mesh = read_mesh(path)
+    np.testing.assert_array_equal(mesh.elements["tet4"], TWO_TETS)
+    np.testing.assert_array_equal(mesh.element_ids["tet4"], [11, 12])
+    nodes = "".join(f"{k + 1}, {k}, {k % 2}, {k % 3}\n" for k in range(16))
+    path.write_text(
+        f"*NODE\n{nodes}*ELEMENT, TYPE=C3D15\n40, " + ", ".join(map(str, range(2, 17))) + "\n"
+    )
+    with pytest.raises(InvalidModelError, match=r"1 C3D15 cell \(the first is element 40\)"):
+        read_mesh(path)
+
+
 def test_abaqus_c3d10_order(tmp_path):
     # Abaqus C3D10: nodes 5..10 on edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4 (1-based), the VTK order.
     nodes = tet10_nodes()
@@ -460,33 +482,68 @@ def test_abaqus_c3d10_order(tmp_path):
     assert_gmsh_tet10(mesh, mesh.elements["tet10"][0])
 
 
-def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
-    # A wedge on a hexahedron (VTK), a C3D6 wedge next to a C3D4 (Abaqus), a 6-node triangle
-    # among shell triangles: before, read_mesh left them out without a word, and the body
-    # had a hole (a wedge-and-hex bracket: 62.4 kg instead of 70.2).
+def wedge_roof(inverted=False):
+    """The two hexahedra of `hex_block` with a wedge roof on the first (its ridge along y at
+    x = 0.5, z = 1.5), its triangles in meshio's (Gmsh's) order, or the other way round."""
     points, hexes = hex_block()
     top = points[hexes[0, 4:]]
     apex = np.vstack([top[[0, 1]].mean(axis=0), top[[3, 2]].mean(axis=0)]) + [0, 0, 0.5]
     points = np.vstack([points, apex])
     n = len(points)
-    top_ids = hexes[0, 4:]
-    wedge = np.array([[top_ids[0], top_ids[1], n - 2, top_ids[3], top_ids[2], n - 1]])
+    t = hexes[0, 4:]
+    wedge = [t[0], n - 2, t[1], t[3], n - 1, t[2]]
+    if inverted:
+        wedge = [wedge[k] for k in (0, 2, 1, 3, 5, 4)]
+    return meshio.Mesh(points, [("hexahedron", hexes), ("wedge", np.array([wedge]))])
+
+
+def test_wedges_are_read_and_an_inverted_one_is_named(tmp_path, assert_close):
+    # A wedge on a hexahedron (VTK, whose wedges meshio converts to its order) and a C3D6
+    # wedge (Abaqus) were refused; they are wedge6 elements: the roofed block has the volume
+    # 2 + 0.25.
+    path = write(tmp_path, "bracket.vtu", wedge_roof(), "vtu")
+    mesh = read_mesh(path)
+    assert sorted(mesh.elements) == ["hex8", "wedge6"]
+    body = pp.body_from_mesh(mesh, Material(1.0e9, 0.3, 1000.0))
+    assert_close(body.invariants.mass, 2250.0, rel=1e-12, what="mass")
+    abaqus = tmp_path / "wedge.inp"
+    abaqus.write_text(
+        "*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n3, 0, 1, 0\n4, 0, 0, 1\n5, 1, 0, 1\n6, 0, 1, 1\n"
+        "*ELEMENT, TYPE=C3D6, ELSET=ALL\n40, 1, 2, 3, 4, 5, 6\n"
+    )
+    mesh = read_mesh(abaqus)
+    assert mesh.element_ids["wedge6"].tolist() == [40]
+    assert_close(pp.body_from_mesh(mesh, STEEL).invariants.mass, 0.5 * 7800.0, rel=1e-12)
+    # Nodes are never reordered: a wedge listed the other way round is inverted, named.
+    path = write(tmp_path, "inverted.vtu", wedge_roof(inverted=True), "vtu")
+    with pytest.raises(InvalidModelError, match="inverted.*Wedge6"):
+        pp.body_from_mesh(read_mesh(path), STEEL)
+
+
+def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
+    # A pyramid on a hexahedron (VTK), a C3D15 wedge next to a C3D4 (Abaqus), a 6-node
+    # triangle among shell triangles: before, read_mesh left them out without a word, and the
+    # body had a hole (a wedge-and-hex bracket: 62.4 kg instead of 70.2).
+    points, hexes = hex_block()
+    apex = points[hexes[0, 4:]].mean(axis=0) + [0, 0, 0.5]
+    points = np.vstack([points, apex])
+    pyramid = np.array([[*hexes[0, 4:], len(points) - 1]])
     path = write(
-        tmp_path, "bracket.vtu", meshio.Mesh(points, [("hexahedron", hexes), ("wedge", wedge)]),
-        "vtu",
+        tmp_path, "bracket.vtu",
+        meshio.Mesh(points, [("hexahedron", hexes), ("pyramid", pyramid)]), "vtu",
     )  # fmt: skip
-    with pytest.raises(InvalidModelError, match=r"1 wedge cell \(the first is element ") as info:
+    with pytest.raises(InvalidModelError, match=r"1 pyramid cell \(the first is element ") as info:
         read_mesh(path)
     assert "mass and stiffness" in str(info.value)
     assert info.value.item.startswith("element ")
 
     abaqus = tmp_path / "wedge.inp"
+    nodes = "".join(f"{k + 1}, {k}, {k % 2}, {k % 3}\n" for k in range(16))
     abaqus.write_text(
-        "*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n3, 0, 1, 0\n4, 0, 0, 1\n5, 1, 0, 1\n6, 0, 1, 1\n"
-        "7, 1, 1, 0\n*ELEMENT, TYPE=C3D4\n1, 2, 7, 3, 5\n*ELEMENT, TYPE=C3D6\n"
-        "40, 1, 2, 3, 4, 5, 6\n41, 1, 2, 3, 4, 5, 6\n"
+        f"*NODE\n{nodes}*ELEMENT, TYPE=C3D4\n1, 1, 2, 3, 4\n*ELEMENT, TYPE=C3D15\n"
+        "40, " + ", ".join(str(k) for k in range(2, 17)) + "\n"
     )
-    with pytest.raises(InvalidModelError, match=r"2 C3D6 cells \(the first is element 40\)"):
+    with pytest.raises(InvalidModelError, match=r"1 C3D15 cell \(the first is element 40\)"):
         read_mesh(abaqus)
 
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0, 0], [1, 0.5, 0],

@@ -130,7 +130,18 @@ _EDGES: dict[str, tuple[str, tuple[tuple[int, ...], ...]]] = {
     "quad4": ("line2", ((0, 1), (1, 2), (2, 3), (3, 0))),
     "tri3": ("line2", ((0, 1), (1, 2), (2, 0))),
 }
-_SOLIDS = ("tet4", "tet10", "hex8", "hex20")
+#: Per element type, its groups of (sub-cell kind, local node lists): one group each, two for
+#: the faces of a wedge (triangles and quadrilaterals).
+_FACET_GROUPS = {element: (group,) for element, group in _FACETS.items()}
+_FACET_GROUPS["wedge6"] = (
+    ("tri3", ((0, 1, 2), (3, 4, 5))),
+    ("quad4", ((0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5))),
+)
+_EDGE_GROUPS = {element: (group,) for element, group in _EDGES.items()}
+_EDGE_GROUPS["wedge6"] = (
+    ("line2", ((0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4), (2, 5))),
+)
+_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6")
 #: Cells integrated at a time.
 _CHUNK = 16384
 
@@ -177,6 +188,10 @@ def _shape(kind: str, xi: Any) -> list[Any]:
             return lam
         corners = [v * (2 * v - 1) for v in lam]
         return corners + [4 * lam[p] * lam[q] for p, q in TET10_EDGES]
+    if kind == "wedge6":
+        a, b, c = xi
+        lam = [1 - a - b, a, b]
+        return [v * (1 - c) for v in lam] + [v * c for v in lam]
     if kind == "hex8":
         a, b, c = xi
         return [
@@ -211,12 +226,15 @@ def _rule(kind: str) -> tuple[Array, Array]:
     quad8 and hex20)."""
     g, w = np.polynomial.legendre.leggauss(3)
     g, w = 0.5 * (g + 1.0), 0.5 * w
-    dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3}[kind.rstrip("0123456789")]
+    dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3}[
+        kind.rstrip("0123456789")
+    ]
     grids = np.meshgrid(*([g] * dim), indexing="ij")
     weights = np.prod(np.meshgrid(*([w] * dim), indexing="ij"), axis=0).ravel()
     u = [a.ravel() for a in grids]
-    if kind.startswith("tri"):
-        points = [u[0], u[1] * (1 - u[0])]
+    if kind.startswith(("tri", "wedge")):
+        # (a wedge: the collapsed triangle times the line)
+        points = [u[0], u[1] * (1 - u[0])] + u[2:]
         weights = weights * (1 - u[0])
     elif kind.startswith("tet"):
         points = [u[0], u[1] * (1 - u[0]), u[2] * (1 - u[0]) * (1 - u[1])]
@@ -273,21 +291,22 @@ def _integrals(kind: str, cells: NDArray[np.int64], nodes: Array) -> tuple[Array
 def _cells(
     elements: Mapping[str, ArrayLike],
     inside: NDArray[np.bool_],
-    table: Mapping[str, tuple[str, tuple[tuple[int, ...], ...]]],
+    table: Mapping[str, tuple[tuple[str, tuple[tuple[int, ...], ...]], ...]],
 ) -> dict[str, NDArray[np.int64]]:
-    """The distinct sub-cells (facets or edges) of the elements whose nodes all lie inside the
-    set, by kind (a facet shared by two elements counts once)."""
+    """The distinct sub-cells (facets or edges, `_FACET_GROUPS` or `_EDGE_GROUPS`) of the
+    elements whose nodes all lie inside the set, by kind (a facet shared by two elements
+    counts once)."""
     found: dict[str, list[NDArray[np.int64]]] = {}
     for element, conn in elements.items():
         if cell_of(element) not in table or len(conn) == 0:
             continue
-        kind, local = table[cell_of(element)]
         conn = np.asarray(conn, dtype=np.int64)
-        for sub in local:
-            cells = conn[:, sub]
-            cells = cells[inside[cells].all(axis=1)]
-            if len(cells):
-                found.setdefault(kind, []).append(cells)
+        for kind, local in table[cell_of(element)]:
+            for sub in local:
+                cells = conn[:, sub]
+                cells = cells[inside[cells].all(axis=1)]
+                if len(cells):
+                    found.setdefault(kind, []).append(cells)
     unique = {}
     for kind, parts in found.items():
         cells = np.vstack(parts)
@@ -374,9 +393,9 @@ def _weights(
         volumes = _volumes(elements, inside)
         if _covered(volumes, members):
             weights = "volume"
-        elif _cells(elements, inside, _FACETS):
+        elif _cells(elements, inside, _FACET_GROUPS):
             weights = "area"
-        elif _cells(elements, inside, _EDGES):
+        elif _cells(elements, inside, _EDGE_GROUPS):
             weights = "length"
         else:
             raise InvalidModelError(
@@ -388,7 +407,7 @@ def _weights(
     if weights == "volume":
         cells = _volumes(elements, inside)
     else:
-        cells = _cells(elements, inside, _FACETS if weights == "area" else _EDGES)
+        cells = _cells(elements, inside, _FACET_GROUPS if weights == "area" else _EDGE_GROUPS)
     if not cells:
         what = {"area": "element faces", "length": "element edges", "volume": "elements"}
         raise InvalidModelError(
@@ -621,11 +640,20 @@ def make_interface(
         inside = np.zeros(len(nodes), dtype=bool)
         inside[members] = True
         owners = [
-            conn[np.any([inside[conn[:, list(f)]].all(axis=1) for f in _FACETS[kind][1]], axis=0)]
+            conn[
+                np.any(
+                    [
+                        inside[conn[:, list(f)]].all(axis=1)
+                        for _, faces in _FACET_GROUPS[kind]
+                        for f in faces
+                    ],
+                    axis=0,
+                )
+            ]
             for kind, conn in (
                 (cell_of(k), np.asarray(c, dtype=np.int64)) for k, c in elements.items()
             )
-            if kind in _FACETS and len(conn)
+            if kind in _FACET_GROUPS and len(conn)
         ]
         owners = [c for c in owners if len(c)]
         if owners:

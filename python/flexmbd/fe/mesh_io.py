@@ -21,6 +21,9 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
 * ``hex8``: bottom face 0, 1, 2, 3, then top face 4, 5, 6, 7 with node 4 above node 0, both
   faces counter-clockwise seen from the top (the same in VTK, Gmsh and Abaqus C3D8).
   ``hex8i`` (incompatible modes, Abaqus C3D8I): the same.
+* ``wedge6``: the triangle 0, 1, 2 counter-clockwise seen from the other one, then 3, 4, 5
+  above them: Gmsh's prism, Abaqus C3D6 and meshio's wedge (meshio converts VTK's wedge,
+  whose triangles are listed the other way round, on reading).
 * ``hex20``, ``hex20r``: the corners of ``hex8``, then the mid-edge nodes 8..19 on the edges
   (0,1), (1,2), (2,3), (3,0), (4,5), (5,6), (6,7), (7,4), (0,4), (1,5), (2,6), (3,7): the
   order of VTK's quadratic hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's own
@@ -35,6 +38,7 @@ from __future__ import annotations
 import io
 import math
 import os
+import re
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -65,6 +69,7 @@ MESHIO_ELEMENT_TYPES = {
     "tetra10": "tet10",
     "hexahedron": "hex8",
     "hexahedron20": "hex20",
+    "wedge": "wedge6",
 }
 
 #: meshio cell types of surfaces read as shell elements ("quad4", "tri3") in files without
@@ -133,7 +138,7 @@ class Mesh:
         node_ids: ids of the nodes in the source file, (n_nodes,) int64 (see
             :func:`read_mesh` for where they come from).
         elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r",
-            "quad4", "tri3") ->
+            "wedge6", "quad4", "tri3") ->
             (n_elements, nodes) int64 indices into ``nodes``, node order as in the module
             docstring.
         element_ids: element type -> (n_elements,) int64 ids in the source file.
@@ -190,12 +195,12 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron",
-    "hexahedron20" and "line" become "tet4", "tet10", "hex8", "hex20" and "beam2", in the node
-    order of the module docstring; Abaqus' hexahedra with incompatible modes (C3D8I, C3D8IH)
-    become "hex8i", its quadratic ones with reduced integration (C3D20R, C3D20RH) "hex20r",
-    its
-    reduced-integration hexahedra (C3D8R, C3D8RH) "hex8" with a
-    :class:`~flexmbd.MeshQualityWarning` (flexmbd has no hourglass-controlled element).
+    "hexahedron20", "wedge" and "line" become "tet4", "tet10", "hex8", "hex20", "wedge6" and
+    "beam2", in the node order of the module docstring; Abaqus' hexahedra with incompatible
+    modes (C3D8I, C3D8IH) become "hex8i", its quadratic ones with reduced integration
+    (C3D20R, C3D20RH) "hex20r", its linear reduced-integration hexahedra (C3D8R, C3D8RH)
+    "hex8" with a :class:`~flexmbd.MeshQualityWarning` (flexmbd has no hourglass-controlled
+    element).
     Shells: in Gmsh and VTK files without volume cells, "quad" and "triangle" cells become
     the flat shells "quad4" and "tri3" (and "line" cells, then edges of the surfaces, are not
     beams); in Abaqus files the shell types S4, S4R, S4R5, S3, S3R and STRI3 do, and the
@@ -205,8 +210,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     the node sets of the named groups they belong to: a Gmsh physical surface of triangles
     named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
     "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
-    of the highest dimension must all be elements: a wedge (Abaqus C3D6), a pyramid or a
-    27-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
+    of the highest dimension must all be elements: a 15-node wedge (Abaqus C3D15), a pyramid
+    or a 27-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
     miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
     (membranes such as M3D4, surface elements SFM3D4, ...) are left out with a
@@ -379,7 +384,7 @@ def _unsupported_cells(
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
     supported = {
-        3: "tet4, tet10, hex8, hex8i, hex20, hex20r",
+        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6",
         2: "quad4, tri3 (flat shells)",
         1: "beam2",
     }[dimension]
@@ -864,11 +869,21 @@ def _warn_unread_blocks(path: Path, scan: _AbaqusScan) -> None:
         )
 
 
+#: Abaqus element types meshio's reader names but cannot read (its tables miss their cells:
+#: a KeyError), handed to it as an equivalent type.
+_MESHIO_ABAQUS_ALIASES = {"C3D4H": "C3D4"}
+
+
 def _meshio_abaqus_types() -> set[str]:
-    """The Abaqus element types meshio's reader knows."""
+    """The Abaqus element types meshio's reader reads (it names C3D15, but fails on it)."""
+    import meshio._mesh
     import meshio.abaqus._abaqus as reader
 
-    return set(reader.abaqus_to_meshio_type)
+    return {
+        name
+        for name, cell in reader.abaqus_to_meshio_type.items()
+        if cell in reader.num_nodes_per_cell and cell in meshio._mesh.topological_dimension
+    } | set(_MESHIO_ABAQUS_ALIASES)
 
 
 def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) -> None:
@@ -915,7 +930,11 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
             scan.unread_blocks.append((element_type, where, parameters.get("ELSET"), rows))
             continue
         if keyword != "INCLUDE":
-            scan.lines.extend(lines[first - 1 : number])
+            head = lines[first - 1]
+            if keyword == "ELEMENT" and element_type in _MESHIO_ABAQUS_ALIASES:
+                alias = _MESHIO_ABAQUS_ALIASES[element_type]
+                head = re.sub(r"(?i)(TYPE\s*=\s*)\w+", rf"\g<1>{alias}", head)
+            scan.lines.extend([head, *lines[first:number]])
 
         if keyword == "NODE":
             scan.node_blocks += 1

@@ -51,7 +51,7 @@ HEX20_EDGES = (
 MAX_MESH_ELEMENTS = 10_000_000
 
 #: The elements of :func:`box`.
-BOX_ELEMENTS = ("hex8", "hex8i", "hex20", "hex20r", "tet4", "tet10")
+BOX_ELEMENTS = ("hex8", "hex8i", "hex20", "hex20r", "wedge6", "tet4", "tet10")
 
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
 #: Gmsh for tetrahedra of order 1 and 2.
@@ -60,6 +60,7 @@ _BYTES_PER_ELEMENT = {
     "hex8i": 220,
     "hex20": 1300,
     "hex20r": 1300,
+    "wedge6": 200,
     "tet4": 280,
     "tet10": 640,
     "gmsh1": 1500,
@@ -203,9 +204,10 @@ def box(
     """A structured mesh of the box origin + [0, a] x [0, b] x [0, c].
 
     `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
-    "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "tet4" (six tetrahedra per
-    cell) or "tet10". Node sets: "x0", "x1", "y0", "y1",
-    "z0", "z1" (the faces), "all".
+    "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "hex20", "hex20r"
+    (quadratic hexahedra; reduced integration), "wedge6" (two prisms per cell, split in z),
+    "tet4" (six tetrahedra per cell) or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1"
+    (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
     divisions that are not three (or one) positive integers (an `ArgumentTypeError` for
@@ -242,7 +244,8 @@ def box(
         # Mid-edge nodes: the grid's edges.
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz
-    element_count = cells if element.startswith("hex") else 6 * cells
+    per_cell = 1 if element.startswith("hex") else 2 if element == "wedge6" else 6
+    element_count = per_cell * cells
     _check_mesh_size(
         element_count,
         node_count,
@@ -268,6 +271,11 @@ def box(
     elif element in ("hex20", "hex20r"):
         nodes, hexes = quadratic_hexahedra(nodes, hexes)
         elements = {element: hexes}
+    elif element == "wedge6":
+        # Each cell split along its diagonal 0-2 in z: the prisms (0, 1, 2 | 4, 5, 6) and
+        # (0, 2, 3 | 4, 6, 7), their triangles counter-clockwise seen from +z.
+        prisms = [hexes[:, [0, 1, 2, 4, 5, 6]], hexes[:, [0, 2, 3, 4, 6, 7]]]
+        elements = {"wedge6": np.vstack(prisms)}
     else:
         tets = np.vstack([hexes[:, list(t)] for t in _KUHN])
         tets = _orient(nodes, tets)

@@ -17,7 +17,7 @@ use crate::fem::beam::Beam;
 use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
-use crate::fem::solid::{Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Tet10, Tet4};
+use crate::fem::solid::{Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Tet10, Tet4, Wedge6};
 
 /// The element types a body can be made of.
 #[derive(Clone, Debug, PartialEq)]
@@ -36,6 +36,8 @@ pub enum ElementType {
     Hex20,
     /// Twenty-node hexahedron with reduced integration (Abaqus' C3D20R).
     Hex20Reduced,
+    /// Six-node wedge (triangular prism).
+    Wedge6,
     /// Four-node flat shell (MITC4).
     Quad4(ShellQuad4),
     /// Three-node flat shell (DKT).
@@ -52,6 +54,7 @@ impl ElementType {
             ElementType::Hex8Incompatible => &Hex8Incompatible,
             ElementType::Hex20 => &Hex20,
             ElementType::Hex20Reduced => &Hex20Reduced,
+            ElementType::Wedge6 => &Wedge6,
             ElementType::Quad4(s) => s,
             ElementType::Tri3(s) => s,
         }
@@ -76,6 +79,7 @@ impl ElementType {
                 | ElementType::Hex8Incompatible
                 | ElementType::Hex20
                 | ElementType::Hex20Reduced
+                | ElementType::Wedge6
         )
     }
 }

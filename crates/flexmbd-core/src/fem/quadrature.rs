@@ -399,6 +399,71 @@ pub const HEXAHEDRON_GAUSS_4: [QuadraturePoint; 64] = [
     gauss_4_point!(3, 3, 3),
 ];
 
+/// Reference triangle (0,0), (1,0), (0,1), 3 points, exact to degree 2 (as (u, v, weight)).
+pub const TRIANGLE_DEGREE_2: [(f64, f64, f64); 3] =
+    [(1.0 / 6.0, 1.0 / 6.0, 1.0 / 6.0), (2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0), (1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0)];
+
+// Dunavant's 6-point rule of degree 4 (Int. J. Numer. Meth. Eng. 21 (1985) 1129-1148): the
+// barycentric points (a, a, 1 - 2a) of two orbits, weights relative to the area.
+const DUNAVANT_4_A1: f64 = 0.445948490915965;
+const DUNAVANT_4_W1: f64 = 0.223381589678011;
+const DUNAVANT_4_A2: f64 = 0.091576213509771;
+const DUNAVANT_4_W2: f64 = 0.109951743655322;
+
+/// Reference triangle, 6 points, exact to degree 4 (as (u, v, weight)).
+pub const TRIANGLE_DEGREE_4: [(f64, f64, f64); 6] = [
+    (DUNAVANT_4_A1, DUNAVANT_4_A1, 0.5 * DUNAVANT_4_W1),
+    (DUNAVANT_4_A1, 1.0 - 2.0 * DUNAVANT_4_A1, 0.5 * DUNAVANT_4_W1),
+    (1.0 - 2.0 * DUNAVANT_4_A1, DUNAVANT_4_A1, 0.5 * DUNAVANT_4_W1),
+    (DUNAVANT_4_A2, DUNAVANT_4_A2, 0.5 * DUNAVANT_4_W2),
+    (DUNAVANT_4_A2, 1.0 - 2.0 * DUNAVANT_4_A2, 0.5 * DUNAVANT_4_W2),
+    (1.0 - 2.0 * DUNAVANT_4_A2, DUNAVANT_4_A2, 0.5 * DUNAVANT_4_W2),
+];
+
+/// Point (triangle point i, line point j) of a wedge rule: triangle x [-1, 1].
+macro_rules! wedge_point {
+    ($triangle:ident, $line:ident, $i:literal, $j:literal) => {
+        QuadraturePoint {
+            coordinates: [$triangle[$i].0, $triangle[$i].1, $line[$j].0],
+            weight: $triangle[$i].2 * $line[$j].1,
+        }
+    };
+}
+
+/// Reference wedge (triangle (0,0), (1,0), (0,1)) x [-1, 1]: the degree-2 triangle rule times
+/// 2-point Gauss (exact to degree 2 in (u, v) and 3 in w).
+pub const WEDGE_TRIANGLE_2_GAUSS_2: [QuadraturePoint; 6] = [
+    wedge_point!(TRIANGLE_DEGREE_2, GAUSS_LEGENDRE_2, 0, 0),
+    wedge_point!(TRIANGLE_DEGREE_2, GAUSS_LEGENDRE_2, 1, 0),
+    wedge_point!(TRIANGLE_DEGREE_2, GAUSS_LEGENDRE_2, 2, 0),
+    wedge_point!(TRIANGLE_DEGREE_2, GAUSS_LEGENDRE_2, 0, 1),
+    wedge_point!(TRIANGLE_DEGREE_2, GAUSS_LEGENDRE_2, 1, 1),
+    wedge_point!(TRIANGLE_DEGREE_2, GAUSS_LEGENDRE_2, 2, 1),
+];
+
+/// Reference wedge: the degree-4 triangle rule times 3-point Gauss (exact to degree 4 in
+/// (u, v) and 5 in w).
+pub const WEDGE_TRIANGLE_4_GAUSS_3: [QuadraturePoint; 18] = [
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 0, 0),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 1, 0),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 2, 0),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 3, 0),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 4, 0),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 5, 0),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 0, 1),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 1, 1),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 2, 1),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 3, 1),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 4, 1),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 5, 1),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 0, 2),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 1, 2),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 2, 2),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 3, 2),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 4, 2),
+    wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 5, 2),
+];
+
 /// The tensor-product Gauss-Legendre rule on [-1, 1]^3 with `points_per_direction` points per
 /// direction (1 to 4); exact for x^a y^b z^c with a, b, c <= 2 points_per_direction - 1.
 pub fn hexahedron_rule(points_per_direction: usize) -> Option<&'static [QuadraturePoint]> {
@@ -516,6 +581,34 @@ mod tests {
             assert!((q - interval_monomial(a)).abs() > 1e-3, "{n} points exact at degree {a}");
         }
         assert!(gauss_legendre_rule(5).is_none());
+    }
+
+    #[test]
+    fn triangle_and_wedge_rules_are_exact_to_their_degrees() {
+        // int over the triangle of u^i v^j = i! j! / (i + j + 2)!.
+        let triangle = |i: u32, j: u32| factorial(i) * factorial(j) / factorial(i + j + 2);
+        for (rule, degree) in [(&TRIANGLE_DEGREE_2[..], 2u32), (&TRIANGLE_DEGREE_4[..], 4)] {
+            for i in 0..=degree {
+                for j in 0..=degree - i {
+                    let q: f64 = rule.iter().map(|&(u, v, w)| w * u.powi(i as i32) * v.powi(j as i32)).sum();
+                    assert_close(q, triangle(i, j), 0.0, 1e-14, format_args!("degree {degree}: u^{i} v^{j}"));
+                }
+            }
+            assert!(rule.iter().all(|&(u, v, w)| u > 0.0 && v > 0.0 && u + v < 1.0 && w > 0.0));
+        }
+        for (rule, degree, line) in
+            [(&WEDGE_TRIANGLE_2_GAUSS_2[..], 2u32, 3u32), (&WEDGE_TRIANGLE_4_GAUSS_3[..], 4, 5)]
+        {
+            for i in 0..=degree {
+                for j in 0..=degree - i {
+                    for k in 0..=line {
+                        let exact = triangle(i, j) * interval_monomial(k);
+                        let q = apply(rule, i, j, k);
+                        assert_close(q, exact, 0.0, 1e-14, format_args!("wedge: u^{i} v^{j} w^{k}"));
+                    }
+                }
+            }
+        }
     }
 
     #[test]

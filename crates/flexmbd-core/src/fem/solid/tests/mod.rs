@@ -37,6 +37,7 @@ enum Kind {
     /// edges' midpoints).
     Hex20,
     Hex20R,
+    Wedge6,
 }
 
 fn element(kind: Kind) -> &'static dyn ElementKernel {
@@ -47,6 +48,7 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Hex8I => &Hex8Incompatible,
         Kind::Hex20 => &Hex20,
         Kind::Hex20R => &Hex20Reduced,
+        Kind::Wedge6 => &Wedge6,
     }
 }
 
@@ -269,7 +271,53 @@ fn cases() -> Vec<Case> {
         })
         .collect();
     cases.extend(quadratic);
+    // Wedges: a right prism, an oblique one (top triangle shifted: constant Jacobian, so each
+    // node carries a sixth of the mass in both forms) and a distorted one. The exact moments
+    // of the first two from three tetrahedra.
+    let right = wedge([v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)], v(0.0, 0.0, 1.0));
+    let oblique = wedge([v(0.3, -0.2, 0.1), v(1.6, 0.1, 0.0), v(0.5, 1.2, 0.2)], v(0.2, 0.3, 0.9));
+    let mut distorted = oblique.clone();
+    distorted[4] += v(0.1, -0.05, 0.08);
+    distorted[5] += v(-0.06, 0.1, -0.05);
+    let sixth = Some((vec![1.0 / 6.0; 6], vec![1.0 / 6.0; 6]));
+    for (name, nodes, fractions) in [
+        ("right Wedge6", right, sixth.clone()),
+        ("oblique Wedge6", oblique, sixth),
+        ("distorted Wedge6", distorted, None),
+    ] {
+        let moments = fractions.as_ref().map(|_| prism_moments(&nodes));
+        cases.push(Case { name, kind: Kind::Wedge6, nodes, moments, fractions });
+    }
     cases
+}
+
+/// A wedge over the triangle `bottom` (counter-clockwise seen from the side of `height`),
+/// its top triangle shifted by `height`.
+fn wedge(bottom: [Vec3; 3], height: Vec3) -> Vec<Vec3> {
+    let mut nodes = bottom.to_vec();
+    nodes.extend(bottom.iter().map(|p| *p + height));
+    nodes
+}
+
+/// Moments of a prism with planar faces as the sum over the tetrahedra (0,1,2,3), (1,2,3,4),
+/// (2,3,4,5), each positively oriented.
+fn prism_moments(x: &[Vec3]) -> Moments {
+    let mut total = Moments { volume: 0.0, first: Vec3::ZERO, second: [[0.0; 3]; 3] };
+    for tet in [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5]] {
+        let mut corners: Vec<Vec3> = tet.iter().map(|&a| x[a]).collect();
+        if (corners[1] - corners[0]).dot(&(corners[2] - corners[0]).cross(&(corners[3] - corners[0]))) < 0.0 {
+            corners.swap(1, 2);
+        }
+        let m = tetrahedron_moments(&corners);
+        total.volume += m.volume;
+        total.first += m.first;
+        for k in 0..3 {
+            for l in 0..3 {
+                total.second[k][l] += m.second[k][l];
+            }
+        }
+    }
+    total
 }
 
 /// A straight-edged Hex20: the corners and the midpoints of the edges.
