@@ -69,6 +69,8 @@ def deck_of(mesh, form, *, aset=(), ids=None, shift=(0.0, 0.0, 0.0), system=None
             grid = [int(ids[n]) for n in nodes]
             if kind == "tet10":
                 grid[8], grid[9] = grid[9], grid[8]
+            if kind == "hex20":  # G13-G16 on the vertical edges, G17-G20 on the top face's
+                grid = grid[:12] + grid[16:20] + grid[12:16]
             lines.append(card(name, [eid, 1] + grid, form))
             eid += 1
     lines.append(card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], form))
@@ -140,7 +142,8 @@ def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
     body = deck.body()
     direct = pp.build_body(hexa.nodes, hexa.elements, STEEL)
     assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
-    # CHEXA of 20 grids (G9-G12 bottom edges, G13-G16 top, G17-G20 vertical: hex20's order).
+    # CHEXA of 20 grids (G9-G12 on the bottom face's edges, G13-G16 on the vertical ones,
+    # G17-G20 on the top face's).
     quadratic = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "hex20")
     path.write_text(deck_of(quadratic, "large"))
     deck = read_nastran(path)
@@ -156,6 +159,38 @@ def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(InvalidModelError, match="19 grids: .*CHEXA of 8 or 20"):
         read_nastran(path)
+
+
+def test_chexa20_grids_by_the_nastran_figure(tmp_path, assert_close):
+    # A unit cube written by hand as the CHEXA figure numbers it: G9-G12 on G1-G2 .. G4-G1,
+    # G13-G16 on G1-G5 .. G4-G8, G17-G20 on G5-G6 .. G8-G5 (grid k at its point; G13 at
+    # (0, 0, 0.5)). Read (the order of Gmsh's and meshio's Nastran readers too), node 8 + e of
+    # the hex20 is the midpoint of its edge e.
+    corners = [
+        (0, 0, 0),
+        (1, 0, 0),
+        (1, 1, 0),
+        (0, 1, 0),
+        (0, 0, 1),
+        (1, 0, 1),
+        (1, 1, 1),
+        (0, 1, 1),
+    ]
+    nastran_edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7),
+                     (4, 5), (5, 6), (6, 7), (7, 4)]  # fmt: skip
+    points = [np.array(c, dtype=float) for c in corners]
+    points += [0.5 * (points[p] + points[q]) for p, q in nastran_edges]
+    lines = ["BEGIN BULK\n"] + [card("GRID", [k + 1, ""] + [float(v) for v in x], "large")
+                               for k, x in enumerate(points)]  # fmt: skip
+    lines.append(card("CHEXA", [1, 1] + list(range(1, 21)), "large"))
+    lines += [card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], "large"), card("PSOLID", [1, 1], "large")]
+    path = tmp_path / "cube.bdf"
+    path.write_text("".join(lines) + "ENDDATA\n")
+    mesh = read_nastran(path).mesh
+    nodes = mesh.nodes[mesh.elements["hex20"][0]]
+    for e, (p, q) in enumerate(shapes.HEX20_EDGES):
+        assert_close(nodes[8 + e], 0.5 * (nodes[p] + nodes[q]), abs=1e-15, what=f"edge {e}")
+    assert_close(read_nastran(path).body().invariants.mass, 7800.0, rel=1e-12, what="mass")
 
 
 def beam_deck(form, property_card):

@@ -573,9 +573,11 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
             elif name == "CHEXA" and len(nodes) == 8:
                 kind = "hex8"
             elif name == "CHEXA" and len(nodes) == 20:
-                # G9-G12 on the bottom face's edges, G13-G16 on the top face's, G17-G20 on
-                # the edges G1-G5 .. G4-G8: the order of hex20.
+                # G9-G12 on the bottom face's edges, G13-G16 on the edges G1-G5 .. G4-G8,
+                # G17-G20 on the top face's (as Gmsh's and meshio's Nastran readers take
+                # them); hex20 has the top face's edges first.
                 kind = "hex20"
+                nodes = nodes[:12] + nodes[16:20] + nodes[12:16]
             else:
                 raise card.error(
                     f"{len(nodes)} grids: flexmbd has CTETRA of 4 or 10 grids and CHEXA of 8 "
