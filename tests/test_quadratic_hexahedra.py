@@ -74,6 +74,32 @@ def test_hourglass_modes_of_reduced_integration_are_refused():
         pp.build_body(single.nodes, single.elements, STEEL)
     block = shapes.box((1.0, 0.2, 0.2), (4, 2, 2), "hex20r")
     pp.build_body(block.nodes, block.elements, STEEL)
+    # A row of two cubes: the check held three nodes' translations (nine coordinates), which
+    # could hold the row's three hourglass modes too (accepted at this size, refused at half
+    # of it); now six coordinates that hold exactly the rigid motions.
+    for size in (1.0, 0.5):
+        row = shapes.box((2 * size, size, size), (2, 1, 1), "hex20r")
+        with pytest.raises(fm.InvalidModelError, match="hourglass"):
+            pp.build_body(row.nodes, row.elements, STEEL)
+
+
+def test_regular_hex20r_meshes_with_other_parts_are_accepted(assert_close):
+    # Two blocks, each clamped, and a block with shells on it were refused as hourglass modes
+    # (the whole body was checked with three nodes held).
+    a = shapes.box((1.0, 0.2, 0.2), (4, 2, 2), "hex20r")
+    b = shapes.box((1.0, 0.2, 0.2), (4, 2, 2), "hex20r", origin=(0.0, 1.0, 0.0))
+    nodes, n = np.vstack([a.nodes, b.nodes]), a.node_count
+    clamp = np.concatenate([a.node_sets["x0"], b.node_sets["x0"] + n])
+    conn = np.vstack([a.elements["hex20r"], b.elements["hex20r"] + n])
+    two = pp.build_body(nodes, {"hex20r": conn}, STEEL, reference="clamped",
+                        reference_nodes=clamp, modes="fixed-interface", mode_count=2)  # fmt: skip
+    one = pp.build_body(a.nodes, a.elements, STEEL, node_sets=a.node_sets, reference="clamped",
+                        reference_nodes="x0", modes="fixed-interface", mode_count=1)  # fmt: skip
+    assert_close(two.frequencies, one.frequencies[0], rel=1e-9, what="two equal blocks")
+    hexes = a.elements["hex20r"]
+    top = hexes[np.all(np.isclose(a.nodes[hexes[:, 4:8], 2], 0.2), axis=1)][:, 4:8]
+    pp.build_body(a.nodes, {"hex20r": hexes, "quad4": top}, STEEL, shell=0.005,
+                  reference="clamped", reference_nodes=a.node_sets["x0"])  # fmt: skip
 
 
 def abaqus_hex20_deck(element_type):

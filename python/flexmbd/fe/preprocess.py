@@ -10,7 +10,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -722,8 +722,24 @@ def build_body(
     )
     if point_masses is not None:
         nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
-    if len(elements.get("hex20r", ())):
-        _check_hourglass_modes(nodal, nodes, eids["hex20r"])
+    _check_zero_energy_modes(
+        nodal,
+        nodes,
+        elements,
+        eids,
+        lambda other: assemble(
+            nodes,
+            other,
+            material,
+            section=section,
+            orientation=orientation,
+            mass=mass,
+            beam_theory=beam_theory,
+            node_ids=ids,
+            form_i_kl=False,
+            shell=shell,
+        ),
+    )
     clock.lap("assemble")
     return _body_from_nodal(
         nodal,
@@ -821,6 +837,18 @@ def _body_from_nodal(
     if kind in ("clamped", "3-2-1", "simply-supported") and modes != "external":
         # (External modes may leave out what the conditions do not hold: an axial-only rod.)
         _check_held(nodes, ids, d, free, reference, ref_nodes)
+    unused = solid_only_rotations(elements, len(nodes), d)
+    if len(unused):
+        # The rotations of nodes of solids alone (in a body with beams or shells) have no
+        # stiffness and no mass: they stay at zero (the stiffness was singular).
+        if modes in ("free-free", "craig-bampton"):
+            raise InvalidModelError(
+                f"{modes} modes of a body that mixes solids with beams or shells are not "
+                f"available yet: the rotations of its {len(unused) // 3} nodes of solids alone "
+                "have no stiffness; use fixed-interface modes or a nodal body",
+                item="modes",
+            )
+        free = np.setdiff1d(free, unused)
     basis = None
     freqs = None
     weighted: list[Interface] = []
@@ -1093,22 +1121,72 @@ def _check_held(
     )
 
 
-def _check_hourglass_modes(
-    nodal: NodalBody, nodes: NDArray[np.float64], eids: NDArray[np.int64]
-) -> None:
-    """Raises `InvalidModelError` when the stiffness of a body with reduced-integration hex20r
-    elements has zero-energy modes besides the rigid motions: those of a lone element pass
-    along a row of elements one element thick in two directions (as in Abaqus' C3D20R), and
-    the body would deform under no force. Checked by a factorization with three nodes far
-    apart held (their translations: the rigid motions and three more)."""
+def solid_only_rotations(
+    elements: Mapping[str, NDArray[np.int64]], node_count: int, dofs_per_node: int
+) -> NDArray[np.int64]:
+    """The rotational coordinates of the nodes that only solids use, in a body with beams or
+    shells (6 coordinates per node; solids use the first 3): they carry no stiffness and no
+    mass."""
+    if dofs_per_node != 6:
+        return np.zeros(0, dtype=np.int64)
+    carried = np.zeros(node_count, dtype=bool)
+    for kind in ("beam2", *SHELL_ELEMENTS):
+        if len(elements.get(kind, ())):
+            carried[np.asarray(elements[kind], dtype=np.int64).ravel()] = True
+    loose = np.flatnonzero(~carried)
+    return (6 * loose[:, None] + np.arange(3, 6)).ravel().astype(np.int64)
+
+
+def _rigid_support(
+    nodes: NDArray[np.float64], members: NDArray[np.int64], d: int, unused: NDArray[np.int64]
+) -> list[int]:
+    """Six coordinates of the nodes `members` (one part) that hold exactly its six rigid
+    motions: chosen greedily, for the best conditioning, among the translations of its first
+    node, of the node farthest from it and of the node farthest from their line, and (with
+    6 coordinates per node) the rotations of the first node (a part along a line)."""
+    x = nodes[members]
     a = 0
-    b = int(np.argmax(np.linalg.norm(nodes - nodes[a], axis=1)))
-    axis = (nodes[b] - nodes[a]) / max(float(np.linalg.norm(nodes[b] - nodes[a])), 1e-300)
-    off = (nodes - nodes[a]) - np.outer((nodes - nodes[a]) @ axis, axis)
+    b = int(np.argmax(np.linalg.norm(x - x[a], axis=1)))
+    axis = (x[b] - x[a]) / max(float(np.linalg.norm(x[b] - x[a])), 1e-300)
+    off = (x - x[a]) - np.outer((x - x[a]) @ axis, axis)
     c = int(np.argmax(np.linalg.norm(off, axis=1)))
+    size = max(float(np.ptp(x, axis=0).max()), 1e-300)
+    local = rigid_modes((x - x.mean(axis=0)) / size, d)
+    candidates = [(d * n + k) for n in dict.fromkeys((a, b, c)) for k in range(3)]
+    if d == 6:
+        candidates += [d * a + k for k in range(3, 6) if d * members[a] + k not in unused]
+    chosen: list[int] = []
+    for _ in range(6):
+        options = [r for r in candidates if r not in chosen]
+        chosen.append(
+            max(options, key=lambda r: np.linalg.svd(local[chosen + [r]], compute_uv=False)[-1])
+        )
+    return [int(d * members[r // d] + r % d) for r in chosen]
+
+
+def _zero_energy_modes(
+    nodal: NodalBody,
+    nodes: NDArray[np.float64],
+    elements: Mapping[str, NDArray[np.int64]],
+    kinds: Sequence[str] | None = None,
+) -> InvalidModelError | None:
+    """Whether the stiffness has zero-energy modes besides the rigid motions, on the parts
+    (connected components) with elements of `kinds` (None: every part), without the
+    rotations of nodes of solids alone: the factorization's error with a support of six
+    coordinates per part that hold exactly its rigid motions (the rest is singular if and
+    only if another zero-energy mode exists), or None."""
     d = nodal.dofs_per_node
-    held = np.array([d * n + k for n in {a, b, c} for k in range(3)], dtype=np.int64)
-    free = np.setdiff1d(np.arange(nodal.stiffness.shape[0]), held)
+    _, part = mesh_parts(len(nodes), elements, nodal.stiffness, d)
+    if kinds is None:
+        parts = np.unique(part)
+    else:
+        used = [np.asarray(elements[k]).ravel() for k in kinds if len(elements.get(k, ()))]
+        parts = np.unique(part[np.unique(np.concatenate(used))])
+    unused = solid_only_rotations(elements, len(nodes), d)
+    kept = np.flatnonzero(np.isin(part, parts))
+    dofs = np.setdiff1d((d * kept[:, None] + np.arange(d)).ravel(), unused)
+    held = [r for p in parts for r in _rigid_support(nodes, np.flatnonzero(part == p), d, unused)]
+    free = np.setdiff1d(dofs, held)
     from .modal import factorize
 
     try:
@@ -1117,17 +1195,54 @@ def _check_hourglass_modes(
             dofs=free,
             nodes=nodes,
             dofs_per_node=d,
-            name="stiffness of the hex20r elements",
+            name="stiffness with a support of the rigid motions",
         )
     except InvalidModelError as error:
-        raise InvalidModelError(
-            f"the reduced-integration hex20r elements (first: element {int(eids[0])}) have "
-            "zero-energy (hourglass) modes in this mesh: a lone element has six, and some "
-            "pass along a row of elements one element thick in two directions (as in Abaqus' "
-            "C3D20R), so the body would deform under no force. Mesh two or more elements "
-            f"through each thickness, or use hex20 (full integration) ({error})",
-            item=f"element {int(eids[0])}",
-        ) from error
+        return error
+    return None
+
+
+def _check_zero_energy_modes(
+    nodal: NodalBody,
+    nodes: NDArray[np.float64],
+    elements: Mapping[str, NDArray[np.int64]],
+    eids: Mapping[str, NDArray[np.int64]],
+    reassemble: Callable[[dict[str, NDArray[np.int64]]], NodalBody],
+) -> None:
+    """Raises `InvalidModelError` for a body whose stiffness has zero-energy modes besides
+    its rigid motions (it would deform under no force, and the error blamed the reference
+    conditions): the hourglass modes of reduced-integration hex20r elements (a lone element
+    has six, and some pass along a row of elements one element thick in two directions, as
+    in Abaqus' C3D20R), or a mechanism of a body that mixes solids with beams or shells (a
+    beam joined to a solid at one node turns freely about it: a node of solids alone has no
+    rotation). Checked for bodies with hex20r elements and mixed bodies only; `reassemble`
+    assembles the same mesh with other elements (hex20 for hex20r, to tell which)."""
+    reduced = len(elements.get("hex20r", ()))
+    mixed = solid_only_rotations(elements, len(nodes), nodal.dofs_per_node).size > 0
+    if not (reduced or mixed):
+        return
+    error = _zero_energy_modes(nodal, nodes, elements, None if mixed else ["hex20r"])
+    if error is None:
+        return
+    if reduced:
+        full = {("hex20" if k == "hex20r" else k): v for k, v in elements.items()}
+        if _zero_energy_modes(reassemble(full), nodes, full, None if mixed else ["hex20"]) is None:
+            first = int(eids["hex20r"][0])
+            raise InvalidModelError(
+                f"the reduced-integration hex20r elements (first: element {first}) have "
+                "zero-energy (hourglass) modes in this mesh: a lone element has six, and some "
+                "pass along a row of elements one element thick in two directions (as in "
+                "Abaqus' C3D20R), so the body would deform under no force. Mesh two or more "
+                f"elements through each thickness, or use hex20 (full integration) ({error})",
+                item=f"element {first}",
+            ) from error
+    raise InvalidModelError(
+        "the mesh is a mechanism: its stiffness has zero-energy modes besides the rigid "
+        "motions (a node of solids alone carries no rotation, so a beam or shell joined to "
+        "solids at a single node, or along one line, turns freely about it). Join them over "
+        f"more nodes, or connect separate bodies with a joint ({error})",
+        item="mesh",
+    ) from error
 
 
 def _vector_text(v: NDArray[np.float64]) -> str:
