@@ -209,6 +209,9 @@ def test_a_mesh_with_incompatible_modes(tmp_path):
     assert list(enriched.elements) == ["hex8i"] and list(mesh.elements) == ["hex8"]
     assert (enriched.elements["hex8i"] == mesh.elements["hex8"]).all()
     assert (enriched.element_ids["hex8i"] == mesh.element_ids["hex8"]).all()
+    # A mesh already of hex8i (Abaqus C3D8I; `preprocess --incompatible-modes` on it) stays.
+    again = enriched.with_incompatible_modes()
+    assert list(again.elements) == ["hex8i"] and again is not enriched
     tets = shapes.box((1.0, 0.1, 0.1), (2, 1, 1), "tet4")
     with pytest.raises(fm.InvalidModelError, match="no hexahedra \\(hex8\\); its elements: tet4"):
         tets.with_incompatible_modes()

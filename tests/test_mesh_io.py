@@ -449,6 +449,36 @@ def test_abaqus_blocks_of_types_meshio_cannot_read_are_left_out_with_a_warning(t
         read_mesh(path)
 
 
+def test_abaqus_elements_flexmbd_lacks_are_named_not_dropped(tmp_path):
+    # Second-order shells and beams and plane elements next to solids are types meshio knows,
+    # of a lower dimension: they were dropped without a word (their mass and stiffness lost);
+    # a file of membranes only read as an empty mesh; a lower-case type failed in meshio.
+    extra = (
+        "*ELEMENT, TYPE=S8R\n31, 101, 102, 103, 104, 105, 101, 102, 103\n"
+        "*ELEMENT, TYPE=B32\n32, 101, 102, 103\n"
+    )
+    path = tmp_path / "mixed.inp"
+    path.write_text(ABAQUS_INP.replace("*ELSET, ELSET=Clamp", extra + "*ELSET, ELSET=Clamp"))
+    with pytest.warns(MeshQualityWarning) as caught:
+        mesh = read_mesh(path)
+    said = " ".join(str(w.message) for w in caught)
+    assert "1 S8R element(s) (first: element 31)" in said and "1 B32 element(s)" in said
+    assert sorted(mesh.elements) == ["tet4", "tri3"]
+    path.write_text("*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n3, 1, 1, 0\n4, 0, 1, 0\n"
+                    "*ELEMENT, TYPE=M3D4\n1, 1, 2, 3, 4\n")  # fmt: skip
+    with pytest.raises(InvalidModelError, match="no element flexmbd has: 1 M3D4"):
+        read_mesh(path)
+    path.write_text(ABAQUS_INP.replace("TYPE=C3D4,", "type=c3d4,"))
+    np.testing.assert_array_equal(read_mesh(path).elements["tet4"], TWO_TETS)
+    # The command line shows the warning as flexmbd's, not at a line of the package.
+    path.write_text(ABAQUS_INP.replace("*ELSET, ELSET=Clamp", extra + "*ELSET, ELSET=Clamp"))
+    run = subprocess.run(
+        [sys.executable, "-m", "flexmbd", "info", str(path)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    assert "flexmbd: MeshQualityWarning: " in run.stderr and ".py:" not in run.stderr
+
+
 def test_abaqus_types_meshio_misreads(tmp_path):
     # meshio names C3D4H but fails on it (KeyError 'tetra4'), and C3D15 (KeyError 'wedge15'):
     # "cannot read the mesh". C3D4H is a tet4; C3D15 is refused as a cell flexmbd lacks.

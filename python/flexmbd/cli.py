@@ -1102,6 +1102,8 @@ def _logging_to_stderr(verbose: int, quiet: bool) -> Iterator[None]:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``flexmbd`` command."""
+    shown = warnings.formatwarning
+    warnings.formatwarning = _command_line_warning
     try:
         return _main(argv)
     except BrokenPipeError:
@@ -1110,6 +1112,17 @@ def main(argv: list[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    finally:
+        warnings.formatwarning = shown
+
+
+def _command_line_warning(
+    message: Warning | str, category: type[Warning], filename: str, lineno: int, line=None
+) -> str:
+    """A warning of the command line: its category and message, at the model file's line when
+    it points at one (the package's own source lines mean nothing to the user)."""
+    where = "" if filename.endswith(".py") else f"{filename}:{lineno}: "
+    return f"flexmbd: {where}{category.__name__}: {message}\n"
 
 
 def _main(argv: list[str] | None) -> int:

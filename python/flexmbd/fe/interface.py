@@ -220,11 +220,13 @@ def _shape(kind: str, xi: Any) -> list[Any]:
 
 def _rule(kind: str) -> tuple[Array, Array]:
     """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: 3-point
-    Gauss-Legendre products, collapsed (Duffy) onto simplices; exact for the integrals of
-    the shape functions times the Jacobian of every straight-sided or flat cell here (degree
-    2 on simplices, 3 per direction on quadrilaterals and hexahedra, 4 on the serendipity
-    quad8 and hex20)."""
-    g, w = np.polynomial.legendre.leggauss(3)
+    Gauss-Legendre products (4-point on quad8 and hex20), collapsed (Duffy) onto simplices;
+    exact for the integrals of the shape functions times the Jacobian of every
+    straight-sided or flat cell here (degree 2 on simplices, 3 per direction on
+    quadrilaterals and hexahedra, 4 on the serendipity quad8 and hex20)."""
+    # (4 points on the serendipity cells: those of their mass points, so that interface
+    # weights and the mass matrix agree on curved elements too)
+    g, w = np.polynomial.legendre.leggauss(4 if kind in ("quad8", "hex20") else 3)
     g, w = 0.5 * (g + 1.0), 0.5 * w
     dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3}[
         kind.rstrip("0123456789")

@@ -41,7 +41,7 @@ import os
 import re
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -165,7 +165,10 @@ class Mesh:
     def with_incompatible_modes(self) -> Mesh:
         """A copy whose hexahedra ("hex8", as Gmsh and VTK meshes have them) are hexahedra with
         incompatible modes ("hex8i", which bend on coarse meshes; the same nodes, ids and
-        mass). Raises `InvalidModelError` for a mesh without hexahedra."""
+        mass); a mesh whose hexahedra are all hex8i already (Abaqus C3D8I) is returned as a
+        copy. Raises `InvalidModelError` for a mesh without hexahedra."""
+        if not len(self.elements.get("hex8", ())) and len(self.elements.get("hex8i", ())):
+            return replace(self, elements=dict(self.elements), element_ids=dict(self.element_ids))
         if not len(self.elements.get("hex8", ())):
             raise InvalidModelError(
                 "incompatible modes: the mesh has no hexahedra (hex8); its elements: "
@@ -334,8 +337,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     top = max((_cell_dimension(cell_type) for cell_type, _ in blocks), default=0)
     elements: dict[str, list[NDArray[np.int64]]] = {}
     element_ids: dict[str, list[NDArray[np.int64]]] = {}
-    if abaqus is not None:
-        _warn_unread_blocks(path, abaqus)
+    left_out = _unread_blocks(path, abaqus) if abaqus is not None else {}
     substituted: dict[str, list[int]] = {}
     for index, ((cell_type, data), ids) in enumerate(zip(blocks, block_ids, strict=True)):
         kind = MESHIO_ELEMENT_TYPES.get(cell_type)
@@ -352,12 +354,16 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
         if kind is None and len(data) and _cell_dimension(cell_type) == top > 0:
             source = abaqus.element_types[index] if abaqus is not None else cell_type
             raise _unsupported_cells(path, source, len(data), int(ids[0]), top)
+        if kind is None and abaqus is not None and len(data):
+            entry = left_out.setdefault(abaqus.element_types[index], [0, int(ids[0]), ""])
+            entry[0] += len(data)
         if kind is None or (kind == "beam2" and skip_lines):
             continue
         if kind == "tet10":
             data = data[:, TET10_FROM_MESHIO]
         elements.setdefault(kind, []).append(data)
         element_ids.setdefault(kind, []).append(ids)
+    _warn_left_out(path, left_out, bool(elements))
     for source, (count, first) in substituted.items():
         warnings.warn(
             f"{path}: {count} {source} element(s) (first: element {first}) are read as hex8, "
@@ -391,8 +397,8 @@ def _unsupported_cells(
     return InvalidModelError(
         f"{path}: {count} {cell_type} cell{'s' if count > 1 else ''} (the first is element "
         f"{first_id}) {'are' if count > 1 else 'is'} not an element type flexmbd has "
-        f"({supported}): left out, the body would miss their mass and stiffness. Mesh "
-        "with the supported types or remove these cells",
+        f"({supported}): refused, as leaving them out, the body would miss their mass and "
+        "stiffness. Mesh with the supported types or remove these cells",
         item=f"element {first_id} of '{path}'",
     )
 
@@ -846,24 +852,38 @@ def _include_target(
     return target
 
 
-def _warn_unread_blocks(path: Path, scan: _AbaqusScan) -> None:
-    """A `MeshQualityWarning` per element type of the *ELEMENT blocks left out (see
-    `_AbaqusScan.unread_blocks`): their count, first element and where; solids (C3D...) and
-    continuum shells (SC...) of such types are refused instead."""
+def _unread_blocks(path: Path, scan: _AbaqusScan) -> dict[str, list[Any]]:
+    """The *ELEMENT blocks meshio does not read (`_AbaqusScan.unread_blocks`) by type:
+    [count, first element, where]; solids (C3D...) and continuum shells (SC...) of such types
+    are refused instead (they would leave a hole in the body)."""
     counts: dict[str, list[Any]] = {}
     for element_type, where, _, rows in scan.unread_blocks:
         if rows and element_type.startswith(("C3D", "SC")):
-            # A solid (or continuum shell) of another type would leave a hole in the body.
             raise _unsupported_cells(path, element_type, len(rows), rows[0][0], 3)
         if rows:
-            entry = counts.setdefault(element_type, [0, rows[0][0], where])
+            entry = counts.setdefault(element_type, [0, rows[0][0], f", {where}"])
             entry[0] += len(rows)
-    for element_type, (count, first, where) in counts.items():
+    return counts
+
+
+def _warn_left_out(path: Path, left_out: Mapping[str, list[Any]], read_any: bool) -> None:
+    """A `MeshQualityWarning` per Abaqus element type left out (the blocks meshio does not
+    read, and elements of a lower dimension than the mesh's that flexmbd does not have:
+    second-order shells and beams, plane elements next to solids): in an Abaqus input every
+    *ELEMENT is an element, and their mass and stiffness are not in the body. A mesh of such
+    elements only is an `InvalidModelError`."""
+    listed = ", ".join(
+        f"{count} {kind} (first: element {first}{where})"
+        for kind, (count, first, where) in left_out.items()
+    )
+    if not read_any and left_out:
+        raise InvalidModelError(f"{path}: no element flexmbd has: {listed}", item=f"file '{path}'")
+    for kind, (count, first, where) in left_out.items():
         warnings.warn(
-            f"{path}: {count} {element_type} element(s) (first: element {first}, {where}) are "
-            "not read: flexmbd has no such element (membranes, surface, rigid and plane "
-            "elements), so their mass and stiffness are not in the body; their nodes are in "
-            "the node sets of their element sets",
+            f"{path}: {count} {kind} element(s) (first: element {first}{where}) are not "
+            "read: flexmbd has no such element (membranes, surface, rigid, plane, second-order "
+            "shell and beam elements), so their mass and stiffness are not in the body; their "
+            "nodes are in the node sets of their element sets",
             MeshQualityWarning,
             stacklevel=3,
         )
@@ -931,8 +951,9 @@ def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) ->
             continue
         if keyword != "INCLUDE":
             head = lines[first - 1]
-            if keyword == "ELEMENT" and element_type in _MESHIO_ABAQUS_ALIASES:
-                alias = _MESHIO_ABAQUS_ALIASES[element_type]
+            if keyword == "ELEMENT":
+                # (Abaqus names are case-insensitive; meshio's table is upper case)
+                alias = _MESHIO_ABAQUS_ALIASES.get(element_type, element_type)
                 head = re.sub(r"(?i)(TYPE\s*=\s*)\w+", rf"\g<1>{alias}", head)
             scan.lines.extend([head, *lines[first:number]])
 
