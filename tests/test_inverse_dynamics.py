@@ -139,3 +139,18 @@ def test_joints_after_a_replaced_driver_keep_their_actuators(assert_close):
     calls = [c for c in copy.building_calls if c[0] == "add_joint_actuator"]
     assert calls[0][1][0] == fm.JointId(1)  # hinge 2, after hinge 1 (the driver is gone)
     assert calls[1][2]["name"] == "drive effort" and calls[1][1][0] == fm.JointId(0)
+
+
+def test_a_replay_starts_with_the_speed_the_drivers_prescribe(assert_close):
+    # An arm driven as theta = 2 t moves at the start: the replay started from the model's
+    # velocities (at rest) and ended at -0.15 rad for 1.0 (found by a fault hunt).
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    body = system.add_rigid_body(1.0, (1e-4, 1 / 12, 1 / 12), position=(0.5, 0, 0), name="arm")
+    pivot, end = system.add_marker(system.ground), system.add_marker(body, position=(-0.5, 0, 0))
+    system.add_revolute_joint(pivot, end, name="hinge")
+    system.add_angle_driver(pivot, end, fm.Polynomial([0.0, 2.0]), name="motor")
+    inverse = fm.inverse_dynamics(system, 0.5, 1e-3, drivers="motor")  # one name: no list
+    replayed = inverse.replay()
+    assert_close(replayed.angular_velocity("arm")[0], [0.0, 0.0, 2.0], abs=1e-12, what="start")
+    angle = inverse.joint_coordinates(replayed)["motor"]
+    assert_close(angle, inverse.prescribed("motor", replayed.time), abs=1e-5, what="angle")

@@ -36,6 +36,12 @@ def test_the_schema_offers_exactly_the_names_the_solver_takes(solver, spec):
         assert f"{field} must be one of {listed}, got 'no-such-choice'" in str(raised.value)
 
 
+def test_joint_coordinates_say_the_formulation_they_run():
+    # It said 'augmented' (and refused that value when given), running the joint-space one.
+    assert fm.ExplicitSolver("rk4", "joint-coordinates").formulation == "joint-space"
+    assert fm.ExplicitSolver("rk4").formulation == "augmented"
+
+
 def test_every_formulation_name_is_taken_by_its_strategy():
     for name in fm.ExplicitSolver.choices()["formulation"]:
         dense = name in ("augmented", "embedding")

@@ -803,3 +803,29 @@ def test_an_equilibrium_state_has_the_section_forces_of_its_beams(assert_close):
     assert forces.shape == (8, 2, 6)
     assert_close(np.abs(forces[0, 0, [1, 5]]), [10.0, 10.0], rel=1e-9, what="V_y, M_z at root")
     assert_close(np.abs(forces[-1, 1, 5]), 0.0, abs=1e-9, what="M_z at the tip")
+
+
+def test_equilibrium_balances_a_driver_accelerating_from_rest(assert_close):
+    # theta = (alpha / 2) t^2: at t = 0 the driver has no rate, only an acceleration, and was
+    # taken for a still one (multiplier 0, undeformed arm; the run then swung the tip by
+    # 5.7 mm). The equilibrium now carries the arm's inertia J alpha and its deformation: a
+    # run from it stays steady (found by a fault hunt).
+    from flexmbd.fe import Material, Section, build_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 8)
+    material, section = Material(7e10, 0.33, 2700.0), Section.circle(0.01)
+    data = build_body(nodes, elements, material, section=section, reference="clamped",
+                      reference_nodes=[0])  # fmt: skip
+    system = fm.System()
+    arm = system.add_flexible_body(data, name="arm")
+    pivot, root = system.add_marker(system.ground), system.add_node_marker(arm, 1)
+    system.add_revolute_joint(pivot, root, name="hinge")
+    alpha = 20.0
+    system.add_angle_driver(pivot, root, fm.Polynomial([0.0, 0.0, alpha / 2]), name="motor")
+    equilibrium = fm.equilibrium(system)
+    inertia = 2700.0 * np.pi * 1e-4 / 3  # rho A L^3 / 3 about the root
+    assert_close(equilibrium.joint_multipliers("motor"), [-inertia * alpha], rel=1e-3)
+    result = fm.simulate(system, 0.05, 1e-4, initial_state=equilibrium, output_interval=1e-3,
+                         solver=fm.GeneralizedAlpha(1.0))  # fmt: skip
+    tip = result.node_displacements(arm, [8])[:, 0, 1]
+    assert tip[0] < -2e-3 and np.ptp(tip) < 1e-3 * abs(tip[0])

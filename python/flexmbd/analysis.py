@@ -108,12 +108,18 @@ def _prescribed_rates(
     cq = _matrix(ev)[nq:, :nq].toarray()[:, rigid]
     qd = np.zeros(nq)
     qdd = np.zeros(nq)
-    if not np.any(ev["constraint_rate"] != 0.0):
+    # A driver moves where it has a rate, or accelerates from rest (its C_tt in gamma at zero
+    # velocity: a driver started from rest was taken for a still one, and the equilibrium
+    # left out the inertia of its acceleration).
+    moving = (ev["constraint_rate"] != 0.0) | (
+        model.evaluate(time, q, zero_q, zero_q, zero_l)["gamma"] != 0.0
+    )
+    if not np.any(moving):
         return qd, qdd
     qd[rigid] = np.linalg.lstsq(cq, -ev["constraint_rate"], rcond=None)[0]
     gamma = model.evaluate(time, q, qd, zero_q, zero_l)["gamma"]
     qdd[rigid] = np.linalg.lstsq(cq, gamma, rcond=None)[0]
-    carried = _carried_rates(model.describe(), ev["constraint_rate"], q, qd, qdd)
+    carried = _carried_rates(model.describe(), moving, q, qd, qdd)
     if carried is None:
         return qd, qdd
     target_qd, target_qdd = carried
@@ -129,9 +135,10 @@ def _prescribed_rates(
 
 
 def _carried_rates(
-    layout: dict[str, Any], rate: Array, q: Array, qd: Array, qdd: Array
+    layout: dict[str, Any], moving: NDArray[np.bool_], q: Array, qd: Array, qdd: Array
 ) -> tuple[Array, Array] | None:
-    """The rates of the reference coordinates with which the bodies each moving driver carries
+    """The rates of the reference coordinates with which the bodies each moving driver (rows
+    `moving`: with a rate or an acceleration) carries
     move rigidly with its driven body (None when no body is carried but the driven ones).
 
     A driver's driven body is that of its second marker (its first when the second is on the
@@ -152,7 +159,7 @@ def _carried_rates(
     carried_any = False
     for joint in joints:
         rows = slice(joint["row"], joint["row"] + len(joint["equations"]))
-        if "driver" not in joint["type"] or not np.any(rate[rows] != 0.0):
+        if "driver" not in joint["type"] or not np.any(moving[rows]):
             continue
         other, driven = (markers[m]["body"] for m in joint["markers"])
         if driven in ground:

@@ -90,8 +90,13 @@ class InverseDynamics:
 
     def replay(self, **changes: Any) -> Result:
         """Runs the free mechanism under the efforts with the settings of the inverse run
-        (`changes` replace some), from the same start."""
+        (`changes` replace some), from the same start: the inverse run's first state (with
+        the velocities its drivers prescribed there) unless `initial_state` is given."""
         settings = {**self.settings, **changes}
+        if settings.get("initial_state") is None:
+            # (the replay started from the model's velocities: a driver moving at the start
+            # lost its speed, and the arm of theta = 2 t ended at -0.15 rad for 1.0)
+            settings["initial_state"] = self.result.state(0)
         return simulate(self.replay_system(), **settings)
 
     def joint_coordinates(self, replayed: Result) -> dict[str, NDArray[np.float64]]:
@@ -142,12 +147,13 @@ def inverse_dynamics(
     end_time: float,
     step_size: float,
     *,
-    drivers: list[str] | None = None,
+    drivers: list[str] | str | None = None,
     solver: Any = None,
     **settings: Any,
 ) -> InverseDynamics:
     """Runs `system`, whose joints' motion its drivers prescribe, and returns the efforts of
-    `drivers` (names; default: every named angle and translation driver) at every step.
+    `drivers` (names, or one name; default: every named angle and translation driver) at
+    every step.
 
     The default solver is generalized-alpha with spectral radius 1 (no numerical damping),
     fixed steps (the replay meets the same step grid) and the velocities projected at every
@@ -172,7 +178,10 @@ def inverse_dynamics(
             "efforts you want",
             item="drivers",
         )
-    chosen = list(named) if drivers is None else list(drivers)
+    # (one name as a string was taken letter by letter: "no driver named 'm'")
+    chosen = (
+        list(named) if drivers is None else [drivers] if isinstance(drivers, str) else list(drivers)
+    )
     for name in chosen:
         if name not in named:
             raise InvalidParameterError(

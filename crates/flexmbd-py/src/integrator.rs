@@ -514,12 +514,19 @@ impl ExplicitSolver {
         if let Some(detail) = ignored {
             return Err(invalid("ExplicitSolver", detail));
         }
+        // Joint coordinates run the joint-space formulation by default (the solver said
+        // 'augmented', a value it then refused when given).
+        let default_formulation = if strategy.as_deref() == Some("joint-coordinates") {
+            "joint-space".to_string()
+        } else {
+            d.formulation.clone()
+        };
         let s = ExplicitSolver {
             cut_joints,
             jacobian: jacobian.unwrap_or(d.jacobian),
             method: method.unwrap_or(d.method),
             strategy: strategy.unwrap_or(d.strategy),
-            formulation: formulation.unwrap_or(d.formulation),
+            formulation: formulation.unwrap_or(default_formulation),
             partition: partition.unwrap_or(d.partition),
             independent,
             baumgarte,
