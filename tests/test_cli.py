@@ -174,6 +174,25 @@ def test_plot_and_animate_a_results_file(tmp_path, capsys):
     capsys.readouterr()
     assert main(["info", "fourbar.h5"]) == 0
     assert "status: complete" in capsys.readouterr().out
+    # Outputs in missing folders are refused as run refuses them (plot and animate made the
+    # folders: -o /nonexistent/p.png made one at the root); --scale nan before any file.
+    assert main(["plot", "fourbar.h5", "energy", "-o", "nowhere/sub/p.png"]) == 2
+    assert main(["animate", "fourbar.h5", "-o", "nowhere/m.gif", "--frames", "2"]) == 2
+    assert "its folder nowhere" in capsys.readouterr().err and not (tmp_path / "nowhere").exists()
+    assert main(["animate", "fourbar.h5", "--scale", "nan", "--vtu", "nan_vtu"]) == 2
+    assert "--scale must be a finite number" in capsys.readouterr().err
+    assert not (tmp_path / "nan_vtu").exists()
+
+
+def test_run_refuses_an_end_not_after_the_start_and_names_png_frames(capsys):
+    # --end 0 ran no step and said "done"; --end -1 failed as a run (exit 1). A .png animation
+    # said "animation: x.png", a file it does not write.
+    for end in ("0", "-1"):
+        assert main(["run", "pendulum", "--end", end, *QUIET]) == 2
+        assert "must be after the start time 0 s" in capsys.readouterr().err
+    argv = ["run", "pendulum", "--end", "0.01", "--output-interval", "0.005", "--no-plot"]
+    assert main([*argv, "--animation", "x.png", "-q"]) == 0
+    assert "animation: 3 frames x_0000.png .. x_0002.png" in capsys.readouterr().out
 
 
 def test_run_a_model_file_and_refuse_a_broken_one(tmp_path, capsys):
@@ -745,9 +764,9 @@ def test_bad_times_are_usage_errors_and_a_refused_run_claims_no_records(tmp_path
     assert main(["run", "pendulum", "--end", "0.1", *quiet]) == 0
     before = out.read_bytes()
     capsys.readouterr()
-    assert main(["run", "pendulum", "--end", "-1", *quiet]) == 1
+    assert main(["run", "pendulum", "--end", "-1", *quiet]) == 2  # a usage error now
     err = capsys.readouterr().err
-    assert "end time -1 is before start time 0" in err and "kept in" not in err
+    assert "--end -1 s must be after the start time 0 s" in err and "kept in" not in err
     assert out.read_bytes() == before and not (tmp_path / "p.failed.h5").exists()
     # The API refuses a step of zero before it opens the results file.
     with pytest.raises(fm.InvalidParameterError, match="step_size must be above zero"):

@@ -304,6 +304,10 @@ def _run(args: argparse.Namespace) -> int:
     interval = args.output_interval if args.output_interval is not None else job.output_interval
     results = Path(args.output) if args.output else Path(f"{job.stem}.h5")
     problem = _checked_outputs(args, results)
+    start_time = job.start_time or 0.0
+    if problem is None and not end > start_time:
+        # (--end 0 ran no step and said done; --end -1 failed as a run, not as a usage error)
+        problem = f"--end {end:g} s must be after the start time {start_time:g} s"
     if problem is not None:
         print(f"flexmbd run: {problem}", file=sys.stderr)
         return 2
@@ -390,8 +394,9 @@ def _run(args: argparse.Namespace) -> int:
         from .animation import render_animation
 
         movie = Path(args.animation) if args.animation else results.with_suffix(".gif")
-        render_animation(result, movie, progress=not args.quiet)
-        print(f"  animation: {movie}", flush=True)
+        written = render_animation(result, movie, progress=not args.quiet)
+        # (a .png animation is frames NAME_0000.png ...: it said "animation: x.png")
+        print(f"  animation: {_written_frames(movie, written)}", flush=True)
     paraview = job.paraview
     explicit = args.vtu_every is not None or args.vtu_times is not None
     if result.flexible and not args.no_vtu and (paraview is None or paraview.write or explicit):
@@ -671,6 +676,7 @@ def _plot(args: argparse.Namespace) -> int:
                 raise InvalidParameterError("--against is for study folders")
             result = read_results(args.results)
             output = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
+            _check_folder(output)
             written = plot_result(result, output, quantities=args.quantity or None)
             _print_notes(result, args.quantity)
     except BrokenPipeError:
@@ -703,7 +709,14 @@ def _animate(args: argparse.Namespace) -> int:
         results = Path(args.results)
         options: dict[str, Any] = {}
         if args.scale is not None:
+            if not math.isfinite(args.scale):
+                # (checked before any file: NaN was refused after 101 frames were written)
+                raise InvalidParameterError(f"--scale must be a finite number, got {args.scale}")
             options["scale"] = args.scale
+        if args.vtu:
+            _check_folder(Path(args.vtu))
+        if args.output and not args.no_render:
+            _check_folder(Path(args.output))
         if args.vtu or not args.no_vtu and result.flexible:
             directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
             every, times = args.vtu_every or 1, args.vtu_times
@@ -725,6 +738,13 @@ def _animate(args: argparse.Namespace) -> int:
         print(f"flexmbd animate: {error}", file=sys.stderr)
         return 2
     return 0
+
+
+def _check_folder(path: Path) -> None:
+    """Refuses an output in a folder that does not exist, as `run` does (plot and animate
+    created it, and `-o /nonexistent/p.png` a folder at the root)."""
+    if not path.parent.is_dir():
+        raise InvalidParameterError(f"cannot write {path}: its folder {path.parent} does not exist")
 
 
 def _written_frames(path: Path, written: Any) -> str:
