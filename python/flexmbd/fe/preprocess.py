@@ -1127,7 +1127,9 @@ def solid_only_rotations(
     """The rotational coordinates of the nodes that only solids use, in a body with beams or
     shells (6 coordinates per node; solids use the first 3): they carry no stiffness and no
     mass."""
-    if dofs_per_node != 6:
+    solids = [k for k, c in elements.items() if k not in ("beam2", *SHELL_ELEMENTS) and len(c)]
+    if dofs_per_node != 6 or not solids:
+        # (a body from matrices has no elements: its rotations are its own)
         return np.zeros(0, dtype=np.int64)
     carried = np.zeros(node_count, dtype=bool)
     for kind in ("beam2", *SHELL_ELEMENTS):
