@@ -115,3 +115,18 @@ def test_modes_command_numbers_the_modes_it_animates_from_one(capsys):
 
     assert main(["modes", "satellite", "--count", "1", "--animate", "99"]) == 2
     assert "--animate 99: the modes are numbered 1 to 12" in capsys.readouterr().err
+
+
+def test_at_rest_with_loads_the_joints_carry_them(assert_close):
+    # A pendulum hanging at rest: with zero multipliers its frequencies were missing (two
+    # "free motions"); the joint's multiplier that balances gravity brings sqrt(g / l).
+    g = 9.81
+    system = fm.System(gravity=(0.0, -g, 0.0))
+    bob = system.add_point_mass(1.0, position=(0.0, -1.0, 0.0), name="bob")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(bob), 1.0)
+    at_rest = fm.linearize_at_rest(system, loads=True)
+    expected = np.sqrt(g) / (2 * np.pi)
+    assert_close(at_rest.frequencies(), [expected, expected], rel=1e-12, what="frequencies")
+    assert at_rest.free_motions() == 0
+    about_equilibrium = fm.linearize(system, fm.equilibrium(system)).frequencies()
+    assert_close(at_rest.frequencies(), about_equilibrium, rel=1e-12, what="against equilibrium")

@@ -1541,8 +1541,10 @@ def linearize_at_rest(
     :meth:`LinearizedSystem.oscillating` leaves them out. Springs, actuators, drivers and
     callback forces (which may be elastic elements) stay.
 
-    With `loads`, the loads and gravity stay (their stiffness at rest: a follower load's);
-    `system` may then be a compiled model. `inputs` and `outputs` as in :func:`linearize`.
+    With `loads`, the loads and gravity stay (their stiffness at rest: a follower load's),
+    and the joints carry them: the multipliers that balance them at rest (least squares)
+    bring their geometric stiffness (a hanging pendulum's frequency); `system` may then be a
+    compiled model. `inputs` and `outputs` as in :func:`linearize`.
     Raises `InvalidModelError` naming the joint equation when the initial coordinates violate
     the constraints (the configuration is not assembled: linearize about
     :func:`equilibrium` or a result's ``result.state(k)`` instead)."""
@@ -1576,12 +1578,23 @@ def linearize_at_rest(
             "about fm.equilibrium or a result's result.state(k))",
             item=joints[0] if joints else None,
         )
+    multipliers = np.zeros(nc)
+    if loads and nc:
+        # The joints carry the loads at rest: the multipliers that balance them (least
+        # squares), whose geometric stiffness a hanging pendulum's frequency is (with zero
+        # multipliers it had none, and the upright four-bar's +-3.43 were 0).
+        cq = _matrix(ev)[nq:, :nq].toarray()
+        rest = ev["residual"][:nq]
+        multipliers = np.linalg.lstsq(cq.T, -rest, rcond=None)[0]
+        balanced = model.evaluate(time, q, zeros, zeros, multipliers)["residual"][:nq]
+        if np.linalg.norm(balanced) > np.linalg.norm(rest):
+            multipliers = -multipliers  # (the residual's sign convention)
     state = State(
         time,
         q,
         zeros,
         zeros,
-        np.zeros(nc),
+        multipliers,
         layout=model.describe(),
         flexible=model.flexible_bodies,
         system_identity=identity_of(model),
