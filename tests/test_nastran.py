@@ -135,22 +135,17 @@ def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
     # Local coordinates in 16 characters: 11 significant digits.
     assert_close(deck.mesh.nodes, tet10.nodes, abs=1e-10, what="nodes")
     np.testing.assert_array_equal(deck.mesh.elements["tet10"], tet10.elements["tet10"])
-    hexa = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "hex8")
-    path.write_text(deck_of(hexa, "small"))
-    deck = read_nastran(path)
-    np.testing.assert_array_equal(deck.mesh.elements["hex8"], hexa.elements["hex8"])
-    body = deck.body()
-    direct = pp.build_body(hexa.nodes, hexa.elements, STEEL)
-    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
-    # CHEXA of 20 grids (G9-G12 on the bottom face's edges, G13-G16 on the vertical ones,
-    # G17-G20 on the top face's).
-    quadratic = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "hex20")
-    path.write_text(deck_of(quadratic, "large"))
-    deck = read_nastran(path)
-    np.testing.assert_array_equal(deck.mesh.elements["hex20"], quadratic.elements["hex20"])
-    body = deck.body()
-    direct = pp.build_body(quadratic.nodes, quadratic.elements, STEEL)
-    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    # CHEXA of 8 and of 20 grids (G9-G12 on the bottom face's edges, G13-G16 on the vertical
+    # ones, G17-G20 on the top face's).
+    for kind, form in (("hex8", "small"), ("hex20", "large")):
+        hexa = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), kind)
+        path.write_text(deck_of(hexa, form))
+        deck = read_nastran(path)
+        np.testing.assert_array_equal(deck.mesh.elements[kind], hexa.elements[kind])
+        stiffness = dense(deck.body().stiffness)
+        direct = pp.build_body(hexa.nodes, hexa.elements, STEEL)
+        assert_close(stiffness, dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    quadratic = hexa
     # A mid-edge grid left blank (G20, the last field of the card's third line) is refused,
     # not read as some other element.
     lines = deck_of(quadratic, "free").splitlines()
@@ -166,19 +161,9 @@ def test_chexa20_grids_by_the_nastran_figure(tmp_path, assert_close):
     # G13-G16 on G1-G5 .. G4-G8, G17-G20 on G5-G6 .. G8-G5 (grid k at its point; G13 at
     # (0, 0, 0.5)). Read (the order of Gmsh's and meshio's Nastran readers too), node 8 + e of
     # the hex20 is the midpoint of its edge e.
-    corners = [
-        (0, 0, 0),
-        (1, 0, 0),
-        (1, 1, 0),
-        (0, 1, 0),
-        (0, 0, 1),
-        (1, 0, 1),
-        (1, 1, 1),
-        (0, 1, 1),
-    ]
     nastran_edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7),
                      (4, 5), (5, 6), (6, 7), (7, 4)]  # fmt: skip
-    points = [np.array(c, dtype=float) for c in corners]
+    points = [np.array(c, dtype=float) for c in shapes.HEX8_CORNERS]
     points += [0.5 * (points[p] + points[q]) for p, q in nastran_edges]
     lines = ["BEGIN BULK\n"] + [card("GRID", [k + 1, ""] + [float(v) for v in x], "large")
                                for k, x in enumerate(points)]  # fmt: skip

@@ -14,10 +14,12 @@ import flexmbd as fm
 import flexmbd.fe.preprocess as pp
 from flexmbd._core import Material
 from flexmbd.fe import read_mesh, shapes
-from flexmbd.fe.shapes import HEX20_EDGES
+from flexmbd.fe.shapes import HEX8_CORNERS, HEX20_EDGES
 from flexmbd.model_file import load_model
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
+#: The corners of the block [0, 2] x [0, 1] x [0, 1] in hex8 order.
+BLOCK_CORNERS = np.array(HEX8_CORNERS, dtype=float) * [2.0, 1.0, 1.0]
 
 
 def test_a_box_of_hex20_has_a_node_at_the_middle_of_every_edge(assert_close):
@@ -105,8 +107,7 @@ def test_regular_hex20r_meshes_with_other_parts_are_accepted(assert_close):
 def abaqus_hex20_deck(element_type):
     """One 20-node hexahedron [0, 2] x [0, 1] x [0, 1] in Abaqus (= VTK) node order, labels
     101.., element 7."""
-    corners = np.array([[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0],
-                        [0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], dtype=float)  # fmt: skip
+    corners = BLOCK_CORNERS
     nodes = np.vstack([corners, [0.5 * (corners[p] + corners[q]) for p, q in HEX20_EDGES]])
     lines = ["*NODE"] + [f"{101 + k}, {x}, {y}, {z}" for k, (x, y, z) in enumerate(nodes)]
     labels = [str(101 + k) for k in range(20)]
@@ -178,8 +179,7 @@ def test_gmsh_second_order_hexahedra_are_read_in_the_element_order(tmp_path, ass
     # A Gmsh 2.2 file with one type-17 element in Gmsh's own node order (mid-edge nodes at
     # slightly distinct points of their edges, so that a wrong order shows): read_mesh gives
     # hex20 whose node 8 + e lies on edge HEX20_EDGES[e].
-    corners = np.array([[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0],
-                        [0, 0, 1], [2, 0, 1], [2, 1, 1], [0, 1, 1]], dtype=float)  # fmt: skip
+    corners = BLOCK_CORNERS
     shares = 0.5 + 0.01 * np.arange(12)
     edges = zip(shares, GMSH_HEX20_EDGES, strict=True)
     mids = [(1 - s) * corners[p] + s * corners[q] for s, (p, q) in edges]

@@ -164,6 +164,19 @@ def _material(values: Mapping[str, Any]) -> preprocess.Material:
     return preprocess.Material(*(float(values[key]) for key in _MATERIAL_KEYS))
 
 
+def _element_options(body: FlexibleBodyData) -> dict[str, Any]:
+    """The options of a meshed body's elements as `build_body`, `assemble` and
+    `_body_from_nodal` take them: section, orientation, beam theory, shell and mass kind."""
+    section, orientation, beam_theory = _section(body)
+    return {
+        "section": section,
+        "orientation": orientation,
+        "beam_theory": beam_theory,
+        "shell": _shell(body),
+        "mass": body.mass_kind,
+    }
+
+
 def _section(body: FlexibleBodyData) -> tuple[preprocess.Section | None, Any, str]:
     """(section, orientation, beam theory) of a meshed body, as `build_body` takes them."""
     values = body.section
@@ -267,17 +280,12 @@ def with_material(
         # A text or a list was a raw ValueError or TypeError of float().
         values[key] = number(values[key], key)
     new_material = _material(values)
-    section, orientation, beam_theory = _section(body)
     own = _assembled(body, form_i_kl=False)
     rebuilt = preprocess.build_body(
         body.nodes,
         body.elements,
         new_material,
-        section=section,
-        orientation=orientation,
-        shell=_shell(body),
-        mass=body.mass_kind,
-        beam_theory=beam_theory,
+        **_element_options(body),
         node_ids=body.node_ids,
         element_ids=body.element_ids,
         node_sets=body.node_sets,
@@ -297,16 +305,11 @@ def with_material(
 def _assembled(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalBody:
     """The nodal matrices and invariants of a meshed body's elements, assembled again with its
     own material, section and mass kind (without its point masses)."""
-    section, orientation, beam_theory = _section(body)
     return preprocess.assemble(
         body.nodes,
         body.elements,
         _material(body.material),
-        section=section,
-        orientation=orientation,
-        shell=_shell(body),
-        mass=body.mass_kind,
-        beam_theory=beam_theory,
+        **_element_options(body),
         node_ids=body.node_ids,
         element_ids=body.element_ids,
         form_i_kl=form_i_kl,
@@ -449,7 +452,6 @@ def with_modes(
     options["modes"] = kind
     options["mode_count"] = int(count)
     nodal = _nodal_body(body, form_i_kl=kind is None)
-    section, orientation, beam_theory = _section(body)
     reduced = preprocess._body_from_nodal(
         nodal,
         body.nodes,
@@ -458,11 +460,7 @@ def with_modes(
         dict(body.element_ids),
         dict(body.node_sets),
         dict(body.material),
-        section=section,
-        orientation=orientation,
-        shell=_shell(body),
-        beam_theory=beam_theory,
-        mass=body.mass_kind,
+        **_element_options(body),
         precision=precision,
         clock=preprocess._Stages(None),
         **options,

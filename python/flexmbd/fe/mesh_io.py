@@ -35,6 +35,7 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
 
 from __future__ import annotations
 
+import functools
 import io
 import math
 import os
@@ -167,26 +168,20 @@ class Mesh:
         incompatible modes ("hex8i", which bend on coarse meshes; the same nodes, ids and
         mass); a mesh whose hexahedra are all hex8i already (Abaqus C3D8I) is returned as a
         copy. Raises `InvalidModelError` for a mesh without hexahedra."""
-        if not len(self.elements.get("hex8", ())) and len(self.elements.get("hex8i", ())):
-            return replace(self, elements=dict(self.elements), element_ids=dict(self.element_ids))
-        if not len(self.elements.get("hex8", ())):
+        elements, element_ids = dict(self.elements), dict(self.element_ids)
+        if len(elements.get("hex8", ())):
+            for table in (elements, element_ids):
+                hexes = table.pop("hex8")
+                table["hex8i"] = (
+                    np.concatenate([table["hex8i"], hexes]) if "hex8i" in table else hexes
+                )
+        elif not len(elements.get("hex8i", ())):
             raise InvalidModelError(
                 "incompatible modes: the mesh has no hexahedra (hex8); its elements: "
                 + (", ".join(self.elements) or "none"),
                 item="mesh elements",
             )
-        elements, element_ids = dict(self.elements), dict(self.element_ids)
-        for table in (elements, element_ids):
-            hexes = table.pop("hex8")
-            table["hex8i"] = np.concatenate([table["hex8i"], hexes]) if "hex8i" in table else hexes
-        return Mesh(
-            nodes=self.nodes,
-            node_ids=self.node_ids,
-            elements=elements,
-            element_ids=element_ids,
-            node_sets=self.node_sets,
-            shell_thickness=self.shell_thickness,
-        )
+        return replace(self, elements=elements, element_ids=element_ids)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -894,16 +889,17 @@ def _warn_left_out(path: Path, left_out: Mapping[str, list[Any]], read_any: bool
 _MESHIO_ABAQUS_ALIASES = {"C3D4H": "C3D4"}
 
 
-def _meshio_abaqus_types() -> set[str]:
+@functools.cache
+def _meshio_abaqus_types() -> frozenset[str]:
     """The Abaqus element types meshio's reader reads (it names C3D15, but fails on it)."""
     import meshio._mesh
     import meshio.abaqus._abaqus as reader
 
-    return {
+    return frozenset(
         name
         for name, cell in reader.abaqus_to_meshio_type.items()
         if cell in reader.num_nodes_per_cell and cell in meshio._mesh.topological_dimension
-    } | set(_MESHIO_ABAQUS_ALIASES)
+    ) | frozenset(_MESHIO_ABAQUS_ALIASES)
 
 
 def _scan_abaqus_file(path: Path, scan: _AbaqusScan, chain: tuple[Path, ...]) -> None:

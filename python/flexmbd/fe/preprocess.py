@@ -707,38 +707,27 @@ def build_body(
         )
         _warn_of_shells(nodes, elements, eids)
     clock.lap("check")
-    nodal = assemble(
-        nodes,
-        elements,
-        material,
-        section=section,
-        orientation=orientation,
-        mass=mass,
-        beam_theory=beam_theory,
-        node_ids=ids,
-        element_ids=eids,
-        form_i_kl=modes is None,
-        shell=shell,
-    )
-    if point_masses is not None:
-        nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
-    _check_zero_energy_modes(
-        nodal,
-        nodes,
-        elements,
-        eids,
-        lambda other: assemble(
+
+    def assembled(kinds: dict[str, NDArray[np.int64]], **options: Any) -> NodalBody:
+        """The body's nodes, material and sections with the elements `kinds`."""
+        return assemble(
             nodes,
-            other,
+            kinds,
             material,
             section=section,
             orientation=orientation,
             mass=mass,
             beam_theory=beam_theory,
             node_ids=ids,
-            form_i_kl=False,
             shell=shell,
-        ),
+            **options,
+        )
+
+    nodal = assembled(elements, element_ids=eids, form_i_kl=modes is None)
+    if point_masses is not None:
+        nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
+    _check_zero_energy_modes(
+        nodal, nodes, elements, eids, lambda other: assembled(other, form_i_kl=False)
     )
     clock.lap("assemble")
     return _body_from_nodal(
@@ -1153,17 +1142,19 @@ def _rigid_support(
     off = (x - x[a]) - np.outer((x - x[a]) @ axis, axis)
     c = int(np.argmax(np.linalg.norm(off, axis=1)))
     size = max(float(np.ptp(x, axis=0).max()), 1e-300)
-    local = rigid_modes((x - x.mean(axis=0)) / size, d)
-    candidates = [(d * n + k) for n in dict.fromkeys((a, b, c)) for k in range(3)]
+    picks = list(dict.fromkeys((a, b, c)))
+    # The rigid motions at the picked nodes only (row d i + k: node picks[i], coordinate k).
+    local = rigid_modes((x[picks] - x.mean(axis=0)) / size, d)
+    candidates = [d * i + k for i in range(len(picks)) for k in range(3)]
     if d == 6:
-        candidates += [d * a + k for k in range(3, 6) if d * members[a] + k not in unused]
+        candidates += [k for k in range(3, 6) if d * members[a] + k not in unused]
     chosen: list[int] = []
     for _ in range(6):
         options = [r for r in candidates if r not in chosen]
         chosen.append(
             max(options, key=lambda r: np.linalg.svd(local[chosen + [r]], compute_uv=False)[-1])
         )
-    return [int(d * members[r // d] + r % d) for r in chosen]
+    return [int(d * members[picks[r // d]] + r % d) for r in chosen]
 
 
 def _zero_energy_modes(
