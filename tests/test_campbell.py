@@ -72,6 +72,37 @@ def test_lead_lag_without_coriolis_is_sqrt_flap_squared_minus_speed_squared(asse
         assert_close(lags, np.sqrt(flaps**2 - g[k] ** 2), rel=1e-3, what="lead-lag")
 
 
+def hinged_bob(offset, arm, hinge):
+    """A hub driven at "drive" about z with a bob (point-like rigid body, 0.3 kg) on a free
+    hinge at `offset` from the axis, `arm` beyond it: axis z (lag) or y (flap)."""
+    system = fm.System()
+    hub = system.add_rigid_body(1.0, (0.1, 0.1, 0.1), position=(offset / 2, 0, 0), name="hub")
+    shaft = system.add_marker(system.ground), system.add_marker(hub, position=(-offset / 2, 0, 0))
+    system.add_revolute_joint(*shaft, name="shaft")
+    system.add_angle_driver(*shaft, fm.Polynomial([0.0, 10.0]), name="drive")
+    bob = system.add_rigid_body(0.3, (1e-9, 1e-9, 1e-9), position=(offset + arm, 0, 0))
+    turn = np.eye(3) if hinge == "lag" else fm.rotation("x", -np.pi / 2)
+    system.add_revolute_joint(system.add_marker(hub, position=(offset / 2, 0, 0), orientation=turn),
+                              system.add_marker(bob, position=(-arm, 0, 0), orientation=turn),
+                              name="hinge")  # fmt: skip
+    return system
+
+
+@pytest.mark.parametrize("hinge", ["lag", "flap"])
+def test_a_bob_on_a_free_hinge_of_a_turning_hub(hinge, assert_close):
+    # A point mass on a hinge at offset e, l beyond it: w_lag^2 = W^2 e / l and
+    # w_flap^2 = W^2 (1 + e / l). The bob's free rotation was an Euler parameter of the
+    # linearization, which turns at W / 2: both squares were W^2 / 4 too high (a 10 % error
+    # in the frequency of the lag hinge).
+    offset, arm, speeds = 0.5, 0.2, np.array([2.0, 5.0, 10.0])
+    ratio = offset / arm if hinge == "lag" else 1.0 + offset / arm
+    system = hinged_bob(offset, arm, hinge)
+    linear = fm.linearize(system, "steady-rotation")
+    assert_close((2 * np.pi * linear.frequencies()) ** 2, [100.0 * ratio], rel=1e-6)
+    diagram = campbell(system, "drive", speeds, modes=1)
+    assert_close(2 * np.pi * diagram.frequencies[:, 0], speeds * np.sqrt(ratio), rel=1e-6)
+
+
 def test_critical_speeds_are_the_crossings_of_the_order_lines(assert_close):
     speeds = np.array([0.0, 150.0, 300.0])
     # A mode at 20 Hz, another rising as 30 + W / 150 Hz.

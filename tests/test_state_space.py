@@ -120,6 +120,29 @@ def test_about_a_point_of_a_trajectory_a_matches_finite_differences(assert_close
     assert_close(ss.c[0, :n], y_row @ basis, abs=1e-15)
 
 
+@pytest.mark.parametrize(
+    "solver", [None, fm.ExplicitSolver("rk4", "joint-coordinates")], ids=["alpha", "joints"]
+)
+def test_a_swinging_pendulum_linearized_about_a_state_of_its_swing(solver, assert_close):
+    # A bar (1 m, 1 kg) on a hinge at its end, released horizontal: at angle theta below the
+    # horizontal the swing's variational equation is d_theta_dd = -(3 g / 2 L) sin(theta)
+    # d_theta, undamped. The independent coordinate was a global coordinate of the turning bar,
+    # whose relation to the angle changes along the swing: eigenvalues -3.23 +- 6.80i (damped)
+    # instead of +- 2.99i.
+    g = 9.81
+    system = fm.System(gravity=(0, -g, 0))
+    bar = system.add_rigid_body(1.0, (1e-4, 1 / 12, 1 / 12), position=(0.5, 0, 0), name="bar")
+    system.add_revolute_joint(system.add_marker(system.ground),
+                              system.add_marker(bar, position=(-0.5, 0, 0)))  # fmt: skip
+    result = fm.simulate(system, 0.3, 1e-4, solver=solver, output_interval=0.1)
+    turn = result.orientation(bar)[-1]
+    theta = np.arctan2(-turn[1, 0], turn[0, 0])
+    expected = np.sqrt(1.5 * g * np.sin(theta))
+    values = fm.linearize(system, result.state(-1)).eigenvalues()[0]
+    assert_close(np.sort(values.imag), [-expected, expected], rel=1e-5, what="frequency")
+    assert np.max(np.abs(values.real)) < 1e-5 * expected
+
+
 def test_bad_inputs_and_outputs_are_refused():
     system, _, tip = cantilever()
     with pytest.raises(fm.InvalidParameterError, match="flexmbd.System"):

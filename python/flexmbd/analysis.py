@@ -1248,52 +1248,113 @@ def _dependent_columns(cq: Array, elastic: NDArray[np.bool_]) -> NDArray[np.int6
     return np.array(chosen, dtype=np.int64)
 
 
+def _frame_transform(layout: dict[str, Any], q: Array) -> tuple[Array, NDArray[np.bool_]]:
+    """The map T(q) (coordinates x local coordinates) from the local coordinates y of a
+    change of q to the change dq = T y, and the mask of the elastic ones among y. A body
+    frame's y are the change of its origin and the small rotation, both in the frame's own
+    axes: dR = A(p) dR_bar and dp = 1/2 G(p)^T dpi_bar, so a frame has six y for its seven
+    q (the Euler parameters' norm is left out); elastic coordinates and point masses keep
+    theirs. About a steady rotation the local coordinates see the motion from the turning
+    frames, where it does not depend on time; an Euler parameter turns at half the rate, and
+    taken as a coordinate of the motion it put Omega^2 / 4 into a hinged blade's squared
+    frequency."""
+    from .rotation import euler_parameters_to_matrix
+
+    nq = layout["coordinate_count"]
+    columns: list[Array] = []
+    elastic: list[bool] = []
+    for b in layout["bodies"]:
+        offset, count = b["offset"], b["count"]
+        if b["kind"] in ("rigid", "flexible") and count >= 7:
+            p = q[offset + 3 : offset + 7]
+            e0, e = p[0], p[1:]
+            skew = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
+            block = np.zeros((nq, 6))
+            block[offset : offset + 3, :3] = euler_parameters_to_matrix(p)
+            block[offset + 3, 3:] = -0.5 * e
+            block[offset + 4 : offset + 7, 3:] = 0.5 * (e0 * np.eye(3) + skew)
+            columns.append(block)
+            elastic.extend([False] * 6)
+            rest = range(offset + 7, offset + count)
+        else:
+            rest = range(offset, offset + count)
+        for k in rest:
+            column = np.zeros((nq, 1))
+            column[k, 0] = 1.0
+            columns.append(column)
+            elastic.append(b["kind"] == "flexible")
+    transform = np.hstack(columns) if columns else np.zeros((nq, 0))
+    return transform, np.array(elastic, dtype=bool)
+
+
 def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
     """The basis B (coordinates x independent coordinates) of the motions that keep the
-    constraints about `state`, with the independent coordinates chosen by
-    :func:`_dependent_columns` (the elastic ones first), and its first and second time
-    derivatives along the state's motion: C_q B = 0 with the rows of the independent
-    coordinates the identity, differentiated, C_q B_dot = -C_q_dot B and
-    C_q B_dd = -2 C_q_dot B_dot - C_q_ddot B (zero rows for the independent coordinates).
-    C_q_dot and C_q_ddot are central differences of C_q along
-    q(t +- h) = q +- h q_dot + h^2 / 2 q_dd, the step h a turn of :data:`BASIS_TURN` rad of
-    the fastest reference coordinate (second order in h); both vanish at rest. Dense:
-    (coordinates x independent coordinates) each."""
-    nq = model.coordinate_count
-    elastic = _elastic_mask(model.describe())
+    constraints about `state`, and its first and second time derivatives along the state's
+    motion. B = T(q) B_y: T maps the local coordinates of :func:`_frame_transform` (a frame's
+    change of origin and small rotation in its own axes, the elastic coordinates) to q, and
+    B_y solves J B_y = 0 (J = C_q T) with the rows of the independent local coordinates the
+    identity, these chosen by :func:`_dependent_columns` (the elastic ones first).
+    Differentiated, J B_y_dot = -J_dot B_y and J B_y_dd = -2 J_dot B_y_dot - J_dd B_y (zero
+    rows for the independent coordinates), B_dot = T_dot B_y + T B_y_dot and
+    B_dd = T_dd B_y + 2 T_dot B_y_dot + T B_y_dd. The rates of J and T are central
+    differences along q(t +- h) = q +- h q_dot + h^2 / 2 q_dd, the step h a turn of
+    :data:`BASIS_TURN` rad of the fastest reference coordinate (second order in h: the odd
+    terms of the path cancel); they vanish at rest. Dense: (coordinates x independent
+    coordinates) each."""
+    layout = model.describe()
     time, q = state.time, np.asarray(state.coordinates, dtype=float)
     velocity = np.asarray(state.velocities, dtype=float)
     acceleration = np.asarray(state.accelerations, dtype=float)
-    cq = _constraint_jacobian(model, time, q)
-    dependent = _dependent_columns(cq, elastic)
-    independent = np.setdiff1d(np.arange(nq), dependent)
-    basis = np.zeros((nq, len(independent)))
-    basis[independent] = np.eye(len(independent))
-    rate, curvature = np.zeros_like(basis), np.zeros_like(basis)
-    if len(dependent) == 0:
-        return basis, rate, curvature
-    columns = cq[:, dependent]
+
+    def local_jacobian(t: float, at: Array) -> tuple[Array, Array, NDArray[np.bool_]]:
+        transform, local_elastic = _frame_transform(layout, at)
+        return _constraint_jacobian(model, t, at) @ transform, transform, local_elastic
+
+    jacobian, transform, local_elastic = local_jacobian(time, q)
+    dependent = _dependent_columns(jacobian, local_elastic)
+    independent = np.setdiff1d(np.arange(transform.shape[1]), dependent)
+    local = np.zeros((transform.shape[1], len(independent)))
+    local[independent] = np.eye(len(independent))
+    columns = jacobian[:, dependent]
 
     def solve(right: Array) -> Array:
         return np.linalg.lstsq(columns, right, rcond=None)[0]
 
-    basis[dependent] = -solve(cq[:, independent])
+    if len(dependent):
+        local[dependent] = -solve(jacobian[:, independent])
+    basis = transform @ local
+    rate, curvature = np.zeros_like(basis), np.zeros_like(basis)
+    elastic = _elastic_mask(layout)
     speed = float(np.max(np.abs(velocity[~elastic]), initial=0.0))
     rise = float(np.max(np.abs(acceleration[~elastic]), initial=0.0))
     if speed == 0.0 and rise == 0.0:
-        return basis, rate, curvature  # C_q of a state at rest does not move
+        return basis, rate, curvature  # B of a state at rest does not move
     # h: the step over which the fastest coordinate moves BASIS_TURN, h v + h^2 a / 2.
     h = (
         BASIS_TURN / speed
         if rise == 0.0
         else (np.sqrt(speed**2 + 2.0 * rise * BASIS_TURN) - speed) / rise
     )
-    ahead = _constraint_jacobian(model, time + h, q + h * velocity + 0.5 * h * h * acceleration)
-    behind = _constraint_jacobian(model, time - h, q - h * velocity + 0.5 * h * h * acceleration)
-    cq_rate = (ahead - behind) / (2.0 * h)
-    cq_curvature = (ahead - 2.0 * cq + behind) / (h * h)
-    rate[dependent] = -solve(cq_rate @ basis)
-    curvature[dependent] = -solve(2.0 * cq_rate @ rate + cq_curvature @ basis)
+    ahead = local_jacobian(time + h, q + h * velocity + 0.5 * h * h * acceleration)
+    behind = local_jacobian(time - h, q - h * velocity + 0.5 * h * h * acceleration)
+    # Differences of J = C_q T and of T (smooth in q), not of the solved B: their round-off
+    # is the entries', where B's would carry the solve's over h^2.
+    jacobian_rate = (ahead[0] - behind[0]) / (2.0 * h)
+    jacobian_curvature = (ahead[0] - 2.0 * jacobian + behind[0]) / (h * h)
+    transform_rate = (ahead[1] - behind[1]) / (2.0 * h)
+    transform_curvature = (ahead[1] - 2.0 * transform + behind[1]) / (h * h)
+    local_rate, local_curvature = np.zeros_like(local), np.zeros_like(local)
+    if len(dependent):
+        local_rate[dependent] = -solve(jacobian_rate @ local)
+        local_curvature[dependent] = -solve(
+            2.0 * jacobian_rate @ local_rate + jacobian_curvature @ local
+        )
+    rate = transform_rate @ local + transform @ local_rate
+    curvature = (
+        transform_curvature @ local
+        + 2.0 * transform_rate @ local_rate
+        + transform @ local_curvature
+    )
     return basis, rate, curvature
 
 
@@ -1319,23 +1380,24 @@ def linearize(
     :class:`flexmbd.BodyPosition`, :class:`flexmbd.ElasticCoordinate`) make
     :meth:`LinearizedSystem.state_space` the state-space model (A, B, C, D) between them.
 
-    `independent` chooses the coordinates z. ``"elastic"`` (default): z are coordinates of q,
-    the elastic coordinates of the deformable bodies first (generalized coordinate
-    partitioning, seed eqs. 27-30, the dependent coordinates pivoted among the reference
-    coordinates of the bodies); the dependent coordinates follow the constraints along the
-    state's motion, q = q0(t) + B(t) z, and the equations carry the terms of that moving
-    basis (:func:`moving_basis`):
+    `independent` chooses the coordinates z. ``"elastic"`` (default): z are local coordinates
+    (:func:`_frame_transform`: each body frame's change of origin and small rotation in its own
+    axes, the elastic coordinates), the elastic ones of the deformable bodies first (generalized
+    coordinate partitioning, seed eqs. 27-30, the dependent coordinates pivoted among the
+    frames' local coordinates); the dependent coordinates follow the constraints along the
+    state's motion, q = q0(t) + B(t) z, and the equations carry the terms of that moving basis
+    (:func:`moving_basis`):
     B^T M B z_dd + B^T (D B + 2 M B_dot) z_dot + B^T (K B + D B_dot + M B_dd) z = 0.
-    About a steady rotation whose independent coordinates are all elastic (the bodies driven,
-    or joined to driven bodies, as a disc welded to a turning shaft) these are the
-    time-invariant equations of the rotating frames, and the eigenvalues the exact
-    frequencies seen there. ``"null-space"``: an orthonormal basis of the null space of C_q at
-    the state, held fixed. With the basis held fixed the welded disc's absolute coordinates
-    turn under it, and the frequencies are wrong (a rotor's whirl at 100 rad/s: 66.1 and 73.1
-    rad/s instead of 27.0 and 157.9). The two choices agree where B does not move (static
-    states, blades whose reference motion is all prescribed), up to round-off, which is larger
-    with the null space: its columns mix stiff and soft coordinates (the rotor at rest: its
-    first pair of bending frequencies split by 1e-5 against exactly equal).
+    About a steady rotation (a disc welded to a turning shaft, a blade on a free flap hinge
+    of a turning hub) these are the time-invariant equations of the rotating frames,
+    and the eigenvalues the exact frequencies seen there. ``"null-space"``: an orthonormal basis
+    of the null space of C_q at the state, held fixed. With the basis held fixed the welded
+    disc's absolute coordinates turn under it, and the frequencies are wrong (a rotor's whirl at
+    100 rad/s: 66.1 and 73.1 rad/s instead of 27.0 and 157.9). The two choices agree where B
+    does not move (static states, blades whose reference motion is all prescribed), up to
+    round-off, which is larger with the null space: its columns mix stiff and soft coordinates
+    (the rotor at rest: its first pair of bending frequencies split by 1e-5 against exactly
+    equal).
 
     Raises `InvalidParameterError` for a state of another System, or one whose coordinates
     violate the constraints by more than :data:`STATE_VIOLATION` (naming the joint equation
