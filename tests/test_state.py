@@ -829,3 +829,47 @@ def test_equilibrium_balances_a_driver_accelerating_from_rest(assert_close):
                          solver=fm.GeneralizedAlpha(1.0))  # fmt: skip
     tip = result.node_displacements(arm, [8])[:, 0, 1]
     assert tip[0] < -2e-3 and np.ptp(tip) < 1e-3 * abs(tip[0])
+
+
+def wound_wheel(rest_angle=0.0, speed=10.0):
+    """A wheel (J = 1) on a hinge about z, turning at `speed`, on a torsion spring of 0.5 N m
+    per rad: in 1 s it winds the spring by more than a turn."""
+    system = fm.System()
+    wheel = system.add_rigid_body(1.0, (1, 1, 1), angular_velocity=(0, 0, speed), name="wheel")
+    markers = system.add_marker(system.ground), system.add_marker(wheel)
+    system.add_revolute_joint(*markers, name="hinge")
+    system.add_rotational_spring_damper(*markers, stiffness=0.5, rest_angle=rest_angle,
+                                        name="spring")  # fmt: skip
+    return system
+
+
+def test_a_run_continued_from_a_record_keeps_the_springs_wound(tmp_path, assert_close):
+    # The spring's angle is unwrapped over the run (a discrete variable). A state recorded
+    # after more than half a turn carries it: continued from it (in memory or read back from
+    # the results file), the wheel went on from the wrapped angle and ended at 4.45 rad/s
+    # instead of 1.56.
+    system = wound_wheel()
+    whole = fm.simulate(system, 2.0, 1e-3, output_interval=0.1)
+    half = fm.simulate(system, 1.0, 1e-3, output_interval=0.1, results_file=tmp_path / "a.h5")
+    angle = half.state(-1).discrete[0]
+    assert angle > 2 * np.pi and half.discrete.shape == (len(half), 1)
+    assert_close(whole.discrete[len(half) - 1], [angle], rel=1e-6, what="unwrapped angle")
+    ending = whole.state(-1).angular_velocity("wheel")
+    for state in (half.state(-1), fm.read_results(tmp_path / "a.h5").state(-1)):
+        assert_close(state.discrete, [angle], rel=0, what="the recorded angle")
+        rest = fm.simulate(system, 2.0, 1e-3, output_interval=0.1, initial_state=state)
+        assert_close(rest.state(-1).angular_velocity("wheel"), ending, abs=1e-6)
+
+
+def test_an_equilibrium_beyond_half_a_turn_of_a_spring(assert_close):
+    # A spring's rest angle of 3.5 rad: its equilibrium is at the wrapped angle 3.5 - 2 pi.
+    # Newton's iterates unwrapped the angle against the start and never reached 3.5
+    # (diverged); the state carries the unwrapped angle, so a run from it stays at rest.
+    system = wound_wheel(rest_angle=3.5, speed=0.0)
+    state = fm.equilibrium(system)
+    turn = state.orientation("wheel")
+    assert_close(np.arctan2(turn[1, 0], turn[0, 0]), 3.5 - 2 * np.pi, abs=1e-9, what="angle")
+    assert_close(state.discrete, [3.5], abs=1e-9, what="unwrapped angle")
+    result = fm.simulate(system, 1.0, 1e-3, initial_state="equilibrium")
+    assert np.max(result.kinetic_energy) < 1e-20
+    assert_close(result.discrete[-1], [3.5], abs=1e-9)

@@ -145,7 +145,16 @@ class Model:
     def initial_velocities(self) -> NDArray[np.float64]: ...
     @property
     def matrix_nonzeros(self) -> int: ...
+    @property
+    def discrete_count(self) -> int: ...
     def describe(self) -> dict[str, Any]: ...
+    def discrete_variables(
+        self,
+        time: float,
+        coordinates: NDArray[np.float64],
+        velocities: NDArray[np.float64],
+        previous: NDArray[np.float64] | None = None,
+    ) -> NDArray[np.float64]: ...
     def evaluate(
         self,
         time: float,
@@ -157,6 +166,7 @@ class Model:
         mass: float = 0.0,
         velocity: float = 0.0,
         position: float = 0.0,
+        discrete: NDArray[np.float64] | None = None,
     ) -> dict[str, Any]: ...
 
 class System:
@@ -449,8 +459,10 @@ def simulate(
     records: Callable[[dict[str, Any]], object] | None = None,
     coordinates: NDArray[np.float64] | None = None,
     velocities: NDArray[np.float64] | None = None,
+    discrete: NDArray[np.float64] | None = None,
     recorded: bool = False,
     initial_conditions: str = "correct",
+    keep_in_memory: bool = True,
 ) -> tuple[dict[str, Any], BaseException | None]: ...
 
 class Material:

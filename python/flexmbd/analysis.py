@@ -837,6 +837,7 @@ def _redundancy_handled(
         state.accelerations,
         state.multipliers,
         mass=1.0,
+        discrete=state.discrete,
     )
     matrix = _matrix(ev)
     if handling == "error":
@@ -922,9 +923,15 @@ def _solve_equilibrium(
     step = np.inf
     residual = np.zeros(nq + nc)
     kept_factors: dict[int, tuple[sp.csr_matrix, Any]] = {}
+    # The discrete variables follow the iterates as a run's follow its steps: a spring whose
+    # rest angle is beyond half a turn was unwrapped against its starting angle, never
+    # reached its rest angle and Newton's method diverged.
+    discrete = model.discrete_variables(time, q, np.zeros(nq))
     for iteration in range(1, max_iterations + 1):
         qd, qdd = _prescribed_rates(model, time, q, rigid)
-        ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+        if iteration > 1:
+            discrete = model.discrete_variables(time, q, qd, discrete)
+        ev = model.evaluate(time, q, qd, qdd, lam, position=1.0, discrete=discrete)
         residual = ev["residual"]
         matrix = _matrix(ev)
         # The unknowns of the Newton solve: the coordinates and the multipliers of the rows
@@ -934,7 +941,7 @@ def _solve_equilibrium(
         if not np.array_equal(rows, kept_rows):
             lam = _moved_multipliers(matrix, nq, lam, rows)
             kept_rows = rows
-            ev = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+            ev = model.evaluate(time, q, qd, qdd, lam, position=1.0, discrete=discrete)
             residual = ev["residual"]
             matrix = _matrix(ev)
         unknowns = np.concatenate([np.arange(nq), nq + kept_rows])
@@ -977,7 +984,8 @@ def _solve_equilibrium(
         step = float(np.max(np.abs(delta[:nq]))) / scale
         if step <= tolerance and not truncated:
             qd, qdd = _prescribed_rates(model, time, q, rigid)
-            final = model.evaluate(time, q, qd, qdd, lam, position=1.0)
+            discrete = model.discrete_variables(time, q, qd, discrete)
+            final = model.evaluate(time, q, qd, qdd, lam, position=1.0, discrete=discrete)
             violated = _violated_rows(final["residual"][nq:], kept_rows, scale * tolerance)
             if len(violated):
                 # Rows left out as dependent on the kept ones (which `_independent_rows`
@@ -1010,6 +1018,7 @@ def _solve_equilibrium(
                 stable=stable,
                 unstable_directions=unstable or 0,
                 neutral_directions=neutral,
+                discrete=discrete,
             )
     bodies = _residual_bodies(layout, residual[:nq])
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
@@ -1446,9 +1455,12 @@ def linearize(
         state.accelerations,
         state.multipliers,
     )
-    m = _matrix(model.evaluate(*args, mass=1.0))
-    d = _matrix(model.evaluate(*args, velocity=1.0))
-    k = _matrix(model.evaluate(*args, position=1.0))
+    discrete = state.discrete
+    if discrete is not None and len(discrete) != model.discrete_count:
+        discrete = None  # (made by hand for another model's forces: set from q)
+    m = _matrix(model.evaluate(*args, mass=1.0, discrete=discrete))
+    d = _matrix(model.evaluate(*args, velocity=1.0, discrete=discrete))
+    k = _matrix(model.evaluate(*args, position=1.0, discrete=discrete))
     cq = m[nq:, :nq].toarray()
     if independent == "elastic":
         basis, rate, curvature = moving_basis(model, state)

@@ -89,6 +89,12 @@ class Result:
         self.accelerations: Array = raw["accelerations"]
         self.multipliers: Array = raw["multipliers"]
         self.constraint_violation: Array = raw["constraint_violation"]
+        #: The discrete variables per record (unwrapped spring and actuator angles, the
+        #: actuators' saturation states), (n, discrete variables); (n, 0) for results files
+        #: written before they were recorded.
+        self.discrete: Array = np.asarray(
+            raw.get("discrete", np.zeros((len(raw["time"]), 0))), dtype=float
+        )
         self.statistics: dict[str, float] = dict(raw["statistics"])
         self.events: list[dict[str, Any]] = list(raw.get("events", []))
         self.redundancy: dict[str, Any] | None = raw.get("redundancy")
@@ -139,6 +145,8 @@ class Result:
                 f"record index {index} is out of range (the result has {len(self.time)} records)",
                 item="index",
             )
+        count = int(self.layout.get("discrete_count", 0)) if self.layout else 0
+        recorded = self.discrete.shape[1:] == (count,) and count > 0
         return State(
             float(self.time[index]),
             self.coordinates[index],
@@ -149,6 +157,7 @@ class Result:
             flexible=self.flexible,
             system_identity=self.system_identity,
             recorded=True,
+            discrete=self.discrete[index] if recorded else None,
         )
 
     # Energies -------------------------------------------------------------------------

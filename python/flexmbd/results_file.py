@@ -16,7 +16,9 @@ Datasets, time first, one row per record, extensible along the first axis (SI un
   ``energy`` (n, 4): kinetic, potential (strain included) and strain energy, J, and the
   power of the forces no potential accounts for, W (`Result.nonconservative_power`; files
   written before it was recorded have (n, 3), before the strain energy (n, 2));
-  ``constraint_violation`` (n,).
+  ``constraint_violation`` (n,); ``discrete`` (n, discrete variables): the unwrapped angles
+  of rotational springs and angle actuators and the actuators' saturation states, from which
+  a run continued from a record goes on (absent in files written before it was recorded).
 * ``records`` (1,) int64: the number of rows that are complete. Rows are flushed to the file
   before this count is raised, so a reader trusts the count, never the dataset lengths.
 * ``statistics``, ``events``, ``redundancy`` and ``status``: JSON texts (UTF-8 bytes in
@@ -89,8 +91,11 @@ _RECORD_FIELDS = (
     "sensors",
     "energy",
     "constraint_violation",
+    "discrete",
 )
 _TEXT_FIELDS = ("statistics", "events", "redundancy", "status")
+#: Record datasets that files written before them lack (read as zero columns).
+_LATER_FIELDS = ("discrete",)
 
 
 def _record_shapes(layout: dict[str, Any]) -> dict[str, tuple[int, ...]]:
@@ -106,6 +111,7 @@ def _record_shapes(layout: dict[str, Any]) -> dict[str, tuple[int, ...]]:
         "sensors": (width,),
         "energy": (4,),
         "constraint_violation": (),
+        "discrete": (int(layout.get("discrete_count", 0)),),
     }
 
 
@@ -723,7 +729,7 @@ def _check_header(file: h5py.File, path: Path) -> None:
             item=f"file '{path}'",
         )
     for name in (*_RECORD_FIELDS, "records", "status"):
-        if name not in file:
+        if name not in file and name not in _LATER_FIELDS:
             raise NotAResultsFileError(
                 f"{path}: the results file has no dataset '{name}'", item=f"file '{path}'"
             )
@@ -870,11 +876,15 @@ def _read_results(path: Path) -> Result:
             # Written before the strain energy (2) or the power (3) was recorded.
             shapes["energy"] = energy.shape[1:]
         raw: dict[str, Any] = {
-            name: _readable_rows(file, name, count, shapes[name], size) for name in _RECORD_FIELDS
+            name: _readable_rows(file, name, count, shapes[name], size)
+            for name in _RECORD_FIELDS
+            if name in file or name not in _LATER_FIELDS
         }
         readable = min(len(values) for values in raw.values())
         readable, disorder = _ordered(raw["time"][:readable])
         raw = {name: values[:readable] for name, values in raw.items()}
+        for name in _LATER_FIELDS:
+            raw.setdefault(name, np.zeros((readable, 0)))
         raw["statistics"] = _text(file, "statistics")
         raw["events"] = _text(file, "events") or []
         raw["redundancy"] = _text(file, "redundancy")

@@ -62,6 +62,11 @@ class State:
         flexible: body index -> the `FlexibleBodyData` of its deformable bodies.
         system_identity: that of the System the model was compiled from: the accessors refuse
             the ids of another system that name other items there (see ``Result``).
+        discrete: the discrete variables (``Model.discrete_variables``: the unwrapped angles
+            of rotational springs and angle actuators, the actuators' saturation states), or
+            None: set from the coordinates (angles in (-pi, pi]). A recorded state carries
+            them, so that a run continued from it, and the analyses about it, take a spring
+            wound by more than half a turn as wound.
 
     The accessors take a body as a ``BodyId``, an index or a name, and give the values of
     ``Result``'s accessors of the same name at this one time (without the time axis).
@@ -81,9 +86,10 @@ class State:
     #: drift, which generalized-alpha leaves within the step's error) as a "continuation"
     #: event, not an initial correction.
     recorded: bool = field(default=False, repr=False, compare=False)
+    discrete: Array | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        for name in ("coordinates", "velocities", "accelerations", "multipliers"):
+        for name in ("coordinates", "velocities", "accelerations", "multipliers", "discrete"):
             object.__setattr__(self, name, _frozen(getattr(self, name), name))
         object.__setattr__(self, "time", number(self.time, "time"))
         if self.coordinates.shape != self.velocities.shape or self.coordinates.ndim != 1:

@@ -789,6 +789,7 @@ fn output_dict<'py>(py: Python<'py>, out: Output) -> PyResult<Bound<'py, PyDict>
     d.set_item("sensors", array2(py, out.sensors, n, width)?)?;
     d.set_item("energy", array2(py, out.energy, n, flexmbd_core::output::ENERGY_WIDTH)?)?;
     d.set_item("constraint_violation", PyArray1::from_vec(py, out.constraint_violation))?;
+    d.set_item("discrete", array2(py, out.discrete, n, out.discrete_count)?)?;
     d.set_item("time", PyArray1::from_vec(py, out.time))?;
     d.set_item("released", out.released)?;
     let s = PyDict::new(py);
@@ -842,13 +843,14 @@ const RELEASE_BATCH: usize = 4096;
 /// dropped from memory (the raw results then hold only the later ones, and "released" says
 /// how many came before them). An exception of `progress` or `records` stops the run with a
 /// `CallbackError` (its `__cause__` the exception), Ctrl-C with `SimulationInterrupted`.
-/// `coordinates` and `velocities` (both or neither) replace the
-/// model's initial ones. `initial_conditions` "correct" reports the corrections of the
+/// `coordinates` and `velocities` (both or neither) replace the model's initial ones, and
+/// `discrete` (with them; a recorded state's) the discrete variables set from them, so a
+/// run continued from a record goes on from its unwrapped angles. `initial_conditions` "correct" reports the corrections of the
 /// consistent-initial-condition solve as events, "strict" refuses them. Returns
 /// `(raw_results, error)`; `error` is None on success, otherwise the exception to raise (the
 /// raw results then hold everything up to the failure).
 #[pyfunction]
-#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, recorded = false, initial_conditions = "correct", keep_in_memory = true))]
+#[pyo3(signature = (model, end_time, step_size, *, start_time = 0.0, output_interval = None, solver = None, progress = None, records = None, coordinates = None, velocities = None, discrete = None, recorded = false, initial_conditions = "correct", keep_in_memory = true))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
@@ -862,6 +864,7 @@ pub fn simulate<'py>(
     records: Option<Py<PyAny>>,
     coordinates: Option<PyReadonlyArray1<'py, f64>>,
     velocities: Option<PyReadonlyArray1<'py, f64>>,
+    discrete: Option<PyReadonlyArray1<'py, f64>>,
     recorded: bool,
     initial_conditions: &str,
     keep_in_memory: bool,
@@ -896,7 +899,10 @@ pub fn simulate<'py>(
             coordinates: q.as_slice()?.to_vec(),
             velocities: qd.as_slice()?.to_vec(),
             time: None,
-            discrete: None,
+            discrete: match &discrete {
+                Some(values) => Some(values.as_slice()?.to_vec()),
+                None => None,
+            },
             recorded,
         }),
         _ => return Err(invalid("simulate", "give both the initial coordinates and velocities, or neither")),

@@ -57,7 +57,11 @@ impl Model {
     /// - `matrix` (if any coefficient is non-zero): the CSC tuple (data, indices, indptr, n) of
     ///   [[mass M + velocity D + position K, C_q^T], [C_q, 0]] with D = dr/dq_dot and
     ///   K = dr/dq (including the constraint Hessian term of the multipliers).
-    #[pyo3(signature = (time, coordinates, velocities, accelerations, multipliers, *, mass = 0.0, velocity = 0.0, position = 0.0))]
+    ///
+    /// `discrete`: the state's discrete variables (`discrete_variables`, a recorded state's
+    /// `State.discrete`: the unwrapped spring and actuator angles, the actuators' saturation
+    /// states); None: those of the coordinates (angles in (-pi, pi], no saturation).
+    #[pyo3(signature = (time, coordinates, velocities, accelerations, multipliers, *, mass = 0.0, velocity = 0.0, position = 0.0, discrete = None))]
     #[allow(clippy::too_many_arguments)]
     fn evaluate<'py>(
         &self,
@@ -70,6 +74,7 @@ impl Model {
         mass: f64,
         velocity: f64,
         position: f64,
+        discrete: Option<PyReadonlyArray1<f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let m = &self.inner;
         let (nq, nc) = (m.coordinate_count, m.constraint_count);
@@ -77,7 +82,10 @@ impl Model {
         let qd = vector(&velocities, nq, "velocities")?;
         let qdd = vector(&accelerations, nq, "accelerations")?;
         let lambda = vector(&multipliers, nc, "multipliers")?;
-        let discrete = vec![0.0; m.discrete_count];
+        let discrete = match &discrete {
+            Some(values) => vector(values, m.discrete_count, "discrete")?,
+            None => vec![0.0; m.discrete_count],
+        };
         let mut guard = self.workspace.lock().map_err(|_| invalid("model", "workspace poisoned"))?;
         if guard.is_none() {
             *guard = Some(Workspace::new(m));
@@ -110,6 +118,51 @@ impl Model {
         d.set_item("constraint_rate", PyArray1::from_vec(py, ct))?;
         d.set_item("gamma", PyArray1::from_vec(py, gamma))?;
         Ok(d)
+    }
+
+    /// The discrete variables at a state (the unwrapped angles of rotational springs and
+    /// angle actuators, the actuators' saturation states, as a run keeps them): set from the
+    /// coordinates without `previous` (angles in (-pi, pi]), else advanced from `previous`
+    /// as after a step (each angle continued from its previous value, so that it passes
+    /// +-pi). For analyses that move a state step by step (an equilibrium's iterates).
+    #[pyo3(signature = (time, coordinates, velocities, previous = None))]
+    fn discrete_variables<'py>(
+        &self,
+        py: Python<'py>,
+        time: f64,
+        coordinates: PyReadonlyArray1<f64>,
+        velocities: PyReadonlyArray1<f64>,
+        previous: Option<PyReadonlyArray1<f64>>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let m = &self.inner;
+        let nq = m.coordinate_count;
+        let q = vector(&coordinates, nq, "coordinates")?;
+        let qd = vector(&velocities, nq, "velocities")?;
+        let previous = match &previous {
+            Some(values) => Some(vector(values, m.discrete_count, "previous")?),
+            None => None,
+        };
+        let mut guard = self.workspace.lock().map_err(|_| invalid("model", "workspace poisoned"))?;
+        if guard.is_none() {
+            *guard = Some(Workspace::new(m));
+        }
+        let ws = guard.as_mut().expect("workspace");
+        let values = check(flexmbd_core::integrator::discrete::discrete_at(
+            m,
+            ws,
+            time,
+            &q,
+            &qd,
+            previous.as_deref(),
+        ))?;
+        Ok(PyArray1::from_vec(py, values))
+    }
+
+    /// Number of discrete variables (an unwrapped angle per rotational spring, an angle and a
+    /// saturation state per angle actuator, a saturation state per slide actuator).
+    #[getter]
+    fn discrete_count(&self) -> usize {
+        self.inner.discrete_count
     }
 
     /// Number of generalized coordinates (7 per rigid body, 3 per point mass, 7 + n_f per
@@ -153,6 +206,7 @@ impl Model {
         let d = PyDict::new(py);
         d.set_item("coordinate_count", m.coordinate_count)?;
         d.set_item("constraint_count", m.constraint_count)?;
+        d.set_item("discrete_count", m.discrete_count)?;
         d.set_item("gravity", m.gravity.0.to_vec())?;
         let bodies = PyList::empty(py);
         for b in &m.bodies {

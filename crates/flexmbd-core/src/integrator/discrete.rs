@@ -95,3 +95,25 @@ pub(crate) fn update_discrete(
     }
     Ok(())
 }
+
+/// The discrete variables at (`time`, `coordinates`, `velocities`) for the analyses that
+/// move a state outside a run (an equilibrium's Newton iterates): set from the coordinates
+/// (the wrapped angles) without `previous`, else advanced from `previous` as after an
+/// accepted step (the angles continued from theirs, so that they pass +-pi).
+pub fn discrete_at(
+    model: &Model,
+    ws: &mut Workspace,
+    time: f64,
+    coordinates: &[f64],
+    velocities: &[f64],
+    previous: Option<&[f64]>,
+) -> Result<Vec<f64>> {
+    let mut state = State::initial(model, time);
+    state.coordinates.copy_from_slice(coordinates);
+    state.velocities.copy_from_slice(velocities);
+    if let Some(previous) = previous {
+        state.discrete.copy_from_slice(previous);
+    }
+    update_discrete(model, &mut state, ws, previous.is_none(), &mut Vec::new())?;
+    Ok(state.discrete)
+}

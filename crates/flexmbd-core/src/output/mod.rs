@@ -83,6 +83,8 @@ pub struct Output {
     pub constraint_count: usize,
     /// Number of joints.
     pub joint_count: usize,
+    /// Number of discrete variables per record.
+    pub discrete_count: usize,
     /// Output times (s).
     pub time: Vec<f64>,
     /// q, time-major (records x coordinates).
@@ -109,6 +111,10 @@ pub struct Output {
     pub energy: Vec<f64>,
     /// Largest absolute position-level constraint violation per record.
     pub constraint_violation: Vec<f64>,
+    /// The discrete variables of the state (unwrapped spring and actuator angles, actuator
+    /// saturation states; records x `discrete_count`): a run continued from a record goes on
+    /// from them.
+    pub discrete: Vec<f64>,
     /// Counters.
     pub statistics: Statistics,
     /// Events, in order.
@@ -131,6 +137,7 @@ impl Output {
             coordinate_count: model.coordinate_count,
             constraint_count: model.constraint_count,
             joint_count: model.joints.len(),
+            discrete_count: model.discrete_count,
             sensor_offsets: offsets,
             ..Default::default()
         }
@@ -156,6 +163,7 @@ impl Output {
             coordinate_count: self.coordinate_count,
             constraint_count: self.constraint_count,
             joint_count: self.joint_count,
+            discrete_count: self.discrete_count,
             time: rows(&self.time, 1),
             coordinates: rows(&self.coordinates, self.coordinate_count),
             velocities: rows(&self.velocities, self.coordinate_count),
@@ -166,6 +174,7 @@ impl Output {
             sensor_offsets: self.sensor_offsets.clone(),
             energy: rows(&self.energy, ENERGY_WIDTH),
             constraint_violation: rows(&self.constraint_violation, 1),
+            discrete: rows(&self.discrete, self.discrete_count),
             statistics: self.statistics.clone(),
             events: self.events.clone(),
             redundancy: self.redundancy.clone(),
@@ -188,6 +197,7 @@ impl Output {
         self.sensors.extend(later.sensors);
         self.energy.extend(later.energy);
         self.constraint_violation.extend(later.constraint_violation);
+        self.discrete.extend(later.discrete);
         self.events.extend(later.events);
         self.redundancy = self.redundancy.take().or(later.redundancy);
         let (s, l) = (&mut self.statistics, later.statistics);
@@ -223,6 +233,7 @@ impl Output {
         drop(&mut self.sensors, width);
         drop(&mut self.energy, ENERGY_WIDTH);
         drop(&mut self.constraint_violation, 1);
+        drop(&mut self.discrete, self.discrete_count);
         self.released += count;
     }
 
@@ -235,6 +246,7 @@ impl Output {
         self.velocities.extend_from_slice(qd);
         self.accelerations.extend_from_slice(qdd);
         self.multipliers.extend_from_slice(&state.multipliers);
+        self.discrete.extend_from_slice(&state.discrete);
 
         // Reactions and constraint violation.
         let mut violation = 0.0f64;
