@@ -655,3 +655,34 @@ def test_a_slender_clamped_strip_is_not_taken_for_a_free_body(assert_close):
     lowest = spla.eigsh(nodal.invariants.k_ff, 2, nodal.invariants.m_ff, sigma=0.0)[0]
     assert_close(body.frequencies, np.sqrt(np.sort(lowest)) / (2 * np.pi), rel=1e-6)
     assert body.frequencies[0] == pytest.approx(4.448, rel=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("modes", "count", "options"),
+    [
+        ("fixed-interface", 3, {"reference": "clamped", "reference_nodes": [0]}),
+        ("free-free", 1, {"reference": "mean-axis"}),
+        ("craig-bampton", 3, {"reference": "interface", "interfaces": [[0]],
+                              "interface_kind": "nodal"}),
+    ],
+)  # fmt: skip
+def test_a_mode_count_that_cuts_a_pair_of_equal_frequencies_is_warned(modes, count, options):
+    # A round beam's bending modes come in pairs of equal frequency: a count that keeps one
+    # of a pair keeps an arbitrary direction, and the body is stiffer in the other.
+    import warnings
+
+    from flexmbd import ModeCountWarning
+    from flexmbd.fe import Section, build_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 6)
+    steel, round_bar = Material(7e10, 0.33, 2700.0), Section.circle(0.005)
+    with pytest.warns(ModeCountWarning, match=rf"mode_count {count} keeps 1 of a group") as w:
+        body = build_body(nodes, elements, steel, section=round_bar, modes=modes,
+                          mode_count=count, **options)  # fmt: skip
+    assert w[0].filename == __file__  # the user's call, not the preprocessor's
+    assert f"take mode_count {count + 1}" in str(w[0].message)
+    assert len(body.frequencies) >= count
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModeCountWarning)
+        build_body(nodes, elements, steel, section=round_bar, modes=modes,
+                   mode_count=count + 1, **options)  # fmt: skip

@@ -210,6 +210,14 @@ class ResonanceWarning(UserWarning):
     inf. Add damping, or step around the frequency."""
 
 
+class ModeCountWarning(UserWarning):
+    """A modal body's `mode_count` keeps some modes of a group of equal frequencies and
+    drops the others (a round shaft's second bending pair cut after its first mode): which
+    of them is kept is arbitrary (a direction the eigensolver chose), and the body is
+    stiffer in the directions of the dropped ones than in the others. The message names the
+    frequencies; take one mode more, or fewer, to keep the group whole."""
+
+
 class MeshQualityWarning(UserWarning):
     """Elements the preprocessor accepts but that give poor or misleading results: quadrilateral
     shells warped out of their mean plane by more than
@@ -232,6 +240,7 @@ __all__ = [
     "InvalidModelError",
     "InvalidParameterError",
     "MeshQualityWarning",
+    "ModeCountWarning",
     "ModelError",
     "MissingFileError",
     "ModelFileError",

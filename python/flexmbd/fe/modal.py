@@ -16,6 +16,7 @@ matrix is diagonal.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -25,7 +26,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
-from ..errors import InvalidModelError, InvalidParameterError
+from ..errors import InvalidModelError, InvalidParameterError, ModeCountWarning
 from .interface import Interface, make_interface
 
 #: Below this many coordinates eigenproblems are solved densely.
@@ -404,6 +405,58 @@ def eigenpairs(
     return _rayleigh_ritz(k, m, vectors)
 
 
+#: Frequencies within this fraction of each other count as one group of equal frequencies
+#: (a symmetric section's bending pair; an unstructured mesh of a round shaft splits it by
+#: 1e-4 to 1e-3), which `mode_count` should keep whole.
+EQUAL_FREQUENCIES = 1e-3
+
+
+def whole_groups(
+    k: Any, m: Any, count: int, what: str, rigid: int = 0, **options: Any
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`eigenpairs` (`count` of them, `options` passed on) with a
+    :class:`flexmbd.ModeCountWarning` when the next mode's frequency is within
+    :data:`EQUAL_FREQUENCIES` of the last one kept: the count cuts a group of equal
+    frequencies. One more mode is computed to tell (none when the problem has no more).
+    `what` names the modes in the message; the first `rigid` are rigid-body modes, not
+    counted in the `mode_count` it names."""
+    try:
+        values, vectors = eigenpairs(k, m, count + 1, **options)
+    except InvalidParameterError:
+        return eigenpairs(k, m, count, **options)
+    if count > rigid:
+        found = frequencies(values)
+        last, following = found[count - 1], found[count]
+        if following - last <= EQUAL_FREQUENCIES * following:
+            kept = int(np.sum(found[rigid:count] >= following * (1.0 - EQUAL_FREQUENCIES)))
+            user = count - rigid
+            warnings.warn(
+                f"{what}: mode_count {user} keeps {kept} of a group of equal frequencies "
+                f"({last:.6g} Hz kept, {following:.6g} Hz left out): which of them is kept is "
+                f"arbitrary, and the body is stiffer in the directions left out; take "
+                f"mode_count {user + 1} (or more, to keep the group whole) or {user - kept}",
+                ModeCountWarning,
+                stacklevel=_user_level(),
+            )
+    return values[:count], vectors[:, :count]
+
+
+def _user_level() -> int:
+    """The `stacklevel` of a warning given by its caller that names the first frame outside
+    the flexmbd package (the user's call of build_body, load_body, ...), however deep the
+    package's calls are."""
+    import inspect
+
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame = inspect.currentframe()
+    frame = frame.f_back if frame is not None else None  # the caller of warnings.warn
+    level = 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame = frame.f_back
+        level += 1
+    return level
+
+
 def _rayleigh_ritz(k: Any, m: Any, vectors: NDArray) -> tuple[NDArray, NDArray]:
     """The eigenpairs of K and M within the columns of `vectors` (ascending, mass-normalized):
     values that are the modes' own Rayleigh quotients, as the simulation takes K_ff = Phi^T K
@@ -475,7 +528,7 @@ def fixed_interface_modes(
                 item="reference conditions",
             ) from error
         solve = inverse.precondition
-    values, vectors = eigenpairs(kf, mf, count, solve=solve)
+    values, vectors = whole_groups(kf, mf, count, "fixed-interface modes", solve=solve)
     _check_fixed(values, _scale(kf, mf), "the reference conditions")
     return vectors, frequencies(values)
 
@@ -509,7 +562,9 @@ def free_free_modes(
             name="shifted stiffness K - sigma M",
         )
         solve = inverse.precondition
-    values, vectors = eigenpairs(stiffness, mass, count + rigid, shift=shift, solve=solve)
+    values, vectors = whole_groups(
+        stiffness, mass, count + rigid, "free-free modes", rigid, shift=shift, solve=solve
+    )
     elastic = values[rigid:]
     # A vanishing "elastic" eigenvalue is one rigid motion too many (the bound of
     # `_check_fixed`, which a clamped body's lowest eigenvalue, lower still, passes).
@@ -800,7 +855,7 @@ def _craig_bampton_fixed(
         else:
             # The factor holds K_ii: the copy here is dropped (memory of large bodies).
             solve, kii = inverse.precondition, inverse
-        values, vectors = eigenpairs(kii, mii, count, solve=solve)
+        values, vectors = whole_groups(kii, mii, count, "Craig-Bampton normal modes", solve=solve)
         _check_fixed(values, scale, "the interfaces")
     del kii, mii, inverse
     phi = np.zeros((n, count))
@@ -878,7 +933,15 @@ def _craig_bampton_averaged(
             """The Euclidean projection onto G x = 0 (removes G^T mu)."""
             return r - g.T @ np.linalg.solve(ggt, g @ r)
 
-        values, phi = eigenpairs(k, m, count, solve=solve, dense_projection=dense, project=project)
+        values, phi = whole_groups(
+            k,
+            m,
+            count,
+            "Craig-Bampton normal modes",
+            solve=solve,
+            dense_projection=dense,
+            project=project,
+        )
         _check_fixed(values, _scale(k, m), "the averaged interfaces")
     return phi, psi
 
