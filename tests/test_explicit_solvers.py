@@ -227,7 +227,7 @@ def hinged_steel_beam(beta):
 
 
 @pytest.mark.parametrize("beta", [None, 1e-4], ids=["undamped", "damped"])
-@pytest.mark.parametrize("strategy", ["joint-coordinates", "partitioning"])
+@pytest.mark.parametrize("strategy", ["joint-coordinates", "partitioning", "projection"])
 def test_the_predicted_stability_limit_of_runge_kutta_4_is_where_it_diverges(beta, strategy):
     # The stiffest mode: undamped, omega = 1.78e5 rad/s on the imaginary axis (RK4's
     # boundary 2.83); damped by beta = 1e-4 s, overdamped with lambda = -3.14e6 1/s on the
@@ -241,10 +241,16 @@ def test_the_predicted_stability_limit_of_runge_kutta_4_is_where_it_diverges(bet
     expected = 2.828 / 1.775e5 if beta is None else 2.785 / 3.1416e6
     assert limit.step == pytest.approx(expected, rel=2e-3)
     solver = fm.ExplicitSolver("rk4", strategy)
+    failures = (fm.NonFiniteError, fm.NewtonDivergedError, fm.SingularMatrixError)
     with pytest.warns(fm.StepSizeWarning, match="diverges"):
-        with pytest.raises((fm.NonFiniteError, fm.NewtonDivergedError)):
+        with pytest.raises(failures) as diverged:
             h = 1.05 * limit.step
             fm.simulate(model, 300 * h, h, output_interval=None, solver=solver)
+    # The error says why (the projection's singular matrix was put down to a mass matrix
+    # that is not positive definite).
+    if not isinstance(diverged.value, fm.NewtonDivergedError):
+        assert "the run diverged" in str(diverged.value)
+        assert f"limit of about {limit.step:.2g} s" in str(diverged.value)
     h = 0.95 * limit.step
     result = fm.simulate(model, 300 * h, h, output_interval=None, solver=solver)
     assert np.abs(result.elastic_coordinates("rod")).max() < 1e-3

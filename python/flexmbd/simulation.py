@@ -21,6 +21,7 @@ from .errors import (
     CallbackError,
     InitialCorrectionWarning,
     InvalidParameterError,
+    NonFiniteError,
     ResultsFileError,
     SimulationInterrupted,
     SingularMatrixError,
@@ -195,19 +196,22 @@ def _summary(result: Result, start_time: float, wall: float) -> None:
     )
 
 
-def _warn_of_explicit_stability(model: Any, solver: Any, step_size: float, span: float) -> None:
+def _warn_of_explicit_stability(
+    model: Any, solver: Any, step_size: float, span: float
+) -> str | None:
     """Warns (StepSizeWarning, and the log) before a run of Runge-Kutta 4 or Dormand-Prince
     whose step the stiffest elastic mode holds below the nominal step
     (:mod:`flexmbd.stability`): Dormand-Prince then takes millions of steps, Runge-Kutta 4 at
-    its fixed step diverges."""
+    its fixed step diverges. Returns, for Runge-Kutta 4, what a failure of the run is then
+    (for :func:`_explained`), else None."""
     from .stability import STABILITY_POLYNOMIALS, explicit_step_limit
 
     method = getattr(solver, "method", None)
     if not isinstance(solver, _boundary.ExplicitSolver) or method not in STABILITY_POLYNOMIALS:
-        return
+        return None
     limit = explicit_step_limit(model, method)
     if limit is None or limit.step >= step_size:
-        return
+        return None
     mode = (
         f"eigenvalue {limit.eigenvalue.real:.3g} 1/s, overdamped by its damping"
         if limit.eigenvalue.imag == 0.0
@@ -224,6 +228,13 @@ def _warn_of_explicit_stability(model: Any, solver: Any, step_size: float, span:
     )
     logger.warning(message)
     warnings.warn(message, StepSizeWarning, stacklevel=3)
+    if method != "rk4":
+        return None
+    return (
+        f"the run diverged: its step of {step_size:g} s is above Runge-Kutta 4's stability "
+        f"limit of about {limit.step:.2g} s for the stiffest elastic mode of body "
+        f"'{limit.body}' ({mode}); take a step below it, or generalized-alpha (the default)"
+    )
 
 
 #: Largest rotation of an angle driver in one step (rad) without a warning: beyond pi a step
@@ -431,7 +442,7 @@ def simulate(
         # factorization does not always tell from small true pivots (the run went on and
         # diverged, or gave spurious motions).
         raise unheld
-    _warn_of_explicit_stability(model, solver, step_size, end_time - start_time)
+    unstable = _warn_of_explicit_stability(model, solver, step_size, end_time - start_time)
     _warn_of_fast_drivers(system, model, step_size, start_time, end_time)
     start_arrays: dict[str, Any] = {}
     if start is not None:
@@ -516,16 +527,28 @@ def simulate(
     _summary(result, start_time, time.perf_counter() - began)
     _report(result)
     if error is not None:
-        error = _explained(error, model, start, start_time)
+        error = _explained(error, model, start, start_time, unstable)
         error.result = result
         raise error
     return result
 
 
-def _explained(error: Exception, model: _core.Model, start: State | None, time: float) -> Exception:
+def _explained(
+    error: Exception,
+    model: _core.Model,
+    start: State | None,
+    time: float,
+    unstable: str | None = None,
+) -> Exception:
     """A singular matrix at the start explained, when it is: a deformable body whose frame
     nothing fixes (its reference conditions and the joints both leave it free) becomes an
-    error naming the body and the way out; any other error is returned as it is."""
+    error naming the body and the way out. A run of Runge-Kutta 4 above its stability limit
+    (`unstable`, from :func:`_warn_of_explicit_stability`) that failed on a non-finite value
+    or a singular matrix diverged: its message says so (a singular matrix was put down to a
+    mass matrix that is not positive definite). Any other error is returned as it is."""
+    if unstable is not None and isinstance(error, NonFiniteError | SingularMatrixError):
+        error.args = (f"{error.args[0] if error.args else error}; {unstable}", *error.args[1:])
+        return error
     if not isinstance(error, SingularMatrixError) or error.time is None or error.time != time:
         return error
     q = np.asarray(model.initial_coordinates if start is None else start.coordinates, dtype=float)
