@@ -43,11 +43,14 @@ from .study.command import add_sweep_parser, sweep
 
 
 def _solver(text: str | None, default: Any) -> Any:
-    """The solver named by ``--solver``: "generalized-alpha", or METHOD:STRATEGY[:FORMULATION]
-    for an explicit solver, e.g. "dopri5:partitioning:embedding"."""
+    """The solver named by ``--solver``: "generalized-alpha" (the model's settings of it, such
+    as its spectral radius, when it has them: they were replaced by the defaults), or
+    METHOD:STRATEGY[:FORMULATION] for an explicit solver, e.g. "dopri5:partitioning:embedding"."""
     if text is None:
         return default
     if text == "generalized-alpha":
+        if isinstance(default, _boundary.GeneralizedAlpha):
+            return default
         return _boundary.GeneralizedAlpha()
     parts = text.split(":")
     if not 2 <= len(parts) <= 3:
@@ -1179,7 +1182,8 @@ def _main(argv: list[str] | None) -> int:
     )
     run.add_argument(
         "--solver",
-        help="generalized-alpha (default: the model's settings), or an explicit solver "
+        help="generalized-alpha (default: the model's settings; with the model's spectral radius "
+        "and tolerances when it sets them), or an explicit solver "
         "METHOD:STRATEGY[:FORMULATION] with METHOD rk4, dopri5 or tr-bdf2, STRATEGY integrate-all, "
         "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding "
         "(joint-coordinates: joint-space, coupled or decoupled)",

@@ -241,6 +241,8 @@ def flexible_slider_crank(
     reference = {"max |v_mid| (m)": 4.658e-3, "time of the maximum (s)": 0.078}
 
     def check(result: Any) -> dict[str, float]:
+        if result.time[-1] < 2 * 2 * np.pi / omega - 1e-9:
+            return {}  # the reference is the maximum over the first two turns of the crank
         v_mid = result.node_displacements(rod, [middle])[:, 0, 1]
         k = int(np.argmax(np.abs(v_mid)))
         return {
@@ -350,6 +352,8 @@ def spin_up(geometric_stiffness: bool | str = True, elements: int = 10, bodies: 
         return -np.sin(theta) * position[:, 0] + np.cos(theta) * position[:, 1]
 
     def check(result: Any) -> dict[str, float]:
+        if result.time[-1] < 7.5:
+            return {}  # the reference is the minimum at 6.75 s, past which the tip rises
         v_tip = tip_lag(result)
         k = int(np.argmin(v_tip))
         errors = {
