@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import _core
+from . import _boundary, _core
 from ._checks import choice, flag, id_text, integer, number, numbers_array, value_text
 from .errors import (
     ArgumentTypeError,
@@ -394,6 +394,50 @@ def _corotational_elements(
     return elements
 
 
+class _Negated:
+    """-f(t) of a time function f that has no negated form of its own (a callable, a
+    `UserFunction`); picklable when f is."""
+
+    def __init__(self, function: Any):
+        self.function = function
+
+    def __call__(self, t: float) -> Any:
+        value = self.function(t)
+        if isinstance(value, tuple | list | np.ndarray):  # (f, f', f'') of `derivatives`
+            return tuple(-float(v) for v in value)
+        return -float(value)
+
+
+def negated(function: Any) -> Any:
+    """The time function -f(t): of the same kind for numbers, `Constant`, `Polynomial`,
+    `Harmonic`, `Spline`, `Step` and `Trapezoidal` (their derivatives stay exact), else a
+    `UserFunction` of -f(t)."""
+    f = function
+    if isinstance(f, int | float | np.floating | np.integer):
+        return -float(f)
+    if isinstance(f, _core.Constant):
+        return _boundary.Constant(-f.value)
+    if isinstance(f, _core.Polynomial):
+        return _boundary.Polynomial([-c for c in f.coefficients])
+    if isinstance(f, _core.Harmonic):
+        return _boundary.Harmonic(-f.amplitude, f.frequency, f.phase, -f.offset)
+    if isinstance(f, _core.Spline):
+        slopes = None if f.slopes is None else (-f.slopes[0], -f.slopes[1])
+        return _boundary.Spline(f.times, [-v for v in f.values], f.end, slopes)
+    if isinstance(f, _core.Step):
+        return _boundary.Step(f.start_time, f.end_time, -f.start_value, -f.end_value, f.shape)
+    if isinstance(f, _core.Trapezoidal):
+        return _boundary.Trapezoidal(
+            f.start_time, f.end_time, -f.start_value, -f.end_value, f.blend
+        )
+    if isinstance(f, _core.UserFunction):
+        # (its `derivatives` flag is shadowed by the method of that name: read it from the
+        # constructor's arguments)
+        function, returns = f.__getnewargs__()
+        return _boundary.UserFunction(_Negated(function), bool(returns))
+    return _boundary.UserFunction(_Negated(f))
+
+
 class System(_core.System):
     """A multibody system under construction. Body 0 (``system.ground``) is the fixed frame.
 
@@ -462,9 +506,10 @@ class System(_core.System):
         joints' motion but apply the given efforts (time functions: a torque for an angle
         driver, a force for a translation driver) on the joints they drive, as joint
         actuators of zero gains (``NAME effort``): the free mechanism of an inverse-dynamics
-        run, driven by its efforts. Raises `UnknownItemError` for a name that is not a driver,
-        `InvalidModelError` for a driver with no revolute, prismatic or cylindrical joint on
-        its markers."""
+        run, driven by its efforts. A driver whose markers are the joint's in the other order
+        measures the joint's coordinate with the other sign: its effort acts negated. Raises
+        `UnknownItemError` for a name that is not a driver, `InvalidModelError` for a driver
+        with no revolute, prismatic or cylindrical joint on its markers."""
         drivers = {"add_angle_driver": "angle", "add_translation_driver": "slide"}
         kinds = {
             "angle": ("add_revolute_joint", "add_cylindrical_joint"),
@@ -507,13 +552,17 @@ class System(_core.System):
             )
         system = _rebuilt(type(self), tuple(calls), self._identity)
         for name, coordinate, markers in replaced:
-            joint = next(
+            # The joint on the driver's markers; on them in the other order, its coordinate
+            # is the driver's negated (a hinge's angle of i from j about z_j against the
+            # driver's of j from i about z_i: z_i = z_j), and so is the effort on it (these
+            # drivers were refused).
+            sign, joint = next(
                 (
-                    index
+                    (1.0 if at == markers else -1.0, index)
                     for method, at, index in joints
-                    if at == markers and method in kinds[coordinate]
+                    if method in kinds[coordinate] and at in (markers, markers[::-1])
                 ),
-                None,
+                (1.0, None),
             )
             if joint is None:
                 raise InvalidModelError(
@@ -528,7 +577,7 @@ class System(_core.System):
                 _core.JointId(joint),
                 0.0,
                 proportional_gain=0.0,
-                feed_forward=efforts[name],
+                feed_forward=efforts[name] if sign > 0 else negated(efforts[name]),
                 name=f"{name} effort",
                 **extra,
             )
