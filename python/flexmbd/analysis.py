@@ -1257,7 +1257,9 @@ def _dependent_columns(cq: Array, elastic: NDArray[np.bool_]) -> NDArray[np.int6
     return np.array(chosen, dtype=np.int64)
 
 
-def _frame_transform(layout: dict[str, Any], q: Array) -> tuple[Array, NDArray[np.bool_]]:
+def _frame_transform(
+    layout: dict[str, Any], q: Array, spinning: frozenset[int] = frozenset()
+) -> tuple[Array, NDArray[np.bool_]]:
     """The map T(q) (coordinates x local coordinates) from the local coordinates y of a
     change of q to the change dq = T y, and the mask of the elastic ones among y. A body
     frame's y are the change of its origin and the small rotation, both in the frame's own
@@ -1266,20 +1268,27 @@ def _frame_transform(layout: dict[str, Any], q: Array) -> tuple[Array, NDArray[n
     theirs. About a steady rotation the local coordinates see the motion from the turning
     frames, where it does not depend on time; an Euler parameter turns at half the rate, and
     taken as a coordinate of the motion it put Omega^2 / 4 into a hinged blade's squared
-    frequency."""
+    frequency. The bodies in `spinning` (:func:`_spinning_bodies`: a symmetric rotor
+    spinning on its axis relative to everything it is joined to) take global axes instead,
+    dR and dp = 1/2 E(p)^T dpi: seen from their own turning frame, the gimbals that hold
+    such a rotor turn, and their equations were periodic."""
     from .rotation import euler_parameters_to_matrix
 
     nq = layout["coordinate_count"]
     columns: list[Array] = []
     elastic: list[bool] = []
-    for b in layout["bodies"]:
+    for index, b in enumerate(layout["bodies"]):
         offset, count = b["offset"], b["count"]
         if b["kind"] in ("rigid", "flexible") and count >= 7:
             p = q[offset + 3 : offset + 7]
             e0, e = p[0], p[1:]
             skew = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
             block = np.zeros((nq, 6))
-            block[offset : offset + 3, :3] = euler_parameters_to_matrix(p)
+            if index in spinning:
+                block[offset : offset + 3, :3] = np.eye(3)
+                skew = -skew  # (E(p)^T: e0 I - e~)
+            else:
+                block[offset : offset + 3, :3] = euler_parameters_to_matrix(p)
             block[offset + 3, 3:] = -0.5 * e
             block[offset + 4 : offset + 7, 3:] = 0.5 * (e0 * np.eye(3) + skew)
             columns.append(block)
@@ -1294,6 +1303,77 @@ def _frame_transform(layout: dict[str, Any], q: Array) -> tuple[Array, NDArray[n
             elastic.append(b["kind"] == "flexible")
     transform = np.hstack(columns) if columns else np.zeros((nq, 0))
     return transform, np.array(elastic, dtype=bool)
+
+
+#: Relative tolerance of :func:`_spinning_bodies`: of a rotor's inertia against its symmetry
+#: about the spin axis, of its origin's speed and of the spin of the bodies joined to it.
+SPIN_SYMMETRY = 1e-9
+
+
+def _spinning_bodies(model: _core.Model, layout: dict[str, Any], state: Any) -> frozenset[int]:
+    """The rigid bodies of `state` that spin about an axis of symmetry through their origin,
+    relative to every body joined to them (a rotor in gimbals or bearings; not a disc welded
+    to a turning shaft, nor a hub that carries hinged blades round): the origin at rest,
+    the inertia in global axes (the mass matrix in dR, dpi) unchanged by a turn about the
+    spin axis, and no body joined to it turning at its rate. The motion of such a body's
+    mass does not depend on its spin angle, so its small motions in global axes are those
+    of time-invariant equations."""
+    from .rotation import angular_velocity
+
+    q = np.asarray(state.coordinates, dtype=float)
+    qd = np.asarray(state.velocities, dtype=float)
+    spins: dict[int, Array] = {}
+    for index, b in enumerate(layout["bodies"]):
+        if b["kind"] in ("rigid", "flexible") and b["count"] >= 7:
+            o = b["offset"]
+            spins[index] = angular_velocity(q[o + 3 : o + 7], qd[o + 3 : o + 7])
+    joined: dict[int, set[int]] = {}
+    markers = layout["markers"]
+    for joint in layout["joints"]:
+        first, second = (markers[m]["body"] for m in joint["markers"])
+        joined.setdefault(first, set()).add(second)
+        joined.setdefault(second, set()).add(first)
+    candidates = [
+        i
+        for i, b in enumerate(layout["bodies"])
+        if b["kind"] == "rigid" and i in spins and np.linalg.norm(spins[i]) > 0.0
+    ]
+    if not candidates:
+        return frozenset()
+    nq, nc = model.coordinate_count, model.constraint_count
+    mass = _matrix(
+        model.evaluate(state.time, q, qd, np.zeros(nq), np.zeros(nc), mass=1.0)
+    ).toarray()
+    found = set()
+    for i in candidates:
+        o, w = layout["bodies"][i]["offset"], spins[i]
+        rate = float(np.linalg.norm(w))
+        if np.linalg.norm(qd[o : o + 3]) > SPIN_SYMMETRY * rate * max(
+            1.0, np.linalg.norm(q[o : o + 3])
+        ):
+            continue  # its origin moves: it is carried round
+        if any(
+            np.linalg.norm(spins.get(j, np.zeros(3)) - w) <= SPIN_SYMMETRY * rate
+            for j in joined.get(i, ())
+        ):
+            continue  # it turns with a body joined to it (welded, or carrying it)
+        e0, e = q[o + 3], q[o + 4 : o + 7]
+        skew = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
+        to_q = np.zeros((7, 6))
+        to_q[:3, :3] = np.eye(3)
+        to_q[3, 3:] = -0.5 * e
+        to_q[4:, 3:] = 0.5 * (e0 * np.eye(3) - skew)
+        inertia = to_q.T @ mass[o : o + 7, o : o + 7] @ to_q
+        axis = w / rate
+        turn = np.zeros((6, 6))
+        turn[:3, :3] = turn[3:, 3:] = np.array(
+            [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
+        )
+        if np.linalg.norm(inertia @ turn - turn @ inertia) <= SPIN_SYMMETRY * np.linalg.norm(
+            inertia
+        ):
+            found.add(i)
+    return frozenset(found)
 
 
 def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
@@ -1315,8 +1395,10 @@ def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
     velocity = np.asarray(state.velocities, dtype=float)
     acceleration = np.asarray(state.accelerations, dtype=float)
 
+    spinning = _spinning_bodies(model, layout, state)
+
     def local_jacobian(t: float, at: Array) -> tuple[Array, Array, NDArray[np.bool_]]:
-        transform, local_elastic = _frame_transform(layout, at)
+        transform, local_elastic = _frame_transform(layout, at, spinning)
         return _constraint_jacobian(model, t, at) @ transform, transform, local_elastic
 
     jacobian, transform, local_elastic = local_jacobian(time, q)
