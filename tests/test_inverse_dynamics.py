@@ -181,3 +181,28 @@ def test_a_driver_on_the_hinges_markers_in_the_other_order_is_replayed(effort, a
     angle = -np.arctan2(turn[:, 1, 0], turn[:, 0, 0])  # the ground's from the arm's
     assert_close(angle, inverse.prescribed("drive", replayed.time), rel=0, abs=1e-5,
                  what="replayed angle")  # fmt: skip
+
+
+def test_ids_of_joints_a_removed_driver_moved_are_refused_in_the_copy(assert_close):
+    # A driver added before its hinge: removing it moves the hinge from joint 1 to joint 0 and
+    # the elbow from 2 to 1. The copy kept the system's identity, so the shoulder's id was
+    # taken as the elbow's (its reaction was the elbow's force).
+    system = fm.System(gravity=(0, -9.81, 0))
+    a = system.add_rigid_body(2.0, (1e-4, 1 / 6, 1 / 6), position=(0.5, 0, 0), name="a")
+    b = system.add_rigid_body(1.0, (1e-4, 0.05, 0.05), position=(1.4, 0, 0), name="b")
+    pivot, root = system.add_marker(system.ground), system.add_marker(a, position=(-0.5, 0, 0))
+    tip, end = (
+        system.add_marker(a, position=(0.5, 0, 0)),
+        system.add_marker(b, position=(-0.4, 0, 0)),
+    )
+    system.add_angle_driver(pivot, root, fm.Step(0, 1, 0, 1.0), name="d1")
+    shoulder = system.add_revolute_joint(pivot, root, name="shoulder")
+    system.add_revolute_joint(tip, end, name="elbow")
+    system.add_angle_driver(tip, end, fm.Step(0, 1, 0, -0.5), name="d2")
+    inverse = fm.inverse_dynamics(system, 0.5, 1e-3)
+    replayed = inverse.replay()
+    with pytest.raises(fm.UnknownItemError, match="joint 'shoulder' of another System.*'elbow'"):
+        replayed.reaction_force(shoulder)
+    assert_close(replayed.reaction_force("shoulder")[-1],
+                 inverse.result.reaction_force(shoulder)[-1], rel=1e-3)  # fmt: skip
+    assert_close(replayed.position(a)[-1], inverse.result.position(a)[-1], abs=1e-5)  # bodies hold

@@ -550,7 +550,12 @@ class System(_core.System):
             raise UnknownItemError(
                 f"no driver named {unknown[0]!r}; drivers: {known}", item=unknown[0]
             )
-        system = _rebuilt(type(self), tuple(calls), self._identity)
+        # The ids of this system hold in the copy unless a removed driver moved the joints
+        # after it down: then the copy is another system, whose accessors refuse a moved
+        # joint's old id naming both joints (it named the next joint: a hinge's reaction
+        # came out as the elbow's).
+        moved = any(new != old for old, new in renumbered.items())
+        system = _rebuilt(type(self), tuple(calls), None if moved else self._identity)
         for name, coordinate, markers in replaced:
             # The joint on the driver's markers; on them in the other order, its coordinate
             # is the driver's negated (a hinge's angle of i from j about z_j against the
