@@ -873,3 +873,33 @@ def test_an_equilibrium_beyond_half_a_turn_of_a_spring(assert_close):
     result = fm.simulate(system, 1.0, 1e-3, initial_state="equilibrium")
     assert np.max(result.kinetic_energy) < 1e-20
     assert_close(result.discrete[-1], [3.5], abs=1e-9)
+
+
+def test_a_steady_rotation_from_a_runs_coordinates_and_at_high_speed(assert_close):
+    # The test for an accelerating driver took the residual of the driver's equation
+    # sin(theta - f) times f'^2 (a run's 3e-12 at 20 rad/s, round-off at 1000 rad/s) for an
+    # acceleration: "driver 'hub' accelerates" for a constant speed. A blade (3 kg, its centre
+    # 1.2 m beyond a lag hinge 0.3 m off the axis): w_lag = W sqrt(e m r / I_hinge).
+    def rotor(speed):
+        turn = fm.rotation("z", 0.7)  # where the driver starts
+        system = fm.System(gravity=(0, 0, 0))
+        hub = system.add_rigid_body(10.0, (1, 1, 2), orientation=turn, name="hub")
+        spin = system.add_marker(system.ground), system.add_marker(hub)
+        system.add_revolute_joint(*spin)
+        system.add_angle_driver(*spin, fm.Polynomial([0.7, speed]), name="hub")
+        blade = system.add_rigid_body(3.0, (0.01,) * 3, position=turn @ [1.5, 0, 0],
+                                      orientation=turn, name="blade")  # fmt: skip
+        system.add_revolute_joint(system.add_marker(hub, position=(0.3, 0, 0)),
+                                  system.add_marker(blade, position=(-1.2, 0, 0)))  # fmt: skip
+        return system
+
+    ratio = np.sqrt(0.3 * 3.0 * 1.2 / (0.01 + 3.0 * 1.2**2))
+    for speed in (20.0, 1000.0):
+        system = rotor(speed)
+        found = fm.linearize(system, fm.steady_rotation(system)).frequencies()
+        assert_close(2 * np.pi * found, [ratio * speed], rel=1e-6, what=f"lag at {speed:g}")
+    system = rotor(20.0)
+    result = fm.simulate(system, 0.3, 1e-3, initial_state="steady-rotation", output_interval=0.1)
+    later = fm.steady_rotation(system, time=0.3, coordinates=result.state(-1).coordinates)
+    found = fm.linearize(system, later).frequencies()
+    assert_close(2 * np.pi * found, [ratio * 20.0], rel=1e-6, what="from the run's coordinates")

@@ -1078,10 +1078,15 @@ def steady_rotation(
             f"steady rotation: no driver moves at t = {time}; use equilibrium for a static state",
             item="drivers",
         )
-    # At rest, gamma of a driver row is its -C_tt: non-zero when the driver accelerates.
-    gamma = ev["gamma"]
+    # At rest, gamma of a driver row is its -C_tt: for an angle driver, C = sin(theta - f),
+    # -C_tt = f'^2 C + cos(theta - f) f'' (C_t = -cos(theta - f) f'): its acceleration is
+    # gamma - C_t^2 C, where the residual C of a run's coordinates (1e-11), times f'^2,
+    # counted as an acceleration at 1000 rad/s. (A translation driver's -C_tt is f''.)
+    gamma, rate = ev["gamma"], ev["constraint_rate"]
+    acceleration = gamma - rate**2 * ev["residual"][nq:]
+    floor = 1e-12 * max(1.0, float(np.max(np.abs(gamma)))) + 1e-10 * rate**2
     for name, r in rows.items():
-        if np.any(np.abs(gamma[list(r)]) > 1e-12 * max(1.0, float(np.max(np.abs(gamma))))):
+        if np.any(np.abs(acceleration[list(r)]) > floor[list(r)]):
             raise InvalidModelError(
                 f"steady rotation: driver '{name}' accelerates at t = {time}; a steady rotation "
                 "needs constant driver speeds (start later, or use equilibrium)",
