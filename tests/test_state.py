@@ -903,3 +903,24 @@ def test_a_steady_rotation_from_a_runs_coordinates_and_at_high_speed(assert_clos
     later = fm.steady_rotation(system, time=0.3, coordinates=result.state(-1).coordinates)
     found = fm.linearize(system, later).frequencies()
     assert_close(2 * np.pi * found, [ratio * 20.0], rel=1e-6, what="from the run's coordinates")
+
+
+def test_an_equilibrium_from_a_recorded_state_keeps_its_springs_wound(assert_close):
+    # A pendulum (m g L = 4.9 N m) on a weak torsion spring (0.5 N m/rad) wound by a torque
+    # that is then released settles on a wound branch (k theta + m g L sin theta = 0 at 5.67
+    # rad). From the state's coordinates alone the spring was unwound: another equilibrium,
+    # 0.62 rad away.
+    m, length, g, k = 1.0, 0.5, 9.81, 0.5
+    system = fm.System(gravity=(0, -g, 0))
+    bob = system.add_rigid_body(m, (1e-3,) * 3, position=(0, -length, 0), name="bob")
+    pair = system.add_marker(system.ground), system.add_marker(bob, position=(0, length, 0))
+    system.add_revolute_joint(*pair)
+    system.add_rotational_spring_damper(*pair, stiffness=k, damping=0.15, name="spring")
+    system.add_torque(pair[1], (0.0, 0.0, fm.Step(4.0, 4.2, 8.0, 0.0)), name="winder")
+    settled = fm.simulate(system, 60.0, 5e-3, output_interval=0.5).state()
+    theta = settled.discrete[0]
+    assert 5.0 < theta < 6.0 and abs(k * theta + m * g * length * np.sin(theta)) < 1e-5
+    state = fm.equilibrium(system, settled.time, coordinates=settled)
+    assert_close(state.discrete, [theta], abs=1e-5, what="the spring's angle")
+    assert_close(state.orientation("bob"), settled.orientation("bob"), abs=1e-5)
+    assert state.stable

@@ -727,7 +727,9 @@ def equilibrium(
     Newton's method on [M q_dd - F - Q_e + C_q^T lambda; C] = 0 for q and lambda with the
     matrix [[K, C_q^T], [C_q, 0]] (the dependence of the prescribed velocities on q is left
     out of the matrix, which then converges linearly when the motion is driven). Starts from
-    `coordinates` or the model's initial coordinates. Converged when the Newton increment is
+    `coordinates` or the model's initial coordinates; `coordinates` may be a `State`
+    (``result.state(k)``), whose discrete variables then hold too: a spring wound past half
+    a turn stays wound (from coordinates alone, its angles are taken in (-pi, pi]). Converged when the Newton increment is
     below `tolerance` (relative to the coordinates, at least 1). Raises
     :class:`flexmbd.errors.EquilibriumError` with the residual and the bodies that carry it
     when it does not converge, `InvalidModelError` when the stiffness matrix is singular.
@@ -761,7 +763,7 @@ def equilibrium(
     """
     model = _model(model)
     time = number(time, "time")
-    coordinates, tolerance, max_iterations = _newton_options(
+    coordinates, tolerance, max_iterations, discrete = _newton_options(
         model, coordinates, tolerance, max_iterations
     )
     if stable is not None and not isinstance(stable, bool):
@@ -776,18 +778,18 @@ def equilibrium(
     unheld = unheld_frame_error(model, np.asarray(start, dtype=float), time, "Newton matrix")
     if unheld is not None:
         raise unheld  # (an equilibrium of such a body was found, and its modes were spurious)
-    state = _equilibrium(model, time, coordinates, tolerance, max_iterations, stable)
+    state = _equilibrium(model, time, coordinates, tolerance, max_iterations, stable, discrete)
     state = dataclasses.replace(state, system_identity=identity_of(model))
     return _redundancy_handled(model, state, redundant_constraints)
 
 
 def _newton_options(
     model: _core.Model, coordinates: Any, tolerance: Any, max_iterations: Any
-) -> tuple[Array | None, float, int]:
+) -> tuple[Array | None, float, int, Array | None]:
     """The options of :func:`equilibrium`'s Newton iteration, checked: the starting
-    `coordinates` (None, or one finite number per coordinate of `model`), `tolerance` (a
-    number above zero) and `max_iterations` (an integer, at least 1). An
-    `InvalidParameterError` names the option."""
+    `coordinates` (None, one finite number per coordinate of `model`, or a `State`, whose
+    discrete variables come fourth), `tolerance` (a number above zero) and `max_iterations`
+    (an integer, at least 1). An `InvalidParameterError` names the option."""
     tolerance = number(tolerance, "tolerance")
     if tolerance <= 0.0:
         raise InvalidParameterError(
@@ -800,7 +802,15 @@ def _newton_options(
             f"max_iterations must be at least 1, got {max_iterations}", item="max_iterations"
         )
     if coordinates is None:
-        return None, tolerance, max_iterations
+        return None, tolerance, max_iterations, None
+    discrete = None
+    if isinstance(coordinates, State):
+        # A recorded state's discrete variables: the springs stay wound (from its coordinates
+        # alone, a pendulum settled at 5.67 rad on a spring was unwound to another
+        # equilibrium 0.62 rad away).
+        if coordinates.discrete is not None and len(coordinates.discrete) == model.discrete_count:
+            discrete = np.array(coordinates.discrete, dtype=float)
+        coordinates = coordinates.coordinates
     q = numbers_array(coordinates, "coordinates")
     nq = model.coordinate_count
     if q.shape != (nq,):
@@ -813,7 +823,7 @@ def _newton_options(
         raise InvalidParameterError(
             f"coordinates must be finite, got {q[bad[0]]} at index {bad[0]}", item="coordinates"
         )
-    return q, tolerance, max_iterations
+    return q, tolerance, max_iterations, discrete
 
 
 #: Choices of `redundant_constraints` of :func:`equilibrium` (the runs' names).
@@ -863,6 +873,7 @@ def _equilibrium(
     tolerance: float,
     max_iterations: int,
     stable: bool | None,
+    discrete: Array | None = None,
 ) -> EquilibriumState:
     """:func:`equilibrium` after its arguments were checked, the redundant rows' multipliers
     as Newton's method leaves them (0)."""
@@ -870,9 +881,13 @@ def _equilibrium(
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
     _check_drivers_at_start(model, time, q, layout)
     if stable:
-        return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
+        return _solve_equilibrium(
+            model, time, q, layout, tolerance, max_iterations, seek=True, discrete=discrete
+        )
     try:
-        state = _solve_equilibrium(model, time, q.copy(), layout, tolerance, max_iterations)
+        state = _solve_equilibrium(
+            model, time, q.copy(), layout, tolerance, max_iterations, discrete=discrete
+        )
     except (InvalidModelError, EquilibriumError) as failure:
         # A direction without stiffness at the start (a rigid pendulum released from the
         # horizontal: a singular matrix), or nearly without (a flexible one, whose elastic
@@ -881,7 +896,9 @@ def _equilibrium(
         if stable is not None:
             raise
         try:
-            return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
+            return _solve_equilibrium(
+                model, time, q, layout, tolerance, max_iterations, seek=True, discrete=discrete
+            )
         except (EquilibriumError, InvalidModelError) as second:
             # A fault of the model (inconsistent joints) found by the search outweighs the
             # first iteration's failure to converge.
@@ -890,7 +907,9 @@ def _equilibrium(
             raise failure from None
     if stable is None and state.stable is False and not np.any(state.velocities != 0.0):
         try:
-            return _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, seek=True)
+            return _solve_equilibrium(
+                model, time, q, layout, tolerance, max_iterations, seek=True, discrete=discrete
+            )
         except EquilibriumError as error:
             _log.warning(
                 "equilibrium: found an unstable equilibrium (%d unstable directions) and no "
@@ -909,9 +928,11 @@ def _solve_equilibrium(
     tolerance: float = 1e-10,
     max_iterations: int = 100,
     seek: bool = False,
+    discrete: Array | None = None,
 ) -> EquilibriumState:
     """Newton's method of :func:`equilibrium` from `q` (the drivers checked at `time`); with
-    `seek`, the search for a stable equilibrium described there."""
+    `seek`, the search for a stable equilibrium described there. `discrete`: the discrete
+    variables at `q` (a recorded state's), else those of `q`."""
 
     flexible = model.flexible_bodies
     nq, nc = model.coordinate_count, model.constraint_count
@@ -926,7 +947,7 @@ def _solve_equilibrium(
     # The discrete variables follow the iterates as a run's follow its steps: a spring whose
     # rest angle is beyond half a turn was unwrapped against its starting angle, never
     # reached its rest angle and Newton's method diverged.
-    discrete = model.discrete_variables(time, q, np.zeros(nq))
+    discrete = model.discrete_variables(time, q, np.zeros(nq), discrete)
     for iteration in range(1, max_iterations + 1):
         qd, qdd = _prescribed_rates(model, time, q, rigid)
         if iteration > 1:
@@ -1053,7 +1074,7 @@ def steady_rotation(
             f"steady_rotation: unknown option {unknown[0]!r}; options: {', '.join(STEADY_OPTIONS)}",
             item=unknown[0],
         )
-    coordinates, tolerance, max_iterations = _newton_options(
+    coordinates, tolerance, max_iterations, discrete = _newton_options(
         model,
         options.get("coordinates"),
         options.get("tolerance", 1e-10),
@@ -1092,7 +1113,7 @@ def steady_rotation(
                 "needs constant driver speeds (start later, or use equilibrium)",
                 item=f"driver '{name}'",
             )
-    state = _solve_equilibrium(model, time, q, layout, tolerance, max_iterations)
+    state = _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, discrete=discrete)
     state = dataclasses.replace(state, system_identity=identity_of(model))
     return _redundancy_handled(model, state, handling)
 
