@@ -924,3 +924,13 @@ def test_an_equilibrium_from_a_recorded_state_keeps_its_springs_wound(assert_clo
     assert_close(state.discrete, [theta], abs=1e-5, what="the spring's angle")
     assert_close(state.orientation("bob"), settled.orientation("bob"), abs=1e-5)
     assert state.stable
+
+
+def test_an_equilibrium_search_on_its_way_asks_for_more_iterations():
+    # A wheel on a spring whose rest angle is 20 rad away: the search for a stable
+    # equilibrium turns it by about 0.2 rad per iteration and needs about 102. The error was
+    # the first Newton iteration's divergence (increment 2e2, residual 2e4).
+    system = wound_wheel(rest_angle=20.0, speed=0.0)
+    with pytest.raises(EquilibriumError, match="on its way.*raise max_iterations"):
+        fm.equilibrium(system)
+    assert fm.equilibrium(system, max_iterations=400).discrete[0] == pytest.approx(20.0)

@@ -729,8 +729,9 @@ def equilibrium(
     out of the matrix, which then converges linearly when the motion is driven). Starts from
     `coordinates` or the model's initial coordinates; `coordinates` may be a `State`
     (``result.state(k)``), whose discrete variables then hold too: a spring wound past half
-    a turn stays wound (from coordinates alone, its angles are taken in (-pi, pi]). Converged when the Newton increment is
-    below `tolerance` (relative to the coordinates, at least 1). Raises
+    a turn stays wound (from coordinates alone, its angles are taken in (-pi, pi]).
+    Converged when the Newton increment is below `tolerance` (relative to the coordinates,
+    at least 1). Raises
     :class:`flexmbd.errors.EquilibriumError` with the residual and the bodies that carry it
     when it does not converge, `InvalidModelError` when the stiffness matrix is singular.
 
@@ -904,6 +905,8 @@ def _equilibrium(
             # first iteration's failure to converge.
             if isinstance(second, InvalidModelError) and not isinstance(failure, InvalidModelError):
                 raise second from None
+            if getattr(second, "still_moving", False):
+                raise second from None  # on its way: more iterations, not another start
             raise failure from None
     if stable is None and state.stable is False and not np.any(state.velocities != 0.0):
         try:
@@ -944,6 +947,7 @@ def _solve_equilibrium(
     step = np.inf
     residual = np.zeros(nq + nc)
     kept_factors: dict[int, tuple[sp.csr_matrix, Any]] = {}
+    steps: list[float] = []
     # The discrete variables follow the iterates as a run's follow its steps: a spring whose
     # rest angle is beyond half a turn was unwrapped against its starting angle, never
     # reached its rest angle and Newton's method diverged.
@@ -1003,6 +1007,7 @@ def _solve_equilibrium(
         q += delta[:nq]
         lam += delta[nq:]
         step = float(np.max(np.abs(delta[:nq]))) / scale
+        steps.append(step)
         if step <= tolerance and not truncated:
             qd, qdd = _prescribed_rates(model, time, q, rigid)
             discrete = model.discrete_variables(time, q, qd, discrete)
@@ -1044,14 +1049,27 @@ def _solve_equilibrium(
     bodies = _residual_bodies(layout, residual[:nq])
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
     what = " to a stable equilibrium" if seek else ""
-    raise EquilibriumError(
+    moving = ""
+    last = steps[-5:]
+    if seek and (
+        truncated or (len(last) == 5 and all(np.diff(last) <= 0.0) and last[-1] < last[0])
+    ):
+        # Still turning the bodies by the limit per iteration, or converging: on its way,
+        # not diverging (a spring whose rest angle is 20 rad away takes about 100 iterations).
+        moving = (
+            f": it was on its way (bodies turned by at most about {2 * SEEK_TURN_LIMIT:g} rad "
+            "per iteration, the last increments falling); raise max_iterations"
+        )
+    error = EquilibriumError(
         f"equilibrium: no convergence{what} in {max_iterations} iterations (last relative "
         f"increment {step:.2e}, residual {largest:.3e}, largest in bodies "
-        f"{', '.join(bodies) or 'none'})",
+        f"{', '.join(bodies) or 'none'}){moving}",
         residual=largest,
         bodies=bodies,
         time=time,
     )
+    error.still_moving = bool(moving)  # type: ignore[attr-defined]
+    raise error
 
 
 def steady_rotation(
