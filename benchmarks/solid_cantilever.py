@@ -50,7 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 2, 4, 6, 8])
     parser.add_argument(
-        "--elements", nargs="+", default=["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r"]
+        "--elements",
+        nargs="+",
+        default=["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15"],
     )
     args = parser.parse_args(argv)
     inertia, area = WIDTH**4 / 12, WIDTH**2

@@ -479,20 +479,29 @@ def test_abaqus_elements_flexmbd_lacks_are_named_not_dropped(tmp_path):
     assert "flexmbd: MeshQualityWarning: " in run.stderr and ".py:" not in run.stderr
 
 
-def test_abaqus_types_meshio_misreads(tmp_path):
-    # meshio names C3D4H but fails on it (KeyError 'tetra4'), and C3D15 (KeyError 'wedge15'):
-    # "cannot read the mesh". C3D4H is a tet4; C3D15 is refused as a cell flexmbd lacks.
+def test_abaqus_types_meshio_misreads(tmp_path, assert_close):
+    # meshio names C3D4H but fails on it (KeyError 'tetra4'), and C3D15 (KeyError 'wedge15':
+    # its table of cell dimensions lacks wedge15): "cannot read the mesh". C3D4H is a tet4;
+    # C3D15 a wedge15, in Abaqus' order (the corners of C3D6, then the mid-edge nodes of the
+    # edges 1-2, 2-3, 3-1, 4-5, 5-6, 6-4, 1-4, 2-5, 3-6).
     path = tmp_path / "hybrid.inp"
     path.write_text(ABAQUS_INP.replace("TYPE=C3D4,", "TYPE=C3D4H,"))
     mesh = read_mesh(path)
     np.testing.assert_array_equal(mesh.elements["tet4"], TWO_TETS)
     np.testing.assert_array_equal(mesh.element_ids["tet4"], [11, 12])
-    nodes = "".join(f"{k + 1}, {k}, {k % 2}, {k % 3}\n" for k in range(16))
+    corners = np.array([[0, 0, 0], [2, 0, 0], [0, 1, 0], [0, 0, 3], [2, 0, 3], [0, 1, 3]], float)
+    edges = [(0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4), (2, 5)]
+    points = np.vstack([corners, [0.5 * (corners[p] + corners[q]) for p, q in edges]])
+    nodes = "".join(f"{k + 1}, {x:g}, {y:g}, {z:g}\n" for k, (x, y, z) in enumerate(points))
+    labels = [str(k) for k in range(1, 16)]
     path.write_text(
-        f"*NODE\n{nodes}*ELEMENT, TYPE=C3D15\n40, " + ", ".join(map(str, range(2, 17))) + "\n"
-    )
-    with pytest.raises(InvalidModelError, match=r"1 C3D15 cell \(the first is element 40\)"):
-        read_mesh(path)
+        f"*NODE\n{nodes}*ELEMENT, TYPE=C3D15, ELSET=ALL\n40, " + ", ".join(labels[:8])
+        + ",\n" + ", ".join(labels[8:]) + "\n"
+    )  # fmt: skip
+    mesh = read_mesh(path)
+    np.testing.assert_array_equal(mesh.elements["wedge15"], [np.arange(15)])
+    assert mesh.element_ids["wedge15"].tolist() == [40]
+    assert_close(pp.body_from_mesh(mesh, STEEL).invariants.mass, 3.0 * 7800.0, rel=1e-12)
 
 
 def test_abaqus_c3d10_order(tmp_path):
@@ -551,7 +560,7 @@ def test_wedges_are_read_and_an_inverted_one_is_named(tmp_path, assert_close):
 
 
 def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
-    # A pyramid on a hexahedron (VTK), a C3D15 wedge next to a C3D4 (Abaqus), a 6-node
+    # A pyramid on a hexahedron (VTK), a C3D5 pyramid next to a C3D4 (Abaqus), a 6-node
     # triangle among shell triangles: before, read_mesh left them out without a word, and the
     # body had a hole (a wedge-and-hex bracket: 62.4 kg instead of 70.2).
     points, hexes = hex_block()
@@ -570,10 +579,10 @@ def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
     abaqus = tmp_path / "wedge.inp"
     nodes = "".join(f"{k + 1}, {k}, {k % 2}, {k % 3}\n" for k in range(16))
     abaqus.write_text(
-        f"*NODE\n{nodes}*ELEMENT, TYPE=C3D4\n1, 1, 2, 3, 4\n*ELEMENT, TYPE=C3D15\n"
-        "40, " + ", ".join(str(k) for k in range(2, 17)) + "\n"
+        f"*NODE\n{nodes}*ELEMENT, TYPE=C3D4\n1, 1, 2, 3, 4\n*ELEMENT, TYPE=C3D5\n"
+        "40, " + ", ".join(str(k) for k in range(2, 7)) + "\n"
     )
-    with pytest.raises(InvalidModelError, match=r"1 C3D15 cell \(the first is element 40\)"):
+    with pytest.raises(InvalidModelError, match=r"1 C3D5 cell \(the first is element 40\)"):
         read_mesh(abaqus)
 
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0, 0], [1, 0.5, 0],

@@ -1,7 +1,7 @@
-"""Solid elements (tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6) in bodies: meshes of blocks and
-cylinders, invariants of motion against the analytic rigid-body inertia and a brute-force sum
-over mass points, rigid motions, the sparse factorization, a solid cantilever against beam
-theory, and bad meshes."""
+"""Solid elements (tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15) in bodies: meshes of
+blocks and cylinders, invariants of motion against the analytic rigid-body inertia and a
+brute-force sum over mass points, rigid motions, the sparse factorization, a solid cantilever
+against beam theory, and bad meshes."""
 
 import numpy as np
 import pytest
@@ -17,7 +17,7 @@ from flexmbd.fe import shapes
 from flexmbd.rotation import rotation
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
-SOLIDS = ["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6"]
+SOLIDS = ["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15"]
 
 
 def rotated_box(element, divisions=(4, 2, 3), lengths=(0.8, 0.3, 0.5)):
@@ -229,6 +229,7 @@ def timoshenko_tip_deflection():
         ("hex20", (1, 2, 4), 0.009),
         ("hex20r", (2, 3, 4), 0.009),
         ("wedge6", (1, 2, 4), 0.05),
+        ("wedge15", (1, 2, 4), 0.009),
     ],
 )
 def test_solid_cantilever_converges_to_the_beam_solution(element, sizes, tolerance):

@@ -1,4 +1,5 @@
-"""Wedges ("wedge6": Abaqus C3D6, Gmsh prisms, VTK wedges) in bodies: interfaces on their
+"""Wedges ("wedge6": Abaqus C3D6, Gmsh prisms, VTK wedges; "wedge15": C3D15, Gmsh's 15-node
+prisms, VTK quadratic wedges) in bodies: interfaces on their
 triangular and quadrilateral faces, VTK output, model files. The element kernel's tests
 (moments, mass fractions, patch tests, rigid-body modes) are in
 `crates/flexmbd-core/src/fem/solid/tests`; invariants, kinetic energy, rigid motions and the
@@ -7,6 +8,7 @@ in tests/test_mesh_io.py."""
 
 import meshio
 import numpy as np
+import pytest
 
 import flexmbd as fm
 import flexmbd.fe.preprocess as pp
@@ -64,4 +66,97 @@ def test_vtk_output_and_model_files(tmp_path, assert_close):
     (tmp_path / "bar.yaml").write_text(text)
     from_file = load_model(tmp_path / "bar.yaml").body_data["bar"]
     assert list(from_file.elements) == ["wedge6"]
+    assert_close(from_file.frequencies, body.frequencies, rel=1e-12, what="frequencies")
+
+
+# Quadratic wedges (wedge15: Abaqus C3D15, Gmsh prism15, VTK quadratic wedges) ----------------
+
+
+def gmsh_prisms(path):
+    """A Gmsh mesh of 15-node prisms: a triangulated 1 x 0.3 rectangle extruded by 0.2 in two
+    layers, second order (incomplete: no face nodes)."""
+    import gmsh
+
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        rectangle = gmsh.model.occ.addRectangle(0, 0, 0, 1.0, 0.3)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.15)
+        volume = gmsh.model.occ.extrude([(2, rectangle)], 0, 0, 0.2, [2], recombine=True)
+        gmsh.model.occ.synchronize()
+        gmsh.model.addPhysicalGroup(3, [next(t for d, t in volume if d == 3)], name="body")
+        gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 1)
+        gmsh.model.mesh.generate(3)
+        gmsh.model.mesh.setOrder(2)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+
+
+def test_gmsh_and_vtk_quadratic_wedges_are_read_in_abaqus_order(tmp_path, assert_close):
+    # meshio could not hold a wedge15 cell at all (KeyError 'wedge15' in its table of cell
+    # dimensions). Read from Gmsh, every mid-edge node is the midpoint of its edge in the
+    # C3D15 order, and the mass is the block's.
+    from flexmbd.fe.mesh_io import WEDGE15_FROM_VTK, read_mesh
+    from flexmbd.fe.shapes import WEDGE15_EDGES
+
+    pytest.importorskip("gmsh")
+    gmsh_prisms(tmp_path / "prisms.msh")
+    mesh = read_mesh(tmp_path / "prisms.msh")
+    assert list(mesh.elements) == ["wedge15"]
+    cells, x = mesh.elements["wedge15"], mesh.nodes
+    for e, (p, q) in enumerate(WEDGE15_EDGES):
+        assert_close(x[cells[:, 6 + e]], 0.5 * (x[cells[:, p]] + x[cells[:, q]]), abs=1e-15)
+    body = pp.body_from_mesh(mesh, STEEL)
+    assert_close(body.invariants.mass, 7800.0 * 0.06, rel=1e-12, what="mass")
+    # A VTK file lists each triangle of a quadratic wedge the other way round: read back, the
+    # cells are ours (and not inverted).
+    vtk = meshio.Mesh(x, [("wedge15", cells[:, WEDGE15_FROM_VTK])])
+    meshio.write(tmp_path / "prisms.vtu", vtk)
+    again = read_mesh(tmp_path / "prisms.vtu")
+    np.testing.assert_array_equal(again.elements["wedge15"], cells)
+
+
+def test_quadratic_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, assert_close):
+    # The x0 face is made of the same quad8 faces as hex20's: the same weights, node by node;
+    # z1 of tri6 faces: the consistent weights (0 at a triangle's corners, a third of its
+    # area at a mid-edge node), the exact centroid.
+    def weights(element, face):
+        mesh, body = interface_body(element, [face])
+        members = body.reference.interfaces[0]
+        return mesh, members, body.reference.interface_weights[0]
+
+    def by_position(mesh, members, values):
+        order = np.lexsort(mesh.nodes[members].T)
+        return mesh.nodes[members][order], values[order]
+
+    quadratic = by_position(*weights("wedge15", "x0"))
+    hexahedra = by_position(*weights("hex20", "x0"))
+    assert_close(quadratic[0], hexahedra[0], abs=1e-15, what="x0 nodes")
+    assert_close(quadratic[1], hexahedra[1], rel=1e-12, what="x0 weights")
+    mesh, members, triangles = weights("wedge15", "z1")
+    assert np.all(triangles >= 0) and np.any(triangles == 0)
+    assert_close(triangles @ mesh.nodes[members], [0.5, 0.1, 0.1], abs=1e-15, what="centroid")
+    # VTK output: VTK's order on file, meshio's (ours) read back through read_mesh.
+    mesh, body = interface_body("wedge15", ["x0", "x1"])
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    system.add_flexible_body(body, name="bar")
+    result = fm.simulate(system, 0.002, 1e-3)
+    fm.animation.write_vtu_series(result, tmp_path / "frames")
+    from flexmbd.fe.mesh_io import read_mesh
+
+    frame = read_mesh(tmp_path / "frames" / "result_00000.vtu")
+    np.testing.assert_array_equal(frame.elements["wedge15"], mesh.elements["wedge15"])
+    text = (
+        "bodies:\n  - name: bar\n    type: flexible\n"
+        "    box: {lengths: [1.0, 0.2, 0.1], divisions: [5, 3, 2], element: wedge15}\n"
+        "    material: {young_modulus: 2.1e+11, poisson_ratio: 0.3, density: 7800.0}\n"
+        "    reference: interface\n    modes: craig-bampton\n    mode_count: 2\n"
+        "    interfaces: [x0, x1]\n    interface_kind: rbe3\n"
+        "simulation: {end_time: 0.01, step_size: 0.001}\n"
+    )
+    (tmp_path / "bar.yaml").write_text(text)
+    from_file = load_model(tmp_path / "bar.yaml").body_data["bar"]
+    assert list(from_file.elements) == ["wedge15"]
     assert_close(from_file.frequencies, body.frequencies, rel=1e-12, what="frequencies")

@@ -81,6 +81,9 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     "hex8": ("hexahedron", None),
     "hex20": ("hexahedron20", None),
     "wedge6": ("wedge", None),
+    # (meshio writes its wedge15 as given: VTK's quadratic wedge lists each triangle the
+    # other way round)
+    "wedge15": ("wedge15", np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])),
     "quad4": ("quad", None),
     "tri3": ("triangle", None),
 }
@@ -106,6 +109,7 @@ ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
 # (a hex20's faces by their corners: the surfaces drawn are flat between them)
 ELEMENT_FACES["hex20"] = ELEMENT_FACES["hex8"]
 ELEMENT_FACES["wedge6"] = ((0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5))
+ELEMENT_FACES["wedge15"] = ELEMENT_FACES["wedge6"]
 
 #: Named views: (elevation, azimuth) in degrees, orthographic.
 VIEWS: dict[str, tuple[float, float]] = {
@@ -373,6 +377,10 @@ def _mesh(
     """The meshio Mesh of one record: the deformable bodies' nodes first (bodies in index
     order, nodes in mesh order), then the mechanism (origins, sticks, joints)."""
     import meshio
+
+    from .fe.mesh_io import complete_meshio
+
+    complete_meshio()  # (its wedge15 cells)
 
     records = np.array([record])
     layout_bodies = scene.result.layout["bodies"]

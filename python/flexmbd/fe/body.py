@@ -30,7 +30,8 @@ BODY_DATA_VERSION = 1
 #: "quad4" and "tri3" are flat shells (6 coordinates per node, see `docs/preprocessor.md`);
 #: "hex8i" is the hexahedron with incompatible modes (Abaqus' C3D8I), "hex20" the quadratic
 #: (serendipity) hexahedron and "hex20r" the same with reduced integration (C3D20R),
-#: "wedge6" the linear wedge (triangular prism, Abaqus C3D6).
+#: "wedge6" the linear wedge (triangular prism, Abaqus C3D6) and "wedge15" the quadratic
+#: (serendipity) wedge (Abaqus C3D15).
 ELEMENT_NODES = {
     "beam2": 2,
     "tet4": 4,
@@ -40,6 +41,7 @@ ELEMENT_NODES = {
     "hex20": 20,
     "hex20r": 20,
     "wedge6": 6,
+    "wedge15": 15,
     "quad4": 4,
     "tri3": 3,
 }
@@ -412,7 +414,7 @@ class FlexibleBodyData:
         nodes: undeformed node positions in the body frame, (n_nodes, 3), m.
         node_ids: ids of the nodes in the source mesh, (n_nodes,).
         elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r",
-            "wedge6", and the shells "quad4", "tri3") -> (n_elements, nodes) indices into
+            "wedge6", "wedge15", and the shells "quad4", "tri3") -> (n_elements, nodes) indices into
             ``nodes``.
         element_ids: element type -> (n_elements,) ids in the source mesh.
         node_sets: name -> indices into ``nodes``.

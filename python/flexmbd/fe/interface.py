@@ -51,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
 from .body import cell_of
-from .shapes import HEX8_CORNERS, HEX20_EDGES, TET10_EDGES
+from .shapes import HEX8_CORNERS, HEX20_EDGES, TET10_EDGES, WEDGE15_EDGES
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -141,7 +141,18 @@ _EDGE_GROUPS = {element: (group,) for element, group in _EDGES.items()}
 _EDGE_GROUPS["wedge6"] = (
     ("line2", ((0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4), (2, 5))),
 )
-_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6")
+# wedge15 mid-edge nodes 6..14 on the edges `WEDGE15_EDGES` (Abaqus C3D15 order).
+_FACET_GROUPS["wedge15"] = (
+    ("tri6", ((0, 1, 2, 6, 7, 8), (3, 4, 5, 9, 10, 11))),
+    (
+        "quad8",
+        ((0, 1, 4, 3, 6, 13, 9, 12), (1, 2, 5, 4, 7, 14, 10, 13), (2, 0, 3, 5, 8, 12, 11, 14)),
+    ),
+)
+_EDGE_GROUPS["wedge15"] = (
+    ("line3", tuple((p, q, 6 + e) for e, (p, q) in enumerate(WEDGE15_EDGES))),
+)
+_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6", "wedge15")
 #: Cells integrated at a time.
 _CHUNK = 16384
 
@@ -192,6 +203,18 @@ def _shape(kind: str, xi: Any) -> list[Any]:
         a, b, c = xi
         lam = [1 - a - b, a, b]
         return [v * (1 - c) for v in lam] + [v * c for v in lam]
+    if kind == "wedge15":
+        # Serendipity, on the triangle times [-1, 1] (see `fem/solid/wedge.rs`).
+        a, b, c = xi
+        lam, w = [1 - a - b, a, b], 2 * c - 1
+        corners = [
+            v * (2 * v - 1) * (1 + s * w) / 2 - v * (1 - w * w) / 2 for s in (-1, 1) for v in lam
+        ]
+        middles = [
+            2 * lam[p % 3] * lam[q % 3] * (1 + (-1 if e < 3 else 1) * w)
+            for e, (p, q) in enumerate(WEDGE15_EDGES[:6])
+        ]
+        return corners + middles + [v * (1 - w * w) for v in lam]
     if kind == "hex8":
         a, b, c = xi
         return [
@@ -220,13 +243,13 @@ def _shape(kind: str, xi: Any) -> list[Any]:
 
 def _rule(kind: str) -> tuple[Array, Array]:
     """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: 3-point
-    Gauss-Legendre products (4-point on quad8 and hex20), collapsed (Duffy) onto simplices;
-    exact for the integrals of the shape functions times the Jacobian of every
+    Gauss-Legendre products (4-point on quad8, hex20 and wedge15), collapsed (Duffy) onto
+    simplices; exact for the integrals of the shape functions times the Jacobian of every
     straight-sided or flat cell here (degree 2 on simplices, 3 per direction on
-    quadrilaterals and hexahedra, 4 on the serendipity quad8 and hex20)."""
+    quadrilaterals and hexahedra, 4 on the serendipity quad8, hex20 and wedge15)."""
     # (4 points on the serendipity cells: those of their mass points, so that interface
     # weights and the mass matrix agree on curved elements too)
-    g, w = np.polynomial.legendre.leggauss(4 if kind in ("quad8", "hex20") else 3)
+    g, w = np.polynomial.legendre.leggauss(4 if kind in ("quad8", "hex20", "wedge15") else 3)
     g, w = 0.5 * (g + 1.0), 0.5 * w
     dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3}[
         kind.rstrip("0123456789")

@@ -28,6 +28,11 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   (0,1), (1,2), (2,3), (3,0), (4,5), (5,6), (6,7), (7,4), (0,4), (1,5), (2,6), (3,7): the
   order of VTK's quadratic hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's own
   order on reading).
+* ``wedge15``: the corners of ``wedge6``, then the mid-edge nodes 6..14 on the edges (0,1),
+  (1,2), (2,0), (3,4), (4,5), (5,3), (0,3), (1,4), (2,5): Abaqus C3D15 and meshio (which
+  converts Gmsh's prism15 on reading). VTK's quadratic wedge has these edges with each
+  triangle listed the other way round: :func:`read_mesh` converts the cells of ``.vtu`` and
+  ``.vtk`` files (``WEDGE15_FROM_VTK``).
 * ``quad4``, ``tri3`` (flat shells): the corners counter-clockwise about the element normal
   (the same in VTK, Gmsh and Abaqus S4/S3); the top surface of the shell is on the side of
   the normal.
@@ -71,6 +76,7 @@ MESHIO_ELEMENT_TYPES = {
     "hexahedron": "hex8",
     "hexahedron20": "hex20",
     "wedge": "wedge6",
+    "wedge15": "wedge15",
 }
 
 #: meshio cell types of surfaces read as shell elements ("quad4", "tri3") in files without
@@ -107,6 +113,20 @@ ABAQUS_SUBSTITUTED_TYPES = {
 
 #: Permutation of a meshio/VTK "tetra10" cell into the flexmbd (Gmsh) node order.
 TET10_FROM_MESHIO = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
+
+#: Node permutation between VTK's quadratic wedge and ``wedge15`` (each triangle listed the
+#: other way round; its own inverse): meshio converts VTK's linear wedge, not this one.
+WEDGE15_FROM_VTK = np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])
+
+
+def complete_meshio() -> None:
+    """Gives meshio the topological dimension of its "wedge15" cell, which its table lacks
+    (meshio 5.3: any mesh with such cells, Gmsh prism15, Abaqus C3D15 or VTK quadratic
+    wedges, failed with KeyError 'wedge15'). Idempotent; changes nothing else."""
+    import meshio._mesh
+
+    meshio._mesh.topological_dimension.setdefault("wedge15", 3)
+
 
 #: File suffix -> meshio file format.
 MESH_FORMATS = {".msh": "gmsh", ".inp": "abaqus", ".vtu": "vtu", ".vtk": "vtk"}
@@ -193,12 +213,12 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron",
-    "hexahedron20", "wedge" and "line" become "tet4", "tet10", "hex8", "hex20", "wedge6" and
-    "beam2", in the node order of the module docstring; Abaqus' hexahedra with incompatible
-    modes (C3D8I, C3D8IH) become "hex8i", its quadratic ones with reduced integration
-    (C3D20R, C3D20RH) "hex20r", its linear reduced-integration hexahedra (C3D8R, C3D8RH)
-    "hex8" with a :class:`~flexmbd.MeshQualityWarning` (flexmbd has no hourglass-controlled
-    element).
+    "hexahedron20", "wedge", "wedge15" and "line" become "tet4", "tet10", "hex8", "hex20",
+    "wedge6", "wedge15" and "beam2", in the node order of the module docstring; Abaqus'
+    hexahedra with incompatible modes (C3D8I, C3D8IH) become "hex8i", its quadratic ones with
+    reduced integration (C3D20R, C3D20RH) "hex20r", its linear reduced-integration hexahedra
+    (C3D8R, C3D8RH) "hex8" with a :class:`~flexmbd.MeshQualityWarning` (flexmbd has no
+    hourglass-controlled element).
     Shells: in Gmsh and VTK files without volume cells, "quad" and "triangle" cells become
     the flat shells "quad4" and "tri3" (and "line" cells, then edges of the surfaces, are not
     beams); in Abaqus files the shell types S4, S4R, S4R5, S3, S3R and STRI3 do, and the
@@ -208,8 +228,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     the node sets of the named groups they belong to: a Gmsh physical surface of triangles
     named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
     "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
-    of the highest dimension must all be elements: a 15-node wedge (Abaqus C3D15), a pyramid
-    or a 27-node hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
+    of the highest dimension must all be elements: a pyramid, an 18-node wedge or a 27-node
+    hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
     miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
     (membranes such as M3D4, surface elements SFM3D4, ...) are left out with a
@@ -260,6 +280,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     """
     import meshio
 
+    complete_meshio()
     path = Path(path)
     if not path.exists():
         raise MissingFileError("mesh file", path)
@@ -356,6 +377,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
             continue
         if kind == "tet10":
             data = data[:, TET10_FROM_MESHIO]
+        if kind == "wedge15" and file_format in ("vtu", "vtk"):
+            data = data[:, WEDGE15_FROM_VTK]
         elements.setdefault(kind, []).append(data)
         element_ids.setdefault(kind, []).append(ids)
     _warn_left_out(path, left_out, bool(elements))
@@ -385,7 +408,7 @@ def _unsupported_cells(
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
     supported = {
-        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6",
+        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15",
         2: "quad4, tri3 (flat shells)",
         1: "beam2",
     }[dimension]
@@ -895,6 +918,7 @@ def _meshio_abaqus_types() -> frozenset[str]:
     import meshio._mesh
     import meshio.abaqus._abaqus as reader
 
+    complete_meshio()
     return frozenset(
         name
         for name, cell in reader.abaqus_to_meshio_type.items()

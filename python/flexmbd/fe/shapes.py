@@ -43,6 +43,9 @@ TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
 HEX20_EDGES = (
     (0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7),
 )  # fmt: skip
+#: Corners joined by the mid-edge nodes 6..14 of a wedge15 (Abaqus C3D15 order: the bottom
+#: triangle's edges, the top one's, the vertical ones).
+WEDGE15_EDGES = ((0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4), (2, 5))
 
 #: Meshes estimated at more elements than this are refused before they are made (the
 #: `max_elements` keyword of :func:`box`, :func:`gmsh_mesh`, :func:`cylinder` and
@@ -51,7 +54,7 @@ HEX20_EDGES = (
 MAX_MESH_ELEMENTS = 10_000_000
 
 #: The elements of :func:`box`.
-BOX_ELEMENTS = ("hex8", "hex8i", "hex20", "hex20r", "wedge6", "tet4", "tet10")
+BOX_ELEMENTS = ("hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "tet4", "tet10")
 
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
 #: Gmsh for tetrahedra of order 1 and 2.
@@ -61,6 +64,7 @@ _BYTES_PER_ELEMENT = {
     "hex20": 1300,
     "hex20r": 1300,
     "wedge6": 200,
+    "wedge15": 1000,
     "tet4": 280,
     "tet10": 640,
     "gmsh1": 1500,
@@ -180,6 +184,14 @@ def quadratic_hexahedra(
     return _with_edge_midpoints(nodes, hexes, HEX20_EDGES)
 
 
+def quadratic_wedges(
+    nodes: NDArray[np.float64], wedges: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Wedge15 elements from wedge6 elements: one node at the midpoint of every edge, shared
+    by the elements around it. Returns the extended nodes and the wedge15 connectivity."""
+    return _with_edge_midpoints(nodes, wedges, WEDGE15_EDGES)
+
+
 def _with_edge_midpoints(
     nodes: NDArray[np.float64], cells: NDArray[np.int64], cell_edges: Sequence[tuple[int, int]]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -206,8 +218,8 @@ def box(
     `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
     "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "hex20", "hex20r"
     (quadratic hexahedra; reduced integration), "wedge6" (two prisms per cell, split in z),
-    "tet4" (six tetrahedra per cell) or "tet10". Node sets: "x0", "x1", "y0", "y1", "z0", "z1"
-    (the faces), "all".
+    "wedge15" (the same, quadratic), "tet4" (six tetrahedra per cell) or "tet10". Node sets:
+    "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
     divisions that are not three (or one) positive integers (an `ArgumentTypeError` for
@@ -240,11 +252,13 @@ def box(
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz + (nx + 1) * ny * nz + nx * (ny + 1) * nz
         node_count += nx * ny * (nz + 1) + cells
-    if element in ("hex20", "hex20r"):
-        # Mid-edge nodes: the grid's edges.
+    if element in ("hex20", "hex20r", "wedge15"):
+        # Mid-edge nodes: the grid's edges (and a wedge's: one diagonal per z-face).
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz
-    per_cell = 1 if element.startswith("hex") else 2 if element == "wedge6" else 6
+        if element == "wedge15":
+            node_count += nx * ny * (nz + 1)
+    per_cell = 1 if element.startswith("hex") else 2 if element.startswith("wedge") else 6
     element_count = per_cell * cells
     _check_mesh_size(
         element_count,
@@ -271,11 +285,13 @@ def box(
     elif element in ("hex20", "hex20r"):
         nodes, hexes = quadratic_hexahedra(nodes, hexes)
         elements = {element: hexes}
-    elif element == "wedge6":
+    elif element in ("wedge6", "wedge15"):
         # Each cell split along its diagonal 0-2 in z: the prisms (0, 1, 2 | 4, 5, 6) and
         # (0, 2, 3 | 4, 6, 7), their triangles counter-clockwise seen from +z.
-        prisms = [hexes[:, [0, 1, 2, 4, 5, 6]], hexes[:, [0, 2, 3, 4, 6, 7]]]
-        elements = {"wedge6": np.vstack(prisms)}
+        prisms = np.vstack([hexes[:, [0, 1, 2, 4, 5, 6]], hexes[:, [0, 2, 3, 4, 6, 7]]])
+        if element == "wedge15":
+            nodes, prisms = quadratic_wedges(nodes, prisms)
+        elements = {element: prisms}
     else:
         tets = np.vstack([hexes[:, list(t)] for t in _KUHN])
         tets = _orient(nodes, tets)

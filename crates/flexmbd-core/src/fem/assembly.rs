@@ -17,7 +17,7 @@ use crate::fem::beam::Beam;
 use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
-use crate::fem::solid::{Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Tet10, Tet4, Wedge6};
+use crate::fem::solid::{Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Tet10, Tet4, Wedge15, Wedge6};
 
 /// The element types a body can be made of.
 #[derive(Clone, Debug, PartialEq)]
@@ -38,6 +38,8 @@ pub enum ElementType {
     Hex20Reduced,
     /// Six-node wedge (triangular prism).
     Wedge6,
+    /// Fifteen-node wedge (Abaqus C3D15 node order).
+    Wedge15,
     /// Four-node flat shell (MITC4).
     Quad4(ShellQuad4),
     /// Three-node flat shell (DKT).
@@ -55,6 +57,7 @@ impl ElementType {
             ElementType::Hex20 => &Hex20,
             ElementType::Hex20Reduced => &Hex20Reduced,
             ElementType::Wedge6 => &Wedge6,
+            ElementType::Wedge15 => &Wedge15,
             ElementType::Quad4(s) => s,
             ElementType::Tri3(s) => s,
         }
@@ -80,6 +83,7 @@ impl ElementType {
                 | ElementType::Hex20
                 | ElementType::Hex20Reduced
                 | ElementType::Wedge6
+                | ElementType::Wedge15
         )
     }
 }

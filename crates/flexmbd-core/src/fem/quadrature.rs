@@ -420,6 +420,25 @@ pub const TRIANGLE_DEGREE_4: [(f64, f64, f64); 6] = [
     (1.0 - 2.0 * DUNAVANT_4_A2, DUNAVANT_4_A2, 0.5 * DUNAVANT_4_W2),
 ];
 
+// Radon's 7-point rule of degree 5 (Dunavant's degree-5 rule): the centroid (weight 9/40 of
+// the area) and two orbits (a, a, 1 - 2a), a = (6 -+ sqrt 15) / 21, weights (155 -+ sqrt 15)
+// / 1200 of the area.
+const RADON_5_A1: f64 = 0.10128650732345634;
+const RADON_5_W1: f64 = 0.12593918054482715;
+const RADON_5_A2: f64 = 0.47014206410511509;
+const RADON_5_W2: f64 = 0.13239415278850618;
+
+/// Reference triangle, 7 points, exact to degree 5 (as (u, v, weight)).
+pub const TRIANGLE_DEGREE_5: [(f64, f64, f64); 7] = [
+    (1.0 / 3.0, 1.0 / 3.0, 0.5 * 9.0 / 40.0),
+    (RADON_5_A1, RADON_5_A1, 0.5 * RADON_5_W1),
+    (RADON_5_A1, 1.0 - 2.0 * RADON_5_A1, 0.5 * RADON_5_W1),
+    (1.0 - 2.0 * RADON_5_A1, RADON_5_A1, 0.5 * RADON_5_W1),
+    (RADON_5_A2, RADON_5_A2, 0.5 * RADON_5_W2),
+    (RADON_5_A2, 1.0 - 2.0 * RADON_5_A2, 0.5 * RADON_5_W2),
+    (1.0 - 2.0 * RADON_5_A2, RADON_5_A2, 0.5 * RADON_5_W2),
+];
+
 /// Point (triangle point i, line point j) of a wedge rule: triangle x [-1, 1].
 macro_rules! wedge_point {
     ($triangle:ident, $line:ident, $i:literal, $j:literal) => {
@@ -462,6 +481,39 @@ pub const WEDGE_TRIANGLE_4_GAUSS_3: [QuadraturePoint; 18] = [
     wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 3, 2),
     wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 4, 2),
     wedge_point!(TRIANGLE_DEGREE_4, GAUSS_LEGENDRE_3, 5, 2),
+];
+
+/// Reference wedge: the degree-5 triangle rule times 4-point Gauss (exact to degree 5 in
+/// (u, v) and 7 in w).
+pub const WEDGE_TRIANGLE_5_GAUSS_4: [QuadraturePoint; 28] = [
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 0, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 1, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 2, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 3, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 4, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 5, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 6, 0),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 0, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 1, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 2, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 3, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 4, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 5, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 6, 1),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 0, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 1, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 2, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 3, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 4, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 5, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 6, 2),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 0, 3),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 1, 3),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 2, 3),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 3, 3),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 4, 3),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 5, 3),
+    wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 6, 3),
 ];
 
 /// The tensor-product Gauss-Legendre rule on [-1, 1]^3 with `points_per_direction` points per
@@ -587,7 +639,9 @@ mod tests {
     fn triangle_and_wedge_rules_are_exact_to_their_degrees() {
         // int over the triangle of u^i v^j = i! j! / (i + j + 2)!.
         let triangle = |i: u32, j: u32| factorial(i) * factorial(j) / factorial(i + j + 2);
-        for (rule, degree) in [(&TRIANGLE_DEGREE_2[..], 2u32), (&TRIANGLE_DEGREE_4[..], 4)] {
+        for (rule, degree) in
+            [(&TRIANGLE_DEGREE_2[..], 2u32), (&TRIANGLE_DEGREE_4[..], 4), (&TRIANGLE_DEGREE_5[..], 5)]
+        {
             for i in 0..=degree {
                 for j in 0..=degree - i {
                     let q: f64 = rule.iter().map(|&(u, v, w)| w * u.powi(i as i32) * v.powi(j as i32)).sum();
@@ -596,9 +650,11 @@ mod tests {
             }
             assert!(rule.iter().all(|&(u, v, w)| u > 0.0 && v > 0.0 && u + v < 1.0 && w > 0.0));
         }
-        for (rule, degree, line) in
-            [(&WEDGE_TRIANGLE_2_GAUSS_2[..], 2u32, 3u32), (&WEDGE_TRIANGLE_4_GAUSS_3[..], 4, 5)]
-        {
+        for (rule, degree, line) in [
+            (&WEDGE_TRIANGLE_2_GAUSS_2[..], 2u32, 3u32),
+            (&WEDGE_TRIANGLE_4_GAUSS_3[..], 4, 5),
+            (&WEDGE_TRIANGLE_5_GAUSS_4[..], 5, 7),
+        ] {
             for i in 0..=degree {
                 for j in 0..=degree - i {
                     for k in 0..=line {

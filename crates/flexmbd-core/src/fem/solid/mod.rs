@@ -24,18 +24,25 @@
 //!   above them (reference (0,0,-1), (1,0,-1), (0,1,-1), then w = +1): Gmsh's prism, Abaqus
 //!   C3D6 and meshio's wedge (VTK's wedge lists each triangle the other way round; meshio
 //!   converts).
+//! - [`Wedge15`]: the corners of `Wedge6`, then the mid-edge nodes 6..14 on the bottom
+//!   triangle's edges (0,1), (1,2), (2,0), the top one's (3,4), (4,5), (5,3) and the vertical
+//!   ones (0,3), (1,4), (2,5) ([`WEDGE15_EDGES`]): Abaqus C3D15 and meshio's wedge15 (which
+//!   converts Gmsh's order on reading; VTK's quadratic wedge has these edges with its
+//!   triangles listed the other way round).
 //!
 //! Quadrature: stiffness K = int B^T D B dV with the 1-point rule (`Tet4`, exact), the 4-point
 //! degree-2 rule (`Tet10`, exact for straight edges), 2 x 2 x 2 Gauss (`Hex8`, full
 //! integration, no hourglass modes; `Hex20Reduced`), 3 x 3 x 3 Gauss (`Hex20`) and the
-//! degree-2 triangle rule times 2-point Gauss (`Wedge6`, exact). Mass points (consistent mass, invariants of motion, volume)
+//! degree-2 triangle rule times 2-point Gauss (`Wedge6`, exact) and the degree-4 triangle
+//! rule times 3-point Gauss (`Wedge15`, exact for a constant Jacobian). Mass points (consistent mass, invariants of motion, volume)
 //! use a rule that makes every integrand of `element.rs` exact: the 4-point degree-2 rule for
 //! `Tet4`, the 15-point degree-5 rule for `Tet10` (exact for straight edges; an approximation
 //! when mid-edge nodes are off the edge midpoints) and 3 x 3 x 3 Gauss for `Hex8` (exact for
 //! every trilinear hexahedron: with a non-constant Jacobian determinant the integrands
 //! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss),
 //! 4 x 4 x 4 Gauss for `Hex20` (exact for straight edges: degree 6 per direction), the
-//! degree-4 triangle rule times 3-point Gauss for `Wedge6` (exact).
+//! degree-4 triangle rule times 3-point Gauss for `Wedge6` (exact), the degree-5 triangle
+//! rule times 4-point Gauss for `Wedge15` (exact for straight edges).
 //! Lumped masses are HRZ (Hinton, Rock, Zienkiewicz, "A note on mass lumping and related
 //! processes in the finite element method", Earthquake Eng. Struct. Dyn. 4 (1976) 245-249):
 //! the diagonal of the consistent mass matrix scaled so that its sum is the element mass.
@@ -69,6 +76,7 @@ mod wedge;
 
 pub use hexahedron::HEX20_EDGES;
 pub use incompatible::Hex8Incompatible;
+pub use wedge::WEDGE15_EDGES;
 
 /// Linear 4-node tetrahedron (constant strain).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -95,6 +103,10 @@ pub struct Hex20Reduced;
 /// Linear wedge (triangular prism, node order in the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Wedge6;
+
+/// Quadratic 15-node wedge (serendipity; node order in the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Wedge15;
 
 /// Vertices joined by the edge of each mid-edge node 4..9 of a [`Tet10`] (Gmsh order).
 pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [2, 3], [1, 3]];
@@ -176,3 +188,4 @@ solid_element_kernel!(Hex8, 8);
 solid_element_kernel!(Hex20, 20);
 solid_element_kernel!(Hex20Reduced, 20);
 solid_element_kernel!(Wedge6, 6);
+solid_element_kernel!(Wedge15, 15);

@@ -1,12 +1,14 @@
-//! The linear wedge (triangular prism) [`Wedge6`]: nodes, quadrature rules, shape functions
-//! and their reference gradients. N_a = L_a(u, v) (1 -+ w) / 2 with the barycentric
+//! The linear wedge (triangular prism) [`Wedge6`] and the 15-node serendipity wedge
+//! [`Wedge15`]: nodes, quadrature rules, shape functions and their reference gradients. N_a = L_a(u, v) (1 -+ w) / 2 with the barycentric
 //! coordinates L = (1 - u - v, u, v) of the triangle and w in [-1, 1]: nodes 0, 1, 2 at
 //! w = -1, counter-clockwise seen from w > 0, and 3, 4, 5 above them (Gmsh's prism, Abaqus'
 //! C3D6 and meshio's wedge; VTK's wedge lists the triangles the other way round, which meshio
 //! converts on reading and writing).
 
-use super::{Isoparametric, Wedge6};
-use crate::fem::quadrature::{QuadraturePoint, WEDGE_TRIANGLE_2_GAUSS_2, WEDGE_TRIANGLE_4_GAUSS_3};
+use super::{Isoparametric, Wedge15, Wedge6};
+use crate::fem::quadrature::{
+    QuadraturePoint, WEDGE_TRIANGLE_2_GAUSS_2, WEDGE_TRIANGLE_4_GAUSS_3, WEDGE_TRIANGLE_5_GAUSS_4,
+};
 
 impl Isoparametric<6> for Wedge6 {
     const NAME: &'static str = "Wedge6";
@@ -37,6 +39,105 @@ impl Isoparametric<6> for Wedge6 {
             let (t, sign) = if a < 3 { (0.5 * (1.0 - xi[2]), -0.5) } else { (0.5 * (1.0 + xi[2]), 0.5) };
             let k = a % 3;
             *ga = [dl[k][0] * t, dl[k][1] * t, l[k] * sign];
+        }
+        g
+    }
+}
+
+/// Corner pairs of the mid-edge nodes 6..14 of a [`Wedge15`]: the bottom triangle's edges,
+/// the top triangle's, then the vertical ones (Abaqus C3D15, meshio's wedge15, VTK's
+/// quadratic wedge).
+pub const WEDGE15_EDGES: [[usize; 2]; 9] =
+    [[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3], [0, 3], [1, 4], [2, 5]];
+
+/// Reference coordinates of the 15 nodes: the corners of [`Wedge6`], then the midpoints of
+/// [`WEDGE15_EDGES`].
+const WEDGE15_NODES: [[f64; 3]; 15] = {
+    let c = <Wedge6 as Isoparametric<6>>::NODES;
+    let mut nodes = [[0.0; 3]; 15];
+    let mut a = 0;
+    while a < 6 {
+        nodes[a] = c[a];
+        a += 1;
+    }
+    let mut e = 0;
+    while e < 9 {
+        let [p, q] = WEDGE15_EDGES[e];
+        let mut k = 0;
+        while k < 3 {
+            nodes[6 + e][k] = 0.5 * (c[p][k] + c[q][k]);
+            k += 1;
+        }
+        e += 1;
+    }
+    nodes
+};
+
+/// Gradients (d/du, d/dv) of the barycentric coordinates L = (1 - u - v, u, v).
+const BARYCENTRIC_GRADIENTS: [[f64; 2]; 3] = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
+
+impl Isoparametric<15> for Wedge15 {
+    const NAME: &'static str = "Wedge15";
+    const NODES: [[f64; 3]; 15] = WEDGE15_NODES;
+    // B^T D B: degree 4 in (u, v) and in w on a wedge of constant Jacobian (exact there).
+    const STIFFNESS_RULE: &'static [QuadraturePoint] = &WEDGE_TRIANGLE_4_GAUSS_3;
+    // N_a N_b det J: degree 5 in (u, v) and 6 in w on a straight-edged wedge (exact).
+    const MASS_RULE: &'static [QuadraturePoint] = &WEDGE_TRIANGLE_5_GAUSS_4;
+
+    /// The serendipity wedge: at the corner of vertex k on the level s = -+1,
+    /// N = L_k (2 L_k - 1)(1 + s w) / 2 - L_k (1 - w^2) / 2; at the mid-edge node of the
+    /// triangle edge (i, j) on level s, N = 2 L_i L_j (1 + s w); at the vertical edge's of
+    /// vertex k, N = L_k (1 - w^2).
+    fn shape_functions(xi: [f64; 3]) -> [f64; 15] {
+        let l = [1.0 - xi[0] - xi[1], xi[0], xi[1]];
+        let w = xi[2];
+        let mut n = [0.0; 15];
+        for (a, value) in n.iter_mut().enumerate() {
+            *value = match a {
+                0..=5 => {
+                    let (k, s) = (a % 3, if a < 3 { -1.0 } else { 1.0 });
+                    0.5 * l[k] * (2.0 * l[k] - 1.0) * (1.0 + s * w) - 0.5 * l[k] * (1.0 - w * w)
+                }
+                6..=11 => {
+                    let [i, j] = WEDGE15_EDGES[a - 6];
+                    let s = if a < 9 { -1.0 } else { 1.0 };
+                    2.0 * l[i % 3] * l[j % 3] * (1.0 + s * w)
+                }
+                _ => l[a - 12] * (1.0 - w * w),
+            };
+        }
+        n
+    }
+
+    fn reference_gradients(xi: [f64; 3]) -> [[f64; 3]; 15] {
+        let l = [1.0 - xi[0] - xi[1], xi[0], xi[1]];
+        let dl = BARYCENTRIC_GRADIENTS;
+        let w = xi[2];
+        let mut g = [[0.0; 3]; 15];
+        for (a, ga) in g.iter_mut().enumerate() {
+            *ga = match a {
+                0..=5 => {
+                    let (k, s) = (a % 3, if a < 3 { -1.0 } else { 1.0 });
+                    let along = 0.5 * (4.0 * l[k] - 1.0) * (1.0 + s * w) - 0.5 * (1.0 - w * w);
+                    let up = 0.5 * l[k] * (2.0 * l[k] - 1.0) * s + l[k] * w;
+                    [along * dl[k][0], along * dl[k][1], up]
+                }
+                6..=11 => {
+                    let [i, j] = WEDGE15_EDGES[a - 6];
+                    let (i, j) = (i % 3, j % 3);
+                    let s = if a < 9 { -1.0 } else { 1.0 };
+                    let t = 2.0 * (1.0 + s * w);
+                    [
+                        t * (dl[i][0] * l[j] + l[i] * dl[j][0]),
+                        t * (dl[i][1] * l[j] + l[i] * dl[j][1]),
+                        2.0 * l[i] * l[j] * s,
+                    ]
+                }
+                _ => {
+                    let k = a - 12;
+                    [dl[k][0] * (1.0 - w * w), dl[k][1] * (1.0 - w * w), -2.0 * l[k] * w]
+                }
+            };
         }
         g
     }

@@ -38,6 +38,8 @@ enum Kind {
     Hex20,
     Hex20R,
     Wedge6,
+    /// [`Wedge15`] on the shapes of Wedge6 (mid-edge nodes at the edges' midpoints).
+    Wedge15,
 }
 
 fn element(kind: Kind) -> &'static dyn ElementKernel {
@@ -49,6 +51,7 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Hex20 => &Hex20,
         Kind::Hex20R => &Hex20Reduced,
         Kind::Wedge6 => &Wedge6,
+        Kind::Wedge15 => &Wedge15,
     }
 }
 
@@ -288,6 +291,34 @@ fn cases() -> Vec<Case> {
         let moments = fractions.as_ref().map(|_| prism_moments(&nodes));
         cases.push(Case { name, kind: Kind::Wedge6, nodes, moments, fractions });
     }
+    // The same wedges with 15 nodes (the geometry is the same, so are the moments). With a
+    // constant Jacobian the consistent-mass row sums are -1/9 of the mass at a corner, 1/6 at
+    // a triangle's mid-edge node and 2/9 at a vertical one; the HRZ masses 1/34, 4/51 and
+    // 2/17 (int N_a^2 over the reference wedge: 1/90, 4/135 and 2/45; sympy).
+    let quadratic: Vec<Case> = cases
+        .iter()
+        .filter(|c| c.kind == Kind::Wedge6)
+        .map(|c| {
+            let fractions = c.fractions.as_ref().map(|_| {
+                let mut row_sums = vec![-1.0 / 9.0; 6];
+                row_sums.extend([1.0 / 6.0; 6]);
+                row_sums.extend([2.0 / 9.0; 3]);
+                let mut lumped = vec![1.0 / 34.0; 6];
+                lumped.extend([4.0 / 51.0; 6]);
+                lumped.extend([2.0 / 17.0; 3]);
+                (row_sums, lumped)
+            });
+            let name = match c.name {
+                "right Wedge6" => "right Wedge15",
+                "oblique Wedge6" => "oblique Wedge15",
+                _ => "distorted Wedge15",
+            };
+            let mut nodes = c.nodes.clone();
+            nodes.extend(WEDGE15_EDGES.iter().map(|&[p, q]| 0.5 * (c.nodes[p] + c.nodes[q])));
+            Case { name, kind: Kind::Wedge15, nodes, moments: c.moments, fractions }
+        })
+        .collect();
+    cases.extend(quadratic);
     cases
 }
 
@@ -463,6 +494,31 @@ fn shape_functions_interpolate_the_nodes() {
     check::<Tet4, 4>();
     check::<Tet10, 10>();
     check::<Hex8, 8>();
+    check::<Hex20, 20>();
+    check::<Wedge6, 6>();
+    check::<Wedge15, 15>();
+}
+
+#[test]
+fn wedge15_interpolates_every_quadratic_field() {
+    // The serendipity wedge holds the complete quadratic polynomials in (u, v, w): a
+    // quadratic taken at the nodes is interpolated exactly inside.
+    let f = |p: [f64; 3]| {
+        let [u, v, w] = p;
+        1.0 + 2.0 * u - v + 0.5 * w + 3.0 * u * u - 2.0 * u * v + v * v + 0.7 * u * w - 1.1 * v * w
+            + 0.9 * w * w
+    };
+    let values: Vec<f64> = Wedge15::NODES.iter().map(|&p| f(p)).collect();
+    for xi in [[0.2, 0.3, -0.4], [0.6, 0.1, 0.8], [0.05, 0.9, 0.0]] {
+        let n = Wedge15::shape_functions(xi);
+        let interpolated: f64 = n.iter().zip(&values).map(|(a, b)| a * b).sum();
+        assert_close(interpolated, f(xi), 0.0, 1e-14, format_args!("quadratic at {xi:?}"));
+    }
+    // The mid-edge nodes are the midpoints of their edges.
+    for (e, [p, q]) in WEDGE15_EDGES.iter().enumerate() {
+        let mid: [f64; 3] = std::array::from_fn(|j| 0.5 * (Wedge6::NODES[*p][j] + Wedge6::NODES[*q][j]));
+        assert_eq!(mid, Wedge15::NODES[6 + e]);
+    }
 }
 
 #[test]

@@ -152,7 +152,7 @@ fn stress_forces_from_faces(case: &Case, sigma: &[[f64; 3]; 3]) -> Option<Vec<f6
             }
         }),
         // (the quadratic faces are not integrated here: the element's own rule serves)
-        Kind::Hex20 | Kind::Hex20R | Kind::Wedge6 => return None,
+        Kind::Hex20 | Kind::Hex20R | Kind::Wedge6 | Kind::Wedge15 => return None,
     }
     Some(f)
 }
@@ -176,6 +176,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex20 => strains_at_stiffness_points::<Hex20, 20>(x, &u),
             Kind::Hex20R => strains_at_stiffness_points::<Hex20Reduced, 20>(x, &u),
             Kind::Wedge6 => strains_at_stiffness_points::<Wedge6, 6>(x, &u),
+            Kind::Wedge15 => strains_at_stiffness_points::<Wedge15, 15>(x, &u),
         };
         for (p, e) in strains.iter().enumerate() {
             assert_all_close(
@@ -196,6 +197,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex20 => stress_forces_by_quadrature::<Hex20, 20>(x, &sigma),
             Kind::Hex20R => stress_forces_by_quadrature::<Hex20Reduced, 20>(x, &sigma),
             Kind::Wedge6 => stress_forces_by_quadrature::<Wedge6, 6>(x, &sigma),
+            Kind::Wedge15 => stress_forces_by_quadrature::<Wedge15, 15>(x, &sigma),
         });
         let scale = max_abs(&k.data) * max_abs(&u);
         assert_all_close(&internal, &expected, 0.0, RELATIVE * scale, format_args!("{}: K u", case.name));
