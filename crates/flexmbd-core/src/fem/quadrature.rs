@@ -424,9 +424,9 @@ pub const TRIANGLE_DEGREE_4: [(f64, f64, f64); 6] = [
 // the area) and two orbits (a, a, 1 - 2a), a = (6 -+ sqrt 15) / 21, weights (155 -+ sqrt 15)
 // / 1200 of the area.
 const RADON_5_A1: f64 = 0.10128650732345634;
-const RADON_5_W1: f64 = 0.12593918054482715;
-const RADON_5_A2: f64 = 0.47014206410511509;
-const RADON_5_W2: f64 = 0.13239415278850618;
+const RADON_5_W1: f64 = 0.12593918054482714;
+const RADON_5_A2: f64 = 0.4701420641051151;
+const RADON_5_W2: f64 = 0.1323941527885062;
 
 /// Reference triangle, 7 points, exact to degree 5 (as (u, v, weight)).
 pub const TRIANGLE_DEGREE_5: [(f64, f64, f64); 7] = [

@@ -566,8 +566,9 @@ pub struct StartState {
     pub discrete: Option<Vec<f64>>,
     /// A state recorded by a run (`Result.state()`): its velocities are the integrator's,
     /// which satisfy the velocity constraints only to the step's error (generalized-alpha
-    /// enforces the positions). Their projection onto the constraints is then a
-    /// "continuation" event, neither an initial correction nor refused by strict settings.
+    /// enforces the positions; strategies that integrate every coordinate let the positions
+    /// drift too). Their projection onto the constraints is then a "continuation" event,
+    /// neither an initial correction nor refused by strict settings.
     pub recorded: bool,
 }
 
