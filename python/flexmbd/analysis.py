@@ -905,8 +905,10 @@ def _equilibrium(
             # first iteration's failure to converge.
             if isinstance(second, InvalidModelError) and not isinstance(failure, InvalidModelError):
                 raise second from None
-            if getattr(second, "still_moving", False):
-                raise second from None  # on its way: more iterations, not another start
+            if getattr(second, "still_moving", False) and isinstance(failure, EquilibriumError):
+                # On its way where Newton's method diverged: more iterations, not another
+                # start. (A singular start, a free body, keeps its own error.)
+                raise second from None
             raise failure from None
     if stable is None and state.stable is False and not np.any(state.velocities != 0.0):
         try:
@@ -948,6 +950,7 @@ def _solve_equilibrium(
     residual = np.zeros(nq + nc)
     kept_factors: dict[int, tuple[sp.csr_matrix, Any]] = {}
     steps: list[float] = []
+    residuals: list[float] = []
     # The discrete variables follow the iterates as a run's follow its steps: a spring whose
     # rest angle is beyond half a turn was unwrapped against its starting angle, never
     # reached its rest angle and Newton's method diverged.
@@ -1008,6 +1011,7 @@ def _solve_equilibrium(
         lam += delta[nq:]
         step = float(np.max(np.abs(delta[:nq]))) / scale
         steps.append(step)
+        residuals.append(float(np.max(np.abs(residual[unknowns]), initial=0.0)))
         if step <= tolerance and not truncated:
             qd, qdd = _prescribed_rates(model, time, q, rigid)
             discrete = model.discrete_variables(time, q, qd, discrete)
@@ -1050,15 +1054,23 @@ def _solve_equilibrium(
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
     what = " to a stable equilibrium" if seek else ""
     moving = ""
-    last = steps[-5:]
-    if seek and (
-        truncated or (len(last) == 5 and all(np.diff(last) <= 0.0) and last[-1] < last[0])
-    ):
-        # Still turning the bodies by the limit per iteration, or converging: on its way,
-        # not diverging (a spring whose rest angle is 20 rad away takes about 100 iterations).
+    last, falling = steps[-5:], residuals[-10:]
+    converging = len(last) == 5 and all(np.diff(last) <= 0.0) and last[-1] < last[0]
+    # (turning by the limit with the residual falling steadily: a free body pushed by a load
+    # turns by the limit too, its residual the same)
+    descending = (
+        truncated
+        and len(falling) == 10
+        and all(np.diff(falling) < 0.0)
+        and falling[-1] < 0.9 * falling[0]
+    )
+    if seek and (converging or descending):
+        # Converging, or turning the bodies by the limit per iteration towards the balance:
+        # on its way, not diverging (a spring whose rest angle is 20 rad away takes about
+        # 100 iterations).
         moving = (
             f": it was on its way (bodies turned by at most about {2 * SEEK_TURN_LIMIT:g} rad "
-            "per iteration, the last increments falling); raise max_iterations"
+            "per iteration, the residual falling); raise max_iterations"
         )
     error = EquilibriumError(
         f"equilibrium: no convergence{what} in {max_iterations} iterations (last relative "
