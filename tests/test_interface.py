@@ -171,6 +171,12 @@ def test_bad_sets_and_weights_are_typed_errors_naming_the_set():
         make_interface(x, elements, scattered, name="scattered")
     with pytest.raises(InvalidModelError, match="face.*no elements"):
         make_interface(x, elements, face, "volume", name="face")
+    # Weights of both signs that nearly cancel put the centroid far off the set (a beam's
+    # marker 249 m off its 1 m length was accepted).
+    cancelling = np.zeros(len(face))
+    cancelling[[0, -1]] = 1.0, -0.999
+    with pytest.raises(InvalidModelError, match="face: its weighted centroid .* nearly cancel"):
+        make_interface(x, elements, face, cancelling, name="face")
 
 
 def test_node_set_markers_sit_at_the_weighted_centroid_and_take_principal_axes(link, assert_close):

@@ -153,6 +153,10 @@ _EDGE_GROUPS["wedge15"] = (
     ("line3", tuple((p, q, 6 + e) for e, (p, q) in enumerate(WEDGE15_EDGES))),
 )
 _SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6", "wedge15")
+#: How far (a fraction of the diagonal of its nodes' box) an interface's weighted centroid
+#: may lie outside that box: a curved quadratic face's centroid can, by a little.
+OUTSIDE_LIMIT = 0.1
+
 #: Cells integrated at a time.
 _CHUNK = 16384
 
@@ -646,6 +650,21 @@ def make_interface(
         )
     w = raw / measure
     centroid = w @ nodes[members]
+    low, high = nodes[members].min(axis=0), nodes[members].max(axis=0)
+    outside = float(
+        np.linalg.norm(np.maximum(low - centroid, 0.0) + np.maximum(centroid - high, 0.0))
+    )
+    if outside > OUTSIDE_LIMIT * float(np.linalg.norm(high - low)):
+        # Weights of both signs that nearly cancel (consistent weights of quadratic faces have
+        # negative corners, but their centroid is the face's): 1, -0.999, 0 put a beam's
+        # marker 249 m off its 1 m length.
+        raise InvalidModelError(
+            f"{name}: its weighted centroid {np.round(centroid, 6).tolist()} lies "
+            f"{outside:.3g} outside the box of its nodes (size {np.linalg.norm(high - low):.3g}):"
+            f" the weights nearly cancel (sum {float(raw.sum()):.3g}, sum of magnitudes "
+            f"{float(np.abs(raw).sum()):.3g})",
+            item=name,
+        )
     arms = nodes[members] - centroid
     h = np.einsum("p,pi,pi->", w, arms, arms) * np.eye(3) - np.einsum("p,pi,pj->ij", w, arms, arms)
     values, vectors = np.linalg.eigh(0.5 * (h + h.T))
