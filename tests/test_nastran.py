@@ -15,7 +15,7 @@ from flexmbd.fe.nastran import parse_real, read_dmig
 STEEL = Material(2.1e11, 0.3, 7800.0)
 NASTRAN_NAMES = {
     "tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA", "hex20": "CHEXA", "quad4": "CQUAD4",
-    "tri3": "CTRIA3",
+    "tri3": "CTRIA3", "wedge6": "CPENTA", "wedge15": "CPENTA",
 }  # fmt: skip
 
 
@@ -71,6 +71,8 @@ def deck_of(mesh, form, *, aset=(), ids=None, shift=(0.0, 0.0, 0.0), system=None
                 grid[8], grid[9] = grid[9], grid[8]
             if kind == "hex20":  # G13-G16 on the vertical edges, G17-G20 on the top face's
                 grid = grid[:12] + grid[16:20] + grid[12:16]
+            if kind == "wedge15":  # G10-G12 on the vertical edges, G13-G15 on the top's
+                grid = grid[:9] + grid[12:15] + grid[9:12]
             lines.append(card(name, [eid, 1] + grid, form))
             eid += 1
     lines.append(card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], form))
@@ -152,7 +154,7 @@ def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
     third = lines.index(next(line for line in lines if line.startswith("CHEXA"))) + 2
     lines[third] = ",".join(lines[third].split(",")[:-1] + [""])
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(InvalidModelError, match="19 grids: .*CHEXA of 8 or 20"):
+    with pytest.raises(InvalidModelError, match="19 grids: .*CHEXA of 8 or 20 and CPENTA"):
         read_nastran(path)
 
 
@@ -176,6 +178,37 @@ def test_chexa20_grids_by_the_nastran_figure(tmp_path, assert_close):
     for e, (p, q) in enumerate(shapes.HEX20_EDGES):
         assert_close(nodes[8 + e], 0.5 * (nodes[p] + nodes[q]), abs=1e-15, what=f"edge {e}")
     assert_close(read_nastran(path).body().invariants.mass, 7800.0, rel=1e-12, what="mass")
+
+
+def test_cpenta_of_6_and_15_grids(tmp_path, assert_close):
+    # CPENTA was refused. G1-G3 a triangle, G4-G6 the other (G4 opposite G1); of 15 grids,
+    # G7-G9 on G1-G2, G2-G3, G3-G1, G10-G12 on G1-G4 .. G3-G6, G13-G15 on G4-G5, G5-G6,
+    # G6-G4 (the order of meshio's Nastran reader). A right prism written by hand as the
+    # figure numbers it: read, every wedge15 mid-edge node is the midpoint of its edge.
+    nastran_edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 4), (2, 5), (3, 4), (4, 5), (5, 3)]
+    points = [np.array(c, dtype=float) for c in
+              ((0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 2), (1, 0, 2), (0, 1, 2))]  # fmt: skip
+    points += [0.5 * (points[p] + points[q]) for p, q in nastran_edges]
+    lines = ["BEGIN BULK\n"] + [card("GRID", [k + 1, ""] + [float(v) for v in x], "large")
+                               for k, x in enumerate(points)]  # fmt: skip
+    lines.append(card("CPENTA", [1, 1] + list(range(1, 16)), "large"))
+    lines += [card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], "large"), card("PSOLID", [1, 1], "large")]
+    path = tmp_path / "prism.bdf"
+    path.write_text("".join(lines) + "ENDDATA\n")
+    mesh = read_nastran(path).mesh
+    nodes = mesh.nodes[mesh.elements["wedge15"][0]]
+    for e, (p, q) in enumerate(shapes.WEDGE15_EDGES):
+        assert_close(nodes[6 + e], 0.5 * (nodes[p] + nodes[q]), abs=1e-15, what=f"edge {e}")
+    assert_close(read_nastran(path).body().invariants.mass, 7800.0, rel=1e-12, what="mass")
+    # Meshes of both: the same elements and stiffness as the preprocessor's.
+    for kind in ("wedge6", "wedge15"):
+        prisms = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), kind)
+        path.write_text(deck_of(prisms, "free"))
+        deck = read_nastran(path)
+        np.testing.assert_array_equal(deck.mesh.elements[kind], prisms.elements[kind])
+        direct = pp.build_body(prisms.nodes, prisms.elements, STEEL)
+        assert_close(dense(deck.body().stiffness), dense(direct.stiffness),
+                     abs=1e-9 * direct.stiffness.max())  # fmt: skip
 
 
 def beam_deck(form, property_card):
