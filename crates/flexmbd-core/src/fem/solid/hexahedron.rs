@@ -5,7 +5,7 @@ use super::{Hex20, Hex20Reduced, Hex8, Isoparametric};
 use crate::fem::quadrature::{QuadraturePoint, HEXAHEDRON_GAUSS_2, HEXAHEDRON_GAUSS_3, HEXAHEDRON_GAUSS_4};
 
 impl Isoparametric<8> for Hex8 {
-    const NAME: &'static str = "Hex8";
+    const NAME: &'static str = "hex8";
     const NODES: [[f64; 3]; 8] = [
         [-1.0, -1.0, -1.0],
         [1.0, -1.0, -1.0],
@@ -113,7 +113,7 @@ fn hex20_reference_gradients(xi: [f64; 3]) -> [[f64; 3]; 20] {
 }
 
 impl Isoparametric<20> for Hex20 {
-    const NAME: &'static str = "Hex20";
+    const NAME: &'static str = "hex20";
     const NODES: [[f64; 3]; 20] = HEX20_NODES;
     const STIFFNESS_RULE: &'static [QuadraturePoint] = &HEXAHEDRON_GAUSS_3;
     const MASS_RULE: &'static [QuadraturePoint] = &HEXAHEDRON_GAUSS_4;
@@ -128,7 +128,7 @@ impl Isoparametric<20> for Hex20 {
 }
 
 impl Isoparametric<20> for Hex20Reduced {
-    const NAME: &'static str = "Hex20Reduced";
+    const NAME: &'static str = "hex20r";
     const NODES: [[f64; 3]; 20] = HEX20_NODES;
     const STIFFNESS_RULE: &'static [QuadraturePoint] = &HEXAHEDRON_GAUSS_2;
     const MASS_RULE: &'static [QuadraturePoint] = &HEXAHEDRON_GAUSS_4;

@@ -60,7 +60,7 @@ fn strain_matrix(x: &[Vec3], xi: [f64; 3], centre: &[[f64; 3]; 3]) -> ([[f64; AL
 
 /// The whole stiffness int [B_u, B_a]^T D [B_u, B_a] dV (33 x 33, upper triangle filled).
 fn full_stiffness(material: &Material, x: &[Vec3]) -> ElementResult<Vec<[f64; ALL]>> {
-    validate::<Hex8, 8>(x, Hex8::STIFFNESS_RULE)?;
+    named(validate::<Hex8, 8>(x, Hex8::STIFFNESS_RULE))?;
     let (centre, _) = cofactor_and_determinant_at::<Hex8, 8>(x, [0.0; 3]);
     let d = material.elasticity();
     let mut k = vec![[0.0; ALL]; ALL];
@@ -122,7 +122,19 @@ fn condensation(k: &[[f64; ALL]]) -> ElementResult<[[f64; U]; A]> {
 
 impl Hex8Incompatible {
     /// Element name for error messages.
-    const NAME: &'static str = "Hex8Incompatible";
+    const NAME: &'static str = "hex8i";
+}
+
+/// `result` of a routine of [`Hex8`] run for this element, its errors naming this element
+/// (they said "a hex8 element" of a hex8i).
+fn named<T>(result: ElementResult<T>) -> ElementResult<T> {
+    let rename = |detail: String| {
+        detail.replace(&format!("a {} element", Hex8::NAME), &format!("a {} element", Hex8Incompatible::NAME))
+    };
+    result.map_err(|error| match error {
+        ElementError::Degenerate { detail } => ElementError::Degenerate { detail: rename(detail) },
+        ElementError::Invalid { detail } => ElementError::Invalid { detail: rename(detail) },
+    })
 }
 
 impl ElementKernel for Hex8Incompatible {
@@ -158,7 +170,7 @@ impl ElementKernel for Hex8Incompatible {
     }
 
     fn mass_points(&self, material: &Material, x: &[Vec3], out: &mut Vec<MassPoint>) -> ElementResult<()> {
-        mass::mass_points::<Hex8, 8>(material, x, out)
+        named(mass::mass_points::<Hex8, 8>(material, x, out))
     }
 
     fn lumped_mass_points(
@@ -167,11 +179,11 @@ impl ElementKernel for Hex8Incompatible {
         x: &[Vec3],
         out: &mut Vec<MassPoint>,
     ) -> ElementResult<()> {
-        mass::lumped_mass_points::<Hex8, 8>(material, x, out)
+        named(mass::lumped_mass_points::<Hex8, 8>(material, x, out))
     }
 
     fn volume(&self, x: &[Vec3]) -> ElementResult<f64> {
-        mass::volume::<Hex8, 8>(x)
+        named(mass::volume::<Hex8, 8>(x))
     }
 
     fn nodal_stresses(

@@ -16,7 +16,7 @@ const BARYCENTRIC_GRADIENTS: [[f64; 3]; 4] =
     [[-1.0, -1.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 impl Isoparametric<4> for Tet4 {
-    const NAME: &'static str = "Tet4";
+    const NAME: &'static str = "tet4";
     const NODES: [[f64; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     const STIFFNESS_RULE: &'static [QuadraturePoint] = &TETRAHEDRON_DEGREE_1;
     const MASS_RULE: &'static [QuadraturePoint] = &TETRAHEDRON_DEGREE_2;
@@ -31,7 +31,7 @@ impl Isoparametric<4> for Tet4 {
 }
 
 impl Isoparametric<10> for Tet10 {
-    const NAME: &'static str = "Tet10";
+    const NAME: &'static str = "tet10";
     const NODES: [[f64; 3]; 10] = [
         [0.0, 0.0, 0.0],
         [1.0, 0.0, 0.0],

@@ -11,7 +11,7 @@ use crate::fem::quadrature::{
 };
 
 impl Isoparametric<6> for Wedge6 {
-    const NAME: &'static str = "Wedge6";
+    const NAME: &'static str = "wedge6";
     const NODES: [[f64; 3]; 6] = [
         [0.0, 0.0, -1.0],
         [1.0, 0.0, -1.0],
@@ -77,7 +77,7 @@ const WEDGE15_NODES: [[f64; 3]; 15] = {
 const BARYCENTRIC_GRADIENTS: [[f64; 2]; 3] = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
 
 impl Isoparametric<15> for Wedge15 {
-    const NAME: &'static str = "Wedge15";
+    const NAME: &'static str = "wedge15";
     const NODES: [[f64; 3]; 15] = WEDGE15_NODES;
     // B^T D B: degree 4 in (u, v) and in w on a wedge of constant Jacobian (exact there).
     const STIFFNESS_RULE: &'static [QuadraturePoint] = &WEDGE_TRIANGLE_4_GAUSS_3;

@@ -74,4 +74,9 @@ fn flat_element_is_refused_with_the_element_named() {
     let mut k = DenseMatrix::default();
     let error = Hex8Incompatible.stiffness(&steel(), &flat, &mut k).unwrap_err();
     assert!(matches!(error, ElementError::Degenerate { .. }), "{error:?}");
+    // Named as the user's element type (it said "a Hex8 element", the routine's).
+    assert!(error.to_string().contains("of a hex8i element"), "{error}");
+    let mut points = Vec::new();
+    let error = Hex8Incompatible.mass_points(&steel(), &flat, &mut points).unwrap_err();
+    assert!(error.to_string().contains("of a hex8i element"), "{error}");
 }
