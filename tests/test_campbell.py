@@ -101,6 +101,12 @@ def test_a_bob_on_a_free_hinge_of_a_turning_hub(hinge, assert_close):
     assert_close((2 * np.pi * linear.frequencies()) ** 2, [100.0 * ratio], rel=1e-6)
     diagram = campbell(system, "drive", speeds, modes=1)
     assert_close(2 * np.pi * diagram.frequencies[:, 0], speeds * np.sqrt(ratio), rel=1e-6)
+    if hinge == "lag":
+        # From rest: the lag hinge is free there ("0 oscillating modes at 0 rad/s"); the
+        # diagram takes the limit W -> 0 of its frequency.
+        diagram = campbell(system, "drive", [0.0, *speeds], modes=1)
+        assert diagram.frequencies[0, 0] < 1e-5
+        assert_close(2 * np.pi * diagram.frequencies[1:, 0], speeds * np.sqrt(ratio), rel=1e-6)
 
 
 def test_critical_speeds_are_the_crossings_of_the_order_lines(assert_close):

@@ -323,6 +323,11 @@ def _angle_driver(system: Any, driver: str) -> None:
             )
 
 
+#: The speed, relative to the fastest of a diagram, at which :func:`campbell` takes the modes
+#: of a rotor at rest that has free motions there (their limit at W -> 0).
+ZERO_SPEED = 1e-6
+
+
 def campbell(
     system: Any,
     driver: str,
@@ -395,14 +400,27 @@ def campbell(
 
     frequencies, damping, shapes, mac, whirl, ratios = [], [], [], [], [], []
     followed = None
-    for w in track_progress(speeds, progress, "campbell diagram", unit="speeds"):
+
+    def modes_at(w: float) -> tuple[Array, Array, Array]:
         turning = system.with_driver(driver, Polynomial([start - w * time, float(w)]))
         model = turning.compile()
         state = steady_rotation(model, time) if w != 0.0 else equilibrium(model, time)
         linear = linearize(model, state, independent="elastic")
         if not gyroscopic:
             linear = linear.without_velocity_terms()
-        f, zeta, phi = linear.oscillating(relative_floor=0.0)
+        return linear.oscillating(relative_floor=0.0)
+
+    fastest = float(np.max(np.abs(speeds), initial=0.0))
+    for w in track_progress(speeds, progress, "campbell diagram", unit="speeds"):
+        f, zeta, phi = modes_at(w)
+        if w == 0.0 and len(f) < count + EXTRA_CANDIDATES and fastest > 0.0:
+            # At rest a mode that the spin stiffens may be a free motion (a blade on a free
+            # lag hinge: no oscillation, "0 oscillating modes at 0 rad/s"): the diagram's
+            # limit at W -> 0, a turn of ZERO_SPEED of the fastest speed, gives it (its
+            # frequency ~ W).
+            slow = modes_at(ZERO_SPEED * fastest)
+            if len(slow[0]) > len(f):
+                f, zeta, phi = slow
         # Candidates: the modes of the lowest |s| (the undamped frequency), not of the lowest
         # damped frequency, which heavily damped stiff modes would crowd.
         natural = f / np.sqrt(np.clip(1.0 - zeta**2, 1e-300, None))
