@@ -953,3 +953,21 @@ def test_a_run_continued_from_a_drifted_recorded_state_is_a_continuation():
                            initial_state=first.state(), initial_conditions="strict")  # fmt: skip
     said = [e["message"] for e in rest.events if e["kind"] == "continuation"]
     assert any("positions of the recorded state" in m for m in said), said
+
+
+def test_a_point_mass_on_a_prismatic_joint_has_an_equilibrium(assert_close):
+    # The joint's three rotation equations are identically zero for a point mass: the runs
+    # remove them as redundant, the equilibrium kept them in Newton's matrix ("3 directions
+    # without stiffness", though the joint and the spring hold every direction).
+    m, k, f0, g = 2.0, 800.0, 5.0, 9.81
+    turn = fm.rotation("x", np.pi / 2)  # the slide along global y
+    system = fm.System(gravity=(0, -g, 0))
+    mass = system.add_point_mass(m, position=(0, -1.0, 0))
+    system.add_spring_damper(system.add_marker(system.ground), system.add_marker(mass),
+                             stiffness=k, rest_length=1.0, preload=f0)  # fmt: skip
+    system.add_prismatic_joint(system.add_marker(system.ground, orientation=turn),
+                               system.add_marker(mass, orientation=turn))  # fmt: skip
+    state = fm.equilibrium(system)
+    assert_close(state.position(mass), [0, -(1 + (m * g - f0) / k), 0], abs=1e-12)
+    found = fm.linearize(system, state).frequencies()
+    assert_close(2 * np.pi * found, [np.sqrt(k / m)], rel=1e-9, what="frequency")

@@ -425,12 +425,19 @@ def _independent_rows(a: sp.csc_matrix, nq: int, current: NDArray[np.int64]) -> 
     used = np.flatnonzero(np.diff(jacobian.indptr))
     dense = jacobian[:, used].toarray()
     lengths = np.linalg.norm(dense, axis=1)
-    if nc == 0 or not np.all(np.isfinite(dense)) or np.any(lengths == 0.0):
+    if nc == 0 or not np.all(np.isfinite(dense)):
         return current
-    dense /= lengths[:, None]
+    # Rows that are identically zero (the rotation equations of a prismatic joint on a point
+    # mass, which has no rotation) are dependent on any others: they were kept, and Newton's
+    # matrix was singular ("3 directions without stiffness") though the runs remove them.
+    nonzero = np.flatnonzero(lengths > 0.0)
+    dense[nonzero] /= lengths[nonzero, None]
 
     def pivoted(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], float]:
         """The independent ones of `rows`, and their smallest pivot over the largest."""
+        rows = rows[lengths[rows] > 0.0]
+        if not len(rows):
+            return rows, 0.0
         r, pivots = sla.qr(dense[rows].T, mode="r", pivoting=True)
         diagonal = np.abs(np.diag(r))
         if not diagonal.size or diagonal[0] == 0.0:
@@ -438,8 +445,8 @@ def _independent_rows(a: sp.csc_matrix, nq: int, current: NDArray[np.int64]) -> 
         rank = int(np.sum(diagonal > RANK_TOLERANCE * diagonal[0]))
         return rows[pivots[:rank]], float(diagonal[rank - 1] / diagonal[0])
 
-    best, best_ratio = pivoted(np.arange(nc))
-    if len(current) == len(best):
+    best, best_ratio = pivoted(nonzero)
+    if len(current) == len(best) and np.all(lengths[current] > 0.0):
         kept, ratio = pivoted(current)
         if len(kept) == len(current) and ratio >= REPIVOT_RATIO * best_ratio:
             return current
