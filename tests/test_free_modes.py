@@ -130,3 +130,28 @@ def test_at_rest_with_loads_the_joints_carry_them(assert_close):
     assert at_rest.free_motions() == 0
     about_equilibrium = fm.linearize(system, fm.equilibrium(system)).frequencies()
     assert_close(at_rest.frequencies(), about_equilibrium, rel=1e-12, what="against equilibrium")
+
+
+def test_free_motions_are_counted_exactly_whatever_their_round_off(assert_close):
+    # Two free bodies (J 0.2 and 0.5) on a hinge with a torsional spring of 30 N m/rad: six
+    # free motions and one mode, sqrt(k (J1 + J2) / (J1 J2)). In the first-order matrix a
+    # free motion is a defective double zero, which LAPACK returned as +-1e-7: 5 free motions
+    # and a "mode" of 1.3e-8 Hz. Two bodies joined by a spring: 11 free motions.
+    j1, j2, k = 0.2, 0.5, 30.0
+    system = fm.System()
+    a = system.add_rigid_body(1.0, (j1, j1, j1))
+    b = system.add_rigid_body(1.0, (j2, j2, j2), position=(0, 0, 0.5))
+    pair = system.add_marker(a, position=(0, 0, 0.25)), system.add_marker(b, position=(0, 0, -0.25))
+    system.add_revolute_joint(*pair)
+    system.add_rotational_spring_damper(*pair, stiffness=k)
+    linear = fm.linearize_at_rest(system)
+    assert linear.free_motions() == 6
+    expected = np.sqrt(k * (j1 + j2) / (j1 * j2)) / (2 * np.pi)
+    assert_close(linear.frequencies(), [expected], rel=1e-10, what="torsion")
+    system = fm.System()
+    a = system.add_rigid_body(2.0, (0.1, 0.1, 0.1))
+    b = system.add_rigid_body(3.0, (0.1, 0.1, 0.1), position=(1, 0, 0))
+    system.add_spring_damper(system.add_marker(a), system.add_marker(b), stiffness=500.0)
+    linear = fm.linearize_at_rest(system)
+    assert linear.free_motions() == 11
+    assert_close(linear.frequencies(), [np.sqrt(500 * 5 / 6) / (2 * np.pi)], rel=1e-10)

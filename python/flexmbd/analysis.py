@@ -1196,18 +1196,30 @@ class LinearizedSystem:
 
     def eigenvalues(self) -> tuple[Array, Array]:
         """Eigenvalues s (1/s) of the first-order form, sorted by |Im s| then Re s, and the
-        mode shapes in the coordinates q (columns)."""
+        mode shapes in the coordinates q (columns). The motions with neither stiffness nor
+        damping (K z = D z = 0: the rigid-body motions of a free structure) are taken out
+        first, each an exact double zero: in the first-order matrix such a pair is defective,
+        and LAPACK returned it as +-sqrt(eps |A|), about 1e-7 (a free torsional pair counted 5
+        free motions and a mode of 1e-8 Hz)."""
         import scipy.linalg as sla
 
         if self._eigen is None:
             n = self.mass.shape[0]
-            minv_k = np.linalg.solve(self.mass, self.stiffness)
-            minv_d = np.linalg.solve(self.mass, self.damping)
-            a = np.block([[np.zeros((n, n)), np.eye(n)], [-minv_k, -minv_d]])
-            values, vectors = sla.eig(a)
+            free = _free_directions(self.stiffness, self.damping)
+            # The rest: the M-orthogonal complement of the free directions, decoupled from
+            # them where K and D are symmetric or skew (their rows N^T K = N^T D = 0 too).
+            rest = sla.null_space((self.mass @ free).T) if free.shape[1] else np.eye(n)
+            m, d, k = (rest.T @ a @ rest for a in (self.mass, self.damping, self.stiffness))
+            r = rest.shape[1]
+            minv_k = np.linalg.solve(m, k)
+            minv_d = np.linalg.solve(m, d)
+            a = np.block([[np.zeros((r, r)), np.eye(r)], [-minv_k, -minv_d]])
+            values, vectors = sla.eig(a) if r else (np.zeros(0, complex), np.zeros((0, 0)))
+            values = np.concatenate([np.zeros(2 * free.shape[1], dtype=complex), values])
+            shapes = np.hstack([free, free, rest @ vectors[:r]]).astype(complex)
             order = np.lexsort((values.real, np.abs(values.imag)))
-            values, vectors = values[order], vectors[:, order]
-            self._eigen = (values, self.basis @ vectors[:n])
+            values, shapes = values[order], shapes[:, order]
+            self._eigen = (values, self.basis @ shapes)
         return self._eigen
 
     def without_velocity_terms(self) -> LinearizedSystem:
@@ -1267,6 +1279,27 @@ class LinearizedSystem:
         # Rotate each complex shape so that its largest entry is real.
         peak = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
         return freq, np.real(shapes / (peak / np.abs(peak)))
+
+
+#: Singular values of [K; D] below this fraction of the largest are the free motions of
+#: :meth:`LinearizedSystem.eigenvalues` (a free body's are round-off, 1e-16 relative).
+FREE_DIRECTION = 1e-11
+
+
+def _free_directions(stiffness: Array, damping: Array) -> Array:
+    """An orthonormal basis (n, r) of the directions z with K z = 0 and D z = 0."""
+    import scipy.linalg as sla
+
+    n = stiffness.shape[0]
+    stacked = np.vstack([stiffness, damping])
+    if n == 0 or not np.all(np.isfinite(stacked)):
+        return np.zeros((n, 0))
+    _, values, rows = sla.svd(stacked)
+    largest = float(values[0]) if len(values) else 0.0
+    if largest == 0.0:
+        return np.eye(n)
+    rank = int(np.sum(values > FREE_DIRECTION * largest))
+    return rows[rank:].T.copy()
 
 
 def _floor(value: Any) -> float:
