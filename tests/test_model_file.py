@@ -894,3 +894,24 @@ def test_warnings_of_building_point_to_the_model_file_line(tmp_path):
         load_model(path)
     (warning,) = [w for w in caught if issubclass(w.category, fm.InertiaWarning)]
     assert (warning.filename, warning.lineno) == (str(path), 3)
+
+
+def test_an_actuators_effort_sensor_is_an_output(tmp_path, assert_close):
+    # A joint actuator's effort is recorded as the sensor "NAME effort" (docs/joints.md), and
+    # the run's result has it, but an output naming it was refused: "unknown sensor".
+    text = (
+        "bodies:\n  - {name: arm, type: rigid, mass: 1.0, inertia: [0.1, 0.1, 0.1]}\n"
+        "markers:\n  - {name: pivot, body: ground}\n  - {name: root, body: arm}\n"
+        "joints:\n  - {name: hinge, type: revolute, marker1: pivot, marker2: root}\n"
+        "forces:\n  - {name: servo, type: joint-actuator, joint: hinge, set_point: 1.0,\n"
+        "     proportional_gain: 10.0, derivative_gain: 1.0, limit: 5.0}\n"
+        "simulation: {end_time: 0.5, step_size: 1.0e-3, output_interval: 0.1}\n"
+        "outputs:\n  - sensor: servo effort\n"
+    )
+    path = tmp_path / "servo.yaml"
+    path.write_text(text)
+    model = load_model(path)
+    result = simulate_model(model)
+    values = np.asarray(model.output_values(result)["servo effort"]).ravel()
+    assert_close(values, result.sensor("servo effort")[:, 0], rel=0, abs=0)
+    assert values[0] == 5.0  # saturated at the start (10 N m/rad x 1 rad, limit 5)

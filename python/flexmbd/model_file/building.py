@@ -317,6 +317,8 @@ class _Builder:
         self.joints: dict[str, _core.JointId] = {}
         self.forces: dict[str, _core.ForceId] = {}
         self.sensors: dict[str, _core.SensorId] = {}
+        #: The sensors "NAME effort" of the named joint actuators.
+        self.effort_sensors: list[str] = []
         self.first: dict[tuple[str, str], Path_] = {}
         # Entry of `functions` -> the function it stands for (not a name) and its key path.
         self.targets: dict[str, tuple[Any, Path_]] = {}
@@ -920,6 +922,9 @@ class _Builder:
                 )
             elif isinstance(spec, JointActuatorSpec):
                 force = self.add_actuator(spec, path)
+                if spec.name is not None:
+                    # (its effort, recorded as the sensor "NAME effort", is an output too)
+                    self.effort_sensors.append(f"{spec.name} effort")
             else:
                 first = self.marker(spec.marker1, path + ("marker1",))
                 second = self.marker(spec.marker2, path + ("marker2",))
@@ -1079,7 +1084,8 @@ class _Builder:
                 f"(got {value_text(quantity)})",
             )
         item = getattr(spec, kind) if kind != "system" else None
-        known = {"sensor": self.sensors, "body": self.bodies, "joint": self.joints}.get(kind)
+        sensors = {**self.sensors, **dict.fromkeys(self.effort_sensors)}
+        known = {"sensor": sensors, "body": self.bodies, "joint": self.joints}.get(kind)
         if known is not None and item not in known:
             raise self.fail(
                 path + (kind,),
