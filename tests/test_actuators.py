@@ -259,6 +259,10 @@ def test_the_effort_is_recorded_and_plotted(assert_close, tmp_path):
     np.testing.assert_array_equal(line.get_ydata(), effort)
     ax = plotting.plot_sensor(result, "servo effort")
     assert ax.get_ylabel().startswith("actuator torque (N m)")
+    # A scalar: (n, 1), labelled by its name in tables (it was "servo effort.x").
+    assert result.sensor("servo effort").shape == (len(result), 1)
+    assert "servo effort" in result._sensor_labels()
+    assert "servo effort.x" not in result._sensor_labels()
 
 
 def test_the_effort_is_found_by_the_id_add_joint_actuator_returned(assert_close):

@@ -499,7 +499,8 @@ class Result:
 
     # Sensors ---------------------------------------------------------------------------
     def sensor(self, sensor: object) -> Array:
-        """Values of a sensor: (n, 3), or (n, 3, 3) for an orientation."""
+        """Values of a sensor: (n, 3), (n, 3, 3) for an orientation, (n, 1) for an actuator's
+        effort (the sensor "NAME effort")."""
         _, s = self._lookup("sensors", sensor, _core.SensorId)
         values = self._sensors[:, s["offset"] : s["offset"] + s["size"]]
         if s["size"] == 9:
@@ -546,10 +547,14 @@ class Result:
 
     def _sensor_labels(self) -> list[str]:
         """A label per sensor value: "tip.x" of a vector, "tip.xy" (row x, column y) of an
-        orientation matrix."""
+        orientation matrix, the name alone of a scalar (an actuator's "servo effort"; it was
+        "servo effort.x")."""
         labels = [""] * self._sensors.shape[1]
         for sensor in self.layout["sensors"]:
             size = sensor["size"]
+            if size == 1:
+                labels[sensor["offset"]] = sensor["name"]
+                continue
             parts = [a + b for a in "xyz" for b in "xyz"] if size == 9 else list("xyz")[:size]
             if len(parts) != size:
                 parts = [str(k) for k in range(size)]
