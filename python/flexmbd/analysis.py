@@ -30,7 +30,7 @@ from .errors import (
     InvalidModelError,
     InvalidParameterError,
 )
-from .rotation import angular_velocity
+from .rotation import angular_velocity, euler_parameter_rates, euler_parameters_to_matrix, skew
 from .state import EquilibriumState, State
 from .state_space import (
     BodyPosition,
@@ -205,17 +205,12 @@ def _carried_rates(
         target_qd[o : o + 3], target_qdd[o : o + 3] = v, a
         if count >= 7:
             p = q[o + 3 : o + 7]
-            pd = _euler_rates(p, w)
+            pd = euler_parameter_rates(p, w)
             target_qd[o + 3 : o + 7] = pd
-            target_qdd[o + 3 : o + 7] = _euler_rates(pd, w) + _euler_rates(p, alpha)
+            target_qdd[o + 3 : o + 7] = euler_parameter_rates(pd, w) + euler_parameter_rates(
+                p, alpha
+            )
     return target_qd, target_qdd
-
-
-def _euler_rates(p: Array, omega: Array) -> Array:
-    """1/2 E(p)^T omega: the Euler-parameter rates of the global angular velocity omega (and,
-    with p_dot for p, the part of p_dd that omega's own rate leaves out)."""
-    e0, e = p[0], p[1:]
-    return 0.5 * np.concatenate([[-e @ omega], e0 * omega - np.cross(e, omega)])
 
 
 #: Largest violation of a driver's equations at the start of `equilibrium` (rad or m): beyond
@@ -1368,37 +1363,34 @@ def _frame_transform(
     spinning on its axis relative to everything it is joined to) take global axes instead,
     dR and dp = 1/2 E(p)^T dpi: seen from their own turning frame, the gimbals that hold
     such a rotor turn, and their equations were periodic."""
-    from .rotation import euler_parameters_to_matrix
-
     nq = layout["coordinate_count"]
-    columns: list[Array] = []
-    elastic: list[bool] = []
-    for index, b in enumerate(layout["bodies"]):
+    frames = [b["kind"] in ("rigid", "flexible") and b["count"] >= 7 for b in layout["bodies"]]
+    transform = np.zeros((nq, nq - sum(frames)))
+    elastic = np.zeros(transform.shape[1], dtype=bool)
+    column = 0
+    for index, (b, frame) in enumerate(zip(layout["bodies"], frames, strict=True)):
         offset, count = b["offset"], b["count"]
-        if b["kind"] in ("rigid", "flexible") and count >= 7:
-            p = q[offset + 3 : offset + 7]
-            e0, e = p[0], p[1:]
-            skew = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
-            block = np.zeros((nq, 6))
-            if index in spinning:
-                block[offset : offset + 3, :3] = np.eye(3)
-                skew = -skew  # (E(p)^T: e0 I - e~)
-            else:
-                block[offset : offset + 3, :3] = euler_parameters_to_matrix(p)
-            block[offset + 3, 3:] = -0.5 * e
-            block[offset + 4 : offset + 7, 3:] = 0.5 * (e0 * np.eye(3) + skew)
-            columns.append(block)
-            elastic.extend([False] * 6)
-            rest = range(offset + 7, offset + count)
-        else:
-            rest = range(offset, offset + count)
-        for k in rest:
-            column = np.zeros((nq, 1))
-            column[k, 0] = 1.0
-            columns.append(column)
-            elastic.append(b["kind"] == "flexible")
-    transform = np.hstack(columns) if columns else np.zeros((nq, 0))
-    return transform, np.array(elastic, dtype=bool)
+        if frame:
+            block = _frame_block(q[offset + 3 : offset + 7], index in spinning)
+            transform[offset : offset + 7, column : column + 6] = block
+            column += 6
+        rest = count - 7 if frame else count
+        first = offset + count - rest
+        transform[first : first + rest, column : column + rest] = np.eye(rest)
+        elastic[column : column + rest] = b["kind"] == "flexible"
+        column += rest
+    return transform, elastic
+
+
+def _frame_block(p: Array, global_axes: bool) -> Array:
+    """The (7, 6) map from a frame's change of origin and small rotation to the change of its
+    coordinates [R, p]: in its own axes (dR = A(p) dR_bar, dp = 1/2 G(p)^T dpi_bar), or with
+    `global_axes` in global ones (dR, dp = 1/2 E(p)^T dpi)."""
+    frame = "global" if global_axes else "body"
+    block = np.zeros((7, 6))
+    block[:3, :3] = np.eye(3) if global_axes else euler_parameters_to_matrix(p)
+    block[3:, 3:] = np.column_stack([euler_parameter_rates(p, axis, frame) for axis in np.eye(3)])
+    return block
 
 
 #: Relative tolerance of :func:`_spinning_bodies`: of a rotor's inertia against its symmetry
@@ -1406,16 +1398,15 @@ def _frame_transform(
 SPIN_SYMMETRY = 1e-9
 
 
-def _spinning_bodies(model: _core.Model, layout: dict[str, Any], state: Any) -> frozenset[int]:
+def _spinning_bodies(layout: dict[str, Any], state: Any, mass: sp.csc_matrix) -> frozenset[int]:
     """The rigid bodies of `state` that spin about an axis of symmetry through their origin,
     relative to every body joined to them (a rotor in gimbals or bearings; not a disc welded
     to a turning shaft, nor a hub that carries hinged blades round): the origin at rest,
     the inertia in global axes (the mass matrix in dR, dpi) unchanged by a turn about the
     spin axis, and no body joined to it turning at its rate. The motion of such a body's
     mass does not depend on its spin angle, so its small motions in global axes are those
-    of time-invariant equations."""
-    from .rotation import angular_velocity
-
+    of time-invariant equations. `mass`: the model's mass matrix M at `state` (coordinates
+    x coordinates)."""
     q = np.asarray(state.coordinates, dtype=float)
     qd = np.asarray(state.velocities, dtype=float)
     spins: dict[int, Array] = {}
@@ -1434,12 +1425,6 @@ def _spinning_bodies(model: _core.Model, layout: dict[str, Any], state: Any) -> 
         for i, b in enumerate(layout["bodies"])
         if b["kind"] == "rigid" and i in spins and np.linalg.norm(spins[i]) > 0.0
     ]
-    if not candidates:
-        return frozenset()
-    nq, nc = model.coordinate_count, model.constraint_count
-    mass = _matrix(
-        model.evaluate(state.time, q, qd, np.zeros(nq), np.zeros(nc), mass=1.0)
-    ).toarray()
     found = set()
     for i in candidates:
         o, w = layout["bodies"][i]["offset"], spins[i]
@@ -1453,18 +1438,10 @@ def _spinning_bodies(model: _core.Model, layout: dict[str, Any], state: Any) -> 
             for j in joined.get(i, ())
         ):
             continue  # it turns with a body joined to it (welded, or carrying it)
-        e0, e = q[o + 3], q[o + 4 : o + 7]
-        skew = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
-        to_q = np.zeros((7, 6))
-        to_q[:3, :3] = np.eye(3)
-        to_q[3, 3:] = -0.5 * e
-        to_q[4:, 3:] = 0.5 * (e0 * np.eye(3) - skew)
-        inertia = to_q.T @ mass[o : o + 7, o : o + 7] @ to_q
-        axis = w / rate
+        to_q = _frame_block(q[o + 3 : o + 7], global_axes=True)
+        inertia = to_q.T @ mass[o : o + 7, o : o + 7].toarray() @ to_q
         turn = np.zeros((6, 6))
-        turn[:3, :3] = turn[3:, 3:] = np.array(
-            [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
-        )
+        turn[:3, :3] = turn[3:, 3:] = skew(w / rate)
         if np.linalg.norm(inertia @ turn - turn @ inertia) <= SPIN_SYMMETRY * np.linalg.norm(
             inertia
         ):
@@ -1472,7 +1449,7 @@ def _spinning_bodies(model: _core.Model, layout: dict[str, Any], state: Any) -> 
     return frozenset(found)
 
 
-def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
+def moving_basis(model: _core.Model, state: Any, mass: sp.csc_matrix) -> tuple[Array, Array, Array]:
     """The basis B (coordinates x independent coordinates) of the motions that keep the
     constraints about `state`, and its first and second time derivatives along the state's
     motion. B = T(q) B_y: T maps the local coordinates of :func:`_frame_transform` (a frame's
@@ -1485,13 +1462,13 @@ def moving_basis(model: _core.Model, state: Any) -> tuple[Array, Array, Array]:
     differences along q(t +- h) = q +- h q_dot + h^2 / 2 q_dd, the step h a turn of
     :data:`BASIS_TURN` rad of the fastest reference coordinate (second order in h: the odd
     terms of the path cancel); they vanish at rest. Dense: (coordinates x independent
-    coordinates) each."""
+    coordinates) each. `mass`: M at `state` (for :func:`_spinning_bodies`)."""
     layout = model.describe()
     time, q = state.time, np.asarray(state.coordinates, dtype=float)
     velocity = np.asarray(state.velocities, dtype=float)
     acceleration = np.asarray(state.accelerations, dtype=float)
 
-    spinning = _spinning_bodies(model, layout, state)
+    spinning = _spinning_bodies(layout, state, mass)
 
     def local_jacobian(t: float, at: Array) -> tuple[Array, Array, NDArray[np.bool_]]:
         transform, local_elastic = _frame_transform(layout, at, spinning)
@@ -1641,7 +1618,7 @@ def linearize(
     k = _matrix(model.evaluate(*args, position=1.0, discrete=discrete))
     cq = m[nq:, :nq].toarray()
     if independent == "elastic":
-        basis, rate, curvature = moving_basis(model, state)
+        basis, rate, curvature = moving_basis(model, state, m[:nq, :nq])
     else:
         basis = sla.null_space(cq) if cq.shape[0] else np.eye(nq)
         rate = curvature = np.zeros_like(basis)

@@ -22,8 +22,14 @@ def rotation(axis: ArrayLike | str, angle: float) -> NDArray[np.float64]:
         if not np.isfinite(norm) or norm == 0.0:
             raise ValueError(f"axis must be a non-zero finite 3-vector, got {axis!r}")
         a = a / norm
-    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    k = skew(a)
     return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def skew(v: ArrayLike) -> NDArray[np.float64]:
+    """The cross-product matrix of the 3-vector `v`: skew(v) @ w = v x w."""
+    a = np.asarray(v, dtype=float)
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
 def euler_parameters_to_matrix(p: ArrayLike) -> NDArray[np.float64]:
