@@ -45,26 +45,8 @@ pub const HEX20_EDGES: [[usize; 2]; 12] =
 
 /// Reference coordinates of the 20 nodes: the corners of [`Hex8`], then the midpoints of
 /// [`HEX20_EDGES`].
-const HEX20_NODES: [[f64; 3]; 20] = {
-    let c = <Hex8 as Isoparametric<8>>::NODES;
-    let mut nodes = [[0.0; 3]; 20];
-    let mut a = 0;
-    while a < 8 {
-        nodes[a] = c[a];
-        a += 1;
-    }
-    let mut e = 0;
-    while e < 12 {
-        let [p, q] = HEX20_EDGES[e];
-        let mut k = 0;
-        while k < 3 {
-            nodes[8 + e][k] = 0.5 * (c[p][k] + c[q][k]);
-            k += 1;
-        }
-        e += 1;
-    }
-    nodes
-};
+const HEX20_NODES: [[f64; 3]; 20] =
+    corners_and_midpoints!(<Hex8 as Isoparametric<8>>::NODES, HEX20_EDGES, 20);
 
 /// The serendipity shape functions of the 20-node hexahedron at `xi`: at a corner s (+-1
 /// each) N = (1 + xi s_0)(1 + eta s_1)(1 + zeta s_2)(xi s_0 + eta s_1 + zeta s_2 - 2) / 8, at

@@ -63,6 +63,33 @@ use crate::fem::quadrature::QuadraturePoint;
 use crate::math::dense::DenseMatrix;
 use crate::math::Vec3;
 
+/// The reference coordinates of a quadratic element's `$n` nodes: the corners `$corners`,
+/// then the midpoints of the corner pairs `$edges` (a const item's initializer: a `const fn`
+/// may not do float arithmetic at the crate's MSRV).
+macro_rules! corners_and_midpoints {
+    ($corners:expr, $edges:expr, $n:literal) => {{
+        let c = $corners;
+        let edges = $edges;
+        let mut nodes = [[0.0; 3]; $n];
+        let mut a = 0;
+        while a < c.len() {
+            nodes[a] = c[a];
+            a += 1;
+        }
+        let mut e = 0;
+        while e < edges.len() {
+            let [p, q] = edges[e];
+            let mut k = 0;
+            while k < 3 {
+                nodes[c.len() + e][k] = 0.5 * (c[p][k] + c[q][k]);
+                k += 1;
+            }
+            e += 1;
+        }
+        nodes
+    }};
+}
+
 mod geometry;
 mod hexahedron;
 mod incompatible;

@@ -52,26 +52,8 @@ pub const WEDGE15_EDGES: [[usize; 2]; 9] =
 
 /// Reference coordinates of the 15 nodes: the corners of [`Wedge6`], then the midpoints of
 /// [`WEDGE15_EDGES`].
-const WEDGE15_NODES: [[f64; 3]; 15] = {
-    let c = <Wedge6 as Isoparametric<6>>::NODES;
-    let mut nodes = [[0.0; 3]; 15];
-    let mut a = 0;
-    while a < 6 {
-        nodes[a] = c[a];
-        a += 1;
-    }
-    let mut e = 0;
-    while e < 9 {
-        let [p, q] = WEDGE15_EDGES[e];
-        let mut k = 0;
-        while k < 3 {
-            nodes[6 + e][k] = 0.5 * (c[p][k] + c[q][k]);
-            k += 1;
-        }
-        e += 1;
-    }
-    nodes
-};
+const WEDGE15_NODES: [[f64; 3]; 15] =
+    corners_and_midpoints!(<Wedge6 as Isoparametric<6>>::NODES, WEDGE15_EDGES, 15);
 
 /// Gradients (d/du, d/dv) of the barycentric coordinates L = (1 - u - v, u, v).
 const BARYCENTRIC_GRADIENTS: [[f64; 2]; 3] = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];

@@ -85,13 +85,16 @@ fn distorted_tet() -> Vec<Vec3> {
         .collect()
 }
 
+/// A straight-sided quadratic element: the corners, then the midpoints of `edges`.
+fn with_midpoints(corners: &[Vec3], edges: &[[usize; 2]]) -> Vec<Vec3> {
+    let mut nodes = corners.to_vec();
+    nodes.extend(edges.iter().map(|&[p, q]| 0.5 * (corners[p] + corners[q])));
+    nodes
+}
+
 /// A straight-sided Tet10: the vertices and the midpoints of the edges.
 fn tet10_from(vertices: &[Vec3]) -> Vec<Vec3> {
-    let mut nodes = vertices.to_vec();
-    for [p, q] in TET10_EDGES {
-        nodes.push(0.5 * (vertices[p] + vertices[q]));
-    }
-    nodes
+    with_midpoints(vertices, &TET10_EDGES)
 }
 
 fn curved_tet10() -> Vec<Vec3> {
@@ -313,8 +316,7 @@ fn cases() -> Vec<Case> {
                 "oblique Wedge6" => "oblique Wedge15",
                 _ => "distorted Wedge15",
             };
-            let mut nodes = c.nodes.clone();
-            nodes.extend(WEDGE15_EDGES.iter().map(|&[p, q]| 0.5 * (c.nodes[p] + c.nodes[q])));
+            let nodes = with_midpoints(&c.nodes, &WEDGE15_EDGES);
             Case { name, kind: Kind::Wedge15, nodes, moments: c.moments, fractions }
         })
         .collect();
@@ -353,11 +355,7 @@ fn prism_moments(x: &[Vec3]) -> Moments {
 
 /// A straight-edged Hex20: the corners and the midpoints of the edges.
 fn hex20_from(corners: &[Vec3]) -> Vec<Vec3> {
-    let mut nodes = corners.to_vec();
-    for [p, q] in HEX20_EDGES {
-        nodes.push(0.5 * (corners[p] + corners[q]));
-    }
-    nodes
+    with_midpoints(corners, &HEX20_EDGES)
 }
 
 fn stiffness_of(case: &Case) -> DenseMatrix {
