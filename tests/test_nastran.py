@@ -165,19 +165,28 @@ def test_chexa20_grids_by_the_nastran_figure(tmp_path, assert_close):
     # the hex20 is the midpoint of its edge e.
     nastran_edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7),
                      (4, 5), (5, 6), (6, 7), (7, 4)]  # fmt: skip
-    points = [np.array(c, dtype=float) for c in shapes.HEX8_CORNERS]
+    check_figure_element(tmp_path, "CHEXA", shapes.HEX8_CORNERS, nastran_edges, "hex20",
+                         shapes.HEX20_EDGES, 1.0, assert_close)  # fmt: skip
+
+
+def check_figure_element(tmp_path, name, corners, nastran_edges, kind, edges, volume, close):
+    """One element `name` written by hand as its Nastran figure numbers it (the corners, then
+    the midpoints of `nastran_edges`): read as `kind`, its mid-edge nodes are the midpoints
+    of `edges` (the kind's order) and its mass that of `volume` of steel."""
+    points = [np.array(c, dtype=float) for c in corners]
     points += [0.5 * (points[p] + points[q]) for p, q in nastran_edges]
     lines = ["BEGIN BULK\n"] + [card("GRID", [k + 1, ""] + [float(v) for v in x], "large")
                                for k, x in enumerate(points)]  # fmt: skip
-    lines.append(card("CHEXA", [1, 1] + list(range(1, 21)), "large"))
+    lines.append(card(name, [1, 1] + list(range(1, len(points) + 1)), "large"))
     lines += [card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], "large"), card("PSOLID", [1, 1], "large")]
-    path = tmp_path / "cube.bdf"
+    path = tmp_path / "element.bdf"
     path.write_text("".join(lines) + "ENDDATA\n")
-    mesh = read_nastran(path).mesh
-    nodes = mesh.nodes[mesh.elements["hex20"][0]]
-    for e, (p, q) in enumerate(shapes.HEX20_EDGES):
-        assert_close(nodes[8 + e], 0.5 * (nodes[p] + nodes[q]), abs=1e-15, what=f"edge {e}")
-    assert_close(read_nastran(path).body().invariants.mass, 7800.0, rel=1e-12, what="mass")
+    deck = read_nastran(path)
+    nodes = deck.mesh.nodes[deck.mesh.elements[kind][0]]
+    for e, (p, q) in enumerate(edges):
+        first = len(corners) + e
+        close(nodes[first], 0.5 * (nodes[p] + nodes[q]), abs=1e-15, what=f"edge {e}")
+    close(deck.body().invariants.mass, 7800.0 * volume, rel=1e-12, what="mass")
 
 
 def test_cpenta_of_6_and_15_grids(tmp_path, assert_close):
@@ -186,20 +195,10 @@ def test_cpenta_of_6_and_15_grids(tmp_path, assert_close):
     # G6-G4 (the order of meshio's Nastran reader). A right prism written by hand as the
     # figure numbers it: read, every wedge15 mid-edge node is the midpoint of its edge.
     nastran_edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 4), (2, 5), (3, 4), (4, 5), (5, 3)]
-    points = [np.array(c, dtype=float) for c in
-              ((0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 2), (1, 0, 2), (0, 1, 2))]  # fmt: skip
-    points += [0.5 * (points[p] + points[q]) for p, q in nastran_edges]
-    lines = ["BEGIN BULK\n"] + [card("GRID", [k + 1, ""] + [float(v) for v in x], "large")
-                               for k, x in enumerate(points)]  # fmt: skip
-    lines.append(card("CPENTA", [1, 1] + list(range(1, 16)), "large"))
-    lines += [card("MAT1", [1, 2.1e11, "", 0.3, 7800.0], "large"), card("PSOLID", [1, 1], "large")]
+    corners = ((0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 2), (1, 0, 2), (0, 1, 2))
+    check_figure_element(tmp_path, "CPENTA", corners, nastran_edges, "wedge15",
+                         shapes.WEDGE15_EDGES, 1.0, assert_close)  # fmt: skip
     path = tmp_path / "prism.bdf"
-    path.write_text("".join(lines) + "ENDDATA\n")
-    mesh = read_nastran(path).mesh
-    nodes = mesh.nodes[mesh.elements["wedge15"][0]]
-    for e, (p, q) in enumerate(shapes.WEDGE15_EDGES):
-        assert_close(nodes[6 + e], 0.5 * (nodes[p] + nodes[q]), abs=1e-15, what=f"edge {e}")
-    assert_close(read_nastran(path).body().invariants.mass, 7800.0, rel=1e-12, what="mass")
     # Meshes of both: the same elements and stiffness as the preprocessor's.
     for kind in ("wedge6", "wedge15"):
         prisms = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), kind)

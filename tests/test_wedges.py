@@ -44,29 +44,42 @@ def test_interfaces_on_triangular_and_quadrilateral_faces(assert_close):
     assert_close(centroid, [0.5, 0.1, 0.1], abs=1e-15, what="z1 centroid")
 
 
-def test_vtk_output_and_model_files(tmp_path, assert_close):
-    mesh, body = interface_body("wedge6", ["x0", "x1"])
+def first_frame(element, folder):
+    """The mesh and body of `interface_body(element, ["x0", "x1"])`, and the path of the first
+    VTU frame of a short run of it written into `folder`."""
+    mesh, body = interface_body(element, ["x0", "x1"])
     system = fm.System(gravity=(0.0, -9.81, 0.0))
     system.add_flexible_body(body, name="bar")
     result = fm.simulate(system, 0.002, 1e-3)
-    fm.animation.write_vtu_series(result, tmp_path / "frames")
-    frame = meshio.read(tmp_path / "frames" / "result_00000.vtu")
-    wedges = [c.data for c in frame.cells if c.type == "wedge"]
-    assert [len(w) for w in wedges] == [60]
-    # meshio converts back to its (Gmsh's) order on reading: the cells as written.
-    np.testing.assert_array_equal(wedges[0], mesh.elements["wedge6"])
+    fm.animation.write_vtu_series(result, folder)
+    return mesh, body, folder / "result_00000.vtu"
+
+
+def check_model_file(element, body, folder, close):
+    """The same body as a model file's box of `element`: the same element type and
+    frequencies."""
     text = (
         "bodies:\n  - name: bar\n    type: flexible\n"
-        "    box: {lengths: [1.0, 0.2, 0.1], divisions: [5, 3, 2], element: wedge6}\n"
+        f"    box: {{lengths: [1.0, 0.2, 0.1], divisions: [5, 3, 2], element: {element}}}\n"
         "    material: {young_modulus: 2.1e+11, poisson_ratio: 0.3, density: 7800.0}\n"
         "    reference: interface\n    modes: craig-bampton\n    mode_count: 2\n"
         "    interfaces: [x0, x1]\n    interface_kind: rbe3\n"
         "simulation: {end_time: 0.01, step_size: 0.001}\n"
     )
-    (tmp_path / "bar.yaml").write_text(text)
-    from_file = load_model(tmp_path / "bar.yaml").body_data["bar"]
-    assert list(from_file.elements) == ["wedge6"]
-    assert_close(from_file.frequencies, body.frequencies, rel=1e-12, what="frequencies")
+    (folder / "bar.yaml").write_text(text)
+    from_file = load_model(folder / "bar.yaml").body_data["bar"]
+    assert list(from_file.elements) == [element]
+    close(from_file.frequencies, body.frequencies, rel=1e-12, what="frequencies")
+
+
+def test_vtk_output_and_model_files(tmp_path, assert_close):
+    mesh, body, path = first_frame("wedge6", tmp_path / "frames")
+    frame = meshio.read(path)
+    wedges = [c.data for c in frame.cells if c.type == "wedge"]
+    assert [len(w) for w in wedges] == [60]
+    # meshio converts back to its (Gmsh's) order on reading: the cells as written.
+    np.testing.assert_array_equal(wedges[0], mesh.elements["wedge6"])
+    check_model_file("wedge6", body, tmp_path, assert_close)
 
 
 # Quadratic wedges (wedge15: Abaqus C3D15, Gmsh prism15, VTK quadratic wedges) ----------------
@@ -139,24 +152,8 @@ def test_quadratic_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, ass
     assert np.all(triangles >= 0) and np.any(triangles == 0)
     assert_close(triangles @ mesh.nodes[members], [0.5, 0.1, 0.1], abs=1e-15, what="centroid")
     # VTK output: VTK's order on file, meshio's (ours) read back through read_mesh.
-    mesh, body = interface_body("wedge15", ["x0", "x1"])
-    system = fm.System(gravity=(0.0, -9.81, 0.0))
-    system.add_flexible_body(body, name="bar")
-    result = fm.simulate(system, 0.002, 1e-3)
-    fm.animation.write_vtu_series(result, tmp_path / "frames")
     from flexmbd.fe.mesh_io import read_mesh
 
-    frame = read_mesh(tmp_path / "frames" / "result_00000.vtu")
-    np.testing.assert_array_equal(frame.elements["wedge15"], mesh.elements["wedge15"])
-    text = (
-        "bodies:\n  - name: bar\n    type: flexible\n"
-        "    box: {lengths: [1.0, 0.2, 0.1], divisions: [5, 3, 2], element: wedge15}\n"
-        "    material: {young_modulus: 2.1e+11, poisson_ratio: 0.3, density: 7800.0}\n"
-        "    reference: interface\n    modes: craig-bampton\n    mode_count: 2\n"
-        "    interfaces: [x0, x1]\n    interface_kind: rbe3\n"
-        "simulation: {end_time: 0.01, step_size: 0.001}\n"
-    )
-    (tmp_path / "bar.yaml").write_text(text)
-    from_file = load_model(tmp_path / "bar.yaml").body_data["bar"]
-    assert list(from_file.elements) == ["wedge15"]
-    assert_close(from_file.frequencies, body.frequencies, rel=1e-12, what="frequencies")
+    mesh, body, path = first_frame("wedge15", tmp_path / "frames")
+    np.testing.assert_array_equal(read_mesh(path).elements["wedge15"], mesh.elements["wedge15"])
+    check_model_file("wedge15", body, tmp_path, assert_close)
