@@ -811,8 +811,7 @@ def _newton_options(
         # A recorded state's discrete variables: the springs stay wound (from its coordinates
         # alone, a pendulum settled at 5.67 rad on a spring was unwound to another
         # equilibrium 0.62 rad away).
-        if coordinates.discrete is not None and len(coordinates.discrete) == model.discrete_count:
-            discrete = np.array(coordinates.discrete, dtype=float)
+        discrete = coordinates.discrete_for(model)
         coordinates = coordinates.coordinates
     q = numbers_array(coordinates, "coordinates")
     nq = model.coordinate_count
@@ -1610,9 +1609,7 @@ def linearize(
         state.accelerations,
         state.multipliers,
     )
-    discrete = state.discrete
-    if discrete is not None and len(discrete) != model.discrete_count:
-        discrete = None  # (made by hand for another model's forces: set from q)
+    discrete = state.discrete_for(model)  # (None: set from q)
     m = _matrix(model.evaluate(*args, mass=1.0, discrete=discrete))
     d = _matrix(model.evaluate(*args, velocity=1.0, discrete=discrete))
     k = _matrix(model.evaluate(*args, position=1.0, discrete=discrete))

@@ -451,12 +451,12 @@ def simulate(
             "velocities": np.ascontiguousarray(start.velocities, dtype=float),
             "recorded": bool(start.recorded),
         }
-        discrete = getattr(start, "discrete", None)
-        if discrete is not None and len(discrete) == model.discrete_count:
+        discrete = start.discrete_for(model)
+        if discrete is not None:
             # The unwrapped angles a recorded state carries: a spring wound past half a turn
             # went on from its wrapped angle (a wheel continued at 1 s ended at 4.45 rad/s
             # instead of 1.56).
-            start_arrays["discrete"] = np.ascontiguousarray(discrete, dtype=float)
+            start_arrays["discrete"] = discrete
     if not keep_in_memory and results_file is None:
         raise InvalidParameterError(
             "keep_in_memory=False keeps the records only in a results file: give results_file",

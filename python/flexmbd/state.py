@@ -88,6 +88,13 @@ class State:
     recorded: bool = field(default=False, repr=False, compare=False)
     discrete: Array | None = field(default=None, repr=False, compare=False)
 
+    def discrete_for(self, model: Any) -> Array | None:
+        """The state's discrete variables if they are as many as `model` has (a compiled
+        Model), else None: then they are set from the coordinates."""
+        if self.discrete is None or len(self.discrete) != model.discrete_count:
+            return None
+        return np.array(self.discrete, dtype=float)
+
     def __post_init__(self) -> None:
         for name in ("coordinates", "velocities", "accelerations", "multipliers", "discrete"):
             object.__setattr__(self, name, _frozen(getattr(self, name), name))
