@@ -396,7 +396,8 @@ def _connect(scheduler: str | None, workers: int | None) -> tuple[Any, Any]:
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
-                # Workers import flexmbd as they start, in parallel, not at their first case.
+                # Workers import flexmbd as they start, in parallel, not at their first case;
+                # its `dask_setup` quiets what they log as the cluster closes.
                 preload=["flexmbd.study.cases"],
             )
     except Exception as error:

@@ -439,3 +439,33 @@ def _peak_memory() -> int | None:
 def _json_number(value: Any) -> float | None:
     number = float(value)
     return number if math.isfinite(number) else None
+
+
+#: The loggers of a Dask worker that report its scheduler going away: the heartbeat's closed
+#: connection, and the running task's cancellation as the worker closes.
+WORKER_LOGGERS = ("distributed.worker", "distributed.worker.state_machine")
+
+
+def is_closing_noise(record: Any) -> bool:
+    """Whether a worker's log record is caused by its cluster closing: an exception raised by a
+    connection that was closed (the scheduler stopped, during a heartbeat), or a task cancelled
+    (the worker stopped while a case ran)."""
+    if record.exc_info and record.exc_info[1] is not None:
+        error: BaseException | None = record.exc_info[1]
+        while error is not None:
+            if type(error).__name__ in ("CommClosedError", "StreamClosedError"):
+                return True
+            error = error.__cause__ or error.__context__
+    return "CancelledError" in record.getMessage()
+
+
+def dask_setup(worker: Any) -> None:
+    """Dask's preload hook, run in each worker process of a study's own LocalCluster
+    (`study._connect`) as it starts. The cluster's scheduler is the study's process, so a
+    worker finds it gone only when the study closes the cluster (finished or interrupted, with
+    a case running): those messages are left out of the user's terminal (an interrupted sweep
+    printed a heartbeat's traceback in one run of 25, a cancelled task's warning in each)."""
+    import logging
+
+    for name in WORKER_LOGGERS:
+        logging.getLogger(name).addFilter(lambda record: not is_closing_noise(record))
