@@ -52,7 +52,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--elements",
         nargs="+",
-        default=["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15"],
+        default=[
+            "tet4",
+            "tet10",
+            "hex8",
+            "hex8i",
+            "hex20",
+            "hex20r",
+            "wedge6",
+            "wedge15",
+            "pyramid5",
+        ],
     )
     args = parser.parse_args(argv)
     inertia, area = WIDTH**4 / 12, WIDTH**2

@@ -15,7 +15,7 @@ from flexmbd.fe.nastran import parse_real, read_dmig
 STEEL = Material(2.1e11, 0.3, 7800.0)
 NASTRAN_NAMES = {
     "tet4": "CTETRA", "tet10": "CTETRA", "hex8": "CHEXA", "hex20": "CHEXA", "quad4": "CQUAD4",
-    "tri3": "CTRIA3", "wedge6": "CPENTA", "wedge15": "CPENTA",
+    "tri3": "CTRIA3", "wedge6": "CPENTA", "wedge15": "CPENTA", "pyramid5": "CPYRAM",
 }  # fmt: skip
 
 
@@ -154,7 +154,7 @@ def test_tet10_and_hex8_and_a_rotated_system(tmp_path, assert_close):
     third = lines.index(next(line for line in lines if line.startswith("CHEXA"))) + 2
     lines[third] = ",".join(lines[third].split(",")[:-1] + [""])
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(InvalidModelError, match="19 grids: .*CHEXA of 8 or 20 and CPENTA"):
+    with pytest.raises(InvalidModelError, match="19 grids: .*CHEXA of 8 or 20, CPENTA"):
         read_nastran(path)
 
 
@@ -208,6 +208,28 @@ def test_cpenta_of_6_and_15_grids(tmp_path, assert_close):
         direct = pp.build_body(prisms.nodes, prisms.elements, STEEL)
         assert_close(dense(deck.body().stiffness), dense(direct.stiffness),
                      abs=1e-9 * direct.stiffness.max())  # fmt: skip
+
+
+def test_cpyram_of_5_grids(tmp_path, assert_close):
+    # CPYRAM was an unknown card. G1-G4 the base, G5 the apex: a mesh of pyramids through a
+    # deck has the preprocessor's elements and stiffness; one written by hand (base of 2 x 1,
+    # height 0.6) the mass of its volume. Other grid counts (13: the quadratic pyramid) are
+    # refused by name.
+    path = tmp_path / "pyramids.bdf"
+    pyramids = shapes.box((0.4, 0.1, 0.1), (2, 1, 1), "pyramid5")
+    path.write_text(deck_of(pyramids, "small"))
+    deck = read_nastran(path)
+    np.testing.assert_array_equal(deck.mesh.elements["pyramid5"], pyramids.elements["pyramid5"])
+    direct = pp.build_body(pyramids.nodes, pyramids.elements, STEEL)
+    assert_close(dense(deck.body().stiffness), dense(direct.stiffness),
+                 abs=1e-9 * direct.stiffness.max())  # fmt: skip
+    corners = ((0, 0, 0), (2, 0, 0), (2, 1, 0), (0, 1, 0), (0.7, 0.4, 0.6))
+    check_figure_element(tmp_path, "CPYRAM", corners, [], "pyramid5", [], 0.4, assert_close)
+    text = path.read_text()
+    first = next(line for line in text.splitlines() if line.startswith("CPYRAM"))
+    path.write_text(text.replace(first, first + "106"))
+    with pytest.raises(InvalidModelError, match="6 grids: .*CPYRAM of 5"):
+        read_nastran(path)
 
 
 def beam_deck(form, property_card):

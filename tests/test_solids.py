@@ -1,5 +1,5 @@
-"""Solid elements (tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15) in bodies: meshes of
-blocks and cylinders, invariants of motion against the analytic rigid-body inertia and a
+"""Solid elements (tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15, pyramid5) in bodies:
+meshes of blocks and cylinders, invariants of motion against the analytic rigid-body inertia and a
 brute-force sum over mass points, rigid motions, the sparse factorization, a solid cantilever
 against beam theory, and bad meshes."""
 
@@ -17,7 +17,7 @@ from flexmbd.fe import shapes
 from flexmbd.rotation import rotation
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
-SOLIDS = ["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15"]
+SOLIDS = ["tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "pyramid5"]
 
 
 def rotated_box(element, divisions=(4, 2, 3), lengths=(0.8, 0.3, 0.5)):

@@ -84,6 +84,7 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     # (meshio writes its wedge15 as given: VTK's quadratic wedge lists each triangle the
     # other way round)
     "wedge15": ("wedge15", np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])),
+    "pyramid5": ("pyramid", None),
     "quad4": ("quad", None),
     "tri3": ("triangle", None),
 }
@@ -110,6 +111,7 @@ ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
 ELEMENT_FACES["hex20"] = ELEMENT_FACES["hex8"]
 ELEMENT_FACES["wedge6"] = ((0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5))
 ELEMENT_FACES["wedge15"] = ELEMENT_FACES["wedge6"]
+ELEMENT_FACES["pyramid5"] = ((0, 3, 2, 1), (0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4))
 
 #: Named views: (elevation, azimuth) in degrees, orthographic.
 VIEWS: dict[str, tuple[float, float]] = {

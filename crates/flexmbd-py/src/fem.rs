@@ -220,8 +220,8 @@ fn default_orientation(axis: Vec3) -> Vec3 {
 /// elements as a dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2",
 /// "tet4", "tet10" (Gmsh node order), "hex8", "hex8i" (with incompatible modes), "hex20",
 /// "hex20r" (VTK node order; reduced integration), "wedge6" (Gmsh's prism), "wedge15"
-/// (Abaqus C3D15 order), "quad4" and
-/// "tri3"; the beam orientation is a
+/// (Abaqus C3D15 order), "pyramid5" (Gmsh's pyramid), "quad4" and "tri3"; the beam
+/// orientation is a
 /// vector in the sections' x-y plane (default: global y, or global z for beams nearly along
 /// y); `shear`: shear-deformable (Timoshenko) beams.
 #[pyclass(name = "FeMesh", module = "flexmbd._core", frozen)]
@@ -306,6 +306,7 @@ impl FeMesh {
                     "hex20r" => ElementType::Hex20Reduced,
                     "wedge6" => ElementType::Wedge6,
                     "wedge15" => ElementType::Wedge15,
+                    "pyramid5" => ElementType::Pyramid5,
                     "quad4" | "tri3" => {
                         let section = shell.ok_or_else(|| {
                             invalid(
@@ -323,7 +324,7 @@ impl FeMesh {
                         return Err(invalid(
                             "mesh",
                             format!(
-                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15, quad4, tri3)"
+                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15, pyramid5, quad4, tri3)"
                         ),
                         ))
                     }

@@ -30,8 +30,9 @@ BODY_DATA_VERSION = 1
 #: "quad4" and "tri3" are flat shells (6 coordinates per node, see `docs/preprocessor.md`);
 #: "hex8i" is the hexahedron with incompatible modes (Abaqus' C3D8I), "hex20" the quadratic
 #: (serendipity) hexahedron and "hex20r" the same with reduced integration (C3D20R),
-#: "wedge6" the linear wedge (triangular prism, Abaqus C3D6) and "wedge15" the quadratic
-#: (serendipity) wedge (Abaqus C3D15).
+#: "wedge6" the linear wedge (triangular prism, Abaqus C3D6), "wedge15" the quadratic
+#: (serendipity) wedge (Abaqus C3D15) and "pyramid5" the linear pyramid (Gmsh's, Nastran's
+#: CPYRAM of 5 grids).
 ELEMENT_NODES = {
     "beam2": 2,
     "tet4": 4,
@@ -42,6 +43,7 @@ ELEMENT_NODES = {
     "hex20r": 20,
     "wedge6": 6,
     "wedge15": 15,
+    "pyramid5": 5,
     "quad4": 4,
     "tri3": 3,
 }

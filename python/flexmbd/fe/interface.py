@@ -152,7 +152,15 @@ _FACET_GROUPS["wedge15"] = (
 _EDGE_GROUPS["wedge15"] = (
     ("line3", tuple((p, q, 6 + e) for e, (p, q) in enumerate(WEDGE15_EDGES))),
 )
-_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6", "wedge15")
+# pyramid5: the base 0, 1, 2, 3 and the apex 4.
+_FACET_GROUPS["pyramid5"] = (
+    ("quad4", ((0, 1, 2, 3),)),
+    ("tri3", ((0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4))),
+)
+_EDGE_GROUPS["pyramid5"] = (
+    ("line2", ((0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 4), (2, 4), (3, 4))),
+)
+_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6", "wedge15", "pyramid5")
 #: How far (a fraction of the diagonal of its nodes' box) an interface's weighted centroid
 #: may lie outside that box: a curved quadratic face's centroid can, by a little.
 OUTSIDE_LIMIT = 0.1
@@ -219,6 +227,13 @@ def _shape(kind: str, xi: Any) -> list[Any]:
             for e, (p, q) in enumerate(WEDGE15_EDGES[:6])
         ]
         return corners + middles + [v * (1 - w * w) for v in lam]
+    if kind == "pyramid5":
+        # Bedrosian's rational functions on the pyramid (base [-1, 1]^2 at zeta = 0, apex
+        # (0, 0, 1); see `fem/solid/pyramid.rs`): the points of `_rule` are never at the apex.
+        a, b, c = xi
+        ratio = a * b * c / (1 - c)
+        base = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+        return [((1 + s * a) * (1 + t * b) - c + s * t * ratio) / 4 for s, t in base] + [c]
     if kind == "hex8":
         a, b, c = xi
         return [
@@ -247,15 +262,19 @@ def _shape(kind: str, xi: Any) -> list[Any]:
 
 def _rule(kind: str) -> tuple[Array, Array]:
     """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: 3-point
-    Gauss-Legendre products (4-point on quad8, hex20 and wedge15), collapsed (Duffy) onto
-    simplices; exact for the integrals of the shape functions times the Jacobian of every
-    straight-sided or flat cell here (degree 2 on simplices, 3 per direction on
-    quadrilaterals and hexahedra, 4 on the serendipity quad8, hex20 and wedge15)."""
+    Gauss-Legendre products (4-point on quad8, hex20, wedge15 and pyramid5), collapsed (Duffy)
+    onto simplices and the pyramid; exact for the integrals of the shape functions times the
+    Jacobian of every straight-sided or flat cell here (degree 2 on simplices, 3 per direction
+    on quadrilaterals and hexahedra, 4 on the serendipity quad8, hex20 and wedge15; on the
+    pyramid, polynomials of degree 3 in the collapsed a, b and 5 in zeta besides (1 - zeta)^2,
+    the moments included)."""
     # (4 points on the serendipity cells: those of their mass points, so that interface
     # weights and the mass matrix agree on curved elements too)
-    g, w = np.polynomial.legendre.leggauss(4 if kind in ("quad8", "hex20", "wedge15") else 3)
+    g, w = np.polynomial.legendre.leggauss(
+        4 if kind in ("quad8", "hex20", "wedge15", "pyramid5") else 3
+    )
     g, w = 0.5 * (g + 1.0), 0.5 * w
-    dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3}[
+    dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3, "pyramid": 3}[
         kind.rstrip("0123456789")
     ]
     grids = np.meshgrid(*([g] * dim), indexing="ij")
@@ -265,6 +284,11 @@ def _rule(kind: str) -> tuple[Array, Array]:
         # (a wedge: the collapsed triangle times the line)
         points = [u[0], u[1] * (1 - u[0])] + u[2:]
         weights = weights * (1 - u[0])
+    elif kind == "pyramid5":
+        # (the cube [-1, 1]^2 x [0, 1] collapsed onto the pyramid: xi = (1 - zeta) a, ...)
+        shrink = 1 - u[2]
+        points = [(2 * u[0] - 1) * shrink, (2 * u[1] - 1) * shrink, u[2]]
+        weights = weights * 4 * shrink**2
     elif kind.startswith("tet"):
         points = [u[0], u[1] * (1 - u[0]), u[2] * (1 - u[0]) * (1 - u[1])]
         weights = weights * (1 - u[0]) ** 2 * (1 - u[1])

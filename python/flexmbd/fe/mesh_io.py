@@ -33,6 +33,8 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   converts Gmsh's prism15 on reading). VTK's quadratic wedge has these edges with each
   triangle listed the other way round: :func:`read_mesh` converts the cells of ``.vtu`` and
   ``.vtk`` files (``WEDGE15_FROM_VTK``).
+* ``pyramid5``: the base 0, 1, 2, 3 counter-clockwise seen from the apex 4: Gmsh's, VTK's and
+  meshio's pyramid, Nastran's CPYRAM of 5 grids.
 * ``quad4``, ``tri3`` (flat shells): the corners counter-clockwise about the element normal
   (the same in VTK, Gmsh and Abaqus S4/S3); the top surface of the shell is on the side of
   the normal.
@@ -77,6 +79,7 @@ MESHIO_ELEMENT_TYPES = {
     "hexahedron20": "hex20",
     "wedge": "wedge6",
     "wedge15": "wedge15",
+    "pyramid": "pyramid5",
 }
 
 #: meshio cell types of surfaces read as shell elements ("quad4", "tri3") in files without
@@ -120,12 +123,14 @@ WEDGE15_FROM_VTK = np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])
 
 
 def complete_meshio() -> None:
-    """Gives meshio the topological dimension of its "wedge15" cell, which its table lacks
-    (meshio 5.3: any mesh with such cells, Gmsh prism15, Abaqus C3D15 or VTK quadratic
-    wedges, failed with KeyError 'wedge15'). Idempotent; changes nothing else."""
+    """Gives meshio the topological dimension of the volume cells its table lacks (meshio 5.3:
+    any mesh with such cells failed with a KeyError): "wedge15" (Gmsh prism15, Abaqus C3D15,
+    VTK quadratic wedges), and "pyramid13" and "hexahedron24", which are then refused by name
+    as cells that are not elements. Idempotent; changes nothing else."""
     import meshio._mesh
 
-    meshio._mesh.topological_dimension.setdefault("wedge15", 3)
+    for cell in ("wedge15", "pyramid13", "hexahedron24"):
+        meshio._mesh.topological_dimension.setdefault(cell, 3)
 
 
 #: File suffix -> meshio file format.
@@ -213,8 +218,9 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron",
-    "hexahedron20", "wedge", "wedge15" and "line" become "tet4", "tet10", "hex8", "hex20",
-    "wedge6", "wedge15" and "beam2", in the node order of the module docstring; Abaqus'
+    "hexahedron20", "wedge", "wedge15", "pyramid" and "line" become "tet4", "tet10", "hex8",
+    "hex20", "wedge6", "wedge15", "pyramid5" and "beam2", in the node order of the module
+    docstring; Abaqus'
     hexahedra with incompatible modes (C3D8I, C3D8IH) become "hex8i", its quadratic ones with
     reduced integration (C3D20R, C3D20RH) "hex20r", its linear reduced-integration hexahedra
     (C3D8R, C3D8RH) "hex8" with a :class:`~flexmbd.MeshQualityWarning` (flexmbd has no
@@ -228,7 +234,7 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     the node sets of the named groups they belong to: a Gmsh physical surface of triangles
     named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
     "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
-    of the highest dimension must all be elements: a pyramid, an 18-node wedge or a 27-node
+    of the highest dimension must all be elements: a 13-node pyramid, an 18-node wedge or a 27-node
     hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
     miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
@@ -408,7 +414,7 @@ def _unsupported_cells(
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
     supported = {
-        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15",
+        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15, pyramid5",
         2: "quad4, tri3 (flat shells)",
         1: "beam2",
     }[dimension]

@@ -34,9 +34,9 @@ from .mesh_io import Mesh
 
 #: The cards that make the body.
 CARDS = (
-    "GRID", "CORD2R", "CTETRA", "CHEXA", "CPENTA", "CBAR", "CBEAM", "CQUAD4", "CTRIA3", "MAT1",
-    "PSOLID", "PSHELL", "PBAR", "PBEAM", "PBARL", "PBEAML", "ASET", "ASET1", "QSET1", "SPC1",
-    "SET1", "RBE2", "RBE3", "DMIG", "CONM2",
+    "GRID", "CORD2R", "CTETRA", "CHEXA", "CPENTA", "CPYRAM", "CBAR", "CBEAM", "CQUAD4", "CTRIA3",
+    "MAT1", "PSOLID", "PSHELL", "PBAR", "PBEAM", "PBARL", "PBEAML", "ASET", "ASET1", "QSET1",
+    "SPC1", "SET1", "RBE2", "RBE3", "DMIG", "CONM2",
 )  # fmt: skip
 
 #: Cards read and not used: they do not change the body's mesh, material or sets.
@@ -402,7 +402,7 @@ def read_nastran(path: str | os.PathLike[str], *, skip: Any = ()) -> NastranDeck
     rigid body or point mass fixed to the node).
 
     Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 or 20 grids) -> hex8 / hex20,
-    CPENTA (6 or 15 grids) -> wedge6 / wedge15, CBAR and CBEAM
+    CPENTA (6 or 15 grids) -> wedge6 / wedge15, CPYRAM (5 grids) -> pyramid5, CBAR and CBEAM
     -> beam2 (offsets, pin flags and tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
     shells quad4 and tri3 (PSHELL: one thickness, one material, default 12I/T^3 and TS/T;
     offsets refused). Grids may be given in CORD2R
@@ -562,7 +562,7 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
             grids[gid] = card
         elif name == "CORD2R":
             systems[card.integer(1, what="CID")] = card
-        elif name in ("CTETRA", "CHEXA", "CPENTA"):
+        elif name in ("CTETRA", "CHEXA", "CPENTA", "CPYRAM"):
             eid, pid = card.integer(1, what="EID"), card.integer(2, what="PID")
             nodes = [card.integer_text(f) for f in card.fields[2:] if f is not None]
             if name == "CTETRA" and len(nodes) == 4:
@@ -586,10 +586,12 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
                 # second triangle's edges first.
                 kind = "wedge15"
                 nodes = nodes[:9] + nodes[12:15] + nodes[9:12]
+            elif name == "CPYRAM" and len(nodes) == 5:
+                kind = "pyramid5"  # G1-G4 the base, G5 the apex
             else:
                 raise card.error(
-                    f"{len(nodes)} grids: flexmbd has CTETRA of 4 or 10 grids, CHEXA of 8 or 20 "
-                    "and CPENTA of 6 or 15 (every mid-edge grid given)"
+                    f"{len(nodes)} grids: flexmbd has CTETRA of 4 or 10 grids, CHEXA of 8 or 20, "
+                    "CPENTA of 6 or 15 (every mid-edge grid given) and CPYRAM of 5"
                 )
             elements.setdefault(kind, []).append((eid, pid, nodes, card))
         elif name in ("CBAR", "CBEAM"):

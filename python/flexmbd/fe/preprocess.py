@@ -346,7 +346,8 @@ def assemble(
 
     `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8",
     "hex8i" with incompatible modes, "hex20" and "hex20r" in VTK node order, "wedge6" in
-    Gmsh's prism order, "wedge15" in Abaqus' C3D15 order, the flat shells "quad4" and "tri3")
+    Gmsh's prism order, "wedge15" in Abaqus' C3D15 order, "pyramid5" in Gmsh's order, the flat
+    shells "quad4" and "tri3")
     to its connectivity
     (n_e, nodes) of 0-based node indices; shells need `shell` (a `ShellSection` or the
     thickness). `mass` is "consistent" or "lumped";

@@ -54,7 +54,9 @@ WEDGE15_EDGES = ((0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4),
 MAX_MESH_ELEMENTS = 10_000_000
 
 #: The elements of :func:`box`.
-BOX_ELEMENTS = ("hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "tet4", "tet10")
+BOX_ELEMENTS = (
+    "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "pyramid5", "tet4", "tet10",
+)  # fmt: skip
 
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
 #: Gmsh for tetrahedra of order 1 and 2.
@@ -65,6 +67,7 @@ _BYTES_PER_ELEMENT = {
     "hex20r": 1300,
     "wedge6": 200,
     "wedge15": 1000,
+    "pyramid5": 150,
     "tet4": 280,
     "tet10": 640,
     "gmsh1": 1500,
@@ -218,7 +221,8 @@ def box(
     `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
     "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "hex20", "hex20r"
     (quadratic hexahedra; reduced integration), "wedge6" (two prisms per cell, split in z),
-    "wedge15" (the same, quadratic), "tet4" (six tetrahedra per cell) or "tet10". Node sets:
+    "wedge15" (the same, quadratic), "pyramid5" (six pyramids per cell, their apexes at a
+    node in its centre), "tet4" (six tetrahedra per cell) or "tet10". Node sets:
     "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
@@ -258,6 +262,8 @@ def box(
         node_count += (nx + 1) * (ny + 1) * nz
         if element == "wedge15":
             node_count += nx * ny * (nz + 1)
+    if element == "pyramid5":
+        node_count += cells  # the cells' centres
     per_cell = 1 if element.startswith("hex") else 2 if element.startswith("wedge") else 6
     element_count = per_cell * cells
     _check_mesh_size(
@@ -292,6 +298,14 @@ def box(
         if element == "wedge15":
             nodes, prisms = quadratic_wedges(nodes, prisms)
         elements = {element: prisms}
+    elif element == "pyramid5":
+        # A pyramid on each face of a cell, its apex at the cell's centre (a node of its own):
+        # the base counter-clockwise seen from the centre.
+        centres = len(nodes) + np.arange(len(hexes))
+        nodes = np.vstack([nodes, nodes[hexes].mean(axis=1)])
+        faces = ((0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3), (3, 7, 4, 0))
+        pyramids = np.vstack([np.column_stack([hexes[:, list(f)], centres]) for f in faces])
+        elements = {"pyramid5": pyramids.astype(np.int64)}
     else:
         tets = np.vstack([hexes[:, list(t)] for t in _KUHN])
         tets = _orient(nodes, tets)

@@ -17,7 +17,9 @@ use crate::fem::beam::Beam;
 use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
-use crate::fem::solid::{Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Tet10, Tet4, Wedge15, Wedge6};
+use crate::fem::solid::{
+    Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Pyramid5, Tet10, Tet4, Wedge15, Wedge6,
+};
 
 /// The element types a body can be made of.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,6 +42,8 @@ pub enum ElementType {
     Wedge6,
     /// Fifteen-node wedge (Abaqus C3D15 node order).
     Wedge15,
+    /// Five-node pyramid (Gmsh node order).
+    Pyramid5,
     /// Four-node flat shell (MITC4).
     Quad4(ShellQuad4),
     /// Three-node flat shell (DKT).
@@ -58,6 +62,7 @@ impl ElementType {
             ElementType::Hex20Reduced => &Hex20Reduced,
             ElementType::Wedge6 => &Wedge6,
             ElementType::Wedge15 => &Wedge15,
+            ElementType::Pyramid5 => &Pyramid5,
             ElementType::Quad4(s) => s,
             ElementType::Tri3(s) => s,
         }
@@ -84,6 +89,7 @@ impl ElementType {
                 | ElementType::Hex20Reduced
                 | ElementType::Wedge6
                 | ElementType::Wedge15
+                | ElementType::Pyramid5
         )
     }
 }

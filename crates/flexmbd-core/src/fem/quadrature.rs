@@ -516,6 +516,50 @@ pub const WEDGE_TRIANGLE_5_GAUSS_4: [QuadraturePoint; 28] = [
     wedge_point!(TRIANGLE_DEGREE_5, GAUSS_LEGENDRE_4, 6, 3),
 ];
 
+/// The rule on the reference pyramid (base [-1, 1]^2 at zeta = 0, apex (0, 0, 1); volume 4/3)
+/// of the cube [-1, 1]^2 x [0, 1] collapsed onto it (Duffy): the Gauss points (a, b) of
+/// `$base` and t of `$height` go to xi = (1 - z) a, eta = (1 - z) b, zeta = z = (1 + t) / 2
+/// with the weight w_a w_b w_t (1 - z)^2 / 2 (a const item's initializer: a `const fn` may not
+/// do float arithmetic at the crate's MSRV). Exact for every f(a, b, z) (1 - z)^2 whose f is
+/// a polynomial of the rules' degrees in a and b and in z: the shape functions of a pyramid
+/// are such polynomials, though rational in (xi, eta, zeta).
+macro_rules! collapsed_pyramid_rule {
+    ($base:expr, $height:expr, $n:literal) => {{
+        let base = $base;
+        let height = $height;
+        let mut points = [QuadraturePoint { coordinates: [0.0; 3], weight: 0.0 }; $n];
+        let mut k = 0;
+        while k < height.len() {
+            let z = 0.5 * (1.0 + height[k].0);
+            let shrink = 1.0 - z;
+            let mut j = 0;
+            while j < base.len() {
+                let mut i = 0;
+                while i < base.len() {
+                    points[(k * base.len() + j) * base.len() + i] = QuadraturePoint {
+                        coordinates: [shrink * base[i].0, shrink * base[j].0, z],
+                        weight: base[i].1 * base[j].1 * height[k].1 * 0.5 * shrink * shrink,
+                    };
+                    i += 1;
+                }
+                j += 1;
+            }
+            k += 1;
+        }
+        points
+    }};
+}
+
+/// Reference pyramid: 2 x 2 x 2 collapsed Gauss points (exact to degree 3 in a, b and 1 in
+/// z besides the weight's (1 - z)^2).
+pub const PYRAMID_GAUSS_2_2: [QuadraturePoint; 8] =
+    collapsed_pyramid_rule!(GAUSS_LEGENDRE_2, GAUSS_LEGENDRE_2, 8);
+
+/// Reference pyramid: 2 x 2 Gauss points in (a, b) times 4 in z (exact to degree 3 in a, b
+/// and 5 in z besides the weight's (1 - z)^2).
+pub const PYRAMID_GAUSS_2_4: [QuadraturePoint; 16] =
+    collapsed_pyramid_rule!(GAUSS_LEGENDRE_2, GAUSS_LEGENDRE_4, 16);
+
 /// The tensor-product Gauss-Legendre rule on [-1, 1]^3 with `points_per_direction` points per
 /// direction (1 to 4); exact for x^a y^b z^c with a, b, c <= 2 points_per_direction - 1.
 pub fn hexahedron_rule(points_per_direction: usize) -> Option<&'static [QuadraturePoint]> {
@@ -664,6 +708,38 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn pyramid_rules_are_exact_for_their_collapsed_degrees() {
+        // int over the pyramid of xi^i eta^j zeta^k, for even i and j, is
+        // int_0^1 (1 - z)^(i + j + 2) z^k dz * 2/(i + 1) * 2/(j + 1) (zero for odd i or j),
+        // and the beta integral int_0^1 (1 - z)^m z^k dz = m! k! / (m + k + 1)!.
+        let exact = |i: u32, j: u32, k: u32| {
+            interval_monomial(i) * interval_monomial(j) * factorial(i + j + 2) * factorial(k)
+                / factorial(i + j + k + 3)
+        };
+        for (rule, height) in [(&PYRAMID_GAUSS_2_2[..], 2u32), (&PYRAMID_GAUSS_2_4[..], 4)] {
+            let total: f64 = rule.iter().map(|p| p.weight).sum();
+            assert_close(total, 4.0 / 3.0, 0.0, 1e-15, format_args!("{height} points in z: volume"));
+            for p in rule {
+                let [x, y, z] = p.coordinates;
+                assert!(p.weight > 0.0 && z > 0.0 && z < 1.0 && x.abs() < 1.0 - z && y.abs() < 1.0 - z);
+            }
+            // xi^i eta^j zeta^k = a^i b^j (1 - z)^(i + j) z^k: exact while i, j <= 3 and
+            // i + j + k + 2 <= 2 height - 1 (the rule's degree in z).
+            for i in 0..=3u32 {
+                for j in (0..=3u32).filter(|j| i + j + 2 < 2 * height) {
+                    for k in 0..=2 * height - 1 - (i + j + 2) {
+                        let q = apply(rule, i, j, k);
+                        assert_close(q, exact(i, j, k), 0.0, 1e-14, format_args!("xi^{i} eta^{j} zeta^{k}"));
+                    }
+                }
+            }
+            // ... and not beyond it in z.
+            let k = 2 * height - 2;
+            assert!((apply(rule, 0, 0, k) - exact(0, 0, k)).abs() > 1e-6, "{height} points: zeta^{k}");
         }
     }
 

@@ -29,12 +29,16 @@
 //!   ones (0,3), (1,4), (2,5) ([`WEDGE15_EDGES`]): Abaqus C3D15 and meshio's wedge15 (which
 //!   converts Gmsh's order on reading; VTK's quadratic wedge has these edges with its
 //!   triangles listed the other way round).
+//! - [`Pyramid5`]: the base 0, 1, 2, 3 counter-clockwise seen from the apex 4 (reference
+//!   (-1,-1,0), (1,-1,0), (1,1,0), (-1,1,0), (0,0,1)): Gmsh's pyramid, VTK's and meshio's.
 //!
 //! Quadrature: stiffness K = int B^T D B dV with the 1-point rule (`Tet4`, exact), the 4-point
 //! degree-2 rule (`Tet10`, exact for straight edges), 2 x 2 x 2 Gauss (`Hex8`, full
 //! integration, no hourglass modes; `Hex20Reduced`), 3 x 3 x 3 Gauss (`Hex20`) and the
 //! degree-2 triangle rule times 2-point Gauss (`Wedge6`, exact) and the degree-4 triangle
-//! rule times 3-point Gauss (`Wedge15`, exact for a constant Jacobian). Mass points (consistent mass, invariants of motion, volume)
+//! rule times 3-point Gauss (`Wedge15`, exact for a constant Jacobian) and 2 x 2 x 2 Gauss
+//! points of the cube collapsed onto the pyramid (`Pyramid5`, exact for a constant Jacobian).
+//! Mass points (consistent mass, invariants of motion, volume)
 //! use a rule that makes every integrand of `element.rs` exact: the 4-point degree-2 rule for
 //! `Tet4`, the 15-point degree-5 rule for `Tet10` (exact for straight edges; an approximation
 //! when mid-edge nodes are off the edge midpoints) and 3 x 3 x 3 Gauss for `Hex8` (exact for
@@ -42,7 +46,8 @@
 //! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss),
 //! 4 x 4 x 4 Gauss for `Hex20` (exact for straight edges: degree 6 per direction), the
 //! degree-4 triangle rule times 3-point Gauss for `Wedge6` (exact), the degree-5 triangle
-//! rule times 4-point Gauss for `Wedge15` (exact for straight edges).
+//! rule times 4-point Gauss for `Wedge15` (exact for straight edges), the collapsed 2 x 2 x 4
+//! Gauss points for `Pyramid5` (exact).
 //! Lumped masses are HRZ (Hinton, Rock, Zienkiewicz, "A note on mass lumping and related
 //! processes in the finite element method", Earthquake Eng. Struct. Dyn. 4 (1976) 245-249):
 //! the diagonal of the consistent mass matrix scaled so that its sum is the element mass.
@@ -55,7 +60,8 @@
 //! `geometry` (the isoparametric map: Jacobian, physical gradients), `validation` (node count,
 //! positions, degenerate and inverted elements), `matrices` (stiffness and nodal stresses),
 //! `mass` (mass points, HRZ lumped masses, volume), `incompatible` (the hexahedron with
-//! incompatible modes, on the shape functions, rules and mass of `Hex8`).
+//! incompatible modes, on the shape functions, rules and mass of `Hex8`), `wedge` and
+//! `pyramid`.
 
 use crate::fem::element::{ElementKernel, ElementResult, MassPoint};
 use crate::fem::material::Material;
@@ -95,6 +101,7 @@ mod hexahedron;
 mod incompatible;
 mod mass;
 mod matrices;
+mod pyramid;
 #[cfg(test)]
 pub(crate) mod tests;
 mod tetrahedra;
@@ -134,6 +141,10 @@ pub struct Wedge6;
 /// Quadratic 15-node wedge (serendipity; node order in the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Wedge15;
+
+/// Linear pyramid (node order in the module doc; rational shape functions, see `pyramid`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Pyramid5;
 
 /// Vertices joined by the edge of each mid-edge node 4..9 of a [`Tet10`] (Gmsh order).
 pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [2, 3], [1, 3]];
@@ -215,4 +226,5 @@ solid_element_kernel!(Hex8, 8);
 solid_element_kernel!(Hex20, 20);
 solid_element_kernel!(Hex20Reduced, 20);
 solid_element_kernel!(Wedge6, 6);
+solid_element_kernel!(Pyramid5, 5);
 solid_element_kernel!(Wedge15, 15);

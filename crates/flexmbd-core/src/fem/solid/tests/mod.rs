@@ -40,6 +40,7 @@ enum Kind {
     Wedge6,
     /// [`Wedge15`] on the shapes of Wedge6 (mid-edge nodes at the edges' midpoints).
     Wedge15,
+    Pyramid5,
 }
 
 fn element(kind: Kind) -> &'static dyn ElementKernel {
@@ -52,6 +53,7 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Hex20R => &Hex20Reduced,
         Kind::Wedge6 => &Wedge6,
         Kind::Wedge15 => &Wedge15,
+        Kind::Pyramid5 => &Pyramid5,
     }
 }
 
@@ -321,7 +323,35 @@ fn cases() -> Vec<Case> {
         })
         .collect();
     cases.extend(quadratic);
+    // Pyramids: a right one, an oblique one (parallelogram base, apex off its centre: constant
+    // Jacobian, so the mass fractions of the reference pyramid, 3/16 at a base node and 1/4
+    // at the apex, HRZ 2/11 and 3/11; sympy) and a distorted one (base not planar, not a
+    // parallelogram). The exact moments of the first two from two tetrahedra.
+    let right =
+        vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(0.0, 1.0, 0.0), v(0.5, 0.5, 0.8)];
+    let (corner, e1, e2) = (v(0.2, -0.1, 0.3), v(1.3, 0.2, -0.1), v(-0.3, 0.9, 0.2));
+    let oblique = vec![corner, corner + e1, corner + e1 + e2, corner + e2, v(0.9, 0.1, 1.4)];
+    let mut distorted = oblique.clone();
+    distorted[2] += v(0.1, -0.05, 0.12);
+    distorted[3] += v(-0.08, 0.06, -0.04);
+    let fractions = Some((
+        vec![3.0 / 16.0, 3.0 / 16.0, 3.0 / 16.0, 3.0 / 16.0, 0.25],
+        vec![2.0 / 11.0, 2.0 / 11.0, 2.0 / 11.0, 2.0 / 11.0, 3.0 / 11.0],
+    ));
+    for (name, nodes, fractions) in [
+        ("right Pyramid5", right, fractions.clone()),
+        ("oblique Pyramid5", oblique, fractions),
+        ("distorted Pyramid5", distorted, None),
+    ] {
+        let moments = fractions.as_ref().map(|_| pyramid_moments(&nodes));
+        cases.push(Case { name, kind: Kind::Pyramid5, nodes, moments, fractions });
+    }
     cases
+}
+
+/// Moments of a pyramid with a planar base: the tetrahedra (0,1,2,4) and (0,2,3,4).
+fn pyramid_moments(x: &[Vec3]) -> Moments {
+    tetrahedra_moments(x, &[[0, 1, 2, 4], [0, 2, 3, 4]])
 }
 
 /// A wedge over the triangle `bottom` (counter-clockwise seen from the side of `height`),
@@ -332,11 +362,15 @@ fn wedge(bottom: [Vec3; 3], height: Vec3) -> Vec<Vec3> {
     nodes
 }
 
-/// Moments of a prism with planar faces as the sum over the tetrahedra (0,1,2,3), (1,2,3,4),
-/// (2,3,4,5), each positively oriented.
+/// Moments of a prism with planar faces: the tetrahedra (0,1,2,3), (1,2,3,4), (2,3,4,5).
 fn prism_moments(x: &[Vec3]) -> Moments {
+    tetrahedra_moments(x, &[[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5]])
+}
+
+/// The sum of the moments of the tetrahedra `tets` of the nodes `x` (each turned positive).
+fn tetrahedra_moments(x: &[Vec3], tets: &[[usize; 4]]) -> Moments {
     let mut total = Moments { volume: 0.0, first: Vec3::ZERO, second: [[0.0; 3]; 3] };
-    for tet in [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5]] {
+    for tet in tets {
         let mut corners: Vec<Vec3> = tet.iter().map(|&a| x[a]).collect();
         if (corners[1] - corners[0]).dot(&(corners[2] - corners[0]).cross(&(corners[3] - corners[0]))) < 0.0 {
             corners.swap(1, 2);
@@ -495,6 +529,37 @@ fn shape_functions_interpolate_the_nodes() {
     check::<Hex20, 20>();
     check::<Wedge6, 6>();
     check::<Wedge15, 15>();
+    check::<Pyramid5, 5>();
+}
+
+#[test]
+fn pyramid5_holds_linear_fields_and_meets_tetrahedra_and_hexahedra() {
+    // Every linear field is interpolated exactly (the rational term cancels on it).
+    let f = |p: [f64; 3]| 0.3 - 1.2 * p[0] + 0.7 * p[1] + 2.1 * p[2];
+    let values: Vec<f64> = Pyramid5::NODES.iter().map(|&p| f(p)).collect();
+    for xi in [[0.21, -0.17, 0.33], [-0.5, 0.4, 0.05], [0.01, 0.02, 0.97], [0.0, 0.0, 1.0]] {
+        let n = Pyramid5::shape_functions(xi);
+        let sum: f64 = n.iter().sum();
+        let value: f64 = n.iter().zip(&values).map(|(a, b)| a * b).sum();
+        assert_close(sum, 1.0, 0.0, 1e-15, format_args!("sum of N at {xi:?}"));
+        assert_close(value, f(xi), 0.0, 1e-14, format_args!("linear field at {xi:?}"));
+    }
+    // On a triangular face the functions are those of the face's linear triangle (as the
+    // tetrahedron's): for the face (1, 2, 4) (xi = 1 - zeta), barycentric weights of its
+    // corners; the other nodes' functions vanish there.
+    let (p1, p2, p4) = (Pyramid5::NODES[1], Pyramid5::NODES[2], Pyramid5::NODES[4]);
+    for (s, t) in [(0.2, 0.3), (0.6, 0.1), (0.05, 0.9)] {
+        let xi: [f64; 3] = std::array::from_fn(|k| (1.0 - s - t) * p1[k] + s * p2[k] + t * p4[k]);
+        let n = Pyramid5::shape_functions(xi);
+        assert_all_close(&n, &[0.0, 1.0 - s - t, s, 0.0, t], 0.0, 1e-15, format_args!("face at {xi:?}"));
+    }
+    // On the base, the bilinear functions of the hexahedron's face.
+    for (x, y) in [(0.3, -0.6), (-0.9, 0.2)] {
+        let n = Pyramid5::shape_functions([x, y, 0.0]);
+        let h = Hex8::shape_functions([x, y, -1.0]);
+        assert_all_close(&n[..4], &h[..4], 0.0, 1e-15, format_args!("base at ({x}, {y})"));
+        assert_eq!(n[4], 0.0);
+    }
 }
 
 #[test]

@@ -152,6 +152,18 @@ fn stress_forces_from_faces(case: &Case, sigma: &[[f64; 3]; 3]) -> Option<Vec<f6
             }
         }),
         // (the quadratic faces are not integrated here: the element's own rule serves)
+        // A pyramid of planar faces: the triangles' A / 3 at their corners, the parallelogram
+        // base's A / 4.
+        Kind::Pyramid5 => {
+            case.moments?;
+            let base = 0.5 * (x[3] - x[1]).cross(&(x[2] - x[0]));
+            (0..4).for_each(|a| add(a, base * 0.25));
+            for a in 0..4 {
+                let b = (a + 1) % 4;
+                let area = 0.5 * (x[b] - x[a]).cross(&(x[4] - x[a]));
+                [a, b, 4].iter().for_each(|&c| add(c, area * (1.0 / 3.0)));
+            }
+        }
         Kind::Hex20 | Kind::Hex20R | Kind::Wedge6 | Kind::Wedge15 => return None,
     }
     Some(f)
@@ -177,6 +189,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex20R => strains_at_stiffness_points::<Hex20Reduced, 20>(x, &u),
             Kind::Wedge6 => strains_at_stiffness_points::<Wedge6, 6>(x, &u),
             Kind::Wedge15 => strains_at_stiffness_points::<Wedge15, 15>(x, &u),
+            Kind::Pyramid5 => strains_at_stiffness_points::<Pyramid5, 5>(x, &u),
         };
         for (p, e) in strains.iter().enumerate() {
             assert_all_close(
@@ -198,6 +211,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex20R => stress_forces_by_quadrature::<Hex20Reduced, 20>(x, &sigma),
             Kind::Wedge6 => stress_forces_by_quadrature::<Wedge6, 6>(x, &sigma),
             Kind::Wedge15 => stress_forces_by_quadrature::<Wedge15, 15>(x, &sigma),
+            Kind::Pyramid5 => stress_forces_by_quadrature::<Pyramid5, 5>(x, &sigma),
         });
         let scale = max_abs(&k.data) * max_abs(&u);
         assert_all_close(&internal, &expected, 0.0, RELATIVE * scale, format_args!("{}: K u", case.name));

@@ -77,6 +77,24 @@ fn hexahedra_with_collapsed_faces_are_degenerate() {
 }
 
 #[test]
+fn flat_and_inverted_pyramids_are_degenerate() {
+    let base = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(0.0, 1.0, 0.0)];
+    let pyramid = |apex: Vec3| -> Vec<Vec3> { base.iter().copied().chain([apex]).collect() };
+    // The apex in the base's plane: zero volume.
+    for detail in degenerate_details(Kind::Pyramid5, &pyramid(v(0.5, 0.5, 0.0))) {
+        assert!(detail.contains("quadrature point 0"), "{detail}");
+    }
+    // Below it (the base clockwise seen from the apex): det J = -0.8 / 4 everywhere.
+    for detail in degenerate_details(Kind::Pyramid5, &pyramid(v(0.5, 0.5, -0.8))) {
+        assert!(detail.contains("Jacobian determinant -2.000000e-1 at quadrature point 0"), "{detail}");
+    }
+    // A base node pulled across the apex's axis folds the element.
+    let mut folded = pyramid(v(0.5, 0.5, 0.6));
+    folded[2] = v(0.2, 0.2, 0.0);
+    degenerate_details(Kind::Pyramid5, &folded);
+}
+
+#[test]
 fn wrong_node_counts_and_non_finite_positions_are_invalid() {
     let material = steel();
     let mut k = DenseMatrix::default();
