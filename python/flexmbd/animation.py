@@ -80,6 +80,7 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     "tet10": ("tetra10", np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])),
     "hex8": ("hexahedron", None),
     "hex20": ("hexahedron20", None),
+    "hex27": ("hexahedron27", None),
     "wedge6": ("wedge", None),
     # (meshio writes its wedge15 as given: VTK's quadratic wedge lists each triangle the
     # other way round)
@@ -108,7 +109,7 @@ ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
     "tri3": ((0, 1, 2),),
 }
 # (a hex20's faces by their corners: the surfaces drawn are flat between them)
-ELEMENT_FACES["hex20"] = ELEMENT_FACES["hex8"]
+ELEMENT_FACES["hex20"] = ELEMENT_FACES["hex27"] = ELEMENT_FACES["hex8"]
 ELEMENT_FACES["wedge6"] = ((0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5))
 ELEMENT_FACES["wedge15"] = ELEMENT_FACES["wedge6"]
 ELEMENT_FACES["pyramid5"] = ((0, 3, 2, 1), (0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4))

@@ -19,7 +19,9 @@ _SINGULAR = {"bodies": "body", "joints": "joint", "sensors": "sensor", "markers"
 
 
 #: Element types by what their stresses are.
-_SOLIDS = ("tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "pyramid5")
+_SOLIDS = (
+    "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "hex27", "wedge6", "wedge15", "pyramid5",
+)  # fmt: skip
 _SHELLS = ("quad4", "tri3")
 #: Where to look instead, for a body of only these elements.
 _STRESS_OF = {
@@ -32,6 +34,7 @@ _STRESS_OF = {
     "hex8i": "a solid's stresses are stresses",
     "hex20": "a solid's stresses are stresses",
     "hex20r": "a solid's stresses are stresses",
+    "hex27": "a solid's stresses are stresses",
     "wedge6": "a solid's stresses are stresses",
     "wedge15": "a solid's stresses are stresses",
     "pyramid5": "a solid's stresses are stresses",

@@ -219,7 +219,7 @@ fn default_orientation(axis: Vec3) -> Vec3 {
 /// `recover_stresses`, `body_mass_points`. Nodes (n, 3) in the body frame, node ids (n,),
 /// elements as a dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2",
 /// "tet4", "tet10" (Gmsh node order), "hex8", "hex8i" (with incompatible modes), "hex20",
-/// "hex20r" (VTK node order; reduced integration), "wedge6" (Gmsh's prism), "wedge15"
+/// "hex20r" (VTK node order; reduced integration), "hex27" (VTK node order), "wedge6" (Gmsh's prism), "wedge15"
 /// (Abaqus C3D15 order), "pyramid5" (Gmsh's pyramid), "quad4" and "tri3"; the beam
 /// orientation is a
 /// vector in the sections' x-y plane (default: global y, or global z for beams nearly along
@@ -304,6 +304,7 @@ impl FeMesh {
                     "hex8i" => ElementType::Hex8Incompatible,
                     "hex20" => ElementType::Hex20,
                     "hex20r" => ElementType::Hex20Reduced,
+                    "hex27" => ElementType::Hex27,
                     "wedge6" => ElementType::Wedge6,
                     "wedge15" => ElementType::Wedge15,
                     "pyramid5" => ElementType::Pyramid5,
@@ -324,7 +325,7 @@ impl FeMesh {
                         return Err(invalid(
                             "mesh",
                             format!(
-                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15, pyramid5, quad4, tri3)"
+                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, hex27, wedge6, wedge15, pyramid5, quad4, tri3)"
                         ),
                         ))
                     }

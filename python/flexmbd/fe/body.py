@@ -29,7 +29,8 @@ BODY_DATA_VERSION = 1
 #: Element types and their number of nodes.
 #: "quad4" and "tri3" are flat shells (6 coordinates per node, see `docs/preprocessor.md`);
 #: "hex8i" is the hexahedron with incompatible modes (Abaqus' C3D8I), "hex20" the quadratic
-#: (serendipity) hexahedron and "hex20r" the same with reduced integration (C3D20R),
+#: (serendipity) hexahedron and "hex20r" the same with reduced integration (C3D20R), "hex27"
+#: the triquadratic (Lagrange) hexahedron (Gmsh's and VTK's 27-node hexahedron),
 #: "wedge6" the linear wedge (triangular prism, Abaqus C3D6), "wedge15" the quadratic
 #: (serendipity) wedge (Abaqus C3D15) and "pyramid5" the linear pyramid (Gmsh's, Nastran's
 #: CPYRAM of 5 grids).
@@ -41,6 +42,7 @@ ELEMENT_NODES = {
     "hex8i": 8,
     "hex20": 20,
     "hex20r": 20,
+    "hex27": 27,
     "wedge6": 6,
     "wedge15": 15,
     "pyramid5": 5,

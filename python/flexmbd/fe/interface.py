@@ -51,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
 from .body import cell_of
-from .shapes import HEX8_CORNERS, HEX20_EDGES, TET10_EDGES, WEDGE15_EDGES
+from .shapes import HEX8_CORNERS, HEX20_EDGES, HEX27_FACES, TET10_EDGES, WEDGE15_EDGES
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -160,7 +160,18 @@ _FACET_GROUPS["pyramid5"] = (
 _EDGE_GROUPS["pyramid5"] = (
     ("line2", ((0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 4), (2, 4), (3, 4))),
 )
-_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "wedge6", "wedge15", "pyramid5")
+# hex27: the faces of hex20 with their centres 20..25 (`HEX27_FACES`), the edges of hex20.
+_FACET_GROUPS["hex27"] = (
+    (
+        "quad9",
+        tuple(
+            (*face, 20 + next(k for k, f in enumerate(HEX27_FACES) if set(f) == set(face[:4])))
+            for face in _FACETS["hex20"][1]
+        ),
+    ),
+)
+_EDGE_GROUPS["hex27"] = _EDGE_GROUPS["hex20"]
+_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "hex27", "wedge6", "wedge15", "pyramid5")
 #: How far (a fraction of the diagonal of its nodes' box) an interface's weighted centroid
 #: may lie outside that box: a curved quadratic face's centroid can, by a little.
 OUTSIDE_LIMIT = 0.1
@@ -170,6 +181,22 @@ _CHUNK = 16384
 
 
 # Shape functions on reference cells -----------------------------------------------------------
+
+#: Reference coordinates (-1, 0, 1 per direction) of the nodes of the Lagrange cells: the
+#: quad9 facet (its corners, the mid-edge nodes of (a,b), (b,c), (c,d), (d,a), the centre)
+#: and the hex27 (the corners, the mid-edge nodes of `HEX20_EDGES`, the centres of
+#: `HEX27_FACES`, the centre).
+_CORNERS_3D = [tuple(2 * v - 1 for v in corner) for corner in HEX8_CORNERS]
+_LAGRANGE_NODES = {
+    "quad9": [(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)],
+    "hex27": _CORNERS_3D
+    + [
+        tuple((_CORNERS_3D[p][k] + _CORNERS_3D[q][k]) // 2 for k in range(3))
+        for p, q in HEX20_EDGES
+    ]
+    + [tuple(sum(_CORNERS_3D[a][k] for a in face) // 4 for k in range(3)) for face in HEX27_FACES]
+    + [(0, 0, 0)],
+}
 
 
 def _shape(kind: str, xi: Any) -> list[Any]:
@@ -227,6 +254,17 @@ def _shape(kind: str, xi: Any) -> list[Any]:
             for e, (p, q) in enumerate(WEDGE15_EDGES[:6])
         ]
         return corners + middles + [v * (1 - w * w) for v in lam]
+    if kind in ("quad9", "hex27"):
+        # Lagrange, on [-1, 1]^d: products of the quadratic polynomials l(s) that are 1 at
+        # the node's coordinate c and 0 at the other two (s(s + c)/2, or 1 - s^2 for c = 0).
+        u = [2 * x - 1 for x in xi]
+        values = []
+        for c in _LAGRANGE_NODES[kind]:
+            value = 1
+            for k, ck in enumerate(c):
+                value = value * (1 - u[k] * u[k] if ck == 0 else u[k] * (u[k] + ck) / 2)
+            values.append(value)
+        return values
     if kind == "pyramid5":
         # Bedrosian's rational functions on the pyramid (base [-1, 1]^2 at zeta = 0, apex
         # (0, 0, 1); see `fem/solid/pyramid.rs`): the points of `_rule` are never at the apex.
@@ -271,7 +309,7 @@ def _rule(kind: str) -> tuple[Array, Array]:
     # (4 points on the serendipity cells: those of their mass points, so that interface
     # weights and the mass matrix agree on curved elements too)
     g, w = np.polynomial.legendre.leggauss(
-        4 if kind in ("quad8", "hex20", "wedge15", "pyramid5") else 3
+        4 if kind in ("quad8", "quad9", "hex20", "hex27", "wedge15", "pyramid5") else 3
     )
     g, w = 0.5 * (g + 1.0), 0.5 * w
     dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3, "pyramid": 3}[

@@ -28,6 +28,9 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   (0,1), (1,2), (2,3), (3,0), (4,5), (5,6), (6,7), (7,4), (0,4), (1,5), (2,6), (3,7): the
   order of VTK's quadratic hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's own
   order on reading).
+* ``hex27``: the nodes of ``hex20``, then the centres of the faces (0,3,7,4), (1,2,6,5),
+  (0,1,5,4), (3,2,6,7), (0,1,2,3), (4,5,6,7) and the element's centre: VTK's triquadratic
+  hexahedron and meshio's hexahedron27 (which converts Gmsh's order on reading).
 * ``wedge15``: the corners of ``wedge6``, then the mid-edge nodes 6..14 on the edges (0,1),
   (1,2), (2,0), (3,4), (4,5), (5,3), (0,3), (1,4), (2,5): Abaqus C3D15 and meshio (which
   converts Gmsh's prism15 on reading). VTK's quadratic wedge has these edges with each
@@ -77,6 +80,7 @@ MESHIO_ELEMENT_TYPES = {
     "tetra10": "tet10",
     "hexahedron": "hex8",
     "hexahedron20": "hex20",
+    "hexahedron27": "hex27",
     "wedge": "wedge6",
     "wedge15": "wedge15",
     "pyramid": "pyramid5",
@@ -218,9 +222,9 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron",
-    "hexahedron20", "wedge", "wedge15", "pyramid" and "line" become "tet4", "tet10", "hex8",
-    "hex20", "wedge6", "wedge15", "pyramid5" and "beam2", in the node order of the module
-    docstring; Abaqus'
+    "hexahedron20", "hexahedron27", "wedge", "wedge15", "pyramid" and "line" become "tet4",
+    "tet10", "hex8", "hex20", "hex27", "wedge6", "wedge15", "pyramid5" and "beam2", in the node
+    order of the module docstring; Abaqus'
     hexahedra with incompatible modes (C3D8I, C3D8IH) become "hex8i", its quadratic ones with
     reduced integration (C3D20R, C3D20RH) "hex20r", its linear reduced-integration hexahedra
     (C3D8R, C3D8RH) "hex8" with a :class:`~flexmbd.MeshQualityWarning` (flexmbd has no
@@ -234,8 +238,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     the node sets of the named groups they belong to: a Gmsh physical surface of triangles
     named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
     "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
-    of the highest dimension must all be elements: a 13-node pyramid, an 18-node wedge or a 27-node
-    hexahedron next to tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
+    of the highest dimension must all be elements: a 13-node pyramid or an 18-node wedge next to
+    tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
     miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
     (membranes such as M3D4, surface elements SFM3D4, ...) are left out with a
@@ -414,7 +418,7 @@ def _unsupported_cells(
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
     supported = {
-        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, wedge6, wedge15, pyramid5",
+        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, hex27, wedge6, wedge15, pyramid5",
         2: "quad4, tri3 (flat shells)",
         1: "beam2",
     }[dimension]

@@ -345,7 +345,7 @@ def assemble(
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
     `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8",
-    "hex8i" with incompatible modes, "hex20" and "hex20r" in VTK node order, "wedge6" in
+    "hex8i" with incompatible modes, "hex20", "hex20r" and "hex27" in VTK node order, "wedge6" in
     Gmsh's prism order, "wedge15" in Abaqus' C3D15 order, "pyramid5" in Gmsh's order, the flat
     shells "quad4" and "tri3")
     to its connectivity

@@ -43,6 +43,10 @@ TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (2, 3), (1, 3))
 HEX20_EDGES = (
     (0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7),
 )  # fmt: skip
+#: Corners of the faces whose centres are the nodes 20..25 of a hex27 (VTK's triquadratic
+#: hexahedron: the faces x = 0, x = 1, y = 0, y = 1, z = 0, z = 1 of `HEX8_CORNERS`); node 26
+#: is the element's centre.
+HEX27_FACES = ((0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4), (3, 2, 6, 7), (0, 1, 2, 3), (4, 5, 6, 7))
 #: Corners joined by the mid-edge nodes 6..14 of a wedge15 (Abaqus C3D15 order: the bottom
 #: triangle's edges, the top one's, the vertical ones).
 WEDGE15_EDGES = ((0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4), (2, 5))
@@ -55,7 +59,7 @@ MAX_MESH_ELEMENTS = 10_000_000
 
 #: The elements of :func:`box`.
 BOX_ELEMENTS = (
-    "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "pyramid5", "tet4", "tet10",
+    "hex8", "hex8i", "hex20", "hex20r", "hex27", "wedge6", "wedge15", "pyramid5", "tet4", "tet10",
 )  # fmt: skip
 
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
@@ -65,6 +69,7 @@ _BYTES_PER_ELEMENT = {
     "hex8i": 220,
     "hex20": 1300,
     "hex20r": 1300,
+    "hex27": 1800,
     "wedge6": 200,
     "wedge15": 1000,
     "pyramid5": 150,
@@ -187,6 +192,22 @@ def quadratic_hexahedra(
     return _with_edge_midpoints(nodes, hexes, HEX20_EDGES)
 
 
+def triquadratic_hexahedra(
+    nodes: NDArray[np.float64], hexes: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Hex27 elements from hex8 elements: a node at the midpoint of every edge and at the
+    centre of every face (shared by the elements around them) and one at each element's
+    centre. Returns the extended nodes and the hex27 connectivity (VTK's order)."""
+    nodes, cells = _with_edge_midpoints(nodes, hexes, HEX20_EDGES)
+    keys = np.concatenate([np.sort(hexes[:, list(face)], axis=1) for face in HEX27_FACES])
+    faces, inverse = np.unique(keys, axis=0, return_inverse=True)
+    face_nodes = len(nodes) + inverse.reshape(len(HEX27_FACES), len(hexes)).T
+    centres = len(nodes) + len(faces) + np.arange(len(hexes))
+    corners = nodes[hexes]
+    nodes = np.vstack([nodes, nodes[faces].mean(axis=1), corners.mean(axis=1)])
+    return nodes, np.hstack([cells, face_nodes, centres[:, None]]).astype(np.int64)
+
+
 def quadratic_wedges(
     nodes: NDArray[np.float64], wedges: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -220,9 +241,10 @@ def box(
 
     `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
     "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "hex20", "hex20r"
-    (quadratic hexahedra; reduced integration), "wedge6" (two prisms per cell, split in z),
-    "wedge15" (the same, quadratic), "pyramid5" (six pyramids per cell, their apexes at a
-    node in its centre), "tet4" (six tetrahedra per cell) or "tet10". Node sets:
+    (quadratic hexahedra; reduced integration), "hex27" (triquadratic), "wedge6" (two prisms
+    per cell, split in z), "wedge15" (the same, quadratic), "pyramid5" (six pyramids per cell,
+    their apexes at a node in its centre), "tet4" (six tetrahedra per cell) or "tet10". Node
+    sets:
     "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
@@ -256,10 +278,12 @@ def box(
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz + (nx + 1) * ny * nz + nx * (ny + 1) * nz
         node_count += nx * ny * (nz + 1) + cells
-    if element in ("hex20", "hex20r", "wedge15"):
+    if element in ("hex20", "hex20r", "hex27", "wedge15"):
         # Mid-edge nodes: the grid's edges (and a wedge's: one diagonal per z-face).
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz
+        if element == "hex27":  # the faces' and the cells' centres
+            node_count += (nx + 1) * ny * nz + nx * (ny + 1) * nz + nx * ny * (nz + 1) + cells
         if element == "wedge15":
             node_count += nx * ny * (nz + 1)
     if element == "pyramid5":
@@ -290,6 +314,9 @@ def box(
         elements = {element: hexes}
     elif element in ("hex20", "hex20r"):
         nodes, hexes = quadratic_hexahedra(nodes, hexes)
+        elements = {element: hexes}
+    elif element == "hex27":
+        nodes, hexes = triquadratic_hexahedra(nodes, hexes)
         elements = {element: hexes}
     elif element in ("wedge6", "wedge15"):
         # Each cell split along its diagonal 0-2 in z: the prisms (0, 1, 2 | 4, 5, 6) and

@@ -364,7 +364,16 @@ class BoxSpec(_Spec):
     lengths: Vector = Field(description="edge lengths along x, y, z (length)")
     divisions: IntTriple = Field(description="cells along x, y, z")
     element: Literal[
-        "hex8", "hex8i", "hex20", "hex20r", "wedge6", "wedge15", "pyramid5", "tet4", "tet10"
+        "hex8",
+        "hex8i",
+        "hex20",
+        "hex20r",
+        "hex27",
+        "wedge6",
+        "wedge15",
+        "pyramid5",
+        "tet4",
+        "tet10",
     ] = "hex8"
     origin: Vector | None = Field(None, description="corner of the box (length)")
 

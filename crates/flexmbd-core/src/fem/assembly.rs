@@ -18,7 +18,7 @@ use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
 use crate::fem::solid::{
-    Hex20, Hex20Reduced, Hex8, Hex8Incompatible, Pyramid5, Tet10, Tet4, Wedge15, Wedge6,
+    Hex20, Hex20Reduced, Hex27, Hex8, Hex8Incompatible, Pyramid5, Tet10, Tet4, Wedge15, Wedge6,
 };
 
 /// The element types a body can be made of.
@@ -38,6 +38,8 @@ pub enum ElementType {
     Hex20,
     /// Twenty-node hexahedron with reduced integration (Abaqus' C3D20R).
     Hex20Reduced,
+    /// Twenty-seven-node (triquadratic) hexahedron (VTK node order).
+    Hex27,
     /// Six-node wedge (triangular prism).
     Wedge6,
     /// Fifteen-node wedge (Abaqus C3D15 node order).
@@ -60,6 +62,7 @@ impl ElementType {
             ElementType::Hex8Incompatible => &Hex8Incompatible,
             ElementType::Hex20 => &Hex20,
             ElementType::Hex20Reduced => &Hex20Reduced,
+            ElementType::Hex27 => &Hex27,
             ElementType::Wedge6 => &Wedge6,
             ElementType::Wedge15 => &Wedge15,
             ElementType::Pyramid5 => &Pyramid5,
@@ -87,6 +90,7 @@ impl ElementType {
                 | ElementType::Hex8Incompatible
                 | ElementType::Hex20
                 | ElementType::Hex20Reduced
+                | ElementType::Hex27
                 | ElementType::Wedge6
                 | ElementType::Wedge15
                 | ElementType::Pyramid5

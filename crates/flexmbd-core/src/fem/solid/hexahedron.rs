@@ -1,7 +1,8 @@
-//! The trilinear hexahedron [`Hex8`] and the 20-node serendipity hexahedron [`Hex20`] (and
-//! [`Hex20Reduced`]): nodes, quadrature rules, shape functions and their reference gradients.
+//! The trilinear hexahedron [`Hex8`], the 20-node serendipity hexahedron [`Hex20`] (and
+//! [`Hex20Reduced`]) and the 27-node triquadratic (Lagrange) hexahedron [`Hex27`]: nodes,
+//! quadrature rules, shape functions and their reference gradients.
 
-use super::{Hex20, Hex20Reduced, Hex8, Isoparametric};
+use super::{Hex20, Hex20Reduced, Hex27, Hex8, Isoparametric};
 use crate::fem::quadrature::{QuadraturePoint, HEXAHEDRON_GAUSS_2, HEXAHEDRON_GAUSS_3, HEXAHEDRON_GAUSS_4};
 
 impl Isoparametric<8> for Hex8 {
@@ -121,5 +122,63 @@ impl Isoparametric<20> for Hex20Reduced {
 
     fn reference_gradients(xi: [f64; 3]) -> [[f64; 3]; 20] {
         hex20_reference_gradients(xi)
+    }
+}
+
+/// Reference coordinates of the 27 nodes: those of [`Hex20`], then the centres of the faces
+/// xi = -1, xi = +1, eta = -1, eta = +1, zeta = -1, zeta = +1, then the element's centre
+/// (VTK's triquadratic hexahedron; meshio converts Gmsh's order to it on reading).
+const HEX27_NODES: [[f64; 3]; 27] = {
+    let mut nodes = [[0.0; 3]; 27];
+    let mut a = 0;
+    while a < 20 {
+        nodes[a] = HEX20_NODES[a];
+        a += 1;
+    }
+    let faces = [
+        [-1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, -1.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, 0.0],
+    ];
+    while a < 27 {
+        nodes[a] = faces[a - 20];
+        a += 1;
+    }
+    nodes
+};
+
+/// The quadratic Lagrange polynomial of [-1, 1] that is 1 at the node `c` (-1, 0 or 1) and 0
+/// at the other two, and its derivative, at `s`.
+fn lagrange(c: f64, s: f64) -> (f64, f64) {
+    if c == 0.0 {
+        (1.0 - s * s, -2.0 * s)
+    } else {
+        (0.5 * s * (s + c), s + 0.5 * c)
+    }
+}
+
+impl Isoparametric<27> for Hex27 {
+    const NAME: &'static str = "hex27";
+    const NODES: [[f64; 3]; 27] = HEX27_NODES;
+    // B^T D B: degree 4 per direction on an element of constant Jacobian (exact there).
+    const STIFFNESS_RULE: &'static [QuadraturePoint] = &HEXAHEDRON_GAUSS_3;
+    // N_a N_b det J: degree 4 + 2 per direction on a straight-edged element (exact).
+    const MASS_RULE: &'static [QuadraturePoint] = &HEXAHEDRON_GAUSS_4;
+
+    /// N_a = l_a(xi) l_a(eta) l_a(zeta), the products of the quadratic Lagrange polynomials
+    /// of the node's reference coordinates.
+    fn shape_functions(xi: [f64; 3]) -> [f64; 27] {
+        std::array::from_fn(|a| (0..3).map(|k| lagrange(HEX27_NODES[a][k], xi[k]).0).product())
+    }
+
+    fn reference_gradients(xi: [f64; 3]) -> [[f64; 3]; 27] {
+        std::array::from_fn(|a| {
+            let l: [(f64, f64); 3] = std::array::from_fn(|k| lagrange(HEX27_NODES[a][k], xi[k]));
+            [l[0].1 * l[1].0 * l[2].0, l[0].0 * l[1].1 * l[2].0, l[0].0 * l[1].0 * l[2].1]
+        })
     }
 }

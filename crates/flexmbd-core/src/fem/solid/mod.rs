@@ -20,6 +20,9 @@
 //!   (7,4) and the vertical ones (0,4), (1,5), (2,6), (3,7) ([`HEX20_EDGES`]): VTK's quadratic
 //!   hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's order on reading; not
 //!   Gmsh's own order).
+//! - [`Hex27`]: the nodes of `Hex20`, then the centres of the faces xi = -1, xi = +1,
+//!   eta = -1, eta = +1, zeta = -1, zeta = +1 and the element's centre: VTK's triquadratic
+//!   hexahedron and meshio's hexahedron27 (which converts Gmsh's order on reading).
 //! - [`Wedge6`]: the triangle 0, 1, 2 counter-clockwise seen from the other one, 3, 4, 5
 //!   above them (reference (0,0,-1), (1,0,-1), (0,1,-1), then w = +1): Gmsh's prism, Abaqus
 //!   C3D6 and meshio's wedge (VTK's wedge lists each triangle the other way round; meshio
@@ -34,7 +37,7 @@
 //!
 //! Quadrature: stiffness K = int B^T D B dV with the 1-point rule (`Tet4`, exact), the 4-point
 //! degree-2 rule (`Tet10`, exact for straight edges), 2 x 2 x 2 Gauss (`Hex8`, full
-//! integration, no hourglass modes; `Hex20Reduced`), 3 x 3 x 3 Gauss (`Hex20`) and the
+//! integration, no hourglass modes; `Hex20Reduced`), 3 x 3 x 3 Gauss (`Hex20`, `Hex27`) and the
 //! degree-2 triangle rule times 2-point Gauss (`Wedge6`, exact) and the degree-4 triangle
 //! rule times 3-point Gauss (`Wedge15`, exact for a constant Jacobian) and 2 x 2 x 2 Gauss
 //! points of the cube collapsed onto the pyramid (`Pyramid5`, exact for a constant Jacobian).
@@ -44,7 +47,7 @@
 //! when mid-edge nodes are off the edge midpoints) and 3 x 3 x 3 Gauss for `Hex8` (exact for
 //! every trilinear hexahedron: with a non-constant Jacobian determinant the integrands
 //! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss),
-//! 4 x 4 x 4 Gauss for `Hex20` (exact for straight edges: degree 6 per direction), the
+//! 4 x 4 x 4 Gauss for `Hex20` and `Hex27` (exact for straight edges: degree 6 per direction), the
 //! degree-4 triangle rule times 3-point Gauss for `Wedge6` (exact), the degree-5 triangle
 //! rule times 4-point Gauss for `Wedge15` (exact for straight edges), the collapsed 2 x 2 x 4
 //! Gauss points for `Pyramid5` (exact).
@@ -133,6 +136,11 @@ pub struct Hex20;
 /// zero-energy modes in a lone element that a mesh of two or more does not share.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Hex20Reduced;
+
+/// Quadratic 27-node (triquadratic Lagrange) hexahedron (node order in the module doc),
+/// 3 x 3 x 3 Gauss stiffness.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Hex27;
 
 /// Linear wedge (triangular prism, node order in the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -227,4 +235,5 @@ solid_element_kernel!(Hex20, 20);
 solid_element_kernel!(Hex20Reduced, 20);
 solid_element_kernel!(Wedge6, 6);
 solid_element_kernel!(Pyramid5, 5);
+solid_element_kernel!(Hex27, 27);
 solid_element_kernel!(Wedge15, 15);

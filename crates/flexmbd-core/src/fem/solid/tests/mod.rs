@@ -37,6 +37,9 @@ enum Kind {
     /// edges' midpoints).
     Hex20,
     Hex20R,
+    /// [`Hex27`] on the shapes of Hex8 (edge, face and centre nodes where the trilinear map
+    /// puts them).
+    Hex27,
     Wedge6,
     /// [`Wedge15`] on the shapes of Wedge6 (mid-edge nodes at the edges' midpoints).
     Wedge15,
@@ -51,6 +54,7 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Hex8I => &Hex8Incompatible,
         Kind::Hex20 => &Hex20,
         Kind::Hex20R => &Hex20Reduced,
+        Kind::Hex27 => &Hex27,
         Kind::Wedge6 => &Wedge6,
         Kind::Wedge15 => &Wedge15,
         Kind::Pyramid5 => &Pyramid5,
@@ -279,6 +283,31 @@ fn cases() -> Vec<Case> {
         })
         .collect();
     cases.extend(quadratic);
+    // And with 27 nodes: on the parallelepipeds the row sums are the products of the 1-D
+    // ones (1/6 at an end, 2/3 in the middle): 1/216 of the mass at a corner, 4/216 at a
+    // mid-edge node, 16/216 at a face's centre and 64/216 at the element's; the HRZ masses
+    // the same (int l^2 over [-1, 1]: 4/15 at an end, 16/15 in the middle, also 1 : 4).
+    let triquadratic: Vec<Case> = cases
+        .iter()
+        .filter(|c| c.kind == Kind::Hex8)
+        .map(|c| {
+            let fractions = c.fractions.as_ref().map(|_| {
+                let mut sums = vec![1.0 / 216.0; 8];
+                sums.extend([4.0 / 216.0; 12]);
+                sums.extend([16.0 / 216.0; 6]);
+                sums.push(64.0 / 216.0);
+                (sums.clone(), sums)
+            });
+            let name = match c.name {
+                "unit cube Hex8" => "unit cube Hex27",
+                "box Hex8" => "box Hex27",
+                "parallelepiped Hex8" => "parallelepiped Hex27",
+                _ => "distorted Hex27",
+            };
+            Case { name, kind: Kind::Hex27, nodes: hex27_from(&c.nodes), moments: c.moments, fractions }
+        })
+        .collect();
+    cases.extend(triquadratic);
     // Wedges: a right prism, an oblique one (top triangle shifted: constant Jacobian, so each
     // node carries a sixth of the mass in both forms) and a distorted one. The exact moments
     // of the first two from three tetrahedra.
@@ -385,6 +414,19 @@ fn tetrahedra_moments(x: &[Vec3], tets: &[[usize; 4]]) -> Moments {
         }
     }
     total
+}
+
+/// A Hex27 of the trilinear geometry of the Hex8 `corners`: the Hex20's nodes, then the
+/// means of each face's corners and of all eight.
+fn hex27_from(corners: &[Vec3]) -> Vec<Vec3> {
+    let mut nodes = hex20_from(corners);
+    for centre in &Hex27::NODES[20..] {
+        let on = |a: &usize| (0..3).all(|k| centre[k] == 0.0 || Hex8::NODES[*a][k] == centre[k]);
+        let members: Vec<usize> = (0..8).filter(on).collect();
+        let sum = members.iter().fold(Vec3::ZERO, |s, &a| s + corners[a]);
+        nodes.push((1.0 / members.len() as f64) * sum);
+    }
+    nodes
 }
 
 /// A straight-edged Hex20: the corners and the midpoints of the edges.
@@ -527,6 +569,7 @@ fn shape_functions_interpolate_the_nodes() {
     check::<Tet10, 10>();
     check::<Hex8, 8>();
     check::<Hex20, 20>();
+    check::<Hex27, 27>();
     check::<Wedge6, 6>();
     check::<Wedge15, 15>();
     check::<Pyramid5, 5>();
@@ -582,6 +625,31 @@ fn wedge15_interpolates_every_quadratic_field() {
         let mid: [f64; 3] = std::array::from_fn(|j| 0.5 * (Wedge6::NODES[*p][j] + Wedge6::NODES[*q][j]));
         assert_eq!(mid, Wedge15::NODES[6 + e]);
     }
+}
+
+#[test]
+fn hex27_interpolates_every_triquadratic_field() {
+    // The Lagrange hexahedron holds x^i y^j z^k for i, j, k <= 2 (the serendipity Hex20 does
+    // not: x^2 y^2 is not in its space).
+    let f = |p: [f64; 3]| {
+        let [x, y, z] = p;
+        1.0 - x + 2.0 * y * z + 0.5 * x * x * y - 1.5 * x * x * y * y * z * z + 0.3 * y * y * z
+    };
+    let values: Vec<f64> = Hex27::NODES.iter().map(|&p| f(p)).collect();
+    let serendipity: Vec<f64> = Hex20::NODES.iter().map(|&p| f(p)).collect();
+    let mut missed: f64 = 0.0;
+    for xi in [[0.2, 0.3, -0.4], [0.6, -0.1, 0.8], [-0.95, 0.9, 0.0]] {
+        let interpolated: f64 = Hex27::shape_functions(xi).iter().zip(&values).map(|(a, b)| a * b).sum();
+        assert_close(interpolated, f(xi), 0.0, 1e-14, format_args!("triquadratic at {xi:?}"));
+        let by_hex20: f64 = Hex20::shape_functions(xi).iter().zip(&serendipity).map(|(a, b)| a * b).sum();
+        missed = missed.max((by_hex20 - f(xi)).abs());
+    }
+    assert!(missed > 1e-3, "hex20 interpolates x^2 y^2 z^2 ({missed})");
+    // Nodes 20..26: the faces' centres (VTK's order: xi -+1, eta -+1, zeta -+1), the centre.
+    let expected = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
+    assert_eq!(Hex27::NODES[20..25], expected);
+    assert_eq!(Hex27::NODES[25..], [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]);
+    assert_eq!(Hex27::NODES[..20], Hex20::NODES);
 }
 
 #[test]

@@ -164,7 +164,7 @@ fn stress_forces_from_faces(case: &Case, sigma: &[[f64; 3]; 3]) -> Option<Vec<f6
                 [a, b, 4].iter().for_each(|&c| add(c, area * (1.0 / 3.0)));
             }
         }
-        Kind::Hex20 | Kind::Hex20R | Kind::Wedge6 | Kind::Wedge15 => return None,
+        Kind::Hex20 | Kind::Hex20R | Kind::Hex27 | Kind::Wedge6 | Kind::Wedge15 => return None,
     }
     Some(f)
 }
@@ -187,6 +187,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex8 | Kind::Hex8I => strains_at_stiffness_points::<Hex8, 8>(x, &u),
             Kind::Hex20 => strains_at_stiffness_points::<Hex20, 20>(x, &u),
             Kind::Hex20R => strains_at_stiffness_points::<Hex20Reduced, 20>(x, &u),
+            Kind::Hex27 => strains_at_stiffness_points::<Hex27, 27>(x, &u),
             Kind::Wedge6 => strains_at_stiffness_points::<Wedge6, 6>(x, &u),
             Kind::Wedge15 => strains_at_stiffness_points::<Wedge15, 15>(x, &u),
             Kind::Pyramid5 => strains_at_stiffness_points::<Pyramid5, 5>(x, &u),
@@ -209,6 +210,7 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex8 | Kind::Hex8I => stress_forces_by_quadrature::<Hex8, 8>(x, &sigma),
             Kind::Hex20 => stress_forces_by_quadrature::<Hex20, 20>(x, &sigma),
             Kind::Hex20R => stress_forces_by_quadrature::<Hex20Reduced, 20>(x, &sigma),
+            Kind::Hex27 => stress_forces_by_quadrature::<Hex27, 27>(x, &sigma),
             Kind::Wedge6 => stress_forces_by_quadrature::<Wedge6, 6>(x, &sigma),
             Kind::Wedge15 => stress_forces_by_quadrature::<Wedge15, 15>(x, &sigma),
             Kind::Pyramid5 => stress_forces_by_quadrature::<Pyramid5, 5>(x, &sigma),
