@@ -583,7 +583,14 @@ def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
     ) as info:
         read_mesh(path)
     assert "mass and stiffness" in str(info.value)
+    assert "at order 1 (pyramid5)" in str(info.value)  # what to do instead
     assert info.value.item.startswith("element ")
+    # Gmsh's complete order-2 prisms: the option that gives the 15-node ones.
+    points = np.random.default_rng(0).random((36, 3))  # (refused before any geometry)
+    cells = [("wedge18", np.arange(36).reshape(2, 18))]
+    path = write(tmp_path, "prisms.vtu", meshio.Mesh(points, cells), "vtu")
+    with pytest.raises(InvalidModelError, match=r"2 wedge18 cells .*SecondOrderIncomplete = 1"):
+        read_mesh(path)
 
     abaqus = tmp_path / "wedge.inp"
     nodes = "".join(f"{k + 1}, {k}, {k % 2}, {k % 3}\n" for k in range(16))
@@ -598,7 +605,7 @@ def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
                        [0.5, 0.5, 0.0]], dtype=float)  # fmt: skip
     cells = [("triangle", np.array([[0, 1, 2]])), ("triangle6", np.array([[1, 3, 2, 5, 6, 6]]))]
     path = write(tmp_path, "shell.vtu", meshio.Mesh(points, cells), "vtu")
-    with pytest.raises(InvalidModelError, match=r"triangle6 cell .*quad4, tri3"):
+    with pytest.raises(InvalidModelError, match=r"triangle6 cell .*quad4, tri3.*at order 1"):
         read_mesh(path)
 
 

@@ -412,6 +412,20 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     )
 
 
+#: What to do instead, for the cells of other codes' higher orders: meshio's type -> advice.
+ORDER_ADVICE = {
+    "wedge18": "Gmsh makes 18-node prisms at order 2 unless told Mesh.SecondOrderIncomplete = 1, "
+    "which gives 15-node ones (wedge15)",
+    "pyramid13": "pyramids of order 2 are not elements here: mesh the transition between "
+    "hexahedra and tetrahedra at order 1 (pyramid5), or use tetrahedra (tet10) or hexahedra "
+    "(hex20, hex27) throughout",
+    "triangle6": "shells are of order 1 here (tri3, quad4): mesh the surface at order 1",
+    "quad8": "shells are of order 1 here (tri3, quad4): mesh the surface at order 1",
+    "quad9": "shells are of order 1 here (tri3, quad4): mesh the surface at order 1",
+}
+ORDER_ADVICE["pyramid14"] = ORDER_ADVICE["pyramid13"]
+
+
 def _unsupported_cells(
     path: Path, cell_type: str, count: int, first_id: int, dimension: int
 ) -> InvalidModelError:
@@ -426,7 +440,8 @@ def _unsupported_cells(
         f"{path}: {count} {cell_type} cell{'s' if count > 1 else ''} (the first is element "
         f"{first_id}) {'are' if count > 1 else 'is'} not an element type flexmbd has "
         f"({supported}): refused, as leaving them out, the body would miss their mass and "
-        "stiffness. Mesh with the supported types or remove these cells",
+        "stiffness. "
+        + ORDER_ADVICE.get(cell_type, "Mesh with the supported types or remove these cells"),
         item=f"element {first_id} of '{path}'",
     )
 
