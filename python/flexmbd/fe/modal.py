@@ -541,14 +541,16 @@ def free_free_modes(
     *,
     nodes: NDArray[np.float64] | None = None,
     dofs_per_node: int = 3,
+    dofs: NDArray[np.int64] | None = None,
     precision: str = "auto",
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The first `count` elastic free-free modes (the `rigid` rigid-body modes removed) and
-    their frequencies (Hz). Being mass-orthogonal to the rigid motions, they satisfy the mean
-    axis (Tisserand) conditions. Raises if the body is not free (fewer than `rigid` near-zero
-    frequencies) or has more rigid motions than `rigid` (a mechanism or disconnected parts).
-    The shift of the shift-invert iteration is slightly negative, so that K - shift M is
-    positive definite although K is singular."""
+    their frequencies (Hz). `dofs`: the nodal coordinates the matrices hold (default all of
+    `nodes`' coordinates), for the ordering of the factorization. Being mass-orthogonal to
+    the rigid motions, they satisfy the mean axis (Tisserand) conditions. Raises if the body
+    is not free (fewer than `rigid` near-zero frequencies) or has more rigid motions than
+    `rigid` (a mechanism or disconnected parts). The shift of the shift-invert iteration is
+    slightly negative, so that K - shift M is positive definite although K is singular."""
     n = stiffness.shape[0]
     scale = _scale(stiffness, mass)
     shift = -1e-6 * scale
@@ -559,6 +561,7 @@ def free_free_modes(
             single=_use_single(precision, n),
             nodes=nodes,
             dofs_per_node=dofs_per_node,
+            **({} if dofs is None else {"dofs": dofs}),
             name="shifted stiffness K - sigma M",
         )
         solve = inverse.precondition

@@ -832,11 +832,11 @@ def _body_from_nodal(
     if len(unused):
         # The rotations of nodes of solids alone (in a body with beams or shells) have no
         # stiffness and no mass: they stay at zero (the stiffness was singular).
-        if modes in ("free-free", "craig-bampton"):
+        if modes == "craig-bampton":
             raise InvalidModelError(
                 f"{modes} modes of a body that mixes solids with beams or shells are not "
                 f"available yet: the rotations of its {len(unused) // 3} nodes of solids alone "
-                "have no stiffness; use fixed-interface modes or a nodal body",
+                "have no stiffness; use free-free or fixed-interface modes or a nodal body",
                 item="modes",
             )
         free = np.setdiff1d(free, unused)
@@ -864,12 +864,15 @@ def _body_from_nodal(
                 precision=precision,
             )
         elif modes == "free-free":
+            # (over the kept coordinates: all but the rotations of nodes of solids alone)
+            whole = len(free) == len(nodes) * d
             basis, freqs = free_free_modes(
-                nodal.stiffness,
-                nodal.mass,
+                nodal.stiffness if whole else nodal.stiffness[free][:, free],
+                nodal.mass if whole else nodal.mass[free][:, free],
                 mode_count,
                 nodes=nodes,
                 dofs_per_node=d,
+                dofs=None if whole else free,
                 precision=precision,
             )
         elif modes == "craig-bampton":
