@@ -553,7 +553,7 @@ def test_a_beam_joined_to_a_solid_at_one_node_is_a_mechanism():
 
 
 @pytest.mark.parametrize("divisions", [(4, 2, 2), (8, 2, 2)])  # (the second: sparse solves)
-def test_free_free_modes_of_mixed_bodies_and_craig_bampton_refused(divisions, assert_close):
+def test_free_free_modes_of_mixed_bodies(divisions, assert_close):
     # Free-free modes of a block with a shell skin were refused; they are taken over the kept
     # coordinates (no rotations of nodes of solids alone): the generalized eigenvalues of the
     # kept K and M (dense, scipy), mass-orthogonal to the rigid motions; with a thin skin, the
@@ -583,8 +583,50 @@ def test_free_free_modes_of_mixed_bodies_and_craig_bampton_refused(divisions, as
                          reference="mean-axis", modes="free-free", mode_count=3)  # fmt: skip
     # (the skin's share falls with its thickness: 4e-3 of a frequency at 5 mm, 3e-5 at 10 um)
     assert_close(free_free(1e-5).frequencies, bare.frequencies, rel=5e-5, what="thin skin")
-    with pytest.raises(InvalidModelError, match="modes of a body that mixes solids"):
-        pp.build_body(
+
+
+@pytest.mark.parametrize("kind", ["nodal", "rbe2", "rbe3"])
+def test_craig_bampton_modes_of_mixed_bodies(kind, assert_close):
+    # They were refused. With the frame on the interface x0 the static modes of x1 and the
+    # fixed-interface modes are a Ritz basis of the block held at x0 (clamped; for rbe3, its
+    # averaged motion held): its frequencies lie above the exact ones (dense eigenvalues of
+    # the kept K and M, x0 held) and close to them; with only x0 (rbe2 and nodal: clamped)
+    # they are the fixed-interface modes themselves.
+    import scipy.linalg as sla
+
+    from flexmbd.fe.modal import interface_objects
+
+    mesh, top, clamped = skinned_block(0.005, (8, 2, 2))
+    elements = {"hex8": mesh.elements["hex8"], "quad4": top}
+    options = dict(shell=0.005, node_sets=mesh.node_sets, reference="interface")
+    options.update(modes="craig-bampton", mode_count=6, interface_kind=kind)
+    body = pp.build_body(mesh.nodes, elements, STEEL, interfaces=["x0", "x1"], **options)
+    free = np.asarray(clamped.reference.free_dofs)
+    if kind == "rbe3":  # (held: G u = 0, the averaged motion of x0, over the kept coordinates)
+        free = np.asarray(
+            pp.build_body(mesh.nodes, elements, STEEL, shell=0.005).reference.free_dofs
+        )
+        (x0,) = interface_objects([mesh.node_sets["x0"]], mesh.nodes, elements, "auto",
+                                  nodal_rotations=True)  # fmt: skip
+        held = sla.null_space(x0.average_rows(6, 6 * mesh.node_count)[:, free].toarray())
+    else:
+        held = np.eye(len(free))
+    k, m = (held.T @ a[free][:, free].toarray() @ held for a in (clamped.stiffness, clamped.mass))
+    exact = np.sqrt(sla.eigh(k, m, eigvals_only=True, subset_by_index=[0, 3])) / (2 * np.pi)
+    ritz = np.sqrt(sla.eigh(body.invariants.k_ff, body.invariants.m_ff, eigvals_only=True))
+    ritz = ritz[:4] / (2 * np.pi)
+    assert np.all(ritz >= exact * (1 - 1e-9)) and np.all(ritz <= exact * 1.01), (ritz, exact)
+    if kind != "rbe3":
+        alone = pp.build_body(mesh.nodes, elements, STEEL, interfaces=["x0"], **options)
+        fixed = pp.build_body(
             mesh.nodes, elements, STEEL, shell=0.005, node_sets=mesh.node_sets,
-            reference="interface", modes="craig-bampton", mode_count=2, interfaces=["x0"],
+            reference="clamped", reference_nodes="x0", modes="fixed-interface", mode_count=6,
         )  # fmt: skip
+        assert_close(alone.frequencies, fixed.frequencies, rel=1e-9, what="fixed-interface")
+    else:
+        # An averaged interface on a line of nodes of solids alone would take its rotation
+        # from rotations nothing holds.
+        x0 = mesh.node_sets["x0"]
+        line = x0[np.isclose(mesh.nodes[x0, 2], 0.0)]  # (the bottom edge: 3 nodes of solids)
+        with pytest.raises(InvalidModelError, match="rotations of nodes of solids alone"):
+            pp.build_body(mesh.nodes, elements, STEEL, interfaces=[line, "x1"], **options)

@@ -734,10 +734,13 @@ def craig_bampton(
     kind: str = "rbe2",
     reference: str = "mean-axis",
     precision: str = "auto",
+    unused: ArrayLike = (),
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Craig-Bampton basis over all nodal coordinates: `count` fixed-interface normal modes
     and the static constraint modes of the interfaces (lists of node indices, disjoint, or
-    `Interface`s).
+    `Interface`s). `unused`: coordinates without stiffness and mass (the rotations of nodes
+    of solids alone in a body with beams or shells), left out of the problem and zero in
+    the basis.
 
     `weights` (one for all interfaces, or one per interface; see
     :mod:`flexmbd.fe.interface`, with the body's `elements` for area, length and volume
@@ -783,25 +786,32 @@ def craig_bampton(
             interfaces, nodes, elements, weights, rotation=kind == "rbe3", nodal_rotations=d >= 6
         )
     )
+    kept = np.setdiff1d(np.arange(n), np.asarray(unused, dtype=np.int64))
     k = sp.csc_matrix(stiffness)
     m = sp.csc_matrix(mass)
+    if len(kept) < n:
+        k, m = k[kept][:, kept].tocsc(), m[kept][:, kept].tocsc()
     if kind == "rbe3":
-        phi, psi = _craig_bampton_averaged(k, m, weighted, count, nodes, d, reference, precision)
+        phi, psi = _craig_bampton_averaged(
+            k, m, weighted, count, nodes, d, reference, precision, kept
+        )
     else:
         phi, psi = _craig_bampton_fixed(
-            k, m, members, weighted, count, nodes, d, reference, precision
+            k, m, members, weighted, count, nodes, d, reference, precision, kept
         )
     basis = np.hstack([phi, psi])
     if reference == "mean-axis":
-        r = rigid_modes(nodes, d)
+        r = rigid_modes(nodes, d)[kept]
         mr = m @ r
         basis = basis - r @ np.linalg.solve(r.T @ mr, mr.T @ basis)
     if basis.shape[1] == 0:
         raise InvalidModelError("the Craig-Bampton basis is empty: ask for modes")
     modes, values = _orthonormal_diagonal(basis, k, m)
-    if n != modes.shape[0]:  # pragma: no cover - internal consistency
+    if len(kept) != modes.shape[0]:  # pragma: no cover - internal consistency
         raise AssertionError("basis of the wrong size")
-    return modes, frequencies(values)
+    full = np.zeros((n, modes.shape[1]))
+    full[kept] = modes
+    return full, frequencies(values)
 
 
 def _craig_bampton_fixed(
@@ -814,12 +824,17 @@ def _craig_bampton_fixed(
     d: int,
     reference: str,
     precision: str,
+    kept: NDArray[np.int64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Nodal and rigid (RBE2) interfaces: the interface nodes are the boundary coordinates.
-    `rigid`: the interfaces (in the order of `members`) of "rbe2", empty for "nodal"."""
+    `rigid`: the interfaces (in the order of `members`) of "rbe2", empty for "nodal". `k`
+    and `m` hold the nodal coordinates `kept` (see `craig_bampton`), as do the results."""
     n = k.shape[0]
+    position = np.full(len(nodes) * d, -1, dtype=np.int64)
+    position[kept] = np.arange(n)
     boundary_nodes = np.concatenate(members)
-    boundary = (boundary_nodes[:, None] * d + np.arange(d)).ravel()
+    every = position[(boundary_nodes[:, None] * d + np.arange(d)).ravel()]
+    boundary = every[every >= 0]
     interior = np.setdiff1d(np.arange(n), boundary)
     # Columns of the prescribed boundary motions T (n_b, modes), per interface.
     blocks = []
@@ -827,11 +842,15 @@ def _craig_bampton_fixed(
         if reference == "interface" and index == 0:
             continue
         t = rigid[index].rigid_map(d) if rigid else np.eye(len(nodes_of) * d)
-        block = np.zeros((len(boundary), t.shape[1]))
+        block = np.zeros((len(every), t.shape[1]))
         start = sum(len(members[j]) for j in range(index)) * d
         block[start : start + t.shape[0]] = t
         blocks.append(block)
-    t_all = np.hstack(blocks) if blocks else np.zeros((len(boundary), 0))
+    t_all = np.hstack(blocks) if blocks else np.zeros((len(every), 0))
+    if len(boundary) < len(every):
+        # Motions of coordinates left out (the rotations of nodes of solids alone): gone.
+        t_all = t_all[every >= 0]
+        t_all = t_all[:, np.any(t_all != 0.0, axis=0)]
     # Only the lower triangle of K_ii is formed (the factor keeps it and multiplies by K_ii).
     kii = lower_triangle(k[interior][:, interior])
     scale = _scale(kii, m)
@@ -841,7 +860,7 @@ def _craig_bampton_fixed(
         inverse = Inverse(
             kii,
             single=_use_single(precision, len(interior)),
-            dofs=interior,
+            dofs=kept[interior],
             nodes=nodes,
             dofs_per_node=d,
             name="interior stiffness K_ii (interfaces held)",
@@ -875,23 +894,37 @@ def _craig_bampton_averaged(
     d: int,
     reference: str,
     precision: str,
+    kept: NDArray[np.int64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Averaged (RBE3) interfaces: constraints G u = g with six rows per interface.
+    """Averaged (RBE3) interfaces: constraints G u = g with six rows per interface. `k` and
+    `m` hold the nodal coordinates `kept` (see `craig_bampton`), as do the results.
 
     Problems min 1/2 u.K u - f.u subject to G u = g are solved exactly although K is
     singular: with R the rigid motions and S six coordinates that fix a rigid motion, u =
     R a + w with w_S = 0, K_rr w_r = f_r - G_r^T lambda, and a small dense system for
     (lambda, a) from G u = g and R^T (f - G^T lambda) = 0."""
     n = k.shape[0]
-    g = sp.vstack([s.average_rows(d, n) for s in interfaces]).tocsr()
-    r = rigid_modes(nodes, d)
+    g = sp.vstack([s.average_rows(d, len(nodes) * d) for s in interfaces]).tocsr()
+    if n < g.shape[1]:
+        left_out = np.setdiff1d(np.arange(g.shape[1]), kept)
+        touched = np.flatnonzero(abs(g[:, left_out]).sum(axis=1))
+        if len(touched):
+            index = int(touched[0]) // 6
+            raise InvalidModelError(
+                f"averaged interface {index + 1} takes its rotation from the rotations of "
+                "nodes of solids alone, which nothing holds (a line of nodes of solids): add "
+                "nodes off the line, or nodes of beams or shells, to the interface",
+                item=f"interface {index + 1}",
+            )
+        g = g[:, kept]
+    r = rigid_modes(nodes, d)[kept]
     support = _support_dofs(r)
     rest = np.setdiff1d(np.arange(n), support)
     krr = k[rest][:, rest].tocsc()
     inverse = Inverse(
         krr,
         single=_use_single(precision, len(rest)),
-        dofs=rest,
+        dofs=kept[rest],
         nodes=nodes,
         dofs_per_node=d,
         name="stiffness with a 3-2-1 support",

@@ -832,13 +832,6 @@ def _body_from_nodal(
     if len(unused):
         # The rotations of nodes of solids alone (in a body with beams or shells) have no
         # stiffness and no mass: they stay at zero (the stiffness was singular).
-        if modes == "craig-bampton":
-            raise InvalidModelError(
-                f"{modes} modes of a body that mixes solids with beams or shells are not "
-                f"available yet: the rotations of its {len(unused) // 3} nodes of solids alone "
-                "have no stiffness; use free-free or fixed-interface modes or a nodal body",
-                item="modes",
-            )
         free = np.setdiff1d(free, unused)
     basis = None
     freqs = None
@@ -895,6 +888,7 @@ def _body_from_nodal(
                 kind=interface_kind,
                 reference="interface" if reference == "interface" else "mean-axis",
                 precision=precision,
+                unused=unused,
             )
             basis = full[free]
         elif modes == "external":
