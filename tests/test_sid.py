@@ -343,3 +343,28 @@ def test_flexmbd_info_describes_a_sid_file(solid, tmp_path, capsys):
     assert f"SID file (a modal body), {body.node_count} nodes, no elements" in printed
     assert f"{body.elastic_coordinate_count} elastic coordinates" in printed
     assert f"{body.frequencies[0]:.4g}" in printed
+
+
+def test_a_run_of_a_sid_body_plots_without_stresses(beam, tmp_path):
+    # `flexmbd run` of a model with a SID (or body-file) body simulated, then failed in its
+    # overview plot with a traceback: it asked for the stresses of a body without elements.
+    # Their recovery now refuses such bodies with a typed error, and the overview leaves
+    # them out.
+    import matplotlib
+
+    from flexmbd.errors import InvalidParameterError
+    from flexmbd.fe import recover_stresses, shell_stresses
+    from flexmbd.plotting import default_quantities, plot_result
+
+    matplotlib.use("Agg")
+    back = read_sid(write_sid(beam[0], tmp_path / "beam.sid"))
+    result = fm.simulate(pendulum(back), end_time=0.01, step_size=1e-3)
+    assert "deflection:arm" in default_quantities(result)
+    assert "stress:arm" not in default_quantities(result)
+    assert "stress:arm" in default_quantities(
+        fm.simulate(pendulum(beam[0]), end_time=0.01, step_size=1e-3)
+    )
+    plot_result(result, tmp_path / "overview.png")
+    for recover in (recover_stresses, shell_stresses):
+        with pytest.raises(InvalidParameterError, match="no elements with a material"):
+            recover(back, np.zeros(back.dof_count))

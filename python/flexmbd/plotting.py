@@ -727,7 +727,10 @@ def default_quantities(result: Any) -> list[str]:
     if _reaction_joints(result):
         quantities.append("reactions")
     for name in _flexible_names(result):
-        quantities += [f"deflection:{name}", f"stress:{name}"]
+        quantities.append(f"deflection:{name}")
+        # (a body from matrices, a SID file, has no elements to take stresses in)
+        if deformable(result, resolve_item(result, "bodies", name))[2].elements:
+            quantities.append(f"stress:{name}")
     quantities += [
         f"sensor:{s['name']}"
         for s in result.layout["sensors"]

@@ -54,6 +54,13 @@ def shell_stresses(body: FlexibleBodyData, displacements: ArrayLike) -> NDArray[
 def _recovered(
     body: FlexibleBodyData, displacements: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    material = body.material or {}
+    if not any(len(c) for c in body.elements.values()) or "young_modulus" not in material:
+        raise InvalidParameterError(
+            "stresses: the body has no elements with a material to recover them from (a body "
+            "from matrices or a SID file: only its modes are known)",
+            item="body",
+        )
     u = np.asarray(displacements, dtype=float)
     single = u.ndim == 1
     u = np.atleast_2d(u)
@@ -68,7 +75,7 @@ def _recovered(
             np.ascontiguousarray(body.element_ids[kind], dtype=np.int64),
         )
     material = _boundary.Material(
-        body.material["young_modulus"], body.material["poisson_ratio"], body.material["density"]
+        material["young_modulus"], material["poisson_ratio"], material["density"]
     )
     section = None
     orientation = None
