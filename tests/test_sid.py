@@ -368,3 +368,70 @@ def test_a_run_of_a_sid_body_plots_without_stresses(beam, tmp_path):
     for recover in (recover_stresses, shell_stresses):
         with pytest.raises(InvalidParameterError, match="no elements with a material"):
             recover(back, np.zeros(back.dof_count))
+
+
+def test_malformed_nodes_and_selections_are_refused_by_name(beam, tmp_path, assert_close):
+    # From a fault hunt: each gave an untyped Python error, or was taken silently.
+    import re
+
+    from flexmbd.errors import ArgumentTypeError, InvalidParameterError
+
+    body = beam[0]
+    path = write_sid(body, tmp_path / "beam.sid")
+    text = path.read_text()
+    # The frequencies travel in the modes' names, now exactly (10 digits before: 5e-11).
+    np.testing.assert_array_equal(read_sid(path).frequencies, body.frequencies)
+    # A psi of the wrong width (ValueError: could not broadcast).
+    bad = re.sub(r"(psi\n\s*order\s*= 0\n\s*nrow\s*= 3\n\s*ncol\s*)= 5", r"\1= 2", text, count=1)
+    bad = re.sub(r"\n\s*m0\([123],[345]\) = [^\n]*(?=[^e]*end psi)", "", bad, count=9)
+    (tmp_path / "psi.sid").write_text(bad)
+    with pytest.raises(InvalidModelError, match=r"node 1: psi has shape \(3, 2\), expected"):
+        read_sid(tmp_path / "psi.sid")
+    # A node without psi among nodes with one: its rotations were taken as zero.
+    start = text.index("            psi")
+    (tmp_path / "nopsi.sid").write_text(text[:start] + text[text.index("end psi", start) + 8 :])
+    with pytest.raises(InvalidModelError, match="node 1 has no psi"):
+        read_sid(tmp_path / "nopsi.sid")
+    # A node defined twice (refused only later, by add_flexible_body).
+    first = text.index("         new node")
+    block = text[first : text.index("end node", first) + len("end node\n")]
+    (tmp_path / "twice.sid").write_text(text.replace(block, block + block, 1))
+    with pytest.raises(InvalidModelError, match="is defined twice"):
+        read_sid(tmp_path / "twice.sid")
+    # A name that is no frequency: the frequencies come from Ke and Me (ValueError before).
+    (tmp_path / "name.sid").write_text(
+        re.sub(r"Eigen Mode 1 : [^\n]*", "Eigen Mode 1 : 1.2.3 Hz", text)
+    )
+    assert_close(read_sid(tmp_path / "name.sid").frequencies, body.frequencies, rel=1e-8)
+    # Sizes beyond the memory are refused before they are allocated (MemoryError: 65 TiB).
+    header = "   order = 2\n   nrow = 3\n   ncol = 3\n   nq = 1000000\n   nqn = 1000000\n"
+    huge = "part\n new modal\n  refmod\n   mass = 1.0\n   nelastq = 1000000\n  end refmod\n"
+    huge += f"  J\n{header}   structure = 2\n   m0(1,1) = 1.0\n  end J\n end modal\nend part\n"
+    (tmp_path / "huge.sid").write_text(huge)
+    with pytest.raises(InvalidModelError, match="more memory than is available"):
+        read_sid(tmp_path / "huge.sid")
+    # A node frame turned from the body axes (AP) was dropped without a word.
+    turned = text.replace(
+        "m0(1,1) = 1.0\n               m0(2,2) = 1.0",
+        "m0(1,2) = -1.0\n               m0(2,1) = 1.0",
+        1,
+    )
+    (tmp_path / "turned.sid").write_text(turned)
+    with pytest.warns(UserWarning, match="frames of 1 node.*AP"):
+        read_sid(tmp_path / "turned.sid")
+    # Gr of order 0 (a first-order file leaves out its terms in q): named as such, not as a
+    # sign convention.
+    start = text.index("      Gr\n")
+    end = text.index("      end Gr", start)
+    lines = [line for line in text[start:end].splitlines() if not line.strip().startswith("m1(")]
+    order0 = "\n".join(lines).replace("order     = 1", "order     = 0", 1)
+    (tmp_path / "gr.sid").write_text(
+        text[:start] + order0.replace("nq        = 5", "nq        = 0", 1) + "\n" + text[end:]
+    )
+    with pytest.raises(InvalidModelError, match="field Gr has order 0, but its order-1 terms"):
+        read_sid(tmp_path / "gr.sid")
+    # write_sid's node selection: ids and set names only, in a list, not empty.
+    for nodes, error in (([5.7], ArgumentTypeError), ([True], ArgumentTypeError),
+                         (7, ArgumentTypeError), ([], InvalidParameterError)):  # fmt: skip
+        with pytest.raises(error, match="SID nodes"):
+            write_sid(body, tmp_path / "x.sid", nodes=nodes)

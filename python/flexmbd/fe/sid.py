@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InvalidModelError, MissingFileError, UnknownItemError
+from ..errors import (
+    ArgumentTypeError,
+    InvalidModelError,
+    InvalidParameterError,
+    MissingFileError,
+    UnknownItemError,
+)
+from . import _memory
 from ._memory import check_fits
 from .body import FlexibleBodyData
 
@@ -192,9 +200,23 @@ def _dense(matrix: Any) -> NDArray[np.float64]:
 def _node_selection(body: FlexibleBodyData, nodes: Iterable[int | str] | None) -> list[int]:
     if nodes is None:
         return list(range(body.node_count))
+    if isinstance(nodes, str | int | np.integer) or not isinstance(nodes, Iterable):
+        raise ArgumentTypeError(
+            f"SID nodes: a list of node ids and node set names, got {nodes!r:.60} "
+            f"({type(nodes).__name__}): pass [{nodes!r:.40}]",
+            item="nodes",
+        )
     ids = np.asarray(body.node_ids)
     chosen: list[int] = []
     for item in nodes:
+        if not isinstance(item, str) and (
+            isinstance(item, bool) or not isinstance(item, int | np.integer)
+        ):
+            raise ArgumentTypeError(
+                f"SID nodes: each entry is a node id (an integer) or a node set name, got "
+                f"{item!r:.40} ({type(item).__name__})",
+                item="nodes",
+            )
         if isinstance(item, str):
             if item not in body.node_sets:
                 raise UnknownItemError(
@@ -210,6 +232,11 @@ def _node_selection(body: FlexibleBodyData, nodes: Iterable[int | str] | None) -
                     f"SID nodes: the body has no node with id {item}", item=str(item)
                 )
             chosen.append(int(hits[0]))
+    if not chosen:
+        raise InvalidParameterError(
+            "SID nodes: the selection is empty (a SID file needs a node for its markers)",
+            item="nodes",
+        )
     return sorted(set(chosen))
 
 
@@ -284,7 +311,7 @@ def _from_body(body: FlexibleBodyData, nodes: Iterable[int | str] | None) -> Sid
         ]
     else:
         names = [
-            f"Eigen Mode {k + 1} : {frequencies[k]:.10g} Hz"
+            f"Eigen Mode {k + 1} : {float(frequencies[k])!r} Hz"
             if frequencies is not None and k < len(frequencies)
             else f"Mode {k + 1}"
             for k in range(n)
@@ -413,7 +440,27 @@ def _to_body(sid: SidData, source: str) -> FlexibleBodyData:
     nodes = np.array([node.origin.m0[:, 0] for node in sid.nodes], dtype=float).reshape(-1, 3)
     six = any(node.psi is not None for node in sid.nodes)
     dofs = 6 if six else 3
+    without = [node.id for node in sid.nodes if six and node.psi is None]
+    if without:
+        raise InvalidModelError(
+            f"SID: node {without[0]} has no psi (the modes' rotations) while other nodes have "
+            f"one ({len(without)} node(s) without): its rotations would be taken as zero",
+            item=f"node {without[0]}",
+        )
     modes = np.zeros((dofs * len(sid.nodes), n))
+    turned = [
+        node.id
+        for node in sid.nodes
+        if node.ap is not None and not np.allclose(node.ap.m0, np.eye(3))
+    ]
+    if turned:
+        warnings.warn(
+            f"SID: the frames of {len(turned)} node(s) (the first: node {turned[0]}) are turned "
+            "from the body axes (their AP): flexmbd does not use AP; markers on nodes take "
+            "their axes from the model",
+            UserWarning,
+            stacklevel=4,
+        )
     for index, node in enumerate(sid.nodes):
         if node.phi.shape != (3, n):
             raise InvalidModelError(
@@ -422,6 +469,11 @@ def _to_body(sid: SidData, source: str) -> FlexibleBodyData:
             )
         modes[dofs * index : dofs * index + 3] = node.phi.m0
         if node.psi is not None:
+            if node.psi.shape != (3, n):
+                raise InvalidModelError(
+                    f"SID: node {node.id}: psi has shape {node.psi.shape}, expected (3, {n})",
+                    item=f"node {node.id}",
+                )
             modes[dofs * index + 3 : dofs * index + 6] = node.psi.m0
     invariants = Invariants(
         mass=float(sid.mass),
@@ -500,6 +552,13 @@ def _check_consistency(
             scale = max(float(np.abs(b).max(initial=0.0)), float(np.abs(a).max(initial=0.0)))
             reference = max(scale, _field_scale(sid, name))
             deviation = float(np.abs(a - b).max(initial=0.0))
+            if deviation > CONSISTENCY_TOLERANCE * reference and term == 1 and have.m1 is None:
+                raise InvalidModelError(
+                    f"SID: field {name} has order 0, but its order-1 terms (of the elastic "
+                    f"coordinates) are not zero for this body: largest {scale:.3e}; write the "
+                    f"file with the first-order terms of {name}",
+                    item=name,
+                )
             if deviation > CONSISTENCY_TOLERANCE * reference:
                 raise InvalidModelError(
                     f"SID: field {name} (its order-{term} terms) disagrees with the ones it "
@@ -699,9 +758,11 @@ class _Parser:
         frequencies = []
         for name in modes:
             hit = _FREQUENCY.search(name)
-            frequencies.append(
-                float(hit.group(1).replace("D", "E").replace("d", "e")) if hit else None
-            )
+            try:
+                value = float(hit.group(1).replace("D", "E").replace("d", "e")) if hit else None
+            except ValueError:
+                value = None  # (a name that is no frequency: taken from Ke and Me)
+            frequencies.append(value)
         known = None if any(f is None for f in frequencies) else np.array(frequencies, dtype=float)
         return SidData(mass, modes, known, nodes, fields)
 
@@ -761,6 +822,8 @@ class _Parser:
             for needed in ("origin", "phi"):
                 if needed not in parts:
                     raise self.error(f"node {node_id} has no {needed}")
+            if any(node.id == node_id for node in nodes):
+                raise self.error(f"node {node_id} is defined twice")
             nodes.append(SidNode(node_id, **parts))
 
     def taylor(self, name: str, n: int) -> Taylor:
@@ -808,6 +871,15 @@ class _Parser:
         if order == 2 and nqn != n:
             raise self.error(
                 f"{name}: nqn = {nqn}; second-order terms must cover all nelastq = {n} coordinates",
+                line=start,
+            )
+        entries_bytes = (
+            8 * nrow * ncol * (1 + (n if order >= 1 else 0) + (n * n if order == 2 else 0))
+        )
+        if entries_bytes > _memory.available_memory():
+            raise self.error(
+                f"{name}: order {order} with nrow {nrow}, ncol {ncol} and nelastq {n} needs "
+                f"{entries_bytes / 2**30:.1f} GB, more memory than is available",
                 line=start,
             )
         m0 = np.zeros((nrow, ncol))
