@@ -140,5 +140,8 @@ def test_a_largest_step_below_the_step_size_caps_the_adaptive_steps():
     # Where the steps return to the step size, a smaller largest step is a contradiction.
     with pytest.raises(fm.InvalidParameterError, match="max_step_size 1e-3 is below the step"):
         fm.simulate(system, 0.02, 1e-2, solver=fm.GeneralizedAlpha(max_step_size=1e-3))
+    # ... judged against the run's step size, not at construction against 1 ms (refused).
+    result = fm.simulate(system, 0.01, 1e-4, solver=fm.GeneralizedAlpha(max_step_size=5e-4))
+    assert result.statistics["max_step_size"] <= 5e-4
     with pytest.raises(fm.InvalidParameterError, match="rk4 takes fixed steps"):
         fm.simulate(system, 0.02, 1e-2, solver=fm.ExplicitSolver("rk4", max_step_size=1e-3))

@@ -144,7 +144,9 @@ impl GeneralizedAlpha {
             redundant_constraints: redundant_constraints.unwrap_or(d.redundant_constraints),
             rank_tolerance: rank_tolerance.unwrap_or(d.rank_tolerance),
         };
-        s.settings(1.0, 1e-3)?;
+        // The settings are checked here without a run's step size: a step within the bounds
+        // given (a largest step below an assumed 1 ms was refused before any run).
+        s.settings(1.0, s.min_step_size.or(s.max_step_size).unwrap_or(1e-3))?;
         Ok(s)
     }
 
