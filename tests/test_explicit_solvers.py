@@ -295,3 +295,26 @@ def test_an_open_chain_reports_no_singular_configuration(strategy, assert_close)
     assert [e for e in result.events if e["kind"] == "singular configuration"] == []
     reference = fm.simulate(system, 2.0, 1e-3, output_interval=0.01, solver=explicit("rk4"))
     assert_close(result.coordinates, reference.coordinates, abs=1e-6, what="coordinates")
+
+
+@pytest.mark.parametrize("shape", ["quintic", "cycloidal", "cubic"])
+def test_a_driver_starting_from_rest_is_followed_by_fixed_partitioned_steps(shape, assert_close):
+    # RK4 with partitioning stopped at its first step ("the dependent coordinates moved to
+    # another solution of C = 0"): a motion starting from rest (zero velocity, and for the
+    # quintic and cycloidal zero acceleration) is not in the predictor, and its O(h^3) motion
+    # was compared with a predicted motion of zero. The cubic profile's acceleration at its
+    # start is now that of the motion (it was 0, the rest before).
+    system = fm.System()
+    arm = system.add_rigid_body(1.0, (1e-4, 1 / 12, 1 / 12), position=(0.5, 0, 0), name="arm")
+    ground, root = system.add_marker(system.ground), system.add_marker(arm, position=(-0.5, 0, 0))
+    system.add_revolute_joint(ground, root, name="hinge")
+    drive = fm.Step(0.0, 0.5, 0.0, 1.0, shape=shape)
+    system.add_angle_driver(ground, root, drive, name="drive")
+    solver = fm.ExplicitSolver("rk4", "partitioning")
+    result = fm.simulate(system, 0.6, 1e-3, solver=solver, output_interval=0.1)
+    turned = result.orientation("arm")
+    angle = np.arctan2(turned[:, 1, 0], turned[:, 0, 0])
+    exact = [drive.derivatives(t)[0] for t in result.time]
+    assert_close(angle, exact, abs=1e-9, what="angle")
+    if shape == "cubic":  # f = 3 s^2 - 2 s^3 over 0.5 s: f''(0+) = 6 / 0.25
+        assert_close(drive.derivatives(0.0), [0.0, 0.0, 24.0], abs=1e-12, what="start")

@@ -110,9 +110,12 @@ impl MotionProfile {
         Ok(())
     }
 
-    /// Value, first and second derivative at `t`.
+    /// Value, first and second derivative at `t`. At `start_time` the derivatives are those
+    /// of the motion that begins there (the limits from the right: a cubic or trapezoidal
+    /// profile starts with its acceleration, which a run from `start_time` and the efforts of
+    /// inverse dynamics there need); before it, rest.
     pub fn evaluate(&self, t: f64) -> [f64; 3] {
-        if t <= self.start_time {
+        if t < self.start_time {
             return [self.start_value, 0.0, 0.0];
         }
         if t >= self.end_time {

@@ -94,7 +94,12 @@ impl Engine<'_> {
                     .map(|(&d, x)| (self.q[d] - x).abs())
                     .enumerate()
                     .fold((0, 0.0f64), |best, (a, v)| if v > best.1 { (a, v) } else { best });
-                if correction > BRANCH_JUMP_FRACTION * motion + 1e3 * self.settings.constraint_tolerance {
+                // (A motion the predictor does not see, such as a driver starting from rest
+                // with its jerk, moves the dependent coordinates by O(dt^3): below a millionth
+                // of their size it is taken for the same branch.)
+                let size = self.partition.dependent.iter().map(|&d| self.q[d].abs()).fold(0.0f64, f64::max);
+                let floor = (BRANCH_SIZE_FRACTION * size).max(1e3 * self.settings.constraint_tolerance);
+                if correction > BRANCH_JUMP_FRACTION * motion + floor {
                     return Err(FlexmbdError::NewtonDiverged {
                         time,
                         step_size: dt,
@@ -259,6 +264,10 @@ impl Engine<'_> {
 /// Largest Newton correction of the dependent coordinates, as a fraction of their predicted
 /// motion over the step, that is taken for the same solution branch (see `reconstruct`).
 const BRANCH_JUMP_FRACTION: f64 = 0.25;
+
+/// Corrections below this fraction of the dependent coordinates' largest value are taken for
+/// the same solution branch whatever the predicted motion (see `reconstruct`).
+const BRANCH_SIZE_FRACTION: f64 = 1e-6;
 
 /// Solves C_qd x = rhs for the partition's dependent block: LU, or the minimum-norm solution
 /// with a truncated SVD when the block is ill-conditioned (near a singular configuration the
