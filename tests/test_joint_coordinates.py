@@ -393,3 +393,20 @@ def test_the_decoupled_system_keeps_its_size_as_the_elastic_coordinates_grow():
             1e-9,
             solver=fm.ExplicitSolver("rk4", "projection", formulation="decoupled"),
         )
+
+
+def test_dependent_cut_equations_in_eq_40_are_refused_with_the_formulations_that_take_them():
+    # The spatial four-bar closed by a revolute cut joint has dependent cut equations: eq. 40
+    # (its sparse LU holds the cut multipliers) failed with "SymbolicSingular { index: 41 }";
+    # eq. 41 and the joint-space system take them.
+    example = fm.examples.four_bar_spatial()
+
+    def run(formulation):
+        solver = fm.ExplicitSolver("rk4", "joint-coordinates", formulation=formulation)
+        return fm.simulate(example.system, 0.01, 1e-3, solver=solver)
+
+    with pytest.raises(fm.SingularMatrixError, match="may be dependent.*'decoupled'") as error:
+        run("coupled")
+    assert "no pivot in column" in str(error.value)
+    assert "Symbolic" not in str(error.value)
+    run("decoupled")

@@ -732,7 +732,23 @@ impl TreeSolver {
         system.add_tree_blocks(&self.rows, self.free_joints, st, &layout, &mut rhs);
         system.add_elastic_influence(&self.bodies, self.rows.len(), st, &layout);
         rhs[layout.c0..layout.c0 + nc].copy_from_slice(gamma_c);
-        system.solve_equilibrated(&mut rhs)?;
+        system.solve_equilibrated(&mut rhs).map_err(|error| match error {
+            // The sparse LU holds the cut rows' multipliers with the rest: dependent cut
+            // equations (a redundant closure, a singular configuration of a loop) leave it
+            // singular, where eq. 41 takes the minimum-norm multipliers.
+            FlexmbdError::SingularMatrix { time, context, detail } if nc > 0 => {
+                FlexmbdError::SingularMatrix {
+                    time,
+                    context,
+                    detail: format!(
+                        "{detail}; the cut joints' {nc} equations may be dependent (a redundant closure \
+                     or a singular configuration of a loop), which eq. 40 cannot hold: \
+                     formulation 'decoupled' (eq. 41) or 'joint-space' takes them"
+                    ),
+                }
+            }
+            other => other,
+        })?;
         Ok(self.coupled_accelerations(st, &rhs, &layout))
     }
 

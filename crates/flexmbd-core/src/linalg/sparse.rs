@@ -181,7 +181,12 @@ impl SparseLu {
                 MemStack::new(&mut self.memory),
                 params,
             )
-            .map_err(|e| format!("{e:?}"))?;
+            .map_err(|e| match e {
+                faer::sparse::linalg::LuError::SymbolicSingular { index } => {
+                    format!("no pivot in column {index} (the matrix is singular)")
+                }
+                other => format!("{other:?}"),
+            })?;
         self.factorized = true;
         Ok(())
     }
