@@ -257,6 +257,27 @@ def test_external_modes_give_the_same_body_as_computed_modes(bar):
     ):
         with pytest.raises(InvalidParameterError, match=match):
             external_body(columns)
+    # With a free frame (reference "none"), a rigid motion among the columns duplicates the frame's
+    # own: accepted, the run failed at t = 0 with a singular matrix. And mode_count was
+    # ignored with external modes.
+    free_free = pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis",
+                              modes="free-free", mode_count=3)  # fmt: skip
+    lift = np.zeros(free_free.modes.shape[0])
+    lift[2::3] = 0.1
+    for columns, column in ((lift[:, None], 0), (np.column_stack([free_free.modes, lift]), 3)):
+        with pytest.raises(InvalidParameterError, match=f"column {column} is .*rigid motion"):
+            pp.build_body(bar.nodes, bar.elements, STEEL, reference="none",
+                          modes="external", external_modes=columns)  # fmt: skip
+    with pytest.raises(InvalidParameterError, match="mode_count=2 with external modes"):
+        pp.build_body(bar.nodes, bar.elements, STEEL, reference="none", modes="external",
+                      external_modes=free_free.modes, mode_count=2)  # fmt: skip
+    kept = pp.build_body(bar.nodes, bar.elements, STEEL, reference="none",
+                         modes="external", external_modes=free_free.modes)  # fmt: skip
+    import scipy.linalg as sla
+
+    k_ff, m_ff = (np.asarray(a) for a in (kept.invariants.k_ff, kept.invariants.m_ff))
+    hz = np.sqrt(sla.eigh(k_ff, m_ff, eigvals_only=True)) / (2 * np.pi)
+    np.testing.assert_allclose(hz, free_free.frequencies, rtol=1e-9)
 
 
 def test_bodies_from_mesh_files_and_body_files_round_trip(tmp_path, bar):

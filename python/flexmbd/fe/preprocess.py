@@ -178,6 +178,12 @@ def _check_used_options(
             "choose modes ('fixed-interface', 'free-free', 'craig-bampton')",
             item="mode_count",
         )
+    if modes == "external" and mode_count > 0:
+        raise InvalidParameterError(
+            f"mode_count={mode_count} with external modes: every column of external_modes is "
+            "kept (the count was ignored); pass the columns to keep",
+            item="mode_count",
+        )
     if modes != "craig-bampton" and len(_interface_selections(interfaces)):
         raise InvalidParameterError(
             f"interfaces are for Craig-Bampton modes (modes='craig-bampton'), got modes="
@@ -902,7 +908,13 @@ def _body_from_nodal(
                 )
             if not np.all(np.isfinite(basis)):
                 raise InvalidParameterError("external modes contain non-finite values")
-            _check_independent_modes(basis, nodal.mass[free][:, free])
+            # (with a free frame, the rigid motions first: the frame carries them)
+            rigid = (
+                rigid_modes(nodes, d)[free]
+                if reference in ("none", "mean-axis")
+                else np.zeros((len(free), 0))
+            )
+            _check_independent_modes(basis, nodal.mass[free][:, free], rigid)
         else:
             raise InvalidParameterError(f"unknown modes {modes!r}")
         clock.lap("modes")
@@ -1020,13 +1032,19 @@ def _check_parts(
 EXTERNAL_MODE_DEPENDENCE = 1e-10
 
 
-def _check_independent_modes(basis: NDArray[np.float64], mass: Any) -> None:
+def _check_independent_modes(
+    basis: NDArray[np.float64], mass: Any, rigid: NDArray[np.float64] | None = None
+) -> None:
     """Raises `InvalidParameterError` naming the first column of external modes that moves no
-    mass or is (nearly) a combination of the columns before it: the modal mass matrix
-    Phi^T M Phi would be singular, and the run would fail later with a message about
-    constraints."""
+    mass or is (nearly) a combination of the columns before it, or of the `rigid` motions (a
+    free body frame carries them: a rigid column made the run fail at t = 0 with a singular
+    matrix): the modal mass matrix Phi^T M Phi would be singular, and the run would fail later
+    with a message about constraints."""
     if basis.shape[1] == 0:
         return
+    rigid = np.zeros((basis.shape[0], 0)) if rigid is None else rigid
+    nr = rigid.shape[1]
+    basis = np.hstack([rigid, basis])
     gram = basis.T @ (mass @ basis)
     gram = 0.5 * (gram + gram.T)
     diagonal = np.diag(gram).copy()
@@ -1034,7 +1052,7 @@ def _check_independent_modes(basis: NDArray[np.float64], mass: Any) -> None:
     zero = np.flatnonzero(diagonal <= 1e-14 * scale)
     if len(zero):
         raise InvalidParameterError(
-            f"external_modes: column {int(zero[0])} moves no mass (it is zero on the kept "
+            f"external_modes: column {int(zero[0]) - nr} moves no mass (it is zero on the kept "
             "coordinates, or only on massless ones)",
             item="external_modes",
         )
@@ -1042,14 +1060,23 @@ def _check_independent_modes(basis: NDArray[np.float64], mass: Any) -> None:
     correlation = gram * root[:, None] * root[None, :]
     if np.linalg.eigvalsh(correlation)[0] > EXTERNAL_MODE_DEPENDENCE:
         return
-    for j in range(1, len(diagonal)):
+    for j in range(max(1, nr), len(diagonal)):
         if np.linalg.eigvalsh(correlation[: j + 1, : j + 1])[0] <= EXTERNAL_MODE_DEPENDENCE:
-            same = np.flatnonzero(np.abs(np.abs(correlation[j, :j]) - 1.0) < 1e-8)
-            which = (
-                f"a multiple of column {int(same[0])}"
-                if len(same)
-                else f"(nearly) a combination of columns 0..{j - 1}"
-            )
+            same = np.flatnonzero(np.abs(np.abs(correlation[j, nr:j]) - 1.0) < 1e-8)
+            if np.linalg.eigvalsh(correlation[np.r_[:nr, j]][:, np.r_[:nr, j]])[0] <= (
+                EXTERNAL_MODE_DEPENDENCE
+            ):
+                which = (
+                    "(nearly) a rigid motion of the body, which its frame carries (the "
+                    "reference conditions leave the frame free)"
+                )
+            elif len(same):
+                which = f"a multiple of column {int(same[0])}"
+            else:
+                which = f"(nearly) a combination of columns 0..{j - nr - 1}" + (
+                    " and of the rigid motions its frame carries" if nr else ""
+                )
+            j -= nr
             raise InvalidParameterError(
                 f"external_modes: column {j} is {which}: the modal mass matrix would be "
                 "singular; give independent mode shapes",
