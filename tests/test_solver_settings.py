@@ -83,6 +83,14 @@ def test_defaults_are_the_cores_and_none_means_the_default(solver, spec):
             {"strategy": "joint-coordinates", "baumgarte": (5.0, 5.0)},
             "baumgarte is for the strategies that integrate the constrained coordinates",
         ),
+        # (partition and its repartitioning: bit-identical joint-coordinate runs before)
+        ({"strategy": "joint-coordinates", "partition": "svd"}, "partition is for the partition"),
+        (
+            {"strategy": "joint-coordinates", "repartition_ratio": 100.0},
+            "'joint-coordinates' takes",
+        ),
+        ({"strategy": "joint-coordinates", "singular_factor": 1e3}, "singular_factor is for"),
+        ({"strategy": "joint-coordinates", "independent": [0]}, "independent is for"),
         (
             {"strategy": "joint-coordinates", "formulation": "embedding"},
             "formulation 'embedding' is for the other strategies; 'joint-coordinates' takes "
@@ -104,6 +112,8 @@ def test_explicit_options_the_method_or_strategy_ignores_are_refused(options, me
     copy = pickle.loads(pickle.dumps(solver))
     assert (copy.method, copy.strategy, copy.jacobian) == ("rk4", "projection", "analytic")
     assert fm.ExplicitSolver("rk4", "projection", baumgarte=(5.0, 5.0)).baumgarte == (5.0, 5.0)
+    joint = pickle.loads(pickle.dumps(fm.ExplicitSolver("rk4", "joint-coordinates")))
+    assert (joint.strategy, joint.formulation) == ("joint-coordinates", "joint-space")
 
 
 def test_a_step_longer_than_the_output_interval_warns_and_steps_at_the_interval(assert_close):

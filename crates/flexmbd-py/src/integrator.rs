@@ -510,6 +510,10 @@ impl ExplicitSolver {
                 ("absolute_tolerance", absolute_tolerance.is_some()),
                 ("jacobian", jacobian.is_some()),
                 ("baumgarte", baumgarte.is_some()),
+                ("partition", partition.is_some()),
+                ("independent", independent.is_some()),
+                ("repartition_ratio", repartition_ratio.is_some()),
+                ("singular_factor", singular_factor.is_some()),
             ],
             formulation.as_deref(),
         );
@@ -603,7 +607,16 @@ impl ExplicitSolver {
         d.set_item("jacobian", self.jacobian.clone())?;
         // Options the method or strategy ignores (values set as attributes after construction)
         // are left out: the constructor would refuse them.
-        for name in ["relative_tolerance", "absolute_tolerance", "jacobian", "baumgarte"] {
+        for name in [
+            "relative_tolerance",
+            "absolute_tolerance",
+            "jacobian",
+            "baumgarte",
+            "partition",
+            "independent",
+            "repartition_ratio",
+            "singular_factor",
+        ] {
             if ignored_explicit_options(&self.method, &self.strategy, &[(name, true)], None).is_some() {
                 d.del_item(name)?;
             }
@@ -636,6 +649,14 @@ fn ignored_explicit_options(
         return Some(format!(
             "jacobian is for tr-bdf2 (the matrix of its Newton iteration); {method} has none"
         ));
+    }
+    for name in ["partition", "independent", "repartition_ratio", "singular_factor"] {
+        if strategy == "joint-coordinates" && is_given(name) {
+            return Some(format!(
+                "{name} is for the partition of the coordinates (strategies 'partitioning', \
+                 'projection', 'integrate-all'); 'joint-coordinates' takes the joints' own"
+            ));
+        }
     }
     if strategy == "joint-coordinates" && is_given("baumgarte") {
         return Some(
