@@ -104,11 +104,23 @@ impl Stepper for ExplicitSteps<'_, '_> {
             self.engine.derivative(t, &self.stages.y, &mut self.stages.k[0])?;
             self.first_derivative_valid = true;
         }
-        match self.runge_kutta_step(t, h) {
+        let abandoned = self.newton.analytic_abandoned;
+        let result = match self.runge_kutta_step(t, h) {
             Ok(err) => Ok(self.error_test(err, t, h)),
             Err(e) if retryable(&e) => self.after_failed_evaluation(e, h, output),
             Err(e) => Err(e),
+        };
+        if let (None, Some(time)) = (abandoned, self.newton.analytic_abandoned) {
+            output.events.push(Event {
+                time,
+                kind: "iteration matrix".to_string(),
+                message: "tr-bdf2: the analytic matrix of the joint coordinates did not converge \
+                          (it leaves out the velocity-quadratic, gravity and geometric-stiffness \
+                          terms, large here): the matrix by differences from now on"
+                    .to_string(),
+            });
         }
+        result
     }
 
     /// The corrections of the strategy at the end of the step, the full state into `state`,

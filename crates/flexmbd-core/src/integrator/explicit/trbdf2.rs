@@ -128,6 +128,10 @@ pub(super) struct Newton {
     /// The time of the slope of the last converged second stage, held in `Stages::k[1]`
     /// (None: none, or the integrated vector changed since).
     second_stage: Option<f64>,
+    /// When the tree's analytic matrix, fresh, did not converge and the run went on with
+    /// differences (its velocity-quadratic, gravity and geometric-stiffness terms left out:
+    /// a spinning beam's centrifugal stiffening and Coriolis coupling).
+    pub(super) analytic_abandoned: Option<f64>,
 }
 
 impl Newton {
@@ -237,7 +241,12 @@ pub(super) fn step(
     let mut fresh = false;
     loop {
         if newton.jacobian.is_none() {
-            newton.jacobian = Some(match equations.linearization(t, &stages.y)? {
+            let tree = if newton.analytic_abandoned.is_none() {
+                equations.linearization(t, &stages.y)?
+            } else {
+                None
+            };
+            newton.jacobian = Some(match tree {
                 Some(lin) => Jacobian::Tree(lin),
                 None => {
                     // The differences use k[1] for their columns.
@@ -252,6 +261,12 @@ pub(super) fn step(
         }
         match attempt(t, h, stages, tolerances, newton, equations)? {
             Some(err) => return Ok(Outcome::Error(err)),
+            // The analytic matrix of this very state does not converge: the terms it leaves
+            // out matter here, and differences take them (for the rest of the run).
+            None if fresh && matches!(newton.jacobian, Some(Jacobian::Tree(_))) => {
+                newton.invalidate();
+                newton.analytic_abandoned = Some(t);
+            }
             None if fresh => {
                 newton.invalidate();
                 return Ok(Outcome::NotConverged);
