@@ -150,6 +150,12 @@ def test_a_largest_step_below_the_step_size_caps_the_adaptive_steps():
     # Where the steps return to the step size, a smaller largest step is a contradiction.
     with pytest.raises(fm.InvalidParameterError, match="max_step_size 1e-3 is below the step"):
         fm.simulate(system, 0.02, 1e-2, solver=fm.GeneralizedAlpha(max_step_size=1e-3))
+    # Without a largest step, the error control's steps grow past the first (they stopped at
+    # it: 100,000 steps at h = 1e-4 where dopri5 took 49).
+    loose = fm.GeneralizedAlpha(step_control="error", relative_tolerance=1e-2)
+    grown = fm.simulate(system, 2.0, 1e-4, output_interval=0.5, solver=loose)
+    assert grown.statistics["max_step_size"] > 100 * 1e-4
+    assert grown.statistics["steps"] < 2000
     # ... judged against the run's step size, not at construction against 1 ms (refused).
     result = fm.simulate(system, 0.01, 1e-4, solver=fm.GeneralizedAlpha(max_step_size=5e-4))
     assert result.statistics["max_step_size"] <= 5e-4
