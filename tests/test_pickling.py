@@ -24,7 +24,7 @@ OBJECTS = [
     fm.Step(0.1, 0.9, 0.0, 2.0, shape="cycloidal"),
     fm.Trapezoidal(0.0, 1.0, 0.5, 2.0, blend=0.3),
     fm.UserFunction(np.sin),
-    fm.GeneralizedAlpha(0.8, jacobian="full", max_step_size=1e-2),
+    fm.GeneralizedAlpha(0.8, jacobian="full", step_control="error", max_step_size=1e-2),
     fm.ExplicitSolver("rk4", "joint-coordinates", cut_joints=[fm.JointId(2)]),
 ]
 

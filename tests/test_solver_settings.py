@@ -147,9 +147,9 @@ def test_a_largest_step_below_the_step_size_caps_the_adaptive_steps():
     ):
         result = fm.simulate(system, 0.2, 1e-2, output_interval=0.1, solver=solver)
         assert result.statistics["max_step_size"] <= 1e-3 * (1 + 1e-12), solver
-    # Where the steps return to the step size, a smaller largest step is a contradiction.
-    with pytest.raises(fm.InvalidParameterError, match="max_step_size 1e-3 is below the step"):
-        fm.simulate(system, 0.02, 1e-2, solver=fm.GeneralizedAlpha(max_step_size=1e-3))
+    # Where the steps return to the step size, the largest is the step size: refused.
+    with pytest.raises(fm.InvalidParameterError, match="max_step_size is for step_control='e"):
+        fm.GeneralizedAlpha(max_step_size=1e-3)
     # Without a largest step, the error control's steps grow past the first (they stopped at
     # it: 100,000 steps at h = 1e-4 where dopri5 took 49).
     loose = fm.GeneralizedAlpha(step_control="error", relative_tolerance=1e-2)
@@ -157,7 +157,29 @@ def test_a_largest_step_below_the_step_size_caps_the_adaptive_steps():
     assert grown.statistics["max_step_size"] > 100 * 1e-4
     assert grown.statistics["steps"] < 2000
     # ... judged against the run's step size, not at construction against 1 ms (refused).
-    result = fm.simulate(system, 0.01, 1e-4, solver=fm.GeneralizedAlpha(max_step_size=5e-4))
+    capped = fm.GeneralizedAlpha(step_control="error", max_step_size=5e-4, min_step_size=1e-5)
+    result = fm.simulate(system, 0.01, 1e-4, solver=capped)
     assert result.statistics["max_step_size"] <= 5e-4
     with pytest.raises(fm.InvalidParameterError, match="rk4 takes fixed steps"):
         fm.simulate(system, 0.02, 1e-2, solver=fm.ExplicitSolver("rk4", max_step_size=1e-3))
+
+
+def test_generalized_alpha_options_its_step_control_ignores_are_refused():
+    # Under Newton's control the tolerances and a largest step did nothing (the same run bit
+    # for bit), nor a smallest step under a fixed one.
+    for options, message in (
+        ({"relative_tolerance": 1e-2}, "relative_tolerance is for step_control='error'"),
+        ({"absolute_tolerance": 1e-9, "step_control": "fixed"}, "under 'fixed' the steps"),
+        ({"max_step_size": 1.0}, "the largest they take"),
+        ({"min_step_size": 1e-6, "step_control": "fixed"}, "'fixed' keeps the step size"),
+    ):
+        with pytest.raises(fm.InvalidParameterError, match=message):
+            fm.GeneralizedAlpha(**options)
+    assert fm.GeneralizedAlpha(min_step_size=1e-6).min_step_size == 1e-6  # (Newton shortens)
+    error = fm.GeneralizedAlpha(step_control="error", relative_tolerance=1e-3, max_step_size=0.1)
+    copy = pickle.loads(pickle.dumps(error))
+    assert (copy.relative_tolerance, copy.max_step_size) == (1e-3, 0.1)
+    # Set as attributes they are not checked, and a copy leaves them out.
+    newton = fm.GeneralizedAlpha()
+    newton.relative_tolerance = 1e-9
+    assert pickle.loads(pickle.dumps(newton)).step_control == "newton"

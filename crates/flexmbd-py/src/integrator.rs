@@ -124,6 +124,12 @@ impl GeneralizedAlpha {
         rank_tolerance: Option<f64>,
     ) -> PyResult<Self> {
         let d = GeneralizedAlpha::default();
+        let given = [
+            ("relative_tolerance", relative_tolerance.is_some()),
+            ("absolute_tolerance", absolute_tolerance.is_some()),
+            ("max_step_size", max_step_size.is_some()),
+            ("min_step_size", min_step_size.is_some()),
+        ];
         let s = GeneralizedAlpha {
             spectral_radius: spectral_radius.unwrap_or(d.spectral_radius),
             newton_tolerance: newton_tolerance.unwrap_or(d.newton_tolerance),
@@ -147,6 +153,9 @@ impl GeneralizedAlpha {
         // The settings are checked here without a run's step size: a step within the bounds
         // given (a largest step below an assumed 1 ms was refused before any run).
         s.settings(1.0, s.min_step_size.or(s.max_step_size).unwrap_or(1e-3))?;
+        if let Some(detail) = ignored_alpha_option(&s.step_control, &given) {
+            return Err(invalid("GeneralizedAlpha", detail));
+        }
         Ok(s)
     }
 
@@ -192,8 +201,39 @@ impl GeneralizedAlpha {
         d.set_item("correct_initial_velocities", self.correct_initial_velocities)?;
         d.set_item("redundant_constraints", self.redundant_constraints.clone())?;
         d.set_item("rank_tolerance", self.rank_tolerance)?;
+        // Options the step control ignores (set as attributes after construction) are left
+        // out: the constructor would refuse them.
+        for name in ["relative_tolerance", "absolute_tolerance", "max_step_size", "min_step_size"] {
+            if ignored_alpha_option(&self.step_control, &[(name, true)]).is_some() {
+                d.del_item(name)?;
+            }
+        }
         Ok(((), d))
     }
+}
+
+/// Why an option given to `GeneralizedAlpha(...)` would do nothing under `step_control`
+/// (`given`: option name, whether given), or None: the error control's tolerances and
+/// largest step under Newton's or a fixed control (whose steps return to the step size, the
+/// largest they take), the smallest step under a fixed control (which never shortens one).
+fn ignored_alpha_option(step_control: &str, given: &[(&str, bool)]) -> Option<String> {
+    let is_given = |name: &str| given.iter().any(|&(n, g)| n == name && g);
+    for name in ["relative_tolerance", "absolute_tolerance", "max_step_size"] {
+        if step_control != "error" && is_given(name) {
+            return Some(format!(
+                "{name} is for step_control='error'; under '{step_control}' the steps return to \
+                 the step size, which is also the largest they take"
+            ));
+        }
+    }
+    if step_control == "fixed" && is_given("min_step_size") {
+        return Some(
+            "min_step_size is for the step controls that shorten steps ('newton', 'error'); \
+             'fixed' keeps the step size"
+                .to_string(),
+        );
+    }
+    None
 }
 
 impl Default for GeneralizedAlpha {
