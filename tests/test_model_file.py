@@ -223,7 +223,8 @@ forces:
      coefficients: [{c0}, {c1}, {c2}]}}]}}
 sensors:
   - {{name: bob velocity, marker: {{body: bob}}, quantity: velocity}}
-solver: {{type: generalized-alpha, step_control: error, min_step_size: {min_step}, max_step_size: {step}}}
+solver: {{type: generalized-alpha, step_control: error, min_step_size: {min_step},
+  max_step_size: {step}}}
 simulation: {{end_time: {end}, step_size: {step}, output_interval: {output}}}
 """
 

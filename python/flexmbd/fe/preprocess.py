@@ -178,10 +178,11 @@ def _check_used_options(
             "choose modes ('fixed-interface', 'free-free', 'craig-bampton')",
             item="mode_count",
         )
-    if modes == "external" and mode_count > 0:
+    columns = np.shape(external_modes)[-1] if np.ndim(external_modes) == 2 else None
+    if modes == "external" and mode_count > 0 and columns is not None and mode_count != columns:
         raise InvalidParameterError(
-            f"mode_count={mode_count} with external modes: every column of external_modes is "
-            "kept (the count was ignored); pass the columns to keep",
+            f"mode_count={mode_count} with {columns} external modes: every column of "
+            "external_modes is kept (the count was ignored); pass the columns to keep",
             item="mode_count",
         )
     if modes != "craig-bampton" and len(_interface_selections(interfaces)):
