@@ -59,6 +59,7 @@ def main(argv: list[str] | None = None) -> int:
             "hex8i",
             "hex20",
             "hex20r",
+            "hex27",
             "wedge6",
             "wedge15",
             "pyramid5",

@@ -628,5 +628,28 @@ def test_craig_bampton_modes_of_mixed_bodies(kind, assert_close):
         # from rotations nothing holds.
         x0 = mesh.node_sets["x0"]
         line = x0[np.isclose(mesh.nodes[x0, 2], 0.0)]  # (the bottom edge: 3 nodes of solids)
-        with pytest.raises(InvalidModelError, match="rotations of nodes of solids alone"):
+        with pytest.raises(InvalidModelError, match="averaged interface 0 takes its rotation"):
             pp.build_body(mesh.nodes, elements, STEEL, interfaces=[line, "x1"], **options)
+
+
+def test_rotations_of_nodes_of_solids_alone_hold_nothing_and_carry_no_inertia():
+    # In a block with a shell skin, a line of nodes of solids alone clamped was taken to hold
+    # the rotation about it (their rotations, which have no stiffness, counted as held): the
+    # body had a mode of 0 Hz. A rotary inertia at such a node was welded to the body frame.
+    mesh, top, _ = skinned_block(0.005, (8, 2, 2))
+    elements = {"hex8": mesh.elements["hex8"], "quad4": top}
+    x0 = mesh.node_sets["x0"]
+    line = x0[np.isclose(mesh.nodes[x0, 2], 0.0)]  # (the bottom edge: nodes of solids alone)
+    for options in ({}, {"modes": "fixed-interface", "mode_count": 2}):
+        with pytest.raises(
+            InvalidModelError, match=r"leaves a rotation about the axis \(0, 1, 0\)"
+        ):
+            pp.build_body(mesh.nodes, elements, STEEL, shell=0.005, reference="clamped",
+                          reference_nodes=line, **options)  # fmt: skip
+    bottom = int(np.flatnonzero(np.isclose(mesh.nodes[:, 2], 0.0))[4])
+    lump = (0.1, np.diag([0.5, 0.7, 0.9]))
+    options = dict(shell=0.005, reference="clamped", reference_nodes=x0)
+    with pytest.raises(InvalidParameterError, match=rf"point_masses\[{bottom}\]: a rotary"):
+        pp.build_body(mesh.nodes, elements, STEEL, point_masses={bottom: lump}, **options)
+    on_skin = int(top[0, 0])  # (a node with rotations takes it)
+    pp.build_body(mesh.nodes, elements, STEEL, point_masses={on_skin: lump}, **options)

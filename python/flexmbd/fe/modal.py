@@ -911,10 +911,10 @@ def _craig_bampton_averaged(
         if len(touched):
             index = int(touched[0]) // 6
             raise InvalidModelError(
-                f"averaged interface {index + 1} takes its rotation from the rotations of "
+                f"averaged interface {index} takes its rotation from the rotations of "
                 "nodes of solids alone, which nothing holds (a line of nodes of solids): add "
                 "nodes off the line, or nodes of beams or shells, to the interface",
-                item=f"interface {index + 1}",
+                item=f"interface {index}",
             )
         g = g[:, kept]
     r = rigid_modes(nodes, d)[kept]

@@ -718,7 +718,11 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
                 displacement[int(g)] = np.full((3, 3), np.nan)
     for values in materials.values():  # PARAM,WTMASS: Nastran's structural mass x WTMASS
         values["density"] *= mass_scale
-    rotations = any(len(mesh.elements.get(k, ())) for k in ROTATION_ELEMENTS)
+    # (the nodes of beams and shells: a node of solids alone has no rotations, also in a body
+    # that mixes them)
+    rotations = {
+        int(n) for k in ROTATION_ELEMENTS for n in np.ravel(mesh.elements.get(k, np.zeros(0)))
+    }
     point_masses: dict[int, tuple[float, NDArray[np.float64]]] = {}
     element_ids = {e[0]: e[3] for items in elements.values() for e in items}
     for card in conm2:
@@ -746,7 +750,7 @@ def _conm2(
     grids: dict[int, Card],
     systems: dict[int, Card],
     index: dict[int, int],
-    rotations: bool,
+    rotations: set[int],
 ) -> tuple[int, float, NDArray[np.float64]]:
     """(grid, mass, rotary inertia in the basic system) of a CONM2 card, refused where the body
     cannot carry it: at a grid of no element, with an offset of its centre of gravity, with a
@@ -788,7 +792,7 @@ def _conm2(
         raise card.error(
             f"CONM2 {eid}: the rotary inertia {inertia.tolist()} is not positive semi-definite"
         )
-    if np.any(inertia) and not rotations:
+    if np.any(inertia) and index[grid] not in rotations:
         raise card.error(
             f"CONM2 {eid}: a rotary inertia on grid {grid}, a node of solid elements (no "
             f"rotations to carry it); {how}"

@@ -734,6 +734,7 @@ def build_body(
 
     nodal = assembled(elements, element_ids=eids, form_i_kl=modes is None)
     if point_masses is not None:
+        _refuse_inertia_without_rotations(point_masses, elements, len(nodes), nodal.dofs_per_node)
         nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
     _check_zero_energy_modes(
         nodal, nodes, elements, eids, lambda other: assembled(other, form_i_kl=False)
@@ -834,7 +835,7 @@ def _body_from_nodal(
     _check_parts(nodes, ids, elements, nodal, reference, held)
     if kind in ("clamped", "3-2-1", "simply-supported") and modes != "external":
         # (External modes may leave out what the conditions do not hold: an axial-only rod.)
-        _check_held(nodes, ids, d, free, reference, ref_nodes)
+        _check_held(nodes, ids, d, free, reference, ref_nodes, elements)
     unused = solid_only_rotations(elements, len(nodes), d)
     if len(unused):
         # The rotations of nodes of solids alone (in a body with beams or shells) have no
@@ -1098,13 +1099,16 @@ def _check_held(
     free: NDArray[np.int64],
     reference: str,
     ref_nodes: NDArray[np.int64],
+    elements: Mapping[str, NDArray[np.int64]],
 ) -> None:
     """Raises `InvalidModelError` when the coordinates that the reference conditions remove do
     not hold the six rigid motions (three collinear 3-2-1 nodes, a solid clamped at one node
     or along a line): the body frame would not be defined, the stiffness on the kept
     coordinates singular, and modes or static solutions meaningless. Names the nodes and the
-    free motion."""
+    free motion. The rotations of nodes of solids alone (in a body with beams or shells) hold
+    nothing: they have no stiffness (a line of them was taken to hold the rotation about it)."""
     removed = np.setdiff1d(np.arange(len(nodes) * d), free)
+    removed = np.setdiff1d(removed, solid_only_rotations(elements, len(nodes), d))
     centre = nodes.mean(axis=0)
     size = max(float(np.ptp(nodes, axis=0).max()), 1e-300)
     rigid = rigid_modes((nodes - centre) / size, d)[removed]  # rotations times the size
@@ -1645,6 +1649,24 @@ def point_mass_matrix(
                     values.append(float(j[a, b]))
     n = d * node_count
     return sp.csc_matrix((values, (rows, cols)), shape=(n, n))
+
+
+def _refuse_inertia_without_rotations(
+    point_masses: Mapping[int, Any], elements: Mapping[str, Any], node_count: int, d: int
+) -> None:
+    """An `InvalidParameterError` for a rotary inertia at a node of solids alone in a body that
+    mixes them with beams or shells: its rotations are no coordinates of the body (it was
+    welded to the body frame and took no part in the elastic motion)."""
+    loose = set((solid_only_rotations(elements, node_count, d)[::3] // d).tolist())
+    for key, value in point_masses.items() if isinstance(point_masses, Mapping) else ():
+        inertia = value[1] if isinstance(value, tuple | list) and len(value) == 2 else None
+        if inertia is not None and int(key) in loose and np.any(np.asarray(inertia, dtype=float)):
+            raise InvalidParameterError(
+                f"point_masses[{key}]: a rotary inertia needs nodes with rotations (beams, "
+                "shells); this node belongs to solid elements only: add the part as a rigid "
+                "body fixed to the node instead",
+                item=f"point_masses[{key}]",
+            )
 
 
 def with_point_masses(
