@@ -476,11 +476,8 @@ def _has_shells(part: Any) -> bool:
 
 def _nodal_von_mises(result: Any, part: Any, records: Array) -> Array:
     """Von Mises stress at the nodes of a part (records, nodes): of the solids, and for shells
-    the largest of their top, middle and bottom surfaces."""
-    value = _von_mises(result.stresses(part.body, records))
-    if _has_shells(part):
-        value = np.maximum(value, _von_mises(result.shell_stresses(part.body, records)).max(axis=2))
-    return value
+    the largest of their top, middle and bottom surfaces (`Result.von_mises`)."""
+    return result.von_mises(part.body, records)
 
 
 def _von_mises(stress: Array) -> Array:

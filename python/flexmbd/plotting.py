@@ -371,8 +371,9 @@ def _node_of(data: Any, node: int) -> int:
 
 
 def plot_stress(result: Any, body: object, axes: Any = None) -> list[Any]:
-    """Largest von Mises stress over the nodes of the solid elements of a deformable body
-    (Pa) per record; for a body of beams, the largest axial force |N| (N) and bending moment
+    """Largest von Mises stress over the nodes of the solid and shell elements (for shells,
+    the largest of their top, middle and bottom surfaces: `Result.von_mises`) of a deformable
+    body (Pa) per record; for a body of beams, the largest axial force |N| (N) and bending moment
     sqrt(M_y^2 + M_z^2) (N m) over the element ends, two panels. Returns the Axes."""
     _, _, data = deformable(result, body)
     kinds = ("von-mises",) if _has_solids(data) else ("axial", "bending")
@@ -404,12 +405,11 @@ def _has_solids(data: Any) -> bool:
 
 def _plot_stress_panel(result: Any, body: object, kind: str, ax: Any) -> Any:
     """One panel of :func:`plot_stress`: "von-mises", "axial" or "bending"."""
-    from .fe.stress import von_mises
 
     _, name, _ = deformable(result, body)
     n = len(result.time)
     if kind == "von-mises":
-        largest = von_mises(result.stresses(body)).reshape(n, -1).max(axis=1)
+        largest = result.von_mises(body).reshape(n, -1).max(axis=1)
         ax.plot(result.time, largest, "k")
         return _finish(ax, "von Mises stress (Pa)", f"Largest von Mises stress in {name}")
     sections = result.section_forces(body)  # (n, beams, 2, 6)

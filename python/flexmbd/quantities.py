@@ -301,12 +301,11 @@ def _deflection(result: Any, body: object, node_text: str) -> tuple[Array, list[
 
 def _stress(result: Any, body: object) -> tuple[Array, list[str]]:
     """Largest von Mises stress (solids), or largest |N| and |M| (beams), per record."""
-    from .fe.stress import von_mises
 
     data = deformable(result, body)[2]
     n = len(result.time)
     if any(kind != "beam2" for kind in data.elements):
-        return von_mises(result.stresses(body)).reshape(n, -1).max(axis=1)[:, None], ["von-mises"]
+        return result.von_mises(body).reshape(n, -1).max(axis=1)[:, None], ["von-mises"]
     sections = result.section_forces(body)  # (n, beams, 2, 6)
     axial = np.abs(sections[..., 0]).reshape(n, -1).max(axis=1)
     bending = np.hypot(sections[..., 4], sections[..., 5]).reshape(n, -1).max(axis=1)

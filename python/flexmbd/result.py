@@ -368,6 +368,18 @@ class Result:
         _, data = self._flexible(body)
         return recover_stresses(data, self._nodal_displacements(body, records))[0]
 
+    def von_mises(self, body: object, records: Any = None) -> Array:
+        """Von Mises stress at the nodes of a deformable body (Pa): (n, nodes), for all records
+        or the given record indices; of its solid elements, and at the nodes of shells the
+        largest of their top, middle and bottom surfaces. See
+        :func:`flexmbd.fe.stress.nodal_von_mises`."""
+        from .fe.stress import nodal_von_mises
+
+        self._with_elements(body, _SOLIDS + _SHELLS, "solid or shell elements")
+        _, data = self._flexible(body)
+        displacements = np.atleast_2d(self._nodal_displacements(body, records))
+        return nodal_von_mises(data, displacements)
+
     def shell_stresses(self, body: object, records: Any = None) -> Array:
         """Stresses of the shell elements of a deformable body at their top, middle and bottom
         surfaces, averaged at its nodes (Pa, body axes, Voigt order): (n, nodes, 3, 6). See

@@ -200,7 +200,6 @@ def _dataset(
         _scale_value,
         _spread,
         _view_angles,
-        _von_mises,
         build_scene,
     )
 
@@ -237,7 +236,7 @@ def _dataset(
         entry["range"] = {"displacement": float(magnitude.max()) if magnitude.size else 0.0}
         largest = max(largest, entry["range"]["displacement"])
         if part.has_solids:
-            von_mises = _von_mises(result.stresses(part.body, records).reshape(-1, 6))
+            von_mises = result.von_mises(part.body, records).reshape(-1)
             entry["stress"] = _floats(von_mises.reshape(count, -1))
             entry["range"]["stress"] = float(von_mises.max()) if von_mises.size else 0.0
             if "stress" not in colors:

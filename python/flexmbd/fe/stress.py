@@ -51,6 +51,18 @@ def shell_stresses(body: FlexibleBodyData, displacements: ArrayLike) -> NDArray[
     return _recovered(body, displacements)[2]
 
 
+def nodal_von_mises(body: FlexibleBodyData, displacements: ArrayLike) -> NDArray[np.float64]:
+    """Von Mises stress at the nodes (records, nodes), or (nodes,) for displacements (n_dofs,):
+    of the solid elements' stresses, and at the nodes of shells the largest of the shells'
+    top, middle and bottom surfaces (the middle surface alone misses their bending stress:
+    a satellite panel's 1.3 kPa against 122 kPa at its faces)."""
+    nodal, _, shells = _recovered(body, displacements)
+    value = von_mises(nodal)
+    if any(len(body.elements.get(kind, ())) for kind in ("quad4", "tri3")):
+        value = np.maximum(value, von_mises(shells).max(axis=-1))
+    return value
+
+
 def _recovered(
     body: FlexibleBodyData, displacements: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
