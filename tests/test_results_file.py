@@ -780,3 +780,32 @@ def test_a_path_that_is_no_path_and_a_bool_item_are_named():
         result.position(True)
     with pytest.raises(fm.InvalidParameterError, match="entry 1 is nan"):
         result.state().with_position("mass", [1.0, np.nan, 0.0])
+
+
+def test_a_failed_run_that_kept_its_records_in_the_file_says_up_to_when(tmp_path, caplog):
+    # Kept only in the file, a failed run's records had all gone to it: `flexmbd run` said
+    # "62 records up to the start kept" and the log "t = 0 .. 0 s" for records up to 0.61 s.
+    from flexmbd.cli import _kept
+    from flexmbd.results_file import read_results_metadata
+
+    system = fm.System()
+    body = system.add_point_mass(1.0, name="mass")
+
+    def force(t, q, qd):
+        time.sleep(1e-4)  # (deliveries to the file on the way)
+        if t > 0.3:
+            raise ZeroDivisionError("user bug")
+        return np.array([1.0, 0.0, 0.0])
+
+    system.add_callback_force([body], force, name="user")
+    path = tmp_path / "run.h5"
+    with caplog.at_level("INFO", logger="flexmbd.simulation"):
+        with pytest.raises(fm.CallbackError) as error:
+            fm.simulate(system, 1.0, 0.01, results_file=path, keep_in_memory=False)
+    written = fm.read_results(path)
+    end = float(written.time[-1])
+    assert len(written) > 1 and read_results_metadata(path)["last_time"] == end
+    where, count, last = _kept(error.value)
+    assert (where, count, last) == (path, len(written), f"t = {end:.6g} s")
+    summary = [r.getMessage() for r in caplog.records if "run stopped" in r.getMessage()]
+    assert summary and f".. {end:.6g} s" in summary[0]

@@ -196,10 +196,15 @@ def _kept(error: FlexmbdError) -> tuple[Path, int, str] | None:
     if where is None:
         return None
     try:
-        count = int(read_results_metadata(where)["records"])
+        header = read_results_metadata(where)
+        count, end = int(header["records"]), header["last_time"]
     except (FlexmbdError, OSError):
-        count = 0
-    last = f"t = {kept.time[-1]:.6g} s" if kept is not None and len(kept) else "the start"
+        count, end = 0, None
+    # (the records of a run that kept them only in the file: the file's last time, not the
+    # result's, which held none after a failure and said "up to the start")
+    if end is None and kept is not None and len(kept):
+        end = float(kept.time[-1])
+    last = f"t = {end:.6g} s" if end is not None and count else "the start"
     return Path(where), count, last
 
 

@@ -680,10 +680,19 @@ def _record_count(file: h5py.File, path: Path) -> int:
     return count
 
 
+def _last_time(file: h5py.File, count: int) -> float | None:
+    """The time of record `count` - 1, None without records or where it cannot be read."""
+    try:
+        return float(file["time"][count - 1]) if count > 0 else None
+    except (OSError, ValueError, TypeError, IndexError, KeyError):
+        return None
+
+
 def read_results_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The header of a results file without its records: ``layout``, ``metadata``,
-    ``records``, ``status``, ``statistics``, ``events``, ``redundancy``, ``flexible`` (body
-    indices) and ``version``. Raises :class:`flexmbd.ResultsFileError` for a damaged file."""
+    ``records``, ``last_time`` (the time of the last record, None without records),
+    ``status``, ``statistics``, ``events``, ``redundancy``, ``flexible`` (body indices) and
+    ``version``. Raises :class:`flexmbd.ResultsFileError` for a damaged file."""
     path = _path(path)
     return _guarded(path, lambda: _read_results_metadata(path))
 
@@ -691,13 +700,15 @@ def read_results_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
 def _read_results_metadata(path: Path) -> dict[str, Any]:
     with _open(path) as file:
         _check_header(file, path)
+        count = _record_count(file, path)
         return {
             "version": int(file.attrs["version"]),
             "writer": str(file.attrs.get("writer", "")),
             "layout": _layout(file, path),
             "metadata": _attribute(file, "metadata", path, {}),
             "units": _attribute(file, "units", path, {}),
-            "records": _record_count(file, path),
+            "records": count,
+            "last_time": _last_time(file, count),
             "status": _text(file, "status"),
             "statistics": _text(file, "statistics") or {},
             "events": _text(file, "events") or [],

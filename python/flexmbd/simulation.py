@@ -177,7 +177,7 @@ def _summary(result: Result, start_time: float, wall: float) -> None:
     """Logs what the run did: INFO, or WARNING if many steps were rejected."""
     stats = result.statistics
     steps, rejected = int(stats.get("steps", 0)), int(stats.get("rejected_steps", 0))
-    end = result.time[-1] if len(result.time) else start_time
+    end = result.time[-1] if len(result.time) else _file_end(result, start_time)
     work = f"{steps} steps"
     if rejected:
         smallest = stats.get("min_step_size", math.nan)
@@ -194,6 +194,20 @@ def _summary(result: Result, start_time: float, wall: float) -> None:
     logger.log(
         level, "run %s: t = %.6g .. %.6g s, %s; %.3g s", outcome, start_time, end, work, wall
     )
+
+
+def _file_end(result: Result, start_time: float) -> float:
+    """The time of the last record in the result's file (a run that kept its records only
+    there holds none in memory after a failure), else `start_time`."""
+    from .results_file import read_results_metadata
+
+    if getattr(result, "file", None) is None:
+        return start_time
+    try:
+        end = read_results_metadata(result.file)["last_time"]
+    except (ResultsFileError, OSError):
+        return start_time
+    return start_time if end is None else float(end)
 
 
 def _warn_of_explicit_stability(
@@ -377,7 +391,8 @@ def simulate(
     ``keep_in_memory=False`` (with a ``results_file``) keeps the records only in the file:
     the memory of the run stays flat however many records it writes, and the returned
     ``Result`` holds only the records written after the last delivery to the file (at
-    least the last one); read the whole run with :func:`flexmbd.read_results`.
+    least the last one; the result of a failed run, ``error.result``, may hold none, its
+    records all in the file); read the whole run with :func:`flexmbd.read_results`.
 
     Redundant constraints are found by rank before the run and, by default, removed (see
     ``Result.redundancy`` and ``Result.events``); where the rows kept become ill-conditioned
