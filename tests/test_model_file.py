@@ -69,7 +69,7 @@ def test_four_bar_file_is_the_python_four_bar():
     assert_same_run(simulate_model(model, end_time=0.5), run_example(fm.examples.four_bar(2), 0.5))
 
 
-def test_flexible_slider_crank_file_is_the_python_model():
+def test_flexible_slider_crank_file_is_the_python_model(tmp_path):
     model = load_model(MODELS / "flexible_slider_crank.yaml")
     result = simulate_model(model, end_time=0.01)
     example = fm.examples.flexible_slider_crank()
@@ -78,6 +78,14 @@ def test_flexible_slider_crank_file_is_the_python_model():
     np.testing.assert_array_equal(outputs["midpoint deflection"], result.deflection("rod", 5))
     np.testing.assert_array_equal(outputs["drive reaction_torque"], result.reaction_torque("drive"))
     assert model.plots == ["deflection:rod:5", "reaction:drive", "energy"]
+    # A deflection from a chord has no plot of its own: its place was taken by the node's
+    # deflection from the body frame (0.057 m drawn for a chord deflection of 0.15 m).
+    text = (MODELS / "flexible_slider_crank.yaml").read_text()
+    node = "    quantity: deflection\n    node: 5\n"
+    chorded = text.replace(node, node + "    chord: [1, 9]\n")
+    assert chorded != text
+    (tmp_path / "chord.yaml").write_text(chorded)
+    assert load_model(tmp_path / "chord.yaml").plots == ["reaction:drive", "energy"]
 
 
 def test_tetrahedral_pendulum_file_is_the_python_model():

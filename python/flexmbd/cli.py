@@ -1259,7 +1259,12 @@ def _main(argv: list[str] | None) -> int:
     )
     animate.add_argument("--no-render", action="store_true", help="render no animation")
     animate.add_argument("--frames", type=_every, help="number of frames rendered")
-    animate.add_argument("--scale", type=float, help="deformation scale (default: automatic)")
+    animate.add_argument(
+        "--scale",
+        type=float,
+        help="deformation scale of the animation (default: automatic) and of the ParaView "
+        "series' geometry (default: 1; its displacement field stays true to scale)",
+    )
     animate.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     animate.add_argument(
         "--backend",

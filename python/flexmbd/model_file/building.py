@@ -196,7 +196,9 @@ class ModelFile:
         """The outputs as quantity names of :func:`flexmbd.plotting.plot_result` (what
         ``flexmbd run`` plots): ``"sensor:NAME"``, ``"position:NAME"``, ``"reaction:NAME"``,
         ``"deflection:NAME:NODE"``, ``"energy"``, ``"violation"``, ...; each once, in the order
-        of the outputs. Outputs without a plot of their own are left out."""
+        of the outputs. Outputs without a plot of their own are left out (among them a
+        deflection from a chord: the plot of a node's deflection is from the body frame, and
+        took the chord's place)."""
         names: list[str] = []
         for output in self.outputs:
             if output.kind == "sensor":
@@ -205,8 +207,10 @@ class ModelFile:
                 name = "violation" if output.quantity == "constraint_violation" else "energy"
             elif output.kind == "joint":
                 name = f"reaction:{output.item}"
-            elif output.quantity == "deflection":
+            elif output.quantity == "deflection" and output.chord is None:
                 name = f"deflection:{output.item}:{output.node}"
+            elif output.quantity == "deflection":
+                continue
             elif output.quantity in _PLOTS:
                 name = f"{_PLOTS[output.quantity]}:{output.item}"
             else:
