@@ -192,6 +192,13 @@ def test_plot_and_animate_a_results_file(tmp_path, capsys):
     assert main(["animate", "fourbar.h5", "--scale", "nan", "--vtu", "nan_vtu"]) == 2
     assert "--scale must be a finite number" in capsys.readouterr().err
     assert not (tmp_path / "nan_vtu").exists()
+    # The animation named as the results file ("[Errno 17] File exists"); a body frame's
+    # quantity with a node ("no body named 'crank 0:5'").
+    assert main(["animate", "fourbar.h5", "-o", "fourbar.h5", "--frames", "2"]) == 2
+    assert "is the results file" in capsys.readouterr().err
+    assert fm.read_results(tmp_path / "fourbar.h5").success
+    assert main(["plot", "fourbar.h5", "velocity:crank 0:5"]) == 2
+    assert "takes only the body's name (velocity:crank 0)" in capsys.readouterr().err
 
 
 def test_run_refuses_an_end_not_after_the_start_and_names_png_frames(capsys):

@@ -725,6 +725,12 @@ def _animate(args: argparse.Namespace) -> int:
             _check_folder(Path(args.vtu))
         if args.output and not args.no_render:
             _check_folder(Path(args.output))
+            if Path(args.output).resolve() == results.resolve():
+                # ("[Errno 17] File exists: 'p3.h5'")
+                raise InvalidParameterError(
+                    f"-o {args.output} is the results file: name the animation (.gif, or .png "
+                    "for frames)"
+                )
         if args.vtu or not args.no_vtu and result.flexible:
             directory = Path(args.vtu) if args.vtu else results.with_name(f"{results.stem}_vtu")
             every, times = args.vtu_every or 1, args.vtu_times
@@ -1193,7 +1199,7 @@ def _main(argv: list[str] | None) -> int:
         "partitioning, projection or joint-coordinates, FORMULATION augmented or embedding "
         "(joint-coordinates: joint-space, coupled or decoupled)",
     )
-    run.add_argument("--plot", help="plot file (.png or .svg; default: NAME.png)")
+    run.add_argument("--plot", help="plot file (.png, .svg or .pdf; default: NAME.png)")
     run.add_argument("--animation", help="animation file (.gif; default: NAME.gif)")
     run.add_argument("--no-plot", action="store_true", help="write no plot")
     run.add_argument(
@@ -1233,7 +1239,12 @@ def _main(argv: list[str] | None) -> int:
     )
     plot = sub.add_parser("plot", help="plot a results file, or an output of a study")
     plot.add_argument("results", help="results file (.h5) or study folder")
-    plot.add_argument("-o", "--output", help="image file (.png or .svg; default: RESULTS.png)")
+    plot.add_argument(
+        "-o",
+        "--output",
+        help="image file (.png, .svg or .pdf; default: RESULTS.png), or a folder that gets one "
+        "figure per quantity",
+    )
     plot.add_argument(
         "quantity",
         nargs="*",

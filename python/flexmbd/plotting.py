@@ -810,6 +810,16 @@ def quantity_panels(result: Any, quantity: str) -> list[Callable[[Any], Any]]:
             f"quantity {kind!r} needs an item, as in {kind + ':NAME'!r}", item=quantity
         )
     if kind in BODY_QUANTITIES:
+        names = [b["name"] for b in result.layout["bodies"]]
+        head = rest.rpartition(":")[0].strip()
+        if rest not in names and head in names:
+            # ("velocity:rod:5" said "no body named 'rod:5'")
+            raise InvalidParameterError(
+                f"quantity {quantity!r}: {kind} is of a body frame and takes only the body's "
+                f"name ({kind}:{head}); a node's motion is a sensor on a node marker, its "
+                f"deflection 'deflection:{head}:NODE'",
+                item=quantity,
+            )
         body = resolve_item(result, "bodies", rest)
         if kind == "elastic":
             deformable(result, body)

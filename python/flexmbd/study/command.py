@@ -301,15 +301,18 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
 
     data, description = load_study(folder)
     names = [n for n in description["parameters"]]
-    if against is None:
-        if len(names) != 1:
-            raise InvalidParameterError(f"--against: one of the parameters {names}")
-        against = names[0]
-    if against not in names:
-        raise InvalidParameterError(f"--against {against!r}: the parameters are {names}")
+    # (the output first: an unknown one was answered with "--against: one of the parameters")
     if output not in data.data_vars or output in CASE_FIELDS:
         outputs = [n for n in data.data_vars if n not in CASE_FIELDS]
         raise InvalidParameterError(f"no output {output!r}; outputs: {outputs}")
+    if against is None:
+        if len(names) != 1:
+            raise InvalidParameterError(
+                f"--against: one of the parameters {names} (the study has {len(names)})"
+            )
+        against = names[0]
+    if against not in names:
+        raise InvalidParameterError(f"--against {against!r}: the parameters are {names}")
     variable = data[output]
     if "time" in variable.dims:
         raise InvalidParameterError(f"{output!r} is a time series: plot a reduced output")
