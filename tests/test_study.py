@@ -385,10 +385,9 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
     assert "no item 'hinge'" in capsys.readouterr().err
     assert main(["plot", str(folder), "highest", "--against", "joints.link.distance"]) == 2
     assert "no output 'highest'" in capsys.readouterr().err
-    # Of a study of two parameters, without --against: the output is named first (it said
+    # Of this study of two parameters, without --against: the output is named first (it said
     # "--against: one of the parameters").
-    crank = HERE.parent / "examples" / "slider_crank_study"
-    assert main(["plot", str(crank), "nothere", "-o", str(tmp_path / "n.png")]) == 2
+    assert main(["plot", str(folder), "nothere", "-o", str(tmp_path / "n.png")]) == 2
     assert "no output 'nothere'" in capsys.readouterr().err
 
 
