@@ -53,18 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--elements",
         nargs="+",
-        default=[
-            "tet4",
-            "tet10",
-            "hex8",
-            "hex8i",
-            "hex20",
-            "hex20r",
-            "hex27",
-            "wedge6",
-            "wedge15",
-            "pyramid5",
-        ],
+        default=list(shapes.BOX_ELEMENTS),
     )
     args = parser.parse_args(argv)
     inertia, area = WIDTH**4 / 12, WIDTH**2

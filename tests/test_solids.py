@@ -17,18 +17,7 @@ from flexmbd.fe import shapes
 from flexmbd.rotation import rotation
 
 STEEL = Material(2.1e11, 0.3, 7800.0)
-SOLIDS = [
-    "tet4",
-    "tet10",
-    "hex8",
-    "hex8i",
-    "hex20",
-    "hex20r",
-    "hex27",
-    "wedge6",
-    "wedge15",
-    "pyramid5",
-]
+SOLIDS = list(shapes.BOX_ELEMENTS)  # (every solid element; box() makes each)
 
 
 def rotated_box(element, divisions=(4, 2, 3), lengths=(0.8, 0.3, 0.5)):

@@ -415,11 +415,14 @@ def _mesh(
         if part.body in stresses:
             sigma = stresses[part.body]
             rotation = scene.pose(part.body, records)[1][0]
-            von_mises[-1] = _von_mises(sigma)
+            from .fe.stress import largest_von_mises
+
+            levels = (
+                scene.result.shell_stresses(part.body, records)[0] if _has_shells(part) else None
+            )
+            von_mises[-1] = largest_von_mises(sigma, levels)
             stress[-1] = _paraview_tensor(sigma, rotation)
-            if _has_shells(part):
-                levels = scene.result.shell_stresses(part.body, records)[0]
-                von_mises[-1] = np.maximum(von_mises[-1], _von_mises(levels).max(axis=1))
+            if levels is not None:
                 for k, level in enumerate((0, 2)):
                     surfaces[-1][:, k] = _paraview_tensor(levels[:, level], rotation)
         for kind, connectivity in part.data.elements.items():
@@ -478,12 +481,6 @@ def _nodal_von_mises(result: Any, part: Any, records: Array) -> Array:
     """Von Mises stress at the nodes of a part (records, nodes): of the solids, and for shells
     the largest of their top, middle and bottom surfaces (`Result.von_mises`)."""
     return result.von_mises(part.body, records)
-
-
-def _von_mises(stress: Array) -> Array:
-    from .fe.stress import von_mises
-
-    return von_mises(stress)
 
 
 def _paraview_tensor(stress: Array, rotation: Array) -> Array:

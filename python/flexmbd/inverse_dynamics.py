@@ -147,14 +147,13 @@ def _recording_steps(solver: Any, step_size: float) -> Any:
     tr-bdf2, generalized-alpha's error control) and no largest step is given: with every
     joint driven its error control sees no error, and the steps grew fivefold each (a
     cycloidal lift of 1 s recorded at 7 times; its replay 0.07 m off)."""
-    adaptive = {"ExplicitSolver": ("method", ("dopri5", "tr-bdf2")),
-                "GeneralizedAlpha": ("step_control", ("error",))}  # fmt: skip
-    rule = adaptive.get(type(solver).__name__)
-    if rule is None or not hasattr(solver, "__getnewargs_ex__"):
+    explicit = isinstance(solver, _boundary.ExplicitSolver)
+    adaptive = (explicit and solver.method in ("dopri5", "tr-bdf2")) or (
+        isinstance(solver, _boundary.GeneralizedAlpha) and solver.step_control == "error"
+    )
+    if not adaptive or solver.max_step_size is not None:
         return solver
-    _, options = solver.__getnewargs_ex__()
-    if options.get(rule[0]) not in rule[1] or options.get("max_step_size") is not None:
-        return solver
+    _, options = solver.__getnewargs_ex__()  # (the solver's settings, as keywords)
     return type(solver)(**{**options, "max_step_size": step_size})
 
 

@@ -405,7 +405,6 @@ def _has_solids(data: Any) -> bool:
 
 def _plot_stress_panel(result: Any, body: object, kind: str, ax: Any) -> Any:
     """One panel of :func:`plot_stress`: "von-mises", "axial" or "bending"."""
-
     _, name, _ = deformable(result, body)
     n = len(result.time)
     if kind == "von-mises":

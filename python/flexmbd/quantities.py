@@ -301,7 +301,6 @@ def _deflection(result: Any, body: object, node_text: str) -> tuple[Array, list[
 
 def _stress(result: Any, body: object) -> tuple[Array, list[str]]:
     """Largest von Mises stress (solids), or largest |N| and |M| (beams), per record."""
-
     data = deformable(result, body)[2]
     n = len(result.time)
     if any(kind != "beam2" for kind in data.elements):

@@ -32,7 +32,7 @@ if TYPE_CHECKING:
         straight_beam,
     )
     from .sid import read_sid, write_sid
-    from .stress import recover_stresses, shell_stresses, von_mises
+    from .stress import nodal_von_mises, recover_stresses, shell_stresses, von_mises
 
 #: Public name -> the submodule that defines it ("" for a submodule itself).
 _ORIGIN: dict[str, str] = {
@@ -63,6 +63,7 @@ _ORIGIN: dict[str, str] = {
     "write_sid": "sid",
     "recover_stresses": "stress",
     "shell_stresses": "stress",
+    "nodal_von_mises": "stress",
     "von_mises": "stress",
 }
 
@@ -85,6 +86,7 @@ __all__ = [
     "body_from_nastran",
     "build_body",
     "load_body",
+    "nodal_von_mises",
     "orient_shells",
     "read_abaqus_matrix",
     "read_mesh",

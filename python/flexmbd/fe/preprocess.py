@@ -10,7 +10,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -734,8 +734,9 @@ def build_body(
 
     nodal = assembled(elements, element_ids=eids, form_i_kl=modes is None)
     if point_masses is not None:
-        _refuse_inertia_without_rotations(point_masses, elements, len(nodes), nodal.dofs_per_node)
-        nodal = with_point_masses(nodal, nodes, point_masses, form_i_kl=modes is None)
+        nodal = with_point_masses(
+            nodal, nodes, point_masses, form_i_kl=modes is None, elements=elements
+        )
     _check_zero_energy_modes(
         nodal, nodes, elements, eids, lambda other: assembled(other, form_i_kl=False)
     )
@@ -833,10 +834,10 @@ def _body_from_nodal(
         )
     held = ref_nodes if kind == "clamped" else np.zeros(0, dtype=np.int64)
     _check_parts(nodes, ids, elements, nodal, reference, held)
+    unused = solid_only_rotations(elements, len(nodes), d)
     if kind in ("clamped", "3-2-1", "simply-supported") and modes != "external":
         # (External modes may leave out what the conditions do not hold: an axial-only rod.)
-        _check_held(nodes, ids, d, free, reference, ref_nodes, elements)
-    unused = solid_only_rotations(elements, len(nodes), d)
+        _check_held(nodes, ids, d, free, reference, ref_nodes, unused)
     if len(unused):
         # The rotations of nodes of solids alone (in a body with beams or shells) have no
         # stiffness and no mass: they stay at zero (the stiffness was singular).
@@ -1099,16 +1100,16 @@ def _check_held(
     free: NDArray[np.int64],
     reference: str,
     ref_nodes: NDArray[np.int64],
-    elements: Mapping[str, NDArray[np.int64]],
+    unused: NDArray[np.int64],
 ) -> None:
     """Raises `InvalidModelError` when the coordinates that the reference conditions remove do
     not hold the six rigid motions (three collinear 3-2-1 nodes, a solid clamped at one node
     or along a line): the body frame would not be defined, the stiffness on the kept
     coordinates singular, and modes or static solutions meaningless. Names the nodes and the
-    free motion. The rotations of nodes of solids alone (in a body with beams or shells) hold
-    nothing: they have no stiffness (a line of them was taken to hold the rotation about it)."""
-    removed = np.setdiff1d(np.arange(len(nodes) * d), free)
-    removed = np.setdiff1d(removed, solid_only_rotations(elements, len(nodes), d))
+    free motion. The `unused` rotations of nodes of solids alone (in a body with beams or
+    shells) hold nothing: they have no stiffness (a line of them was taken to hold the
+    rotation about it)."""
+    removed = np.setdiff1d(np.setdiff1d(np.arange(len(nodes) * d), free), unused)
     centre = nodes.mean(axis=0)
     size = max(float(np.ptp(nodes, axis=0).max()), 1e-300)
     rigid = rigid_modes((nodes - centre) / size, d)[removed]  # rotations times the size
@@ -1577,13 +1578,19 @@ def rotational_matrix_invariants(nodes: NDArray[np.float64], m: sp.csc_matrix) -
 
 
 def point_mass_matrix(
-    point_masses: Mapping[int, Any], node_count: int, dofs_per_node: int
+    point_masses: Mapping[int, Any],
+    node_count: int,
+    dofs_per_node: int,
+    without_rotations: Collection[int] = (),
 ) -> sp.csc_matrix:
     """The nodal mass matrix of concentrated masses (see `build_body`'s `point_masses`): m I_3
     on the displacements of each node and its rotary inertia J on the rotations (6-coordinate
     nodes). Raises `InvalidParameterError` naming the node for a node index out of range, a
     mass that is not a finite number >= 0, an inertia that is not a symmetric positive
-    semi-definite (3, 3) matrix, or an inertia at a node without rotations."""
+    semi-definite (3, 3) matrix, or an inertia at a node without rotations: every node with
+    3 coordinates, and the nodes `without_rotations` (of solids alone in a body that mixes
+    them with beams or shells: their rotations are no coordinates of the body, and such an
+    inertia was welded to the body frame)."""
     if not isinstance(point_masses, Mapping):
         raise InvalidParameterError(
             f"point_masses: a mapping node index -> mass or (mass, inertia), got "
@@ -1634,7 +1641,7 @@ def point_mass_matrix(
             )
         if not np.any(j):
             continue
-        if d != 6:
+        if d != 6 or node in without_rotations:
             raise InvalidParameterError(
                 f"{item}: a rotary inertia needs nodes with rotations (beams, shells); the "
                 "nodes of solid elements have displacements only: add the part as a rigid body "
@@ -1651,36 +1658,22 @@ def point_mass_matrix(
     return sp.csc_matrix((values, (rows, cols)), shape=(n, n))
 
 
-def _refuse_inertia_without_rotations(
-    point_masses: Mapping[int, Any], elements: Mapping[str, Any], node_count: int, d: int
-) -> None:
-    """An `InvalidParameterError` for a rotary inertia at a node of solids alone in a body that
-    mixes them with beams or shells: its rotations are no coordinates of the body (it was
-    welded to the body frame and took no part in the elastic motion)."""
-    loose = set((solid_only_rotations(elements, node_count, d)[::3] // d).tolist())
-    for key, value in point_masses.items() if isinstance(point_masses, Mapping) else ():
-        inertia = value[1] if isinstance(value, tuple | list) and len(value) == 2 else None
-        if inertia is not None and int(key) in loose and np.any(np.asarray(inertia, dtype=float)):
-            raise InvalidParameterError(
-                f"point_masses[{key}]: a rotary inertia needs nodes with rotations (beams, "
-                "shells); this node belongs to solid elements only: add the part as a rigid "
-                "body fixed to the node instead",
-                item=f"point_masses[{key}]",
-            )
-
-
 def with_point_masses(
     nodal: NodalBody,
     nodes: NDArray[np.float64],
     point_masses: Mapping[int, Any],
     *,
     form_i_kl: bool,
+    elements: Mapping[str, Any] | None = None,
 ) -> NodalBody:
     """`nodal` with the concentrated masses `point_masses` (see `build_body`) added to its mass
     matrix and invariants: the invariants are linear in the mass distribution, and those of
     lumped masses are exact from their matrix (`_matrix_invariants`,
-    `rotational_matrix_invariants`)."""
-    extra = point_mass_matrix(point_masses, len(nodes), nodal.dofs_per_node)
+    `rotational_matrix_invariants`). With the body's `elements`, a rotary inertia at a node of
+    solids alone is refused also in a body that mixes them with beams or shells."""
+    d = nodal.dofs_per_node
+    loose = () if elements is None else solid_only_rotations(elements, len(nodes), d)[::3] // d
+    extra = point_mass_matrix(point_masses, len(nodes), d, set(np.asarray(loose).tolist()))
     if extra.nnz == 0:
         return nodal
     if nodal.dofs_per_node == 6:

@@ -57,8 +57,15 @@ def nodal_von_mises(body: FlexibleBodyData, displacements: ArrayLike) -> NDArray
     top, middle and bottom surfaces (the middle surface alone misses their bending stress:
     a satellite panel's 1.3 kPa against 122 kPa at its faces)."""
     nodal, _, shells = _recovered(body, displacements)
+    return largest_von_mises(nodal, shells)
+
+
+def largest_von_mises(nodal: ArrayLike, shells: ArrayLike | None = None) -> NDArray[np.float64]:
+    """The von Mises stress of nodal stresses (..., nodes, 6), or where `shells` (..., nodes,
+    3, 6: the shells' surfaces, zero at nodes without shells) is given the larger of it and
+    the largest of the surfaces'."""
     value = von_mises(nodal)
-    if any(len(body.elements.get(kind, ())) for kind in ("quad4", "tri3")):
+    if shells is not None:
         value = np.maximum(value, von_mises(shells).max(axis=-1))
     return value
 
