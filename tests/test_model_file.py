@@ -457,6 +457,21 @@ simulation: {end_time: 0.01, step_size: 1.0e-3}
     (tmp_path / "model.yaml").write_text(twice)
     with pytest.raises(ModelFileError, match=r"point_masses\[1\]\.node: node 10 has a point"):
         load_model(tmp_path / "model.yaml")
+    # A mass whose centre is offset from its node (mm), about its centre.
+    offset = text.replace(
+        "inertia: [0.1, 0.05, 0.05]}", "inertia: [0.1, 0.05, 0.05], offset: [0, 50, 20]}"
+    )
+    (tmp_path / "model.yaml").write_text(offset)
+    body = load_model(tmp_path / "model.yaml").body_data["arm"]
+    expected = build_body(
+        nodes, elements, fm.fe.Material(2.1e11, 0.3, 7800.0), section=fm.fe.Section.circle(0.01),
+        reference="clamped", reference_nodes=[0], modes="fixed-interface", mode_count=4,
+        point_masses={10: (1.2, np.diag([1e-4, 5e-5, 5e-5]), (0.0, 0.05, 0.02))},
+    )  # fmt: skip
+    assert_close(body.frequencies, expected.frequencies, rel=1e-9, what="frequencies")
+    assert_close(
+        body.invariants.first_moment, expected.invariants.first_moment, rel=1e-12, what="S"
+    )
 
 
 def test_mesh_files_and_materials_in_millimetres_tonnes_and_seconds(tmp_path, assert_close):

@@ -276,6 +276,34 @@ def test_beams_with_their_sections_and_orientation(property_card, section, tmp_p
     assert deck.mesh.node_ids[deck.mesh.node_sets["rbe2_900"]].tolist() == [5]
 
 
+def test_offset_conm2_on_beam_grids(tmp_path, assert_close):
+    # CONM2 with its centre of gravity offset (X1-X3 in the basic system, CID -1 the centre
+    # itself) on the grids of beams, which rotate: masses of the body whose centres move with
+    # the grid's rotation (build_body's point_masses with offsets); two on one grid add up.
+    property_card = ("PBAR", [7, 3, 2e-4, 3e-8, 5e-8, 4e-8])
+    inertia = [0.02, 0.001, 0.03, 0.0, 0.002, 0.04]  # I11 I21 I22 I31 I32 I33
+    j = np.array([[0.02, -0.001, 0.0], [-0.001, 0.03, -0.002], [0.0, -0.002, 0.04]])
+    first = card("CONM2", [901, 5, "", 2.0, 0.1, 0.0, 0.05, ""] + inertia, "small")
+    centre = card("CONM2", [902, 3, -1, 1.5, 0.5, 0.2, 0.0], "small")
+    second = card("CONM2", [903, 5, "", 1.0, 0.0, -0.1, 0.0], "small")
+    path = tmp_path / "beam.bdf"
+    path.write_text(beam_deck("small", property_card) + first + centre + second)
+    deck = read_nastran(path)
+    body = deck.body(reference="clamped", reference_nodes="spc1")
+    bare = read_nastran(_written(tmp_path, "bare.bdf", beam_deck("small", property_card)))
+    plain = bare.body(reference="clamped", reference_nodes="spc1")
+    parts = {4: [(2.0, j, np.array([0.1, 0.0, 0.05])), (1.0, np.zeros((3, 3)), [0.0, -0.1, 0.0])]}
+    parts[2] = [(1.5, np.zeros((3, 3)), np.array([0.0, 0.2, 0.0]))]  # grid 3 is at (0.5, 0, 0)
+    extra = sum(
+        pp.point_mass_matrix({node: part}, 5, 6) for node, group in parts.items() for part in group
+    )
+    assert_close(dense(body.mass), dense(plain.mass + extra), abs=1e-12, what="mass matrix")
+    assert_close(body.invariants.mass, plain.invariants.mass + 4.5, rel=1e-12, what="mass")
+    moment = 2.0 * np.array([1.1, 0.0, 0.05]) + 1.5 * np.array([0.5, 0.2, 0.0])
+    moment += 1.0 * np.array([1.0, -0.1, 0.0])
+    assert_close(body.invariants.first_moment - plain.invariants.first_moment, moment, abs=1e-12)
+
+
 def test_nastran_numbers():
     for text, value in [
         ("1.5", 1.5), ("1.5-3", 1.5e-3), ("-2.5+4", -2.5e4), ("7.+10", 7e10), ("1.D5", 1e5),
@@ -386,7 +414,10 @@ def test_wtmass_scales_the_mass_and_concentrated_masses_are_not_left_out(
     )
     # Where the body cannot carry it: refused, naming the card and the way out.
     for fields, match in (
-        ([900, 103, "", 10.0, 0.1], r"CONM2 900: the centre of gravity is offset from grid 103"),
+        (
+            [900, 103, "", 10.0, 0.1],
+            r"CONM2 900: an offset \[0.1, 0.0, 0.0\] on grid 103, a node of",
+        ),
         ([900, 103, "", 10.0, "", "", "", "", 1.0], r"a rotary inertia on grid 103, a node of"),
         ([900, 99999, "", 10.0], r"CONM2 900 refers to grid 99999"),
         ([900, 103, "", 1.0, "", "", "", "", -1.0], r"rotary inertia .* is not positive semi"),

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
 from .._checks import number
 from ..errors import InvalidModelError, InvalidParameterError
@@ -318,37 +319,52 @@ def _assembled(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalBo
 
 def _point_masses(body: FlexibleBodyData, assembled: sp.csc_matrix) -> dict[int, Any]:
     """The concentrated masses of a meshed body (`build_body`'s `point_masses`): its mass
-    matrix beyond the `assembled` one of its elements, node by node. Raises
-    `InvalidModelError` when the difference is not lumped masses at nodes (a mass matrix
-    changed otherwise: the body cannot be built again from its mesh)."""
+    matrix beyond the `assembled` one of its elements, node by node, each block
+    [[m I, -m e~], [m e~, J - m e~ e~]] read back as (m, J, e) (m alone on nodes with 3
+    coordinates). Raises `InvalidModelError` when the difference is not concentrated masses
+    at nodes (a mass matrix changed otherwise: the body cannot be built again from its
+    mesh)."""
     extra = (sp.csc_matrix(body.mass) - assembled).tocoo()
     scale = max(float(np.abs(assembled.data).max(initial=0.0)), 1e-300)
     keep = np.abs(extra.data) > 1e-12 * scale
     d = body.dofs_per_node
-    masses: dict[int, list[Any]] = {}
+    blocks: dict[int, NDArray[np.float64]] = {}
     for row, col, value in zip(extra.row[keep], extra.col[keep], extra.data[keep], strict=True):
-        node, a, b = int(row) // d, int(row) % d, int(col) % d
-        entry = masses.setdefault(node, [np.zeros(3), np.zeros((3, 3))])
-        if int(col) // d == node and a == b < 3:
-            entry[0][a] = value
-        elif int(col) // d == node and a >= 3 and b >= 3:
-            entry[1][a - 3, b - 3] = value
-        else:
+        node = int(row) // d
+        if int(col) // d != node:
             raise InvalidModelError(
                 f"the body's mass matrix differs from its elements' at ({row}, {col}) by "
                 f"{value:g}: not a concentrated mass at a node, so the body cannot be built "
                 "again from its mesh",
                 item="field 'mass'",
             )
+        blocks.setdefault(node, np.zeros((d, d)))[int(row) % d, int(col) % d] = value
     lumps: dict[int, Any] = {}
-    for node, (translation, inertia) in masses.items():
-        if np.ptp(translation) > 1e-9 * max(float(translation.max()), 1e-300):
+    for node, block in blocks.items():
+        translation = block[:3, :3]
+        mass = float(np.trace(translation)) / 3.0
+        size = max(abs(mass), 1e-300)
+        if np.abs(translation - mass * np.eye(3)).max() > 1e-9 * size:
             raise InvalidModelError(
                 f"node {int(body.node_ids[node])}: the mass beyond the elements' differs by "
-                f"direction ({translation.tolist()}): not a concentrated mass",
+                f"direction ({np.diag(translation).tolist()}): not a concentrated mass",
                 item="field 'mass'",
             )
-        lumps[node] = (float(translation.mean()), inertia) if d == 6 else float(translation.mean())
+        if d == 3:
+            lumps[node] = mass
+            continue
+        # -m e~ on (u, theta): e from its antisymmetric entries.
+        spread = -block[:3, 3:] / size
+        offset = np.array([spread[2, 1], spread[0, 2], spread[1, 0]])
+        skew = preprocess._skew(offset)
+        if np.abs(spread - skew).max() > 1e-9 * max(float(np.abs(spread).max()), 1.0):
+            raise InvalidModelError(
+                f"node {int(body.node_ids[node])}: the mass beyond the elements' couples its "
+                "displacements and rotations in a way no offset mass does: not a concentrated "
+                "mass",
+                item="field 'mass'",
+            )
+        lumps[node] = (mass, block[3:, 3:] + mass * skew @ skew, offset)
     return lumps
 
 

@@ -47,9 +47,9 @@ IGNORED = (
 )  # fmt: skip
 
 #: Cards of concentrated masses: CONM2 at a grid of the elements is a point mass of the body
-#: (`build_body`'s `point_masses`); the others, and a CONM2 elsewhere or with an offset, are
-#: refused unless `read_nastran`'s `skip` names them (the user then adds the masses in the
-#: model).
+#: (`build_body`'s `point_masses`); the others, a CONM2 elsewhere, and one with an offset or a
+#: rotary inertia on a node without rotations (of solids) are refused unless `read_nastran`'s
+#: `skip` names them (the user then adds the masses in the model).
 MASS_CARDS = ("CONM1", "CONM2", "CMASS1", "CMASS2", "CMASS3", "CMASS4")
 
 #: Elements whose nodes carry rotations (6 coordinates per node for the whole body).
@@ -166,8 +166,9 @@ class NastranDeck:
         element_properties: element type -> (n_elements,) property ids.
         orientations: beam element id -> orientation vector v (basic system).
         matrices: DMIG name -> :class:`DmigMatrix`.
-        point_masses: grid id -> (mass, (3, 3) rotary inertia about the grid in the basic
-            system) of the CONM2 cards (summed per grid; WTMASS applied).
+        point_masses: grid id -> (mass, (3, 3) rotary inertia about the centre of mass,
+            offset of the centre of mass from the grid), in the basic system, of the CONM2
+            cards (those of one grid combined into one; WTMASS applied).
         displacement_systems: grid id -> (3, 3) axes (columns, in the basic system) of the
             grid's displacement system (GRID field CD), for the nodes with CD other than 0:
             results in that system (OUGV1) are turned to the basic one by v = A v_CD. NaN
@@ -181,7 +182,9 @@ class NastranDeck:
     orientations: dict[int, NDArray[np.float64]] = field(default_factory=dict)
     matrices: dict[str, DmigMatrix] = field(default_factory=dict)
     displacement_systems: dict[int, NDArray[np.float64]] = field(default_factory=dict)
-    point_masses: dict[int, tuple[float, NDArray[np.float64]]] = field(default_factory=dict)
+    point_masses: dict[int, tuple[float, NDArray[np.float64], NDArray[np.float64]]] = field(
+        default_factory=dict
+    )
 
     def material(self) -> Any:
         """The one material of the mesh's elements (flexmbd bodies are of one material), as a
@@ -315,7 +318,7 @@ class NastranDeck:
         given = options.pop("point_masses", None)
         if self.point_masses:
             # The deck's CONM2 masses, and those given (node indices) added to them.
-            # (A solid's nodes carry no inertia: `_conm2` refused any, so theirs are zero.)
+            # (A solid's nodes carry no inertia or offset: `_conm2` refused them.)
             index = {int(g): k for k, g in enumerate(self.mesh.node_ids)}
             masses: dict[int, Any] = {index[g]: value for g, value in self.point_masses.items()}
             for node, value in dict(given or {}).items():
@@ -394,12 +397,12 @@ def read_nastran(path: str | os.PathLike[str], *, skip: Any = ()) -> NastranDeck
     Mass: ``PARAM,WTMASS`` multiplies the densities of the MAT1 cards, as it multiplies
     Nastran's structural mass (decks in lb, in and s write RHO in weight units with
     WTMASS = 1/386.09), and the CONM2 masses. A CONM2 at a grid of the elements is a point
-    mass of the body (``deck.point_masses``; its rotary inertia on the nodes of beams and
-    shells); one offset from its grid, at a grid of no element or with a rotary inertia on a
-    solid's node, and the other concentrated masses (CONM1, CMASS1-4, :data:`MASS_CARDS`) are
-    refused, as leaving them out changes the body's mass and modes; `skip` (card names, e.g.
-    ``["CMASS2"]``) reads the deck without them, for a model that adds these masses itself (a
-    rigid body or point mass fixed to the node).
+    mass of the body (``deck.point_masses``; its rotary inertia and the offset of its centre
+    of gravity on the nodes of beams and shells, which rotate); one at a grid of no element or
+    with a rotary inertia or an offset on a solid's node, and the other concentrated masses
+    (CONM1, CMASS1-4, :data:`MASS_CARDS`) are refused, as leaving them out changes the body's
+    mass and modes; `skip` (card names, e.g. ``["CMASS2"]``) reads the deck without them, for a
+    model that adds these masses itself (a rigid body or point mass fixed to the node).
 
     Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 or 20 grids) -> hex8 / hex20,
     CPENTA (6 or 15 grids) -> wedge6 / wedge15, CPYRAM (5 grids) -> pyramid5, CBAR and CBEAM
@@ -723,16 +726,18 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
     rotations = {
         int(n) for k in ROTATION_ELEMENTS for n in np.ravel(mesh.elements.get(k, np.zeros(0)))
     }
-    point_masses: dict[int, tuple[float, NDArray[np.float64]]] = {}
+    parts: dict[int, list[tuple[float, NDArray[np.float64], NDArray[np.float64]]]] = {}
     element_ids = {e[0]: e[3] for items in elements.values() for e in items}
     for card in conm2:
         eid = card.integer(1, what="EID")
         if eid in element_ids:
             raise card.error(f"element id {eid} is defined twice (also {element_ids[eid].where()})")
         element_ids[eid] = card
-        grid, mass, inertia = _conm2(card, grids, systems, index, rotations)
-        m0, j0 = point_masses.get(grid, (0.0, np.zeros((3, 3))))
-        point_masses[grid] = (m0 + mass_scale * mass, j0 + mass_scale * inertia)
+        grid, mass, inertia, offset = _conm2(card, grids, systems, index, rotations)
+        parts.setdefault(grid, []).append((mass_scale * mass, mass_scale * inertia, offset))
+    from .preprocess import combined_point_mass
+
+    point_masses = {grid: combined_point_mass(masses) for grid, masses in parts.items()}
     return NastranDeck(
         mesh,
         materials,
@@ -751,10 +756,11 @@ def _conm2(
     systems: dict[int, Card],
     index: dict[int, int],
     rotations: set[int],
-) -> tuple[int, float, NDArray[np.float64]]:
-    """(grid, mass, rotary inertia in the basic system) of a CONM2 card, refused where the body
-    cannot carry it: at a grid of no element, with an offset of its centre of gravity, with a
-    rotary inertia on the nodes of solids (no rotations)."""
+) -> tuple[int, float, NDArray[np.float64], NDArray[np.float64]]:
+    """(grid, mass, rotary inertia about the centre of gravity, offset of the centre of
+    gravity from the grid), in the basic system, of a CONM2 card, refused where the body cannot
+    carry it: at a grid of no element, with a rotary inertia or an offset on the nodes of
+    solids (no rotations)."""
     eid, grid = card.integer(1, what="EID"), card.integer(2, what="G")
     how = (
         "add it to the model as a rigid body fixed to the grid's node (or the RBE's nodes) and "
@@ -781,23 +787,21 @@ def _conm2(
     position = _position(grids[grid], systems)
     # CID -1: X is the centre of gravity in the basic system; else the offset in system CID.
     offset = offset - position if cid == -1 else axes @ offset
-    if np.abs(offset).max() > 1e-9 * max(1.0, float(np.abs(position).max())):
-        raise card.error(
-            f"CONM2 {eid}: the centre of gravity is offset from grid {grid} by "
-            f"{offset.tolist()}: an offset mass is not a point mass of the node; {how}"
-        )
+    if np.abs(offset).max() <= 1e-9 * max(1.0, float(np.abs(position).max())):
+        offset = np.zeros(3)  # (the round-off of a centre of gravity given at the grid)
     inertia = axes @ inertia @ axes.T
     scale = max(float(np.abs(inertia).max()), 1e-300)
     if np.linalg.eigvalsh(inertia).min() < -1e-12 * scale:
         raise card.error(
             f"CONM2 {eid}: the rotary inertia {inertia.tolist()} is not positive semi-definite"
         )
-    if np.any(inertia) and index[grid] not in rotations:
-        raise card.error(
-            f"CONM2 {eid}: a rotary inertia on grid {grid}, a node of solid elements (no "
-            f"rotations to carry it); {how}"
-        )
-    return grid, mass, inertia
+    for what, given in (("a rotary inertia", inertia), (f"an offset {offset.tolist()}", offset)):
+        if np.any(given) and index[grid] not in rotations:
+            raise card.error(
+                f"CONM2 {eid}: {what} on grid {grid}, a node of solid elements (no rotations "
+                f"to carry it); {how}"
+            )
+    return grid, mass, inertia, offset
 
 
 def _axes(cid: int, systems: dict[int, Card], card: Card) -> NDArray[np.float64]:

@@ -658,11 +658,13 @@ def build_body(
     - `timings`: a dict that receives the seconds spent in each stage ("check", "assemble",
       "modes", "invariants").
     - `point_masses`: concentrated masses at nodes, part of the body (equipment, a tip mass,
-      Nastran's CONM2): node index -> mass (kg), or (mass, inertia) with the (3, 3) rotary
-      inertia about the node in the body axes, for the 6-coordinate nodes of beams and shells
-      (a solid's nodes have no rotations to carry it). They add to the mass matrix and to
-      every invariant of motion (exact: lumped masses), and they are kept by the body's
-      variants (`with_material`, `with_modes`).
+      Nastran's CONM2): node index -> mass (kg), (mass, inertia) or (mass, inertia, offset)
+      with the (3, 3) rotary inertia about the mass's centre (None for none) and the offset
+      of that centre from the node, both in the body axes, for the 6-coordinate nodes of
+      beams and shells (a solid's nodes have no rotations to carry them; the centre turns
+      with the node). They add to the mass matrix and to every invariant of motion (exact:
+      rigid parts moving with their nodes), and they are kept by the body's variants
+      (`with_material`, `with_modes`).
     """
     clock = _Stages(timings)
     mode_count = integer(mode_count, "mode_count")
@@ -1577,30 +1579,34 @@ def rotational_matrix_invariants(nodes: NDArray[np.float64], m: sp.csc_matrix) -
     }
 
 
-def point_mass_matrix(
+#: A concentrated mass of a body, checked (`point_mass_entries`): node index, mass, rotary
+#: inertia about its centre of mass (3, 3), and the offset of that centre from the node (3,)
+#: in body axes.
+PointMass = tuple[int, float, NDArray[np.float64], NDArray[np.float64]]
+
+
+def point_mass_entries(
     point_masses: Mapping[int, Any],
     node_count: int,
     dofs_per_node: int,
     without_rotations: Collection[int] = (),
-) -> sp.csc_matrix:
-    """The nodal mass matrix of concentrated masses (see `build_body`'s `point_masses`): m I_3
-    on the displacements of each node and its rotary inertia J on the rotations (6-coordinate
-    nodes). Raises `InvalidParameterError` naming the node for a node index out of range, a
-    mass that is not a finite number >= 0, an inertia that is not a symmetric positive
-    semi-definite (3, 3) matrix, or an inertia at a node without rotations: every node with
-    3 coordinates, and the nodes `without_rotations` (of solids alone in a body that mixes
-    them with beams or shells: their rotations are no coordinates of the body, and such an
-    inertia was welded to the body frame)."""
+) -> list[PointMass]:
+    """The concentrated masses `point_masses` (see `build_body`), checked: node index ->
+    mass, (mass, inertia) or (mass, inertia, offset), inertia None or (3, 3), offset (3,).
+    Raises `InvalidParameterError` naming the node for a node index out of range, a mass that
+    is not a finite number >= 0, an inertia that is not a symmetric positive semi-definite
+    (3, 3) matrix, an offset that is not three finite numbers, or an inertia or an offset at
+    a node without rotations: every node with 3 coordinates, and the nodes
+    `without_rotations` (of solids alone in a body that mixes them with beams or shells:
+    their rotations are no coordinates of the body, and such a mass was welded to the body
+    frame)."""
     if not isinstance(point_masses, Mapping):
         raise InvalidParameterError(
-            f"point_masses: a mapping node index -> mass or (mass, inertia), got "
-            f"{type(point_masses).__name__}",
+            f"point_masses: a mapping node index -> mass, (mass, inertia) or (mass, inertia, "
+            f"offset), got {type(point_masses).__name__}",
             item="point_masses",
         )
-    d = dofs_per_node
-    rows: list[int] = []
-    cols: list[int] = []
-    values: list[float] = []
+    entries: list[PointMass] = []
     for key, value in point_masses.items():
         node = integer(key, "point_masses node")
         item = f"point_masses[{node}]"
@@ -1608,54 +1614,166 @@ def point_mass_matrix(
             raise InvalidParameterError(
                 f"{item}: node index {node} out of range 0..{node_count - 1}", item=item
             )
-        mass, inertia = value, None
+        mass, inertia, offset = value, None, None
         if isinstance(value, tuple | list):
-            if len(value) != 2:
+            if len(value) not in (2, 3):
                 raise InvalidParameterError(
-                    f"{item}: a mass or (mass, inertia), got {value!r}", item=item
+                    f"{item}: a mass, (mass, inertia) or (mass, inertia, offset), got {value!r}",
+                    item=item,
                 )
-            mass, inertia = value
+            mass, inertia, offset = (*value, None)[:3]
         mass = number(mass, f"{item} mass", finite=False)
         if not (math.isfinite(mass) and mass >= 0):
             raise InvalidParameterError(
                 f"{item}: the mass must be finite and >= 0, got {mass}", item=item
             )
-        for a in range(3):
-            rows.append(d * node + a)
-            cols.append(d * node + a)
-            values.append(mass)
-        if inertia is None:
-            continue
-        j = numbers_array(inertia, f"{item} inertia")
-        if j.shape != (3, 3) or not np.all(np.isfinite(j)):
-            raise InvalidParameterError(
-                f"{item}: the inertia must be a finite (3, 3) matrix, got shape {j.shape}",
-                item=item,
-            )
-        scale = max(float(np.abs(j).max()), 1e-300)
-        if np.abs(j - j.T).max() > 1e-12 * scale or np.linalg.eigvalsh(j).min() < -1e-12 * scale:
-            raise InvalidParameterError(
-                f"{item}: the inertia must be symmetric and positive semi-definite, got "
-                f"{j.tolist()}",
-                item=item,
-            )
-        if not np.any(j):
-            continue
-        if d != 6 or node in without_rotations:
-            raise InvalidParameterError(
-                f"{item}: a rotary inertia needs nodes with rotations (beams, shells); the "
-                "nodes of solid elements have displacements only: add the part as a rigid body "
-                "fixed to the node instead",
-                item=item,
-            )
-        for a in range(3):
-            for b in range(3):
-                if j[a, b] != 0.0:
-                    rows.append(d * node + 3 + a)
-                    cols.append(d * node + 3 + b)
-                    values.append(float(j[a, b]))
+        j = np.zeros((3, 3))
+        if inertia is not None:
+            j = numbers_array(inertia, f"{item} inertia")
+            if j.shape != (3, 3) or not np.all(np.isfinite(j)):
+                raise InvalidParameterError(
+                    f"{item}: the inertia must be a finite (3, 3) matrix, got shape {j.shape}",
+                    item=item,
+                )
+            scale = max(float(np.abs(j).max()), 1e-300)
+            if (
+                np.abs(j - j.T).max() > 1e-12 * scale
+                or np.linalg.eigvalsh(j).min() < -1e-12 * scale
+            ):
+                raise InvalidParameterError(
+                    f"{item}: the inertia must be symmetric and positive semi-definite, got "
+                    f"{j.tolist()}",
+                    item=item,
+                )
+        e = np.zeros(3)
+        if offset is not None:
+            e = numbers_array(offset, f"{item} offset")
+            if e.shape != (3,) or not np.all(np.isfinite(e)):
+                raise InvalidParameterError(
+                    f"{item}: the offset must be three finite numbers (body axes), got "
+                    f"{np.asarray(offset).tolist()}",
+                    item=item,
+                )
+        for what, given in (("a rotary inertia", j), ("an offset of the centre of mass", e)):
+            if np.any(given) and (dofs_per_node != 6 or node in without_rotations):
+                raise InvalidParameterError(
+                    f"{item}: {what} needs nodes with rotations (beams, shells); the "
+                    "nodes of solid elements have displacements only: add the part as a "
+                    "rigid body fixed to the node instead",
+                    item=item,
+                )
+        entries.append((node, mass, 0.5 * (j + j.T), e))
+    return entries
+
+
+def combined_point_mass(
+    masses: Sequence[tuple[float, NDArray[np.float64], NDArray[np.float64]]],
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+    """One concentrated mass (mass, inertia about its centre, offset of its centre from the
+    node) of several at one node: the masses summed, the centre their centre of mass, the
+    inertia about it by the parallel-axis theorem (its mass matrix on the node is the sum of
+    theirs)."""
+    mass = float(sum(m for m, _, _ in masses))
+    if mass == 0.0:
+        return 0.0, sum((j for _, j, _ in masses), np.zeros((3, 3))), np.zeros(3)
+    centre = sum((m * e for m, _, e in masses), np.zeros(3)) / mass
+    inertia = np.zeros((3, 3))
+    for m, j, e in masses:
+        d = e - centre
+        inertia += j + m * (d @ d * np.eye(3) - np.outer(d, d))
+    return mass, inertia, centre
+
+
+def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """v~, the matrix of v x ."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def point_mass_matrix(
+    point_masses: Mapping[int, Any],
+    node_count: int,
+    dofs_per_node: int,
+    without_rotations: Collection[int] = (),
+) -> sp.csc_matrix:
+    """The nodal mass matrix of concentrated masses (see `build_body`'s `point_masses`,
+    checked by `point_mass_entries`): a mass m with its centre at the offset e from the node
+    moves with the node's displacement u and small rotation theta as u + theta x e, so its
+    block on (u, theta) is [[m I, -m e~], [m e~, J - m e~ e~]] with J its rotary inertia about
+    that centre (m I_3 alone on a node with 3 coordinates)."""
+    d = dofs_per_node
+    rows: list[int] = []
+    cols: list[int] = []
+    values: list[float] = []
+    for node, mass, inertia, offset in point_mass_entries(
+        point_masses, node_count, d, without_rotations
+    ):
+        block = np.zeros((d, d))
+        block[:3, :3] = mass * np.eye(3)
+        if d == 6:
+            e = _skew(offset)
+            block[:3, 3:] = -mass * e
+            block[3:, :3] = mass * e
+            block[3:, 3:] = inertia - mass * e @ e
+        r, c = np.nonzero(block)
+        rows += list(d * node + r)
+        cols += list(d * node + c)
+        values += list(block[r, c])
     n = d * node_count
     return sp.csc_matrix((values, (rows, cols)), shape=(n, n))
+
+
+def point_mass_invariants(
+    nodes: NDArray[np.float64], entries: Sequence[PointMass]
+) -> dict[str, Any]:
+    """The invariants of motion of concentrated masses on the 6-coordinate nodes of a body
+    (`point_mass_entries`), exact: each is a rigid part of mass m whose centre c = x_i + e
+    moves with its node i, a point c + s of it by u_i + theta_i x (e + s) (the shape rows
+    S = [I, -(e + s)~] on the node's coordinates), with the first moment int s dm = 0 and the
+    second moments int s s^T dm = P = tr(J)/2 I - J of its rotary inertia J about c. So
+    I1 = m [I, -e~], Ibar_ab = int x_a S_b dm, I_ab = int S_a^T S_b dm, linear in m, m e,
+    m e e^T and P."""
+    n = len(nodes)
+    eye = np.eye(3)
+    out: dict[str, Any] = {
+        "mass": 0.0,
+        "first_moment": np.zeros(3),
+        "second_moment": np.zeros((3, 3)),
+        "i1": np.zeros((3, 6 * n)),
+        "ibar": np.zeros((3, 3, 6 * n)),
+    }
+    coo: dict[tuple[int, int], tuple[list[int], list[int], list[float]]] = {
+        (a, b): ([], [], []) for a in range(3) for b in range(3)
+    }
+    for node, m, inertia, e in entries:
+        c = nodes[node] + e
+        p = 0.5 * np.trace(inertia) * eye - inertia
+        columns = 6 * node + np.arange(6)
+        out["mass"] += m
+        out["first_moment"] += m * c
+        out["second_moment"] += m * np.outer(c, c) + p
+        # Rows of S at the centre: [I, -e~]; the spread s adds -s~ to the rotation columns.
+        s_c = np.hstack([eye, -_skew(e)])
+        out["i1"][:, columns] += m * s_c
+        # int x_a S_b: x = c + s; int s_a (-s~)_b = -sum_k P_ak (e_k~)_b.
+        spread = np.zeros((3, 3, 6))  # [a, b, column]
+        for k in range(3):
+            spread[:, :, 3:] -= np.einsum("a,bc->abc", p[:, k], _skew(eye[k]))
+        out["ibar"][:, :, columns] += m * np.einsum("a,bc->abc", c, s_c) + spread
+        for a in range(3):
+            for b in range(3):
+                block = m * np.outer(s_c[a], s_c[b])
+                for k in range(3):
+                    for j in range(3):
+                        block[3:, 3:] += p[k, j] * np.outer(_skew(eye[k])[a], _skew(eye[j])[b])
+                r, q = np.nonzero(block)
+                coo[a, b][0].extend(columns[r])
+                coo[a, b][1].extend(columns[q])
+                coo[a, b][2].extend(block[r, q])
+    out["i_kl"] = [
+        [sp.csc_matrix((coo[a, b][2], coo[a, b][:2]), shape=(6 * n, 6 * n)) for b in range(3)]
+        for a in range(3)
+    ]
+    return out
 
 
 def with_point_masses(
@@ -1668,17 +1786,21 @@ def with_point_masses(
 ) -> NodalBody:
     """`nodal` with the concentrated masses `point_masses` (see `build_body`) added to its mass
     matrix and invariants: the invariants are linear in the mass distribution, and those of
-    lumped masses are exact from their matrix (`_matrix_invariants`,
-    `rotational_matrix_invariants`). With the body's `elements`, a rotary inertia at a node of
-    solids alone is refused also in a body that mixes them with beams or shells."""
+    the masses are exact (`point_mass_invariants` on nodes with rotations, from the matrix of
+    masses without inertia by `_matrix_invariants` on the others). With the body's
+    `elements`, a rotary inertia or an offset at a node of solids alone is refused also in a
+    body that mixes them with beams or shells."""
     d = nodal.dofs_per_node
     loose = () if elements is None else solid_only_rotations(elements, len(nodes), d)[::3] // d
-    extra = point_mass_matrix(point_masses, len(nodes), d, set(np.asarray(loose).tolist()))
+    without = set(np.asarray(loose).tolist())
+    extra = point_mass_matrix(point_masses, len(nodes), d, without)
     if extra.nnz == 0:
         return nodal
     if nodal.dofs_per_node == 6:
         scalar = None
-        added = rotational_matrix_invariants(nodes, extra)
+        added = point_mass_invariants(
+            nodes, point_mass_entries(point_masses, len(nodes), d, without)
+        )
     else:
         extra_scalar = sp.csc_matrix(extra[0::3, :][:, 0::3])
         scalar = None if nodal.scalar_mass is None else (nodal.scalar_mass + extra_scalar).tocsc()

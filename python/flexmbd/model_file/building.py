@@ -763,11 +763,15 @@ class _Builder:
             if spec.node in masses:
                 raise self.fail(path + (k, "node"), f"node {spec.node} has a point mass already")
             mass = spec.mass * self.units.mass
-            if spec.inertia is None:
-                masses[spec.node] = mass
-            else:
+            inertia = None
+            if spec.inertia is not None:
                 inertia = np.asarray(spec.inertia, dtype=float) * inertia_scale
-                masses[spec.node] = (mass, np.diag(inertia) if inertia.ndim == 1 else inertia)
+                inertia = np.diag(inertia) if inertia.ndim == 1 else inertia
+            if spec.offset is not None:
+                offset = np.asarray(spec.offset, dtype=float) * self.units.length
+                masses[spec.node] = (mass, inertia, offset)
+            else:
+                masses[spec.node] = mass if inertia is None else (mass, inertia)
         return masses
 
     def preprocess_options(self, spec: FlexibleBodySpec, path: Path_) -> dict[str, Any]:

@@ -318,8 +318,14 @@ class BodyPointMassSpec(_Spec):
     mass: float = Field(ge=0, description="mass")
     inertia: Inertia | None = Field(
         None,
-        description="rotary inertia about the node in body axes (beam and shell nodes only): "
-        "the three principal moments or a 3 x 3 matrix (mass length^2)",
+        description="rotary inertia about the centre of mass (the node, without an offset) in "
+        "body axes (beam and shell nodes only): the three principal moments or a 3 x 3 matrix "
+        "(mass length^2)",
+    )
+    offset: Vector | None = Field(
+        None,
+        description="the centre of mass from the node in body axes, moving with the node's "
+        "rotations (beam and shell nodes only; length)",
     )
 
 
