@@ -325,6 +325,9 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
             # Longer than the model's output interval of 0.01 s: each case warns.
             "--set",
             "simulation.step_size=0.02",
+            # A text value: read back from study.nc, it is a coordinate made again, first.
+            "--set",
+            "solver.type=generalized-alpha",
             "--output",
             "lowest=min(sensor:bob position[y])",
             "--output",
@@ -341,8 +344,16 @@ def test_the_sweep_info_and_plot_commands(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0, out
     assert "3 cases, 3 complete, 0 failed" in out
+    order = ["joints.link.distance", "simulation.step_size", "solver.type"]
+
+    def parameters(text: str) -> list[str]:
+        return re.findall(r"^  parameter (.+?): ", text, re.MULTILINE)
+
+    assert parameters(out) == order, out
     assert main(["info", str(folder)]) == 0
     out = capsys.readouterr().out
+    # info lists the parameters in the study's order, as the sweep's summary does.
+    assert parameters(out) == order, out
     assert "parameter joints.link.distance: 0.5, 1.0, 2.0" in out and "output lowest:" in out
     assert re.search(r"output pull: \S+ \.\. \S+ N\n", out), out
     # The workers' warnings are kept with the cases: Python's warnings are not seen there.

@@ -213,7 +213,7 @@ def sweep(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         return 130
-    _print_study(data, {"model": args.model})
+    _print_study(data, {"model": args.model, "parameters": study.parameter_names})
     return 0 if all(s == "complete" for s in data["status"].values) else 1
 
 
@@ -229,9 +229,11 @@ def _print_study(data: Any, description: dict[str, Any]) -> None:
         f"{description.get('model')}: {len(status)} cases, {status.count('complete')} complete, "
         f"{status.count('failed')} failed, {status.count('pending')} pending"
     )
-    for name in data.coords:
-        if name in ("case", "time"):
-            continue
+    # In the study's own order (a study folder's dataset read back has its coordinates in
+    # another: string-valued ones come back as variables and are made coordinates again).
+    names = [n for n in data.coords if n not in ("case", "time")]
+    order = [n for n in description.get("parameters", ()) if n in names]
+    for name in order + [n for n in names if n not in order]:
         values = data.coords[name].values
         shown = np.unique(values)
         text = (
