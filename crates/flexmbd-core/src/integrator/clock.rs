@@ -33,6 +33,9 @@ pub(crate) struct OutputClock {
     interval: Option<f64>,
     index: usize,
     next: Option<f64>,
+    /// The steps of one size since a time: (that time, the step size, how many), so that the
+    /// end of the k-th step is `anchor + k h`, one rounding, not k summed ones.
+    run: Option<(f64, f64, u64)>,
     /// End time of the run.
     pub end: f64,
     /// Time tolerance of "landed on".
@@ -62,9 +65,28 @@ impl OutputClock {
             interval: settings.output_interval,
             index,
             next: settings.output_interval.map(|dt| start + dt * index as f64),
+            run: None,
             end: settings.end_time,
             eps,
         }
+    }
+
+    /// The end of an accepted step of size `h` from `from`, landed (see `land`). Consecutive
+    /// steps of one size end at `anchor + k h`: summing them one by one drifts by a rounding
+    /// per step (at h = 1e-6 some 3e-12 s over an output interval of 0.1 s, beyond the time
+    /// tolerance), and the step before an output time then stopped that much short of it,
+    /// leaving a step of a few 1e-12 s, whose Newton matrix (scaled by 1 / h^2) is garbage.
+    pub(crate) fn finish_step(&mut self, from: f64, h: f64) -> f64 {
+        let (anchor, count) = match self.run {
+            Some((anchor, size, count)) if size == h && anchor + size * count as f64 == from => {
+                (anchor, count + 1)
+            }
+            _ => (from, 1),
+        };
+        let time = anchor + h * count as f64;
+        let landed = self.land(time);
+        self.run = if landed == time { Some((anchor, h, count)) } else { None };
+        landed
     }
 
     /// Whether the run has not reached its end at `time`.
@@ -163,6 +185,50 @@ mod tests {
         assert_eq!(clock.step(0.0, 0.015), dt);
         let clock = OutputClock::new(&settings, 19.995);
         assert_eq!(clock.step(19.995, 0.01), end - 19.995);
+    }
+
+    #[test]
+    fn tiny_steps_land_on_every_output_time_without_slivers() {
+        // h = 1e-6: half a million steps, 1e5 between output times. Summed one by one, the
+        // times drifted by up to some 3e-12 s from the grid (beyond the tolerance of 1.5e-12),
+        // and the step before an output time stopped short of it, leaving a step of 2.7e-12 s
+        // (the four-bar of the examples then ended in non-finite values at t = 0.400001).
+        let (h, dt, end) = (1e-6, 0.1, 0.5);
+        let mut settings = SimulationSettings::new(end, h);
+        settings.output_interval = Some(dt);
+        let mut clock = OutputClock::new(&settings, 0.0);
+        let (mut time, mut steps, mut outputs) = (0.0, 0usize, 0usize);
+        while clock.running(time) {
+            let h_try = clock.step(time, h);
+            assert_eq!(h_try, h, "step {steps} from t = {time}");
+            time = clock.finish_step(time, h_try);
+            steps += 1;
+            if clock.due(time) {
+                outputs += 1;
+                assert_eq!(time, dt * outputs as f64, "output {outputs}");
+            }
+        }
+        assert_eq!((steps, outputs, time), (500_000, 5, end));
+        // The same times summed one by one: a sliver before some output time.
+        let mut clock = OutputClock::new(&settings, 0.0);
+        let (mut time, mut smallest) = (0.0f64, h);
+        while clock.running(time) {
+            let h_try = clock.step(time, h);
+            smallest = smallest.min(h_try);
+            time = clock.land(time + h_try);
+            clock.due(time);
+        }
+        assert!(smallest < 1e-5 * h, "smallest {smallest}"); // 2.7e-12 s
+                                                             // A step of another size (shortened to an output, or after a rejection) starts a new
+                                                             // run of steps from its end.
+        let mut clock = OutputClock::new(&settings, 0.0);
+        assert_eq!(clock.finish_step(0.0, 0.03), 0.03);
+        assert_eq!(clock.finish_step(0.03, 0.03), 0.06);
+        assert_eq!(clock.finish_step(0.06, 0.02), 0.08);
+        assert_eq!(clock.finish_step(0.08, 0.02), 0.1);
+        // A step that does not start where the last one ended (a continued run) too.
+        assert_eq!(clock.finish_step(0.25, 0.02), 0.27);
+        assert_eq!(clock.run, Some((0.25, 0.02, 1)));
     }
 
     #[test]

@@ -105,8 +105,9 @@ pub(crate) fn time_loop(
         };
 
         // Accept the step.
+        let from = state.time;
         stepper.accept(state, h_try, output)?;
-        state.time = clock.land(state.time);
+        state.time = clock.finish_step(from, h_try);
         count_step(&mut output.statistics, h_try);
         if let Some(k) = state.first_non_finite() {
             return Err(FlexmbdError::NonFinite { item: model.coordinate_name(k), time: state.time });
