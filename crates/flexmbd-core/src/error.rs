@@ -81,6 +81,22 @@ pub enum FlexmbdError {
         /// The largest move of a coordinate or velocity.
         size: f64,
     },
+    /// Joint coordinates: the initial velocities violate the tree joints (left as given by the
+    /// initial conditions), so no joint rates give them.
+    #[error(
+        "initial velocities at t = {} violate the tree joints: joint coordinates hold only \
+         velocities that satisfy them ({item} would move by {size:.3e}); let the initial \
+         conditions correct them (correct_initial_velocities), or take an augmented strategy, \
+         which integrates them as given"
+    , Seconds(*.time))]
+    VelocitiesOffTheTree {
+        /// Simulation time of the start.
+        time: f64,
+        /// The coordinate whose velocity differs most.
+        item: String,
+        /// Its difference.
+        size: f64,
+    },
     /// The Newton iteration of a time step did not converge, even at the smallest step size.
     #[error(
         "Newton iteration diverged at t = {} (step size {step_size:.3e}) after {iterations} \

@@ -37,6 +37,9 @@ fn class_and_data(err: &FlexmbdError) -> (&'static str, Option<String>, Option<f
         InitialCorrectionRefused { time, item, .. } => {
             ("InitialConditionsError", Some(item.clone()), Some(*time))
         }
+        VelocitiesOffTheTree { time, item, .. } => {
+            ("InitialConditionsError", Some(item.clone()), Some(*time))
+        }
         NewtonDiverged { time, item, .. } => ("NewtonDivergedError", Some(item.clone()), Some(*time)),
         StepSizeTooSmall { time, .. } => ("StepSizeTooSmallError", None, Some(*time)),
         SingularMatrix { time, context, .. } => ("SingularMatrixError", Some(context.clone()), Some(*time)),

@@ -24,7 +24,7 @@ impl Tree {
         let (order, mut used) = spanning_order(model, &designated);
         let configuration = Configuration::new(model, q);
         let placed = place_joints(&configuration, &order);
-        let prescribed = prescribed_coordinates(model, &placed.joints, &placed.markers)?;
+        let prescribed = prescribed_coordinates(model, &placed.joints, &placed.markers, &designated)?;
         for p in &prescribed {
             used[p.driver] = true;
         }
@@ -113,7 +113,7 @@ fn is_tree_kind(kind: &JointKind) -> bool {
 }
 
 /// Per joint of `model`, whether the caller lists it among the joints to cut (`cut`; None
-/// lists none). An index beyond the model's joints is an error.
+/// lists none). An index beyond the model's joints, or one listed twice, is an error.
 fn listed_cuts(model: &Model, cut: Option<&[usize]>) -> Result<Vec<bool>> {
     let mut designated = vec![false; model.joints.len()];
     for &k in cut.unwrap_or(&[]) {
@@ -121,6 +121,12 @@ fn listed_cuts(model: &Model, cut: Option<&[usize]>) -> Result<Vec<bool>> {
             return Err(FlexmbdError::InvalidParameter {
                 item: format!("cut joint {k}"),
                 message: format!("the model has {} joints and drivers", model.joints.len()),
+            });
+        }
+        if designated[k] {
+            return Err(FlexmbdError::InvalidParameter {
+                item: format!("cut joint '{}'", model.joints[k].name),
+                message: "listed twice among the cut joints".to_string(),
             });
         }
         designated[k] = true;
@@ -180,15 +186,17 @@ fn spanning_order(model: &Model, designated: &[bool]) -> (Vec<Link>, Vec<bool>) 
 
 /// The joint coordinates the drivers of `model` prescribe: a driver prescribes the coordinate
 /// of the tree joint on the same markers (`joints`, with their `markers`). Two drivers on one
-/// coordinate are an error; a driver on other markers is left to be cut.
+/// coordinate are an error; a driver on other markers, or one the caller `designated` to be
+/// cut, is left to be cut (its equation a rheonomic cut constraint, as a loop joint's).
 fn prescribed_coordinates(
     model: &Model,
     joints: &[TreeJoint],
     markers: &[Option<JointMarkers>],
+    designated: &[bool],
 ) -> Result<Vec<Prescribed>> {
     let mut prescribed: Vec<Prescribed> = Vec::new();
     for (d, driver) in model.joints.iter().enumerate() {
-        if driver.kind.function().is_none() {
+        if driver.kind.function().is_none() || designated[d] {
             continue;
         }
         let found =

@@ -67,17 +67,24 @@ impl ProjectionIteration {
     }
 }
 
+/// Largest difference, relative to 1 + the largest speed, between the initial velocities and
+/// those of the joint rates solved from them (the least-squares solve reproduces consistent
+/// velocities to round-off).
+const REPRESENTED_VELOCITY: f64 = 1e-8;
+
 impl Engine<'_> {
     /// The tree and the joint coordinates of the consistent initial `state`; the body state is
     /// then recomputed from them (it satisfies the joints exactly) and written to `state`.
     pub(super) fn start_joint_coordinates(&mut self, state: &mut State, output: &mut Output) -> Result<()> {
         let (model, explicit) = (self.model, self.settings);
         let t0 = state.time;
-        let (tree, p0) = Tree::new(model, &state.coordinates, explicit.cut_joints.as_deref())?;
-        let mut p0 = p0;
-        let mut pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
-        let mut tree = tree;
-        let rebased = tree.rebase(model, &mut p0, &mut pd0, CARDAN_REBASE_ANGLE);
+        let (mut tree, mut p0) = Tree::new(model, &state.coordinates, explicit.cut_joints.as_deref())?;
+        // Rebased before the rates are solved: at the Cardan singularity (middle angle +-90
+        // degrees) the rates cannot hold every angular velocity, and the minimum-norm solve
+        // dropped the part they cannot (a free body started with omega_z 0.7 lost it).
+        let mut no_rates = vec![0.0; p0.len()];
+        let rebased = tree.rebase(model, &mut p0, &mut no_rates, CARDAN_REBASE_ANGLE);
+        let pd0 = tree.initial_rates(model, t0, &p0, &state.velocities)?;
         if !rebased.is_empty() {
             output.events.push(Event {
                 time: t0,
@@ -102,10 +109,49 @@ impl Engine<'_> {
         self.evaluate(t0, Level::Velocity)?;
         let cut_rows = self.tree.as_ref().map(|t| t.cut_rows.clone()).unwrap_or_default();
         self.loop_rank = loop_rank(&self.eq, &self.influence, &cut_rows, explicit.rank_tolerance);
+        if explicit.tree_formulation == TreeFormulation::Coupled && self.loop_rank < cut_rows.len() {
+            // Eq. 40's LU holds the cut multipliers with the rest: with dependent cut equations
+            // it is singular (refused by the LU with rigid loops), or, with deformable bodies in
+            // the loop, nearly so and solved to a wrong motion without a word (a four-bar with a
+            // deformable coupler closed by a redundant revolute: its elastic coordinate -2.5e-8
+            // instead of 6.4e-6 at t = 0.1 s).
+            let tree = self.tree.as_ref().expect("joint-coordinate tree");
+            let names: Vec<String> =
+                tree.cut_joints.iter().map(|&j| format!("'{}'", model.joints[j].name)).collect();
+            return Err(FlexmbdError::InvalidModel {
+                item: format!("cut joints {}", names.join(", ")),
+                message: format!(
+                    "their {} equations have rank {} at t = {t0}: dependent (a redundant closure or a \
+                     singular configuration of a loop), which formulation 'coupled' (eq. 40) cannot \
+                     hold; formulation 'decoupled' (eq. 41) or 'joint-space' takes them",
+                    cut_rows.len(),
+                    self.loop_rank
+                ),
+            });
+        }
         self.update_bodies(t0)?;
+        self.check_represented_velocities(t0, &state.velocities)?;
         state.coordinates.copy_from_slice(&self.q);
         state.velocities.copy_from_slice(&self.qd);
         Ok(())
+    }
+
+    /// The body velocities of the joint rates (self.qd) are the `given` ones: velocities that
+    /// violate the tree joints (left as given by `correct_initial_velocities` off) have no
+    /// joint rates, and the least-squares rates would start the run from others without a word.
+    fn check_represented_velocities(&self, t0: f64, given: &[f64]) -> Result<()> {
+        let scale = 1.0 + given.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let (k, size) = self
+            .qd
+            .iter()
+            .zip(given)
+            .map(|(a, b)| (a - b).abs())
+            .enumerate()
+            .fold((0, 0.0f64), |best, (k, d)| if d > best.1 { (k, d) } else { best });
+        if size <= REPRESENTED_VELOCITY * scale {
+            return Ok(());
+        }
+        Err(FlexmbdError::VelocitiesOffTheTree { time: t0, item: self.model.coordinate_name(k), size })
     }
 
     /// Joint coordinates: the body state (q, q_dot, gamma_B and B) from self.p and self.pd.
