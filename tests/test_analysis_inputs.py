@@ -95,6 +95,18 @@ def test_a_state_that_violates_the_constraints_is_refused(assert_close):
     assert_close(fm.linearize(system, run.state(100)).frequencies(), frequency, rel=1e-6)
 
 
+@pytest.mark.parametrize("name", ["coordinates", "velocities", "accelerations", "multipliers"])
+def test_a_state_with_a_nan_is_refused_naming_its_part(hanging, name):
+    # A NaN velocity at t = 0 reached the core: "NonFiniteError: non-finite value in the
+    # equation of body 'rod' coordinate x at t = NaN".
+    system, _, _, state, _ = hanging
+    values = np.array(getattr(state, name), dtype=float)
+    values[0] = np.nan
+    with pytest.raises(InvalidParameterError, match=f"state's {name} must be finite") as caught:
+        fm.linearize(system, dataclasses.replace(state, **{name: values}))
+    assert caught.value.item == name
+
+
 def test_a_steady_rotation_is_a_state_of_its_system():
     # steady_rotation's state carried no system identity, so a state of another system's
     # steady rotation was not recognized; its unknown options were a raw TypeError.

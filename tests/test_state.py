@@ -518,6 +518,27 @@ def test_the_stability_of_an_equilibrium_agrees_with_its_linearization(assert_cl
         fm.equilibrium(model, stable="yes")
 
 
+def test_a_pendulum_on_a_cart_driven_at_constant_speed_swings_as_at_rest(assert_close):
+    # Galilean invariance: a cart driven along x at 3 m/s carries a pendulum (1 m, point-like
+    # bob) that swings at sqrt(g / L). The equilibrium's accelerations of round-off (1e-30)
+    # made the step of the moving basis (sqrt(v^2 + 2 a turn) - v) / a cancel to 0, and the
+    # matrices NaN.
+    along_x = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)  # marker z along global x
+    system = fm.System(gravity=GRAVITY)
+    cart = system.add_rigid_body(2.0, (0.1, 0.1, 0.1), name="cart")
+    rail = system.add_marker(system.ground, orientation=along_x)
+    carried = system.add_marker(cart, orientation=along_x)
+    system.add_prismatic_joint(rail, carried, name="rail")
+    system.add_translation_driver(rail, carried, fm.Polynomial([0.0, 3.0]), name="drive")
+    bob = system.add_rigid_body(1.0, (1e-6, 1e-6, 1e-6), position=(0, -1, 0), name="bob")
+    hinge = system.add_marker(bob, position=(0, 1, 0))
+    system.add_revolute_joint(system.add_marker(cart), hinge, name="hinge")
+    state = fm.equilibrium(system)
+    assert_close(state.velocities[0], 3.0, rel=1e-12)
+    frequency = np.sqrt(9.81 / (1.0 + 1e-6)) / (2 * np.pi)  # m g L / (m L^2 + I)
+    assert_close(fm.linearize(system, state).frequencies(), [frequency], rel=1e-9)
+
+
 @pytest.mark.parametrize(
     "build",
     [fm.examples.four_bar_spatial, fm.examples.bricard, lambda: fm.examples.bricard(np.pi / 2)],

@@ -1492,12 +1492,10 @@ def moving_basis(model: _core.Model, state: Any, mass: sp.csc_matrix) -> tuple[A
     rise = float(np.max(np.abs(acceleration[~elastic]), initial=0.0))
     if speed == 0.0 and rise == 0.0:
         return basis, rate, curvature  # B of a state at rest does not move
-    # h: the step over which the fastest coordinate moves BASIS_TURN, h v + h^2 a / 2.
-    h = (
-        BASIS_TURN / speed
-        if rise == 0.0
-        else (np.sqrt(speed**2 + 2.0 * rise * BASIS_TURN) - speed) / rise
-    )
+    # h: the step over which the fastest coordinate moves BASIS_TURN, h v + h^2 a / 2 (the
+    # root 2 BASIS_TURN / (v + sqrt(v^2 + 2 a BASIS_TURN)), free of the cancellation of
+    # (sqrt(v^2 + 2 a BASIS_TURN) - v) / a, which was 0 for a of 1e-30 at 3 m/s).
+    h = 2.0 * BASIS_TURN / (speed + np.sqrt(speed**2 + 2.0 * rise * BASIS_TURN))
     ahead = local_jacobian(time + h, q + h * velocity + 0.5 * h * h * acceleration)
     behind = local_jacobian(time - h, q - h * velocity + 0.5 * h * h * acceleration)
     # Differences of J = C_q T and of T (smooth in q), not of the solved B: their round-off
@@ -1709,6 +1707,28 @@ def _check_state(model: _core.Model, state: State) -> None:
             f"model {nq} and {nc}: it is a state of another model",
             item="state",
         )
+    # A NaN of the state reached the core, which reported "the equation of body 'bob' at
+    # t = NaN" for a NaN velocity at t = 0.
+    if not np.isfinite(state.time):
+        raise InvalidParameterError(
+            f"linearize: the state's time must be finite, got {state.time}", item="time"
+        )
+    for name in ("coordinates", "velocities", "accelerations", "multipliers"):
+        values = np.asarray(getattr(state, name), dtype=float)
+        expected = nc if name == "multipliers" else nq
+        if values.shape != (expected,):
+            raise InvalidParameterError(
+                f"linearize: the state's {name} must be {expected} numbers, got shape "
+                f"{values.shape}",
+                item=name,
+            )
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise InvalidParameterError(
+                f"linearize: the state's {name} must be finite, got {values[bad[0]]} at index "
+                f"{bad[0]} (t = {state.time:g})",
+                item=name,
+            )
     if nc == 0:
         return
     q = np.asarray(state.coordinates, dtype=float)
