@@ -76,6 +76,9 @@ class CampbellDiagram:
     mode the damped `frequencies` (Hz, in the `frame` "rotating" or "fixed"), `damping`
     ratios and complex `shapes` (in the coordinates q of the model, rotating frame), and the
     MAC with which each mode was matched to the speed before (`mac`, 1 at the first speed).
+    Where a followed mode does not oscillate (its eigenvalues real: diverged, or overdamped)
+    its frequency, damping, MAC, whirl ratio and shape are NaN and its whirl None: a gap,
+    as plots draw it.
     `whirl` holds the whirl of each mode in the fixed frame, "forward", "backward" or None
     (a mode that does not whirl), `whirl_ratio` its signed circularity in the fixed frame
     (+1 circular forward, -1 circular backward; see the module)."""
@@ -106,7 +109,8 @@ class CampbellDiagram:
         None for a mode that does not whirl at some speed or changes its direction."""
         labels: list[str | None] = []
         for m in range(self.mode_count):
-            seen = set(self.whirl[:, m])  # type: ignore[index]
+            oscillating = np.isfinite(self.frequencies[:, m])
+            seen = set(self.whirl[oscillating, m])  # type: ignore[index]
             labels.append(seen.pop() if len(seen) == 1 else None)
         return labels
 
@@ -427,6 +431,10 @@ def campbell(
         nearest = np.argsort(natural, kind="stable")[: count + EXTRA_CANDIDATES]
         f, zeta, phi = f[nearest], zeta[nearest], phi[:, nearest]
         phi = _resolve_pairs(f, phi, probe)
+        # found: the followed modes that have a candidate at this speed; the others no
+        # longer oscillate here (diverged: real eigenvalues), NaN in the diagram.
+        found = np.ones(count, dtype=bool)
+        pick = np.arange(count)
         if followed is None:
             if len(f) < count:
                 raise InvalidParameterError(
@@ -434,8 +442,8 @@ def campbell(
                     f"{count} asked for",
                     item="modes",
                 )
-            pick = np.arange(count)
             match = np.ones(count)
+            followed = phi[:, pick].copy()
         else:
             from scipy.optimize import linear_sum_assignment
 
@@ -445,17 +453,29 @@ def campbell(
                 # conjugate shapes: a mode keeps its whirl.
                 _, candidates, _ = _fixed_frame(f, probe.ratios(phi), float(w))
                 kept = [[a is None or b is None or a == b for b in candidates] for a in whirl[-1]]
-                table = np.where(np.array(kept, dtype=bool), table, 0.0)
-            rows, pick = linear_sum_assignment(-table)
-            pick = pick[np.argsort(rows)]
-            match = table[np.arange(count), pick]
-        followed = phi[:, pick]
-        rotating = f[pick]
+                table = np.where(np.array(kept, dtype=bool).reshape(table.shape), table, 0.0)
+            # Fewer candidates than followed modes (a table of no columns raised a plain
+            # ValueError): the modes left without one are the gaps.
+            rows, columns = linear_sum_assignment(-table) if table.size else ([], [])
+            found[:] = False
+            found[rows] = True
+            pick[rows] = columns
+            match = np.full(count, np.nan)
+            match[rows] = table[rows, columns]
+            # A mode without a candidate keeps its last shape, to be found again by it.
+            followed[:, found] = phi[:, pick[found]]
+        rotating = np.full(count, np.nan)
+        rotating[found] = f[pick[found]]
+        current = np.where(found[None, :], followed, np.nan)
         if probe is None:
             fixed, labels, signed = rotating, np.full(count, None, dtype=object), np.zeros(count)
         else:
             fixed, labels, signed = _fixed_frame(rotating, probe.ratios(followed), float(w))
-        zeta = zeta[pick]
+            labels[~found] = None
+            signed[~found] = np.nan
+        damped = np.full(count, np.nan)
+        damped[found] = zeta[pick[found]]
+        zeta = damped
         if frame == "fixed":
             # The decay rate -Re s is that of both frames; the ratio is to |s| of the frame.
             decay = 2 * np.pi * rotating * zeta / np.sqrt(np.clip(1.0 - zeta**2, 1e-300, None))
@@ -465,7 +485,7 @@ def campbell(
         whirl.append(labels)
         ratios.append(signed)
         damping.append(zeta)
-        shapes.append(followed)
+        shapes.append(current)
         mac.append(match)
     return CampbellDiagram(
         speeds=speeds,
@@ -519,7 +539,7 @@ def plot_campbell(
         name = f"mode {m + 1}" + (f", {label or 'no'} whirl" if whirling else "")
         style = styles[label] if whirling else "-"
         ax.plot(w, diagram.frequencies[:, m], style, lw=1.5, label=name)
-    top = float(np.max(diagram.frequencies)) * 1.05
+    top = float(np.nanmax(diagram.frequencies, initial=0.0)) * 1.05 or 1.0
     for k in _orders(orders):
         ax.plot(w, k * w / (2 * np.pi), "k--", lw=0.8)
         ax.annotate(f"{k:g}x", (w[-1], min(k * w[-1] / (2 * np.pi), top)), fontsize=8)
