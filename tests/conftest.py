@@ -49,6 +49,24 @@ def rod_inertia(mass: float, length: float, axial: float = 1e-6) -> tuple[float,
     return (axial, transverse, transverse)
 
 
+def turntable_pendulum(speed: float):
+    """A pendulum (1 m, 1 kg point-like bob, 1e-6 kg m^2 about its centre) hinged on the axis
+    of a table that the angle driver "spin" turns about the vertical at `speed` (rad/s):
+    hanging, it swings in the turning frame at w^2 = (g - W^2) / (1 + 1e-6), and diverges
+    above W = sqrt(g) (g = 9.81)."""
+    to_y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # marker z along global y
+    system = fm.System(gravity=(0, -9.81, 0))
+    table = system.add_rigid_body(5.0, (0.5, 0.5, 0.5), name="table")
+    base = system.add_marker(system.ground, orientation=to_y)
+    top = system.add_marker(table, orientation=to_y)
+    system.add_revolute_joint(base, top, name="spindle")
+    system.add_angle_driver(base, top, fm.Polynomial([0.0, speed]), name="spin")
+    bob = system.add_rigid_body(1.0, (1e-6, 1e-6, 1e-6), position=(0, -1, 0), name="bob")
+    pin = system.add_marker(bob, position=(0, 1, 0))
+    system.add_revolute_joint(system.add_marker(table), pin, name="hinge")
+    return system
+
+
 def clamped_steel_beam(length: float, elements: int, section):
     """Body data of a straight steel beam (E 2.1e11 Pa, nu 0.3, 7850 kg/m^3) of nodal
     Euler-Bernoulli elements along x, its frame clamped at its first node."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import turntable_pendulum
 
 import flexmbd as fm
 from flexmbd.campbell import CampbellDiagram, campbell, plot_campbell
@@ -109,28 +110,11 @@ def test_a_bob_on_a_free_hinge_of_a_turning_hub(hinge, assert_close):
         assert_close(2 * np.pi * diagram.frequencies[1:, 0], speeds * np.sqrt(ratio), rel=1e-6)
 
 
-def turntable_pendulum():
-    """A pendulum (1 m, 1 kg point-like bob, 1e-6 kg m^2 about its centre) hinged on the axis
-    of a table that the angle driver "spin" turns about the vertical: hanging, it swings in
-    the turning frame at w^2 = (g - W^2) / (1 + 1e-6), and diverges above W = sqrt(g)."""
-    to_y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # marker z along global y
-    system = fm.System(gravity=(0, -9.81, 0))
-    table = system.add_rigid_body(5.0, (0.5, 0.5, 0.5), name="table")
-    base = system.add_marker(system.ground, orientation=to_y)
-    top = system.add_marker(table, orientation=to_y)
-    system.add_revolute_joint(base, top, name="spindle")
-    system.add_angle_driver(base, top, fm.Polynomial([0.0, 1.0]), name="spin")
-    bob = system.add_rigid_body(1.0, (1e-6, 1e-6, 1e-6), position=(0, -1, 0), name="bob")
-    pin = system.add_marker(bob, position=(0, 1, 0))
-    system.add_revolute_joint(system.add_marker(table), pin, name="hinge")
-    return system
-
-
 def test_a_mode_that_stops_oscillating_is_a_gap_of_nan(tmp_path, assert_close):
     # At 4 rad/s the hanging pendulum diverges (real eigenvalues): no oscillating mode is
     # left to follow, and linear_sum_assignment on an empty table raised a plain ValueError.
     speeds = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
-    diagram = campbell(turntable_pendulum(), "spin", speeds, modes=1)
+    diagram = campbell(turntable_pendulum(1.0), "spin", speeds, modes=1)
     expected = np.sqrt((9.81 - speeds[:4] ** 2) / (1.0 + 1e-6)) / (2 * np.pi)
     assert_close(diagram.frequencies[:4, 0], expected, rel=1e-7, what="sqrt(g - W^2)")
     assert np.isnan(diagram.frequencies[4, 0]) and np.isnan(diagram.damping[4, 0])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 import scipy.sparse.linalg as spla
-from conftest import clamped_steel_beam, constraint_parts
+from conftest import clamped_steel_beam, constraint_parts, turntable_pendulum
 
 import flexmbd as fm
 from flexmbd.errors import (
@@ -537,6 +537,43 @@ def test_a_pendulum_on_a_cart_driven_at_constant_speed_swings_as_at_rest(assert_
     assert_close(state.velocities[0], 3.0, rel=1e-12)
     frequency = np.sqrt(9.81 / (1.0 + 1e-6)) / (2 * np.pi)  # m g L / (m L^2 + I)
     assert_close(fm.linearize(system, state).frequencies(), [frequency], rel=1e-9)
+
+
+@pytest.mark.parametrize("speed", [2.0, 5.0])
+def test_the_stability_of_a_steady_rotation_counts_the_spin_softening(speed, assert_close):
+    # A pendulum hinged on the axis of a turntable: hanging, its stiffness in the turning
+    # frame is g - W^2 (per unit m L^2). Newton's matrix, in absolute coordinates, has no spin
+    # softening, and called it stable at 5 rad/s, where it diverges at +-sqrt(W^2 - g).
+    system = turntable_pendulum(speed)
+    state = fm.steady_rotation(system)
+    assert (state.stable, state.unstable_directions) == (
+        (True, 0) if speed**2 < 9.81 else (False, 1)
+    )
+    rate = np.sqrt((speed**2 - 9.81 + 0j) / (1.0 + 1e-6))
+    values = fm.linearize(system, state).eigenvalues()[0]
+    assert_close(np.sort(values.real), np.sort([rate.real, -rate.real]), abs=1e-7)
+    assert_close(np.sort(values.imag), np.sort([rate.imag, -rate.imag]), abs=1e-7)
+
+
+@pytest.mark.parametrize("load", [5.0, 15.0, 19.5, 21.0])
+def test_becks_column_is_stable_until_it_flutters(load):
+    # A clamped rod under a compressive follower force at its tip (Beck 1952): no divergence
+    # at any load, flutter from 20.05 EI / L^2. Its stiffness is not symmetric, and the
+    # inertia of its symmetric part called it unstable from 15 EI / L^2 (and neutral at 10).
+    section = Section.circle(0.01)
+    flexural = 2.1e11 * section.iy
+    system = fm.System()
+    column = system.add_flexible_body(
+        clamped_steel_beam(1.0, 20, section), geometric_stiffness=True, name="column"
+    )
+    system.add_fixed_joint(system.add_marker(system.ground), system.add_node_marker(column, 1))
+    tip = system.add_node_marker(column, 21)
+    system.add_point_force(tip, [-load * flexural, 0.0, 0.0], frame="marker")
+    state = fm.equilibrium(system, stable=False)
+    if load < 20.05:
+        assert (state.stable, state.unstable_directions) == (True, 0)
+    else:  # flutter in both planes of bending: two growing complex pairs
+        assert (state.stable, state.unstable_directions) == (False, 2)
 
 
 @pytest.mark.parametrize(

@@ -689,6 +689,63 @@ def _shifted_to_stable(
     return (a + sp.diags(shift * shift_rows)).tocsc()
 
 
+def _symmetric(matrix: Any) -> bool:
+    """Whether `matrix` (sparse or dense) is symmetric within :data:`NEUTRAL` of its largest
+    entry (a follower load's stiffness is not: 6e-6 for Beck's column at 5 EI / L^2)."""
+    if matrix.shape[0] == 0:
+        return True
+    return float(abs(matrix - matrix.T).max()) <= NEUTRAL * float(abs(matrix).max())
+
+
+#: Largest number of independent coordinates whose eigenvalues (dense, of the first-order
+#: form: 2n x 2n) decide the stability of an equilibrium with a nonsymmetric stiffness;
+#: above it the stability is not determined (None).
+EIGENVALUE_STABILITY_LIMIT = 1000
+
+
+def _linearized_stability(model: _core.Model, state: EquilibriumState) -> dict[str, Any]:
+    """The stability fields of :class:`EquilibriumState` from the linearization about
+    `state` (its stiffness holds the spin softening of the turning frames, B^T (K B +
+    D B_dot + M B_dd)): for a symmetric stiffness its inertia, as at rest (negative
+    eigenvalues: unstable directions; zero: neutral); for a nonsymmetric one (follower
+    loads) the eigenvalues of the linearized motion, which the inertia does not decide
+    (Beck's column has none negative and flutters above 20.05 EI / L^2, and its symmetric
+    part has negative ones below): unstable where some grow (Re s above :data:`NEUTRAL`
+    of the largest |s|, at least 1; each real one and each complex pair a direction),
+    stable otherwise, not determined above :data:`EIGENVALUE_STABILITY_LIMIT`
+    coordinates."""
+    import scipy.linalg as sla
+
+    undecided = {"stable": None, "unstable_directions": 0, "neutral_directions": 0}
+    try:
+        linear = linearize(model, state)
+    except (InvalidModelError, InvalidParameterError):
+        return undecided
+    stiffness = linear.stiffness
+    if not np.all(np.isfinite(stiffness)):
+        return undecided
+    if _symmetric(stiffness):
+        values = sla.eigvalsh(0.5 * (stiffness + stiffness.T))
+        floor = NEUTRAL * float(np.max(np.abs(values), initial=0.0))
+        unstable = int(np.sum(values < -floor))
+        neutral = int(np.sum(np.abs(values) <= floor))
+        stable: bool | None = unstable == 0
+        if stable and neutral:
+            stable = None
+        return {"stable": stable, "unstable_directions": unstable, "neutral_directions": neutral}
+    if stiffness.shape[0] > EIGENVALUE_STABILITY_LIMIT:
+        return undecided
+    values = linear.eigenvalues()[0]
+    scale = max(1.0, float(np.max(np.abs(values), initial=0.0)))
+    growing = values[values.real > NEUTRAL * scale]
+    unstable = int(np.sum(growing.imag >= 0.0))  # a complex pair counted once
+    neutral = linear.free_motions()
+    stable = unstable == 0
+    if stable and neutral:
+        stable = None
+    return {"stable": stable, "unstable_directions": unstable, "neutral_directions": neutral}
+
+
 def _residual_bodies(layout: dict[str, Any], residual: Array, count: int = 3) -> list[str]:
     """Names of the bodies with the largest |residual| entries, largest first."""
     sizes = []
@@ -740,7 +797,9 @@ def equilibrium(
     Newton's method finds any equilibrium, also an unstable one: from the horizontal, a
     double pendulum's iteration ends with both links upright. The state says which it found
     (``stable``, ``unstable_directions``: the stiffness at rest projected on the directions
-    the constraints leave free, from the inertia of the Newton matrix). `stable`:
+    the constraints leave free, from the inertia of the Newton matrix; under a steady drive
+    the linearization's stiffness, with the spin softening; with a nonsymmetric stiffness,
+    the eigenvalues of the linearized motion: :class:`EquilibriumState`). `stable`:
 
     - None (default): when Newton's method ends in an unstable equilibrium, or fails (a
       singular or nearly singular start, such as a pendulum released horizontal), and no
@@ -1029,14 +1088,15 @@ def _solve_equilibrium(
                     f"{np.max(np.abs(final['residual'][nq + violated])):.3e}): {equations}",
                     item=joints[0] if joints else None,
                 )
-            inertia = _inertia(_kept(_matrix(final), unknowns), nq, layout, kept_factors)
+            newton = _kept(_matrix(final), unknowns)
+            inertia = _inertia(newton, nq, layout, kept_factors)
             unstable, neutral = (None, 0) if inertia is None else inertia
             if seek and unstable:
                 continue  # a saddle reached exactly: the shift pushes off it
             stable = None if unstable is None else unstable == 0
             if stable and neutral:
                 stable = None  # no stiffness in some directions: not decided at this order
-            return EquilibriumState(
+            state = EquilibriumState(
                 time,
                 q,
                 qd,
@@ -1051,6 +1111,14 @@ def _solve_equilibrium(
                 neutral_directions=neutral,
                 discrete=discrete,
             )
+            # Newton's matrix is the stiffness in the coordinates q at fixed velocities: under
+            # a steady drive it leaves out the spin softening of the turning frames (a
+            # pendulum on a turntable spun above sqrt(g / L) was called stable), and its
+            # symmetric part does not decide a nonsymmetric (follower-load) stiffness.
+            moving = bool(np.any(qd != 0.0))
+            if moving or not _symmetric(newton[:nq, :nq]):
+                state = dataclasses.replace(state, **_linearized_stability(model, state))
+            return state
     bodies = _residual_bodies(layout, residual[:nq])
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
     what = " to a stable equilibrium" if seek else ""

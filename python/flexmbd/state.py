@@ -283,9 +283,15 @@ class EquilibriumState(State):
             constraints leave free, False when it is negative in some; None where it was
             not determined, also for a neutral equilibrium (zero stiffness in some free
             directions and negative in none: a free body in space, a wheel whose axle no
-            force turns), which the stiffness alone does not decide.
+            force turns), which the stiffness alone does not decide. Under a steady drive
+            the stiffness is that of :func:`flexmbd.linearize` about the state (with the
+            spin softening of the turning frames; gyroscopic terms are not counted). A
+            nonsymmetric stiffness (follower loads) is decided by the eigenvalues of the
+            linearized motion: False where some grow (divergence or flutter), True where
+            none does; None above 1,000 independent coordinates.
         unstable_directions: the number of free directions of negative stiffness (an
-            inverted double pendulum: 2).
+            inverted double pendulum: 2); with a nonsymmetric stiffness, of growing real
+            eigenvalues and complex pairs (Beck's column past flutter: 2, one per plane).
         neutral_directions: the number of free directions of zero stiffness (a free rigid
             body without gravity: 6).
     """
