@@ -155,3 +155,60 @@ def test_free_motions_are_counted_exactly_whatever_their_round_off(assert_close)
     linear = fm.linearize_at_rest(system)
     assert linear.free_motions() == 11
     assert_close(linear.frequencies(), [np.sqrt(500 * 5 / 6) / (2 * np.pi)], rel=1e-10)
+
+
+def test_the_spin_of_a_free_rotor_is_a_free_motion_not_a_slow_mode(assert_close):
+    # A rigid rotor (10 kg, Ip 0.2, It 0.5 kg m^2) spinning freely at 300 rad/s about x on four
+    # lateral springs (1e5 N/m at x = +-0.3 m) and an axial one (2e4 N/m). The central
+    # differences of the moving basis leave its cyclic spin angle a stiffness of 4e-5 (2e-10
+    # of the largest, above the 1e-11 of round-off at rest): a mode of 0.0149 rad/s and no
+    # free motion. Reference (rad/s): axial sqrt(kx / m), lateral sqrt(2 k / m) twice,
+    # conical It w^2 -+ Ip W w - 2 k a^2 = 0.
+    mass, polar, transverse, k, kx, a, spin = 10.0, 0.2, 0.5, 1e5, 2e4, 0.3, 300.0
+    system = fm.System()
+    rotor = system.add_rigid_body(
+        mass, (polar, transverse, transverse), angular_velocity=(spin, 0, 0), name="rotor"
+    )
+    for x in (-a, a):
+        for d in ((0, 1, 0), (0, 0, 1)):
+            ground = system.add_marker(system.ground, position=(x, -d[1], -d[2]))
+            system.add_spring_damper(
+                ground, system.add_marker(rotor, position=(x, 0, 0)), stiffness=k, rest_length=1
+            )
+    axial = system.add_marker(system.ground, position=(-1.0, 0, 0))
+    system.add_spring_damper(axial, system.add_marker(rotor), stiffness=kx, rest_length=1.0)
+    solver = fm.GeneralizedAlpha(newton_tolerance=1e-12)
+    run = fm.simulate(system, 0.01, 1e-4, output_interval=0.005, solver=solver)
+    linear = fm.linearize(system, run.state(-1))
+    assert linear.free_motions() == 1
+    conical = np.roots([transverse, -polar * spin, -2 * k * a * a])
+    backward, forward = sorted(abs(conical))
+    lateral = np.sqrt(2 * k / mass)
+    expected = [np.sqrt(kx / mass), backward, lateral, lateral, forward]
+    assert_close(2 * np.pi * linear.frequencies(), expected, rel=1e-7, what="rad/s")
+
+
+def test_a_sleeping_top_has_a_free_spin_and_no_false_instability(assert_close):
+    # A symmetric top (1 kg, centre 0.1 m above a spherical joint, I1c 1e-3, I3 2e-3 kg m^2)
+    # asleep at 150 rad/s. Its spin angle came out as eigenvalues +-0.0035, real: an apparent
+    # instability. Reference: precession and nutation I1 w^2 - I3 W w + m g l = 0 (I1 about
+    # the tip), and one free motion.
+    g, mass, arm, axial, lateral, spin = 9.81, 1.0, 0.1, 0.002, 0.001, 150.0
+    up = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # body z along global y
+    system = fm.System(gravity=(0, -g, 0))
+    top = system.add_rigid_body(
+        mass, (lateral, lateral, axial), position=(0, arm, 0), orientation=up,
+        angular_velocity=(0, spin, 0), name="top",
+    )  # fmt: skip
+    tip = system.add_marker(top, position=(0, 0, -arm))
+    system.add_spherical_joint(system.add_marker(system.ground), tip, name="tip")
+    solver = fm.GeneralizedAlpha(newton_tolerance=1e-12)
+    run = fm.simulate(system, 0.01, 1e-4, output_interval=0.005, solver=solver)
+    linear = fm.linearize(system, run.state(-1))
+    values = linear.eigenvalues()[0]
+    assert linear.free_motions() == 1
+    assert_close(values.real, 0.0, abs=1e-6, what="Re s")
+    tipped = lateral + mass * arm * arm
+    rates = np.sort(np.roots([tipped, -axial * spin, mass * g * arm]).real)
+    # (the run's state, not exactly asleep: 4e-6 off the precession)
+    assert_close(linear.frequencies() * 2 * np.pi, rates, rel=1e-5, what="rad/s")
