@@ -234,6 +234,42 @@ def test_equilibrium_far_from_where_the_drivers_are_names_the_driver(assert_clos
     assert_close(spin, 6.0, rel=1e-9, what="angular velocity")
 
 
+@pytest.mark.parametrize("start", [0.0, 0.05])
+def test_an_angle_driver_half_a_turn_from_its_joint_is_refused_as_a_run_refuses_it(
+    start, assert_close
+):
+    # A link (2 kg, 1 m) on a hinge held by an angle driver at pi, built at `start` rad:
+    # sin(theta - pi) = 0 holds at 0 too, and equilibrium returned the link at 0 (origin at
+    # x = +0.5, not -0.5) with the driving torque of the other sign; a run refuses it.
+    def link(angle):
+        system = fm.System(gravity=GRAVITY)
+        turn = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0],
+                         [0, 0, 1]])  # fmt: skip
+        body = system.add_rigid_body(
+            2.0, (1e-4, 1 / 6, 1 / 6), position=tuple(turn @ [0.5, 0, 0]), orientation=turn,
+            name="link",
+        )  # fmt: skip
+        ground, end = (
+            system.add_marker(system.ground),
+            system.add_marker(body, position=(-0.5, 0, 0)),
+        )
+        system.add_revolute_joint(ground, end, name="hinge")
+        system.add_angle_driver(ground, end, np.pi, name="drive")
+        return system
+
+    system = link(start)
+    with pytest.raises(InitialConditionsError, match="quarter turn"):
+        fm.simulate(system, 0.01, 1e-3)
+    with pytest.raises(InitialConditionsError, match="angle driver 'drive'") as raised:
+        fm.equilibrium(system)
+    assert raised.value.item == "driver 'drive'"
+    # Built at the driver's angle: the link points along -x, held against its weight by
+    # m g L / 2 = 9.81 N m.
+    state = fm.equilibrium(link(np.pi - start))
+    assert_close(state.coordinates[:2], [-0.5, 0.0], abs=1e-9, what="origin")
+    assert_close(abs(state.multipliers[-1]), 2.0 * 9.81 * 0.5, rel=1e-9, what="torque")
+
+
 def pendulum(offset: float = 0.01):
     """A rigid link hinged at the origin, placed `offset` above where the hinge closes."""
     system = fm.System(gravity=GRAVITY)

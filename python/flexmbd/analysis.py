@@ -27,6 +27,7 @@ from .errors import (
     ArgumentTypeError,
     EquilibriumError,
     FreeMotionError,
+    InitialConditionsError,
     InvalidModelError,
     InvalidParameterError,
 )
@@ -222,10 +223,15 @@ DRIVER_START_LIMIT = 0.1
 def _check_drivers_at_start(model: _core.Model, time: float, q: Array, layout: dict) -> None:
     """InvalidModelError naming the driver when the starting coordinates are far from where
     the drivers put the model at `time` (a steady rotation asked for at t = 20 s from the
-    model's initial coordinates, with the hub 75 rad on)."""
+    model's initial coordinates, with the hub 75 rad on); `InitialConditionsError` naming an
+    angle driver whose joint starts more than a quarter turn from its angle, as a run
+    refuses it: its equation sin(theta - f) = 0 holds at theta = f + pi too, where Newton's
+    method stayed (a link held at pi returned at 0, its torque of the other sign)."""
     nq, nc = model.coordinate_count, model.constraint_count
     zero_q = np.zeros(nq)
-    violation = model.evaluate(time, q, zero_q, zero_q, np.zeros(nc))["residual"][nq:]
+    ev = model.evaluate(time, q, zero_q, zero_q, np.zeros(nc), mass=1.0)
+    violation = ev["residual"][nq:]
+    jacobian = _matrix(ev)[nq:, :nq].tocsr()
     for joint in layout["joints"]:
         if "driver" not in joint["type"]:
             continue
@@ -240,6 +246,54 @@ def _check_drivers_at_start(model: _core.Model, time: float, q: Array, layout: d
                 "turned to the drivers' angles",
                 item=f"driver '{joint['name']}'",
             )
+    for joint in layout["joints"]:
+        if joint["type"] != "angle driver":
+            continue
+        cosine = _driver_cosine(layout, q, jacobian[joint["row"]].toarray().ravel(), joint)
+        if cosine is not None and cosine < 0.0:
+            off = float(np.arctan2(abs(violation[joint["row"]]), cosine))
+            raise InitialConditionsError(
+                f"equilibrium at t = {time:g}: angle driver '{joint['name']}' (its joint starts "
+                f"{off:.4f} rad from the prescribed angle: the driver's equation "
+                "sin(theta - f) = 0 holds half a turn from f too, and the equilibrium would "
+                "hold the joint on that branch, its torque of the opposite sign); start the "
+                "joint within a quarter turn of the prescribed angle (its initial orientation, "
+                "or coordinates=)",
+                item=f"driver '{joint['name']}'",
+                time=time,
+            )
+
+
+def _driver_cosine(
+    layout: dict[str, Any], q: Array, row: Array, joint: dict[str, Any]
+) -> float | None:
+    """cos(theta - f) of angle driver `joint` at `q`, up to a positive factor: the rate of
+    its equation (`row`: its row of C_q) under a turn of its second marker's body about its
+    first marker's z axis (or of the first body the other way, when the second does not
+    turn); None when neither body turns (a point mass). A node marker's axis is taken from
+    its body's frame, which its elastic rotation moves a little: the sign is kept."""
+    bodies, markers = layout["bodies"], layout["markers"]
+    first, second = (markers[m] for m in joint["markers"])
+
+    def frame(body: dict[str, Any]) -> Array | None:
+        if body["kind"] == "ground":
+            return np.eye(3)
+        if body["count"] < 7:
+            return None
+        return euler_parameters_to_matrix(q[body["offset"] + 3 : body["offset"] + 7])
+
+    rotation = frame(bodies[first["body"]])
+    if rotation is None:
+        return None
+    axis = rotation @ np.asarray(first["orientation"], dtype=float)[:, 2]
+    for marker, sense in ((second, 1.0), (first, -1.0)):
+        body = bodies[marker["body"]]
+        if body["kind"] != "ground" and body["count"] >= 7:
+            turn = np.zeros(len(q))
+            parameters = slice(body["offset"] + 3, body["offset"] + 7)
+            turn[parameters] = euler_parameter_rates(q[parameters], axis, "global")
+            return sense * float(row @ turn)
+    return None
 
 
 #: Nodal deformable bodies with at least this many elastic coordinates are eliminated from
