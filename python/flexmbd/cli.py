@@ -894,7 +894,7 @@ def _modes(args: argparse.Namespace) -> int:
         print(f"{job.name}: {count} oscillating mode{'s' if count != 1 else ''} about {about}")
         print("mode  frequency (Hz)  damping ratio  moves most")
         for k in range(min(args.count, len(frequencies))):
-            parts = body_shapes(model, shapes[:, k])
+            parts = body_shapes(model, shapes[:, k], linear.state)
             share = {
                 name: float(sum(np.sum(np.abs(v) ** 2) for v in part.values()))
                 for name, part in parts.items()

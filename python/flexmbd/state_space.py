@@ -286,16 +286,36 @@ def input_forces(system: Any, state: Any, inputs: list[Any]) -> Array:
     return columns
 
 
-def body_shapes(model: Any, shape: NDArray[np.complex128]) -> dict[str, dict[str, Any]]:
+def body_shapes(
+    model: Any, shape: NDArray[np.complex128], coordinates: Any = None
+) -> dict[str, dict[str, Any]]:
     """A mode shape (in the coordinates q) per body: for every moving body its reference
     motion, ``translation`` (3, global) and ``rotation`` (3, the small rotation 2 G(p) dp of
     its Euler parameters, body axes; point masses have none), and for deformable bodies the
-    elastic ``displacements`` of their nodes (nodes x 3, body axes)."""
+    elastic ``displacements`` of their nodes (nodes x 3, body axes). `coordinates`: those of
+    the state the shape is about (a `State`, as ``linear.state``, or its coordinates); the
+    rotation is read with its Euler parameters p. Default: the model's initial coordinates,
+    right only for a linearization about them (:func:`flexmbd.linearize_at_rest`): a rod
+    built tilted by 60 degrees that hangs straight at its equilibrium had its swing about x
+    reported as one about (0, 0.5, 0.87)."""
+    from .state import State
     from .system import elastic_basis
 
     layout = model.describe()
     flexible = model.flexible_bodies
-    q0 = model.initial_coordinates
+    if isinstance(coordinates, State):
+        coordinates = coordinates.coordinates
+    q0 = (
+        np.asarray(model.initial_coordinates, dtype=float)
+        if coordinates is None
+        else numbers_array(coordinates, "coordinates").ravel()
+    )
+    if q0.shape != (model.coordinate_count,) or not np.all(np.isfinite(q0)):
+        raise InvalidParameterError(
+            f"body_shapes: coordinates must be {model.coordinate_count} finite numbers (the "
+            f"model's coordinates), got shape {q0.shape}",
+            item="coordinates",
+        )
     shapes: dict[str, dict[str, Any]] = {}
     for index, entry in enumerate(layout["bodies"]):
         if entry["kind"] == "ground":
