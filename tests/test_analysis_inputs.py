@@ -107,6 +107,31 @@ def test_a_state_with_a_nan_is_refused_naming_its_part(hanging, name):
     assert caught.value.item == name
 
 
+def test_a_state_off_the_velocity_constraints_or_the_equations_of_motion_is_refused(
+    assert_close,
+):
+    # A hanging pendulum's equilibrium edited by hand was linearized as it was: with the bob
+    # moving along its rod and turning about it (C_q q_dot = 2 rad/s), eigenvalues +-4.22i
+    # for +-3.13i; with its multipliers zeroed (the whole weight, 9.81 N, unbalanced), the
+    # gravity stiffness was lost: eigenvalues 0.
+    system = pendulum(1.0)
+    state = fm.equilibrium(system)
+    velocities = np.array(state.velocities)
+    velocities[1] = 1.0  # along the rod
+    with pytest.raises(InvalidParameterError, match="velocity constraint of joint 'rod'") as caught:
+        fm.linearize(system, dataclasses.replace(state, velocities=velocities))
+    assert caught.value.item == "velocities"
+    unbalanced = dataclasses.replace(state, multipliers=np.zeros_like(state.multipliers))
+    with pytest.raises(InvalidParameterError, match="residual 9.81 in body 'bob'") as caught:
+        fm.linearize(system, unbalanced)
+    assert caught.value.item == "accelerations"
+    accelerating = dataclasses.replace(state, accelerations=np.full(3, 5.0))
+    with pytest.raises(InvalidParameterError, match="equations of motion"):
+        fm.linearize(system, accelerating)
+    # The state as found is taken: the pendulum's sqrt(g / l).
+    assert_close(fm.linearize(system, state).frequencies(), np.sqrt(9.81) / (2 * np.pi), rel=1e-9)
+
+
 def test_a_steady_rotation_is_a_state_of_its_system():
     # steady_rotation's state carried no system identity, so a state of another system's
     # steady rotation was not recognized; its unknown options were a raw TypeError.

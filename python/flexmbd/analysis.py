@@ -1698,8 +1698,28 @@ def linearize(
 
     Raises `InvalidParameterError` for a state of another System, or one whose coordinates
     violate the constraints by more than :data:`STATE_VIOLATION` (naming the joint equation
-    violated most), and `ArgumentTypeError` for inputs or outputs that are not lists of
-    loads and outputs."""
+    violated most), whose velocities violate the velocity constraints or whose accelerations
+    and multipliers the equations of motion by more than :data:`MOTION_VIOLATION`
+    (:func:`_check_motion`), or with a value that is not finite, and `ArgumentTypeError`
+    for inputs or outputs that are not lists of loads and outputs."""
+    return _linearize(
+        model, state, inputs=inputs, outputs=outputs, independent=independent, consistent=True
+    )
+
+
+def _linearize(
+    model: _core.Model | _core.System,
+    state: State | str | None,
+    *,
+    inputs: Sequence[PointLoad],
+    outputs: Sequence[Any],
+    independent: str,
+    consistent: bool,
+) -> LinearizedSystem:
+    """:func:`linearize`; with `consistent`, the state's velocities must meet the velocity
+    constraints and its accelerations and multipliers the equations of motion
+    (:func:`_check_motion`), which :func:`linearize_at_rest`'s state with its loads does
+    not (nothing balances a free body's loads at rest)."""
     import scipy.linalg as sla
 
     if independent not in INDEPENDENT:
@@ -1732,6 +1752,8 @@ def linearize(
     )
     _refuse_stray_ids(model, inputs, outputs)
     _check_state(model, state)
+    if consistent:
+        _check_motion(model, state)
     unheld = unheld_frame_error(model, np.asarray(state.coordinates, dtype=float), state.time)
     if unheld is not None:
         raise unheld  # (its modes were spurious: 12.2 and 132.8 Hz for a beam of 8.18 Hz)
@@ -1889,6 +1911,74 @@ def _check_state(model: _core.Model, state: State) -> None:
         )
 
 
+#: Largest violation of the velocity constraints C_q q_dot + C_t = 0 of a state that
+#: :func:`linearize` takes, relative to its largest coordinate and velocity (at least 1
+#: each), and of its equations of motion, relative to their largest term (the applied and
+#: velocity forces, M q_dd + C_q^T lambda, at least |M| max(1, |q_dot|^2)): a run's states
+#: meet both to its tolerances.
+MOTION_VIOLATION = 1e-6
+
+
+def _check_motion(model: _core.Model, state: State) -> None:
+    """An `InvalidParameterError` for a state whose velocities violate the velocity
+    constraints (naming the joint equation violated most), or whose accelerations and
+    multipliers do not satisfy the equations of motion (naming the body and coordinate of
+    the largest residual): such a state (edited by hand, its multipliers zeroed) is no state
+    of a motion of the model, and its linearization was silently wrong (a pendulum with its
+    multipliers zeroed lost its gravity stiffness: eigenvalues 0 for +-3.13i)."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    q = np.asarray(state.coordinates, dtype=float)
+    qd = np.asarray(state.velocities, dtype=float)
+    qdd = np.asarray(state.accelerations, dtype=float)
+    lam = np.asarray(state.multipliers, dtype=float)
+    discrete = state.discrete_for(model)
+    zeros_q, zeros_l = np.zeros(nq), np.zeros(nc)
+    layout = model.describe()
+    ev = model.evaluate(state.time, q, zeros_q, zeros_q, zeros_l, mass=1.0)
+    matrix = _matrix(ev)
+    if nc:
+        rates = matrix[nq:, :nq] @ qd + ev["constraint_rate"]
+        scale = max(1.0, float(np.max(np.abs(q), initial=0.0)))
+        scale *= max(1.0, float(np.max(np.abs(qd), initial=0.0)))
+        worst = int(np.argmax(np.abs(rates)))
+        if not abs(rates[worst]) <= MOTION_VIOLATION * scale:
+            joints, names = _row_names(layout, np.array([worst]))
+            raise InvalidParameterError(
+                f"linearize: the state's velocities violate the velocity constraint of {names} "
+                f"by {abs(float(rates[worst])):.3g} at t = {state.time:g} (C_q q_dot + C_t, more "
+                f"than {MOTION_VIOLATION * scale:.3g}): they are no velocities of this model's "
+                "motion (changed by hand?)",
+                item="velocities",
+            )
+    full = model.evaluate(state.time, q, qd, qdd, lam, discrete=discrete)["residual"][:nq]
+    forces = model.evaluate(state.time, q, qd, zeros_q, zeros_l, discrete=discrete)["residual"][:nq]
+    # The largest term: the applied and velocity forces, M q_dd + C_q^T lambda, or the size
+    # |M| max(1, |q_dot|^2) of an acceleration of 1 (m/s^2, rad/s^2) and of the velocity
+    # terms: forces that balance each other leave none of the others (a free rotor spinning
+    # on a principal axis at rest lengths, a mass hanging from a spring: residuals of 3e-15
+    # were all there was).
+    speed = float(np.max(np.abs(qd), initial=0.0))
+    scale = max(
+        float(np.max(np.abs(forces), initial=0.0)),
+        float(np.max(np.abs(full - forces), initial=0.0)),
+        float(abs(matrix[:nq, :nq]).max()) * max(1.0, speed**2) if nq else 0.0,
+    )
+    worst = int(np.argmax(np.abs(full))) if nq else 0
+    if nq and not abs(full[worst]) <= MOTION_VIOLATION * scale:
+        where = f"coordinate {worst}"
+        for body in layout["bodies"]:
+            if body["offset"] <= worst < body["offset"] + body["count"]:
+                where = f"body '{body['name']}' coordinate {worst - body['offset']}"
+        raise InvalidParameterError(
+            f"linearize: the state's accelerations and multipliers do not satisfy the equations "
+            f"of motion: residual {abs(float(full[worst])):.3g} in {where} at t = "
+            f"{state.time:g} (more than {MOTION_VIOLATION:g} of their largest term, "
+            f"{scale:.3g}): linearize about fm.equilibrium, fm.steady_rotation or a result's "
+            "result.state(k), not a state whose accelerations or multipliers were changed",
+            item="accelerations",
+        )
+
+
 #: Largest violation of the constraints at the initial coordinates (relative to the largest
 #: coordinate, at least 1) that :func:`linearize_at_rest` takes as assembled.
 ASSEMBLED = 1e-8
@@ -1987,4 +2077,6 @@ def linearize_at_rest(
         flexible=model.flexible_bodies,
         system_identity=identity_of(model),
     )
-    return linearize(system, state, inputs=inputs, outputs=outputs)
+    return _linearize(
+        system, state, inputs=inputs, outputs=outputs, independent="elastic", consistent=False
+    )
