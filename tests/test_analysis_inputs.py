@@ -15,7 +15,7 @@ import pytest
 import flexmbd as fm
 from flexmbd.campbell import CampbellDiagram
 from flexmbd.cli import main
-from flexmbd.errors import ArgumentTypeError, InvalidParameterError
+from flexmbd.errors import ArgumentTypeError, InvalidParameterError, UnknownItemError
 from flexmbd.fe import Material, Section
 from flexmbd.model_file import load_model
 from flexmbd.state_space import mode_result
@@ -130,6 +130,73 @@ def test_a_state_off_the_velocity_constraints_or_the_equations_of_motion_is_refu
         fm.linearize(system, accelerating)
     # The state as found is taken: the pendulum's sqrt(g / l).
     assert_close(fm.linearize(system, state).frequencies(), np.sqrt(9.81) / (2 * np.pi), rel=1e-9)
+
+
+def test_a_point_load_takes_its_marker_by_name(assert_close):
+    # Outputs take names; a marker's name in a PointLoad reached System.add_point_force:
+    # "argument 'marker': 'str' object is not an instance of 'MarkerId'".
+    system = fm.System(gravity=(0, -9.81, 0))
+    bob = system.add_rigid_body(1.0, (1e-3, 1e-3, 1e-3), position=(0, -1, 0), name="bob")
+    pin = system.add_marker(bob, position=(0, 1, 0), name="pin")
+    system.add_revolute_joint(system.add_marker(system.ground), pin, name="hinge")
+    state = fm.equilibrium(system)
+    named = fm.linearize(system, state, inputs=[fm.PointLoad("pin", (1, 0, 0))])
+    by_id = fm.linearize(system, state, inputs=[fm.PointLoad(pin, (1, 0, 0))])
+    # A unit force along x at the bob's pin: 1 N along x on the bob's origin coordinate.
+    assert_close(named.input_forces[0, 0], 1.0, rel=1e-12, what="Q_x")
+    assert_close(named.input_forces, by_id.input_forces, abs=1e-15, what="by name and by id")
+    with pytest.raises(UnknownItemError, match="PointLoad: no marker named 'pen'") as caught:
+        fm.linearize(system, state, inputs=[fm.PointLoad("pen", (1, 0, 0))])
+    assert caught.value.item == "pen"
+    with pytest.raises(ArgumentTypeError, match="PointLoad: marker must be a marker"):
+        fm.linearize(system, state, inputs=[fm.PointLoad(bob, (1, 0, 0))])
+
+
+def hub_with_blade():
+    """A hub turned by the angle driver "spin" (1 rad/s from 0), a rigid blade on a hinge."""
+    system = fm.System()
+    hub = system.add_rigid_body(1.0, (1, 1, 1), name="hub")
+    ground, turning = system.add_marker(system.ground), system.add_marker(hub)
+    system.add_revolute_joint(ground, turning)
+    system.add_angle_driver(ground, turning, fm.Polynomial([0, 1.0]), name="spin")
+    blade = system.add_rigid_body(1.0, (1e-3, 0.1, 0.1), position=(1, 0, 0), name="blade")
+    flap = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)
+    system.add_revolute_joint(
+        system.add_marker(hub, position=(0.5, 0, 0), orientation=flap),
+        system.add_marker(blade, position=(-0.5, 0, 0), orientation=flap),
+    )
+    return system
+
+
+def test_campbell_names_its_time_and_gives_advice_it_takes():
+    # time=nan blamed a Polynomial's coefficients; time=5 (the hub 5 rad on from the
+    # initial configuration) advised "pass coordinates=", which campbell does not take.
+    system = hub_with_blade()
+    with pytest.raises(InvalidParameterError, match="time must be finite") as caught:
+        fm.campbell(system, "spin", [1.0, 2.0], modes=1, time=float("nan"))
+    assert caught.value.item == "time"
+    with pytest.raises(InvalidParameterError, match="campbell at time = 5") as caught:
+        fm.campbell(system, "spin", [1.0, 2.0], modes=1, time=5.0)
+    assert caught.value.item == "time" and "coordinates=" not in str(caught.value)
+
+
+def test_mode_result_of_an_overdamped_system_says_it_has_no_oscillating_modes():
+    # A slider on a spring (100 N/m) and damper (50 N s/m), 1 kg: s = -2.09, -47.9, no
+    # oscillating mode; the message said "indices 0 to -1".
+    along_x = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)
+    system = fm.System(gravity=(0, 0, 0))
+    slider = system.add_rigid_body(1.0, (1, 1, 1), position=(1, 0, 0), name="slider")
+    system.add_prismatic_joint(
+        system.add_marker(system.ground, orientation=along_x),
+        system.add_marker(slider, orientation=along_x),
+    )
+    ends = system.add_marker(system.ground), system.add_marker(slider)
+    system.add_spring_damper(*ends, stiffness=100.0, damping=50.0, rest_length=1.0)
+    linear = fm.linearize(system, fm.equilibrium(system))
+    assert len(linear.frequencies()) == 0
+    with pytest.raises(InvalidParameterError, match="has no oscillating modes") as caught:
+        mode_result(linear, system, 0)
+    assert "-1" not in str(caught.value) and caught.value.item == "mode"
 
 
 def test_a_steady_rotation_is_a_state_of_its_system():

@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _core
-from ._checks import integer, numbers_array
+from ._checks import integer, number, numbers_array
 from .errors import ArgumentTypeError, InvalidParameterError
 from .progress import track as track_progress
 from .rotation import angular_velocity
@@ -327,6 +327,28 @@ def _angle_driver(system: Any, driver: str) -> None:
             )
 
 
+def _drivers_met_at(system: Any, time: float) -> None:
+    """InvalidParameterError naming `time` when the drivers at `time` are far from the
+    model's initial coordinates, from which :func:`campbell` starts every speed (the
+    equilibrium's own error advised "pass coordinates=", which campbell does not take)."""
+    from .analysis import _check_drivers_at_start
+    from .errors import InvalidModelError
+
+    model = system.compile()
+    q = np.asarray(model.initial_coordinates, dtype=float)
+    try:
+        _check_drivers_at_start(model, time, q, model.describe())
+    except InvalidModelError as error:
+        raise InvalidParameterError(
+            f"campbell at time = {time:g}: the model's initial coordinates violate "
+            f"{error.item or 'a driver'} there (its motion has moved on since the initial "
+            "configuration); campbell starts every speed from the initial coordinates: use a "
+            "time at which they meet the drivers (time=0 for a model built at its drivers' "
+            "start), or build the system turned to the drivers' angles at that time",
+            item="time",
+        ) from None
+
+
 #: The speed, relative to the fastest of a diagram, at which :func:`campbell` takes the modes
 #: of a rotor at rest that has free motions there (their limit at W -> 0).
 ZERO_SPEED = 1e-6
@@ -377,6 +399,7 @@ def campbell(
         raise ArgumentTypeError(
             f"gyroscopic must be True or False, got {gyroscopic!r}", item="gyroscopic"
         )
+    time = number(time, "time")  # (a NaN reached a Polynomial, whose error named it)
     speeds = numbers_array(speeds, "speeds")
     if speeds.ndim > 1:  # (a 2-D array was flattened)
         raise InvalidParameterError(
@@ -392,6 +415,7 @@ def campbell(
     if len(speeds) == 0 or np.any(np.diff(speeds) <= 0):
         raise InvalidParameterError("speeds must be ascending and not empty", item="speeds")
     _angle_driver(system, driver)
+    _drivers_met_at(system, time)
     start = float(system.driver_function(driver)(time))
     probe = _whirl_probe(system, driver, time)
     if frame == "fixed" and probe is None:

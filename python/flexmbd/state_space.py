@@ -33,8 +33,8 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class PointLoad:
-    """An input: a unit force (or, `kind="torque"`, a torque) at `marker` along `direction`
-    (global axes, or the marker's with `frame="marker"`)."""
+    """An input: a unit force (or, `kind="torque"`, a torque) at `marker` (a marker's id or
+    name) along `direction` (global axes, or the marker's with `frame="marker"`)."""
 
     marker: Any
     direction: ArrayLike
@@ -264,6 +264,7 @@ def input_forces(system: Any, state: Any, inputs: list[Any]) -> Array:
         )
     args = (state.time, state.coordinates, state.velocities, state.accelerations)
     base = system.compile()
+    markers = base.describe()["markers"]
     nq = base.coordinate_count
     reference = base.evaluate(*args, state.multipliers)["residual"][:nq]
     columns = np.zeros((nq, len(inputs)))
@@ -279,11 +280,36 @@ def input_forces(system: Any, state: Any, inputs: list[Any]) -> Array:
             )
         unit = _unit(load.direction, load.label())
         method = "add_point_force" if load.kind == "force" else "add_torque"
-        call = (method, (load.marker, [Constant(float(v)) for v in unit]), {"frame": load.frame})
+        marker = _load_marker(load, markers)
+        call = (method, (marker, [Constant(float(v)) for v in unit]), {"frame": load.frame})
         loaded = _rebuilt(type(system), (*system.building_calls, call)).compile()
         residual = loaded.evaluate(*args, state.multipliers)["residual"][:nq]
         columns[:, k] = reference - residual  # the residual holds -Q
     return columns
+
+
+def _load_marker(load: PointLoad, markers: list[dict[str, Any]]) -> Any:
+    """The marker id of `load`: its id, or the id of the marker of its name (outputs take
+    names too; a name reached System.add_point_force, whose error named that call), else an
+    error naming the PointLoad."""
+    if isinstance(load.marker, _core.MarkerId):
+        return load.marker
+    if isinstance(load.marker, str):
+        for index, entry in enumerate(markers):
+            if entry.get("name") == load.marker:
+                return _core.MarkerId(index)
+        from .errors import UnknownItemError
+
+        names = ", ".join(repr(e["name"]) for e in markers if e.get("name"))
+        raise UnknownItemError(
+            f"PointLoad: no marker named {load.marker!r} (markers: {names or 'none'})",
+            item=load.marker,
+        )
+    raise ArgumentTypeError(
+        f"PointLoad: marker must be a marker (its MarkerId or name), got "
+        f"{value_text(load.marker)} ({type(load.marker).__name__})",
+        item="marker",
+    )
 
 
 def body_shapes(
@@ -369,6 +395,12 @@ def mode_result(
     from .result import Result
 
     frequencies, _, shapes = linear.oscillating()
+    if len(frequencies) == 0:
+        raise InvalidParameterError(
+            f"mode index {mode}: the linearization has no oscillating modes (its eigenvalues "
+            "are all real: overdamped, diverging or free motions)",
+            item="mode",
+        )
     if not 0 <= mode < len(frequencies):
         raise InvalidParameterError(
             f"mode index {mode} (0: the lowest): the linearization has {len(frequencies)} "
