@@ -402,7 +402,8 @@ pub fn null_space_solve(
     cutoff: f64,
 ) -> std::result::Result<Vec<f64>, String> {
     let n = force.len();
-    let svd = c.svd().map_err(|_| "the SVD of the constraint Jacobian did not converge".to_string())?;
+    let svd = crate::linalg::svd::svd(c.as_ref())
+        .map_err(|_| "the SVD of the constraint Jacobian did not converge".to_string())?;
     let s = svd.S().column_vector();
     let largest = if s.nrows() > 0 { s[0] } else { 0.0 };
     let rank = (0..s.nrows()).take_while(|&k| s[k] > cutoff * largest).count();

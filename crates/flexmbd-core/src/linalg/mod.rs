@@ -10,6 +10,7 @@ pub mod parallel;
 pub mod partition;
 pub(crate) mod simd;
 pub mod sparse;
+pub mod svd;
 pub mod symmetric;
 
 pub use csc::Csc;

@@ -168,7 +168,7 @@ pub fn partition(a: MatRef<'_, f64>, method: PartitionMethod, tolerance: f64) ->
             (rows, columns[..rank].to_vec())
         }
         PartitionMethod::Svd => {
-            let Ok(svd) = a.thin_svd() else {
+            let Ok(svd) = super::svd::thin_svd(a) else {
                 // The SVD iteration did not converge (non-finite input): fall back to LU.
                 return partition(a, PartitionMethod::Lu, tolerance);
             };
@@ -237,7 +237,7 @@ pub fn dependent_row_groups(a: MatRef<'_, f64>, tolerance: f64) -> Vec<Vec<usize
     }
     // The left singular vectors of a are the right ones of a^T; the thin SVD of a^T (n x m)
     // has all m of them when n >= m and never forms an n x n factor.
-    let decomposition = if n >= m { a.transpose().thin_svd() } else { a.svd() };
+    let decomposition = if n >= m { super::svd::thin_svd(a.transpose()) } else { super::svd::svd(a) };
     let Ok(svd) = decomposition else { return Vec::new() };
     let s = svd.S().column_vector();
     let values: Vec<f64> = (0..s.nrows()).map(|k| s[k]).collect();
@@ -265,7 +265,7 @@ pub fn row_conditioning(a: MatRef<'_, f64>, rows: &[usize]) -> f64 {
         return 1.0;
     }
     let kept = Mat::from_fn(rows.len(), a.ncols(), |i, j| a[(rows[i], j)]);
-    let Ok(s) = kept.singular_values() else { return 0.0 };
+    let Ok(s) = super::svd::singular_values(kept.as_ref()) else { return 0.0 };
     let largest = s.iter().copied().fold(0.0, f64::max);
     let smallest = if rows.len() > a.ncols() { 0.0 } else { s.iter().copied().fold(f64::INFINITY, f64::min) };
     if largest > 0.0 {
@@ -283,7 +283,7 @@ pub fn minimum_norm_solve(a: MatRef<'_, f64>, b: &[f64], tolerance: f64) -> Vec<
     if m == 0 || n == 0 {
         return x;
     }
-    let Ok(svd) = a.thin_svd() else {
+    let Ok(svd) = super::svd::thin_svd(a) else {
         return vec![f64::NAN; n];
     };
     let (u, v) = (svd.U(), svd.V());

@@ -40,8 +40,7 @@ impl LoopClosure {
     /// The factorization of `c_hat` (cut rows x free joint coordinates) with `rank` constrained
     /// directions (at most the number of rows) and the relative `damping`.
     pub fn new(c_hat: MatRef<'_, f64>, rank: usize, damping: f64) -> std::result::Result<Self, String> {
-        let svd = c_hat
-            .svd()
+        let svd = crate::linalg::svd::svd(c_hat)
             .map_err(|_| "the SVD of the cut joints' Jacobian C_cut B did not converge".to_string())?;
         let s = svd.S().column_vector();
         let singular_values: Vec<f64> = (0..s.nrows()).map(|k| s[k]).collect();
