@@ -19,7 +19,7 @@ def check_close(
     a failure names what was compared, the worst entry, both values and the tolerance."""
     a = np.asarray(actual, dtype=float)
     e = np.broadcast_to(np.asarray(expected, dtype=float), a.shape)
-    tolerance = abs + rel * np.abs(e)
+    tolerance = np.broadcast_to(abs + rel * np.abs(e), a.shape)  # (abs, rel: numbers or arrays)
     excess = np.where(np.isnan(a) | np.isnan(e), np.inf, np.abs(a - e) - tolerance)
     if excess.size == 0 or np.max(excess) <= 0.0:
         return
@@ -27,7 +27,8 @@ def check_close(
     where = f"{what}[{', '.join(map(str, k))}]" if k else what
     pytest.fail(
         f"{where}: {a[k]:.17g} against {e[k]:.17g}: |difference| {np.abs(a[k] - e[k]):.3e} > "
-        f"{abs:.1e} + {rel:.1e} |expected| = {tolerance[k]:.3e}",
+        f"{np.broadcast_to(abs, a.shape)[k]:.1e} + {np.broadcast_to(rel, a.shape)[k]:.1e} "
+        f"|expected| = {tolerance[k]:.3e}",
         pytrace=False,
     )
 

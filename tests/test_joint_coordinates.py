@@ -330,8 +330,12 @@ def test_a_tree_that_would_move_a_body_is_refused():
     s.add_fixed_joint(
         s.add_marker(s.ground), s.add_marker(plate, orientation=rotation_x(np.pi)), name="weld"
     )
-    with pytest.raises(fm.InvalidModelError, match="'weld' \\(fixed\\).*'plate'"):
+    with pytest.raises(fm.InvalidModelError, match="'weld' \\(fixed\\).*'plate'") as error:
         fm.simulate(s, 0.1, 1e-3, solver=solver("joint-coordinates"))
+    # The message says how far, and what to do (it gave "for example opposite z axes" also
+    # for a weld turned about z, whose z axes agree).
+    assert "turns it by 180.0 degrees about (1.000, 0.000, 0.000)" in str(error.value)
+    assert "cut the joint (cut_joints)" in str(error.value)
 
 
 @pytest.mark.parametrize(

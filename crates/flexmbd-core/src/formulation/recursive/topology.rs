@@ -79,12 +79,34 @@ impl Tree {
             };
             let scale = 1.0 + (0..3).map(|k| q[o + k].abs()).fold(0.0, f64::max);
             if position > 1e-8 * scale || rotation > 1e-8 {
+                let turn = if is_point_mass(model, b) {
+                    String::new()
+                } else {
+                    // The turn from the tree's orientation to the model's, r = conj(p_tree) p_model.
+                    let (t, m) = (&q_tree[o + 3..o + 7], &q[o + 3..o + 7]);
+                    let r0 = t[0] * m[0] + t[1] * m[1] + t[2] * m[2] + t[3] * m[3];
+                    let r = [
+                        t[0] * m[1] - t[1] * m[0] - (t[2] * m[3] - t[3] * m[2]),
+                        t[0] * m[2] - t[2] * m[0] - (t[3] * m[1] - t[1] * m[3]),
+                        t[0] * m[3] - t[3] * m[0] - (t[1] * m[2] - t[2] * m[1]),
+                    ];
+                    let sine = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    let angle = 2.0 * sine.atan2(r0.abs()).to_degrees();
+                    let axis = r.map(|v| v / sine.max(f64::MIN_POSITIVE) * r0.signum());
+                    format!(
+                        " and turns it by {angle:.1} degrees about ({:.3}, {:.3}, {:.3}) in its frame",
+                        axis[0], axis[1], axis[2]
+                    )
+                };
                 return Err(invalid(
                     name.clone(),
                     format!(
-                        "the joint-coordinate tree places body '{}' {position:.3e} m and {rotation:.3e} (Euler \
-                         parameters) away from the model's configuration: the joint's markers are not aligned \
-                         as its type assumes (for example opposite z axes)",
+                        "the joint-coordinate tree places body '{}' {position:.3e} m away from the model's \
+                         configuration{turn}: a tree joint takes the child-side marker's frame as the \
+                         parent-side one's moved only along the joint's own coordinates, and these markers' \
+                         frames are turned otherwise (a weld or hinge with a marker turned half a turn is \
+                         one; the augmented strategies hold such a joint as a constraint); turn the \
+                         markers' frames to match, or cut the joint (cut_joints)",
                         model.bodies[b].name
                     ),
                 ));
