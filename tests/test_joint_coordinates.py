@@ -554,3 +554,20 @@ def test_a_driver_listed_among_the_cut_joints_is_cut_and_a_joint_listed_twice_is
     assert_close(cut.driver_effort("drive"), prescribed.driver_effort("drive"), rel=1e-9)
     with pytest.raises(fm.InvalidParameterError, match="cut joint 'hinge': listed twice"):
         run([hinge, hinge])
+
+
+def test_a_driver_that_contradicts_a_tree_joint_is_named_as_such():
+    # An angle driver on a universal joint's markers turns about z_i, which the joint's cross
+    # equation locks. The augmented strategies name the conflict; joint coordinates diverged
+    # in the projection onto the cut driver ("step size 0.000e0"), now refused at the start:
+    # the corrected velocities (the cross equation left out as redundant) break the tree joint.
+    system = fm.System(gravity=(0.0, -9.81, 0.5))
+    body = system.add_rigid_body(1.0, (0.02, 0.1, 0.1), position=(0.5, 0, 0))
+    ground, end = system.add_marker(system.ground), system.add_marker(body, position=(-0.5, 0, 0))
+    system.add_universal_joint(ground, end, name="u")
+    system.add_angle_driver(ground, end, fm.Polynomial([0.0, 0.6]), name="d")
+    model = system.compile()
+    with pytest.raises(fm.ConflictingConstraintsError, match="joint 'u' .* equation 'cross'"):
+        fm.simulate(model, 0.01, 1e-3, solver=fm.ExplicitSolver("rk4", "projection"))
+    with pytest.raises(fm.InitialConditionsError, match="a constraint contradicts a tree joint"):
+        fm.simulate(model, 0.01, 1e-3, solver=fm.ExplicitSolver("rk4", "joint-coordinates"))

@@ -85,9 +85,12 @@ pub enum FlexmbdError {
     /// initial conditions), so no joint rates give them.
     #[error(
         "initial velocities at t = {} violate the tree joints: joint coordinates hold only \
-         velocities that satisfy them ({item} would move by {size:.3e}); let the initial \
-         conditions correct them (correct_initial_velocities), or take an augmented strategy, \
-         which integrates them as given"
+         velocities that satisfy them ({item} would move by {size:.3e}). Velocities left as given \
+         (correct_initial_velocities off): let the initial conditions correct them, or take an \
+         augmented strategy, which integrates them as given. Velocities corrected that still \
+         violate them: a constraint contradicts a tree joint (a driver of a coordinate the joint \
+         locks, such as an angle driver on a universal joint's markers), which an augmented \
+         strategy names"
     , Seconds(*.time))]
     VelocitiesOffTheTree {
         /// Simulation time of the start.

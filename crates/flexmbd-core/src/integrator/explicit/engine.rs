@@ -86,6 +86,8 @@ pub(super) struct Engine<'a> {
     pub(super) loop_rank: usize,
     /// The numerical rank of C_cut B at the last projection (`project_joint_coordinates`).
     pub(super) observed_loop_rank: usize,
+    /// Joint coordinates: the time of the start (where the cut equations' rank was found).
+    pub(super) tree_start: f64,
     /// Joint space of a rigid tree: the evaluation body by body (without B and the model's
     /// dense matrices) and its influence coefficients at self.p; the dense path serves where
     /// the cut joints are not regular (`formulation::recursive::SparseJointSpace`).
@@ -138,6 +140,7 @@ impl<'a> Engine<'a> {
             influence: Mat::zeros(0, 0),
             loop_rank: 0,
             observed_loop_rank: 0,
+            tree_start: 0.0,
             tree_solver: None,
             structured: None,
             tree_reactions: TreeAccelerations::default(),

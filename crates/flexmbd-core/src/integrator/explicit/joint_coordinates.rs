@@ -109,6 +109,7 @@ impl Engine<'_> {
         self.evaluate(t0, Level::Velocity)?;
         let cut_rows = self.tree.as_ref().map(|t| t.cut_rows.clone()).unwrap_or_default();
         self.loop_rank = loop_rank(&self.eq, &self.influence, &cut_rows, explicit.rank_tolerance);
+        self.tree_start = t0;
         if explicit.tree_formulation == TreeFormulation::Coupled && self.loop_rank < cut_rows.len() {
             // Eq. 40's LU holds the cut multipliers with the rest: with dependent cut equations
             // it is singular (refused by the LU with rigid loops), or, with deformable bodies in
@@ -207,8 +208,19 @@ impl Engine<'_> {
     }
 
     /// The error of a projection onto the cut joints that does not converge: the worst
-    /// constraint row named.
+    /// constraint row named. With cut equations dependent since the start, a conflict: a cut
+    /// equation the tree's joints already decide, otherwise (an angle driver on the markers of
+    /// a universal joint, which locks that angle; the augmented strategies name it so too).
     fn projection_diverged(&self, time: f64, iterations: usize, violation: f64, row: usize) -> FlexmbdError {
+        let cut_rows = self.tree.as_ref().map_or(0, |t| t.cut_rows.len());
+        if self.loop_rank < cut_rows {
+            return FlexmbdError::ConflictingConstraints {
+                time,
+                item: self.model.constraint_name(row),
+                violation,
+                since: self.tree_start,
+            };
+        }
         FlexmbdError::NewtonDiverged {
             time,
             step_size: 0.0,
