@@ -200,3 +200,43 @@ def test_the_campbell_command_on_the_rotating_blade_model_file(tmp_path, capsys,
         assert_close(data["frequency"].values[0, 0], f[-1, 0], rel=1e-6)
     assert main(["campbell", "four-bar", "--speeds", "0:1:2"]) == 2
     assert "no angle driver: name the one to turn with --driver" in capsys.readouterr().err
+
+
+def test_a_mode_without_a_continuation_is_a_gap_not_another_mode(assert_close):
+    # A clamped shaft of a 2:1 rectangular section spinning about its axis (rotating frame):
+    # its first bending mode does not oscillate between the two critical speeds w1 and w2
+    # (s^4 + (w1^2 + w2^2 + 2 W^2) s^2 + (w1^2 - W^2)(w2^2 - W^2) = 0). The followed mode
+    # took an unrelated 51 Hz mode at MAC 0.33 there and kept following it.
+    from flexmbd.fe import build_body, straight_beam
+
+    along_x = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    nodes, beams = straight_beam(1.0, 10)
+    section = Section.rectangle(0.02, 0.01).without_rotary_inertia()
+    data = build_body(
+        nodes, beams, Material(2.1e11, 0.3, 7800.0), section=section, reference="clamped",
+        reference_nodes=[0],
+    )  # fmt: skip
+    s = fm.System()
+    shaft = s.add_flexible_body(data, name="shaft")
+    hub, root = (
+        s.add_marker(s.ground, orientation=along_x),
+        s.add_node_marker(shaft, 1, orientation=along_x),
+    )
+    s.add_revolute_joint(hub, root, name="bearing")
+    s.add_angle_driver(hub, root, fm.Polynomial([0.0, 0.0]), name="spin")
+    w1, w2 = 2 * np.pi * fm.linearize(s, fm.equilibrium(s)).frequencies()[:2]
+    speeds = np.array([0.0, 0.5, 0.9, 1.2, 1.5, 1.9, 2.2, 2.6, 3.0]) * w1  # w2 = 2 w1
+    diagram = fm.campbell(s, "spin", speeds, modes=2)
+    a = w1**2 + w2**2 + 2 * speeds**2
+    b = (w1**2 - speeds**2) * (w2**2 - speeds**2)
+    slow = -0.5 * a + np.sqrt(0.25 * a**2 - b + 0j)  # s^2 of the slower branch
+    inside = (speeds > w1) & (speeds < w2)
+    assert np.all(np.isnan(diagram.frequencies[inside, 0]))
+    # Before the gap the branch; after it the branch again where its shape is found back
+    # (MAC 0.5 with the last one before the gap), a gap until then, never another mode.
+    before, after = speeds < w1, speeds > w2
+    expected = np.sqrt(-slow.real.clip(max=0.0)) / (2 * np.pi)
+    assert_close(diagram.frequencies[before, 0], expected[before], rel=1e-3, what="below w1")
+    found = after & np.isfinite(diagram.frequencies[:, 0])
+    assert found[-1]
+    assert_close(diagram.frequencies[found, 0], expected[found], rel=1e-3, what="above w2")

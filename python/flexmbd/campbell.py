@@ -53,6 +53,11 @@ from .rotation import angular_velocity
 
 Array = NDArray[np.float64]
 
+#: Smallest MAC of a mode's shape with the one it had at the previous speed for the candidate
+#: to continue it; below it the mode has no continuation there (a gap of NaN, as where it
+#: stops oscillating).
+FOLLOW_MAC = 0.5
+
 #: Candidate modes per speed beyond those followed (a followed mode may rise above the others).
 EXTRA_CANDIDATES = 6
 
@@ -481,6 +486,13 @@ def campbell(
             # Fewer candidates than followed modes (a table of no columns raised a plain
             # ValueError): the modes left without one are the gaps.
             rows, columns = linear_sum_assignment(-table) if table.size else ([], [])
+            # A candidate unlike the mode is no continuation of it: the mode stopped
+            # oscillating and the assignment took an unrelated one (an asymmetric shaft's
+            # first mode between its two critical speeds took a 51 Hz mode at MAC 0.33 and
+            # followed it from there, never to return).
+            strong = table[rows, columns] >= FOLLOW_MAC if table.size else np.zeros(0, bool)
+            rows = np.asarray(rows, dtype=np.int64)[strong]
+            columns = np.asarray(columns, dtype=np.int64)[strong]
             found[:] = False
             found[rows] = True
             pick[rows] = columns

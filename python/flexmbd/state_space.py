@@ -342,6 +342,14 @@ def body_shapes(
             f"model's coordinates), got shape {q0.shape}",
             item="coordinates",
         )
+    mode = np.asarray(shape)
+    if mode.shape != (model.coordinate_count,) or not np.all(np.isfinite(mode)):
+        raise InvalidParameterError(
+            f"body_shapes: the shape must be {model.coordinate_count} finite numbers (one per "
+            f"coordinate of the model, as a linearization's shapes), got shape {mode.shape}"
+            + ("" if mode.shape != (model.coordinate_count,) else " with values not finite"),
+            item="shape",
+        )
     shapes: dict[str, dict[str, Any]] = {}
     for index, entry in enumerate(layout["bodies"]):
         if entry["kind"] == "ground":
