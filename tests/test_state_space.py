@@ -404,3 +404,31 @@ def test_a_gimballed_rotor_has_the_same_frequencies_whatever_the_order_of_its_bo
     expected = np.sort([(root - ip * speed), (root + ip * speed)]) / (2 * it * 2 * np.pi)
     found = fm.linearize(system, "steady-rotation").frequencies()
     assert_close(found, expected, rel=1e-4, what="gimbal frequencies")
+
+
+def test_the_response_at_a_mode_the_load_does_not_drive_is_finite(assert_close):
+    # A vertical tip force and the vertical tip deflection of the strip: at the frequency of a
+    # lateral bending mode (which they neither drive nor see) the response is the modal sum of
+    # the vertical modes; it was inf with a ResonanceWarning (any eigenvalue near i w counted).
+    system, data, tip = cantilever()
+    linear = fm.linearize(
+        system,
+        inputs=[fm.PointLoad(tip, (0, 0, 1), name="F_z")],
+        outputs=[fm.NodeDisplacement("strip", TIP, (0, 0, 1), name="w_tip")],
+    )
+    k, m = data.invariants.k_ff.toarray(), data.invariants.m_ff.toarray()
+    w2, phi = sla.eigh(k, m)
+    tip_row = np.asarray(elastic_basis(data)[(TIP - 1) * data.dofs_per_node + 2].toarray()).ravel()
+    share = tip_row @ phi
+    lateral = int(np.flatnonzero(np.abs(share) < 1e-6 * np.abs(share).max())[0])
+    f = linear.frequencies()
+    at = f[np.argmin(np.abs(f - np.sqrt(w2[lateral]) / (2 * np.pi)))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        response = linear.state_space().frequency_response([at])[0, 0, 0]
+    vertical = np.abs(share) >= 1e-6 * np.abs(share).max()
+    modal = np.sum(share[vertical] ** 2 / (w2[vertical] - (2 * np.pi * at) ** 2))
+    assert_close(response.real, modal, rel=1e-6, what="H at the lateral mode's frequency")
+    # At a vertical mode's own frequency the response is unbounded.
+    with pytest.warns(fm.ResonanceWarning):
+        assert np.isinf(linear.state_space().frequency_response([f[0]])[0, 0, 0])

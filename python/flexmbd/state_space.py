@@ -141,9 +141,20 @@ class StateSpace:
             near = solved is None or not np.all(np.isfinite(solved))
             if not near and any(issubclass(w.category, sla.LinAlgWarning) for w in caught):
                 if eigenvalues is None:
-                    eigenvalues = np.linalg.eigvals(self.a)
+                    eigenvalues, left, right = sla.eig(self.a, left=True, right=True)
+                    # How much each mode is driven by the inputs and seen by the outputs:
+                    # |C v| |w^H B| / (|v| |w| |C| |B|), from its right and left vectors.
+                    seen = np.linalg.norm(self.c @ right, axis=0) / np.linalg.norm(right, axis=0)
+                    driven = np.linalg.norm(left.conj().T @ self.b, axis=1)
+                    driven /= np.linalg.norm(left, axis=0)
+                    scale = max(np.linalg.norm(self.c) * np.linalg.norm(self.b), 1e-300)
+                    excited = seen * driven / scale > UNEXCITED
                 distance = np.abs(eigenvalues - s)
-                near = bool(np.any(distance <= RESONANCE_DISTANCE * np.abs(eigenvalues)))
+                # (A mode the inputs do not drive, or the outputs do not see, is no
+                # resonance of this response: the solve is right there, a lateral bending
+                # mode under a vertical force gave inf for -0.029049.)
+                close = distance <= RESONANCE_DISTANCE * np.abs(eigenvalues)
+                near = bool(np.any(close & excited))
             if near:
                 resonant.append(float(fk))
                 out[k] = complex(np.inf, 0.0)
@@ -169,6 +180,12 @@ class StateSpace:
 #: :meth:`StateSpace.frequency_response` takes w for an undamped resonance (the response
 #: there, about 1 / (2 distance) times the static one, is round-off).
 RESONANCE_DISTANCE = 1e-9
+
+#: Participation |C v| |w^H B| / (|v| |w| |C| |B|) of a mode (right and left eigenvectors v,
+#: w of A) at or below which :meth:`StateSpace.frequency_response` does not take it for a
+#: resonance of the response (round-off of a mode the inputs do not drive or the outputs do
+#: not see).
+UNEXCITED = 1e-8
 
 
 def _unit(direction: ArrayLike, what: str) -> Array:
