@@ -35,25 +35,28 @@ def cantilever():
     return system, data, tip
 
 
-def test_tip_frequency_response_is_the_modal_sum_of_the_fe_model(assert_close):
+def tip_linearization():
+    """The strip linearized with a vertical tip force in and the vertical tip deflection out,
+    and its FE model: the squared frequencies w2 of K_ff, M_ff (mass-normalized modes) and
+    each mode's share of the tip's vertical displacement."""
     system, data, tip = cantilever()
     linear = fm.linearize(
         system,
         inputs=[fm.PointLoad(tip, (0, 0, 1), name="F_z")],
         outputs=[fm.NodeDisplacement("strip", TIP, (0, 0, 1), name="w_tip")],
     )
+    w2, phi = sla.eigh(data.invariants.k_ff.toarray(), data.invariants.m_ff.toarray())
+    tip_row = np.asarray(elastic_basis(data)[(TIP - 1) * data.dofs_per_node + 2].toarray()).ravel()
+    return linear, w2, tip_row @ phi
+
+
+def test_tip_frequency_response_is_the_modal_sum_of_the_fe_model(assert_close):
+    linear, w2, share = tip_linearization()
     ss = linear.state_space()
     assert ss.inputs == ["F_z"] and ss.outputs == ["w_tip"]
-    # The FE model: K_ff, M_ff of the clamped strip; its modes, mass-normalized.
-    k, m = data.invariants.k_ff, data.invariants.m_ff
-    k = k.toarray() if hasattr(k, "toarray") else np.asarray(k)
-    m = m.toarray() if hasattr(m, "toarray") else np.asarray(m)
-    w2, phi = sla.eigh(k, m)
-    d = data.dofs_per_node
-    tip_row = np.asarray(elastic_basis(data)[(TIP - 1) * d + 2].toarray()).ravel()
     frequencies = np.array([0.3, 1.0, 2.5, 7.0, 30.0, 120.0])  # Hz, between resonances
     omega = 2 * np.pi * frequencies
-    modal = np.array([np.sum((tip_row @ phi) ** 2 / (w2 - o**2)) for o in omega])
+    modal = np.array([np.sum(share**2 / (w2 - o**2)) for o in omega])
     response = ss.frequency_response(frequencies)[:, 0, 0]
     assert_close(response.imag, 0.0, abs=1e-12 * np.abs(modal).max(), what="undamped: real")
     assert_close(response.real, modal, rel=1e-8, what="H(w) against the modal sum")
@@ -410,16 +413,7 @@ def test_the_response_at_a_mode_the_load_does_not_drive_is_finite(assert_close):
     # A vertical tip force and the vertical tip deflection of the strip: at the frequency of a
     # lateral bending mode (which they neither drive nor see) the response is the modal sum of
     # the vertical modes; it was inf with a ResonanceWarning (any eigenvalue near i w counted).
-    system, data, tip = cantilever()
-    linear = fm.linearize(
-        system,
-        inputs=[fm.PointLoad(tip, (0, 0, 1), name="F_z")],
-        outputs=[fm.NodeDisplacement("strip", TIP, (0, 0, 1), name="w_tip")],
-    )
-    k, m = data.invariants.k_ff.toarray(), data.invariants.m_ff.toarray()
-    w2, phi = sla.eigh(k, m)
-    tip_row = np.asarray(elastic_basis(data)[(TIP - 1) * data.dofs_per_node + 2].toarray()).ravel()
-    share = tip_row @ phi
+    linear, w2, share = tip_linearization()
     lateral = int(np.flatnonzero(np.abs(share) < 1e-6 * np.abs(share).max())[0])
     f = linear.frequencies()
     at = f[np.argmin(np.abs(f - np.sqrt(w2[lateral]) / (2 * np.pi)))]

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from .._checks import number
 from ..errors import InvalidModelError, InvalidParameterError
+from ..rotation import skew
 from . import preprocess
 from .body import FlexibleBodyData, _replace
 
@@ -356,15 +357,15 @@ def _point_masses(body: FlexibleBodyData, assembled: sp.csc_matrix) -> dict[int,
         # -m e~ on (u, theta): e from its antisymmetric entries.
         spread = -block[:3, 3:] / size
         offset = np.array([spread[2, 1], spread[0, 2], spread[1, 0]])
-        skew = preprocess._skew(offset)
-        if np.abs(spread - skew).max() > 1e-9 * max(float(np.abs(spread).max()), 1.0):
+        turn = skew(offset)
+        if np.abs(spread - turn).max() > 1e-9 * max(float(np.abs(spread).max()), 1.0):
             raise InvalidModelError(
                 f"node {int(body.node_ids[node])}: the mass beyond the elements' couples its "
                 "displacements and rotations in a way no offset mass does: not a concentrated "
                 "mass",
                 item="field 'mass'",
             )
-        lumps[node] = (mass, block[3:, 3:] + mass * skew @ skew, offset)
+        lumps[node] = (mass, block[3:, 3:] + mass * turn @ turn, offset)
     return lumps
 
 

@@ -28,6 +28,7 @@ from ..errors import (
     MeshQualityWarning,
     UnknownItemError,
 )
+from ..rotation import skew
 from .body import FlexibleBodyData, Invariants, ReferenceConditions
 from .interface import Interface
 from .mesh_io import (
@@ -1684,11 +1685,6 @@ def combined_point_mass(
     return mass, inertia, centre
 
 
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """v~, the matrix of v x ."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 def point_mass_matrix(
     point_masses: Mapping[int, Any],
     node_count: int,
@@ -1700,17 +1696,20 @@ def point_mass_matrix(
     moves with the node's displacement u and small rotation theta as u + theta x e, so its
     block on (u, theta) is [[m I, -m e~], [m e~, J - m e~ e~]] with J its rotary inertia about
     that centre (m I_3 alone on a node with 3 coordinates)."""
-    d = dofs_per_node
+    entries = point_mass_entries(point_masses, node_count, dofs_per_node, without_rotations)
+    return _entries_matrix(entries, node_count, dofs_per_node)
+
+
+def _entries_matrix(entries: Sequence[PointMass], node_count: int, d: int) -> sp.csc_matrix:
+    """The nodal mass matrix of checked concentrated masses (`point_mass_matrix`)."""
     rows: list[int] = []
     cols: list[int] = []
     values: list[float] = []
-    for node, mass, inertia, offset in point_mass_entries(
-        point_masses, node_count, d, without_rotations
-    ):
+    for node, mass, inertia, offset in entries:
         block = np.zeros((d, d))
         block[:3, :3] = mass * np.eye(3)
         if d == 6:
-            e = _skew(offset)
+            e = skew(offset)
             block[:3, 3:] = -mass * e
             block[3:, :3] = mass * e
             block[3:, 3:] = inertia - mass * e @ e
@@ -1752,19 +1751,19 @@ def point_mass_invariants(
         out["first_moment"] += m * c
         out["second_moment"] += m * np.outer(c, c) + p
         # Rows of S at the centre: [I, -e~]; the spread s adds -s~ to the rotation columns.
-        s_c = np.hstack([eye, -_skew(e)])
+        s_c = np.hstack([eye, -skew(e)])
         out["i1"][:, columns] += m * s_c
         # int x_a S_b: x = c + s; int s_a (-s~)_b = -sum_k P_ak (e_k~)_b.
         spread = np.zeros((3, 3, 6))  # [a, b, column]
         for k in range(3):
-            spread[:, :, 3:] -= np.einsum("a,bc->abc", p[:, k], _skew(eye[k]))
+            spread[:, :, 3:] -= np.einsum("a,bc->abc", p[:, k], skew(eye[k]))
         out["ibar"][:, :, columns] += m * np.einsum("a,bc->abc", c, s_c) + spread
         for a in range(3):
             for b in range(3):
                 block = m * np.outer(s_c[a], s_c[b])
                 for k in range(3):
                     for j in range(3):
-                        block[3:, 3:] += p[k, j] * np.outer(_skew(eye[k])[a], _skew(eye[j])[b])
+                        block[3:, 3:] += p[k, j] * np.outer(skew(eye[k])[a], skew(eye[j])[b])
                 r, q = np.nonzero(block)
                 coo[a, b][0].extend(columns[r])
                 coo[a, b][1].extend(columns[q])
@@ -1792,15 +1791,13 @@ def with_point_masses(
     body that mixes them with beams or shells."""
     d = nodal.dofs_per_node
     loose = () if elements is None else solid_only_rotations(elements, len(nodes), d)[::3] // d
-    without = set(np.asarray(loose).tolist())
-    extra = point_mass_matrix(point_masses, len(nodes), d, without)
+    entries = point_mass_entries(point_masses, len(nodes), d, set(np.asarray(loose).tolist()))
+    extra = _entries_matrix(entries, len(nodes), d)
     if extra.nnz == 0:
         return nodal
     if nodal.dofs_per_node == 6:
         scalar = None
-        added = point_mass_invariants(
-            nodes, point_mass_entries(point_masses, len(nodes), d, without)
-        )
+        added = point_mass_invariants(nodes, entries)
     else:
         extra_scalar = sp.csc_matrix(extra[0::3, :][:, 0::3])
         scalar = None if nodal.scalar_mass is None else (nodal.scalar_mass + extra_scalar).tocsc()

@@ -159,27 +159,45 @@ mod tests {
         assert!(clock.due(0.6));
     }
 
-    #[test]
-    fn steps_of_a_long_run_keep_their_size_and_land_on_every_output_time() {
-        // Summed step times drift from the output grid by round-off (at t = 10 s some 1e-14 s,
-        // 1e-11 of h): a step shortened by it would have a step size of its own, refactorizing
-        // the matrices kept for h. The steps keep h and land exactly on the grid and the end.
-        let (h, dt, end) = (1e-3, 1e-2, 20.0);
+    /// Settings of a run to `end` with step `h` and outputs every `dt`.
+    fn landing_settings(h: f64, dt: f64, end: f64) -> SimulationSettings {
         let mut settings = SimulationSettings::new(end, h);
         settings.output_interval = Some(dt);
-        let mut clock = OutputClock::new(&settings, 0.0);
+        settings
+    }
+
+    /// The steps of a run of `settings` as the time loop takes them, the end of each from
+    /// `finish` (clock, start, step): every step must be the step size and every output land
+    /// on the grid. Returns (steps, outputs, end time).
+    fn landed_run(
+        settings: &SimulationSettings,
+        finish: impl Fn(&mut OutputClock, f64, f64) -> f64,
+    ) -> (usize, usize, f64) {
+        let (h, dt) = (settings.step_size, settings.output_interval.expect("an output interval"));
+        let mut clock = OutputClock::new(settings, 0.0);
         let (mut time, mut steps, mut outputs) = (0.0, 0usize, 0usize);
         while clock.running(time) {
             let h_try = clock.step(time, h);
             assert_eq!(h_try, h, "step {steps} from t = {time}");
-            time = clock.land(time + h_try);
+            time = finish(&mut clock, time, h_try);
             steps += 1;
             if clock.due(time) {
                 outputs += 1;
                 assert_eq!(time, dt * outputs as f64, "output {outputs}");
             }
         }
-        assert_eq!((steps, outputs, time), (20_000, 2_000, end));
+        (steps, outputs, time)
+    }
+
+    #[test]
+    fn steps_of_a_long_run_keep_their_size_and_land_on_every_output_time() {
+        // Summed step times drift from the output grid by round-off (at t = 10 s some 1e-14 s,
+        // 1e-11 of h): a step shortened by it would have a step size of its own, refactorizing
+        // the matrices kept for h. The steps keep h and land exactly on the grid and the end.
+        let (h, dt, end) = (1e-3, 1e-2, 20.0);
+        let settings = landing_settings(h, dt, end);
+        let run = landed_run(&settings, |clock, time, h| clock.land(time + h));
+        assert_eq!(run, (20_000, 2_000, end));
         // A step still shortens to an output time it would pass by more than round-off.
         let clock = OutputClock::new(&settings, 0.0);
         assert_eq!(clock.step(0.0, 0.015), dt);
@@ -194,21 +212,9 @@ mod tests {
         // and the step before an output time stopped short of it, leaving a step of 2.7e-12 s
         // (the four-bar of the examples then ended in non-finite values at t = 0.400001).
         let (h, dt, end) = (1e-6, 0.1, 0.5);
-        let mut settings = SimulationSettings::new(end, h);
-        settings.output_interval = Some(dt);
-        let mut clock = OutputClock::new(&settings, 0.0);
-        let (mut time, mut steps, mut outputs) = (0.0, 0usize, 0usize);
-        while clock.running(time) {
-            let h_try = clock.step(time, h);
-            assert_eq!(h_try, h, "step {steps} from t = {time}");
-            time = clock.finish_step(time, h_try);
-            steps += 1;
-            if clock.due(time) {
-                outputs += 1;
-                assert_eq!(time, dt * outputs as f64, "output {outputs}");
-            }
-        }
-        assert_eq!((steps, outputs, time), (500_000, 5, end));
+        let settings = landing_settings(h, dt, end);
+        let run = landed_run(&settings, |clock, time, h| clock.finish_step(time, h));
+        assert_eq!(run, (500_000, 5, end));
         // The same times summed one by one: a sliver before some output time.
         let mut clock = OutputClock::new(&settings, 0.0);
         let (mut time, mut smallest) = (0.0f64, h);

@@ -12,6 +12,7 @@
 use super::placement::{is_point_mass, place_joints, Configuration, JointMarkers};
 use super::*;
 use crate::joint::Joint;
+use crate::math::euler::{from_rotation_matrix, rotation_matrix};
 
 impl Tree {
     /// The tree of `model`, with the joint and elastic coordinates of the model's
@@ -82,17 +83,14 @@ impl Tree {
                 let turn = if is_point_mass(model, b) {
                     String::new()
                 } else {
-                    // The turn from the tree's orientation to the model's, r = conj(p_tree) p_model.
-                    let (t, m) = (&q_tree[o + 3..o + 7], &q[o + 3..o + 7]);
-                    let r0 = t[0] * m[0] + t[1] * m[1] + t[2] * m[2] + t[3] * m[3];
-                    let r = [
-                        t[0] * m[1] - t[1] * m[0] - (t[2] * m[3] - t[3] * m[2]),
-                        t[0] * m[2] - t[2] * m[0] - (t[3] * m[1] - t[1] * m[3]),
-                        t[0] * m[3] - t[3] * m[0] - (t[1] * m[2] - t[2] * m[1]),
-                    ];
-                    let sine = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-                    let angle = 2.0 * sine.atan2(r0.abs()).to_degrees();
-                    let axis = r.map(|v| v / sine.max(f64::MIN_POSITIVE) * r0.signum());
+                    // The turn from the tree's orientation to the model's, A_tree^T A_model (body axes).
+                    let parameters = |x: &[f64]| rotation_matrix(&[x[0], x[1], x[2], x[3]]);
+                    let turn =
+                        parameters(&q_tree[o + 3..o + 7]).transpose().mul_mat(&parameters(&q[o + 3..o + 7]));
+                    let r = from_rotation_matrix(&turn);
+                    let sine = (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt();
+                    let angle = 2.0 * sine.atan2(r[0].abs()).to_degrees();
+                    let axis = [r[1], r[2], r[3]].map(|v| v / sine.max(f64::MIN_POSITIVE) * r[0].signum());
                     format!(
                         " and turns it by {angle:.1} degrees about ({:.3}, {:.3}, {:.3}) in its frame",
                         axis[0], axis[1], axis[2]

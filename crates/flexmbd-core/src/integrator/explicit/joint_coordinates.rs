@@ -141,14 +141,9 @@ impl Engine<'_> {
     /// violate the tree joints (left as given by `correct_initial_velocities` off) have no
     /// joint rates, and the least-squares rates would start the run from others without a word.
     fn check_represented_velocities(&self, t0: f64, given: &[f64]) -> Result<()> {
-        let scale = 1.0 + given.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let (k, size) = self
-            .qd
-            .iter()
-            .zip(given)
-            .map(|(a, b)| (a - b).abs())
-            .enumerate()
-            .fold((0, 0.0f64), |best, (k, d)| if d > best.1 { (k, d) } else { best });
+        let scale = 1.0 + worst(given).1;
+        let change: Vec<f64> = self.qd.iter().zip(given).map(|(a, b)| a - b).collect();
+        let (k, size) = worst(&change);
         if size <= REPRESENTED_VELOCITY * scale {
             return Ok(());
         }
