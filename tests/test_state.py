@@ -591,6 +591,46 @@ def test_the_stability_of_a_steady_rotation_counts_the_spin_softening(speed, ass
     assert_close(np.sort(values.imag), np.sort([rate.imag, -rate.imag]), abs=1e-7)
 
 
+@pytest.mark.parametrize(
+    ("speed", "damping", "stable"),
+    [(5.0, 0.0, True), (5.0, 0.5, True), (15.0, 0.0, True), (15.0, 0.5, False)],
+)
+def test_a_rotor_above_its_critical_speed_is_held_by_its_gyroscopic_terms(
+    speed, damping, stable, assert_close
+):
+    # A mass on isotropic springs (k, damping c) in the plane of a turntable spun at W, above
+    # sqrt(k / m) = 10 rad/s: in the turning frame its stiffness k - m W^2 is negative in two
+    # directions, and the Coriolis terms hold it (undamped, it whirls at +-sqrt(k / m) +- W);
+    # damping that turns with it makes it unstable (one whirl grows). The inertia of the
+    # stiffness called every run above 10 rad/s unstable in 2 directions.
+    mass, k, arm, rotary = 1.0, 100.0, 10.0, 5.0
+    system = fm.System()
+    table = system.add_rigid_body(10.0, (1, 1, 1), name="table")
+    fixed, turning = system.add_marker(system.ground), system.add_marker(table)
+    system.add_revolute_joint(fixed, turning)
+    system.add_angle_driver(fixed, turning, fm.Polynomial([0.0, speed]), name="drive")
+    slider = system.add_rigid_body(mass, (0.01, 0.01, 0.01), name="slider")
+    carried, centre = system.add_marker(table), system.add_marker(slider)
+    system.add_planar_joint(carried, centre)
+    system.add_rotational_spring_damper(carried, centre, stiffness=rotary)
+    for anchor in [(-arm, 0, 0), (0, -arm, 0)]:  # (unstressed: no stiffness across)
+        system.add_spring_damper(
+            system.add_marker(table, position=anchor), centre,
+            stiffness=k, damping=damping, rest_length=arm,
+        )  # fmt: skip
+    model = system.compile()
+    state = fm.steady_rotation(model)
+    assert (state.stable, state.unstable_directions) == (stable, 0 if stable else 1)
+    # z = x + i y: m z_dd + (c + 2 i m W) z_dot + (k - m W^2) z = 0, and its conjugate; the
+    # slider's turn about the table's axis: sqrt(rotary / 0.01).
+    roots = np.roots([mass, damping + 2j * mass * speed, k - mass * speed**2])
+    expected = np.concatenate([roots, roots.conj(), [10j * np.sqrt(5.0), -10j * np.sqrt(5.0)]])
+    values = fm.linearize(model, state).eigenvalues()[0]
+    values, expected = values[np.argsort(values.imag)], expected[np.argsort(expected.imag)]
+    assert_close(values.real, expected.real, abs=1e-6, what="Re s")
+    assert_close(values.imag, expected.imag, abs=1e-6, what="Im s")
+
+
 @pytest.mark.parametrize("load", [5.0, 15.0, 19.5, 21.0])
 def test_becks_column_is_stable_until_it_flutters(load):
     # A clamped rod under a compressive follower force at its tip (Beck 1952): no divergence

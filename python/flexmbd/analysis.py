@@ -772,6 +772,10 @@ def _symmetric(matrix: Any) -> bool:
 EIGENVALUE_STABILITY_LIMIT = 1000
 
 
+#: The stability fields of an :class:`EquilibriumState` whose stability is not determined.
+UNDECIDED: dict[str, Any] = {"stable": None, "unstable_directions": 0, "neutral_directions": 0}
+
+
 def _linearized_stability(model: _core.Model, state: EquilibriumState) -> dict[str, Any]:
     """The stability fields of :class:`EquilibriumState` from the linearization about
     `state` (its stiffness holds the spin softening of the turning frames, B^T (K B +
@@ -782,10 +786,13 @@ def _linearized_stability(model: _core.Model, state: EquilibriumState) -> dict[s
     part has negative ones below): unstable where some grow (Re s above :data:`NEUTRAL`
     of the largest |s|, at least 1; each real one and each complex pair a direction),
     stable otherwise, not determined above :data:`EIGENVALUE_STABILITY_LIMIT`
-    coordinates."""
+    coordinates. The eigenvalues also decide a symmetric stiffness with negative directions
+    where the velocity terms hold gyroscopic (skew-symmetric) parts, which can hold them: a
+    rotor above its critical speed has negative stiffness in its turning frame and whirls
+    stably, undamped (its rotating damping then makes it unstable)."""
     import scipy.linalg as sla
 
-    undecided = {"stable": None, "unstable_directions": 0, "neutral_directions": 0}
+    undecided = dict(UNDECIDED)
     try:
         linear = linearize(model, state)
     except (InvalidModelError, InvalidParameterError):
@@ -801,7 +808,13 @@ def _linearized_stability(model: _core.Model, state: EquilibriumState) -> dict[s
         stable: bool | None = unstable == 0
         if stable and neutral:
             stable = None
-        return {"stable": stable, "unstable_directions": unstable, "neutral_directions": neutral}
+        if not unstable or _symmetric(linear.damping):
+            # (a symmetric damping cannot hold a negative stiffness: Kelvin, Tait, Chetaev)
+            return {
+                "stable": stable,
+                "unstable_directions": unstable,
+                "neutral_directions": neutral,
+            }
     if stiffness.shape[0] > EIGENVALUE_STABILITY_LIMIT:
         return undecided
     values = linear.eigenvalues()[0]
@@ -1063,10 +1076,13 @@ def _solve_equilibrium(
     max_iterations: int = 100,
     seek: bool = False,
     discrete: Array | None = None,
+    stability: bool = True,
 ) -> EquilibriumState:
     """Newton's method of :func:`equilibrium` from `q` (the drivers checked at `time`); with
     `seek`, the search for a stable equilibrium described there. `discrete`: the discrete
-    variables at `q` (a recorded state's), else those of `q`."""
+    variables at `q` (a recorded state's), else those of `q`. Without `stability`, a state
+    whose stability needs the linearization (moving, or a nonsymmetric stiffness) is left
+    undecided (None)."""
 
     flexible = model.flexible_bodies
     nq, nc = model.coordinate_count, model.constraint_count
@@ -1186,7 +1202,8 @@ def _solve_equilibrium(
             # symmetric part does not decide a nonsymmetric (follower-load) stiffness.
             moving = bool(np.any(qd != 0.0))
             if moving or not _symmetric(newton[:nq, :nq]):
-                state = dataclasses.replace(state, **_linearized_stability(model, state))
+                fields = _linearized_stability(model, state) if stability else UNDECIDED
+                state = dataclasses.replace(state, **fields)
             return state
     bodies = _residual_bodies(layout, residual[:nq])
     largest = float(np.max(np.abs(residual))) if len(residual) else 0.0
@@ -1233,7 +1250,14 @@ def steady_rotation(
     :func:`equilibrium` with its preconditions checked; `options` are its options
     (``coordinates``, ``tolerance``, ``max_iterations``, ``redundant_constraints``).
     Raises `InvalidModelError` naming the driver that accelerates, or when nothing turns."""
-    model = _model(model)
+    return _steady_rotation(_model(model), time, options)
+
+
+def _steady_rotation(
+    model: _core.Model, time: float, options: dict[str, Any], stability: bool = True
+) -> EquilibriumState:
+    """:func:`steady_rotation`; without `stability` the state's stability fields are not
+    determined (None: a linearization saved where the caller linearizes anyway)."""
     time = number(time, "time")
     nq, nc = model.coordinate_count, model.constraint_count
     unknown = sorted(set(options) - set(STEADY_OPTIONS))
@@ -1281,7 +1305,9 @@ def steady_rotation(
                 "needs constant driver speeds (start later, or use equilibrium)",
                 item=f"driver '{name}'",
             )
-    state = _solve_equilibrium(model, time, q, layout, tolerance, max_iterations, discrete=discrete)
+    state = _solve_equilibrium(
+        model, time, q, layout, tolerance, max_iterations, discrete=discrete, stability=stability
+    )
     state = dataclasses.replace(state, system_identity=identity_of(model))
     return _redundancy_handled(model, state, handling)
 

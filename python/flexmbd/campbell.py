@@ -386,7 +386,7 @@ def campbell(
     Raises `UnknownItemError` for an unknown driver, `InvalidParameterError` for a driver that
     is not an angle driver, an unknown frame, speeds not ascending, and "fixed" for a model
     whose driver turns no deformable body."""
-    from .analysis import equilibrium, linearize, not_a_model, steady_rotation
+    from .analysis import _steady_rotation, equilibrium, linearize, not_a_model
     from .system import System
 
     if not isinstance(system, System):
@@ -437,7 +437,10 @@ def campbell(
     def modes_at(w: float) -> tuple[Array, Array, Array]:
         turning = system.with_driver(driver, Polynomial([start - w * time, float(w)]))
         model = turning.compile()
-        state = steady_rotation(model, time) if w != 0.0 else equilibrium(model, time)
+        # (the state's stability is not asked for: its linearization is the one below)
+        state = (
+            _steady_rotation(model, time, {}, stability=False) if w else equilibrium(model, time)
+        )
         linear = linearize(model, state, independent="elastic")
         if not gyroscopic:
             linear = linear.without_velocity_terms()
