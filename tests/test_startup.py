@@ -30,6 +30,7 @@ FUNCTIONS = {
     "dispersion",
     "equilibrium",
     "euler_parameters_to_matrix",
+    "floquet",
     "inverse_dynamics",
     "linearize",
     "linearize_at_rest",

@@ -90,6 +90,7 @@ if TYPE_CHECKING:
     )
     from .campbell import CampbellDiagram, campbell, plot_campbell
     from .dispersion import DispersionBranch, dispersion
+    from .floquet import FloquetAnalysis, floquet
     from .inverse_dynamics import InverseDynamics, inverse_dynamics
     from .result import Result
     from .results_file import read_results
@@ -136,6 +137,8 @@ _ORIGIN: dict[str, str] = {
     "CampbellDiagram": "campbell",
     "campbell": "campbell",
     "plot_campbell": "campbell",
+    "FloquetAnalysis": "floquet",
+    "floquet": "floquet",
     "DispersionBranch": "dispersion",
     "dispersion": "dispersion",
     "InverseDynamics": "inverse_dynamics",
@@ -164,7 +167,7 @@ _ORIGIN: dict[str, str] = {
 #: Names that are both a submodule and the public function it defines (``fm.rotation(...)``,
 #: ``fm.campbell(...)``): the package attribute is always the function, also after the
 #: submodule is imported (the import system would otherwise set the attribute to the module).
-_FUNCTION_MODULES = frozenset(("campbell", "dispersion", "inverse_dynamics", "rotation"))
+_FUNCTION_MODULES = frozenset(("campbell", "dispersion", "floquet", "inverse_dynamics", "rotation"))
 
 
 __getattr__, __dir__ = lazy_attributes(__name__, _ORIGIN, globals())
@@ -259,6 +262,8 @@ __all__ = [
     "CampbellDiagram",
     "campbell",
     "plot_campbell",
+    "FloquetAnalysis",
+    "floquet",
     "BodyPosition",
     "ElasticCoordinate",
     "NodeDisplacement",

@@ -1970,7 +1970,7 @@ def _items(value: Any, name: str, kinds: tuple[type, ...], listed: str) -> list[
 STATE_VIOLATION = 1e-6
 
 
-def _check_state(model: _core.Model, state: State) -> None:
+def _check_state(model: _core.Model, state: State, owner: str = "linearize") -> None:
     """An `InvalidParameterError` for a state that is not one of `model`: of another System
     (its ``system_identity``), of other sizes, or whose coordinates violate the constraints
     by more than :data:`STATE_VIOLATION` (the message names the joint equation violated
@@ -1978,8 +1978,8 @@ def _check_state(model: _core.Model, state: State) -> None:
     here = identity_of(model)
     if state.system_identity is not None and here is not None and state.system_identity != here:
         raise InvalidParameterError(
-            "linearize: the state is one of another System (its system_identity differs): "
-            "linearize about a state of this system (fm.equilibrium(system), "
+            f"{owner}: the state is one of another System (its system_identity differs): "
+            "give a state of this system (fm.equilibrium(system), "
             "fm.steady_rotation(system), or result.state(k) of a run of it)",
             item="state",
         )
@@ -1987,7 +1987,7 @@ def _check_state(model: _core.Model, state: State) -> None:
     sizes = (len(state.coordinates), len(state.multipliers))
     if sizes != (nq, nc):
         raise InvalidParameterError(
-            f"linearize: the state has {sizes[0]} coordinates and {sizes[1]} multipliers, the "
+            f"{owner}: the state has {sizes[0]} coordinates and {sizes[1]} multipliers, the "
             f"model {nq} and {nc}: it is a state of another model",
             item="state",
         )
@@ -1995,21 +1995,20 @@ def _check_state(model: _core.Model, state: State) -> None:
     # t = NaN" for a NaN velocity at t = 0.
     if not np.isfinite(state.time):
         raise InvalidParameterError(
-            f"linearize: the state's time must be finite, got {state.time}", item="time"
+            f"{owner}: the state's time must be finite, got {state.time}", item="time"
         )
     for name in ("coordinates", "velocities", "accelerations", "multipliers"):
         values = np.asarray(getattr(state, name), dtype=float)
         expected = nc if name == "multipliers" else nq
         if values.shape != (expected,):
             raise InvalidParameterError(
-                f"linearize: the state's {name} must be {expected} numbers, got shape "
-                f"{values.shape}",
+                f"{owner}: the state's {name} must be {expected} numbers, got shape {values.shape}",
                 item=name,
             )
         bad = np.flatnonzero(~np.isfinite(values))
         if len(bad):
             raise InvalidParameterError(
-                f"linearize: the state's {name} must be finite, got {values[bad[0]]} at index "
+                f"{owner}: the state's {name} must be finite, got {values[bad[0]]} at index "
                 f"{bad[0]} (t = {state.time:g})",
                 item=name,
             )
@@ -2023,7 +2022,7 @@ def _check_state(model: _core.Model, state: State) -> None:
     if not violation[worst] <= floor:
         joints, names = _row_names(model.describe(), np.array([worst]))
         raise InvalidParameterError(
-            f"linearize: the state's coordinates violate {names} by "
+            f"{owner}: the state's coordinates violate {names} by "
             f"{float(violation[worst]):.3g} at t = {state.time:g} (more than {floor:.3g}): it is "
             "not a configuration of this model (a state of another model, or coordinates "
             "changed by hand)",

@@ -1,0 +1,81 @@
+"""A pendulum on a vertically shaken support: the stability of periodic motions (Floquet).
+
+The support moves as y = a sin(w t). Hanging, the pendulum is stable at every instant of the
+shake ("frozen time"), yet shaken at twice its own frequency it grows: parametric resonance.
+Upright, it falls at every instant, yet a fast enough shake holds it up (Kapitza's pendulum:
+about a^2 w^2 > 2 g L). `fm.floquet` decides both from runs of the model over one period;
+the multipliers are checked against those of the linear periodic equation (Mathieu's),
+(m L^2 + I) theta_dd + m L (g + y_dd(t)) theta = 0 (upright: -), whose fundamental matrix
+scipy integrates, and the smallest amplitude that holds the pendulum upright against
+Kapitza's estimate.
+"""
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import flexmbd as fm
+
+G, LENGTH, MASS, INERTIA = 9.81, 1.0, 1.0, 1e-3
+ALONG_Y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # a marker's z along global y
+
+
+def shaken_pendulum(amplitude: float, rate: float, upright: bool) -> fm.System:
+    system = fm.System(gravity=(0, -G, 0))
+    support = system.add_rigid_body(1.0, (1, 1, 1), name="support")
+    rail = system.add_marker(system.ground, orientation=ALONG_Y)
+    carried = system.add_marker(support, orientation=ALONG_Y)
+    system.add_prismatic_joint(rail, carried)
+    system.add_translation_driver(rail, carried, fm.Harmonic(amplitude, rate), name="shake")
+    side = 1.0 if upright else -1.0
+    bob = system.add_rigid_body(
+        MASS, (INERTIA,) * 3, position=(0, side * LENGTH, 0),
+        velocity=(0, amplitude * rate, 0), name="bob",
+    )  # fmt: skip
+    system.add_revolute_joint(
+        system.add_marker(support), system.add_marker(bob, position=(0, -side * LENGTH, 0))
+    )
+    return system
+
+
+def mathieu(amplitude: float, rate: float, upright: bool) -> np.ndarray:
+    sign = -1.0 if upright else 1.0
+
+    def rates(t: float, x: np.ndarray) -> np.ndarray:
+        shake = -amplitude * rate**2 * np.sin(rate * t)
+        k = sign * MASS * LENGTH * (G + shake) / (MASS * LENGTH**2 + INERTIA)
+        return (np.array([[0.0, 1.0], [-k, 0.0]]) @ x.reshape(2, 2)).ravel()
+
+    period = 2 * np.pi / rate
+    solution = solve_ivp(rates, (0, period), np.eye(2).ravel(), "DOP853", rtol=1e-12, atol=1e-14)
+    return np.linalg.eigvals(solution.y[:, -1].reshape(2, 2))
+
+
+def main() -> int:
+    own = np.sqrt(G / LENGTH)
+    cases = [(0.05, 2 * own, False), (0.05, 3 * own, False)]
+    cases += [(a, 60.0, True) for a in (0.03, 0.05, 0.07, 0.09, 0.11)]
+    worst, first_stable = 0.0, None
+    print(" a (m)   w (rad/s)  position  max |mu|   stable   Mathieu max |mu|")
+    for amplitude, rate, upright in cases:
+        model = shaken_pendulum(amplitude, rate, upright).compile()
+        period = 2 * np.pi / rate
+        analysis = fm.floquet(model, fm.State.of_model(model), period, period / 1600)
+        expected = mathieu(amplitude, rate, upright)
+        found = np.sort_complex(analysis.multipliers)
+        worst = max(worst, float(np.max(np.abs(found - np.sort_complex(expected)))))
+        position = "upright" if upright else "hanging"
+        print(
+            f"{amplitude:6.3f} {rate:10.2f}  {position:8s} {np.abs(found).max():9.6f}"
+            f"   {analysis.stable!s:6s}  {np.abs(expected).max():9.6f}"
+        )
+        if upright and analysis.stable and first_stable is None:
+            first_stable = amplitude
+    kapitza = np.sqrt(2 * G * LENGTH) / 60.0
+    print(f"largest difference from Mathieu's multipliers: {worst:.1e}")
+    print(f"held upright from a = {first_stable} m (Kapitza's estimate {kapitza:.3f} m)")
+    ok = worst < 1e-5 and first_stable is not None and kapitza <= first_stable < kapitza + 0.04
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,424 @@
+"""Floquet analysis: the stability of a periodic motion.
+
+About a static state or a steady rotation the linearized equations do not depend on time and
+their eigenvalues decide stability (:func:`flexmbd.linearize`). About a periodic motion (a
+pendulum on a vibrating support, a blade whose hub is pitched every turn, an anisotropic
+rotor seen from the ground) they are periodic, and the eigenvalues at one instant ("frozen
+time") decide nothing: a pendulum hanging on a support shaken at twice its frequency is
+stable at every instant and grows. Floquet's theory decides instead: a small motion z(t)
+about the periodic one returns after a period as z(T) = Phi z(0), and the motion is stable
+where every eigenvalue mu of the monodromy matrix Phi (the Floquet multipliers) has
+|mu| <= 1. The characteristic exponents log(mu) / T are the eigenvalues' counterparts
+(their imaginary parts known up to multiples of 2 pi / T).
+
+:func:`floquet` builds Phi from runs of the model itself (:func:`flexmbd.simulate`): each
+column from two runs of one period started at small displacements (and velocities) +-eps
+along an independent coordinate, central differences of the end states. The coordinates z
+are those of :func:`flexmbd.linearize` with ``independent="elastic"``: a frame's change of
+origin and small rotation in its own axes and the elastic coordinates, the dependent ones
+(generalized coordinate partitioning) solved from the constraints, so that every run starts
+on the constraints with the other independent coordinates and velocities unchanged. 2 n
+independent coordinates take 4 n runs of a period.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _core
+from ._checks import number
+from .errors import ArgumentTypeError, InvalidParameterError
+from .progress import track as track_progress
+from .rotation import angular_velocity, euler_parameter_rates, euler_parameters_to_matrix
+from .state import State
+
+Array = NDArray[np.float64]
+
+#: Multipliers within this distance of the unit circle are neutral (a conservative motion's
+#: are all on it): :attr:`FloquetAnalysis.stable` is True while none lies further out. Above
+#: the differences' own error: 1e-11 on rigid models, 4e-8 on the flexible double pendulum
+#: (whose beams' geometric stiffness is cubic in their deflection).
+NEUTRAL = 1e-5
+
+#: Largest change of a start state over one period (in its coordinates and rates, local as
+#: z, relative to max(1, their size)) that :func:`floquet` takes as periodic. The
+#: runs' own errors show in it (a slider on a turntable at 15 rad/s, one turn in 400 steps of
+#: generalized-alpha: its spin came back 1.0e-5 off, the error of the integration of its
+#: rotation exciting its torsion spring); a wrong period or a state off the periodic motion
+#: changes by far more.
+PERIODICITY = 1e-3
+
+#: Newton's tolerance of the default solver: the difference quotients divide the runs'
+#: errors by the perturbation, so the runs must be solved far below it.
+NEWTON_TOLERANCE = 1e-13
+
+
+@dataclass
+class FloquetAnalysis:
+    """The Floquet analysis of a periodic motion (:func:`floquet`).
+
+    Attributes:
+        period: T (s).
+        state: the start state (time t0) of the periodic motion, on the constraints.
+        monodromy: Phi (2 n x 2 n): (z, z_dot)(t0 + T) = Phi (z, z_dot)(t0) for the small
+            motions in the independent coordinates z.
+        multipliers: the eigenvalues mu of Phi, largest |mu| first.
+        vectors: the eigenvectors of Phi (columns, in (z, z_dot)), in the order of
+            `multipliers`.
+        basis: B (coordinates x n): the change of the coordinates q = q0 + B z at t0.
+        periodicity: the largest change of the start state over one period (its
+            coordinates and rates, local as z, relative to max(1, their size)).
+        independent: the coordinates z by body and kind.
+    """
+
+    period: float
+    state: State
+    monodromy: Array
+    multipliers: NDArray[np.complex128]
+    vectors: NDArray[np.complex128]
+    basis: Array
+    periodicity: float
+    independent: list[str] = field(default_factory=list)
+
+    @property
+    def exponents(self) -> NDArray[np.complex128]:
+        """The characteristic exponents log(mu) / T (1/s): their real parts the rates of
+        growth (positive: unstable), their imaginary parts the frequencies in (-pi/T, pi/T]
+        (known up to multiples of 2 pi / T)."""
+        return np.log(self.multipliers.astype(complex)) / self.period
+
+    @property
+    def unstable_directions(self) -> int:
+        """How many multipliers lie outside the unit circle by more than :data:`NEUTRAL`
+        (a complex pair counted once)."""
+        outside = self.multipliers[np.abs(self.multipliers) > 1.0 + NEUTRAL]
+        return int(np.sum(outside.imag >= 0.0))
+
+    @property
+    def stable(self) -> bool:
+        """True when no multiplier lies outside the unit circle by more than :data:`NEUTRAL`:
+        the small motions about the periodic one do not grow."""
+        return self.unstable_directions == 0
+
+    def shapes(self) -> NDArray[np.complex128]:
+        """The eigenvectors as changes of the coordinates q at t0 (B times their z part)."""
+        n = self.basis.shape[1]
+        return self.basis @ self.vectors[:n]
+
+
+def floquet(
+    system: Any,
+    state: State,
+    period: float,
+    step_size: float,
+    *,
+    solver: Any = None,
+    perturbation: float = 1e-6,
+    periodicity: float = PERIODICITY,
+    progress: bool | Callable[[int, int], object] | None = None,
+) -> FloquetAnalysis:
+    """The Floquet analysis of the periodic motion of `system` (a :class:`flexmbd.System` or
+    compiled model) through `state` with `period` T (s): the monodromy matrix over one
+    period, its multipliers and the stability (see the module).
+
+    `state`: a state on the periodic motion (``result.state(k)`` of a run that has settled
+    onto it, or one built by hand: its coordinates on the constraints, its velocities on the
+    velocity constraints). `step_size`: the runs' step (s); they take `solver` (default
+    generalized-alpha without numerical damping, Newton's tolerance 1e-13, fixed steps, the
+    Newton matrix refreshed every iteration: the differences of the runs must not see their
+    solver's tolerances or step changes). `perturbation`: eps, the displacement of each
+    independent coordinate (m, rad, elastic coordinates) and, times 2 pi / T, of its
+    velocity: small against the motions' nonlinearity (the beams of the flexible double
+    pendulum, geometric stiffness on, put 2e-5 into |mu| at 1e-5, 4e-8 at 1e-6), large
+    against the runs' tolerance (their noise grows as 1 / eps: 1e-7 at 3e-7).
+    `periodicity`: the largest change over one period of the start state (any coordinate
+    or rate, local as z: relative to max(1, its size)) taken as periodic.
+    `progress`: True shows a progress bar of the columns of Phi (two runs each), a
+    function is called as ``progress(done, total)``.
+
+    Raises `InvalidParameterError` for a period, step or perturbation that is not positive
+    and finite, a state of another model, or a state that does not come back after a period
+    (naming the coordinate that changed most), `ArgumentTypeError` for a state that is no
+    :class:`flexmbd.State`."""
+    from ._boundary import GeneralizedAlpha
+    from .analysis import _check_state, _model
+    from .simulation import simulate
+
+    model = _model(system, "system")
+    if not isinstance(state, State):
+        raise ArgumentTypeError(
+            f"floquet: state must be a flexmbd.State (result.state(k), or built by hand), got "
+            f"{type(state).__name__}",
+            item="state",
+        )
+    period = _positive(period, "period")
+    step_size = _positive(step_size, "step_size")
+    perturbation = _positive(perturbation, "perturbation")
+    periodicity = _positive(periodicity, "periodicity")
+    nc = model.constraint_count
+    if state.multipliers is None:  # (a state built by hand: the check needs the sizes)
+        state = dataclasses.replace(state, multipliers=np.zeros(nc))
+    if state.accelerations is None:
+        state = dataclasses.replace(state, accelerations=np.zeros(model.coordinate_count))
+    _check_state(model, state, "floquet")
+    if solver is None:
+        solver = GeneralizedAlpha(
+            spectral_radius=1.0,
+            newton_tolerance=NEWTON_TOLERANCE,
+            step_control="fixed",
+            jacobian="full",
+        )
+    chart = _Chart(model, state)
+    n = chart.size
+    end = state.time + period
+    scales = np.concatenate(
+        [np.full(n, perturbation), np.full(n, perturbation * 2 * np.pi / period)]
+    )
+
+    def run(offset: Array) -> Array:
+        start = chart.state(offset[:n], offset[n:])
+        result = simulate(
+            model, end, step_size, initial_state=start, solver=solver, output_interval=period
+        )
+        return chart.local(result.state(-1))
+
+    # Periodic: every coordinate back (the drivers' too: a wrong period leaves the hanging
+    # pendulum as it was and its shaken support elsewhere), relative to max(1, its size).
+    reference = run(np.zeros(2 * n))
+    start = chart.local(chart.start)
+    change = np.abs(reference - start) / np.maximum(1.0, np.abs(start))
+    worst = int(np.argmax(change)) if len(change) else 0
+    if len(change) and not change[worst] <= periodicity:
+        half = len(change) // 2
+        what = chart.label(worst % half) + (" (its rate)" if worst >= half else "")
+        raise InvalidParameterError(
+            f"floquet: the state does not come back after the period {period:g} s: "
+            f"{what} changed by {change[worst]:.3g} (relative; more than {periodicity:g}); "
+            "start from a state of the periodic motion (run until the transients have died "
+            "away and take result.state(k)), or check the period",
+            item="state",
+        )
+    monodromy = np.zeros((2 * n, 2 * n))
+    for j in track_progress(range(2 * n), progress, "floquet", unit="columns"):
+        offset = np.zeros(2 * n)
+        offset[j] = scales[j]
+        ahead, behind = run(offset), run(-offset)
+        monodromy[:, j] = chart.difference(ahead, behind) / (2.0 * scales[j])
+    values, vectors = np.linalg.eig(monodromy)
+    order = np.lexsort((values.imag, -np.abs(values)))
+    return FloquetAnalysis(
+        period=period,
+        state=chart.start,
+        monodromy=monodromy,
+        multipliers=values[order],
+        vectors=vectors[:, order],
+        basis=chart.basis,
+        periodicity=float(change[worst]) if len(change) else 0.0,
+        independent=list(chart.names),
+    )
+
+
+def _positive(value: Any, name: str) -> float:
+    value = number(value, name)
+    if not (np.isfinite(value) and value > 0.0):
+        raise InvalidParameterError(
+            f"floquet: {name} must be positive and finite, got {value}", item=name
+        )
+    return value
+
+
+class _Chart:
+    """The independent coordinates z of a model about a state and their rates: builds the
+    states on the constraints at (z, z_dot) and measures a state's (z, z_dot). The local
+    coordinates y of :func:`flexmbd.analysis._frame_transform` (frames: change of origin and
+    small rotation in their own axes; the rest as they are), of which the independent ones
+    (:func:`flexmbd.analysis._dependent_columns`) are z; the dependent ones are solved from
+    the constraints and the velocity constraints."""
+
+    def __init__(self, model: _core.Model, state: State) -> None:
+        from .analysis import _constraint_jacobian, _dependent_columns, _frame_transform
+
+        self.model = model
+        self.layout = model.describe()
+        self.time = state.time
+        self.q0 = np.asarray(state.coordinates, dtype=float)
+        self.frames = [
+            (b["offset"], b["name"])
+            for b in self.layout["bodies"]
+            if b["kind"] in ("rigid", "flexible") and b["count"] >= 7
+        ]
+        transform, elastic = _frame_transform(self.layout, self.q0)
+        jacobian = _constraint_jacobian(model, self.time, self.q0) @ transform
+        self.dependent = _dependent_columns(jacobian, elastic)
+        self.independent = np.setdiff1d(np.arange(transform.shape[1]), self.dependent)
+        self.size = len(self.independent)
+        self.names = [self.label(k) for k in self.independent]
+        local = np.zeros((transform.shape[1], self.size))
+        local[self.independent] = np.eye(self.size)
+        if len(self.dependent):
+            local[self.dependent] = -np.linalg.lstsq(
+                jacobian[:, self.dependent], jacobian[:, self.independent], rcond=None
+            )[0]
+        self.basis = transform @ local
+        self.rates0 = self._rates(self.q0, np.asarray(state.velocities, dtype=float))
+        self.discrete = state.discrete
+        self.start = self.state(np.zeros(self.size), np.zeros(self.size))
+
+    def label(self, column: int) -> str:
+        """The local coordinate `column` by body and kind."""
+        labels = ("x", "y", "z")
+        k = 0
+        for b in self.layout["bodies"]:
+            count = b["count"]
+            if b["kind"] in ("rigid", "flexible") and count >= 7:
+                if column < k + 6:
+                    c = column - k
+                    kind = "displacement" if c < 3 else "rotation"
+                    return f"body '{b['name']}' {kind} {labels[c % 3]} (own axes)"
+                k += 6
+                count -= 7
+            if column < k + count:
+                return f"body '{b['name']}' coordinate {column - k}"
+            k += count
+        return f"coordinate {column}"
+
+    def _rates(self, q: Array, qd: Array) -> Array:
+        """The local rates y_dot of the velocities `qd` at `q` (frames: the velocity of the
+        origin and the angular velocity in their own axes)."""
+        from .analysis import _frame_transform
+
+        transform, _ = _frame_transform(self.layout, q)
+        rates = np.zeros(transform.shape[1])
+        column = 0
+        for b in self.layout["bodies"]:
+            o, count = b["offset"], b["count"]
+            if b["kind"] in ("rigid", "flexible") and count >= 7:
+                a = euler_parameters_to_matrix(q[o + 3 : o + 7])
+                rates[column : column + 3] = a.T @ qd[o : o + 3]
+                rates[column + 3 : column + 6] = angular_velocity(
+                    q[o + 3 : o + 7], qd[o + 3 : o + 7], "body"
+                )
+                column += 6
+                o, count = o + 7, count - 7
+            rates[column : column + count] = qd[o : o + count]
+            column += count
+        return rates
+
+    def _moved(self, q: Array, y: Array) -> Array:
+        """q moved by the local coordinates y (frames turned by exp(y~) in their own axes)."""
+        from scipy.spatial.transform import Rotation
+
+        moved = q.copy()
+        column = 0
+        for b in self.layout["bodies"]:
+            o, count = b["offset"], b["count"]
+            if b["kind"] in ("rigid", "flexible") and count >= 7:
+                p = q[o + 3 : o + 7]
+                a = euler_parameters_to_matrix(p)
+                moved[o : o + 3] += a @ y[column : column + 3]
+                turned = a @ Rotation.from_rotvec(y[column + 3 : column + 6]).as_matrix()
+                x, yy, z, w = Rotation.from_matrix(turned).as_quat()
+                p_new = np.array([w, x, yy, z])
+                moved[o + 3 : o + 7] = p_new if p_new @ p >= 0.0 else -p_new
+                column += 6
+                o, count = o + 7, count - 7
+            moved[o : o + count] += y[column : column + count]
+            column += count
+        return moved
+
+    def _offsets(self, q: Array, reference: Array) -> Array:
+        """The local coordinates y of `q` from `reference` (frames: the change of origin and
+        the rotation vector of A_ref^T A, in the reference's axes)."""
+        from scipy.spatial.transform import Rotation
+
+        y = []
+        for b in self.layout["bodies"]:
+            o, count = b["offset"], b["count"]
+            if b["kind"] in ("rigid", "flexible") and count >= 7:
+                a0 = euler_parameters_to_matrix(reference[o + 3 : o + 7])
+                a1 = euler_parameters_to_matrix(q[o + 3 : o + 7])
+                y.append(a0.T @ (q[o : o + 3] - reference[o : o + 3]))
+                y.append(Rotation.from_matrix(a0.T @ a1).as_rotvec())
+                o, count = o + 7, count - 7
+            y.append(q[o : o + count] - reference[o : o + count])
+        return np.concatenate(y) if y else np.zeros(0)
+
+    def state(self, z: Array, z_dot: Array) -> State:
+        """The state at t0 with independent coordinates z and rates z_dot (from the start
+        state's), the dependent ones on the constraints and velocity constraints."""
+        from .analysis import _constraint_jacobian, _frame_transform
+
+        model, t = self.model, self.time
+        nq, nc = model.coordinate_count, model.constraint_count
+        y = np.zeros(len(self.independent) + len(self.dependent))
+        y[self.independent] = z
+        q = self._moved(self.q0, y)
+        zero = np.zeros(nq)
+        scale = max(1.0, float(np.max(np.abs(q), initial=0.0)))
+        for _ in range(50):
+            if nc == 0 or len(self.dependent) == 0:
+                break
+            residual = model.evaluate(t, q, zero, zero, np.zeros(nc))["residual"][nq:]
+            if np.max(np.abs(residual)) <= 1e-14 * scale:
+                break
+            transform, _ = _frame_transform(self.layout, q)
+            jacobian = _constraint_jacobian(model, t, q) @ transform
+            step = np.zeros_like(y)
+            step[self.dependent] = -np.linalg.lstsq(
+                jacobian[:, self.dependent], residual, rcond=None
+            )[0]
+            q = self._moved(q, step)
+        transform, _ = _frame_transform(self.layout, q)
+        rates = np.zeros_like(y)
+        rates[self.independent] = self.rates0[self.independent] + z_dot
+        if nc and len(self.dependent):
+            jacobian = _constraint_jacobian(model, t, q) @ transform
+            ev = model.evaluate(t, q, zero, zero, np.zeros(nc))
+            right = -(
+                ev["constraint_rate"] + jacobian[:, self.independent] @ rates[self.independent]
+            )
+            rates[self.dependent] = np.linalg.lstsq(jacobian[:, self.dependent], right, rcond=None)[
+                0
+            ]
+        qd = np.zeros(nq)
+        column = 0
+        for b in self.layout["bodies"]:
+            o, count = b["offset"], b["count"]
+            if b["kind"] in ("rigid", "flexible") and count >= 7:
+                p = q[o + 3 : o + 7]
+                qd[o : o + 3] = euler_parameters_to_matrix(p) @ rates[column : column + 3]
+                qd[o + 3 : o + 7] = euler_parameter_rates(p, rates[column + 3 : column + 6], "body")
+                column += 6
+                o, count = o + 7, count - 7
+            qd[o : o + count] = rates[column : column + count]
+            column += count
+        from .system import identity_of
+
+        return State(
+            t,
+            q,
+            qd,
+            layout=self.layout,
+            flexible=model.flexible_bodies,
+            system_identity=identity_of(model),
+            discrete=self.discrete,
+        )
+
+    def local(self, state: State) -> Array:
+        """(y, y_dot) of `state`: its local coordinates from the start's and its local rates,
+        all of them (the independent ones are taken by :meth:`difference`)."""
+        q = np.asarray(state.coordinates, dtype=float)
+        qd = np.asarray(state.velocities, dtype=float)
+        return np.concatenate([self._offsets(q, self.q0), self._rates(q, qd)])
+
+    def difference(self, a: Array, b: Array) -> Array:
+        """(z, z_dot) of the local values `a` less those of `b`."""
+        m = len(self.independent) + len(self.dependent)
+        d = a - b
+        return np.concatenate([d[:m][self.independent], d[m:][self.independent]])
