@@ -76,12 +76,13 @@ def largest_mismatch(values: np.ndarray, expected: np.ndarray) -> float:
 def test_a_pendulum_on_a_shaken_support_has_mathieus_multipliers(amplitude, rate, upright, stable):
     # Frozen in time, the hanging pendulum is stable at every instant; shaken at twice its
     # frequency it grows (|mu| = 1.17), and the upright one is held by a fast shake.
-    # Generalized-alpha's error is second order: 2.4e-6 at 400 steps a period, 2e-7 at 1600.
+    # Generalized-alpha's error is second order: 2.4e-6 at 400 steps a period, 2e-7 at 1600
+    # (spectral radius 1), 2.8e-6 at 800 (0.99, the default).
     model = shaken_pendulum(amplitude, rate, upright).compile()
     period = 2 * np.pi / rate
     analysis = fm.floquet(model, fm.State.of_model(model), period, period / 800)
     expected = mathieu_multipliers(amplitude, rate, upright)
-    assert largest_mismatch(analysis.multipliers, expected) < 2e-6
+    assert largest_mismatch(analysis.multipliers, expected) < 5e-6
     assert analysis.stable is stable
     assert analysis.unstable_directions == (0 if stable else 1)
     assert analysis.monodromy.shape == (2, 2)
@@ -149,10 +150,11 @@ def test_a_deformable_body_at_rest_has_the_multipliers_of_its_eigenvalues():
     assert analysis.monodromy.shape == (2 * 25, 2 * 25)
     distance = np.abs(np.exp(resolved * period)[:, None] - analysis.multipliers[None, :])
     assert len(resolved) >= 4 and distance.min(axis=1).max() < 3e-4
-    # Every |mu| on the unit circle within the differences' error (1.4e-6 here, the axial
-    # modes unresolved at these steps), below the margin of `stable`.
+    # No |mu| outside the unit circle beyond the differences' error (1.3e-6 here), below
+    # the margin of `stable` (the modes the steps do not resolve are damped by the
+    # solver's spectral radius, 0.99: down to |mu| = 0.974).
     assert analysis.stable
-    assert np.abs(np.abs(analysis.multipliers) - 1.0).max() < NEUTRAL
+    assert np.abs(analysis.multipliers).max() < 1.0 + NEUTRAL
 
 
 def test_floquet_refuses_a_state_off_its_periodic_motion():
