@@ -424,7 +424,10 @@ def test_a_follower_loaded_pendulum_beside_a_stiff_beam_keeps_its_frequencies(as
     # tip) in one model with an unconnected clamped steel beam: the beam's stiffness (2.6e9)
     # hid the follower load's asymmetry (0.1) from the symmetry test, and the symmetric
     # eigenproblem gave +-0.1266i and +-0.4837i for +-0.1481i and +-0.4775i (P = 0.1), and a
-    # divergence at P = 0.205, where the pendulum is stable.
+    # divergence at P = 0.205, where the pendulum is stable. Then, in the first-order problem,
+    # the free motions' threshold (1e-11 of the largest singular value of K, 0.05) took one of
+    # the pendulum's directions (0.038) for a free motion at P = 0.3: 0, 0 and +-0.2236i for
+    # Ziegler's flutter, +-0.1512 +-0.2187i, and `stable` None (a "neutral" direction).
     from flexmbd.fe import build_body, straight_beam
 
     mass, length, k, rotary = 1.0, 1.0, 0.1, 1e-4
@@ -452,21 +455,29 @@ def test_a_follower_loaded_pendulum_beside_a_stiff_beam_keeps_its_frequencies(as
 
     def reference(load):
         # theta_1, theta_2 of the links: M theta_dd + K theta = 0 (the follower load's
-        # stiffness P l [[-1, 1], [0, 0]] is not symmetric).
+        # stiffness P l [[-1, 1], [0, 0]] is not symmetric): s^2 the eigenvalues of -M^-1 K.
         m = mass * length**2 * np.array([[3.0, 1.0], [1.0, 1.0]]) + rotary * np.eye(2)
         stiffness = k * np.array([[2.0, -1.0], [-1.0, 1.0]]) + load * length * np.array(
             [[-1.0, 1.0], [0.0, 0.0]]
         )
-        return np.sort(np.abs(np.linalg.eigvals(np.linalg.solve(m, stiffness))) ** 0.5)
+        roots = np.sqrt(-np.linalg.eigvals(np.linalg.solve(m, stiffness)).astype(complex))
+        return np.concatenate([roots, -roots])
 
-    for load in (0.1, 0.205):
+    # Stable (two undamped pairs) below Ziegler's critical load, flutter above it (a pair
+    # of complex roots with Re s > 0: one unstable direction).
+    for load, stable in ((0.1, True), (0.205, True), (0.3, False)):
         s = system(load)
         state = fm.equilibrium(s, stable=False)
         values = fm.linearize(s, state).eigenvalues()[0]
-        slow = np.sort(np.abs(values[np.abs(values) < 10]))[::2]
-        assert_close(slow, reference(load), rel=1e-6, what=f"|s| at P = {load}")
-        assert np.all(np.abs(values[np.abs(values) < 10].real) < 1e-9)
-        assert state.stable
+        slow = values[np.abs(values) < 10]
+        assert len(slow) == 4
+        expected = reference(load)
+        nearest = slow[np.argmin(np.abs(slow[None, :] - expected[:, None]), axis=1)]
+        scale = 1e-6 * np.abs(expected)
+        assert_close(nearest.real, expected.real, abs=scale, what=f"Re s at P = {load}")
+        assert_close(nearest.imag, expected.imag, abs=scale, what=f"Im s at P = {load}")
+        assert state.stable is stable
+        assert state.unstable_directions == (0 if stable else 1)
 
 
 @pytest.mark.parametrize("shape", [np.ones(3), np.full(7, np.nan)], ids=["size", "nan"])

@@ -1361,34 +1361,36 @@ class LinearizedSystem:
         damping (K z = D z = 0: the rigid-body motions of a free structure) are taken out
         first, each an exact double zero: in the first-order matrix such a pair is defective,
         and LAPACK returned it as +-sqrt(eps |A|), about 1e-7 (a free torsional pair counted 5
-        free motions and a mode of 1e-8 Hz)."""
-        import scipy.linalg as sla
-
+        free motions and a mode of 1e-8 Hz). Sets of coordinates that M, D and K do not couple
+        (bodies without a joint or force between them, a straight beam's axial and bending
+        motions) are solved apart, each on its own scale (:func:`_decoupled_blocks`)."""
         if self._eigen is None:
             n = self.mass.shape[0]
-            free = _free_directions(self.stiffness, self.damping, self.accuracy)
-            # The rest: the M-orthogonal complement of the free directions, decoupled from
-            # them where K and D are symmetric or skew (their rows N^T K = N^T D = 0 too).
-            rest = sla.null_space((self.mass @ free).T) if free.shape[1] else None
             matrices = (self.mass, self.damping, self.stiffness)
-            m, d, k = matrices if rest is None else (rest.T @ a @ rest for a in matrices)
-            r = n if rest is None else rest.shape[1]
-            found = _undamped_eigen(m, d, k) if r else None
-            if found is not None:
-                values, vectors = found
-            elif r:
-                minv_k = np.linalg.solve(m, k)
-                minv_d = np.linalg.solve(m, d)
-                a = np.block([[np.zeros((r, r)), np.eye(r)], [-minv_k, -minv_d]])
-                values, vectors = sla.eig(a)
+            # Free motions: within the accuracy of the entries, or within round-off of the
+            # largest entry of the whole model (a subsystem's own 1e-11 of its largest
+            # would keep a residue of round-off in a stiffness-free body).
+            floor = self.accuracy
+            if n and np.all(np.isfinite(self.stiffness)) and np.all(np.isfinite(self.damping)):
+                largest = max(
+                    float(np.max(np.abs(self.stiffness))), float(np.max(np.abs(self.damping)))
+                )
+                floor = max(floor, ROUND_OFF_FREE * largest)
+            blocks = _decoupled_blocks(*matrices)
+            if len(blocks) == 1:
+                all_values, all_shapes = _subsystem_eigen(*matrices, floor)
             else:
-                values, vectors = np.zeros(0, complex), np.zeros((0, 0))
-            values = np.concatenate([np.zeros(2 * free.shape[1], dtype=complex), values])
-            moving = vectors[:r] if rest is None else rest @ vectors[:r]
-            shapes = np.hstack([free, free, moving]).astype(complex)
-            order = np.lexsort((values.real, np.abs(values.imag)))
-            values, shapes = values[order], shapes[:, order]
-            self._eigen = (values, self.basis @ shapes)
+                values, shapes = [], []
+                for block in blocks:
+                    part = np.ix_(block, block)
+                    found, vectors = _subsystem_eigen(*(a[part] for a in matrices), floor)
+                    embedded = np.zeros((n, vectors.shape[1]), complex)
+                    embedded[block] = vectors
+                    values.append(found)
+                    shapes.append(embedded)
+                all_values, all_shapes = np.concatenate(values), np.hstack(shapes)
+            order = np.lexsort((all_values.real, np.abs(all_values.imag)))
+            self._eigen = (all_values[order], self.basis @ all_shapes[:, order])
         return self._eigen
 
     def without_velocity_terms(self) -> LinearizedSystem:
@@ -1449,6 +1451,82 @@ class LinearizedSystem:
         # Rotate each complex shape so that its largest entry is real.
         peak = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
         return freq, np.real(shapes / (peak / np.abs(peak)))
+
+
+#: Entries of M, D or K at most this fraction of sqrt(r_i r_j) (r_i the largest |entry| of
+#: row i of that matrix) couple nothing in :func:`_decoupled_blocks`: the round-off left of an
+#: exact zero (6e-33 between a pendulum's and a beam's rows of M against 0.5).
+DECOUPLED = 1e-14
+
+#: Singular values of [K; D] at most this fraction of the largest entry of the whole model's
+#: K and D are free motions in every decoupled subsystem (:data:`FREE_DIRECTION` being
+#: relative to the subsystem's own largest): 45 eps, round-off of the model's largest terms.
+ROUND_OFF_FREE = 1e-14
+
+
+def _decoupled_blocks(*matrices: Array) -> list[NDArray[np.int64]]:
+    """The independent coordinates of each subsystem that `matrices` (n x n each: M, D, K)
+    do not couple to the rest, as index arrays (connected components of their entries above
+    :data:`DECOUPLED`), or one block of all when an entry is not finite. Block-diagonal
+    M, D and K have the union of the blocks' eigenvalues, and each block solved apart keeps
+    its own scale: in one problem a clamped steel beam's stiffness (largest singular value
+    5e9) set the free motions' threshold (1e-11 of it, 0.05) above the 0.038 of Ziegler's
+    follower-loaded pendulum beside it, whose flutter (+-0.151 +-0.219i) came out as a free
+    motion and +-0.224i. (A diagonal scaling of [K; D] instead would raise a free body's rows
+    of round-off to a stiffness; LAPACK's balancing already gives the pendulum's eigenvalues
+    to 2e-10 in one first-order matrix with the beam once no direction is taken out.)"""
+    n = matrices[0].shape[0]
+    if n < 2 or not all(np.all(np.isfinite(a)) for a in matrices):
+        return [np.arange(n)]
+    linked = np.zeros((n, n), dtype=bool)
+    for matrix in matrices:
+        if not np.any(matrix):
+            continue  # (no damping)
+        size = np.abs(matrix)
+        root = np.sqrt(np.max(size, axis=1))
+        linked |= size > np.outer(DECOUPLED * root, root)
+    linked |= linked.T
+    # Each block: the coordinates reached from its first one through linked entries.
+    blocks, unreached = [], np.ones(n, dtype=bool)
+    while np.any(unreached):
+        block = np.zeros(n, dtype=bool)
+        block[int(np.argmax(unreached))] = True
+        frontier = block.copy()
+        while np.any(frontier):
+            frontier = np.any(linked[frontier], axis=0) & ~block
+            block |= frontier
+        unreached &= ~block
+        blocks.append(np.flatnonzero(block))
+    return blocks
+
+
+def _subsystem_eigen(m: Array, d: Array, k: Array, accuracy: float) -> tuple[Array, Array]:
+    """The eigenvalues of M z_dd + D z_dot + K z = 0 and the z part of the first-order
+    eigenvectors (n x 2 n, unit [z; s z] as LAPACK's): the free directions (singular values
+    of [K; D] within `accuracy` or :data:`FREE_DIRECTION` of the largest) as exact double
+    zeros, the rest by :func:`_undamped_eigen` or the first-order matrix."""
+    import scipy.linalg as sla
+
+    free = _free_directions(k, d, accuracy)
+    # The rest: the M-orthogonal complement of the free directions, decoupled from them
+    # where K and D are symmetric or skew (their rows N^T K = N^T D = 0 too).
+    rest = sla.null_space((m @ free).T) if free.shape[1] else None
+    if rest is not None:
+        m, d, k = (rest.T @ a @ rest for a in (m, d, k))
+    r = m.shape[0]
+    found = _undamped_eigen(m, d, k) if r else None
+    if found is not None:
+        values, vectors = found
+    elif r:
+        minv_k = np.linalg.solve(m, k)
+        minv_d = np.linalg.solve(m, d)
+        a = np.block([[np.zeros((r, r)), np.eye(r)], [-minv_k, -minv_d]])
+        values, vectors = sla.eig(a)
+    else:
+        values, vectors = np.zeros(0, complex), np.zeros((0, 0))
+    values = np.concatenate([np.zeros(2 * free.shape[1], dtype=complex), values])
+    moving = vectors[:r] if rest is None else rest @ vectors[:r]
+    return values, np.hstack([free, free, moving]).astype(complex)
 
 
 #: Singular values of [K; D] below this fraction of the largest are the free motions of
