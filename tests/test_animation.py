@@ -341,3 +341,53 @@ def test_a_node_marker_with_a_sensor_moves_with_the_magnified_node():
     np.testing.assert_allclose(
         scene.marker_tracks(records, 1.0)[tip], result.sensor("tip")[records], atol=1e-9
     )
+
+
+@pytest.mark.parametrize("target", ["anim {x}/run.png", "frames{}dir", "run{0}.png"])
+def test_frames_are_written_whatever_characters_their_path_holds(four_bar, tmp_path, target):
+    # The frame names were a str.format pattern of the whole path: braces raised KeyError,
+    # IndexError or ValueError after every frame was rendered.
+    files = animation.render_animation(four_bar, tmp_path / target, frames=2)
+    assert len(files) == 2 and all(f.is_file() for f in files)
+    assert files[1].name.endswith("_0001.png")
+
+
+@pytest.mark.parametrize("target", ["seq.png", "folder"])
+def test_a_shorter_sequence_replaces_the_frames_of_a_longer_one(four_bar, tmp_path, target):
+    # Five frames then two left frames 2-4 of the first beside the new ones.
+    animation.render_animation(four_bar, tmp_path / target, frames=5)
+    files = animation.render_animation(four_bar, tmp_path / target, frames=2)
+    folder = files[0].parent
+    assert sorted(p.name for p in folder.iterdir() if p.suffix == ".png") == [f.name for f in files]
+
+
+@pytest.mark.parametrize(
+    ("call", "item"),
+    [
+        (lambda r, d: animation.render_animation(r, d / "a.gif", frames=2, dpi=0), "dpi"),
+        (lambda r, d: animation.render_animation(r, d / "a.gif", frames=2, fps="10"), "fps"),
+        (lambda r, d: animation.render_animation(r, d / "a.gif", frames=True), "frames"),
+        (lambda r, d: animation.render_frame(r, view=30), "view"),
+        (lambda r, d: animation.render_frame(r, scale=-1), "scale"),
+        (lambda r, d: animation.write_vtu_series(r, d / "v", scale=[2]), "scale"),
+        (lambda r, d: animation.write_vtu_series(r, d / "v", every=0), "every"),
+        (lambda r, d: animation.write_vtu_series(r, d / "v", times="01"), "times"),
+        (lambda r, d: animation.render_image(r, d / "a.png", record=True), "True"),
+    ],
+    ids=["dpi 0", "fps text", "frames True", "view number", "scale negative", "scale list",
+         "every 0", "times text", "record True"],
+)  # fmt: skip
+def test_bad_rendering_options_are_refused_by_name(slider_crank, tmp_path, call, item):
+    # Bare TypeError / ValueError of matplotlib, errors without an item, or silently taken
+    # ("01" as the window (0, 1), record True as record 1).
+    with pytest.raises(fm.InvalidParameterError) as error:
+        call(slider_crank, tmp_path)
+    assert error.value.item == item
+
+
+def test_an_animation_into_an_existing_file_is_refused(slider_crank, tmp_path):
+    # (a bare FileExistsError after the scene was built)
+    existing = tmp_path / "notes.txt"
+    existing.write_text("x")
+    with pytest.raises(fm.InvalidParameterError, match="is a file, not a folder"):
+        animation.render_animation(slider_crank, existing, frames=2)

@@ -150,8 +150,15 @@ def test_critical_speeds_are_the_crossings_of_the_order_lines(assert_close):
 def test_plot_and_refusals(tmp_path):
     system, scale = blade(0.01, 0.002)
     diagram = campbell(system, "hub", np.array([0.0, 10.0, 20.0]) / scale, modes=2)
+    # Drawn into a figure of its own: it switched the backend to Agg and left every figure
+    # open in pyplot.
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    backend, figures = matplotlib.get_backend(), len(plt.get_fignums())
     plot_campbell(diagram, tmp_path / "campbell.png")
     assert (tmp_path / "campbell.png").stat().st_size > 1000
+    assert (matplotlib.get_backend(), len(plt.get_fignums())) == (backend, figures)
     with pytest.raises(fm.UnknownItemError, match="no driver named 'rotor'"):
         campbell(system, "rotor", [0.0, 1.0])
     with pytest.raises(fm.InvalidParameterError, match="ascending"):

@@ -797,3 +797,14 @@ def test_reference_checks_are_left_out_of_runs_too_short_for_them(capsys):
     argv = ["run", "flexible-slider-crank", "--end", "0.01", *QUIET]
     assert main(argv) == 0
     assert "relative error of max" not in capsys.readouterr().out
+
+
+def test_a_hidden_or_hdf5_results_file_goes_through_every_command(tmp_path, capsys):
+    # run -o .hidden.h5 did the run, plot and animation, then refused the ParaView series
+    # named ".hidden" (exit 2); view refused the .hdf5 file that run -o run.hdf5 wrote.
+    argv = ["run", "flexible-slider-crank", "--end", "0.002", "--step", "1e-4", "-q"]
+    assert main([*argv, "--no-plot", "--no-animation", "-o", ".hidden.h5"]) == 0
+    assert (tmp_path / ".hidden_vtu" / "hidden.pvd").is_file()
+    assert main(["run", "pendulum", "--end", "0.05", "-o", "run.hdf5", *QUIET]) == 0
+    assert main(["view", "run.hdf5", "-o", "run.html"]) == 0
+    assert (tmp_path / "run.html").stat().st_size > 1000

@@ -311,3 +311,76 @@ def test_plot_result_refuses_a_bad_dpi_and_a_format_its_file_contradicts(slider_
     with pytest.raises(fm.InvalidParameterError, match="format 'svg' and the file"):
         plotting.plot_result(slider_crank, tmp_path / "a.png", "energy", format="svg")
     assert not (tmp_path / "a.png").exists()
+
+
+def _named_bodies(names: list[str]) -> fm.Result:
+    """A short run of pendulums named `names`, each hinged to the ground by a joint of the
+    same name."""
+    system = fm.System(gravity=(0, -9.81, 0))
+    for k, name in enumerate(names):
+        body = system.add_rigid_body(1.0, (1e-3,) * 3, position=(0.5, -k, 0), name=name)
+        system.add_revolute_joint(
+            system.add_marker(system.ground, position=(0, -k, 0)),
+            system.add_marker(body, position=(-0.5, 0, 0)),
+            name=name,
+        )
+    return fm.simulate(system, 0.02, 1e-3, output_interval=0.01)
+
+
+def test_a_folder_of_plots_has_one_file_per_quantity_whatever_the_names(tmp_path):
+    # "rotor α" and "rotor β" both became position-rotor.png (ASCII only), one file for two
+    # figures; names that still give one file name are numbered.
+    result = _named_bodies(["rotor α", "rotor β", "a b", "a_b"])
+    quantities = [f"position:{name}" for name in ("rotor α", "rotor β", "a b", "a_b")]
+    files = plotting.plot_result(result, tmp_path / "plots", quantities)
+    assert [f.name for f in files] == [
+        "position-rotor_α.png", "position-rotor_β.png", "position-a_b.png", "position-a_b-2.png",
+    ]  # fmt: skip
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == sorted(f.name for f in files)
+
+
+def test_item_names_are_drawn_as_written(tmp_path):
+    # A joint named "_aux" was left out of the legend (matplotlib hides labels that start
+    # with "_"), and "$" in a name was read as mathtext: a ParseSyntaxException.
+    names = ["_aux", "main", "arm $\\frac{1}$ v2"]
+    result = _named_bodies(names)
+    ax = plotting.plot_reactions(result)
+    _, labels = ax.get_legend_handles_labels()
+    assert len(labels) == 3 and labels[0].endswith("_aux")
+    for quantity in ["reactions", "joints", f"position:{names[2]}", f"reaction:{names[2]}"]:
+        plotting.plot_result(result, tmp_path / "names.png", [quantity])
+    # Escaped once, also when two plots share the axes.
+    ax = plotting.plot_body(result, names[2])
+    plotting.plot_body(result, names[2], ax=ax)
+    assert ax.get_title().count("\\$") == 2
+
+
+def test_the_overview_notes_the_bodies_it_leaves_out():
+    # Six free bodies: the overview draws four and said nothing of the other two.
+    system = fm.System()
+    for k in range(6):
+        system.add_rigid_body(1.0, (1, 1, 1), velocity=(k + 1.0, 0, 0), name=f"ball {k}")
+    result = fm.simulate(system, 0.02, 1e-2)
+    assert plotting.default_quantities(result)[1:] == [f"position:ball {k}" for k in range(4)]
+    notes = plotting.overview_notes(result)
+    assert notes[0] == "2 more moving bodies not drawn (ball 4, ball 5): position:NAME draws one"
+
+
+@pytest.mark.parametrize(
+    "plot",
+    [plotting.plot_energy, plotting.plot_energy_balance, plotting.plot_quantities],
+    ids=["energy", "energy balance", "quantities"],
+)
+def test_a_result_without_records_is_refused_by_every_plot(plot):
+    # A run refused at its start: plot_energy_balance raised a bare IndexError, the others
+    # drew empty figures.
+    system = fm.System()
+    body = system.add_rigid_body(1.0, (1, 1, 1), position=(2, 0, 0))
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(body), 1.0)
+    solver = fm.GeneralizedAlpha(correct_initial_positions=False)
+    with pytest.raises(fm.FlexmbdError) as failure:
+        fm.simulate(system, 0.1, 1e-3, solver=solver)
+    result = failure.value.result
+    assert len(result.time) == 0
+    with pytest.raises(fm.InvalidParameterError, match="no records to plot"):
+        plot(result)

@@ -775,9 +775,16 @@ def test_a_path_that_is_no_path_and_a_bool_item_are_named():
             fm.read_results(path)
         with pytest.raises(fm.ArgumentTypeError, match="path: a results file's path"):
             read_results_metadata(path)
-    result = fm.simulate(pendulum(), 0.01, 1e-3)
+    system = pendulum()
+    result = fm.simulate(system, 0.01, 1e-3)
     with pytest.raises(fm.UnknownItemError, match="got True"):
         result.position(True)
+    # A float, or another kind's id: the error names it (its item was None).
+    body = system.add_rigid_body(1.0, (1, 1, 1))
+    for wrong, ask in ((1.0, result.position), (body, result.sensor)):
+        with pytest.raises(fm.UnknownItemError) as error:
+            ask(wrong)
+        assert error.value.item == str(wrong)
     with pytest.raises(fm.InvalidParameterError, match="entry 1 is nan"):
         result.state().with_position("mass", [1.0, np.nan, 0.0])
 

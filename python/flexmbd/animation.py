@@ -500,7 +500,9 @@ def _records(result: Any, every: int, times: Sequence[float] | None = None) -> N
     """The records of a series: those in the time window `times` (start, end; s, inclusive;
     None: all), then every `every`-th of them from the first, and the last of the window."""
     if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
-        raise InvalidParameterError(f"every must be a positive integer, got {every!r}")
+        raise InvalidParameterError(
+            f"every must be a positive integer, got {every!r}", item="every"
+        )
     time = np.asarray(result.time, dtype=float)
     if times is None:
         inside = np.arange(len(time))
@@ -524,6 +526,8 @@ def _records(result: Any, every: int, times: Sequence[float] | None = None) -> N
 
 def _time_window(times: Sequence[float]) -> tuple[float, float]:
     """`times` as (start, end), checked: two numbers (not NaN), start <= end."""
+    if isinstance(times, str | bytes):  # ("01" was the window (0, 1))
+        raise InvalidParameterError(f"times must be (start, end) in s, got {times!r}", item="times")
     try:
         start, end = (float(t) for t in times)
     except (TypeError, ValueError):
@@ -582,10 +586,13 @@ def vtu_series_size(
 def _scale_value(scene: Scene, scale: float | str | None, records: NDArray[np.int64]) -> float:
     if scale is None or scale == "auto":
         return scene.auto_scale(records)
-    if isinstance(scale, str) or not math.isfinite(float(scale)) or float(scale) < 0.0:
-        raise InvalidParameterError(
-            f"scale must be a non-negative number, None or 'auto', got {scale!r}"
-        )
+    bad = InvalidParameterError(
+        f"scale must be a non-negative number, None or 'auto', got {scale!r}", item="scale"
+    )
+    if isinstance(scale, str | bool) or not isinstance(scale, int | float | np.number):
+        raise bad  # ([2] was a bare TypeError)
+    if not math.isfinite(float(scale)) or float(scale) < 0.0:
+        raise bad
     return float(scale)
 
 
@@ -724,9 +731,15 @@ def _view_angles(view: str | Sequence[float], extents: Array) -> tuple[float, fl
                 item=view,
             )
         return VIEWS[view]
-    angles = tuple(float(v) for v in view)
-    if len(angles) != 2:
-        raise InvalidParameterError(f"view must be a name or (elevation, azimuth), got {view!r}")
+    bad = InvalidParameterError(
+        f"view must be a name or (elevation, azimuth) in degrees, got {view!r}", item="view"
+    )
+    try:  # (a number was a bare TypeError)
+        angles = tuple(float(v) for v in view)
+    except (TypeError, ValueError):
+        raise bad from None
+    if len(angles) != 2 or not all(math.isfinite(a) for a in angles):
+        raise bad
     return angles[0], angles[1]
 
 
@@ -923,7 +936,11 @@ def render_frame(
 
 def _record_index(result: Any, record: int) -> int:
     count = len(result.time)
-    if not isinstance(record, int | np.integer) or not -count <= record < count:
+    if (
+        isinstance(record, bool)  # (True drew record 1)
+        or not isinstance(record, int | np.integer)
+        or not -count <= record < count
+    ):
         raise InvalidParameterError(
             f"record {record!r} does not exist; the result has {count} records", item=str(record)
         )
@@ -978,10 +995,16 @@ def render_animation(
     if pyvista is missing or cannot render here) or ``"auto"`` (pyvista if it works, else
     matplotlib). `progress`: True shows a progress bar of the frames rendered
     (:func:`flexmbd.progress.track`), a function is called as ``progress(done, total)``."""
-    if not isinstance(frames, int | np.integer) or frames < 1:
-        raise InvalidParameterError(f"frames must be a positive integer, got {frames!r}")
-    if not fps > 0:
-        raise InvalidParameterError(f"fps must be positive, got {fps!r}")
+    if isinstance(frames, bool) or not isinstance(frames, int | np.integer) or frames < 1:
+        raise InvalidParameterError(
+            f"frames must be a positive integer, got {frames!r}", item="frames"
+        )
+    for value, name, top in ((fps, "fps", 1000.0), (dpi, "dpi", 10_000.0)):
+        # ("10" was a bare TypeError, dpi 0 matplotlib's ValueError)
+        if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+            raise InvalidParameterError(f"{name} must be a number, got {value!r}", item=name)
+        if not 0 < value <= top:
+            raise InvalidParameterError(f"{name} must be in (0, {top:g}], got {value!r}", item=name)
     if backend not in ("matplotlib", "pyvista", "auto"):
         raise InvalidParameterError(
             f"unknown backend {backend!r}; use 'matplotlib', 'pyvista' or 'auto'", item=backend
@@ -992,10 +1015,16 @@ def render_animation(
     gif = out.suffix.lower() == ".gif"
     if gif or out.suffix.lower() == ".png":
         out.parent.mkdir(parents=True, exist_ok=True)
-        pattern = str(out.with_name(out.stem + "_{:04d}.png"))
+        folder, stem = out.parent, out.stem
     else:
+        if out.exists() and not out.is_dir():  # (a bare FileExistsError after the scene)
+            raise InvalidParameterError(
+                f"'{out}' is a file, not a folder for the frames; give a .gif or .png path "
+                "or a folder",
+                item=str(out),
+            )
         out.mkdir(parents=True, exist_ok=True)
-        pattern = str(out / "frame_{:04d}.png")
+        folder, stem = out, "frame"
     style = _style(scene, records, scale, view, color_by)
     shown = track_progress(records, progress, f"rendering {out}", unit="frames")
     if backend == "pyvista" or (backend == "auto" and pyvista_available()):
@@ -1003,7 +1032,7 @@ def render_animation(
     else:
         images = _render_matplotlib(scene, shown, style, dpi)
     with status(f"saving {out}", enabled=progress is True):
-        return _save_frames(images, out if gif else None, pattern, fps)
+        return _save_frames(images, out if gif else None, (folder, stem), fps)
 
 
 def _render_matplotlib(
@@ -1027,9 +1056,14 @@ def _render_matplotlib(
     return images
 
 
-def _save_frames(images: list[Any], gif: Path | None, pattern: str, fps: float) -> list[Path]:
-    """Saves PIL images as an animated GIF (looping, 1/fps s per frame) or as PNG files named
-    by `pattern` (a str.format pattern of the frame number); returns the paths."""
+def _save_frames(
+    images: list[Any], gif: Path | None, frames: tuple[Path, str], fps: float
+) -> list[Path]:
+    """Saves PIL images as an animated GIF (looping, 1/fps s per frame) or as PNG files
+    ``<stem>_0000.png``, ... in the folder of `frames` (folder, stem), removing the frames
+    of an earlier, longer sequence of that stem there (a movie made of the folder's frames
+    mixed both); returns the paths. (The names are joined, not formatted: a path with
+    braces was a KeyError after every frame was rendered.)"""
     if gif is not None:
         images[0].save(
             gif,
@@ -1039,11 +1073,17 @@ def _save_frames(images: list[Any], gif: Path | None, pattern: str, fps: float) 
             loop=0,
         )
         return [gif]
+    folder, stem = frames
     written = []
     for k, image in enumerate(images):
-        file = Path(pattern.format(k))
+        file = folder / f"{stem}_{k:04d}.png"
         image.save(file)
         written.append(file)
+    frame = re.compile(re.escape(stem) + r"_(\d{4,})\.png")
+    for file in folder.iterdir():
+        match = frame.fullmatch(file.name)
+        if match and int(match.group(1)) >= len(images) and file.is_file():
+            file.unlink()
     return written
 
 

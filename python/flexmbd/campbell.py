@@ -561,16 +561,13 @@ def plot_campbell(
     """Draws the Campbell diagram: each followed mode's frequency (Hz) against the speed
     (rad/s), forward whirl solid, backward whirl dashed, modes that do not whirl dotted; the
     excitation-order lines k W / (2 pi) and their crossings with the modes (critical speeds,
-    circled). Saves to `path` if given; returns the Axes."""
-    import matplotlib
+    circled). Saves to `path` if given; returns the Axes (without `ax`, of a new figure that
+    pyplot does not manage, as :mod:`flexmbd.plotting`'s: the backend is left as it is, and
+    no figure stays open in pyplot; it switched the backend to Agg and kept every figure)."""
+    from matplotlib.figure import Figure
 
     if ax is None:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = None
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(7, 5))
+        ax = Figure(figsize=(7, 5)).subplots()
     w = diagram.speeds
     styles = {FORWARD: "-", BACKWARD: "--", None: ":"}
     whirling = any(label is not None for label in diagram.whirl.ravel())  # type: ignore[union-attr]
@@ -591,8 +588,6 @@ def plot_campbell(
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
     if path is not None:
-        (fig or ax.figure).tight_layout()
-        (fig or ax.figure).savefig(path)
-        if fig is not None:
-            plt.close(fig)
+        ax.figure.tight_layout()
+        ax.figure.savefig(path)
     return ax

@@ -95,6 +95,9 @@ def _write_paraview(
     place where the command line writes VTU files)."""
     from .animation import LARGE_VTU_SERIES, vtu_series_size, write_vtu_series
 
+    # The series is named after the results file, without its leading dots: a hidden
+    # results file (-o .run.h5) made a hidden series name, refused after the whole run.
+    name = name.lstrip(".") or "result"
     files, size = vtu_series_size(result, every, times=times)
     print(f"  writing {files} VTU files (~{size / 1e6:.3g} MB) to {directory}", flush=True)
     if size > LARGE_VTU_SERIES:
@@ -277,6 +280,10 @@ def _stop_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, interrupt)
 
 
+#: Suffixes of results files (HDF5) that the commands write and read.
+RESULTS_SUFFIXES = (".h5", ".hdf5")
+
+
 def _checked_outputs(args: argparse.Namespace, results: Path) -> str | None:
     """Why the output files of `run` cannot be written, checked before the run (None: they
     can): the results file's folder, the plot's and the animation's formats."""
@@ -284,7 +291,7 @@ def _checked_outputs(args: argparse.Namespace, results: Path) -> str | None:
 
     if results.is_dir():
         return f"{results} is a folder; give a results file name such as run.h5 with -o"
-    if results.suffix.lower() not in (".h5", ".hdf5"):
+    if results.suffix.lower() not in RESULTS_SUFFIXES:
         return (
             f"-o {results}: the results file is HDF5, its name ends in .h5 (a table of the "
             "results: flexmbd.read_results(...).to_dataframe().to_csv(...))"
@@ -928,14 +935,14 @@ def _view(args: argparse.Namespace) -> int:
 
     options = {"max_frames": args.max_frames, "scale": args.scale, "color_by": args.color}
     try:
-        if Path(args.source).suffix.lower() == ".h5":
+        if Path(args.source).suffix.lower() in RESULTS_SUFFIXES:  # (run -o writes .hdf5 too)
             if args.modes is not None:
                 raise InvalidParameterError("--modes is for a model file or built-in example")
             written = view(args.source, args.output, **options)
         elif args.modes is None:
             raise InvalidParameterError(
-                f"{args.source!r} is not a results file (.h5): give --modes to view the mode "
-                "shapes of a model, or run it (flexmbd run) and view its results file"
+                f"{args.source!r} is not a results file (.h5, .hdf5): give --modes to view "
+                "the mode shapes of a model, or run it (flexmbd run) and view its results file"
             )
         else:
             job = _job(args.source)

@@ -42,6 +42,7 @@ Unknown quantity kinds raise :class:`flexmbd.InvalidParameterError`; unknown ite
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -109,6 +110,32 @@ def _axes(ax: Any) -> Any:
     return _new_axes()[0] if ax is None else ax
 
 
+def _with_records(function: Callable[..., Any]) -> Callable[..., Any]:
+    """A plot function of a result that refuses a result without records (a run refused at
+    its start): plot_energy_balance raised a bare IndexError, plot_energy drew nothing."""
+
+    @functools.wraps(function)
+    def plot(result: Any, *args: Any, **kwargs: Any) -> Any:
+        if len(result.time) == 0:
+            raise InvalidParameterError("the result has no records to plot", item="result")
+        return function(result, *args, **kwargs)
+
+    return plot
+
+
+def _plain(text: str) -> str:
+    """`text` (item names in it) as matplotlib draws it literally: a "$" escaped (a name
+    "arm $\\frac{1}$" was a mathtext ParseSyntaxException), a leading "_" behind a zero-width
+    space (a joint named "_aux" was left out of the legend, as matplotlib hides such labels).
+    Idempotent: a label escaped once (two plots into one axes) is not escaped again."""
+    text = re.sub(r"(?<!\\)\$", r"\\$", text)
+    return "\u200b" + text if text.startswith("_") else text
+
+
+#: Labels matplotlib gives to lines drawn without one (hidden from legends: kept so).
+_UNLABELLED = re.compile(r"_child\d+")
+
+
 def _finish(
     ax: Any, ylabel: str, title: str, legend: bool = True, flatten_round_off: bool = True
 ) -> Any:
@@ -124,9 +151,13 @@ def _finish(
             middle = 0.5 * (low + high)
             ax.set_ylim(middle - floor, middle + floor)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize="medium")
+    ax.set_ylabel(_plain(ylabel))
+    ax.set_title(_plain(title), fontsize="medium")
     ax.grid(True, alpha=0.3)
+    for line in ax.get_lines():
+        label = line.get_label()
+        if not _UNLABELLED.fullmatch(label):
+            line.set_label(_plain(label))
     handles, _ = ax.get_legend_handles_labels()
     if legend and handles:
         _legend(ax, len(handles))
@@ -165,6 +196,7 @@ def _item_name(result: Any, kind: str, item: object) -> str:
 VIOLATION_ROUND_OFF = 1e-10
 
 
+@_with_records
 def plot_energy(result: Any, ax: Any = None) -> Any:
     """Kinetic, potential (gravity, springs; strain in a curve of its own for models with
     deformable bodies) and total energy (J) over time."""
@@ -198,6 +230,7 @@ def _driven(result: Any) -> tuple[bool, bool]:
     return drivers, forces
 
 
+@_with_records
 def plot_energy_drift(result: Any, ax: Any = None) -> Any:
     """Drift of the total energy E(t) - E(0) (J); the title gives the largest |drift|
     relative to the largest kinetic energy. In a model with drivers or applied forces, whose
@@ -217,6 +250,7 @@ def plot_energy_drift(result: Any, ax: Any = None) -> Any:
     return _finish(ax, "E(t) - E(0) (J)", title, flatten_round_off=False)
 
 
+@_with_records
 def plot_energy_balance(result: Any, ax: Any = None) -> Any:
     """The energy balance of a model that work is done on: the change of the total energy
     E(t) - E(0), the work of the drivers (:func:`flexmbd.quantities.driver_work`), the work
@@ -258,6 +292,7 @@ def plot_energy_balance(result: Any, ax: Any = None) -> Any:
     return _finish(ax, "energy (J)", title, flatten_round_off=False)
 
 
+@_with_records
 def plot_constraint_violation(result: Any, ax: Any = None) -> Any:
     """Largest |C(q, t)| of the constraint equations per record, on a log scale when it
     spans decades; values below 1e-8 of the largest (round-off) are drawn at that floor, not
@@ -288,6 +323,7 @@ BODY_QUANTITIES: dict[str, tuple[str, str]] = {
 """Body quantities: name -> (axis label, title)."""
 
 
+@_with_records
 def plot_body(result: Any, body: object, quantity: str = "position", ax: Any = None) -> Any:
     """Time history of a body quantity: "position" or "velocity" of the body frame origin
     (global), "angular-velocity" (global axes) or "elastic" (the elastic coordinates of a
@@ -321,6 +357,7 @@ def _moving_bodies(result: Any) -> list[str]:
     return [b["name"] for b in result.layout["bodies"] if b["kind"] != "ground"]
 
 
+@_with_records
 def plot_bodies(
     result: Any,
     bodies: Sequence[object] | None = None,
@@ -338,6 +375,7 @@ def plot_bodies(
     return axes
 
 
+@_with_records
 def plot_deflections(result: Any, body: object, node: int | None = None, ax: Any = None) -> Any:
     """Elastic displacement of a node of a deformable body relative to its frame (m, body
     axes): of node `node` (a node id of the mesh), or, if None, of the node whose largest
@@ -370,6 +408,7 @@ def _node_of(data: Any, node: int) -> int:
     return int(hits[0])
 
 
+@_with_records
 def plot_stress(result: Any, body: object, axes: Any = None) -> list[Any]:
     """Largest von Mises stress over the nodes of the solid and shell elements (for shells,
     the largest of their top, middle and bottom surfaces: `Result.von_mises`) of a deformable
@@ -442,6 +481,7 @@ def _moving_coordinates(result: Any, kind: str) -> list[tuple[str, Array]]:
     ]
 
 
+@_with_records
 def plot_joint_coordinates(result: Any, kind: str = "angle", ax: Any = None) -> Any:
     """The coordinates of the joints (:func:`flexmbd.quantities.joint_coordinates`) that
     move: `kind` "angle" (rad, continued over turns) or "slide" (m), one curve each."""
@@ -456,6 +496,7 @@ def plot_joint_coordinates(result: Any, kind: str = "angle", ax: Any = None) -> 
 
 
 # Joints and sensors ----------------------------------------------------------------------------
+@_with_records
 def plot_reaction(result: Any, joint: object, kind: str = "force", ax: Any = None) -> Any:
     """Reaction force (N) or torque (N m), `kind` "force" or "torque", of a joint on the body
     of its second marker, in that marker's axes: x, y, z components."""
@@ -476,6 +517,7 @@ def _reaction_joints(result: Any) -> list[str]:
     return [j["name"] for j in result.layout["joints"] if j["type"] not in _EFFORTS]
 
 
+@_with_records
 def plot_reactions(
     result: Any, joints: Sequence[object] | None = None, kind: str = "force", ax: Any = None
 ) -> Any:
@@ -538,6 +580,7 @@ def _actuators(result: Any, unit: str) -> list[str]:
     ]
 
 
+@_with_records
 def plot_efforts(result: Any, kind: str = "angle driver", ax: Any = None) -> Any:
     """The signed efforts of the drivers of `kind` ("angle driver": torques, N m;
     "translation driver": forces, N) and of the joint actuators in the same unit, one curve
@@ -568,6 +611,7 @@ def _effort_kinds(result: Any) -> list[str]:
     ]
 
 
+@_with_records
 def plot_sensor(result: Any, sensor: object, ax: Any = None) -> Any:
     """Values of a sensor (an orientation sensor: its nine matrix entries), with the unit of
     its quantity."""
@@ -669,6 +713,10 @@ def overview_notes(result: Any) -> list[str]:
     """What the overview (:func:`default_quantities`) leaves out, and the
     :func:`sampling_notes`."""
     notes = []
+    left = _loose_bodies(result)[OVERVIEW_BODIES:]
+    if left:  # (six free bodies showed four, without a word of the other two)
+        shown = ", ".join(left[:3]) + (", ..." if len(left) > 3 else "")
+        notes.append(f"{len(left)} more moving bodies not drawn ({shown}): position:NAME draws one")
     violation = np.asarray(result.constraint_violation)
     if violation.size and float(violation.max()) <= VIOLATION_ROUND_OFF:
         notes.append(
@@ -882,6 +930,7 @@ def _columns(count: int) -> int:
     return MAX_COLUMNS
 
 
+@_with_records
 def plot_quantities(
     result: Any, quantities: Sequence[str] | None = None, *, notes: bool = True
 ) -> Any:
@@ -915,15 +964,32 @@ def plot_quantities(
         (overview_notes(result) if quantities is None else sampling_notes(result)) if notes else []
     )
     if shown:
-        text = "\n".join(f"Note: {note}" for note in shown)
+        text = "\n".join(f"Note: {_plain(note)}" for note in shown)
         figure.supxlabel(text, x=0.01, ha="left", fontsize="small", color="firebrick")
     return figure
 
 
 def _slug(quantity: str) -> str:
-    """A file stem for a quantity name: "reaction:crank pin" -> "reaction-crank_pin"."""
+    """A file stem for a quantity name: "reaction:crank pin" -> "reaction-crank_pin"; letters
+    of any script kept ("position:rotor α" -> "position-rotor_α": as ASCII, "rotor α" and
+    "rotor β" both became "position-rotor.png", one file for two figures)."""
     text = quantity.strip().replace(":", "-")
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "plot"
+    return re.sub(r"[^\w.-]+", "_", text).strip("_.") or "plot"
+
+
+def _file_stems(quantities: Sequence[str]) -> list[str]:
+    """:func:`_slug` of each quantity, those that would share a file numbered in order
+    ("a b" and "a_b": "a_b", "a_b-2")."""
+    stems: list[str] = []
+    taken: set[str] = set()
+    for quantity in quantities:
+        stem, count = _slug(quantity), 1
+        while (stem if count == 1 else f"{stem}-{count}").lower() in taken:
+            count += 1
+        stem = stem if count == 1 else f"{stem}-{count}"
+        taken.add(stem.lower())  # (a case-insensitive file system: "A" and "a" one file)
+        stems.append(stem)
+    return stems
 
 
 def plot_result(
@@ -940,7 +1006,9 @@ def plot_result(
     `path_or_dir` ending in .png, .svg or .pdf: one figure with all panels stacked, in that
     format. Otherwise a directory (created) that receives one figure per quantity,
     ``<quantity>.<format>`` (``format`` "png", "svg" or "pdf"; "reaction:crank pin" ->
-    ``reaction-crank_pin.png``). All names are checked before anything is drawn."""
+    ``reaction-crank_pin.png``; quantities whose names give one file name numbered:
+    ``-2``, ``-3``). A path with another suffix is refused. All names are checked before
+    anything is drawn."""
     if isinstance(quantities, str):
         quantities = [q for q in (part.strip() for part in quantities.split(",")) if q]
     names = default_quantities(result) if quantities is None else list(quantities)
@@ -976,9 +1044,9 @@ def plot_result(
         )
     target.mkdir(parents=True, exist_ok=True)
     written = []
-    for quantity in names:
+    for quantity, stem in zip(names, _file_stems(names), strict=True):
         figure = plot_quantities(result, [quantity])
-        file = target / f"{_slug(quantity)}.{format.lower().lstrip('.')}"
+        file = target / f"{stem}.{format.lower().lstrip('.')}"
         figure.savefig(file, dpi=dpi)
         written.append(file)
     return written

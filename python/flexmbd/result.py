@@ -229,9 +229,10 @@ class Result:
             if item not in names:
                 raise UnknownItemError(f"no {singular} named {item!r}; known: {names}", item=item)
             index = names.index(item)
-        else:
+        else:  # (a float, or another kind's id: the item named)
             raise UnknownItemError(
-                f"expected a {id_type.__name__}, an index or a name, got {item!r}"
+                f"expected a {id_type.__name__}, an index or a name, got {item!r}",
+                item=str(item),
             )
         if not 0 <= index < len(entries):
             raise UnknownItemError(
@@ -331,6 +332,12 @@ class Result:
     def _record_indices(self, records: Any) -> NDArray[np.int64]:
         """Record indices (negative from the end) checked against the records there are."""
         index = np.atleast_1d(integers_array(records, "records"))
+        if index.ndim != 1:  # ([[0, 1]] reached scipy as "could not interpret dimensions")
+            raise InvalidParameterError(
+                f"records: one list of record indices, got an array of shape {index.shape}",
+                item="records",
+            )
+        index = index.astype(np.int64)  # (an empty list: no records, not a float array)
         count = len(self.time)
         outside = index[(index < -count) | (index >= count)]
         if outside.size:

@@ -11,8 +11,9 @@ SI, ``{"length": "m", "mass": "kg", "time": "s", "angle": "rad", "force": "N"}``
 Datasets, time first, one row per record, extensible along the first axis (SI units):
 
 * ``time`` (n,) s; ``coordinates``, ``velocities``, ``accelerations`` (n, coordinates);
-  ``multipliers`` (n, constraints); ``reactions`` (n, joints, 6): force and torque on the
-  joint's first body at its first marker, in that marker's axes; ``sensors`` (n, width);
+  ``multipliers`` (n, constraints); ``reactions`` (n, joints, 6): force and torque that the
+  joint exerts on the body of its second marker, about that marker's origin, in that
+  marker's axes (`Result.reaction`); ``sensors`` (n, width);
   ``energy`` (n, 4): kinetic, potential (strain included) and strain energy, J, and the
   power of the forces no potential accounts for, W (`Result.nonconservative_power`; files
   written before it was recorded have (n, 3), before the strain energy (n, 2));
