@@ -889,9 +889,10 @@ def test_the_format_covers_the_python_api():
     from flexmbd.fe import build_body
 
     # Not in model files: the mesh itself (a source key instead), external mode matrices
-    # (use a body file), timings; the mesh is always checked.
+    # (use a body file), timings; the mesh is always checked. The beams' offsets and pin
+    # flags, arrays per element, come with the mesh of a Nastran deck (its CBAR cards).
     left_out = {"nodes", "elements", "node_ids", "element_ids", "node_sets", "external_modes"}
-    left_out |= {"check_mesh", "timings"}
+    left_out |= {"check_mesh", "timings", "beam_offsets", "beam_releases"}
     renamed = {"orientation": "section_orientation", "mass": "mass_matrix"}
     renamed["shell"] = "shell_thickness"
     options = set(inspect.signature(build_body).parameters) - left_out

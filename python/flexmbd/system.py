@@ -284,23 +284,32 @@ def _stiffening_elements(
     modal = body.modes is not None
     elements: list[tuple[Any, ...]] = []
 
-    def mapped(nodes: NDArray[np.int64], rot: NDArray[np.float64]) -> tuple[Any, Any]:
+    def mapped(
+        nodes: NDArray[np.int64], rot: NDArray[np.float64], tie: NDArray[np.float64] | None = None
+    ) -> tuple[Any, Any]:
         rows = np.concatenate([np.arange(n * d, n * d + 6) for n in nodes])
-        local = np.kron(np.eye(2 * len(nodes)), rot) @ basis[rows].toarray()
+        grids = basis[rows].toarray()
+        local = np.kron(np.eye(2 * len(nodes)), rot) @ (grids if tie is None else tie @ grids)
         columns = np.arange(local.shape[1]) if modal else np.flatnonzero(np.any(local != 0, axis=0))
         return columns.astype(np.int64), np.ascontiguousarray(local[:, columns])
 
     if beams:
         ea = float(body.material["young_modulus"]) * float(body.section["area"])
-        for a, b in np.asarray(conn, dtype=np.int64):
-            axis = body.nodes[b] - body.nodes[a]
+        ends = _beam_end_maps(body, conn)
+        for k, (a, b) in enumerate(np.asarray(conn, dtype=np.int64)):
+            if ends is not None and (ends.releases[k, 0] or ends.releases[k, 6]):
+                continue  # (released along its axis: no axial force, no geometric stiffness)
+            # The element's axis: between its nodes, or its offset ends tied to them.
+            axis = (
+                body.nodes[b] - body.nodes[a] if ends is None else np.diff(ends.ends[k], axis=0)[0]
+            )
             length = float(np.linalg.norm(axis))
             ex = axis / length
             helper = np.eye(3)[int(np.argmin(np.abs(ex)))]
             ey = helper - ex * (helper @ ex)
             ey /= np.linalg.norm(ey)
             rot = np.vstack([ex, ey, np.cross(ex, ey)])
-            columns, local = mapped(np.array([a, b]), rot)
+            columns, local = mapped(np.array([a, b]), rot, None if ends is None else ends.maps[k])
             elements.append((columns, local, length, ea))
     if shells:
         section = _core.ShellSection(
@@ -319,6 +328,32 @@ def _stiffening_elements(
                 columns, local = mapped(element, np.asarray(axes))
                 elements.append((columns, local, linear, slopes, stiffness))
     return elements
+
+
+def _beam_end_maps(body: FlexibleBodyData, conn: Any) -> Any:
+    """The ties (`flexmbd.fe.beam_ends.EndMaps`) of a body's beams with offsets or released
+    coordinates, or None without them."""
+    from .fe.beam_ends import end_maps, recorded_ends
+    from .fe.body_variants import _section
+
+    offsets, releases = recorded_ends(body.section)
+    if offsets is None and releases is None:
+        return None
+    section, orientation, theory = _section(body)
+    return end_maps(
+        body.nodes,
+        np.asarray(conn, dtype=np.int64),
+        offsets,
+        releases,
+        material=_core.Material(
+            body.material["young_modulus"],
+            body.material["poisson_ratio"],
+            body.material["density"],
+        ),
+        section=section,
+        orientation=orientation,
+        shear=theory == "timoshenko",
+    )
 
 
 GEOMETRIC_STIFFNESS = ("von-karman", "corotational")
@@ -346,6 +381,7 @@ def _corotational_elements(
     """The elements of the co-rotational elastic forces (`body/corotational.rs`): for each
     beam, the map (12, n_l) from the elastic coordinates to its nodal coordinates in the
     element's axes (those of its section), its length and its local stiffness matrix."""
+    from .fe.beam_ends import recorded_ends
     from .fe.body_variants import _section
 
     if body.modes is not None:
@@ -368,6 +404,20 @@ def _corotational_elements(
         raise InvalidModelError(
             f"{item}: geometric_stiffness='corotational' is available for beam elements; the "
             "body has none",
+            item=item,
+        )
+    offsets, releases = recorded_ends(body.section)
+    if offsets is not None or releases is not None:
+        given = " and ".join(
+            what
+            for what, value in (("offsets", offsets), ("released coordinates", releases))
+            if value is not None
+        )
+        raise InvalidModelError(
+            f"{item}: geometric_stiffness='corotational' does not take beams with {given} "
+            "(beam_offsets, beam_releases; Nastran's WA, WB and pin flags): their ties to the "
+            "nodes are linear in the nodal rotations, which the co-rotated chord turns "
+            "finitely; use geometric_stiffness=True (von Karman), which takes them",
             item=item,
         )
     section, orientation, theory = _section(body)

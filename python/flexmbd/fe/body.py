@@ -424,7 +424,9 @@ class FlexibleBodyData:
         node_sets: name -> indices into ``nodes``.
         material: {"young_modulus": Pa, "poisson_ratio": -, "density": kg/m^3}; empty for
             bodies built from matrices.
-        section: beam section {"area", "iy", "iz", "torsion_constant", ...} or None.
+        section: beam section {"area", "iy", "iz", "torsion_constant", ...} or None; with
+            "offsets" (n_beams, 2, 3) and "releases" (n_beams, 12) where the beams have them
+            (`build_body`'s `beam_offsets`, `beam_releases`).
         dofs_per_node: 3 for solids, 6 when beams or shells are present.
         stiffness: K_ff, sparse (n_dofs, n_dofs), nodal.
         mass: M_ff, sparse (n_dofs, n_dofs), nodal.

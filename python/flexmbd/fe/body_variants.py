@@ -30,6 +30,7 @@ from .._checks import number
 from ..errors import InvalidModelError, InvalidParameterError
 from ..rotation import skew
 from . import preprocess
+from .beam_ends import recorded_ends
 from .body import FlexibleBodyData, _replace
 
 _MATERIAL_KEYS = ("young_modulus", "poisson_ratio", "density")
@@ -168,12 +169,16 @@ def _material(values: Mapping[str, Any]) -> preprocess.Material:
 
 def _element_options(body: FlexibleBodyData) -> dict[str, Any]:
     """The options of a meshed body's elements as `build_body`, `assemble` and
-    `_body_from_nodal` take them: section, orientation, beam theory, shell and mass kind."""
+    `_body_from_nodal` take them: section, orientation, beam theory, the beams' offsets and
+    releases, shell and mass kind."""
     section, orientation, beam_theory = _section(body)
+    offsets, releases = recorded_ends(body.section)
     return {
         "section": section,
         "orientation": orientation,
         "beam_theory": beam_theory,
+        "beam_offsets": offsets,
+        "beam_releases": releases,
         "shell": _shell(body),
         "mass": body.mass_kind,
     }

@@ -29,6 +29,15 @@ from ..errors import (
     UnknownItemError,
 )
 from ..rotation import skew
+from .beam_ends import (
+    AxisMesh,
+    EndMaps,
+    axis_mesh,
+    checked_ends,
+    end_maps,
+    tied_invariants,
+    tied_matrix,
+)
 from .body import FlexibleBodyData, Invariants, ReferenceConditions
 from .interface import Interface
 from .mesh_io import (
@@ -349,6 +358,8 @@ def assemble(
     element_ids: Mapping[str, ArrayLike] | None = None,
     form_i_kl: bool = True,
     shell: ShellSection | float | None = None,
+    beam_offsets: ArrayLike | None = None,
+    beam_releases: ArrayLike | None = None,
 ) -> NodalBody:
     """Assembles K_ff, M_ff and the nodal invariants (Rust kernels, see `docs/preprocessor.md`).
 
@@ -362,13 +373,22 @@ def assemble(
     `beam_theory` "euler-bernoulli" or "timoshenko" (shear-deformable beams). For bodies of
     solid elements the nine I_kl are the scalar mass matrix M_s spread over the coordinates;
     with `form_i_kl` False they are not formed (`invariants["i_kl"]` is None; modal invariants
-    need only M_s), which saves memory of the size of M."""
+    need only M_s), which saves memory of the size of M. `beam_offsets` (n_beams, 2, 3) and
+    `beam_releases` (n_beams, 12) are the offsets and released end coordinates of the beam2
+    elements (`flexmbd.fe.beam_ends`): such beams are assembled on their offset axes and
+    tied to their nodes."""
     choice(mass, "mass", MASS_KINDS)
     shear = _beam_theory(beam_theory)
     shell = shell_section(shell)
     _check_shell(elements, shell)
     nodes = np.ascontiguousarray(nodes, dtype=float)
     ids = np.arange(1, len(nodes) + 1) if node_ids is None else np.asarray(node_ids)
+    direction = None if orientation is None else unit_vector(orientation, "orientation")
+    on_axes = _axis_mesh(
+        nodes, ids, elements, material, section, direction, shear, beam_offsets, beam_releases
+    )
+    if on_axes is not None:
+        nodes, ids, elements = on_axes.nodes, on_axes.node_ids, on_axes.elements
     blocks = {}
     offset = 1
     for kind, conn in elements.items():
@@ -387,7 +407,7 @@ def assemble(
         blocks,
         material,
         section,
-        None if orientation is None else list(unit_vector(orientation, "orientation")),
+        None if direction is None else list(direction),
         shear,
         shell,
     )
@@ -407,13 +427,51 @@ def assemble(
         "ibar": np.asarray(raw["ibar"]).reshape(3, 3, n),
         "i_kl": i_kl,
     }
+    stiffness, mass_matrix = _csc(raw["stiffness"]), _csc(raw["mass"])
+    if on_axes is not None:
+        # The beams' axis ends tied to their nodes: K = P^T K_axis P, and so on.
+        tie = on_axes.tie
+        stiffness = tied_matrix(stiffness, tie)
+        mass_matrix = tied_matrix(mass_matrix, tie)
+        invariants = tied_invariants(invariants, tie)
     return NodalBody(
         dofs_per_node=int(raw["dofs_per_node"]),
-        stiffness=_csc(raw["stiffness"]),
-        mass=_csc(raw["mass"]),
+        stiffness=stiffness,
+        mass=mass_matrix,
         invariants=invariants,
         scalar_mass=ms,
     )
+
+
+def _axis_mesh(
+    nodes: NDArray[np.float64],
+    ids: NDArray[Any],
+    elements: Mapping[str, ArrayLike],
+    material: Material,
+    section: Section | None,
+    direction: NDArray[np.float64] | None,
+    shear: bool,
+    beam_offsets: ArrayLike | None,
+    beam_releases: ArrayLike | None,
+) -> AxisMesh | None:
+    """The mesh with the beams that have offsets or releases on their axis ends, and its tie
+    to the body's coordinates (`beam_ends.axis_mesh`), or None without such beams (or without
+    a section: the assembly names the missing section)."""
+    offsets, releases = checked_ends(elements, beam_offsets, beam_releases)
+    if (offsets is None and releases is None) or section is None:
+        return None
+    kinds = {k: np.ascontiguousarray(v, dtype=np.int64) for k, v in elements.items()}
+    maps = end_maps(
+        nodes,
+        kinds["beam2"],
+        offsets,
+        releases,
+        material=material,
+        section=section,
+        orientation=direction,
+        shear=shear,
+    )
+    return axis_mesh(nodes, ids, kinds, maps)
 
 
 def mass_points(
@@ -426,11 +484,29 @@ def mass_points(
     mass: str = "consistent",
     beam_theory: str = "euler-bernoulli",
     shell: ShellSection | float | None = None,
+    beam_offsets: ArrayLike | None = None,
+    beam_releases: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], sp.csr_matrix]:
     """The body's mass points: weights rho dV (P,), undeformed positions (P, 3), and the shape
     matrices stacked as a sparse (3 P, n_dofs) matrix (rows 3p..3p+3: S of point p). The
-    invariants are sums over them; they serve brute-force checks."""
+    invariants are sums over them; they serve brute-force checks. Beams with offsets or
+    releases (see `assemble`) have their points on their offset axes, their shape matrices
+    S P through the tie."""
     nodes = np.ascontiguousarray(nodes, dtype=float)
+    direction = None if orientation is None else unit_vector(orientation, "orientation")
+    on_axes = _axis_mesh(
+        nodes,
+        np.arange(1, len(nodes) + 1),
+        elements,
+        material,
+        section,
+        direction,
+        _beam_theory(beam_theory),
+        beam_offsets,
+        beam_releases,
+    )
+    if on_axes is not None:
+        nodes, elements = on_axes.nodes, on_axes.elements
     blocks = {
         kind: (
             np.ascontiguousarray(conn, dtype=np.int64),
@@ -444,13 +520,16 @@ def mass_points(
         blocks,
         material,
         section,
-        None if orientation is None else list(unit_vector(orientation, "orientation")),
+        None if direction is None else list(direction),
         _beam_theory(beam_theory),
         shell_section(shell),
     )
     weights, positions, shape = _core.body_mass_points(mesh, mass == "lumped")
     data, indices, indptr, dims = shape
-    return weights, positions, sp.csr_matrix((data, indices, indptr), shape=dims)
+    matrix = sp.csr_matrix((data, indices, indptr), shape=dims)
+    if on_axes is not None:
+        matrix = sp.csr_matrix(matrix @ on_axes.tie)
+    return weights, positions, matrix
 
 
 # Reference conditions -------------------------------------------------------------------------
@@ -619,6 +698,8 @@ def build_body(
     shell: ShellSection | float | None = None,
     orient_shells: bool = False,
     point_masses: Mapping[int, Any] | None = None,
+    beam_offsets: ArrayLike | None = None,
+    beam_releases: ArrayLike | None = None,
 ) -> FlexibleBodyData:
     """Runs the preprocessor and returns the `FlexibleBodyData` of a body.
 
@@ -666,6 +747,14 @@ def build_body(
       with the node). They add to the mass matrix and to every invariant of motion (exact:
       rigid parts moving with their nodes), and they are kept by the body's variants
       (`with_material`, `with_modes`).
+    - `beam_offsets`: (n_beams, 2, 3) the offsets w_a, w_b (m, body axes) of the ends of each
+      beam2 element from its nodes (Nastran's CBAR WA, WB): the element's axis runs between
+      x_a + w_a and x_b + w_b, tied rigidly to the nodes; its stiffness, mass and invariants
+      are those of the offset beam. `beam_releases`: (n_beams, 12) bools, the released end
+      coordinates u, v, w, theta_x, theta_y, theta_z of end a then end b in the element's
+      axes (Nastran's pin flags PA, PB), condensed out of the element (see
+      `flexmbd.fe.beam_ends`). A release that leaves the body a mechanism is an
+      `InvalidModelError`. Both are kept in `body.section` ("offsets", "releases").
     """
     clock = _Stages(timings)
     mode_count = integer(mode_count, "mode_count")
@@ -696,6 +785,7 @@ def build_body(
     elements = {k: integers_array(v, f"elements[{k!r}]").copy() for k, v in elements.items()}
     _check_shell(elements, shell)
     _check_sections_used(elements, section, shell, orientation, beam_theory)
+    offsets, releases = checked_ends(elements, beam_offsets, beam_releases)
     if flag(orient_shells, "orient_shells"):
         elements = orient_shell_elements(elements)
     ids = (
@@ -732,6 +822,8 @@ def build_body(
             beam_theory=beam_theory,
             node_ids=ids,
             shell=shell,
+            beam_offsets=offsets,
+            beam_releases=releases,
             **options,
         )
 
@@ -743,6 +835,36 @@ def build_body(
     _check_zero_energy_modes(
         nodal, nodes, elements, eids, lambda other: assembled(other, form_i_kl=False)
     )
+    if releases is not None and section is not None:
+        maps = end_maps(
+            nodes,
+            elements["beam2"],
+            offsets,
+            releases,
+            material=material,
+            section=section,
+            orientation=None if orientation is None else unit_vector(orientation, "orientation"),
+            shear=_beam_theory(beam_theory),
+        )
+        # (held: the clamped nodes, and those of rigid or nodal Craig-Bampton interfaces)
+        held = (
+            [_node_indices(reference_nodes, sets, "reference_nodes")]
+            if reference == "clamped"
+            else []
+        )
+        if modes == "craig-bampton" and interface_kind in ("rbe2", "nodal"):
+            held += [
+                _node_indices(selection, sets, f"interfaces[{i}]")
+                for i, selection in enumerate(_interface_selections(interfaces))
+            ]
+        _check_released_mechanism(
+            nodal,
+            nodes,
+            elements,
+            eids["beam2"],
+            maps,
+            np.unique(np.concatenate([np.zeros(0, dtype=np.int64), *held])),
+        )
     clock.lap("assemble")
     return _body_from_nodal(
         nodal,
@@ -758,6 +880,8 @@ def build_body(
         },
         section=section,
         orientation=orientation,
+        beam_offsets=offsets,
+        beam_releases=releases,
         shell=shell,
         beam_theory=beam_theory,
         mass=mass,
@@ -786,6 +910,8 @@ def _body_from_nodal(
     section: Section | None,
     beam_theory: str,
     orientation: ArrayLike | None = None,
+    beam_offsets: NDArray[np.float64] | None = None,
+    beam_releases: NDArray[np.bool_] | None = None,
     shell: ShellSection | None = None,
     mass: str,
     reference: str,
@@ -962,6 +1088,9 @@ def _body_from_nodal(
             else [float(v) for v in np.asarray(orientation, dtype=float).ravel()],
             # Kept only where it is off (the default Rayleigh beam leaves the layout as it was).
             **({} if section.rotary_inertia else {"rotary_inertia": False}),
+            # Kept only where given: (n_beams, 2, 3) offsets, (n_beams, 12) released coordinates.
+            **({} if beam_offsets is None else {"offsets": np.array(beam_offsets, dtype=float)}),
+            **({} if beam_releases is None else {"releases": np.array(beam_releases, dtype=bool)}),
         },
         dofs_per_node=d,
         stiffness=nodal.stiffness,
@@ -1271,6 +1400,117 @@ def _check_zero_energy_modes(
         f"more nodes, or connect separate bodies with a joint ({error})",
         item="mesh",
     ) from error
+
+
+#: A motion whose energy the beams' releases take to less than this fraction of its energy
+#: without them is a mechanism of the releases. Round-off limits what the check can tell:
+#: a chain of 1000 (3000) slender elements clamped at one end with a hinge gives 1.1e-7
+#: (1.2e-7), the same chain propped at its tip, a legitimate structure, 1.9e-4 (6.2e-5): up
+#: to some 3000 elements in a row the two are told apart.
+RELEASED_MECHANISM = 1e-6
+
+
+#: Released coordinates up to which `_check_released_mechanism` forms F^T K_0^-1 F densely.
+_DENSE_RELEASES = 200
+
+
+def _check_released_mechanism(
+    nodal: NodalBody,
+    nodes: NDArray[np.float64],
+    elements: Mapping[str, NDArray[np.int64]],
+    beam_ids: NDArray[np.int64],
+    maps: EndMaps,
+    held: NDArray[np.int64],
+) -> None:
+    """Raises `InvalidModelError` naming the beams when their released coordinates (pin
+    flags) leave the body a mechanism: a hinge at a node that nothing else holds, a twist
+    released where no other element carries torsion, a cantilever's hinge. A motion of the
+    `held` nodes (clamped by the reference conditions, or of rigid or nodal Craig-Bampton
+    interfaces) is none of the body's.
+
+    With K the body's stiffness and K_0 = K + sum_e C_e (C_e = `maps.removed`: the stiffness
+    the releases take from beam e, positive semi-definite of low rank, C_e = F_e F_e^T) the
+    stiffness without the releases, on the coordinates that the six rigid supports of each
+    part (or its held nodes, when they hold it) leave free: the least ratio of energies
+    x^T K x / x^T K_0 x is 1 - nu with nu the largest eigenvalue of F^T K_0^-1 F (r x r, r
+    the released coordinates' count); a mechanism of the releases has ratio 0 (below
+    `RELEASED_MECHANISM`). The Cholesky factor of K itself tells them apart only by the sign
+    of a pivot that round-off decides. A body that is a mechanism without its releases too
+    is left to the other checks."""
+    d = nodal.dofs_per_node
+    _, part = mesh_parts(len(nodes), elements, nodal.stiffness, d)
+    unused = solid_only_rotations(elements, len(nodes), d)
+    inside = held[(held >= 0) & (held < len(nodes))]  # (others are named later)
+    support: list[int] = []
+    for p in np.unique(part):
+        members = np.flatnonzero(part == p)
+        own = np.setdiff1d(d * np.intersect1d(inside, members)[:, None] + np.arange(d), unused)
+        if len(own) and np.linalg.matrix_rank(rigid_modes(nodes - nodes.mean(axis=0), d)[own]) == 6:
+            support += [int(r) for r in own]  # (its held nodes hold the part: them alone)
+        else:
+            support += _rigid_support(nodes, members, d, unused)
+    free = np.setdiff1d(np.setdiff1d(np.arange(len(nodes) * d), support), unused)
+    position = np.full(len(nodes) * d, -1, dtype=np.int64)
+    position[free] = np.arange(len(free))
+    # F: the columns F_e of each released beam (its removed stiffness C_e = F_e F_e^T).
+    conn = np.asarray(elements["beam2"], dtype=np.int64)
+    columns, owners, rows, entries = 0, [], [], []
+    for e in np.flatnonzero(maps.releases.any(axis=1)):
+        values, vectors = np.linalg.eigh(maps.removed[e])
+        kept = values > 1e-12 * max(float(values.max()), 1e-300)
+        coordinates = position[(d * conn[e][:, None] + np.arange(6)).ravel()]
+        for vector in (vectors[:, kept] * np.sqrt(values[kept])).T:
+            inner = coordinates >= 0
+            rows.append(coordinates[inner])
+            entries.append(vector[inner])
+            owners.append(int(e))
+            columns += 1
+    if columns == 0:
+        return
+    f = sp.csc_matrix(
+        (
+            np.concatenate(entries),
+            (np.concatenate(rows), np.repeat(np.arange(columns), [len(r) for r in rows])),
+        ),
+        shape=(len(free), columns),
+    )
+    removed = f @ f.T
+    whole = (nodal.stiffness[free][:, free] + removed).tocsc()
+    try:
+        factor = factorize(
+            whole, dofs=free, nodes=nodes, dofs_per_node=d, name="stiffness without releases"
+        )
+    except InvalidModelError:
+        return
+    if columns <= _DENSE_RELEASES:
+        dense = f.toarray()
+        g = dense.T @ factor.solve(np.ascontiguousarray(dense))
+        values, vectors = np.linalg.eigh(0.5 * (g + g.T))
+    else:  # (Lanczos: one solve per step, no dense r x r matrix)
+        from scipy.sparse.linalg import LinearOperator, eigsh
+
+        operator = LinearOperator(
+            (columns, columns), matvec=lambda y: f.T @ factor.solve(np.asarray(f @ y).ravel())
+        )
+        values, vectors = eigsh(operator, k=1, which="LA", tol=1e-12)
+    ratio = 1.0 - float(values[-1])
+    if ratio > RELEASED_MECHANISM:
+        return
+    share = np.zeros(len(beam_ids))
+    weights = vectors[:, -1] ** 2
+    for column, owner in enumerate(owners):
+        share[owner] += weights[column]
+    involved = [int(beam_ids[e]) for e in np.flatnonzero(share > 1e-3 * share.max())]
+    listed = ", ".join(map(str, involved[:6])) + (", ..." if len(involved) > 6 else "")
+    raise InvalidModelError(
+        "the mesh is a mechanism: the released coordinates of its beams (beam_releases, "
+        f"Nastran's pin flags PA, PB) of elements {listed} let it move without stiffness (a "
+        "coordinate released where no other element holds it: a hinge in a cantilever, a "
+        "twist released where nothing else carries torsion; the energy of a motion falls to "
+        f"{max(ratio, 0.0):.1e} of its energy without the releases). Release fewer "
+        "coordinates, hold the body there, or model the joint with a joint",
+        item=f"element {involved[0]}",
+    )
 
 
 def _vector_text(v: NDArray[np.float64]) -> str:

@@ -6,7 +6,9 @@
   element (lower order than the displacements).
 - Beams: the section resultants [N, V_y, V_z, T, M_y, M_z] at both ends of every element
   (element axes; N, N m; tension positive), from the element stiffness: exact for the static
-  end-loaded element.
+  end-loaded element. A beam with offsets or released coordinates (`flexmbd.fe.beam_ends`)
+  gives them at the ends of its offset axis, from the coordinates its tie gives those ends
+  (zero along a released coordinate).
 - Shells ("quad4", "tri3"): the plane stresses at the top (z = t/2 along the element
   normal), middle and bottom surfaces, evaluated at the element nodes and averaged over the
   shell elements around each node (body axes, Voigt order); the middle surface carries the
@@ -23,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
 from ..errors import InvalidParameterError
+from .beam_ends import axis_mesh, end_maps, recorded_ends
 from .body import FlexibleBodyData
 
 #: Names of the stress components, in order.
@@ -87,12 +90,6 @@ def _recovered(
         raise InvalidParameterError(
             f"displacements must have {body.dof_count} entries per record, got {u.shape[1]}"
         )
-    blocks = {}
-    for kind, conn in body.elements.items():
-        blocks[kind] = (
-            np.ascontiguousarray(conn, dtype=np.int64),
-            np.ascontiguousarray(body.element_ids[kind], dtype=np.int64),
-        )
     material = _boundary.Material(
         material["young_modulus"], material["poisson_ratio"], material["density"]
     )
@@ -106,6 +103,31 @@ def _recovered(
             section = section.with_shear_factor(s["shear_factor"])
         orientation = s.get("orientation")
         shear = s.get("beam_theory") == "timoshenko"
+    nodes, ids, elements = body.nodes, body.node_ids, dict(body.elements)
+    offsets, releases = recorded_ends(body.section)
+    on_axes = None
+    if section is not None and (offsets is not None or releases is not None):
+        # Beams with offsets or releases: on their axis ends, moved by their ties.
+        kinds = {k: np.ascontiguousarray(v, dtype=np.int64) for k, v in elements.items()}
+        maps = end_maps(
+            nodes,
+            kinds["beam2"],
+            offsets,
+            releases,
+            material=material,
+            section=section,
+            orientation=None if orientation is None else np.asarray(orientation, dtype=float),
+            shear=shear,
+        )
+        on_axes = axis_mesh(nodes, ids, kinds, maps)
+        nodes, ids, elements = on_axes.nodes, on_axes.node_ids, on_axes.elements
+        u = np.asarray((on_axes.tie @ u.T).T)
+    blocks = {}
+    for kind, conn in elements.items():
+        blocks[kind] = (
+            np.ascontiguousarray(conn, dtype=np.int64),
+            np.ascontiguousarray(body.element_ids[kind], dtype=np.int64),
+        )
     shell = None
     if body.shell is not None:
         shell = _core.ShellSection(
@@ -113,8 +135,8 @@ def _recovered(
             shear_factor=float(body.shell.get("shear_factor", 5.0 / 6.0)),
         )
     mesh = _core.FeMesh(
-        np.ascontiguousarray(body.nodes, dtype=float),
-        np.ascontiguousarray(body.node_ids, dtype=np.int64),
+        np.ascontiguousarray(nodes, dtype=float),
+        np.ascontiguousarray(ids, dtype=np.int64),
         blocks,
         material,
         section,
@@ -123,6 +145,8 @@ def _recovered(
         shell,
     )
     nodal, beams, shells = _core.recover_stresses(mesh, np.ascontiguousarray(u))
+    if on_axes is not None:  # (the body's nodes come first)
+        nodal, shells = nodal[:, : len(body.nodes)], shells[:, : len(body.nodes)]
     if single:
         return nodal[0], beams[0], shells[0]
     return nodal, beams, shells
