@@ -304,6 +304,117 @@ def test_offset_conm2_on_beam_grids(tmp_path, assert_close):
     assert_close(body.invariants.first_moment - plain.invariants.first_moment, moment, abs=1e-12)
 
 
+def hinged_beam_deck(form, *, name="CBAR", offt="", pin="56", offset=0.02, extra=()):
+    """Grids 1-5 along x (1 m; grid 3's displacement system turned by CORD2R 5: x' = x, y' =
+    z, z' = -y), clamped at grids 1 and 5 (SPC1 1), four beams 10-13 whose axis runs `offset`
+    above the grids (WA = WB = (0, 0, offset) in the grids' displacement systems: (0, offset,
+    0) at grid 3), the pin flags `pin` at end B of beam 11 (a hinge at grid 3). `extra`:
+    (index, value) fields of beam 10 replaced (0-based data fields)."""
+    pbar = ("PBAR", [7, 3, 2e-4, 3e-8, 5e-8, 4e-8])
+    pbeam = ("PBEAM", [7, 3, 2e-4, 3e-8, 5e-8, "", 4e-8])
+    lines = [
+        "BEGIN BULK\n",
+        card("CORD2R", [5, "", 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 0.0], form),
+    ]
+    for k in range(5):
+        lines.append(card("GRID", [k + 1, "", 0.25 * k, 0.0, 0.0, 5 if k == 2 else ""], form))
+    for k in range(4):
+        ga, gb = k + 1, k + 2
+        w = [(0.0, offset, 0.0) if g == 3 else (0.0, 0.0, offset) for g in (ga, gb)]
+        # y of the basic system, in GA's displacement system unless OFFT is B..
+        v = (0.0, 0.0, -1.0) if ga == 3 and not offt.startswith("B") else (0.0, 1.0, 0.0)
+        fields = [10 + k, 7, ga, gb, *v, offt, "", pin if k == 1 else "", *w[0], *w[1]]
+        for index, value in extra if k == 0 else ():
+            fields += [""] * (index + 1 - len(fields))
+            fields[index] = value
+        lines.append(card(name, fields, form))
+    lines.append(card("MAT1", [3, 2.1e11, 8.1e10, "", 7800.0], form))
+    lines.append(card(*(pbar if name == "CBAR" else pbeam), form))
+    lines.append(card("SPC1", [1, 123456, 1, 5], form))
+    return "".join(lines)
+
+
+@pytest.mark.parametrize(
+    ("form", "name"), [("small", "CBAR"), ("large", "CBEAM"), ("free", "CBAR")]
+)
+def test_beam_offsets_and_pin_flags_of_a_deck(form, name, tmp_path, assert_close):
+    # The deck's offsets (turned from grid 3's displacement system to the basic one) and pin
+    # flags give build_body's body with the same beam_offsets and beam_releases: matrices
+    # and frequencies. A force P along z at the hinge: each half, clamped at its far end, is
+    # a cantilever whose tip the hinge frees (the offsets along z take no moment from it, and
+    # the axial shifts of both halves at the hinge are equal), w = P a^3 / (6 E I_y), a =
+    # 0.5 m; without the pin flags the beam is clamped at both ends: P L^3 / (192 E I_y).
+    path = tmp_path / "hinge.bdf"
+    path.write_text(hinged_beam_deck(form, name=name))
+    deck = read_nastran(path)
+    offsets = np.zeros((4, 2, 3))
+    offsets[:, :, 2] = 0.02
+    assert_close(deck.beam_offsets, offsets, abs=1e-15, what="offsets")
+    releases = np.zeros((4, 12), dtype=bool)
+    releases[1, [10, 11]] = True
+    assert deck.beam_releases.tolist() == releases.tolist()
+    options = dict(reference="clamped", modes="fixed-interface", mode_count=6)
+    body = deck.body(reference_nodes="spc1", **options)
+    nodes = np.column_stack([0.25 * np.arange(5), np.zeros(5), np.zeros(5)])
+    elements = {"beam2": np.column_stack([np.arange(4), np.arange(1, 5)])}
+    nu = 2.1e11 / (2 * 8.1e10) - 1
+    direct = pp.build_body(
+        nodes, elements, Material(2.1e11, nu, 7800.0), section=Section(2e-4, 5e-8, 3e-8, 4e-8),
+        orientation=(0.0, 1.0, 0.0), beam_offsets=offsets, beam_releases=releases,
+        reference_nodes=[0, 4], **options,
+    )  # fmt: skip
+    assert_close(dense(body.stiffness), dense(direct.stiffness), abs=1e-9 * direct.stiffness.max())
+    assert_close(dense(body.mass), dense(direct.mass), abs=1e-9 * direct.mass.max(), what="M")
+    assert_close(body.frequencies, direct.frequencies, rel=1e-9, what="frequencies")
+    force, ei = 100.0, 2.1e11 * 5e-8
+    f = np.zeros(30)
+    f[6 * 2 + 2] = force
+    nodal = deck.body(reference="clamped", reference_nodes="spc1")
+    w = pp.static_displacements(nodal, f)[14]
+    assert_close(w, force * 0.5**3 / (6 * ei), rel=1e-9, what="deflection at the hinge")
+    path.write_text(hinged_beam_deck(form, name=name, pin=""))
+    whole = read_nastran(path).body(reference="clamped", reference_nodes="spc1")
+    assert read_nastran(path).beam_releases is None
+    w = pp.static_displacements(whole, f)[14]
+    assert_close(w, force / (192 * ei), rel=1e-9, what="deflection without the hinge")
+
+
+@pytest.mark.parametrize(
+    ("name", "extra", "error", "match"),
+    [
+        ("CBAR", [(7, "GOO")], InvalidModelError, r"OFFT GOO: the offset at end A in the element"),
+        ("CBAR", [(7, "GXG")], InvalidModelError, r"OFFT 'GXG' \(field 9\) is not one of GGG"),
+        ("CBAR", [(8, "7")], InvalidModelError, r"pin flag PA = '7' \(field 10\)"),
+        ("CBAR", [(8, "123456")], InvalidModelError, r"pin flag PA = '123456'"),
+        ("CBAR", [(8, "11")], InvalidModelError, r"pin flag PA = '11'"),
+        ("CBEAM", [(7, 1.5)], InvalidModelError, r"BIT = 1.5 \(built-in twist, field 9\)"),
+        ("CBEAM", [(16, 101)], InvalidModelError, r"SA, SB \(scalar points of warping"),
+    ],
+)
+def test_refused_beam_options_name_the_file_line_and_card(name, extra, error, match, tmp_path):
+    path = tmp_path / "bad.bdf"
+    path.write_text(hinged_beam_deck("small", name=name, extra=extra))
+    with pytest.raises(error, match=rf"bad.bdf, line \d+: {name}: element 10: {match}"):
+        read_nastran(path)
+
+
+def test_offsets_in_an_undefined_displacement_system_are_refused(tmp_path):
+    path = tmp_path / "bad.bdf"
+    text = hinged_beam_deck("small").replace(
+        "GRID    2               0.25    0.0     0.0",
+        "GRID    2               0.25    0.0     0.0     9",
+    )
+    path.write_text(text)
+    with pytest.raises(UnknownItemError, match=r"line \d+: CBAR uses coordinate system 9"):
+        read_nastran(path)
+    # OFFT BGG: the orientation vector in the basic system (also at grid 3), the offsets in
+    # the grids' displacement systems.
+    path.write_text(hinged_beam_deck("small", offt="BGG"))
+    deck = read_nastran(path)
+    assert deck.section()[1].tolist() == [0.0, 1.0, 0.0]
+    assert deck.beam_offsets[2, 0].tolist() == [0.0, 0.0, 0.02]
+
+
 def test_nastran_numbers():
     for text, value in [
         ("1.5", 1.5), ("1.5-3", 1.5e-3), ("-2.5+4", -2.5e4), ("7.+10", 7e10), ("1.D5", 1e5),

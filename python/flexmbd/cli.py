@@ -577,6 +577,8 @@ NASTRAN_SUFFIXES = (".bdf", ".nas", ".dat", ".pch", ".blk")
 def _info_nastran(path: Path) -> int:
     """A Nastran deck: its mesh and node sets (as a mesh file), material, sections, DMIG
     matrices."""
+    import numpy as np
+
     from .fe.nastran import read_nastran
 
     deck = read_nastran(path)
@@ -594,6 +596,10 @@ def _info_nastran(path: Path) -> int:
             f"J {section.torsion_constant:.6g}; orientation "
             f"({', '.join(f'{v:.6g}' for v in orientation)})"
         )
+        for what, values in (("offsets", deck.beam_offsets), ("pin flags", deck.beam_releases)):
+            if values is not None:
+                count = int(np.count_nonzero(np.any(values.reshape(len(values), -1), axis=1)))
+                print(f"  beams with {what}: {count} of {len(values)}")
     shell = deck.shell()
     if shell is not None:
         print(f"  shell thickness {shell.thickness:.6g}")

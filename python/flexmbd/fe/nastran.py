@@ -173,6 +173,12 @@ class NastranDeck:
             grid's displacement system (GRID field CD), for the nodes with CD other than 0:
             results in that system (OUGV1) are turned to the basic one by v = A v_CD. NaN
             for a system that is not a CORD2R of the deck.
+        beam_offsets: (n_beams, 2, 3) the offsets WA, WB of the CBAR and CBEAM elements (in
+            the order of ``mesh.elements["beam2"]``), turned to the basic system, or None
+            when no beam has one (`build_body`'s `beam_offsets`).
+        beam_releases: (n_beams, 12) the coordinates their pin flags PA, PB release (u, v,
+            w, theta_x, theta_y, theta_z of end A then end B, element axes), or None when no
+            beam has one (`build_body`'s `beam_releases`).
     """
 
     mesh: Mesh
@@ -185,6 +191,8 @@ class NastranDeck:
     point_masses: dict[int, tuple[float, NDArray[np.float64], NDArray[np.float64]]] = field(
         default_factory=dict
     )
+    beam_offsets: NDArray[np.float64] | None = None
+    beam_releases: NDArray[np.bool_] | None = None
 
     def material(self) -> Any:
         """The one material of the mesh's elements (flexmbd bodies are of one material), as a
@@ -312,6 +320,10 @@ class NastranDeck:
         extra: dict[str, Any] = {}
         if section is not None:
             extra = {"section": section, "orientation": orientation}
+            if self.beam_offsets is not None:
+                extra["beam_offsets"] = self.beam_offsets
+            if self.beam_releases is not None:
+                extra["beam_releases"] = self.beam_releases
         shell = self.shell()
         if shell is not None:
             extra["shell"] = shell
@@ -406,7 +418,9 @@ def read_nastran(path: str | os.PathLike[str], *, skip: Any = ()) -> NastranDeck
 
     Elements: CTETRA (4 or 10 grids) -> tet4 / tet10, CHEXA (8 or 20 grids) -> hex8 / hex20,
     CPENTA (6 or 15 grids) -> wedge6 / wedge15, CPYRAM (5 grids) -> pyramid5, CBAR and CBEAM
-    -> beam2 (offsets, pin flags and tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
+    -> beam2 with their offsets WA, WB (in the grids' displacement systems, OFFT G; offsets in
+    the element system, OFFT O, are refused) and pin flags PA, PB (``deck.beam_offsets``,
+    ``deck.beam_releases``; tapered PBEAMs are refused), CQUAD4 and CTRIA3 -> the flat
     shells quad4 and tri3 (PSHELL: one thickness, one material, default 12I/T^3 and TS/T;
     offsets refused). Grids may be given in CORD2R
     systems (rectangular, chained); other coordinate systems are refused.
@@ -600,9 +614,12 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
         elif name in ("CBAR", "CBEAM"):
             eid, pid = card.integer(1, what="EID"), card.integer(2, what="PID")
             nodes = [card.integer(3, what="GA"), card.integer(4, what="GB")]
-            if any(card.field(i) not in (None, "0", "0.", "0.0") for i in range(9, 17)):
+            _beam_offset_kind(card)  # (refuses what is not read, before the grids are known)
+            _pin_flags(card)
+            if name == "CBEAM" and any(card.field(i) not in _BLANK for i in (17, 18)):
                 raise card.error(
-                    f"element {eid}: pin flags and offsets (fields 10-17) are not supported"
+                    f"element {eid}: SA, SB (scalar points of warping, fields 18-19) are not "
+                    "supported"
                 )
             elements.setdefault("beam2", []).append((eid, pid, nodes, card))
             orientation_cards.append(card)
@@ -708,6 +725,10 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
     orientations = {
         card.integer(1): _orientation(card, grids, systems) for card in orientation_cards
     }
+    beams = [item[3] for item in elements.get("beam2", [])]
+    ends = [_beam_ends(card, grids, systems) for card in beams]
+    beam_offsets = np.array([offsets for offsets, _ in ends]).reshape(-1, 2, 3)
+    beam_releases = np.array([released for _, released in ends], dtype=bool).reshape(-1, 12)
     matrices = _dmig(dmig_headers, dmig_columns)
     displacement = {}
     for g in ids:
@@ -747,6 +768,8 @@ def _deck(cards: list[Card], skipped: frozenset[str] = frozenset()) -> NastranDe
         matrices,
         displacement,
         point_masses,
+        beam_offsets=beam_offsets if np.any(beam_offsets) else None,
+        beam_releases=beam_releases if np.any(beam_releases) else None,
     )
 
 
@@ -868,17 +891,85 @@ def _orientation(
     v = np.array([card.real(i, 0.0, what=f"X{i - 4}") for i in (5, 6, 7)])
     ga = grids.get(card.integer(3, what="GA"))
     cd = ga.integer(6, 0, what="CD") if ga is not None else 0
-    if cd:
-        origin, axes = _frame(systems[cd]) if cd in systems else (None, None)
-        if axes is None:
-            raise UnknownItemError(
-                f"{card.where()}: the orientation is in system {cd}, which no CORD2R defines",
-                item=f"coordinate system {cd}",
-            )
-        v = axes @ v
+    if cd and _beam_offset_kind(card)[0] == "G":
+        # (OFFT "G..": X1-X3 in GA's displacement system; "B..": in the basic one)
+        v = _axes(cd, systems, card) @ v
     if not np.any(v):
         raise card.error("the orientation vector is zero")
     return v
+
+
+_BLANK = (None, "0", "0.", "0.0", ".0")
+
+#: OFFT codes of CBAR and CBEAM (field 9): the system of the orientation vector (G: GA's
+#: displacement system, B: basic), then of the offsets at ends A and B (G: the grid's
+#: displacement system, O: the element's).
+OFFT_CODES = ("GGG", "BGG", "GGO", "BGO", "GOG", "BOG", "GOO", "BOO")
+
+
+def _beam_offset_kind(card: Card) -> str:
+    """The OFFT code of a CBAR or CBEAM (field 9; blank: GGG). A CBEAM's field 9 may be BIT
+    (a real: the built-in twist of p-elements), refused unless zero; offsets in the element
+    system (O) are refused where an offset is given."""
+    text = card.field(8)
+    if text is None:
+        return "GGG"
+    if card.name == "CBEAM" and parse_real(text) is not None:
+        if parse_real(text) != 0.0:
+            raise card.error(
+                f"element {card.field(1)}: BIT = {text} (built-in twist, field 9) is not supported"
+            )
+        return "GGG"
+    code = text.upper()
+    if code not in OFFT_CODES:
+        raise card.error(
+            f"element {card.field(1)}: OFFT {text!r} (field 9) is not one of "
+            f"{', '.join(OFFT_CODES)}"
+        )
+    for end, first in (("A", 11), ("B", 14)):
+        given = any(card.field(first + k) not in _BLANK for k in range(3))
+        if given and code["AB".index(end) + 1] == "O":
+            raise card.error(
+                f"element {card.field(1)}: OFFT {code}: the offset at end {end} in the element "
+                "system (O) is not supported; give it in the grid's displacement system (OFFT "
+                "GGG or BGG)"
+            )
+    return code
+
+
+def _pin_flags(card: Card) -> NDArray[np.bool_]:
+    """The released coordinates (12 bools: u, v, w, theta_x, theta_y, theta_z of end A then
+    end B, element axes) of a CBAR or CBEAM's pin flags PA, PB (fields 10-11: up to five of
+    the digits 1-6, each once)."""
+    released = np.zeros(12, dtype=bool)
+    for end, index in ((0, 9), (1, 10)):
+        text = card.field(index)
+        if text is None or text == "0":
+            continue
+        digits = [int(c) for c in text if c in "123456"]
+        if len(digits) != len(text) or len(set(digits)) != len(digits) or len(digits) > 5:
+            raise card.error(
+                f"element {card.field(1)}: pin flag P{'AB'[end]} = {text!r} (field "
+                f"{index + 1}) is not up to five of the digits 1-6, each once"
+            )
+        released[6 * end + np.array(digits) - 1] = True
+    return released
+
+
+def _beam_ends(
+    card: Card, grids: dict[int, Card], systems: dict[int, Card]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """(offsets (2, 3) of ends A and B in the basic system, released coordinates (12,)) of a
+    CBAR or CBEAM: WA, WB (fields 12-17) in the displacement system of GA, GB (their GRID
+    CD, a chain of CORD2R systems), and the pin flags PA, PB."""
+    offsets = np.zeros((2, 3))
+    for end, (grid_field, first) in enumerate(((3, 11), (4, 14))):
+        w = np.array([card.real(first + k, 0.0, what=f"W{k + 1}{'AB'[end]}") for k in range(3)])
+        if np.any(w):
+            grid = grids[card.integer(grid_field)]
+            cd = grid.integer(6, 0, what="CD")
+            offsets[end] = _axes(cd, systems, card) @ w if cd else w
+    return offsets, _pin_flags(card)
 
 
 def _material(card: Card) -> dict[str, float]:
