@@ -220,7 +220,9 @@ fn default_orientation(axis: Vec3) -> Vec3 {
 /// elements as a dict type -> (connectivity (n_e, nodes), ids (n_e,)) with types "beam2",
 /// "tet4", "tet10" (Gmsh node order), "hex8", "hex8i" (with incompatible modes), "hex20",
 /// "hex20r" (VTK node order; reduced integration), "hex27" (VTK node order), "wedge6" (Gmsh's prism), "wedge15"
-/// (Abaqus C3D15 order), "pyramid5" (Gmsh's pyramid), "quad4" and "tri3"; the beam
+/// (Abaqus C3D15 order), "wedge18" (wedge15's nodes, then the centres of the faces (0,1,4,3),
+/// (1,2,5,4), (2,0,3,5)), "pyramid5" (Gmsh's pyramid), "pyramid13" (VTK node order),
+/// "pyramid14" (pyramid13's nodes, then the base's centre), "quad4" and "tri3"; the beam
 /// orientation is a
 /// vector in the sections' x-y plane (default: global y, or global z for beams nearly along
 /// y); `shear`: shear-deformable (Timoshenko) beams.
@@ -307,7 +309,10 @@ impl FeMesh {
                     "hex27" => ElementType::Hex27,
                     "wedge6" => ElementType::Wedge6,
                     "wedge15" => ElementType::Wedge15,
+                    "wedge18" => ElementType::Wedge18,
                     "pyramid5" => ElementType::Pyramid5,
+                    "pyramid13" => ElementType::Pyramid13,
+                    "pyramid14" => ElementType::Pyramid14,
                     "quad4" | "tri3" => {
                         let section = shell.ok_or_else(|| {
                             invalid(
@@ -325,7 +330,7 @@ impl FeMesh {
                         return Err(invalid(
                             "mesh",
                             format!(
-                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, hex27, wedge6, wedge15, pyramid5, quad4, tri3)"
+                            "unsupported element type '{other}' (use beam2, tet4, tet10, hex8, hex8i, hex20, hex20r, hex27, wedge6, wedge15, wedge18, pyramid5, pyramid13, pyramid14, quad4, tri3)"
                         ),
                         ))
                     }

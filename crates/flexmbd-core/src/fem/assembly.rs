@@ -18,7 +18,8 @@ use crate::fem::element::{ElementKernel, MassPoint};
 use crate::fem::material::Material;
 use crate::fem::shell::{ShellKernel, ShellQuad4, ShellTri3};
 use crate::fem::solid::{
-    Hex20, Hex20Reduced, Hex27, Hex8, Hex8Incompatible, Pyramid5, Tet10, Tet4, Wedge15, Wedge6,
+    Hex20, Hex20Reduced, Hex27, Hex8, Hex8Incompatible, Pyramid13, Pyramid14, Pyramid5, Tet10, Tet4, Wedge15,
+    Wedge18, Wedge6,
 };
 
 /// The element types a body can be made of.
@@ -44,8 +45,14 @@ pub enum ElementType {
     Wedge6,
     /// Fifteen-node wedge (Abaqus C3D15 node order).
     Wedge15,
+    /// Eighteen-node (Lagrange) wedge (the node order of `fem::solid`).
+    Wedge18,
     /// Five-node pyramid (Gmsh node order).
     Pyramid5,
+    /// Thirteen-node pyramid (VTK node order).
+    Pyramid13,
+    /// Fourteen-node pyramid (VTK's 13-node order, then the base's centre).
+    Pyramid14,
     /// Four-node flat shell (MITC4).
     Quad4(ShellQuad4),
     /// Three-node flat shell (DKT).
@@ -65,7 +72,10 @@ impl ElementType {
             ElementType::Hex27 => &Hex27,
             ElementType::Wedge6 => &Wedge6,
             ElementType::Wedge15 => &Wedge15,
+            ElementType::Wedge18 => &Wedge18,
             ElementType::Pyramid5 => &Pyramid5,
+            ElementType::Pyramid13 => &Pyramid13,
+            ElementType::Pyramid14 => &Pyramid14,
             ElementType::Quad4(s) => s,
             ElementType::Tri3(s) => s,
         }
@@ -93,7 +103,10 @@ impl ElementType {
                 | ElementType::Hex27
                 | ElementType::Wedge6
                 | ElementType::Wedge15
+                | ElementType::Wedge18
                 | ElementType::Pyramid5
+                | ElementType::Pyramid13
+                | ElementType::Pyramid14
         )
     }
 }

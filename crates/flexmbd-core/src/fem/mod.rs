@@ -18,4 +18,7 @@ pub use element::{ElementError, ElementKernel, ElementResult, MassPoint};
 pub use material::Material;
 pub use section::{Section, ShellSection};
 pub use shell::{membrane_stiffening, ShellKernel, ShellQuad4, ShellTri3};
-pub use solid::{Hex20, Hex20Reduced, Hex27, Hex8, Hex8Incompatible, Pyramid5, Tet10, Tet4, Wedge15, Wedge6};
+pub use solid::{
+    Hex20, Hex20Reduced, Hex27, Hex8, Hex8Incompatible, Pyramid13, Pyramid14, Pyramid5, Tet10, Tet4, Wedge15,
+    Wedge18, Wedge6,
+};

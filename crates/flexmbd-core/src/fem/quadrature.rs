@@ -560,6 +560,16 @@ pub const PYRAMID_GAUSS_2_2: [QuadraturePoint; 8] =
 pub const PYRAMID_GAUSS_2_4: [QuadraturePoint; 16] =
     collapsed_pyramid_rule!(GAUSS_LEGENDRE_2, GAUSS_LEGENDRE_4, 16);
 
+/// Reference pyramid: 3 x 3 x 3 collapsed Gauss points (exact to degree 5 in a, b and 3 in
+/// z besides the weight's (1 - z)^2).
+pub const PYRAMID_GAUSS_3_3: [QuadraturePoint; 27] =
+    collapsed_pyramid_rule!(GAUSS_LEGENDRE_3, GAUSS_LEGENDRE_3, 27);
+
+/// Reference pyramid: 3 x 3 Gauss points in (a, b) times 4 in z (exact to degree 5 in a, b
+/// and 5 in z besides the weight's (1 - z)^2).
+pub const PYRAMID_GAUSS_3_4: [QuadraturePoint; 36] =
+    collapsed_pyramid_rule!(GAUSS_LEGENDRE_3, GAUSS_LEGENDRE_4, 36);
+
 /// The tensor-product Gauss-Legendre rule on [-1, 1]^3 with `points_per_direction` points per
 /// direction (1 to 4); exact for x^a y^b z^c with a, b, c <= 2 points_per_direction - 1.
 pub fn hexahedron_rule(points_per_direction: usize) -> Option<&'static [QuadraturePoint]> {
@@ -720,17 +730,22 @@ mod tests {
             interval_monomial(i) * interval_monomial(j) * factorial(i + j + 2) * factorial(k)
                 / factorial(i + j + k + 3)
         };
-        for (rule, height) in [(&PYRAMID_GAUSS_2_2[..], 2u32), (&PYRAMID_GAUSS_2_4[..], 4)] {
+        for (rule, base, height) in [
+            (&PYRAMID_GAUSS_2_2[..], 2u32, 2u32),
+            (&PYRAMID_GAUSS_2_4[..], 2, 4),
+            (&PYRAMID_GAUSS_3_3[..], 3, 3),
+            (&PYRAMID_GAUSS_3_4[..], 3, 4),
+        ] {
             let total: f64 = rule.iter().map(|p| p.weight).sum();
-            assert_close(total, 4.0 / 3.0, 0.0, 1e-15, format_args!("{height} points in z: volume"));
+            assert_close(total, 4.0 / 3.0, 0.0, 4e-15, format_args!("{height} points in z: volume"));
             for p in rule {
                 let [x, y, z] = p.coordinates;
                 assert!(p.weight > 0.0 && z > 0.0 && z < 1.0 && x.abs() < 1.0 - z && y.abs() < 1.0 - z);
             }
-            // xi^i eta^j zeta^k = a^i b^j (1 - z)^(i + j) z^k: exact while i, j <= 3 and
-            // i + j + k + 2 <= 2 height - 1 (the rule's degree in z).
-            for i in 0..=3u32 {
-                for j in (0..=3u32).filter(|j| i + j + 2 < 2 * height) {
+            // xi^i eta^j zeta^k = a^i b^j (1 - z)^(i + j) z^k: exact while i, j <= 2 base - 1
+            // and i + j + k + 2 <= 2 height - 1 (the rule's degree in z).
+            for i in 0..2 * base {
+                for j in (0..2 * base).filter(|j| i + j + 2 < 2 * height) {
                     for k in 0..=2 * height - 1 - (i + j + 2) {
                         let q = apply(rule, i, j, k);
                         assert_close(q, exact(i, j, k), 0.0, 1e-14, format_args!("xi^{i} eta^{j} zeta^{k}"));
@@ -740,6 +755,31 @@ mod tests {
             // ... and not beyond it in z.
             let k = 2 * height - 2;
             assert!((apply(rule, 0, 0, k) - exact(0, 0, k)).abs() > 1e-6, "{height} points: zeta^{k}");
+            // In the collapsed coordinates a = xi / (1 - z), b = eta / (1 - z): a^i b^j z^k
+            // (1 - z)^2 exact while i, j <= 2 base - 1 and k + 2 <= 2 height - 1, with
+            // int_0^1 z^k (1 - z)^2 dz = 2 k! / (k + 3)!; not at a^(2 base).
+            let collapsed = |i: u32, j: u32, k: u32| -> f64 {
+                rule.iter()
+                    .map(|p| {
+                        let [x, y, z] = p.coordinates;
+                        let (a, b) = (x / (1.0 - z), y / (1.0 - z));
+                        p.weight * a.powi(i as i32) * b.powi(j as i32) * z.powi(k as i32)
+                    })
+                    .sum()
+            };
+            let beta = |k: u32| 2.0 * factorial(k) / factorial(k + 3);
+            for i in 0..2 * base {
+                for j in 0..2 * base {
+                    for k in 0..2 * height - 2 {
+                        let expected = interval_monomial(i) * interval_monomial(j) * beta(k);
+                        let q = collapsed(i, j, k);
+                        assert_close(q, expected, 0.0, 1e-14, format_args!("a^{i} b^{j} z^{k}"));
+                    }
+                }
+            }
+            let i = 2 * base;
+            let miss = (collapsed(i, 0, 0) - interval_monomial(i) * interval_monomial(0) * beta(0)).abs();
+            assert!(miss > 1e-6, "{base} points in a: a^{i}");
         }
     }
 

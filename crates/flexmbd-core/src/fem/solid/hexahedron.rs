@@ -153,7 +153,7 @@ const HEX27_NODES: [[f64; 3]; 27] = {
 
 /// The quadratic Lagrange polynomial of [-1, 1] that is 1 at the node `c` (-1, 0 or 1) and 0
 /// at the other two, and its derivative, at `s`.
-fn lagrange(c: f64, s: f64) -> (f64, f64) {
+pub(super) fn lagrange(c: f64, s: f64) -> (f64, f64) {
     if c == 0.0 {
         (1.0 - s * s, -2.0 * s)
     } else {

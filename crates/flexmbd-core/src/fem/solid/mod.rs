@@ -1,5 +1,6 @@
 //! Solid elements: 4-node and 10-node tetrahedra, 8-node hexahedra (also with incompatible
-//! modes, [`Hex8Incompatible`]).
+//! modes, [`Hex8Incompatible`]), 20- and 27-node hexahedra, 6-, 15- and 18-node wedges, 5-,
+//! 13- and 14-node pyramids.
 //!
 //! Isoparametric, small-strain, linear elastic. Element coordinates are node-major with the 3
 //! displacements of every node in body axes (see `element.rs`), so an element with n nodes has
@@ -32,15 +33,26 @@
 //!   ones (0,3), (1,4), (2,5) ([`WEDGE15_EDGES`]): Abaqus C3D15 and meshio's wedge15 (which
 //!   converts Gmsh's order on reading; VTK's quadratic wedge has these edges with its
 //!   triangles listed the other way round).
+//! - [`Wedge18`]: the nodes of `Wedge15`, then the centres of the quadrilateral faces
+//!   (0,1,4,3), (1,2,5,4), (2,0,3,5) ([`WEDGE18_FACES`]): VTK's biquadratic-quadratic wedge
+//!   with its triangles listed the other way round (as `Wedge15` has VTK's quadratic
+//!   wedge's). Gmsh's 18-node prism, which meshio passes on in Gmsh's order, numbers its edges
+//!   otherwise and its faces (0,1,4,3), (0,2,5,3), (1,2,5,4).
 //! - [`Pyramid5`]: the base 0, 1, 2, 3 counter-clockwise seen from the apex 4 (reference
 //!   (-1,-1,0), (1,-1,0), (1,1,0), (-1,1,0), (0,0,1)): Gmsh's pyramid, VTK's and meshio's.
+//! - [`Pyramid13`]: the corners of `Pyramid5`, then the mid-edge nodes 5..12 on the base's
+//!   edges (0,1), (1,2), (2,3), (3,0) and on (0,4), (1,4), (2,4), (3,4) ([`PYRAMID13_EDGES`]):
+//!   VTK's quadratic pyramid and meshio's pyramid13 (which converts Gmsh's order on reading).
+//! - [`Pyramid14`]: the nodes of `Pyramid13`, then the base's centre (Gmsh's 14-node pyramid
+//!   has the same nodes in Gmsh's edge order, which meshio keeps).
 //!
 //! Quadrature: stiffness K = int B^T D B dV with the 1-point rule (`Tet4`, exact), the 4-point
 //! degree-2 rule (`Tet10`, exact for straight edges), 2 x 2 x 2 Gauss (`Hex8`, full
 //! integration, no hourglass modes; `Hex20Reduced`), 3 x 3 x 3 Gauss (`Hex20`, `Hex27`) and the
 //! degree-2 triangle rule times 2-point Gauss (`Wedge6`, exact) and the degree-4 triangle
-//! rule times 3-point Gauss (`Wedge15`, exact for a constant Jacobian) and 2 x 2 x 2 Gauss
-//! points of the cube collapsed onto the pyramid (`Pyramid5`, exact for a constant Jacobian).
+//! rule times 3-point Gauss (`Wedge15`, `Wedge18`, exact for a constant Jacobian) and 2 x 2 x 2
+//! Gauss points of the cube collapsed onto the pyramid (`Pyramid5`, exact for a constant
+//! Jacobian), 3 x 3 x 3 of them (`Pyramid13`, `Pyramid14`, exact for a constant Jacobian).
 //! Mass points (consistent mass, invariants of motion, volume)
 //! use a rule that makes every integrand of `element.rs` exact: the 4-point degree-2 rule for
 //! `Tet4`, the 15-point degree-5 rule for `Tet10` (exact for straight edges; an approximation
@@ -49,8 +61,9 @@
 //! N_a N_b det J and u0_k u0_l det J reach degree 4 per direction, beyond 2 x 2 x 2 Gauss),
 //! 4 x 4 x 4 Gauss for `Hex20` and `Hex27` (exact for straight edges: degree 6 per direction), the
 //! degree-4 triangle rule times 3-point Gauss for `Wedge6` (exact), the degree-5 triangle
-//! rule times 4-point Gauss for `Wedge15` (exact for straight edges), the collapsed 2 x 2 x 4
-//! Gauss points for `Pyramid5` (exact).
+//! rule times 4-point Gauss for `Wedge15` and `Wedge18` (exact for straight edges), the
+//! collapsed 2 x 2 x 4 Gauss points for `Pyramid5` (exact) and 3 x 3 x 4 for `Pyramid13` and
+//! `Pyramid14` (exact for straight edges).
 //! Lumped masses are HRZ (Hinton, Rock, Zienkiewicz, "A note on mass lumping and related
 //! processes in the finite element method", Earthquake Eng. Struct. Dyn. 4 (1976) 245-249):
 //! the diagonal of the consistent mass matrix scaled so that its sum is the element mass.
@@ -113,7 +126,8 @@ mod wedge;
 
 pub use hexahedron::HEX20_EDGES;
 pub use incompatible::Hex8Incompatible;
-pub use wedge::WEDGE15_EDGES;
+pub use pyramid::PYRAMID13_EDGES;
+pub use wedge::{WEDGE15_EDGES, WEDGE18_FACES};
 
 /// Linear 4-node tetrahedron (constant strain).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -150,9 +164,24 @@ pub struct Wedge6;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Wedge15;
 
+/// Quadratic 18-node (Lagrange: quadratic triangle times quadratic line) wedge (node order
+/// in the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Wedge18;
+
 /// Linear pyramid (node order in the module doc; rational shape functions, see `pyramid`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Pyramid5;
+
+/// Quadratic 13-node pyramid (serendipity, Bedrosian's rational functions; node order in the
+/// module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Pyramid13;
+
+/// Quadratic 14-node pyramid: [`Pyramid13`] with a node at the base's centre (node order in
+/// the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Pyramid14;
 
 /// Vertices joined by the edge of each mid-edge node 4..9 of a [`Tet10`] (Gmsh order).
 pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [2, 3], [1, 3]];
@@ -237,3 +266,6 @@ solid_element_kernel!(Wedge6, 6);
 solid_element_kernel!(Pyramid5, 5);
 solid_element_kernel!(Hex27, 27);
 solid_element_kernel!(Wedge15, 15);
+solid_element_kernel!(Wedge18, 18);
+solid_element_kernel!(Pyramid13, 13);
+solid_element_kernel!(Pyramid14, 14);

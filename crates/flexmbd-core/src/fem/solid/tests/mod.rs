@@ -7,7 +7,7 @@ use super::geometry::physical_gradients;
 use super::matrices::strain_displacement;
 use super::*;
 use crate::fem::element::{mass_matrix, ElementError};
-use crate::fem::quadrature::GAUSS_LEGENDRE_3;
+use crate::fem::quadrature::{GAUSS_LEGENDRE_3, TRIANGLE_DEGREE_4};
 use crate::math::Mat3;
 use crate::testing::{assert_all_close, assert_close};
 
@@ -43,7 +43,14 @@ enum Kind {
     Wedge6,
     /// [`Wedge15`] on the shapes of Wedge6 (mid-edge nodes at the edges' midpoints).
     Wedge15,
+    /// [`Wedge18`] on the shapes of Wedge6 (mid-edge and face nodes where the map of Wedge6
+    /// puts them).
+    Wedge18,
     Pyramid5,
+    /// [`Pyramid13`] and [`Pyramid14`] on the shapes of Pyramid5 (mid-edge nodes at the edges'
+    /// midpoints, the base's centre the mean of its corners).
+    Pyramid13,
+    Pyramid14,
 }
 
 fn element(kind: Kind) -> &'static dyn ElementKernel {
@@ -57,7 +64,10 @@ fn element(kind: Kind) -> &'static dyn ElementKernel {
         Kind::Hex27 => &Hex27,
         Kind::Wedge6 => &Wedge6,
         Kind::Wedge15 => &Wedge15,
+        Kind::Wedge18 => &Wedge18,
         Kind::Pyramid5 => &Pyramid5,
+        Kind::Pyramid13 => &Pyramid13,
+        Kind::Pyramid14 => &Pyramid14,
     }
 }
 
@@ -195,6 +205,50 @@ fn hexahedron_moments(x: &[Vec3]) -> Moments {
     m
 }
 
+/// Exact moments of a region bounded by flat triangles and bilinear quadrilaterals (the
+/// faces `faces` of the nodes `x`, counter-clockwise seen from outside) by the divergence
+/// theorem, as `hexahedron_moments`: the degree-4 triangle rule and 3 x 3 Gauss on the faces
+/// are exact for p (x . n) dA with p of degree 2.
+fn polyhedron_moments(x: &[Vec3], faces: &[&[usize]]) -> Moments {
+    let mut m = Moments { volume: 0.0, first: Vec3::ZERO, second: [[0.0; 3]; 3] };
+    let mut add = |p: Vec3, da: Vec3| {
+        let flux = p.dot(&da);
+        m.volume += flux / 3.0;
+        m.first += (flux / 4.0) * p;
+        for k in 0..3 {
+            for l in 0..3 {
+                m.second[k][l] += flux / 5.0 * p[k] * p[l];
+            }
+        }
+    };
+    for face in faces {
+        if let [a, b, c] = face[..] {
+            let normal = (x[b] - x[a]).cross(&(x[c] - x[a]));
+            for &(u, v, w) in &TRIANGLE_DEGREE_4 {
+                add(x[a] + u * (x[b] - x[a]) + v * (x[c] - x[a]), w * normal);
+            }
+            continue;
+        }
+        for &(s, ws) in &GAUSS_LEGENDRE_3 {
+            for &(t, wt) in &GAUSS_LEGENDRE_3 {
+                let (mut p, mut ds, mut dt) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+                for (i, c) in FACE_CORNERS.iter().enumerate() {
+                    let xi = x[face[i]];
+                    p += (0.25 * (1.0 + s * c[0]) * (1.0 + t * c[1])) * xi;
+                    ds += (0.25 * c[0] * (1.0 + t * c[1])) * xi;
+                    dt += (0.25 * c[1] * (1.0 + s * c[0])) * xi;
+                }
+                add(p, (ws * wt) * ds.cross(&dt));
+            }
+        }
+    }
+    m
+}
+
+/// The faces of a wedge and of a pyramid, counter-clockwise seen from outside.
+const WEDGE_FACES: [&[usize]; 5] = [&[0, 2, 1], &[3, 4, 5], &[0, 1, 4, 3], &[1, 2, 5, 4], &[2, 0, 3, 5]];
+const PYRAMID_FACES: [&[usize]; 5] = [&[0, 3, 2, 1], &[0, 1, 4], &[1, 2, 4], &[2, 3, 4], &[3, 0, 4]];
+
 fn cases() -> Vec<Case> {
     let tet4_fractions = (vec![0.25; 4], vec![0.25; 4]);
     let mut tet10_row_sums = vec![-1.0 / 20.0; 4];
@@ -310,7 +364,7 @@ fn cases() -> Vec<Case> {
     cases.extend(triquadratic);
     // Wedges: a right prism, an oblique one (top triangle shifted: constant Jacobian, so each
     // node carries a sixth of the mass in both forms) and a distorted one. The exact moments
-    // of the first two from three tetrahedra.
+    // of the first two from three tetrahedra, of the third by the divergence theorem.
     let right = wedge([v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)], v(0.0, 0.0, 1.0));
     let oblique = wedge([v(0.3, -0.2, 0.1), v(1.6, 0.1, 0.0), v(0.5, 1.2, 0.2)], v(0.2, 0.3, 0.9));
     let mut distorted = oblique.clone();
@@ -322,8 +376,12 @@ fn cases() -> Vec<Case> {
         ("oblique Wedge6", oblique, sixth),
         ("distorted Wedge6", distorted, None),
     ] {
-        let moments = fractions.as_ref().map(|_| prism_moments(&nodes));
-        cases.push(Case { name, kind: Kind::Wedge6, nodes, moments, fractions });
+        // (the distorted one's by the divergence theorem: its side faces are not planar)
+        let moments = match fractions {
+            Some(_) => prism_moments(&nodes),
+            None => polyhedron_moments(&nodes, &WEDGE_FACES),
+        };
+        cases.push(Case { name, kind: Kind::Wedge6, nodes, moments: Some(moments), fractions });
     }
     // The same wedges with 15 nodes (the geometry is the same, so are the moments). With a
     // constant Jacobian the consistent-mass row sums are -1/9 of the mass at a corner, 1/6 at
@@ -352,10 +410,43 @@ fn cases() -> Vec<Case> {
         })
         .collect();
     cases.extend(quadratic);
+    // And with 18 nodes: with a constant Jacobian the row sums are the products of the
+    // quadratic triangle's (0 at a vertex, 1/3 at a mid-edge node) and the line's (1/6 at an
+    // end, 2/3 in the middle): 0 at the corners and the vertical edges' nodes, 1/18 at the
+    // triangles' mid-edge nodes, 2/9 at the faces' centres; the HRZ masses are proportional
+    // to the products of int T^2 over the triangle (1/60 at a vertex, 4/45 at a mid-edge
+    // node) and int l^2 over [-1, 1] (4/15 at an end, 16/15 in the middle): 1/114 at a
+    // corner, 8/171 at a triangle's mid-edge node, 2/57 at a vertical edge's, 32/171 at a
+    // face's centre (sympy).
+    let lagrange: Vec<Case> = cases
+        .iter()
+        .filter(|c| c.kind == Kind::Wedge6)
+        .map(|c| {
+            let fractions = c.fractions.as_ref().map(|_| {
+                let mut row_sums = vec![0.0; 6];
+                row_sums.extend([1.0 / 18.0; 6]);
+                row_sums.extend([0.0; 3]);
+                row_sums.extend([2.0 / 9.0; 3]);
+                let mut lumped = vec![1.0 / 114.0; 6];
+                lumped.extend([8.0 / 171.0; 6]);
+                lumped.extend([2.0 / 57.0; 3]);
+                lumped.extend([32.0 / 171.0; 3]);
+                (row_sums, lumped)
+            });
+            let name = match c.name {
+                "right Wedge6" => "right Wedge18",
+                "oblique Wedge6" => "oblique Wedge18",
+                _ => "distorted Wedge18",
+            };
+            Case { name, kind: Kind::Wedge18, nodes: wedge18_from(&c.nodes), moments: c.moments, fractions }
+        })
+        .collect();
+    cases.extend(lagrange);
     // Pyramids: a right one, an oblique one (parallelogram base, apex off its centre: constant
     // Jacobian, so the mass fractions of the reference pyramid, 3/16 at a base node and 1/4
     // at the apex, HRZ 2/11 and 3/11; sympy) and a distorted one (base not planar, not a
-    // parallelogram). The exact moments of the first two from two tetrahedra.
+    // parallelogram). The exact moments of the first two from two tetrahedra, of the third by
+    // the divergence theorem.
     let right =
         vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(0.0, 1.0, 0.0), v(0.5, 0.5, 0.8)];
     let (corner, e1, e2) = (v(0.2, -0.1, 0.3), v(1.3, 0.2, -0.1), v(-0.3, 0.9, 0.2));
@@ -372,10 +463,76 @@ fn cases() -> Vec<Case> {
         ("oblique Pyramid5", oblique, fractions),
         ("distorted Pyramid5", distorted, None),
     ] {
-        let moments = fractions.as_ref().map(|_| pyramid_moments(&nodes));
-        cases.push(Case { name, kind: Kind::Pyramid5, nodes, moments, fractions });
+        let moments = match fractions {
+            Some(_) => pyramid_moments(&nodes),
+            None => polyhedron_moments(&nodes, &PYRAMID_FACES),
+        };
+        cases.push(Case { name, kind: Kind::Pyramid5, nodes, moments: Some(moments), fractions });
     }
+    // The same pyramids with 13 and 14 nodes (the geometry of Pyramid5, so the same moments).
+    // With a constant Jacobian the row sums of the 13-node one are -7/80 of the mass at a
+    // base corner, -1/20 at the apex, 1/5 at a base edge's node and 3/20 at an apex edge's,
+    // its HRZ masses 11, 9, 48 and 32 in 373; those of the 14-node one -1/48, -1/20, 1/15,
+    // 3/20 and 4/15 at the base's centre, HRZ 43/3078, 5/171, 32/513, 160/1539 and 128/513
+    // (integrals of N and N^2 in the collapsed coordinates; sympy).
+    let quadratic: Vec<Case> = cases
+        .iter()
+        .filter(|c| c.kind == Kind::Pyramid5)
+        .flat_map(|c| {
+            let with = |corner: f64, apex: f64, base: f64, side: f64, centre: Option<f64>| {
+                let mut v = vec![corner; 4];
+                v.push(apex);
+                v.extend([base; 4]);
+                v.extend([side; 4]);
+                v.extend(centre);
+                v
+            };
+            let fractions13 = c.fractions.as_ref().map(|_| {
+                let hrz = with(11.0, 9.0, 48.0, 32.0, None).iter().map(|m| m / 373.0).collect();
+                (with(-7.0 / 80.0, -1.0 / 20.0, 0.2, 0.15, None), hrz)
+            });
+            let fractions14 = c.fractions.as_ref().map(|_| {
+                let hrz = with(43.0 / 3078.0, 5.0 / 171.0, 32.0 / 513.0, 160.0 / 1539.0, Some(128.0 / 513.0));
+                (with(-1.0 / 48.0, -1.0 / 20.0, 1.0 / 15.0, 0.15, Some(4.0 / 15.0)), hrz)
+            });
+            let names = match c.name {
+                "right Pyramid5" => ["right Pyramid13", "right Pyramid14"],
+                "oblique Pyramid5" => ["oblique Pyramid13", "oblique Pyramid14"],
+                _ => ["distorted Pyramid13", "distorted Pyramid14"],
+            };
+            let nodes13 = with_midpoints(&c.nodes, &PYRAMID13_EDGES);
+            let mut nodes14 = nodes13.clone();
+            nodes14.push(0.25 * (c.nodes[0] + c.nodes[1] + c.nodes[2] + c.nodes[3]));
+            [
+                Case {
+                    name: names[0],
+                    kind: Kind::Pyramid13,
+                    nodes: nodes13,
+                    moments: c.moments,
+                    fractions: fractions13,
+                },
+                Case {
+                    name: names[1],
+                    kind: Kind::Pyramid14,
+                    nodes: nodes14,
+                    moments: c.moments,
+                    fractions: fractions14,
+                },
+            ]
+        })
+        .collect();
+    cases.extend(quadratic);
     cases
+}
+
+/// A Wedge18 of the geometry of the Wedge6 `corners`: the Wedge15's nodes, then the means of
+/// the corners of each quadrilateral face.
+fn wedge18_from(corners: &[Vec3]) -> Vec<Vec3> {
+    let mut nodes = with_midpoints(corners, &WEDGE15_EDGES);
+    nodes.extend(
+        WEDGE18_FACES.iter().map(|f| 0.25 * (corners[f[0]] + corners[f[1]] + corners[f[2]] + corners[f[3]])),
+    );
+    nodes
 }
 
 /// Moments of a pyramid with a planar base: the tetrahedra (0,1,2,4) and (0,2,3,4).
@@ -572,7 +729,10 @@ fn shape_functions_interpolate_the_nodes() {
     check::<Hex27, 27>();
     check::<Wedge6, 6>();
     check::<Wedge15, 15>();
+    check::<Wedge18, 18>();
     check::<Pyramid5, 5>();
+    check::<Pyramid13, 13>();
+    check::<Pyramid14, 14>();
 }
 
 #[test]
@@ -625,6 +785,177 @@ fn wedge15_interpolates_every_quadratic_field() {
         let mid: [f64; 3] = std::array::from_fn(|j| 0.5 * (Wedge6::NODES[*p][j] + Wedge6::NODES[*q][j]));
         assert_eq!(mid, Wedge15::NODES[6 + e]);
     }
+}
+
+#[test]
+fn wedge18_interpolates_every_product_of_quadratics() {
+    // The Lagrange wedge holds p(u, v) q(w) for every quadratic p and q (u^2 w^2, u v w^2, ...);
+    // the serendipity Wedge15 holds the complete quadratics only.
+    let f = |p: [f64; 3]| {
+        let [u, v, w] = p;
+        1.0 + 2.0 * u - v + 0.5 * w + 3.0 * u * u - 2.0 * u * v + v * v + 0.7 * u * w - 1.1 * v * w
+            + 0.9 * w * w
+            - 1.3 * u * u * w * w
+            + 0.8 * u * v * w * w
+            + 0.6 * v * v * w
+            - 0.4 * v * w * w
+    };
+    let values: Vec<f64> = Wedge18::NODES.iter().map(|&p| f(p)).collect();
+    let serendipity: Vec<f64> = Wedge15::NODES.iter().map(|&p| f(p)).collect();
+    let mut missed: f64 = 0.0;
+    for xi in [[0.2, 0.3, -0.4], [0.6, 0.1, 0.8], [0.05, 0.9, 0.0], [0.3, 0.3, 0.55]] {
+        let n = Wedge18::shape_functions(xi);
+        let sum: f64 = n.iter().sum();
+        assert_close(sum, 1.0, 0.0, 1e-15, format_args!("sum of N at {xi:?}"));
+        let interpolated: f64 = n.iter().zip(&values).map(|(a, b)| a * b).sum();
+        assert_close(interpolated, f(xi), 0.0, 1e-14, format_args!("biquadratic at {xi:?}"));
+        let by_wedge15: f64 = Wedge15::shape_functions(xi).iter().zip(&serendipity).map(|(a, b)| a * b).sum();
+        missed = missed.max((by_wedge15 - f(xi)).abs());
+    }
+    assert!(missed > 1e-3, "wedge15 interpolates u^2 w^2 ({missed})");
+    // Nodes 0..14 are Wedge15's; 15..17 the centres of the faces (0,1,4,3), (1,2,5,4), (2,0,3,5).
+    assert_eq!(Wedge18::NODES[..15], Wedge15::NODES);
+    for (f, face) in WEDGE18_FACES.iter().enumerate() {
+        let centre: [f64; 3] =
+            std::array::from_fn(|k| face.iter().map(|&a| Wedge6::NODES[a][k]).sum::<f64>() / 4.0);
+        assert_eq!(centre, Wedge18::NODES[15 + f], "face {face:?}");
+    }
+    // On a quadrilateral face the functions are the 9-node Lagrange quadrilateral's (those of
+    // Hex27's face eta = -1 for the face (0,1,4,3): u along xi, w along zeta), and on the
+    // triangles the 6-node triangle's (zero for the other nodes): the faces of hex27 and tet10.
+    let on_face = [(0, 0), (1, 1), (4, 5), (3, 4), (6, 8), (13, 17), (9, 12), (12, 16), (15, 22)];
+    for (u, w) in [(0.3, -0.6), (0.85, 0.2)] {
+        let n = Wedge18::shape_functions([u, 0.0, w]);
+        let h = Hex27::shape_functions([2.0 * u - 1.0, -1.0, w]);
+        for a in 0..18 {
+            let expected = on_face.iter().find(|(b, _)| *b == a).map_or(0.0, |&(_, c)| h[c]);
+            assert_close(n[a], expected, 0.0, 1e-15, format_args!("face (0,1,4,3) at ({u}, {w}): N_{a}"));
+        }
+    }
+    for (u, v) in [(0.2, 0.3), (0.6, 0.1)] {
+        let n = Wedge18::shape_functions([u, v, 1.0]);
+        let t = Tet10::shape_functions([u, v, 0.0]);
+        // Top triangle 3, 4, 5 with mid-edge nodes 9, 10, 11 against Tet10's face 0, 1, 2 with
+        // the mid-edge nodes 4 (0,1), 5 (1,2), 6 (0,2).
+        let expected: Vec<f64> = (0..18)
+            .map(|a| match a {
+                3..=5 => t[a - 3],
+                9..=11 => t[a - 5],
+                _ => 0.0,
+            })
+            .collect();
+        assert_all_close(&n, &expected, 0.0, 1e-15, format_args!("top triangle at ({u}, {v})"));
+    }
+}
+
+#[test]
+fn quadratic_pyramids_hold_quadratic_fields_and_meet_tetrahedra_and_hexahedra() {
+    // Every quadratic field is interpolated exactly; Pyramid14 also holds xi^2 eta^2 /
+    // (1 - zeta)^2 (a^2 b^2 in the collapsed coordinates), Pyramid13 does not.
+    let f = |p: [f64; 3]| {
+        let [x, y, z] = p;
+        0.3 - 1.2 * x + 0.7 * y + 2.1 * z + 0.4 * x * x - 0.9 * y * y + 1.3 * z * z + 0.6 * x * y
+            - 0.8 * x * z
+            + 1.1 * y * z
+    };
+    let bubble = |p: [f64; 3]| if p[2] < 1.0 { (p[0] * p[1] / (1.0 - p[2])).powi(2) } else { 0.0 };
+    let points =
+        [[0.21, -0.17, 0.33], [-0.5, 0.4, 0.05], [0.01, 0.02, 0.97], [0.0, 0.0, 1.0], [0.6, -0.3, 0.2]];
+    let mut missed: f64 = 0.0;
+    for xi in points {
+        let n13 = Pyramid13::shape_functions(xi);
+        let n14 = Pyramid14::shape_functions(xi);
+        for (name, n) in [("pyramid13", &n13[..]), ("pyramid14", &n14[..])] {
+            let nodes: &[[f64; 3]] = if n.len() == 13 { &Pyramid13::NODES } else { &Pyramid14::NODES };
+            let sum: f64 = n.iter().sum();
+            assert_close(sum, 1.0, 0.0, 1e-14, format_args!("{name}: sum of N at {xi:?}"));
+            let value: f64 = n.iter().zip(nodes).map(|(a, p)| a * f(*p)).sum();
+            assert_close(value, f(xi), 0.0, 1e-14, format_args!("{name}: quadratic field at {xi:?}"));
+        }
+        let with_centre: f64 = n14.iter().zip(&Pyramid14::NODES).map(|(a, p)| a * bubble(*p)).sum();
+        assert_close(with_centre, bubble(xi), 0.0, 1e-14, format_args!("pyramid14: a^2 b^2 at {xi:?}"));
+        let without: f64 = n13.iter().zip(&Pyramid13::NODES).map(|(a, p)| a * bubble(*p)).sum();
+        missed = missed.max((without - bubble(xi)).abs());
+    }
+    assert!(missed > 1e-3, "pyramid13 interpolates a^2 b^2 ({missed})");
+    // On a triangular face the functions are the 6-node triangle's (as Tet10's faces): for the
+    // face (1, 2, 4) with its mid-edge nodes 6 (1,2), 10 (1,4) and 11 (2,4); the other nodes'
+    // functions vanish there.
+    let (p1, p2, p4) = (Pyramid5::NODES[1], Pyramid5::NODES[2], Pyramid5::NODES[4]);
+    for (s, t) in [(0.2, 0.3), (0.6, 0.1), (0.05, 0.9)] {
+        let xi: [f64; 3] = std::array::from_fn(|k| (1.0 - s - t) * p1[k] + s * p2[k] + t * p4[k]);
+        let l = [1.0 - s - t, s, t];
+        let mut expected = [0.0; 14];
+        for (node, k) in [(1, 0), (2, 1), (4, 2)] {
+            expected[node] = l[k] * (2.0 * l[k] - 1.0);
+        }
+        for (node, i, j) in [(6, 0, 1), (10, 0, 2), (11, 1, 2)] {
+            expected[node] = 4.0 * l[i] * l[j];
+        }
+        let n13 = Pyramid13::shape_functions(xi);
+        assert_all_close(&n13, &expected[..13], 0.0, 1e-14, format_args!("pyramid13 face at {xi:?}"));
+        let n14 = Pyramid14::shape_functions(xi);
+        assert_all_close(&n14, &expected, 0.0, 1e-14, format_args!("pyramid14 face at {xi:?}"));
+    }
+    // On the base, the functions of Hex20's face zeta = -1 (8-node serendipity) and Hex27's
+    // (9-node Lagrange, its centre the node 24); the apex's and the apex edges' vanish.
+    for (x, y) in [(0.3, -0.6), (-0.9, 0.2)] {
+        let n13 = Pyramid13::shape_functions([x, y, 0.0]);
+        let n14 = Pyramid14::shape_functions([x, y, 0.0]);
+        let h20 = Hex20::shape_functions([x, y, -1.0]);
+        let h27 = Hex27::shape_functions([x, y, -1.0]);
+        let face = [0, 1, 2, 3, 8, 9, 10, 11];
+        let base = [0, 1, 2, 3, 5, 6, 7, 8];
+        for (&a, &h) in base.iter().zip(&face) {
+            assert_close(n13[a], h20[h], 0.0, 1e-15, format_args!("pyramid13 base at ({x}, {y}): N_{a}"));
+            assert_close(n14[a], h27[h], 0.0, 1e-15, format_args!("pyramid14 base at ({x}, {y}): N_{a}"));
+        }
+        assert_close(n14[13], h27[24], 0.0, 1e-15, format_args!("pyramid14 base centre at ({x}, {y})"));
+        for a in [4, 9, 10, 11, 12] {
+            assert_eq!((n13[a], n14[a]), (0.0, 0.0), "node {a} on the base");
+        }
+    }
+    // Nodes: the corners of Pyramid5, the midpoints of PYRAMID13_EDGES, the base's centre.
+    assert_eq!(Pyramid13::NODES[..5], Pyramid5::NODES);
+    for (e, [p, q]) in PYRAMID13_EDGES.iter().enumerate() {
+        let mid: [f64; 3] = std::array::from_fn(|j| 0.5 * (Pyramid5::NODES[*p][j] + Pyramid5::NODES[*q][j]));
+        assert_eq!(mid, Pyramid13::NODES[5 + e]);
+    }
+    assert_eq!(Pyramid14::NODES[..13], Pyramid13::NODES);
+    assert_eq!(Pyramid14::NODES[13], [0.0; 3]);
+    // Gradients near the apex (where d/dxi = D_a holds the cancelled 1 / (1 - z)) against
+    // central differences, and at the apex the limit along the axis.
+    fn near_apex<E: Isoparametric<N>, const N: usize>() {
+        let h = 1e-7;
+        for xi in [[0.02, -0.01, 0.95], [0.0, 0.0, 0.999]] {
+            let g = E::reference_gradients(xi);
+            for j in 0..3 {
+                let (mut plus, mut minus) = (xi, xi);
+                plus[j] += h;
+                minus[j] -= h;
+                let (np, nm) = (E::shape_functions(plus), E::shape_functions(minus));
+                let fd: [f64; N] = std::array::from_fn(|a| (np[a] - nm[a]) / (2.0 * h));
+                assert_all_close(
+                    &g.map(|r| r[j]),
+                    &fd,
+                    0.0,
+                    1e-6,
+                    format_args!("{} at {xi:?}: d/dxi_{j}", E::NAME),
+                );
+            }
+        }
+        let axis = E::reference_gradients([0.0, 0.0, 1.0 - 1e-9]);
+        let apex = E::reference_gradients([0.0, 0.0, 1.0]);
+        assert_all_close(
+            apex.as_flattened(),
+            axis.as_flattened(),
+            0.0,
+            1e-7,
+            format_args!("{} apex", E::NAME),
+        );
+    }
+    near_apex::<Pyramid13, 13>();
+    near_apex::<Pyramid14, 14>();
 }
 
 #[test]

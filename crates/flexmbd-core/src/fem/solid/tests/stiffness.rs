@@ -155,13 +155,64 @@ fn stress_forces_from_faces(case: &Case, sigma: &[[f64; 3]; 3]) -> Option<Vec<f6
         // A pyramid of planar faces: the triangles' A / 3 at their corners, the parallelogram
         // base's A / 4.
         Kind::Pyramid5 => {
-            case.moments?;
+            case.fractions.as_ref()?;
             let base = 0.5 * (x[3] - x[1]).cross(&(x[2] - x[0]));
             (0..4).for_each(|a| add(a, base * 0.25));
             for a in 0..4 {
                 let b = (a + 1) % 4;
                 let area = 0.5 * (x[b] - x[a]).cross(&(x[4] - x[a]));
                 [a, b, 4].iter().for_each(|&c| add(c, area * (1.0 / 3.0)));
+            }
+        }
+        // Quadratic faces of the wedges and pyramids of planar, parallelogram faces:
+        // int N dA / A = 0 at a triangle's corners and 1/3 at its mid-edge nodes; -1/12 and
+        // 1/3 on an 8-node parallelogram, 1/36, 1/9 and 4/9 (centre) on a 9-node one
+        // (products of Simpson's weights).
+        Kind::Wedge18 | Kind::Pyramid13 | Kind::Pyramid14 => {
+            case.fractions.as_ref()?;
+            let (edges, offset, faces): (&[[usize; 2]], usize, Vec<Vec<usize>>) = match case.kind {
+                Kind::Wedge18 => {
+                    let mut faces = vec![vec![0, 2, 1], vec![3, 4, 5]];
+                    faces.extend(WEDGE18_FACES.iter().map(|f| f.to_vec()));
+                    (&WEDGE15_EDGES, 6, faces)
+                }
+                _ => (
+                    &PYRAMID13_EDGES,
+                    5,
+                    vec![vec![0, 3, 2, 1], vec![0, 1, 4], vec![1, 2, 4], vec![2, 3, 4], vec![3, 0, 4]],
+                ),
+            };
+            let count = x.len();
+            let centroid = (1.0 / count as f64) * x.iter().fold(Vec3::ZERO, |s, p| s + *p);
+            for corners in &faces {
+                let k = corners.len();
+                let mut area = Vec3::ZERO;
+                for i in 0..k {
+                    area += 0.5 * x[corners[i]].cross(&x[corners[(i + 1) % k]]);
+                }
+                if area.dot(&(x[corners[0]] - centroid)) < 0.0 {
+                    area = -area;
+                }
+                let lagrange = k == 4 && (case.kind == Kind::Pyramid14 || case.kind == Kind::Wedge18);
+                let (corner, middle) = match (k, lagrange) {
+                    (3, _) => (0.0, 1.0 / 3.0),
+                    (_, false) => (-1.0 / 12.0, 1.0 / 3.0),
+                    (_, true) => (1.0 / 36.0, 1.0 / 9.0),
+                };
+                for i in 0..k {
+                    let (p, q) = (corners[i], corners[(i + 1) % k]);
+                    let e = edges.iter().position(|edge| *edge == [p, q] || *edge == [q, p]).unwrap();
+                    add(p, area * corner);
+                    add(offset + e, area * middle);
+                }
+                if lagrange {
+                    // The face's centre: the pyramid's node 13, or the wedge's 15 + face.
+                    let centre = match case.kind {
+                        Kind::Pyramid14 => 13,
+                        _ => 15 + WEDGE18_FACES.iter().position(|f| f[..] == corners[..]).unwrap(),
+                    };
+                    add(centre, area * (4.0 / 9.0));
+                }
             }
         }
         Kind::Hex20 | Kind::Hex20R | Kind::Hex27 | Kind::Wedge6 | Kind::Wedge15 => return None,
@@ -190,7 +241,10 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex27 => strains_at_stiffness_points::<Hex27, 27>(x, &u),
             Kind::Wedge6 => strains_at_stiffness_points::<Wedge6, 6>(x, &u),
             Kind::Wedge15 => strains_at_stiffness_points::<Wedge15, 15>(x, &u),
+            Kind::Wedge18 => strains_at_stiffness_points::<Wedge18, 18>(x, &u),
             Kind::Pyramid5 => strains_at_stiffness_points::<Pyramid5, 5>(x, &u),
+            Kind::Pyramid13 => strains_at_stiffness_points::<Pyramid13, 13>(x, &u),
+            Kind::Pyramid14 => strains_at_stiffness_points::<Pyramid14, 14>(x, &u),
         };
         for (p, e) in strains.iter().enumerate() {
             assert_all_close(
@@ -213,7 +267,10 @@ fn patch_test_linear_field_gives_constant_strain_and_stress_forces() {
             Kind::Hex27 => stress_forces_by_quadrature::<Hex27, 27>(x, &sigma),
             Kind::Wedge6 => stress_forces_by_quadrature::<Wedge6, 6>(x, &sigma),
             Kind::Wedge15 => stress_forces_by_quadrature::<Wedge15, 15>(x, &sigma),
+            Kind::Wedge18 => stress_forces_by_quadrature::<Wedge18, 18>(x, &sigma),
             Kind::Pyramid5 => stress_forces_by_quadrature::<Pyramid5, 5>(x, &sigma),
+            Kind::Pyramid13 => stress_forces_by_quadrature::<Pyramid13, 13>(x, &sigma),
+            Kind::Pyramid14 => stress_forces_by_quadrature::<Pyramid14, 14>(x, &sigma),
         });
         let scale = max_abs(&k.data) * max_abs(&u);
         assert_all_close(&internal, &expected, 0.0, RELATIVE * scale, format_args!("{}: K u", case.name));

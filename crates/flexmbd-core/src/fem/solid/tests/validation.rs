@@ -114,3 +114,45 @@ fn wrong_node_counts_and_non_finite_positions_are_invalid() {
     }
     assert!(points.is_empty());
 }
+
+#[test]
+fn inverted_and_folded_quadratic_wedges_and_pyramids_are_degenerate_by_name() {
+    // A Wedge18 whose top triangle is below the bottom one (the triangle clockwise seen from
+    // the other): det J = -1/2 everywhere; the message names the element.
+    let right = wedge([v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)], v(0.0, 0.0, 1.0));
+    let inverted = wedge([v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)], v(0.0, 0.0, -1.0));
+    for detail in degenerate_details(Kind::Wedge18, &wedge18_from(&inverted)) {
+        assert!(detail.contains("Jacobian determinant -5.000000e-1 at quadrature point 0"), "{detail}");
+        assert!(detail.contains("of a wedge18 element"), "{detail}");
+    }
+    // A face node pulled across the element folds it near that face.
+    let mut folded = wedge18_from(&right);
+    folded[15] = v(0.5, 1.2, 0.5);
+    for detail in degenerate_details(Kind::Wedge18, &folded) {
+        assert!(detail.contains("of a wedge18 element"), "{detail}");
+    }
+    // Pyramids with the apex below the base: det J = -0.8 / 4 everywhere (as Pyramid5's).
+    let base = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(0.0, 1.0, 0.0)];
+    let corners: Vec<Vec3> = base.iter().copied().chain([v(0.5, 0.5, -0.8)]).collect();
+    let below = with_midpoints(&corners, &PYRAMID13_EDGES);
+    let mut below14 = below.clone();
+    below14.push(v(0.5, 0.5, 0.0));
+    for (kind, nodes, name) in
+        [(Kind::Pyramid13, below, "pyramid13"), (Kind::Pyramid14, below14, "pyramid14")]
+    {
+        for detail in degenerate_details(kind, &nodes) {
+            assert!(detail.contains("Jacobian determinant -2.000000e-1 at quadrature point 0"), "{detail}");
+            assert!(detail.contains(&format!("of a {name} element")), "{detail}");
+        }
+    }
+    // A mid-edge node of an apex edge moved beyond the quarter point next to the apex (at
+    // 0.85 of the edge; a quadratic edge folds beyond 3/4): the determinant turns negative
+    // near the apex, at the quadrature points next to that edge.
+    let corners: Vec<Vec3> = base.iter().copied().chain([v(0.5, 0.5, 0.8)]).collect();
+    let mut near_apex = with_midpoints(&corners, &PYRAMID13_EDGES);
+    near_apex[9] = 0.15 * corners[0] + 0.85 * corners[4];
+    for detail in degenerate_details(Kind::Pyramid13, &near_apex) {
+        assert!(detail.contains("at quadrature point"), "{detail}");
+        assert!(detail.contains("of a pyramid13 element"), "{detail}");
+    }
+}
