@@ -560,37 +560,29 @@ def test_wedges_are_read_and_an_inverted_one_is_named(tmp_path, assert_close):
 
 
 def test_cells_that_are_not_elements_are_refused_not_left_out(tmp_path):
-    # A quadratic pyramid on a hexahedron (VTK), a C3D5 pyramid next to a C3D4 (Abaqus), a
-    # 6-node triangle among shell triangles: before, read_mesh left them out without a word,
-    # and the body had a hole (a wedge-and-hex bracket: 62.4 kg instead of 70.2). (meshio
-    # cannot even hold a pyramid13 cell until told its dimension: a Gmsh mesh of them failed
-    # with "KeyError('pyramid13')".)
+    # A 24-node hexahedron next to a hexahedron (VTK), a C3D5 pyramid next to a C3D4
+    # (Abaqus), a 6-node triangle among shell triangles: before, read_mesh left them out
+    # without a word, and the body had a hole (a wedge-and-hex bracket: 62.4 kg instead of
+    # 70.2). (meshio cannot even hold a hexahedron24 cell until told its dimension.) Quadratic
+    # pyramids and wedges are elements now: tests/test_pyramids.py, tests/test_wedges.py.
     from flexmbd.fe.mesh_io import complete_meshio
 
     complete_meshio()
     points, hexes = hex_block()
-    corners = np.vstack([points[hexes[0, 4:]], points[hexes[0, 4:]].mean(axis=0) + [0, 0, 0.5]])
-    edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 4), (2, 4), (3, 4)]
-    middles = [0.5 * (corners[p] + corners[q]) for p, q in edges]
-    pyramid = np.array([[*hexes[0, 4:], *range(len(points), len(points) + 9)]])
-    points = np.vstack([points, corners[4:], middles])
+    extra = np.random.default_rng(0).random((16, 3)) + [1.0, 0.0, 0.0]
+    cell = np.array([[*hexes[1], *range(len(points), len(points) + 16)]])
     path = write(
         tmp_path, "bracket.vtu",
-        meshio.Mesh(points, [("hexahedron", hexes), ("pyramid13", pyramid)]), "vtu",
+        meshio.Mesh(np.vstack([points, extra]), [("hexahedron", hexes[:1]),
+                                                  ("hexahedron24", cell)]), "vtu",
     )  # fmt: skip
     with pytest.raises(
-        InvalidModelError, match=r"1 pyramid13 cell \(the first is element "
+        InvalidModelError, match=r"1 hexahedron24 cell \(the first is element "
     ) as info:
         read_mesh(path)
     assert "mass and stiffness" in str(info.value)
-    assert "at order 1 (pyramid5)" in str(info.value)  # what to do instead
+    assert "pyramid13, pyramid14" in str(info.value)  # the element types flexmbd has
     assert info.value.item.startswith("element ")
-    # Gmsh's complete order-2 prisms: the option that gives the 15-node ones.
-    points = np.random.default_rng(0).random((36, 3))  # (refused before any geometry)
-    cells = [("wedge18", np.arange(36).reshape(2, 18))]
-    path = write(tmp_path, "prisms.vtu", meshio.Mesh(points, cells), "vtu")
-    with pytest.raises(InvalidModelError, match=r"2 wedge18 cells .*SecondOrderIncomplete = 1"):
-        read_mesh(path)
 
     abaqus = tmp_path / "wedge.inp"
     nodes = "".join(f"{k + 1}, {k}, {k % 2}, {k % 3}\n" for k in range(16))

@@ -1,6 +1,7 @@
 """Wedges ("wedge6": Abaqus C3D6, Gmsh prisms, VTK wedges; "wedge15": C3D15, Gmsh's 15-node
-prisms, VTK quadratic wedges) in bodies: interfaces on their
-triangular and quadrilateral faces, VTK output, model files. The element kernel's tests
+prisms, VTK quadratic wedges; "wedge18": Gmsh's 18-node prisms, VTK biquadratic-quadratic
+wedges) in bodies: reading them, interfaces on their triangular and quadrilateral faces, VTK
+output, model files. The element kernel's tests
 (moments, mass fractions, patch tests, rigid-body modes) are in
 `crates/flexmbd-core/src/fem/solid/tests`; invariants, kinetic energy, rigid motions and the
 cantilever are in tests/test_solids.py (its SOLIDS); reading them (and an inverted one named)
@@ -13,6 +14,7 @@ import pytest
 import flexmbd as fm
 import flexmbd.fe.preprocess as pp
 from flexmbd._core import Material
+from flexmbd.errors import InvalidModelError
 from flexmbd.fe import shapes
 from flexmbd.model_file import load_model
 
@@ -85,9 +87,10 @@ def test_vtk_output_and_model_files(tmp_path, assert_close):
 # Quadratic wedges (wedge15: Abaqus C3D15, Gmsh prism15, VTK quadratic wedges) ----------------
 
 
-def gmsh_prisms(path):
+def gmsh_prisms(path, incomplete=True):
     """A Gmsh mesh of 15-node prisms: a triangulated 1 x 0.3 rectangle extruded by 0.2 in two
-    layers, second order (incomplete: no face nodes)."""
+    layers, second order (incomplete: no face nodes; complete: 18-node prisms, Gmsh's
+    default)."""
     import gmsh
 
     gmsh.initialize()
@@ -99,7 +102,7 @@ def gmsh_prisms(path):
         volume = gmsh.model.occ.extrude([(2, rectangle)], 0, 0, 0.2, [2], recombine=True)
         gmsh.model.occ.synchronize()
         gmsh.model.addPhysicalGroup(3, [next(t for d, t in volume if d == 3)], name="body")
-        gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 1)
+        gmsh.option.setNumber("Mesh.SecondOrderIncomplete", int(incomplete))
         gmsh.model.mesh.generate(3)
         gmsh.model.mesh.setOrder(2)
         gmsh.write(str(path))
@@ -157,3 +160,68 @@ def test_quadratic_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, ass
     mesh, body, path = first_frame("wedge15", tmp_path / "frames")
     np.testing.assert_array_equal(read_mesh(path).elements["wedge15"], mesh.elements["wedge15"])
     check_model_file("wedge15", body, tmp_path, assert_close)
+
+
+# Lagrange wedges (wedge18: Gmsh's 18-node prisms, VTK biquadratic-quadratic wedges) -----------
+
+
+def test_gmsh_and_vtk_18_node_wedges_are_read_in_our_order(tmp_path, assert_close):
+    # Gmsh's default order-2 prisms were refused ("SecondOrderIncomplete = 1 gives 15-node
+    # ones"). meshio passes them on in Gmsh's order (edges (0,1), (0,2), (0,3), ..., faces
+    # (0,1,4,3), (0,2,5,3), (1,2,5,4)); read, every mid-edge node is the midpoint of its
+    # edge and every face node the centre of its face in wedge18's order, and the mass is
+    # the block's.
+    from flexmbd.fe.mesh_io import WEDGE18_FROM_VTK, read_mesh
+    from flexmbd.fe.shapes import WEDGE15_EDGES, WEDGE18_FACES
+
+    pytest.importorskip("gmsh")
+    gmsh_prisms(tmp_path / "prisms.msh", incomplete=False)
+    mesh = read_mesh(tmp_path / "prisms.msh")
+    assert list(mesh.elements) == ["wedge18"]
+    cells, x = mesh.elements["wedge18"], mesh.nodes
+    for e, (p, q) in enumerate(WEDGE15_EDGES):
+        assert_close(x[cells[:, 6 + e]], 0.5 * (x[cells[:, p]] + x[cells[:, q]]), abs=1e-15)
+    for f, face in enumerate(WEDGE18_FACES):
+        assert_close(x[cells[:, 15 + f]], x[cells[:, list(face)]].mean(axis=1), abs=1e-15)
+    body = pp.body_from_mesh(mesh, STEEL)
+    assert_close(body.invariants.mass, 7800.0 * 0.06, rel=1e-12, what="mass")
+    # A VTK file lists each triangle the other way round, the face nodes after its corners:
+    # read back, the cells are ours; written in our order, they are inverted, and named.
+    meshio.write(tmp_path / "prisms.vtu", meshio.Mesh(x, [("wedge18", cells[:, WEDGE18_FROM_VTK])]))
+    np.testing.assert_array_equal(read_mesh(tmp_path / "prisms.vtu").elements["wedge18"], cells)
+    meshio.write(tmp_path / "inverted.vtu", meshio.Mesh(x, [("wedge18", cells)]))
+    with pytest.raises(InvalidModelError, match="inverted.*wedge18"):
+        pp.body_from_mesh(read_mesh(tmp_path / "inverted.vtu"), STEEL)
+
+
+def test_18_node_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, assert_close):
+    # The x0 face is made of the same quad9 faces as hex27's, node by node: the same weights
+    # (1/36, 1/9, 4/9 of a rectangle); z1 of the same tri6 faces as wedge15's.
+    def weights(element, face):
+        mesh, body = interface_body(element, [face])
+        members = body.reference.interfaces[0]
+        order = np.lexsort(mesh.nodes[members].T)
+        return mesh.nodes[members][order], body.reference.interface_weights[0][order]
+
+    for face, other in (("x0", "hex27"), ("z1", "wedge15")):
+        nodes, values = weights("wedge18", face)
+        other_nodes, other_values = weights(other, face)
+        assert_close(nodes, other_nodes, abs=1e-15, what=f"{face} nodes")
+        assert_close(values, other_values, rel=1e-12, what=f"{face} weights")
+    # Volume weights of one right prism (the triangle of legs 1, 2; height 3): int N_a dV / V
+    # = 0 at the corners and the vertical edges' nodes, 1/18 at the triangles' mid-edge
+    # nodes, 2/9 at the faces' centres (sympy).
+    from flexmbd.fe.interface import interface_weights
+    from flexmbd.fe.shapes import WEDGE15_EDGES, WEDGE18_FACES
+
+    corners = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [0, 0, 3], [1, 0, 3], [0, 2, 3]], float)
+    nodes = np.vstack([corners, [corners[list(e)].mean(axis=0) for e in WEDGE15_EDGES],
+                       [corners[list(f)].mean(axis=0) for f in WEDGE18_FACES]])  # fmt: skip
+    w, _ = interface_weights(nodes, {"wedge18": np.arange(18)[None]}, np.arange(18), "volume")
+    expected = 3.0 * np.array([0] * 6 + [1 / 18] * 6 + [0] * 3 + [2 / 9] * 3)
+    assert_close(w, expected, rel=1e-12, abs=1e-14, what="volume weights")
+    from flexmbd.fe.mesh_io import read_mesh
+
+    mesh, body, path = first_frame("wedge18", tmp_path / "frames")
+    np.testing.assert_array_equal(read_mesh(path).elements["wedge18"], mesh.elements["wedge18"])
+    check_model_file("wedge18", body, tmp_path, assert_close)

@@ -85,7 +85,15 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     # (meshio writes its wedge15 as given: VTK's quadratic wedge lists each triangle the
     # other way round)
     "wedge15": ("wedge15", np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])),
+    # (the same for VTK's biquadratic-quadratic wedge, whose face nodes follow its corners)
+    "wedge18": (
+        "wedge18",
+        np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13, 17, 16, 15]),
+    ),
     "pyramid5": ("pyramid", None),
+    "pyramid13": ("pyramid13", None),
+    # (VTK has no 14-node pyramid: drawn as the 13-node one, the base's centre left out)
+    "pyramid14": ("pyramid13", np.arange(13)),
     "quad4": ("quad", None),
     "tri3": ("triangle", None),
 }
@@ -111,8 +119,9 @@ ELEMENT_FACES: dict[str, tuple[tuple[int, ...], ...]] = {
 # (a hex20's faces by their corners: the surfaces drawn are flat between them)
 ELEMENT_FACES["hex20"] = ELEMENT_FACES["hex27"] = ELEMENT_FACES["hex8"]
 ELEMENT_FACES["wedge6"] = ((0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5))
-ELEMENT_FACES["wedge15"] = ELEMENT_FACES["wedge6"]
+ELEMENT_FACES["wedge15"] = ELEMENT_FACES["wedge18"] = ELEMENT_FACES["wedge6"]
 ELEMENT_FACES["pyramid5"] = ((0, 3, 2, 1), (0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4))
+ELEMENT_FACES["pyramid13"] = ELEMENT_FACES["pyramid14"] = ELEMENT_FACES["pyramid5"]
 
 #: Named views: (elevation, azimuth) in degrees, orthographic.
 VIEWS: dict[str, tuple[float, float]] = {

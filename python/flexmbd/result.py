@@ -20,7 +20,8 @@ _SINGULAR = {"bodies": "body", "joints": "joint", "sensors": "sensor", "markers"
 
 #: Element types by what their stresses are.
 _SOLIDS = (
-    "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "hex27", "wedge6", "wedge15", "pyramid5",
+    "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r", "hex27", "wedge6", "wedge15", "wedge18",
+    "pyramid5", "pyramid13", "pyramid14",
 )  # fmt: skip
 _SHELLS = ("quad4", "tri3")
 #: Where to look instead, for a body of only these elements.
@@ -37,7 +38,10 @@ _STRESS_OF = {
     "hex27": "a solid's stresses are stresses",
     "wedge6": "a solid's stresses are stresses",
     "wedge15": "a solid's stresses are stresses",
+    "wedge18": "a solid's stresses are stresses",
     "pyramid5": "a solid's stresses are stresses",
+    "pyramid13": "a solid's stresses are stresses",
+    "pyramid14": "a solid's stresses are stresses",
 }
 
 

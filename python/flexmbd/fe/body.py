@@ -32,8 +32,9 @@ BODY_DATA_VERSION = 1
 #: (serendipity) hexahedron and "hex20r" the same with reduced integration (C3D20R), "hex27"
 #: the triquadratic (Lagrange) hexahedron (Gmsh's and VTK's 27-node hexahedron),
 #: "wedge6" the linear wedge (triangular prism, Abaqus C3D6), "wedge15" the quadratic
-#: (serendipity) wedge (Abaqus C3D15) and "pyramid5" the linear pyramid (Gmsh's, Nastran's
-#: CPYRAM of 5 grids).
+#: (serendipity) wedge (Abaqus C3D15), "wedge18" the quadratic Lagrange wedge (Gmsh's 18-node
+#: prism), "pyramid5" the linear pyramid (Gmsh's, Nastran's CPYRAM of 5 grids), "pyramid13"
+#: and "pyramid14" the quadratic ones (Gmsh's and VTK's 13-node pyramid, Gmsh's 14-node one).
 ELEMENT_NODES = {
     "beam2": 2,
     "tet4": 4,
@@ -45,7 +46,10 @@ ELEMENT_NODES = {
     "hex27": 27,
     "wedge6": 6,
     "wedge15": 15,
+    "wedge18": 18,
     "pyramid5": 5,
+    "pyramid13": 13,
+    "pyramid14": 14,
     "quad4": 4,
     "tri3": 3,
 }
@@ -418,8 +422,8 @@ class FlexibleBodyData:
         nodes: undeformed node positions in the body frame, (n_nodes, 3), m.
         node_ids: ids of the nodes in the source mesh, (n_nodes,).
         elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r",
-            "wedge6", "wedge15", and the shells "quad4", "tri3") -> (n_elements, nodes) indices into
-            ``nodes``.
+            "hex27", "wedge6", "wedge15", "wedge18", "pyramid5", "pyramid13", "pyramid14", and
+            the shells "quad4", "tri3") -> (n_elements, nodes) indices into ``nodes``.
         element_ids: element type -> (n_elements,) ids in the source mesh.
         node_sets: name -> indices into ``nodes``.
         material: {"young_modulus": Pa, "poisson_ratio": -, "density": kg/m^3}; empty for

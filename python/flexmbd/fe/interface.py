@@ -51,7 +51,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidModelError, InvalidParameterError
 from .body import cell_of
-from .shapes import HEX8_CORNERS, HEX20_EDGES, HEX27_FACES, TET10_EDGES, WEDGE15_EDGES
+from .shapes import (
+    HEX8_CORNERS,
+    HEX20_EDGES,
+    HEX27_FACES,
+    PYRAMID13_EDGES,
+    TET10_EDGES,
+    WEDGE15_EDGES,
+)
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -171,7 +178,33 @@ _FACET_GROUPS["hex27"] = (
     ),
 )
 _EDGE_GROUPS["hex27"] = _EDGE_GROUPS["hex20"]
-_SOLIDS = ("tet4", "tet10", "hex8", "hex20", "hex27", "wedge6", "wedge15", "pyramid5")
+# wedge18: the triangles of wedge15 and its quadrilaterals with their centres 15..17
+# (`WEDGE18_FACES`, in the same order as wedge15's quadrilaterals), the edges of wedge15.
+_FACET_GROUPS["wedge18"] = (
+    _FACET_GROUPS["wedge15"][0],
+    ("quad9", tuple((*f, 15 + k) for k, f in enumerate(_FACET_GROUPS["wedge15"][1][1]))),
+)
+_EDGE_GROUPS["wedge18"] = _EDGE_GROUPS["wedge15"]
+# pyramid13: mid-edge nodes 5..12 on the edges `PYRAMID13_EDGES`; pyramid14 with the base's
+# centre 13.
+_PYRAMID_TRIANGLES = tuple(
+    (a, b, 4, 5 + a, 9 + b, 9 + a) for a, b in ((0, 1), (1, 2), (2, 3), (3, 0))
+)
+_FACET_GROUPS["pyramid13"] = (
+    ("quad8", ((0, 1, 2, 3, 5, 6, 7, 8),)),
+    ("tri6", _PYRAMID_TRIANGLES),
+)
+_FACET_GROUPS["pyramid14"] = (
+    ("quad9", ((0, 1, 2, 3, 5, 6, 7, 8, 13),)),
+    ("tri6", _PYRAMID_TRIANGLES),
+)
+_EDGE_GROUPS["pyramid13"] = _EDGE_GROUPS["pyramid14"] = (
+    ("line3", tuple((p, q, 5 + e) for e, (p, q) in enumerate(PYRAMID13_EDGES))),
+)
+_SOLIDS = (
+    "tet4", "tet10", "hex8", "hex20", "hex27", "wedge6", "wedge15", "wedge18", "pyramid5",
+    "pyramid13", "pyramid14",
+)  # fmt: skip
 #: How far (a fraction of the diagonal of its nodes' box) an interface's weighted centroid
 #: may lie outside that box: a curved quadratic face's centroid can, by a little.
 OUTSIDE_LIMIT = 0.1
@@ -254,6 +287,39 @@ def _shape(kind: str, xi: Any) -> list[Any]:
             for e, (p, q) in enumerate(WEDGE15_EDGES[:6])
         ]
         return corners + middles + [v * (1 - w * w) for v in lam]
+    if kind == "wedge18":
+        # Lagrange: the quadratic triangle's functions times the quadratic line's in w
+        # (see `fem/solid/wedge.rs`): levels -1, +1 and 0 of the nodes.
+        a, b, c = xi
+        lam, w = [1 - a - b, a, b], 2 * c - 1
+        triangle = [v * (2 * v - 1) for v in lam]
+        triangle += [4 * lam[p] * lam[(p + 1) % 3] for p in range(3)]
+        line = {-1: w * (w - 1) / 2, 1: w * (w + 1) / 2, 0: 1 - w * w}
+        corners = [t * line[s] for s in (-1, 1) for t in triangle[:3]]
+        middles = [t * line[s] for s in (-1, 1) for t in triangle[3:]]
+        return corners + middles + [t * line[0] for t in triangle]
+    if kind in ("pyramid13", "pyramid14"):
+        # Bedrosian's quadratic pyramid in the collapsed coordinates a = xi / (1 - zeta),
+        # b = eta / (1 - zeta), s = 1 - zeta (see `fem/solid/pyramid.rs`), and the base's
+        # bubble for pyramid14.
+        x, y, z = xi
+        s = 1 - z
+        a, b = x / s, y / s
+        base = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+        bubble = s * s * (1 - a * a) * (1 - b * b)
+        take = 0.25 * bubble if kind == "pyramid14" else 0
+        values = [
+            s * (1 + p * a) * (1 + q * b) * (s * (p * a + q * b) - 1) / 4 + take for p, q in base
+        ]
+        values.append(z * (2 * z - 1))
+        for k, (p, q) in enumerate(base):
+            r, t = base[(k + 1) % 4]
+            if p == r:  # the edge at xi = p: along eta
+                values.append(s * s * (1 - b * b) * (1 + p * a) / 2 - 2 * take)
+            else:
+                values.append(s * s * (1 - a * a) * (1 + q * b) / 2 - 2 * take)
+        values += [z * s * (1 + p * a) * (1 + q * b) for p, q in base]
+        return values + ([bubble] if kind == "pyramid14" else [])
     if kind in ("quad9", "hex27"):
         # Lagrange, on [-1, 1]^d: products of the quadratic polynomials l(s) that are 1 at
         # the node's coordinate c and 0 at the other two (s(s + c)/2, or 1 - s^2 for c = 0).
@@ -300,16 +366,18 @@ def _shape(kind: str, xi: Any) -> list[Any]:
 
 def _rule(kind: str) -> tuple[Array, Array]:
     """Quadrature points (dim, n) and weights (n,) on the reference cell of `kind`: 3-point
-    Gauss-Legendre products (4-point on quad8, hex20, wedge15 and pyramid5), collapsed (Duffy)
-    onto simplices and the pyramid; exact for the integrals of the shape functions times the
-    Jacobian of every straight-sided or flat cell here (degree 2 on simplices, 3 per direction
-    on quadrilaterals and hexahedra, 4 on the serendipity quad8, hex20 and wedge15; on the
-    pyramid, polynomials of degree 3 in the collapsed a, b and 5 in zeta besides (1 - zeta)^2,
-    the moments included)."""
+    Gauss-Legendre products (4-point on quad8, quad9, hex20, hex27, wedge15, wedge18 and the
+    pyramids), collapsed (Duffy) onto simplices and the pyramid; exact for the integrals of
+    the shape functions times the Jacobian of every straight-sided or flat cell here (degree 2
+    on simplices, 3 per direction on quadrilaterals and hexahedra, 4 on the quadratic quad8,
+    quad9, hex20, hex27, wedge15 and wedge18; on the pyramids, polynomials of degree 7 in the
+    collapsed a, b and in zeta, (1 - zeta)^2 included, the moments too)."""
     # (4 points on the serendipity cells: those of their mass points, so that interface
     # weights and the mass matrix agree on curved elements too)
     g, w = np.polynomial.legendre.leggauss(
-        4 if kind in ("quad8", "quad9", "hex20", "hex27", "wedge15", "pyramid5") else 3
+        3
+        if kind in ("line2", "line3", "tri3", "tri6", "quad4", "tet4", "tet10", "hex8", "wedge6")
+        else 4
     )
     g, w = 0.5 * (g + 1.0), 0.5 * w
     dim = {"line": 1, "tri": 2, "quad": 2, "tet": 3, "hex": 3, "wedge": 3, "pyramid": 3}[
@@ -322,7 +390,7 @@ def _rule(kind: str) -> tuple[Array, Array]:
         # (a wedge: the collapsed triangle times the line)
         points = [u[0], u[1] * (1 - u[0])] + u[2:]
         weights = weights * (1 - u[0])
-    elif kind == "pyramid5":
+    elif kind.startswith("pyramid"):
         # (the cube [-1, 1]^2 x [0, 1] collapsed onto the pyramid: xi = (1 - zeta) a, ...)
         shrink = 1 - u[2]
         points = [(2 * u[0] - 1) * shrink, (2 * u[1] - 1) * shrink, u[2]]

@@ -36,8 +36,20 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   converts Gmsh's prism15 on reading). VTK's quadratic wedge has these edges with each
   triangle listed the other way round: :func:`read_mesh` converts the cells of ``.vtu`` and
   ``.vtk`` files (``WEDGE15_FROM_VTK``).
+* ``wedge18``: the nodes of ``wedge15``, then the centres of the quadrilateral faces
+  (0,1,4,3), (1,2,5,4), (2,0,3,5). Gmsh's 18-node prism (which meshio passes on in Gmsh's
+  order: the mid-edge nodes on (0,1), (0,2), (0,3), (1,2), (1,4), (2,5), (3,4), (3,5), (4,5),
+  the face centres of (0,1,4,3), (0,2,5,3), (1,2,5,4)) is converted on reading
+  (``WEDGE18_FROM_GMSH``); VTK's biquadratic-quadratic wedge has these edges and faces with
+  each triangle listed the other way round, as its quadratic wedge (``WEDGE18_FROM_VTK``).
 * ``pyramid5``: the base 0, 1, 2, 3 counter-clockwise seen from the apex 4: Gmsh's, VTK's and
   meshio's pyramid, Nastran's CPYRAM of 5 grids.
+* ``pyramid13``: the corners of ``pyramid5``, then the mid-edge nodes 5..12 on the edges
+  (0,1), (1,2), (2,3), (3,0), (0,4), (1,4), (2,4), (3,4): VTK's quadratic pyramid and meshio's
+  pyramid13 (which converts Gmsh's order on reading).
+* ``pyramid14``: the nodes of ``pyramid13``, then the base's centre. Gmsh's 14-node pyramid
+  (which meshio passes on in Gmsh's order: the mid-edge nodes on (0,1), (0,3), (0,4), (1,2),
+  (1,4), (2,3), (2,4), (3,4)) is converted on reading (``PYRAMID14_FROM_GMSH``).
 * ``quad4``, ``tri3`` (flat shells): the corners counter-clockwise about the element normal
   (the same in VTK, Gmsh and Abaqus S4/S3); the top surface of the shell is on the side of
   the normal.
@@ -83,7 +95,10 @@ MESHIO_ELEMENT_TYPES = {
     "hexahedron27": "hex27",
     "wedge": "wedge6",
     "wedge15": "wedge15",
+    "wedge18": "wedge18",
     "pyramid": "pyramid5",
+    "pyramid13": "pyramid13",
+    "pyramid14": "pyramid14",
 }
 
 #: meshio cell types of surfaces read as shell elements ("quad4", "tri3") in files without
@@ -125,12 +140,27 @@ TET10_FROM_MESHIO = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 #: other way round; its own inverse): meshio converts VTK's linear wedge, not this one.
 WEDGE15_FROM_VTK = np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])
 
+#: Node permutation from VTK's biquadratic-quadratic wedge to ``wedge18`` (that of
+#: ``WEDGE15_FROM_VTK``, and the face centres of VTK's faces (0,1,4,3), (1,2,5,4), (2,0,3,5)
+#: taken the other way round; its own inverse).
+WEDGE18_FROM_VTK = np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13, 17, 16, 15])
+
+#: ``wedge18[i] = gmsh[WEDGE18_FROM_GMSH[i]]`` for a meshio "wedge18" cell read from a Gmsh
+#: file (meshio keeps Gmsh's order of the 18-node prism; its first 15 entries are meshio's own
+#: conversion of Gmsh's 15-node prism).
+WEDGE18_FROM_GMSH = np.array([0, 1, 2, 3, 4, 5, 6, 9, 7, 12, 14, 13, 8, 10, 11, 15, 17, 16])
+
+#: ``pyramid14[i] = gmsh[PYRAMID14_FROM_GMSH[i]]`` for a meshio "pyramid14" cell read from a
+#: Gmsh file (meshio keeps Gmsh's order of the 14-node pyramid; it converts the 13-node one).
+PYRAMID14_FROM_GMSH = np.array([0, 1, 2, 3, 4, 5, 8, 10, 6, 7, 9, 11, 12, 13])
+
 
 def complete_meshio() -> None:
     """Gives meshio the topological dimension of the volume cells its table lacks (meshio 5.3:
     any mesh with such cells failed with a KeyError): "wedge15" (Gmsh prism15, Abaqus C3D15,
-    VTK quadratic wedges), and "pyramid13" and "hexahedron24", which are then refused by name
-    as cells that are not elements. Idempotent; changes nothing else."""
+    VTK quadratic wedges), "pyramid13" (Gmsh's and VTK's 13-node pyramids), and "hexahedron24",
+    which is then refused by name as a cell that is not an element. Idempotent; changes
+    nothing else."""
     import meshio._mesh
 
     for cell in ("wedge15", "pyramid13", "hexahedron24"):
@@ -168,7 +198,8 @@ class Mesh:
         node_ids: ids of the nodes in the source file, (n_nodes,) int64 (see
             :func:`read_mesh` for where they come from).
         elements: element type ("beam2", "tet4", "tet10", "hex8", "hex8i", "hex20", "hex20r",
-            "wedge6", "quad4", "tri3") ->
+            "hex27", "wedge6", "wedge15", "wedge18", "pyramid5", "pyramid13", "pyramid14",
+            "quad4", "tri3") ->
             (n_elements, nodes) int64 indices into ``nodes``, node order as in the module
             docstring.
         element_ids: element type -> (n_elements,) int64 ids in the source file.
@@ -222,9 +253,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     ``.vtk``) mesh through meshio. The suffix selects the format.
 
     Elements: meshio cells "tetra" (and Abaqus' "tetra4"), "tetra10", "hexahedron",
-    "hexahedron20", "hexahedron27", "wedge", "wedge15", "pyramid" and "line" become "tet4",
-    "tet10", "hex8", "hex20", "hex27", "wedge6", "wedge15", "pyramid5" and "beam2", in the node
-    order of the module docstring; Abaqus'
+    "hexahedron20", "hexahedron27", "wedge", "wedge15", "wedge18", "pyramid", "pyramid13",
+    "pyramid14" and "line" become "tet4", "tet10", "hex8", "hex20", "hex27", "wedge6",
+    "wedge15", "wedge18", "pyramid5", "pyramid13", "pyramid14" and "beam2", in the node order
+    of the module docstring; Abaqus'
     hexahedra with incompatible modes (C3D8I, C3D8IH) become "hex8i", its quadratic ones with
     reduced integration (C3D20R, C3D20RH) "hex20r", its linear reduced-integration hexahedra
     (C3D8R, C3D8RH) "hex8" with a :class:`~flexmbd.MeshQualityWarning` (flexmbd has no
@@ -238,8 +270,8 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
     the node sets of the named groups they belong to: a Gmsh physical surface of triangles
     named "clamp" gives the node set "clamp". In a Gmsh file that also has volume elements,
     "line" cells are edges of the geometry, not beams, and are treated like triangles. Cells
-    of the highest dimension must all be elements: a 13-node pyramid or an 18-node wedge next to
-    tetrahedra and hexahedra, a 6-node triangle in a shell mesh,
+    of the highest dimension must all be elements: a 24-node hexahedron next to tetrahedra and
+    hexahedra, a 6-node triangle in a shell mesh,
     a plane-stress element in a 2D Abaqus mesh are refused, not left out (the body would
     miss their mass and stiffness). Abaqus ``*ELEMENT`` blocks of types meshio does not read
     (membranes such as M3D4, surface elements SFM3D4, ...) are left out with a
@@ -389,6 +421,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
             data = data[:, TET10_FROM_MESHIO]
         if kind == "wedge15" and file_format in ("vtu", "vtk"):
             data = data[:, WEDGE15_FROM_VTK]
+        if kind == "wedge18":
+            data = data[:, WEDGE18_FROM_GMSH if file_format == "gmsh" else WEDGE18_FROM_VTK]
+        if kind == "pyramid14" and file_format == "gmsh":
+            data = data[:, PYRAMID14_FROM_GMSH]
         elements.setdefault(kind, []).append(data)
         element_ids.setdefault(kind, []).append(ids)
     _warn_left_out(path, left_out, bool(elements))
@@ -414,16 +450,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
 
 #: What to do instead, for the cells of other codes' higher orders: meshio's type -> advice.
 ORDER_ADVICE = {
-    "wedge18": "Gmsh makes 18-node prisms at order 2 unless told Mesh.SecondOrderIncomplete = 1, "
-    "which gives 15-node ones (wedge15)",
-    "pyramid13": "pyramids of order 2 are not elements here: mesh the transition between "
-    "hexahedra and tetrahedra at order 1 (pyramid5), or use tetrahedra (tet10) or hexahedra "
-    "(hex20, hex27) throughout",
     "triangle6": "shells are of order 1 here (tri3, quad4): mesh the surface at order 1",
     "quad8": "shells are of order 1 here (tri3, quad4): mesh the surface at order 1",
     "quad9": "shells are of order 1 here (tri3, quad4): mesh the surface at order 1",
 }
-ORDER_ADVICE["pyramid14"] = ORDER_ADVICE["pyramid13"]
 
 
 def _unsupported_cells(
@@ -432,7 +462,8 @@ def _unsupported_cells(
     """The error for `count` cells of type `cell_type` (meshio's name, or Abaqus' element
     type), of the mesh's highest `dimension`, that are not flexmbd elements."""
     supported = {
-        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, hex27, wedge6, wedge15, pyramid5",
+        3: "tet4, tet10, hex8, hex8i, hex20, hex20r, hex27, wedge6, wedge15, wedge18, pyramid5, "
+        "pyramid13, pyramid14",
         2: "quad4, tri3 (flat shells)",
         1: "beam2",
     }[dimension]

@@ -365,7 +365,9 @@ def assemble(
 
     `elements` maps an element type ("beam2", "tet4", "tet10" in Gmsh node order, "hex8",
     "hex8i" with incompatible modes, "hex20", "hex20r" and "hex27" in VTK node order, "wedge6" in
-    Gmsh's prism order, "wedge15" in Abaqus' C3D15 order, "pyramid5" in Gmsh's order, the flat
+    Gmsh's prism order, "wedge15" in Abaqus' C3D15 order, "wedge18" (wedge15's nodes, then the
+    centres of the faces (0,1,4,3), (1,2,5,4), (2,0,3,5)), "pyramid5" in Gmsh's order,
+    "pyramid13" in VTK's order, "pyramid14" (pyramid13's nodes, then the base's centre), the flat
     shells "quad4" and "tri3")
     to its connectivity
     (n_e, nodes) of 0-based node indices; shells need `shell` (a `ShellSection` or the

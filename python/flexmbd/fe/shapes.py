@@ -50,6 +50,11 @@ HEX27_FACES = ((0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4), (3, 2, 6, 7), (0, 1, 2,
 #: Corners joined by the mid-edge nodes 6..14 of a wedge15 (Abaqus C3D15 order: the bottom
 #: triangle's edges, the top one's, the vertical ones).
 WEDGE15_EDGES = ((0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 3), (1, 4), (2, 5))
+#: Corners of the quadrilateral faces whose centres are the nodes 15..17 of a wedge18.
+WEDGE18_FACES = ((0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5))
+#: Corners joined by the mid-edge nodes 5..12 of a pyramid13 or pyramid14 (VTK order: the
+#: base's edges, then those to the apex); node 13 of a pyramid14 is the base's centre.
+PYRAMID13_EDGES = ((0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 4), (2, 4), (3, 4))
 
 #: Meshes estimated at more elements than this are refused before they are made (the
 #: `max_elements` keyword of :func:`box`, :func:`gmsh_mesh`, :func:`cylinder` and
@@ -59,7 +64,8 @@ MAX_MESH_ELEMENTS = 10_000_000
 
 #: The elements of :func:`box`.
 BOX_ELEMENTS = (
-    "hex8", "hex8i", "hex20", "hex20r", "hex27", "wedge6", "wedge15", "pyramid5", "tet4", "tet10",
+    "hex8", "hex8i", "hex20", "hex20r", "hex27", "wedge6", "wedge15", "wedge18", "pyramid5",
+    "pyramid13", "pyramid14", "tet4", "tet10",
 )  # fmt: skip
 
 #: Peak bytes per element of making a mesh (measured): :func:`box` for each element type, and
@@ -72,7 +78,10 @@ _BYTES_PER_ELEMENT = {
     "hex27": 1800,
     "wedge6": 200,
     "wedge15": 1000,
+    "wedge18": 1200,
     "pyramid5": 150,
+    "pyramid13": 600,
+    "pyramid14": 700,
     "tet4": 280,
     "tet10": 640,
     "gmsh1": 1500,
@@ -216,6 +225,45 @@ def quadratic_wedges(
     return _with_edge_midpoints(nodes, wedges, WEDGE15_EDGES)
 
 
+def biquadratic_wedges(
+    nodes: NDArray[np.float64], wedges: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Wedge18 elements from wedge6 elements: a node at the midpoint of every edge and at the
+    centre (the mean of the corners) of every quadrilateral face, shared by the elements
+    around them. Returns the extended nodes and the wedge18 connectivity."""
+    nodes, cells = _with_edge_midpoints(nodes, wedges, WEDGE15_EDGES)
+    return _with_face_centres(nodes, cells, wedges, WEDGE18_FACES)
+
+
+def quadratic_pyramids(
+    nodes: NDArray[np.float64], pyramids: NDArray[np.int64], centre: bool = False
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Pyramid13 elements from pyramid5 elements: one node at the midpoint of every edge,
+    shared by the elements around it; with `centre`, pyramid14 elements (also a node at the
+    centre of every base, shared by the two pyramids on it). Returns the extended nodes and
+    the connectivity."""
+    nodes, cells = _with_edge_midpoints(nodes, pyramids, PYRAMID13_EDGES)
+    if centre:
+        return _with_face_centres(nodes, cells, pyramids, ((0, 1, 2, 3),))
+    return nodes, cells
+
+
+def _with_face_centres(
+    nodes: NDArray[np.float64],
+    cells: NDArray[np.int64],
+    corners: NDArray[np.int64],
+    faces: Sequence[tuple[int, ...]],
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """A node at the mean of the corners of each quadrilateral face `faces` of the cells
+    `corners` (one per face, however many cells share it) appended to the nodes and, in the
+    order of `faces`, to the rows of `cells`."""
+    keys = np.concatenate([np.sort(corners[:, list(face)], axis=1) for face in faces])
+    unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    face_nodes = len(nodes) + inverse.reshape(len(faces), len(corners)).T
+    nodes = np.vstack([nodes, nodes[unique].mean(axis=1)])
+    return nodes, np.hstack([cells, face_nodes]).astype(np.int64)
+
+
 def _with_edge_midpoints(
     nodes: NDArray[np.float64], cells: NDArray[np.int64], cell_edges: Sequence[tuple[int, int]]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -242,9 +290,10 @@ def box(
     `divisions` = (n_x, n_y, n_z) cells (one integer n: n in each direction); `element`
     "hex8", "hex8i" (hexahedra with incompatible modes: they bend), "hex20", "hex20r"
     (quadratic hexahedra; reduced integration), "hex27" (triquadratic), "wedge6" (two prisms
-    per cell, split in z), "wedge15" (the same, quadratic), "pyramid5" (six pyramids per cell,
-    their apexes at a node in its centre), "tet4" (six tetrahedra per cell) or "tet10". Node
-    sets:
+    per cell, split in z), "wedge15" (the same, quadratic), "wedge18" (the same, Lagrange),
+    "pyramid5" (six pyramids per cell, their apexes at a node in its centre), "pyramid13",
+    "pyramid14" (the same, quadratic; with the bases' centres), "tet4" (six tetrahedra per
+    cell) or "tet10". Node sets:
     "x0", "x1", "y0", "y1", "z0", "z1" (the faces), "all".
 
     Raises `InvalidParameterError` for lengths that are not three positive finite numbers,
@@ -278,15 +327,21 @@ def box(
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz + (nx + 1) * ny * nz + nx * (ny + 1) * nz
         node_count += nx * ny * (nz + 1) + cells
-    if element in ("hex20", "hex20r", "hex27", "wedge15"):
+    if element in ("hex20", "hex20r", "hex27", "wedge15", "wedge18", "pyramid13", "pyramid14"):
         # Mid-edge nodes: the grid's edges (and a wedge's: one diagonal per z-face).
         node_count += nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1)
         node_count += (nx + 1) * (ny + 1) * nz
         if element == "hex27":  # the faces' and the cells' centres
             node_count += (nx + 1) * ny * nz + nx * (ny + 1) * nz + nx * ny * (nz + 1) + cells
-        if element == "wedge15":
+        if element in ("wedge15", "wedge18"):
             node_count += nx * ny * (nz + 1)
-    if element == "pyramid5":
+        if element == "wedge18":  # the vertical faces' centres, the diagonal ones included
+            node_count += (nx + 1) * ny * nz + nx * (ny + 1) * nz + cells
+        if element in ("pyramid13", "pyramid14"):  # the edges from the corners to the centre
+            node_count += 8 * cells
+        if element == "pyramid14":  # the faces' centres
+            node_count += (nx + 1) * ny * nz + nx * (ny + 1) * nz + nx * ny * (nz + 1)
+    if element.startswith("pyramid"):
         node_count += cells  # the cells' centres
     per_cell = 1 if element.startswith("hex") else 2 if element.startswith("wedge") else 6
     element_count = per_cell * cells
@@ -318,21 +373,26 @@ def box(
     elif element == "hex27":
         nodes, hexes = triquadratic_hexahedra(nodes, hexes)
         elements = {element: hexes}
-    elif element in ("wedge6", "wedge15"):
+    elif element in ("wedge6", "wedge15", "wedge18"):
         # Each cell split along its diagonal 0-2 in z: the prisms (0, 1, 2 | 4, 5, 6) and
         # (0, 2, 3 | 4, 6, 7), their triangles counter-clockwise seen from +z.
         prisms = np.vstack([hexes[:, [0, 1, 2, 4, 5, 6]], hexes[:, [0, 2, 3, 4, 6, 7]]])
         if element == "wedge15":
             nodes, prisms = quadratic_wedges(nodes, prisms)
+        elif element == "wedge18":
+            nodes, prisms = biquadratic_wedges(nodes, prisms)
         elements = {element: prisms}
-    elif element == "pyramid5":
+    elif element.startswith("pyramid"):
         # A pyramid on each face of a cell, its apex at the cell's centre (a node of its own):
         # the base counter-clockwise seen from the centre.
         centres = len(nodes) + np.arange(len(hexes))
         nodes = np.vstack([nodes, nodes[hexes].mean(axis=1)])
         faces = ((0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3), (3, 7, 4, 0))
         pyramids = np.vstack([np.column_stack([hexes[:, list(f)], centres]) for f in faces])
-        elements = {"pyramid5": pyramids.astype(np.int64)}
+        pyramids = pyramids.astype(np.int64)
+        if element != "pyramid5":
+            nodes, pyramids = quadratic_pyramids(nodes, pyramids, centre=element == "pyramid14")
+        elements = {element: pyramids}
     else:
         tets = np.vstack([hexes[:, list(t)] for t in _KUHN])
         tets = _orient(nodes, tets)

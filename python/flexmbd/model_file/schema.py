@@ -377,7 +377,10 @@ class BoxSpec(_Spec):
         "hex27",
         "wedge6",
         "wedge15",
+        "wedge18",
         "pyramid5",
+        "pyramid13",
+        "pyramid14",
         "tet4",
         "tet10",
     ] = "hex8"
