@@ -3,8 +3,8 @@
 A steel bar 1 x 0.1 x 0.1 m (E = 210 GPa, nu = 0.3), clamped at x = 0 (every node of the face
 held: the body's reference conditions), carries 1 kN along z spread evenly over the nodes of
 the end face. The tip deflection (mean over the end face) of tet4, tet10, hex8, hex8i, hex20,
-hex20r, hex27, wedge6, wedge15 and pyramid5 box meshes of 10 n x n x n cells is compared with
-Timoshenko beam theory,
+hex20r, hex27, wedge6, wedge15, wedge18, pyramid5, pyramid13 and pyramid14 box meshes of
+10 n x n x n cells is compared with Timoshenko beam theory,
 w = P L^3 / (3 E I) + P L / (kappa G A) with kappa = 5/6 (Euler-Bernoulli alone: the first
 term). The nodal clamp is stiffer than a beam's built-in end (it also holds the cross-section's
 Poisson contraction), so the finest meshes settle slightly below the beam value.
