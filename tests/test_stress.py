@@ -98,6 +98,7 @@ def test_section_forces_and_chord_deflection_from_a_simulation(assert_close):
         result.shell_stresses(beam)
     n = len(result.time)
     assert result.section_forces(beam, records=[-n, n - 1]).shape == (2, 6, 2, 6)
+    assert result.section_forces(beam, records=[]).shape == (0, 6, 2, 6)  # (was (0, 0, 2, 6))
     for records in ([n], [-n - 1], 0.5, ["last"], [[0, 1]]):  # ([[0, 1]]: a scipy error)
         with pytest.raises(fm.InvalidParameterError, match="records"):
             result.section_forces(beam, records=records)

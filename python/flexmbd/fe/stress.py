@@ -144,7 +144,14 @@ def _recovered(
         shear,
         shell,
     )
+    # No records: those of one zeroed, so that the arrays keep their nodes and elements
+    # (records=[] gave section forces of shape (0, 0, 2, 6)).
+    empty = len(u) == 0
+    if empty:
+        u = np.zeros((1, u.shape[1]))
     nodal, beams, shells = _core.recover_stresses(mesh, np.ascontiguousarray(u))
+    if empty:
+        nodal, beams, shells = nodal[:0], beams[:0], shells[:0]
     if on_axes is not None:  # (the body's nodes come first)
         nodal, shells = nodal[:, : len(body.nodes)], shells[:, : len(body.nodes)]
     if single:
