@@ -14,22 +14,10 @@ import numpy as np
 import flexmbd as fm
 from flexmbd.fe import Material, Section, build_body, straight_beam
 
-ALONG_Y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)
-
 
 def shaken_pendulum() -> tuple[fm.System, fm.State | None, float, int]:
     rate = 2 * np.sqrt(9.81)
-    system = fm.System(gravity=(0, -9.81, 0))
-    support = system.add_rigid_body(1.0, (1, 1, 1))
-    rail = system.add_marker(system.ground, orientation=ALONG_Y)
-    carried = system.add_marker(support, orientation=ALONG_Y)
-    system.add_prismatic_joint(rail, carried)
-    system.add_translation_driver(rail, carried, fm.Harmonic(0.05, rate))
-    bob = system.add_rigid_body(1.0, (1e-3,) * 3, position=(0, -1, 0), velocity=(0, 0.05 * rate, 0))
-    system.add_revolute_joint(
-        system.add_marker(support), system.add_marker(bob, position=(0, 1, 0))
-    )
-    return system, None, 2 * np.pi / rate, 1600
+    return fm.examples.shaken_pendulum(0.05, rate), None, 2 * np.pi / rate, 1600
 
 
 def flexible_pendulum() -> tuple[fm.System, fm.State | None, float, int]:

@@ -16,25 +16,6 @@ from scipy.integrate import solve_ivp
 import flexmbd as fm
 
 G, LENGTH, MASS, INERTIA = 9.81, 1.0, 1.0, 1e-3
-ALONG_Y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # a marker's z along global y
-
-
-def shaken_pendulum(amplitude: float, rate: float, upright: bool) -> fm.System:
-    system = fm.System(gravity=(0, -G, 0))
-    support = system.add_rigid_body(1.0, (1, 1, 1), name="support")
-    rail = system.add_marker(system.ground, orientation=ALONG_Y)
-    carried = system.add_marker(support, orientation=ALONG_Y)
-    system.add_prismatic_joint(rail, carried)
-    system.add_translation_driver(rail, carried, fm.Harmonic(amplitude, rate), name="shake")
-    side = 1.0 if upright else -1.0
-    bob = system.add_rigid_body(
-        MASS, (INERTIA,) * 3, position=(0, side * LENGTH, 0),
-        velocity=(0, amplitude * rate, 0), name="bob",
-    )  # fmt: skip
-    system.add_revolute_joint(
-        system.add_marker(support), system.add_marker(bob, position=(0, -side * LENGTH, 0))
-    )
-    return system
 
 
 def mathieu(amplitude: float, rate: float, upright: bool) -> np.ndarray:
@@ -57,7 +38,7 @@ def main() -> int:
     worst, first_stable = 0.0, None
     print(" a (m)   w (rad/s)  position  max |mu|   stable   Mathieu max |mu|")
     for amplitude, rate, upright in cases:
-        model = shaken_pendulum(amplitude, rate, upright).compile()
+        model = fm.examples.shaken_pendulum(amplitude, rate, upright=upright).compile()
         period = 2 * np.pi / rate
         analysis = fm.floquet(model, fm.State.of_model(model), period, period / 1600)
         expected = mathieu(amplitude, rate, upright)

@@ -14,31 +14,6 @@ from flexmbd.fe import Material, Section, build_body, straight_beam
 from flexmbd.floquet import NEUTRAL
 
 GRAVITY, LENGTH, MASS, INERTIA = 9.81, 1.0, 1.0, 1e-3
-ALONG_Y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # a marker's z along global y
-
-
-def shaken_pendulum(
-    amplitude: float, rate: float, upright: bool = False, angle: float = 0.0
-) -> fm.System:
-    """A pendulum (a bob of MASS with INERTIA about its centre, LENGTH from its hinge) on a
-    support shaken vertically as amplitude sin(rate t), hanging or upright, turned by
-    `angle` at the start."""
-    system = fm.System(gravity=(0, -GRAVITY, 0))
-    support = system.add_rigid_body(1.0, (1, 1, 1), name="support")
-    rail = system.add_marker(system.ground, orientation=ALONG_Y)
-    carried = system.add_marker(support, orientation=ALONG_Y)
-    system.add_prismatic_joint(rail, carried)
-    system.add_translation_driver(rail, carried, fm.Harmonic(amplitude, rate), name="shake")
-    side = 1.0 if upright else -1.0
-    turn = fm.rotation("z", angle)
-    bob = system.add_rigid_body(
-        MASS, (INERTIA,) * 3, position=turn @ (0, side * LENGTH, 0), orientation=turn,
-        velocity=(0, amplitude * rate, 0), name="bob",
-    )  # fmt: skip
-    system.add_revolute_joint(
-        system.add_marker(support), system.add_marker(bob, position=(0, -side * LENGTH, 0))
-    )
-    return system
 
 
 def mathieu_multipliers(amplitude: float, rate: float, upright: bool) -> np.ndarray:
@@ -78,7 +53,7 @@ def test_a_pendulum_on_a_shaken_support_has_mathieus_multipliers(amplitude, rate
     # frequency it grows (|mu| = 1.17), and the upright one is held by a fast shake.
     # Generalized-alpha's error is second order: 2.4e-6 at 400 steps a period, 2e-7 at 1600
     # (spectral radius 1), 2.8e-6 at 800 (0.99, the default).
-    model = shaken_pendulum(amplitude, rate, upright).compile()
+    model = fm.examples.shaken_pendulum(amplitude, rate, upright=upright).compile()
     period = 2 * np.pi / rate
     analysis = fm.floquet(model, fm.State.of_model(model), period, period / 800)
     expected = mathieu_multipliers(amplitude, rate, upright)
@@ -162,10 +137,10 @@ def test_floquet_refuses_a_state_off_its_periodic_motion():
     # period of the shake, nor does the hanging one's support after 0.7 of it; a period of
     # 0 or NaN, a list for a state, a state of another system are refused by name.
     period = 2 * np.pi / 9.0
-    swinging = shaken_pendulum(0.05, 9.0, angle=0.3).compile()
+    swinging = fm.examples.shaken_pendulum(0.05, 9.0, angle=0.3).compile()
     with pytest.raises(InvalidParameterError, match="body 'bob' .* changed by"):
         fm.floquet(swinging, fm.State.of_model(swinging), period, period / 100)
-    model = shaken_pendulum(0.05, 9.0).compile()
+    model = fm.examples.shaken_pendulum(0.05, 9.0).compile()
     state = fm.State.of_model(model)
     with pytest.raises(InvalidParameterError, match="body 'support' displacement"):
         fm.floquet(model, state, 0.7 * period, period / 100)

@@ -463,6 +463,47 @@ def rotating_beam(
     return system
 
 
+def shaken_pendulum(
+    amplitude: float,
+    rate: float,
+    *,
+    upright: bool = False,
+    angle: float = 0.0,
+    length: float = 1.0,
+    mass: float = 1.0,
+    inertia: float = 1e-3,
+) -> System:
+    """A pendulum on a support shaken vertically as y = `amplitude` sin(`rate` t) (m, rad/s;
+    the translation driver "shake" on the prismatic joint of the 1 kg body "support"):
+    the body "bob" (`mass`, `inertia` about its centre on every axis) `length` from its
+    revolute joint on the support's origin, hanging (or `upright`) and turned by `angle` about
+    z at the start, moving up with the support. Gravity 9.81 m/s^2 along -y. Linearized about
+    the hanging (upright) position: Mathieu's equation (m L^2 + I) theta_dd + (-) m L (g +
+    y_dd(t)) theta = 0; the subject of :func:`flexmbd.floquet`'s tests and
+    ``examples/shaken_pendulum.py`` (parametric resonance, Kapitza's pendulum)."""
+    along_y = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # a marker's z along y
+    system = System(gravity=(0.0, -9.81, 0.0))
+    support = system.add_rigid_body(1.0, (1.0, 1.0, 1.0), name="support")
+    rail = system.add_marker(system.ground, orientation=along_y)
+    carried = system.add_marker(support, orientation=along_y)
+    system.add_prismatic_joint(rail, carried)
+    system.add_translation_driver(rail, carried, _boundary.Harmonic(amplitude, rate), name="shake")
+    side = 1.0 if upright else -1.0
+    turn = rotation("z", angle)
+    bob = system.add_rigid_body(
+        mass,
+        (inertia, inertia, inertia),
+        position=turn @ (0.0, side * length, 0.0),
+        orientation=turn,
+        velocity=(0.0, amplitude * rate, 0.0),
+        name="bob",
+    )
+    system.add_revolute_joint(
+        system.add_marker(support), system.add_marker(bob, position=(0.0, -side * length, 0.0))
+    )
+    return system
+
+
 def rotating_blade_flap_frequencies(
     g: float,
     geometric_stiffness: bool = True,
