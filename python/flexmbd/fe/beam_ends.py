@@ -276,6 +276,38 @@ def axis_mesh(
     )
 
 
+def offset_axis_mesh(
+    nodes: NDArray[np.float64],
+    ids: NDArray[Any],
+    elements: Mapping[str, ArrayLike],
+    material: Any,
+    section: Any,
+    direction: NDArray[np.float64] | None,
+    shear: bool,
+    beam_offsets: ArrayLike | None,
+    beam_releases: ArrayLike | None,
+) -> AxisMesh | None:
+    """The mesh with the beams that have offsets or releases on their axis ends, and its tie
+    to the body's coordinates (:func:`axis_mesh`), or None without such beams (or without a
+    section: the assembly names the missing section). `material` and `section` are the
+    core's (`Material`, `Section`), `direction` the beams' orientation vector."""
+    offsets, releases = checked_ends(elements, beam_offsets, beam_releases)
+    if (offsets is None and releases is None) or section is None:
+        return None
+    kinds = {k: np.ascontiguousarray(v, dtype=np.int64) for k, v in elements.items()}
+    maps = end_maps(
+        nodes,
+        kinds["beam2"],
+        offsets,
+        releases,
+        material=material,
+        section=section,
+        orientation=direction,
+        shear=shear,
+    )
+    return axis_mesh(nodes, ids, kinds, maps)
+
+
 def tied_invariants(invariants: dict[str, Any], tie: sp.spmatrix) -> dict[str, Any]:
     """The nodal invariants of an `AxisMesh` turned to the body's coordinates by its tie P:
     I1 P, Ibar_kl P, P^T I_kl P; the mass and moments unchanged."""

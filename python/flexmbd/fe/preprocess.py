@@ -30,11 +30,10 @@ from ..errors import (
 )
 from ..rotation import skew
 from .beam_ends import (
-    AxisMesh,
     EndMaps,
-    axis_mesh,
     checked_ends,
     end_maps,
+    offset_axis_mesh,
     tied_invariants,
     tied_matrix,
 )
@@ -386,7 +385,7 @@ def assemble(
     nodes = np.ascontiguousarray(nodes, dtype=float)
     ids = np.arange(1, len(nodes) + 1) if node_ids is None else np.asarray(node_ids)
     direction = None if orientation is None else unit_vector(orientation, "orientation")
-    on_axes = _axis_mesh(
+    on_axes = offset_axis_mesh(
         nodes, ids, elements, material, section, direction, shear, beam_offsets, beam_releases
     )
     if on_axes is not None:
@@ -445,37 +444,6 @@ def assemble(
     )
 
 
-def _axis_mesh(
-    nodes: NDArray[np.float64],
-    ids: NDArray[Any],
-    elements: Mapping[str, ArrayLike],
-    material: Material,
-    section: Section | None,
-    direction: NDArray[np.float64] | None,
-    shear: bool,
-    beam_offsets: ArrayLike | None,
-    beam_releases: ArrayLike | None,
-) -> AxisMesh | None:
-    """The mesh with the beams that have offsets or releases on their axis ends, and its tie
-    to the body's coordinates (`beam_ends.axis_mesh`), or None without such beams (or without
-    a section: the assembly names the missing section)."""
-    offsets, releases = checked_ends(elements, beam_offsets, beam_releases)
-    if (offsets is None and releases is None) or section is None:
-        return None
-    kinds = {k: np.ascontiguousarray(v, dtype=np.int64) for k, v in elements.items()}
-    maps = end_maps(
-        nodes,
-        kinds["beam2"],
-        offsets,
-        releases,
-        material=material,
-        section=section,
-        orientation=direction,
-        shear=shear,
-    )
-    return axis_mesh(nodes, ids, kinds, maps)
-
-
 def mass_points(
     nodes: ArrayLike,
     elements: Mapping[str, ArrayLike],
@@ -496,7 +464,7 @@ def mass_points(
     S P through the tie."""
     nodes = np.ascontiguousarray(nodes, dtype=float)
     direction = None if orientation is None else unit_vector(orientation, "orientation")
-    on_axes = _axis_mesh(
+    on_axes = offset_axis_mesh(
         nodes,
         np.arange(1, len(nodes) + 1),
         elements,

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _boundary, _core
 from ..errors import InvalidParameterError
-from .beam_ends import axis_mesh, end_maps, recorded_ends
+from .beam_ends import offset_axis_mesh, recorded_ends
 from .body import FlexibleBodyData
 
 #: Names of the stress components, in order.
@@ -105,21 +105,12 @@ def _recovered(
         shear = s.get("beam_theory") == "timoshenko"
     nodes, ids, elements = body.nodes, body.node_ids, dict(body.elements)
     offsets, releases = recorded_ends(body.section)
-    on_axes = None
-    if section is not None and (offsets is not None or releases is not None):
-        # Beams with offsets or releases: on their axis ends, moved by their ties.
-        kinds = {k: np.ascontiguousarray(v, dtype=np.int64) for k, v in elements.items()}
-        maps = end_maps(
-            nodes,
-            kinds["beam2"],
-            offsets,
-            releases,
-            material=material,
-            section=section,
-            orientation=None if orientation is None else np.asarray(orientation, dtype=float),
-            shear=shear,
-        )
-        on_axes = axis_mesh(nodes, ids, kinds, maps)
+    # Beams with offsets or releases: on their axis ends, moved by their ties.
+    direction = None if orientation is None else np.asarray(orientation, dtype=float)
+    on_axes = offset_axis_mesh(
+        nodes, ids, elements, material, section, direction, shear, offsets, releases
+    )
+    if on_axes is not None:
         nodes, ids, elements = on_axes.nodes, on_axes.node_ids, on_axes.elements
         u = np.asarray((on_axes.tie @ u.T).T)
     blocks = {}
