@@ -149,7 +149,32 @@ def test_floquet_refuses_a_state_off_its_periodic_motion():
             fm.floquet(model, state, wrong, 0.01)
     with pytest.raises(InvalidParameterError, match="step_size must be positive"):
         fm.floquet(model, state, period, 0.0)
+    with pytest.raises(InvalidParameterError, match="must be below the period"):
+        fm.floquet(model, state, period, period)
     with pytest.raises(ArgumentTypeError, match="state must be a flexmbd.State"):
         fm.floquet(model, list(state.coordinates), period, 0.01)
     with pytest.raises(InvalidParameterError, match="floquet: the state is one of another"):
         fm.floquet(swinging, state, period, 0.01)
+
+
+@pytest.mark.parametrize("speed", [100.0, 1.0, 0.03])
+def test_a_free_spin_drifts_and_does_not_grow(speed):
+    # A wheel spinning freely in its bearing: the monodromy in (angle, rate) is [[1, T],
+    # [0, 1]], a Jordan block that the differences' round-off split into 1.0018 and 0.9982
+    # (at 100 rad/s), which counted as unstable. Its multipliers are a drift (nearly
+    # parallel eigenvectors); the turn's rate is T (to the integration's (W h)^2 / 12 =
+    # 2e-5).
+    system = fm.System()
+    wheel = system.add_rigid_body(2.0, (0.5, 0.5, 1.0), angular_velocity=(0, 0, speed))
+    system.add_revolute_joint(system.add_marker(system.ground), system.add_marker(wheel))
+    model = system.compile()
+    period = 2 * np.pi / speed
+    analysis = fm.floquet(model, fm.State.of_model(model), period, period / 400)
+    assert np.all(analysis.drifts) and analysis.stable and analysis.unstable_directions == 0
+    assert np.abs(analysis.multipliers - 1.0).max() < 1e-2
+    assert analysis.monodromy[0, 1] == pytest.approx(period, rel=1e-4)
+    # A genuine saddle keeps its growing multiplier: Kapitza's pendulum shaken too weakly.
+    weak = fm.examples.shaken_pendulum(0.01, 200.0, upright=True).compile()
+    short = 2 * np.pi / 200.0
+    falling = fm.floquet(weak, fm.State.of_model(weak), short, short / 800)
+    assert not np.any(falling.drifts) and falling.unstable_directions == 1
