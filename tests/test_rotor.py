@@ -201,6 +201,23 @@ def test_internal_damping_destabilizes_forward_whirl_above_the_critical_speed(as
     assert_close(decay(diagram), decay(turning), rel=1e-9, abs=1e-12, what="decay rate")
 
 
+@pytest.mark.parametrize(("speed", "stable"), [(50.0, True), (400.0, False)])
+def test_the_steady_rotation_of_a_damped_rotor_is_unstable_above_its_critical_speed(speed, stable):
+    # R8's nearly massless shaft with damping that turns with it has overdamped modes of
+    # |s| = 2.1e11: as the scale of 1e-9 they hid the forward whirl's growth (Re s = 1.1 at
+    # 400 rad/s: stable None, the 130 rad/s whirl counted as a free motion) and left the
+    # 10.4 and 20.7 Hz modes out of the frequencies.
+    model = fm.examples.overhung_rotor(speed=speed, shaft_damping=1e-4).system.compile()
+    state = fm.steady_rotation(model)
+    assert (state.stable, state.unstable_directions) == (stable, 0 if stable else 1)
+    linear = fm.linearize(model, state)
+    values = linear.eigenvalues()[0]
+    assert (np.max(values.real) > 1.0) is not stable and linear.free_motions() == 0
+    slow = np.sort(np.abs(values[np.abs(values) < 500]))[::2]
+    frequencies = linear.frequencies()
+    assert np.all([np.min(np.abs(2 * np.pi * frequencies - s)) < 0.05 * s for s in slow])
+
+
 def test_diagram_file_and_plot(tmp_path):
     import xarray as xr
 

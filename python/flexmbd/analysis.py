@@ -517,6 +517,15 @@ SHIFT_STEPS = 13
 #: zero (neutral directions, redundant constraints) in the stability test.
 NEUTRAL = 1e-9
 
+#: Eigenvalues of the first-order form of modulus (or real part) at most this fraction of
+#: the largest |s| (at least 1) are round-off: zero (free motions), not growing. The round-off
+#: measured is 2e-17 to 3e-16 of the largest |s| (undamped rotors, Beck's column), so this
+#: is about 450 eps. It was 1e-9: the overdamped modes of a nearly massless damped shaft
+#: (R8's, |s| = 2.1e11) then set a floor of 212 1/s: the damped rotor's growing whirl
+#: (Re s = 1.1) counted as neutral, its 130 rad/s whirl as a free motion, and its 10.4 and
+#: 20.7 Hz modes were left out of its frequencies.
+EIGEN_ROUND_OFF = 1e-13
+
 
 def _euler_parameter_mask(layout: dict[str, Any]) -> NDArray[np.bool_]:
     """True for the Euler parameters of the body frames."""
@@ -783,7 +792,7 @@ def _linearized_stability(model: _core.Model, state: EquilibriumState) -> dict[s
     eigenvalues: unstable directions; zero: neutral); for a nonsymmetric one (follower
     loads) the eigenvalues of the linearized motion, which the inertia does not decide
     (Beck's column has none negative and flutters above 20.05 EI / L^2, and its symmetric
-    part has negative ones below): unstable where some grow (Re s above :data:`NEUTRAL`
+    part has negative ones below): unstable where some grow (Re s above :data:`EIGEN_ROUND_OFF`
     of the largest |s|, at least 1; each real one and each complex pair a direction),
     stable otherwise, not determined above :data:`EIGENVALUE_STABILITY_LIMIT`
     coordinates. The eigenvalues also decide a symmetric stiffness with negative directions
@@ -818,8 +827,7 @@ def _linearized_stability(model: _core.Model, state: EquilibriumState) -> dict[s
     if stiffness.shape[0] > EIGENVALUE_STABILITY_LIMIT:
         return undecided
     values = linear.eigenvalues()[0]
-    scale = max(1.0, float(np.max(np.abs(values), initial=0.0)))
-    growing = values[values.real > NEUTRAL * scale]
+    growing = values[values.real > _zero_floor(values)]
     unstable = int(np.sum(growing.imag >= 0.0))  # a complex pair counted once
     neutral = linear.free_motions()
     stable = unstable == 0
@@ -1410,7 +1418,7 @@ class LinearizedSystem:
         )
 
     def oscillating(
-        self, relative_floor: float = 1e-9
+        self, relative_floor: float = EIGEN_ROUND_OFF
     ) -> tuple[Array, Array, NDArray[np.complex128]]:
         """The oscillating modes (one per pair of complex eigenvalues s, Im s > 0), by
         frequency: damped frequencies Im s / 2 pi (Hz), damping ratios -Re s / |s| and the
@@ -1422,22 +1430,21 @@ class LinearizedSystem:
         zero while the stiff modes of a nearly massless damped shaft make |s| large."""
         relative_floor = _floor(relative_floor)
         values, vectors = self.eigenvalues()
-        scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
-        keep = np.flatnonzero(values.imag > relative_floor * scale)
+        keep = np.flatnonzero(values.imag > _zero_floor(values, relative_floor))
         keep = keep[np.argsort(values[keep].imag, kind="stable")]
         s = values[keep]
         # + 0.0: an undamped mode's ratio is 0, not -0 (-Re s of Re s = 0).
         return s.imag / (2.0 * np.pi), -s.real / np.abs(s) + 0.0, vectors[:, keep]
 
-    def free_motions(self, relative_floor: float = 1e-9) -> int:
+    def free_motions(self, relative_floor: float = EIGEN_ROUND_OFF) -> int:
         """How many independent motions have neither stiffness nor damping: the rigid-body
         modes of a free-flying structure (six for a free body, one for a wheel on a free
         axle), each a double zero eigenvalue. Eigenvalues of modulus at most `relative_floor`
-        times the largest (at least 1) count as zero, as in :meth:`oscillating`."""
+        times the largest (at least 1) count as zero, as in :meth:`oscillating`
+        (:func:`_zero_floor`)."""
         relative_floor = _floor(relative_floor)
         values, _ = self.eigenvalues()
-        scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
-        return int(np.sum(np.abs(values) <= relative_floor * scale)) // 2
+        return int(np.sum(np.abs(values) <= _zero_floor(values, relative_floor))) // 2
 
     def frequencies(self) -> Array:
         """Damped natural frequencies (Hz) of the oscillating modes, ascending (one per pair
@@ -1451,6 +1458,12 @@ class LinearizedSystem:
         # Rotate each complex shape so that its largest entry is real.
         peak = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
         return freq, np.real(shapes / (peak / np.abs(peak)))
+
+
+def _zero_floor(values: NDArray[np.complex128], relative: float = EIGEN_ROUND_OFF) -> float:
+    """`relative` times the largest |s| of `values` (at least 1): the size below which an
+    eigenvalue is zero, or its real part no growth."""
+    return relative * max(1.0, float(np.max(np.abs(values), initial=0.0)))
 
 
 #: Entries of M, D or K at most this fraction of sqrt(r_i r_j) (r_i the largest |entry| of
