@@ -79,8 +79,12 @@ def test_vtk_output_and_model_files(tmp_path, assert_close):
     frame = meshio.read(path)
     wedges = [c.data for c in frame.cells if c.type == "wedge"]
     assert [len(w) for w in wedges] == [60]
-    # meshio converts back to its (Gmsh's) order on reading: the cells as written.
-    np.testing.assert_array_equal(wedges[0], mesh.elements["wedge6"])
+    # On file, VTK 9.7's order, which is ours; meshio, which takes VTK's wedges in the order of
+    # VTK before 9.7, reads them mirrored; read_mesh reads them as written.
+    from flexmbd.fe.mesh_io import WEDGE_MIRRORS, read_mesh
+
+    np.testing.assert_array_equal(wedges[0], mesh.elements["wedge6"][:, WEDGE_MIRRORS["wedge6"]])
+    np.testing.assert_array_equal(read_mesh(path).elements["wedge6"], mesh.elements["wedge6"])
     check_model_file("wedge6", body, tmp_path, assert_close)
 
 
@@ -114,7 +118,7 @@ def test_gmsh_and_vtk_quadratic_wedges_are_read_in_abaqus_order(tmp_path, assert
     # meshio could not hold a wedge15 cell at all (KeyError 'wedge15' in its table of cell
     # dimensions). Read from Gmsh, every mid-edge node is the midpoint of its edge in the
     # C3D15 order, and the mass is the block's.
-    from flexmbd.fe.mesh_io import WEDGE15_FROM_VTK, read_mesh
+    from flexmbd.fe.mesh_io import WEDGE_MIRRORS, read_mesh
     from flexmbd.fe.shapes import WEDGE15_EDGES
 
     pytest.importorskip("gmsh")
@@ -126,12 +130,12 @@ def test_gmsh_and_vtk_quadratic_wedges_are_read_in_abaqus_order(tmp_path, assert
         assert_close(x[cells[:, 6 + e]], 0.5 * (x[cells[:, p]] + x[cells[:, q]]), abs=1e-15)
     body = pp.body_from_mesh(mesh, STEEL)
     assert_close(body.invariants.mass, 7800.0 * 0.06, rel=1e-12, what="mass")
-    # A VTK file lists each triangle of a quadratic wedge the other way round: read back, the
-    # cells are ours (and not inverted).
-    vtk = meshio.Mesh(x, [("wedge15", cells[:, WEDGE15_FROM_VTK])])
-    meshio.write(tmp_path / "prisms.vtu", vtk)
-    again = read_mesh(tmp_path / "prisms.vtu")
-    np.testing.assert_array_equal(again.elements["wedge15"], cells)
+    # VTK files have quadratic wedges in our order (VTK 9.7) or with each triangle listed the
+    # other way round (VTK before 9.7): read, both are ours (and not inverted).
+    for order in (np.arange(15), WEDGE_MIRRORS["wedge15"]):
+        meshio.write(tmp_path / "prisms.vtu", meshio.Mesh(x, [("wedge15", cells[:, order])]))
+        again = read_mesh(tmp_path / "prisms.vtu")
+        np.testing.assert_array_equal(again.elements["wedge15"], cells)
 
 
 def test_quadratic_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, assert_close):
@@ -154,10 +158,12 @@ def test_quadratic_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, ass
     mesh, members, triangles = weights("wedge15", "z1")
     assert np.all(triangles >= 0) and np.any(triangles == 0)
     assert_close(triangles @ mesh.nodes[members], [0.5, 0.1, 0.1], abs=1e-15, what="centroid")
-    # VTK output: VTK's order on file, meshio's (ours) read back through read_mesh.
+    # VTK output: VTK 9.7's order (ours) on file, read back through read_mesh.
     from flexmbd.fe.mesh_io import read_mesh
 
     mesh, body, path = first_frame("wedge15", tmp_path / "frames")
+    written = [c.data for c in meshio.read(path).cells if c.type == "wedge15"]
+    np.testing.assert_array_equal(written[0], mesh.elements["wedge15"])
     np.testing.assert_array_equal(read_mesh(path).elements["wedge15"], mesh.elements["wedge15"])
     check_model_file("wedge15", body, tmp_path, assert_close)
 
@@ -171,7 +177,7 @@ def test_gmsh_and_vtk_18_node_wedges_are_read_in_our_order(tmp_path, assert_clos
     # (0,1,4,3), (0,2,5,3), (1,2,5,4)); read, every mid-edge node is the midpoint of its
     # edge and every face node the centre of its face in wedge18's order, and the mass is
     # the block's.
-    from flexmbd.fe.mesh_io import WEDGE18_FROM_VTK, read_mesh
+    from flexmbd.fe.mesh_io import WEDGE_MIRRORS, read_mesh
     from flexmbd.fe.shapes import WEDGE15_EDGES, WEDGE18_FACES
 
     pytest.importorskip("gmsh")
@@ -185,13 +191,11 @@ def test_gmsh_and_vtk_18_node_wedges_are_read_in_our_order(tmp_path, assert_clos
         assert_close(x[cells[:, 15 + f]], x[cells[:, list(face)]].mean(axis=1), abs=1e-15)
     body = pp.body_from_mesh(mesh, STEEL)
     assert_close(body.invariants.mass, 7800.0 * 0.06, rel=1e-12, what="mass")
-    # A VTK file lists each triangle the other way round, the face nodes after its corners:
-    # read back, the cells are ours; written in our order, they are inverted, and named.
-    meshio.write(tmp_path / "prisms.vtu", meshio.Mesh(x, [("wedge18", cells[:, WEDGE18_FROM_VTK])]))
-    np.testing.assert_array_equal(read_mesh(tmp_path / "prisms.vtu").elements["wedge18"], cells)
-    meshio.write(tmp_path / "inverted.vtu", meshio.Mesh(x, [("wedge18", cells)]))
-    with pytest.raises(InvalidModelError, match="inverted.*wedge18"):
-        pp.body_from_mesh(read_mesh(tmp_path / "inverted.vtu"), STEEL)
+    # VTK files have them in our order (VTK 9.7) or with each triangle listed the other way
+    # round, the face nodes following (VTK before 9.7): read, both are ours.
+    for order in (np.arange(18), WEDGE_MIRRORS["wedge18"]):
+        meshio.write(tmp_path / "prisms.vtu", meshio.Mesh(x, [("wedge18", cells[:, order])]))
+        np.testing.assert_array_equal(read_mesh(tmp_path / "prisms.vtu").elements["wedge18"], cells)
 
 
 def test_18_node_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, assert_close):
@@ -223,5 +227,185 @@ def test_18_node_wedges_in_interfaces_vtk_output_and_model_files(tmp_path, asser
     from flexmbd.fe.mesh_io import read_mesh
 
     mesh, body, path = first_frame("wedge18", tmp_path / "frames")
+    written = [c.data for c in meshio.read(path).cells if c.type == "wedge18"]
+    np.testing.assert_array_equal(written[0], mesh.elements["wedge18"])
     np.testing.assert_array_equal(read_mesh(path).elements["wedge18"], mesh.elements["wedge18"])
     check_model_file("wedge18", body, tmp_path, assert_close)
+
+
+# VTK's own wedges ----------------------------------------------------------------------------
+# Files written by VTK's vtkXMLUnstructuredGridWriter (ASCII; point data arrays and
+# information keys left out, two long tags broken across lines). VTK_SOURCE_97 and
+# VTK_SOURCE_92: vtkCellTypeSource's quadratic wedges (SetCellType(26),
+# SetBlocksDimensions(1, 1, 1): the unit cube in two wedges) by VTK 9.7.2 and by 9.2.6. VTK
+# 9.7.2's vtkCellSizeFilter gives the first file's wedges the volumes +0.5, +0.5 and its
+# vtkCellValidator the state 0 (valid), the second's -0.5, -0.5 and the state 32 (faces
+# oriented incorrectly); VTK 9.2.6's vtkCellSizeFilter the other way round (-0.5 and +0.5),
+# its validator 0 for the first file, 32 for its own. VTK_PRISM18_97: one
+# biquadratic-quadratic wedge (type 32) with node k at VTK's parametric coordinates
+# (GetParametricCoords) times (2, 3, 0.5): volume +1.5 and state 0 by VTK 9.7.2 (state 0
+# by 9.2.6 too).
+VTK_SOURCE_97 = """\
+<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian" header_type="UInt32"
+    compressor="vtkZLibDataCompressor">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="22" NumberOfCells="2">
+      <Points>
+        <DataArray type="Float32" Name="Points" NumberOfComponents="3" format="ascii" RangeMin="0"
+            RangeMax="1.7320508075688772">
+          0 0 0 1 0 0
+          0 1 0 1 1 0
+          0 0 1 1 0 1
+          0 1 1 1 1 1
+          0.5 0 0 0.5 0.5 0
+          0 0.5 0 0.5 0 1
+          0.5 0.5 1 0 0.5 1
+          0 0 0.5 1 0 0.5
+          0 1 0.5 1 0.5 1
+          0.5 1 1 1 0.5 0
+          0.5 1 0 1 1 0.5
+        </DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="Int64" Name="connectivity" format="ascii" RangeMin="0" RangeMax="21">
+          0 1 2 4 5 6
+          8 9 10 11 12 13
+          14 15 16 7 5 6
+          3 1 2 17 12 18
+          19 9 20 21 15 16
+        </DataArray>
+        <DataArray type="Int64" Name="offsets" format="ascii" RangeMin="15" RangeMax="30">
+          15 30
+        </DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii" RangeMin="26" RangeMax="26">
+          26 26
+        </DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+"""
+
+VTK_SOURCE_92 = """\
+<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian" header_type="UInt32"
+    compressor="vtkZLibDataCompressor">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="22" NumberOfCells="2">
+      <Points>
+        <DataArray type="Float32" Name="Points" NumberOfComponents="3" format="ascii" RangeMin="0"
+            RangeMax="1.7320508075688772">
+          0 0 0 1 0 0
+          0 1 0 1 1 0
+          0 0 1 1 0 1
+          0 1 1 1 1 1
+          0 0.5 0 0.5 0.5 0
+          0.5 0 0 0 0.5 1
+          0.5 0.5 1 0.5 0 1
+          0 0 0.5 0 1 0.5
+          1 0 0.5 0.5 1 0
+          1 0.5 0 0.5 1 1
+          1 0.5 1 1 1 0.5
+        </DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="Int64" Name="connectivity" format="ascii" RangeMin="0" RangeMax="21">
+          0 2 1 4 6 5
+          8 9 10 11 12 13
+          14 15 16 1 2 3
+          5 6 7 9 17 18
+          12 19 20 16 15 21
+        </DataArray>
+        <DataArray type="Int64" Name="offsets" format="ascii" RangeMin="15" RangeMax="30">
+          15 30
+        </DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii" RangeMin="26" RangeMax="26">
+          26 26
+        </DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+"""
+
+VTK_PRISM18_97 = """\
+<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian" header_type="UInt32"
+    compressor="vtkZLibDataCompressor">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="18" NumberOfCells="1">
+      <Points>
+        <DataArray type="Float32" Name="Points" NumberOfComponents="3" format="ascii" RangeMin="0"
+            RangeMax="3.0413812651491097">
+          0 0 0 2 0 0
+          0 3 0 0 0 0.5
+          2 0 0.5 0 3 0.5
+          1 0 0 1 1.5 0
+          0 1.5 0 1 0 0.5
+          1 1.5 0.5 0 1.5 0.5
+          0 0 0.25 2 0 0.25
+          0 3 0.25 1 0 0.25
+          1 1.5 0.25 0 1.5 0.25
+        </DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="Int64" Name="connectivity" format="ascii" RangeMin="0" RangeMax="17">
+          0 1 2 3 4 5
+          6 7 8 9 10 11
+          12 13 14 15 16 17
+        </DataArray>
+        <DataArray type="Int64" Name="offsets" format="ascii" RangeMin="18" RangeMax="18">
+          18
+        </DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii" RangeMin="32" RangeMax="32">
+          32
+        </DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+"""
+
+
+def test_vtk_written_quadratic_wedges_are_read_in_either_orientation(tmp_path, assert_close):
+    # Read in one fixed order (each triangle the other way round: VTK's documentation before
+    # 9.7), VTK 9.7's own quadratic wedges were inverted and refused. Both files now give the
+    # unit cube's mass and every mid-edge node the midpoint of its edge (VTK numbers the
+    # mid-edge nodes as we do): VTK 9.7's cells as written, VTK 9.2's mirrored.
+    from flexmbd.fe.mesh_io import WEDGE_MIRRORS, complete_meshio, read_mesh
+    from flexmbd.fe.shapes import WEDGE15_EDGES, WEDGE18_FACES
+
+    complete_meshio()
+    for name, text, order in (
+        ("97", VTK_SOURCE_97, np.arange(15)),
+        ("92", VTK_SOURCE_92, WEDGE_MIRRORS["wedge15"]),
+    ):
+        path = tmp_path / f"{name}.vtu"
+        path.write_text(text)
+        written = meshio.read(path).cells[0].data
+        mesh = read_mesh(path)
+        cells, x = mesh.elements["wedge15"], mesh.nodes
+        np.testing.assert_array_equal(cells, written[:, order])
+        for e, (p, q) in enumerate(WEDGE15_EDGES):
+            assert_close(x[cells[:, 6 + e]], 0.5 * (x[cells[:, p]] + x[cells[:, q]]), abs=1e-7)
+        body = pp.body_from_mesh(mesh, STEEL)
+        assert_close(body.invariants.mass, 7800.0, rel=1e-6, what=f"mass, VTK {name}")
+    # VTK's 18-node wedge: our order, face centres included.
+    (tmp_path / "prism18.vtu").write_text(VTK_PRISM18_97)
+    mesh = read_mesh(tmp_path / "prism18.vtu")
+    cells, x = mesh.elements["wedge18"], mesh.nodes
+    np.testing.assert_array_equal(cells, [np.arange(18)])
+    for f, face in enumerate(WEDGE18_FACES):
+        assert_close(x[cells[:, 15 + f]], x[cells[:, list(face)]].mean(axis=1), abs=1e-7)
+    assert_close(pp.body_from_mesh(mesh, STEEL).invariants.mass, 7800.0 * 1.5, rel=1e-6)
+    # Elsewhere a wedge listed the other way round is inverted, and named (a C3D15).
+    lines = ["*NODE"] + [
+        f"{i + 1}, {a:.9g}, {b:.9g}, {c:.9g}" for i, (a, b, c) in enumerate(x[:15])
+    ]
+    mirror = WEDGE_MIRRORS["wedge15"]
+    labels = [str(k + 1) for k in mirror]
+    lines += ["*ELEMENT, TYPE=C3D15", "1, " + ", ".join(labels[:10]) + ",", ", ".join(labels[10:])]
+    (tmp_path / "c3d15.inp").write_text("\n".join(lines) + "\n")
+    with pytest.raises(InvalidModelError, match="inverted.*wedge15"):
+        pp.body_from_mesh(read_mesh(tmp_path / "c3d15.inp"), STEEL)

@@ -58,6 +58,7 @@ from numpy.typing import NDArray
 
 from .errors import InvalidParameterError
 from .fe.body import cell_of
+from .fe.mesh_io import WEDGE_MIRRORS
 from .progress import status
 from .progress import track as track_progress
 from .simulation import logger
@@ -81,15 +82,11 @@ VTK_CELLS: dict[str, tuple[str, NDArray[np.int64] | None]] = {
     "hex8": ("hexahedron", None),
     "hex20": ("hexahedron20", None),
     "hex27": ("hexahedron27", None),
-    "wedge6": ("wedge", None),
-    # (meshio writes its wedge15 as given: VTK's quadratic wedge lists each triangle the
-    # other way round)
-    "wedge15": ("wedge15", np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])),
-    # (the same for VTK's biquadratic-quadratic wedge, whose face nodes follow its corners)
-    "wedge18": (
-        "wedge18",
-        np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13, 17, 16, 15]),
-    ),
+    # (wedges in VTK 9.7's order, which is ours: meshio mirrors its linear wedge on writing,
+    # to VTK's order before 9.7, so it is mirrored first; flexmbd.fe.mesh_io's docstring)
+    "wedge6": ("wedge", WEDGE_MIRRORS["wedge6"]),
+    "wedge15": ("wedge15", None),
+    "wedge18": ("wedge18", None),
     "pyramid5": ("pyramid", None),
     "pyramid13": ("pyramid13", None),
     # (VTK has no 14-node pyramid: drawn as the 13-node one, the base's centre left out)

@@ -22,26 +22,30 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   faces counter-clockwise seen from the top (the same in VTK, Gmsh and Abaqus C3D8).
   ``hex8i`` (incompatible modes, Abaqus C3D8I): the same.
 * ``wedge6``: the triangle 0, 1, 2 counter-clockwise seen from the other one, then 3, 4, 5
-  above them: Gmsh's prism, Abaqus C3D6 and meshio's wedge (meshio converts VTK's wedge,
-  whose triangles are listed the other way round, on reading).
-* ``hex20``, ``hex20r``: the corners of ``hex8``, then the mid-edge nodes 8..19 on the edges
-  (0,1), (1,2), (2,3), (3,0), (4,5), (5,6), (6,7), (7,4), (0,4), (1,5), (2,6), (3,7): the
-  order of VTK's quadratic hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's own
-  order on reading).
-* ``hex27``: the nodes of ``hex20``, then the centres of the faces (0,3,7,4), (1,2,6,5),
-  (0,1,5,4), (3,2,6,7), (0,1,2,3), (4,5,6,7) and the element's centre: VTK's triquadratic
-  hexahedron and meshio's hexahedron27 (which converts Gmsh's order on reading).
+  above them: Gmsh's prism, Abaqus C3D6, meshio's wedge, and VTK's wedge since VTK 9.7.
 * ``wedge15``: the corners of ``wedge6``, then the mid-edge nodes 6..14 on the edges (0,1),
-  (1,2), (2,0), (3,4), (4,5), (5,3), (0,3), (1,4), (2,5): Abaqus C3D15 and meshio (which
-  converts Gmsh's prism15 on reading). VTK's quadratic wedge has these edges with each
-  triangle listed the other way round: :func:`read_mesh` converts the cells of ``.vtu`` and
-  ``.vtk`` files (``WEDGE15_FROM_VTK``).
+  (1,2), (2,0), (3,4), (4,5), (5,3), (0,3), (1,4), (2,5): Abaqus C3D15, meshio (which
+  converts Gmsh's prism15 on reading) and VTK's quadratic wedge.
 * ``wedge18``: the nodes of ``wedge15``, then the centres of the quadrilateral faces
-  (0,1,4,3), (1,2,5,4), (2,0,3,5). Gmsh's 18-node prism (which meshio passes on in Gmsh's
-  order: the mid-edge nodes on (0,1), (0,2), (0,3), (1,2), (1,4), (2,5), (3,4), (3,5), (4,5),
-  the face centres of (0,1,4,3), (0,2,5,3), (1,2,5,4)) is converted on reading
-  (``WEDGE18_FROM_GMSH``); VTK's biquadratic-quadratic wedge has these edges and faces with
-  each triangle listed the other way round, as its quadratic wedge (``WEDGE18_FROM_VTK``).
+  (0,1,4,3), (1,2,5,4), (2,0,3,5): VTK's biquadratic-quadratic wedge. Gmsh's 18-node prism
+  (which meshio passes on in Gmsh's order: the mid-edge nodes on (0,1), (0,2), (0,3), (1,2),
+  (1,4), (2,5), (3,4), (3,5), (4,5), the face centres of (0,1,4,3), (0,2,5,3), (1,2,5,4)) is
+  converted on reading (``WEDGE18_FROM_GMSH``).
+* Wedges in VTK files come in two orientations. VTK's wedges (linear, quadratic and
+  biquadratic-quadratic) have node k at the parametric coordinates (0,0,0), (1,0,0), (0,1,0),
+  (0,0,1), ... of the orders above (``GetParametricCoords``; the same mid-edge nodes and face
+  centres), and VTK 9.7.2 calls a wedge with its nodes there valid (``vtkCellValidator``) and
+  of positive volume (``vtkCellSizeFilter``: +0.5 for that unit prism), as VTK's
+  ``vtkCellTypeSource`` makes them. Before VTK 9.7 (9.2.6 tested), its documentation, its
+  cells' face lists, ``vtkCellTypeSource`` and ``vtkCellSizeFilter`` (linear and 15-node
+  wedges: -0.5 for that prism, +0.5 mirrored) listed each triangle the other way round (not
+  its ``vtkCellValidator``, for the 15- and 18-node wedges), as meshio does for the linear
+  wedge (it mirrors it on reading and writing); VTK 9.7 changed them
+  (``fix-wedge-point-ordering`` in its release notes) without changing the file formats. So
+  :func:`read_mesh` takes each wedge of a ``.vtu`` or ``.vtk`` file in the orientation in
+  which it is not inverted (:func:`orient_wedges`, ``WEDGE_MIRRORS``), and the VTK output
+  (:func:`flexmbd.animation.write_vtu_series`) writes VTK 9.7's order. In other formats a
+  wedge listed the other way round is inverted.
 * ``pyramid5``: the base 0, 1, 2, 3 counter-clockwise seen from the apex 4: Gmsh's, VTK's and
   meshio's pyramid, Nastran's CPYRAM of 5 grids.
 * ``pyramid13``: the corners of ``pyramid5``, then the mid-edge nodes 5..12 on the edges
@@ -136,14 +140,13 @@ ABAQUS_SUBSTITUTED_TYPES = {
 #: Permutation of a meshio/VTK "tetra10" cell into the flexmbd (Gmsh) node order.
 TET10_FROM_MESHIO = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 
-#: Node permutation between VTK's quadratic wedge and ``wedge15`` (each triangle listed the
-#: other way round; its own inverse): meshio converts VTK's linear wedge, not this one.
-WEDGE15_FROM_VTK = np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13])
-
-#: Node permutation from VTK's biquadratic-quadratic wedge to ``wedge18`` (that of
-#: ``WEDGE15_FROM_VTK``, and the face centres of VTK's faces (0,1,4,3), (1,2,5,4), (2,0,3,5)
-#: taken the other way round; its own inverse).
-WEDGE18_FROM_VTK = np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13, 17, 16, 15])
+#: Each triangle of a wedge listed the other way round (every permutation its own inverse): the
+#: other orientation in which VTK files carry wedges (the module docstring).
+WEDGE_MIRRORS: dict[str, NDArray[np.int64]] = {
+    "wedge6": np.array([0, 2, 1, 3, 5, 4]),
+    "wedge15": np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13]),
+    "wedge18": np.array([0, 2, 1, 3, 5, 4, 8, 7, 6, 11, 10, 9, 12, 14, 13, 17, 16, 15]),
+}
 
 #: ``wedge18[i] = gmsh[WEDGE18_FROM_GMSH[i]]`` for a meshio "wedge18" cell read from a Gmsh
 #: file (meshio keeps Gmsh's order of the 18-node prism; its first 15 entries are meshio's own
@@ -165,6 +168,26 @@ def complete_meshio() -> None:
 
     for cell in ("wedge15", "pyramid13", "hexahedron24"):
         meshio._mesh.topological_dimension.setdefault(cell, 3)
+
+
+def orient_wedges(
+    nodes: NDArray[np.float64], cells: NDArray[np.int64], kind: str
+) -> NDArray[np.int64]:
+    """`cells` of `kind` ("wedge6", "wedge15" or "wedge18") with every one listed the other
+    way round (its corners' Jacobian determinant at the centre negative) mirrored by
+    ``WEDGE_MIRRORS[kind]``: wedges of VTK files, which come in both orientations (the module
+    docstring). A mirrored wedge is the same element; a flat or tangled one is left as it is,
+    for the element kernels to report."""
+    x = nodes[cells[:, :6]]
+    along_r = x[:, 1] - x[:, 0] + x[:, 4] - x[:, 3]
+    along_s = x[:, 2] - x[:, 0] + x[:, 5] - x[:, 3]
+    along_t = x[:, 3:].sum(axis=1) - x[:, :3].sum(axis=1)
+    mirrored = np.einsum("ij,ij->i", np.cross(along_r, along_s), along_t) < 0.0
+    if not mirrored.any():
+        return cells
+    cells = cells.copy()
+    cells[mirrored] = cells[mirrored][:, WEDGE_MIRRORS[kind]]
+    return cells
 
 
 #: File suffix -> meshio file format.
@@ -419,10 +442,10 @@ def read_mesh(path: str | os.PathLike[str]) -> Mesh:
             continue
         if kind == "tet10":
             data = data[:, TET10_FROM_MESHIO]
-        if kind == "wedge15" and file_format in ("vtu", "vtk"):
-            data = data[:, WEDGE15_FROM_VTK]
-        if kind == "wedge18":
-            data = data[:, WEDGE18_FROM_GMSH if file_format == "gmsh" else WEDGE18_FROM_VTK]
+        if kind == "wedge18" and file_format == "gmsh":
+            data = data[:, WEDGE18_FROM_GMSH]
+        if kind in WEDGE_MIRRORS and file_format in ("vtu", "vtk"):
+            data = orient_wedges(nodes, data, kind)
         if kind == "pyramid14" and file_format == "gmsh":
             data = data[:, PYRAMID14_FROM_GMSH]
         elements.setdefault(kind, []).append(data)
