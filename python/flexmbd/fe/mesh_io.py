@@ -23,6 +23,13 @@ Node order inside an element (0-based; that of the element kernels, `crates/flex
   ``hex8i`` (incompatible modes, Abaqus C3D8I): the same.
 * ``wedge6``: the triangle 0, 1, 2 counter-clockwise seen from the other one, then 3, 4, 5
   above them: Gmsh's prism, Abaqus C3D6, meshio's wedge, and VTK's wedge since VTK 9.7.
+* ``hex20``, ``hex20r``: the corners of ``hex8``, then the mid-edge nodes 8..19 on the edges
+  (0,1), (1,2), (2,3), (3,0), (4,5), (5,6), (6,7), (7,4), (0,4), (1,5), (2,6), (3,7): the
+  order of VTK's quadratic hexahedron, Abaqus C3D20 and meshio (which converts Gmsh's own
+  order on reading).
+* ``hex27``: the nodes of ``hex20``, then the centres of the faces (0,3,7,4), (1,2,6,5),
+  (0,1,5,4), (3,2,6,7), (0,1,2,3), (4,5,6,7) and the element's centre: VTK's triquadratic
+  hexahedron and meshio's hexahedron27 (which converts Gmsh's order on reading).
 * ``wedge15``: the corners of ``wedge6``, then the mid-edge nodes 6..14 on the edges (0,1),
   (1,2), (2,0), (3,4), (4,5), (5,3), (0,3), (1,4), (2,5): Abaqus C3D15, meshio (which
   converts Gmsh's prism15 on reading) and VTK's quadratic wedge.
