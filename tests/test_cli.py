@@ -808,3 +808,27 @@ def test_a_hidden_or_hdf5_results_file_goes_through_every_command(tmp_path, caps
     assert main(["run", "pendulum", "--end", "0.05", "-o", "run.hdf5", *QUIET]) == 0
     assert main(["view", "run.hdf5", "-o", "run.html"]) == 0
     assert (tmp_path / "run.html").stat().st_size > 1000
+
+
+def test_floquet_prints_the_multipliers_of_a_periodic_motion(capsys):
+    # A01's pendulum released from the horizontal swings with the period 4 sqrt(L / g)
+    # K(1/2) (complete elliptic integral): a conservative periodic motion, its multipliers
+    # on the unit circle (the swing's phase and the out-of-plane angle drift); a wrong
+    # period is refused, naming the coordinate that did not come back.
+    from scipy.special import ellipk
+
+    period = float(4 * np.sqrt(1 / 9.81) * ellipk(0.5))
+    argv = ["floquet", "pendulum", "--period", repr(period), "--steps", "2000", "-q"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "pendulum: 4 Floquet multipliers over the period 2.36784 s" in out
+    assert "stable: no multiplier outside the unit circle" in out
+    moduli = [float(line.split()[3]) for line in out.splitlines() if line[:4].strip().isdigit()]
+    assert len(moduli) == 4 and max(abs(m - 1.0) for m in moduli) < 1e-6
+    assert main([*argv, "--settle", "1"]) == 0  # (one period run first)
+    assert "start at t = 2.36784 s" in capsys.readouterr().out
+    assert main(["floquet", "pendulum", "--period", "2.0", "-q"]) == 2
+    assert "does not come back after the period 2 s" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:  # (argparse: a usage error)
+        main(["floquet", "pendulum", "--period", "0", "-q"])
+    assert usage.value.code == 2

@@ -73,6 +73,17 @@ def _every(text: str) -> int:
     return value
 
 
+def _whole(text: str) -> int:
+    """A whole number, 0 or more (``--settle``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number (0 or more), got {text!r}")
+    return value
+
+
 def _times(text: str) -> tuple[float, float]:
     """A time window START:END in s (``--vtu-times``); an empty side is open."""
     parts = text.split(":")
@@ -893,6 +904,50 @@ def _linearized(system: Any) -> tuple[Any, Any, str]:
         return linear, unloaded.compile(), about
 
 
+def _floquet(args: argparse.Namespace) -> int:
+    from .floquet import NEUTRAL, floquet
+    from .simulation import simulate
+    from .state import State
+
+    try:
+        job = _job(args.model)
+        model = job.system.compile()
+        period = args.period
+        step = period / args.steps
+        state = State.of_model(model)
+        if args.settle:
+            # Onto the periodic motion first: the model's solver over whole periods.
+            settled = simulate(
+                model, args.settle * period, step, solver=job.solver, output_interval=period
+            )
+            state = settled.state(-1)
+        analysis = floquet(model, state, period, step, progress=not args.quiet)
+    except (FlexmbdError, OSError) as error:
+        print(f"flexmbd floquet: {error}", file=sys.stderr)
+        return 2
+    count = len(analysis.multipliers)
+    print(
+        f"{job.name}: {count} Floquet multiplier{'s' if count != 1 else ''} over the period "
+        f"{period:g} s ({args.steps} steps; start at t = {analysis.state.time:g} s)"
+    )
+    print("   k  multiplier                    |mu|        growth (1/s)  note")
+    drifts = analysis.drifts
+    for k, (mu, exponent) in enumerate(zip(analysis.multipliers, analysis.exponents, strict=True)):
+        note = "drift" if drifts[k] else ("grows" if abs(mu) > 1.0 + NEUTRAL else "")
+        print(
+            f"{k + 1:4d}  {mu.real:+.6e} {mu.imag:+.6e}i  {abs(mu):.8f}  {exponent.real:+.4e}  "
+            f"{note}"
+        )
+    if analysis.stable:
+        print("stable: no multiplier outside the unit circle (the small motions do not grow)")
+    else:
+        n = analysis.unstable_directions
+        print(f"unstable: {n} growing motion{'s' if n != 1 else ''}")
+    if analysis.periodicity > 0.0:
+        print(f"periodicity: the start state came back within {analysis.periodicity:.2g}")
+    return 0
+
+
 def _modes(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -1405,6 +1460,26 @@ def _main(argv: list[str] | None) -> int:
         "forward at w_rotating + W, backward at w_rotating - W)",
     )
     camp.add_argument("-o", "--output", help="output stem (default: MODEL_campbell)")
+    floq = sub.add_parser(
+        "floquet",
+        help="Floquet analysis: the stability of a periodic motion (multipliers over a period)",
+        description="Runs the model over one period from small changes of each independent "
+        "coordinate and velocity; the eigenvalues of the monodromy matrix (the multipliers) "
+        "outside the unit circle are growing motions.",
+    )
+    floq.add_argument("model", help="model file (.yaml) or built-in example")
+    floq.add_argument(
+        "--period", required=True, type=duration_argument, help="period of the motion (s)"
+    )
+    floq.add_argument("--steps", type=_every, default=400, help="steps per period (default 400)")
+    floq.add_argument(
+        "--settle",
+        type=_whole,
+        default=0,
+        help="periods run first, to settle onto the periodic motion (default 0: the model's "
+        "start state)",
+    )
+    floq.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     modes = sub.add_parser(
         "modes",
         help="modes of the assembly about its equilibrium or steady rotation (free-free modes "
@@ -1478,6 +1553,7 @@ def _command(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     commands = {
         "sweep": sweep,
         "campbell": _campbell,
+        "floquet": _floquet,
         "modes": _modes,
         "preprocess": _preprocess,
         "info": _info,
