@@ -178,3 +178,16 @@ def test_a_free_spin_drifts_and_does_not_grow(speed):
     short = 2 * np.pi / 200.0
     falling = fm.floquet(weak, fm.State.of_model(weak), short, short / 800)
     assert not np.any(falling.drifts) and falling.unstable_directions == 1
+
+
+def test_a_start_that_cannot_be_put_back_on_the_constraints_is_refused(monkeypatch):
+    # A perturbed start is put back on the constraints by Newton's method on the dependent
+    # coordinates; where it could not, the run started off them without a word. (One
+    # iteration is too few for the pendulum's distance constraint at 0.3 rad.)
+    import sys
+
+    monkeypatch.setattr(sys.modules["flexmbd.floquet"], "PROJECTION_ITERATIONS", 1)
+    model = fm.examples.pendulum().system.compile()
+    with pytest.raises(InvalidParameterError, match="could not be put back on the constraints"):
+        period = 2.3678419475762373  # (4 sqrt(L / g) K(1/2): released from the horizontal)
+        fm.floquet(model, fm.State.of_model(model), period, period / 2000, perturbation=0.3)

@@ -69,6 +69,11 @@ PERIODICITY = 1e-3
 #: resolved modes is below the differences' error.
 SPECTRAL_RADIUS = 0.99
 
+#: Newton iterations that put a perturbed start back on the constraints, and the residual
+#: (relative to max(1, |q|)) accepted where they stall at round-off.
+PROJECTION_ITERATIONS = 50
+PROJECTED = 1e-12
+
 #: Newton's tolerance of the default solver: the difference quotients divide the runs'
 #: errors by the perturbation, so the runs must be solved far below it.
 NEWTON_TOLERANCE = 1e-13
@@ -402,12 +407,15 @@ class _Chart:
         q = self._moved(self.q0, y)
         zero = np.zeros(nq)
         scale = max(1.0, float(np.max(np.abs(q), initial=0.0)))
-        for _ in range(50):
+        previous = np.inf
+        for _ in range(PROJECTION_ITERATIONS):
             if nc == 0 or len(self.dependent) == 0:
                 break
             residual = model.evaluate(t, q, zero, zero, np.zeros(nc))["residual"][nq:]
-            if np.max(np.abs(residual)) <= 1e-14 * scale:
-                break
+            size = float(np.max(np.abs(residual)))
+            if size <= 1e-14 * scale or (size <= PROJECTED * scale and size > 0.5 * previous):
+                break  # (on the constraints, or at their round-off)
+            previous = size
             transform, _ = _frame_transform(self.layout, q)
             jacobian = _constraint_jacobian(model, t, q) @ transform
             step = np.zeros_like(y)
@@ -415,6 +423,16 @@ class _Chart:
                 jacobian[:, self.dependent], residual, rcond=None
             )[0]
             q = self._moved(q, step)
+        else:
+            if nc and len(self.dependent):
+                moved = float(np.max(np.abs(z), initial=0.0))
+                raise InvalidParameterError(
+                    f"floquet: the start moved by the perturbation ({moved:.3g}) "
+                    f"could not be put back on the constraints in {PROJECTION_ITERATIONS} "
+                    f"iterations (residual {previous:.3g}); give a smaller perturbation, or a "
+                    "state away from a singular configuration",
+                    item="perturbation",
+                )
         transform, _ = _frame_transform(self.layout, q)
         rates = np.zeros_like(y)
         rates[self.independent] = self.rates0[self.independent] + z_dot
