@@ -11,24 +11,10 @@ Kapitza's estimate.
 """
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 import flexmbd as fm
 
-G, LENGTH, MASS, INERTIA = 9.81, 1.0, 1.0, 1e-3
-
-
-def mathieu(amplitude: float, rate: float, upright: bool) -> np.ndarray:
-    sign = -1.0 if upright else 1.0
-
-    def rates(t: float, x: np.ndarray) -> np.ndarray:
-        shake = -amplitude * rate**2 * np.sin(rate * t)
-        k = sign * MASS * LENGTH * (G + shake) / (MASS * LENGTH**2 + INERTIA)
-        return (np.array([[0.0, 1.0], [-k, 0.0]]) @ x.reshape(2, 2)).ravel()
-
-    period = 2 * np.pi / rate
-    solution = solve_ivp(rates, (0, period), np.eye(2).ravel(), "DOP853", rtol=1e-12, atol=1e-14)
-    return np.linalg.eigvals(solution.y[:, -1].reshape(2, 2))
+G, LENGTH = 9.81, 1.0  # (fm.examples.shaken_pendulum's defaults)
 
 
 def main() -> int:
@@ -41,7 +27,7 @@ def main() -> int:
         model = fm.examples.shaken_pendulum(amplitude, rate, upright=upright).compile()
         period = 2 * np.pi / rate
         analysis = fm.floquet(model, fm.State.of_model(model), period, period / 1600)
-        expected = mathieu(amplitude, rate, upright)
+        expected = fm.examples.shaken_pendulum_multipliers(amplitude, rate, upright=upright)
         found = np.sort_complex(analysis.multipliers)
         worst = max(worst, float(np.max(np.abs(found - np.sort_complex(expected)))))
         position = "upright" if upright else "hanging"

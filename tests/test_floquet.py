@@ -5,7 +5,6 @@ pendulum on a shaken support, integrated by scipy), against exp(s T) of the eige
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 from scipy.optimize import linear_sum_assignment
 
 import flexmbd as fm
@@ -13,22 +12,7 @@ from flexmbd.errors import ArgumentTypeError, InvalidParameterError
 from flexmbd.fe import Material, Section, build_body, straight_beam
 from flexmbd.floquet import NEUTRAL
 
-GRAVITY, LENGTH, MASS, INERTIA = 9.81, 1.0, 1.0, 1e-3
-
-
-def mathieu_multipliers(amplitude: float, rate: float, upright: bool) -> np.ndarray:
-    """The multipliers of (m L^2 + I) theta_dd + m L (g + y_dd(t)) theta = 0 (upright: -),
-    y = amplitude sin(rate t), from its fundamental matrix over a period (DOP853, 1e-12)."""
-    sign = -1.0 if upright else 1.0
-
-    def rates(t: float, x: np.ndarray) -> np.ndarray:
-        shake = -amplitude * rate**2 * np.sin(rate * t)
-        k = sign * MASS * LENGTH * (GRAVITY + shake) / (MASS * LENGTH**2 + INERTIA)
-        return (np.array([[0.0, 1.0], [-k, 0.0]]) @ x.reshape(2, 2)).ravel()
-
-    period = 2 * np.pi / rate
-    solution = solve_ivp(rates, (0, period), np.eye(2).ravel(), "DOP853", rtol=1e-12, atol=1e-14)
-    return np.linalg.eigvals(solution.y[:, -1].reshape(2, 2))
+GRAVITY, LENGTH = 9.81, 1.0  # (fm.examples.shaken_pendulum's defaults)
 
 
 def largest_mismatch(values: np.ndarray, expected: np.ndarray) -> float:
@@ -56,7 +40,7 @@ def test_a_pendulum_on_a_shaken_support_has_mathieus_multipliers(amplitude, rate
     model = fm.examples.shaken_pendulum(amplitude, rate, upright=upright).compile()
     period = 2 * np.pi / rate
     analysis = fm.floquet(model, fm.State.of_model(model), period, period / 800)
-    expected = mathieu_multipliers(amplitude, rate, upright)
+    expected = fm.examples.shaken_pendulum_multipliers(amplitude, rate, upright=upright)
     assert largest_mismatch(analysis.multipliers, expected) < 5e-6
     assert analysis.stable is stable
     assert analysis.unstable_directions == (0 if stable else 1)

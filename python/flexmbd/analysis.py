@@ -1795,6 +1795,23 @@ def _spinning_bodies(layout: dict[str, Any], state: Any, mass: sp.csc_matrix) ->
     return frozenset(found)
 
 
+def local_partition(
+    jacobian: Array, local_elastic: NDArray[np.bool_]
+) -> tuple[NDArray[np.int64], Array]:
+    """The dependent local coordinates of J = C_q T (:func:`_dependent_columns`) and B_y
+    (local coordinates x independent ones): J B_y = 0 with the rows of the independent local
+    coordinates the identity."""
+    dependent = _dependent_columns(jacobian, local_elastic)
+    independent = np.setdiff1d(np.arange(jacobian.shape[1]), dependent)
+    local = np.zeros((jacobian.shape[1], len(independent)))
+    local[independent] = np.eye(len(independent))
+    if len(dependent):
+        local[dependent] = -np.linalg.lstsq(
+            jacobian[:, dependent], jacobian[:, independent], rcond=None
+        )[0]
+    return dependent, local
+
+
 def moving_basis(model: _core.Model, state: Any, mass: sp.csc_matrix) -> tuple[Array, Array, Array]:
     """The basis B (coordinates x independent coordinates) of the motions that keep the
     constraints about `state`, and its first and second time derivatives along the state's
@@ -1821,17 +1838,12 @@ def moving_basis(model: _core.Model, state: Any, mass: sp.csc_matrix) -> tuple[A
         return _constraint_jacobian(model, t, at) @ transform, transform, local_elastic
 
     jacobian, transform, local_elastic = local_jacobian(time, q)
-    dependent = _dependent_columns(jacobian, local_elastic)
-    independent = np.setdiff1d(np.arange(transform.shape[1]), dependent)
-    local = np.zeros((transform.shape[1], len(independent)))
-    local[independent] = np.eye(len(independent))
+    dependent, local = local_partition(jacobian, local_elastic)
     columns = jacobian[:, dependent]
 
     def solve(right: Array) -> Array:
         return np.linalg.lstsq(columns, right, rcond=None)[0]
 
-    if len(dependent):
-        local[dependent] = -solve(jacobian[:, independent])
     basis = transform @ local
     rate, curvature = np.zeros_like(basis), np.zeros_like(basis)
     elastic = _elastic_mask(layout)

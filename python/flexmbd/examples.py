@@ -504,6 +504,35 @@ def shaken_pendulum(
     return system
 
 
+def shaken_pendulum_multipliers(
+    amplitude: float,
+    rate: float,
+    *,
+    upright: bool = False,
+    length: float = 1.0,
+    mass: float = 1.0,
+    inertia: float = 1e-3,
+) -> Array:
+    """The Floquet multipliers of :func:`shaken_pendulum`'s small motions about hanging (or
+    `upright`), from its linear periodic equation (Mathieu's), (m L^2 + I) theta_dd +- m L
+    (g + y_dd(t)) theta = 0 with y = `amplitude` sin(`rate` t): the eigenvalues of its
+    fundamental matrix over a period (scipy's DOP853 at 1e-12), independent of the
+    simulation (the reference of :func:`flexmbd.floquet`'s tests and
+    ``examples/shaken_pendulum.py``)."""
+    from scipy.integrate import solve_ivp
+
+    sign = -1.0 if upright else 1.0
+
+    def rates(t: float, x: Array) -> Array:
+        shake = -amplitude * rate**2 * np.sin(rate * t)
+        k = sign * mass * length * (9.81 + shake) / (mass * length**2 + inertia)
+        return (np.array([[0.0, 1.0], [-k, 0.0]]) @ x.reshape(2, 2)).ravel()
+
+    period = 2 * np.pi / rate
+    solution = solve_ivp(rates, (0, period), np.eye(2).ravel(), "DOP853", rtol=1e-12, atol=1e-14)
+    return np.linalg.eigvals(solution.y[:, -1].reshape(2, 2))
+
+
 def rotating_blade_flap_frequencies(
     g: float,
     geometric_stiffness: bool = True,

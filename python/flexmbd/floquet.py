@@ -35,7 +35,7 @@ from . import _core
 from ._checks import number
 from .errors import ArgumentTypeError, InvalidParameterError
 from .progress import track as track_progress
-from .rotation import angular_velocity, euler_parameter_rates, euler_parameters_to_matrix
+from .rotation import angular_velocity, euler_parameters_to_matrix
 from .state import State
 
 Array = NDArray[np.float64]
@@ -227,8 +227,7 @@ def floquet(
         [np.full(n, perturbation), np.full(n, perturbation * 2 * np.pi / period)]
     )
 
-    def run(offset: Array) -> Array:
-        start = chart.state(offset[:n], offset[n:])
+    def run(start: State) -> Array:
         result = simulate(
             model, end, step_size, initial_state=start, solver=solver, output_interval=period
         )
@@ -236,7 +235,7 @@ def floquet(
 
     # Periodic: every coordinate back (the drivers' too: a wrong period leaves the hanging
     # pendulum as it was and its shaken support elsewhere), relative to max(1, its size).
-    reference = run(np.zeros(2 * n))
+    reference = run(chart.start)
     start = chart.local(chart.start)
     change = np.abs(reference - start) / np.maximum(1.0, np.abs(start))
     worst = int(np.argmax(change)) if len(change) else 0
@@ -254,7 +253,8 @@ def floquet(
     for j in track_progress(range(2 * n), progress, "floquet", unit="columns"):
         offset = np.zeros(2 * n)
         offset[j] = scales[j]
-        ahead, behind = run(offset), run(-offset)
+        ahead = run(chart.state(offset[:n], offset[n:]))
+        behind = run(chart.state(-offset[:n], -offset[n:]))
         monodromy[:, j] = chart.difference(ahead, behind) / (2.0 * scales[j])
     values, vectors = np.linalg.eig(monodromy)
     order = np.lexsort((values.imag, -np.abs(values)))
@@ -271,8 +271,8 @@ def floquet(
 
 
 def _positive(value: Any, name: str) -> float:
-    value = number(value, name)
-    if not (np.isfinite(value) and value > 0.0):
+    value = number(value, name)  # (finite)
+    if not value > 0.0:
         raise InvalidParameterError(
             f"floquet: {name} must be positive and finite, got {value}", item=name
         )
@@ -284,33 +284,32 @@ class _Chart:
     states on the constraints at (z, z_dot) and measures a state's (z, z_dot). The local
     coordinates y of :func:`flexmbd.analysis._frame_transform` (frames: change of origin and
     small rotation in their own axes; the rest as they are), of which the independent ones
-    (:func:`flexmbd.analysis._dependent_columns`) are z; the dependent ones are solved from
-    the constraints and the velocity constraints."""
+    (:func:`flexmbd.analysis.local_partition`) are z; the dependent ones are solved from the
+    constraints and the velocity constraints."""
 
     def __init__(self, model: _core.Model, state: State) -> None:
-        from .analysis import _constraint_jacobian, _dependent_columns, _frame_transform
+        from .analysis import _constraint_jacobian, _frame_transform, local_partition
 
         self.model = model
         self.layout = model.describe()
         self.time = state.time
         self.q0 = np.asarray(state.coordinates, dtype=float)
-        self.frames = [
-            (b["offset"], b["name"])
-            for b in self.layout["bodies"]
-            if b["kind"] in ("rigid", "flexible") and b["count"] >= 7
-        ]
+        # Per body: its name, the offset of its frame's [R, p] (None without a frame), the
+        # offset and count of its other coordinates, and its first local coordinate.
+        self.bodies: list[tuple[str, int | None, int, int, int]] = []
+        column = 0
+        for b in self.layout["bodies"]:
+            o, count = b["offset"], b["count"]
+            frame = b["kind"] in ("rigid", "flexible") and count >= 7
+            rest = count - 7 if frame else count
+            self.bodies.append((b["name"], o if frame else None, o + count - rest, rest, column))
+            column += rest + (6 if frame else 0)
         transform, elastic = _frame_transform(self.layout, self.q0)
         jacobian = _constraint_jacobian(model, self.time, self.q0) @ transform
-        self.dependent = _dependent_columns(jacobian, elastic)
+        self.dependent, local = local_partition(jacobian, elastic)
         self.independent = np.setdiff1d(np.arange(transform.shape[1]), self.dependent)
         self.size = len(self.independent)
         self.names = [self.label(k) for k in self.independent]
-        local = np.zeros((transform.shape[1], self.size))
-        local[self.independent] = np.eye(self.size)
-        if len(self.dependent):
-            local[self.dependent] = -np.linalg.lstsq(
-                jacobian[:, self.dependent], jacobian[:, self.independent], rcond=None
-            )[0]
         self.basis = transform @ local
         self.rates0 = self._rates(self.q0, np.asarray(state.velocities, dtype=float))
         self.discrete = state.discrete
@@ -318,42 +317,27 @@ class _Chart:
 
     def label(self, column: int) -> str:
         """The local coordinate `column` by body and kind."""
-        labels = ("x", "y", "z")
-        k = 0
-        for b in self.layout["bodies"]:
-            count = b["count"]
-            if b["kind"] in ("rigid", "flexible") and count >= 7:
-                if column < k + 6:
-                    c = column - k
-                    kind = "displacement" if c < 3 else "rotation"
-                    return f"body '{b['name']}' {kind} {labels[c % 3]} (own axes)"
-                k += 6
-                count -= 7
-            if column < k + count:
-                return f"body '{b['name']}' coordinate {column - k}"
-            k += count
+        for name, frame, _, _, first in reversed(self.bodies):
+            if column < first:
+                continue
+            c = column - first
+            if frame is not None and c < 6:
+                kind = "displacement" if c < 3 else "rotation"
+                return f"body '{name}' {kind} {('x', 'y', 'z')[c % 3]} (own axes)"
+            return f"body '{name}' coordinate {c - (6 if frame is not None else 0)}"
         return f"coordinate {column}"
 
     def _rates(self, q: Array, qd: Array) -> Array:
         """The local rates y_dot of the velocities `qd` at `q` (frames: the velocity of the
         origin and the angular velocity in their own axes)."""
-        from .analysis import _frame_transform
-
-        transform, _ = _frame_transform(self.layout, q)
-        rates = np.zeros(transform.shape[1])
-        column = 0
-        for b in self.layout["bodies"]:
-            o, count = b["offset"], b["count"]
-            if b["kind"] in ("rigid", "flexible") and count >= 7:
-                a = euler_parameters_to_matrix(q[o + 3 : o + 7])
-                rates[column : column + 3] = a.T @ qd[o : o + 3]
-                rates[column + 3 : column + 6] = angular_velocity(
-                    q[o + 3 : o + 7], qd[o + 3 : o + 7], "body"
-                )
-                column += 6
-                o, count = o + 7, count - 7
-            rates[column : column + count] = qd[o : o + count]
-            column += count
+        rates = np.zeros(len(self.independent) + len(self.dependent))
+        for _, frame, o, rest, c in self.bodies:
+            if frame is not None:
+                p, p_dot = q[frame + 3 : frame + 7], qd[frame + 3 : frame + 7]
+                rates[c : c + 3] = euler_parameters_to_matrix(p).T @ qd[frame : frame + 3]
+                rates[c + 3 : c + 6] = angular_velocity(p, p_dot, "body")
+                c += 6
+            rates[c : c + rest] = qd[o : o + rest]
         return rates
 
     def _moved(self, q: Array, y: Array) -> Array:
@@ -361,21 +345,17 @@ class _Chart:
         from scipy.spatial.transform import Rotation
 
         moved = q.copy()
-        column = 0
-        for b in self.layout["bodies"]:
-            o, count = b["offset"], b["count"]
-            if b["kind"] in ("rigid", "flexible") and count >= 7:
-                p = q[o + 3 : o + 7]
+        for _, frame, o, rest, c in self.bodies:
+            if frame is not None:
+                p = q[frame + 3 : frame + 7]
                 a = euler_parameters_to_matrix(p)
-                moved[o : o + 3] += a @ y[column : column + 3]
-                turned = a @ Rotation.from_rotvec(y[column + 3 : column + 6]).as_matrix()
+                moved[frame : frame + 3] += a @ y[c : c + 3]
+                turned = a @ Rotation.from_rotvec(y[c + 3 : c + 6]).as_matrix()
                 x, yy, z, w = Rotation.from_matrix(turned).as_quat()
                 p_new = np.array([w, x, yy, z])
-                moved[o + 3 : o + 7] = p_new if p_new @ p >= 0.0 else -p_new
-                column += 6
-                o, count = o + 7, count - 7
-            moved[o : o + count] += y[column : column + count]
-            column += count
+                moved[frame + 3 : frame + 7] = p_new if p_new @ p >= 0.0 else -p_new
+                c += 6
+            moved[o : o + rest] += y[c : c + rest]
         return moved
 
     def _offsets(self, q: Array, reference: Array) -> Array:
@@ -383,17 +363,16 @@ class _Chart:
         the rotation vector of A_ref^T A, in the reference's axes)."""
         from scipy.spatial.transform import Rotation
 
-        y = []
-        for b in self.layout["bodies"]:
-            o, count = b["offset"], b["count"]
-            if b["kind"] in ("rigid", "flexible") and count >= 7:
-                a0 = euler_parameters_to_matrix(reference[o + 3 : o + 7])
-                a1 = euler_parameters_to_matrix(q[o + 3 : o + 7])
-                y.append(a0.T @ (q[o : o + 3] - reference[o : o + 3]))
-                y.append(Rotation.from_matrix(a0.T @ a1).as_rotvec())
-                o, count = o + 7, count - 7
-            y.append(q[o : o + count] - reference[o : o + count])
-        return np.concatenate(y) if y else np.zeros(0)
+        y = np.zeros(len(self.independent) + len(self.dependent))
+        for _, frame, o, rest, c in self.bodies:
+            if frame is not None:
+                a0 = euler_parameters_to_matrix(reference[frame + 3 : frame + 7])
+                a1 = euler_parameters_to_matrix(q[frame + 3 : frame + 7])
+                y[c : c + 3] = a0.T @ (q[frame : frame + 3] - reference[frame : frame + 3])
+                y[c + 3 : c + 6] = Rotation.from_matrix(a0.T @ a1).as_rotvec()
+                c += 6
+            y[c : c + rest] = q[o : o + rest] - reference[o : o + rest]
+        return y
 
     def state(self, z: Array, z_dot: Array) -> State:
         """The state at t0 with independent coordinates z and rates z_dot (from the start
@@ -445,18 +424,7 @@ class _Chart:
             rates[self.dependent] = np.linalg.lstsq(jacobian[:, self.dependent], right, rcond=None)[
                 0
             ]
-        qd = np.zeros(nq)
-        column = 0
-        for b in self.layout["bodies"]:
-            o, count = b["offset"], b["count"]
-            if b["kind"] in ("rigid", "flexible") and count >= 7:
-                p = q[o + 3 : o + 7]
-                qd[o : o + 3] = euler_parameters_to_matrix(p) @ rates[column : column + 3]
-                qd[o + 3 : o + 7] = euler_parameter_rates(p, rates[column + 3 : column + 6], "body")
-                column += 6
-                o, count = o + 7, count - 7
-            qd[o : o + count] = rates[column : column + count]
-            column += count
+        qd = transform @ rates  # (frames: dR = A dR_bar, dp = 1/2 G^T dpi_bar)
         from .system import identity_of
 
         return State(
