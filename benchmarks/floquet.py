@@ -2,7 +2,8 @@
 coordinates. Prints the size, the runs and steps, the wall time and the time per step of
 the runs, for a rigid pendulum on a shaken support, a flexible steel pendulum (4 beam
 elements) and the flexible double pendulum of `fm.examples` (both at rest: exp(s T) is then
-the exact answer, and the largest |mu| - 1 shows the differences' error).
+the exact answer, and the largest |mu| - 1 shows the differences' error), with the runs
+one after the other and two at once (threads; the same monodromy to the last bit).
 
     python benchmarks/floquet.py
 """
@@ -38,8 +39,11 @@ def flexible_double_pendulum() -> tuple[fm.System, fm.State | None, float, int]:
 
 
 def main() -> None:
-    print("| model | n | runs | steps per run | wall (s) | ms per step | max abs(mu) - 1 |")
-    print("|---|---|---|---|---|---|---|")
+    print(
+        "| model | n | runs | steps per run | wall, 1 worker (s) | ms per step | wall, 2 "
+        "workers (s) | max abs(mu) - 1 |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
     for name, build in [
         ("rigid pendulum, shaken support", shaken_pendulum),
         ("flexible steel pendulum (4 beams), at rest", flexible_pendulum),
@@ -48,15 +52,18 @@ def main() -> None:
         system, state, period, steps = build()
         model = system.compile()
         state = fm.State.of_model(model) if state is None else state
-        began = time.perf_counter()
-        analysis = fm.floquet(model, state, period, period / steps)
-        wall = time.perf_counter() - began
+        walls = []
+        for workers in (1, 2):
+            began = time.perf_counter()
+            analysis = fm.floquet(model, state, period, period / steps, workers=workers)
+            walls.append(time.perf_counter() - began)
+        wall = walls[0]
         n = analysis.basis.shape[1]
         runs = 4 * n + 1
         growth = float(np.abs(analysis.multipliers).max() - 1.0)
         print(
             f"| {name} | {n} | {runs} | {steps} | {wall:.2f} | {1e3 * wall / (runs * steps):.3f} "
-            f"| {growth:.1e} |"
+            f"| {walls[1]:.2f} | {growth:.1e} |"
         )
 
 

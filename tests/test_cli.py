@@ -825,10 +825,13 @@ def test_floquet_prints_the_multipliers_of_a_periodic_motion(capsys):
     assert "stable: no multiplier outside the unit circle" in out
     moduli = [float(line.split()[3]) for line in out.splitlines() if line[:4].strip().isdigit()]
     assert len(moduli) == 4 and max(abs(m - 1.0) for m in moduli) < 1e-6
-    assert main([*argv, "--settle", "1"]) == 0  # (one period run first)
+    assert main([*argv, "--settle", "1", "--workers", "1"]) == 0  # (one period run first)
     assert "start at t = 2.36784 s" in capsys.readouterr().out
     assert main(["floquet", "pendulum", "--period", "2.0", "-q"]) == 2
     assert "does not come back after the period 2 s" in capsys.readouterr().err
     with pytest.raises(SystemExit) as usage:  # (argparse: a usage error)
         main(["floquet", "pendulum", "--period", "0", "-q"])
+    assert usage.value.code == 2
+    with pytest.raises(SystemExit) as usage:
+        main(["floquet", "pendulum", "--period", "2.0", "--workers", "0"])
     assert usage.value.code == 2

@@ -164,14 +164,50 @@ def test_a_free_spin_drifts_and_does_not_grow(speed):
     assert not np.any(falling.drifts) and falling.unstable_directions == 1
 
 
-def test_a_start_that_cannot_be_put_back_on_the_constraints_is_refused(monkeypatch):
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_start_that_cannot_be_put_back_on_the_constraints_is_refused(monkeypatch, workers):
     # A perturbed start is put back on the constraints by Newton's method on the dependent
     # coordinates; where it could not, the run started off them without a word. (One
-    # iteration is too few for the pendulum's distance constraint at 0.3 rad.)
+    # iteration is too few for the pendulum's distance constraint at 0.3 rad.) From the
+    # threads of two workers the first failure is raised the same.
     import sys
 
     monkeypatch.setattr(sys.modules["flexmbd.floquet"], "PROJECTION_ITERATIONS", 1)
     model = fm.examples.pendulum().system.compile()
     with pytest.raises(InvalidParameterError, match="could not be put back on the constraints"):
         period = 2.3678419475762373  # (4 sqrt(L / g) K(1/2): released from the horizontal)
-        fm.floquet(model, fm.State.of_model(model), period, period / 2000, perturbation=0.3)
+        fm.floquet(
+            model,
+            fm.State.of_model(model),
+            period,
+            period / 2000,
+            perturbation=0.3,
+            workers=workers,
+        )
+
+
+def test_runs_in_threads_give_the_same_monodromy():
+    # The runs are independent: made two or three at once (threads) they give the monodromy
+    # of the runs made one after the other, to the last bit; the progress still counts the
+    # columns, in the caller's thread.
+    import threading
+
+    rate = 3 * np.sqrt(GRAVITY / LENGTH)
+    model = fm.examples.shaken_pendulum(0.05, rate).compile()
+    state, period = fm.State.of_model(model), 2 * np.pi / rate
+    alone = fm.floquet(model, state, period, period / 200, workers=1)
+    calls = []
+
+    def progress(done, total):
+        calls.append((done, total, threading.current_thread() is threading.main_thread()))
+
+    for workers in (2, 3):
+        calls.clear()
+        together = fm.floquet(
+            model, state, period, period / 200, workers=workers, progress=progress
+        )
+        assert np.array_equal(together.monodromy, alone.monodromy)
+        assert [c[:2] for c in calls] == [(1, 2), (2, 2)] and all(c[2] for c in calls)
+    for wrong in (0, -1, 1.5, True, "2"):
+        with pytest.raises(InvalidParameterError, match="workers must be a whole number"):
+            fm.floquet(model, state, period, period / 200, workers=wrong)

@@ -921,7 +921,9 @@ def _floquet(args: argparse.Namespace) -> int:
                 model, args.settle * period, step, solver=job.solver, output_interval=period
             )
             state = settled.state(-1)
-        analysis = floquet(model, state, period, step, progress=not args.quiet)
+        analysis = floquet(
+            model, state, period, step, progress=not args.quiet, workers=args.workers
+        )
     except (FlexmbdError, OSError) as error:
         print(f"flexmbd floquet: {error}", file=sys.stderr)
         return 2
@@ -1478,6 +1480,12 @@ def _main(argv: list[str] | None) -> int:
         default=0,
         help="periods run first, to settle onto the periodic motion (default 0: the model's "
         "start state)",
+    )
+    floq.add_argument(
+        "--workers",
+        type=_every,
+        default=None,
+        help="runs made at once, in threads (default: the processors available)",
     )
     floq.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     modes = sub.add_parser(

@@ -24,7 +24,9 @@ independent coordinates take 4 n runs of a period.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -162,6 +164,7 @@ def floquet(
     perturbation: float = 1e-6,
     periodicity: float = PERIODICITY,
     progress: bool | Callable[[int, int], object] | None = None,
+    workers: int | None = None,
 ) -> FloquetAnalysis:
     """The Floquet analysis of the periodic motion of `system` (a :class:`flexmbd.System` or
     compiled model) through `state` with `period` T (s): the monodromy matrix over one
@@ -180,7 +183,10 @@ def floquet(
     `periodicity`: the largest change over one period of the start state (any coordinate
     or rate, local as z: relative to max(1, its size)) taken as periodic.
     `progress`: True shows a progress bar of the columns of Phi (two runs each), a
-    function is called as ``progress(done, total)``.
+    function is called as ``progress(done, total)``. `workers`: the runs made at once, in
+    threads of this process (the runs release the interpreter; default: the processors
+    this process may use, at most the columns); the monodromy matrix is the same for any
+    number.
 
     Raises `InvalidParameterError` for a period, step or perturbation that is not positive
     and finite, a state of another model, or a state that does not come back after a period
@@ -201,6 +207,7 @@ def floquet(
     step_size = _positive(step_size, "step_size")
     perturbation = _positive(perturbation, "perturbation")
     periodicity = _positive(periodicity, "periodicity")
+    workers = _workers(workers)
     if step_size >= period:  # (it failed the periodicity check, blaming the state)
         raise InvalidParameterError(
             f"floquet: step_size {step_size:g} s must be below the period {period:g} s (a "
@@ -249,13 +256,18 @@ def floquet(
             "away and take result.state(k)), or check the period",
             item="state",
         )
-    monodromy = np.zeros((2 * n, 2 * n))
-    for j in track_progress(range(2 * n), progress, "floquet", unit="columns"):
+
+    def column(j: int) -> Array:
         offset = np.zeros(2 * n)
         offset[j] = scales[j]
         ahead = run(chart.state(offset[:n], offset[n:]))
         behind = run(chart.state(-offset[:n], -offset[n:]))
-        monodromy[:, j] = chart.difference(ahead, behind) / (2.0 * scales[j])
+        return chart.difference(ahead, behind) / (2.0 * scales[j])
+
+    monodromy = np.zeros((2 * n, 2 * n))
+    columns = _columns(column, 2 * n, min(workers, 2 * n))
+    for j, values in track_progress(columns, progress, "floquet", total=2 * n, unit="columns"):
+        monodromy[:, j] = values
     values, vectors = np.linalg.eig(monodromy)
     order = np.lexsort((values.imag, -np.abs(values)))
     return FloquetAnalysis(
@@ -268,6 +280,41 @@ def floquet(
         periodicity=float(change[worst]) if len(change) else 0.0,
         independent=list(chart.names),
     )
+
+
+def _workers(workers: Any) -> int:
+    """The runs at once: `workers` checked, or the processors this process may use."""
+    if workers is None:
+        try:
+            return max(1, len(os.sched_getaffinity(0)))
+        except AttributeError:  # (not on macOS and Windows)
+            return max(1, os.cpu_count() or 1)
+    if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
+        raise InvalidParameterError(
+            f"floquet: workers must be a whole number of at least 1 (or None: the processors "
+            f"this process may use), got {workers!r}",
+            item="workers",
+        )
+    return int(workers)
+
+
+def _columns(
+    column: Callable[[int], Array], count: int, workers: int
+) -> Iterator[tuple[int, Array]]:
+    """Yields (j, column(j)) for j < count, in the order they are done: with `workers` > 1
+    from that many threads (the runs release the interpreter). The first failure stops the
+    columns not yet begun and is raised; so is an interruption (Ctrl-C) of the waiting."""
+    if workers == 1:
+        for j in range(count):
+            yield j, column(j)
+        return
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="floquet")
+    try:
+        pending = {pool.submit(column, j): j for j in range(count)}
+        for done in as_completed(pending):
+            yield pending[done], done.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _positive(value: Any, name: str) -> float:
