@@ -10,11 +10,18 @@ the condensed solver's is; the mean of 10 solves is timed.
     python benchmarks/compact_solid.py                 # k = 6, 10, 14, 20, 26 (about 40 s)
     python benchmarks/compact_solid.py --cells 6 10 14
     python benchmarks/compact_solid.py --run           # also the time per step in a run
+    python benchmarks/compact_solid.py --metis         # also METIS's ordering (pip install pymetis)
 
 With --run, the same cube swings as a pendulum (a revolute joint about z at the centre of its
 clamped face, gravity along -y) with generalized-alpha, h = 1e-4 s, its elastic coordinates
 condensed: the time per step is the difference of a 2-step and a 2 + N-step run over N (the
 factorizations and initial conditions cancel), with the solves with the factor per step.
+
+With --metis, the same matrix is also factorized in the order of METIS's nested dissection of
+the mesh's node graph (`pymetis`, not a dependency of flexmbd), each node's coordinates
+together, to compare the factor's entries and the solve with the geometric ordering's. The
+"GB/s" column is the factor's bytes read twice (forward and backward substitution) over the
+time of one solve.
 """
 
 from __future__ import annotations
@@ -29,8 +36,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
+from flexmbd import _core  # noqa: E402
 from flexmbd.fe import Material, build_body, shapes  # noqa: E402
-from flexmbd.fe.modal import factorize  # noqa: E402
+from flexmbd.fe.modal import factorize, lower_triangle  # noqa: E402
 
 ALUMINIUM = Material(7.0e10, 0.33, 2700.0)
 
@@ -48,8 +56,10 @@ def clamped_cube(cells: int) -> Any:
     )
 
 
-def measure(cells: int) -> tuple[int, int, float, float]:
-    """Unknowns, factor entries, seconds to factorize and seconds per solve."""
+def measure(cells: int, metis: bool = False) -> tuple[Any, ...]:
+    """Unknowns, factor entries, seconds to factorize, seconds per solve and bytes of the
+    factor; with `metis` also the entries, seconds to factorize and per solve in METIS's
+    order."""
     body = clamped_cube(cells)
     matrix = sp.csc_matrix(body.invariants.k_ff) + 1e8 * sp.csc_matrix(body.invariants.m_ff)
     start = time.perf_counter()
@@ -57,12 +67,53 @@ def measure(cells: int) -> tuple[int, int, float, float]:
         matrix, dofs=body.reference.free_dofs, nodes=body.nodes, dofs_per_node=3, threads=1
     )
     seconds = time.perf_counter() - start
-    rhs = np.ones(matrix.shape[0])
+    row = (matrix.shape[0], factor.factor_nnz, seconds, solve_time(factor), factor.factor_bytes)
+    if not metis:
+        return row
+    lower = lower_triangle(matrix)
+    start = time.perf_counter()
+    other = _core.SymmetricFactor(
+        matrix.shape[0],
+        lower.indptr.astype(np.int64),
+        lower.indices.astype(np.int64),
+        np.ascontiguousarray(lower.data, dtype=float),
+        ordering=metis_ordering(matrix, np.asarray(body.reference.free_dofs) // 3),
+        threads=1,
+    )
+    return (*row, other.factor_nnz, time.perf_counter() - start, solve_time(other))
+
+
+def solve_time(factor: Any) -> float:
+    """Seconds per solve with `factor`: the mean of 10 after one."""
+    rhs = np.ones(factor.dim)
     factor.solve(rhs)
     start = time.perf_counter()
     for _ in range(10):
         factor.solve(rhs)
-    return matrix.shape[0], factor.factor_nnz, seconds, (time.perf_counter() - start) / 10
+    return (time.perf_counter() - start) / 10
+
+
+def metis_ordering(matrix: Any, dof_nodes: Any) -> Any:
+    """The elimination order (position -> unknown) of METIS's nested dissection of the node
+    graph of `matrix` (unknown k on node dof_nodes[k]), each node's unknowns together."""
+    try:
+        import pymetis
+    except ImportError:
+        raise SystemExit("--metis needs pymetis: pip install pymetis") from None
+    nodes, node_of = np.unique(dof_nodes, return_inverse=True)
+    n = matrix.shape[0]
+    gather = sp.csr_matrix((np.ones(n), (node_of, np.arange(n))), shape=(len(nodes), n))
+    graph = (gather @ (abs(matrix) > 0).astype(float) @ gather.T).tocsr()
+    graph.setdiag(0)
+    graph.eliminate_zeros()
+    adjacency = pymetis.CSRAdjacency(graph.indptr.tolist(), graph.indices.tolist())
+    order, _ = pymetis.nested_dissection(adjacency=adjacency)
+    unknowns = np.argsort(node_of, kind="stable")  # (grouped by node, in node order)
+    first = np.searchsorted(node_of[unknowns], np.arange(len(nodes)))
+    counts = np.bincount(node_of, minlength=len(nodes))
+    return np.concatenate([unknowns[first[v] : first[v] + counts[v]] for v in order]).astype(
+        np.int64
+    )
 
 
 def run_step(cells: int, extra: int) -> tuple[float, float, float]:
@@ -97,12 +148,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cells", type=int, nargs="+", default=[6, 10, 14, 20, 26])
     parser.add_argument("--run", action="store_true", help="also the time per step of a run")
     parser.add_argument("--steps", type=int, default=20, help="extra steps of --run")
+    parser.add_argument("--metis", action="store_true", help="also METIS's ordering (pymetis)")
     args = parser.parse_args(argv)
-    rows = [measure(k) for k in args.cells]
-    print("| cells | unknowns | factor entries | factorize (s) | one solve (ms) |")
-    print("|---|---|---|---|---|")
-    for k, (n, nnz, factor, solve) in zip(args.cells, rows, strict=True):
-        print(f"| {k}^3 | {n} | {nnz / 1e6:.2f}M | {factor:.2f} | {1e3 * solve:.2f} |")
+    rows = [measure(k, args.metis) for k in args.cells]
+    head = "| cells | unknowns | factor entries | factorize (s) | one solve (ms) | GB/s |"
+    rule = "|---|---|---|---|---|---|"
+    if args.metis:
+        head += " METIS: entries | factorize (s) | one solve (ms) |"
+        rule += "---|---|---|"
+    print(head)
+    print(rule)
+    for k, (n, nnz, factor, solve, size, *other) in zip(args.cells, rows, strict=True):
+        line = f"| {k}^3 | {n} | {nnz / 1e6:.2f}M | {factor:.2f} | {1e3 * solve:.2f} | "
+        line += f"{2 * size / solve / 1e9:.1f} |"
+        if other:
+            line += f" {other[0] / 1e6:.2f}M | {other[1]:.2f} | {1e3 * other[2]:.2f} |"
+        print(line)
     n = np.log([r[0] for r in rows])
     if len(rows) >= 2:
         for name, column in (("factor entries", 1), ("one solve", 3)):
