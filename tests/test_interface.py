@@ -177,6 +177,14 @@ def test_bad_sets_and_weights_are_typed_errors_naming_the_set():
     cancelling[[0, -1]] = 1.0, -0.999
     with pytest.raises(InvalidModelError, match="face: its weighted centroid .* nearly cancel"):
         make_interface(x, elements, face, cancelling, name="face")
+    # Negative weights far out that make the second moment of the face indefinite were refused as
+    # "nodes on one line" (found by a fault hunt).
+    arms = np.linalg.norm(x[face] - x[face].mean(axis=0), axis=1)
+    corners = np.where(arms > 0.99 * arms.max(), -2.0, 1.0)
+    with pytest.raises(
+        InvalidModelError, match=r"face: its weights \(2 of 20 negative, down to -2\) make"
+    ):
+        make_interface(x, elements, face, corners, name="face")
 
 
 def test_node_set_markers_sit_at_the_weighted_centroid_and_take_principal_axes(link, assert_close):

@@ -360,8 +360,15 @@ def test_bad_modal_requests_are_explained(bar):
         pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis")
     with pytest.raises(InvalidParameterError, match="interface kind"):
         cb_body(bar, "rbe4", "mean-axis")
-    with pytest.raises(InvalidParameterError, match="mode_count"):
+    with pytest.raises(InvalidParameterError, match="mode_count") as info:
         pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis", modes="free-free")
+    assert info.value.item == "mode_count"
+    with pytest.raises(InvalidParameterError, match="modes requested") as info:  # (no item)
+        pp.build_body(
+            bar.nodes, bar.elements, STEEL, reference="clamped", reference_nodes="x0",
+            modes="fixed-interface", mode_count=10**6, **build,
+        )  # fmt: skip
+    assert info.value.item == "mode_count"
 
 
 @pytest.mark.parametrize("mode_count", [[], [1.0, 2.0], "3", 3.0, None, -1])

@@ -1089,6 +1089,36 @@ def test_a_run_continued_from_a_drifted_recorded_state_is_a_continuation():
     assert any("positions of the recorded state" in m for m in said), said
 
 
+def test_a_recorded_state_of_another_model_is_an_initial_correction(tmp_path):
+    # A pendulum's recorded state started a pendulum hinged 0.3 m further: the run moved the
+    # bob onto the other hinge as the integrator's "drift", with no warning, and strict
+    # initial conditions accepted it (found by a fault hunt). On another System the state is
+    # a given one; from a results file (no System known) a move beyond the drift allowance
+    # of the core (1e-3) is an initial correction all the same.
+    def pendulum(x):
+        system = fm.System(gravity=(0, -9.81, 0))
+        bob = system.add_point_mass(1.0, position=(x + 1.0, 0.0, 0.0), name="bob")
+        hinge = system.add_marker(system.ground, position=(x, 0.0, 0.0))
+        system.add_distance_joint(hinge, system.add_marker(bob), 1.0, name="rod")
+        return system
+
+    first = fm.simulate(
+        pendulum(0.0), 0.3, 1e-3, output_interval=0.1, results_file=tmp_path / "a.h5"
+    )
+    stored = fm.read_results(tmp_path / "a.h5").state(-1)
+    assert stored.recorded and stored.system_identity is None
+    for state in (first.state(-1), stored):
+        with pytest.warns(InitialCorrectionWarning) as caught:
+            fm.simulate(pendulum(0.3), 0.4, 1e-3, initial_state=state)
+        assert any("joint 'rod'" in str(w.message) for w in caught)
+        with pytest.raises(fm.InitialConditionsError, match="refused"):
+            fm.simulate(pendulum(0.3), 0.4, 1e-3, initial_state=state, initial_conditions="strict")
+    # The same System built again, from the file's state: still a continuation.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InitialCorrectionWarning)
+        fm.simulate(pendulum(0.0), 0.4, 1e-3, initial_state=stored, initial_conditions="strict")
+
+
 def test_a_point_mass_on_a_prismatic_joint_has_an_equilibrium(assert_close):
     # The joint's three rotation equations are identically zero for a point mass: the runs
     # remove them as redundant, the equilibrium kept them in Newton's matrix ("3 directions

@@ -91,6 +91,13 @@ def _start(
     return initial_state.time, initial_state
 
 
+def _same_system(state: State, model: _core.Model) -> bool:
+    """Whether `state` is one of the System `model` was compiled from (or of unknown origin:
+    a results file's, a model without a System)."""
+    here = identity_of(model)
+    return state.system_identity is None or here is None or state.system_identity == here
+
+
 def _check_paths(results_file: Any, protect: Any) -> None:
     """`results_file` is None or a path; `protect` a sequence of paths."""
     if results_file is not None and not isinstance(results_file, str | os.PathLike):
@@ -464,7 +471,9 @@ def simulate(
         start_arrays = {
             "coordinates": np.ascontiguousarray(start.coordinates, dtype=float),
             "velocities": np.ascontiguousarray(start.velocities, dtype=float),
-            "recorded": bool(start.recorded),
+            # A continuation only on the model that recorded it: on another System the
+            # state is a given one, whose corrections are initial corrections.
+            "recorded": bool(start.recorded) and _same_system(start, model),
         }
         discrete = start.discrete_for(model)
         if discrete is not None:

@@ -802,6 +802,16 @@ def make_interface(
     # The null space of H: the direction of a line of nodes, every direction for one node.
     free = values <= 1e-9 * max(size, 1e-300)
     defined = len(members) >= 3 and not free[0]
+    if require_rotation and not nodal_rotations and values[0] < -1e-9 * max(size, 1e-300):
+        # (Weights of both signs; the consistent weights of quadratic faces keep H definite.)
+        raise InvalidModelError(
+            f"{name}: its weights ({int((raw < 0).sum())} of {len(raw)} negative, down to "
+            f"{float(raw.min()):.3g}) make the weighted second moment of its nodes "
+            f"indefinite (eigenvalue {values[0]:.3g} about the axis "
+            f"{np.round(vectors[:, 0], 6).tolist()}), so no rotation fits its nodes' motion; "
+            "give weights that are positive, or those of the face's shape functions",
+            item=name,
+        )
     if require_rotation and not defined and not nodal_rotations:
         raise InvalidModelError(
             f"{name}: its {len(members)} weighted nodes lie on one line (or are fewer than "

@@ -384,20 +384,23 @@ def eigenpairs(
     the columns of `dense_projection` when given: a basis of the admissible motions)."""
     n = k.shape[0]
     if count < 1:
-        raise InvalidParameterError(f"at least one mode is needed, got {count}")
+        raise InvalidParameterError(f"at least one mode is needed, got {count}", item="mode_count")
     if dense_projection is not None or n <= DENSE_LIMIT:
         z = np.eye(n) if dense_projection is None else dense_projection
         kz = z.T @ (k @ z)
         mz = z.T @ (m @ z)
         if count > kz.shape[0]:
-            raise InvalidParameterError(f"{count} modes requested of {kz.shape[0]} coordinates")
+            raise InvalidParameterError(
+                f"{count} modes requested of {kz.shape[0]} coordinates", item="mode_count"
+            )
         values, vectors = sla.eigh(
             0.5 * (kz + kz.T), 0.5 * (mz + mz.T), subset_by_index=[0, count - 1]
         )
         return _rayleigh_ritz(k, m, z @ vectors)
     if count > n // 4:
         raise InvalidParameterError(
-            f"{count} modes requested of a {n}-coordinate body: at most {n // 4}"
+            f"{count} modes requested of a {n}-coordinate body: at most {n // 4}",
+            item="mode_count",
         )
     if solve is None:
         raise InvalidParameterError("a large eigenproblem needs the factorization of K - shift M")

@@ -950,7 +950,7 @@ def _body_from_nodal(
         m_ff = nodal.mass[free][:, free].tocsc()
     else:
         if mode_count < 1 and modes == "free-free":
-            raise InvalidParameterError(f"{modes} modes need mode_count >= 1")
+            raise InvalidParameterError(f"{modes} modes need mode_count >= 1", item="mode_count")
         if modes == "fixed-interface" and mode_count == 0:
             # No elastic coordinates: the rigid limit, with the mesh's mass distribution.
             basis, freqs = np.zeros((len(free), 0)), np.zeros(0)

@@ -119,6 +119,12 @@ pub(crate) fn violated_rows(constraints: &[f64], tolerance: f64) -> Vec<(usize, 
     constraints.iter().enumerate().filter(|(_, c)| c.abs() > tolerance).map(|(r, &c)| (r, c)).collect()
 }
 
+/// Largest move of a recorded state (`StartState::recorded`; relative to max(1, |q|), as the
+/// report tolerance) taken as the drift of the integrator that recorded it: explicit strategies
+/// that integrate every coordinate leave the constraints by up to 5.9e-6 in a second
+/// (tr-bdf2); more is an initial correction (the state of another model).
+pub const RECORDED_DRIFT: f64 = 1e-3;
+
 /// The "initial correction" events of a consistent-initial-condition solve that went from the
 /// given coordinates and velocities (`given_q`, `given_qd`) to `state`: one per joint (or
 /// normalization) the given positions violated by more than the report tolerance (`violated`
@@ -134,6 +140,10 @@ pub fn correction_events(
     recorded: bool,
 ) -> (Vec<Event>, f64) {
     let tol = settings.report_tolerance;
+    // What a recorded state may be moved by as the integrator's drift; beyond it the move is
+    // an initial correction (a state of another model: a hinge elsewhere moved its body by
+    // 0.3 m as "drift").
+    let drift = if recorded { RECORDED_DRIFT.max(tol) } else { tol };
     // The velocities of a recorded state projected onto the constraints (`StartState::recorded`),
     // and its positions: the largest change and its body.
     let mut projected: Option<(f64, &str)> = None;
@@ -145,9 +155,9 @@ pub fn correction_events(
     // Joints (and Euler-parameter normalizations) violated by the given positions.
     let mut reported_joint = vec![false; model.joints.len()];
     for &(row, value) in violated {
-        // (a recorded state's violations are the integrator's drift: reported with the
-        // positions below)
-        if value.abs() <= tol || recorded {
+        // (a recorded state's violations up to `drift` are the integrator's: reported with
+        // the positions below)
+        if value.abs() <= drift {
             continue;
         }
         if let Some(j) = model.joints.iter().position(|j| row >= j.row && row < j.row + j.equations.len()) {
@@ -205,26 +215,23 @@ pub fn correction_events(
             ),
             ("velocities", moved(given_qd, &state.velocities, 0..n)),
         ];
-        let parts = if recorded {
+        if recorded {
             // The integrator's own drift: positions that an explicit strategy integrating all
             // coordinates lets leave the constraints (5.9e-6 of the Euler parameters' norm
             // with tr-bdf2 after 1 s), velocities off the velocity constraints.
             for (k, (_, (relative, change))) in parts.iter().enumerate() {
                 let slot = if k == 3 { &mut projected } else { &mut placed };
-                if *relative > tol && slot.map_or(true, |(c, _)| *change > c) {
+                if *relative > tol && *relative <= drift && slot.map_or(true, |(c, _)| *change > c) {
                     *slot = Some((*change, body.name.as_str()));
                 }
             }
-            &parts[..0]
-        } else {
-            &parts[..]
-        };
+        }
         let over: Vec<String> = parts
             .iter()
-            .filter(|(_, (relative, _))| *relative > tol)
+            .filter(|(_, (relative, _))| *relative > drift)
             .map(|(what, (_, change))| format!("{what} by up to {change:.3e}"))
             .collect();
-        largest = parts.iter().map(|p| p.1 .0).fold(largest, f64::max);
+        largest = parts.iter().map(|p| p.1 .0).filter(|&r| r > drift).fold(largest, f64::max);
         if !over.is_empty() {
             events.push(event(format!(
                 "body '{}': the consistent initial conditions move its {}",
