@@ -255,13 +255,137 @@ def test_a_swinging_beam_with_an_offset_mass_moves_as_with_a_rigid_body_fixed_to
             part = system.add_rigid_body(mass, inertia, position=nodes[10] + offset)
             tip = system.add_node_marker(beam, 11)
             system.add_fixed_joint(tip, system.add_marker(part, position=-offset))
-        result = fm.simulate(system.compile(), 0.5, 1e-3)
+        result = fm.simulate(system.compile(), 0.5, 2.5e-4, output_interval=0.01)
         return result.node_positions(beam, [11])[:, 0]
 
     reference = tip_path(None, rigid=True)
-    # (Integration error: 2.6e-6 m at h = 1e-3, 8.4e-7 at 2.5e-4. The invariants of the mass
-    # matrix alone, lumped at the node, were 7.6e-5 m off; the mass at the node 2.7e-2.)
-    assert_close(tip_path({10: (mass, inertia, offset)}, rigid=False), reference, abs=1e-5)
+    # The two converge as h^2 (h = 1e-3, 2.5e-4, 6.25e-5: 2.0e-6, 1.3e-7, 2.0e-8 m). With the
+    # mass turning with the node's rotation linearly (no second order: `attached.rs`) they
+    # stayed 6.6e-7 m apart; the invariants of the mass matrix alone, lumped at the node,
+    # were 7.6e-5 m off at h = 1e-3; the mass at the node 2.7e-2.
+    assert_close(tip_path({10: (mass, inertia, offset)}, rigid=False), reference, abs=3e-7)
+
+
+def spinning_shaft(speed, disk, rigid, **options):
+    """A steel shaft (10 beam elements, 1 m) driven at `speed` about its axis x at node 1,
+    with the mass `disk` = (mass, inertia, offset) at its free end: a point mass of the body,
+    or (`rigid`) a rigid body fixed to the end node's marker."""
+    nodes, elements = pp.straight_beam(LENGTH, 10)
+    body = pp.build_body(
+        nodes, elements, STEEL, section=SECTION, reference="clamped", reference_nodes=[0],
+        point_masses=None if rigid else {10: disk}, **options,
+    )  # fmt: skip
+    system = fm.System()
+    shaft = system.add_flexible_body(body, name="shaft")
+    along_x = fm.rotation("y", np.pi / 2)
+    hub = system.add_marker(system.ground, orientation=along_x)
+    root = system.add_node_marker(shaft, 1, orientation=along_x)
+    system.add_revolute_joint(hub, root)
+    system.add_angle_driver(hub, root, fm.Polynomial([0.0, speed]))
+    if rigid:
+        mass, inertia, offset = disk
+        part = system.add_rigid_body(
+            mass, inertia, position=nodes[10] + offset, angular_velocity=(speed, 0.0, 0.0)
+        )
+        system.add_fixed_joint(
+            system.add_node_marker(shaft, 11), system.add_marker(part, position=-np.asarray(offset))
+        )
+    return system
+
+
+def rotor_roots(system):
+    """The 16 smallest nonzero eigenvalues about the steady rotation (the equilibrium at
+    rest)."""
+    turning = any(call[0] == "add_angle_driver" for call in system.building_calls)
+    state = fm.steady_rotation(system) if turning else fm.equilibrium(system)
+    values = fm.linearize(system, state).eigenvalues()[0]
+    values = values[np.abs(values) > 1e-6]
+    return values[np.argsort(np.abs(values))][:16]
+
+
+@pytest.mark.parametrize("speed", [50.0, 100.0, 150.0])
+def test_a_disc_on_a_spinning_shaft_turns_with_it_as_a_rigid_body(speed, assert_close):
+    # A disc at the end of a shaft turning about its axis: torsion sqrt(G J_t / (L I_p)), the
+    # same at every speed (twisting about the spin axis changes nothing). Held as a point mass
+    # turning with the node's small rotation linearly, the disc's points moved out along
+    # their tangents and the centrifugal force softened the torsion by I_p W^2: 83.0 rad/s
+    # instead of 129.9 at 100 rad/s, none left above 130 (a false divergence), and the
+    # whirl frequencies off by up to 131 % at 150 rad/s. With the second order of the turn
+    # (`body/flexible/attached.rs`) every root is the rigid disc's (fixed to the end node's
+    # marker) to 1.5e-8.
+    from scipy.optimize import linear_sum_assignment
+
+    polar = SECTION.torsion_constant
+    disc_inertia = E / (2 * (1 + NU)) * polar / LENGTH / 130.0**2  # torsion at 130 rad/s
+    disk = (1.0, np.diag([disc_inertia, disc_inertia / 2, disc_inertia / 2]), np.zeros(3))
+    point = rotor_roots(spinning_shaft(speed, disk, rigid=False))
+    rigid = rotor_roots(spinning_shaft(speed, disk, rigid=True))
+    distance = np.abs(point[:, None] - rigid[None, :])
+    rows, columns = linear_sum_assignment(distance)
+    assert_close(distance[rows, columns] / np.abs(rigid[columns]), 0.0, abs=1e-7, what="roots")
+    torsion = np.sqrt(E / (2 * (1 + NU)) * polar / (LENGTH * disc_inertia))
+    nearest = np.min(np.abs(np.abs(point.imag) - torsion)) / torsion
+    assert nearest < 2e-3  # (the shaft's own inertia lowers it a little: 129.92 to 129.97)
+
+
+def test_an_offset_mass_has_its_pendulum_stiffness_under_gravity(assert_close):
+    # A shaft hanging from a hinge with a mass 0.15 m below its lower end (and a rotary
+    # inertia): at the equilibrium the end does not turn, and the mass adds the stiffness
+    # m g e of its own pendulum to the end's rotations. Turning with the node linearly it
+    # lacked it (frequencies up to 7.8e-4 off); now they are those of the same mass as a
+    # rigid body fixed to the end node's marker, also in a modal body with every mode (the
+    # node's rows from the modal matrix).
+    from scipy.optimize import linear_sum_assignment
+
+    mass, inertia, offset = 2.0, np.diag([1e-3, 2e-3, 3e-3]), np.array([0.15, 0.0, 0.0])
+    down = fm.rotation("z", -np.pi / 2)  # (body x along global -y)
+
+    def roots(rigid, **options):
+        nodes, elements = pp.straight_beam(LENGTH, 10)
+        body = pp.build_body(
+            nodes, elements, STEEL, section=SECTION, reference="clamped", reference_nodes=[0],
+            point_masses=None if rigid else {10: (mass, inertia, offset)}, **options,
+        )  # fmt: skip
+        system = fm.System(gravity=(0.0, -9.81, 0.0))
+        shaft = system.add_flexible_body(body, orientation=down, name="shaft")
+        system.add_revolute_joint(
+            system.add_marker(system.ground), system.add_node_marker(shaft, 1)
+        )
+        if rigid:
+            part = system.add_rigid_body(
+                mass, inertia, position=down @ (nodes[10] + offset), orientation=down
+            )
+            end = system.add_node_marker(shaft, 11)
+            system.add_fixed_joint(end, system.add_marker(part, position=-offset))
+        return rotor_roots(system)
+
+    rigid = roots(True)
+    for options in ({}, {"modes": "fixed-interface", "mode_count": 60}):
+        point = roots(False, **options)
+        distance = np.abs(point[:, None] - rigid[None, :])
+        rows, columns = linear_sum_assignment(distance)
+        relative = distance[rows, columns] / np.abs(rigid[columns])
+        assert_close(relative, 0.0, abs=1e-8, what=f"roots {options}")
+
+
+def test_a_tumbling_beam_with_an_offset_mass_conserves_energy():
+    # The second order of the masses' turn is Lagrange's equations of their points' kinetic
+    # energy and gravity (the output's energies hold the same terms): a free beam tumbling
+    # under gravity with an offset mass keeps its energy to the explicit solver's tolerance
+    # (dopri5, 1e-8: 3.7e-12 of E over 0.3 s), and the run agrees with generalized-alpha.
+    nodes, elements = pp.straight_beam(1.0, 8)
+    inertia = np.array([[4e-3, 5e-4, 0.0], [5e-4, 2e-3, 1e-4], [0.0, 1e-4, 3e-3]])
+    body = pp.build_body(
+        nodes, elements, Material(7e10, 0.33, 2700.0), section=Section.rectangle(0.02, 0.01),
+        reference="clamped", reference_nodes=[0],
+        point_masses={8: (0.8, inertia, np.array([0.04, 0.05, -0.03]))},
+    )  # fmt: skip
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    system.add_flexible_body(body, angular_velocity=(3.0, 1.0, 20.0), name="beam")
+    solver = fm.ExplicitSolver("dopri5", relative_tolerance=1e-8, absolute_tolerance=1e-8)
+    result = fm.simulate(system, 0.1, 1e-4, output_interval=0.01, solver=solver)
+    energy = result.total_energy
+    assert np.ptp(energy) < 1e-10 * abs(energy[0])
 
 
 def test_the_variants_of_a_body_keep_its_offset_masses(assert_close):
@@ -277,3 +401,29 @@ def test_the_variants_of_a_body_keep_its_offset_masses(assert_close):
         got = getattr(heavier.invariants, name)
         assert_close(got, expected, abs=1e-12 * np.abs(expected).max(), what=name)
     assert abs(heavier.mass - fresh.mass).max() < 1e-12 * abs(fresh.mass).max()
+
+
+@pytest.mark.parametrize(
+    ("mass", "inertia", "count"),
+    [
+        (0.8, [[4e-3, 5e-4, 0.0], [5e-4, 2e-3, 1e-4], [0.0, 1e-4, 3e-3]], 4),
+        (1.5, np.diag([2e-3, 3e-3, 1e-3]), 4),  # (a flat disc: one second moment zero)
+        (1.0, np.diag([1.0, 0.0, 0.0]), 7),  # (no mass distribution has it: P indefinite)
+        (0.0, np.diag([1e-3, 5e-4, 5e-4]), 7),
+        (2.0, np.zeros((3, 3)), 1),
+    ],
+)
+def test_mass_points_have_the_mass_centre_and_second_moments(mass, inertia, count, assert_close):
+    # The second order of a mass's turn depends on its mass, centre and second moments
+    # P = tr(J)/2 I - J only; the points that stand for it must have them.
+    from flexmbd.system import mass_points
+
+    offset = np.array([0.04, -0.05, 0.03])
+    masses, points = mass_points(mass, np.asarray(inertia), offset)
+    assert len(masses) == count and points.shape == (count, 3)
+    arms = points - offset
+    assert_close(masses.sum(), mass, abs=1e-15, what="mass")
+    assert_close(masses @ points, mass * offset, abs=1e-15, what="first moment")
+    second = np.einsum("p,pi,pj->ij", masses, arms, arms)
+    expected = np.trace(inertia) / 2 * np.eye(3) - np.asarray(inertia)
+    assert_close(second, expected, abs=1e-15, what="second moments")

@@ -228,6 +228,7 @@ class System:
         node_positions: NDArray[np.float64] | None = None,
         condense: bool | None = None,
         scalar_mass: tuple[tuple[Any, Any, Any, int], NDArray[np.int64]] | None = None,
+        attached: Sequence[tuple[Any, Any, Any, Any, Any]] | None = None,
         name: str | None = None,
     ) -> BodyId: ...
     def _add_flexible_marker(

@@ -262,6 +262,77 @@ def _check_rigid(
         )
 
 
+def _attached_masses(body: FlexibleBodyData, basis: sp.csr_matrix) -> list[tuple[Any, ...]]:
+    """The point masses of a meshed beam or shell body that have a rotary inertia or an
+    offset (`build_body`'s `point_masses`, read back from its mass matrix beyond its
+    elements'), as the core's attached masses (`body/flexible/attached.rs`): the columns q_l
+    their node depends on, the node's rows [u; theta] of `basis` (6, n_l), its position and
+    mass points with the mass's mass, centre and second moments (:func:`mass_points`). The
+    invariants hold these masses turning with the node's small rotation linearly; the core
+    adds the second order of that turn."""
+    from .fe.body_variants import _assembled, _has_mesh, _point_masses
+
+    if body.dofs_per_node != 6 or not _has_mesh(body):
+        return []
+    lumps = _point_masses(body, _assembled(body, form_i_kl=False).mass)
+    attached = []
+    for node, lump in sorted(lumps.items()):
+        if not isinstance(lump, tuple):
+            continue
+        mass, inertia, offset = lump
+        scale = max(abs(mass), 1e-300)
+        if np.abs(inertia).max() <= 1e-12 * scale * max(np.abs(body.nodes).max(), 1.0) ** 2 and (
+            np.abs(offset).max() == 0.0
+        ):
+            continue
+        masses, points = mass_points(mass, inertia, offset)
+        rows = basis[6 * node : 6 * node + 6].toarray()
+        columns = np.flatnonzero(np.any(rows != 0, axis=0))
+        if len(columns) == 0:
+            continue  # (a node held by the reference conditions: it does not move)
+        attached.append(
+            (
+                columns.astype(np.int64),
+                np.ascontiguousarray(rows[:, columns]),
+                np.asarray(body.nodes[node], dtype=float),
+                masses,
+                points,
+            )
+        )
+    return attached
+
+
+def mass_points(
+    mass: float, inertia: ArrayLike, offset: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Point masses and their positions relative to a node with the mass `mass`, the centre
+    `offset` and the rotary inertia `inertia` (3, 3) about the centre. The forces of the
+    core's attached masses depend on the mass, centre and second moments P = tr(J) / 2 I - J
+    only, so the fewest points that give them serve: the centre alone without an inertia;
+    four equal masses at the corners of a regular tetrahedron stretched by sqrt(3 P / m)
+    about it; for a P with a negative direction (an inertia no mass distribution has) or no
+    mass, the centre with what is left of the mass and a pair at +-r v_k along each principal
+    direction v_k of P with the masses p_k / (2 r^2) (r = 1 m; masses may be negative)."""
+    inertia = np.asarray(inertia, dtype=float)
+    offset = np.asarray(offset, dtype=float)
+    moments, directions = np.linalg.eigh(np.trace(inertia) / 2 * np.eye(3) - inertia)
+    moments[np.abs(moments) <= 1e-12 * np.abs(moments).max(initial=0.0)] = 0.0  # (round-off)
+    if not np.any(moments):
+        return np.array([float(mass)]), offset.reshape(1, 3).copy()
+    if mass > 0 and moments.min() >= 0:
+        corners = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]) / np.sqrt(3)
+        stretch = directions @ np.diag(np.sqrt(3 * moments / mass)) @ directions.T
+        return np.full(4, mass / 4), np.ascontiguousarray(offset + corners @ stretch)
+    masses, points = [], []
+    for value, direction in zip(moments, directions.T, strict=True):
+        for side in (1.0, -1.0):
+            masses.append(value / 2)
+            points.append(offset + side * direction)
+    masses.insert(0, mass - sum(masses))
+    points.insert(0, offset)
+    return np.asarray(masses), np.ascontiguousarray(np.asarray(points))
+
+
 def _stiffening_elements(
     body: FlexibleBodyData, basis: sp.csr_matrix, item: str
 ) -> list[tuple[Any, ...]]:
@@ -857,6 +928,7 @@ class System(_core.System):
             node_positions=node_positions,
             condense=condense,
             scalar_mass=scalar_mass,
+            attached=_attached_masses(body, basis) or None,
             name=name,
         )
         self._flexible[body_id.index] = body

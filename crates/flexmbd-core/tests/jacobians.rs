@@ -11,7 +11,7 @@ use std::sync::Arc;
 use common::{assert_close, Rng};
 use flexmbd_core::assembly::{assemble, constraint_time_terms, MatrixCoefficients, Request, StateView};
 use flexmbd_core::body::corotational::CorotationalBeam;
-use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput};
+use flexmbd_core::body::flexible::{AttachedMass, FlexibleBody, FlexibleBodyInput};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
 use flexmbd_core::force::joint_actuator::{ActuatedCoordinate, ServoLaw};
@@ -87,7 +87,8 @@ fn add_bodies(sys: &mut SystemBuilder, rng: &mut Rng) -> Vec<BodyId> {
 }
 
 /// A deformable body of six random mass points with `n` elastic coordinates, with a beam
-/// element of geometric stiffness of each kind (von Karman, co-rotational) if `stiffening`.
+/// element of geometric stiffness of each kind (von Karman, co-rotational) and an attached
+/// mass if `stiffening`.
 fn random_deformable_body(rng: &mut Rng, n: usize, stiffening: bool) -> FlexibleBody {
     let points = 6;
     let masses: Vec<f64> = (0..points).map(|_| 1.0 + 0.3 * rng.uniform()).collect();
@@ -113,6 +114,14 @@ fn random_deformable_body(rng: &mut Rng, n: usize, stiffening: bool) -> Flexible
             beam.corotational_terms(&material, &[Vec3::ZERO, Vec3([0.7, 0.0, 0.0])]).unwrap();
         let map = (0..36).map(|_| 2.0 * rng.uniform()).collect();
         input.corotational = vec![CorotationalBeam::new(vec![1, 2, 4], map, length, k.concat())];
+        // And a point mass turning with a node to second order (an offset disc).
+        input.attached = vec![AttachedMass {
+            indices: vec![0, 3, 4],
+            rows: (0..18).map(|_| 0.5 * rng.uniform()).collect(),
+            node: rng.vec3(0.5),
+            points: (0..3).map(|_| (0.5 + rng.uniform(), rng.vec3(0.3))).collect(),
+            positions: Vec::new(),
+        }];
     }
     FlexibleBody::new("flexible", input).unwrap()
 }

@@ -3,7 +3,7 @@
 //! `FlexibleBodyData` into these calls).
 
 use flexmbd_core::body::corotational::CorotationalBeam;
-use flexmbd_core::body::flexible::{FlexibleBody, FlexibleBodyInput, ScalarMass};
+use flexmbd_core::body::flexible::{AttachedMass, FlexibleBody, FlexibleBodyInput, ScalarMass};
 use flexmbd_core::body::marker::MarkerElastic;
 use flexmbd_core::body::stiffening::StiffeningElement;
 use flexmbd_core::linalg::csc::Csc;
@@ -123,6 +123,40 @@ fn stiffening_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Stiffening
     })
 }
 
+/// A mass carried by a node with rotations from `(indices (n_l,), rows (6, n_l), node (3,),
+/// masses (k,), offsets (k, 3))`: the node's [u; theta] = rows q_l, its undeformed position
+/// and mass points relative to it (see `flexmbd_core::body::flexible::AttachedMass`).
+fn attached_mass(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<AttachedMass> {
+    let bad = || {
+        invalid(
+            item,
+            "attached masses are (indices (n_l,), rows (6, n_l), node (3,), masses (k,), offsets (k, 3)) \
+             tuples",
+        )
+    };
+    let t = obj.cast::<PyTuple>().map_err(|_| bad())?;
+    if t.len() != 5 {
+        return Err(bad());
+    }
+    let (indices, rows, map) = indices_and_map(t, bad)?;
+    if rows != 6 {
+        return Err(bad());
+    }
+    let masses: PyReadonlyArray1<f64> = t.get_item(3)?.extract()?;
+    let offsets: PyReadonlyArray2<f64> = t.get_item(4)?.extract()?;
+    let (masses, offsets) = (masses.as_array(), offsets.as_array());
+    if offsets.ncols() != 3 || offsets.nrows() != masses.len() {
+        return Err(bad());
+    }
+    Ok(AttachedMass {
+        indices,
+        rows: map,
+        node: vec3(&t.get_item(2)?, item, "attached mass node")?,
+        points: masses.iter().zip(offsets.rows()).map(|(&m, c)| (m, Vec3([c[0], c[1], c[2]]))).collect(),
+        positions: Vec::new(),
+    })
+}
+
 /// A co-rotational beam element from `(indices, map (12, n_l), length, stiffness (12, 12))`
 /// (see `flexmbd_core::body::corotational`).
 fn corotational_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<CorotationalBeam> {
@@ -158,12 +192,13 @@ impl System {
     /// `flexmbd.System.add_flexible_body` with a `FlexibleBodyData`).
     ///
     /// `i1` is (3, n_f), `ibar` (9, n_f) (index 3 k + l), `i_kl` nine CSC tuples
-    /// `(data, indices, indptr, n_f)`, `stiffness` and `damping` CSC tuples.
+    /// `(data, indices, indptr, n_f)`, `stiffness` and `damping` CSC tuples; `attached` the point
+    /// masses turning with their nodes to second order (see `attached_mass`).
     #[pyo3(signature = (*, mass, first_moment, second_moment, i1, ibar, i_kl, stiffness, damping,
                         position = None, orientation = None, velocity = None, angular_velocity = None,
                         elastic_coordinates = None, elastic_velocities = None, stiffening = None,
                         corotational = None, dof_nodes = None, node_positions = None, condense = None, scalar_mass = None,
-                        name = None))]
+                        attached = None, name = None))]
     #[allow(clippy::too_many_arguments)]
     fn _add_flexible_body(
         &mut self,
@@ -187,6 +222,7 @@ impl System {
         node_positions: Option<PyReadonlyArray2<f64>>,
         condense: Option<bool>,
         scalar_mass: Option<(Bound<'_, PyAny>, PyReadonlyArray1<i64>)>,
+        attached: Option<Vec<Bound<'_, PyAny>>>,
         name: Option<String>,
     ) -> PyResult<BodyId> {
         let index = self.inner.body_count();
@@ -260,6 +296,11 @@ impl System {
                 }),
                 None => None,
             },
+            attached: attached
+                .unwrap_or_default()
+                .iter()
+                .map(|e| attached_mass(e, &item))
+                .collect::<PyResult<_>>()?,
         };
         let body = check(FlexibleBody::new(&item, input))?;
         let v = |o: Option<&Bound<'_, PyAny>>, what: &str| -> PyResult<Vec3> {

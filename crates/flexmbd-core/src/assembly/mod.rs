@@ -556,17 +556,30 @@ fn assemble_flexible(
         mass,
         Some(gravity),
     );
+    // Point masses turning with their nodes to second order (usually none).
+    flexible::add_attached_forces(fb, q, qd, qdd, gravity, &mut work.force);
     for (r, f) in residual[o..o + nb].iter_mut().zip(&work.force) {
         *r += f;
     }
     // The elastic forces, with their Jacobians into the elastic values if the matrix needs
     // the (f, f) block.
     let rows = &mut residual[o + r7..o + nb];
+    // The attached masses' Jacobians (local, column-major), for the blocks below; where the
+    // condensed solves replace the elastic block of a condensed body, their matrix leaves the
+    // attached masses out altogether, as its other nonlinear terms (with only their reference
+    // block, or their coupling at the projections, a tumbling soft beam's iteration diverged).
+    let attached: Vec<Vec<f64>> = if request.matrix.is_some() && c.needs_tangent() && blocks.elastic {
+        let mc = [c.mass, c.velocity, c.position];
+        fb.attached.iter().map(|m| flexible::attached_jacobian(m, q, qd, qdd, gravity, mc)).collect()
+    } else {
+        Vec::new()
+    };
     if request.matrix.is_some() && c.needs_tangent() && blocks.elastic {
         let ev = &mut work.elastic_values;
         ev.iter_mut().for_each(|x| *x = 0.0);
         let tangent = Some((c.position, c.velocity, &mut ev[..]));
         flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], rows, tangent, blocks.linear);
+        add_attached_elastic_block(fb, &attached, &mut work.elastic_values);
     } else {
         flexible::add_elastic_forces(fb, &q[r7..], &qd[r7..], rows, None, blocks.linear);
     }
@@ -584,6 +597,7 @@ fn assemble_flexible(
         if blocks.reference_elastic {
             add_reference_elastic_blocks(fb.elastic_count, work, entries, c, values);
         }
+        add_attached_reference_blocks(fb, &attached, c, entries, blocks.reference_elastic, values);
         if blocks.elastic {
             add_elastic_block(fb, work, entries, c, values);
         }
@@ -614,6 +628,51 @@ fn add_reference_block(
             }
             values[entries.block[a * 7 + b]] +=
                 c.scale * (c.mass * tm[a][b] + c.velocity * tv[a][b] + c.position * k);
+        }
+    }
+}
+
+/// The (f, f) entries of the Jacobians `jacobians` of the attached masses of `fb`
+/// ([`flexible::attached_jacobian`]) into its elastic values (unscaled, as the elastic forces'
+/// Jacobians there).
+fn add_attached_elastic_block(fb: &FlexibleBody, jacobians: &[Vec<f64>], elastic_values: &mut [f64]) {
+    for (mass, j) in fb.attached.iter().zip(jacobians) {
+        let n = mass.indices.len();
+        let size = 7 + n;
+        for a in 0..n {
+            for b in 0..n {
+                elastic_values[mass.positions[a * n + b]] += j[(7 + b) * size + 7 + a];
+            }
+        }
+    }
+}
+
+/// The (reference, reference) entries of the Jacobians `jacobians` of the attached masses of
+/// `fb`, and with `coupling` the (reference, f) and (f, reference) ones.
+fn add_attached_reference_blocks(
+    fb: &FlexibleBody,
+    jacobians: &[Vec<f64>],
+    c: &MatrixCoefficients,
+    entries: &BodyEntries,
+    coupling: bool,
+    values: &mut [f64],
+) {
+    let nf = fb.elastic_count;
+    for (mass, j) in fb.attached.iter().zip(jacobians) {
+        let size = 7 + mass.indices.len();
+        for a in 0..7 {
+            for b in 0..7 {
+                values[entries.block[a * 7 + b]] += c.scale * j[b * size + a];
+            }
+        }
+        if !coupling {
+            continue;
+        }
+        for (i, &e) in mass.indices.iter().enumerate() {
+            for a in 0..7 {
+                values[entries.reference_elastic[a * nf + e]] += c.scale * j[(7 + i) * size + a];
+                values[entries.elastic_reference[e * 7 + a]] += c.scale * j[a * size + 7 + i];
+            }
         }
     }
 }

@@ -19,11 +19,13 @@ pub fn kinetic_energy(body: &FlexibleBody, q: &[f64], qd: &[f64], scratch: &mut 
     }));
     let mut m_qfd = vec![0.0; nf];
     body.mass_matrix.mul_vec_add(1.0, qfd, &mut m_qfd);
+    let attached = if body.attached.is_empty() { 0.0 } else { attached_kinetic_energy(body, q, qd) };
     0.5 * body.mass * v.dot(&v)
         + v.dot(&k.a.mul_vec(&(k.w.cross(&k.s) + k.i1_qfd)))
         + 0.5 * k.w.dot(&k.j.mul_vec(&k.w))
         + k.w.dot(&jf_qfd)
         + 0.5 * dot(qfd, &m_qfd)
+        + attached
 }
 
 /// Power of the structural damping, -qf_dot^T D_ff qf_dot (W; `qd` the body's velocities).
@@ -158,5 +160,6 @@ pub fn gravity_potential(body: &FlexibleBody, q: &[f64], gravity: &Vec3) -> f64 
     let r7 = REFERENCE_COORDINATES;
     let s = body.first_moment + body.i1_times(&q[r7..r7 + nf]);
     let a = euler::rotation_matrix(&quat(q));
-    -gravity.dot(&(Vec3::from_slice(q) * body.mass + a.mul_vec(&s)))
+    let attached = if body.attached.is_empty() { 0.0 } else { attached_gravity_potential(body, q, gravity) };
+    -gravity.dot(&(Vec3::from_slice(q) * body.mass + a.mul_vec(&s))) + attached
 }

@@ -44,6 +44,7 @@ use crate::math::euler::{
 };
 use crate::math::{Mat3, Vec3};
 
+mod attached;
 mod energy;
 mod inertia;
 mod storage;
@@ -51,6 +52,7 @@ mod tangent;
 #[cfg(test)]
 pub(crate) mod tests;
 
+pub use attached::*;
 pub use energy::*;
 pub use inertia::*;
 pub use storage::*;
@@ -95,6 +97,10 @@ pub struct FlexibleBodyInput {
     /// Bodies of solids in nodal coordinates: the scalar mass matrix behind the I_kl
     /// (checked against them when the body is built).
     pub scalar_mass: Option<ScalarMass>,
+    /// Point masses with a rotary inertia or an offset at nodes with rotations: the second
+    /// order of their motion about the node (see [`AttachedMass`]; the invariants hold them
+    /// moving linearly).
+    pub attached: Vec<AttachedMass>,
 }
 
 impl FlexibleBodyInput {
@@ -181,6 +187,8 @@ pub struct FlexibleBody {
     pub condense: Option<bool>,
     /// The scalar mass structure of a body of solids, see [`FlexibleBodyInput`].
     pub scalar_mass: Option<ScalarMass>,
+    /// Attached masses, see [`FlexibleBodyInput`].
+    pub attached: Vec<AttachedMass>,
     /// Bodies of solids: per elastic coordinate j (component c of a node), the entries of I1
     /// and Ibar that can be nonzero, [I1_c[j], Ibar_0c[j], Ibar_1c[j], Ibar_2c[j]] (S_l has
     /// no entry at j for l != c); empty otherwise. See [`solid_sums`].
@@ -365,6 +373,17 @@ impl FlexibleBodyInput {
                 });
             }
         }
+        for (k, mass) in self.attached.iter().enumerate() {
+            if !mass.is_consistent(n) {
+                return Err(FlexmbdError::InvalidParameter {
+                    item: item.to_string(),
+                    message: format!(
+                        "attached mass {k}: needs 6 x n_l rows over existing elastic coordinates, \
+                         a finite node position and finite mass points"
+                    ),
+                });
+            }
+        }
         for (k, el) in self.corotational.iter().enumerate() {
             if !el.is_consistent(n) {
                 return Err(FlexmbdError::InvalidParameter {
@@ -432,6 +451,7 @@ impl FlexibleBody {
             .iter()
             .map(|e| e.indices.as_slice())
             .chain(input.corotational.iter().map(|e| e.indices.as_slice()))
+            .chain(input.attached.iter().map(|e| e.indices.as_slice()))
             .collect();
         let pattern = ElasticPattern::union(n, &all, &blocks);
         let stiffening = placed_stiffening(input.stiffening, &pattern);
@@ -439,6 +459,10 @@ impl FlexibleBody {
         for el in corotational.iter_mut() {
             el.positions = block_positions(&el.indices, &pattern);
             el.sparse_map = SparseMap::of(&el.map, 12, el.indices.len());
+        }
+        let mut attached = input.attached;
+        for mass in attached.iter_mut() {
+            mass.positions = block_positions(&mass.indices, &pattern);
         }
         // M_ff = sum_k I_kk and A_m = I_{m+1,m+2} - I_{m+2,m+1}.
         let mass_matrix = ElasticMatrix::new(
@@ -468,6 +492,7 @@ impl FlexibleBody {
             node_positions: input.node_positions,
             condense: input.condense,
             scalar_mass: None,
+            attached,
             solid_rows: Vec::new(),
             whole_nodes: false,
             stacked_i_kl: None,
