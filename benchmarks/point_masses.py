@@ -1,8 +1,8 @@
 """Cost of the second order of point masses turning with their nodes (`attached.rs`): a steel
 beam of 10 elements hinged at one end, swinging under gravity, with 1 or 10 point masses
 that have a rotary inertia and an offset. Prints the time of one residual and of one Newton
-matrix (`Model.evaluate`, mean of 1,000 after 100) and of a 1 s run at h = 1e-3, with the term and with
-the masses moving linearly (the term left out, as before it existed).
+matrix (`Model.evaluate`, mean of 1,000 after 100) and of a 1 s run at h = 1e-3, with the
+term and with the masses moving linearly (the term left out, as before it existed).
 
     python benchmarks/point_masses.py
 """
