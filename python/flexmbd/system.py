@@ -26,6 +26,7 @@ from . import _boundary, _core
 from ._checks import choice, flag, id_text, integer, number, numbers_array, value_text
 from .errors import (
     ArgumentTypeError,
+    FlexmbdError,
     InvalidModelError,
     InvalidParameterError,
     ModelError,
@@ -274,7 +275,13 @@ def _attached_masses(body: FlexibleBodyData, basis: sp.csr_matrix) -> list[tuple
 
     if body.dofs_per_node != 6 or not _has_mesh(body):
         return []
-    lumps = _point_masses(body, _assembled(body, form_i_kl=False).mass)
+    try:
+        lumps = _point_masses(body, _assembled(body, form_i_kl=False).mass)
+    except (FlexmbdError, KeyError, TypeError, ValueError):
+        # A body whose elements cannot be assembled again (a body file's section without its
+        # moments) or whose mass beyond them is not point masses: its masses, if any, keep the
+        # linear motion of the invariants, as a body without a mesh.
+        return []
     attached = []
     for node, lump in sorted(lumps.items()):
         if not isinstance(lump, tuple):
