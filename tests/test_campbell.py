@@ -207,6 +207,13 @@ def test_the_campbell_command_on_the_rotating_blade_model_file(tmp_path, capsys,
         assert_close(data["frequency"].values[0, 0], f[-1, 0], rel=1e-6)
     assert main(["campbell", "four-bar", "--speeds", "0:1:2"]) == 2
     assert "no angle driver: name the one to turn with --driver" in capsys.readouterr().err
+    # An output in a folder that does not exist is refused before the speeds are computed
+    # (they were computed, then lost; found by a fault hunt).
+    missing = tmp_path / "no such folder" / "blade"
+    assert main(["campbell", str(model), "--speeds", "0:35.3:4", "-o", str(missing)]) == 2
+    said = capsys.readouterr()
+    assert "folder" in said.err and "does not exist" in said.err
+    assert "frequencies in the" not in said.out and "driver:" not in said.out
 
 
 def test_a_mode_without_a_continuation_is_a_gap_not_another_mode(assert_close):

@@ -207,6 +207,7 @@ def test_runs_in_threads_give_the_same_monodromy():
             model, state, period, period / 200, workers=workers, progress=progress
         )
         assert np.array_equal(together.monodromy, alone.monodromy)
+        assert together.solver.spectral_radius == alone.solver.spectral_radius == 0.99
         assert [c[:2] for c in calls] == [(1, 2), (2, 2)] and all(c[2] for c in calls)
     for wrong in (0, -1, 1.5, True, "2"):
         with pytest.raises(InvalidParameterError, match="workers must be a whole number"):

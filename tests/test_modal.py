@@ -356,6 +356,21 @@ def test_bad_modal_requests_are_explained(bar):
     assert info.value.item == "interface 1"
     with pytest.raises(InvalidModelError, match="reference='mean-axis' or reference='interface'"):
         cb_body(bar, "rbe2", "clamped")
+    # A beam along y held simply supported: its twist is held about x, not its axis; the
+    # advice was about nodes on one line.
+    along_y = np.array([[0.0, 0.1 * k, 0.0] for k in range(5)])
+    beams = {"beam2": np.array([[k, k + 1] for k in range(4)])}
+    with pytest.raises(InvalidModelError, match="node b must lie on the x axis of node a"):
+        pp.build_body(
+            along_y, beams, STEEL, section=pp.Section.circle(0.01), reference="simply-supported",
+            reference_nodes=[0, 4],
+        )  # fmt: skip
+    for reference in ("interface", "mean-axis"):  # (it blamed reference_nodes)
+        with pytest.raises(InvalidModelError, match="Craig-Bampton modes need interfaces"):
+            pp.build_body(
+                bar.nodes, bar.elements, STEEL, reference=reference, modes="craig-bampton",
+                mode_count=4, **build,
+            )  # fmt: skip
     with pytest.raises(InvalidModelError, match="need free-free or Craig-Bampton"):
         pp.build_body(bar.nodes, bar.elements, STEEL, reference="mean-axis")
     with pytest.raises(InvalidParameterError, match="interface kind"):

@@ -829,6 +829,8 @@ def _campbell(args: argparse.Namespace) -> int:
 
     try:
         job = _job(args.model)
+        stem = Path(args.output) if args.output else Path(Path(args.model).stem + "_campbell")
+        _check_folder(stem)  # (before the speeds are computed: after, they were lost)
         driver = args.driver or _only_angle_driver(job.system)
         diagram = campbell(
             job.system,
@@ -838,7 +840,6 @@ def _campbell(args: argparse.Namespace) -> int:
             frame=args.frame,
             progress=True,
         )
-        stem = Path(args.output) if args.output else Path(Path(args.model).stem + "_campbell")
         plot_campbell(diagram, stem.with_suffix(".png"), orders=args.orders)
         diagram.to_xarray().to_netcdf(stem.with_suffix(".nc"), engine="scipy")
     except (FlexmbdError, OSError) as error:
@@ -904,21 +905,40 @@ def _linearized(system: Any) -> tuple[Any, Any, str]:
         return linear, unloaded.compile(), about
 
 
-def _floquet(args: argparse.Namespace) -> int:
-    from .floquet import NEUTRAL, floquet
-    from .simulation import simulate
+def _start_state(model: Any, start: str, time: float) -> Any:
+    """The state `start` ("given", "equilibrium" or "steady-rotation") of `model` at `time`."""
+    from .analysis import equilibrium, steady_rotation
     from .state import State
+
+    if start == "equilibrium":
+        return equilibrium(model, time)
+    if start == "steady-rotation":
+        return steady_rotation(model, time)
+    return State.of_model(model, time)
+
+
+def _floquet(args: argparse.Namespace) -> int:
+    from .floquet import NEUTRAL, SPECTRAL_RADIUS, floquet
+    from .simulation import simulate
 
     try:
         job = _job(args.model)
         model = job.system.compile()
         period = args.period
         step = period / args.steps
-        state = State.of_model(model)
+        # The model's start (a model file's `start` and `start_time`, or --start): a rotor
+        # starts in its steady rotation, not from rest with its driver at speed.
+        start = args.start or job.start
+        state = _start_state(model, start, job.start_time or 0.0)
         if args.settle:
             # Onto the periodic motion first: the model's solver over whole periods.
             settled = simulate(
-                model, args.settle * period, step, solver=job.solver, output_interval=period
+                model,
+                state.time + args.settle * period,
+                step,
+                solver=job.solver,
+                output_interval=period,
+                initial_state=state,
             )
             state = settled.state(-1)
         analysis = floquet(
@@ -932,6 +952,12 @@ def _floquet(args: argparse.Namespace) -> int:
         f"{job.name}: {count} Floquet multiplier{'s' if count != 1 else ''} over the period "
         f"{period:g} s ({args.steps} steps; start at t = {analysis.state.time:g} s)"
     )
+    radius = getattr(analysis.solver, "spectral_radius", None)
+    if radius is not None and radius != SPECTRAL_RADIUS:
+        print(
+            f"(a run diverged at spectral radius {SPECTRAL_RADIUS}: every run made again at "
+            f"{radius})"
+        )
     print("   k  multiplier                    |mu|        growth (1/s)  note")
     drifts = analysis.drifts
     for k, (mu, exponent) in enumerate(zip(analysis.multipliers, analysis.exponents, strict=True)):
@@ -1480,6 +1506,12 @@ def _main(argv: list[str] | None) -> int:
         default=0,
         help="periods run first, to settle onto the periodic motion (default 0: the model's "
         "start state)",
+    )
+    floq.add_argument(
+        "--start",
+        choices=("given", "equilibrium", "steady-rotation"),
+        help="the state the analysis (or --settle) starts from (default: the model file's "
+        "`start`, else given)",
     )
     floq.add_argument(
         "--workers",

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from . import _core
 from ._checks import number
-from .errors import ArgumentTypeError, InvalidParameterError
+from .errors import ArgumentTypeError, InvalidParameterError, NewtonDivergedError, NonFiniteError
 from .progress import track as track_progress
 from .rotation import angular_velocity, euler_parameters_to_matrix
 from .state import State
@@ -70,6 +70,13 @@ PERIODICITY = 1e-3
 #: (without it 1.5e-6); at 0.99 the largest |mu| - 1 is 1.9e-7, and the damping of the
 #: resolved modes is below the differences' error.
 SPECTRAL_RADIUS = 0.99
+
+#: Spectral radius of the default solver when a run at :data:`SPECTRAL_RADIUS` failed: the
+#: modes the steps do not resolve are then hardly damped, and a blade with geometric
+#: stiffness (its axial and bending motions coupled) was driven unstable by an axial one
+#: perturbed by 1e-6 m (a 4-element blade at 20 rad/s, 400 steps a turn: Newton diverged);
+#: at 0.95 and below it ran, the resolved modes' multipliers the same to 2e-4.
+FALLBACK_SPECTRAL_RADIUS = 0.9
 
 #: Newton iterations that put a perturbed start back on the constraints, and the residual
 #: (relative to max(1, |q|)) accepted where they stall at round-off.
@@ -107,6 +114,9 @@ class FloquetAnalysis:
     basis: Array
     periodicity: float
     independent: list[str] = field(default_factory=list)
+    #: The solver of the runs (the default's spectral radius lowered to
+    #: :data:`FALLBACK_SPECTRAL_RADIUS` if a run failed at :data:`SPECTRAL_RADIUS`).
+    solver: Any = None
 
     @property
     def exponents(self) -> NDArray[np.complex128]:
@@ -175,7 +185,8 @@ def floquet(
     velocity constraints). `step_size`: the runs' step (s); they take `solver` (default
     generalized-alpha of spectral radius 0.99, Newton's tolerance 1e-13, fixed steps, the
     Newton matrix refreshed every iteration: the differences of the runs must not see their
-    solver's tolerances or step changes). `perturbation`: eps, the displacement of each
+    solver's tolerances or step changes; if one of its runs diverges, all are made again at
+    spectral radius 0.9, see ``analysis.solver``). `perturbation`: eps, the displacement of each
     independent coordinate (m, rad, elastic coordinates) and, times 2 pi / T, of its
     velocity: small against the motions' nonlinearity (the beams of the flexible double
     pendulum, geometric stiffness on, put 2e-5 into |mu| at 1e-5, 4e-8 at 1e-6), large
@@ -192,9 +203,7 @@ def floquet(
     and finite, a state of another model, or a state that does not come back after a period
     (naming the coordinate that changed most), `ArgumentTypeError` for a state that is no
     :class:`flexmbd.State`."""
-    from ._boundary import GeneralizedAlpha
     from .analysis import _check_state, _model
-    from .simulation import simulate
 
     model = _model(system, "system")
     if not isinstance(state, State):
@@ -220,19 +229,74 @@ def floquet(
     if state.accelerations is None:
         state = dataclasses.replace(state, accelerations=np.zeros(model.coordinate_count))
     _check_state(model, state, "floquet")
-    if solver is None:
-        solver = GeneralizedAlpha(
-            spectral_radius=SPECTRAL_RADIUS,
-            newton_tolerance=NEWTON_TOLERANCE,
-            step_control="fixed",
-            jacobian="full",
-        )
+    default = solver is None
+    if default:
+        solver = _default_solver(SPECTRAL_RADIUS)
     chart = _Chart(model, state)
     n = chart.size
     end = state.time + period
     scales = np.concatenate(
         [np.full(n, perturbation), np.full(n, perturbation * 2 * np.pi / period)]
     )
+
+    try:
+        monodromy, change, worst = _monodromy(
+            model, chart, end, step_size, solver, scales, period, periodicity, progress, workers
+        )
+    except (NewtonDivergedError, NonFiniteError):
+        if not default:
+            raise
+        # Unresolved modes hardly damped at 0.99 can run away (see FALLBACK_SPECTRAL_RADIUS):
+        # the whole analysis again, every run with the same, more damping solver.
+        solver = _default_solver(FALLBACK_SPECTRAL_RADIUS)
+        monodromy, change, worst = _monodromy(
+            model, chart, end, step_size, solver, scales, period, periodicity, progress, workers
+        )
+    values, vectors = np.linalg.eig(monodromy)
+    order = np.lexsort((values.imag, -np.abs(values)))
+    return FloquetAnalysis(
+        period=period,
+        state=chart.start,
+        monodromy=monodromy,
+        multipliers=values[order],
+        vectors=vectors[:, order],
+        basis=chart.basis,
+        periodicity=float(change[worst]) if len(change) else 0.0,
+        independent=list(chart.names),
+        solver=solver,
+    )
+
+
+def _default_solver(spectral_radius: float) -> Any:
+    """The default solver of the runs (see :func:`floquet`) at `spectral_radius`."""
+    from ._boundary import GeneralizedAlpha
+
+    return GeneralizedAlpha(
+        spectral_radius=spectral_radius,
+        newton_tolerance=NEWTON_TOLERANCE,
+        step_control="fixed",
+        jacobian="full",
+    )
+
+
+def _monodromy(
+    model: Any,
+    chart: _Chart,
+    end: float,
+    step_size: float,
+    solver: Any,
+    scales: Array,
+    period: float,
+    periodicity: float,
+    progress: Any,
+    workers: int,
+) -> tuple[Array, Array, int]:
+    """The monodromy matrix from the runs with `solver` (see :func:`floquet`), with the
+    change of the start state over the period and its largest entry; refuses a state that
+    does not come back."""
+    from .simulation import simulate
+
+    n = chart.size
 
     def run(start: State) -> Array:
         result = simulate(
@@ -268,18 +332,7 @@ def floquet(
     columns = _columns(column, 2 * n, min(workers, 2 * n))
     for j, values in track_progress(columns, progress, "floquet", total=2 * n, unit="columns"):
         monodromy[:, j] = values
-    values, vectors = np.linalg.eig(monodromy)
-    order = np.lexsort((values.imag, -np.abs(values)))
-    return FloquetAnalysis(
-        period=period,
-        state=chart.start,
-        monodromy=monodromy,
-        multipliers=values[order],
-        vectors=vectors[:, order],
-        basis=chart.basis,
-        periodicity=float(change[worst]) if len(change) else 0.0,
-        independent=list(chart.names),
-    )
+    return monodromy, change, worst
 
 
 def _workers(workers: Any) -> int:

@@ -921,6 +921,15 @@ def _body_from_nodal(
         _node_indices(s, sets, f"interfaces[{i}]")
         for i, s in enumerate(_interface_selections(interfaces))
     ]
+    if modes == "craig-bampton" and not members:
+        # (It was refused by the reference conditions: "clamped reference conditions need at
+        # least one node (reference_nodes)", of which the call said nothing.)
+        raise InvalidModelError(
+            "Craig-Bampton modes need interfaces: the node sets where the body meets the rest "
+            "of the model (interfaces=[...]; the first one carries the frame with "
+            "reference='interface')",
+            item="interfaces",
+        )
     ref_nodes = _node_indices(reference_nodes, sets, "reference_nodes")
     kind = reference
     if reference == "interface":
@@ -1234,12 +1243,26 @@ def _check_held(
     held = ", ".join(str(int(ids[n])) for n in ref_nodes[:6])
     if len(ref_nodes) > 6:
         held += f", ... ({len(ref_nodes)} nodes)"
+    advice = (
+        "Choose nodes that are not on one line (3-2-1: b off a, c off the line a-b) or clamp "
+        "more nodes"
+    )
+    if reference in ("simply-supported", "3-2-1") and len(ref_nodes) >= 2:
+        # Those conditions hold the body's own axes: b on a's x axis (and c in its x-y
+        # plane). A beam along y held so had its twist about x held instead of about its
+        # axis, and the advice was about nodes on one line (found by a fault hunt).
+        chord = nodes[ref_nodes[1]] - nodes[ref_nodes[0]]
+        off = np.linalg.norm(chord[1:]) > 1e-9 * max(float(np.linalg.norm(chord)), 1e-300)
+        if off:
+            advice = (
+                f"{reference!r} holds the body's own axes: node b must lie on the x axis of "
+                f"node a (here a to b is {_vector_text(chord)}); mesh the part along x and "
+                "turn the body (its orientation when added to a System), or use 'clamped'"
+            )
     raise InvalidModelError(
         f"reference={reference!r} at nodes {held} leaves {what} free (the coordinates they "
         "remove do not hold the six rigid motions: nodes on one line, or a solid held at "
-        "one node): the body frame is not defined and the stiffness is singular. Choose "
-        "nodes that are not on one line (3-2-1: b off a, c off the line a-b) or clamp more "
-        "nodes",
+        f"one node): the body frame is not defined and the stiffness is singular. {advice}",
         item=f"node {int(ids[ref_nodes[0]])}" if len(ref_nodes) else "reference_nodes",
     )
 
