@@ -855,6 +855,18 @@ def test_floquet_starts_from_the_model_files_start(tmp_path, monkeypatch, capsys
     assert "does not come back" in capsys.readouterr().err
 
 
+def test_modes_say_when_a_driver_accelerates_the_structure(tmp_path, monkeypatch, capsys):
+    # A blade whose hub accelerates from rest (angle 10 t^2 / 2) has no steady rotation: its
+    # modes are about the equilibrium with the driver's acceleration, its inertia loads
+    # deflecting it, which the command called "the static equilibrium" (found by a fault
+    # hunt).
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "spin.yaml").write_text(ROTOR.replace("[0.0, 20.0]", "[0.0, 0.0, 5.0]"))
+    assert main(["modes", "spin.yaml", "--count", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "about the equilibrium at t = 0 with the drivers' accelerations" in out
+
+
 def test_floquet_prints_the_multipliers_of_a_periodic_motion(capsys):
     # A01's pendulum released from the horizontal swings with the period 4 sqrt(L / g)
     # K(1/2) (complete elliptic integral): a conservative periodic motion, its multipliers

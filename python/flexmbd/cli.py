@@ -893,7 +893,18 @@ def _linearized(system: Any) -> tuple[Any, Any, str]:
     except InvalidModelError:
         pass
     try:
-        return linearize(model, equilibrium(model)), model, "the static equilibrium"
+        state = equilibrium(model)
+        about = "the static equilibrium"
+        accelerations = state.accelerations if state.accelerations is not None else ()
+        if any(a != 0.0 for a in accelerations):
+            # (A driver accelerating at t = 0 loads the structure with its inertia: the state
+            # is deflected by it, which "static equilibrium" did not say; found by a fault
+            # hunt.)
+            about = (
+                "the equilibrium at t = 0 with the drivers' accelerations (quasi-static: their "
+                "inertia loads deflect it)"
+            )
+        return linearize(model, state), model, about
     except FreeMotionError:
         unloaded = system.without_loads()
         linear = linearize_at_rest(unloaded)
