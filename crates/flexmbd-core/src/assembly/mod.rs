@@ -568,13 +568,14 @@ fn assemble_flexible(
     // condensed solves replace the elastic block of a condensed body, their matrix leaves the
     // attached masses out altogether, as its other nonlinear terms (with only their reference
     // block, or their coupling at the projections, a tumbling soft beam's iteration diverged).
-    let attached: Vec<Vec<f64>> = if request.matrix.is_some() && c.needs_tangent() && blocks.elastic {
+    let elastic_tangent = request.matrix.is_some() && c.needs_tangent() && blocks.elastic;
+    let attached: Vec<Vec<f64>> = if elastic_tangent {
         let mc = [c.mass, c.velocity, c.position];
         fb.attached.iter().map(|m| flexible::attached_jacobian(m, q, qd, qdd, gravity, mc)).collect()
     } else {
         Vec::new()
     };
-    if request.matrix.is_some() && c.needs_tangent() && blocks.elastic {
+    if elastic_tangent {
         let ev = &mut work.elastic_values;
         ev.iter_mut().for_each(|x| *x = 0.0);
         let tangent = Some((c.position, c.velocity, &mut ev[..]));
