@@ -7,6 +7,7 @@ them, and bad input is named."""
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.optimize import brentq
 
 import flexmbd as fm
@@ -427,3 +428,87 @@ def test_mass_points_have_the_mass_centre_and_second_moments(mass, inertia, coun
     second = np.einsum("p,pi,pj->ij", masses, arms, arms)
     expected = np.trace(inertia) / 2 * np.eye(3) - np.asarray(inertia)
     assert_close(second, expected, abs=1e-15, what="second moments")
+
+
+def test_a_body_records_its_point_masses_and_is_added_without_assembling_again(
+    tmp_path, monkeypatch, assert_close
+):
+    # build_body records its point masses (`FlexibleBodyData.point_masses`), kept by the body
+    # file and the variants; adding the body takes its offset masses from the record instead
+    # of assembling the elements again to tell them from the mass matrix (which doubled the
+    # time to add a large shell plate). A body file of an earlier flexmbd (no record) still
+    # gives the same attached masses from its mass matrix.
+    import dataclasses
+
+    import h5py
+
+    import flexmbd.fe.body_variants as variants
+    from flexmbd.system import _attached_masses
+
+    inertia, offset = np.diag([1e-4, 2e-4, 3e-4]), np.array([0.02, -0.01, 0.03])
+    body = cantilever({20: (0.4, inertia, offset), 5: 0.3}, modes="fixed-interface", mode_count=6)
+    record = body.point_masses
+    assert record["nodes"].tolist() == [20, 5]
+    assert_close(record["mass"], [0.4, 0.3], rel=1e-15, what="masses")
+    assert_close(record["inertia"][0], inertia, abs=1e-18, what="inertia")
+    assert_close(record["offset"], [offset, np.zeros(3)], abs=1e-18, what="offsets")
+    assert cantilever().point_masses["nodes"].shape == (0,)
+    for variant in (
+        body.with_material(density=2 * RHO),
+        body.with_modes(None),
+        body.with_stiffness_scale(2.0),
+    ):
+        assert variant.point_masses["nodes"].tolist() == [20, 5]
+        assert_close(variant.point_masses["inertia"], record["inertia"], abs=0.0)
+    path = tmp_path / "beam.h5"
+    fm.fe.save_body(body, path)
+    loaded = fm.fe.load_body(path)
+    assert_close(loaded.point_masses["offset"], record["offset"], abs=0.0, what="file")
+
+    def basis(data):
+        full = np.zeros((data.dof_count, data.elastic_coordinate_count))
+        full[data.reference.free_dofs] = data.modes
+        return sp.csr_matrix(full)
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("the elements were assembled again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(variants, "_assembled", forbidden)
+        recorded = _attached_masses(loaded, basis(loaded))
+        fm.System().add_flexible_body(loaded)
+    assert len(recorded) == 1
+    # Without the record (dataclasses.replace, or a file without the member): the same.
+    with h5py.File(path, "r+") as file:
+        del file["point_masses"]
+    older = fm.fe.load_body(path)
+    assert older.point_masses is None
+    for other in (older, dataclasses.replace(body, point_masses=None)):
+        derived = _attached_masses(other, basis(other))
+        assert len(derived) == 1
+        for got, expected in zip(derived[0], recorded[0], strict=True):
+            assert_close(got, expected, abs=1e-12 * max(np.abs(expected).max(), 1.0))
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"nodes": np.array([21, 5])}, r"point_masses\[\"nodes\"\].*node index 21"),
+        ({"mass": np.array([0.4, -0.3])}, r"point_masses\[\"mass\"\].*>= 0"),
+        ({"offset": np.zeros((2, 2))}, r"point_masses\[\"offset\"\].*expected \(2, 3\)"),
+        ({"inertia": np.full((2, 3, 3), np.nan)}, r"point_masses\[\"inertia\"\].*finite"),
+        ({"offsets": np.zeros((2, 3))}, r"point_masses.*must be None or a dict"),
+    ],
+)
+def test_a_bad_record_of_point_masses_is_named(change, match):
+    from flexmbd.errors import ModelError
+    from flexmbd.fe.body import check_body
+
+    body = cantilever({20: 0.4, 5: 0.3})
+    record = {key: np.array(value) for key, value in body.point_masses.items()}
+    record.update(change)
+    if "offsets" in change:
+        del record["offset"]
+    values = {item: getattr(body, item) for item in body.__dataclass_fields__}
+    with pytest.raises(ModelError, match=match):
+        check_body({**values, "point_masses": record})

@@ -265,18 +265,18 @@ def _check_rigid(
 
 def _attached_masses(body: FlexibleBodyData, basis: sp.csr_matrix) -> list[tuple[Any, ...]]:
     """The point masses of a meshed beam or shell body that have a rotary inertia or an
-    offset (`build_body`'s `point_masses`, read back from its mass matrix beyond its
-    elements'), as the core's attached masses (`body/flexible/attached.rs`): the columns q_l
-    their node depends on, the node's rows [u; theta] of `basis` (6, n_l), its position and
-    mass points with the mass's mass, centre and second moments (:func:`mass_points`). The
-    invariants hold these masses turning with the node's small rotation linearly; the core
-    adds the second order of that turn."""
-    from .fe.body_variants import _assembled, _has_mesh, _point_masses
+    offset (`build_body`'s `point_masses`: its record, or for bodies of older files, its mass
+    matrix beyond its elements'), as the core's attached masses (`body/flexible/attached.rs`):
+    the columns q_l their node depends on, the node's rows [u; theta] of `basis` (6, n_l),
+    its position and mass points with the mass's mass, centre and second moments
+    (:func:`mass_points`). The invariants hold these masses turning with the node's small
+    rotation linearly; the core adds the second order of that turn."""
+    from .fe.body_variants import _has_mesh, recorded_point_masses
 
     if body.dofs_per_node != 6 or not _has_mesh(body):
         return []
     try:
-        lumps = _point_masses(body, _assembled(body, form_i_kl=False).mass)
+        lumps = recorded_point_masses(body)
     except (FlexmbdError, KeyError, TypeError, ValueError):
         # A body whose elements cannot be assembled again (a body file's section without its
         # moments) or whose mass beyond them is not point masses: its masses, if any, keep the

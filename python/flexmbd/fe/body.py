@@ -458,6 +458,13 @@ class FlexibleBodyData:
         units: names of the units of length, mass and time.
         metadata: free-form strings (source file, creation date, "variants": the ``with_*``
             methods applied, ...).
+        point_masses: the concentrated masses that `build_body` added to the elements'
+            (its `point_masses`, Nastran's CONM2): {"nodes": (k,) indices into ``nodes``,
+            "mass": (k,), "inertia": (k, 3, 3) rotary inertia about each centre of mass,
+            "offset": (k, 3) centre of mass from the node}, empty (k = 0) for a body built
+            without them; None where not recorded (bodies built from matrices, body files of
+            an earlier flexmbd: the masses are then told from the mass matrix beyond the
+            elements', which costs an assembly of the elements).
         version: data layout version.
     """
 
@@ -485,6 +492,7 @@ class FlexibleBodyData:
         default_factory=lambda: {"length": "m", "mass": "kg", "time": "s"}
     )
     metadata: dict[str, str] = field(default_factory=dict)
+    point_masses: dict[str, NDArray[Any]] | None = None
     version: int = BODY_DATA_VERSION
 
     def __post_init__(self) -> None:
@@ -898,9 +906,41 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
         if modes is not None and len(array) != elastic:
             raise _bad_shape("frequencies", f"has {len(array)} entries for {elastic} modes")
     _check_damping(values.get("damping"), modes is not None)
+    _check_point_masses(values.get("point_masses"), count)
     # Read as mappings: the typed Invariants of a body, or the dict read from a body file
     # before it becomes one.
     _check_invariants(values["invariants"], elastic)
+
+
+#: The entries of `FlexibleBodyData.point_masses` and their shapes after the count k.
+_POINT_MASS_SHAPES = {"nodes": (), "mass": (), "inertia": (3, 3), "offset": (3,)}
+
+
+def _check_point_masses(record: Any, count: int) -> None:
+    """The recorded concentrated masses: None, or "nodes" indices of existing nodes and
+    finite "mass" >= 0, "inertia" (k, 3, 3) and "offset" (k, 3) of the same count k."""
+    if record is None:
+        return
+    if not isinstance(record, Mapping) or set(record) != set(_POINT_MASS_SHAPES):
+        raise _bad_shape(
+            "point_masses",
+            f"must be None or a dict with the entries {list(_POINT_MASS_SHAPES)}, got "
+            f"{sorted(record) if isinstance(record, Mapping) else type(record).__name__}",
+        )
+    size = np.shape(record["nodes"])[:1]
+    _index_array(record["nodes"], 'point_masses["nodes"]', count, "node")
+    for key, shape in _POINT_MASS_SHAPES.items():
+        if key == "nodes":
+            continue
+        path = f'point_masses["{key}"]'
+        array = _numeric_array(record[key], path)
+        if array.shape != size + shape:
+            raise _bad_shape(path, f"has shape {array.shape}, expected {size + shape}")
+        if not _all_finite(array) or (key == "mass" and array.size and array.min() < 0):
+            raise InvalidParameterError(
+                f"{_field(path)} must be finite" + (" and >= 0" if key == "mass" else ""),
+                item=_field(path),
+            )
 
 
 def _check_interfaces(reference: Mapping[str, Any], count: int) -> None:

@@ -13,7 +13,8 @@ Root attributes:
 * ``writer``: ``"flexmbd <version>"``, for information only.
 
 Every other field of :class:`FlexibleBodyData` is a member of the root group with the field's
-name (``damping``, added later to version 1, may be missing: it then reads as None, undamped).
+name (``damping``, ``shell`` and ``point_masses``, added later to version 1, may be missing: they
+then read as None: undamped, no shell section, point masses not recorded).
 ``reference`` (a :class:`~flexmbd.fe.body.ReferenceConditions`) and ``invariants`` (an
 :class:`~flexmbd.fe.body.Invariants`) are stored as ``dict`` groups of their entries, one member
 per field in field order (the optional fields of the reference conditions that are None are
@@ -89,7 +90,7 @@ COMPRESSION_THRESHOLD_BYTES = 64 * 1024
 # Fields kept as root attributes rather than members.
 _ATTRIBUTE_FIELDS = ("units", "version")
 # Fields added to layout version 1 after its first files: missing ones read as their default.
-_LATER_FIELDS = ("damping", "shell")
+_LATER_FIELDS = ("damping", "shell", "point_masses")
 _TYPE = "type"
 _NUMERIC_KINDS = "biufc"
 # A dataset may declare more bytes than the file stores (compression) by at most this factor

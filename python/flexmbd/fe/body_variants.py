@@ -287,7 +287,7 @@ def with_material(
         # A text or a list was a raw ValueError or TypeError of float().
         values[key] = number(values[key], key)
     new_material = _material(values)
-    own = _assembled(body, form_i_kl=False)
+    masses = recorded_point_masses(body)
     rebuilt = preprocess.build_body(
         body.nodes,
         body.elements,
@@ -297,7 +297,7 @@ def with_material(
         element_ids=body.element_ids,
         node_sets=body.node_sets,
         check_mesh=False,
-        point_masses=_point_masses(body, own.mass) or None,
+        point_masses=masses or None,
         **_reduction_options(body),
     )
     change = ", ".join(f"{key}={float(values[key])!r}" for key in _MATERIAL_KEYS)
@@ -321,6 +321,27 @@ def _assembled(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalBo
         element_ids=body.element_ids,
         form_i_kl=form_i_kl,
     )
+
+
+def recorded_point_masses(
+    body: FlexibleBodyData, assembled: preprocess.NodalBody | None = None
+) -> dict[int, Any]:
+    """The concentrated masses of a meshed body in `build_body`'s form (node index -> mass,
+    or (mass, inertia about the centre, offset) on nodes with rotations): those recorded in
+    ``body.point_masses``, else (bodies of an earlier flexmbd's files) read back from the
+    mass matrix beyond that of the elements, `assembled` again when not given
+    (`_point_masses`)."""
+    record = body.point_masses
+    if record is None:
+        own = assembled if assembled is not None else _assembled(body, form_i_kl=False)
+        return _point_masses(body, own.mass)
+    six = body.dofs_per_node == 6
+    return {
+        int(node): (float(mass), np.array(inertia), np.array(offset)) if six else float(mass)
+        for node, mass, inertia, offset in zip(
+            record["nodes"], record["mass"], record["inertia"], record["offset"], strict=True
+        )
+    }
 
 
 def _point_masses(body: FlexibleBodyData, assembled: sp.csc_matrix) -> dict[int, Any]:
@@ -388,7 +409,7 @@ def _nodal_body(body: FlexibleBodyData, *, form_i_kl: bool) -> preprocess.NodalB
     mass = sp.csc_matrix(body.mass)
     if _has_mesh(body):
         assembled = _assembled(body, form_i_kl=form_i_kl)
-        lumps = _point_masses(body, assembled.mass)
+        lumps = recorded_point_masses(body, assembled)
         if lumps:
             assembled = preprocess.with_point_masses(
                 assembled, body.nodes, lumps, form_i_kl=form_i_kl
@@ -493,4 +514,5 @@ def with_modes(
         units=body.units,
         damping=_checked_damping(reduced, body.damping),
         metadata=_noted(body, f"modes({described})"),
+        point_masses=body.point_masses,  # (the same masses, or still not recorded)
     )

@@ -314,6 +314,8 @@ class NodalBody:
     mass: sp.csc_matrix
     invariants: dict[str, Any]
     scalar_mass: sp.csc_matrix | None
+    #: The concentrated masses added by `with_point_masses`, checked (`point_mass_entries`).
+    point_masses: tuple[PointMass, ...] = ()
 
 
 def straight_beam(
@@ -1083,6 +1085,7 @@ def _body_from_nodal(
         shell=None
         if shell is None
         else {"thickness": shell.thickness, "shear_factor": shell.shear_factor},
+        point_masses=point_mass_record(nodal.point_masses),
     )
 
 
@@ -1933,6 +1936,17 @@ def point_mass_matrix(
     return _entries_matrix(entries, node_count, dofs_per_node)
 
 
+def point_mass_record(entries: Sequence[PointMass]) -> dict[str, NDArray[Any]]:
+    """The concentrated masses `entries` as `FlexibleBodyData.point_masses`: "nodes" (k,)
+    indices, "mass" (k,), "inertia" (k, 3, 3) about each centre, "offset" (k, 3)."""
+    return {
+        "nodes": np.array([entry[0] for entry in entries], dtype=np.int64),
+        "mass": np.array([entry[1] for entry in entries], dtype=float),
+        "inertia": np.array([entry[2] for entry in entries], dtype=float).reshape(-1, 3, 3),
+        "offset": np.array([entry[3] for entry in entries], dtype=float).reshape(-1, 3),
+    }
+
+
 def _entries_matrix(entries: Sequence[PointMass], node_count: int, d: int) -> sp.csc_matrix:
     """The nodal mass matrix of checked concentrated masses (`point_mass_matrix`)."""
     rows: list[int] = []
@@ -2049,6 +2063,7 @@ def with_point_masses(
         mass=(nodal.mass + extra).tocsc(),
         invariants=invariants,
         scalar_mass=scalar,
+        point_masses=tuple(entries),
     )
 
 
