@@ -602,16 +602,18 @@ def test_sparse_matrices_with_unsorted_or_duplicate_indices_load_canonical(tmp_p
     member = "invariants/i_kl/1/1"
     with h5py.File(path, "r") as file:
         data, indices, indptr = (file[f"{member}/{name}"][...] for name in DATA_INDICES_INDPTR)
-    # Each column in reverse order, and its first entry split into two halves.
+    # Each column in reverse order, and the first entry of the first column with two or more
+    # split into two halves.
     order = np.concatenate(
         [np.arange(start, end)[::-1] for start, end in zip(indptr[:-1], indptr[1:], strict=True)]
     )
-    assert np.diff(indptr)[0] >= 2
+    column = int(np.flatnonzero(np.diff(indptr) >= 2)[0])
+    at = indptr[column]
     data, indices = data[order], indices[order]
-    data = np.concatenate([[data[0] / 2, data[0] / 2], data[1:]])
-    indices = np.concatenate([[indices[0]], indices]).astype(indices.dtype)
+    data = np.concatenate([data[:at], [data[at] / 2, data[at] / 2], data[at + 1 :]])
+    indices = np.concatenate([indices[: at + 1], indices[at:]]).astype(indices.dtype)
     indptr = indptr.copy()
-    indptr[1:] += 1
+    indptr[column + 1 :] += 1
     for name, value in zip(DATA_INDICES_INDPTR, (data, indices, indptr), strict=True):
         damaged(path, f"{member}/{name}", value)
 

@@ -47,18 +47,20 @@ SI_UNITS = {"length": "m", "mass": "kg", "time": "s"}
 def _csc_tuple(
     m: Any, n: int
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
-    """(data, indices, indptr, n) of a square matrix (dense or sparse), indices sorted and
-    without duplicates. `m` is not changed: a body's matrices are read-only (and a CSC matrix
-    of floats shares its arrays with `c`), so a matrix that is not canonical is sorted in a
-    copy."""
+    """(data, indices, indptr, n) of a square matrix (dense or sparse), indices sorted,
+    without duplicates and without stored zeros (a body of an earlier flexmbd's file kept
+    its element patterns' zeros, which the core's products and patterns would carry). `m` is
+    not changed: a body's matrices are read-only (and a CSC matrix of floats shares its
+    arrays with `c`), so a matrix that is not canonical is mended in a copy."""
     import scipy.sparse as sp
 
     c = sp.csc_matrix(m, dtype=float)
     if c.shape != (n, n):
         raise InvalidParameterError(f"matrix of shape {c.shape}, expected ({n}, {n})")
-    if not c.has_canonical_format:
+    if not c.has_canonical_format or not np.all(c.data):
         c = c.copy()
         c.sum_duplicates()
+        c.eliminate_zeros()
     return (
         np.ascontiguousarray(c.data, dtype=float),
         np.ascontiguousarray(c.indices, dtype=np.int64),

