@@ -212,3 +212,43 @@ def test_a_sleeping_top_has_a_free_spin_and_no_false_instability(assert_close):
     rates = np.sort(np.roots([tipped, -axial * spin, mass * g * arm]).real)
     # (the run's state, not exactly asleep: 4e-6 off the precession)
     assert_close(linear.frequencies() * 2 * np.pi, rates, rel=1e-5, what="rad/s")
+
+
+def test_at_rest_with_loads_a_weld_on_an_elastic_node_carries_only_its_share(assert_close):
+    # A steel rod hanging from a hinge with 2 kg at its lower end, as a rigid body welded to
+    # the end node's marker: the least-squares balance of every row let the weld's
+    # multipliers take the rod's elastic rows' gravity too (which the deflection carries),
+    # and the pendulum swung at 2.745 rad/s instead of 3.351. Now as about the equilibrium
+    # and as with the mass a point mass of the rod (within the equilibrium's deflection).
+    g, mass = 9.81, 2.0
+    section = fm.fe.Section.circle(0.01)
+    nodes, elements = fm.fe.straight_beam(1.0, 10)
+    down = fm.rotation("z", -np.pi / 2)
+
+    def pendulum(welded):
+        body = fm.fe.build_body(
+            nodes, elements, fm.fe.Material(E, NU, RHO), section=section, reference="clamped",
+            reference_nodes=[0], point_masses=None if welded else {10: mass},
+        )  # fmt: skip
+        system = fm.System(gravity=(0.0, -g, 0.0))
+        arm = system.add_flexible_body(body, orientation=down, name="arm")
+        system.add_revolute_joint(system.add_marker(system.ground), system.add_node_marker(arm, 1))
+        if welded:
+            tip = system.add_rigid_body(
+                mass, np.diag([1e-6] * 3), position=down @ nodes[10], orientation=down
+            )
+            system.add_fixed_joint(system.add_node_marker(arm, 11), system.add_marker(tip))
+        return system
+
+    def swing(linear):
+        values = np.abs(linear.eigenvalues()[0])
+        return float(np.min(values[values > 1e-6]))
+
+    rod = RHO * section.area
+    rigid = np.sqrt(g * (rod / 2 + mass) / (rod / 3 + mass))  # (the rigid rod, L = 1 m)
+    for welded in (True, False):
+        system = pendulum(welded)
+        at_rest = swing(fm.linearize_at_rest(system, loads=True))
+        about = swing(fm.linearize(system, fm.equilibrium(system)))
+        assert_close(at_rest, about, rel=1e-6, what=f"welded {welded}: at rest vs equilibrium")
+        assert_close(at_rest, rigid, rel=1e-4, what=f"welded {welded}: against the rigid rod")

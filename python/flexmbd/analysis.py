@@ -2226,6 +2226,39 @@ def _refuse_stray_ids(model: Any, inputs: Sequence[Any], outputs: Sequence[Any])
             raise stray_id_error(stray, "linearize", item_name(identity, stray))
 
 
+def _multipliers_at_rest(model: _core.Model, time: float, q: Array, ev: dict[str, Any]) -> Array:
+    """The joints' multipliers that carry the loads at rest in configuration `q`: with the
+    linear static deflection of the elastic coordinates, [K_af, C_q^T; C_qf, 0] [dq_f;
+    lambda] = [-F; 0] in least squares (the reference coordinates held where they are; K_af
+    the tangent stiffness's elastic columns). Their geometric stiffness is a hanging
+    pendulum's frequency (with zero multipliers it had none, and the upright four-bar's
+    +-3.43 were 0). The elastic rows are balanced by the deflection, not by the multipliers:
+    in a least-squares balance of every row a weld on an elastic node took the rows' load
+    on itself, and a rod hanging with a rigid tip body welded to it swung 18 % slow; and
+    where supports are redundant (a beam in two bearings) the deflection shares the load
+    between them as the structure does."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    matrix = _matrix(ev)
+    elastic = np.flatnonzero(_elastic_mask(model.describe()))
+    cq = matrix[nq:, :nq].toarray()
+    count = len(elastic)
+    system = np.zeros((nq + nc, count + nc))
+    system[:nq, :count] = matrix[:nq, :nq][:, elastic].toarray()
+    system[:nq, count:] = cq.T
+    system[nq:, :count] = cq[:, elastic]
+    rest = ev["residual"][:nq]
+    solution = np.linalg.lstsq(system, np.concatenate([-rest, np.zeros(nc)]), rcond=None)[0]
+    deflected = q.copy()
+    deflected[elastic] += solution[:count]
+    zeros = np.zeros(nq)
+    for sign in (1.0, -1.0):  # (the residual's sign convention of the multipliers)
+        multipliers = sign * solution[count:]
+        balanced = model.evaluate(time, deflected, zeros, zeros, multipliers)["residual"][:nq]
+        if np.linalg.norm(balanced) <= np.linalg.norm(rest):
+            break
+    return multipliers
+
+
 def linearize_at_rest(
     system: _core.System | _core.Model,
     time: float = 0.0,
@@ -2284,15 +2317,7 @@ def linearize_at_rest(
         )
     multipliers = np.zeros(nc)
     if loads and nc:
-        # The joints carry the loads at rest: the multipliers that balance them (least
-        # squares), whose geometric stiffness a hanging pendulum's frequency is (with zero
-        # multipliers it had none, and the upright four-bar's +-3.43 were 0).
-        cq = _matrix(ev)[nq:, :nq].toarray()
-        rest = ev["residual"][:nq]
-        multipliers = np.linalg.lstsq(cq.T, -rest, rcond=None)[0]
-        balanced = model.evaluate(time, q, zeros, zeros, multipliers)["residual"][:nq]
-        if np.linalg.norm(balanced) > np.linalg.norm(rest):
-            multipliers = -multipliers  # (the residual's sign convention)
+        multipliers = _multipliers_at_rest(model, time, q, ev)
     state = State(
         time,
         q,
