@@ -212,3 +212,37 @@ def test_runs_in_threads_give_the_same_monodromy():
     for wrong in (0, -1, 1.5, True, "2"):
         with pytest.raises(InvalidParameterError, match="workers must be a whole number"):
             fm.floquet(model, state, period, period / 200, workers=wrong)
+
+
+def test_a_rotor_with_modes_far_beyond_the_step_is_stable_at_the_default_steps():
+    # The overhung rotor of the examples at 100 rad/s (stable: its eigenvalues on the
+    # imaginary axis) has modes up to |s| h = 7231 at 400 steps a turn. A run started off the
+    # periodic motion sets them moving, and at spectral radius 0.99 they had not died away
+    # after the turn: multipliers up to 75, "11 growing motions". The default solver now damps
+    # them within the period; the resolved modes' |mu| then differ from 1 by 0.45 times the
+    # periodicity (the runs' error, 7.4e-5), which the neutral band holds.
+    import sys
+
+    from flexmbd.model_file import load_model
+
+    floquet_module = sys.modules["flexmbd.floquet"]
+    model = load_model("examples/models/overhung_rotor.yaml").system.compile()
+    state = fm.steady_rotation(model)
+    period = 2 * np.pi / 100.0
+    analysis = fm.floquet(model, state, period, period / 400)
+    assert analysis.stiffest > 7000 and not analysis.fallback
+    assert analysis.solver.spectral_radius < 0.96
+    assert analysis.stable and analysis.neutral == analysis.periodicity
+    assert np.abs(analysis.multipliers).max() - 1 < 0.6 * analysis.periodicity
+    # The resolved modes: exp(s T) of the linearization's slowest eigenvalues.
+    values = fm.linearize(model, state).eigenvalues()[0]
+    slow = values[np.abs(values) * period / 400 < 0.05]
+    assert len(slow) >= 6
+    expected = np.exp(slow * period)
+    near = np.abs(analysis.multipliers[:, None] - expected[None, :]).min(axis=0)
+    assert near.max() < 2e-3
+    # At 0.99 the unresolved modes stay.
+    undamped = fm.floquet(
+        model, state, period, period / 400, solver=floquet_module._default_solver(0.99)
+    )
+    assert np.abs(undamped.multipliers).max() > 10 and not undamped.stable

@@ -966,13 +966,16 @@ def _floquet(args: argparse.Namespace) -> int:
     radius = getattr(analysis.solver, "spectral_radius", None)
     if radius is not None and radius != SPECTRAL_RADIUS:
         print(
-            f"(a run diverged at spectral radius {SPECTRAL_RADIUS}: every run made again at "
-            f"{radius})"
+            f"(spectral radius {radius:.4g}: the steps leave modes up to |s| h = "
+            f"{analysis.stiffest:.3g} unresolved, damped within the period)"
+            if not analysis.fallback
+            else f"(a run diverged at a spectral radius of {SPECTRAL_RADIUS} or lower: every "
+            f"run made again at {radius:.4g})"
         )
     print("   k  multiplier                    |mu|        growth (1/s)  note")
     drifts = analysis.drifts
     for k, (mu, exponent) in enumerate(zip(analysis.multipliers, analysis.exponents, strict=True)):
-        note = "drift" if drifts[k] else ("grows" if abs(mu) > 1.0 + NEUTRAL else "")
+        note = "drift" if drifts[k] else ("grows" if abs(mu) > 1.0 + analysis.neutral else "")
         print(
             f"{k + 1:4d}  {mu.real:+.6e} {mu.imag:+.6e}i  {abs(mu):.8f}  {exponent.real:+.4e}  "
             f"{note}"
@@ -984,6 +987,11 @@ def _floquet(args: argparse.Namespace) -> int:
         print(f"unstable: {n} growing motion{'s' if n != 1 else ''}")
     if analysis.periodicity > 0.0:
         print(f"periodicity: the start state came back within {analysis.periodicity:.2g}")
+    if analysis.neutral > NEUTRAL:
+        print(
+            f"(multipliers within {analysis.neutral:.2g} of the unit circle, the runs' error "
+            "shown by the periodicity, are taken as neutral; more steps narrow it)"
+        )
     return 0
 
 

@@ -47,6 +47,10 @@ Array = NDArray[np.float64]
 #: the differences' own error: 1e-11 on rigid models, 4e-8 on the flexible double pendulum
 #: (whose beams' geometric stiffness is cubic in their deflection).
 NEUTRAL = 1e-5
+#: ... or, when larger, within the start state's change over the period (its periodicity):
+#: the runs' error, which shows there, shows in |mu| too (the overhung rotor of the examples
+#: at 100 rad/s, stable: |mu| - 1 = 0.45 times the periodicity at 200, 400, 800 and 1600
+#: steps a turn, 7.4e-5 at 400; as growing motions they made a stable rotor "unstable").
 
 #: Real multipliers within this distance of 1 whose eigenvectors are within
 #: :data:`DRIFT_COSINE` of parallel (|cos| at least) are a split double 1, a drift
@@ -77,6 +81,19 @@ SPECTRAL_RADIUS = 0.99
 #: perturbed by 1e-6 m (a 4-element blade at 20 rad/s, 400 steps a turn: Newton diverged);
 #: at 0.95 and below it ran, the resolved modes' multipliers the same to 2e-4.
 FALLBACK_SPECTRAL_RADIUS = 0.9
+
+#: The default solver damps the modes its steps do not resolve within the period: a run
+#: started off the periodic motion sets them moving (in generalized-alpha's first steps by
+#: about |s| h times the perturbation), and at spectral radius rho they decay as rho^N over
+#: the N steps of the period. Where the stiffest mode of the linearization at the start,
+#: |s| h times 0.99^N, is above :data:`UNRESOLVED_LIMIT`, the spectral radius is lowered to
+#: (:data:`UNRESOLVED_DECAY` / (|s| h))^(1 / N): the overhung rotor of the examples at 100
+#: rad/s, 400 steps a turn, has modes up to |s| h = 7231, whose start put multipliers of up
+#: to 75 (11 "growing" motions) into the analysis of a stable rotor at 0.99 (2.3 left at
+#: 0.98: |mu| 11; 0.036 at 0.97: none); the flexible double pendulum's axial mode (|s| h =
+#: 3.1, 0.056 at 0.99) cost 1.9e-7.
+UNRESOLVED_LIMIT = 1.0
+UNRESOLVED_DECAY = 1e-4
 
 #: Newton iterations that put a perturbed start back on the constraints, and the residual
 #: (relative to max(1, |q|)) accepted where they stall at round-off.
@@ -117,6 +134,12 @@ class FloquetAnalysis:
     #: The solver of the runs (the default's spectral radius lowered to
     #: :data:`FALLBACK_SPECTRAL_RADIUS` if a run failed at :data:`SPECTRAL_RADIUS`).
     solver: Any = None
+    #: |s| h of the stiffest mode of the linearization at the start (0 where not found), by
+    #: which the default solver's spectral radius was chosen (:data:`UNRESOLVED_LIMIT`).
+    stiffest: float = 0.0
+    #: A run of the default solver diverged, and every run was made again at
+    #: :data:`FALLBACK_SPECTRAL_RADIUS`.
+    fallback: bool = False
 
     @property
     def exponents(self) -> NDArray[np.complex128]:
@@ -146,15 +169,21 @@ class FloquetAnalysis:
         return drifts
 
     @property
+    def neutral(self) -> float:
+        """The distance from the unit circle within which a multiplier is neutral: the larger
+        of :data:`NEUTRAL` and the :attr:`periodicity` (the runs' error shows in both)."""
+        return max(NEUTRAL, self.periodicity)
+
+    @property
     def unstable_directions(self) -> int:
-        """How many multipliers lie outside the unit circle by more than :data:`NEUTRAL`
+        """How many multipliers lie outside the unit circle by more than :attr:`neutral`
         (a complex pair counted once), those of a drift (:attr:`drifts`) left out."""
-        outside = (np.abs(self.multipliers) > 1.0 + NEUTRAL) & ~self.drifts
+        outside = (np.abs(self.multipliers) > 1.0 + self.neutral) & ~self.drifts
         return int(np.sum(self.multipliers[outside].imag >= 0.0))
 
     @property
     def stable(self) -> bool:
-        """True when no multiplier lies outside the unit circle by more than :data:`NEUTRAL`
+        """True when no multiplier lies outside the unit circle by more than :attr:`neutral`
         (but drifts, :attr:`drifts`): the small motions about the periodic one do not grow."""
         return self.unstable_directions == 0
 
@@ -229,9 +258,10 @@ def floquet(
     if state.accelerations is None:
         state = dataclasses.replace(state, accelerations=np.zeros(model.coordinate_count))
     _check_state(model, state, "floquet")
-    default = solver is None
+    default, stiffest, fallback = solver is None, 0.0, False
     if default:
-        solver = _default_solver(SPECTRAL_RADIUS)
+        spectral_radius, stiffest = _damping_the_unresolved(model, state, period, step_size)
+        solver = _default_solver(spectral_radius)
     chart = _Chart(model, state)
     n = chart.size
     end = state.time + period
@@ -248,7 +278,8 @@ def floquet(
             raise
         # Unresolved modes hardly damped at 0.99 can run away (see FALLBACK_SPECTRAL_RADIUS):
         # the whole analysis again, every run with the same, more damping solver.
-        solver = _default_solver(FALLBACK_SPECTRAL_RADIUS)
+        solver = _default_solver(min(FALLBACK_SPECTRAL_RADIUS, spectral_radius))
+        fallback = True
         monodromy, change, worst = _monodromy(
             model, chart, end, step_size, solver, scales, period, periodicity, progress, workers
         )
@@ -264,7 +295,30 @@ def floquet(
         periodicity=float(change[worst]) if len(change) else 0.0,
         independent=list(chart.names),
         solver=solver,
+        stiffest=stiffest,
+        fallback=fallback,
     )
+
+
+def _damping_the_unresolved(
+    model: _core.Model, state: State, period: float, step_size: float
+) -> tuple[float, float]:
+    """The default solver's spectral radius: :data:`SPECTRAL_RADIUS`, lowered where the
+    modes the steps do not resolve would not die away within the period (see
+    :data:`UNRESOLVED_LIMIT`); and |s| h of the stiffest mode of the linearization at the
+    start state, by which it was chosen (0 where the linearization failed)."""
+    from .analysis import linearize
+    from .errors import FlexmbdError
+
+    try:
+        values = linearize(model, state).eigenvalues()[0]
+    except (FlexmbdError, np.linalg.LinAlgError):
+        return SPECTRAL_RADIUS, 0.0  # (a state the linearization refuses: the runs will say)
+    stiffest = float(np.max(np.abs(values), initial=0.0)) * step_size
+    steps = period / step_size
+    if stiffest * SPECTRAL_RADIUS**steps <= UNRESOLVED_LIMIT:
+        return SPECTRAL_RADIUS, stiffest
+    return float((UNRESOLVED_DECAY / stiffest) ** (1.0 / steps)), stiffest
 
 
 def _default_solver(spectral_radius: float) -> Any:
