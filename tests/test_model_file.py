@@ -942,3 +942,28 @@ def test_an_actuators_effort_sensor_is_an_output(tmp_path, assert_close):
     values = np.asarray(model.output_values(result)["servo effort"]).ravel()
     assert_close(values, result.sensor("servo effort")[:, 0], rel=0, abs=0)
     assert values[0] == 5.0  # saturated at the start (10 N m/rad x 1 rad, limit 5)
+
+
+def test_a_bad_point_mass_is_named_at_its_entry_and_line(tmp_path):
+    # The error named the body's line and "point_masses[3]" (the node), which reads as the
+    # fourth entry: now the entry's key path and line.
+    text = """\
+bodies:
+  - name: arm
+    type: flexible
+    beam: {length: 1.0, elements: 4}
+    section: {type: circle, radius: 0.01}
+    material: {young_modulus: 2.1e+11, poisson_ratio: 0.3, density: 7800.0}
+    reference: clamped
+    reference_nodes: [0]
+    point_masses:
+      - {node: 1, mass: 1.0}
+      - {node: 2, mass: 1.0}
+      - {node: 3, mass: 1.0, inertia: [[1, 2, 0], [0, 1, 0], [0, 0, 1]]}
+simulation: {end_time: 0.002, step_size: 1.0e-3}
+"""
+    (tmp_path / "model.yaml").write_text(text)
+    with pytest.raises(
+        ModelFileError, match=r"line 12: bodies\[0\]\.point_masses\[2\]: .*symmetric and positive"
+    ):
+        load_model(tmp_path / "model.yaml")

@@ -498,6 +498,14 @@ def test_a_body_records_its_point_masses_and_is_added_without_assembling_again(
         ({"offset": np.zeros((2, 2))}, r"point_masses\[\"offset\"\].*expected \(2, 3\)"),
         ({"inertia": np.full((2, 3, 3), np.nan)}, r"point_masses\[\"inertia\"\].*finite"),
         ({"offsets": np.zeros((2, 3))}, r"point_masses.*must be None or a dict"),
+        (
+            {"inertia": np.array([np.zeros((3, 3)), [[1.0, 2.0, 0], [0, 1.0, 0], [0, 0, 1.0]]])},
+            r"point_masses\[\"inertia\"\]': entry 1 must be symmetric and positive semi-definite",
+        ),
+        (
+            {"inertia": np.array([np.zeros((3, 3)), np.diag([1.0, -1.0, 1.0])])},
+            r"point_masses\[\"inertia\"\]': entry 1 must be symmetric and positive semi-definite",
+        ),
     ],
 )
 def test_a_bad_record_of_point_masses_is_named(change, match):
@@ -512,3 +520,41 @@ def test_a_bad_record_of_point_masses_is_named(change, match):
     values = {item: getattr(body, item) for item in body.__dataclass_fields__}
     with pytest.raises(ModelError, match=match):
         check_body({**values, "point_masses": record})
+
+
+def test_a_record_of_a_solid_holds_no_inertias_or_offsets():
+    from flexmbd.errors import ModelError
+    from flexmbd.fe.body import check_body
+
+    mesh = shapes.box((1.0, 0.1, 0.1), (4, 1, 1), "tet4")
+    solid = pp.build_body(mesh.nodes, mesh.elements, STEEL, point_masses={5: 2.0})
+    assert solid.point_masses["nodes"].tolist() == [5]
+    values = {item: getattr(solid, item) for item in solid.__dataclass_fields__}
+    record = {key: np.array(value) for key, value in solid.point_masses.items()}
+    record["offset"] = np.array([[0.0, 0.1, 0.0]])
+    with pytest.raises(ModelError, match=r"point_masses\[\"offset\"\]' must be zero: .* no rotat"):
+        check_body({**values, "point_masses": record})
+
+
+def test_an_overflowing_point_mass_is_named():
+    # m = 1e200 at 1e200 m: the mass block overflowed, and the error blamed m_ff against
+    # dataclasses.replace.
+    with pytest.raises(InvalidParameterError, match=r"point_masses\[4\]: the mass block overflows"):
+        cantilever({4: (1e200, None, (1e200, 0.0, 0.0))})
+
+
+@pytest.mark.parametrize(
+    ("mass", "inertia", "offset", "match"),
+    [
+        (1.0, np.full((3, 3), np.nan), np.zeros(3), r"inertia must be a finite symmetric"),
+        (1.0, np.ones((2, 2)), np.zeros(3), r"inertia must be a finite symmetric"),
+        (1.0, [[1.0, 2.0, 0], [0, 1.0, 0], [0, 0, 1.0]], np.zeros(3), r"finite symmetric"),
+        (1.0, np.eye(3), (0.0, 1.0), r"offset must be three finite numbers"),
+        (float("nan"), np.eye(3), np.zeros(3), r"mass must be finite"),
+    ],
+)
+def test_mass_points_refuse_bad_input(mass, inertia, offset, match):
+    from flexmbd.system import mass_points
+
+    with pytest.raises(InvalidParameterError, match=match):
+        mass_points(mass, inertia, offset)

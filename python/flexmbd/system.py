@@ -321,9 +321,31 @@ def mass_points(
     four equal masses at the corners of a regular tetrahedron stretched by sqrt(3 P / m)
     about it; for a P with a negative direction (an inertia no mass distribution has) or no
     mass, the centre with what is left of the mass and a pair at +-r v_k along each principal
-    direction v_k of P with the masses p_k / (2 r^2) (r = 1 m; masses may be negative)."""
-    inertia = np.asarray(inertia, dtype=float)
-    offset = np.asarray(offset, dtype=float)
+    direction v_k of P with the masses p_k / (2 r^2) (r = 1 m; masses may be negative).
+
+    Raises `InvalidParameterError` for a mass that is not a finite number, an inertia that
+    is not a finite symmetric (3, 3) matrix or an offset that is not three finite numbers."""
+    from ._checks import number, numbers_array
+
+    mass = number(mass, "mass")
+    inertia = numbers_array(inertia, "inertia")
+    offset = numbers_array(offset, "offset")
+    scale = float(np.abs(inertia).max(initial=0.0)) if np.all(np.isfinite(inertia)) else 0.0
+    if (
+        inertia.shape != (3, 3)
+        or not np.all(np.isfinite(inertia))
+        or np.abs(inertia - inertia.T).max() > 1e-12 * scale
+    ):
+        raise InvalidParameterError(
+            f"mass_points: the inertia must be a finite symmetric (3, 3) matrix, got "
+            f"{inertia.tolist()}",
+            item="inertia",
+        )
+    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise InvalidParameterError(
+            f"mass_points: the offset must be three finite numbers, got {offset.tolist()}",
+            item="offset",
+        )
     moments, directions = np.linalg.eigh(np.trace(inertia) / 2 * np.eye(3) - inertia)
     moments[np.abs(moments) <= 1e-12 * np.abs(moments).max(initial=0.0)] = 0.0  # (round-off)
     if not np.any(moments):

@@ -906,7 +906,7 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
         if modes is not None and len(array) != elastic:
             raise _bad_shape("frequencies", f"has {len(array)} entries for {elastic} modes")
     _check_damping(values.get("damping"), modes is not None)
-    _check_point_masses(values.get("point_masses"), count)
+    _check_point_masses(values.get("point_masses"), count, int(dofs_per_node))
     # Read as mappings: the typed Invariants of a body, or the dict read from a body file
     # before it becomes one.
     _check_invariants(values["invariants"], elastic)
@@ -916,9 +916,10 @@ def check_body(body: FlexibleBodyData | Mapping[str, Any]) -> None:
 _POINT_MASS_SHAPES = {"nodes": (), "mass": (), "inertia": (3, 3), "offset": (3,)}
 
 
-def _check_point_masses(record: Any, count: int) -> None:
+def _check_point_masses(record: Any, count: int, dofs_per_node: int) -> None:
     """The recorded concentrated masses: None, or "nodes" indices of existing nodes and
-    finite "mass" >= 0, "inertia" (k, 3, 3) and "offset" (k, 3) of the same count k."""
+    finite "mass" >= 0, "inertia" (k, 3, 3) symmetric positive semi-definite and "offset"
+    (k, 3) of the same count k, the inertias and offsets zero on bodies without rotations."""
     if record is None:
         return
     if not isinstance(record, Mapping) or set(record) != set(_POINT_MASS_SHAPES):
@@ -941,6 +942,24 @@ def _check_point_masses(record: Any, count: int) -> None:
                 f"{_field(path)} must be finite" + (" and >= 0" if key == "mass" else ""),
                 item=_field(path),
             )
+        if key != "mass" and dofs_per_node == 3 and np.any(array):
+            raise InvalidParameterError(
+                f"{_field(path)} must be zero: the body's nodes have no rotations",
+                item=_field(path),
+            )
+        if key == "inertia" and array.size:
+            scale = max(float(np.abs(array).max()), 1e-300)
+            bad = np.abs(array - array.transpose(0, 2, 1)).max(axis=(1, 2)) > 1e-12 * scale
+            bad |= np.linalg.eigvalsh(0.5 * (array + array.transpose(0, 2, 1))).min(axis=1) < (
+                -1e-12 * scale
+            )
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                raise InvalidParameterError(
+                    f"{_field(path)}: entry {k} must be symmetric and positive semi-definite, got "
+                    f"{array[k].tolist()}",
+                    item=_field(path),
+                )
 
 
 def _check_interfaces(reference: Mapping[str, Any], count: int) -> None:

@@ -1896,6 +1896,12 @@ def point_mass_entries(
                     f"{np.asarray(offset).tolist()}",
                     item=item,
                 )
+        if not np.isfinite(mass * float(e @ e)) or not np.all(np.isfinite(j + mass * e @ e)):
+            raise InvalidParameterError(
+                f"{item}: the mass block overflows (mass {mass:g} at offset "
+                f"{np.asarray(e).tolist()}: m |e|^2 is not a finite number)",
+                item=item,
+            )
         for what, given in (("a rotary inertia", j), ("an offset of the centre of mass", e)):
             if np.any(given) and (dofs_per_node != 6 or node in without_rotations):
                 raise InvalidParameterError(

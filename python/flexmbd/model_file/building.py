@@ -292,13 +292,17 @@ _PYTHON_NAMES = {
 }
 
 
-def _item_keys(spec: FlexibleBodySpec) -> dict[str, str]:
-    """Parameter of the Python API -> the body's key that gave it (the keys given only)."""
-    return {
+def _item_keys(spec: FlexibleBodySpec) -> dict[str, str | tuple[str | int, ...]]:
+    """Parameter of the Python API -> the body's key that gave it (the keys given only), and
+    a point mass's item (``point_masses[node]``) -> its entry of the body's list."""
+    keys: dict[str, str | tuple[str | int, ...]] = {
         _PYTHON_NAMES.get(key, key): key
         for key in _PREPROCESS_KEYS
         if getattr(spec, key) is not None
     }
+    for k, mass in enumerate(spec.point_masses or ()):
+        keys[f"point_masses[{mass.node}]"] = ("point_masses", k)
+    return keys
 
 
 #: Keys a Nastran deck gives itself.
@@ -347,7 +351,7 @@ class _Builder:
         path: Path_,
         function: Callable[..., Any],
         *args: Any,
-        item_keys: Mapping[str, str] | None = None,
+        item_keys: Mapping[str, str | tuple[str | int, ...]] | None = None,
         **kwargs: Any,
     ) -> Any:
         """Calls the Python API; its errors become model file errors at `path` (at its key
@@ -364,7 +368,8 @@ class _Builder:
             raise self.fail(path, f"no such file: {error.filename}") from error
         except (FlexmbdError, ValueError) as error:
             key = (item_keys or {}).get(getattr(error, "item", None) or "")
-            raise self.fail(path if key is None else path + (key,), str(error)) from error
+            at = path if key is None else path + (key if isinstance(key, tuple) else (key,))
+            raise self.fail(at, str(error)) from error
         except OverflowError as error:
             raise self.fail(path, f"a number is too large ({error})") from error
 
