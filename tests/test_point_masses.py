@@ -558,3 +558,37 @@ def test_mass_points_refuse_bad_input(mass, inertia, offset, match):
 
     with pytest.raises(InvalidParameterError, match=match):
         mass_points(mass, inertia, offset)
+
+
+def test_an_inertia_about_a_flat_shells_normal_is_warned_of_with_its_spurious_mode():
+    # A clamped plate with a 0.5 kg mass at a free corner: an inertia about the normal (a disc
+    # lying on the plate, or the mass's centre offset in the plane) turns with the shells'
+    # drilling rotation, held only by its penalty: a first mode at 10.3 Hz, below the plate's
+    # 12.7, all its kinetic energy in that rotation. The warning names the node and that
+    # frequency; masses that turn with bending (an inertia about an in-plane axis, an offset
+    # along the normal) are not warned of.
+    import warnings
+
+    from flexmbd.errors import MeshQualityWarning
+
+    mesh = shapes.plate((0.4, 0.3), (8, 6), "quad4")
+    corner = int(np.argmin(np.linalg.norm(mesh.nodes - [0.4, 0.3, 0.0], axis=1)))
+    options = dict(
+        shell=0.004, node_sets=mesh.node_sets, reference="clamped", reference_nodes="x0",
+        modes="fixed-interface", mode_count=2,
+    )  # fmt: skip
+    aluminium = Material(7e10, 0.33, 2700.0)
+    for masses in ((0.5, np.diag([1e-3, 2e-3, 0.0])), (0.5, None, (0.0, 0.0, 0.05))):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            pp.build_body(mesh.nodes, mesh.elements, aluminium, point_masses={corner: masses},
+                          **options)  # fmt: skip
+    for masses in ((0.5, np.diag([0.0, 0.0, 1e-3])), (0.5, None, (0.05, 0.0, 0.0))):
+        with pytest.warns(MeshQualityWarning, match=rf"point_masses\[{corner}\] \(node 63\)") as w:
+            body = pp.build_body(
+                mesh.nodes, mesh.elements, aluminium, point_masses={corner: masses}, **options
+            )
+        stated = float(str(w[0].message).split("a mode near ")[1].split(" Hz")[0])
+        if masses[1] is not None:  # (alone in the drilling rotation: the body's first mode)
+            assert abs(stated - body.frequencies[0]) < 1e-3 * body.frequencies[0]
+        assert body.frequencies[0] < 12.0  # (the plate with the mass at the node: 12.68 Hz)

@@ -226,7 +226,10 @@ class MeshQualityWarning(UserWarning):
     opposite sides (their top and bottom stresses are averaged across each other:
     :func:`flexmbd.fe.orient_shells`), and Abaqus elements read as an element of another
     formulation (C3D8R, reduced integration, as the fully integrated hex8). The message names
-    an element by its id and how many there are."""
+    an element by its id and how many there are. Also point masses with an inertia about the
+    normal of the flat shells that alone hold their node: it turns with the drilling
+    rotation, which has only a penalty stiffness (the message names the node and the
+    frequency of the mode it makes)."""
 
 
 __all__ = [

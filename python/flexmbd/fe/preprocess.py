@@ -260,6 +260,61 @@ def _warn_of_shells(
         )
 
 
+def _warn_of_drilling_inertia(
+    nodes: NDArray[np.float64],
+    elements: Mapping[str, NDArray[np.int64]],
+    nodal: NodalBody,
+    ids: NDArray[np.int64],
+) -> None:
+    """Warns (`MeshQualityWarning`) of point masses with an inertia about the normal of the
+    flat shells that alone hold their node (their rotary inertia about it, or their centre
+    offset in the shells' plane): the drilling rotation there has only the penalty
+    stiffness k (`DRILLING_STIFFNESS`), and the inertia J_n makes a mode near
+    sqrt(k / J_n) / 2 pi that no structure has. Names the first such node and that
+    frequency."""
+    if nodal.dofs_per_node != 6 or not nodal.point_masses:
+        return
+    shells = [np.asarray(elements[k]) for k in SHELL_ELEMENTS if k in elements]
+    if not shells:
+        return
+    others = [np.asarray(c).ravel() for k, c in elements.items() if k not in SHELL_ELEMENTS]
+    held = np.unique(np.concatenate(others)) if others else np.zeros(0, dtype=np.int64)
+    normals: dict[int, list[NDArray[np.float64]]] = {}
+    for conn in shells:
+        x = nodes[conn]
+        normal = (
+            np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])
+            if conn.shape[1] == 4
+            else np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+        )
+        normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+        for row, n in zip(conn, normal, strict=True):
+            for node in row:
+                normals.setdefault(int(node), []).append(n)
+    for node, mass, inertia, offset in nodal.point_masses:
+        if node not in normals or node in held:
+            continue
+        n = normals[node][0]
+        if any(abs(float(other @ n)) < 1.0 - 1e-6 for other in normals[node]):
+            continue  # (a fold: one shell's drilling is another's bending)
+        about = inertia + mass * (float(offset @ offset) * np.eye(3) - np.outer(offset, offset))
+        drilling = float(n @ about @ n)
+        if drilling <= 1e-9 * max(float(np.trace(about)), 1e-300):
+            continue
+        block = nodal.stiffness[6 * node + 3 : 6 * node + 6, 6 * node + 3 : 6 * node + 6]
+        frequency = np.sqrt(max(float(n @ block.toarray() @ n), 0.0) / drilling) / (2 * np.pi)
+        warnings.warn(
+            f"point_masses[{node}] (node {id_text(ids[node])}): its inertia about the normal of "
+            f"the flat shells that alone hold the node ({drilling:.3g} kg m^2, its rotary "
+            "inertia or its centre's offset in their plane) turns with the shells' drilling "
+            "rotation, which has only a penalty stiffness: a mode near "
+            f"{frequency:.3g} Hz that no structure has; leave that part of the inertia out, "
+            "or join the mass to a set of nodes (a rigid body on a node set marker)",
+            MeshQualityWarning,
+            stacklevel=3,
+        )
+
+
 #: The values of the str options of `build_body`.
 MASS_KINDS = ("consistent", "lumped")
 BEAM_THEORIES = ("euler-bernoulli", "timoshenko")
@@ -809,6 +864,7 @@ def build_body(
         nodal = with_point_masses(
             nodal, nodes, point_masses, form_i_kl=modes is None, elements=elements
         )
+        _warn_of_drilling_inertia(nodes, elements, nodal, ids)
     _check_zero_energy_modes(
         nodal, nodes, elements, eids, lambda other: assembled(other, form_i_kl=False)
     )
