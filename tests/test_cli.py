@@ -892,3 +892,21 @@ def test_floquet_prints_the_multipliers_of_a_periodic_motion(capsys):
     with pytest.raises(SystemExit) as usage:
         main(["floquet", "pendulum", "--period", "2.0", "--workers", "0"])
     assert usage.value.code == 2
+
+
+def test_info_of_a_body_file_lists_its_point_masses(tmp_path, capsys):
+    from flexmbd.cli import main
+    from flexmbd.fe import Material, Section, build_body, save_body, straight_beam
+
+    nodes, elements = straight_beam(1.0, 10)
+    masses = {10: (2.0, np.diag([1e-3, 1e-3, 2e-3]), (0.05, 0.0, 0.0)), 5: 0.3}
+    body = build_body(
+        nodes, elements, Material(2.1e11, 0.3, 7800.0), section=Section.circle(0.01),
+        reference="clamped", reference_nodes=[0], point_masses=masses,
+    )  # fmt: skip
+    save_body(body, tmp_path / "arm.h5")
+    assert main(["info", str(tmp_path / "arm.h5")]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "point masses: 2 (2.3 kg), 1 with a rotary inertia or an offset; at node ids 11, 6" in out
+    )

@@ -690,6 +690,20 @@ def _print_body(body: Any, title: str, more: str = "") -> None:
         at = ", ".join(f"{v:.6g}" for v in centroid)
         kind = reference.interface_kind
         print(f"  interface {k} ({kind}): {len(members)} nodes, weighted centroid ({at}) m")
+    record = body.point_masses
+    if record is not None and len(record["nodes"]):
+        count = len(record["nodes"])
+        turning = int(
+            np.sum(
+                np.any(record["inertia"] != 0, axis=(1, 2)) | np.any(record["offset"] != 0, axis=1)
+            )
+        )
+        print(
+            f"  point masses: {count} ({float(np.sum(record['mass'])):.6g} kg), "
+            f"{turning} with a rotary inertia or an offset; at node ids "
+            + ", ".join(str(int(body.node_ids[n])) for n in record["nodes"][:8])
+            + (" ..." if count > 8 else "")
+        )
 
 
 def _plot(args: argparse.Namespace) -> int:
