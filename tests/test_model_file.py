@@ -967,3 +967,26 @@ simulation: {end_time: 0.002, step_size: 1.0e-3}
         ModelFileError, match=r"line 12: bodies\[0\]\.point_masses\[2\]: .*symmetric and positive"
     ):
         load_model(tmp_path / "model.yaml")
+
+
+def test_a_steady_rotation_start_after_the_driver_has_moved(tmp_path, assert_close):
+    # The rotating blade of the examples started in its steady rotation at start_time 0.5 s
+    # (the hub 25 rad on from the file's configuration): refused ("the starting coordinates
+    # violate driver 'hub'"); now the blade is turned to the hub's angle first, and its
+    # stretched state is the one at t = 0 (the rotation is steady).
+    text = (MODELS / "rotating_blade.yaml").read_text()
+    later = text.replace("  start: steady-rotation", "  start: steady-rotation\n  start_time: 0.5")
+    later = later.replace("end_time: 1.0", "end_time: 0.52")
+    assert later != text
+    (tmp_path / "later.yaml").write_text(later)
+    (tmp_path / "now.yaml").write_text(text.replace("end_time: 1.0", "end_time: 0.02"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a consistent start: no correction
+        turned = simulate_model(load_model(tmp_path / "later.yaml"))
+    at_start = simulate_model(load_model(tmp_path / "now.yaml"))
+    assert turned.success and turned.time[0] == 0.5
+    elastic = slice(7, None)  # (the blade's elastic coordinates after its frame's seven)
+    assert_close(turned.coordinates[0][elastic], at_start.coordinates[0][elastic], rel=1e-8,
+                 abs=1e-12, what="stretched blade")  # fmt: skip
+    hub = turned.orientation("blade")[0]
+    assert_close(np.arctan2(hub[1, 0], hub[0, 0]), np.angle(np.exp(25j)), abs=1e-9, what="hub")

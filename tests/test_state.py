@@ -214,24 +214,66 @@ def test_steady_rotation_needs_a_turning_driver_at_constant_speed():
         fm.steady_rotation(system)
 
 
-def test_equilibrium_far_from_where_the_drivers_are_names_the_driver(assert_close):
+def test_equilibrium_where_the_drivers_have_moved_turns_the_parts_they_drive(assert_close):
     # Found on the spin-up (issue 30): at t = 20 s the hub is 75 rad on; from the model's
     # initial coordinates Newton diverged (relative increment 3e6) and steady_rotation said
-    # the driver "accelerates" (it evaluated C_tt at the inconsistent start).
+    # the driver "accelerates" (it evaluated C_tt at the inconsistent start); then both were
+    # refused ("violate driver 'drive'", also model files' `start` with a `start_time`). Now
+    # the beam the driver turns is turned to the hub's angle at that time first: the states
+    # are those started from coordinates turned by hand.
     example = fm.examples.spin_up(elements=4)
     model = example.system.compile()
-    for analysis in (fm.equilibrium, fm.steady_rotation):
-        with pytest.raises(InvalidModelError, match="violate driver 'drive' by") as raised:
-            analysis(model, 20.0)
-        assert raised.value.item == "driver 'drive'"
-    # Started with the hub's angle at that time, the steady rotation is found.
     time = 20.0
     angle = 6.0 * (time - 7.5)
     q = np.array(model.initial_coordinates)
     q[3:7] = [np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)]
-    state = fm.steady_rotation(model, time, coordinates=q)
-    spin = state.angular_velocity(example.items["beam"])[2]
+    for analysis in (fm.equilibrium, fm.steady_rotation):
+        turned = analysis(model, time)
+        by_hand = analysis(model, time, coordinates=q)
+        assert_close(turned.coordinates, by_hand.coordinates, abs=1e-9, what=analysis.__name__)
+        assert_close(turned.multipliers, by_hand.multipliers, rel=1e-7,
+                     abs=1e-9 * np.abs(by_hand.multipliers).max(), what="multipliers")  # fmt: skip
+    spin = turned.angular_velocity(example.items["beam"])[2]
     assert_close(spin, 6.0, rel=1e-9, what="angular velocity")
+
+
+@pytest.mark.parametrize("side", ["second", "first"])
+def test_a_driven_part_is_turned_and_shifted_to_its_drivers_whichever_marker_it_carries(
+    side, assert_close
+):
+    # An arm (a rigid body) on a hinge about z turned by an angle driver f = 2 t rad and a
+    # slider on it (a prismatic joint along the arm's x axis, driven to 0.3 + 0.1 t m), built
+    # at the drivers' start: the equilibrium at t = 1.2 s (the arm 2.4 rad on) has them where
+    # the drivers put them, the driver's first marker on the arm or on the ground.
+    system = fm.System(gravity=(0.0, 0.0, -9.81))
+    arm = system.add_rigid_body(1.0, (0.01, 0.1, 0.1), position=(0.5, 0, 0), name="arm")
+    slider = system.add_rigid_body(0.5, (1e-3,) * 3, position=(0.3, 0, 0), name="slider")
+    ground, root = system.add_marker(system.ground), system.add_marker(arm, position=(-0.5, 0, 0))
+    system.add_revolute_joint(ground, root)
+    pair = (ground, root) if side == "second" else (root, ground)
+    sign = 1.0 if side == "second" else -1.0
+    system.add_angle_driver(*pair, fm.Polynomial([0.0, sign * 2.0]), name="swing")
+    along = fm.rotation("y", np.pi / 2)  # (the markers' z along the arm's x)
+    rail = system.add_marker(arm, position=(-0.5, 0, 0), orientation=along)
+    carriage = system.add_marker(slider, orientation=along)
+    system.add_prismatic_joint(rail, carriage)
+    system.add_translation_driver(rail, carriage, fm.Polynomial([0.3, 0.1]), name="feed")
+    time = 1.2
+    state = fm.equilibrium(system, time)
+    turn = fm.rotation("z", 2.0 * time)
+    assert_close(state.orientation("arm"), turn, abs=1e-9, what="arm")
+    assert_close(state.position("arm"), turn @ [0.5, 0, 0], abs=1e-9, what="arm's centre")
+    assert_close(state.position("slider"), turn @ [0.3 + 0.1 * time, 0, 0], abs=1e-9,
+                 what="slider")  # fmt: skip
+
+
+def test_a_driven_crank_in_a_loop_is_not_turned_and_the_driver_is_named():
+    # Turning a four-bar's crank alone would break its loop: the start stays, and the error
+    # names the driver as before.
+    example = fm.examples.flexible_slider_crank()
+    model = example.system.compile()
+    with pytest.raises(InvalidModelError, match=r"violate driver '.*' by"):
+        fm.equilibrium(model, 0.013)
 
 
 @pytest.mark.parametrize("start", [0.0, 0.05])

@@ -220,6 +220,132 @@ def _carried_rates(
 DRIVER_START_LIMIT = 0.1
 
 
+def _turned_to_drivers(model: _core.Model, time: float, q: Array, layout: dict) -> Array:
+    """`q` with the parts each driver moves turned (an angle driver) or shifted (a
+    translation driver) rigidly to the driver's value at `time`: a rotor built at its
+    driver's start, asked for its steady rotation at t = 20 s (the hub 75 rad on), starts
+    from the configuration the driver has turned it to. Only the drivers that `q` meets at
+    t = 0 (a turn or shift within :data:`DRIVER_START_LIMIT`): a model built off its
+    driver's start (a link at 0.05 rad on a driver at pi) is refused by the checks, as a run
+    refuses it. The part is the driven marker's body and every body joined to it, not
+    through the ground or the driver's other body; the turn is about the z axis of the
+    driver's first marker, by the angle at which the driver's equation C = rho sin(theta -
+    f) vanishes (theta - f = atan2(C, dC/dturn), exact for a rigid turn). A turn that would
+    break another joint by more than :data:`DRIVER_START_LIMIT` (a driven crank of a
+    four-bar) is not made: the coordinates are returned as they were (and the drivers'
+    check names the driver)."""
+    nq, nc = model.coordinate_count, model.constraint_count
+    bodies, markers = layout["bodies"], layout["markers"]
+    zero = np.zeros(nq)
+    drivers = [j for j in layout["joints"] if j["type"] in ("angle driver", "translation driver")]
+    start = np.array(q, dtype=float)
+    q = start.copy()
+    driver_rows = np.zeros(nc, dtype=bool)
+    for joint in drivers:
+        driver_rows[joint["row"] : joint["row"] + len(joint["equations"])] = True
+
+    def frame(body: dict[str, Any], q: Array) -> tuple[Array, Array]:
+        if body["kind"] == "ground":
+            return np.zeros(3), np.eye(3)
+        o = body["offset"]
+        if body["count"] < 7:
+            return q[o : o + 3], np.eye(3)
+        return q[o : o + 3], euler_parameters_to_matrix(q[o + 3 : o + 7])
+
+    def needed(
+        joint: dict[str, Any], part: list[int], sense: float, at: float, q: Array
+    ) -> tuple[float, Array, Array]:
+        """The turn (rad) or shift (m) of `part` that meets `joint` at time `at`, the axis
+        and a point on it."""
+        first = markers[joint["markers"][0]]
+        origin, rotation = frame(bodies[first["body"]], q)
+        axis = rotation @ np.asarray(first["orientation"], dtype=float)[:, 2]
+        centre = origin + rotation @ np.asarray(first["position"], dtype=float)
+        ev = model.evaluate(at, q, zero, zero, np.zeros(nc), mass=1.0)
+        value = float(ev["residual"][nq + joint["row"]])
+        if joint["type"] == "translation driver":
+            return -sense * value, axis, centre
+        # The rate of C under a unit turn of the part about the axis: rho cos(theta - f).
+        turn = np.zeros(nq)
+        for b in part:
+            o, count = bodies[b]["offset"], bodies[b]["count"]
+            turn[o : o + 3] = np.cross(axis, q[o : o + 3] - centre)
+            if count >= 7:
+                turn[o + 3 : o + 7] = euler_parameter_rates(q[o + 3 : o + 7], axis, "global")
+        rate = float(_matrix(ev)[nq + joint["row"], :nq].toarray().ravel() @ turn)
+        # C(turn) = A sin(turn + beta), A cos(beta) = rate. Where theta = f, dC/dtheta > 0:
+        # the turn is -beta when the part carries the second marker (theta grows with it),
+        # pi - beta when it carries the first (theta falls).
+        angle = -np.arctan2(value, rate) + (0.0 if sense > 0 else np.pi)
+        return float(np.angle(np.exp(1j * angle))), axis, centre  # (in (-pi, pi])
+
+    for joint in drivers:
+        first, second = (markers[m] for m in joint["markers"])
+        moving, sense = second["body"], 1.0
+        if bodies[moving]["kind"] == "ground":
+            moving, sense = first["body"], -1.0
+        part = _joined_part(layout, moving, exclude=(first["body"], second["body"]), joint=joint)
+        if abs(needed(joint, part, sense, 0.0, start)[0]) > DRIVER_START_LIMIT:
+            continue  # (the model was not built at its driver's start: the checks say so)
+        amount, axis, centre = needed(joint, part, sense, time, q)
+        if abs(amount) <= 1e-14:
+            continue
+        if joint["type"] == "translation driver":
+            for b in part:
+                o = bodies[b]["offset"]
+                q[o : o + 3] += amount * axis
+            continue
+        spin = np.concatenate([[np.cos(0.5 * amount)], np.sin(0.5 * amount) * axis])
+        turned = euler_parameters_to_matrix(spin)
+        for b in part:
+            o, count = bodies[b]["offset"], bodies[b]["count"]
+            q[o : o + 3] = centre + turned @ (q[o : o + 3] - centre)
+            if count >= 7:
+                q[o + 3 : o + 7] = _quaternion_product(spin, q[o + 3 : o + 7])
+    if np.array_equal(q, start):
+        return start
+    ev = model.evaluate(time, q, zero, zero, np.zeros(nc))
+    before = model.evaluate(time, start, zero, zero, np.zeros(nc))["residual"][nq:]
+    others = np.abs(ev["residual"][nq:])[~driver_rows]
+    if others.size and others.max() > max(DRIVER_START_LIMIT, np.abs(before[~driver_rows]).max()):
+        return start  # (the turn broke another joint: a loop the driver does not turn alone)
+    moved = float(np.max(np.abs(q - start)))
+    _log.info(
+        "the parts the drivers move turned to their values at t = %g (by up to %.3g)", time, moved
+    )
+    return q
+
+
+def _joined_part(
+    layout: dict[str, Any], body: int, exclude: tuple[int, ...], joint: dict[str, Any]
+) -> list[int]:
+    """`body` and the bodies joined to it by joints other than `joint`, not through the
+    ground or the bodies `exclude` (the driver's own two)."""
+    bodies, markers = layout["bodies"], layout["markers"]
+    links: dict[int, set[int]] = {}
+    for other in layout["joints"]:
+        if other is joint or other["name"] == joint["name"]:
+            continue
+        a, b = (markers[m]["body"] for m in other["markers"])
+        links.setdefault(a, set()).add(b)
+        links.setdefault(b, set()).add(a)
+    part, stack = {body}, [body]
+    while stack:
+        for other in links.get(stack.pop(), ()):
+            if other in part or other in exclude or bodies[other]["kind"] == "ground":
+                continue
+            part.add(other)
+            stack.append(other)
+    return sorted(part)
+
+
+def _quaternion_product(a: Array, b: Array) -> Array:
+    """The Euler parameters of the rotation A(a) A(b)."""
+    return np.concatenate(
+        [[a[0] * b[0] - a[1:] @ b[1:]], a[0] * b[1:] + b[0] * a[1:] + np.cross(a[1:], b[1:])]
+    )
+
+
 def _check_drivers_at_start(model: _core.Model, time: float, q: Array, layout: dict) -> None:
     """InvalidModelError naming the driver when the starting coordinates are far from where
     the drivers put the model at `time` (a steady rotation asked for at t = 20 s from the
@@ -1030,6 +1156,7 @@ def _equilibrium(
     as Newton's method leaves them (0)."""
     layout = model.describe()
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
+    q = _turned_to_drivers(model, time, q, layout)
     _check_drivers_at_start(model, time, q, layout)
     if stable:
         return _solve_equilibrium(
@@ -1289,6 +1416,7 @@ def _steady_rotation(
     q = np.array(model.initial_coordinates if coordinates is None else coordinates, dtype=float)
     zero_q, zero_l = np.zeros(nq), np.zeros(nc)
     layout = model.describe()
+    q = _turned_to_drivers(model, time, q, layout)
     _check_drivers_at_start(model, time, q, layout)
     ev = model.evaluate(time, q, zero_q, zero_q, zero_l)
     drivers = [j for j in layout["joints"] if "driver" in j["type"]]

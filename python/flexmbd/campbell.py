@@ -332,17 +332,21 @@ def _angle_driver(system: Any, driver: str) -> None:
             )
 
 
-def _drivers_met_at(system: Any, time: float) -> None:
-    """InvalidParameterError naming `time` when the drivers at `time` are far from the
-    model's initial coordinates, from which :func:`campbell` starts every speed (the
-    equilibrium's own error advised "pass coordinates=", which campbell does not take)."""
-    from .analysis import _check_drivers_at_start
+def _drivers_met_at(system: Any, time: float) -> Array:
+    """The model's initial coordinates with the parts the drivers move turned to their
+    values at `time` (`analysis._turned_to_drivers`, on the model as built: the speeds'
+    drivers are made to have its angle at `time`), from which :func:`campbell` starts every
+    speed; InvalidParameterError naming `time` when they still do not meet the drivers
+    there (the equilibrium's own error advised "pass coordinates=", which campbell does not
+    take)."""
+    from .analysis import _check_drivers_at_start, _turned_to_drivers
     from .errors import InvalidModelError
 
     model = system.compile()
-    q = np.asarray(model.initial_coordinates, dtype=float)
+    layout = model.describe()
+    q = _turned_to_drivers(model, time, np.asarray(model.initial_coordinates, float), layout)
     try:
-        _check_drivers_at_start(model, time, q, model.describe())
+        _check_drivers_at_start(model, time, q, layout)
     except InvalidModelError as error:
         raise InvalidParameterError(
             f"campbell at time = {time:g}: the model's initial coordinates violate "
@@ -352,6 +356,7 @@ def _drivers_met_at(system: Any, time: float) -> None:
             "start), or build the system turned to the drivers' angles at that time",
             item="time",
         ) from None
+    return q
 
 
 #: The speed, relative to the fastest of a diagram, at which :func:`campbell` takes the modes
@@ -420,7 +425,7 @@ def campbell(
     if len(speeds) == 0 or np.any(np.diff(speeds) <= 0):
         raise InvalidParameterError("speeds must be ascending and not empty", item="speeds")
     _angle_driver(system, driver)
-    _drivers_met_at(system, time)
+    start_coordinates = _drivers_met_at(system, time)
     start = float(system.driver_function(driver)(time))
     probe = _whirl_probe(system, driver, time)
     if frame == "fixed" and probe is None:
@@ -439,7 +444,9 @@ def campbell(
         model = turning.compile()
         # (the state's stability is not asked for: its linearization is the one below)
         state = (
-            _steady_rotation(model, time, {}, stability=False) if w else equilibrium(model, time)
+            _steady_rotation(model, time, {"coordinates": start_coordinates}, stability=False)
+            if w
+            else equilibrium(model, time, coordinates=start_coordinates)
         )
         linear = linearize(model, state, independent="elastic")
         if not gyroscopic:
