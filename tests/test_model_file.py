@@ -990,3 +990,25 @@ def test_a_steady_rotation_start_after_the_driver_has_moved(tmp_path, assert_clo
                  abs=1e-12, what="stretched blade")  # fmt: skip
     hub = turned.orientation("blade")[0]
     assert_close(np.arctan2(hub[1, 0], hub[0, 0]), np.angle(np.exp(25j)), abs=1e-9, what="hub")
+
+
+def test_an_override_through_a_yaml_alias_changes_only_its_item():
+    # The four-bar's bodies share their inertia list and the cranks their orientation through
+    # YAML aliases and merge keys: an override of crank 0's (a study's parameter) set all
+    # five inertias and turned all three cranks, while the study named crank 0 alone.
+    def rigid_bodies(overrides):
+        model = load_model(MODELS / "four_bar.yaml", overrides)
+        return {
+            kwargs["name"]: (args[1], kwargs.get("orientation"))
+            for name, args, kwargs in model.system.building_calls
+            if name == "add_rigid_body"
+        }
+
+    plain = rigid_bodies({})
+    assert len(plain) == 5
+    changed = rigid_bodies({"bodies.crank 0.inertia.1": 1.0})
+    assert changed["crank 0"][0][1] == 1.0
+    assert all(changed[n][0] == plain[n][0] for n in plain if n != "crank 0")
+    turned = rigid_bodies({"bodies.crank 0.orientation.angle": 1.0})
+    assert turned["crank 0"][1][0, 0] == pytest.approx(np.cos(1.0), abs=1e-15)
+    assert all(np.array_equal(turned[n][1], plain[n][1]) for n in plain if n != "crank 0")

@@ -16,6 +16,7 @@ JSON schema.
 
 from __future__ import annotations
 
+import copy
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -174,7 +175,9 @@ def _checked(
 
 def _override(data: dict[str, Any], key_path: str, value: Any, source: _Source) -> None:
     """Sets `key_path` of the model file's `data` to `value`; ModelFileError naming the path
-    where it does not lead into the file."""
+    where it does not lead into the file. The lists and mappings on the way are copied
+    before they are entered: a YAML alias or merge key shares them between items (five
+    bodies with `<<: *link`), and an override of one item's inertia set all five."""
     parts = key_path.split(".")
     node: Any = data
     walked: list[str | int] = []
@@ -196,12 +199,14 @@ def _override(data: dict[str, Any], key_path: str, value: Any, source: _Source) 
             if last:
                 node[index] = value
             else:
+                node[index] = copy.copy(node[index])
                 node = node[index]
         elif isinstance(node, dict):
             walked.append(part)
             if last:
                 node[part] = value
             elif part in node:
+                node[part] = copy.copy(node[part])
                 node = node[part]
             else:
                 raise source.error(
