@@ -701,3 +701,64 @@ def test_cases_recording_at_other_times_keep_their_own_times(tmp_path, assert_cl
     with pytest.raises(fm.InvalidParameterError, match="holds another study"):
         other.run(workers=1, progress=False)
     assert fm.load_study(folder)[1]["parameters"] == ["simulation.output_interval"]
+
+
+def _pendulum(mass=1.0, length=1.0):
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    bob = system.add_point_mass(mass, position=(length, 0.0, 0.0), name="bob")
+    system.add_distance_joint(system.add_marker(system.ground), system.add_marker(bob), length)
+    return system
+
+
+_LENGTH = 1.0
+
+
+def _pendulum_of_the_module_length(mass):
+    return _pendulum(mass, _LENGTH)
+
+
+def test_a_case_key_sees_what_the_model_and_the_solver_are(tmp_path, monkeypatch):
+    # From a fault hunt, each gave a study's re-run the old results: a solver that differs in
+    # a setting its repr does not show (the tolerances of an error-controlled run), build
+    # functions that differ in a partial's arguments, a closure's value or a module-level
+    # value they read, and a model file whose mesh was written again.
+    import functools
+
+    from flexmbd.study.cases import ModelSource, case_key
+
+    def key(source, **settings):
+        return case_key(source.identity(), {"mass": 1.0}, settings)
+
+    plain = ModelSource(build=_pendulum)
+    loose = fm.GeneralizedAlpha(step_control="error", relative_tolerance=1e-2)
+    tight = fm.GeneralizedAlpha(step_control="error", relative_tolerance=1e-8)
+    assert repr(loose) == repr(tight)
+    assert key(plain, solver=loose) != key(plain, solver=tight)
+    assert key(plain, solver=loose) == key(plain, solver=fm.GeneralizedAlpha(
+        step_control="error", relative_tolerance=1e-2))  # fmt: skip
+    partial = [ModelSource(build=functools.partial(_pendulum, length=v)) for v in (1.0, 2.0)]
+    assert key(partial[0]) != key(partial[1])
+
+    def closure(length):
+        return lambda mass: _pendulum(mass, length)
+
+    assert key(ModelSource(build=closure(1.0))) != key(ModelSource(build=closure(2.0)))
+    assert key(ModelSource(build=closure(1.0))) == key(ModelSource(build=closure(1.0)))
+    before = key(ModelSource(build=_pendulum_of_the_module_length))
+    monkeypatch.setattr(sys.modules[__name__], "_LENGTH", 2.0)
+    assert key(ModelSource(build=_pendulum_of_the_module_length)) != before
+    arrays = [ModelSource(build=_pendulum, arguments={"table": np.arange(2000.0) + d})
+              for d in (0.0, 1e-9)]  # fmt: skip
+    assert key(arrays[0]) != key(arrays[1])  # (their reprs are the same)
+    # A model file and the mesh it names.
+    (tmp_path / "rod.inp").write_text("*NODE\n1, 0, 0, 0\n")
+    text = (
+        "materials:\n  steel: {young_modulus: 2.1e+11, poisson_ratio: 0.3, density: 7800.0}\n"
+        "bodies:\n  - {name: rod, type: flexible, mesh: rod.inp, material: steel}\n"
+        "simulation: {end_time: 0.01, step_size: 1.0e-3}\n"
+    )
+    (tmp_path / "model.yaml").write_text(text)
+    source = ModelSource(path=str(tmp_path / "model.yaml"))
+    first = source.identity()
+    (tmp_path / "rod.inp").write_text("*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n")
+    assert source.identity() != first

@@ -135,4 +135,20 @@ Trapezoidal = boundary_class(_core.Trapezoidal, "flexmbd")
 UserFunction = boundary_class(_core.UserFunction, "flexmbd")
 GeneralizedAlpha = boundary_class(_core.GeneralizedAlpha, "flexmbd")
 ExplicitSolver = boundary_class(_core.ExplicitSolver, "flexmbd")
+
+
+def solver_settings(solver: Any) -> str:
+    """Every setting of a solver (a GeneralizedAlpha or ExplicitSolver), as text: its class
+    and each attribute by name, sorted. Its repr shows those that usually matter only (not
+    the tolerances of an error-controlled run, the linear solver, the step bounds), so a
+    study keyed by it took a run with other tolerances for one already made."""
+    names = sorted(
+        name
+        for name in dir(solver)
+        if not name.startswith("_") and not callable(getattr(solver, name, None))
+    )
+    shown = ", ".join(f"{name}={getattr(solver, name)!r}" for name in names)
+    return f"{type(solver).__name__}({shown})"
+
+
 Material = boundary_class(_core.Material, "flexmbd.fe")

@@ -348,6 +348,8 @@ def _run(args: argparse.Namespace) -> int:
     sys.stdout.flush()  # before the progress bar on stderr
     bar = None if args.quiet else SimulationProgress(label="  simulating")
     _stop_on_sigterm()
+    from ._boundary import solver_settings
+
     metadata = {
         "source": job.source,
         "name": job.name,
@@ -356,7 +358,7 @@ def _run(args: argparse.Namespace) -> int:
         "end_time": end,
         "step_size": step,
         "output_interval": interval,
-        "solver": repr(solver),
+        "solver": solver_settings(solver),
     }
     from .simulation import simulate
 

@@ -173,6 +173,21 @@ def _checked(
     return source, spec
 
 
+def referenced_files(path: str | os.PathLike[str]) -> list[Path]:
+    """The files a model file names (its bodies' `mesh`, `body_file`, `nastran` and `op2`),
+    relative paths taken from its folder; read without building the model."""
+    _, spec = _checked(path, None)
+    folder = Path(path).parent
+    files = []
+    for body in spec.bodies:
+        for key in ("body_file", "mesh", "nastran", "op2"):
+            name = getattr(body, key, None)
+            if name is not None:
+                location = Path(str(name)).expanduser()
+                files.append(location if location.is_absolute() else folder / location)
+    return files
+
+
 def _override(data: dict[str, Any], key_path: str, value: Any, source: _Source) -> None:
     """Sets `key_path` of the model file's `data` to `value`; ModelFileError naming the path
     where it does not lead into the file. The lists and mappings on the way are copied

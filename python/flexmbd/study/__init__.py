@@ -40,6 +40,7 @@ from .cases import (
     RUN_SETTINGS,
     CaseTask,
     ModelSource,
+    _setting_text,
     case_key,
     check_case,
     check_cases,
@@ -309,7 +310,7 @@ class Study:
                 for k, (key, case) in enumerate(zip(self.keys, self.cases, strict=True))
             ],
             "outputs": self.outputs,
-            "settings": {k: repr(v) for k, v in self.settings.items()},
+            "settings": {k: _setting_text(v) for k, v in self.settings.items()},
         }
         (self.folder / DESCRIPTION).write_text(json.dumps(description, indent=1))
 

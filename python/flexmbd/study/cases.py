@@ -4,6 +4,7 @@ worker, which writes the results file and a summary next to it."""
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import json
@@ -39,19 +40,21 @@ class ModelSource:
     arguments: Mapping[str, Any] = field(default_factory=dict)
 
     def identity(self) -> str:
-        """What the cases' keys hash for the model: the model file's bytes, or the build
-        function's name and source text and its fixed arguments."""
+        """What the cases' keys hash for the model: the model file's bytes and those of the
+        files it names (meshes, body files, Nastran decks and results: a mesh written again
+        by the preprocessor is another model), or the build function (:func:`_callable_text`:
+        its source, defaults, closure, a partial's arguments, a callable object's state) and
+        its fixed arguments."""
         if self.path is not None:
-            digest = hashlib.sha256(Path(self.path).read_bytes()).hexdigest()
-            return f"file {Path(self.path).name} {digest}"
+            from ..model_file import referenced_files
+
+            digest = hashlib.sha256(Path(self.path).read_bytes())
+            for used in referenced_files(self.path):
+                digest.update(str(used.name).encode())
+                digest.update(used.read_bytes() if used.is_file() else b"(missing)")
+            return f"file {Path(self.path).name} {digest.hexdigest()}"
         assert self.build is not None
-        name = f"{getattr(self.build, '__module__', '')}.{getattr(self.build, '__qualname__', '')}"
-        try:
-            text = inspect.getsource(self.build)
-        except (OSError, TypeError):
-            text = ""
-        digest = hashlib.sha256(text.encode()).hexdigest()
-        return f"function {name} {digest} {_canonical(self.arguments)}"
+        return f"function {_callable_text(self.build)} {_canonical(self.arguments)}"
 
     def check_names(self, names: list[str]) -> None:
         """Refuses parameter names a build function does not take (model files check their
@@ -185,8 +188,85 @@ def _settings_of(built: Any) -> dict[str, Any]:
 
 
 def _canonical(value: Any) -> str:
-    """A stable text of parameter values and settings for hashing."""
-    return json.dumps(value, sort_keys=True, default=repr)
+    """A stable text of parameter values and settings for hashing (arrays by their bytes,
+    not their repr, which shows 8 digits and elides long ones; functions by
+    :func:`_callable_text`)."""
+    return json.dumps(value, sort_keys=True, default=_value_text)
+
+
+def _value_text(value: Any, depth: int = 0) -> str:
+    """The text `_canonical` hashes for a value JSON does not hold."""
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        data = np.ascontiguousarray(value)
+        digest = hashlib.sha256(data.tobytes()).hexdigest() if data.dtype != object else repr(data)
+        return f"array {data.dtype} {data.shape} {digest}"
+    if isinstance(value, np.generic):
+        return repr(value.item())
+    if callable(value) and not isinstance(value, type):
+        return _callable_text(value, depth)
+    text = repr(value)
+    # (a default repr holds the object's address, another in every process: its type)
+    return f"<{type(value).__qualname__}>" if " at 0x" in text else text
+
+
+def _callable_text(function: Any, depth: int = 0) -> str:
+    """A text that changes when what `function` computes may change: its name and source
+    (or its compiled code where there is no source), its defaults, the values its closure
+    holds and the module-level values it reads (a build function made in a loop over a
+    length; the functions it calls, likewise), a partial's function and arguments, a bound
+    method's object and a callable object's class source and state."""
+    if depth > 4:  # (a closure holding itself)
+        return f"{getattr(function, '__qualname__', type(function).__qualname__)}"
+
+    def text(value: Any) -> str:
+        return json.dumps(value, sort_keys=True, default=lambda v: _value_text(v, depth + 1))
+
+    if isinstance(function, functools.partial):
+        inner = _callable_text(function.func, depth + 1)
+        return f"partial({inner}, {text(list(function.args))}, {text(function.keywords)})"
+    if inspect.ismethod(function):
+        owner = getattr(function.__self__, "__dict__", repr(function.__self__))
+        return f"method({_callable_text(function.__func__, depth + 1)}, {text(owner)})"
+    if inspect.isfunction(function):
+        name = f"{function.__module__}.{function.__qualname__}"
+        try:
+            source = inspect.getsource(function).encode()
+        except (OSError, TypeError):
+            code = function.__code__
+            source = code.co_code + repr(code.co_consts).encode() + repr(code.co_names).encode()
+        cells = []
+        for cell in function.__closure__ or ():
+            try:
+                cells.append(cell.cell_contents)
+            except ValueError:  # (an empty cell)
+                cells.append(None)
+        # The module-level values it reads (a length set by a loop in a script, a helper
+        # function it calls); modules and classes by name.
+        names = set(function.__code__.co_names)
+        for constant in function.__code__.co_consts:
+            if inspect.iscode(constant):
+                names.update(constant.co_names)
+        reads = {}
+        for read in sorted(names):
+            if read in function.__globals__:
+                value = function.__globals__[read]
+                if inspect.ismodule(value) or isinstance(value, type):
+                    reads[read] = getattr(value, "__name__", read)
+                else:
+                    reads[read] = value
+        digest = hashlib.sha256(source).hexdigest()
+        defaults = text([function.__defaults__, function.__kwdefaults__, cells, reads])
+        return f"{name} {digest} {defaults}"
+    kind = type(function)
+    try:
+        source = inspect.getsource(kind).encode()
+    except (OSError, TypeError):
+        source = b""
+    state = getattr(function, "__dict__", None)
+    name = f"{kind.__module__}.{kind.__qualname__}"
+    return f"object {name} {hashlib.sha256(source).hexdigest()} {text(state) if state else ''}"
 
 
 def _as_floats(value: Any) -> Any:
@@ -203,10 +283,21 @@ def _as_floats(value: Any) -> Any:
     return value
 
 
+def _setting_text(value: Any) -> str:
+    """A run setting as the text its key hashes: a solver with every setting."""
+    from .._boundary import solver_settings
+    from .._core import ExplicitSolver, GeneralizedAlpha
+
+    if isinstance(value, GeneralizedAlpha | ExplicitSolver):
+        return solver_settings(value)
+    return repr(_as_floats(value))
+
+
 def case_key(identity: str, parameters: Mapping[str, Any], settings: Mapping[str, Any]) -> str:
     """The key of a case: a hash of the model, its parameter values and the run settings
-    (numbers compared as floats: 1 and 1.0 give one key)."""
-    shown = {k: repr(_as_floats(v)) for k, v in settings.items()}
+    (numbers compared as floats: 1 and 1.0 give one key; a solver by every setting,
+    :func:`flexmbd._boundary.solver_settings`)."""
+    shown = {k: _setting_text(v) for k, v in settings.items()}
     text = _canonical([identity, _as_floats(dict(parameters)), shown])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
