@@ -762,3 +762,20 @@ def test_a_case_key_sees_what_the_model_and_the_solver_are(tmp_path, monkeypatch
     first = source.identity()
     (tmp_path / "rod.inp").write_text("*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n")
     assert source.identity() != first
+
+
+def test_a_study_extended_and_stopped_is_not_shown_by_its_old_dataset(tmp_path, worker_path):
+    # A study of 2 cases, extended to 4 and stopped before it gathered (Ctrl-C): its study.nc
+    # of the 2 cases stayed, and load_study (flexmbd info/plot) showed "2 cases, 2
+    # complete". A run now removes it before dispatching, and a dataset older than the
+    # description or a summary is gathered again.
+    run = {"folder": tmp_path / "s", "end_time": 0.1, "step_size": 1e-3}
+    first = fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0, 2.0]}, **run)
+    first.run(workers=1, progress=False)
+    data, _ = fm.load_study(tmp_path / "s")
+    assert len(data["status"]) == 2
+    time.sleep(0.05)  # (a later modification time)
+    extended = fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0, 2.0, 3.0, 4.0]}, **run)
+    extended._write_description()  # (as run() does before the cases are dispatched)
+    data, _ = fm.load_study(tmp_path / "s")
+    assert sorted(data["status"].values) == ["complete", "complete", "pending", "pending"]

@@ -259,6 +259,8 @@ class Study:
                     raise refusal
                 (self.folder / "cases").mkdir(parents=True, exist_ok=True)
                 self._write_description()
+                # (a run stopped before it gathers leaves no dataset of the cases before)
+                (self.folder / DATASET).unlink(missing_ok=True)
                 tasks = [self._task(k) for k in todo]
                 for task in tasks:  # markers of an earlier run that was stopped
                     task.started_path.unlink(missing_ok=True)
@@ -696,13 +698,22 @@ def load_study(folder: str | os.PathLike[str]) -> Any:
     if not (folder / DESCRIPTION).is_file():
         raise InvalidParameterError(f"{str(folder)!r} is not a study folder (no {DESCRIPTION})")
     description = json.loads((folder / DESCRIPTION).read_text())
-    if not (folder / DATASET).is_file():
-        # A study stopped before it gathered (Ctrl-C): the cases done, from their summaries.
+    if not (folder / DATASET).is_file() or _stale(folder):
+        # A study stopped before it gathered (Ctrl-C), or still running: the cases done,
+        # from their summaries.
         return _gathered_from_summaries(folder, description), description
     with xr.open_dataset(folder / DATASET, engine="scipy") as data:
         data = data.load()
     parameters = [n for n in description["parameters"] if n in data.data_vars]
     return data.set_coords(parameters), description
+
+
+def _stale(folder: Path) -> bool:
+    """Whether ``study.nc`` is older than the description or a case's summary (written by a
+    run since: one stopped before it gathered, or still going)."""
+    made = (folder / DATASET).stat().st_mtime
+    newer = [folder / DESCRIPTION, *(folder / "cases").glob("case-*.json")]
+    return any(path.stat().st_mtime > made for path in newer if path.is_file())
 
 
 def _gathered_from_summaries(folder: Path, description: dict[str, Any]) -> Any:
