@@ -172,6 +172,9 @@ def test_a_failed_run_keeps_its_records_and_says_why(tmp_path, assert_close):
     back = fm.read_results(path)
     assert not back.success and isinstance(back.error, fm.CallbackError)
     assert "user bug" in str(back.error)
+    # (the error's item and time read back too: they were None)
+    assert (back.error.item, back.error.time) == (info.value.item, info.value.time)
+    assert back.error.item == "force 'user'" and back.error.time > 0.05
     assert_close(back.time[-1], 0.05, rel=1e-6, abs=1e-12, what="last time")
     assert_same_records(info.value.result, back)
     assert read_results_metadata(path)["status"]["state"] == "failed"

@@ -24,8 +24,9 @@ Datasets, time first, one row per record, extensible along the first axis (SI un
   before this count is raised, so a reader trusts the count, never the dataset lengths.
 * ``statistics``, ``events``, ``redundancy`` and ``status``: JSON texts (UTF-8 bytes in
   extensible uint8 datasets). ``status`` is ``{"state": "running" | "complete" | "failed" |
-  "interrupted", "error": class name or null, "message": ...}``; a killed run stays
-  ``"running"``.
+  "interrupted", "error": class name or null, "message": ...}``, and for a failed or
+  interrupted run ``"item"`` and ``"time"``, those of its error (read back onto the error);
+  a killed run stays ``"running"``.
 
 Group ``flexible``: one group per deformable body, named by its body index, in the layout of a
 body file (:mod:`flexmbd.fe.body_file`; arrays of 64 KiB or more gzip-compressed), so that node
@@ -518,7 +519,14 @@ class ResultsWriter:
             kind = (
                 "interrupted" if isinstance(run_error, errors.SimulationInterrupted) else "failed"
             )
-            status = {"state": kind, "error": type(run_error).__name__, "message": str(run_error)}
+            status = {
+                "state": kind,
+                "error": type(run_error).__name__,
+                "message": str(run_error),
+                # (the item and time the error names: a callback's force, the time it failed)
+                "item": getattr(run_error, "item", None),
+                "time": getattr(run_error, "time", None),
+            }
         try:
             self._write_text("status", status)
             self._file.flush()
@@ -947,4 +955,7 @@ def _read_results(path: Path) -> Result:
             if not (isinstance(kind, type) and issubclass(kind, FlexmbdError)):
                 kind = errors.SimulationError
             error = kind(str(status.get("message", "")))
+            item, failed_at = status.get("item"), status.get("time")
+            error.item = item if isinstance(item, str) else None
+            error.time = float(failed_at) if isinstance(failed_at, int | float) else None
     return Result(raw, layout, error=error, flexible=flexible)

@@ -479,11 +479,15 @@ def _with_outputs(summary: dict[str, Any], outputs: Mapping[str, str], result: A
     )
 
 
-def _error_entry(error: BaseException) -> dict[str, str]:
+def _error_entry(error: BaseException) -> dict[str, Any]:
+    failed_at = getattr(error, "time", None)
     return {
         "class": type(error).__name__,
         "message": str(error),
         "traceback": "".join(traceback.format_exception(error))[-4000:],
+        # (what and when the error names: a callback's force, the time the run failed)
+        "item": getattr(error, "item", None),
+        "time": float(failed_at) if isinstance(failed_at, int | float) else None,
     }
 
 
