@@ -779,3 +779,15 @@ def test_a_study_extended_and_stopped_is_not_shown_by_its_old_dataset(tmp_path, 
     extended._write_description()  # (as run() does before the cases are dispatched)
     data, _ = fm.load_study(tmp_path / "s")
     assert sorted(data["status"].values) == ["complete", "complete", "pending", "pending"]
+
+
+def test_an_output_named_with_a_slash_is_plotted_into_the_study_folder(tmp_path, worker_path):
+    # "force/mass" made the image's name a path into a folder that does not exist.
+    from flexmbd.study.command import plot_study
+
+    outputs = {"force/mass": "max(reaction:link[force])"}
+    study = fm.Study(PENDULUM_FILE, {"bodies.mass.mass": [1.0, 2.0]}, outputs=outputs,
+                     folder=tmp_path / "s", end_time=0.05, step_size=1e-3)  # fmt: skip
+    study.run(workers=1, progress=False)
+    (path,) = plot_study(tmp_path / "s", "force/mass", None, None)
+    assert path.parent == tmp_path / "s" and path.stat().st_size > 1000

@@ -361,7 +361,10 @@ def plot_study(folder: Path, output: str, against: str | None, image: str | None
     ax.grid(True, alpha=0.3)
     if (len(groups) > 1 and not sampled) or any(status == "failed"):
         ax.legend(fontsize=8)
-    path = Path(image) if image else Path(folder) / f"{output.replace(' ', '_')}_{against}.png"
+    from ..plotting import _slug
+
+    # (an output named "force/mass" was a folder of the file name that does not exist)
+    path = Path(image) if image else Path(folder) / f"{_slug(output)}_{_slug(against)}.png"
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
