@@ -592,3 +592,43 @@ def test_an_inertia_about_a_flat_shells_normal_is_warned_of_with_its_spurious_mo
         if masses[1] is not None:  # (alone in the drilling rotation: the body's first mode)
             assert abs(stated - body.frequencies[0]) < 1e-3 * body.frequencies[0]
         assert body.frequencies[0] < 12.0  # (the plate with the mass at the node: 12.68 Hz)
+
+
+def test_a_runaway_iteration_on_a_tumbling_beam_is_retried_not_accepted():
+    # A free beam of 20 elements tumbling at 20 rad/s with 0.8 kg offset at its tip: modified
+    # Newton (the symmetrized matrix of this strongly gyroscopic body) ran away and the step
+    # was taken as converged, its increments small against the accelerations they reached
+    # (q ~ 1e223), or a residual that was not finite ended the run (NonFiniteError at
+    # t = 0.01 s). Such steps are now retried (with the exact matrix, or shorter): the run
+    # is full Newton's.
+    nodes, elements = pp.straight_beam(1.0, 20)
+    body = pp.build_body(
+        nodes, elements, Material(7e10, 0.33, 2700.0), section=Section.rectangle(0.02, 0.01),
+        reference="clamped", reference_nodes=[0],
+        point_masses={20: (0.8, np.diag([4e-3, 2e-3, 3e-3]), np.array([0.05, 0.05, -0.03]))},
+    )  # fmt: skip
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    system.add_flexible_body(body, angular_velocity=(3.0, 1.0, 20.0), name="beam", condense=False)
+    ends = {}
+    for jacobian in ("modified", "full"):
+        solver = fm.GeneralizedAlpha(jacobian=jacobian, step_control="fixed")
+        ends[jacobian] = fm.simulate(system, 0.05, 1e-3, solver=solver).coordinates[-1]
+    assert np.abs(ends["modified"] - ends["full"]).max() < 1e-6
+
+
+def test_a_body_with_an_offset_mass_is_not_condensed_by_default():
+    # A free beam of 60 elements (360 coordinates: condensed by default) with 0.8 kg offset
+    # 7 cm from its tip, tumbling at 20 rad/s: the condensed solves shrank the steps to
+    # 3e-9 s and diverged (at 2 rad/s and h = 1e-4 they contracted at 0.3 from t = 0, with the
+    # second order of the turn or without); the body is now solved whole by default.
+    nodes, elements = pp.straight_beam(1.0, 60)
+    masses = {60: (0.8, np.diag([4e-3, 2e-3, 3e-3]), np.array([0.05, 0.05, -0.03]))}
+    body = pp.build_body(
+        nodes, elements, Material(7e10, 0.33, 2700.0), section=Section.rectangle(0.02, 0.01),
+        reference="clamped", reference_nodes=[0], point_masses=masses,
+    )  # fmt: skip
+    system = fm.System(gravity=(0.0, -9.81, 0.0))
+    system.add_flexible_body(body, angular_velocity=(3.0, 1.0, 20.0), name="beam")
+    result = fm.simulate(system, 0.03, 1e-3)
+    assert result.success and result.statistics["min_step_size"] > 1e-4
+    assert abs(result.total_energy[-1] / result.total_energy[0] - 1) < 1e-3

@@ -201,6 +201,17 @@ pub fn step(
     if !report.converged {
         return Ok(report);
     }
+    // An iteration whose first increment ran away (a singular symmetrized matrix: a tumbling
+    // beam with an offset mass reached q ~ 1e223) meets the test of increments relative to the
+    // accelerations it reached: a step that moves a coordinate by more than STEP_MOVE_LIMIT
+    // times max(1, |q|) has not converged to the motion.
+    if let Some((k, moved)) = runaway_coordinate(&current.coordinates, &next.coordinates) {
+        report.converged = false;
+        report.worst = k;
+        report.failure = Some(format!("the step moved the coordinate by {moved:.3e} of its size"));
+        cache.step_size = None;
+        return Ok(report);
+    }
     cache.age += 1;
     let max_age = if solvers.is_condensed() { newton.condensed_matrix_age } else { newton.max_matrix_age };
     if cache.age >= max_age {
@@ -215,6 +226,24 @@ pub fn step(
     }
     update_algorithmic_accelerations(model, method, current, next);
     Ok(report)
+}
+
+/// Largest change of a coordinate over one step, relative to max(1, |q|), that a converged
+/// step may make (a body at 1000 m/s near the origin moves 1 m in a step of 1 ms).
+const STEP_MOVE_LIMIT: f64 = 100.0;
+
+/// The coordinate that a step from `before` to `after` moved by more than `STEP_MOVE_LIMIT`
+/// times max(1, its size), and that relative change; None where none did (or a change
+/// is not finite: the time loop names it).
+fn runaway_coordinate(before: &[f64], after: &[f64]) -> Option<(usize, f64)> {
+    let mut worst = None;
+    for (k, (a, b)) in before.iter().zip(after).enumerate() {
+        let moved = (b - a).abs() / a.abs().max(1.0);
+        if moved > STEP_MOVE_LIMIT && worst.map_or(true, |(_, m)| moved > m) {
+            worst = Some((k, moved));
+        }
+    }
+    worst
 }
 
 /// The factorizations of a step's Newton matrix: of its first attempt, and of the exact

@@ -5,7 +5,7 @@
 
 use super::{Factorization, JacobianCache, StepReport};
 use crate::assembly::{assemble, ElasticRows, MatrixCoefficients, Request, StateView};
-use crate::error::Result;
+use crate::error::{FlexmbdError, Result};
 use crate::integrator::settings::NewtonSettings;
 use crate::linear_system::{LinearSolvers, NO_SOLVERS};
 use crate::system::{Model, State, Workspace};
@@ -258,7 +258,16 @@ pub(super) fn iterate(
         };
         let structured_coupling = need_matrix && kind != Factorization::Projection;
         let matrix = need_matrix.then_some(coef);
-        assemble_iterate(model, next, ws, solvers, matrix, structured_coupling, elastic_rows)?;
+        match assemble_iterate(model, next, ws, solvers, matrix, structured_coupling, elastic_rows) {
+            // A residual that is not finite where the iteration has moved the state (an
+            // iteration running away: a tumbling beam with an offset mass, through the
+            // symmetrized matrix) fails the attempt, which is retried; at the predictor it
+            // is the model's, and named.
+            Err(error @ FlexmbdError::NonFinite { .. }) if iteration > 0 => {
+                return Ok(abandon(report, cache, error.to_string()));
+            }
+            result => result?,
+        }
         if need_matrix {
             if let Err(detail) = factorize(model, ws, solvers, kind, &coef, &next.coordinates) {
                 return Ok(abandon(report, cache, format!("singular Newton matrix: {detail}")));
@@ -300,7 +309,11 @@ pub(super) fn iterate(
         );
         report.increment_norm = norm.norm;
         report.worst = norm.worst;
-        if !norm.norm.is_finite() {
+        // (the norm's comparisons pass NaN entries over, and an infinite acceleration makes
+        // it 0: "converged" on a non-finite state, which a tumbling beam with an offset mass
+        // reached through the symmetrized matrix)
+        let finite = largest_acceleration.is_finite() && ws.solution.iter().all(|x| x.is_finite());
+        if !norm.norm.is_finite() || !finite {
             return Ok(abandon(report, cache, "non-finite increment".to_string()));
         }
         let current_matrix = need_matrix || fresh_at_predictor;
