@@ -295,8 +295,14 @@ def test_tables_for_pandas_and_xarray(tmp_path):
     )
     np.testing.assert_array_equal(frame["rod.elastic.3"], result.elastic_coordinates("rod")[:, 3])
     np.testing.assert_array_equal(frame["kinetic_energy"], result.kinetic_energy)
+    # (the strain energy and the power of the non-conservative forces were left out, and
+    # nothing said a failed run's records end early)
+    np.testing.assert_array_equal(frame["strain_energy"], result.strain_energy)
+    np.testing.assert_array_equal(frame["nonconservative_power"], result.nonconservative_power)
+    assert result.strain_energy.max() > 0 and frame.attrs["success"] is True
     data = result.to_xarray()
     np.testing.assert_array_equal(data["coordinates"].to_numpy(), result.coordinates)
+    np.testing.assert_array_equal(data["strain_energy"].to_numpy(), result.strain_energy)
     force = data["reactions"].sel(joint="bearing", component="force y").to_numpy()
     np.testing.assert_array_equal(force, result.reaction_force("bearing")[:, 1])
     assert data["multipliers"].sel(constraint="drive: angle").shape == (len(result),)

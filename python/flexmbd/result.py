@@ -569,6 +569,8 @@ class Result:
             columns[label] = self._sensors[:, k]
         columns["kinetic_energy"] = self.kinetic_energy
         columns["potential_energy"] = self.potential_energy
+        columns["strain_energy"] = self.strain_energy
+        columns["nonconservative_power"] = self.nonconservative_power
         columns["constraint_violation"] = self.constraint_violation
         return columns
 
@@ -592,12 +594,15 @@ class Result:
     def to_dataframe(self) -> Any:
         """The named time series as a pandas DataFrame indexed by time (s); columns like
         ``"crank.position.x"``, ``"bearing.reaction_force.y"``, ``"rod.elastic.3"``,
-        ``"tip.z"`` (a sensor), ``"kinetic_energy"``. Needs pandas
-        (``pip install flexmbd[data]``)."""
+        ``"tip.z"`` (a sensor), ``"kinetic_energy"``, ``"strain_energy"``,
+        ``"nonconservative_power"``; ``frame.attrs["success"]`` is False for a failed or
+        interrupted run (its records end early). Needs pandas (``pip install flexmbd[data]``)."""
         import pandas as pd
 
         frame = pd.DataFrame(self._columns(), index=pd.Index(self.time, name="time"))
-        frame.attrs["units"] = "SI (m, kg, s, rad, N, N m, J)"
+        frame.attrs["units"] = "SI (m, kg, s, rad, N, N m, J, W)"
+        # (a failed or interrupted run's records end before its end time)
+        frame.attrs["success"] = self.success
         return frame
 
     def to_xarray(self) -> Any:
@@ -630,6 +635,8 @@ class Result:
             "sensors": (("time", "sensor_value"), self._sensors),
             "kinetic_energy": (("time",), self.kinetic_energy),
             "potential_energy": (("time",), self.potential_energy),
+            "strain_energy": (("time",), self.strain_energy),
+            "nonconservative_power": (("time",), self.nonconservative_power),
             "constraint_violation": (("time",), self.constraint_violation),
         }
         coords = {
