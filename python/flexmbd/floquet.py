@@ -352,15 +352,22 @@ def _monodromy(
 
     n = chart.size
 
-    def run(start: State) -> Array:
+    def run(start: State, shown: bool = False) -> Array:
         result = simulate(
-            model, end, step_size, initial_state=start, solver=solver, output_interval=period
+            model,
+            end,
+            step_size,
+            initial_state=start,
+            solver=solver,
+            output_interval=period,
+            progress=True if shown else None,
         )
         return chart.local(result.state(-1))
 
     # Periodic: every coordinate back (the drivers' too: a wrong period leaves the hanging
     # pendulum as it was and its shaken support elsewhere), relative to max(1, its size).
-    reference = run(chart.start)
+    # (with a progress bar, this first run shows one too: with many steps it was silent)
+    reference = run(chart.start, shown=progress is True)
     start = chart.local(chart.start)
     change = np.abs(reference - start) / np.maximum(1.0, np.abs(start))
     worst = int(np.argmax(change)) if len(change) else 0
