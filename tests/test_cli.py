@@ -910,3 +910,39 @@ def test_info_of_a_body_file_lists_its_point_masses(tmp_path, capsys):
     assert (
         "point masses: 2 (2.3 kg), 1 with a rotary inertia or an offset; at node ids 11, 6" in out
     )
+
+
+REACH = """\
+name: reach
+description: a pendulum driven sideways past its reach at t = 0.5 s
+gravity: [0.0, -9.81, 0.0]
+functions:
+  slide: {type: polynomial, coefficients: [0.5, 1.0]}
+bodies:
+  - {name: mass, type: point-mass, mass: 1.0, position: [0.5, -0.8660254037844386, 0.0]}
+markers:
+  - {name: pivot, body: ground}
+  - {name: along x, body: ground, orientation: {axis: y, angle: 1.5707963267948966}}
+  - {name: bob, body: mass}
+joints:
+  - {name: link, type: distance, marker1: pivot, marker2: bob, distance: 1.0}
+  - {name: push, type: translation-driver, marker1: along x, marker2: bob, displacement: slide}
+simulation: {end_time: 1.0, step_size: 1.0e-3, output_interval: 0.01}
+"""
+
+
+def test_a_failed_run_plots_the_records_it_kept(tmp_path, monkeypatch, capsys):
+    # A run that failed (the driver pushes the pendulum past its reach at t = 0.5 s) kept its
+    # records in the file but wrote no plot: the plot of how it got there is made now.
+    from flexmbd.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "reach.yaml").write_text(REACH)
+    argv = ["run", "reach.yaml", "-q", "--no-animation", "--no-vtu"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "failed: Newton iteration diverged at t = 0.5" in err or "t = 0.499" in err
+    assert "plot of the records: reach.png" in err
+    assert (tmp_path / "reach.png").stat().st_size > 1000
+    assert main([*argv, "--no-plot", "-o", "again.h5"]) == 1
+    assert not (tmp_path / "again.png").exists()

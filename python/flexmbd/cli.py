@@ -199,6 +199,22 @@ def _model_stem(stem: str) -> str:
     return f"{stem}_model" if stem in EXAMPLES else stem
 
 
+def _plot_failed_run(results: Path, plot: Path | None, quantities: Any) -> None:
+    """The plot of a failed run's records (to see how it got there), as a finished run's;
+    a plot that cannot be made is said, the run's failure stays the exit status."""
+    from .plotting import plot_result
+    from .results_file import read_results
+
+    try:
+        written = plot_result(
+            read_results(results), plot or results.with_suffix(".png"), quantities=quantities
+        )
+    except (FlexmbdError, OSError, ValueError) as error:
+        print(f"  no plot of the records: {error}", file=sys.stderr)
+        return
+    print(f"  plot of the records: {', '.join(str(p) for p in written)}", file=sys.stderr)
+
+
 def _kept(error: FlexmbdError) -> tuple[Path, int, str] | None:
     """Where a stopped run's records are, how many, and up to when (from its file); None for
     a run refused before it wrote any (the file of an earlier run at the same path, if any,
@@ -399,6 +415,8 @@ def _run(args: argparse.Namespace) -> int:
         if kept is not None:
             where, count, last = kept
             print(f"  {count} records up to {last} kept in {where}", file=sys.stderr)
+            if count >= 2 and not args.no_plot:
+                _plot_failed_run(where, Path(args.plot) if args.plot else None, job.plots)
         return 1
     # The records were kept only in the file (memory flat on any run length): read them.
     with status("  reading the results", enabled=not args.quiet):
