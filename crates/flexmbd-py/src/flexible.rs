@@ -77,6 +77,25 @@ fn indices_and_map(
     Ok((indices, m.nrows(), m.iter().copied().collect()))
 }
 
+/// A tuple of `len` items whose first two are (indices (n_l,), map (`rows`, n_l)): the tuple,
+/// the indices and the map (row-major); `bad()` for anything else.
+fn fixed_map_tuple<'py>(
+    obj: &Bound<'py, PyAny>,
+    len: usize,
+    rows: usize,
+    bad: impl Fn() -> PyErr,
+) -> PyResult<(Bound<'py, PyTuple>, Vec<usize>, Vec<f64>)> {
+    let t = obj.cast::<PyTuple>().map_err(|_| bad())?;
+    if t.len() != len {
+        return Err(bad());
+    }
+    let (indices, found, map) = indices_and_map(t, &bad)?;
+    if found != rows {
+        return Err(bad());
+    }
+    Ok((t.clone(), indices, map))
+}
+
 /// A stiffening element from a beam's `(indices, map (12, n_l), length, axial_stiffness)` or
 /// a shell's `(indices, map (n_e, n_l), linear (m, n_e), slopes (m, n_e, n_e), stiffness
 /// (m, m))` (see `flexmbd_core::body::stiffening`).
@@ -134,14 +153,7 @@ fn attached_mass(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<AttachedMass> {
              tuples",
         )
     };
-    let t = obj.cast::<PyTuple>().map_err(|_| bad())?;
-    if t.len() != 5 {
-        return Err(bad());
-    }
-    let (indices, rows, map) = indices_and_map(t, bad)?;
-    if rows != 6 {
-        return Err(bad());
-    }
+    let (t, indices, map) = fixed_map_tuple(obj, 5, 6, bad)?;
     let masses: PyReadonlyArray1<f64> = t.get_item(3)?.extract()?;
     let offsets: PyReadonlyArray2<f64> = t.get_item(4)?.extract()?;
     let (masses, offsets) = (masses.as_array(), offsets.as_array());
@@ -166,14 +178,7 @@ fn corotational_element(obj: &Bound<'_, PyAny>, item: &str) -> PyResult<Corotati
             "co-rotational beam elements are (indices, map (12, n_l), length, stiffness (12, 12)) tuples",
         )
     };
-    let t = obj.cast::<PyTuple>().map_err(|_| bad())?;
-    if t.len() != 4 {
-        return Err(bad());
-    }
-    let (indices, rows, map) = indices_and_map(t, bad)?;
-    if rows != 12 {
-        return Err(bad());
-    }
+    let (t, indices, map) = fixed_map_tuple(obj, 4, 12, bad)?;
     let stiffness: PyReadonlyArray2<f64> = t.get_item(3)?.extract()?;
     if stiffness.as_array().shape() != [12, 12] {
         return Err(bad());
