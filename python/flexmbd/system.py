@@ -332,8 +332,6 @@ def mass_points(
 
     Raises `InvalidParameterError` for a mass that is not a finite number, an inertia that
     is not a finite symmetric (3, 3) matrix or an offset that is not three finite numbers."""
-    from ._checks import number, numbers_array
-
     mass = number(mass, "mass")
     inertia = numbers_array(inertia, "inertia")
     offset = numbers_array(offset, "offset")

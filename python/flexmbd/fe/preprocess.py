@@ -279,8 +279,11 @@ def _warn_of_drilling_inertia(
         return
     others = [np.asarray(c).ravel() for k, c in elements.items() if k not in SHELL_ELEMENTS]
     held = np.unique(np.concatenate(others)) if others else np.zeros(0, dtype=np.int64)
+    carrying = np.array([entry[0] for entry in nodal.point_masses])
     normals: dict[int, list[NDArray[np.float64]]] = {}
     for conn in shells:
+        # (only the shells at the masses' nodes)
+        conn = conn[np.isin(conn, carrying).any(axis=1)]
         x = nodes[conn]
         normal = (
             np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])

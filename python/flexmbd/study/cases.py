@@ -187,11 +187,11 @@ def _settings_of(built: Any) -> dict[str, Any]:
     return settings
 
 
-def _canonical(value: Any) -> str:
+def _canonical(value: Any, depth: int = 0) -> str:
     """A stable text of parameter values and settings for hashing (arrays by their bytes,
     not their repr, which shows 8 digits and elides long ones; functions by
-    :func:`_callable_text`)."""
-    return json.dumps(value, sort_keys=True, default=_value_text)
+    :func:`_callable_text`, `depth` deep in a function's text)."""
+    return json.dumps(value, sort_keys=True, default=lambda v: _value_text(v, depth))
 
 
 def _value_text(value: Any, depth: int = 0) -> str:
@@ -221,7 +221,7 @@ def _callable_text(function: Any, depth: int = 0) -> str:
         return f"{getattr(function, '__qualname__', type(function).__qualname__)}"
 
     def text(value: Any) -> str:
-        return json.dumps(value, sort_keys=True, default=lambda v: _value_text(v, depth + 1))
+        return _canonical(value, depth + 1)
 
     if isinstance(function, functools.partial):
         inner = _callable_text(function.func, depth + 1)
